@@ -1,0 +1,98 @@
+#include "aos/image/image.h"
+
+#include <algorithm>
+#include <cstring>
+
+#include "aos/util/error.h"
+
+namespace aos {
+
+size_t PixelTypeSize(PixelType type) {
+  switch (type) {
+    case PixelType::kU8: return 1;
+    case PixelType::kU16: return 2;
+    case PixelType::kU32: return 4;
+    case PixelType::kF32: return 4;
+  }
+  return 0;
+}
+
+const char* PixelTypeName(PixelType type) {
+  switch (type) {
+    case PixelType::kU8: return "uint8";
+    case PixelType::kU16: return "uint16";
+    case PixelType::kU32: return "uint32";
+    case PixelType::kF32: return "float32";
+  }
+  return "?";
+}
+
+Image::Image(int width, int height, int channels, PixelType type, int border)
+    : width_(width), height_(height), channels_(channels), border_(border), type_(type) {
+  if (width <= 0 || height <= 0) {
+    ThrowInvalid("image: width and height must be positive (got " + std::to_string(width) + "x" +
+                 std::to_string(height) + ")");
+  }
+  if (channels < 1 || channels > 4) {
+    ThrowInvalid("image: channels must be 1..4 (got " + std::to_string(channels) + ")");
+  }
+  if (border < 0) ThrowInvalid("image: border must be >= 0");
+  row_stride_ = static_cast<ptrdiff_t>(width + 2 * border) * channels;
+  bytes_ = static_cast<size_t>(row_stride_) * (height + 2 * border) * PixelTypeSize(type);
+  data_.reset(new unsigned char[bytes_]());
+}
+
+size_t Image::PixelBytes() const {
+  return static_cast<size_t>(width_) * height_ * channels_ * PixelTypeSize(type_);
+}
+
+void Image::CopyFrom(const void* src, ptrdiff_t src_row_stride) {
+  const size_t value_size = PixelTypeSize(type_);
+  const size_t row_bytes = static_cast<size_t>(width_) * channels_ * value_size;
+  const auto* source = static_cast<const unsigned char*>(src);
+  for (int y = 0; y < height_; ++y) {
+    std::memcpy(RawAt(0, y), source + static_cast<ptrdiff_t>(y) * src_row_stride * value_size,
+                row_bytes);
+  }
+  FillBorder();
+}
+
+void Image::CopyTo(void* dst, ptrdiff_t dst_row_stride) const {
+  const size_t value_size = PixelTypeSize(type_);
+  const size_t row_bytes = static_cast<size_t>(width_) * channels_ * value_size;
+  auto* destination = static_cast<unsigned char*>(dst);
+  for (int y = 0; y < height_; ++y) {
+    std::memcpy(destination + static_cast<ptrdiff_t>(y) * dst_row_stride * value_size,
+                RawAt(0, y), row_bytes);
+  }
+}
+
+void Image::FillBorder() {
+  if (border_ == 0 || empty()) return;
+  const size_t pixel_bytes = channels_ * PixelTypeSize(type_);
+  // Left and right columns of every image row.
+  for (int y = 0; y < height_; ++y) {
+    for (int b = 1; b <= border_; ++b) {
+      std::memcpy(RawAt(-b, y), RawAt(0, y), pixel_bytes);
+      std::memcpy(RawAt(width_ - 1 + b, y), RawAt(width_ - 1, y), pixel_bytes);
+    }
+  }
+  // Whole rows above and below, corners included.
+  const size_t full_row_bytes = static_cast<size_t>(row_stride_) * PixelTypeSize(type_);
+  for (int b = 1; b <= border_; ++b) {
+    std::memcpy(RawAt(-border_, -b), RawAt(-border_, 0), full_row_bytes);
+    std::memcpy(RawAt(-border_, height_ - 1 + b), RawAt(-border_, height_ - 1), full_row_bytes);
+  }
+}
+
+double Image::Value(int x, int y, int channel) const {
+  switch (type_) {
+    case PixelType::kU8: return At<uint8_t>(x, y)[channel];
+    case PixelType::kU16: return At<uint16_t>(x, y)[channel];
+    case PixelType::kU32: return At<uint32_t>(x, y)[channel];
+    case PixelType::kF32: return At<float>(x, y)[channel];
+  }
+  return 0.0;
+}
+
+}  // namespace aos

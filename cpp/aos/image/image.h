@@ -1,0 +1,83 @@
+#pragma once
+// Images in their native pixel type (8-bit, 16-bit, 32-bit unsigned, 32-bit float), interleaved
+// channels, rows top to bottom. Views of a light field are kept this way rather than as float
+// copies, so a light field costs what its decoded frames cost.
+//
+// Storage may carry a border of `border` pixels around the image (views use border 1, filled by
+// replicating the edge pixels) so that bilinear sampling anywhere in the continuous image area
+// [0, width] x [0, height] needs no bounds checks: its taps fall in [-1, width] x [-1, height].
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <string>
+
+namespace aos {
+
+enum class PixelType { kU8, kU16, kU32, kF32 };
+
+// Bytes per channel value.
+size_t PixelTypeSize(PixelType type);
+// "uint8", "uint16", "uint32", "float32" (also the numpy dtype name).
+const char* PixelTypeName(PixelType type);
+
+class Image {
+ public:
+  Image() = default;
+  // A zero-filled image. Throws std::invalid_argument for non-positive sizes or channels
+  // outside 1..4.
+  Image(int width, int height, int channels, PixelType type, int border = 0);
+
+  bool empty() const { return width_ == 0; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  int channels() const { return channels_; }
+  int border() const { return border_; }
+  PixelType type() const { return type_; }
+  // Elements (not bytes) from one row to the next, border included.
+  ptrdiff_t row_stride() const { return row_stride_; }
+  // Bytes of the pixels themselves (width * height * channels * value size), border excluded.
+  size_t PixelBytes() const;
+  // Bytes held, border included.
+  size_t AllocatedBytes() const { return bytes_; }
+
+  // Pointer to channel 0 of pixel (x, y); -border <= x < width + border, likewise y.
+  template <typename T>
+  T* At(int x, int y) {
+    return reinterpret_cast<T*>(data_.get()) + Offset(x, y);
+  }
+  template <typename T>
+  const T* At(int x, int y) const {
+    return reinterpret_cast<const T*>(data_.get()) + Offset(x, y);
+  }
+  void* RawAt(int x, int y) { return data_.get() + Offset(x, y) * PixelTypeSize(type_); }
+  const void* RawAt(int x, int y) const {
+    return data_.get() + Offset(x, y) * PixelTypeSize(type_);
+  }
+
+  // Copies interleaved pixels (rows of width * channels values, `src_row_stride` values apart)
+  // into the image and refreshes the border.
+  void CopyFrom(const void* src, ptrdiff_t src_row_stride);
+  // Copies the pixels (without border) into `dst`, rows `dst_row_stride` values apart.
+  void CopyTo(void* dst, ptrdiff_t dst_row_stride) const;
+  // Replicates the edge pixels into the border (call after writing pixels directly).
+  void FillBorder();
+  // Channel value at pixel (x, y) as double, for tests and tools (not for inner loops).
+  double Value(int x, int y, int channel = 0) const;
+
+ private:
+  ptrdiff_t Offset(int x, int y) const {
+    return (static_cast<ptrdiff_t>(y) + border_) * row_stride_ +
+           (static_cast<ptrdiff_t>(x) + border_) * channels_;
+  }
+
+  int width_ = 0;
+  int height_ = 0;
+  int channels_ = 0;
+  int border_ = 0;
+  PixelType type_ = PixelType::kU8;
+  ptrdiff_t row_stride_ = 0;
+  size_t bytes_ = 0;
+  std::shared_ptr<unsigned char[]> data_;  // shared so copies of a light field are cheap
+};
+
+}  // namespace aos

@@ -1,0 +1,233 @@
+#include "aos/image/image_io.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <filesystem>
+#include <vector>
+
+#include <OpenImageIO/imageio.h>
+
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
+
+namespace aos {
+namespace {
+
+namespace oiio = OIIO;
+
+PixelType NativeType(const oiio::TypeDesc& format) {
+  if (format == oiio::TypeDesc::UINT8) return PixelType::kU8;
+  if (format == oiio::TypeDesc::UINT16) return PixelType::kU16;
+  return PixelType::kF32;
+}
+
+oiio::TypeDesc ToTypeDesc(PixelType type) {
+  switch (type) {
+    case PixelType::kU8: return oiio::TypeDesc::UINT8;
+    case PixelType::kU16: return oiio::TypeDesc::UINT16;
+    case PixelType::kU32: return oiio::TypeDesc::UINT32;
+    case PixelType::kF32: return oiio::TypeDesc::FLOAT;
+  }
+  return oiio::TypeDesc::UNKNOWN;
+}
+
+std::string LowerExtension(const std::string& path) {
+  std::string extension = std::filesystem::path(path).extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return extension;
+}
+
+std::unique_ptr<oiio::ImageInput> Open(const std::string& path) {
+  std::error_code error;
+  if (!std::filesystem::exists(path, error)) ThrowInvalid(path + ": image file not found");
+  auto input = oiio::ImageInput::open(path);
+  if (!input) {
+    std::string reason = oiio::geterror();
+    if (reason.empty()) reason = "unknown reason";
+    ThrowInvalid(path + ": cannot read image (" + reason + ")");
+  }
+  return input;
+}
+
+}  // namespace
+
+ImageFileInfo ReadImageInfo(const std::string& path) {
+  auto input = Open(path);
+  const oiio::ImageSpec& spec = input->spec();
+  ImageFileInfo info;
+  info.width = spec.width;
+  info.height = spec.height;
+  info.channels = spec.nchannels;
+  info.type = NativeType(spec.format);
+  input->close();
+  return info;
+}
+
+Image ReadImage(const std::string& path, int border) {
+  auto input = Open(path);
+  const oiio::ImageSpec& spec = input->spec();
+  if (spec.nchannels < 1 || spec.nchannels > 4) {
+    ThrowInvalid(path + ": image has " + std::to_string(spec.nchannels) +
+                 " channels; aos reads 1 to 4");
+  }
+  if (spec.width <= 0 || spec.height <= 0) ThrowInvalid(path + ": image is empty");
+  Image image(spec.width, spec.height, spec.nchannels, NativeType(spec.format), border);
+  const oiio::stride_t value_size = static_cast<oiio::stride_t>(PixelTypeSize(image.type()));
+  const oiio::stride_t x_stride = value_size * image.channels();
+  const oiio::stride_t y_stride = value_size * image.row_stride();
+  if (!input->read_image(0, 0, 0, spec.nchannels, ToTypeDesc(image.type()), image.RawAt(0, 0),
+                         x_stride, y_stride)) {
+    std::string reason = input->geterror();
+    if (reason.empty()) reason = "unknown reason";
+    ThrowInvalid(path + ": cannot decode image (" + reason + ")");
+  }
+  input->close();
+  image.FillBorder();
+  return image;
+}
+
+SampleType ParseSampleType(const std::string& name) {
+  if (name == "auto") return SampleType::kAuto;
+  if (name == "uint8" || name == "8") return SampleType::kU8;
+  if (name == "uint16" || name == "16") return SampleType::kU16;
+  if (name == "uint32") return SampleType::kU32;
+  if (name == "float32" || name == "float" || name == "32f") return SampleType::kF32;
+  ThrowInvalid("sample_type: expected auto, uint8, uint16, uint32 or float32 (got '" + name + "')");
+}
+
+const char* SampleTypeName(SampleType type) {
+  switch (type) {
+    case SampleType::kAuto: return "auto";
+    case SampleType::kU8: return "uint8";
+    case SampleType::kU16: return "uint16";
+    case SampleType::kU32: return "uint32";
+    case SampleType::kF32: return "float32";
+  }
+  return "?";
+}
+
+void WriteImageOptions::Check() const {
+  if (!std::isfinite(range_min) || !std::isfinite(range_max) || !(range_max > range_min)) {
+    ThrowInvalid("range: range_max must be greater than range_min and both finite (got [" +
+                 FormatNumber(range_min) + ", " + FormatNumber(range_max) + "])");
+  }
+}
+
+SampleType ResolveSampleType(const std::string& path, const Image& image,
+                             const WriteImageOptions& options) {
+  const std::string extension = LowerExtension(path);
+  const bool float_format = extension == ".exr" || extension == ".tif" || extension == ".tiff" ||
+                            extension == ".pfm" || extension == ".hdr";
+  const bool tiff = extension == ".tif" || extension == ".tiff";
+  SampleType type = options.sample_type;
+  if (type == SampleType::kAuto) {
+    switch (image.type()) {
+      case PixelType::kF32: type = float_format ? SampleType::kF32 : SampleType::kU8; break;
+      case PixelType::kU8: type = SampleType::kU8; break;
+      case PixelType::kU16: type = SampleType::kU16; break;
+      case PixelType::kU32:
+        type = tiff ? SampleType::kU32 : (float_format ? SampleType::kF32 : SampleType::kU16);
+        break;
+    }
+  }
+  if (extension == ".exr" && type != SampleType::kF32) {
+    ThrowInvalid(path + ": EXR files hold float samples; use .png or .tif for " +
+                 SampleTypeName(type));
+  }
+  if (extension == ".png" && type != SampleType::kU8 && type != SampleType::kU16) {
+    ThrowInvalid(path + ": PNG files hold 8- or 16-bit samples, not " +
+                 std::string(SampleTypeName(type)) + "; use .tif or .exr");
+  }
+  if ((extension == ".jpg" || extension == ".jpeg") && type != SampleType::kU8) {
+    ThrowInvalid(path + ": JPEG files hold 8-bit samples only");
+  }
+  return type;
+}
+
+void WriteImage(const std::string& path, const Image& image, const WriteImageOptions& options) {
+  if (image.empty()) ThrowInvalid(path + ": nothing to write (empty image)");
+  options.Check();
+  const SampleType sample_type = ResolveSampleType(path, image, options);
+  const int width = image.width(), height = image.height(), channels = image.channels();
+  const size_t count = static_cast<size_t>(width) * height * channels;
+
+  // Convert into a contiguous buffer of the file's sample type.
+  std::vector<unsigned char> buffer;
+  oiio::TypeDesc file_type;
+  const bool integer_image = image.type() != PixelType::kF32;
+  auto for_each_value = [&](auto&& store) {
+    size_t i = 0;
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) {
+        for (int c = 0; c < channels; ++c) store(i++, image.Value(x, y, c));
+      }
+    }
+  };
+  auto to_codes = [&](auto code_type_tag, double max_code) {
+    using Code = decltype(code_type_tag);
+    buffer.resize(count * sizeof(Code));
+    Code* out = reinterpret_cast<Code*>(buffer.data());
+    // Integer images already in a type that fits keep their values unchanged.
+    const bool keep = integer_image && image.type() != PixelType::kU32 &&
+                      PixelTypeSize(image.type()) <= sizeof(Code);
+    const bool keep_counts = image.type() == PixelType::kU32;
+    const double scale = max_code / (options.range_max - options.range_min);
+    for_each_value([&](size_t i, double value) {
+      double code;
+      if (keep) {
+        code = value;
+      } else if (keep_counts) {
+        if (value > max_code) {
+          ThrowInvalid(path + ": value " + FormatNumber(value) + " does not fit in " +
+                       SampleTypeName(sample_type) + "; write a .tif (uint32) or .exr instead");
+        }
+        code = value;
+      } else {
+        code = std::isfinite(value) ? std::round((value - options.range_min) * scale) : 0.0;
+        code = std::clamp(code, 0.0, max_code);
+      }
+      out[i] = static_cast<Code>(code);
+    });
+  };
+  switch (sample_type) {
+    case SampleType::kU8: to_codes(uint8_t{}, 255.0); file_type = oiio::TypeDesc::UINT8; break;
+    case SampleType::kU16: to_codes(uint16_t{}, 65535.0); file_type = oiio::TypeDesc::UINT16; break;
+    case SampleType::kU32: {
+      if (image.type() != PixelType::kU32) {
+        ThrowInvalid(path + ": uint32 output is for count maps (uint32 images) only");
+      }
+      to_codes(uint32_t{}, 4294967295.0);
+      file_type = oiio::TypeDesc::UINT32;
+      break;
+    }
+    case SampleType::kF32:
+    case SampleType::kAuto: {
+      buffer.resize(count * sizeof(float));
+      float* out = reinterpret_cast<float*>(buffer.data());
+      for_each_value([&](size_t i, double value) { out[i] = static_cast<float>(value); });
+      file_type = oiio::TypeDesc::FLOAT;
+      break;
+    }
+  }
+
+  PendingFile pending(path);
+  auto output = oiio::ImageOutput::create(pending.TempPath());
+  if (!output) {
+    ThrowInvalid(path + ": no image writer for this file extension (" + oiio::geterror() + ")");
+  }
+  oiio::ImageSpec spec(width, height, channels, file_type);
+  if (!options.description.empty()) spec.attribute("ImageDescription", options.description);
+  if (LowerExtension(path) == ".exr") spec.attribute("compression", "zip");
+  if (!output->open(pending.TempPath(), spec) ||
+      !output->write_image(file_type, buffer.data()) || !output->close()) {
+    std::string reason = output->geterror();
+    ThrowInvalid(path + ": cannot write image (" + (reason.empty() ? "unknown reason" : reason) +
+                 ")");
+  }
+  output.reset();
+  pending.Commit();
+}
+
+}  // namespace aos

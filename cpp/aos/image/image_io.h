@@ -1,0 +1,56 @@
+#pragma once
+// Reading and writing image files through OpenImageIO (PNG, TIFF, EXR, JPEG, ...).
+//
+// Reading keeps the file's native type where aos has one (8-bit, 16-bit, 32-bit float); other
+// types (half, 32-bit int, double) are converted to 32-bit float. 1 to 4 channels.
+//
+// Writing: float images go to EXR/TIFF as 32-bit float unchanged; integer outputs (PNG/TIFF 8 or
+// 16 bit) use the stated normalisation code = round((value - range_min) / (range_max - range_min)
+// * max_code), clamped to [0, max_code]; integer images written to an integer type of at least
+// their size are stored unchanged. Writes go to a temporary file renamed into place on success.
+#include <string>
+
+#include "aos/image/image.h"
+
+namespace aos {
+
+struct ImageFileInfo {
+  int width = 0;
+  int height = 0;
+  int channels = 0;
+  PixelType type = PixelType::kU8;  // type the image will have once read
+};
+
+// Header only. Throws std::invalid_argument "<path>: <reason>" if unreadable.
+ImageFileInfo ReadImageInfo(const std::string& path);
+
+// Reads the whole image with `border` replicated border pixels (see Image).
+Image ReadImage(const std::string& path, int border = 0);
+
+enum class SampleType { kAuto, kU8, kU16, kU32, kF32 };
+// "auto", "uint8", "uint16", "uint32", "float32"; throws std::invalid_argument for other names.
+SampleType ParseSampleType(const std::string& name);
+const char* SampleTypeName(SampleType type);
+
+struct WriteImageOptions {
+  // Sample type in the file. kAuto: float32 for .exr/.tif/.tiff/.pfm, uint8 for other formats,
+  // and for integer images (e.g. count maps) their own type where the format allows it.
+  SampleType sample_type = SampleType::kAuto;
+  // Value mapped to code 0 when converting a float image to integer samples.
+  double range_min = 0.0;
+  // Value mapped to the largest code (255 or 65535); must be > range_min.
+  double range_max = 255.0;
+  // Free text stored in the file's ImageDescription (e.g. how it was normalised).
+  std::string description;
+  void Check() const;
+};
+
+// Writes `image` to `path` (format from the extension). Throws std::invalid_argument naming the
+// file on failure; no partial file is left behind.
+void WriteImage(const std::string& path, const Image& image, const WriteImageOptions& options = {});
+
+// The sample type WriteImage will use for `image` at `path` under `options`.
+SampleType ResolveSampleType(const std::string& path, const Image& image,
+                             const WriteImageOptions& options);
+
+}  // namespace aos

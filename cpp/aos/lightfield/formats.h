@@ -1,0 +1,76 @@
+#pragma once
+// Light-field files.
+//
+// 1. The aos format (JSON, written by WriteLightField):
+//   {
+//     "format": "aos-lightfield", "version": 1,
+//     "origin": [x, y, z],                 // world position of the local zero, double (e.g. UTM)
+//     "cameras": {"cam0": {"model": "pinhole", "width": 512, "height": 512,
+//                          "fx": 535.7, "fy": 535.7, "cx": 256, "cy": 256}},
+//     "views": [{"image": "views/0000.png",  // relative to the JSON file's folder, or absolute
+//                "camera": "cam0",
+//                "cam_from_world": {"rotation": [[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]],
+//                                   "translation": [t0, t1, t2]}}]
+//   }
+//   Poses map the local frame (world - origin) to OpenCV camera axes, metres. A camera may give
+//   "fov_deg" (horizontal, square pixels, centred principal point) instead of fx/fy/cx/cy.
+//
+// 2. The JKU-ICG/AOS poses.json: {"images": [{"imagefile": "a.tiff", "M3x4": [[...], [...], [...]]}]}
+//   M3x4 is the world-to-camera matrix [R | t] (numbers or numeric strings), OpenCV axes. The
+//   file has no intrinsics: LoadOptions::fov_deg gives the horizontal field of view and the image
+//   size comes from the frames (principal point at the centre). A frame is looked up by its name,
+//   then by the same stem with another image extension (.png, .tif, .tiff, .jpg, .jpeg, .exr); a
+//   note says which file was used. The frames folder defaults to ../images beside the poses
+//   folder, then the poses file's own folder.
+//
+// Errors name the file, the entry and the field: "poses.json: image 17 (B05.tiff): M3x4:
+// rotation is not orthonormal (max |R^T R - I| = 0.3)".
+#include <string>
+#include <vector>
+
+#include "aos/lightfield/lightfield.h"
+#include "aos/util/progress.h"
+
+namespace aos {
+
+struct LoadOptions {
+  // Horizontal field of view of the frames in degrees, (0, 180); required for JKU poses.json,
+  // ignored for the aos format (which stores its cameras). 0 = not given.
+  double fov_deg = 0.0;
+  // Folder holding the frames of a JKU poses.json; empty = look beside the poses file (see above).
+  std::string images_dir;
+  // Frames are decoded when true; false loads poses and cameras only (images stay empty).
+  bool load_images = true;
+  // Worker threads for decoding frames; -1 = all cores.
+  int num_threads = -1;
+  void Check() const;
+};
+
+struct LoadResult {
+  LightField light_field;
+  std::string format;               // "aos" or "jku"
+  std::vector<std::string> notes;   // things the user should know (e.g. substituted frame names)
+};
+
+// Loads a light field, detecting the format from the JSON content.
+LoadResult LoadLightField(const std::string& path, const LoadOptions& options = {},
+                          ProgressSink* progress = nullptr);
+
+struct WriteLightFieldOptions {
+  // Folder (relative to the JSON file's folder) where view images are written when they have no
+  // image_path; views with an image_path are referenced, not rewritten.
+  std::string images_subdir = "views";
+  // Image file extension for written views.
+  std::string image_extension = ".png";
+};
+
+// Writes `light_field` in the aos format to `path` (and frames without a source file into
+// images_subdir). Atomic per file; refuses to overwrite any view's source image.
+void WriteLightField(const std::string& path, const LightField& light_field,
+                     const WriteLightFieldOptions& options = {});
+
+// Parses a number that may be written as a JSON number or a numeric string; throws
+// std::invalid_argument "<where>: <text> is not a number" otherwise (exposed for tests).
+double ParseNumberText(const std::string& text, const std::string& where);
+
+}  // namespace aos

@@ -1,0 +1,48 @@
+#pragma once
+// A light field: views, each an image with a pinhole camera and a cam_from_world pose.
+//
+// World frame. Poses and every geometric input of the renderer (virtual camera, focal plane) are
+// in the light field's local frame, metres. `origin` is where that local frame's zero lies in
+// the user's world (geo-referenced) coordinates, e.g. UTM easting/northing/altitude; it is kept
+// in double precision and never enters float arithmetic: world = origin + local. Poses far from
+// zero (millions of metres) also work, since the renderer composes transforms in double precision
+// relative to the virtual camera, but a local origin keeps files readable.
+#include <string>
+#include <vector>
+
+#include "aos/geometry/pinhole.h"
+#include "aos/geometry/rigid.h"
+#include "aos/image/image.h"
+
+namespace aos {
+
+struct View {
+  std::string name;        // a label for messages (file name for loaded views)
+  std::string image_path;  // source file, if the view was loaded from one (else empty)
+  PinholeCamera camera;    // must match the image size
+  Rigid3d cam_from_world;  // local frame -> camera (OpenCV axes)
+  Image image;             // native pixel type, border 1 (see Image)
+};
+
+struct LightField {
+  Vec3d origin{0.0};  // world position of the local frame's zero (double; e.g. UTM)
+  std::vector<View> views;
+
+  // Total bytes of the decoded frames (width * height * channels * value size, summed).
+  size_t ImageBytes() const;
+};
+
+// Builds a view from an image, checking it. The image is copied with a replicated border if it
+// has none. Throws std::invalid_argument naming `name` and the field for a bad camera, a camera
+// that disagrees with the image size, or an invalid pose.
+View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_from_world,
+              Image image, std::string image_path = "");
+
+// Checks one view (camera fields, camera vs image size, pose finite and orthonormal, image
+// present with border >= 1). `where` prefixes the message, e.g. "lf.json: view 3 (a.png)".
+void CheckView(const View& view, const std::string& where);
+
+// Checks every view and that all views share one channel count.
+void CheckLightField(const LightField& light_field, const std::string& where = "light field");
+
+}  // namespace aos

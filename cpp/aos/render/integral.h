@@ -1,0 +1,82 @@
+#pragma once
+// Integral rendering (Eq. 1 of the AOS paper): for every pixel of a virtual camera, intersect its
+// ray with the focal plane, project that focal point into every selected view, sample the view
+// bilinearly and average over the views that actually see the point.
+//
+// Contract
+// - Inputs are in the light field's local frame (see lightfield.h), metres; the pixel convention
+//   is pinhole.h's (pixel centres at +0.5). The virtual camera is a pinhole with square pixels and
+//   principal point at the image centre; fov_deg is its horizontal field of view.
+// - A view contributes to a pixel when the focal point X (a) lies in front of the view (depth > 0)
+//   and projects inside its image area [0, width] x [0, height] (edges replicated for the
+//   bilinear taps), (b) is not seen at a grazing angle: the ray from X to the view centre makes
+//   an angle of at least min_view_angle_deg with the focal plane, and (c) passes the aperture:
+//   the line from X through the view centre crosses the virtual camera's lens plane (through its
+//   centre, perpendicular to its optical axis) inside the disk of radius aperture_radius around
+//   the virtual camera centre. aperture_radius = infinity admits every view; 0 is a pinhole: each
+//   pixel takes the single view whose line crosses the lens plane nearest to the centre (ties go
+//   to the lower view index).
+// - image(x, y) = sum of samples / count(x, y), accumulated in double precision; pixels no view
+//   sees get count 0 and the value 0.
+// - Pixels whose ray misses the focal plane, or hits it behind the virtual camera, get count 0.
+//   The whole plane behind the virtual camera, or parallel to its optical axis (or containing its
+//   centre), is an error.
+//
+// Throws std::invalid_argument (naming the option) for bad options, aos::Cancelled if the
+// progress sink asks to stop.
+#include <cstdint>
+#include <limits>
+#include <vector>
+
+#include "aos/geometry/rigid.h"
+#include "aos/image/image.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/util/progress.h"
+
+namespace aos {
+
+struct IntegralOptions {
+  // Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when pose_view >= 0.
+  Rigid3d cam_from_world;
+  // If >= 0, the virtual camera takes the pose of this view (index into the light field).
+  int pose_view = -1;
+  // Horizontal field of view of the virtual camera, degrees, (0, 180).
+  double fov_deg = 50.0;
+  // Output size, pixels (1 .. 65536 each).
+  int width = 512;
+  int height = 512;
+  // Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
+  // pixel), infinity means every view.
+  double aperture_radius = std::numeric_limits<double>::infinity();
+  // The focal plane (local frame): any point on it and its normal.
+  Plane focal_plane = Plane::AtHeight(0.0);
+  // Views to integrate (indices into the light field); empty means all views.
+  std::vector<int> view_indices;
+  // Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
+  // rays are ignored.
+  double min_view_angle_deg = 1.0;
+  // Worker threads; -1 = all cores.
+  int num_threads = -1;
+
+  // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
+  // in the light field (for pose_view and view_indices).
+  void Check(int view_count) const;
+};
+
+struct IntegralResult {
+  Image image;          // float32, width x height x channels of the views
+  Image count;          // uint32, width x height: views that contributed to each pixel
+  int64_t samples = 0;  // sum of count (view samples taken)
+  int views_used = 0;   // selected views that contributed to at least one pixel
+  int views_selected = 0;
+  int64_t uncovered_pixels = 0;  // pixels with count 0
+  Rigid3d cam_from_world;        // the virtual camera pose that was used
+};
+
+IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
+                              ProgressSink* progress = nullptr);
+
+// The virtual camera's intrinsics for `options` (square pixels, centred principal point).
+PinholeCamera VirtualCamera(const IntegralOptions& options);
+
+}  // namespace aos

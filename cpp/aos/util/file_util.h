@@ -1,0 +1,44 @@
+#pragma once
+// Safe output files. Outputs are written under a temporary name in the destination folder and
+// renamed into place only when complete, so a failure never leaves a half-written file, and an
+// output path that names an input file is refused before anything is written.
+#include <string>
+#include <vector>
+
+namespace aos {
+
+// A pending output file. TempPath() is where to write (same folder and extension as the final
+// path, so format detection by extension still works). Commit() renames it to the final path;
+// the destructor removes the temporary file if Commit() was never called.
+class PendingFile {
+ public:
+  explicit PendingFile(std::string final_path);
+  ~PendingFile();
+  PendingFile(const PendingFile&) = delete;
+  PendingFile& operator=(const PendingFile&) = delete;
+  PendingFile(PendingFile&& other) noexcept;
+  PendingFile& operator=(PendingFile&&) = delete;
+
+  const std::string& TempPath() const { return temp_path_; }
+  const std::string& FinalPath() const { return final_path_; }
+  // Renames the temporary file into place. Throws std::invalid_argument naming the file on failure.
+  void Commit();
+
+ private:
+  std::string final_path_;
+  std::string temp_path_;
+  bool committed_ = false;
+};
+
+// Throws std::invalid_argument if `output_path` is the same file as any of `input_paths`
+// (compared after resolving links), or if its folder does not exist.
+void CheckOutputPath(const std::string& output_path, const std::vector<std::string>& input_paths,
+                     const std::string& what = "output");
+
+// Writes `text` to `path` atomically (temporary file, then rename).
+void WriteTextFileAtomic(const std::string& path, const std::string& text);
+
+// Reads a whole text file; throws std::invalid_argument naming the file if it cannot be read.
+std::string ReadTextFile(const std::string& path);
+
+}  // namespace aos
