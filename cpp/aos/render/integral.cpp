@@ -1,10 +1,659 @@
 #include "aos/render/integral.h"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <exception>
+#include <limits>
+#include <string>
+
+#include <omp.h>
+
 #include "aos/util/error.h"
+
+// How it works
+// For a planar focal surface the map from an output pixel to a view pixel is a homography H_i
+// (composed in double precision relative to the virtual camera centre, so UTM-sized coordinates
+// lose nothing). Along an output row, the homogeneous view coordinates (U, V, W) are linear in the
+// column x. Every admission test is turned into a set of columns per row, solved exactly once per
+// (view, row): visibility in the view (W > 0, 0 <= U <= w W, 0 <= V <= h W) is linear in x; the
+// grazing-angle and aperture tests are quadratic in x (conics in the output image). The inner
+// loop then runs over whole spans without a single test: one reciprocal, a bilinear sample from
+// the view (stored with a replicated 1-pixel border, so the taps never leave memory) and a
+// double-precision accumulation. The per-pixel view count is kept as a difference array per row
+// (+1 at a span's start, -1 past its end), so counting costs nothing per sample.
+//
+// Work is split into tiles of whole rows (up to 512 columns wide) so the span computation happens
+// once per row and view, and each thread's accumulators stay in cache.
+
 namespace aos {
-// PLACEHOLDER: being written.
-IntegralResult RenderIntegral(const LightField&, const IntegralOptions&, ProgressSink*) {
-  ThrowInvalid("RenderIntegral: not implemented yet");
+namespace {
+
+constexpr int kMaxTileWidth = 512;
+constexpr size_t kTileAccumulatorBytes = 64 * 1024;
+constexpr int kMaxSpans = 4;
+
+// A set of disjoint half-open column ranges [begin, end), ascending.
+struct Spans {
+  std::array<std::pair<int, int>, kMaxSpans> range;
+  int size = 0;
+
+  static Spans Single(int begin, int end) {
+    Spans spans;
+    if (begin < end) spans.range[spans.size++] = {begin, end};
+    return spans;
+  }
+  bool empty() const { return size == 0; }
+  void ClampAll(int begin, int end) {
+    int kept = 0;
+    for (int i = 0; i < size; ++i) {
+      const int b = std::max(range[i].first, begin), e = std::min(range[i].second, end);
+      if (b < e) range[kept++] = {b, e};
+    }
+    size = kept;
+  }
+};
+
+// Lowest integer >= value, for value clamped to [lo, hi] first (no overflow on huge values).
+int CeilClamped(double value, int lo, int hi) {
+  if (!(value > lo)) return lo;  // also catches NaN
+  if (value > hi) return hi;
+  return static_cast<int>(std::ceil(value));
 }
-PinholeCamera VirtualCamera(const IntegralOptions& o) { return PinholeCamera::FromFov(o.width, o.height, o.fov_deg); }
-void IntegralOptions::Check(int) const {}
+int FloorClamped(double value, int lo, int hi) {
+  if (!(value < hi)) return hi;
+  if (value < lo) return lo;
+  return static_cast<int>(std::floor(value));
+}
+
+// Restricts `spans` to the integer columns x with a + b x >= 0.
+void ApplyLinear(double a, double b, Spans& spans, int x0, int x1) {
+  if (spans.empty()) return;
+  if (b == 0.0) {
+    if (!(a >= 0.0)) spans.size = 0;
+    return;
+  }
+  const double root = -a / b;
+  if (b > 0.0) {
+    spans.ClampAll(CeilClamped(root, x0, x1), x1);
+  } else {
+    spans.ClampAll(x0, FloorClamped(root, x0 - 1, x1 - 1) + 1);
+  }
+}
+
+// Restricts `spans` to the integer columns x in [x0, x1) with A x^2 + B x + C <= 0.
+void ApplyQuadratic(double A, double B, double C, Spans& spans, int x0, int x1) {
+  if (spans.empty()) return;
+  const double extent = std::max(std::abs(static_cast<double>(x0)), std::abs(static_cast<double>(x1))) + 1.0;
+  if (!(std::abs(A) * extent * extent > 1e-12 * (std::abs(B) * extent + std::abs(C)))) {
+    ApplyLinear(-C, -B, spans, x0, x1);  // negligible curvature over this row: B x + C <= 0
+    return;
+  }
+  const double discriminant = B * B - 4.0 * A * C;
+  if (A > 0.0) {
+    if (discriminant < 0.0) {
+      spans.size = 0;
+      return;
+    }
+  } else if (discriminant <= 0.0) {
+    return;  // A < 0 and no real roots: the inequality holds everywhere
+  }
+  const double q = -0.5 * (B + std::copysign(std::sqrt(discriminant), B));
+  double r1 = q / A;
+  double r2 = q != 0.0 ? C / q : r1;
+  if (r1 > r2) std::swap(r1, r2);
+  const int lo = CeilClamped(r1, x0 - 1, x1 + 1);
+  const int hi = FloorClamped(r2, x0 - 2, x1) + 1;  // exclusive end of [r1, r2]
+  if (A > 0.0) {
+    spans.ClampAll(lo, hi);  // inside the roots
+    return;
+  }
+  // Outside the roots: (-inf, r1] and [r2, inf). Split every span into its two parts.
+  Spans result;
+  const int left_end = FloorClamped(r1, x0 - 2, x1) + 1;
+  const int right_begin = CeilClamped(r2, x0 - 1, x1 + 1);
+  for (int i = 0; i < spans.size; ++i) {
+    const auto [b, e] = spans.range[i];
+    const int left_e = std::min(e, left_end);
+    if (b < left_e && result.size < kMaxSpans) result.range[result.size++] = {b, left_e};
+    const int right_b = std::max(b, right_begin);
+    if (right_b < e && result.size < kMaxSpans) result.range[result.size++] = {right_b, e};
+  }
+  spans = result;
+}
+
+// A vector-valued linear function of the column: value(x) = v0 + x v1.
+struct LinearVec {
+  Vec3d v0{0.0}, v1{0.0};
+};
+
+// Coefficients (A, B, C) of |g0 + x g1|^2 * s - (k0 + x k1)^2 * t.
+std::array<double, 3> QuadraticOf(const LinearVec& g, double s, double k0, double k1, double t) {
+  return {s * glm::dot(g.v1, g.v1) - t * k1 * k1,
+          2.0 * (s * glm::dot(g.v0, g.v1) - t * k0 * k1),
+          s * glm::dot(g.v0, g.v0) - t * k0 * k0};
+}
+
+// Everything about one view that does not depend on the output pixel.
+struct ViewSetup {
+  int index = 0;
+  const Image* image = nullptr;
+  Mat3d H{1.0};        // output pixel (x+0.5, y+0.5, 1) -> (U, V, W), W > 0 in front of the view
+  double width = 0.0;  // view image size, pixels
+  double height = 0.0;
+  double w_min = 0.0;  // W must exceed this (relative guard against the view's principal plane)
+  Vec3d b{0.0};        // view centre minus virtual camera centre, metres
+  double e = 0.0;      // signed distance of the view centre from the focal plane, metres
+  double lens_b = 0.0; // component of b along the virtual optical axis, metres
+};
+
+// The virtual pixel ray of a row: D(x) = d0 + x d1 (world direction, unnormalised), and
+// f(x) = n . D(x), the component along the focal plane normal.
+struct RowRay {
+  LinearVec direction;
+  double f0 = 0.0, f1 = 0.0;
+};
+
+struct Geometry {
+  Vec3d center{0.0};   // virtual camera centre (local frame)
+  Vec3d normal{0.0};   // unit focal plane normal
+  Vec3d lens_axis{0.0};  // unit optical axis of the virtual camera (normal of the lens plane)
+  double h = 0.0;      // n . (plane point - centre): signed distance of the plane, metres
+  double sign_h = 1.0;
+  Mat3d world_from_pixel{1.0};  // R_v^T K_v^-1: output pixel -> world ray direction
+};
+
+enum class Mode { kAverage, kNearest };
+
+struct Tile {
+  int x0, x1, y0, y1;
+};
+
+// Per-tile working memory of one thread.
+struct TileBuffers {
+  std::vector<double> sum;        // rows x width x channels
+  std::vector<int32_t> count_diff;  // rows x (width + 1)
+  std::vector<double> best;       // nearest mode: best squared lens-plane distance per pixel
+  std::vector<uint8_t> view_used;
+};
+
+// The per-row linear functions of (U, V, W) for one view.
+struct RowLine {
+  double u0, du, v0, dv, w0, dw;  // U(x) = u0 + du x, ...
+};
+
+RowLine MakeRowLine(const Mat3d& H, int y) {
+  const double py = y + 0.5;
+  RowLine line;
+  // H * (x + 0.5, py, 1): column 0 is the slope in x.
+  line.du = H[0][0];
+  line.dv = H[0][1];
+  line.dw = H[0][2];
+  line.u0 = 0.5 * H[0][0] + py * H[1][0] + H[2][0];
+  line.v0 = 0.5 * H[0][1] + py * H[1][1] + H[2][1];
+  line.w0 = 0.5 * H[0][2] + py * H[1][2] + H[2][2];
+  return line;
+}
+
+// Adds bilinear samples of one view along columns [xa, xb) of a row into `sum` (indexed from
+// the tile's first column x0). The span guarantees 0 <= u <= width, 0 <= v <= height, W > 0.
+template <typename T, int kChannels>
+void AccumulateSpan(const Image& image, int channels_runtime, const RowLine& line, int xa, int xb,
+                    int x0, double* sum) {
+  const int channels = kChannels > 0 ? kChannels : channels_runtime;
+  const T* origin = image.At<T>(0, 0);
+  const ptrdiff_t stride = image.row_stride();
+  // Re-base the line at xa so the float arithmetic works with small magnitudes.
+  const float u_a = static_cast<float>(line.u0 + line.du * xa);
+  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
+  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
+  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
+              dw = static_cast<float>(line.dw);
+  double* out = sum + static_cast<ptrdiff_t>(xa - x0) * channels;
+  const int n = xb - xa;
+  for (int i = 0; i < n; ++i) {
+    const float fi = static_cast<float>(i);
+    const float inv_w = 1.0f / (w_a + dw * fi);
+    // Sample position in pixel-index space: continuous coordinate minus the half-pixel offset.
+    const float sx = (u_a + du * fi) * inv_w - 0.5f;
+    const float sy = (v_a + dv * fi) * inv_w - 0.5f;
+    // sx, sy >= -0.5 (up to rounding), so truncation of s + 1 is floor(s) + 1.
+    const int ix = static_cast<int>(sx + 1.0f) - 1;
+    const int iy = static_cast<int>(sy + 1.0f) - 1;
+    const float ax = sx - static_cast<float>(ix);
+    const float ay = sy - static_cast<float>(iy);
+    const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + static_cast<ptrdiff_t>(ix) * channels;
+    for (int c = 0; c < channels; ++c) {
+      const float p00 = static_cast<float>(p[c]);
+      const float p01 = static_cast<float>(p[c + channels]);
+      const float p10 = static_cast<float>(p[stride + c]);
+      const float p11 = static_cast<float>(p[stride + c + channels]);
+      const float top = p00 + ax * (p01 - p00);
+      const float bottom = p10 + ax * (p11 - p10);
+      out[static_cast<ptrdiff_t>(i) * channels + c] += static_cast<double>(top + ay * (bottom - top));
+    }
+  }
+}
+
+using SpanKernel = void (*)(const Image&, int, const RowLine&, int, int, int, double*);
+
+template <typename T>
+SpanKernel KernelForChannels(int channels) {
+  switch (channels) {
+    case 1: return &AccumulateSpan<T, 1>;
+    case 3: return &AccumulateSpan<T, 3>;
+    default: return &AccumulateSpan<T, 0>;
+  }
+}
+
+SpanKernel KernelFor(const Image& image) {
+  switch (image.type()) {
+    case PixelType::kU8: return KernelForChannels<uint8_t>(image.channels());
+    case PixelType::kU16: return KernelForChannels<uint16_t>(image.channels());
+    case PixelType::kF32: return KernelForChannels<float>(image.channels());
+    case PixelType::kU32: break;
+  }
+  return nullptr;
+}
+
+// Nearest mode: per pixel keep the sample of the view whose line to the focal point crosses the
+// lens plane nearest to the virtual camera centre.
+void NearestSpan(const Image& image, const RowLine& line, const LinearVec& lens_offset,
+                 double m0, double m1, int xa, int xb, int x0, double* sum, double* best) {
+  const int channels = image.channels();
+  for (int x = xa; x < xb; ++x) {
+    const double m = m0 + m1 * x;
+    if (m == 0.0) continue;
+    const Vec3d n = lens_offset.v0 + static_cast<double>(x) * lens_offset.v1;
+    const double distance2 = glm::dot(n, n) / (m * m);
+    double& current = best[x - x0];
+    if (!(distance2 < current)) continue;
+    current = distance2;
+    const double w = line.w0 + line.dw * x;
+    const double sx = (line.u0 + line.du * x) / w - 0.5;
+    const double sy = (line.v0 + line.dv * x) / w - 0.5;
+    const int ix = static_cast<int>(std::floor(sx));
+    const int iy = static_cast<int>(std::floor(sy));
+    const double ax = sx - ix, ay = sy - iy;
+    for (int c = 0; c < channels; ++c) {
+      const double p00 = image.Value(ix, iy, c), p01 = image.Value(ix + 1, iy, c);
+      const double p10 = image.Value(ix, iy + 1, c), p11 = image.Value(ix + 1, iy + 1, c);
+      const double top = p00 + ax * (p01 - p00);
+      const double bottom = p10 + ax * (p11 - p10);
+      sum[static_cast<ptrdiff_t>(x - x0) * channels + c] = top + ay * (bottom - top);
+    }
+  }
+}
+
+class IntegralRenderer {
+ public:
+  IntegralRenderer(const LightField& light_field, const IntegralOptions& options)
+      : light_field_(light_field), options_(options) {}
+
+  IntegralResult Run(ProgressSink* progress);
+
+ private:
+  void SetUpGeometry();
+  void SetUpViews();
+  void RenderTile(const Tile& tile, TileBuffers& buffers);
+  bool TileRejects(const ViewSetup& view, const Tile& tile) const;
+
+  const LightField& light_field_;
+  const IntegralOptions& options_;
+  Rigid3d cam_from_world_;
+  PinholeCamera camera_;
+  Geometry geometry_;
+  std::vector<ViewSetup> views_;
+  Mode mode_ = Mode::kAverage;
+  int channels_ = 1;
+  double sin2_min_angle_ = 0.0;
+  IntegralResult result_;
+};
+
+void IntegralRenderer::SetUpGeometry() {
+  cam_from_world_ = options_.pose_view >= 0
+                        ? light_field_.views[static_cast<size_t>(options_.pose_view)].cam_from_world
+                        : options_.cam_from_world;
+  camera_ = VirtualCamera(options_);
+  Geometry& g = geometry_;
+  g.center = cam_from_world_.Center();
+  g.normal = glm::normalize(options_.focal_plane.normal);
+  g.lens_axis = Row(cam_from_world_.rotation, 2);
+  g.world_from_pixel = glm::transpose(cam_from_world_.rotation) * glm::inverse(camera_.K());
+  const Vec3d to_plane = options_.focal_plane.point - g.center;
+  g.h = glm::dot(g.normal, to_plane);
+  g.sign_h = g.h < 0.0 ? -1.0 : 1.0;
+  const double scale = std::max(1.0, glm::length(to_plane));
+  if (std::abs(g.h) <= 1e-9 * scale) {
+    ThrowInvalid("focal_plane: passes through the virtual camera centre (every ray lies in it)");
+  }
+  const double axis_f = glm::dot(g.normal, g.lens_axis);
+  if (std::abs(axis_f) < 1e-9) {
+    ThrowInvalid("focal_plane: parallel to the virtual camera's optical axis");
+  }
+  if (g.h / axis_f <= 0.0) {
+    ThrowInvalid("focal_plane: lies behind the virtual camera (distance along the optical axis " +
+                 FormatNumber(g.h / axis_f) + " m)");
+  }
+}
+
+void IntegralRenderer::SetUpViews() {
+  std::vector<int> selection = options_.view_indices;
+  if (selection.empty()) {
+    selection.resize(light_field_.views.size());
+    for (size_t i = 0; i < selection.size(); ++i) selection[i] = static_cast<int>(i);
+  }
+  const Geometry& g = geometry_;
+  channels_ = light_field_.views[static_cast<size_t>(selection.front())].image.channels();
+  const Mat3d K_v_inverse = glm::inverse(camera_.K());
+  const Mat3d R_v_t = glm::transpose(cam_from_world_.rotation);
+  // (n . D) x_cam = (h R_i + tau_i n^T) D, with D = R_v^T K_v^-1 p and tau_i = R_i (c - C_i);
+  // the sign of h makes W = |n . D| z_i, positive exactly in front of the view.
+  for (int index : selection) {
+    const View& view = light_field_.views[static_cast<size_t>(index)];
+    CheckView(view, "view " + std::to_string(index) + (view.name.empty() ? "" : " (" + view.name + ")"));
+    if (view.image.channels() != channels_) {
+      ThrowInvalid("view " + std::to_string(index) + ": has " +
+                   std::to_string(view.image.channels()) + " channels but the first selected view has " +
+                   std::to_string(channels_));
+    }
+    ViewSetup setup;
+    setup.index = index;
+    setup.image = &view.image;
+    setup.width = view.camera.width;
+    setup.height = view.camera.height;
+    const Vec3d view_center = view.cam_from_world.Center();
+    setup.b = view_center - g.center;
+    setup.e = glm::dot(g.normal, setup.b) - g.h;
+    setup.lens_b = glm::dot(g.lens_axis, setup.b);
+    const Mat3d& R_i = view.cam_from_world.rotation;
+    const Vec3d tau = R_i * (-setup.b);
+    // tau n^T as a GLM matrix: column j is tau * n[j].
+    const Mat3d tau_n(tau * g.normal.x, tau * g.normal.y, tau * g.normal.z);
+    const Mat3d M = g.h * R_i + tau_n;
+    setup.H = g.sign_h * (view.camera.K() * M * R_v_t * K_v_inverse);
+    double norm = 0.0;
+    for (int c = 0; c < 3; ++c) {
+      for (int r = 0; r < 3; ++r) norm = std::max(norm, std::abs(setup.H[c][r]));
+    }
+    setup.w_min = 1e-12 * norm;
+    views_.push_back(setup);
+  }
+  result_.views_selected = static_cast<int>(views_.size());
+}
+
+bool IntegralRenderer::TileRejects(const ViewSetup& view, const Tile& tile) const {
+  // Each admission test is linear in (x, y) and a linear function is negative on a rectangle
+  // iff it is negative at its four corners.
+  const double xs[2] = {tile.x0 + 0.5, tile.x1 - 0.5};
+  const double ys[2] = {tile.y0 + 0.5, tile.y1 - 0.5};
+  bool all_negative[5] = {true, true, true, true, true};
+  for (double x : xs) {
+    for (double y : ys) {
+      const Vec3d uvw = view.H * Vec3d(x, y, 1.0);
+      const double tests[5] = {uvw.z - view.w_min, uvw.x, view.width * uvw.z - uvw.x, uvw.y,
+                               view.height * uvw.z - uvw.y};
+      for (int t = 0; t < 5; ++t) all_negative[t] = all_negative[t] && tests[t] < 0.0;
+    }
+  }
+  for (bool negative : all_negative) {
+    if (negative) return true;
+  }
+  return false;
+}
+
+void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
+  const Geometry& g = geometry_;
+  const int tile_width = tile.x1 - tile.x0;
+  const int rows = tile.y1 - tile.y0;
+  const size_t row_values = static_cast<size_t>(tile_width) * channels_;
+  buffers.sum.assign(row_values * rows, 0.0);
+  buffers.count_diff.assign(static_cast<size_t>(tile_width + 1) * rows, 0);
+  if (mode_ == Mode::kNearest) {
+    buffers.best.assign(static_cast<size_t>(tile_width) * rows,
+                        std::numeric_limits<double>::infinity());
+  }
+
+  // The virtual rays of each row, and the columns whose ray meets the plane in front.
+  std::vector<RowRay> row_rays(static_cast<size_t>(rows));
+  std::vector<Spans> row_valid(static_cast<size_t>(rows));
+  for (int r = 0; r < rows; ++r) {
+    const double py = tile.y0 + r + 0.5;
+    RowRay& ray = row_rays[static_cast<size_t>(r)];
+    ray.direction.v1 = g.world_from_pixel * Vec3d(1.0, 0.0, 0.0);
+    ray.direction.v0 = g.world_from_pixel * Vec3d(0.5, py, 1.0);
+    ray.f0 = glm::dot(g.normal, ray.direction.v0);
+    ray.f1 = glm::dot(g.normal, ray.direction.v1);
+    Spans valid = Spans::Single(tile.x0, tile.x1);
+    // sign(h) f(x) > 0 (the ray meets the plane in front); a tiny margin keeps W well defined.
+    const double margin = 1e-12 * (std::abs(ray.f0) + std::abs(ray.f1) * tile.x1 + 1e-300);
+    ApplyLinear(g.sign_h * ray.f0 - margin, g.sign_h * ray.f1, valid, tile.x0, tile.x1);
+    row_valid[static_cast<size_t>(r)] = valid;
+  }
+
+  const bool finite_aperture = std::isfinite(options_.aperture_radius) && mode_ == Mode::kAverage;
+  const double r2 = options_.aperture_radius * options_.aperture_radius;
+  for (const ViewSetup& view : views_) {
+    if (TileRejects(view, tile)) continue;
+    const Image& image = *view.image;
+    const SpanKernel kernel = KernelFor(image);
+    // A view whose centre lies on the lens plane crosses it at its own centre for every pixel.
+    const bool on_lens_plane = std::abs(view.lens_b) <= 1e-12 * (glm::length(view.b) + 1.0);
+    if (finite_aperture && on_lens_plane && glm::dot(view.b, view.b) > r2) continue;
+    bool used = false;
+    for (int r = 0; r < rows; ++r) {
+      Spans spans = row_valid[static_cast<size_t>(r)];
+      if (spans.empty()) continue;
+      const int y = tile.y0 + r;
+      const RowLine line = MakeRowLine(view.H, y);
+      ApplyLinear(line.w0 - view.w_min, line.dw, spans, tile.x0, tile.x1);
+      ApplyLinear(line.u0, line.du, spans, tile.x0, tile.x1);
+      ApplyLinear(view.width * line.w0 - line.u0, view.width * line.dw - line.du, spans, tile.x0,
+                  tile.x1);
+      ApplyLinear(line.v0, line.dv, spans, tile.x0, tile.x1);
+      ApplyLinear(view.height * line.w0 - line.v0, view.height * line.dw - line.dv, spans,
+                  tile.x0, tile.x1);
+      if (spans.empty()) continue;
+      const RowRay& ray = row_rays[static_cast<size_t>(r)];
+      if (sin2_min_angle_ > 0.0) {
+        // sin^2(angle) |C_i - X|^2 <= e^2, times f^2: |f b - h D|^2 s - e^2 f^2 <= 0.
+        const LinearVec g_vec{ray.f0 * view.b - g.h * ray.direction.v0,
+                              ray.f1 * view.b - g.h * ray.direction.v1};
+        const auto q = QuadraticOf(g_vec, sin2_min_angle_, ray.f0, ray.f1, view.e * view.e);
+        ApplyQuadratic(q[0], q[1], q[2], spans, tile.x0, tile.x1);
+        if (spans.empty()) continue;
+      }
+      // Where the line from the focal point through the view centre crosses the lens plane,
+      // relative to the virtual centre: N / M with N = h [D (a.b) - b (a.D)],
+      // M = (a.b) f - h (a.D), a the optical axis (all scaled by f to stay linear in x).
+      LinearVec lens_offset;
+      double m0 = 0.0, m1 = 0.0;
+      if ((finite_aperture && !on_lens_plane) || mode_ == Mode::kNearest) {
+        const double a_d0 = glm::dot(g.lens_axis, ray.direction.v0);
+        const double a_d1 = glm::dot(g.lens_axis, ray.direction.v1);
+        lens_offset.v0 = g.h * (view.lens_b * ray.direction.v0 - a_d0 * view.b);
+        lens_offset.v1 = g.h * (view.lens_b * ray.direction.v1 - a_d1 * view.b);
+        m0 = view.lens_b * ray.f0 - g.h * a_d0;
+        m1 = view.lens_b * ray.f1 - g.h * a_d1;
+        if (finite_aperture) {
+          const auto q = QuadraticOf(lens_offset, 1.0, m0, m1, r2);
+          ApplyQuadratic(q[0], q[1], q[2], spans, tile.x0, tile.x1);
+        }
+      }
+      double* sum_row = buffers.sum.data() + row_values * r;
+      int32_t* diff_row = buffers.count_diff.data() + static_cast<size_t>(tile_width + 1) * r;
+      for (int s = 0; s < spans.size; ++s) {
+        const auto [xa, xb] = spans.range[s];
+        if (mode_ == Mode::kNearest) {
+          NearestSpan(image, line, lens_offset, m0, m1, xa, xb, tile.x0, sum_row,
+                      buffers.best.data() + static_cast<size_t>(tile_width) * r);
+        } else {
+          kernel(image, channels_, line, xa, xb, tile.x0, sum_row);
+          diff_row[xa - tile.x0] += 1;
+          diff_row[xb - tile.x0] -= 1;
+        }
+        used = true;
+      }
+    }
+    if (used) buffers.view_used[static_cast<size_t>(&view - views_.data())] = 1;
+  }
+
+  // Normalise into the output.
+  for (int r = 0; r < rows; ++r) {
+    const int y = tile.y0 + r;
+    const double* sum_row = buffers.sum.data() + row_values * r;
+    const int32_t* diff_row = buffers.count_diff.data() + static_cast<size_t>(tile_width + 1) * r;
+    float* out = result_.image.At<float>(tile.x0, y);
+    uint32_t* count_out = result_.count.At<uint32_t>(tile.x0, y);
+    int64_t count = 0;
+    for (int i = 0; i < tile_width; ++i) {
+      if (mode_ == Mode::kNearest) {
+        count = std::isfinite(buffers.best[static_cast<size_t>(tile_width) * r + i]) ? 1 : 0;
+      } else {
+        count += diff_row[i];
+      }
+      count_out[i] = static_cast<uint32_t>(count);
+      const double scale = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
+      for (int c = 0; c < channels_; ++c) {
+        out[i * channels_ + c] = static_cast<float>(sum_row[i * channels_ + c] * scale);
+      }
+    }
+  }
+}
+
+IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
+  options_.Check(static_cast<int>(light_field_.views.size()));
+  SetUpGeometry();
+  mode_ = options_.aperture_radius == 0.0 ? Mode::kNearest : Mode::kAverage;
+  const double min_angle = options_.min_view_angle_deg * M_PI / 180.0;
+  sin2_min_angle_ = std::sin(min_angle) * std::sin(min_angle);
+  SetUpViews();
+
+  const int width = camera_.width, height = camera_.height;
+  result_.image = Image(width, height, channels_, PixelType::kF32);
+  result_.count = Image(width, height, 1, PixelType::kU32);
+  result_.cam_from_world = cam_from_world_;
+
+  // Tiles of whole rows (at most kMaxTileWidth columns), enough rows to fill the accumulators.
+  const int tile_width = std::min(width, kMaxTileWidth);
+  const int tile_rows = static_cast<int>(std::clamp<size_t>(
+      kTileAccumulatorBytes / (sizeof(double) * static_cast<size_t>(tile_width) * channels_), 1,
+      32));
+  std::vector<Tile> tiles;
+  for (int y = 0; y < height; y += tile_rows) {
+    for (int x = 0; x < width; x += tile_width) {
+      tiles.push_back(Tile{x, std::min(width, x + tile_width), y, std::min(height, y + tile_rows)});
+    }
+  }
+
+  const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
+  ProgressStart(progress, "render", static_cast<int64_t>(tiles.size()));
+  std::vector<uint8_t> view_used(views_.size(), 0);
+  bool cancelled = false;
+  std::exception_ptr error;
+#pragma omp parallel num_threads(threads)
+  {
+    TileBuffers buffers;
+    buffers.view_used.assign(views_.size(), 0);
+#pragma omp for schedule(dynamic, 1)
+    for (int64_t t = 0; t < static_cast<int64_t>(tiles.size()); ++t) {
+      bool stop;
+#pragma omp atomic read
+      stop = cancelled;
+      if (stop) continue;
+      if (ProgressCancelled(progress)) {
+#pragma omp atomic write
+        cancelled = true;
+        continue;
+      }
+      try {
+        RenderTile(tiles[static_cast<size_t>(t)], buffers);
+      } catch (...) {
+#pragma omp critical(aos_integral_error)
+        if (!error) error = std::current_exception();
+#pragma omp atomic write
+        cancelled = true;
+      }
+      ProgressAdvance(progress, 1);
+    }
+#pragma omp critical(aos_integral_merge)
+    for (size_t i = 0; i < view_used.size(); ++i) view_used[i] |= buffers.view_used[i];
+  }
+  if (error) std::rethrow_exception(error);
+  if (cancelled) throw Cancelled();
+
+  for (uint8_t used : view_used) result_.views_used += used;
+  for (int y = 0; y < height; ++y) {
+    const uint32_t* count = result_.count.At<uint32_t>(0, y);
+    for (int x = 0; x < width; ++x) {
+      result_.samples += count[x];
+      result_.uncovered_pixels += count[x] == 0;
+    }
+  }
+  return std::move(result_);
+}
+
+}  // namespace
+
+PinholeCamera VirtualCamera(const IntegralOptions& options) {
+  return PinholeCamera::FromFov(options.width, options.height, options.fov_deg);
+}
+
+void IntegralOptions::Check(int view_count) const {
+  if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
+    ThrowInvalid("fov_deg: a pinhole field of view must be in (0, 180) degrees (got " +
+                 FormatNumber(fov_deg) + ")");
+  }
+  if (width < 1 || width > 65536 || height < 1 || height > 65536) {
+    ThrowInvalid("width/height: must be 1..65536 pixels (got " + std::to_string(width) + "x" +
+                 std::to_string(height) + ")");
+  }
+  if (!(aperture_radius >= 0.0)) {
+    ThrowInvalid("aperture_radius: must be >= 0 metres or infinity (got " +
+                 FormatNumber(aperture_radius) + ")");
+  }
+  if (!(min_view_angle_deg >= 0.0 && min_view_angle_deg < 90.0)) {
+    ThrowInvalid("min_view_angle_deg: must be in [0, 90) degrees (got " +
+                 FormatNumber(min_view_angle_deg) + ")");
+  }
+  if (num_threads == 0 || num_threads < -1) {
+    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " +
+                 std::to_string(num_threads) + ")");
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(focal_plane.point[i]) || !std::isfinite(focal_plane.normal[i])) {
+      ThrowInvalid("focal_plane: point and normal must be finite");
+    }
+  }
+  if (!(glm::length(focal_plane.normal) > 0.0)) {
+    ThrowInvalid("focal_plane: normal must not be zero");
+  }
+  if (view_count <= 0) ThrowInvalid("view selection is empty: the light field has no views");
+  if (pose_view < -1 || pose_view >= view_count) {
+    ThrowInvalid("pose_view: no view " + std::to_string(pose_view) + " (the light field has " +
+                 std::to_string(view_count) + " views)");
+  }
+  if (pose_view < 0) {
+    if (auto problem = DescribeInvalidRigid(cam_from_world)) {
+      ThrowInvalid("cam_from_world: " + *problem);
+    }
+  }
+  std::vector<uint8_t> seen(static_cast<size_t>(view_count), 0);
+  for (int index : view_indices) {
+    if (index < 0 || index >= view_count) {
+      ThrowInvalid("view_indices: no view " + std::to_string(index) + " (the light field has " +
+                   std::to_string(view_count) + " views)");
+    }
+    if (seen[static_cast<size_t>(index)]++) {
+      ThrowInvalid("view_indices: view " + std::to_string(index) + " is listed twice");
+    }
+  }
+}
+
+IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
+                              ProgressSink* progress) {
+  IntegralRenderer renderer(light_field, options);
+  return renderer.Run(progress);
+}
+
 }  // namespace aos

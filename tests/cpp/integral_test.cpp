@@ -1,0 +1,631 @@
+// Tests of the integral renderer against analytic truth and a brute-force reference.
+#include "aos/render/integral.h"
+
+#include <cmath>
+#include <atomic>
+#include <random>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/sim/default_scene.h"
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+using ::testing::HasSubstr;
+
+// A light field of views rendered from `scene` at the given camera centres (nadir-looking).
+LightField NadirLightField(const SyntheticScene& scene, const PinholeCamera& camera,
+                           const std::vector<Vec3d>& centres, PixelType type) {
+  LightField light_field;
+  for (size_t i = 0; i < centres.size(); ++i) {
+    const Rigid3d pose = NadirCamFromWorld(centres[i]);
+    light_field.views.push_back(MakeView("v" + std::to_string(i), camera, pose,
+                                         RenderSyntheticView(scene, camera, pose, type)));
+  }
+  return light_field;
+}
+
+std::vector<Vec3d> GridCentres(int per_side, double spacing, double altitude) {
+  std::vector<Vec3d> centres;
+  const double half = 0.5 * (per_side - 1) * spacing;
+  for (int j = 0; j < per_side; ++j) {
+    for (int i = 0; i < per_side; ++i) {
+      centres.emplace_back(-half + i * spacing, -half + j * spacing, altitude);
+    }
+  }
+  return centres;
+}
+
+// Focal point of output pixel (x, y) (pixel centre) of the virtual camera.
+Vec3d FocalPoint(const IntegralOptions& options, const Rigid3d& cam_from_world, int x, int y) {
+  const PinholeCamera camera = VirtualCamera(options);
+  const Vec3d direction =
+      glm::transpose(cam_from_world.rotation) * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+  const Vec3d centre = cam_from_world.Center();
+  const Vec3d n = options.focal_plane.normal;
+  const double t = glm::dot(n, options.focal_plane.point - centre) / glm::dot(n, direction);
+  return centre + t * direction;
+}
+
+TEST(Integral, SingleViewFromItsOwnPoseReturnsThatImage) {
+  // A random 8-bit image, non-square, seen from its own pose with radius 0 and radius infinity.
+  const PinholeCamera camera = PinholeCamera::FromFov(64, 48, 55.0);
+  Image image(64, 48, 1, PixelType::kU8);
+  std::mt19937 random(7);
+  for (int y = 0; y < 48; ++y) {
+    for (int x = 0; x < 64; ++x) *image.At<uint8_t>(x, y) = static_cast<uint8_t>(random() % 256);
+  }
+  LightField light_field;
+  const Rigid3d pose = LookAt(Vec3d(3, -2, 25), Vec3d(4, 1, 0), Vec3d(0, 1, 0));
+  light_field.views.push_back(MakeView("only", camera, pose, image));
+  for (double radius : {0.0, std::numeric_limits<double>::infinity()}) {
+    IntegralOptions options;
+    options.pose_view = 0;
+    options.fov_deg = camera.FovXDeg();
+    options.width = 64;
+    options.height = 48;
+    options.aperture_radius = radius;
+    options.focal_plane = Plane::AtHeight(0.0);
+    const IntegralResult result = RenderIntegral(light_field, options);
+    ASSERT_EQ(result.image.width(), 64);
+    ASSERT_EQ(result.image.height(), 48);
+    // The homography is the identity up to double rounding; the float sample position is off by
+    // at most ~1e-4 px, so a value moves by at most 1e-4 * 255 (the largest step between
+    // neighbours) < 0.03 grey levels.
+    for (int y = 0; y < 48; ++y) {
+      for (int x = 0; x < 64; ++x) {
+        EXPECT_EQ(*result.count.At<uint32_t>(x, y), 1u) << x << "," << y;
+        EXPECT_NEAR(*result.image.At<float>(x, y), *image.At<uint8_t>(x, y), 0.03)
+            << "radius " << radius << " pixel " << x << "," << y;
+      }
+    }
+    EXPECT_EQ(result.views_used, 1);
+    EXPECT_EQ(result.uncovered_pixels, 0);
+  }
+}
+
+// A smooth texture on a plane, in grey levels, and the bound on bilinear interpolation error.
+struct SmoothTexture {
+  double a1 = 40.0, k1 = 2.0 * M_PI / 8.0;  // amplitude, wavenumber (8 m wavelength)
+  double a2 = 30.0, k2 = 2.0 * M_PI / 10.0;
+  double Value(double s, double t) const {
+    return 120.0 + a1 * std::sin(k1 * s + 0.3) + a2 * std::cos(k2 * t - 0.7) +
+           20.0 * std::sin(0.5 * k1 * (s + t));
+  }
+  // Bilinear interpolation on a grid of spacing g (metres per view pixel) errs by at most
+  // (g^2 / 8) (max|T_ss| + max|T_tt|) plus the mixed-term bound; for this T that is below:
+  double InterpolationBound(double g) const {
+    const double second = a1 * k1 * k1 + a2 * k2 * k2 + 2.0 * 20.0 * 0.25 * k1 * k1;
+    return g * g / 8.0 * second * 2.0;  // factor 2: off-nadir foreshortening of up to sqrt(2)
+  }
+};
+
+struct PlaneCase {
+  const char* name;
+  Plane plane;
+};
+
+class TexturedPlane : public ::testing::TestWithParam<PlaneCase> {};
+
+TEST_P(TexturedPlane, ComesBackWithinHalfAnEightBitStep) {
+  const Plane plane = GetParam().plane;
+  const Vec3d n = glm::normalize(plane.normal);
+  // In-plane axes (s, t) for the texture.
+  const Vec3d s_axis = glm::normalize(glm::cross(Vec3d(0, 1, 0), n));
+  const Vec3d t_axis = glm::cross(n, s_axis);
+  const SmoothTexture texture;
+  SyntheticScene scene;
+  scene.layers.push_back(SceneLayer{plane, [&](const Vec3d& p, float* value) {
+    const Vec3d d = p - plane.point;
+    value[0] = static_cast<float>(texture.Value(glm::dot(d, s_axis), glm::dot(d, t_axis)));
+    return true;
+  }});
+  const PinholeCamera camera = PinholeCamera::FromFov(256, 256, 60.0);
+  const double altitude = 30.0;
+  const auto centres = GridCentres(9, 2.0, altitude);
+  // View pixel size on the ground at nadir, metres.
+  const double g = altitude / camera.fx;
+  const double bound = texture.InterpolationBound(g);
+  ASSERT_LT(bound, 0.5) << "test texture too sharp for the claim";
+
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0.3, -0.2, altitude));
+  options.fov_deg = 40.0;
+  options.width = 128;
+  options.height = 96;
+  options.focal_plane = plane;
+  for (PixelType type : {PixelType::kF32, PixelType::kU8}) {
+    const LightField light_field = NadirLightField(scene, camera, centres, type);
+    const IntegralResult result = RenderIntegral(light_field, options);
+    double max_error = 0.0, sum_error = 0.0;
+    int interior = 0;
+    for (int y = 8; y < options.height - 8; ++y) {
+      for (int x = 8; x < options.width - 8; ++x) {
+        ASSERT_GT(*result.count.At<uint32_t>(x, y), 40u);
+        const Vec3d point = FocalPoint(options, options.cam_from_world, x, y) - plane.point;
+        const double truth = texture.Value(glm::dot(point, s_axis), glm::dot(point, t_axis));
+        const double error = std::abs(*result.image.At<float>(x, y) - truth);
+        max_error = std::max(max_error, error);
+        sum_error += error;
+        ++interior;
+      }
+    }
+    if (type == PixelType::kF32) {
+      // Float views: only interpolation error remains, bounded analytically.
+      EXPECT_LT(max_error, bound) << GetParam().name;
+    } else {
+      // 8-bit views add rounding of up to half a step per view; averaged over many views with
+      // independent sub-pixel phases the result must stay within half an 8-bit step.
+      EXPECT_LT(max_error, 0.5) << GetParam().name;
+      EXPECT_LT(sum_error / interior, 0.1) << GetParam().name;
+    }
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Planes, TexturedPlane,
+    ::testing::Values(PlaneCase{"horizontal", Plane::AtHeight(0.0)},
+                      PlaneCase{"tilted", Plane{Vec3d(1.0, 0.5, -2.0), Vec3d(0.25, -0.2, 1.0)}}),
+    [](const auto& info) { return std::string(info.param.name); });
+
+// A bright disk of radius `radius` at height `height` over a black ground; float views.
+SyntheticScene BrightPointScene(double height, double radius) {
+  SyntheticScene scene;
+  scene.layers.push_back(SceneLayer{Plane::AtHeight(height), [=](const Vec3d& p, float* value) {
+    if (p.x * p.x + p.y * p.y > radius * radius) return false;
+    value[0] = 1000.0f;
+    return true;
+  }});
+  scene.layers.push_back(SceneLayer{Plane::AtHeight(0.0), [](const Vec3d&, float* value) {
+    value[0] = 0.0f;
+    return true;
+  }});
+  return scene;
+}
+
+TEST(Integral, PointOffTheFocalPlaneSpreadsIntoTheGeometricDisk) {
+  const double altitude = 30.0, point_height = 10.0;
+  const SyntheticScene scene = BrightPointScene(point_height, 0.15);
+  const PinholeCamera camera = PinholeCamera::FromFov(64, 64, 32.0);
+  // A dense square grid of views; the aperture test picks the disk out of it.
+  const LightField light_field =
+      NadirLightField(scene, camera, GridCentres(41, 0.25, altitude), PixelType::kF32);
+  for (double radius : {4.0, 2.0}) {
+    IntegralOptions options;
+    options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, altitude));
+    options.fov_deg = 20.0;
+    options.width = options.height = 101;
+    options.aperture_radius = radius;
+    const IntegralResult result = RenderIntegral(light_field, options);
+    // Geometry: the point's images on the focal plane fill a disk of diameter
+    // aperture diameter x depth offset / distance from the aperture = 2 r h_p / (H - h_p).
+    const double diameter_m = 2.0 * radius * point_height / (altitude - point_height);
+    const double metres_per_pixel =
+        2.0 * altitude * std::tan(0.5 * options.fov_deg * M_PI / 180.0) / options.width;
+    const double expected_px = diameter_m / metres_per_pixel;
+    // Plateau: mean over the central pixels; the disk is where the value exceeds half of it.
+    double plateau = 0.0;
+    int central = 0;
+    for (int y = 48; y <= 52; ++y) {
+      for (int x = 48; x <= 52; ++x) {
+        plateau += *result.image.At<float>(x, y);
+        ++central;
+      }
+    }
+    plateau /= central;
+    ASSERT_GT(plateau, 0.0);
+    int above = 0;
+    for (int y = 0; y < 101; ++y) {
+      for (int x = 0; x < 101; ++x) above += *result.image.At<float>(x, y) > 0.5 * plateau;
+    }
+    const double measured_px = 2.0 * std::sqrt(above / M_PI);
+    EXPECT_NEAR(measured_px, expected_px, 1.0) << "aperture radius " << radius;
+  }
+}
+
+TEST(Integral, UtmCoordinatesGiveTheSameImageAsTheSceneAtTheOrigin) {
+  DefaultSceneOptions scene_options;
+  scene_options.views_per_side = 5;
+  scene_options.width = scene_options.height = 64;
+  const LightField near = MakeDefaultLightField(scene_options);
+  // The same light field moved by a UTM-sized offset: x_cam = R (X - O) + t, so t' = t - R O.
+  const Vec3d offset(543210.123456, 5432109.876543, 312.5);
+  LightField far = near;
+  for (View& view : far.views) {
+    view.cam_from_world.translation -= view.cam_from_world.rotation * offset;
+  }
+  IntegralOptions options;
+  options.width = options.height = 80;
+  options.fov_deg = 45.0;
+  options.aperture_radius = 5.0;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0.7, -0.4, 35.0));
+  options.focal_plane = Plane{Vec3d(0, 0, 0.5), Vec3d(0.1, 0.05, 1.0)};
+  const IntegralResult reference = RenderIntegral(near, options);
+  options.cam_from_world.translation -= options.cam_from_world.rotation * offset;
+  options.focal_plane.point += offset;
+  const IntegralResult moved = RenderIntegral(far, options);
+  // Transforms are composed in double relative to the virtual camera: 5e6 m * 2^-52 ~ 1e-9 m,
+  // far below a pixel, so the images agree to float rounding.
+  double max_difference = 0.0;
+  for (int y = 0; y < 80; ++y) {
+    for (int x = 0; x < 80; ++x) {
+      ASSERT_EQ(*reference.count.At<uint32_t>(x, y), *moved.count.At<uint32_t>(x, y));
+      max_difference = std::max(max_difference, double(std::abs(*reference.image.At<float>(x, y) -
+                                                                *moved.image.At<float>(x, y))));
+    }
+  }
+  EXPECT_LT(max_difference, 1e-3);
+  EXPECT_GT(reference.samples, 0);
+}
+
+// Views with constant images (value = view index) make the average reveal exactly which views
+// contributed; a brute-force per-pixel reference in double checks counts and values.
+struct BruteForce {
+  std::vector<uint32_t> count;
+  std::vector<double> value;
+  std::vector<uint8_t> ambiguous;  // some test was within a hair of its threshold
+};
+
+BruteForce BruteForceIntegral(const LightField& light_field, const IntegralOptions& options) {
+  const PinholeCamera camera = VirtualCamera(options);
+  const Rigid3d& pose = options.cam_from_world;
+  const Vec3d c = pose.Center();
+  const Vec3d axis = Row(pose.rotation, 2);
+  const Vec3d n = glm::normalize(options.focal_plane.normal);
+  const double sin_min = std::sin(options.min_view_angle_deg * M_PI / 180.0);
+  BruteForce out;
+  const size_t pixels = static_cast<size_t>(options.width) * options.height;
+  out.count.assign(pixels, 0);
+  out.value.assign(pixels, 0.0);
+  out.ambiguous.assign(pixels, 0);
+  for (int y = 0; y < options.height; ++y) {
+    for (int x = 0; x < options.width; ++x) {
+      const size_t p = static_cast<size_t>(y) * options.width + x;
+      const Vec3d d = glm::transpose(pose.rotation) * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+      const double t = glm::dot(n, options.focal_plane.point - c) / glm::dot(n, d);
+      if (!(t > 0.0)) continue;
+      const Vec3d X = c + t * d;
+      double sum = 0.0;
+      for (size_t i = 0; i < light_field.views.size(); ++i) {
+        const View& view = light_field.views[i];
+        const Vec3d in_cam = view.cam_from_world * X;
+        const double scale = glm::length(X - view.cam_from_world.Center());
+        if (std::abs(in_cam.z) < 1e-9 * scale) {
+          out.ambiguous[p] = 1;
+          continue;
+        }
+        if (in_cam.z <= 0.0) continue;
+        const Vec2d uv = view.camera.Project(in_cam);
+        const double margin_uv = std::min(std::min(uv.x, view.camera.width - uv.x),
+                                          std::min(uv.y, view.camera.height - uv.y));
+        if (std::abs(margin_uv) < 1e-6) out.ambiguous[p] = 1;
+        if (margin_uv < 0.0) continue;
+        const Vec3d to_view = view.cam_from_world.Center() - X;
+        const double sin_angle = std::abs(glm::dot(n, to_view)) / glm::length(to_view);
+        if (std::abs(sin_angle - sin_min) < 1e-9) out.ambiguous[p] = 1;
+        if (sin_angle < sin_min) continue;
+        if (std::isfinite(options.aperture_radius)) {
+          // Line X -> C_i meets the lens plane a . (Q - c) = 0 at Q.
+          const double denominator = glm::dot(axis, to_view);
+          if (denominator == 0.0) continue;
+          const double s = glm::dot(axis, c - X) / denominator;
+          const double distance = glm::length(X + s * to_view - c);
+          if (std::abs(distance - options.aperture_radius) < 1e-7 * (1.0 + distance)) {
+            out.ambiguous[p] = 1;
+          }
+          if (distance > options.aperture_radius) continue;
+        }
+        ++out.count[p];
+        sum += view.image.Value(0, 0);
+      }
+      out.value[p] = out.count[p] ? sum / out.count[p] : 0.0;
+    }
+  }
+  return out;
+}
+
+TEST(Integral, CountsAndValuesMatchBruteForceForGeneralGeometry) {
+  // Tilted views at varied heights, a virtual camera above and off the flight "plane", a tilted
+  // focal plane, a finite aperture and a steep minimum view angle: every per-row span (linear and
+  // conic) is exercised and compared pixel by pixel with the direct per-pixel tests.
+  std::mt19937 random(12345);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  const PinholeCamera camera = PinholeCamera::FromFov(40, 30, 70.0);
+  LightField light_field;
+  for (int i = 0; i < 60; ++i) {
+    const Vec3d eye(12.0 * uniform(random), 12.0 * uniform(random), 25.0 + 8.0 * uniform(random));
+    const Vec3d target(6.0 * uniform(random), 6.0 * uniform(random), 0.0);
+    Image image(40, 30, 1, PixelType::kF32);
+    for (int y = 0; y < 30; ++y) {
+      for (int x = 0; x < 40; ++x) *image.At<float>(x, y) = static_cast<float>(i);
+    }
+    light_field.views.push_back(
+        MakeView("v" + std::to_string(i), camera, LookAt(eye, target, Vec3d(0, 1, 0)), image));
+  }
+  struct Case {
+    double aperture, min_angle;
+    Rigid3d pose;
+  };
+  const Case cases[] = {
+      {6.0, 60.0, LookAt(Vec3d(1, 2, 45), Vec3d(0, 0, 0), Vec3d(0, 1, 0))},
+      {9.0, 1.0, LookAt(Vec3d(-3, 1, 15), Vec3d(2, 0, 0), Vec3d(0, 1, 0))},
+      {std::numeric_limits<double>::infinity(), 70.0, LookAt(Vec3d(0, 0, 30), Vec3d(1, 1, 0), Vec3d(0, 1, 0))},
+  };
+  for (const Case& test_case : cases) {
+    IntegralOptions options;
+    options.cam_from_world = test_case.pose;
+    options.fov_deg = 65.0;
+    options.width = 90;
+    options.height = 70;
+    options.aperture_radius = test_case.aperture;
+    options.min_view_angle_deg = test_case.min_angle;
+    options.focal_plane = Plane{Vec3d(0, 0, 1.0), Vec3d(0.2, -0.3, 1.0)};
+    const IntegralResult result = RenderIntegral(light_field, options);
+    const BruteForce truth = BruteForceIntegral(light_field, options);
+    int compared = 0, partial_views = 0;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        const size_t p = static_cast<size_t>(y) * options.width + x;
+        if (truth.ambiguous[p]) continue;
+        ++compared;
+        ASSERT_EQ(*result.count.At<uint32_t>(x, y), truth.count[p])
+            << "pixel " << x << "," << y << " aperture " << test_case.aperture;
+        // Values are means of view indices: exact up to float rounding.
+        ASSERT_NEAR(*result.image.At<float>(x, y), truth.value[p], 1e-4);
+        partial_views += truth.count[p] > 0 && truth.count[p] < light_field.views.size();
+      }
+    }
+    EXPECT_GT(compared, options.width * options.height * 9 / 10);
+    EXPECT_GT(partial_views, 100) << "the case should admit views only for some pixels";
+  }
+}
+
+TEST(Integral, GrazingViewsAndPointsBehindAViewContributeNothing) {
+  const PinholeCamera camera = PinholeCamera::FromFov(32, 32, 60.0);
+  auto constant_image = [](float value) {
+    Image image(32, 32, 1, PixelType::kF32);
+    for (int y = 0; y < 32; ++y) {
+      for (int x = 0; x < 32; ++x) *image.At<float>(x, y) = value;
+    }
+    return image;
+  };
+  LightField light_field;
+  // A proper nadir view (value 100).
+  light_field.views.push_back(
+      MakeView("nadir", camera, NadirCamFromWorld(Vec3d(0, 0, 20)), constant_image(100.0f)));
+  // A view skimming the ground from 0.2 m height, 60 m away: 0.19 degrees above the plane.
+  light_field.views.push_back(MakeView("grazing", camera,
+                                       LookAt(Vec3d(-60, 0, 0.2), Vec3d(0, 0, 0), Vec3d(0, 0, 1)),
+                                       constant_image(1e6f)));
+  // A view 10 m up looking straight up: every focal point on the ground is behind it.
+  light_field.views.push_back(MakeView("upwards", camera,
+                                       LookAt(Vec3d(0, 0, 10), Vec3d(0, 0, 30), Vec3d(0, 1, 0)),
+                                       constant_image(-1e6f)));
+  // A view looking sideways from 5 m: its principal plane (depth 0) crosses the output, points
+  // with x < 0 are behind it and those with x > 0 are seen properly (value 100, like the nadir
+  // view, so the average stays 100 wherever only legitimate views contribute).
+  light_field.views.push_back(MakeView("sideways", camera,
+                                       LookAt(Vec3d(0, 0, 5), Vec3d(10, 0, 5), Vec3d(0, 0, 1)),
+                                       constant_image(100.0f)));
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 20));
+  options.fov_deg = 60.0;
+  options.width = options.height = 32;
+  const IntegralResult result = RenderIntegral(light_field, options);
+  for (int y = 0; y < 32; ++y) {
+    for (int x = 0; x < 32; ++x) {
+      ASSERT_TRUE(std::isfinite(*result.image.At<float>(x, y)));
+      EXPECT_FLOAT_EQ(*result.image.At<float>(x, y), 100.0f) << x << "," << y;
+      EXPECT_GE(*result.count.At<uint32_t>(x, y), 1u);
+      EXPECT_LE(*result.count.At<uint32_t>(x, y), 2u);
+    }
+  }
+  EXPECT_EQ(result.views_used, 2);
+  // With no minimum angle, the grazing view does contribute where it sees the ground.
+  options.min_view_angle_deg = 0.0;
+  const IntegralResult permissive = RenderIntegral(light_field, options);
+  EXPECT_EQ(permissive.views_used, 3);
+  for (int y = 0; y < 32; ++y) {
+    for (int x = 0; x < 32; ++x) ASSERT_TRUE(std::isfinite(*permissive.image.At<float>(x, y)));
+  }
+}
+
+TEST(Integral, TenThousandSixteenBitViewsAverageExactly) {
+  // 10^4 views of 16-bit data. (a) Constant images at spread poses: the mean of large integers,
+  // which a float accumulator gets wrong by far more than 1e-3. (b) Random images at one pose:
+  // the per-pixel mean of the frames.
+  const int views = 10000;
+  const PinholeCamera camera = PinholeCamera::FromFov(12, 12, 40.0);
+  std::mt19937 random(99);
+  LightField spread, stacked;
+  double constant_sum = 0.0;
+  std::vector<double> stacked_sum(144, 0.0);
+  const Rigid3d common_pose = NadirCamFromWorld(Vec3d(0, 0, 50));
+  for (int i = 0; i < views; ++i) {
+    const uint16_t constant = static_cast<uint16_t>(60000 + random() % 5536);
+    constant_sum += constant;
+    Image flat(12, 12, 1, PixelType::kU16);
+    Image noisy(12, 12, 1, PixelType::kU16);
+    for (int y = 0; y < 12; ++y) {
+      for (int x = 0; x < 12; ++x) {
+        *flat.At<uint16_t>(x, y) = constant;
+        const uint16_t value = static_cast<uint16_t>(random() % 65536);
+        *noisy.At<uint16_t>(x, y) = value;
+        stacked_sum[static_cast<size_t>(y) * 12 + x] += value;
+      }
+    }
+    const double dx = (i % 100) * 0.01 - 0.5, dy = (i / 100) * 0.01 - 0.5;
+    spread.views.push_back(MakeView("", camera, NadirCamFromWorld(Vec3d(dx, dy, 50)), flat));
+    stacked.views.push_back(MakeView("", camera, common_pose, noisy));
+  }
+  IntegralOptions options;
+  options.cam_from_world = common_pose;
+  options.fov_deg = 20.0;  // well inside every spread view
+  options.width = options.height = 12;
+  const IntegralResult flat_result = RenderIntegral(spread, options);
+  const double expected = constant_sum / views;
+  for (int y = 0; y < 12; ++y) {
+    for (int x = 0; x < 12; ++x) {
+      ASSERT_EQ(*flat_result.count.At<uint32_t>(x, y), static_cast<uint32_t>(views));
+      // Output is float32: its own rounding at ~6e4 is 2^-8 = 0.004 of a step, so compare the
+      // double sum indirectly: the float result must be the float nearest to the exact mean.
+      EXPECT_NEAR(*flat_result.image.At<float>(x, y), expected, 1e-3 + 65535.0 * 6e-8);
+    }
+  }
+  options.fov_deg = 40.0;
+  const IntegralResult stacked_result = RenderIntegral(stacked, options);
+  for (int y = 0; y < 12; ++y) {
+    for (int x = 0; x < 12; ++x) {
+      const double mean = stacked_sum[static_cast<size_t>(y) * 12 + x] / views;
+      EXPECT_NEAR(*stacked_result.image.At<float>(x, y), mean, 1e-3 + 65535.0 * 6e-8);
+    }
+  }
+}
+
+TEST(Integral, UncoveredPixelsHaveCountZeroAndValueZero) {
+  DefaultSceneOptions scene_options;
+  scene_options.views_per_side = 2;
+  scene_options.width = scene_options.height = 32;
+  const LightField light_field = MakeDefaultLightField(scene_options);
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 35));
+  options.fov_deg = 120.0;  // much wider than the views
+  options.width = options.height = 64;
+  const IntegralResult result = RenderIntegral(light_field, options);
+  EXPECT_GT(result.uncovered_pixels, 0);
+  EXPECT_EQ(*result.count.At<uint32_t>(0, 0), 0u);
+  EXPECT_EQ(*result.image.At<float>(0, 0), 0.0f);
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) ASSERT_TRUE(std::isfinite(*result.image.At<float>(x, y)));
+  }
+}
+
+TEST(Integral, RgbAndSixteenBitViewsKeepTheirChannels) {
+  SyntheticScene scene;
+  scene.channels = 3;
+  scene.layers.push_back(SceneLayer{Plane::AtHeight(0.0), [](const Vec3d&, float* value) {
+    value[0] = 1000.0f;
+    value[1] = 2000.0f;
+    value[2] = 3000.0f;
+    return true;
+  }});
+  const PinholeCamera camera = PinholeCamera::FromFov(16, 16, 50.0);
+  const LightField light_field =
+      NadirLightField(scene, camera, GridCentres(3, 1.0, 20.0), PixelType::kU16);
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 20));
+  options.fov_deg = 30.0;
+  options.width = options.height = 8;
+  const IntegralResult result = RenderIntegral(light_field, options);
+  ASSERT_EQ(result.image.channels(), 3);
+  EXPECT_FLOAT_EQ(result.image.At<float>(4, 4)[0], 1000.0f);
+  EXPECT_FLOAT_EQ(result.image.At<float>(4, 4)[1], 2000.0f);
+  EXPECT_FLOAT_EQ(result.image.At<float>(4, 4)[2], 3000.0f);
+}
+
+// Bad input: each names the offending option.
+class IntegralBadInput : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    DefaultSceneOptions scene_options;
+    scene_options.views_per_side = 2;
+    scene_options.width = scene_options.height = 16;
+    light_field = MakeDefaultLightField(scene_options);
+    options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 35));
+  }
+  std::string ErrorOf(const IntegralOptions& bad) {
+    try {
+      RenderIntegral(light_field, bad);
+    } catch (const std::invalid_argument& error) {
+      return error.what();
+    }
+    return "no error";
+  }
+  LightField light_field;
+  IntegralOptions options;
+};
+
+TEST_F(IntegralBadInput, FieldOfView) {
+  for (double fov : {0.0, -5.0, 180.0, 200.0, std::nan("")}) {
+    IntegralOptions bad = options;
+    bad.fov_deg = fov;
+    EXPECT_THAT(ErrorOf(bad), HasSubstr("fov_deg")) << fov;
+  }
+}
+
+TEST_F(IntegralBadInput, FocalPlaneBehindParallelOrThroughTheCamera) {
+  IntegralOptions bad = options;
+  bad.focal_plane = Plane::AtHeight(50.0);  // above a camera at 35 m that looks down
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("behind the virtual camera"));
+  bad.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(1, 0, 0)};  // vertical plane through the axis
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("focal_plane"));
+  bad.focal_plane = Plane{Vec3d(5, 0, 0), Vec3d(1, 0, 0)};  // vertical, parallel to the axis
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("parallel to the virtual camera's optical axis"));
+  bad.focal_plane = Plane{Vec3d(0, 0, 35), Vec3d(0.3, 0, 1)};  // through the centre
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("passes through the virtual camera centre"));
+  bad.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(0, 0, 0)};
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("normal must not be zero"));
+}
+
+TEST_F(IntegralBadInput, ViewSelectionAndPose) {
+  IntegralOptions bad = options;
+  bad.view_indices = {0, 7};
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("view_indices: no view 7"));
+  bad.view_indices = {1, 1};
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("listed twice"));
+  bad = options;
+  bad.pose_view = 4;
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("pose_view"));
+  bad = options;
+  bad.cam_from_world.rotation[0][0] = std::nan("");
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("cam_from_world"));
+  bad = options;
+  bad.cam_from_world.rotation[1][0] = 0.3;
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("not orthonormal"));
+  bad = options;
+  bad.aperture_radius = -1.0;
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("aperture_radius"));
+  LightField empty;
+  try {
+    RenderIntegral(empty, options);
+    ADD_FAILURE() << "an empty light field must be refused";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_THAT(error.what(), HasSubstr("view selection is empty"));
+  }
+}
+
+TEST(Integral, ProgressIsReportedAndCancellationStops) {
+  struct Sink : ProgressSink {
+    void Start(const std::string& stage, int64_t total) override {
+      this->stage = stage;
+      this->total = total;
+    }
+    void Advance(int64_t units) override { done += units; }
+    bool Cancelled() override { return cancel; }
+    std::string stage;
+    int64_t total = 0;
+    std::atomic<int64_t> done{0};
+    bool cancel = false;
+  };
+  DefaultSceneOptions scene_options;
+  scene_options.views_per_side = 2;
+  scene_options.width = scene_options.height = 16;
+  const LightField light_field = MakeDefaultLightField(scene_options);
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 35));
+  options.width = options.height = 64;
+  Sink sink;
+  RenderIntegral(light_field, options, &sink);
+  EXPECT_EQ(sink.stage, "render");
+  EXPECT_GT(sink.total, 0);
+  EXPECT_EQ(sink.done.load(), sink.total);
+  Sink cancelling;
+  cancelling.cancel = true;
+  EXPECT_THROW(RenderIntegral(light_field, options, &cancelling), Cancelled);
+}
+
+}  // namespace
+}  // namespace aos
