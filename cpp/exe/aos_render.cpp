@@ -1,4 +1,391 @@
-// PLACEHOLDER: being written.
+// aos-render: the command-line front end. Subcommands fill the core's Options structs (the same
+// ones Python fills), run the algorithm with a progress bar, and write outputs atomically.
+// Exit codes: 0 success, 1 bad input or failure (one line on stderr), 2 bad command line,
+// 130 interrupted.
+#include <algorithm>
+#include <array>
+#include <cmath>
 #include <cstdio>
+#include <cstdlib>
+#include <filesystem>
+#include <limits>
+#include <sstream>
+#include <string>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "aos/image/image_io.h"
+#include "aos/lightfield/formats.h"
+#include "aos/render/integral.h"
+#include "aos/sim/default_scene.h"
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
 #include "aos/util/version.h"
-int main() { std::printf("aos-render %s\n", aos::kVersion); return 0; }
+#include "progress_bar.h"
+
+namespace fs = std::filesystem;
+
+namespace aos::cli {
+namespace {
+
+// "a,b,c" -> numbers; throws std::invalid_argument naming the option.
+std::vector<double> ParseNumbers(const std::string& text, const std::string& option) {
+  std::vector<double> values;
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) {
+    const double value = ParseNumberText(item, option);
+    values.push_back(value);
+  }
+  return values;
+}
+
+std::vector<double> ParseNumbers(const std::string& text, const std::string& option,
+                                 size_t count) {
+  std::vector<double> values = ParseNumbers(text, option);
+  if (values.size() != count) {
+    ThrowInvalid(option + ": expected " + std::to_string(count) +
+                 " comma-separated numbers (got '" + text + "')");
+  }
+  return values;
+}
+
+// "0:10,15,20:30" (half-open ranges and single indices) -> indices.
+std::vector<int> ParseViewList(const std::string& text, int view_count) {
+  std::vector<int> indices;
+  std::stringstream stream(text);
+  std::string item;
+  while (std::getline(stream, item, ',')) {
+    if (item.empty()) continue;
+    const size_t colon = item.find(':');
+    auto to_int = [&](const std::string& part, int fallback) {
+      if (part.empty()) return fallback;
+      const double value = ParseNumberText(part, "--views");
+      if (value != std::floor(value)) ThrowInvalid("--views: '" + part + "' is not an integer");
+      return static_cast<int>(value);
+    };
+    if (colon == std::string::npos) {
+      indices.push_back(to_int(item, 0));
+    } else {
+      const int begin = to_int(item.substr(0, colon), 0);
+      const int end = to_int(item.substr(colon + 1), view_count);
+      for (int i = begin; i < end; ++i) indices.push_back(i);
+    }
+  }
+  if (indices.empty()) {
+    ThrowInvalid("--views: the selection '" + text + "' is empty (view selection is empty)");
+  }
+  return indices;
+}
+
+double ParseRadius(const std::string& text) {
+  if (text == "inf" || text == "infinity") return std::numeric_limits<double>::infinity();
+  const double value = ParseNumberText(text, "--aperture-radius");
+  return value;
+}
+
+// The value range that maps onto the integer codes of an 8/16-bit output.
+std::pair<double, double> ResolveRange(const std::string& spec, const IntegralResult& result,
+                                       PixelType views_type) {
+  if (spec == "views") {
+    switch (views_type) {
+      case PixelType::kU8: return {0.0, 255.0};
+      case PixelType::kU16: return {0.0, 65535.0};
+      default: return {0.0, 1.0};
+    }
+  }
+  if (spec == "minmax") {
+    double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+    for (int y = 0; y < result.image.height(); ++y) {
+      for (int x = 0; x < result.image.width(); ++x) {
+        if (*result.count.At<uint32_t>(x, y) == 0) continue;
+        for (int c = 0; c < result.image.channels(); ++c) {
+          const double value = result.image.At<float>(x, y)[c];
+          lo = std::min(lo, value);
+          hi = std::max(hi, value);
+        }
+      }
+    }
+    if (!(hi > lo)) return {std::isfinite(lo) ? lo : 0.0, std::isfinite(lo) ? lo + 1.0 : 1.0};
+    return {lo, hi};
+  }
+  const std::vector<double> values = ParseNumbers(spec, "--range", 2);
+  return {values[0], values[1]};
+}
+
+struct OutputOptions {
+  std::string output;
+  std::string count;
+  std::string sample_type = "auto";
+  std::string range = "views";
+};
+
+void AddOutputOptions(CLI::App* command, OutputOptions& out, bool with_output) {
+  if (with_output) {
+    command->add_option("-o,--output", out.output,
+                        "Output image; the extension picks the format: .exr/.tif (float32, as "
+                        "rendered), .png (8/16-bit, normalised by --range)")
+        ->required();
+    command->add_option("--count", out.count,
+                        "Also write the per-pixel count of contributing views (.tif uint32, "
+                        ".png 16-bit, .exr float)");
+  }
+  command->add_option("--sample-type", out.sample_type,
+                      "Sample type of the output: auto, uint8, uint16, float32")
+      ->capture_default_str();
+  command->add_option("--range", out.range,
+                      "Value range mapped onto 0..max code for 8/16-bit outputs: 'views' (the "
+                      "views' native range: 0..255 for 8-bit, 0..65535 for 16-bit, 0..1 for "
+                      "float), 'minmax' (the covered pixels' min..max), or LO,HI")
+      ->capture_default_str();
+}
+
+// Writes the image (and count map) of `result`, refusing to overwrite inputs; prints one line.
+void WriteOutputs(const IntegralResult& result, const std::string& image_path,
+                  const std::string& count_path, const OutputOptions& out, PixelType views_type,
+                  const std::vector<std::string>& inputs) {
+  CheckOutputPath(image_path, inputs, "output");
+  if (!count_path.empty()) {
+    CheckOutputPath(count_path, inputs, "count");
+    if (fs::absolute(count_path) == fs::absolute(image_path)) {
+      ThrowInvalid(count_path + ": --count and --output name the same file");
+    }
+  }
+  WriteImageOptions write;
+  write.sample_type = ParseSampleType(out.sample_type);
+  const auto [lo, hi] = ResolveRange(out.range, result, views_type);
+  write.range_min = lo;
+  write.range_max = hi;
+  const SampleType type = ResolveSampleType(image_path, result.image, write);
+  std::string how;
+  if (type == SampleType::kF32) {
+    how = "float32, values as rendered";
+  } else {
+    how = std::string(SampleTypeName(type)) + ", values " + FormatNumber(lo) + ".." +
+          FormatNumber(hi) + " mapped to 0.." + (type == SampleType::kU8 ? "255" : "65535");
+  }
+  write.description = "aos integral image (" + how + ")";
+  WriteImage(image_path, result.image, write);
+  std::printf("wrote %s (%dx%d, %s)\n", image_path.c_str(), result.image.width(),
+              result.image.height(), how.c_str());
+  if (!count_path.empty()) {
+    WriteImageOptions count_write;
+    count_write.description = "aos count map: views contributing to each pixel";
+    WriteImage(count_path, result.count, count_write);
+    std::printf("wrote %s (count of contributing views per pixel)\n", count_path.c_str());
+  }
+}
+
+struct IntegralCommand {
+  std::string light_field_path;
+  LoadOptions load;
+  IntegralOptions options;
+  std::string look_at;
+  std::string cam_from_world;
+  std::string aperture_radius = "inf";
+  double focal_height = 0.0;
+  std::string focal_plane;
+  std::string views;
+  OutputOptions out;
+  bool quiet = false;
+};
+
+void AddIntegral(CLI::App& app, IntegralCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "integral", "Render an integral image (Eq. 1) of a light field onto a focal plane");
+  command->add_option("lightfield", c.light_field_path,
+                      "Light-field file: aos JSON, or a JKU-ICG/AOS poses.json")
+      ->required();
+  command->add_option("--frames-fov-deg", c.load.fov_deg,
+                      "Horizontal field of view of the frames, degrees (JKU poses.json only)");
+  command->add_option("--images-dir", c.load.images_dir,
+                      "Folder of the frames (JKU poses.json; default: ../images beside it)");
+  auto* pose_view = command->add_option("--pose-view", c.options.pose_view,
+                                        "Virtual camera = the pose of view K (0-based)");
+  auto* look_at = command->add_option("--look-at", c.look_at,
+                                      "Virtual camera at EX,EY,EZ looking at TX,TY,TZ (optional "
+                                      "up UX,UY,UZ, default 0,0,1)");
+  auto* pose = command->add_option("--cam-from-world", c.cam_from_world,
+                                   "Virtual camera pose as 12 numbers: the 3x4 matrix [R|t] "
+                                   "row by row (local frame -> camera, OpenCV axes)");
+  pose_view->excludes(look_at)->excludes(pose);
+  look_at->excludes(pose);
+  command->add_option("--fov-deg", c.options.fov_deg,
+                      "Horizontal field of view of the virtual camera, degrees")
+      ->capture_default_str();
+  command->add_option("--width", c.options.width, "Output width, pixels")->capture_default_str();
+  command->add_option("--height", c.options.height, "Output height, pixels")
+      ->capture_default_str();
+  command->add_option("--aperture-radius", c.aperture_radius,
+                      "Radius of the virtual aperture, metres; 0 = pinhole (nearest view), "
+                      "inf = every view")
+      ->capture_default_str();
+  auto* height = command->add_option("--focal-height", c.focal_height,
+                                     "Horizontal focal plane z = H (local frame, metres)")
+                     ->capture_default_str();
+  auto* plane = command->add_option("--focal-plane", c.focal_plane,
+                                    "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
+  height->excludes(plane);
+  command->add_option("--views", c.views,
+                      "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
+                      "(default: all)");
+  command->add_option("--min-view-angle-deg", c.options.min_view_angle_deg,
+                      "Ignore rays meeting the focal plane at less than this angle, degrees")
+      ->capture_default_str();
+  command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
+      ->capture_default_str();
+  AddOutputOptions(command, c.out, true);
+  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+}
+
+int RunIntegral(IntegralCommand& c) {
+  ProgressBar progress(c.quiet);
+  c.load.num_threads = c.options.num_threads;
+  // Refuse to overwrite the light-field file itself before spending time on loading.
+  CheckOutputPath(c.out.output, {c.light_field_path}, "output");
+  LoadResult loaded = LoadLightField(c.light_field_path, c.load, &progress);
+  progress.Finish();
+  for (const std::string& note : loaded.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
+  const LightField& light_field = loaded.light_field;
+  IntegralOptions& options = c.options;
+  if (!c.look_at.empty()) {
+    const std::vector<double> v = ParseNumbers(c.look_at, "--look-at");
+    if (v.size() != 6 && v.size() != 9) ThrowInvalid("--look-at: expected 6 or 9 numbers");
+    const Vec3d up = v.size() == 9 ? Vec3d(v[6], v[7], v[8]) : Vec3d(0, 0, 1);
+    options.cam_from_world = LookAt(Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5]), up);
+  } else if (!c.cam_from_world.empty()) {
+    const std::vector<double> v = ParseNumbers(c.cam_from_world, "--cam-from-world", 12);
+    std::array<double, 12> m{};
+    std::copy(v.begin(), v.end(), m.begin());
+    options.cam_from_world = Rigid3d::FromMatrix3x4(m);
+  } else if (options.pose_view < 0) {
+    ThrowInvalid("no virtual camera pose: give --pose-view, --look-at or --cam-from-world");
+  }
+  options.aperture_radius = ParseRadius(c.aperture_radius);
+  if (!c.focal_plane.empty()) {
+    const std::vector<double> v = ParseNumbers(c.focal_plane, "--focal-plane", 6);
+    options.focal_plane = Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
+  } else {
+    options.focal_plane = Plane::AtHeight(c.focal_height);
+  }
+  if (!c.views.empty()) {
+    options.view_indices = ParseViewList(c.views, static_cast<int>(light_field.views.size()));
+  }
+  std::vector<std::string> inputs{c.light_field_path};
+  for (const View& view : light_field.views) inputs.push_back(view.image_path);
+  // Check outputs before rendering, so a bad path fails fast; WriteOutputs checks again.
+  CheckOutputPath(c.out.output, inputs, "output");
+  const IntegralResult result = RenderIntegral(light_field, options, &progress);
+  progress.Finish();
+  std::fprintf(stderr,
+               "integrated %d of %d selected views: %lld samples, %lld of %lld pixels uncovered\n",
+               result.views_used, result.views_selected, static_cast<long long>(result.samples),
+               static_cast<long long>(result.uncovered_pixels),
+               static_cast<long long>(result.image.width()) * result.image.height());
+  const PixelType views_type = light_field.views.front().image.type();
+  WriteOutputs(result, c.out.output, c.out.count, c.out, views_type, inputs);
+  return 0;
+}
+
+struct DemoCommand {
+  std::string output_dir = "aos-demo";
+  DefaultSceneOptions scene;
+  std::vector<double> focal_heights{0.0, 11.0};
+  OutputOptions out;
+  bool quiet = false;
+};
+
+void AddDemo(CLI::App& app, DemoCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "demo",
+      "Generate the built-in default scene (a textured ground under layers of leaves), save it "
+      "as a light field, and render integral images at a few focal heights");
+  command->add_option("-o,--output-dir", c.output_dir, "Output folder (created if missing)")
+      ->capture_default_str();
+  command->add_option("--views-per-side", c.scene.views_per_side, "Views per side of the grid")
+      ->capture_default_str();
+  command->add_option("--spacing", c.scene.spacing, "Distance between views, metres")
+      ->capture_default_str();
+  command->add_option("--altitude", c.scene.altitude, "Camera height, metres")
+      ->capture_default_str();
+  command->add_option("--occluder-density", c.scene.occluder_density,
+                      "Fraction of nadir rays the leaves block, [0, 1)")
+      ->capture_default_str();
+  command->add_option("--seed", c.scene.seed, "Seed of the leaf pattern")->capture_default_str();
+  command->add_option("--focal-heights", c.focal_heights, "Focal plane heights z, metres")
+      ->delimiter(',')
+      ->capture_default_str();
+  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+}
+
+int RunDemo(DemoCommand& c) {
+  ProgressBar progress(c.quiet);
+  std::error_code error;
+  fs::create_directories(c.output_dir, error);
+  if (error) ThrowInvalid(c.output_dir + ": cannot create the output folder (" + error.message() + ")");
+  LightField light_field = MakeDefaultLightField(c.scene);
+  const std::string light_field_path = (fs::path(c.output_dir) / "lightfield.json").string();
+  WriteLightField(light_field_path, light_field);
+  int files = 1 + static_cast<int>(light_field.views.size());
+  std::printf("wrote %s (%zu views of the default scene)\n", light_field_path.c_str(),
+              light_field.views.size());
+
+  const int centre = static_cast<int>(light_field.views.size() / 2);
+  IntegralOptions options;
+  options.pose_view = centre;
+  options.fov_deg = c.scene.fov_deg;
+  options.width = c.scene.width;
+  options.height = c.scene.height;
+  struct Job {
+    std::string name;
+    double height;
+    double radius;
+  };
+  std::vector<Job> jobs{{"single_view", 0.0, 0.0}};
+  for (double h : c.focal_heights) {
+    char name[64];
+    std::snprintf(name, sizeof(name), "integral_z%+06.2f", h);
+    jobs.push_back(Job{name, h, std::numeric_limits<double>::infinity()});
+  }
+  for (const Job& job : jobs) {
+    options.focal_plane = Plane::AtHeight(job.height);
+    options.aperture_radius = job.radius;
+    const IntegralResult result = RenderIntegral(light_field, options, &progress);
+    progress.Finish();
+    const std::string base = (fs::path(c.output_dir) / job.name).string();
+    WriteOutputs(result, base + ".png", base + "_count.png", c.out, PixelType::kU8, {});
+    files += 2;
+  }
+  std::printf("demo: %d files in %s (open %s/integral_z+00.00.png: the ground seen through the "
+              "leaves)\n",
+              files, c.output_dir.c_str(), c.output_dir.c_str());
+  return 0;
+}
+
+}  // namespace
+}  // namespace aos::cli
+
+int main(int argc, char** argv) {
+  using namespace aos::cli;
+  CLI::App app{"aos-render: Airborne Optical Sectioning - integral images from drone light fields"};
+  app.set_version_flag("--version", std::string("aos-render ") + aos::kVersion);
+  app.require_subcommand(1);
+  IntegralCommand integral;
+  DemoCommand demo;
+  AddIntegral(app, integral);
+  AddDemo(app, demo);
+  CLI11_PARSE(app, argc, argv);
+  InstallInterruptHandler();
+  try {
+    if (app.got_subcommand("integral")) return RunIntegral(integral);
+    if (app.got_subcommand("demo")) return RunDemo(demo);
+  } catch (const aos::Cancelled&) {
+    std::fprintf(stderr, "aos-render: interrupted; no output written\n");
+    return 130;
+  } catch (const std::exception& error) {
+    std::fprintf(stderr, "aos-render: error: %s\n", error.what());
+    return 1;
+  }
+  return 2;
+}

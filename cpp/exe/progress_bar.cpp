@@ -1,1 +1,80 @@
-// PLACEHOLDER: being written.
+#include "progress_bar.h"
+
+#include <csignal>
+#include <cstdio>
+
+#include <unistd.h>
+
+namespace aos::cli {
+namespace {
+volatile std::sig_atomic_t g_interrupted = 0;
+void OnInterrupt(int) { g_interrupted = 1; }
+}  // namespace
+
+void InstallInterruptHandler() { std::signal(SIGINT, OnInterrupt); }
+bool Interrupted() { return g_interrupted != 0; }
+
+ProgressBar::ProgressBar(bool quiet) : quiet_(quiet), terminal_(::isatty(STDERR_FILENO) != 0) {}
+
+ProgressBar::~ProgressBar() {
+  // Unfinished stage (an error or an interrupt): just end the bar's line.
+  if (open_line_) std::fputc('\n', stderr);
+}
+
+void ProgressBar::Start(const std::string& stage, int64_t total) {
+  Finish();
+  stage_ = stage;
+  total_ = total;
+  done_ = 0;
+  stage_start_ = std::chrono::steady_clock::now();
+  if (quiet_) return;
+  if (!terminal_) {
+    std::fprintf(stderr, "%s: started (%lld steps)\n", stage_.c_str(), static_cast<long long>(total));
+  } else {
+    open_line_ = true;
+    Draw(0, true);
+  }
+}
+
+void ProgressBar::Advance(int64_t units) {
+  const int64_t done = done_.fetch_add(units) + units;
+  if (quiet_ || !terminal_) return;
+  Draw(done, done >= total_);
+}
+
+void ProgressBar::Draw(int64_t done, bool force) {
+  std::unique_lock<std::mutex> lock(draw_mutex_, std::try_to_lock);
+  if (!lock.owns_lock()) return;
+  const auto now = std::chrono::steady_clock::now();
+  if (!force && now - last_draw_ < std::chrono::milliseconds(80)) return;
+  last_draw_ = now;
+  const int width = 30;
+  const double fraction = total_ > 0 ? static_cast<double>(done) / total_ : 1.0;
+  const int filled = static_cast<int>(fraction * width + 0.5);
+  std::string bar(static_cast<size_t>(filled), '#');
+  bar.resize(width, '.');
+  std::fprintf(stderr, "\r%-8s [%s] %3d%%", stage_.c_str(), bar.c_str(),
+               static_cast<int>(fraction * 100.0 + 0.5));
+  std::fflush(stderr);
+}
+
+void ProgressBar::Finish() {
+  if (stage_.empty() || quiet_) {
+    stage_.clear();
+    return;
+  }
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - stage_start_).count();
+  if (terminal_) {
+    Draw(done_.load(), true);
+    if (open_line_) std::fprintf(stderr, " %.2f s\n", seconds);
+    open_line_ = false;
+  } else {
+    std::fprintf(stderr, "%s: done in %.2f s\n", stage_.c_str(), seconds);
+  }
+  stage_.clear();
+}
+
+bool ProgressBar::Cancelled() { return Interrupted(); }
+
+}  // namespace aos::cli

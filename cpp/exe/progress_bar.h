@@ -1,0 +1,41 @@
+#pragma once
+// The CLI's progress sink: a bar on stderr when it is a terminal, plain start/end lines when it
+// is not. Ctrl-C (SIGINT) asks the running computation to stop.
+#include <atomic>
+#include <chrono>
+#include <mutex>
+#include <string>
+
+#include "aos/util/progress.h"
+
+namespace aos::cli {
+
+class ProgressBar : public ProgressSink {
+ public:
+  explicit ProgressBar(bool quiet);
+  ~ProgressBar() override;
+  void Start(const std::string& stage, int64_t total) override;
+  void Advance(int64_t units) override;
+  bool Cancelled() override;
+  // Ends the current stage's line.
+  void Finish();
+
+ private:
+  void Draw(int64_t done, bool force);
+
+  bool quiet_;
+  bool terminal_;
+  std::string stage_;
+  int64_t total_ = 0;
+  std::atomic<int64_t> done_{0};
+  std::mutex draw_mutex_;
+  std::chrono::steady_clock::time_point last_draw_{};
+  std::chrono::steady_clock::time_point stage_start_{};
+  bool open_line_ = false;
+};
+
+// Installs a SIGINT handler that makes every ProgressBar report Cancelled().
+void InstallInterruptHandler();
+bool Interrupted();
+
+}  // namespace aos::cli
