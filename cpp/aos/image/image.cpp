@@ -6,6 +6,9 @@
 #include "aos/util/error.h"
 
 namespace aos {
+namespace {
+constexpr size_t kSlackBytes = 16;
+}  // namespace
 
 size_t PixelTypeSize(PixelType type) {
   switch (type) {
@@ -39,7 +42,8 @@ Image::Image(int width, int height, int channels, PixelType type, int border)
   if (border < 0) ThrowInvalid("image: border must be >= 0");
   row_stride_ = static_cast<ptrdiff_t>(width + 2 * border) * channels;
   bytes_ = static_cast<size_t>(row_stride_) * (height + 2 * border) * PixelTypeSize(type);
-  data_.reset(new unsigned char[bytes_]());
+  // A few bytes of slack past the end: SIMD gathers read 4 bytes at a tap's address.
+  data_.reset(new unsigned char[bytes_ + kSlackBytes]());
 }
 
 size_t Image::PixelBytes() const {

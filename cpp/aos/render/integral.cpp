@@ -9,6 +9,7 @@
 
 #include <omp.h>
 
+#include "aos/render/integral_kernels.h"
 #include "aos/util/error.h"
 
 // How it works
@@ -28,6 +29,9 @@
 
 namespace aos {
 namespace {
+
+using internal::RowLine;
+using internal::SpanKernel;
 
 constexpr int kMaxTileWidth = 512;
 constexpr size_t kTileAccumulatorBytes = 64 * 1024;
@@ -177,11 +181,6 @@ struct TileBuffers {
   std::vector<uint8_t> view_used;
 };
 
-// The per-row linear functions of (U, V, W) for one view.
-struct RowLine {
-  double u0, du, v0, dv, w0, dw;  // U(x) = u0 + du x, ...
-};
-
 RowLine MakeRowLine(const Mat3d& H, int y) {
   const double py = y + 0.5;
   RowLine line;
@@ -193,67 +192,6 @@ RowLine MakeRowLine(const Mat3d& H, int y) {
   line.v0 = 0.5 * H[0][1] + py * H[1][1] + H[2][1];
   line.w0 = 0.5 * H[0][2] + py * H[1][2] + H[2][2];
   return line;
-}
-
-// Adds bilinear samples of one view along columns [xa, xb) of a row into `sum` (indexed from
-// the tile's first column x0). The span guarantees 0 <= u <= width, 0 <= v <= height, W > 0.
-template <typename T, int kChannels>
-void AccumulateSpan(const Image& image, int channels_runtime, const RowLine& line, int xa, int xb,
-                    int x0, double* sum) {
-  const int channels = kChannels > 0 ? kChannels : channels_runtime;
-  const T* origin = image.At<T>(0, 0);
-  const ptrdiff_t stride = image.row_stride();
-  // Re-base the line at xa so the float arithmetic works with small magnitudes.
-  const float u_a = static_cast<float>(line.u0 + line.du * xa);
-  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
-  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
-  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
-              dw = static_cast<float>(line.dw);
-  double* out = sum + static_cast<ptrdiff_t>(xa - x0) * channels;
-  const int n = xb - xa;
-  for (int i = 0; i < n; ++i) {
-    const float fi = static_cast<float>(i);
-    const float inv_w = 1.0f / (w_a + dw * fi);
-    // Sample position in pixel-index space: continuous coordinate minus the half-pixel offset.
-    const float sx = (u_a + du * fi) * inv_w - 0.5f;
-    const float sy = (v_a + dv * fi) * inv_w - 0.5f;
-    // sx, sy >= -0.5 (up to rounding), so truncation of s + 1 is floor(s) + 1.
-    const int ix = static_cast<int>(sx + 1.0f) - 1;
-    const int iy = static_cast<int>(sy + 1.0f) - 1;
-    const float ax = sx - static_cast<float>(ix);
-    const float ay = sy - static_cast<float>(iy);
-    const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + static_cast<ptrdiff_t>(ix) * channels;
-    for (int c = 0; c < channels; ++c) {
-      const float p00 = static_cast<float>(p[c]);
-      const float p01 = static_cast<float>(p[c + channels]);
-      const float p10 = static_cast<float>(p[stride + c]);
-      const float p11 = static_cast<float>(p[stride + c + channels]);
-      const float top = p00 + ax * (p01 - p00);
-      const float bottom = p10 + ax * (p11 - p10);
-      out[static_cast<ptrdiff_t>(i) * channels + c] += static_cast<double>(top + ay * (bottom - top));
-    }
-  }
-}
-
-using SpanKernel = void (*)(const Image&, int, const RowLine&, int, int, int, double*);
-
-template <typename T>
-SpanKernel KernelForChannels(int channels) {
-  switch (channels) {
-    case 1: return &AccumulateSpan<T, 1>;
-    case 3: return &AccumulateSpan<T, 3>;
-    default: return &AccumulateSpan<T, 0>;
-  }
-}
-
-SpanKernel KernelFor(const Image& image) {
-  switch (image.type()) {
-    case PixelType::kU8: return KernelForChannels<uint8_t>(image.channels());
-    case PixelType::kU16: return KernelForChannels<uint16_t>(image.channels());
-    case PixelType::kF32: return KernelForChannels<float>(image.channels());
-    case PixelType::kU32: break;
-  }
-  return nullptr;
 }
 
 // Nearest mode: per pixel keep the sample of the view whose line to the focal point crosses the
@@ -436,7 +374,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
   for (const ViewSetup& view : views_) {
     if (TileRejects(view, tile)) continue;
     const Image& image = *view.image;
-    const SpanKernel kernel = KernelFor(image);
+    const SpanKernel kernel = internal::SelectSpanKernel(image);
     // A view whose centre lies on the lens plane crosses it at its own centre for every pixel.
     const bool on_lens_plane = std::abs(view.lens_b) <= 1e-12 * (glm::length(view.b) + 1.0);
     if (finite_aperture && on_lens_plane && glm::dot(view.b, view.b) > r2) continue;
@@ -488,7 +426,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
           NearestSpan(image, line, lens_offset, m0, m1, xa, xb, tile.x0, sum_row,
                       buffers.best.data() + static_cast<size_t>(tile_width) * r);
         } else {
-          kernel(image, channels_, line, xa, xb, tile.x0, sum_row);
+          kernel(image, line, xa, xb, tile.x0, sum_row);
           diff_row[xa - tile.x0] += 1;
           diff_row[xb - tile.x0] -= 1;
         }

@@ -1,0 +1,72 @@
+#include "aos/render/integral_kernels.h"
+
+#include <cstdint>
+
+namespace aos::internal {
+namespace {
+
+bool g_simd_enabled = true;
+
+template <typename T, int kChannels>
+void AccumulateSpan(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                    double* sum) {
+  const int channels = kChannels > 0 ? kChannels : image.channels();
+  const T* origin = image.At<T>(0, 0);
+  const ptrdiff_t stride = image.row_stride();
+  // Re-base the line at xa so the float arithmetic works with small magnitudes.
+  const float u_a = static_cast<float>(line.u0 + line.du * xa);
+  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
+  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
+  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
+              dw = static_cast<float>(line.dw);
+  double* out = sum + static_cast<ptrdiff_t>(xa - x0) * channels;
+  const int n = xb - xa;
+  for (int i = 0; i < n; ++i) {
+    const float fi = static_cast<float>(i);
+    const float inv_w = 1.0f / (w_a + dw * fi);
+    // Sample position in pixel-index space: continuous coordinate minus the half-pixel offset.
+    const float sx = (u_a + du * fi) * inv_w - 0.5f;
+    const float sy = (v_a + dv * fi) * inv_w - 0.5f;
+    // sx, sy >= -0.5 (up to rounding), so truncating s + 1 gives floor(s) + 1.
+    const int ix = static_cast<int>(sx + 1.0f) - 1;
+    const int iy = static_cast<int>(sy + 1.0f) - 1;
+    const float ax = sx - static_cast<float>(ix);
+    const float ay = sy - static_cast<float>(iy);
+    const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + static_cast<ptrdiff_t>(ix) * channels;
+    for (int c = 0; c < channels; ++c) {
+      const float p00 = static_cast<float>(p[c]);
+      const float p01 = static_cast<float>(p[c + channels]);
+      const float p10 = static_cast<float>(p[stride + c]);
+      const float p11 = static_cast<float>(p[stride + c + channels]);
+      const float top = p00 + ax * (p01 - p00);
+      const float bottom = p10 + ax * (p11 - p10);
+      out[static_cast<ptrdiff_t>(i) * channels + c] += static_cast<double>(top + ay * (bottom - top));
+    }
+  }
+}
+
+template <typename T>
+SpanKernel ForChannels(int channels) {
+  switch (channels) {
+    case 1: return &AccumulateSpan<T, 1>;
+    case 3: return &AccumulateSpan<T, 3>;
+    default: return &AccumulateSpan<T, 0>;
+  }
+}
+
+}  // namespace
+
+SpanKernel ScalarSpanKernel(const Image& image) {
+  switch (image.type()) {
+    case PixelType::kU8: return ForChannels<uint8_t>(image.channels());
+    case PixelType::kU16: return ForChannels<uint16_t>(image.channels());
+    case PixelType::kF32: return ForChannels<float>(image.channels());
+    case PixelType::kU32: break;
+  }
+  return nullptr;
+}
+
+void SetSimdEnabled(bool enabled) { g_simd_enabled = enabled; }
+bool SimdEnabled() { return g_simd_enabled; }
+
+}  // namespace aos::internal

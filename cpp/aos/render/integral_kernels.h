@@ -1,0 +1,39 @@
+#pragma once
+// Internal to the integral renderer: the inner loops that sample one view along a span of an
+// output row and add the samples to double accumulators. The scalar kernels are the reference;
+// AVX2 kernels (8 samples at a time, gathers) are used when the CPU has AVX2 and FMA and give
+// the same values up to float rounding. Not part of the public API.
+#include <cstddef>
+
+#include "aos/image/image.h"
+
+namespace aos::internal {
+
+// Homogeneous view coordinates along an output row: U(x) = u0 + du x, likewise V and W.
+struct RowLine {
+  double u0, du, v0, dv, w0, dw;
+};
+
+// Adds samples for columns [xa, xb) into sum[(x - x0) * channels + c]. The caller guarantees
+// W > 0 and 0 <= U/W <= width, 0 <= V/W <= height on the whole span.
+using SpanKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                            double* sum);
+
+// The scalar kernel for the view's pixel type and channel count (nullptr for uint32 views).
+SpanKernel ScalarSpanKernel(const Image& image);
+// The AVX2 kernel, or nullptr when the CPU lacks AVX2/FMA, SIMD is disabled, or the view's type
+// or channel count has none (1-channel 8-bit, 16-bit and float views have one).
+SpanKernel Avx2SpanKernel(const Image& image);
+
+// SIMD kernels are on by default; tests and benchmarks turn them off to compare with the scalar
+// reference. Not thread-safe: set it before rendering.
+void SetSimdEnabled(bool enabled);
+bool SimdEnabled();
+
+// The kernel the renderer uses: AVX2 when available, else scalar.
+inline SpanKernel SelectSpanKernel(const Image& image) {
+  SpanKernel kernel = SimdEnabled() ? Avx2SpanKernel(image) : nullptr;
+  return kernel != nullptr ? kernel : ScalarSpanKernel(image);
+}
+
+}  // namespace aos::internal
