@@ -369,6 +369,20 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
     row_valid[static_cast<size_t>(r)] = valid;
   }
 
+  // Focal points of the tile's four corner pixels (relative to the virtual centre), to skip the
+  // grazing test for views that pass it on the whole tile: the admitted focal points form a disk
+  // on the plane, the tile's focal points a convex quadrilateral inside its corners' hull.
+  bool corners_valid = true;
+  Vec3d corners[4];
+  for (int k = 0; k < 4; ++k) {
+    const double px = (k & 1) ? tile.x1 - 0.5 : tile.x0 + 0.5;
+    const double py = (k & 2) ? tile.y1 - 0.5 : tile.y0 + 0.5;
+    const Vec3d direction = g.world_from_pixel * Vec3d(px, py, 1.0);
+    const double f = glm::dot(g.normal, direction);
+    corners_valid = corners_valid && g.sign_h * f > 0.0;
+    corners[k] = corners_valid ? (g.h / f) * direction : Vec3d(0.0);
+  }
+
   const bool finite_aperture = std::isfinite(options_.aperture_radius) && mode_ == Mode::kAverage;
   const double r2 = options_.aperture_radius * options_.aperture_radius;
   for (const ViewSetup& view : views_) {
@@ -378,6 +392,15 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
     // A view whose centre lies on the lens plane crosses it at its own centre for every pixel.
     const bool on_lens_plane = std::abs(view.lens_b) <= 1e-12 * (glm::length(view.b) + 1.0);
     if (finite_aperture && on_lens_plane && glm::dot(view.b, view.b) > r2) continue;
+    bool grazing_test = sin2_min_angle_ > 0.0;
+    if (grazing_test && corners_valid) {
+      bool all_inside = true;
+      for (const Vec3d& corner : corners) {
+        const Vec3d to_view = view.b - corner;
+        all_inside = all_inside && sin2_min_angle_ * glm::dot(to_view, to_view) < 0.999 * view.e * view.e;
+      }
+      grazing_test = !all_inside;
+    }
     bool used = false;
     for (int r = 0; r < rows; ++r) {
       Spans spans = row_valid[static_cast<size_t>(r)];
@@ -393,7 +416,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
                   tile.x0, tile.x1);
       if (spans.empty()) continue;
       const RowRay& ray = row_rays[static_cast<size_t>(r)];
-      if (sin2_min_angle_ > 0.0) {
+      if (grazing_test) {
         // sin^2(angle) |C_i - X|^2 <= e^2, times f^2: |f b - h D|^2 s - e^2 f^2 <= 0.
         const LinearVec g_vec{ray.f0 * view.b - g.h * ray.direction.v0,
                               ray.f1 * view.b - g.h * ray.direction.v1};
