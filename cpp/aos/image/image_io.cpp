@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <vector>
 
@@ -77,11 +78,43 @@ Image ReadImage(const std::string& path, int border) {
   const oiio::stride_t value_size = static_cast<oiio::stride_t>(PixelTypeSize(image.type()));
   const oiio::stride_t x_stride = value_size * image.channels();
   const oiio::stride_t y_stride = value_size * image.row_stride();
-  if (!input->read_image(0, 0, 0, spec.nchannels, ToTypeDesc(image.type()), image.RawAt(0, 0),
-                         x_stride, y_stride)) {
+  auto fail = [&] {
     std::string reason = input->geterror();
     if (reason.empty()) reason = "unknown reason";
     ThrowInvalid(path + ": cannot decode image (" + reason + ")");
+  };
+  const oiio::TypeDesc file_type = spec.format;
+  const bool other_integer = !file_type.is_floating_point() && image.type() == PixelType::kF32;
+  if (other_integer) {
+    // OpenImageIO converts integers to float normalised to [0, 1] (or [-1, 1]); aos keeps their
+    // values (a uint32 count map of 70000 reads as 70000.0), so read natively and convert here.
+    const size_t count = static_cast<size_t>(spec.width) * spec.height * spec.nchannels;
+    std::vector<unsigned char> buffer(count * file_type.size());
+    if (!input->read_image(0, 0, 0, spec.nchannels, file_type, buffer.data())) fail();
+    auto convert = [&](auto tag) {
+      using Value = decltype(tag);
+      const Value* values = reinterpret_cast<const Value*>(buffer.data());
+      size_t i = 0;
+      for (int y = 0; y < spec.height; ++y) {
+        float* row = image.At<float>(0, y);
+        for (int x = 0; x < spec.width * spec.nchannels; ++x) {
+          row[x] = static_cast<float>(values[i++]);
+        }
+      }
+    };
+    switch (file_type.basetype) {
+      case oiio::TypeDesc::INT8: convert(int8_t{}); break;
+      case oiio::TypeDesc::INT16: convert(int16_t{}); break;
+      case oiio::TypeDesc::UINT32: convert(uint32_t{}); break;
+      case oiio::TypeDesc::INT32: convert(int32_t{}); break;
+      case oiio::TypeDesc::UINT64: convert(uint64_t{}); break;
+      case oiio::TypeDesc::INT64: convert(int64_t{}); break;
+      default:
+        ThrowInvalid(path + ": unsupported sample type " + std::string(file_type.c_str()));
+    }
+  } else if (!input->read_image(0, 0, 0, spec.nchannels, ToTypeDesc(image.type()),
+                                image.RawAt(0, 0), x_stride, y_stride)) {
+    fail();
   }
   input->close();
   image.FillBorder();

@@ -1,9 +1,747 @@
 #include "aos/lightfield/formats.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <array>
+#include <atomic>
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <cstdio>
+#include <exception>
+#include <filesystem>
+#include <functional>
+#include <map>
+#include <mutex>
+#include <system_error>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "aos/image/image_io.h"
 #include "aos/util/error.h"
+#include "aos/util/file_util.h"
+
+namespace fs = std::filesystem;
+
 namespace aos {
-// PLACEHOLDER: being written.
-void LoadOptions::Check() const {}
-LoadResult LoadLightField(const std::string&, const LoadOptions&, ProgressSink*) { ThrowInvalid("not implemented"); }
-void WriteLightField(const std::string&, const LightField&, const WriteLightFieldOptions&) { ThrowInvalid("not implemented"); }
-double ParseNumberText(const std::string&, const std::string&) { ThrowInvalid("not implemented"); }
+namespace {
+
+using nlohmann::json;
+
+constexpr const char* kAosFormatName = "aos-lightfield";
+constexpr int kAosFormatVersion = 1;
+// Extensions tried, in this order, when a JKU frame is not found under its own name.
+constexpr std::array<const char*, 6> kFrameExtensions = {".png", ".tif",  ".tiff",
+                                                         ".jpg", ".jpeg", ".exr"};
+
+std::string Quoted(const std::string& text) { return "\"" + text + "\""; }
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+// A JSON value as text for messages (strings without escaping noise, others dumped).
+std::string Describe(const json& value) {
+  if (value.is_string()) return Quoted(value.get<std::string>());
+  std::string text = value.dump();
+  if (text.size() > 60) text = text.substr(0, 57) + "...";
+  return text;
+}
+
+// A number given as a JSON number or (when allowed) a numeric string; finite.
+double NumberFrom(const json& value, const std::string& where, bool allow_strings) {
+  if (value.is_number()) {
+    const double number = value.get<double>();
+    if (!std::isfinite(number)) ThrowInvalid(Where(where, "is not a finite number"));
+    return number;
+  }
+  if (value.is_string() && allow_strings) return ParseNumberText(value.get<std::string>(), where);
+  ThrowInvalid(Where(where, std::string("expected a number") +
+                                (allow_strings ? " or a numeric string" : "") + ", got " +
+                                Describe(value)));
+}
+
+int PositiveIntFrom(const json& value, const std::string& where) {
+  const double number = NumberFrom(value, where, false);
+  if (!(number >= 1.0 && number <= 1e9) || number != std::floor(number)) {
+    ThrowInvalid(Where(where, "expected a positive whole number, got " + Describe(value)));
+  }
+  return static_cast<int>(number);
+}
+
+const json& Field(const json& object, const char* name, const std::string& where) {
+  auto it = object.find(name);
+  if (it == object.end()) ThrowInvalid(Where(where, std::string(name) + ": missing"));
+  return *it;
+}
+
+std::string StringFrom(const json& value, const std::string& where) {
+  if (!value.is_string()) ThrowInvalid(Where(where, "expected a string, got " + Describe(value)));
+  std::string text = value.get<std::string>();
+  if (text.empty()) ThrowInvalid(Where(where, "is empty"));
+  return text;
+}
+
+// `value` must be an array of `size` numbers.
+template <size_t N>
+std::array<double, N> NumbersFrom(const json& value, const std::string& where, bool allow_strings) {
+  if (!value.is_array() || value.size() != N) {
+    ThrowInvalid(Where(where, "expected " + std::to_string(N) + " numbers, got " +
+                                  Describe(value)));
+  }
+  std::array<double, N> numbers{};
+  for (size_t i = 0; i < N; ++i) {
+    numbers[i] = NumberFrom(value[i], where + "[" + std::to_string(i) + "]", allow_strings);
+  }
+  return numbers;
+}
+
+// Checks a pose read from a file; `where` names the entry and the field.
+void CheckPose(const Rigid3d& pose, const std::string& where) {
+  if (auto problem = DescribeInvalidRigid(pose)) ThrowInvalid(Where(where, *problem));
+}
+
+std::string ParentFolder(const std::string& path) {
+  const fs::path parent = fs::path(path).parent_path();
+  return parent.empty() ? std::string(".") : parent.string();
+}
+
+// Resolves `name` against `folder` unless it is absolute.
+std::string ResolvePath(const std::string& folder, const std::string& name) {
+  const fs::path path(name);
+  if (path.is_absolute()) return path.string();
+  if (folder == ".") return path.string();
+  return (fs::path(folder) / path).string();
+}
+
+bool IsFile(const std::string& path) {
+  std::error_code error;
+  return fs::is_regular_file(path, error);
+}
+
+int ResolveThreads(int num_threads) {
+  return num_threads == -1 ? std::max(1, omp_get_max_threads()) : num_threads;
+}
+
+// Runs fn(i) for i in [0, n) on `num_threads` threads. Exceptions stay inside the parallel
+// region: the one from the lowest failing index is stored and rethrown after the loop, so the
+// error reported does not depend on scheduling; indices above a known failure are skipped.
+// Cancellation is polled from the calling thread (OpenMP thread 0) only.
+void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
+                 const std::function<void(int64_t)>& fn) {
+  std::atomic<int64_t> first_error_index{n};
+  std::exception_ptr first_error;
+  std::mutex error_mutex;
+  std::atomic<bool> cancelled{false};
+#pragma omp parallel for schedule(dynamic) num_threads(num_threads)
+  for (int64_t i = 0; i < n; ++i) {
+    if (omp_get_thread_num() == 0 && !cancelled.load() && ProgressCancelled(progress)) {
+      cancelled.store(true);
+    }
+    if (cancelled.load() || i > first_error_index.load()) continue;
+    try {
+      fn(i);
+      ProgressAdvance(progress, 1);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(error_mutex);
+      if (i < first_error_index.load()) {
+        first_error_index.store(i);
+        first_error = std::current_exception();
+      }
+    }
+  }
+  if (cancelled.load() || ProgressCancelled(progress)) throw Cancelled();
+  if (first_error) std::rethrow_exception(first_error);
+}
+
+// One frame to decode (or probe) and where it came from, for messages.
+struct Frame {
+  std::string label;  // "file: view 3 (a.png)" / "file: image 3 (a.tiff)"
+  std::string path;   // resolved file
+};
+
+struct FrameData {
+  std::vector<Image> images;          // when decoding
+  std::vector<ImageFileInfo> infos;   // always
+};
+
+// Decodes (load_images) or probes the frames in parallel.
+FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& options,
+                     ProgressSink* progress) {
+  const int64_t n = static_cast<int64_t>(frames.size());
+  FrameData data;
+  data.infos.resize(frames.size());
+  if (options.load_images) data.images.resize(frames.size());
+  ProgressStart(progress, "load", n);
+  ParallelFor(n, ResolveThreads(options.num_threads), progress, [&](int64_t i) {
+    const Frame& frame = frames[i];
+    try {
+      ImageFileInfo& info = data.infos[i];
+      if (options.load_images) {
+        Image image = ReadImage(frame.path, 1);
+        info.width = image.width();
+        info.height = image.height();
+        info.channels = image.channels();
+        info.type = image.type();
+        data.images[i] = std::move(image);
+      } else {
+        info = ReadImageInfo(frame.path);
+        if (info.width <= 0 || info.height <= 0) ThrowInvalid(frame.path + ": image is empty");
+        if (info.channels < 1 || info.channels > 4) {
+          ThrowInvalid(frame.path + ": image has " + std::to_string(info.channels) +
+                       " channels; aos reads 1 to 4");
+        }
+      }
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid(Where(frame.label, error.what()));
+    }
+  });
+  return data;
+}
+
+std::string SizeText(int width, int height) {
+  return std::to_string(width) + "x" + std::to_string(height);
+}
+
+// Checks frame sizes against the cameras and channel counts against frame 0 (the checks
+// CheckView/CheckLightField make, done from the file headers so they also apply when the
+// images are not decoded).
+void CheckFrameInfos(const std::vector<Frame>& frames, const std::vector<ImageFileInfo>& infos,
+                     const std::vector<View>& views) {
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const ImageFileInfo& info = infos[i];
+    const PinholeCamera& camera = views[i].camera;
+    if (info.width != camera.width || info.height != camera.height) {
+      ThrowInvalid(Where(frames[i].label, "image " + frames[i].path + " is " +
+                                              SizeText(info.width, info.height) +
+                                              " but the camera says " +
+                                              SizeText(camera.width, camera.height)));
+    }
+    if (info.channels != infos[0].channels) {
+      ThrowInvalid(Where(frames[i].label, "image has " + std::to_string(info.channels) +
+                                              " channels but view 0 has " +
+                                              std::to_string(infos[0].channels)));
+    }
+  }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The aos format.
+
+PinholeCamera ReadAosCamera(const json& value, const std::string& where) {
+  if (!value.is_object()) ThrowInvalid(Where(where, "expected an object, got " + Describe(value)));
+  const std::string model = StringFrom(Field(value, "model", where), where + ": model");
+  if (model != "pinhole") {
+    ThrowInvalid(Where(where, "model: only \"pinhole\" is supported (got " + Quoted(model) + ")"));
+  }
+  const int width = PositiveIntFrom(Field(value, "width", where), where + ": width");
+  const int height = PositiveIntFrom(Field(value, "height", where), where + ": height");
+  const bool has_fov = value.contains("fov_deg");
+  const bool has_any_intrinsic = value.contains("fx") || value.contains("fy") ||
+                                 value.contains("cx") || value.contains("cy");
+  PinholeCamera camera;
+  if (has_fov) {
+    if (has_any_intrinsic) {
+      ThrowInvalid(Where(where, "give either fov_deg or fx, fy, cx, cy, not both"));
+    }
+    const double fov_deg = NumberFrom(value["fov_deg"], where + ": fov_deg", false);
+    if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
+      ThrowInvalid(Where(where, "fov_deg: must be in (0, 180) degrees (got " +
+                                    FormatNumber(fov_deg) + ")"));
+    }
+    camera = PinholeCamera::FromFov(width, height, fov_deg);
+  } else {
+    if (!has_any_intrinsic) ThrowInvalid(Where(where, "needs fx, fy, cx, cy or fov_deg"));
+    camera.width = width;
+    camera.height = height;
+    camera.fx = NumberFrom(Field(value, "fx", where), where + ": fx", false);
+    camera.fy = NumberFrom(Field(value, "fy", where), where + ": fy", false);
+    camera.cx = NumberFrom(Field(value, "cx", where), where + ": cx", false);
+    camera.cy = NumberFrom(Field(value, "cy", where), where + ": cy", false);
+  }
+  camera.Check(where);
+  return camera;
+}
+
+Rigid3d ReadAosPose(const json& value, const std::string& where) {
+  if (!value.is_object()) {
+    ThrowInvalid(Where(where, "expected an object with rotation and translation, got " +
+                                  Describe(value)));
+  }
+  const json& rotation = Field(value, "rotation", where);
+  if (!rotation.is_array() || rotation.size() != 3) {
+    ThrowInvalid(Where(where, "rotation: expected 3 rows of 3 numbers, got " +
+                                  Describe(rotation)));
+  }
+  std::array<double, 12> rows{};
+  for (int r = 0; r < 3; ++r) {
+    const auto row = NumbersFrom<3>(rotation[r], where + ": rotation[" + std::to_string(r) + "]",
+                                    false);
+    for (int c = 0; c < 3; ++c) rows[4 * r + c] = row[c];
+  }
+  const auto translation =
+      NumbersFrom<3>(Field(value, "translation", where), where + ": translation", false);
+  for (int r = 0; r < 3; ++r) rows[4 * r + 3] = translation[r];
+  const Rigid3d pose = Rigid3d::FromMatrix3x4(rows);
+  CheckPose(pose, where);
+  return pose;
+}
+
+LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions& options,
+                   ProgressSink* progress) {
+  const json& version = Field(root, "version", path);
+  if (!version.is_number_integer() || version.get<int64_t>() != kAosFormatVersion) {
+    ThrowInvalid(path + ": version: expected " + std::to_string(kAosFormatVersion) + ", got " +
+                 Describe(version) + " (written by a newer aos?)");
+  }
+  LoadResult result;
+  result.format = "aos";
+  LightField& light_field = result.light_field;
+  if (auto it = root.find("origin"); it != root.end()) {
+    const auto origin = NumbersFrom<3>(*it, path + ": origin", false);
+    light_field.origin = Vec3d(origin[0], origin[1], origin[2]);
+  }
+
+  const json& cameras_json = Field(root, "cameras", path);
+  if (!cameras_json.is_object()) {
+    ThrowInvalid(path + ": cameras: expected an object keyed by camera id, got " +
+                 Describe(cameras_json));
+  }
+  std::map<std::string, PinholeCamera> cameras;
+  for (const auto& [id, value] : cameras_json.items()) {
+    cameras[id] = ReadAosCamera(value, path + ": camera " + Quoted(id));
+  }
+
+  const json& views_json = Field(root, "views", path);
+  if (!views_json.is_array()) {
+    ThrowInvalid(path + ": views: expected an array, got " + Describe(views_json));
+  }
+  if (views_json.empty()) ThrowInvalid(path + ": views: the light field has no views");
+  const std::string folder = ParentFolder(path);
+  std::vector<Frame> frames;
+  for (size_t i = 0; i < views_json.size(); ++i) {
+    const json& entry = views_json[i];
+    std::string label = path + ": view " + std::to_string(i);
+    if (!entry.is_object()) ThrowInvalid(label + ": expected an object, got " + Describe(entry));
+    const std::string image = StringFrom(Field(entry, "image", label), label + ": image");
+    label += " (" + image + ")";
+    View view;
+    view.name = image;
+    view.image_path = ResolvePath(folder, image);
+    const std::string camera_id = StringFrom(Field(entry, "camera", label), label + ": camera");
+    auto camera = cameras.find(camera_id);
+    if (camera == cameras.end()) {
+      std::string known;
+      for (const auto& [id, unused] : cameras) known += (known.empty() ? "" : ", ") + Quoted(id);
+      ThrowInvalid(label + ": camera: unknown camera id " + Quoted(camera_id) + " (known: " +
+                   (known.empty() ? std::string("none") : known) + ")");
+    }
+    view.camera = camera->second;
+    view.cam_from_world =
+        ReadAosPose(Field(entry, "cam_from_world", label), label + ": cam_from_world");
+    frames.push_back(Frame{label, view.image_path});
+    light_field.views.push_back(std::move(view));
+  }
+
+  FrameData data = ReadFrames(frames, options, progress);
+  CheckFrameInfos(frames, data.infos, light_field.views);
+  if (options.load_images) {
+    for (size_t i = 0; i < frames.size(); ++i) light_field.views[i].image = std::move(data.images[i]);
+    CheckLightField(light_field, path);
+  }
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------
+// The JKU-ICG/AOS poses.json.
+
+bool LooksLikeJku(const json& root) {
+  auto images = root.find("images");
+  if (images == root.end() || !images->is_array()) return false;
+  for (const json& entry : *images) {
+    if (entry.is_object() && entry.contains("M3x4")) return true;
+  }
+  return false;
+}
+
+Rigid3d ReadJkuPose(const json& value, const std::string& where) {
+  const std::string shape_error = "expected 3 rows of 4 numbers, got ";
+  if (!value.is_array() || value.size() != 3) ThrowInvalid(Where(where, shape_error + Describe(value)));
+  std::array<double, 12> rows{};
+  for (int r = 0; r < 3; ++r) {
+    const json& row = value[r];
+    if (!row.is_array() || row.size() != 4) {
+      ThrowInvalid(Where(where, shape_error + Describe(value)));
+    }
+    for (int c = 0; c < 4; ++c) {
+      rows[4 * r + c] = NumberFrom(
+          row[c], where + "[" + std::to_string(r) + "][" + std::to_string(c) + "]", true);
+    }
+  }
+  const Rigid3d pose = Rigid3d::FromMatrix3x4(rows);
+  CheckPose(pose, where);
+  return pose;
+}
+
+// The folder holding the frames of JKU poses file `path`.
+std::string JkuFramesFolder(const std::string& path, const LoadOptions& options) {
+  std::error_code error;
+  if (!options.images_dir.empty()) {
+    if (!fs::is_directory(options.images_dir, error)) {
+      ThrowInvalid(path + ": images_dir: folder " + Quoted(options.images_dir) +
+                   " does not exist");
+    }
+    return options.images_dir;
+  }
+  const std::string poses_folder = ParentFolder(path);
+  const std::string beside = (fs::path(poses_folder) / ".." / "images").string();
+  if (fs::is_directory(beside, error)) return beside;
+  return poses_folder;
+}
+
+LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions& options,
+                   ProgressSink* progress) {
+  if (options.fov_deg == 0.0) {
+    ThrowInvalid(path + ": fov_deg: a JKU poses file has no intrinsics; give the horizontal "
+                        "field of view of the frames in degrees (LoadOptions::fov_deg)");
+  }
+  LoadResult result;
+  result.format = "jku";
+  LightField& light_field = result.light_field;
+  const json& images = root["images"];
+  const std::string folder = JkuFramesFolder(path, options);
+  // For messages only: "poses/../images" reads better as "images" (access uses `folder`).
+  const std::string folder_text = fs::path(folder).lexically_normal().string();
+
+  // Substituted names, grouped by (named extension, found extension): count and first example.
+  struct Substitution {
+    int count = 0;
+    std::string example;
+  };
+  std::map<std::pair<std::string, std::string>, Substitution> substitutions;
+  std::vector<std::pair<std::string, std::string>> substitution_order;
+
+  std::vector<Frame> frames;
+  for (size_t i = 0; i < images.size(); ++i) {
+    const json& entry = images[i];
+    std::string label = path + ": image " + std::to_string(i);
+    if (!entry.is_object()) ThrowInvalid(label + ": expected an object, got " + Describe(entry));
+    const std::string imagefile =
+        StringFrom(Field(entry, "imagefile", label), label + ": imagefile");
+    label += " (" + imagefile + ")";
+    View view;
+    view.name = imagefile;
+    view.cam_from_world = ReadJkuPose(Field(entry, "M3x4", label), label + ": M3x4");
+
+    // The frame: its own name, then the same stem with another image extension.
+    std::string frame_path = ResolvePath(folder, imagefile);
+    if (!IsFile(frame_path)) {
+      const fs::path named(frame_path);
+      const std::string named_extension = Lower(named.extension().string());
+      std::string found;
+      std::string tried;
+      for (const char* extension : kFrameExtensions) {
+        if (named_extension == extension) continue;
+        const std::string candidate = fs::path(named).replace_extension(extension).string();
+        tried += (tried.empty() ? "" : ", ") + std::string(extension);
+        if (IsFile(candidate)) {
+          found = candidate;
+          break;
+        }
+      }
+      if (found.empty()) {
+        ThrowInvalid(label + ": imagefile: frame not found in " + Quoted(folder_text) +
+                     " (also tried the extensions " + tried + ")");
+      }
+      const auto key = std::make_pair(named.extension().string(),
+                                      fs::path(found).extension().string());
+      Substitution& substitution = substitutions[key];
+      if (substitution.count++ == 0) {
+        substitution.example = imagefile + " -> " + fs::path(found).filename().string();
+        substitution_order.push_back(key);
+      }
+      frame_path = found;
+    }
+    view.image_path = frame_path;
+    frames.push_back(Frame{label, frame_path});
+    light_field.views.push_back(std::move(view));
+  }
+  for (const auto& key : substitution_order) {
+    const Substitution& substitution = substitutions[key];
+    const std::string named = key.first.empty() ? std::string("without an extension")
+                                                : "*" + key.first;
+    result.notes.push_back(path + ": " + std::to_string(substitution.count) + " frame" +
+                           (substitution.count == 1 ? "" : "s") + " named " + named +
+                           (substitution.count == 1 ? " was" : " were") + " found as *" +
+                           key.second + " in " + folder_text + " (e.g. " + substitution.example +
+                           ")");
+  }
+
+  FrameData data = ReadFrames(frames, options, progress);
+  // One camera for all frames, sized by the first frame.
+  PinholeCamera camera;
+  try {
+    camera = PinholeCamera::FromFov(data.infos[0].width, data.infos[0].height, options.fov_deg);
+  } catch (const std::invalid_argument& error) {
+    ThrowInvalid(Where(frames[0].label, error.what()));
+  }
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const ImageFileInfo& info = data.infos[i];
+    if (info.width != camera.width || info.height != camera.height) {
+      ThrowInvalid(frames[i].label + ": image " + frames[i].path + " is " +
+                   SizeText(info.width, info.height) + " but the first frame is " +
+                   SizeText(camera.width, camera.height) +
+                   " (all frames of a poses file share one camera)");
+    }
+    light_field.views[i].camera = camera;
+  }
+  CheckFrameInfos(frames, data.infos, light_field.views);
+  if (options.load_images) {
+    for (size_t i = 0; i < frames.size(); ++i) light_field.views[i].image = std::move(data.images[i]);
+    CheckLightField(light_field, path);
+  }
+  return result;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Writing.
+
+// How `image_path` is written into a JSON file in `json_folder`: relative when the two share a
+// folder below the root and the relative path names the same file, else absolute (a path that
+// climbs to "/" and back down is no more portable than the absolute one).
+std::string ReferencePath(const std::string& image_path, const std::string& json_folder) {
+  std::error_code error;
+  const fs::path image = fs::weakly_canonical(fs::absolute(image_path), error);
+  if (error) return fs::absolute(image_path).string();
+  const fs::path folder = fs::weakly_canonical(fs::absolute(json_folder), error);
+  if (error) return image.string();
+  const fs::path relative = image.lexically_relative(folder);
+  if (relative.empty()) return image.string();
+  const auto ups = std::count(relative.begin(), relative.end(), fs::path(".."));
+  const fs::path folder_below_root = folder.relative_path();
+  const auto folder_depth = std::distance(folder_below_root.begin(), folder_below_root.end());
+  if (ups >= folder_depth) return image.string();
+  std::error_code equivalent_error;
+  if (!fs::equivalent(fs::path(json_folder) / relative, image, equivalent_error)) {
+    return image.string();
+  }
+  return relative.generic_string();
+}
+
+bool SameCamera(const PinholeCamera& a, const PinholeCamera& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
+         a.cx == b.cx && a.cy == b.cy;
+}
+
+std::string ViewLabel(const std::string& where, size_t index, const View& view) {
+  std::string label = where + ": view " + std::to_string(index);
+  if (!view.name.empty()) label += " (" + view.name + ")";
+  return label;
+}
+
+}  // namespace
+
+void LoadOptions::Check() const {
+  if (!std::isfinite(fov_deg) || !(fov_deg == 0.0 || (fov_deg > 0.0 && fov_deg < 180.0))) {
+    ThrowInvalid("fov_deg: must be in (0, 180) degrees, or 0 for not given (got " +
+                 FormatNumber(fov_deg) + ")");
+  }
+  if (!(num_threads == -1 || num_threads >= 1)) {
+    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " +
+                 std::to_string(num_threads) + ")");
+  }
+}
+
+double ParseNumberText(const std::string& text, const std::string& where) {
+  // Grammar: [+-] (digits [. digits*] | . digits) [(e|E) [+-] digits], the whole text.
+  const std::string not_a_number = Where(where, Quoted(text) + " is not a number");
+  const std::string lowered = Lower(text);
+  const std::string unsigned_text =
+      (!lowered.empty() && (lowered[0] == '+' || lowered[0] == '-')) ? lowered.substr(1) : lowered;
+  if (unsigned_text == "nan" || unsigned_text == "inf" || unsigned_text == "infinity") {
+    ThrowInvalid(not_a_number + " (not finite)");
+  }
+  size_t i = 0;
+  const size_t n = text.size();
+  auto digits = [&] {
+    const size_t start = i;
+    while (i < n && std::isdigit(static_cast<unsigned char>(text[i]))) ++i;
+    return i - start;
+  };
+  if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+  size_t mantissa_digits = digits();
+  if (i < n && text[i] == '.') {
+    ++i;
+    mantissa_digits += digits();
+  }
+  bool valid = mantissa_digits > 0;
+  if (valid && i < n && (text[i] == 'e' || text[i] == 'E')) {
+    ++i;
+    if (i < n && (text[i] == '+' || text[i] == '-')) ++i;
+    valid = digits() > 0;
+  }
+  if (!valid || i != n) ThrowInvalid(not_a_number);
+  // from_chars does not take a leading '+' and ignores the locale (unlike strtod).
+  const char* begin = text.data() + (text[0] == '+' ? 1 : 0);
+  double value = 0.0;
+  const auto [end, error] = std::from_chars(begin, text.data() + n, value);
+  if (error == std::errc::result_out_of_range) ThrowInvalid(not_a_number + " (out of range)");
+  if (error != std::errc() || end != text.data() + n) ThrowInvalid(not_a_number);
+  if (!std::isfinite(value)) ThrowInvalid(not_a_number + " (not finite)");
+  return value;
+}
+
+LoadResult LoadLightField(const std::string& path, const LoadOptions& options,
+                          ProgressSink* progress) {
+  options.Check();
+  const std::string text = ReadTextFile(path);
+  json root;
+  try {
+    root = json::parse(text);
+  } catch (const json::parse_error& error) {
+    ThrowInvalid(path + ": not valid JSON (" + error.what() + ")");
+  }
+  const std::string expected =
+      "expected an aos light field ({\"format\": \"aos-lightfield\", ...}) or a JKU poses file "
+      "({\"images\": [{\"imagefile\": ..., \"M3x4\": ...}]})";
+  if (!root.is_object()) ThrowInvalid(path + ": unknown light-field format; " + expected);
+  if (auto format = root.find("format"); format != root.end()) {
+    if (format->is_string() && format->get<std::string>() == kAosFormatName) {
+      return LoadAos(path, root, options, progress);
+    }
+    ThrowInvalid(path + ": format: unknown light-field format " + Describe(*format) + "; " +
+                 expected);
+  }
+  if (LooksLikeJku(root)) return LoadJku(path, root, options, progress);
+  ThrowInvalid(path + ": unknown light-field format; " + expected);
+}
+
+void WriteLightField(const std::string& path, const LightField& light_field,
+                     const WriteLightFieldOptions& options) {
+  // Options and light field first: nothing is written unless everything can be.
+  const std::string& extension = options.image_extension;
+  if (extension.size() < 2 || extension[0] != '.' ||
+      extension.find_first_of("/\\") != std::string::npos) {
+    ThrowInvalid("image_extension: expected a file extension such as \".png\" (got " +
+                 Quoted(extension) + ")");
+  }
+  if (fs::path(options.images_subdir).is_absolute()) {
+    ThrowInvalid("images_subdir: must be relative to the light-field file's folder (got " +
+                 Quoted(options.images_subdir) + ")");
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(light_field.origin[i])) ThrowInvalid(path + ": origin is not finite");
+  }
+  if (light_field.views.empty()) ThrowInvalid(path + ": the light field has no views");
+  std::vector<std::string> inputs;
+  const View* first_with_image = nullptr;
+  for (size_t i = 0; i < light_field.views.size(); ++i) {
+    const View& view = light_field.views[i];
+    const std::string label = ViewLabel(path, i, view);
+    view.camera.Check(label);
+    if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {
+      ThrowInvalid(label + ": cam_from_world: " + *problem);
+    }
+    if (!view.image_path.empty()) {
+      if (!IsFile(view.image_path)) {
+        ThrowInvalid(label + ": image_path: " + Quoted(view.image_path) + " is not a file");
+      }
+      inputs.push_back(view.image_path);
+      continue;
+    }
+    if (view.image.empty()) {
+      ThrowInvalid(label + ": image: no pixels and no image_path; nothing to write or reference");
+    }
+    if (view.image.width() != view.camera.width || view.image.height() != view.camera.height) {
+      ThrowInvalid(label + ": image is " + SizeText(view.image.width(), view.image.height()) +
+                   " but the camera says " + SizeText(view.camera.width, view.camera.height));
+    }
+    if (view.image.type() == PixelType::kU32) {
+      ThrowInvalid(label + ": image: uint32 views are not supported (use 8/16-bit or float)");
+    }
+    if (first_with_image == nullptr) first_with_image = &view;
+    if (view.image.channels() != first_with_image->image.channels()) {
+      ThrowInvalid(label + ": image has " + std::to_string(view.image.channels()) +
+                   " channels but " + first_with_image->name + " has " +
+                   std::to_string(first_with_image->image.channels()));
+    }
+  }
+  CheckOutputPath(path, inputs, "light-field file");
+
+  const std::string folder = ParentFolder(path);
+  const fs::path images_folder = fs::path(folder) / options.images_subdir;
+  std::vector<std::string> written(light_field.views.size());  // path to write, or empty
+  const bool any_written = std::any_of(light_field.views.begin(), light_field.views.end(),
+                                       [](const View& view) { return view.image_path.empty(); });
+  if (any_written) {
+    std::error_code error;
+    fs::create_directories(images_folder, error);
+    if (error || !fs::is_directory(images_folder)) {
+      ThrowInvalid(images_folder.string() + ": images_subdir: cannot create the folder" +
+                   (error ? " (" + error.message() + ")" : std::string()));
+    }
+  }
+  for (size_t i = 0; i < light_field.views.size(); ++i) {
+    if (!light_field.views[i].image_path.empty()) continue;
+    char name[32];
+    std::snprintf(name, sizeof(name), "%04zu", i);
+    written[i] = (images_folder / (std::string(name) + extension)).string();
+    CheckOutputPath(written[i], inputs, "view image");
+  }
+
+  ParallelFor(static_cast<int64_t>(light_field.views.size()), ResolveThreads(-1), nullptr,
+              [&](int64_t i) {
+                if (!written[i].empty()) WriteImage(written[i], light_field.views[i].image);
+              });
+
+  // The JSON, in the documented field order, cameras shared where identical.
+  nlohmann::ordered_json root;
+  root["format"] = kAosFormatName;
+  root["version"] = kAosFormatVersion;
+  root["origin"] = {light_field.origin.x, light_field.origin.y, light_field.origin.z};
+  std::vector<PinholeCamera> cameras;
+  nlohmann::ordered_json cameras_json = nlohmann::ordered_json::object();
+  nlohmann::ordered_json views_json = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < light_field.views.size(); ++i) {
+    const View& view = light_field.views[i];
+    size_t camera_index = 0;
+    while (camera_index < cameras.size() && !SameCamera(cameras[camera_index], view.camera)) {
+      ++camera_index;
+    }
+    const std::string camera_id = "cam" + std::to_string(camera_index);
+    if (camera_index == cameras.size()) {
+      cameras.push_back(view.camera);
+      const PinholeCamera& camera = view.camera;
+      cameras_json[camera_id] = {{"model", "pinhole"}, {"width", camera.width},
+                                 {"height", camera.height}, {"fx", camera.fx},
+                                 {"fy", camera.fy}, {"cx", camera.cx}, {"cy", camera.cy}};
+    }
+    const std::string image =
+        written[i].empty() ? ReferencePath(view.image_path, folder)
+                           : (fs::path(options.images_subdir) / fs::path(written[i]).filename())
+                                 .generic_string();
+    const Rigid3d& pose = view.cam_from_world;
+    nlohmann::ordered_json rotation = nlohmann::ordered_json::array();
+    for (int r = 0; r < 3; ++r) {
+      const Vec3d row = Row(pose.rotation, r);
+      rotation.push_back({row.x, row.y, row.z});
+    }
+    nlohmann::ordered_json pose_json;
+    pose_json["rotation"] = rotation;
+    pose_json["translation"] = {pose.translation.x, pose.translation.y, pose.translation.z};
+    nlohmann::ordered_json view_json;
+    view_json["image"] = image;
+    view_json["camera"] = camera_id;
+    view_json["cam_from_world"] = pose_json;
+    views_json.push_back(view_json);
+  }
+  root["cameras"] = cameras_json;
+  root["views"] = views_json;
+  WriteTextFileAtomic(path, root.dump(2) + "\n");
+}
+
 }  // namespace aos
