@@ -1,0 +1,131 @@
+// Bindings of lightfield/lightfield.h and lightfield/formats.h.
+#include <filesystem>
+
+#include <pybind11/stl/filesystem.h>
+
+#include "aos/lightfield/formats.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/util/error.h"
+#include "bindings.h"
+
+namespace aos::python {
+namespace {
+
+using namespace pybind11::literals;
+
+std::string ImageSummary(const Image& image) {
+  if (image.empty()) return "no image";
+  return std::to_string(image.width()) + "x" + std::to_string(image.height()) + "x" +
+         std::to_string(image.channels()) + " " + PixelTypeName(image.type());
+}
+
+}  // namespace
+
+void BindLightField(py::module_& m) {
+  py::class_<View>(m, "View",
+                   "One view of a light field: an image with its pinhole camera and pose. "
+                   "Read-only; build views with LightField.add_view.")
+      .def_readonly("name", &View::name, "A label for messages (file name for loaded views).")
+      .def_readonly("image_path", &View::image_path,
+                    "Source file, if the view was loaded from one (else '').")
+      .def_readonly("camera", &View::camera, "The view's pinhole camera (matches the image size).")
+      .def_readonly("cam_from_world", &View::cam_from_world,
+                    "Pose: local frame -> camera (OpenCV axes).")
+      .def_property_readonly(
+          "image", [](const View& view) { return ArrayFromImage(view.image); },
+          "The pixels as a new numpy array (a COPY: (H, W) or (H, W, C), native dtype), or None "
+          "if the light field was loaded without images.")
+      .def("__repr__", [](const View& view) {
+        return "View(name='" + view.name + "', " + ImageSummary(view.image) + ")";
+      });
+
+  py::class_<LightField>(m, "LightField",
+                         "A light field: views (image, pinhole camera, cam_from_world) in a "
+                         "local frame whose zero lies at `origin` in world coordinates.")
+      .def(py::init<>(), "An empty light field (origin at zero, no views).")
+      .def_readwrite("origin", &LightField::origin,
+                     "World position of the local frame's zero (float64 copy; e.g. UTM).")
+      .def_property_readonly(
+          "views", [](const LightField& light_field) { return light_field.views; },
+          "The views, as a new list of read-only View objects (their pixels are not copied).")
+      .def("__len__", [](const LightField& light_field) { return light_field.views.size(); })
+      .def("image_bytes", &LightField::ImageBytes,
+           "Total bytes of the decoded frames (width * height * channels * value size).")
+      .def(
+          "add_view",
+          [](LightField& light_field, const py::handle& image, const PinholeCamera& camera,
+             const Rigid3d& cam_from_world, std::string name) {
+            Image copy = ImageFromArray(image, /*border=*/1, "add_view: image");
+            light_field.views.push_back(
+                MakeView(std::move(name), camera, cam_from_world, std::move(copy)));
+          },
+          "image"_a, "camera"_a, "cam_from_world"_a, "name"_a = "",
+          "Appends a view. `image` (H, W) or (H, W, C) of dtype uint8, uint16 or float32 "
+          "(float64 is converted to float32) is COPIED into the light field with a 1-pixel "
+          "border; changing the array afterwards does not change the view. Raises ValueError for "
+          "another dtype, a bad camera, a camera that disagrees with the image size, or an "
+          "invalid cam_from_world (non-finite, not orthonormal, a reflection).")
+      .def("__repr__", [](const LightField& light_field) {
+        py::object origin = py::cast(light_field.origin);
+        return "LightField(views=" + std::to_string(light_field.views.size()) + ", origin=" +
+               std::string(py::str(py::module_::import("numpy").attr("array2string")(
+                   origin, "separator"_a = ", "))) +
+               ", image_bytes=" + std::to_string(light_field.ImageBytes()) + ")";
+      });
+
+  py::class_<LoadResult>(m, "LoadResult", "What load_lightfield returns.")
+      .def_readonly("light_field", &LoadResult::light_field, "The loaded light field.")
+      .def_readonly("format", &LoadResult::format, "'aos' or 'jku'.")
+      .def_readonly("notes", &LoadResult::notes,
+                    "Things the user should know (e.g. substituted frame names).")
+      .def("__repr__", [](const LoadResult& result) {
+        return "LoadResult(format='" + result.format + "', views=" +
+               std::to_string(result.light_field.views.size()) +
+               ", notes=" + std::to_string(result.notes.size()) + ")";
+      });
+
+  const LoadOptions load_defaults;
+  m.def(
+      "load_lightfield",
+      [](const std::filesystem::path& path, double fov_deg, const std::filesystem::path& images_dir,
+         bool load_images, int num_threads, const py::object& progress) {
+        LoadOptions options;
+        options.fov_deg = fov_deg;
+        options.images_dir = images_dir.string();
+        options.load_images = load_images;
+        options.num_threads = num_threads;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return LoadLightField(path.string(), options, sink);
+        });
+      },
+      "path"_a, "fov_deg"_a = load_defaults.fov_deg, "images_dir"_a = load_defaults.images_dir,
+      "load_images"_a = load_defaults.load_images, "num_threads"_a = load_defaults.num_threads,
+      "progress"_a = py::none(),
+      "Loads a light field (the aos JSON format, or a JKU-ICG/AOS poses.json), detecting the "
+      "format from the content. fov_deg: horizontal field of view of the frames, degrees, "
+      "required for poses.json (0 = not given). images_dir: folder of the frames of a "
+      "poses.json ('' = beside it). load_images: False loads poses and cameras only. "
+      "num_threads: -1 = all cores. progress(stage, done, total) is called from the calling "
+      "thread, throttled; if it raises, loading stops and the error propagates. Ctrl-C raises "
+      "KeyboardInterrupt.");
+
+  const WriteLightFieldOptions write_defaults;
+  m.def(
+      "write_lightfield",
+      [](const std::filesystem::path& path, const LightField& light_field,
+         std::string images_subdir, std::string image_extension) {
+        WriteLightFieldOptions options;
+        options.images_subdir = std::move(images_subdir);
+        options.image_extension = std::move(image_extension);
+        const LightField snapshot = light_field;  // cheap: pixel storage is shared
+        py::gil_scoped_release release;
+        WriteLightField(path.string(), snapshot, options);
+      },
+      "path"_a, "light_field"_a, "images_subdir"_a = write_defaults.images_subdir,
+      "image_extension"_a = write_defaults.image_extension,
+      "Writes `light_field` in the aos JSON format to `path`; views without a source file are "
+      "written into images_subdir (relative to the JSON file's folder) with image_extension. "
+      "Atomic per file; refuses to overwrite any view's source image.");
+}
+
+}  // namespace aos::python

@@ -1,0 +1,246 @@
+#pragma once
+// Shared pieces of the pybind11 module aos._core: the BindX entry points (one per binding file),
+// glm <-> numpy conversions, numpy <-> aos::Image conversions, the Python progress sink and the
+// kwargs protocol of the XxxOptions classes. Bindings adapt; they contain no algorithms.
+//
+// Copy rules for numpy (stated once here, repeated in the docstrings and in _core.pyi):
+// - Vectors and matrices (glm types) are converted by value both ways: any array-like of the
+//   right shape goes in (converted to float64), a new float64 array comes out. Mutating a returned
+//   array does not change the object it came from.
+// - Images going in (LightField.add_view, write_image) are always COPIED into aos::Image storage;
+//   add_view adds the 1-pixel replicated border that views need. Accepted dtypes: uint8, uint16,
+//   float32 (kept), float64 (converted to float32), and uint32 (write_image only; views reject
+//   it). Any strides are accepted. Other dtypes raise ValueError naming the dtype.
+// - Images coming out: 2-D (H, W) for one channel, (H, W, C) otherwise, dtype named by
+//   PixelTypeName. Result images (border 0: read_image, IntegralResult.image/count) SHARE memory
+//   with the C++ Image; the array keeps the pixel storage alive through a capsule. View images
+//   (border 1) are returned as a COPY, so the stored view (and its border) cannot be changed.
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <utility>
+#include <vector>
+
+#include <glm/glm.hpp>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "aos/image/image.h"
+#include "aos/util/error.h"
+#include "aos/util/progress.h"
+
+namespace pybind11::detail {
+
+#if PYBIND11_VERSION_MAJOR >= 3
+#define AOS_NUMPY_IO_NAME(out) io_name("numpy.typing.ArrayLike", out)
+#else
+#define AOS_NUMPY_IO_NAME(out) const_name(out)
+#endif
+
+// glm::vec<N, double> <-> numpy float64 array of shape (N,). Accepts tuples, lists and arrays.
+template <glm::length_t N>
+struct type_caster<glm::vec<N, double, glm::defaultp>> {
+  using Vec = glm::vec<N, double, glm::defaultp>;
+  PYBIND11_TYPE_CASTER(Vec, AOS_NUMPY_IO_NAME("numpy.typing.NDArray[numpy.float64]"));
+
+  bool load(handle src, bool /*convert*/) {
+    if (!src || src.is_none() || PyUnicode_Check(src.ptr()) || PyBytes_Check(src.ptr())) {
+      return false;
+    }
+    auto array = array_t<double, array::c_style | array::forcecast>::ensure(src);
+    if (!array || array.ndim() != 1 || array.shape(0) != N) return false;
+    for (glm::length_t i = 0; i < N; ++i) value[i] = array.at(i);
+    return true;
+  }
+
+  static handle cast(const Vec& vec, return_value_policy /*policy*/, handle /*parent*/) {
+    array_t<double> array(static_cast<ssize_t>(N));
+    auto out = array.template mutable_unchecked<1>();
+    for (glm::length_t i = 0; i < N; ++i) out(i) = vec[i];
+    return array.release();
+  }
+};
+
+// glm::dmat3 <-> numpy float64 array of shape (3, 3), row-major as written on paper
+// (array[r, c] = m[c][r], GLM being column-major).
+template <>
+struct type_caster<glm::dmat3> {
+  PYBIND11_TYPE_CASTER(glm::dmat3, AOS_NUMPY_IO_NAME("numpy.typing.NDArray[numpy.float64]"));
+
+  bool load(handle src, bool /*convert*/) {
+    if (!src || src.is_none() || PyUnicode_Check(src.ptr()) || PyBytes_Check(src.ptr())) {
+      return false;
+    }
+    auto array = array_t<double, array::c_style | array::forcecast>::ensure(src);
+    if (!array || array.ndim() != 2 || array.shape(0) != 3 || array.shape(1) != 3) return false;
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) value[c][r] = array.at(r, c);
+    }
+    return true;
+  }
+
+  static handle cast(const glm::dmat3& m, return_value_policy /*policy*/, handle /*parent*/) {
+    array_t<double> array({3, 3});
+    auto out = array.mutable_unchecked<2>();
+    for (int r = 0; r < 3; ++r) {
+      for (int c = 0; c < 3; ++c) out(r, c) = m[c][r];
+    }
+    return array.release();
+  }
+};
+
+#undef AOS_NUMPY_IO_NAME
+
+}  // namespace pybind11::detail
+
+namespace aos::python {
+
+namespace py = pybind11;
+
+void BindGeometry(py::module_& m);
+void BindImage(py::module_& m);
+void BindLightField(py::module_& m);
+void BindRender(py::module_& m);  // also binds the default scene (sim/default_scene.h)
+
+// Copies a numpy array (or anything numpy.asarray accepts) of dtype uint8, uint16, uint32,
+// float32 or float64 (-> float32) and shape (H, W) or (H, W, C), C in 1..4, into a new Image with
+// `border` replicated border pixels. Throws ValueError "<what>: ..." naming the dtype or shape.
+Image ImageFromArray(py::handle object, int border, const std::string& what);
+
+// The pixels of `image` as a numpy array: shared (no copy, the array owns a reference to the
+// storage) when the image has no border, copied otherwise. None for an empty image.
+py::object ArrayFromImage(const Image& image);
+
+// A ProgressSink forwarding to an optional Python callable progress(stage, done, total).
+//
+// Start/Advance/Cancelled may run on any thread while the GIL is released. Only the thread that
+// created the sink (the Python caller, which is also OpenMP's master thread) ever touches Python:
+// at most every kReportInterval (plus at the start of a stage and once when done == total) it
+// takes the GIL, runs PyErr_CheckSignals() (so Ctrl-C works) and then the callback. A Python
+// error from either is stored and makes Cancelled() return true; the binding re-raises it with
+// RethrowIfFailed() once the C++ call has returned or thrown.
+class PythonProgress final : public ProgressSink {
+ public:
+  static constexpr std::chrono::milliseconds kReportInterval{100};
+
+  // Call with the GIL held. `callback` may be None (signals are still checked).
+  explicit PythonProgress(py::object callback);
+  ~PythonProgress() override;
+
+  void Start(const std::string& stage, int64_t total) override;
+  void Advance(int64_t units) override;
+  bool Cancelled() override;
+
+  // Call with the GIL held, after the work returned: reports done == total if the last stage
+  // finished without that report (its last units were done on a worker thread).
+  void Finish();
+  // Call with the GIL held: raises the stored Python error, if any.
+  void RethrowIfFailed();
+
+ private:
+  // Owner thread only. `force` skips the time throttle.
+  void Report(bool force);
+
+  py::object callback_;
+  const std::thread::id owner_;
+  std::mutex stage_mutex_;
+  std::string stage_;
+  std::atomic<int64_t> total_{0};
+  std::atomic<int64_t> done_{0};
+  std::atomic<bool> failed_{false};
+  // Owner thread only.
+  std::chrono::steady_clock::time_point last_report_{};
+  bool final_reported_ = false;
+  std::optional<py::error_already_set> error_;
+};
+
+// Runs `compute(ProgressSink*)` with the GIL released and a PythonProgress wired to `callback`.
+// Re-raises a Python error raised by the callback (or by a signal handler) in preference to the
+// aos::Cancelled or other error it caused. Call with the GIL held.
+template <typename Compute>
+auto RunWithProgress(const py::object& callback, Compute&& compute) {
+  PythonProgress sink(callback);
+  std::optional<decltype(compute(static_cast<ProgressSink*>(nullptr)))> result;
+  try {
+    py::gil_scoped_release release;
+    result.emplace(compute(static_cast<ProgressSink*>(&sink)));
+  } catch (...) {
+    // The GIL is already back here: `release` was destroyed while unwinding.
+    sink.RethrowIfFailed();
+    throw;
+  }
+  sink.RethrowIfFailed();
+  sink.Finish();
+  return std::move(*result);
+}
+
+// Binds an XxxOptions struct as a Python class whose read/write properties are exactly the
+// struct's fields (defaults therefore come from C++), with
+//   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
+//   __repr__ listing the fields, __copy__ and __deepcopy__.
+template <typename Options>
+class OptionsClass {
+ public:
+  OptionsClass(py::module_& m, const char* name, const char* doc) : class_(m, name, doc) {}
+
+  template <typename T>
+  OptionsClass& Field(const char* name, T Options::*member, const char* doc) {
+    class_.def_readwrite(name, member, doc);
+    fields_.emplace_back(name);
+    return *this;
+  }
+
+  // Adds the protocol methods; call after the last Field().
+  py::class_<Options>& Finish() {
+    const std::vector<std::string> fields = fields_;
+    const std::string class_name = py::str(class_.attr("__name__"));
+    class_.def(py::init([fields, class_name](const py::kwargs& kwargs) {
+                 py::object options = py::cast(Options{});
+                 for (const auto& item : kwargs) {
+                   const std::string key = py::str(item.first);
+                   if (std::find(fields.begin(), fields.end(), key) == fields.end()) {
+                     throw py::type_error(class_name + "() got an unexpected keyword argument '" +
+                                          key + "' (options: " + Join(fields) + ")");
+                   }
+                   py::setattr(options, item.first, item.second);
+                 }
+                 return options.cast<Options>();
+               }),
+               "Default options, with any field given by name overriding its default.");
+    py::tuple names(fields.size());
+    for (size_t i = 0; i < fields.size(); ++i) names[i] = py::str(fields[i]);
+    class_.attr("_fields") = names;
+    class_.def("__repr__", [fields, class_name](const py::object& self) {
+      std::string text = class_name + "(";
+      for (size_t i = 0; i < fields.size(); ++i) {
+        if (i > 0) text += ", ";
+        text += fields[i] + "=" + std::string(py::repr(self.attr(fields[i].c_str())));
+      }
+      return text + ")";
+    });
+    class_.def("__copy__", [](const Options& self) { return Options(self); });
+    class_.def("__deepcopy__", [](const Options& self, const py::dict&) { return Options(self); },
+               py::arg("memo"));
+    return class_;
+  }
+
+  py::class_<Options>& cls() { return class_; }
+
+ private:
+  static std::string Join(const std::vector<std::string>& names) {
+    std::string text;
+    for (const std::string& name : names) text += (text.empty() ? "" : ", ") + name;
+    return text;
+  }
+
+  py::class_<Options> class_;
+  std::vector<std::string> fields_;
+};
+
+}  // namespace aos::python

@@ -1,0 +1,162 @@
+// The single entry point of aos._core: version, exception translation, the Python progress sink,
+// and one BindX(m) call per binding file.
+#include <exception>
+#include <thread>
+#include <vector>
+
+#include "aos/util/error.h"
+#include "aos/util/progress.h"
+#include "aos/util/version.h"
+#include "bindings.h"
+
+namespace aos::python {
+
+PythonProgress::PythonProgress(py::object callback) : owner_(std::this_thread::get_id()) {
+  if (!callback.is_none()) {
+    if (!PyCallable_Check(callback.ptr())) {
+      throw py::type_error("progress must be None or a callable progress(stage, done, total)");
+    }
+    callback_ = std::move(callback);
+  }
+}
+
+PythonProgress::~PythonProgress() = default;
+
+void PythonProgress::Start(const std::string& stage, int64_t total) {
+  {
+    std::lock_guard<std::mutex> lock(stage_mutex_);
+    stage_ = stage;
+  }
+  total_.store(total);
+  done_.store(0);
+  if (std::this_thread::get_id() == owner_) {
+    final_reported_ = false;
+    Report(/*force=*/true);
+  }
+}
+
+void PythonProgress::Advance(int64_t units) {
+  done_.fetch_add(units);
+  if (std::this_thread::get_id() == owner_) Report(/*force=*/false);
+}
+
+bool PythonProgress::Cancelled() {
+  if (std::this_thread::get_id() == owner_) Report(/*force=*/false);
+  return failed_.load();
+}
+
+void PythonProgress::Finish() {
+  const int64_t total = total_.load();
+  if (!failed_.load() && !final_reported_ && total > 0 && done_.load() >= total) Report(true);
+  RethrowIfFailed();
+}
+
+void PythonProgress::RethrowIfFailed() {
+  if (!error_) return;
+  py::error_already_set error = std::move(*error_);
+  error_.reset();
+  throw error;
+}
+
+void PythonProgress::Report(bool force) {
+  if (failed_.load()) return;
+  const int64_t total = total_.load();
+  const int64_t done = done_.load();
+  const bool finished = done >= total;
+  const auto now = std::chrono::steady_clock::now();
+  if (finished && !final_reported_) {
+    force = true;  // the one report with done == total
+  }
+  if (!force && now - last_report_ < kReportInterval) return;
+  last_report_ = now;
+  if (finished) final_reported_ = true;
+
+  py::gil_scoped_acquire gil;
+  if (PyErr_CheckSignals() != 0) {  // e.g. KeyboardInterrupt from Ctrl-C
+    error_.emplace();
+    failed_.store(true);
+    return;
+  }
+  if (!callback_) return;
+  std::string stage;
+  {
+    std::lock_guard<std::mutex> lock(stage_mutex_);
+    stage = stage_;
+  }
+  try {
+    callback_(stage, done, total);
+  } catch (py::error_already_set& error) {
+    error_.emplace(std::move(error));
+    failed_.store(true);
+  }
+}
+
+namespace {
+
+// Test hook for the progress plumbing (not public API): `total` units of fake work shared by the
+// calling thread and num_threads - 1 std::threads, each unit sleeping `sleep_us`, following the
+// ProgressSink contract of the algorithms (Start on the caller, Advance from any thread, poll
+// Cancelled, throw aos::Cancelled after the workers joined). Returns the units done.
+int64_t ProgressSelfTest(int64_t total, int num_threads, int sleep_us, ProgressSink* sink,
+                         bool throw_cancelled) {
+  if (throw_cancelled) throw Cancelled();
+  ProgressStart(sink, "selftest", total);
+  std::atomic<int64_t> next{0};
+  std::atomic<int64_t> done{0};
+  std::atomic<bool> stop{false};
+  auto work = [&](bool caller) {
+    while (!stop.load()) {
+      if (next.fetch_add(1) >= total) break;
+      if (sleep_us > 0) std::this_thread::sleep_for(std::chrono::microseconds(sleep_us));
+      ProgressAdvance(sink, 1);
+      done.fetch_add(1);
+      if (caller && ProgressCancelled(sink)) stop.store(true);
+    }
+  };
+  std::vector<std::thread> workers;
+  for (int i = 1; i < num_threads; ++i) workers.emplace_back(work, false);
+  work(true);
+  for (std::thread& worker : workers) worker.join();
+  if (ProgressCancelled(sink)) throw Cancelled();
+  return done.load();
+}
+
+}  // namespace
+
+}  // namespace aos::python
+
+PYBIND11_MODULE(_core, m) {
+  namespace py = pybind11;
+  using namespace aos::python;
+  m.doc() =
+      "Native core of aos (Airborne Optical Sectioning): geometry, images, light fields, "
+      "integral rendering. Use the `aos` package; its docs state the numpy copy rules.";
+  m.attr("__version__") = aos::kVersion;
+
+  // std::invalid_argument -> ValueError is pybind11's default. Cancellation from a progress sink
+  // (Ctrl-C) becomes KeyboardInterrupt.
+  py::register_exception_translator([](std::exception_ptr pointer) {
+    try {
+      if (pointer) std::rethrow_exception(pointer);
+    } catch (const aos::Cancelled& error) {
+      PyErr_SetString(PyExc_KeyboardInterrupt, error.what());
+    }
+  });
+
+  BindGeometry(m);
+  BindImage(m);
+  BindLightField(m);
+  BindRender(m);
+
+  m.def(
+      "_progress_selftest",
+      [](int64_t total, int num_threads, int sleep_us, const py::object& progress,
+         bool throw_cancelled) {
+        return RunWithProgress(progress, [&](aos::ProgressSink* sink) {
+          return ProgressSelfTest(total, num_threads, sleep_us, sink, throw_cancelled);
+        });
+      },
+      py::arg("total"), py::arg("num_threads") = 2, py::arg("sleep_us") = 0,
+      py::arg("progress") = py::none(), py::arg("throw_cancelled") = false,
+      "Test hook for the progress sink (not public API).");
+}

@@ -1,0 +1,310 @@
+"""Type stubs of aos._core, the pybind11 module built from cpp/python/ (hand-written; checked
+against the module by tests/python/test_stubs.py).
+
+numpy copy rules:
+
+* Vectors and matrices: any array-like of the right shape goes in (converted to float64); a new
+  float64 array comes out. Mutating a returned array does not change the object.
+* Images going in (LightField.add_view, write_image) are always COPIED (add_view adds the
+  1-pixel border views need). dtypes: uint8, uint16, float32 kept; float64 converted to float32;
+  uint32 accepted by write_image only. Shape (H, W) or (H, W, C), C in 1..4, any strides.
+  Other dtypes raise ValueError naming the dtype.
+* Images coming out: (H, W) for one channel, else (H, W, C). Result images (read_image,
+  IntegralResult.image / .count) SHARE memory with the C++ result, which the array keeps alive;
+  View.image is a COPY.
+"""
+
+import os
+from typing import Any, Callable, ClassVar, Optional, Sequence, Union
+
+import numpy
+import numpy.typing
+
+__version__: str
+
+_PathLike = Union[str, bytes, os.PathLike[str], os.PathLike[bytes]]
+_Vector = numpy.typing.ArrayLike
+_Float64Array = numpy.typing.NDArray[numpy.float64]
+_ImageArray = numpy.typing.NDArray[Any]
+_Progress = Optional[Callable[[str, int, int], object]]
+
+class Rigid3d:
+    """x_b = rotation @ x_a + translation, named b_from_a (cam_from_world: world -> OpenCV camera
+    axes, x right, y down, z forward)."""
+
+    def __init__(self, rotation: _Vector = ..., translation: _Vector = ...) -> None:
+        """Identity rotation and zero translation by default. Not validated here."""
+    @property
+    def rotation(self) -> _Float64Array:
+        """3x3 rotation matrix (float64 copy)."""
+    @rotation.setter
+    def rotation(self, value: _Vector) -> None: ...
+    @property
+    def translation(self) -> _Float64Array:
+        """Translation 3-vector (float64 copy)."""
+    @translation.setter
+    def translation(self, value: _Vector) -> None: ...
+    @property
+    def center(self) -> _Float64Array:
+        """For cam_from_world: the camera centre in world coordinates, -R^T t."""
+    @property
+    def matrix3x4(self) -> _Float64Array:
+        """The 3x4 matrix [R | t] (float64 copy)."""
+    def inverse(self) -> Rigid3d: ...
+    @staticmethod
+    def from_matrix3x4(m: _Vector) -> Rigid3d:
+        """From [R | t] as a (3, 4) array-like, or 12 numbers row by row."""
+    def __repr__(self) -> str: ...
+
+def look_at(eye: _Vector, target: _Vector, up: _Vector = ...) -> Rigid3d:
+    """cam_from_world of a camera at eye looking at target; up (default (0, 0, 1)) appears up in
+    the image. ValueError if eye == target or up is parallel to the viewing direction."""
+
+class Plane:
+    """A plane through point with normal normal (local frame, metres)."""
+
+    def __init__(self, point: _Vector = ..., normal: _Vector = ...) -> None:
+        """Defaults: point (0, 0, 0), normal (0, 0, 1)."""
+    @property
+    def point(self) -> _Float64Array: ...
+    @point.setter
+    def point(self, value: _Vector) -> None: ...
+    @property
+    def normal(self) -> _Float64Array: ...
+    @normal.setter
+    def normal(self, value: _Vector) -> None: ...
+    @staticmethod
+    def at_height(z: float) -> Plane:
+        """The horizontal plane at height z."""
+    def __repr__(self) -> str: ...
+
+class PinholeCamera:
+    """Pinhole camera; pixel centres at (i + 0.5, j + 0.5); u = fx x / z + cx, v = fy y / z + cy."""
+
+    def __init__(self, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> None: ...
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    @staticmethod
+    def from_fov(width: int, height: int, fov_deg: float) -> PinholeCamera:
+        """Square pixels, centred principal point, horizontal field of view fov_deg in (0, 180)."""
+    @property
+    def K(self) -> _Float64Array:
+        """The 3x3 intrinsic matrix (float64 copy)."""
+    def fov_x_deg(self) -> float: ...
+    def project(self, point: _Vector) -> _Float64Array:
+        """Pixel (u, v) of a point in camera coordinates (z > 0)."""
+    def unproject(self, pixel: _Vector) -> _Float64Array:
+        """Ray direction (x, y, 1) through continuous pixel coordinates (u, v)."""
+    def check(self, where: str = "camera") -> None:
+        """ValueError naming `where` if a field is out of range or not finite."""
+    def __repr__(self) -> str: ...
+
+def read_image(path: _PathLike) -> _ImageArray:
+    """Reads an image file; uint8/uint16 kept, other types become float32. The returned array
+    owns the decoded pixels (no extra copy)."""
+
+def write_image(
+    path: _PathLike,
+    array: numpy.typing.ArrayLike,
+    sample_type: str = "auto",
+    range_min: float = 0.0,
+    range_max: float = 255.0,
+    description: str = "",
+) -> None:
+    """Writes `array` (COPIED first; uint8, uint16, uint32, float32, float64 -> float32) to `path`
+    atomically. sample_type: 'auto', 'uint8', 'uint16', 'uint32', 'float32'."""
+
+class View:
+    """One view of a light field (read-only)."""
+
+    @property
+    def name(self) -> str: ...
+    @property
+    def image_path(self) -> str: ...
+    @property
+    def camera(self) -> PinholeCamera: ...
+    @property
+    def cam_from_world(self) -> Rigid3d: ...
+    @property
+    def image(self) -> Optional[_ImageArray]:
+        """A COPY of the pixels, native dtype; None if loaded without images."""
+    def __repr__(self) -> str: ...
+
+class LightField:
+    """Views (image, pinhole camera, cam_from_world) in a local frame whose zero lies at origin."""
+
+    def __init__(self) -> None: ...
+    @property
+    def origin(self) -> _Float64Array:
+        """World position of the local frame's zero (float64 copy)."""
+    @origin.setter
+    def origin(self, value: _Vector) -> None: ...
+    @property
+    def views(self) -> list[View]:
+        """A new list of the views (pixels not copied)."""
+    def __len__(self) -> int: ...
+    def image_bytes(self) -> int: ...
+    def add_view(
+        self,
+        image: numpy.typing.ArrayLike,
+        camera: PinholeCamera,
+        cam_from_world: Rigid3d,
+        name: str = "",
+    ) -> None:
+        """Appends a view; `image` is COPIED (uint8, uint16, float32; float64 -> float32).
+        ValueError for another dtype, a bad camera, a size mismatch or an invalid pose."""
+    def __repr__(self) -> str: ...
+
+class LoadResult:
+    @property
+    def light_field(self) -> LightField: ...
+    @property
+    def format(self) -> str:
+        """'aos' or 'jku'."""
+    @property
+    def notes(self) -> list[str]: ...
+    def __repr__(self) -> str: ...
+
+def load_lightfield(
+    path: _PathLike,
+    fov_deg: float = 0.0,
+    images_dir: _PathLike = "",
+    load_images: bool = True,
+    num_threads: int = -1,
+    progress: _Progress = None,
+) -> LoadResult:
+    """Loads an aos JSON light field or a JKU poses.json (fields of aos::LoadOptions)."""
+
+def write_lightfield(
+    path: _PathLike,
+    light_field: LightField,
+    images_subdir: str = "views",
+    image_extension: str = ".png",
+) -> None:
+    """Writes the aos JSON format (fields of aos::WriteLightFieldOptions)."""
+
+class IntegralOptions:
+    """Options of render_integral; fields and defaults of aos::IntegralOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        cam_from_world: Rigid3d = ...,
+        pose_view: int = ...,
+        fov_deg: float = ...,
+        width: int = ...,
+        height: int = ...,
+        aperture_radius: float = ...,
+        focal_plane: Plane = ...,
+        view_indices: Sequence[int] = ...,
+        min_view_angle_deg: float = ...,
+        num_threads: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    cam_from_world: Rigid3d
+    """Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when pose_view >= 0."""
+    pose_view: int
+    """If >= 0, the virtual camera takes the pose of this view (index into the light field)."""
+    fov_deg: float
+    """Horizontal field of view of the virtual camera, degrees, (0, 180)."""
+    width: int
+    """Output width, pixels (1 .. 65536)."""
+    height: int
+    """Output height, pixels (1 .. 65536)."""
+    aperture_radius: float
+    """Radius of the virtual aperture on the lens plane, metres; 0 = pinhole, inf = every view."""
+    focal_plane: Plane
+    """The focal plane (local frame): any point on it and its normal."""
+    @property
+    def view_indices(self) -> list[int]:
+        """Views to integrate; empty means all. Reading returns a new list."""
+    @view_indices.setter
+    def view_indices(self, value: Sequence[int]) -> None: ...
+    min_view_angle_deg: float
+    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90)."""
+    num_threads: int
+    """Worker threads; -1 = all cores."""
+    def check(self, view_count: int) -> None:
+        """ValueError naming the offending field."""
+    def __copy__(self) -> IntegralOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> IntegralOptions: ...
+    def __repr__(self) -> str: ...
+
+class IntegralResult:
+    @property
+    def image(self) -> numpy.typing.NDArray[numpy.float32]:
+        """float32 (H, W) or (H, W, C); shares memory with the result."""
+    @property
+    def count(self) -> numpy.typing.NDArray[numpy.uint32]:
+        """uint32 (H, W) views per pixel; shares memory with the result."""
+    @property
+    def samples(self) -> int: ...
+    @property
+    def views_used(self) -> int: ...
+    @property
+    def views_selected(self) -> int: ...
+    @property
+    def uncovered_pixels(self) -> int: ...
+    @property
+    def cam_from_world(self) -> Rigid3d: ...
+    def __repr__(self) -> str: ...
+
+def render_integral(
+    light_field: LightField, options: IntegralOptions, progress: _Progress = None
+) -> IntegralResult:
+    """Integral rendering with the GIL released; see aos.render_integral."""
+
+def virtual_camera(options: IntegralOptions) -> PinholeCamera: ...
+
+class DefaultSceneOptions:
+    """Options of make_default_lightfield; fields and defaults of aos::DefaultSceneOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        views_per_side: int = ...,
+        spacing: float = ...,
+        altitude: float = ...,
+        width: int = ...,
+        height: int = ...,
+        fov_deg: float = ...,
+        occluder_density: float = ...,
+        occluder_heights: Sequence[float] = ...,
+        leaf_size: float = ...,
+        seed: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    views_per_side: int
+    spacing: float
+    altitude: float
+    width: int
+    height: int
+    fov_deg: float
+    occluder_density: float
+    @property
+    def occluder_heights(self) -> list[float]:
+        """Heights of the leaf layers, metres. Reading returns a new list."""
+    @occluder_heights.setter
+    def occluder_heights(self, value: Sequence[float]) -> None: ...
+    leaf_size: float
+    seed: int
+    def check(self) -> None: ...
+    def __copy__(self) -> DefaultSceneOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> DefaultSceneOptions: ...
+    def __repr__(self) -> str: ...
+
+def make_default_lightfield(options: DefaultSceneOptions) -> LightField: ...
+def _progress_selftest(
+    total: int,
+    num_threads: int = 2,
+    sleep_us: int = 0,
+    progress: _Progress = None,
+    throw_cancelled: bool = False,
+) -> int:
+    """Test hook for the progress sink (not public API)."""

@@ -1,0 +1,247 @@
+"""Plumbing of the render API: IntegralOptions/DefaultSceneOptions as bound from C++, the kwargs
+merge of aos.render_integral, results shared with numpy, progress callbacks and cancellation.
+The renderer's numbers are tested in C++ (tests/cpp/integral_test.cpp); here only what the
+bindings could get wrong."""
+
+from __future__ import annotations
+
+import copy
+import math
+import os
+import signal
+import threading
+
+import numpy as np
+import pytest
+
+import aos
+from aos import _core
+
+INTEGRAL_FIELDS = (
+    "cam_from_world", "pose_view", "fov_deg", "width", "height", "aperture_radius",
+    "focal_plane", "view_indices", "min_view_angle_deg", "num_threads",
+)
+SCENE_FIELDS = (
+    "views_per_side", "spacing", "altitude", "width", "height", "fov_deg", "occluder_density",
+    "occluder_heights", "leaf_size", "seed",
+)
+
+
+def test_integral_options_defaults_match_the_header() -> None:
+    options = aos.IntegralOptions()
+    assert aos.IntegralOptions._fields == INTEGRAL_FIELDS
+    np.testing.assert_array_equal(options.cam_from_world.matrix3x4, np.eye(3, 4))
+    assert options.pose_view == -1
+    assert options.fov_deg == 50.0
+    assert (options.width, options.height) == (512, 512)
+    assert options.aperture_radius == math.inf
+    np.testing.assert_array_equal(options.focal_plane.point, [0, 0, 0])
+    np.testing.assert_array_equal(options.focal_plane.normal, [0, 0, 1])
+    assert options.view_indices == []
+    assert options.min_view_angle_deg == 1.0
+    assert options.num_threads == -1
+    text = repr(options)
+    assert text.startswith("IntegralOptions(")
+    for name in INTEGRAL_FIELDS:
+        assert f"{name}=" in text
+    assert "aperture_radius=inf" in text
+
+
+def test_integral_options_kwargs_and_copies() -> None:
+    options = aos.IntegralOptions(width=64, height=32, view_indices=(2, 0),
+                                  focal_plane=aos.Plane.at_height(3.0), aperture_radius=0.0)
+    assert (options.width, options.height) == (64, 32)
+    assert options.view_indices == [2, 0]
+    assert options.focal_plane.point[2] == 3.0
+    assert options.aperture_radius == 0.0
+    with pytest.raises(TypeError, match="widht"):
+        aos.IntegralOptions(widht=3)
+    with pytest.raises(TypeError):
+        aos.IntegralOptions(64)  # keywords only
+    with pytest.raises(TypeError):
+        aos.IntegralOptions(width="wide")
+    duplicate = copy.copy(options)
+    duplicate.width = 8
+    duplicate.focal_plane.point = (0, 0, 9)  # nested objects are copied too (C++ value semantics)
+    assert options.width == 64 and options.focal_plane.point[2] == 3.0
+    assert copy.deepcopy(options).height == 32
+
+
+def test_check_errors_are_value_errors() -> None:
+    options = aos.IntegralOptions(width=0)
+    try:
+        options.check(1)
+    except ValueError as error:
+        assert "width" in str(error)
+    else:
+        pytest.skip("IntegralOptions::Check does not validate yet (placeholder)")
+    with pytest.raises(ValueError, match="pose_view"):
+        aos.IntegralOptions(pose_view=5).check(3)
+    aos.IntegralOptions().check(3)
+
+
+def test_render_integral_kwargs_errors(make_lightfield) -> None:
+    light_field = make_lightfield(views_per_side=1)
+    with pytest.raises(TypeError, match="aperture"):
+        aos.render_integral(light_field, aperture=1.0)
+    with pytest.raises(TypeError, match="IntegralOptions"):
+        aos.render_integral(light_field, options=aos.DefaultSceneOptions())
+    with pytest.raises(TypeError):
+        aos.render_integral(light_field, aos.IntegralOptions(), None)  # progress is keyword-only
+
+
+def test_virtual_camera() -> None:
+    options = aos.IntegralOptions(width=100, height=50, fov_deg=40.0)
+    camera = aos.virtual_camera(options)
+    expected = aos.PinholeCamera.from_fov(100, 50, 40.0)
+    assert (camera.width, camera.height) == (100, 50)
+    assert camera.fx == pytest.approx(expected.fx) and camera.cy == pytest.approx(25.0)
+
+
+def _centre_options(**kwargs) -> aos.IntegralOptions:
+    # The virtual camera takes the pose of the centre view of a 3x3 grid and matches its camera,
+    # focused on the ground; every pixel then sees at least the centre view.
+    base = dict(pose_view=4, fov_deg=60.0, width=16, height=12, focal_plane=aos.Plane.at_height(0))
+    base.update(kwargs)
+    return aos.IntegralOptions(**base)
+
+
+def test_render_integral_on_a_constant_lightfield(make_lightfield, skip_if_not_implemented) -> None:
+    light_field = make_lightfield(views_per_side=3, value=100, dtype=np.uint8)
+    options = _centre_options()
+    with skip_if_not_implemented():
+        result = aos.render_integral(light_field, options, num_threads=2)
+    image, count = result.image, result.count
+    assert image.dtype == np.float32 and image.shape == (12, 16)
+    assert count.dtype == np.uint32 and count.shape == (12, 16)
+    assert (count >= 1).all()
+    # Every view holds 100 everywhere, so every average of views is 100 (float rounding only).
+    np.testing.assert_allclose(image, 100.0, rtol=1e-6)
+    assert result.samples == int(count.sum())
+    assert result.uncovered_pixels == int((count == 0).sum()) == 0
+    assert result.views_selected == 9
+    assert 1 <= result.views_used <= 9
+    np.testing.assert_allclose(result.cam_from_world.matrix3x4,
+                               light_field.views[4].cam_from_world.matrix3x4, atol=1e-12)
+    # Zero copy: every access views the same C++ buffer, which outlives the result object.
+    assert np.shares_memory(result.image, result.image)
+    assert np.shares_memory(result.count, result.count)
+    del result
+    assert float(image.mean()) == pytest.approx(100.0)
+    assert "IntegralResult(" in repr(aos.render_integral(light_field, options))
+
+
+def test_render_integral_kwargs_override_a_copy(make_lightfield, skip_if_not_implemented) -> None:
+    light_field = make_lightfield(views_per_side=3, value=50, dtype=np.float32, channels=3)
+    options = _centre_options()
+    with skip_if_not_implemented():
+        result = aos.render_integral(light_field, options, width=8, height=6, view_indices=[4])
+    assert result.image.shape == (6, 8, 3) and result.image.dtype == np.float32
+    assert result.views_selected == 1
+    assert (options.width, options.height, options.view_indices) == (16, 12, [])
+    with pytest.raises(ValueError, match="pose_view"):
+        aos.render_integral(light_field, options, pose_view=9)
+
+
+def test_render_integral_progress(make_lightfield, skip_if_not_implemented) -> None:
+    light_field = make_lightfield(views_per_side=3)
+    calls = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        calls.append((stage, done, total, threading.get_ident()))
+
+    with skip_if_not_implemented():
+        aos.render_integral(light_field, _centre_options(width=128, height=96),
+                            progress=progress)
+    assert calls, "the progress callback was never called"
+    assert all(isinstance(stage, str) and 0 <= done <= total for stage, done, total, _ in calls)
+    assert calls[-1][1] == calls[-1][2]  # the last report says done == total
+    assert {thread for *_, thread in calls} == {threading.get_ident()}
+
+
+def test_render_integral_progress_error_cancels(make_lightfield, skip_if_not_implemented) -> None:
+    light_field = make_lightfield(views_per_side=3)
+    calls = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        calls.append(done)
+        raise RuntimeError("stop rendering")
+
+    with pytest.raises(RuntimeError, match="stop rendering"):
+        with skip_if_not_implemented():
+            aos.render_integral(light_field, _centre_options(width=256, height=192),
+                                progress=progress)
+    assert len(calls) == 1  # never called again after it raised
+
+
+def test_default_scene_options_and_lightfield(skip_if_not_implemented) -> None:
+    options = aos.DefaultSceneOptions()
+    assert aos.DefaultSceneOptions._fields == SCENE_FIELDS
+    assert (options.views_per_side, options.spacing, options.altitude) == (11, 3.0, 35.0)
+    assert (options.width, options.height, options.fov_deg) == (256, 256, 50.0)
+    assert options.occluder_heights == [8.0, 11.0, 14.0]
+    assert (options.occluder_density, options.leaf_size, options.seed) == (0.6, 0.5, 1)
+    with pytest.raises(TypeError, match="views"):
+        aos.make_default_lightfield(views=3)
+    with skip_if_not_implemented():
+        light_field = aos.make_default_lightfield(
+            aos.DefaultSceneOptions(width=32), views_per_side=2, height=24)
+    assert len(light_field) == 4
+    image = light_field.views[0].image
+    assert image.dtype == np.uint8 and image.shape == (24, 32)
+
+
+# The progress sink itself, through a test hook that follows the algorithms' ProgressSink
+# contract with real worker threads (works before the algorithms exist).
+
+def test_progress_sink_reports_throttled_from_the_calling_thread() -> None:
+    calls = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        calls.append((stage, done, total, threading.get_ident()))
+
+    # 400 units of 1 ms on 2 threads: about 0.2 s of work, so a handful of reports at most.
+    done = _core._progress_selftest(400, num_threads=2, sleep_us=1000, progress=progress)
+    assert done == 400
+    assert calls[0][:3] == ("selftest", 0, 400)
+    assert calls[-1][1:3] == (400, 400)
+    assert sum(1 for call in calls if call[1] == call[2]) == 1
+    assert len(calls) <= 2 + 0.2 / 0.1 * 4  # start + end + every 0.1 s (generous for slow CI)
+    assert [call[1] for call in calls] == sorted(call[1] for call in calls)
+    assert {call[3] for call in calls} == {threading.get_ident()}
+
+
+def test_progress_sink_callback_error_cancels() -> None:
+    calls = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        calls.append(done)
+        if done > 0:
+            raise RuntimeError("enough")
+
+    with pytest.raises(RuntimeError, match="enough"):
+        _core._progress_selftest(100000, num_threads=2, sleep_us=100, progress=progress)
+    assert len(calls) == 2  # start, then the report that raised; the work stopped early
+
+
+def test_progress_sink_rejects_non_callables() -> None:
+    with pytest.raises(TypeError, match="progress"):
+        _core._progress_selftest(10, progress=42)
+
+
+def test_cancelled_becomes_keyboard_interrupt() -> None:
+    with pytest.raises(KeyboardInterrupt):
+        _core._progress_selftest(10, throw_cancelled=True)
+
+
+@pytest.mark.skipif(not hasattr(signal, "SIGINT") or os.name != "posix", reason="POSIX signals")
+def test_ctrl_c_interrupts_without_a_callback() -> None:
+    # SIGINT arrives while the C++ loop runs with the GIL released; the sink's periodic
+    # PyErr_CheckSignals() on the calling (main) thread turns it into KeyboardInterrupt.
+    timer = threading.Timer(0.2, os.kill, args=(os.getpid(), signal.SIGINT))
+    timer.start()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            _core._progress_selftest(100000, num_threads=2, sleep_us=1000)  # ~50 s unless stopped
+    finally:
+        timer.cancel()

@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# Installs everything aos needs on a Debian 12 machine, as root, from the repository root:
+#   1. Debian packages: compiler and build tools, OpenCV (with contrib), Embree 3, GLM,
+#      OpenImageIO, COLMAP, and the header-only/test libraries the core uses.
+#   2. The Python package with its `aos-render` executable (pip install '.[test]'), into the
+#      python3 on PATH, or into a virtual environment at /opt/aos-venv when that python3 is
+#      Debian's externally managed one (then aos-render is linked into /usr/local/bin).
+set -euo pipefail
+cd "$(dirname "${BASH_SOURCE[0]}")/.."
+
+packages=(
+  cmake ninja-build g++ pkg-config
+  libopencv-dev libopencv-contrib-dev libembree-dev libglm-dev
+  libopenimageio-dev openimageio-tools colmap
+  nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev
+)
+if ! command -v python3 >/dev/null 2>&1; then
+  packages+=(python3 python3-dev python3-pip python3-venv)
+fi
+export DEBIAN_FRONTEND=noninteractive
+echo "setup: installing Debian packages (${#packages[@]})"
+apt-get update -qq
+apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
+
+source tools/python_env.sh   # sets AOS_PYTHON (creates /opt/aos-venv if needed)
+echo "setup: building and installing the aos Python package and aos-render with ${AOS_PYTHON}"
+"${AOS_PYTHON}" -m pip install -q --upgrade pip >/dev/null 2>&1 || true
+"${AOS_PYTHON}" -m pip install -q '.[test]'
+if [[ "${AOS_PYTHON}" == /opt/aos-venv/* ]]; then
+  ln -sf /opt/aos-venv/bin/aos-render /usr/local/bin/aos-render
+fi
+echo "setup: done ($(aos-render --version))"
