@@ -411,9 +411,17 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
 
   const bool finite_aperture = std::isfinite(options_.aperture_radius) && mode_ == Mode::kAverage;
   const double r2 = options_.aperture_radius * options_.aperture_radius;
-  for (const ViewSetup& view : views_) {
+  for (size_t view_index = 0; view_index < views_.size(); ++view_index) {
+    const ViewSetup& view = views_[view_index];
     if (TileRejects(view, tile)) continue;
     const Image& image = *view.image;
+    // The first rows of the next view are not covered by the row-ahead prefetch below.
+    if (view_index + 1 < views_.size()) {
+      const ViewSetup& next = views_[view_index + 1];
+      for (int r = 0; r < std::min(rows, kPrefetchRows); ++r) {
+        PrefetchSpan(*next.image, MakeRowLine(next.H, tile.y0 + r), tile.x0, tile.x1);
+      }
+    }
     const SpanKernel kernel = internal::SelectSpanKernel(image);
     // A view whose centre lies on the lens plane crosses it at its own centre for every pixel.
     const bool on_lens_plane = std::abs(view.lens_b) <= 1e-12 * (glm::length(view.b) + 1.0);
@@ -486,7 +494,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
         used = true;
       }
     }
-    if (used) buffers.view_used[static_cast<size_t>(&view - views_.data())] = 1;
+    if (used) buffers.view_used[view_index] = 1;
   }
 
   // Normalise into the output.
@@ -529,7 +537,7 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
   const int tile_width = std::min(width, kMaxTileWidth);
   const int tile_rows = static_cast<int>(std::clamp<size_t>(
       kTileAccumulatorBytes / (sizeof(double) * static_cast<size_t>(tile_width) * channels_), 1,
-      32));
+      64));
   std::vector<Tile> tiles;
   for (int y = 0; y < height; y += tile_rows) {
     for (int x = 0; x < width; x += tile_width) {
