@@ -375,7 +375,13 @@ int main(int argc, char** argv) {
   DemoCommand demo;
   AddIntegral(app, integral);
   AddDemo(app, demo);
-  CLI11_PARSE(app, argc, argv);
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& error) {
+    // --help and --version end here with code 0; every command-line mistake exits with 2.
+    const int code = app.exit(error);
+    return code == 0 ? 0 : 2;
+  }
   InstallInterruptHandler();
   try {
     if (app.got_subcommand("integral")) return RunIntegral(integral);

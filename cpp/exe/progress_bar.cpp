@@ -28,9 +28,7 @@ void ProgressBar::Start(const std::string& stage, int64_t total) {
   done_ = 0;
   stage_start_ = std::chrono::steady_clock::now();
   if (quiet_) return;
-  if (!terminal_) {
-    std::fprintf(stderr, "%s: started (%lld steps)\n", stage_.c_str(), static_cast<long long>(total));
-  } else {
+  if (terminal_) {
     open_line_ = true;
     Draw(0, true);
   }
@@ -70,7 +68,8 @@ void ProgressBar::Finish() {
     if (open_line_) std::fprintf(stderr, " %.2f s\n", seconds);
     open_line_ = false;
   } else {
-    std::fprintf(stderr, "%s: done in %.2f s\n", stage_.c_str(), seconds);
+    std::fprintf(stderr, "%s: %lld steps done in %.2f s\n", stage_.c_str(),
+                 static_cast<long long>(done_.load()), seconds);
   }
   stage_.clear();
 }

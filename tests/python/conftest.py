@@ -1,31 +1,13 @@
-"""Shared fixtures of the Python tests: a tiny deterministic light field and a guard that skips a
-test while the C++ function it needs is still a placeholder ("not implemented")."""
+"""Shared fixtures of the Python tests: a tiny deterministic light field."""
 
 from __future__ import annotations
 
-import contextlib
-from typing import Callable, Iterator
+from typing import Callable
 
 import numpy as np
 import pytest
 
 import aos
-
-
-@contextlib.contextmanager
-def _skip_if_not_implemented() -> Iterator[None]:
-    try:
-        yield
-    except ValueError as error:
-        if "not implemented" in str(error):
-            pytest.skip(f"C++ placeholder: {error}")
-        raise
-
-
-@pytest.fixture
-def skip_if_not_implemented() -> Callable[[], contextlib.AbstractContextManager[None]]:
-    """`with skip_if_not_implemented(): ...` skips the test on a "not implemented" ValueError."""
-    return _skip_if_not_implemented
 
 
 def nadir_pose(x: float, y: float, altitude: float) -> aos.Rigid3d:

@@ -116,13 +116,12 @@ def test_view_properties_and_origin(make_lightfield) -> None:
     assert repr(light_field).startswith("LightField(views=4")
 
 
-def test_lightfield_file_round_trip(tmp_path, make_lightfield, skip_if_not_implemented) -> None:
+def test_lightfield_file_round_trip(tmp_path, make_lightfield) -> None:
     light_field = make_lightfield(views_per_side=2, width=16, height=12, value=77)
     light_field.origin = (1000.5, 2000.25, 30.0)
     path = tmp_path / "lf.json"
-    with skip_if_not_implemented():
-        aos.write_lightfield(path, light_field)
-        result = aos.load_lightfield(str(path))
+    aos.write_lightfield(path, light_field)
+    result = aos.load_lightfield(str(path))
     assert result.format == "aos"
     loaded = result.light_field
     assert len(loaded) == len(light_field)

@@ -106,11 +106,10 @@ def _centre_options(**kwargs) -> aos.IntegralOptions:
     return aos.IntegralOptions(**base)
 
 
-def test_render_integral_on_a_constant_lightfield(make_lightfield, skip_if_not_implemented) -> None:
+def test_render_integral_on_a_constant_lightfield(make_lightfield) -> None:
     light_field = make_lightfield(views_per_side=3, value=100, dtype=np.uint8)
     options = _centre_options()
-    with skip_if_not_implemented():
-        result = aos.render_integral(light_field, options, num_threads=2)
+    result = aos.render_integral(light_field, options, num_threads=2)
     image, count = result.image, result.count
     assert image.dtype == np.float32 and image.shape == (12, 16)
     assert count.dtype == np.uint32 and count.shape == (12, 16)
@@ -131,11 +130,10 @@ def test_render_integral_on_a_constant_lightfield(make_lightfield, skip_if_not_i
     assert "IntegralResult(" in repr(aos.render_integral(light_field, options))
 
 
-def test_render_integral_kwargs_override_a_copy(make_lightfield, skip_if_not_implemented) -> None:
+def test_render_integral_kwargs_override_a_copy(make_lightfield) -> None:
     light_field = make_lightfield(views_per_side=3, value=50, dtype=np.float32, channels=3)
     options = _centre_options()
-    with skip_if_not_implemented():
-        result = aos.render_integral(light_field, options, width=8, height=6, view_indices=[4])
+    result = aos.render_integral(light_field, options, width=8, height=6, view_indices=[4])
     assert result.image.shape == (6, 8, 3) and result.image.dtype == np.float32
     assert result.views_selected == 1
     assert (options.width, options.height, options.view_indices) == (16, 12, [])
@@ -143,23 +141,22 @@ def test_render_integral_kwargs_override_a_copy(make_lightfield, skip_if_not_imp
         aos.render_integral(light_field, options, pose_view=9)
 
 
-def test_render_integral_progress(make_lightfield, skip_if_not_implemented) -> None:
+def test_render_integral_progress(make_lightfield) -> None:
     light_field = make_lightfield(views_per_side=3)
     calls = []
 
     def progress(stage: str, done: int, total: int) -> None:
         calls.append((stage, done, total, threading.get_ident()))
 
-    with skip_if_not_implemented():
-        aos.render_integral(light_field, _centre_options(width=128, height=96),
-                            progress=progress)
+    aos.render_integral(light_field, _centre_options(width=128, height=96),
+                        progress=progress)
     assert calls, "the progress callback was never called"
     assert all(isinstance(stage, str) and 0 <= done <= total for stage, done, total, _ in calls)
     assert calls[-1][1] == calls[-1][2]  # the last report says done == total
     assert {thread for *_, thread in calls} == {threading.get_ident()}
 
 
-def test_render_integral_progress_error_cancels(make_lightfield, skip_if_not_implemented) -> None:
+def test_render_integral_progress_error_cancels(make_lightfield) -> None:
     light_field = make_lightfield(views_per_side=3)
     calls = []
 
@@ -168,13 +165,12 @@ def test_render_integral_progress_error_cancels(make_lightfield, skip_if_not_imp
         raise RuntimeError("stop rendering")
 
     with pytest.raises(RuntimeError, match="stop rendering"):
-        with skip_if_not_implemented():
-            aos.render_integral(light_field, _centre_options(width=256, height=192),
-                                progress=progress)
+        aos.render_integral(light_field, _centre_options(width=256, height=192),
+                            progress=progress)
     assert len(calls) == 1  # never called again after it raised
 
 
-def test_default_scene_options_and_lightfield(skip_if_not_implemented) -> None:
+def test_default_scene_options_and_lightfield() -> None:
     options = aos.DefaultSceneOptions()
     assert aos.DefaultSceneOptions._fields == SCENE_FIELDS
     assert (options.views_per_side, options.spacing, options.altitude) == (11, 3.0, 35.0)
@@ -183,9 +179,8 @@ def test_default_scene_options_and_lightfield(skip_if_not_implemented) -> None:
     assert (options.occluder_density, options.leaf_size, options.seed) == (0.6, 0.5, 1)
     with pytest.raises(TypeError, match="views"):
         aos.make_default_lightfield(views=3)
-    with skip_if_not_implemented():
-        light_field = aos.make_default_lightfield(
-            aos.DefaultSceneOptions(width=32), views_per_side=2, height=24)
+    light_field = aos.make_default_lightfield(
+        aos.DefaultSceneOptions(width=32), views_per_side=2, height=24)
     assert len(light_field) == 4
     image = light_field.views[0].image
     assert image.dtype == np.uint8 and image.shape == (24, 32)

@@ -1,0 +1,159 @@
+"""The aos-render executable: success paths, and every kind of bad input giving one clear line,
+a non-zero exit code and no output file (nor a leftover temporary file), inputs untouched."""
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import aos
+
+EXE = shutil.which("aos-render")
+pytestmark = pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
+
+
+def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([EXE, *args], capture_output=True, text=True, cwd=cwd, timeout=120)
+
+
+@pytest.fixture
+def scene(tmp_path: Path) -> Path:
+    """A small default-scene light field in the aos format: tmp/lf/lightfield.json + views/."""
+    light_field = aos.make_default_lightfield(views_per_side=3, width=48, height=40)
+    folder = tmp_path / "lf"
+    folder.mkdir()
+    aos.write_lightfield(str(folder / "lightfield.json"), light_field)
+    return folder / "lightfield.json"
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+BASE = ["--pose-view", "4", "--fov-deg", "50", "--width", "40", "--height", "32"]
+
+
+def test_version_and_help() -> None:
+    result = run("--version")
+    assert result.returncode == 0 and result.stdout.strip() == f"aos-render {aos.__version__}"
+    for command in ("integral", "demo"):
+        result = run(command, "--help")
+        assert result.returncode == 0 and "--" in result.stdout
+    assert run().returncode != 0  # a subcommand is required
+
+
+def test_integral_writes_image_and_count(scene: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    result = run("integral", str(scene), *BASE, "-o", str(out / "z0.exr"), "--count", str(out / "n.tif"))
+    assert result.returncode == 0, result.stderr
+    assert "wrote" in result.stdout
+    image = aos.read_image(str(out / "z0.exr"))
+    count = aos.read_image(str(out / "n.tif"))
+    expected = aos.render_integral(aos.load_lightfield(str(scene)).light_field, pose_view=4, fov_deg=50,
+                                   width=40, height=32)
+    np.testing.assert_array_equal(image, expected.image)
+    np.testing.assert_array_equal(count, expected.count)
+    # 8-bit PNG with the stated normalisation (the views' own 0..255 range).
+    result = run("integral", str(scene), *BASE, "-o", str(out / "z0.png"))
+    assert result.returncode == 0 and "values 0..255 mapped to 0..255" in result.stdout
+    png = aos.read_image(str(out / "z0.png"))
+    assert png.dtype == np.uint8
+    assert np.max(np.abs(png.astype(float) - np.clip(np.round(expected.image), 0, 255))) <= 0
+    assert sorted(p.name for p in out.iterdir()) == ["n.tif", "z0.exr", "z0.png"]
+
+
+def test_look_at_and_tilted_plane_and_view_selection(scene: Path, tmp_path: Path) -> None:
+    out = tmp_path / "o.tif"
+    result = run("integral", str(scene), "--look-at", "0.5,0,35,0,0,0,0,1,0", "--fov-deg", "40", "--width",
+                 "30", "--height", "20", "--focal-plane", "0,0,1,0.1,0,1", "--views", "0:4,8",
+                 "--aperture-radius", "5", "-o", str(out))
+    assert result.returncode == 0, result.stderr
+    assert "of 5 selected views" in result.stderr
+    assert aos.read_image(str(out)).shape == (20, 30)
+
+
+def test_demo_runs_on_the_default_scene(tmp_path: Path) -> None:
+    result = run("demo", "-o", str(tmp_path / "demo"), "--views-per-side", "3", "-q")
+    assert result.returncode == 0, result.stderr
+    names = {p.name for p in (tmp_path / "demo").iterdir()}
+    assert {"lightfield.json", "views", "integral_z+00.00.png", "single_view.png"} <= names
+    loaded = aos.load_lightfield(str(tmp_path / "demo" / "lightfield.json"))
+    assert len(loaded.light_field) == 9
+
+
+def assert_clean_failure(result: subprocess.CompletedProcess, *fragments: str) -> None:
+    assert result.returncode != 0
+    lines = [line for line in result.stderr.splitlines() if line.startswith("aos-render: error:")]
+    assert len(lines) == 1, result.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], (fragment, lines[0])
+
+
+def corrupt(scene: Path, edit) -> None:
+    document = json.loads(scene.read_text())
+    edit(document)
+    scene.write_text(json.dumps(document))
+
+
+@pytest.mark.parametrize("case", ["missing image", "unreadable image", "size mismatch", "non-orthonormal",
+                                  "nan in jku pose", "empty selection", "plane behind", "plane parallel",
+                                  "fov zero", "fov 180", "output is an input", "output is the light field"])
+def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None:
+    folder = scene.parent
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    output = out_dir / "result.png"
+    args = ["integral", str(scene), *BASE]
+    expect: tuple[str, ...]
+    view_file = folder / json.loads(scene.read_text())["views"][2]["image"]
+    if case == "missing image":
+        view_file.unlink()
+        expect = (view_file.name, "not found")
+    elif case == "unreadable image":
+        view_file.write_bytes(b"this is not a png")
+        expect = (view_file.name, "cannot")
+    elif case == "size mismatch":
+        aos.write_image(str(view_file), np.zeros((10, 12), np.uint8))
+        expect = ("lightfield.json", "view 2", "12x10", "camera")
+    elif case == "non-orthonormal":
+        corrupt(scene, lambda d: d["views"][1]["cam_from_world"]["rotation"][0].__setitem__(1, 0.3))
+        expect = ("lightfield.json", "view 1", "cam_from_world", "orthonormal")
+    elif case == "nan in jku pose":
+        poses = {"images": [{"imagefile": v["image"].split("/")[-1], "M3x4": [[1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 35]]}
+                            for v in json.loads(scene.read_text())["views"]]}
+        poses["images"][3]["M3x4"][1][2] = "nan"
+        jku = folder / "views" / "poses.json"
+        jku.write_text(json.dumps(poses))
+        args = ["integral", str(jku), "--frames-fov-deg", "50", "--images-dir", str(folder / "views"), *BASE]
+        expect = ("poses.json", "image 3", "M3x4", "nan")
+    elif case == "empty selection":
+        args += ["--views", "5:5"]
+        expect = ("--views", "empty")
+    elif case == "plane behind":
+        args += ["--focal-height", "100"]
+        expect = ("focal_plane", "behind")
+    elif case == "plane parallel":
+        args += ["--focal-plane", "5,0,0,1,0,0"]
+        expect = ("focal_plane", "parallel")
+    elif case == "fov zero":
+        args[args.index("--fov-deg") + 1] = "0"
+        expect = ("fov_deg",)
+    elif case == "fov 180":
+        args[args.index("--fov-deg") + 1] = "180"
+        expect = ("fov_deg", "180")
+    elif case == "output is an input":
+        output = view_file
+        expect = (view_file.name, "input")
+    elif case == "output is the light field":
+        output = scene
+        expect = ("lightfield.json", "input")
+    before_inputs = snapshot(folder)
+    result = run(*args, "-o", str(output), "--count", str(out_dir / "count.tif"))
+    assert_clean_failure(result, *expect)
+    assert list(out_dir.iterdir()) == [], "no output and no temporary file may be left"
+    assert snapshot(folder) == before_inputs, "inputs must never be modified"
