@@ -15,6 +15,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "temp_folder.h"
+
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
@@ -26,27 +28,12 @@ namespace fs = std::filesystem;
 using testing::HasSubstr;
 
 // A fresh folder per test, removed at the end.
-class FormatsTest : public testing::Test {
+class FormatsTest : public testing_util::TempFolderTest {
  protected:
-  void SetUp() override {
-    // Not named after the test, so that message checks cannot match the folder name.
-    static int counter = 0;
-    dir_ = fs::temp_directory_path() /
-           ("aos_formats_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ignored;
-    fs::remove_all(dir_, ignored);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   void WriteText(const std::string& name, const std::string& text) const {
     fs::create_directories(fs::path(Path(name)).parent_path());
     std::ofstream(Path(name), std::ios::binary) << text;
   }
-
-  fs::path dir_;
 };
 
 // A deterministic test pattern that uses the whole value range of the type.

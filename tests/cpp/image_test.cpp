@@ -16,6 +16,8 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "temp_folder.h"
+
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
@@ -133,20 +135,8 @@ TEST(Image, SizesAndErrors) {
 // ---------------------------------------------------------------------------------------------
 // image_io and file_util, in a fresh folder per test.
 
-class FilesTest : public testing::Test {
+class FilesTest : public testing_util::TempFolderTest {
  protected:
-  void SetUp() override {
-    static int counter = 0;
-    dir_ = fs::temp_directory_path() /
-           ("aos_image_test_" + std::to_string(::getpid()) + "_" + std::to_string(counter++));
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-  }
-  void TearDown() override {
-    std::error_code ignored;
-    fs::remove_all(dir_, ignored);
-  }
-  std::string Path(const std::string& name) const { return (dir_ / name).string(); }
   std::vector<std::string> Entries() const {
     std::vector<std::string> names;
     for (const auto& entry : fs::directory_iterator(dir_)) {
@@ -154,8 +144,6 @@ class FilesTest : public testing::Test {
     }
     return names;
   }
-
-  fs::path dir_;
 };
 
 // An image whose values sweep the type's range (and negatives/fractions for float).
