@@ -9,6 +9,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <limits>
+#include <optional>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -51,25 +52,30 @@ std::vector<double> ParseNumbers(const std::string& text, const std::string& opt
   return values;
 }
 
-// "0:10,15,20:30" (half-open ranges and single indices) -> indices.
+// "0:10,15,20:30" (half-open ranges and single indices) -> indices, each checked against
+// [0, view_count) before any range is expanded.
 std::vector<int> ParseViewList(const std::string& text, int view_count) {
   std::vector<int> indices;
   std::stringstream stream(text);
   std::string item;
+  auto to_index = [&](const std::string& part, int fallback, int upper) {
+    if (part.empty()) return fallback;
+    const double value = ParseNumberText(part, "--views");
+    if (value != std::floor(value)) ThrowInvalid("--views: '" + part + "' is not an integer");
+    if (value < 0 || value > upper) {
+      ThrowInvalid("--views: index " + part + " is outside 0.." + std::to_string(upper) +
+                   " (the light field has " + std::to_string(view_count) + " views)");
+    }
+    return static_cast<int>(value);
+  };
   while (std::getline(stream, item, ',')) {
     if (item.empty()) continue;
     const size_t colon = item.find(':');
-    auto to_int = [&](const std::string& part, int fallback) {
-      if (part.empty()) return fallback;
-      const double value = ParseNumberText(part, "--views");
-      if (value != std::floor(value)) ThrowInvalid("--views: '" + part + "' is not an integer");
-      return static_cast<int>(value);
-    };
     if (colon == std::string::npos) {
-      indices.push_back(to_int(item, 0));
+      indices.push_back(to_index(item, 0, view_count - 1));
     } else {
-      const int begin = to_int(item.substr(0, colon), 0);
-      const int end = to_int(item.substr(colon + 1), view_count);
+      const int begin = to_index(item.substr(0, colon), 0, view_count);
+      const int end = to_index(item.substr(colon + 1), view_count, view_count);
       for (int i = begin; i < end; ++i) indices.push_back(i);
     }
   }
@@ -78,6 +84,32 @@ std::vector<int> ParseViewList(const std::string& text, int view_count) {
   }
   return indices;
 }
+
+// Core errors name Options fields ("fov_deg: ..."); on the command line, also name the flag.
+[[noreturn]] void RethrowNamingFlags(const std::invalid_argument& error,
+                                     const std::vector<std::pair<std::string, std::string>>& flags) {
+  const std::string message = error.what();
+  for (const auto& [field, flag] : flags) {
+    if (message.find(field + ":") != std::string::npos ||
+        message.find(field + "/") != std::string::npos) {
+      throw std::invalid_argument(message + " [option " + flag + "]");
+    }
+  }
+  throw error;
+}
+
+const std::vector<std::pair<std::string, std::string>> kLoadFlags{
+    {"fov_deg", "--frames-fov-deg"}, {"num_threads", "--threads"}};
+const std::vector<std::pair<std::string, std::string>> kRenderFlags{
+    {"fov_deg", "--fov-deg"},
+    {"width", "--width/--height"},
+    {"aperture_radius", "--aperture-radius"},
+    {"min_view_angle_deg", "--min-view-angle-deg"},
+    {"num_threads", "--threads"},
+    {"pose_view", "--pose-view"},
+    {"view_indices", "--views"},
+    {"focal_plane", "--focal-height/--focal-plane"},
+    {"cam_from_world", "--cam-from-world/--look-at"}};
 
 double ParseRadius(const std::string& text) {
   if (text == "inf" || text == "infinity") return std::numeric_limits<double>::infinity();
@@ -141,17 +173,29 @@ void AddOutputOptions(CLI::App* command, OutputOptions& out, bool with_output) {
       ->capture_default_str();
 }
 
-// Writes the image (and count map) of `result`, refusing to overwrite inputs; prints one line.
+// Checks the output paths before any work: folders exist, no output is an input, the two
+// outputs differ, and each extension can hold its samples. Throws std::invalid_argument.
+void CheckOutputs(const OutputOptions& out, const std::string& image_path,
+                  const std::string& count_path, const std::vector<std::string>& inputs) {
+  CheckOutputPath(image_path, inputs, "output");
+  WriteImageOptions write;
+  write.sample_type = ParseSampleType(out.sample_type);
+  ResolveSampleType(image_path, Image(1, 1, 1, PixelType::kF32), write);
+  if (count_path.empty()) return;
+  CheckOutputPath(count_path, inputs, "count");
+  if (fs::weakly_canonical(fs::absolute(count_path)) ==
+      fs::weakly_canonical(fs::absolute(image_path))) {
+    ThrowInvalid(count_path + ": --count and --output name the same file");
+  }
+  ResolveSampleType(count_path, Image(1, 1, 1, PixelType::kU32), WriteImageOptions{});
+}
+
+// Writes the image (and count map) of `result`: both go to temporary files first and are moved
+// into place only when both are complete, so a failure leaves neither. Prints one line each.
 void WriteOutputs(const IntegralResult& result, const std::string& image_path,
                   const std::string& count_path, const OutputOptions& out, PixelType views_type,
                   const std::vector<std::string>& inputs) {
-  CheckOutputPath(image_path, inputs, "output");
-  if (!count_path.empty()) {
-    CheckOutputPath(count_path, inputs, "count");
-    if (fs::absolute(count_path) == fs::absolute(image_path)) {
-      ThrowInvalid(count_path + ": --count and --output name the same file");
-    }
-  }
+  CheckOutputs(out, image_path, count_path, inputs);
   WriteImageOptions write;
   write.sample_type = ParseSampleType(out.sample_type);
   const auto [lo, hi] = ResolveRange(out.range, result, views_type);
@@ -166,13 +210,20 @@ void WriteOutputs(const IntegralResult& result, const std::string& image_path,
           FormatNumber(hi) + " mapped to 0.." + (type == SampleType::kU8 ? "255" : "65535");
   }
   write.description = "aos integral image (" + how + ")";
-  WriteImage(image_path, result.image, write);
-  std::printf("wrote %s (%dx%d, %s)\n", image_path.c_str(), result.image.width(),
-              result.image.height(), how.c_str());
+  PendingFile image_file(image_path);
+  WriteImage(image_file.TempPath(), result.image, write);
+  std::optional<PendingFile> count_file;
   if (!count_path.empty()) {
+    count_file.emplace(count_path);
     WriteImageOptions count_write;
     count_write.description = "aos count map: views contributing to each pixel";
-    WriteImage(count_path, result.count, count_write);
+    WriteImage(count_file->TempPath(), result.count, count_write);
+  }
+  image_file.Commit();
+  std::printf("wrote %s (%dx%d, %s)\n", image_path.c_str(), result.image.width(),
+              result.image.height(), how.c_str());
+  if (count_file) {
+    count_file->Commit();
     std::printf("wrote %s (count of contributing views per pixel)\n", count_path.c_str());
   }
 }
@@ -242,9 +293,15 @@ void AddIntegral(CLI::App& app, IntegralCommand& c) {
 int RunIntegral(IntegralCommand& c) {
   ProgressBar progress(c.quiet);
   c.load.num_threads = c.options.num_threads;
-  // Refuse to overwrite the light-field file itself before spending time on loading.
-  CheckOutputPath(c.out.output, {c.light_field_path}, "output");
-  LoadResult loaded = LoadLightField(c.light_field_path, c.load, &progress);
+  // Refuse bad outputs (an input, a missing folder, a format that cannot hold the samples)
+  // before spending time on loading; the frames are checked again once known.
+  CheckOutputs(c.out, c.out.output, c.out.count, {c.light_field_path});
+  LoadResult loaded;
+  try {
+    loaded = LoadLightField(c.light_field_path, c.load, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, kLoadFlags);
+  }
   progress.Finish();
   for (const std::string& note : loaded.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
   const LightField& light_field = loaded.light_field;
@@ -274,9 +331,14 @@ int RunIntegral(IntegralCommand& c) {
   }
   std::vector<std::string> inputs{c.light_field_path};
   for (const View& view : light_field.views) inputs.push_back(view.image_path);
-  // Check outputs before rendering, so a bad path fails fast; WriteOutputs checks again.
-  CheckOutputPath(c.out.output, inputs, "output");
-  const IntegralResult result = RenderIntegral(light_field, options, &progress);
+  // Check outputs against the frames before rendering; WriteOutputs checks again.
+  CheckOutputs(c.out, c.out.output, c.out.count, inputs);
+  IntegralResult result;
+  try {
+    result = RenderIntegral(light_field, options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, kRenderFlags);
+  }
   progress.Finish();
   std::fprintf(stderr,
                "integrated %d of %d selected views: %lld samples, %lld of %lld pixels uncovered\n",

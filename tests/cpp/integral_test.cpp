@@ -4,6 +4,7 @@
 #include <cmath>
 #include <atomic>
 #include <random>
+#include <set>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -384,6 +385,76 @@ TEST(Integral, CountsAndValuesMatchBruteForceForGeneralGeometry) {
   }
 }
 
+TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
+  // Views at varied heights (so the lens-plane crossing depends on the pixel) with constant
+  // images holding their index: the result names the view chosen for each pixel, which must be
+  // the one whose line to the focal point crosses the lens plane nearest to the centre.
+  std::mt19937 random(4242);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  const PinholeCamera camera = PinholeCamera::FromFov(48, 40, 75.0);
+  LightField light_field;
+  for (int i = 0; i < 40; ++i) {
+    const Vec3d eye(8.0 * uniform(random), 8.0 * uniform(random), 30.0 + 10.0 * uniform(random));
+    Image image(48, 40, 1, PixelType::kF32);
+    for (int y = 0; y < 40; ++y) {
+      for (int x = 0; x < 48; ++x) *image.At<float>(x, y) = static_cast<float>(i);
+    }
+    light_field.views.push_back(
+        MakeView("v" + std::to_string(i), camera, LookAt(eye, Vec3d(0, 0, 0), Vec3d(0, 1, 0)), image));
+  }
+  IntegralOptions options;
+  options.cam_from_world = LookAt(Vec3d(0.5, -0.5, 33.0), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
+  options.fov_deg = 40.0;
+  options.width = 60;
+  options.height = 50;
+  options.aperture_radius = 0.0;
+  options.focal_plane = Plane{Vec3d(0, 0, 0.5), Vec3d(0.1, 0.2, 1.0)};
+  const IntegralResult result = RenderIntegral(light_field, options);
+  const Rigid3d& pose = options.cam_from_world;
+  const Vec3d c = pose.Center(), axis = Row(pose.rotation, 2);
+  const Vec3d n = glm::normalize(options.focal_plane.normal);
+  const double sin_min = std::sin(options.min_view_angle_deg * M_PI / 180.0);
+  std::set<int> chosen;
+  int compared = 0;
+  for (int y = 0; y < options.height; ++y) {
+    for (int x = 0; x < options.width; ++x) {
+      const Vec3d X = FocalPoint(options, pose, x, y);
+      double best = std::numeric_limits<double>::infinity(), second = best;
+      int best_view = -1;
+      for (size_t i = 0; i < light_field.views.size(); ++i) {
+        const View& view = light_field.views[i];
+        const Vec3d in_cam = view.cam_from_world * X;
+        if (in_cam.z <= 0.0) continue;
+        const Vec2d uv = view.camera.Project(in_cam);
+        if (uv.x < 0 || uv.x > 48 || uv.y < 0 || uv.y > 40) continue;
+        const Vec3d to_view = view.cam_from_world.Center() - X;
+        if (std::abs(glm::dot(n, to_view)) < sin_min * glm::length(to_view)) continue;
+        const double s = glm::dot(axis, c - X) / glm::dot(axis, to_view);
+        const double distance = glm::length(X + s * to_view - c);
+        if (distance < best) {
+          second = best;
+          best = distance;
+          best_view = static_cast<int>(i);
+        } else {
+          second = std::min(second, distance);
+        }
+      }
+      if (best_view < 0) {
+        EXPECT_EQ(*result.count.At<uint32_t>(x, y), 0u);
+        continue;
+      }
+      if (second - best < 1e-9) continue;  // a tie within rounding
+      ++compared;
+      ASSERT_EQ(*result.count.At<uint32_t>(x, y), 1u);
+      ASSERT_EQ(*result.image.At<float>(x, y), static_cast<float>(best_view)) << x << "," << y;
+      chosen.insert(best_view);
+    }
+  }
+  EXPECT_GT(compared, options.width * options.height / 2);
+  EXPECT_GE(chosen.size(), 3u) << "the nearest view should change across the image";
+  EXPECT_EQ(result.views_used, static_cast<int>(chosen.size()));
+}
+
 TEST(Integral, GrazingViewsAndPointsBehindAViewContributeNothing) {
   const PinholeCamera camera = PinholeCamera::FromFov(32, 32, 60.0);
   auto constant_image = [](float value) {
@@ -471,17 +542,21 @@ TEST(Integral, TenThousandSixteenBitViewsAverageExactly) {
   for (int y = 0; y < 12; ++y) {
     for (int x = 0; x < 12; ++x) {
       ASSERT_EQ(*flat_result.count.At<uint32_t>(x, y), static_cast<uint32_t>(views));
-      // Output is float32: its own rounding at ~6e4 is 2^-8 = 0.004 of a step, so compare the
-      // double sum indirectly: the float result must be the float nearest to the exact mean.
-      EXPECT_NEAR(*flat_result.image.At<float>(x, y), expected, 1e-3 + 65535.0 * 6e-8);
+      // The output is float32, whose spacing near 6e4 is 2^-8 = 0.004 of a step, so "within
+      // 1e-3 of a step" is checked on what the accumulator delivers: the result must be the float
+      // nearest to the exact mean (exact sum / count), i.e. the sum lost nothing. A float
+      // accumulator is off by whole steps here.
+      EXPECT_EQ(*flat_result.image.At<float>(x, y), static_cast<float>(expected));
     }
   }
   options.fov_deg = 40.0;
   const IntegralResult stacked_result = RenderIntegral(stacked, options);
   for (int y = 0; y < 12; ++y) {
     for (int x = 0; x < 12; ++x) {
+      // Seen from the frames' own pose, every sample falls exactly on a pixel centre, so again
+      // the result must be the float nearest to the exact per-pixel mean.
       const double mean = stacked_sum[static_cast<size_t>(y) * 12 + x] / views;
-      EXPECT_NEAR(*stacked_result.image.At<float>(x, y), mean, 1e-3 + 65535.0 * 6e-8);
+      EXPECT_EQ(*stacked_result.image.At<float>(x, y), static_cast<float>(mean));
     }
   }
 }
@@ -558,6 +633,9 @@ TEST(Integral, SimdAndScalarKernelsAgree) {
     options.height = 101;
     options.fov_deg = 40.0;
     options.focal_plane = Plane{Vec3d(0, 0, 2), Vec3d(0.1, 0.0, 1.0)};
+    if (internal::Avx2SpanKernel(light_field.views[0].image) == nullptr) {
+      GTEST_SKIP() << "no AVX2/FMA on this CPU: only the scalar kernels exist";
+    }
     internal::SetSimdEnabled(false);
     const IntegralResult scalar = RenderIntegral(light_field, options);
     internal::SetSimdEnabled(true);
@@ -605,18 +683,51 @@ TEST_F(IntegralBadInput, FieldOfView) {
   }
 }
 
-TEST_F(IntegralBadInput, FocalPlaneBehindParallelOrThroughTheCamera) {
+TEST_F(IntegralBadInput, FocalPlaneBehindOrParallelToTheRays) {
   IntegralOptions bad = options;
   bad.focal_plane = Plane::AtHeight(50.0);  // above a camera at 35 m that looks down
-  EXPECT_THAT(ErrorOf(bad), HasSubstr("behind the virtual camera"));
-  bad.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(1, 0, 0)};  // vertical plane through the axis
-  EXPECT_THAT(ErrorOf(bad), HasSubstr("focal_plane"));
-  bad.focal_plane = Plane{Vec3d(5, 0, 0), Vec3d(1, 0, 0)};  // vertical, parallel to the axis
-  EXPECT_THAT(ErrorOf(bad), HasSubstr("parallel to the virtual camera's optical axis"));
-  bad.focal_plane = Plane{Vec3d(0, 0, 35), Vec3d(0.3, 0, 1)};  // through the centre
-  EXPECT_THAT(ErrorOf(bad), HasSubstr("passes through the virtual camera centre"));
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("lies behind the virtual camera"));
+  // A plane through the camera centre contains (is parallel to) the rays that lie in it and
+  // meets every other ray only at the centre.
+  bad.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(1, 0, 0)};  // vertical, through the axis
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("contains the virtual camera centre"));
+  bad.focal_plane = Plane{Vec3d(0, 0, 35), Vec3d(0.3, 0, 1)};
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("contains the virtual camera centre"));
   bad.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(0, 0, 0)};
   EXPECT_THAT(ErrorOf(bad), HasSubstr("normal must not be zero"));
+  bad.focal_plane = Plane{Vec3d(0, 0, std::nan("")), Vec3d(0, 0, 1)};
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("focal_plane"));
+}
+
+TEST_F(IntegralBadInput, PlanesSeenByPartOfTheImageAreRendered) {
+  // A vertical plane beside a nadir camera, and the ground seen by a camera looking at the
+  // horizon: the pixels whose rays meet the plane in front are rendered, the others get count 0.
+  IntegralOptions side = options;
+  side.focal_plane = Plane{Vec3d(5, 0, 0), Vec3d(1, 0, 0)};
+  IntegralOptions horizon = options;
+  horizon.cam_from_world = LookAt(Vec3d(0, 0, 2), Vec3d(10, 0, 2), Vec3d(0, 0, 1));
+  horizon.fov_deg = 90.0;
+  horizon.min_view_angle_deg = 0.0;
+  for (const IntegralOptions& case_options : {side, horizon}) {
+    const IntegralResult result = RenderIntegral(light_field, case_options);
+    EXPECT_GT(result.uncovered_pixels, 0);
+    for (int y = 0; y < result.image.height(); ++y) {
+      for (int x = 0; x < result.image.width(); ++x) {
+        ASSERT_TRUE(std::isfinite(*result.image.At<float>(x, y)));
+      }
+    }
+  }
+  // Looking at the horizon, no pixel above it (top row) sees the ground.
+  const IntegralResult result = RenderIntegral(light_field, horizon);
+  for (int x = 0; x < result.count.width(); ++x) EXPECT_EQ(*result.count.At<uint32_t>(x, 0), 0u);
+}
+
+TEST_F(IntegralBadInput, PoseOfAnUnselectedViewIsChecked) {
+  light_field.views[3].cam_from_world.rotation[0][0] = std::nan("");
+  IntegralOptions bad = options;
+  bad.pose_view = 3;
+  bad.view_indices = {0, 1};
+  EXPECT_THAT(ErrorOf(bad), HasSubstr("pose_view: view 3"));
 }
 
 TEST_F(IntegralBadInput, ViewSelectionAndPose) {

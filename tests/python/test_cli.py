@@ -102,12 +102,14 @@ def corrupt(scene: Path, edit) -> None:
 
 @pytest.mark.parametrize("case", ["missing image", "unreadable image", "size mismatch", "non-orthonormal",
                                   "nan in jku pose", "empty selection", "plane behind", "plane parallel",
-                                  "fov zero", "fov 180", "output is an input", "output is the light field"])
+                                  "fov zero", "fov 180", "output is an input", "output is the light field",
+                                  "count format", "count is the output", "views out of range"])
 def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None:
     folder = scene.parent
     out_dir = tmp_path / "out"
     out_dir.mkdir()
     output = out_dir / "result.png"
+    count = out_dir / "count.tif"
     args = ["integral", str(scene), *BASE]
     expect: tuple[str, ...]
     view_file = folder / json.loads(scene.read_text())["views"][2]["image"]
@@ -137,9 +139,9 @@ def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None
     elif case == "plane behind":
         args += ["--focal-height", "100"]
         expect = ("focal_plane", "behind")
-    elif case == "plane parallel":
-        args += ["--focal-plane", "5,0,0,1,0,0"]
-        expect = ("focal_plane", "parallel")
+    elif case == "plane parallel":  # through the camera centre: its rays run along it
+        args += ["--focal-plane", "0,0,35,0.3,0,1"]
+        expect = ("focal_plane", "parallel", "--focal-height/--focal-plane")
     elif case == "fov zero":
         args[args.index("--fov-deg") + 1] = "0"
         expect = ("fov_deg",)
@@ -152,8 +154,18 @@ def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None
     elif case == "output is the light field":
         output = scene
         expect = ("lightfield.json", "input")
+    elif case == "count format":  # found before any work, and no image is left behind
+        count = out_dir / "count.jpg"
+        expect = ("count.jpg", "8-bit")
+    elif case == "count is the output":
+        output = out_dir / "same.tif"
+        count = out_dir / ".." / "out" / "same.tif"
+        expect = ("same file",)
+    elif case == "views out of range":
+        args += ["--views", "0:2000000000"]
+        expect = ("--views", "outside")
     before_inputs = snapshot(folder)
-    result = run(*args, "-o", str(output), "--count", str(out_dir / "count.tif"))
+    result = run(*args, "-o", str(output), "--count", str(count))
     assert_clean_failure(result, *expect)
     assert list(out_dir.iterdir()) == [], "no output and no temporary file may be left"
     assert snapshot(folder) == before_inputs, "inputs must never be modified"

@@ -68,13 +68,10 @@ def test_integral_options_kwargs_and_copies() -> None:
 
 
 def test_check_errors_are_value_errors() -> None:
-    options = aos.IntegralOptions(width=0)
-    try:
-        options.check(1)
-    except ValueError as error:
-        assert "width" in str(error)
-    else:
-        pytest.skip("IntegralOptions::Check does not validate yet (placeholder)")
+    with pytest.raises(ValueError, match="width"):
+        aos.IntegralOptions(width=0).check(1)
+    with pytest.raises(ValueError, match="fov_deg"):
+        aos.IntegralOptions(fov_deg=180.0).check(1)
     with pytest.raises(ValueError, match="pose_view"):
         aos.IntegralOptions(pose_view=5).check(3)
     aos.IntegralOptions().check(3)

@@ -60,16 +60,20 @@ struct Spans {
   }
 };
 
-// Lowest integer >= value, for value clamped to [lo, hi] first (no overflow on huge values).
+// ceil/floor of a value clamped to [lo, hi] first (no overflow on huge values, NaN gives lo
+// resp. hi). Done with truncation: without SSE4.1, std::ceil/std::floor are library calls, and
+// these run several times per view and row.
 int CeilClamped(double value, int lo, int hi) {
-  if (!(value > lo)) return lo;  // also catches NaN
+  if (!(value > lo)) return lo;
   if (value > hi) return hi;
-  return static_cast<int>(std::ceil(value));
+  const int truncated = static_cast<int>(value);
+  return truncated < value ? truncated + 1 : truncated;
 }
 int FloorClamped(double value, int lo, int hi) {
   if (!(value < hi)) return hi;
   if (value < lo) return lo;
-  return static_cast<int>(std::floor(value));
+  const int truncated = static_cast<int>(value);
+  return truncated > value ? truncated - 1 : truncated;
 }
 
 // Restricts `spans` to the integer columns x with a + b x >= 0.
@@ -180,6 +184,7 @@ struct TileBuffers {
   std::vector<double> sum;        // rows x width x channels
   std::vector<int32_t> count_diff;  // rows x (width + 1)
   std::vector<double> best;       // nearest mode: best squared lens-plane distance per pixel
+  std::vector<int32_t> best_view; // nearest mode: the view (position in the selection) chosen
   std::vector<uint8_t> view_used;
 };
 
@@ -212,8 +217,13 @@ void PrefetchSpan(const Image& image, const RowLine& line, int xa, int xb) {
   const ptrdiff_t row_bytes = image.row_stride() * static_cast<ptrdiff_t>(PixelTypeSize(image.type()));
   for (int k = 0; k <= steps; ++k) {
     const double t = static_cast<double>(k) / steps;
-    const int x = std::clamp(static_cast<int>(ua + t * (ub - ua)), 0, image.width() - 1);
-    const int y = std::clamp(static_cast<int>(va + t * (vb - va)) - 1, -1, image.height() - 1);
+    // The taps of a sample at continuous (u, v) are columns floor(u - 0.5) + {0, 1} and rows
+    // floor(v - 0.5) + {0, 1}.
+    // Clamped to [-1, size - 1] first, so truncating s + 1 is floor(s) + 1 (no libm call).
+    const double sx = std::clamp(ua + t * (ub - ua) - 0.5, -1.0, image.width() - 1.0);
+    const double sy = std::clamp(va + t * (vb - va) - 0.5, -1.0, image.height() - 1.0);
+    const int x = static_cast<int>(sx + 1.0) - 1;
+    const int y = static_cast<int>(sy + 1.0) - 1;
     const char* address = base + y * row_bytes + x * pixel_bytes;
     __builtin_prefetch(address, 0, 3);
     __builtin_prefetch(address + row_bytes, 0, 3);
@@ -222,8 +232,9 @@ void PrefetchSpan(const Image& image, const RowLine& line, int xa, int xb) {
 
 // Nearest mode: per pixel keep the sample of the view whose line to the focal point crosses the
 // lens plane nearest to the virtual camera centre.
-void NearestSpan(const Image& image, const RowLine& line, const LinearVec& lens_offset,
-                 double m0, double m1, int xa, int xb, int x0, double* sum, double* best) {
+void NearestSpan(const Image& image, int32_t view, const RowLine& line,
+                 const LinearVec& lens_offset, double m0, double m1, int xa, int xb, int x0,
+                 double* sum, double* best, int32_t* best_view) {
   const int channels = image.channels();
   for (int x = xa; x < xb; ++x) {
     const double m = m0 + m1 * x;
@@ -233,9 +244,13 @@ void NearestSpan(const Image& image, const RowLine& line, const LinearVec& lens_
     double& current = best[x - x0];
     if (!(distance2 < current)) continue;
     current = distance2;
+    best_view[x - x0] = view;
     const double w = line.w0 + line.dw * x;
-    const double sx = (line.u0 + line.du * x) / w - 0.5;
-    const double sy = (line.v0 + line.dv * x) / w - 0.5;
+    // Clamped like the span kernels' positions (NaN gives -1).
+    double sx = (line.u0 + line.du * x) / w - 0.5;
+    double sy = (line.v0 + line.dv * x) / w - 0.5;
+    sx = std::min(sx > -1.0 ? sx : -1.0, image.width() - 0.5);
+    sy = std::min(sy > -1.0 ? sy : -1.0, image.height() - 0.5);
     const int ix = static_cast<int>(std::floor(sx));
     const int iy = static_cast<int>(std::floor(sy));
     const double ax = sx - ix, ay = sy - iy;
@@ -275,9 +290,17 @@ class IntegralRenderer {
 };
 
 void IntegralRenderer::SetUpGeometry() {
-  cam_from_world_ = options_.pose_view >= 0
-                        ? light_field_.views[static_cast<size_t>(options_.pose_view)].cam_from_world
-                        : options_.cam_from_world;
+  if (options_.pose_view >= 0) {
+    const View& view = light_field_.views[static_cast<size_t>(options_.pose_view)];
+    cam_from_world_ = view.cam_from_world;
+    if (auto problem = DescribeInvalidRigid(cam_from_world_)) {
+      ThrowInvalid("pose_view: view " + std::to_string(options_.pose_view) +
+                   (view.name.empty() ? "" : " (" + view.name + ")") + ": cam_from_world: " +
+                   *problem);
+    }
+  } else {
+    cam_from_world_ = options_.cam_from_world;
+  }
   camera_ = VirtualCamera(options_);
   Geometry& g = geometry_;
   g.center = cam_from_world_.Center();
@@ -288,16 +311,23 @@ void IntegralRenderer::SetUpGeometry() {
   g.h = glm::dot(g.normal, to_plane);
   g.sign_h = g.h < 0.0 ? -1.0 : 1.0;
   const double scale = std::max(1.0, glm::length(to_plane));
-  if (std::abs(g.h) <= 1e-9 * scale) {
-    ThrowInvalid("focal_plane: passes through the virtual camera centre (every ray lies in it)");
+  // Written as !(a > b) so that NaN fails the checks too.
+  if (!(std::abs(g.h) > 1e-9 * scale)) {
+    ThrowInvalid("focal_plane: contains the virtual camera centre, so the camera's rays run along "
+                 "it (parallel) or meet it only at the centre");
   }
-  const double axis_f = glm::dot(g.normal, g.lens_axis);
-  if (std::abs(axis_f) < 1e-9) {
-    ThrowInvalid("focal_plane: parallel to the virtual camera's optical axis");
+  // A pixel's ray meets the plane in front iff sign(h) (n . D) > 0, a linear function of the
+  // pixel; over the image it is largest at a corner pixel, so test the four corners.
+  bool any_in_front = false;
+  for (int k = 0; k < 4; ++k) {
+    const double px = (k & 1) ? camera_.width - 0.5 : 0.5;
+    const double py = (k & 2) ? camera_.height - 0.5 : 0.5;
+    const Vec3d direction = g.world_from_pixel * Vec3d(px, py, 1.0);
+    any_in_front = any_in_front || g.sign_h * glm::dot(g.normal, direction) > 0.0;
   }
-  if (g.h / axis_f <= 0.0) {
-    ThrowInvalid("focal_plane: lies behind the virtual camera (distance along the optical axis " +
-                 FormatNumber(g.h / axis_f) + " m)");
+  if (!any_in_front) {
+    ThrowInvalid("focal_plane: lies behind the virtual camera: no pixel's ray meets it in front "
+                 "(check its height or normal and the camera pose)");
   }
 }
 
@@ -307,6 +337,8 @@ void IntegralRenderer::SetUpViews() {
     selection.resize(light_field_.views.size());
     for (size_t i = 0; i < selection.size(); ++i) selection[i] = static_cast<int>(i);
   }
+  // Ascending view order: nearest mode breaks ties towards the lower view index.
+  std::sort(selection.begin(), selection.end());
   const Geometry& g = geometry_;
   channels_ = light_field_.views[static_cast<size_t>(selection.front())].image.channels();
   const Mat3d K_v_inverse = glm::inverse(camera_.K());
@@ -376,6 +408,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
   if (mode_ == Mode::kNearest) {
     buffers.best.assign(static_cast<size_t>(tile_width) * rows,
                         std::numeric_limits<double>::infinity());
+    buffers.best_view.assign(static_cast<size_t>(tile_width) * rows, -1);
   }
 
   // The virtual rays of each row, and the columns whose ray meets the plane in front.
@@ -473,6 +506,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
         if (finite_aperture) {
           const auto q = QuadraticOf(lens_offset, 1.0, m0, m1, r2);
           ApplyQuadratic(q[0], q[1], q[2], spans, tile.x0, tile.x1);
+          if (spans.empty()) continue;
         }
       }
       double* sum_row = buffers.sum.data() + row_values * r;
@@ -484,14 +518,16 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
       for (int s = 0; s < spans.size; ++s) {
         const auto [xa, xb] = spans.range[s];
         if (mode_ == Mode::kNearest) {
-          NearestSpan(image, line, lens_offset, m0, m1, xa, xb, tile.x0, sum_row,
-                      buffers.best.data() + static_cast<size_t>(tile_width) * r);
+          const size_t row_offset = static_cast<size_t>(tile_width) * r;
+          NearestSpan(image, static_cast<int32_t>(view_index), line, lens_offset, m0, m1, xa, xb,
+                      tile.x0, sum_row, buffers.best.data() + row_offset,
+                      buffers.best_view.data() + row_offset);
         } else {
           kernel(image, line, xa, xb, tile.x0, sum_row);
           diff_row[xa - tile.x0] += 1;
           diff_row[xb - tile.x0] -= 1;
+          used = true;
         }
-        used = true;
       }
     }
     if (used) buffers.view_used[view_index] = 1;
@@ -507,14 +543,19 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
     int64_t count = 0;
     for (int i = 0; i < tile_width; ++i) {
       if (mode_ == Mode::kNearest) {
-        count = std::isfinite(buffers.best[static_cast<size_t>(tile_width) * r + i]) ? 1 : 0;
+        const int32_t chosen = buffers.best_view[static_cast<size_t>(tile_width) * r + i];
+        count = chosen >= 0 ? 1 : 0;
+        if (chosen >= 0) buffers.view_used[static_cast<size_t>(chosen)] = 1;
       } else {
         count += diff_row[i];
       }
       count_out[i] = static_cast<uint32_t>(count);
-      const double scale = count > 0 ? 1.0 / static_cast<double>(count) : 0.0;
+      // Divide (rather than multiply by a reciprocal) so the result is the correctly rounded
+      // mean of the double sums.
       for (int c = 0; c < channels_; ++c) {
-        out[i * channels_ + c] = static_cast<float>(sum_row[i * channels_ + c] * scale);
+        out[i * channels_ + c] =
+            count > 0 ? static_cast<float>(sum_row[i * channels_ + c] / static_cast<double>(count))
+                      : 0.0f;
       }
     }
   }
@@ -553,30 +594,32 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
 #pragma omp parallel num_threads(threads)
   {
     TileBuffers buffers;
-    buffers.view_used.assign(views_.size(), 0);
 #pragma omp for schedule(dynamic, 1)
     for (int64_t t = 0; t < static_cast<int64_t>(tiles.size()); ++t) {
       bool stop;
 #pragma omp atomic read
       stop = cancelled;
       if (stop) continue;
-      if (ProgressCancelled(progress)) {
-#pragma omp atomic write
-        cancelled = true;
-        continue;
-      }
+      // Nothing may escape the parallel region: the sink, the allocations and the tile itself
+      // report through `error`.
       try {
+        if (ProgressCancelled(progress)) {
+#pragma omp atomic write
+          cancelled = true;
+          continue;
+        }
+        if (buffers.view_used.empty()) buffers.view_used.assign(views_.size(), 0);
         RenderTile(tiles[static_cast<size_t>(t)], buffers);
+        ProgressAdvance(progress, 1);
       } catch (...) {
 #pragma omp critical(aos_integral_error)
         if (!error) error = std::current_exception();
 #pragma omp atomic write
         cancelled = true;
       }
-      ProgressAdvance(progress, 1);
     }
 #pragma omp critical(aos_integral_merge)
-    for (size_t i = 0; i < view_used.size(); ++i) view_used[i] |= buffers.view_used[i];
+    for (size_t i = 0; i < buffers.view_used.size(); ++i) view_used[i] |= buffers.view_used[i];
   }
   if (error) std::rethrow_exception(error);
   if (cancelled) throw Cancelled();

@@ -7,6 +7,12 @@ namespace {
 
 bool g_simd_enabled = true;
 
+// s clamped to [-1, max]; NaN gives -1.
+inline float ClampSample(float s, float max) {
+  s = s > -1.0f ? s : -1.0f;
+  return s < max ? s : max;
+}
+
 template <typename T, int kChannels>
 void AccumulateSpan(const Image& image, const RowLine& line, int xa, int xb, int x0,
                     double* sum) {
@@ -20,13 +26,17 @@ void AccumulateSpan(const Image& image, const RowLine& line, int xa, int xb, int
   const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
               dw = static_cast<float>(line.dw);
   double* out = sum + static_cast<ptrdiff_t>(xa - x0) * channels;
+  const float x_max = static_cast<float>(image.width()) - 0.5f;
+  const float y_max = static_cast<float>(image.height()) - 0.5f;
   const int n = xb - xa;
   for (int i = 0; i < n; ++i) {
     const float fi = static_cast<float>(i);
     const float inv_w = 1.0f / (w_a + dw * fi);
     // Sample position in pixel-index space: continuous coordinate minus the half-pixel offset.
-    const float sx = (u_a + du * fi) * inv_w - 0.5f;
-    const float sy = (v_a + dv * fi) * inv_w - 0.5f;
+    // Clamped to the bordered image (the span already guarantees it up to rounding; the clamp
+    // keeps any rounding, or a NaN, from ever reading outside the image's memory).
+    const float sx = ClampSample((u_a + du * fi) * inv_w - 0.5f, x_max);
+    const float sy = ClampSample((v_a + dv * fi) * inv_w - 0.5f, y_max);
     // sx, sy >= -0.5 (up to rounding), so truncating s + 1 gives floor(s) + 1.
     const int ix = static_cast<int>(sx + 1.0f) - 1;
     const int iy = static_cast<int>(sy + 1.0f) - 1;

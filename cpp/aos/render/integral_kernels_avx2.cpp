@@ -33,6 +33,9 @@ __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowL
   const __m256 dw = _mm256_set1_ps(static_cast<float>(line.dw));
   const __m256 ua = _mm256_set1_ps(u_a), va = _mm256_set1_ps(v_a), wa = _mm256_set1_ps(w_a);
   const __m256 one = _mm256_set1_ps(1.0f), half = _mm256_set1_ps(0.5f);
+  const __m256 minus_one = _mm256_set1_ps(-1.0f);
+  const __m256 x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
+  const __m256 y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
   const __m256i one_i = _mm256_set1_epi32(1);
   const __m256i value_size = _mm256_set1_epi32(kValueSize);
   const __m256i stride = _mm256_set1_epi32(stride_bytes);
@@ -43,8 +46,12 @@ __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowL
   for (; i + 8 <= n; i += 8) {
     const __m256 fi = _mm256_add_ps(_mm256_set1_ps(static_cast<float>(i)), lanes);
     const __m256 inv_w = _mm256_div_ps(one, _mm256_fmadd_ps(dw, fi, wa));
-    const __m256 sx = _mm256_fmsub_ps(_mm256_fmadd_ps(du, fi, ua), inv_w, half);
-    const __m256 sy = _mm256_fmsub_ps(_mm256_fmadd_ps(dv, fi, va), inv_w, half);
+    // Clamped to [-1, size - 0.5] as in the scalar kernel (max_ps returns its second operand,
+    // -1, for NaN), so no rounding can send a gather outside the bordered image.
+    const __m256 sx = _mm256_min_ps(
+        _mm256_max_ps(_mm256_fmsub_ps(_mm256_fmadd_ps(du, fi, ua), inv_w, half), minus_one), x_max);
+    const __m256 sy = _mm256_min_ps(
+        _mm256_max_ps(_mm256_fmsub_ps(_mm256_fmadd_ps(dv, fi, va), inv_w, half), minus_one), y_max);
     const __m256i ix = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sx, one)), one_i);
     const __m256i iy = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sy, one)), one_i);
     const __m256 ax = _mm256_sub_ps(sx, _mm256_cvtepi32_ps(ix));
