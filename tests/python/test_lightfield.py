@@ -172,3 +172,13 @@ def test_write_image_options_and_errors(tmp_path) -> None:
         aos.write_image(tmp_path / "x.png", values, range_min=1.0, range_max=1.0)
     with pytest.raises(ValueError, match="not found"):
         aos.read_image(tmp_path / "missing.png")
+
+
+def test_add_view_refuses_non_finite_pixels() -> None:
+    light_field = aos.LightField()
+    image = np.zeros((6, 8), np.float32)
+    image[2, 5] = np.inf
+    camera = aos.PinholeCamera.from_fov(8, 6, 50.0)
+    with pytest.raises(ValueError, match=r"pixel \(5, 2\) channel 0 is infinite"):
+        light_field.add_view(image, camera, aos.Rigid3d(), name="hot.exr")
+    assert len(light_field) == 0

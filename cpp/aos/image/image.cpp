@@ -1,6 +1,7 @@
 #include "aos/image/image.h"
 
 #include <algorithm>
+#include <cmath>
 #include <cstring>
 
 #include "aos/util/error.h"
@@ -97,6 +98,28 @@ double Image::Value(int x, int y, int channel) const {
     case PixelType::kF32: return At<float>(x, y)[channel];
   }
   return 0.0;
+}
+
+Image Image::Clone() const {
+  if (empty()) return Image();
+  Image copy(width_, height_, channels_, type_, border_);
+  std::memcpy(copy.data_.get(), data_.get(), bytes_);
+  return copy;
+}
+
+std::optional<std::string> DescribeNonFinite(const Image& image) {
+  if (image.type() != PixelType::kF32) return std::nullopt;
+  for (int y = 0; y < image.height(); ++y) {
+    const float* row = image.At<float>(0, y);
+    for (int i = 0; i < image.width() * image.channels(); ++i) {
+      if (!std::isfinite(row[i])) {
+        return "pixel (" + std::to_string(i / image.channels()) + ", " + std::to_string(y) +
+               ") channel " + std::to_string(i % image.channels()) + " is " +
+               (std::isnan(row[i]) ? "NaN" : "infinite");
+      }
+    }
+  }
+  return std::nullopt;
 }
 
 }  // namespace aos

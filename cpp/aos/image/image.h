@@ -9,6 +9,7 @@
 #include <cstddef>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <string>
 
 namespace aos {
@@ -63,6 +64,8 @@ class Image {
   void FillBorder();
   // Channel value at pixel (x, y) as double, for tests and tools (not for inner loops).
   double Value(int x, int y, int channel = 0) const;
+  // A deep copy (copying an Image shares its pixels; see below).
+  Image Clone() const;
 
  private:
   ptrdiff_t Offset(int x, int y) const {
@@ -77,7 +80,13 @@ class Image {
   PixelType type_ = PixelType::kU8;
   ptrdiff_t row_stride_ = 0;
   size_t bytes_ = 0;
-  std::shared_ptr<unsigned char[]> data_;  // shared so copies of a light field are cheap
+  // Copies of an Image share these pixels (so copying a light field is cheap); writing through
+  // one copy changes the others. Clone() makes an independent image.
+  std::shared_ptr<unsigned char[]> data_;
 };
+
+// Describes the first non-finite value of a float image ("pixel (x, y) channel c is NaN"), or
+// nullopt when all are finite (always for integer images). Views are checked with it when made.
+std::optional<std::string> DescribeNonFinite(const Image& image);
 
 }  // namespace aos

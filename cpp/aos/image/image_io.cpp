@@ -74,7 +74,19 @@ Image ReadImage(const std::string& path, int border) {
                  " channels; aos reads 1 to 4");
   }
   if (spec.width <= 0 || spec.height <= 0) ThrowInvalid(path + ": image is empty");
-  Image image(spec.width, spec.height, spec.nchannels, NativeType(spec.format), border);
+  // A header can claim any size; refuse absurd ones instead of failing in the allocator.
+  constexpr int64_t kMaxPixels = int64_t{1} << 31;
+  if (static_cast<int64_t>(spec.width) * spec.height > kMaxPixels) {
+    ThrowInvalid(path + ": image of " + std::to_string(spec.width) + "x" +
+                 std::to_string(spec.height) + " pixels is larger than aos accepts (2^31 pixels)");
+  }
+  Image image;
+  try {
+    image = Image(spec.width, spec.height, spec.nchannels, NativeType(spec.format), border);
+  } catch (const std::bad_alloc&) {
+    ThrowInvalid(path + ": not enough memory to decode this " + std::to_string(spec.width) + "x" +
+                 std::to_string(spec.height) + " image");
+  }
   const oiio::stride_t value_size = static_cast<oiio::stride_t>(PixelTypeSize(image.type()));
   const oiio::stride_t x_stride = value_size * image.channels();
   const oiio::stride_t y_stride = value_size * image.row_stride();

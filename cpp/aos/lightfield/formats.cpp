@@ -183,6 +183,7 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
       ImageFileInfo& info = data.infos[i];
       if (options.load_images) {
         Image image = ReadImage(frame.path, 1);
+        if (auto problem = DescribeNonFinite(image)) ThrowInvalid(frame.path + ": " + *problem);
         info.width = image.width();
         info.height = image.height();
         info.channels = image.channels();

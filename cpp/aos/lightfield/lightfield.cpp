@@ -64,7 +64,9 @@ View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_
     image = std::move(bordered);
   }
   view.image = std::move(image);
-  CheckView(view, view.name.empty() ? std::string("view") : "view " + view.name);
+  const std::string where = view.name.empty() ? std::string("view") : "view " + view.name;
+  CheckView(view, where);
+  if (auto problem = DescribeNonFinite(view.image)) ThrowInvalid(Where(where, "image: " + *problem));
   return view;
 }
 

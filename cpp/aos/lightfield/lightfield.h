@@ -33,8 +33,9 @@ struct LightField {
 };
 
 // Builds a view from an image, checking it. The image is copied with a replicated border if it
-// has none. Throws std::invalid_argument naming `name` and the field for a bad camera, a camera
-// that disagrees with the image size, or an invalid pose.
+// has none (else its pixels are shared). Throws std::invalid_argument naming `name` and the field
+// for a bad camera, a camera that disagrees with the image size, an invalid pose, or a
+// non-finite pixel in a float image (loaded frames are checked the same way).
 View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_from_world,
               Image image, std::string image_path = "");
 

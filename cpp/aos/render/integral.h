@@ -18,9 +18,12 @@
 //   to the lower view index).
 // - image(x, y) = sum of samples / count(x, y), accumulated in double precision; pixels no view
 //   sees get count 0 and the value 0.
-// - Pixels whose ray misses the focal plane, or hits it behind the virtual camera, get count 0.
-//   The whole plane behind the virtual camera, or parallel to its optical axis (or containing its
-//   centre), is an error.
+// - Pixels whose ray misses the focal plane, or hits it behind the virtual camera, get count 0
+//   (a plane of any orientation may be seen by only part of the image). A plane that no pixel's
+//   ray meets in front of the camera (it lies behind), or that contains the camera centre (its
+//   rays run along it), is an error.
+// - In nearest mode (aperture_radius 0), ties go to the lower view index; views_used counts the
+//   views chosen for at least one pixel.
 //
 // Throws std::invalid_argument (naming the option) for bad options, aos::Cancelled if the
 // progress sink asks to stop.

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
+#include <exception>
 #include <string>
 
 #include "aos/util/error.h"
@@ -52,10 +53,12 @@ Image RenderSyntheticView(const SyntheticScene& scene, const PinholeCamera& came
   const Vec3d center = cam_from_world.Center();
   const int channels = scene.channels;
   const int64_t height = camera.height;
+  std::exception_ptr error;  // a throwing shade() must not escape the parallel region
 #pragma omp parallel for schedule(dynamic, 4)
   for (int64_t y = 0; y < height; ++y) {
     std::vector<std::pair<double, size_t>> hits;
     float value[4];
+    try {
     for (int x = 0; x < camera.width; ++x) {
       const Vec3d direction =
           world_from_cam_rotation * camera.Unproject(Vec2d(x + 0.5, static_cast<double>(y) + 0.5));
@@ -84,7 +87,12 @@ Image RenderSyntheticView(const SyntheticScene& scene, const PinholeCamera& came
         case PixelType::kF32: Store<float>(image, xi, yi, value, channels); break;
       }
     }
+    } catch (...) {
+#pragma omp critical(aos_synthetic_error)
+      if (!error) error = std::current_exception();
+    }
   }
+  if (error) std::rethrow_exception(error);
   image.FillBorder();
   return image;
 }
