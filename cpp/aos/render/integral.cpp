@@ -207,24 +207,26 @@ RowLine MakeRowLine(const Mat3d& H, int y) {
 void PrefetchSpan(const Image& image, const RowLine& line, int xa, int xb) {
   const double wa = line.w0 + line.dw * xa, wb = line.w0 + line.dw * (xb - 1);
   if (!(wa > 0.0 && wb > 0.0)) return;
-  const double ua = (line.u0 + line.du * xa) / wa, va = (line.v0 + line.dv * xa) / wa;
-  const double ub = (line.u0 + line.du * (xb - 1)) / wb, vb = (line.v0 + line.dv * (xb - 1)) / wb;
-  const double length = std::abs(ub - ua) + std::abs(vb - va);
+  // Tap positions (pixel-index space) of the span's first and last samples, clamped into the
+  // bordered image; the points between lie on the segment joining them.
+  const double x_max = image.width() - 1.0, y_max = image.height() - 1.0;
+  const double xa_s = std::clamp((line.u0 + line.du * xa) / wa - 0.5, -1.0, x_max);
+  const double ya_s = std::clamp((line.v0 + line.dv * xa) / wa - 0.5, -1.0, y_max);
+  const double xb_s = std::clamp((line.u0 + line.du * (xb - 1)) / wb - 0.5, -1.0, x_max);
+  const double yb_s = std::clamp((line.v0 + line.dv * (xb - 1)) / wb - 0.5, -1.0, y_max);
+  const double length = std::abs(xb_s - xa_s) + std::abs(yb_s - ya_s);
   if (!std::isfinite(length)) return;
   const int steps = std::min(64, static_cast<int>(length / 16.0) + 1);
+  const double step_x = (xb_s - xa_s) / steps, step_y = (yb_s - ya_s) / steps;
   const auto* base = static_cast<const char*>(image.RawAt(0, 0));
   const ptrdiff_t pixel_bytes = static_cast<ptrdiff_t>(PixelTypeSize(image.type())) * image.channels();
   const ptrdiff_t row_bytes = image.row_stride() * static_cast<ptrdiff_t>(PixelTypeSize(image.type()));
-  for (int k = 0; k <= steps; ++k) {
-    const double t = static_cast<double>(k) / steps;
-    // The taps of a sample at continuous (u, v) are columns floor(u - 0.5) + {0, 1} and rows
-    // floor(v - 0.5) + {0, 1}.
-    // Clamped to [-1, size - 1] first, so truncating s + 1 is floor(s) + 1 (no libm call).
-    const double sx = std::clamp(ua + t * (ub - ua) - 0.5, -1.0, image.width() - 1.0);
-    const double sy = std::clamp(va + t * (vb - va) - 0.5, -1.0, image.height() - 1.0);
-    const int x = static_cast<int>(sx + 1.0) - 1;
-    const int y = static_cast<int>(sy + 1.0) - 1;
-    const char* address = base + y * row_bytes + x * pixel_bytes;
+  double x = xa_s, y = ya_s;
+  for (int k = 0; k <= steps; ++k, x += step_x, y += step_y) {
+    // x, y >= -1 (up to rounding of the steps), so truncating s + 1 gives floor(s) + 1.
+    const ptrdiff_t column = static_cast<ptrdiff_t>(std::max(x, -1.0) + 1.0) - 1;
+    const ptrdiff_t row = static_cast<ptrdiff_t>(std::max(y, -1.0) + 1.0) - 1;
+    const char* address = base + row * row_bytes + column * pixel_bytes;
     __builtin_prefetch(address, 0, 3);
     __builtin_prefetch(address + row_bytes, 0, 3);
   }
