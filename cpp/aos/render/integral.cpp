@@ -405,7 +405,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
   const int tile_width = tile.x1 - tile.x0;
   const int rows = tile.y1 - tile.y0;
   const size_t row_values = static_cast<size_t>(tile_width) * channels_;
-  buffers.sum.assign(row_values * rows, 0.0);
+  buffers.sum.assign(row_values * rows + internal::kSpanPadding, 0.0);
   buffers.count_diff.assign(static_cast<size_t>(tile_width + 1) * rows, 0);
   if (mode_ == Mode::kNearest) {
     buffers.best.assign(static_cast<size_t>(tile_width) * rows,

@@ -15,7 +15,9 @@ struct RowLine {
 };
 
 // Adds samples for columns [xa, xb) into sum[(x - x0) * channels + c]. The caller guarantees
-// W > 0 and 0 <= U/W <= width, 0 <= V/W <= height on the whole span.
+// W > 0 and 0 <= U/W <= width, 0 <= V/W <= height on the whole span, and that `sum` has
+// kSpanPadding writable values past the span's end (SIMD kernels add +0.0 there).
+constexpr int kSpanPadding = 8;
 using SpanKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
                             double* sum);
 

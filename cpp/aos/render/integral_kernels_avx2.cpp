@@ -77,7 +77,8 @@ __attribute__((target("avx2,fma"), always_inline)) inline Fetched Fetch(const Sp
 // The second half: unpack the taps, interpolate, add to the double accumulators.
 template <PixelType kType>
 __attribute__((target("avx2,fma"), always_inline)) inline void Finish(const Fetched& f,
-                                                                      double* out) {
+                                                                      double* out,
+                                                                      __m256 keep) {
   __m256 p00, p01, p10, p11;
   if constexpr (kType == PixelType::kF32) {
     p00 = f.p00, p01 = f.p01, p10 = f.p10, p11 = f.p11;
@@ -91,7 +92,8 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Finish(const Fetc
   }
   const __m256 upper = _mm256_fmadd_ps(f.ax, _mm256_sub_ps(p01, p00), p00);
   const __m256 lower = _mm256_fmadd_ps(f.ax, _mm256_sub_ps(p11, p10), p10);
-  const __m256 value = _mm256_fmadd_ps(f.ay, _mm256_sub_ps(lower, upper), upper);
+  // `keep` zeroes the lanes past the end of the span (adding +0.0 changes nothing).
+  const __m256 value = _mm256_and_ps(_mm256_fmadd_ps(f.ay, _mm256_sub_ps(lower, upper), upper), keep);
   _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out),
                                       _mm256_cvtps_pd(_mm256_castps256_ps128(value))));
   _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4),
@@ -116,20 +118,21 @@ __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowL
   c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
   double* out = sum + (xa - x0);
   const int n = xb - xa;
+  const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+  // Software-pipelined: the gathers of the next group are issued before the current group is
+  // interpolated, so their latency overlaps useful work (about 15% faster on Zen 3). The last
+  // group may extend past the span: its positions are clamped into the image, so its gathers
+  // stay in bounds, and its extra lanes add zero to the accumulators' padding (see caller).
+  Fetched current = Fetch<kType>(c, 0);
   int i = 0;
-  if (n >= 8) {
-    // Software-pipelined: the gathers of the next group are issued before the current group is
-    // interpolated, so their latency overlaps useful work (about 15% faster on Zen 3).
-    Fetched current = Fetch<kType>(c, 0);
-    for (; i + 16 <= n; i += 8) {
-      const Fetched next = Fetch<kType>(c, i + 8);
-      Finish<kType>(current, out + i);
-      current = next;
-    }
-    Finish<kType>(current, out + i);
-    i += 8;
+  for (; i + 8 < n; i += 8) {
+    const Fetched next = Fetch<kType>(c, i + 8);
+    Finish<kType>(current, out + i, all);
+    current = next;
   }
-  if (i < n) ScalarSpanKernel(image)(image, line, xa + i, xb, x0, sum);
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 keep = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n - i), lane));
+  Finish<kType>(current, out + i, keep);
 }
 
 bool CpuHasAvx2Fma() {
