@@ -41,6 +41,15 @@ std::vector<Vec3d> GridCentres(int per_side, double spacing, double altitude) {
   return centres;
 }
 
+// A float image of one value everywhere (views whose value names them).
+Image ConstantImage(int width, int height, float value) {
+  Image image(width, height, 1, PixelType::kF32);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) *image.At<float>(x, y) = value;
+  }
+  return image;
+}
+
 // Focal point of output pixel (x, y) (pixel centre) of the virtual camera.
 Vec3d FocalPoint(const IntegralOptions& options, const Rigid3d& cam_from_world, int x, int y) {
   const PinholeCamera camera = VirtualCamera(options);
@@ -340,12 +349,9 @@ TEST(Integral, CountsAndValuesMatchBruteForceForGeneralGeometry) {
   for (int i = 0; i < 60; ++i) {
     const Vec3d eye(12.0 * uniform(random), 12.0 * uniform(random), 25.0 + 8.0 * uniform(random));
     const Vec3d target(6.0 * uniform(random), 6.0 * uniform(random), 0.0);
-    Image image(40, 30, 1, PixelType::kF32);
-    for (int y = 0; y < 30; ++y) {
-      for (int x = 0; x < 40; ++x) *image.At<float>(x, y) = static_cast<float>(i);
-    }
-    light_field.views.push_back(
-        MakeView("v" + std::to_string(i), camera, LookAt(eye, target, Vec3d(0, 1, 0)), image));
+    light_field.views.push_back(MakeView("v" + std::to_string(i), camera,
+                                         LookAt(eye, target, Vec3d(0, 1, 0)),
+                                         ConstantImage(40, 30, static_cast<float>(i))));
   }
   struct Case {
     double aperture, min_angle;
@@ -395,12 +401,9 @@ TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
   LightField light_field;
   for (int i = 0; i < 40; ++i) {
     const Vec3d eye(8.0 * uniform(random), 8.0 * uniform(random), 30.0 + 10.0 * uniform(random));
-    Image image(48, 40, 1, PixelType::kF32);
-    for (int y = 0; y < 40; ++y) {
-      for (int x = 0; x < 48; ++x) *image.At<float>(x, y) = static_cast<float>(i);
-    }
-    light_field.views.push_back(
-        MakeView("v" + std::to_string(i), camera, LookAt(eye, Vec3d(0, 0, 0), Vec3d(0, 1, 0)), image));
+    light_field.views.push_back(MakeView("v" + std::to_string(i), camera,
+                                         LookAt(eye, Vec3d(0, 0, 0), Vec3d(0, 1, 0)),
+                                         ConstantImage(48, 40, static_cast<float>(i))));
   }
   IntegralOptions options;
   options.cam_from_world = LookAt(Vec3d(0.5, -0.5, 33.0), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
@@ -457,13 +460,7 @@ TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
 
 TEST(Integral, GrazingViewsAndPointsBehindAViewContributeNothing) {
   const PinholeCamera camera = PinholeCamera::FromFov(32, 32, 60.0);
-  auto constant_image = [](float value) {
-    Image image(32, 32, 1, PixelType::kF32);
-    for (int y = 0; y < 32; ++y) {
-      for (int x = 0; x < 32; ++x) *image.At<float>(x, y) = value;
-    }
-    return image;
-  };
+  auto constant_image = [](float value) { return ConstantImage(32, 32, value); };
   LightField light_field;
   // A proper nadir view (value 100).
   light_field.views.push_back(
