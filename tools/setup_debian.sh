@@ -14,7 +14,10 @@ packages=(
   libopenimageio-dev openimageio-tools colmap
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev
 )
-if ! command -v python3 >/dev/null 2>&1; then
+# Debian's own Python (missing, or externally managed) needs its headers and venv support.
+if ! command -v python3 >/dev/null 2>&1 || python3 -c 'import os, sys, sysconfig
+sys.exit(0 if os.path.exists(os.path.join(sysconfig.get_path("stdlib"), "EXTERNALLY-MANAGED"))
+         and sys.prefix == sys.base_prefix else 1)'; then
   packages+=(python3 python3-dev python3-pip python3-venv)
 fi
 export DEBIAN_FRONTEND=noninteractive
