@@ -76,6 +76,7 @@ std::vector<int> ParseViewList(const std::string& text, int view_count) {
     } else {
       const int begin = to_index(item.substr(0, colon), 0, view_count);
       const int end = to_index(item.substr(colon + 1), view_count, view_count);
+      if (begin > end) ThrowInvalid("--views: range '" + item + "' runs backwards");
       for (int i = begin; i < end; ++i) indices.push_back(i);
     }
   }
@@ -85,17 +86,19 @@ std::vector<int> ParseViewList(const std::string& text, int view_count) {
   return indices;
 }
 
-// Core errors name Options fields ("fov_deg: ..."); on the command line, also name the flag.
+// Options::Check() errors start with the field's name ("fov_deg: ..."); on the command line,
+// also name the flag. Errors about files (which start with the path) are left alone, except the
+// loader's own request for LoadOptions::fov_deg.
 [[noreturn]] void RethrowNamingFlags(const std::invalid_argument& error,
                                      const std::vector<std::pair<std::string, std::string>>& flags) {
   const std::string message = error.what();
   for (const auto& [field, flag] : flags) {
-    if (message.find(field + ":") != std::string::npos ||
-        message.find(field + "/") != std::string::npos) {
-      throw std::invalid_argument(message + " [option " + flag + "]");
-    }
+    const bool names_field = message.rfind(field + ":", 0) == 0 ||
+                             message.rfind(field + "/", 0) == 0 ||
+                             message.find("(LoadOptions::" + field + ")") != std::string::npos;
+    if (names_field) throw std::invalid_argument(message + " [option " + flag + "]");
   }
-  throw error;
+  throw;
 }
 
 const std::vector<std::pair<std::string, std::string>> kLoadFlags{
@@ -219,11 +222,12 @@ void WriteOutputs(const IntegralResult& result, const std::string& image_path,
     count_write.description = "aos count map: views contributing to each pixel";
     WriteImage(count_file->TempPath(), result.count, count_write);
   }
-  image_file.Commit();
+  std::vector<PendingFile*> files{&image_file};
+  if (count_file) files.push_back(&*count_file);
+  CommitTogether(files);
   std::printf("wrote %s (%dx%d, %s)\n", image_path.c_str(), result.image.width(),
               result.image.height(), how.c_str());
   if (count_file) {
-    count_file->Commit();
     std::printf("wrote %s (count of contributing views per pixel)\n", count_path.c_str());
   }
 }

@@ -328,3 +328,39 @@ TEST_F(FilesTest, TextFiles) {
 
 }  // namespace
 }  // namespace aos
+
+namespace aos {
+namespace {
+
+TEST_F(FilesTest, CommitTogetherIsAllOrNothing) {
+  auto write = [](const std::string& path, const std::string& text) {
+    std::ofstream(path, std::ios::binary) << text;
+  };
+  auto read = [](const std::string& path) {
+    std::ifstream stream(path, std::ios::binary);
+    return std::string(std::istreambuf_iterator<char>(stream), {});
+  };
+  write(Path("a.txt"), "old a");
+  {
+    PendingFile a(Path("a.txt")), b(Path("b.txt"));
+    write(a.TempPath(), "new a");
+    // b's temporary file vanishes: its rename fails after a's would have succeeded.
+    EXPECT_THROW(CommitTogether({&a, &b}), std::invalid_argument);
+  }
+  EXPECT_EQ(read(Path("a.txt")), "old a") << "a must be restored";
+  EXPECT_EQ(Entries(), std::vector<std::string>{"a.txt"}) << "no new, temporary or backup file";
+  {
+    PendingFile a(Path("a.txt")), b(Path("b.txt"));
+    write(a.TempPath(), "new a");
+    write(b.TempPath(), "new b");
+    CommitTogether({&a, &b});
+  }
+  EXPECT_EQ(read(Path("a.txt")), "new a");
+  EXPECT_EQ(read(Path("b.txt")), "new b");
+  auto entries = Entries();
+  std::sort(entries.begin(), entries.end());
+  EXPECT_EQ(entries, (std::vector<std::string>{"a.txt", "b.txt"}));
+}
+
+}  // namespace
+}  // namespace aos

@@ -458,6 +458,59 @@ TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
   EXPECT_EQ(result.views_used, static_cast<int>(chosen.size()));
 }
 
+TEST(Integral, PinholeTiesGoToTheLowerViewIndex) {
+  // Two views at the same pose: every pixel is a tie. Listed in reverse order, view 0 must win.
+  const PinholeCamera camera = PinholeCamera::FromFov(16, 16, 50.0);
+  const Rigid3d pose = NadirCamFromWorld(Vec3d(0, 0, 20));
+  LightField light_field;
+  light_field.views.push_back(MakeView("a", camera, pose, ConstantImage(16, 16, 10.0f)));
+  light_field.views.push_back(MakeView("b", camera, pose, ConstantImage(16, 16, 20.0f)));
+  IntegralOptions options;
+  options.cam_from_world = pose;
+  options.fov_deg = 30.0;
+  options.width = options.height = 8;
+  options.aperture_radius = 0.0;
+  options.view_indices = {1, 0};
+  const IntegralResult result = RenderIntegral(light_field, options);
+  for (int y = 0; y < 8; ++y) {
+    for (int x = 0; x < 8; ++x) EXPECT_EQ(*result.image.At<float>(x, y), 10.0f);
+  }
+  EXPECT_EQ(result.views_used, 1);
+}
+
+TEST(Integral, SimdKernelsWriteOnlyTheirSpanAndThePadding) {
+  // Spans of every length 1..17 ending at the last column of an exactly sized accumulator row:
+  // the span must match the scalar kernel, values before it must not change, and the kernel may
+  // only touch the kSpanPadding values after it (adding +0.0).
+  for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
+    Image image(24, 6, 1, type, 1);
+    for (int y = 0; y < 6; ++y) {
+      for (int x = 0; x < 24; ++x) {
+        const int value = (x * 37 + y * 11) % 200;
+        if (type == PixelType::kU8) *image.At<uint8_t>(x, y) = static_cast<uint8_t>(value);
+        if (type == PixelType::kU16) *image.At<uint16_t>(x, y) = static_cast<uint16_t>(value * 300);
+        if (type == PixelType::kF32) *image.At<float>(x, y) = static_cast<float>(value) * 0.25f;
+      }
+    }
+    image.FillBorder();
+    const internal::SpanKernel simd = internal::Avx2SpanKernel(image);
+    if (simd == nullptr) GTEST_SKIP() << "no AVX2/FMA on this CPU";
+    const internal::SpanKernel scalar = internal::ScalarSpanKernel(image);
+    // A slightly rotated, scaled row through the image (stays inside [0, 24] x [0, 6]).
+    const internal::RowLine line{0.5, 0.93, 2.2, 0.05, 1.0, 1e-4};
+    const int width = 20;
+    for (int n = 1; n <= 17; ++n) {
+      const int xa = width - n, xb = width;
+      std::vector<double> expected(width + internal::kSpanPadding, 7.0), got = expected;
+      scalar(image, line, xa, xb, 0, expected.data());
+      simd(image, line, xa, xb, 0, got.data());
+      for (int x = 0; x < xa; ++x) ASSERT_EQ(got[x], 7.0) << "before the span, n=" << n;
+      for (int x = xa; x < xb; ++x) ASSERT_NEAR(got[x], expected[x], 1e-3 * (1 + std::abs(expected[x])));
+      for (int x = xb; x < width + internal::kSpanPadding; ++x) ASSERT_EQ(got[x], 7.0) << "padding";
+    }
+  }
+}
+
 TEST(Integral, GrazingViewsAndPointsBehindAViewContributeNothing) {
   const PinholeCamera camera = PinholeCamera::FromFov(32, 32, 60.0);
   auto constant_image = [](float value) { return ConstantImage(32, 32, value); };
@@ -626,7 +679,7 @@ TEST(Integral, SimdAndScalarKernelsAgree) {
     }
     IntegralOptions options;
     options.cam_from_world = LookAt(Vec3d(1, 2, 35), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
-    options.width = 203;  // not a multiple of 8: exercises the scalar tail
+    options.width = 203;  // not a multiple of 8: exercises the masked last group
     options.height = 101;
     options.fov_deg = 40.0;
     options.focal_plane = Plane{Vec3d(0, 0, 2), Vec3d(0.1, 0.0, 1.0)};
@@ -708,6 +761,7 @@ TEST_F(IntegralBadInput, PlanesSeenByPartOfTheImageAreRendered) {
   for (const IntegralOptions& case_options : {side, horizon}) {
     const IntegralResult result = RenderIntegral(light_field, case_options);
     EXPECT_GT(result.uncovered_pixels, 0);
+    EXPECT_GT(result.samples, 1000);  // and a good part is rendered
     for (int y = 0; y < result.image.height(); ++y) {
       for (int x = 0; x < result.image.width(); ++x) {
         ASSERT_TRUE(std::isfinite(*result.image.At<float>(x, y)));
@@ -716,7 +770,11 @@ TEST_F(IntegralBadInput, PlanesSeenByPartOfTheImageAreRendered) {
   }
   // Looking at the horizon, no pixel above it (top row) sees the ground.
   const IntegralResult result = RenderIntegral(light_field, horizon);
-  for (int x = 0; x < result.count.width(); ++x) EXPECT_EQ(*result.count.At<uint32_t>(x, 0), 0u);
+  const int bottom = result.count.height() - 1;
+  for (int x = 0; x < result.count.width(); ++x) {
+    EXPECT_EQ(*result.count.At<uint32_t>(x, 0), 0u);
+    EXPECT_GT(*result.count.At<uint32_t>(x, bottom), 0u);  // the ground just below the camera
+  }
 }
 
 TEST_F(IntegralBadInput, PoseOfAnUnselectedViewIsChecked) {

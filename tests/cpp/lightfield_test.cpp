@@ -23,18 +23,19 @@ TEST(LightField, MakeViewAddsABorderAndChecksEverything) {
   const PinholeCamera camera = PinholeCamera::FromFov(8, 6, 50.0);
   Image image(8, 6, 1, PixelType::kF32);
   for (int y = 0; y < 6; ++y) {
-    for (int x = 0; x < 8; ++x) *image.At<float>(x, y) = static_cast<float>(x + 10 * y);
+    for (int x = 0; x < 8; ++x) *image.At<float>(x, y) = static_cast<float>(x + 10 * y + 1);
   }
   const View view = MakeView("ok", camera, Rigid3d{}, image);
   EXPECT_EQ(view.image.border(), 1);
-  EXPECT_EQ(view.image.Value(-1, -1), 0.0);   // corner replicated from (0, 0)
-  EXPECT_EQ(view.image.Value(8, 6), 57.0);    // from (7, 5)
+  EXPECT_EQ(view.image.Value(-1, -1), 1.0);   // corner replicated from (0, 0)
+  EXPECT_EQ(view.image.Value(8, 6), 58.0);    // from (7, 5)
+  EXPECT_EQ(view.image.Value(3, -1), 4.0);    // top edge from (3, 0)
 
   Image nan_image = image.Clone();
   *nan_image.At<float>(3, 2) = std::nanf("");
   EXPECT_THAT(MakeViewError(nan_image, camera, Rigid3d{}),
               HasSubstr("frame7.exr: image: pixel (3, 2) channel 0 is NaN"));
-  EXPECT_EQ(image.Value(3, 2), 23.0) << "Clone() must not share pixels";
+  EXPECT_EQ(image.Value(3, 2), 24.0) << "Clone() must not share pixels";
 
   Rigid3d bad_pose;
   bad_pose.rotation[0][1] = 0.5;

@@ -25,6 +25,12 @@ void CheckView(const View& view, const std::string& where) {
                                   std::to_string(view.camera.height)));
   }
   if (view.image.border() < 1) ThrowInvalid(Where(where, "image: needs a border of 1 pixel"));
+  // Sample positions are single-precision floats in the inner loops: keep them exact to well
+  // below a pixel.
+  constexpr int kMaxSide = 1 << 22;
+  if (view.image.width() > kMaxSide || view.image.height() > kMaxSide) {
+    ThrowInvalid(Where(where, "image: wider or taller than 4194304 pixels"));
+  }
   if (view.image.type() == PixelType::kU32) {
     ThrowInvalid(Where(where, "image: uint32 views are not supported (use 8/16-bit or float)"));
   }

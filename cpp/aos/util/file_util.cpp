@@ -57,6 +57,41 @@ void PendingFile::Commit() {
   committed_ = true;
 }
 
+void CommitTogether(const std::vector<PendingFile*>& files) {
+  struct Backup {
+    std::string final_path, backup_path;
+  };
+  std::vector<Backup> backups;
+  std::vector<std::string> committed;
+  auto roll_back = [&] {
+    std::error_code ignored;
+    for (const std::string& path : committed) fs::remove(path, ignored);
+    for (const Backup& backup : backups) fs::rename(backup.backup_path, backup.final_path, ignored);
+  };
+  try {
+    for (PendingFile* file : files) {
+      std::error_code error;
+      if (!fs::exists(file->FinalPath(), error)) continue;
+      Backup backup{file->FinalPath(), MakeTempPath(file->FinalPath())};
+      fs::rename(backup.final_path, backup.backup_path, error);
+      if (error) {
+        ThrowInvalid(backup.final_path + ": cannot move the previous file aside (" +
+                     error.message() + ")");
+      }
+      backups.push_back(backup);
+    }
+    for (PendingFile* file : files) {
+      file->Commit();
+      committed.push_back(file->FinalPath());
+    }
+  } catch (...) {
+    roll_back();
+    throw;
+  }
+  std::error_code ignored;
+  for (const Backup& backup : backups) fs::remove(backup.backup_path, ignored);
+}
+
 void CheckOutputPath(const std::string& output_path, const std::vector<std::string>& input_paths,
                      const std::string& what) {
   if (output_path.empty()) ThrowInvalid(what + ": the output path is empty");

@@ -30,6 +30,12 @@ class PendingFile {
   bool committed_ = false;
 };
 
+// Moves several finished files into place together: files already at the final paths are first
+// renamed to backups, then every temporary file is renamed; if any rename fails, the new files are
+// removed and the backups restored, so either all outputs are new or none changed. Throws
+// std::invalid_argument naming the file that failed.
+void CommitTogether(const std::vector<PendingFile*>& files);
+
 // Throws std::invalid_argument if `output_path` is the same file as any of `input_paths`
 // (compared after resolving links), or if its folder does not exist.
 void CheckOutputPath(const std::string& output_path, const std::vector<std::string>& input_paths,
