@@ -107,6 +107,7 @@ void BindGeometry(py::module_& m);
 void BindImage(py::module_& m);
 void BindLightField(py::module_& m);
 void BindRender(py::module_& m);  // also binds the default scene (sim/default_scene.h)
+void BindMetrics(py::module_& m);
 
 // Copies a numpy array (or anything numpy.asarray accepts) of dtype uint8, uint16, uint32,
 // float32 or float64 (-> float32) and shape (H, W) or (H, W, C), C in 1..4, into a new Image with

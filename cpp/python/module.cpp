@@ -147,6 +147,7 @@ PYBIND11_MODULE(_core, m) {
   BindImage(m);
   BindLightField(m);
   BindRender(m);
+  BindMetrics(m);
 
   m.def(
       "_progress_selftest",

@@ -29,6 +29,8 @@ from typing import Any, Callable, Optional, TypeVar
 from . import _core
 from ._core import (
     DefaultSceneOptions,
+    QualityOptions,
+    QualityResult,
     IntegralOptions,
     IntegralResult,
     LightField,
@@ -48,6 +50,9 @@ from ._core import (
 
 __all__ = [
     "DefaultSceneOptions",
+    "QualityOptions",
+    "QualityResult",
+    "compare_images",
     "IntegralOptions",
     "IntegralResult",
     "LightField",
@@ -67,7 +72,7 @@ __all__ = [
     "write_lightfield",
 ]
 
-_Options = TypeVar("_Options", IntegralOptions, DefaultSceneOptions)
+_Options = TypeVar("_Options", IntegralOptions, DefaultSceneOptions, QualityOptions)
 
 
 def _merge_options(
@@ -125,3 +130,18 @@ def make_default_lightfield(
     """
     merged = _merge_options("make_default_lightfield", DefaultSceneOptions, options, kwargs)
     return _core.make_default_lightfield(merged)
+
+
+def compare_images(
+    test: Any, reference: Any, mask: Any = None, options: Optional[QualityOptions] = None,
+    **kwargs: Any
+) -> QualityResult:
+    """PSNR, SSIM and colour (quaternion) SSIM of ``test`` against ``reference``.
+
+    Arrays (H, W) or (H, W, C) of uint8, uint16, uint32 or float32 (float64 converted), copied.
+    ``mask`` (e.g. a count map): non-zero pixels are compared (SSIM: pixels whose whole window is
+    valid). ``kwargs`` are fields of :class:`QualityOptions`. Definitions: docs/metrics.md.
+    """
+    merged = _merge_options("compare_images", QualityOptions, options, kwargs)
+    return _core._compare_images(test, reference, mask, merged)
+

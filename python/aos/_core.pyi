@@ -300,6 +300,58 @@ class DefaultSceneOptions:
     def __repr__(self) -> str: ...
 
 def make_default_lightfield(options: DefaultSceneOptions) -> LightField: ...
+
+class QualityOptions:
+    """Options of compare_images; fields and defaults of aos::QualityOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        data_range: float = ...,
+        gaussian_sigma: float = ...,
+        window_radius: int = ...,
+        k1: float = ...,
+        k2: float = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    data_range: float
+    gaussian_sigma: float
+    window_radius: int
+    k1: float
+    k2: float
+    def check(self) -> None: ...
+    def __copy__(self) -> QualityOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> QualityOptions: ...
+    def __repr__(self) -> str: ...
+
+class QualityResult:
+    """Result of compare_images (see docs/metrics.md)."""
+
+    @property
+    def mse(self) -> float: ...
+    @property
+    def psnr_db(self) -> float: ...
+    @property
+    def ssim(self) -> float: ...
+    @property
+    def ssim_channels(self) -> list[float]: ...
+    @property
+    def color_ssim(self) -> float: ...
+    @property
+    def data_range(self) -> float: ...
+    @property
+    def mse_pixels(self) -> int: ...
+    @property
+    def ssim_pixels(self) -> int: ...
+    def __repr__(self) -> str: ...
+
+def _compare_images(
+    test: numpy.typing.ArrayLike,
+    reference: numpy.typing.ArrayLike,
+    mask: Optional[numpy.typing.ArrayLike] = None,
+    options: QualityOptions = ...,
+) -> QualityResult: ...
 def _progress_selftest(
     total: int,
     num_threads: int = 2,

@@ -169,3 +169,21 @@ def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None
     assert_clean_failure(result, *expect)
     assert list(out_dir.iterdir()) == [], "no output and no temporary file may be left"
     assert snapshot(folder) == before_inputs, "inputs must never be modified"
+
+
+def test_metrics_subcommand_matches_python(tmp_path: Path) -> None:
+    rng = np.random.default_rng(8)
+    reference = rng.integers(0, 256, (40, 50)).astype(np.uint8)
+    test = np.clip(reference.astype(int) + rng.integers(-9, 10, reference.shape), 0, 255).astype(np.uint8)
+    aos.write_image(str(tmp_path / "t.png"), test)
+    aos.write_image(str(tmp_path / "r.png"), reference)
+    result = run("metrics", str(tmp_path / "t.png"), str(tmp_path / "r.png"), "--json")
+    assert result.returncode == 0, result.stderr
+    printed = json.loads(result.stdout)
+    expected = aos.compare_images(test, reference)
+    assert printed["psnr_db"] == pytest.approx(expected.psnr_db, rel=1e-9)
+    assert printed["ssim"] == pytest.approx(expected.ssim, rel=1e-9)
+    text = run("metrics", str(tmp_path / "t.png"), str(tmp_path / "r.png"))
+    assert text.returncode == 0 and text.stdout.startswith("PSNR ")
+    bad = run("metrics", str(tmp_path / "t.png"), str(tmp_path / "missing.png"))
+    assert_clean_failure(bad, "missing.png", "not found")

@@ -1,0 +1,187 @@
+#include "aos/metrics/quality.h"
+
+#include <cmath>
+#include <limits>
+#include <string>
+
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+// Channel c of `image` as a double matrix (values unchanged).
+cv::Mat ChannelPlane(const Image& image, int c) {
+  cv::Mat plane(image.height(), image.width(), CV_64F);
+  for (int y = 0; y < image.height(); ++y) {
+    double* row = plane.ptr<double>(y);
+    for (int x = 0; x < image.width(); ++x) row[x] = image.Value(x, y, c);
+  }
+  return plane;
+}
+
+double DefaultRange(PixelType type) {
+  switch (type) {
+    case PixelType::kU8: return 255.0;
+    case PixelType::kU16: return 65535.0;
+    case PixelType::kU32: return 4294967295.0;
+    case PixelType::kF32: return 1.0;
+  }
+  return 1.0;
+}
+
+}  // namespace
+
+void QualityOptions::Check() const {
+  if (!(data_range >= 0.0) || !std::isfinite(data_range)) {
+    ThrowInvalid("data_range: must be > 0, or 0 for the reference's type (got " +
+                 FormatNumber(data_range) + ")");
+  }
+  if (!(gaussian_sigma > 0.0) || !std::isfinite(gaussian_sigma)) {
+    ThrowInvalid("gaussian_sigma: must be > 0 pixels (got " + FormatNumber(gaussian_sigma) + ")");
+  }
+  if (window_radius < 1 || window_radius > 100) {
+    ThrowInvalid("window_radius: must be 1..100 pixels (got " + std::to_string(window_radius) + ")");
+  }
+  if (!(k1 > 0.0 && k1 < 1.0) || !(k2 > 0.0 && k2 < 1.0)) {
+    ThrowInvalid("k1/k2: must be in (0, 1) (got " + FormatNumber(k1) + ", " + FormatNumber(k2) + ")");
+  }
+}
+
+QualityResult CompareImages(const Image& test, const Image& reference, const Image* mask,
+                            const QualityOptions& options) {
+  options.Check();
+  if (test.empty() || reference.empty()) ThrowInvalid("compare: an image is empty");
+  if (test.width() != reference.width() || test.height() != reference.height() ||
+      test.channels() != reference.channels()) {
+    ThrowInvalid("compare: the test image is " + std::to_string(test.width()) + "x" +
+                 std::to_string(test.height()) + "x" + std::to_string(test.channels()) +
+                 " but the reference is " + std::to_string(reference.width()) + "x" +
+                 std::to_string(reference.height()) + "x" + std::to_string(reference.channels()));
+  }
+  if (mask != nullptr && (mask->width() != test.width() || mask->height() != test.height())) {
+    ThrowInvalid("compare: the mask is " + std::to_string(mask->width()) + "x" +
+                 std::to_string(mask->height()) + ", not the images' size");
+  }
+  const int width = test.width(), height = test.height(), channels = test.channels();
+  QualityResult result;
+  result.data_range = options.data_range > 0.0 ? options.data_range : DefaultRange(reference.type());
+  const double L = result.data_range;
+  const double C1 = (options.k1 * L) * (options.k1 * L), C2 = (options.k2 * L) * (options.k2 * L);
+
+  // Valid pixels (mask), and pixels whose whole window is valid and inside the image.
+  cv::Mat valid(height, width, CV_64F, cv::Scalar(1.0));
+  if (mask != nullptr) {
+    for (int y = 0; y < height; ++y) {
+      for (int x = 0; x < width; ++x) valid.at<double>(y, x) = mask->Value(x, y) != 0.0 ? 1.0 : 0.0;
+    }
+  }
+  const int r = options.window_radius, side = 2 * r + 1;
+  cv::Mat window_valid;
+  cv::boxFilter(valid, window_valid, CV_64F, cv::Size(side, side), cv::Point(-1, -1), false,
+                cv::BORDER_CONSTANT);
+
+  std::vector<cv::Mat> a(channels), b(channels);
+  double squared_error = 0.0;
+  for (int c = 0; c < channels; ++c) {
+    a[c] = ChannelPlane(test, c);
+    b[c] = ChannelPlane(reference, c);
+    if (!cv::checkRange(a[c]) || !cv::checkRange(b[c])) {
+      ThrowInvalid("compare: the images contain NaN or infinite values");
+    }
+  }
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      if (valid.at<double>(y, x) == 0.0) continue;
+      ++result.mse_pixels;
+      for (int c = 0; c < channels; ++c) {
+        const double d = a[c].at<double>(y, x) - b[c].at<double>(y, x);
+        squared_error += d * d;
+      }
+    }
+  }
+  if (result.mse_pixels == 0) ThrowInvalid("compare: no valid pixel to compare (the mask is empty)");
+  result.mse = squared_error / (static_cast<double>(result.mse_pixels) * channels);
+  result.psnr_db = result.mse > 0.0 ? 10.0 * std::log10(L * L / result.mse)
+                                    : std::numeric_limits<double>::infinity();
+
+  // Gaussian-weighted local statistics.
+  const cv::Size window(side, side);
+  auto blur = [&](const cv::Mat& in) {
+    cv::Mat out;
+    cv::GaussianBlur(in, out, window, options.gaussian_sigma, options.gaussian_sigma,
+                     cv::BORDER_REFLECT);
+    return out;
+  };
+  std::vector<cv::Mat> mu_a(channels), mu_b(channels), aa(channels), bb(channels), ab(channels);
+  for (int c = 0; c < channels; ++c) {
+    mu_a[c] = blur(a[c]);
+    mu_b[c] = blur(b[c]);
+    aa[c] = blur(a[c].mul(a[c]));
+    bb[c] = blur(b[c].mul(b[c]));
+    ab[c] = blur(a[c].mul(b[c]));
+  }
+  // Quaternion cross terms E[a x b] for three channels.
+  std::vector<cv::Mat> cross(3);
+  if (channels == 3) {
+    for (int k = 0; k < 3; ++k) {
+      const int i = (k + 1) % 3, j = (k + 2) % 3;
+      cross[k] = blur(a[i].mul(b[j]) - a[j].mul(b[i]));
+    }
+  }
+
+  std::vector<double> ssim_sum(channels, 0.0);
+  double color_sum = 0.0;
+  const double full = static_cast<double>(side) * side;
+  for (int y = r; y < height - r; ++y) {
+    for (int x = r; x < width - r; ++x) {
+      if (window_valid.at<double>(y, x) < full - 0.5) continue;
+      ++result.ssim_pixels;
+      double mean_dot = 0.0, norm_a = 0.0, norm_b = 0.0, var_a = 0.0, var_b = 0.0, cov = 0.0;
+      for (int c = 0; c < channels; ++c) {
+        const double ma = mu_a[c].at<double>(y, x), mb = mu_b[c].at<double>(y, x);
+        const double sa = aa[c].at<double>(y, x) - ma * ma;
+        const double sb = bb[c].at<double>(y, x) - mb * mb;
+        const double sab = ab[c].at<double>(y, x) - ma * mb;
+        ssim_sum[c] += ((2 * ma * mb + C1) * (2 * sab + C2)) / ((ma * ma + mb * mb + C1) * (sa + sb + C2));
+        mean_dot += ma * mb;
+        norm_a += ma * ma;
+        norm_b += mb * mb;
+        var_a += sa;
+        var_b += sb;
+        cov += sab;
+      }
+      // Quaternion form: 2 mu_a mu_b* = 2 (mu_a . mu_b, -mu_a x mu_b); sigma_ab likewise.
+      double mean_cross2 = 0.0, cov_cross2 = 0.0;
+      if (channels == 3) {
+        for (int k = 0; k < 3; ++k) {
+          const int i = (k + 1) % 3, j = (k + 2) % 3;
+          const double m = mu_a[i].at<double>(y, x) * mu_b[j].at<double>(y, x) -
+                           mu_a[j].at<double>(y, x) * mu_b[i].at<double>(y, x);
+          const double v = cross[k].at<double>(y, x) - m;
+          mean_cross2 += m * m;
+          cov_cross2 += v * v;
+        }
+      }
+      const double luminance = std::hypot(2 * mean_dot + C1, 2 * std::sqrt(mean_cross2));
+      const double structure = std::hypot(2 * cov + C2, 2 * std::sqrt(cov_cross2));
+      color_sum += luminance * structure / ((norm_a + norm_b + C1) * (var_a + var_b + C2));
+    }
+  }
+  if (result.ssim_pixels == 0) {
+    ThrowInvalid("compare: no pixel has a whole " + std::to_string(side) + "x" +
+                 std::to_string(side) + " SSIM window inside the image and the mask");
+  }
+  const double n = static_cast<double>(result.ssim_pixels);
+  result.ssim = 0.0;
+  for (int c = 0; c < channels; ++c) {
+    result.ssim_channels.push_back(ssim_sum[c] / n);
+    result.ssim += ssim_sum[c] / n / channels;
+  }
+  result.color_ssim = channels == 1 ? result.ssim : color_sum / n;
+  return result;
+}
+
+}  // namespace aos

@@ -1,0 +1,53 @@
+#pragma once
+// Image quality against a reference: MSE/PSNR, SSIM (Wang et al. 2004) and a colour SSIM in the
+// spirit of the AOS paper's quaternion SSIM (Kolaman & Yadid-Pecht 2012). Definitions in
+// docs/metrics.md; in short, with data range L, C1 = (k1 L)^2, C2 = (k2 L)^2 and Gaussian-weighted
+// local statistics (sigma 1.5 px, 11 x 11 window):
+//   PSNR  = 10 log10(L^2 / MSE), MSE over all channels of the compared pixels (+inf if MSE = 0);
+//   SSIM  = mean over channels and pixels of (2 mu_a mu_b + C1)(2 s_ab + C2) /
+//           ((mu_a^2 + mu_b^2 + C1)(s_a^2 + s_b^2 + C2));
+//   colour SSIM: the same with each pixel a pure quaternion r i + g j + b k, products and
+//           covariances quaternion-valued and the two factors replaced by their norms; for a
+//           one-channel image it equals SSIM.
+// Compared pixels: SSIM maps are averaged over pixels whose whole window lies inside the image;
+// with a mask (any integer image, e.g. a count map; non-zero = valid) only pixels whose window
+// lies entirely in valid pixels count, and MSE/PSNR use the valid pixels.
+//
+// Throws std::invalid_argument for images of different size or channel count, a mask of another
+// size, no pixel to compare, non-finite values, or bad options.
+#include <cstdint>
+#include <vector>
+
+#include "aos/image/image.h"
+
+namespace aos {
+
+struct QualityOptions {
+  // Peak-to-peak value range L; 0 = from the reference's pixel type (8-bit 255, 16-bit 65535,
+  // float 1.0).
+  double data_range = 0.0;
+  // Standard deviation of the Gaussian window, pixels (> 0).
+  double gaussian_sigma = 1.5;
+  // Window radius, pixels (>= 1); the window is (2r + 1)^2.
+  int window_radius = 5;
+  // Stabilising constants of SSIM, (0, 1).
+  double k1 = 0.01;
+  double k2 = 0.03;
+  void Check() const;
+};
+
+struct QualityResult {
+  double mse = 0.0;
+  double psnr_db = 0.0;             // +inf when the images are identical
+  double ssim = 0.0;                // mean over channels
+  std::vector<double> ssim_channels;
+  double color_ssim = 0.0;          // quaternion SSIM (equals ssim for one channel)
+  double data_range = 0.0;          // L used
+  int64_t mse_pixels = 0;           // pixels in MSE/PSNR
+  int64_t ssim_pixels = 0;          // pixels in the SSIM averages
+};
+
+QualityResult CompareImages(const Image& test, const Image& reference, const Image* mask = nullptr,
+                            const QualityOptions& options = {});
+
+}  // namespace aos

@@ -1,0 +1,59 @@
+// Bindings of metrics/quality.h. Images are numpy arrays (copied, see bindings.h); the options
+// are the C++ QualityOptions, so names and defaults match the CLI's `metrics` subcommand.
+#include <optional>
+
+#include "aos/metrics/quality.h"
+#include "bindings.h"
+
+namespace aos::python {
+
+using namespace pybind11::literals;
+
+void BindMetrics(py::module_& m) {
+  OptionsClass<QualityOptions>(
+      m, "QualityOptions",
+      "Options of compare_images (defaults from the C++ struct aos::QualityOptions).")
+      .Field("data_range", &QualityOptions::data_range,
+             "Peak-to-peak value range L; 0 = from the reference's dtype (uint8 255, uint16 65535, "
+             "float 1.0).")
+      .Field("gaussian_sigma", &QualityOptions::gaussian_sigma,
+             "Standard deviation of the SSIM window, pixels (> 0).")
+      .Field("window_radius", &QualityOptions::window_radius,
+             "SSIM window radius, pixels (>= 1); the window is (2r + 1)^2.")
+      .Field("k1", &QualityOptions::k1, "SSIM constant k1, (0, 1).")
+      .Field("k2", &QualityOptions::k2, "SSIM constant k2, (0, 1).")
+      .Finish()
+      .def("check", &QualityOptions::Check, "Raises ValueError naming the offending field.");
+
+  py::class_<QualityResult>(m, "QualityResult", "Result of compare_images (see docs/metrics.md).")
+      .def_readonly("mse", &QualityResult::mse, "Mean squared error over channels and pixels.")
+      .def_readonly("psnr_db", &QualityResult::psnr_db, "10 log10(L^2 / MSE); inf if identical.")
+      .def_readonly("ssim", &QualityResult::ssim, "SSIM, mean over channels.")
+      .def_readonly("ssim_channels", &QualityResult::ssim_channels, "SSIM per channel.")
+      .def_readonly("color_ssim", &QualityResult::color_ssim,
+                    "Quaternion colour SSIM (equals ssim for one channel).")
+      .def_readonly("data_range", &QualityResult::data_range, "The L used.")
+      .def_readonly("mse_pixels", &QualityResult::mse_pixels, "Pixels in MSE/PSNR.")
+      .def_readonly("ssim_pixels", &QualityResult::ssim_pixels, "Pixels in the SSIM averages.")
+      .def("__repr__", [](const QualityResult& r) {
+        return "QualityResult(psnr_db=" + std::to_string(r.psnr_db) + ", ssim=" +
+               std::to_string(r.ssim) + ", color_ssim=" + std::to_string(r.color_ssim) + ")";
+      });
+
+  m.def(
+      "_compare_images",
+      [](const py::handle& test, const py::handle& reference, const py::object& mask,
+         const QualityOptions& options) {
+        const Image test_image = ImageFromArray(test, 0, "compare_images: test");
+        const Image reference_image = ImageFromArray(reference, 0, "compare_images: reference");
+        std::optional<Image> mask_image;
+        if (!mask.is_none()) mask_image = ImageFromArray(mask, 0, "compare_images: mask");
+        py::gil_scoped_release release;
+        return CompareImages(test_image, reference_image, mask_image ? &*mask_image : nullptr,
+                             options);
+      },
+      "test"_a, "reference"_a, "mask"_a = py::none(), "options"_a = QualityOptions{},
+      "Use aos.compare_images.");
+}
+
+}  // namespace aos::python
