@@ -29,7 +29,12 @@ source tools/python_env.sh   # sets AOS_PYTHON (creates /opt/aos-venv if needed)
 echo "setup: building and installing the aos Python package and aos-render with ${AOS_PYTHON}"
 "${AOS_PYTHON}" -m pip install -q --upgrade pip >/dev/null 2>&1 || true
 "${AOS_PYTHON}" -m pip install -q '.[test]'
-if [[ "${AOS_PYTHON}" == /opt/aos-venv/* ]]; then
-  ln -sf /opt/aos-venv/bin/aos-render /usr/local/bin/aos-render
+# Make the freshly installed executable reachable: pyenv needs a rehash for a new command (pip
+# run as `python3 -m pip` does not trigger it); otherwise link it from the interpreter's scripts.
+if command -v pyenv >/dev/null 2>&1; then pyenv rehash || true; fi
+scripts="$("${AOS_PYTHON}" -c 'import sysconfig; print(sysconfig.get_path("scripts"))')"
+if [[ "${AOS_PYTHON}" == /opt/aos-venv/* ]] || ! command -v aos-render >/dev/null 2>&1; then
+  ln -sf "${scripts}/aos-render" /usr/local/bin/aos-render
 fi
+hash -r
 echo "setup: done ($(aos-render --version))"
