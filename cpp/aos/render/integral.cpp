@@ -146,7 +146,6 @@ std::array<double, 3> QuadraticOf(const LinearVec& g, double s, double k0, doubl
 
 // Everything about one view that does not depend on the output pixel.
 struct ViewSetup {
-  int index = 0;
   const Image* image = nullptr;
   Mat3d H{1.0};        // output pixel (x+0.5, y+0.5, 1) -> (U, V, W), W > 0 in front of the view
   double width = 0.0;  // view image size, pixels
@@ -172,6 +171,14 @@ struct Geometry {
   double sign_h = 1.0;
   Mat3d world_from_pixel{1.0};  // R_v^T K_v^-1: output pixel -> world ray direction
 };
+
+// World direction of the ray through pixel centre k (0..3) of the corners of the pixel block
+// [x0, x1) x [y0, y1): bit 0 picks the right column, bit 1 the bottom row.
+Vec3d CornerRay(const Geometry& g, int k, int x0, int x1, int y0, int y1) {
+  const double px = (k & 1) ? x1 - 0.5 : x0 + 0.5;
+  const double py = (k & 2) ? y1 - 0.5 : y0 + 0.5;
+  return g.world_from_pixel * Vec3d(px, py, 1.0);
+}
 
 enum class Mode { kAverage, kNearest };
 
@@ -322,9 +329,7 @@ void IntegralRenderer::SetUpGeometry() {
   // pixel; over the image it is largest at a corner pixel, so test the four corners.
   bool any_in_front = false;
   for (int k = 0; k < 4; ++k) {
-    const double px = (k & 1) ? camera_.width - 0.5 : 0.5;
-    const double py = (k & 2) ? camera_.height - 0.5 : 0.5;
-    const Vec3d direction = g.world_from_pixel * Vec3d(px, py, 1.0);
+    const Vec3d direction = CornerRay(g, k, 0, camera_.width, 0, camera_.height);
     any_in_front = any_in_front || g.sign_h * glm::dot(g.normal, direction) > 0.0;
   }
   if (!any_in_front) {
@@ -356,7 +361,6 @@ void IntegralRenderer::SetUpViews() {
                    std::to_string(channels_));
     }
     ViewSetup setup;
-    setup.index = index;
     setup.image = &view.image;
     setup.width = view.camera.width;
     setup.height = view.camera.height;
@@ -436,9 +440,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
   bool corners_valid = true;
   Vec3d corners[4];
   for (int k = 0; k < 4; ++k) {
-    const double px = (k & 1) ? tile.x1 - 0.5 : tile.x0 + 0.5;
-    const double py = (k & 2) ? tile.y1 - 0.5 : tile.y0 + 0.5;
-    const Vec3d direction = g.world_from_pixel * Vec3d(px, py, 1.0);
+    const Vec3d direction = CornerRay(g, k, tile.x0, tile.x1, tile.y0, tile.y1);
     const double f = glm::dot(g.normal, direction);
     corners_valid = corners_valid && g.sign_h * f > 0.0;
     corners[k] = corners_valid ? (g.h / f) * direction : Vec3d(0.0);
