@@ -20,7 +20,8 @@
 #include "aos/lightfield/formats.h"
 #include "aos/metrics/quality.h"
 #include "aos/render/integral.h"
-#include "aos/sim/default_scene.h"
+#include "aos/sim/scene.h"
+#include "aos/sim/simulator.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/version.h"
@@ -355,10 +356,94 @@ int RunIntegral(IntegralCommand& c) {
   return 0;
 }
 
+// Scene selection shared by `simulate` and `demo`: a scene file or the built-in default, and a
+// grid override (handy for quick runs).
+Scene LoadSceneOrDefault(const std::string& path, int grid) {
+  Scene scene = path.empty() ? DefaultScene() : LoadScene(path);
+  if (grid > 0) {
+    if (!scene.sampling.positions.empty()) {
+      ThrowInvalid("--grid: the scene lists explicit sampling.positions; a grid does not apply");
+    }
+    scene.sampling.grid = grid;
+    scene.Check();
+  }
+  return scene;
+}
+
+void PrintStats(const SimulationResult& result) {
+  const SimulationStats& s = result.stats;
+  const double rays = static_cast<double>(s.primary_rays);
+  std::fprintf(stderr,
+               "simulated %lld views: %lld primary rays in %.2f s (%.1f M rays/s), %lld shadow "
+               "rays, %lld truth rays, %lld blocked-fraction rays; %lld voxels, %lld trees "
+               "(%lld leaves)\n",
+               static_cast<long long>(s.views), static_cast<long long>(s.primary_rays),
+               s.seconds_views, s.seconds_views > 0 ? rays / s.seconds_views * 1e-6 : 0.0,
+               static_cast<long long>(s.shadow_rays), static_cast<long long>(s.truth_rays),
+               static_cast<long long>(s.blocked_fraction_rays), static_cast<long long>(s.voxels),
+               static_cast<long long>(s.trees), static_cast<long long>(s.leaf_quads));
+}
+
+struct SimulateCommand {
+  std::string scene_path;
+  std::string output_dir;
+  int grid = 0;
+  SimulateOptions options;
+  bool print_scene = false;
+  bool quiet = false;
+};
+
+void AddSimulate(CLI::App& app, SimulateCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "simulate",
+      "Simulate a scene (docs/scenes.md): write its views, the light field (recorded poses) and "
+      "the ground truth into a new folder");
+  command->add_option("scene", c.scene_path,
+                      "Scene file (JSON); omitted = the built-in default scene");
+  command->add_option("-o,--output-dir", c.output_dir,
+                      "Output folder; must not exist or be empty");
+  command->add_option("--grid", c.grid, "Override sampling.grid (views per side)");
+  command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
+      ->capture_default_str();
+  command->add_flag("--print-scene", c.print_scene,
+                    "Print the scene with every field written out and exit");
+  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+}
+
+int RunSimulate(SimulateCommand& c) {
+  const Scene scene = LoadSceneOrDefault(c.scene_path, c.grid);
+  if (c.print_scene) {
+    std::fputs(SceneToJson(scene).c_str(), stdout);
+    return 0;
+  }
+  if (c.output_dir.empty()) ThrowInvalid("--output-dir: required (a new or empty folder)");
+  // Refuse a non-empty output folder before the work, not after.
+  std::error_code error;
+  if (fs::exists(c.output_dir, error) &&
+      (!fs::is_directory(c.output_dir, error) || !fs::is_empty(c.output_dir, error))) {
+    ThrowInvalid(c.output_dir + ": output folder: exists and is not an empty folder (nothing is "
+                                "overwritten; choose a new folder)");
+  }
+  ProgressBar progress(c.quiet);
+  SimulationResult result;
+  try {
+    result = Simulate(scene, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, {{"num_threads", "--threads"}});
+  }
+  progress.Finish();
+  if (!c.quiet) PrintStats(result);
+  WriteSimulation(result, scene, c.output_dir);
+  std::printf("wrote %s: %zu views, lightfield.json, truth/ (focal plane z = %s m)\n",
+              c.output_dir.c_str(), result.light_field.views.size(),
+              FormatNumber(result.truth.ground_height_at_center).c_str());
+  return 0;
+}
+
 struct DemoCommand {
   std::string output_dir = "aos-demo";
-  DefaultSceneOptions scene;
-  std::vector<double> focal_heights{0.0, 11.0};
+  std::string scene_path;
+  int grid = 0;
   OutputOptions out;
   bool quiet = false;
 };
@@ -366,66 +451,73 @@ struct DemoCommand {
 void AddDemo(CLI::App& app, DemoCommand& c) {
   CLI::App* command = app.add_subcommand(
       "demo",
-      "Generate the built-in default scene (a textured ground under layers of leaves), save it "
-      "as a light field, and render integral images at a few focal heights");
-  command->add_option("-o,--output-dir", c.output_dir, "Output folder (created if missing)")
+      "Simulate the built-in default scene (a chart-textured ground and a target under a "
+      "50 %-density voxel volume), write it, and render a single view and integral images "
+      "against its ground truth");
+  command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
       ->capture_default_str();
-  command->add_option("--views-per-side", c.scene.views_per_side, "Views per side of the grid")
-      ->capture_default_str();
-  command->add_option("--spacing", c.scene.spacing, "Distance between views, metres")
-      ->capture_default_str();
-  command->add_option("--altitude", c.scene.altitude, "Camera height, metres")
-      ->capture_default_str();
-  command->add_option("--occluder-density", c.scene.occluder_density,
-                      "Fraction of nadir rays the leaves block, [0, 1)")
-      ->capture_default_str();
-  command->add_option("--seed", c.scene.seed, "Seed of the leaf pattern")->capture_default_str();
-  command->add_option("--focal-heights", c.focal_heights, "Focal plane heights z, metres")
-      ->delimiter(',')
-      ->capture_default_str();
+  command->add_option("--scene", c.scene_path, "A scene file instead of the built-in default");
+  command->add_option("--grid", c.grid, "Override sampling.grid (views per side)");
   command->add_flag("-q,--quiet", c.quiet, "No progress output");
 }
 
 int RunDemo(DemoCommand& c) {
-  ProgressBar progress(c.quiet);
+  const Scene scene = LoadSceneOrDefault(c.scene_path, c.grid);
   std::error_code error;
-  fs::create_directories(c.output_dir, error);
-  if (error) ThrowInvalid(c.output_dir + ": cannot create the output folder (" + error.message() + ")");
-  LightField light_field = MakeDefaultLightField(c.scene);
-  const std::string light_field_path = (fs::path(c.output_dir) / "lightfield.json").string();
-  WriteLightField(light_field_path, light_field);
-  int files = 1 + static_cast<int>(light_field.views.size());
-  std::printf("wrote %s (%zu views of the default scene)\n", light_field_path.c_str(),
-              light_field.views.size());
+  if (fs::exists(c.output_dir, error) &&
+      (!fs::is_directory(c.output_dir, error) || !fs::is_empty(c.output_dir, error))) {
+    ThrowInvalid(c.output_dir + ": output folder: exists and is not an empty folder (nothing is "
+                                "overwritten; choose a new folder)");
+  }
+  ProgressBar progress(c.quiet);
+  const SimulationResult simulation = Simulate(scene, {}, &progress);
+  progress.Finish();
+  if (!c.quiet) PrintStats(simulation);
+  WriteSimulation(simulation, scene, c.output_dir);
+  int files = 0;
+  for (const auto& entry : fs::recursive_directory_iterator(c.output_dir)) {
+    files += entry.is_regular_file() ? 1 : 0;
+  }
+  std::printf("wrote %s (%zu views of %s, ground truth in truth/)\n", c.output_dir.c_str(),
+              simulation.light_field.views.size(), scene.source.c_str());
 
-  const int centre = static_cast<int>(light_field.views.size() / 2);
+  // Renders from the truth camera: one view (radius 0), the integral focused on the ground, and
+  // one focused inside the occluders; each compared with the ground truth.
+  const GroundTruth& truth = simulation.truth;
   IntegralOptions options;
-  options.pose_view = centre;
-  options.fov_deg = c.scene.fov_deg;
-  options.width = c.scene.width;
-  options.height = c.scene.height;
+  options.cam_from_world = truth.cam_from_world;
+  options.fov_deg = truth.camera.FovXDeg();
+  options.width = truth.camera.width;
+  options.height = truth.camera.height;
   struct Job {
     std::string name;
     double height;
     double radius;
   };
-  std::vector<Job> jobs{{"single_view", 0.0, 0.0}};
-  for (double h : c.focal_heights) {
-    char name[64];
-    std::snprintf(name, sizeof(name), "integral_z%+06.2f", h);
-    jobs.push_back(Job{name, h, std::numeric_limits<double>::infinity()});
+  const double ground = truth.ground_height_at_center;
+  std::vector<Job> jobs{{"single_view", ground, 0.0},
+                        {"integral_ground", ground, std::numeric_limits<double>::infinity()}};
+  if (scene.has_voxels) {
+    jobs.push_back({"integral_occluders", scene.voxels.center[2],
+                    std::numeric_limits<double>::infinity()});
   }
+  const PixelType views_type = simulation.light_field.views.front().image.type();
   for (const Job& job : jobs) {
     options.focal_plane = Plane::AtHeight(job.height);
     options.aperture_radius = job.radius;
-    const IntegralResult result = RenderIntegral(light_field, options, &progress);
+    const IntegralResult result = RenderIntegral(simulation.light_field, options, &progress);
     progress.Finish();
     const std::string base = (fs::path(c.output_dir) / job.name).string();
-    WriteOutputs(result, base + ".png", base + "_count.png", c.out, PixelType::kU8, {});
+    const std::string extension = views_type == PixelType::kF32 ? ".tif" : ".png";
+    WriteOutputs(result, base + extension, base + "_count.png", c.out, views_type, {});
     files += 2;
+    const QualityResult quality = CompareImages(result.image, truth.ground, nullptr, {});
+    std::printf("  %-20s focal plane z = %6.2f m: PSNR %6.2f dB, SSIM %.3f against the ground "
+                "truth\n",
+                job.name.c_str(), job.height, quality.psnr_db, quality.ssim);
   }
-  std::printf("demo: %d files in %s (open %s/integral_z+00.00.png: the ground seen through the "
-              "leaves)\n",
+  std::printf("demo: %d files in %s (open %s/integral_ground.png: the ground seen through the "
+              "occluders; truth/ground.png is the truth)\n",
               files, c.output_dir.c_str(), c.output_dir.c_str());
   return 0;
 }
@@ -504,9 +596,11 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("aos-render ") + aos::kVersion);
   app.require_subcommand(1);
   IntegralCommand integral;
+  SimulateCommand simulate;
   DemoCommand demo;
   MetricsCommand metrics;
   AddIntegral(app, integral);
+  AddSimulate(app, simulate);
   AddDemo(app, demo);
   AddMetrics(app, metrics);
   try {
@@ -519,6 +613,7 @@ int main(int argc, char** argv) {
   InstallInterruptHandler();
   try {
     if (app.got_subcommand("integral")) return RunIntegral(integral);
+    if (app.got_subcommand("simulate")) return RunSimulate(simulate);
     if (app.got_subcommand("demo")) return RunDemo(demo);
     if (app.got_subcommand("metrics")) return RunMetrics(metrics);
   } catch (const aos::Cancelled&) {

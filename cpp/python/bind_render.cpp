@@ -1,8 +1,6 @@
-// Bindings of render/integral.h, and of sim/default_scene.h (the synthetic light field used by
-// the demo and the tests; it has no binding file of its own yet). The kwargs merge of
-// aos.render_integral / aos.make_default_lightfield lives in python/aos/__init__.py.
+// Bindings of render/integral.h. The kwargs merge of aos.render_integral lives in
+// python/aos/__init__.py.
 #include "aos/render/integral.h"
-#include "aos/sim/default_scene.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -91,50 +89,10 @@ void BindIntegral(py::module_& m) {
         "The virtual camera's intrinsics for `options` (square pixels, centred principal point).");
 }
 
-void BindDefaultScene(py::module_& m) {
-  OptionsClass<DefaultSceneOptions>(
-      m, "DefaultSceneOptions",
-      "Options of make_default_lightfield. Defaults come from the C++ struct "
-      "aos::DefaultSceneOptions; DefaultSceneOptions(**fields) overrides them by name.")
-      .Field("views_per_side", &DefaultSceneOptions::views_per_side,
-             "Views on a square grid, views_per_side^2 in all (>= 1).")
-      .Field("spacing", &DefaultSceneOptions::spacing,
-             "Distance between neighbouring views, metres (> 0).")
-      .Field("altitude", &DefaultSceneOptions::altitude,
-             "Camera height above the ground (z = 0), metres (> 0).")
-      .Field("width", &DefaultSceneOptions::width, "Frame width, pixels.")
-      .Field("height", &DefaultSceneOptions::height, "Frame height, pixels.")
-      .Field("fov_deg", &DefaultSceneOptions::fov_deg,
-             "Horizontal field of view of the frames, degrees.")
-      .Field("occluder_density", &DefaultSceneOptions::occluder_density,
-             "Fraction of nadir rays the occluder layers block, [0, 1).")
-      .Field("occluder_heights", &DefaultSceneOptions::occluder_heights,
-             "Heights of the leaf layers, metres. Reading returns a new list: assign a list to "
-             "change it.")
-      .Field("leaf_size", &DefaultSceneOptions::leaf_size,
-             "Side of a square leaf cell, metres (> 0).")
-      .Field("seed", &DefaultSceneOptions::seed, "Seed of the occluder pattern.")
-      .Finish()
-      .def("check", &DefaultSceneOptions::Check, "Raises ValueError naming the offending field.");
-
-  m.def(
-      "make_default_lightfield",
-      [](const DefaultSceneOptions& options) {
-        const DefaultSceneOptions options_copy = options;
-        py::gil_scoped_release release;
-        return MakeDefaultLightField(options_copy);
-      },
-      "options"_a,
-      "The default synthetic scene (textured ground under layers of square leaves) seen by a "
-      "nadir grid of 8-bit grey views; deterministic. Prefer aos.make_default_lightfield, which "
-      "also takes the options as keywords.");
-}
-
 }  // namespace
 
 void BindRender(py::module_& m) {
   BindIntegral(m);
-  BindDefaultScene(m);
 }
 
 }  // namespace aos::python

@@ -106,7 +106,8 @@ namespace py = pybind11;
 void BindGeometry(py::module_& m);
 void BindImage(py::module_& m);
 void BindLightField(py::module_& m);
-void BindRender(py::module_& m);  // also binds the default scene (sim/default_scene.h)
+void BindRender(py::module_& m);
+void BindSim(py::module_& m);
 void BindMetrics(py::module_& m);
 
 // Copies a numpy array (or anything numpy.asarray accepts) of dtype uint8, uint16, uint32,

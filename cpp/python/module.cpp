@@ -148,6 +148,7 @@ PYBIND11_MODULE(_core, m) {
   BindLightField(m);
   BindRender(m);
   BindMetrics(m);
+  BindSim(m);
 
   m.def(
       "_progress_selftest",

@@ -2,7 +2,8 @@
 
 The algorithms live in the C++ core (``aos._core``); this package re-exports it and adds the
 keyword-argument conveniences. Every option is declared once, in the C++ ``XxxOptions`` structs:
-``IntegralOptions`` and ``DefaultSceneOptions`` expose exactly their fields with the C++ defaults.
+``IntegralOptions``, ``QualityOptions`` and ``SimulateOptions`` expose exactly their fields with the
+C++ defaults. Simulated scenes are JSON documents (docs/scenes.md) parsed by the C++ core.
 
 Frames and units: metres and radians inside, degrees only where named ``*_deg``; poses are named
 by what they map (``cam_from_world``), cameras use OpenCV axes (x right, y down, z forward), and
@@ -24,11 +25,13 @@ work and its exception propagates; Ctrl-C during long calls raises KeyboardInter
 from __future__ import annotations
 
 import copy
+import json
+import os
 from typing import Any, Callable, Optional, TypeVar
 
 from . import _core
 from ._core import (
-    DefaultSceneOptions,
+    GroundTruth,
     QualityOptions,
     QualityResult,
     IntegralOptions,
@@ -38,18 +41,25 @@ from ._core import (
     PinholeCamera,
     Plane,
     Rigid3d,
+    Scene,
+    SimulateOptions,
+    SimulationResult,
     View,
     __version__,
+    default_scene,
     load_lightfield,
+    load_scene,
     look_at,
+    parse_scene,
     read_image,
     virtual_camera,
     write_image,
     write_lightfield,
+    write_simulation,
 )
 
 __all__ = [
-    "DefaultSceneOptions",
+    "GroundTruth",
     "QualityOptions",
     "QualityResult",
     "compare_images",
@@ -60,19 +70,26 @@ __all__ = [
     "PinholeCamera",
     "Plane",
     "Rigid3d",
+    "Scene",
+    "SimulateOptions",
+    "SimulationResult",
     "View",
     "__version__",
+    "default_scene",
     "load_lightfield",
+    "load_scene",
     "look_at",
-    "make_default_lightfield",
+    "parse_scene",
     "read_image",
     "render_integral",
+    "simulate",
     "virtual_camera",
     "write_image",
     "write_lightfield",
+    "write_simulation",
 ]
 
-_Options = TypeVar("_Options", IntegralOptions, DefaultSceneOptions, QualityOptions)
+_Options = TypeVar("_Options", IntegralOptions, SimulateOptions, QualityOptions)
 
 
 def _merge_options(
@@ -120,16 +137,42 @@ def render_integral(
     return _core.render_integral(light_field, merged, progress)
 
 
-def make_default_lightfield(
-    options: Optional[DefaultSceneOptions] = None, **kwargs: Any
-) -> LightField:
-    """The deterministic synthetic light field of ``aos-render demo``.
+def simulate(
+    scene: "Scene | dict[str, Any] | str | os.PathLike[str]",
+    output_dir: "Optional[str | os.PathLike[str]]" = None,
+    options: Optional[SimulateOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Any,
+) -> SimulationResult:
+    """Simulates a scene (docs/scenes.md): its views, recorded poses and ground truth.
 
-    ``kwargs`` are fields of :class:`DefaultSceneOptions` overriding those of a copy of
-    ``options`` (or of the defaults); unknown names raise TypeError.
+    ``scene`` is a :class:`Scene`, a dict in the scene-file schema (image paths relative to the
+    current folder), or the path of a scene file. ``kwargs`` are fields of
+    :class:`SimulateOptions`. With ``output_dir`` the result is also written there (a new or
+    empty folder; see ``aos-render simulate``). The GIL is released while simulating;
+    ``progress(stage, done, total)`` works as in :func:`render_integral`.
+
+    Example::
+
+        result = aos.simulate({"occluders": {"voxels": {"density": 0.5}}, "sampling": {"grid": 9}})
+        integral = aos.render_integral(result.light_field, cam_from_world=result.truth.cam_from_world)
     """
-    merged = _merge_options("make_default_lightfield", DefaultSceneOptions, options, kwargs)
-    return _core.make_default_lightfield(merged)
+    if isinstance(scene, Scene):
+        parsed = scene
+    elif isinstance(scene, dict):
+        parsed = parse_scene(json.dumps(scene), "<dict>", os.getcwd())
+    elif isinstance(scene, (str, os.PathLike)):
+        parsed = load_scene(os.fspath(scene))
+    else:
+        raise TypeError(
+            f"simulate(): scene must be a Scene, a dict or a path, not {type(scene).__name__}"
+        )
+    merged = _merge_options("simulate", SimulateOptions, options, kwargs)
+    result = _core._simulate(parsed, merged, progress)
+    if output_dir is not None:
+        write_simulation(result, parsed, os.fspath(output_dir))
+    return result
 
 
 def compare_images(

@@ -10,7 +10,8 @@
 #include <gtest/gtest.h>
 
 #include "aos/render/integral_kernels.h"
-#include "aos/sim/default_scene.h"
+#include "aos/sim/simulator.h"
+#include "plane_scene.h"
 #include "aos/util/error.h"
 
 namespace aos {
@@ -28,6 +29,26 @@ LightField NadirLightField(const SyntheticScene& scene, const PinholeCamera& cam
                                          RenderSyntheticView(scene, camera, pose, type)));
   }
   return light_field;
+}
+
+// A small simulated light field: 8-bit grey nadir views of the chart-textured ground under a
+// 60 %-density voxel volume, per_side x per_side views 3 m apart at 35 m.
+LightField SimulatedLightField(int per_side, int width, int height) {
+  Scene scene;
+  scene.has_voxels = true;
+  scene.voxels.center = {0.0, 0.0, 11.0};
+  scene.voxels.size = {30.0, 30.0, 6.0};
+  scene.voxels.grid = {60, 60, 12};
+  scene.voxels.density = 0.6;
+  scene.camera.width = width;
+  scene.camera.height = height;
+  scene.camera.fov_deg = 50.0;
+  scene.sampling.altitude = 35.0;
+  scene.sampling.grid = per_side;
+  scene.sampling.aperture_diameter = 3.0 * (per_side - 1);
+  scene.truth.blocked_fraction = false;
+  scene.truth.width = scene.truth.height = 8;
+  return Simulate(scene).light_field;
 }
 
 std::vector<Vec3d> GridCentres(int per_side, double spacing, double altitude) {
@@ -238,10 +259,7 @@ TEST(Integral, PointOffTheFocalPlaneSpreadsIntoTheGeometricDisk) {
 }
 
 TEST(Integral, UtmCoordinatesGiveTheSameImageAsTheSceneAtTheOrigin) {
-  DefaultSceneOptions scene_options;
-  scene_options.views_per_side = 5;
-  scene_options.width = scene_options.height = 64;
-  const LightField near = MakeDefaultLightField(scene_options);
+  const LightField near = SimulatedLightField(5, 64, 64);
   // The same light field moved by a UTM-sized offset: x_cam = R (X - O) + t, so t' = t - R O.
   const Vec3d offset(543210.123456, 5432109.876543, 312.5);
   LightField far = near;
@@ -612,10 +630,7 @@ TEST(Integral, TenThousandSixteenBitViewsAverageExactly) {
 }
 
 TEST(Integral, UncoveredPixelsHaveCountZeroAndValueZero) {
-  DefaultSceneOptions scene_options;
-  scene_options.views_per_side = 2;
-  scene_options.width = scene_options.height = 32;
-  const LightField light_field = MakeDefaultLightField(scene_options);
+  const LightField light_field = SimulatedLightField(2, 32, 32);
   IntegralOptions options;
   options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 35));
   options.fov_deg = 120.0;  // much wider than the views
@@ -656,11 +671,7 @@ TEST(Integral, SimdAndScalarKernelsAgree) {
   // The AVX2 kernels (used when the CPU has them) must give the scalar reference's values up to
   // float rounding: sample positions differ by ~1e-5 px (FMA contraction), i.e. < 0.01 grey
   // levels per sample for 8-bit data with steps of up to 255 between neighbours.
-  DefaultSceneOptions scene_options;
-  scene_options.views_per_side = 4;
-  scene_options.width = 80;
-  scene_options.height = 60;
-  const LightField u8 = MakeDefaultLightField(scene_options);
+  const LightField u8 = SimulatedLightField(4, 80, 60);
   for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
     LightField light_field = u8;
     const double scale = type == PixelType::kU8 ? 1.0 : (type == PixelType::kU16 ? 257.0 : 1.0 / 255.0);
@@ -707,10 +718,7 @@ TEST(Integral, SimdAndScalarKernelsAgree) {
 class IntegralBadInput : public ::testing::Test {
  protected:
   void SetUp() override {
-    DefaultSceneOptions scene_options;
-    scene_options.views_per_side = 2;
-    scene_options.width = scene_options.height = 16;
-    light_field = MakeDefaultLightField(scene_options);
+    light_field = SimulatedLightField(2, 16, 16);
     options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 35));
   }
   std::string ErrorOf(const IntegralOptions& bad) {
@@ -825,10 +833,7 @@ TEST(Integral, ProgressIsReportedAndCancellationStops) {
     std::atomic<int64_t> done{0};
     bool cancel = false;
   };
-  DefaultSceneOptions scene_options;
-  scene_options.views_per_side = 2;
-  scene_options.width = scene_options.height = 16;
-  const LightField light_field = MakeDefaultLightField(scene_options);
+  const LightField light_field = SimulatedLightField(2, 16, 16);
   IntegralOptions options;
   options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 35));
   options.width = options.height = 64;

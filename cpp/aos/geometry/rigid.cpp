@@ -86,4 +86,8 @@ Rigid3d LookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up) {
   return cam_from_world;
 }
 
+Rigid3d NadirCamFromWorld(const Vec3d& position) {
+  return LookAt(position, position - Vec3d(0, 0, 1), Vec3d(0, 1, 0));
+}
+
 }  // namespace aos

@@ -50,6 +50,9 @@ std::optional<std::string> DescribeInvalidRigid(const Rigid3d& transform, double
 // std::invalid_argument if eye == target or up is parallel to the viewing direction.
 Rigid3d LookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up = Vec3d(0, 0, 1));
 
+// A nadir-looking camera (looking down -z, image top towards +y) centred at `position`.
+Rigid3d NadirCamFromWorld(const Vec3d& position);
+
 // A plane through `point` with normal `normal` (any length > 0; the side does not matter).
 struct Plane {
   Vec3d point{0.0};

@@ -1,0 +1,875 @@
+#include "aos/sim/simulator.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <memory>
+#include <stdexcept>
+
+#include <embree3/rtcore.h>
+
+#include "aos/sim/occluders.h"
+#include "aos/sim/random.h"
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+using sim::Hash;
+using sim::Random;
+using sim::Stream;
+using Clock = std::chrono::steady_clock;
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr float kInf = std::numeric_limits<float>::infinity();
+// Offset of secondary-ray origins from the surface they leave, metres (well above float
+// resolution at the coordinates a scene uses, well below any feature size).
+constexpr double kSurfaceOffset = 1e-3;
+
+enum Material : int { kNone = -1, kGround = 0, kTarget = 1, kVoxel = 2, kLeaf = 3, kTrunk = 4 };
+
+double Seconds(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+int ResolveThreads(int num_threads) { return num_threads > 0 ? num_threads : omp_get_max_threads(); }
+
+Rgb Lerp(const Rgb& a, const Rgb& b, double t) {
+  return Rgb{a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t};
+}
+
+double Luminance(const Rgb& c) { return 0.2126 * c[0] + 0.7152 * c[1] + 0.0722 * c[2]; }
+
+// ---- Textures ----
+
+class TextureSampler {
+ public:
+  TextureSampler(const TextureSpec& spec, uint32_t seed) : spec_(spec), seed_(seed) {
+    if (spec.kind == TextureSpec::Kind::kImage) {
+      const Image& image = *spec.image;
+      width_ = image.width();
+      height_ = image.height();
+      pixels_.resize(static_cast<size_t>(width_) * height_);
+      const double scale = image.type() == PixelType::kU8    ? 1.0 / 255.0
+                           : image.type() == PixelType::kU16 ? 1.0 / 65535.0
+                           : image.type() == PixelType::kU32 ? 1.0 / 4294967295.0
+                                                             : 1.0;
+      for (int y = 0; y < height_; ++y) {
+        for (int x = 0; x < width_; ++x) {
+          Rgb c;
+          for (int k = 0; k < 3; ++k) {
+            const int channel = image.channels() >= 3 ? k : 0;
+            c[k] = std::clamp(image.Value(x, y, channel) * scale, 0.0, 1.0);
+          }
+          pixels_[static_cast<size_t>(y) * width_ + x] = c;
+        }
+      }
+    }
+  }
+
+  // The pattern at (x, y), metres.
+  Rgb operator()(double x, double y) const {
+    using Kind = TextureSpec::Kind;
+    switch (spec_.kind) {
+      case Kind::kConstant:
+        return spec_.color_a;
+      case Kind::kChecker:
+        return Checker(x, y, spec_.square);
+      case Kind::kChart: {
+        const int64_t i = static_cast<int64_t>(std::floor(x / spec_.patch));
+        const int64_t j = static_cast<int64_t>(std::floor(y / spec_.patch));
+        const int64_t n = static_cast<int64_t>(spec_.squares.size());
+        const int64_t k = (((i + j) % n) + n) % n;
+        return Checker(x, y, spec_.squares[static_cast<size_t>(k)]);
+      }
+      case Kind::kNoise: {
+        const double gx = x / spec_.square, gy = y / spec_.square;
+        const double fx = std::floor(gx), fy = std::floor(gy);
+        const int64_t ix = static_cast<int64_t>(fx), iy = static_cast<int64_t>(fy);
+        auto smooth = [](double t) { return t * t * (3.0 - 2.0 * t); };
+        const double tx = smooth(gx - fx), ty = smooth(gy - fy);
+        auto lattice = [&](int64_t a, int64_t b) {
+          return sim::ToUniform(Hash(seed_ ^ spec_.seed, Stream::kTexture, static_cast<uint64_t>(a),
+                                     static_cast<uint64_t>(b)));
+        };
+        const double v = (1 - ty) * ((1 - tx) * lattice(ix, iy) + tx * lattice(ix + 1, iy)) +
+                         ty * ((1 - tx) * lattice(ix, iy + 1) + tx * lattice(ix + 1, iy + 1));
+        return Lerp(spec_.color_a, spec_.color_b, v);
+      }
+      case Kind::kImage: {
+        // Image top at +y; bilinear between pixel centres, tiled.
+        double u = x / spec_.size[0], v = y / spec_.size[1];
+        u -= std::floor(u);
+        v -= std::floor(v);
+        const double px = u * width_ - 0.5, py = (1.0 - v) * height_ - 0.5;
+        const double fx = std::floor(px), fy = std::floor(py);
+        const double ax = px - fx, ay = py - fy;
+        auto wrap = [](int64_t i, int n) { return static_cast<int>(((i % n) + n) % n); };
+        const int x0 = wrap(static_cast<int64_t>(fx), width_), x1 = wrap(static_cast<int64_t>(fx) + 1, width_);
+        const int y0 = wrap(static_cast<int64_t>(fy), height_), y1 = wrap(static_cast<int64_t>(fy) + 1, height_);
+        const Rgb top = Lerp(At(x0, y0), At(x1, y0), ax);
+        const Rgb bottom = Lerp(At(x0, y1), At(x1, y1), ax);
+        return Lerp(top, bottom, ay);
+      }
+    }
+    return spec_.color_a;
+  }
+
+ private:
+  Rgb Checker(double x, double y, double square) const {
+    const int64_t parity = static_cast<int64_t>(std::floor(x / square)) +
+                           static_cast<int64_t>(std::floor(y / square));
+    return (parity & 1) == 0 ? spec_.color_a : spec_.color_b;
+  }
+  const Rgb& At(int x, int y) const { return pixels_[static_cast<size_t>(y) * width_ + x]; }
+
+  TextureSpec spec_;
+  uint32_t seed_;
+  int width_ = 0;
+  int height_ = 0;
+  std::vector<Rgb> pixels_;
+};
+
+// ---- Embree ----
+
+struct DeviceDeleter {
+  void operator()(RTCDeviceTy* device) const { rtcReleaseDevice(device); }
+};
+struct SceneDeleter {
+  void operator()(RTCSceneTy* scene) const { rtcReleaseScene(scene); }
+};
+using DevicePtr = std::unique_ptr<RTCDeviceTy, DeviceDeleter>;
+using ScenePtr = std::unique_ptr<RTCSceneTy, SceneDeleter>;
+
+void CheckEmbree(RTCDevice device, const char* what) {
+  const RTCError error = rtcGetDeviceError(device);
+  if (error == RTC_ERROR_NONE) return;
+  if (error == RTC_ERROR_OUT_OF_MEMORY) {
+    throw std::runtime_error(std::string("Embree ran out of memory while ") + what);
+  }
+  throw std::runtime_error(std::string("Embree error ") + std::to_string(error) + " while " + what);
+}
+
+// Ray against an axis-aligned box (slab test), robust for zero direction components and rays
+// through edges and corners. Returns the entry distance in [tnear, tfar] and the entry axis.
+bool IntersectBox(const float org[3], const float dir[3], const Vec3d& lo, const Vec3d& hi,
+                  float tnear, float tfar, float* t_hit, int* axis_hit) {
+  double t0 = tnear, t1 = tfar;
+  int axis = -1;
+  for (int a = 0; a < 3; ++a) {
+    if (dir[a] == 0.0f) {
+      if (org[a] < lo[a] || org[a] > hi[a]) return false;
+      continue;
+    }
+    const double inv = 1.0 / dir[a];
+    double ta = (lo[a] - org[a]) * inv, tb = (hi[a] - org[a]) * inv;
+    if (ta > tb) std::swap(ta, tb);
+    if (ta > t0) {
+      t0 = ta;
+      axis = a;
+    }
+    t1 = std::min(t1, tb);
+    if (t0 > t1) return false;
+  }
+  if (axis < 0) axis = 2;  // the ray starts inside the box: report the z face
+  *t_hit = static_cast<float>(t0);
+  *axis_hit = axis;
+  return true;
+}
+
+void VoxelBounds(const RTCBoundsFunctionArguments* args) {
+  const VoxelGrid& grid = *static_cast<const VoxelGrid*>(args->geometryUserPtr);
+  const Vec3d lo = grid.CellMin(grid.cells[args->primID]);
+  const Vec3d hi = lo + grid.cell;
+  RTCBounds* b = args->bounds_o;
+  b->lower_x = static_cast<float>(lo.x);
+  b->lower_y = static_cast<float>(lo.y);
+  b->lower_z = static_cast<float>(lo.z);
+  b->upper_x = static_cast<float>(hi.x);
+  b->upper_y = static_cast<float>(hi.y);
+  b->upper_z = static_cast<float>(hi.z);
+}
+
+void VoxelIntersect(const RTCIntersectFunctionNArguments* args) {
+  const VoxelGrid& grid = *static_cast<const VoxelGrid*>(args->geometryUserPtr);
+  const Vec3d lo = grid.CellMin(grid.cells[args->primID]);
+  const Vec3d hi = lo + grid.cell;
+  RTCRayN* ray = RTCRayHitN_RayN(args->rayhit, args->N);
+  RTCHitN* hit = RTCRayHitN_HitN(args->rayhit, args->N);
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (!args->valid[i]) continue;
+    const float org[3] = {RTCRayN_org_x(ray, args->N, i), RTCRayN_org_y(ray, args->N, i),
+                          RTCRayN_org_z(ray, args->N, i)};
+    const float dir[3] = {RTCRayN_dir_x(ray, args->N, i), RTCRayN_dir_y(ray, args->N, i),
+                          RTCRayN_dir_z(ray, args->N, i)};
+    float t;
+    int axis;
+    if (!IntersectBox(org, dir, lo, hi, RTCRayN_tnear(ray, args->N, i),
+                      RTCRayN_tfar(ray, args->N, i), &t, &axis)) {
+      continue;
+    }
+    RTCRayN_tfar(ray, args->N, i) = t;
+    float normal[3] = {0, 0, 0};
+    normal[axis] = dir[axis] > 0 ? -1.0f : 1.0f;
+    RTCHitN_Ng_x(hit, args->N, i) = normal[0];
+    RTCHitN_Ng_y(hit, args->N, i) = normal[1];
+    RTCHitN_Ng_z(hit, args->N, i) = normal[2];
+    RTCHitN_u(hit, args->N, i) = 0.0f;
+    RTCHitN_v(hit, args->N, i) = 0.0f;
+    RTCHitN_primID(hit, args->N, i) = args->primID;
+    RTCHitN_geomID(hit, args->N, i) = args->geomID;
+    RTCHitN_instID(hit, args->N, i, 0) = args->context->instID[0];
+  }
+}
+
+void VoxelOccluded(const RTCOccludedFunctionNArguments* args) {
+  const VoxelGrid& grid = *static_cast<const VoxelGrid*>(args->geometryUserPtr);
+  const Vec3d lo = grid.CellMin(grid.cells[args->primID]);
+  const Vec3d hi = lo + grid.cell;
+  for (unsigned i = 0; i < args->N; ++i) {
+    if (!args->valid[i]) continue;
+    const float org[3] = {RTCRayN_org_x(args->ray, args->N, i), RTCRayN_org_y(args->ray, args->N, i),
+                          RTCRayN_org_z(args->ray, args->N, i)};
+    const float dir[3] = {RTCRayN_dir_x(args->ray, args->N, i), RTCRayN_dir_y(args->ray, args->N, i),
+                          RTCRayN_dir_z(args->ray, args->N, i)};
+    float t;
+    int axis;
+    if (IntersectBox(org, dir, lo, hi, RTCRayN_tnear(args->ray, args->N, i),
+                     RTCRayN_tfar(args->ray, args->N, i), &t, &axis)) {
+      RTCRayN_tfar(args->ray, args->N, i) = -kInf;
+    }
+  }
+}
+
+struct Hit {
+  double t = std::numeric_limits<double>::infinity();
+  Vec3d point{0.0};
+  Vec3d normal{0.0, 0.0, 1.0};  // unit, facing the incoming ray
+  int material = kNone;
+  uint32_t prim = 0;
+};
+
+// Per-thread counters, summed at the end.
+struct Counters {
+  int64_t primary = 0;
+  int64_t shadow = 0;
+  int64_t noise = 0;
+};
+
+// The traceable world: Embree scenes for what needs one, analytic ground otherwise, textures
+// and materials for shading.
+class World {
+ public:
+  World(const Scene& scene, const std::array<double, 4>& footprint, SimulationStats* stats)
+      : scene_(scene),
+        ground_texture_(scene.ground.texture, scene.seed) {
+    for (const TargetSpec& target : scene.targets) target_textures_.emplace_back(target.texture, scene.seed);
+    const double slope_x = scene.ground.slope[0], slope_y = scene.ground.slope[1];
+    plane_normal_ = glm::normalize(Vec3d(-slope_x, -slope_y, 1.0));
+    if (scene.effects.sun) {
+      const double az = scene.effects.sun_spec.azimuth_deg * kPi / 180.0;
+      const double el = scene.effects.sun_spec.elevation_deg * kPi / 180.0;
+      sun_ = Vec3d(std::cos(el) * std::cos(az), std::cos(el) * std::sin(az), std::sin(el));
+    }
+    const bool need_device = scene.HasOccluders() || scene.ground.IsHeightField();
+    if (!need_device) return;
+    device_.reset(rtcNewDevice(nullptr));
+    if (!device_) throw std::runtime_error("Embree: cannot create a device");
+    if (scene.HasOccluders()) BuildOccluders(footprint, stats);
+    if (scene.ground.IsHeightField()) BuildGround(footprint, stats);
+  }
+
+  bool HasOccluderBvh() const { return static_cast<bool>(occluders_); }
+  bool HasGroundBvh() const { return static_cast<bool>(ground_); }
+  // Whether anything can block a ray between two points above the ground.
+  bool CanBlock(bool with_occluders) const { return (with_occluders && occluders_) || ground_; }
+
+  // First surface along o + t d (d unit), t in (0, inf).
+  Hit Trace(const Vec3d& o, const Vec3d& d, bool with_occluders) const {
+    Hit hit;
+    if (with_occluders && occluders_) {
+      RTCRayHit rh = MakeRayHit(o, d, kInf);
+      RTCIntersectContext context;
+      rtcInitIntersectContext(&context);
+      rtcIntersect1(occluders_.get(), &context, &rh);
+      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+        hit.t = rh.ray.tfar;
+        hit.prim = rh.hit.primID;
+        if (rh.hit.geomID == voxel_geometry_) {
+          hit.material = kVoxel;
+        } else {
+          hit.material = rh.hit.primID < static_cast<unsigned>(trees_.leaf_quads) ? kLeaf : kTrunk;
+        }
+        hit.normal = Vec3d(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+      }
+    }
+    double t_ground = std::numeric_limits<double>::infinity();
+    Vec3d ground_normal = plane_normal_;
+    if (ground_) {
+      RTCRayHit rh = MakeRayHit(o, d, static_cast<float>(std::min<double>(hit.t, kInf)));
+      RTCIntersectContext context;
+      rtcInitIntersectContext(&context);
+      rtcIntersect1(ground_.get(), &context, &rh);
+      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+        t_ground = rh.ray.tfar;
+        ground_normal = Vec3d(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+      }
+    } else {
+      t_ground = PlaneDistance(o, d);
+    }
+    if (t_ground < hit.t) {
+      hit.t = t_ground;
+      hit.normal = ground_normal;
+      hit.material = kGround;
+    }
+    if (hit.material == kNone) return hit;
+    hit.point = o + hit.t * d;
+    const double length = glm::length(hit.normal);
+    hit.normal = length > 0.0 ? hit.normal / length : Vec3d(0, 0, 1);
+    if (glm::dot(hit.normal, d) > 0.0) hit.normal = -hit.normal;
+    if (hit.material == kGround && !target_textures_.empty()) {
+      for (size_t i = 0; i < scene_.targets.size(); ++i) {
+        double u, v;
+        if (InTarget(scene_.targets[i], hit.point, &u, &v)) {
+          hit.material = kTarget;
+          hit.prim = static_cast<uint32_t>(i);
+          break;
+        }
+      }
+    }
+    return hit;
+  }
+
+  // Whether the segment o + t d, t in (0, t_max), hits anything (d unit).
+  bool Occluded(const Vec3d& o, const Vec3d& d, double t_max, bool with_occluders) const {
+    const float tfar = static_cast<float>(std::min<double>(t_max, kInf));
+    if (with_occluders && occluders_) {
+      RTCRay ray = MakeRayHit(o, d, tfar).ray;
+      RTCIntersectContext context;
+      rtcInitIntersectContext(&context);
+      rtcOccluded1(occluders_.get(), &context, &ray);
+      if (ray.tfar < 0.0f) return true;
+    }
+    if (ground_) {
+      RTCRay ray = MakeRayHit(o, d, tfar).ray;
+      RTCIntersectContext context;
+      rtcInitIntersectContext(&context);
+      rtcOccluded1(ground_.get(), &context, &ray);
+      return ray.tfar < 0.0f;
+    }
+    return PlaneDistance(o, d) < t_max;
+  }
+
+  // The linear value of a hit in [0, 1] (RGB); shadow rays are counted in `counters`.
+  Rgb Shade(const Hit& hit, bool with_occluders, Counters* counters) const {
+    if (hit.material == kNone) return Rgb{0, 0, 0};
+    const bool thermal = scene_.effects.thermal;
+    const ThermalSpec& th = scene_.effects.thermal_spec;
+    Rgb base;
+    switch (hit.material) {
+      case kGround:
+      case kTarget: {
+        Rgb texture;
+        if (hit.material == kGround) {
+          texture = ground_texture_(hit.point.x, hit.point.y);
+        } else {
+          double u, v;
+          InTarget(scene_.targets[hit.prim], hit.point, &u, &v);
+          texture = target_textures_[hit.prim](u, v);
+        }
+        if (thermal) {
+          const double e = hit.material == kGround ? th.ground : th.targets;
+          const double value = e + th.texture_contrast * (Luminance(texture) - 0.5);
+          base = Rgb{value, value, value};
+        } else {
+          base = texture;
+        }
+        break;
+      }
+      case kVoxel: {
+        const double f = 1.0 + scene_.voxels.albedo_variation *
+                                   (2.0 * sim::ToUniform(Hash(scene_.seed, Stream::kShade, hit.prim)) - 1.0);
+        base = thermal ? Rgb{th.voxels, th.voxels, th.voxels} : Scale(scene_.voxels.albedo, f);
+        break;
+      }
+      case kLeaf:
+        base = thermal ? Rgb{th.leaves, th.leaves, th.leaves}
+                       : Scale(scene_.trees.leaf_albedo, trees_.brightness[hit.prim]);
+        break;
+      case kTrunk:
+        base = thermal ? Rgb{th.trunks, th.trunks, th.trunks} : scene_.trees.trunk_albedo;
+        break;
+      default:
+        base = Rgb{0, 0, 0};
+    }
+    if (!scene_.effects.sun) return Clamp(base);
+    // Sun: direct light times visibility, plus ambient (albedo); heating (thermal).
+    const double cosine = glm::dot(hit.normal, sun_);
+    double direct = 0.0;
+    if (cosine > 0.0) {
+      ++counters->shadow;
+      const Vec3d origin = hit.point + kSurfaceOffset * hit.normal;
+      if (!Occluded(origin, sun_, std::numeric_limits<double>::infinity(), with_occluders)) {
+        direct = cosine;
+      }
+    }
+    if (thermal) {
+      const double add = th.sun_heating * direct;
+      return Clamp(Rgb{base[0] + add, base[1] + add, base[2] + add});
+    }
+    const double ambient = scene_.effects.sun_spec.ambient;
+    return Clamp(Scale(base, ambient + (1.0 - ambient) * direct));
+  }
+
+  int64_t OccluderBytes() const {
+    return static_cast<int64_t>(voxels_.cells.capacity() * sizeof(uint32_t) +
+                                trees_.vertices.size() * 12 + trees_.quads.size() * 16 +
+                                trees_.brightness.size() * 4);
+  }
+
+ private:
+  static Rgb Scale(const Rgb& c, double f) { return Rgb{c[0] * f, c[1] * f, c[2] * f}; }
+  static Rgb Clamp(const Rgb& c) {
+    return Rgb{std::clamp(c[0], 0.0, 1.0), std::clamp(c[1], 0.0, 1.0), std::clamp(c[2], 0.0, 1.0)};
+  }
+
+  static RTCRayHit MakeRayHit(const Vec3d& o, const Vec3d& d, float tfar) {
+    RTCRayHit rh;
+    rh.ray.org_x = static_cast<float>(o.x);
+    rh.ray.org_y = static_cast<float>(o.y);
+    rh.ray.org_z = static_cast<float>(o.z);
+    rh.ray.dir_x = static_cast<float>(d.x);
+    rh.ray.dir_y = static_cast<float>(d.y);
+    rh.ray.dir_z = static_cast<float>(d.z);
+    rh.ray.tnear = 0.0f;
+    rh.ray.tfar = tfar;
+    rh.ray.time = 0.0f;
+    rh.ray.mask = 0xffffffffu;
+    rh.ray.id = 0;
+    rh.ray.flags = 0;
+    rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+    return rh;
+  }
+
+  // Distance to the (tilted) ground plane, infinity if the ray runs parallel to it or away.
+  double PlaneDistance(const Vec3d& o, const Vec3d& d) const {
+    const GroundSpec& g = scene_.ground;
+    const double denominator = d.z - g.slope[0] * d.x - g.slope[1] * d.y;
+    const double numerator = g.height + g.slope[0] * o.x + g.slope[1] * o.y - o.z;
+    if (denominator == 0.0) return std::numeric_limits<double>::infinity();
+    const double t = numerator / denominator;
+    return t > 0.0 && std::isfinite(t) ? t : std::numeric_limits<double>::infinity();
+  }
+
+  static bool InTarget(const TargetSpec& target, const Vec3d& p, double* u, double* v) {
+    const double angle = target.rotation_deg * kPi / 180.0;
+    const double dx = p.x - target.center[0], dy = p.y - target.center[1];
+    const double lx = std::cos(angle) * dx + std::sin(angle) * dy;
+    const double ly = -std::sin(angle) * dx + std::cos(angle) * dy;
+    *u = lx + 0.5 * target.size[0];
+    *v = ly + 0.5 * target.size[1];
+    return *u >= 0.0 && *u < target.size[0] && *v >= 0.0 && *v < target.size[1];
+  }
+
+  void BuildOccluders(const std::array<double, 4>& footprint, SimulationStats* stats) {
+    RTCDevice device = device_.get();
+    occluders_.reset(rtcNewScene(device));
+    rtcSetSceneFlags(occluders_.get(), RTC_SCENE_FLAG_ROBUST);
+    if (scene_.has_voxels) {
+      voxels_ = MakeVoxelGrid(scene_.voxels, scene_.seed);
+      stats->voxels = static_cast<int64_t>(voxels_.cells.size());
+      stats->nadir_blocked_fraction = voxels_.NadirBlockedFraction();
+      if (!voxels_.cells.empty()) {
+        RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_USER);
+        rtcSetGeometryUserPrimitiveCount(geometry, static_cast<unsigned>(voxels_.cells.size()));
+        rtcSetGeometryUserData(geometry, &voxels_);
+        rtcSetGeometryBoundsFunction(geometry, VoxelBounds, nullptr);
+        rtcSetGeometryIntersectFunction(geometry, VoxelIntersect);
+        rtcSetGeometryOccludedFunction(geometry, VoxelOccluded);
+        rtcCommitGeometry(geometry);
+        voxel_geometry_ = rtcAttachGeometry(occluders_.get(), geometry);
+        rtcReleaseGeometry(geometry);
+      }
+    }
+    if (scene_.has_trees) {
+      std::array<double, 4> area = scene_.trees.area;
+      if (area == std::array<double, 4>{0, 0, 0, 0}) area = footprint;
+      trees_ = MakeTrees(scene_.trees, scene_.ground, area, scene_.seed);
+      stats->trees = trees_.trees;
+      stats->leaf_quads = trees_.leaf_quads;
+      stats->trunk_quads = trees_.trunk_quads;
+      if (!trees_.quads.empty()) {
+        RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_QUAD);
+        auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+            geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+            trees_.vertices.size()));
+        auto* quads = static_cast<uint32_t*>(rtcSetNewGeometryBuffer(
+            geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT4, 4 * sizeof(uint32_t),
+            trees_.quads.size()));
+        CheckEmbree(device, "allocating the tree mesh");
+        std::copy(trees_.vertices.front().data(), trees_.vertices.front().data() + 3 * trees_.vertices.size(), vertices);
+        std::copy(trees_.quads.front().data(), trees_.quads.front().data() + 4 * trees_.quads.size(), quads);
+        rtcCommitGeometry(geometry);
+        rtcAttachGeometry(occluders_.get(), geometry);
+        rtcReleaseGeometry(geometry);
+      }
+    }
+    rtcCommitScene(occluders_.get());
+    CheckEmbree(device, "building the occluder BVH");
+    stats->occluder_bvh = true;
+  }
+
+  void BuildGround(const std::array<double, 4>& footprint, SimulationStats* stats) {
+    const GroundSpec& g = scene_.ground;
+    std::array<double, 4> extent = g.extent;
+    if (extent == std::array<double, 4>{0, 0, 0, 0}) extent = footprint;
+    const double nx_real = std::ceil((extent[2] - extent[0]) / g.cell_size);
+    const double ny_real = std::ceil((extent[3] - extent[1]) / g.cell_size);
+    constexpr double kMaxCells = 4096;
+    if (nx_real > kMaxCells || ny_real > kMaxCells) {
+      ThrowInvalid(Where(scene_.source,
+                         "ground.cell_size: " + FormatNumber(g.cell_size) + " m over a " +
+                             FormatNumber(extent[2] - extent[0]) + " x " +
+                             FormatNumber(extent[3] - extent[1]) +
+                             " m extent needs more than 4096 x 4096 cells; use a larger "
+                             "cell_size or a smaller ground.extent"));
+    }
+    const int nx = std::max(1, static_cast<int>(nx_real)), ny = std::max(1, static_cast<int>(ny_real));
+    RTCDevice device = device_.get();
+    ground_.reset(rtcNewScene(device));
+    rtcSetSceneFlags(ground_.get(), RTC_SCENE_FLAG_ROBUST);
+    RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_GRID);
+    const size_t vertex_count = static_cast<size_t>(nx + 1) * (ny + 1);
+    auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float), vertex_count));
+    auto* grid = static_cast<RTCGrid*>(rtcSetNewGeometryBuffer(
+        geometry, RTC_BUFFER_TYPE_GRID, 0, RTC_FORMAT_GRID, sizeof(RTCGrid), 1));
+    CheckEmbree(device, "allocating the ground grid");
+    const double dx = (extent[2] - extent[0]) / nx, dy = (extent[3] - extent[1]) / ny;
+    for (int j = 0; j <= ny; ++j) {
+      for (int i = 0; i <= nx; ++i) {
+        const double x = extent[0] + i * dx, y = extent[1] + j * dy;
+        float* v = vertices + 3 * (static_cast<size_t>(j) * (nx + 1) + i);
+        v[0] = static_cast<float>(x);
+        v[1] = static_cast<float>(y);
+        v[2] = static_cast<float>(g.HeightAt(x, y));
+      }
+    }
+    grid->startVertexID = 0;
+    grid->stride = static_cast<unsigned>(nx + 1);
+    grid->width = static_cast<unsigned short>(nx + 1);
+    grid->height = static_cast<unsigned short>(ny + 1);
+    rtcCommitGeometry(geometry);
+    rtcAttachGeometry(ground_.get(), geometry);
+    rtcReleaseGeometry(geometry);
+    rtcCommitScene(ground_.get());
+    CheckEmbree(device, "building the ground BVH");
+    stats->ground_bvh = true;
+    stats->ground_cells = static_cast<int64_t>(nx) * ny;
+  }
+
+  const Scene& scene_;
+  TextureSampler ground_texture_;
+  std::vector<TextureSampler> target_textures_;
+  Vec3d plane_normal_{0, 0, 1};
+  Vec3d sun_{0, 0, 1};
+  DevicePtr device_;
+  ScenePtr occluders_;
+  ScenePtr ground_;
+  VoxelGrid voxels_;
+  TreeMesh trees_;
+  unsigned voxel_geometry_ = RTC_INVALID_GEOMETRY_ID;
+};
+
+// Bounding box [xmin, ymin, xmax, ymax] of what the views and the truth camera see of the ground
+// (nadir footprints on the ground's height range, with a 10 % margin).
+std::array<double, 4> Footprint(const Scene& scene, const std::vector<Vec3d>& cameras,
+                                const std::vector<double>& tan_half_fov_x,
+                                const std::vector<double>& tan_half_fov_y) {
+  std::array<double, 4> box{std::numeric_limits<double>::infinity(),
+                            std::numeric_limits<double>::infinity(),
+                            -std::numeric_limits<double>::infinity(),
+                            -std::numeric_limits<double>::infinity()};
+  double steps = 0.0;
+  for (const StepSpec& step : scene.ground.steps) steps += std::abs(step.height);
+  for (size_t i = 0; i < cameras.size(); ++i) {
+    const Vec3d& c = cameras[i];
+    const double slope = std::abs(scene.ground.slope[0]) + std::abs(scene.ground.slope[1]);
+    const double depth = (c.z - scene.ground.HeightAt(c.x, c.y) + steps) * (1.0 + slope);
+    const double hx = 1.1 * depth * tan_half_fov_x[i], hy = 1.1 * depth * tan_half_fov_y[i];
+    box[0] = std::min(box[0], c.x - hx);
+    box[1] = std::min(box[1], c.y - hy);
+    box[2] = std::max(box[2], c.x + hx);
+    box[3] = std::max(box[3], c.y + hy);
+  }
+  return box;
+}
+
+// A small rotation exp([w]_x) (Rodrigues).
+Mat3d RotationFromVector(const Vec3d& w) {
+  const double angle = glm::length(w);
+  if (angle == 0.0) return Mat3d(1.0);
+  const Vec3d k = w / angle;
+  const Mat3d kx = MatFromRows(Vec3d(0, -k.z, k.y), Vec3d(k.z, 0, -k.x), Vec3d(-k.y, k.x, 0));
+  return Mat3d(1.0) + std::sin(angle) * kx + (1.0 - std::cos(angle)) * (kx * kx);
+}
+
+// Stores a linear value in [0, 1] (float views: unclamped) into the views' type.
+void Store(Image& image, int x, int y, int channel, double value) {
+  switch (image.type()) {
+    case PixelType::kU8:
+      image.At<uint8_t>(x, y)[channel] =
+          static_cast<uint8_t>(std::lround(std::clamp(value, 0.0, 1.0) * 255.0));
+      break;
+    case PixelType::kU16:
+      image.At<uint16_t>(x, y)[channel] =
+          static_cast<uint16_t>(std::lround(std::clamp(value, 0.0, 1.0) * 65535.0));
+      break;
+    default:
+      image.At<float>(x, y)[channel] = static_cast<float>(value);
+  }
+}
+
+PixelType ViewType(int bit_depth) {
+  return bit_depth == 8 ? PixelType::kU8 : bit_depth == 16 ? PixelType::kU16 : PixelType::kF32;
+}
+
+}  // namespace
+
+void SimulateOptions::Check() const {
+  if (num_threads == 0 || num_threads < -1) ThrowInvalid("num_threads: must be -1 (all cores) or >= 1");
+}
+
+SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
+                          ProgressSink* progress) {
+  options.Check();
+  scene.Check();
+  const int threads = ResolveThreads(options.num_threads);
+  SimulationResult result;
+  SimulationStats& stats = result.stats;
+
+  // Cameras.
+  const CameraSpec& cam = scene.camera;
+  const PinholeCamera camera = PinholeCamera::FromFov(cam.width, cam.height, cam.fov_deg);
+  const std::vector<Vec3d> positions = ViewPositions(scene);
+  stats.views = static_cast<int64_t>(positions.size());
+  Vec3d truth_position(scene.truth.position[0], scene.truth.position[1], scene.truth.position[2]);
+  if (std::isnan(truth_position.x)) {
+    truth_position = Vec3d(0.0);
+    for (const Vec3d& p : positions) truth_position += p;
+    truth_position /= static_cast<double>(positions.size());
+    if (scene.sampling.positions.empty()) {
+      truth_position.x = scene.sampling.center[0];
+      truth_position.y = scene.sampling.center[1];
+    }
+  }
+  const PinholeCamera truth_camera = PinholeCamera::FromFov(
+      scene.truth.width > 0 ? scene.truth.width : cam.width,
+      scene.truth.height > 0 ? scene.truth.height : cam.height,
+      scene.truth.fov_deg > 0 ? scene.truth.fov_deg : cam.fov_deg);
+  std::vector<Vec3d> all_cameras = positions;
+  std::vector<double> tan_x(positions.size(), 0.5 * cam.width / camera.fx);
+  std::vector<double> tan_y(positions.size(), 0.5 * cam.height / camera.fy);
+  all_cameras.push_back(truth_position);
+  tan_x.push_back(0.5 * truth_camera.width / truth_camera.fx);
+  tan_y.push_back(0.5 * truth_camera.height / truth_camera.fy);
+  const std::array<double, 4> footprint = Footprint(scene, all_cameras, tan_x, tan_y);
+
+  // Geometry (occluders and a height-field ground only when the scene has them).
+  ProgressStart(progress, "geometry", 1);
+  auto start = Clock::now();
+  const World world(scene, footprint, &stats);
+  stats.occluder_bytes = world.OccluderBytes();
+  stats.seconds_geometry = scene.HasOccluders() || scene.ground.IsHeightField() ? Seconds(start) : 0.0;
+  ProgressAdvance(progress, 1);
+  if (ProgressCancelled(progress)) throw Cancelled();
+
+  // Poses: true ones, then the recorded ones (pose noise).
+  result.true_cam_from_world.reserve(positions.size());
+  for (const Vec3d& p : positions) result.true_cam_from_world.push_back(NadirCamFromWorld(p));
+  std::vector<Rigid3d> recorded = result.true_cam_from_world;
+  if (scene.effects.pose_noise) {
+    const double sigma_m = scene.effects.pose_noise_spec.position_sigma_cm / 100.0;
+    const double sigma_rad = scene.effects.pose_noise_spec.rotation_sigma_deg * kPi / 180.0;
+    for (size_t v = 0; v < positions.size(); ++v) {
+      Random random(Hash(scene.seed, Stream::kPoseNoise, v));
+      Vec3d dp, w;
+      for (int k = 0; k < 3; ++k) dp[k] = sigma_m * random.Normal();
+      for (int k = 0; k < 3; ++k) w[k] = sigma_rad * random.Normal();
+      stats.pose_noise_draws += 6;
+      Rigid3d& pose = recorded[v];
+      const Vec3d centre = pose.Center() + dp;
+      pose.rotation = RotationFromVector(w) * pose.rotation;
+      pose.translation = -(pose.rotation * centre);
+    }
+  }
+
+  // Views.
+  const PixelType type = ViewType(cam.bit_depth);
+  const int spp = cam.samples_per_pixel;
+  const int channels = cam.channels;
+  const double sigma = scene.effects.sensor_noise ? scene.effects.sensor_noise_spec.sigma : 0.0;
+  ProgressStart(progress, "views", static_cast<int64_t>(positions.size()));
+  start = Clock::now();
+  Counters totals;
+  result.light_field.views.reserve(positions.size());
+  for (size_t v = 0; v < positions.size(); ++v) {
+    if (ProgressCancelled(progress)) throw Cancelled();
+    const Rigid3d& pose = result.true_cam_from_world[v];
+    const Mat3d world_from_cam_rotation = glm::transpose(pose.rotation);
+    const Vec3d centre = positions[v];
+    Image image(cam.width, cam.height, channels, type, /*border=*/1);
+    Counters view_counters;
+#pragma omp parallel num_threads(threads)
+    {
+      Counters local;
+#pragma omp for schedule(dynamic, 4)
+      for (int64_t y = 0; y < cam.height; ++y) {
+        for (int x = 0; x < cam.width; ++x) {
+          Rgb sum{0, 0, 0};
+          for (int sy = 0; sy < spp; ++sy) {
+            for (int sx = 0; sx < spp; ++sx) {
+              const Vec2d pixel(x + (sx + 0.5) / spp, static_cast<double>(y) + (sy + 0.5) / spp);
+              const Vec3d d = glm::normalize(world_from_cam_rotation * camera.Unproject(pixel));
+              const Hit hit = world.Trace(centre, d, /*with_occluders=*/true);
+              ++local.primary;
+              const Rgb c = world.Shade(hit, true, &local);
+              for (int k = 0; k < 3; ++k) sum[k] += c[k];
+            }
+          }
+          const double inv = 1.0 / (spp * spp);
+          const Rgb mean{sum[0] * inv, sum[1] * inv, sum[2] * inv};
+          for (int k = 0; k < channels; ++k) {
+            double value = channels == 1 ? Luminance(mean) : mean[k];
+            if (scene.effects.sensor_noise) {
+              const uint64_t pixel_index = static_cast<uint64_t>(y) * cam.width + x;
+              Random random(Hash(scene.seed, Stream::kSensorNoise, v, pixel_index, k));
+              value += sigma * random.Normal();
+              ++local.noise;
+            }
+            Store(image, x, static_cast<int>(y), k, value);
+          }
+        }
+      }
+#pragma omp critical
+      {
+        view_counters.primary += local.primary;
+        view_counters.shadow += local.shadow;
+        view_counters.noise += local.noise;
+      }
+    }
+    totals.primary += view_counters.primary;
+    totals.shadow += view_counters.shadow;
+    totals.noise += view_counters.noise;
+    image.FillBorder();
+    char name[32];
+    std::snprintf(name, sizeof(name), "view_%04zu", v);
+    result.light_field.views.push_back(MakeView(name, camera, recorded[v], image));
+    ProgressAdvance(progress, 1);
+  }
+  stats.primary_rays = totals.primary;
+  stats.shadow_rays = totals.shadow;
+  stats.sensor_noise_draws = totals.noise;
+  stats.seconds_views = Seconds(start);
+
+  // Ground truth: the ground alone, seen by the truth camera.
+  GroundTruth& truth = result.truth;
+  truth.camera = truth_camera;
+  truth.cam_from_world = NadirCamFromWorld(truth_position);
+  truth.ground_height_at_center = scene.ground.HeightAt(truth_position.x, truth_position.y);
+  const int tw = truth_camera.width, th = truth_camera.height;
+  truth.ground = Image(tw, th, channels, type);
+  truth.depth = Image(tw, th, 1, PixelType::kF32);
+  truth.height = Image(tw, th, 1, PixelType::kF32);
+  truth.views_seeing = Image(tw, th, 1, PixelType::kU32);
+  truth.has_blocked_fraction = scene.truth.blocked_fraction;
+  if (truth.has_blocked_fraction) truth.blocked_fraction = Image(tw, th, 1, PixelType::kF32);
+  const Mat3d truth_rotation = glm::transpose(truth.cam_from_world.rotation);
+  const bool blocked_rays = truth.has_blocked_fraction && world.CanBlock(true);
+  ProgressStart(progress, "ground truth", th);
+  start = Clock::now();
+  std::atomic<bool> cancelled{false};
+  int64_t truth_rays = 0, truth_shadow = 0, fraction_rays = 0;
+  double seconds_fraction = 0.0;
+#pragma omp parallel num_threads(threads) reduction(+ : truth_rays, truth_shadow, fraction_rays)
+  {
+    Counters local;
+#pragma omp for schedule(dynamic, 2)
+    for (int64_t y = 0; y < th; ++y) {
+      if (cancelled.load(std::memory_order_relaxed)) continue;
+      for (int x = 0; x < tw; ++x) {
+        // Ground image: the same sampling as the views.
+        Rgb sum{0, 0, 0};
+        for (int sy = 0; sy < spp; ++sy) {
+          for (int sx = 0; sx < spp; ++sx) {
+            const Vec2d pixel(x + (sx + 0.5) / spp, static_cast<double>(y) + (sy + 0.5) / spp);
+            const Vec3d d = glm::normalize(truth_rotation * truth_camera.Unproject(pixel));
+            const Hit hit = world.Trace(truth_position, d, /*with_occluders=*/false);
+            ++truth_rays;
+            const Rgb c = world.Shade(hit, false, &local);
+            for (int k = 0; k < 3; ++k) sum[k] += c[k];
+          }
+        }
+        const double inv = 1.0 / (spp * spp);
+        const Rgb mean{sum[0] * inv, sum[1] * inv, sum[2] * inv};
+        for (int k = 0; k < channels; ++k) {
+          Store(truth.ground, x, static_cast<int>(y), k, channels == 1 ? Luminance(mean) : mean[k]);
+        }
+        // Depth, height, views seeing and blocked: at the pixel centre.
+        const Vec3d d = glm::normalize(truth_rotation *
+                                       truth_camera.Unproject(Vec2d(x + 0.5, y + 0.5)));
+        const Hit hit = world.Trace(truth_position, d, false);
+        ++truth_rays;
+        float depth = 0.0f, height = 0.0f, fraction = 0.0f;
+        uint32_t seeing = 0;
+        if (hit.material != kNone) {
+          depth = static_cast<float>(glm::dot(d, truth_rotation[2]) * hit.t);
+          height = static_cast<float>(hit.point.z);
+          uint32_t blocked = 0;
+          const Vec3d origin = hit.point + kSurfaceOffset * hit.normal;
+          for (size_t v = 0; v < positions.size(); ++v) {
+            const Vec3d in_cam = result.true_cam_from_world[v] * hit.point;
+            if (!(in_cam.z > 0.0)) continue;
+            const Vec2d uv = camera.Project(in_cam);
+            if (!(uv.x >= 0.0 && uv.x <= camera.width && uv.y >= 0.0 && uv.y <= camera.height)) continue;
+            ++seeing;
+            if (!blocked_rays) continue;
+            const Vec3d to_view = positions[v] - origin;
+            const double distance = glm::length(to_view);
+            ++fraction_rays;
+            if (world.Occluded(origin, to_view / distance, distance, true)) ++blocked;
+          }
+          if (seeing > 0) fraction = static_cast<float>(static_cast<double>(blocked) / seeing);
+        }
+        *truth.depth.At<float>(x, static_cast<int>(y)) = depth;
+        *truth.height.At<float>(x, static_cast<int>(y)) = height;
+        *truth.views_seeing.At<uint32_t>(x, static_cast<int>(y)) = seeing;
+        if (truth.has_blocked_fraction) *truth.blocked_fraction.At<float>(x, static_cast<int>(y)) = fraction;
+      }
+      ProgressAdvance(progress, 1);
+      if (omp_get_thread_num() == 0 && ProgressCancelled(progress)) cancelled = true;
+    }
+    truth_shadow += local.shadow;
+  }
+  if (cancelled) throw Cancelled();
+  const double seconds_truth_total = Seconds(start);
+  // The blocked-fraction rays share the truth loop; split its time by ray count.
+  const double total_rays = static_cast<double>(truth_rays + fraction_rays + truth_shadow);
+  if (fraction_rays > 0 && total_rays > 0) {
+    seconds_fraction = seconds_truth_total * fraction_rays / total_rays;
+  }
+  stats.truth_rays = truth_rays;
+  stats.shadow_rays += truth_shadow;
+  stats.blocked_fraction_rays = fraction_rays;
+  stats.seconds_blocked_fraction = seconds_fraction;
+  stats.seconds_truth = seconds_truth_total - seconds_fraction;
+  return result;
+}
+
+}  // namespace aos

@@ -1,0 +1,111 @@
+#pragma once
+// The occlusion simulator: renders the views of a scene (scene.h) with Embree and writes the
+// ground truth a study needs.
+//
+// Contract
+// - Views are nadir-looking pinhole cameras (image top towards +y) at ViewPositions(scene). Each
+//   pixel averages samples_per_pixel^2 stratified rays; a ray takes the value of the first surface
+//   it hits (ground, target, voxel, leaf or trunk), 0 where it hits nothing. Values are linear in
+//   [0, 1] and stored in the views' type: 8-bit (x 255), 16-bit (x 65535), rounded and clamped,
+//   or float32 unscaled.
+// - Only the stages a scene names run (SimulationStats counts what each did):
+//   * occluders: geometry and an Embree BVH only when the scene has voxels or trees; ground
+//     rays are intersected analytically for a (tilted) plane and through an Embree grid BVH only
+//     for a height field (steps);
+//   * sun: one shadow ray per shaded sample, only with effects.sun;
+//   * sensor noise: one Gaussian draw per stored value, only with effects.sensor_noise;
+//   * pose noise: six draws per view, only with effects.pose_noise; the light field then holds
+//     the recorded (noisy) poses while the images are rendered from the true ones;
+//   * thermal: emission per material replaces albedo (no extra rays);
+//   * lens: pinhole only (no resampling stage exists yet).
+//   Each random stage has its own stream (random.h), so adding an effect never changes what
+//   other stages produce.
+// - Ground truth, seen by the truth camera (nadir, at truth.position): the ground alone (no
+//   occluders, no noise; sun shading and the ground's own shadows when a sun is given), in the
+//   views' type; the ground's depth along the camera axis and its height z (float32, metres, 0
+//   where a ray misses the ground); per pixel the number of views that see the ground point
+//   (it lies in front of the view and inside its image) and the fraction of those whose ray to
+//   it is blocked (by occluders or the ground itself).
+// - Deterministic: the same scene (and seed) gives the same bytes for any thread count.
+//
+// Throws std::invalid_argument for a scene that fails Scene::Check() or needs more memory than
+// stated limits (height fields up to 4096 x 4096 cells), aos::Cancelled if the progress sink asks
+// to stop.
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "aos/geometry/pinhole.h"
+#include "aos/image/image.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/sim/scene.h"
+#include "aos/util/progress.h"
+
+namespace aos {
+
+struct SimulateOptions {
+  int num_threads = -1;  // worker threads; -1 = all cores
+  void Check() const;
+};
+
+// What each stage did. Counters are exact; seconds are wall time of the stage (0 if skipped).
+struct SimulationStats {
+  int64_t views = 0;
+  int64_t primary_rays = 0;            // camera rays of the views
+  int64_t shadow_rays = 0;             // sun visibility rays (views and truth)
+  int64_t truth_rays = 0;              // camera rays of the truth image
+  int64_t blocked_fraction_rays = 0;   // ground-point-to-view rays of the blocked fraction
+  int64_t sensor_noise_draws = 0;
+  int64_t pose_noise_draws = 0;
+  int64_t lens_resampled_pixels = 0;   // always 0 until lens models exist
+  int64_t voxels = 0;                  // occupied voxel cells
+  int64_t trees = 0;
+  int64_t leaf_quads = 0;
+  int64_t trunk_quads = 0;
+  bool occluder_bvh = false;           // an Embree scene of occluders was built
+  bool ground_bvh = false;             // an Embree grid of the ground was built
+  int64_t ground_cells = 0;            // height-field cells
+  double nadir_blocked_fraction = 0;   // realised fraction of voxel columns that block
+  int64_t occluder_bytes = 0;          // occluder geometry kept for tracing (excl. Embree's BVH)
+  double seconds_geometry = 0;         // occluder generation + BVH builds
+  double seconds_views = 0;
+  double seconds_truth = 0;
+  double seconds_blocked_fraction = 0;
+};
+
+struct GroundTruth {
+  PinholeCamera camera;
+  Rigid3d cam_from_world;
+  Image ground;            // views' type and channels: the occluder-free ground
+  Image depth;             // float32, metres along the optical axis (0 = no ground)
+  Image height;            // float32, ground z, metres (0 = no ground)
+  Image views_seeing;      // uint32: views that see the ground point
+  Image blocked_fraction;  // float32 in [0, 1]: blocked / seeing (0 where no view sees)
+  bool has_blocked_fraction = false;  // false when truth.blocked_fraction is off
+  double ground_height_at_center = 0;  // ground z under the truth camera (focal plane to use)
+};
+
+struct SimulationResult {
+  LightField light_field;                      // images + recorded poses
+  std::vector<Rigid3d> true_cam_from_world;    // true poses, view order
+  GroundTruth truth;
+  SimulationStats stats;
+};
+
+SimulationResult Simulate(const Scene& scene, const SimulateOptions& options = {},
+                          ProgressSink* progress = nullptr);
+
+// Writes a simulation into `output_dir`, which must not exist or be empty (nothing is ever
+// overwritten). Everything is written into a temporary sibling folder first and renamed into
+// place at the end, so a failure leaves no partial output. Files:
+//   lightfield.json (recorded poses), lightfield_true.json (true poses), views/NNNN.png|.tif,
+//   truth/ground.png|.tif, truth/depth.tif, truth/height.tif, truth/views_seeing.tif,
+//   truth/blocked_fraction.tif (if computed), truth/truth.json (truth camera, suggested focal
+//   plane, stats), scene.json (the scene as simulated, every field written out).
+void WriteSimulation(const SimulationResult& result, const Scene& scene,
+                     const std::string& output_dir);
+
+// The stats and the truth camera as a JSON object (what truth/truth.json holds).
+std::string SimulationSummaryJson(const SimulationResult& result);
+
+}  // namespace aos
