@@ -16,14 +16,24 @@ EXE = shutil.which("aos-render")
 pytestmark = pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
 
 
+# 3 x 3 grey 8-bit views of 48 x 40 pixels, 3 m apart at 35 m, over a voxel volume.
+SMALL_SCENE = {
+    "occluders": {"voxels": {"center": [0, 0, 11], "size": [20, 20, 6], "grid": [40, 40, 12],
+                             "density": 0.6}},
+    "camera": {"width": 48, "height": 40, "fov_deg": 50},
+    "sampling": {"altitude": 35, "grid": 3, "aperture": {"diameter": 6}},
+    "truth": {"width": 8, "height": 8, "blocked_fraction": False},
+}
+
+
 def run(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
     return subprocess.run([EXE, *args], capture_output=True, text=True, cwd=cwd, timeout=120)
 
 
 @pytest.fixture
 def scene(tmp_path: Path) -> Path:
-    """A small default-scene light field in the aos format: tmp/lf/lightfield.json + views/."""
-    light_field = aos.make_default_lightfield(views_per_side=3, width=48, height=40)
+    """A small simulated light field in the aos format: tmp/lf/lightfield.json + views/."""
+    light_field = aos.simulate(SMALL_SCENE).light_field
     folder = tmp_path / "lf"
     folder.mkdir()
     aos.write_lightfield(str(folder / "lightfield.json"), light_field)
@@ -78,12 +88,17 @@ def test_look_at_and_tilted_plane_and_view_selection(scene: Path, tmp_path: Path
 
 
 def test_demo_runs_on_the_default_scene(tmp_path: Path) -> None:
-    result = run("demo", "-o", str(tmp_path / "demo"), "--views-per-side", "3", "-q")
+    result = run("demo", "-o", str(tmp_path / "demo"), "--grid", "3", "-q")
     assert result.returncode == 0, result.stderr
     names = {p.name for p in (tmp_path / "demo").iterdir()}
-    assert {"lightfield.json", "views", "integral_z+00.00.png", "single_view.png"} <= names
+    assert {"lightfield.json", "lightfield_true.json", "scene.json", "views", "truth",
+            "integral_ground.png", "single_view.png", "integral_occluders.png"} <= names
     loaded = aos.load_lightfield(str(tmp_path / "demo" / "lightfield.json"))
     assert len(loaded.light_field) == 9
+    assert "against the ground truth" in result.stdout
+    # Nothing is overwritten: a second run into the same folder is refused.
+    again = run("demo", "-o", str(tmp_path / "demo"), "--grid", "3", "-q")
+    assert again.returncode == 1 and "not an empty folder" in again.stderr
 
 
 def assert_clean_failure(result: subprocess.CompletedProcess, *fragments: str) -> None:

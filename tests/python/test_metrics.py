@@ -58,17 +58,18 @@ def test_options_by_keyword_and_masks():
 
 
 def test_integral_of_the_default_scene_beats_a_single_view():
-    """The point of AOS: against the occluder-free ground, the integral focused on the ground is
-    better than a single occluded view (PSNR and SSIM)."""
-    occluded = aos.make_default_lightfield(views_per_side=7, spacing=4.0, width=96, height=96)
-    clear = aos.make_default_lightfield(views_per_side=1, width=96, height=96, occluder_density=0.0)
-    options = dict(pose_view=24, fov_deg=50.0, width=96, height=96)
-    truth = aos.render_integral(clear, cam_from_world=occluded.views[24].cam_from_world,
-                                fov_deg=50.0, width=96, height=96).image
-    integral = aos.render_integral(occluded, **options).image
-    single = aos.render_integral(occluded, aperture_radius=0.0, **options).image
-    a = aos.compare_images(integral, truth, data_range=255.0)
-    s = aos.compare_images(single, truth, data_range=255.0)
-    # Measured here: 17.3 dB vs 15.0 dB, SSIM 0.58 vs lower; leaves still bias the plain mean.
+    """The point of AOS: against the occluder-free ground truth, the integral focused on the
+    ground is better than a single occluded view (PSNR and SSIM)."""
+    scene = aos.default_scene()
+    result = aos.simulate(scene)
+    truth = result.truth
+    options = dict(cam_from_world=truth.cam_from_world, fov_deg=truth.camera.fov_x_deg(),
+                   width=truth.camera.width, height=truth.camera.height,
+                   focal_plane=aos.Plane.at_height(truth.ground_height_at_center))
+    integral = aos.render_integral(result.light_field, **options).image
+    single = aos.render_integral(result.light_field, aperture_radius=0.0, **options).image
+    a = aos.compare_images(integral, truth.ground)
+    s = aos.compare_images(single, truth.ground)
+    # Measured here: integral 11.0 dB / SSIM 0.46, single view 9.1 dB / 0.25.
     assert a.psnr_db > s.psnr_db + 1.0
-    assert a.ssim > s.ssim
+    assert a.ssim > s.ssim + 0.1

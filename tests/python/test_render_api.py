@@ -1,4 +1,4 @@
-"""Plumbing of the render API: IntegralOptions/DefaultSceneOptions as bound from C++, the kwargs
+"""Plumbing of the render API: IntegralOptions/SimulateOptions as bound from C++, the kwargs
 merge of aos.render_integral, results shared with numpy, progress callbacks and cancellation.
 The renderer's numbers are tested in C++ (tests/cpp/integral_test.cpp); here only what the
 bindings could get wrong."""
@@ -21,10 +21,7 @@ INTEGRAL_FIELDS = (
     "cam_from_world", "pose_view", "fov_deg", "width", "height", "aperture_radius",
     "focal_plane", "view_indices", "min_view_angle_deg", "num_threads",
 )
-SCENE_FIELDS = (
-    "views_per_side", "spacing", "altitude", "width", "height", "fov_deg", "occluder_density",
-    "occluder_heights", "leaf_size", "seed",
-)
+SIMULATE_FIELDS = ("num_threads",)
 
 
 def test_integral_options_defaults_match_the_header() -> None:
@@ -82,7 +79,7 @@ def test_render_integral_kwargs_errors(make_lightfield) -> None:
     with pytest.raises(TypeError, match="aperture"):
         aos.render_integral(light_field, aperture=1.0)
     with pytest.raises(TypeError, match="IntegralOptions"):
-        aos.render_integral(light_field, options=aos.DefaultSceneOptions())
+        aos.render_integral(light_field, options=aos.SimulateOptions())
     with pytest.raises(TypeError):
         aos.render_integral(light_field, aos.IntegralOptions(), None)  # progress is keyword-only
 
@@ -167,20 +164,13 @@ def test_render_integral_progress_error_cancels(make_lightfield) -> None:
     assert len(calls) == 1  # never called again after it raised
 
 
-def test_default_scene_options_and_lightfield() -> None:
-    options = aos.DefaultSceneOptions()
-    assert aos.DefaultSceneOptions._fields == SCENE_FIELDS
-    assert (options.views_per_side, options.spacing, options.altitude) == (11, 3.0, 35.0)
-    assert (options.width, options.height, options.fov_deg) == (256, 256, 50.0)
-    assert options.occluder_heights == [8.0, 11.0, 14.0]
-    assert (options.occluder_density, options.leaf_size, options.seed) == (0.6, 0.5, 1)
-    with pytest.raises(TypeError, match="views"):
-        aos.make_default_lightfield(views=3)
-    light_field = aos.make_default_lightfield(
-        aos.DefaultSceneOptions(width=32), views_per_side=2, height=24)
-    assert len(light_field) == 4
-    image = light_field.views[0].image
-    assert image.dtype == np.uint8 and image.shape == (24, 32)
+def test_simulate_options_and_kwargs() -> None:
+    assert aos.SimulateOptions._fields == SIMULATE_FIELDS
+    assert aos.SimulateOptions().num_threads == -1
+    with pytest.raises(TypeError, match="threads"):
+        aos.simulate(aos.default_scene(), threads=1)
+    with pytest.raises(TypeError, match="Scene, a dict or a path"):
+        aos.simulate(42)
 
 
 # The progress sink itself, through a test hook that follows the algorithms' ProgressSink

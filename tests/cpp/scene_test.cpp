@@ -1,0 +1,198 @@
+// Scene files: strict parsing (unknown keys, wrong types and bad values name the key path),
+// defaults, the JSON round trip, and the view layout.
+#include "aos/sim/scene.h"
+
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/image/image_io.h"
+#include "temp_folder.h"
+
+namespace aos {
+namespace {
+
+using ::testing::HasSubstr;
+
+std::string ErrorOf(const std::string& json) {
+  try {
+    ParseScene(json, "scene.json");
+  } catch (const std::invalid_argument& error) {
+    return error.what();
+  }
+  return "(no error)";
+}
+
+TEST(Scene, EmptyObjectGivesTheDocumentedDefaults) {
+  const Scene scene = ParseScene("{}", "scene.json");
+  EXPECT_EQ(scene.seed, 1u);
+  EXPECT_FALSE(scene.HasOccluders());
+  EXPECT_TRUE(scene.targets.empty());
+  EXPECT_EQ(scene.camera.width, 512);
+  EXPECT_EQ(scene.camera.fov_deg, 80.0);
+  EXPECT_EQ(scene.sampling.altitude, 20.0);
+  EXPECT_EQ(scene.sampling.grid, 9);
+  EXPECT_EQ(scene.sampling.aperture_diameter, 30.0);
+  EXPECT_FALSE(scene.effects.sun || scene.effects.sensor_noise || scene.effects.pose_noise ||
+               scene.effects.thermal);
+  EXPECT_EQ(ViewPositions(scene).size(), 81u);
+}
+
+TEST(Scene, UnknownKeysAreErrorsWithTheirPath) {
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"densty": 0.5}}})"),
+              HasSubstr("scene.json: occluders.voxels.densty: unknown key"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"fov": 60}})"), HasSubstr("camera.fov: unknown key"));
+  EXPECT_THAT(ErrorOf(R"({"colour": 1})"), HasSubstr("colour: unknown key"));
+  EXPECT_THAT(ErrorOf(R"({"targets": [{"centre": [0, 0]}]})"),
+              HasSubstr("targets[0].centre: unknown key"));
+  EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "checker", "patch": 2}}})"),
+              HasSubstr("ground.texture.patch: unknown key"));
+}
+
+TEST(Scene, WrongTypesAreErrorsWithTheirPath) {
+  EXPECT_THAT(ErrorOf(R"({"camera": {"width": "512"}})"),
+              HasSubstr("camera.width: must be an integer, not a string"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"width": 512.5}})"), HasSubstr("camera.width: must be an integer"));
+  EXPECT_THAT(ErrorOf(R"({"sampling": {"altitude": [20]}})"),
+              HasSubstr("sampling.altitude: must be a number, not an array"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"center": [0, 0]}}})"),
+              HasSubstr("occluders.voxels.center: must be an array of 3 numbers"));
+  EXPECT_THAT(ErrorOf(R"({"truth": {"blocked_fraction": 1}})"),
+              HasSubstr("truth.blocked_fraction: must be true or false"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": []})"), HasSubstr("occluders: must be an object"));
+  EXPECT_THAT(ErrorOf("[1, 2]"), HasSubstr("must be an object"));
+  EXPECT_THAT(ErrorOf("{\"seed\": 1,"), HasSubstr("scene.json: not valid JSON"));
+}
+
+TEST(Scene, OutOfRangeValuesAreErrors) {
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"density": 1.0}}})"),
+              HasSubstr("occluders.voxels.density: 1 is outside [0, 1)"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"density": -0.1}}})"),
+              HasSubstr("occluders.voxels.density: -0.1 is outside [0, 1)"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"size": [10, -1, 10]}}})"),
+              HasSubstr("occluders.voxels.size[1]: -1 must be > 0"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"grid": 513}}})"),
+              HasSubstr("occluders.voxels.grid[0]: 513 is outside 1..512"));
+  EXPECT_THAT(ErrorOf(R"({"targets": [{"size": [0, 1]}]})"), HasSubstr("targets[0].size[0]"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"trees": {"leaf_size": -0.3}}})"),
+              HasSubstr("occluders.trees.leaf_size"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"trees": {"height": [9, 5]}}})"),
+              HasSubstr("occluders.trees.height: the upper end is below the lower end"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"fov_deg": 180}})"), HasSubstr("camera.fov_deg"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"channels": 2}})"), HasSubstr("camera.channels: must be 1 or 3"));
+  EXPECT_THAT(ErrorOf(R"({"sampling": {"aperture": {"shape": "hexagon"}}})"),
+              HasSubstr("sampling.aperture.shape"));
+  EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "marble"}}})"),
+              HasSubstr("ground.texture.type: \"marble\" is not one of"));
+  EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"colors": [0.5, 1.5]}}})"),
+              HasSubstr("ground.texture.colors[1]: 1.5 is outside [0, 1]"));
+  EXPECT_THAT(ErrorOf(R"({"effects": {"sun": {"elevation_deg": 0}}})"),
+              HasSubstr("effects.sun.elevation_deg"));
+  EXPECT_THAT(ErrorOf(R"({"effects": {"thermal": {}}, "camera": {"channels": 3}})"),
+              HasSubstr("camera.channels: must be 1 in thermal mode"));
+}
+
+TEST(Scene, CamerasBelowTheGroundOrInsideOccludersAreErrors) {
+  EXPECT_THAT(ErrorOf(R"({"ground": {"height": 25}})"),
+              HasSubstr("is not above the ground (z = 25 m there)"));
+  EXPECT_THAT(ErrorOf(R"({"sampling": {"positions": [[0, 0, 30], [0, 0, -1]]}})"),
+              HasSubstr("sampling.positions[1]: camera at z = -1 m is not above the ground"));
+  // A slope lifts the ground under the outer views.
+  EXPECT_THAT(ErrorOf(R"({"ground": {"slope": [1.5, 0]}})"), HasSubstr("not above the ground"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"center": [0, 0, 18], "size": [40, 40, 10]}}})"),
+              HasSubstr("camera is inside the voxel occluder volume"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": {"trees": {"height": [15, 25]}}})"),
+              HasSubstr("camera is not above the trees"));
+  EXPECT_THAT(ErrorOf(R"({"truth": {"position": [0, 0, -2]}})"),
+              HasSubstr("truth.position: camera at z = -2 m is not above the ground"));
+}
+
+TEST(Scene, LensModelsAndLensDistortionAreRefusedUntilTheyExist) {
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye"}})"),
+              HasSubstr("camera.lens: \"fisheye\" is not supported"));
+  EXPECT_THAT(ErrorOf(R"({"effects": {"lens_distortion": {"k1": 0.1}}})"),
+              HasSubstr("effects.lens_distortion: is not available yet"));
+}
+
+class SceneFiles : public testing_util::TempFolderTest {};
+
+TEST_F(SceneFiles, ImageTexturesAreLoadedAndMissingFilesNamed) {
+  Image image(4, 2, 3, PixelType::kU8);
+  WriteImage(Path("tex.png"), image);
+  const Scene scene = ParseScene(
+      R"({"ground": {"texture": {"type": "image", "path": "tex.png", "size": [4, 2]}}})",
+      "scene.json", dir_.string());
+  ASSERT_TRUE(scene.ground.texture.image);
+  EXPECT_EQ(scene.ground.texture.image->width(), 4);
+  const std::string error = [&] {
+    try {
+      ParseScene(R"({"ground": {"texture": {"type": "image", "path": "missing.png"}}})",
+                 "scene.json", dir_.string());
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string();
+  }();
+  EXPECT_THAT(error, HasSubstr("scene.json: ground.texture.path:"));
+  EXPECT_THAT(error, HasSubstr("missing.png"));
+}
+
+TEST(Scene, JsonRoundTripIsExact) {
+  const std::string json = R"({
+    "seed": 7,
+    "ground": {"height": 1.5, "slope": [0.05, -0.02],
+               "steps": [{"point": [2, 0], "direction": [1, 0.5], "height": 0.4}],
+               "texture": {"type": "noise", "square": 0.3, "colors": [0.2, [0.9, 0.8, 0.7]], "seed": 3}},
+    "targets": [{"center": [1, 2], "size": [2.4, 0.8], "rotation_deg": 30}],
+    "occluders": {"voxels": {"grid": [64, 32, 16], "density": 0.3},
+                  "trees": {"per_hectare": 150, "leaves_per_tree": 20}},
+    "camera": {"width": 64, "height": 48, "fov_deg": 70, "channels": 3, "bit_depth": 16},
+    "sampling": {"altitude": 35, "aperture": {"shape": "disk", "diameter": 20}, "grid": 5},
+    "effects": {"pose_noise": {"position_sigma_cm": 5, "rotation_sigma_deg": 0.2},
+                "sensor_noise": {"sigma": 0.01}, "sun": {"azimuth_deg": 10}},
+    "truth": {"position": [1, 1, 30], "fov_deg": 40, "width": 32, "height": 32,
+              "blocked_fraction": false}
+  })";
+  const Scene scene = ParseScene(json, "a.json");
+  const std::string once = SceneToJson(scene);
+  const Scene again = ParseScene(once, "b.json");
+  EXPECT_EQ(SceneToJson(again), once);
+  EXPECT_EQ(again.ground.steps.size(), 1u);
+  EXPECT_TRUE(again.has_voxels && again.has_trees);
+  EXPECT_EQ(again.voxels.grid[1], 32);
+  EXPECT_TRUE(again.effects.pose_noise && again.effects.sensor_noise && again.effects.sun);
+  EXPECT_FALSE(again.effects.thermal);
+  EXPECT_EQ(SceneToJson(ParseScene(SceneToJson(DefaultScene()), "d.json")), SceneToJson(DefaultScene()));
+}
+
+TEST(Scene, ViewGridCoversTheApertureRowsFromNorthToSouth) {
+  Scene scene;
+  scene.sampling.grid = 3;
+  scene.sampling.aperture_diameter = 30.0;
+  scene.sampling.center = {100.0, -50.0};
+  const std::vector<Vec3d> square = ViewPositions(scene);
+  ASSERT_EQ(square.size(), 9u);
+  EXPECT_EQ(square[0], Vec3d(85.0, -35.0, 20.0));  // first row is the +y row
+  EXPECT_EQ(square[4], Vec3d(100.0, -50.0, 20.0));
+  EXPECT_EQ(square[8], Vec3d(115.0, -65.0, 20.0));
+  scene.sampling.aperture_shape = "disk";
+  EXPECT_EQ(ViewPositions(scene).size(), 5u);  // the corners lie 21.2 m out, beyond the 15 m disk
+  scene.sampling.grid = 1;
+  EXPECT_EQ(ViewPositions(scene), std::vector<Vec3d>{Vec3d(100.0, -50.0, 20.0)});
+}
+
+TEST_F(SceneFiles, LoadSceneNamesTheFile) {
+  const std::string path = Path("bad.json");
+  std::ofstream(path) << R"({"camera": {"widht": 10}})";
+  try {
+    LoadScene(path);
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& error) {
+    EXPECT_THAT(error.what(), HasSubstr(path + ": camera.widht: unknown key"));
+  }
+  EXPECT_THROW(LoadScene(Path("missing.json")), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace aos
