@@ -291,57 +291,62 @@ class World {
   // First surface along o + t d (d unit), t in (0, inf).
   Hit Trace(const Vec3d& o, const Vec3d& d, bool with_occluders) const {
     Hit hit;
+    std::vector<RTCRayHit> scratch;
+    TraceStream(o, &d, 1, with_occluders, &hit, &scratch);
+    return hit;
+  }
+
+  // Trace() for n rays from one origin, as coherent ray streams (rtcIntersect1M): the rays of
+  // one image row are neighbours, which Embree traces as packets.
+  void TraceStream(const Vec3d& o, const Vec3d* d, int n, bool with_occluders, Hit* hits,
+                   std::vector<RTCRayHit>* scratch) const {
+    for (int i = 0; i < n; ++i) hits[i] = Hit();
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
+    scratch->resize(static_cast<size_t>(n));
+    RTCRayHit* rh = scratch->data();
     if (with_occluders && occluders_) {
-      RTCRayHit rh = MakeRayHit(o, d, kInf);
-      RTCIntersectContext context;
-      rtcInitIntersectContext(&context);
-      rtcIntersect1(occluders_.get(), &context, &rh);
-      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-        hit.t = rh.ray.tfar;
-        hit.prim = rh.hit.primID;
-        if (rh.hit.geomID == voxel_geometry_) {
+      for (int i = 0; i < n; ++i) rh[i] = MakeRayHit(o, d[i], kInf);
+      rtcIntersect1M(occluders_.get(), &context, rh, static_cast<unsigned>(n), sizeof(RTCRayHit));
+      for (int i = 0; i < n; ++i) {
+        if (rh[i].hit.geomID == RTC_INVALID_GEOMETRY_ID) continue;
+        Hit& hit = hits[i];
+        hit.t = rh[i].ray.tfar;
+        hit.prim = rh[i].hit.primID;
+        if (rh[i].hit.geomID == voxel_geometry_) {
           hit.material = kVoxel;
         } else {
-          hit.material = rh.hit.primID < static_cast<unsigned>(trees_.leaf_quads) ? kLeaf : kTrunk;
+          hit.material = rh[i].hit.primID < static_cast<unsigned>(trees_.leaf_quads) ? kLeaf : kTrunk;
         }
-        hit.normal = Vec3d(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+        hit.normal = Vec3d(rh[i].hit.Ng_x, rh[i].hit.Ng_y, rh[i].hit.Ng_z);
       }
     }
-    double t_ground = std::numeric_limits<double>::infinity();
-    Vec3d ground_normal = plane_normal_;
     if (ground_) {
-      RTCRayHit rh = MakeRayHit(o, d, static_cast<float>(std::min<double>(hit.t, kInf)));
-      RTCIntersectContext context;
-      rtcInitIntersectContext(&context);
-      rtcIntersect1(ground_.get(), &context, &rh);
-      if (rh.hit.geomID != RTC_INVALID_GEOMETRY_ID) {
-        t_ground = rh.ray.tfar;
-        ground_normal = Vec3d(rh.hit.Ng_x, rh.hit.Ng_y, rh.hit.Ng_z);
+      for (int i = 0; i < n; ++i) {
+        rh[i] = MakeRayHit(o, d[i], static_cast<float>(std::min<double>(hits[i].t, kInf)));
       }
-    } else {
-      t_ground = PlaneDistance(o, d);
+      rtcIntersect1M(ground_.get(), &context, rh, static_cast<unsigned>(n), sizeof(RTCRayHit));
     }
-    if (t_ground < hit.t) {
-      hit.t = t_ground;
-      hit.normal = ground_normal;
-      hit.material = kGround;
-    }
-    if (hit.material == kNone) return hit;
-    hit.point = o + hit.t * d;
-    const double length = glm::length(hit.normal);
-    hit.normal = length > 0.0 ? hit.normal / length : Vec3d(0, 0, 1);
-    if (glm::dot(hit.normal, d) > 0.0) hit.normal = -hit.normal;
-    if (hit.material == kGround && !target_textures_.empty()) {
-      for (size_t i = 0; i < scene_.targets.size(); ++i) {
-        double u, v;
-        if (InTarget(scene_.targets[i], hit.point, &u, &v)) {
-          hit.material = kTarget;
-          hit.prim = static_cast<uint32_t>(i);
-          break;
+    for (int i = 0; i < n; ++i) {
+      Hit& hit = hits[i];
+      double t_ground = std::numeric_limits<double>::infinity();
+      Vec3d ground_normal = plane_normal_;
+      if (ground_) {
+        if (rh[i].hit.geomID != RTC_INVALID_GEOMETRY_ID) {
+          t_ground = rh[i].ray.tfar;
+          ground_normal = Vec3d(rh[i].hit.Ng_x, rh[i].hit.Ng_y, rh[i].hit.Ng_z);
         }
+      } else {
+        t_ground = PlaneDistance(o, d[i]);
       }
+      if (t_ground < hit.t) {
+        hit.t = t_ground;
+        hit.normal = ground_normal;
+        hit.material = kGround;
+      }
+      if (hit.material != kNone) Finish(o, d[i], &hit);
     }
-    return hit;
   }
 
   // Whether the segment o + t d, t in (0, t_max), hits anything (d unit).
@@ -465,6 +470,23 @@ class World {
     if (denominator == 0.0) return std::numeric_limits<double>::infinity();
     const double t = numerator / denominator;
     return t > 0.0 && std::isfinite(t) ? t : std::numeric_limits<double>::infinity();
+  }
+
+  // Completes a hit: point, unit normal facing the ray, target lookup on the ground.
+  void Finish(const Vec3d& o, const Vec3d& d, Hit* hit) const {
+    hit->point = o + hit->t * d;
+    const double length = glm::length(hit->normal);
+    hit->normal = length > 0.0 ? hit->normal / length : Vec3d(0, 0, 1);
+    if (glm::dot(hit->normal, d) > 0.0) hit->normal = -hit->normal;
+    if (hit->material != kGround) return;
+    for (size_t i = 0; i < scene_.targets.size(); ++i) {
+      double u, v;
+      if (InTarget(scene_.targets[i], hit->point, &u, &v)) {
+        hit->material = kTarget;
+        hit->prim = static_cast<uint32_t>(i);
+        return;
+      }
+    }
   }
 
   static bool InTarget(const TargetSpec& target, const Vec3d& p, double* u, double* v) {
@@ -729,21 +751,34 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
 #pragma omp parallel num_threads(threads)
     {
       Counters local;
+      std::vector<Vec3d> directions;
+      std::vector<Hit> hits;
+      std::vector<RTCRayHit> scratch;
 #pragma omp for schedule(dynamic, 4)
       for (int64_t y = 0; y < cam.height; ++y) {
+        // The row's rays, pixel by pixel, samples in row-major order within a pixel.
+        const int per_pixel = spp * spp;
+        directions.resize(static_cast<size_t>(cam.width) * per_pixel);
+        hits.resize(directions.size());
         for (int x = 0; x < cam.width; ++x) {
-          Rgb sum{0, 0, 0};
           for (int sy = 0; sy < spp; ++sy) {
             for (int sx = 0; sx < spp; ++sx) {
               const Vec2d pixel(x + (sx + 0.5) / spp, static_cast<double>(y) + (sy + 0.5) / spp);
-              const Vec3d d = glm::normalize(world_from_cam_rotation * camera.Unproject(pixel));
-              const Hit hit = world.Trace(centre, d, /*with_occluders=*/true);
-              ++local.primary;
-              const Rgb c = world.Shade(hit, true, &local);
-              for (int k = 0; k < 3; ++k) sum[k] += c[k];
+              directions[static_cast<size_t>(x) * per_pixel + sy * spp + sx] =
+                  glm::normalize(world_from_cam_rotation * camera.Unproject(pixel));
             }
           }
-          const double inv = 1.0 / (spp * spp);
+        }
+        world.TraceStream(centre, directions.data(), static_cast<int>(directions.size()),
+                          /*with_occluders=*/true, hits.data(), &scratch);
+        local.primary += static_cast<int64_t>(directions.size());
+        for (int x = 0; x < cam.width; ++x) {
+          Rgb sum{0, 0, 0};
+          for (int k = 0; k < per_pixel; ++k) {
+            const Rgb c = world.Shade(hits[static_cast<size_t>(x) * per_pixel + k], true, &local);
+            for (int channel = 0; channel < 3; ++channel) sum[channel] += c[channel];
+          }
+          const double inv = 1.0 / per_pixel;
           const Rgb mean{sum[0] * inv, sum[1] * inv, sum[2] * inv};
           for (int k = 0; k < channels; ++k) {
             double value = channels == 1 ? Luminance(mean) : mean[k];
