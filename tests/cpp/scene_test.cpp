@@ -87,6 +87,10 @@ TEST(Scene, OutOfRangeValuesAreErrors) {
               HasSubstr("ground.texture.type: \"marble\" is not one of"));
   EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"colors": [0.5, 1.5]}}})"),
               HasSubstr("ground.texture.colors[1]: 1.5 is outside [0, 1]"));
+  EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "constant", "color": 1.5}}})"),
+              HasSubstr("ground.texture.color: 1.5 is outside [0, 1]"));
+  EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "noise", "seed": -1}}})"),
+              HasSubstr("ground.texture.seed: must be >= 0"));
   EXPECT_THAT(ErrorOf(R"({"effects": {"sun": {"elevation_deg": 0}}})"),
               HasSubstr("effects.sun.elevation_deg"));
   EXPECT_THAT(ErrorOf(R"({"effects": {"thermal": {}}, "camera": {"channels": 3}})"),

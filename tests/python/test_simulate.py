@@ -151,3 +151,13 @@ def test_cli_simulate_writes_and_never_overwrites(tmp_path: Path) -> None:
     assert snapshot(out) == written
     printed = run("simulate", str(path), "--print-scene")
     assert printed.returncode == 0 and json.loads(printed.stdout)["sampling"]["grid"] == 3
+
+
+SCENES = sorted((Path(__file__).resolve().parents[2] / "scenes").glob("*.json"))
+
+
+@pytest.mark.parametrize("path", SCENES, ids=[p.name for p in SCENES])
+def test_example_scenes_parse_and_round_trip(path: Path) -> None:
+    scene = aos.load_scene(str(path))
+    text = scene.to_json()
+    assert aos.parse_scene(text, "again", str(path.parent)).to_json() == text

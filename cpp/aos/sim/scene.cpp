@@ -181,7 +181,11 @@ TextureSpec ReadTexture(Reader r, const TextureSpec& fallback, const std::string
   } else if (type == "checker" || type == "noise") {
     t.kind = type == "checker" ? Kind::kChecker : Kind::kNoise;
     t.square = r.Number("square", t.square);
-    if (type == "noise") t.seed = static_cast<uint32_t>(r.Int("seed", static_cast<int>(t.seed)));
+    if (type == "noise") {
+      const int seed = r.Int("seed", static_cast<int>(t.seed));
+      if (seed < 0) r.Fail(Join(r.path(), "seed"), "must be >= 0");
+      t.seed = static_cast<uint32_t>(seed);
+    }
   } else if (type == "chart") {
     t.kind = Kind::kChart;
     t.patch = r.Number("patch", t.patch);
@@ -197,7 +201,7 @@ TextureSpec ReadTexture(Reader r, const TextureSpec& fallback, const std::string
     t.kind = Kind::kImage;
     const std::string path = r.String("path", "");
     if (path.empty()) r.Fail(Join(r.path(), "path"), "is required for an image texture");
-    t.image_path = (fs::path(base_dir) / path).lexically_normal().string();
+    t.image_path = fs::absolute(fs::path(base_dir) / path).lexically_normal().string();
     if (fs::path(path).is_absolute()) t.image_path = path;
     t.size = r.Numbers<2>("size", t.size);
     try {
@@ -270,7 +274,8 @@ struct Checker {
     if (!(a[2] > a[0]) || !(a[3] > a[1])) Fail(path, "must be [xmin, ymin, xmax, ymax] with max > min");
   }
   void Texture(const TextureSpec& t, const std::string& path) const {
-    Color(t.color_a, path + ".colors[0]");
+    const bool constant = t.kind == TextureSpec::Kind::kConstant;
+    Color(t.color_a, path + (constant ? ".color" : ".colors[0]"));
     Color(t.color_b, path + ".colors[1]");
     Positive(t.square, path + ".square");
     Positive(t.patch, path + ".patch");
@@ -517,6 +522,7 @@ Scene ParseScene(const std::string& json_text, const std::string& source,
       t.center = Numbers2(r, "center", t.center);
       t.size = Numbers2(r, "size", t.size);
       t.rotation_deg = r.Number("rotation_deg", t.rotation_deg);
+      t.texture.size = t.size;  // an image texture covers the target unless told otherwise
       if (r.Has("texture")) t.texture = ReadTexture(r.Child("texture"), t.texture, base_dir);
       r.Finish();
       scene.targets.push_back(t);

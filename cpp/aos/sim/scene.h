@@ -34,8 +34,8 @@ struct TextureSpec {
   enum class Kind {
     kConstant,  // `color_a` everywhere
     kChecker,   // squares of side `square` alternating color_a / color_b
-    kChart,     // multi-resolution checkerboard chart (paper Fig. A2): patches of side `patch`,
-                // patch k (row-major in a grid of patches) uses square size squares[k % n]
+    kChart,     // multi-resolution checkerboard chart (paper Fig. A2): patches of side `patch`;
+                // patch (i, j) = (floor(x / patch), floor(y / patch)) uses squares[(i + j) mod n]
     kNoise,     // smooth value noise between color_a and color_b with feature size `square`
     kImage,     // an image file stretched over `size` metres (tiled beyond it)
   };
@@ -47,6 +47,7 @@ struct TextureSpec {
   std::vector<double> squares{1.0, 0.5, 0.25, 0.125};  // chart square sizes, metres (> 0 each)
   std::string image_path;                              // kImage: file (resolved, absolute)
   std::array<double, 2> size{1.0, 1.0};                // kImage: metres covered by the image
+                                                       // (on a target: the target's size)
   uint32_t seed = 0;                                   // kNoise: pattern seed
   std::shared_ptr<const Image> image;                  // kImage: decoded pixels (set by parser)
 };
@@ -169,8 +170,8 @@ struct TruthSpec {
   double fov_deg = 0.0;   // 0 = the camera's
   int width = 0;          // 0 = the camera's
   int height = 0;
-  // Per pixel, the fraction of views whose ray to the ground point is blocked (costs one
-  // shadow-like ray per view and pixel when occluders exist).
+  // Per pixel, the fraction of the views seeing the ground point whose ray to it is blocked
+  // (one ray per seeing view and pixel when anything can block: occluders or a height field).
   bool blocked_fraction = true;
 };
 
