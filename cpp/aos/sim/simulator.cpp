@@ -291,21 +291,20 @@ class World {
   // First surface along o + t d (d unit), t in (0, inf).
   Hit Trace(const Vec3d& o, const Vec3d& d, bool with_occluders) const {
     Hit hit;
-    std::vector<RTCRayHit> scratch;
+    RTCRayHit scratch;
     TraceStream(o, &d, 1, with_occluders, &hit, &scratch);
     return hit;
   }
 
   // Trace() for n rays from one origin, as coherent ray streams (rtcIntersect1M): the rays of
-  // one image row are neighbours, which Embree traces as packets.
+  // one image row are neighbours, which Embree traces as packets. `scratch` holds n rays.
   void TraceStream(const Vec3d& o, const Vec3d* d, int n, bool with_occluders, Hit* hits,
-                   std::vector<RTCRayHit>* scratch) const {
+                   RTCRayHit* scratch) const {
     for (int i = 0; i < n; ++i) hits[i] = Hit();
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
-    scratch->resize(static_cast<size_t>(n));
-    RTCRayHit* rh = scratch->data();
+    RTCRayHit* rh = scratch;
     if (with_occluders && occluders_) {
       for (int i = 0; i < n; ++i) rh[i] = MakeRayHit(o, d[i], kInf);
       rtcIntersect1M(occluders_.get(), &context, rh, static_cast<unsigned>(n), sizeof(RTCRayHit));
@@ -760,6 +759,7 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
         const int per_pixel = spp * spp;
         directions.resize(static_cast<size_t>(cam.width) * per_pixel);
         hits.resize(directions.size());
+        scratch.resize(directions.size());
         for (int x = 0; x < cam.width; ++x) {
           for (int sy = 0; sy < spp; ++sy) {
             for (int sx = 0; sx < spp; ++sx) {
@@ -770,7 +770,7 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
           }
         }
         world.TraceStream(centre, directions.data(), static_cast<int>(directions.size()),
-                          /*with_occluders=*/true, hits.data(), &scratch);
+                          /*with_occluders=*/true, hits.data(), scratch.data());
         local.primary += static_cast<int64_t>(directions.size());
         for (int x = 0; x < cam.width; ++x) {
           Rgb sum{0, 0, 0};
