@@ -1,6 +1,9 @@
 // Bindings of render/integral.h. The kwargs merge of aos.render_integral lives in
 // python/aos/__init__.py.
+#include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
+#include "aos/render/merge.h"
+#include "aos/render/surface_integral.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -36,6 +39,9 @@ void BindIntegral(py::module_& m) {
              "Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller "
              "(grazing) rays are ignored.")
       .Field("num_threads", &IntegralOptions::num_threads, "Worker threads; -1 = all cores.")
+      .Field("variance", &IntegralOptions::variance,
+             "Also return the per-pixel variance of the view samples (a second, scalar pass over "
+             "the samples: about twice the render time).")
       .Finish()
       .def("check", &IntegralOptions::Check, "view_count"_a,
            "Raises ValueError naming the offending field. `view_count` is the number of views in "
@@ -49,6 +55,10 @@ void BindIntegral(py::module_& m) {
       .def_property_readonly(
           "count", [](const IntegralResult& result) { return ArrayFromImage(result.count); },
           "uint32 (H, W): views that contributed to each pixel; shares memory with the result.")
+      .def_property_readonly(
+          "variance", [](const IntegralResult& result) { return ArrayFromImage(result.variance); },
+          "float32 (H, W): population variance of the view samples, mean over channels (0 where "
+          "count < 2), when options.variance; else None. Shares memory with the result.")
       .def_readonly("samples", &IntegralResult::samples, "Sum of count (view samples taken).")
       .def_readonly("views_used", &IntegralResult::views_used,
                     "Selected views that contributed to at least one pixel.")
@@ -89,10 +99,225 @@ void BindIntegral(py::module_& m) {
         "The virtual camera's intrinsics for `options` (square pixels, centred principal point).");
 }
 
+std::vector<py::object> Arrays(const std::vector<Image>& images) {
+  std::vector<py::object> arrays;
+  for (const Image& image : images) arrays.push_back(ArrayFromImage(image));
+  return arrays;
+}
+
+void BindSurfaceIntegral(py::module_& m) {
+  OptionsClass<SurfaceIntegralOptions>(
+      m, "SurfaceIntegralOptions",
+      "Options of render_integral_on_depth (the mean on a depth surface). Defaults from the C++ "
+      "struct aos::SurfaceIntegralOptions.")
+      .Field("robust", &SurfaceIntegralOptions::robust,
+             "Outlier-rejecting mean instead of the plain mean.")
+      .Field("agreement", &SurfaceIntegralOptions::agreement,
+             "Half-width of the band within which samples agree, as a fraction of the views' "
+             "full range (255 for 8-bit, 65535 for 16-bit, 1 for float), (0, 1].")
+      .Field("min_inlier_fraction", &SurfaceIntegralOptions::min_inlier_fraction,
+             "Fewest inliers, as a fraction of the pixel's samples, for the robust mean to be "
+             "used, [0, 1]; fewer keep the plain mean.")
+      .Finish()
+      .def("check", &SurfaceIntegralOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<SurfaceIntegralResult>(m, "SurfaceIntegralResult",
+                                    "What render_integral_on_depth returns.")
+      .def_readonly("integral", &SurfaceIntegralResult::integral,
+                    "image, count and statistics, as render_integral's result.")
+      .def_property_readonly(
+          "inliers",
+          [](const SurfaceIntegralResult& result) { return ArrayFromImage(result.inliers); },
+          "uint32 (H, W): samples averaged per pixel (robust only, else None); shares memory.")
+      .def_readonly("fallback_pixels", &SurfaceIntegralResult::fallback_pixels,
+                    "Robust: pixels that kept the plain mean (too few rays agreed).");
+
+  m.def(
+      "_render_integral_on_depth",
+      [](const LightField& light_field, const IntegralOptions& options, const py::handle& depth,
+         const SurfaceIntegralOptions& surface, const py::object& progress) {
+        const LightField light_field_copy = light_field;
+        const IntegralOptions options_copy = options;
+        const Image depth_image = ImageFromArray(depth, 0, "depth");
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return RenderIntegralOnDepth(light_field_copy, options_copy, depth_image, surface, sink);
+        });
+      },
+      "light_field"_a, "options"_a, "depth"_a, "surface"_a, "progress"_a = py::none(),
+      "Integral on a per-pixel depth surface (camera z, metres; float32 (H, W), copied). GIL "
+      "released. Prefer aos.render_integral_on_depth.");
+}
+
+void BindFocalStack(py::module_& m) {
+  OptionsClass<FocalStackOptions>(
+      m, "FocalStackOptions",
+      "Options of render_focal_stack. Defaults from the C++ struct aos::FocalStackOptions.")
+      .Field("render", &FocalStackOptions::render,
+             "Virtual camera, aperture, views, threads and variance flag of every slice "
+             "(IntegralOptions); render.focal_plane is ignored.")
+      .Field("first_plane", &FocalStackOptions::first_plane,
+             "Boundary plane of slice 0 (local frame).")
+      .Field("last_plane", &FocalStackOptions::last_plane,
+             "Boundary plane of slice N-1 (local frame).")
+      .Field("slices", &FocalStackOptions::slices, "Number of slices, 1 .. 100000.")
+      .Finish()
+      .def("check", &FocalStackOptions::Check, "view_count"_a,
+           "Raises ValueError naming the offending field.");
+
+  py::class_<FocalStack>(m, "FocalStack",
+                         "A focal stack: one integral image per slice plane, in memory.")
+      .def_readonly("camera", &FocalStack::camera, "The virtual camera.")
+      .def_readonly("cam_from_world", &FocalStack::cam_from_world, "Its pose (local frame).")
+      .def_readonly("render", &FocalStack::render,
+                    "How the slices were rendered (pose resolved, pose_view -1).")
+      .def_readonly("planes", &FocalStack::planes, "The slice planes (a copy).")
+      .def_property_readonly(
+          "images", [](const FocalStack& stack) { return Arrays(stack.images); },
+          "float32 images, one per slice; each shares memory with the stack.")
+      .def_property_readonly(
+          "counts", [](const FocalStack& stack) { return Arrays(stack.counts); },
+          "uint32 count maps, one per slice; shared.")
+      .def_property_readonly(
+          "variances", [](const FocalStack& stack) { return Arrays(stack.variances); },
+          "float32 variance maps (empty list unless rendered with variance); shared.")
+      .def("__len__", &FocalStack::size)
+      .def("__repr__", [](const FocalStack& stack) {
+        return "FocalStack(" + std::to_string(stack.size()) + " slices of " +
+               std::to_string(stack.camera.width) + "x" + std::to_string(stack.camera.height) +
+               (stack.variances.empty() ? "" : ", with variance") + ")";
+      });
+
+  m.def(
+      "_render_focal_stack",
+      [](const LightField& light_field, const FocalStackOptions& options,
+         const py::object& progress) {
+        const LightField light_field_copy = light_field;
+        const FocalStackOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return RenderFocalStack(light_field_copy, options_copy, sink);
+        });
+      },
+      "light_field"_a, "options"_a, "progress"_a = py::none(),
+      "Renders every slice, GIL released. Prefer aos.render_focal_stack.");
+  m.def("stack_planes", &StackPlanes, "first"_a, "last"_a, "slices"_a, "center"_a,
+        "The slice planes between two boundary planes, interpolated about the camera centre.");
+  m.def("interpolate_plane", &InterpolatePlane, "first"_a, "last"_a, "s"_a, "center"_a,
+        "The plane of parameter s in [0, 1] between two boundary planes.");
+  m.def(
+      "plane_depth",
+      [](const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane) {
+        return ArrayFromImage(PlaneDepth(camera, cam_from_world, plane));
+      },
+      "camera"_a, "cam_from_world"_a, "plane"_a,
+      "float32 (H, W): camera depth at which each pixel's ray meets the plane (0 if never in "
+      "front).");
+  m.def(
+      "write_focal_stack",
+      [](const std::string& folder, const FocalStack& stack) {
+        py::gil_scoped_release release;
+        WriteFocalStack(folder, stack);
+      },
+      "folder"_a, "stack"_a,
+      "Writes the stack into a new (or empty) folder: stack.json + slice/count/variance TIFFs.");
+  m.def(
+      "read_focal_stack",
+      [](const std::string& folder) {
+        py::gil_scoped_release release;
+        return ReadFocalStack(folder);
+      },
+      "folder"_a, "Reads a stack folder written by write_focal_stack (or aos-render stack).");
+}
+
+void BindMerge(py::module_& m) {
+  py::enum_<MergeMethod>(m, "MergeMethod", "All-in-focus merge method (docs: merge.h).")
+      .value("sobel", MergeMethod::kSobel)
+      .value("improved", MergeMethod::kImproved)
+      .value("robust", MergeMethod::kRobust);
+
+  OptionsClass<MergeOptions>(
+      m, "MergeOptions",
+      "Options of merge_focal_stack and all_in_focus. Defaults from the C++ struct "
+      "aos::MergeOptions. aos.merge_focal_stack also accepts method as a string.")
+      .Field("method", &MergeOptions::method, "sobel, improved (default) or robust.")
+      .Field("window_radius", &MergeOptions::window_radius,
+             "improved/robust: focus measure window radius, pixels (window 2r+1 on a side), "
+             "0..32.")
+      .Field("smoothing_sigma", &MergeOptions::smoothing_sigma,
+             "improved/robust: spatial sigma of the edge-aware depth smoothing, pixels, [0, 16]; "
+             "0 = off.")
+      .Field("edge_sigma", &MergeOptions::edge_sigma,
+             "improved/robust: range sigma of the smoothing, as a fraction of the guide image's "
+             "contrast (1st to 99th percentile), > 0.")
+      .Field("smoothing_iterations", &MergeOptions::smoothing_iterations,
+             "improved/robust: smoothing passes, 0..20.")
+      .Field("robust", &MergeOptions::robust,
+             "robust: the outlier-rejecting mean (SurfaceIntegralOptions; its robust flag is "
+             "forced on).")
+      .Field("num_threads", &MergeOptions::num_threads, "Worker threads; -1 = all cores.")
+      .Finish()
+      .def("check", &MergeOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<MergeResult>(m, "MergeResult", "An all-in-focus image with its depth and confidence.")
+      .def_property_readonly(
+          "image", [](const MergeResult& r) { return ArrayFromImage(r.image); },
+          "float32 (H, W) or (H, W, C): the all-in-focus image; shares memory.")
+      .def_property_readonly(
+          "depth", [](const MergeResult& r) { return ArrayFromImage(r.depth); },
+          "float32 (H, W): camera depth of the merged surface, metres; 0 where uncovered.")
+      .def_property_readonly(
+          "confidence", [](const MergeResult& r) { return ArrayFromImage(r.confidence); },
+          "float32 (H, W) in [0, 1].")
+      .def_property_readonly(
+          "slice", [](const MergeResult& r) { return ArrayFromImage(r.slice); },
+          "float32 (H, W): fractional slice index; -1 where uncovered.")
+      .def_readonly("uncovered_pixels", &MergeResult::uncovered_pixels,
+                    "Pixels no slice covers.")
+      .def_readonly("fallback_pixels", &MergeResult::fallback_pixels,
+                    "robust: pixels that kept the plain mean.")
+      .def_readonly("seconds_merge", &MergeResult::seconds_merge,
+                    "Time of focus measures, refinement, smoothing and image assembly, s.")
+      .def_readonly("seconds_render", &MergeResult::seconds_render,
+                    "Time of rendering (slices, re-integration), s.");
+
+  OptionsClass<AllInFocusOptions>(m, "AllInFocusOptions", "Options of all_in_focus.")
+      .Field("stack", &AllInFocusOptions::stack, "The slices (FocalStackOptions).")
+      .Field("merge", &AllInFocusOptions::merge, "The merge (MergeOptions).")
+      .Finish()
+      .def("check", &AllInFocusOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
+
+  m.def(
+      "_merge_focal_stack",
+      [](const FocalStack& stack, const MergeOptions& options, const LightField* light_field,
+         const py::object& progress) {
+        const MergeOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return MergeFocalStack(stack, options_copy, light_field, sink);
+        });
+      },
+      "stack"_a, "options"_a, "light_field"_a = py::none(), "progress"_a = py::none(),
+      "Merges a stack, GIL released (do not change the stack meanwhile). Prefer "
+      "aos.merge_focal_stack.");
+  m.def(
+      "_all_in_focus",
+      [](const LightField& light_field, const AllInFocusOptions& options,
+         const py::object& progress) {
+        const LightField light_field_copy = light_field;
+        const AllInFocusOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return RenderAllInFocus(light_field_copy, options_copy, sink);
+        });
+      },
+      "light_field"_a, "options"_a, "progress"_a = py::none(),
+      "The streaming pipeline, GIL released. Prefer aos.all_in_focus.");
+}
+
 }  // namespace
 
 void BindRender(py::module_& m) {
   BindIntegral(m);
+  BindSurfaceIntegral(m);
+  BindFocalStack(m);
+  BindMerge(m);
 }
 
 }  // namespace aos::python

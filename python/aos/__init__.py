@@ -31,7 +31,15 @@ from typing import Any, Callable, Optional, TypeVar
 
 from . import _core
 from ._core import (
+    AllInFocusOptions,
+    FocalStack,
+    FocalStackOptions,
     GroundTruth,
+    MergeMethod,
+    MergeOptions,
+    MergeResult,
+    SurfaceIntegralOptions,
+    SurfaceIntegralResult,
     QualityOptions,
     QualityResult,
     IntegralOptions,
@@ -56,9 +64,31 @@ from ._core import (
     write_image,
     write_lightfield,
     write_simulation,
+    interpolate_plane,
+    plane_depth,
+    read_focal_stack,
+    stack_planes,
+    write_focal_stack,
 )
 
 __all__ = [
+    "AllInFocusOptions",
+    "FocalStack",
+    "FocalStackOptions",
+    "MergeMethod",
+    "MergeOptions",
+    "MergeResult",
+    "SurfaceIntegralOptions",
+    "SurfaceIntegralResult",
+    "all_in_focus",
+    "interpolate_plane",
+    "merge_focal_stack",
+    "plane_depth",
+    "read_focal_stack",
+    "render_focal_stack",
+    "render_integral_on_depth",
+    "stack_planes",
+    "write_focal_stack",
     "GroundTruth",
     "QualityOptions",
     "QualityResult",
@@ -89,7 +119,15 @@ __all__ = [
     "write_simulation",
 ]
 
-_Options = TypeVar("_Options", IntegralOptions, SimulateOptions, QualityOptions)
+_Options = TypeVar(
+    "_Options",
+    IntegralOptions,
+    SimulateOptions,
+    QualityOptions,
+    SurfaceIntegralOptions,
+    FocalStackOptions,
+    MergeOptions,
+)
 
 
 def _merge_options(
@@ -188,3 +226,151 @@ def compare_images(
     merged = _merge_options("compare_images", QualityOptions, options, kwargs)
     return _core._compare_images(test, reference, mask, merged)
 
+
+
+def _method(value: Any) -> Any:
+    """A merge method given by name ("sobel", "improved", "robust") becomes a MergeMethod."""
+    if isinstance(value, str):
+        if value not in MergeMethod.__members__:
+            raise ValueError(
+                f"method: unknown merge method {value!r} (sobel, improved or robust)"
+            )
+        return MergeMethod.__members__[value]
+    return value
+
+
+def _split_kwargs(
+    function: str, kwargs: dict[str, Any], groups: "list[tuple[str, Any]]"
+) -> "dict[str, dict[str, Any]]":
+    """Sorts keyword arguments into the options classes whose field they name (first wins)."""
+    sorted_kwargs: dict[str, dict[str, Any]] = {name: {} for name, _ in groups}
+    for key, value in kwargs.items():
+        for name, cls in groups:
+            if key in cls._fields:
+                sorted_kwargs[name][key] = _method(value) if key == "method" else value
+                break
+        else:
+            names = ", ".join(f for _, cls in groups for f in cls._fields)
+            raise TypeError(f"{function}() got an unexpected keyword argument {key!r} (options: {names})")
+    return sorted_kwargs
+
+
+def _stack_options(
+    function: str, options: Optional[FocalStackOptions], kwargs: dict[str, Any]
+) -> FocalStackOptions:
+    groups = _split_kwargs(
+        function, kwargs, [("stack", FocalStackOptions), ("render", IntegralOptions)]
+    )
+    merged = _merge_options(function, FocalStackOptions, options, groups["stack"])
+    render = copy.copy(merged.render)
+    for key, value in groups["render"].items():
+        setattr(render, key, value)
+    merged.render = render
+    return merged
+
+
+def render_focal_stack(
+    light_field: LightField,
+    options: Optional[FocalStackOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Any,
+) -> FocalStack:
+    """Renders a focal stack: N slices between ``first_plane`` and ``last_plane``.
+
+    ``kwargs`` are fields of :class:`FocalStackOptions` (first_plane, last_plane, slices) or of
+    :class:`IntegralOptions` (applied to ``options.render``: pose_view, fov_deg, width,
+    aperture_radius, variance, ...). All slices stay in memory; :func:`all_in_focus` streams.
+
+    Example::
+
+        stack = aos.render_focal_stack(lf, pose_view=60, first_plane=aos.Plane.at_height(0),
+                                       last_plane=aos.Plane.at_height(20), slices=100)
+    """
+    merged = _stack_options("render_focal_stack", options, kwargs)
+    return _core._render_focal_stack(light_field, merged, progress)
+
+
+def merge_focal_stack(
+    stack: FocalStack,
+    options: Optional[MergeOptions] = None,
+    *,
+    light_field: Optional[LightField] = None,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Any,
+) -> MergeResult:
+    """All-in-focus image, depth and confidence of a stack (``method`` sobel/improved/robust).
+
+    ``kwargs`` are fields of :class:`MergeOptions`; ``method`` may be a string. The robust method
+    needs a stack rendered with ``variance=True`` and the ``light_field`` it came from.
+    """
+    groups = _split_kwargs("merge_focal_stack", kwargs, [("merge", MergeOptions)])
+    merged = _merge_options("merge_focal_stack", MergeOptions, options, groups["merge"])
+    return _core._merge_focal_stack(stack, merged, light_field, progress)
+
+
+def all_in_focus(
+    light_field: LightField,
+    options: Optional[AllInFocusOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Any,
+) -> MergeResult:
+    """The one-call pipeline: slices rendered one at a time and merged (memory flat in N).
+
+    ``kwargs`` are fields of :class:`MergeOptions` (method as a string or MergeMethod, ...),
+    :class:`FocalStackOptions` (first_plane, last_plane, slices) or :class:`IntegralOptions`
+    (pose_view, fov_deg, width, height, aperture_radius, ...).
+
+    Example::
+
+        result = aos.all_in_focus(lf, pose_view=60, first_plane=aos.Plane.at_height(0),
+                                  last_plane=aos.Plane.at_height(20), slices=100)
+        image, depth = result.image, result.depth
+    """
+    groups = _split_kwargs(
+        "all_in_focus",
+        kwargs,
+        [("merge", MergeOptions), ("stack", FocalStackOptions), ("render", IntegralOptions)],
+    )
+    merged = copy.copy(options) if options is not None else AllInFocusOptions()
+    merge = copy.copy(merged.merge)
+    for key, value in groups["merge"].items():
+        setattr(merge, key, value)
+    stack = copy.copy(merged.stack)
+    for key, value in groups["stack"].items():
+        setattr(stack, key, value)
+    render = copy.copy(stack.render)
+    for key, value in groups["render"].items():
+        setattr(render, key, value)
+    stack.render = render
+    merged.merge = merge
+    merged.stack = stack
+    return _core._all_in_focus(light_field, merged, progress)
+
+
+def render_integral_on_depth(
+    light_field: LightField,
+    depth: Any,
+    options: Optional[IntegralOptions] = None,
+    surface: Optional[SurfaceIntegralOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Any,
+) -> SurfaceIntegralResult:
+    """Integral on a per-pixel depth surface (``depth``: camera z in metres, (H, W), copied).
+
+    ``kwargs`` are fields of :class:`IntegralOptions` or :class:`SurfaceIntegralOptions`
+    (robust, agreement, min_inlier_fraction). Used for the "oracle" image on
+    a true depth map and for re-integrating a merged depth map.
+    """
+    groups = _split_kwargs(
+        "render_integral_on_depth",
+        kwargs,
+        [("render", IntegralOptions), ("surface", SurfaceIntegralOptions)],
+    )
+    render = _merge_options("render_integral_on_depth", IntegralOptions, options, groups["render"])
+    surf = _merge_options(
+        "render_integral_on_depth", SurfaceIntegralOptions, surface, groups["surface"]
+    )
+    return _core._render_integral_on_depth(light_field, render, depth, surf, progress)

@@ -189,6 +189,7 @@ struct Tile {
 // Per-tile working memory of one thread.
 struct TileBuffers {
   std::vector<double> sum;        // rows x width x channels
+  std::vector<double> sum_squares;  // rows x width: sum over channels of samples^2 (variance)
   std::vector<int32_t> count_diff;  // rows x (width + 1)
   std::vector<double> best;       // nearest mode: best squared lens-plane distance per pixel
   std::vector<int32_t> best_view; // nearest mode: the view (position in the selection) chosen
@@ -273,6 +274,33 @@ void NearestSpan(const Image& image, int32_t view, const RowLine& line,
   }
 }
 
+// Adds, for columns [xa, xb), the sum over channels of the squared bilinear samples into
+// sum_squares[x - x0] (the variance pass; same sample positions as the span kernels).
+void SquaresSpan(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                 double* sum_squares) {
+  const int channels = image.channels();
+  for (int x = xa; x < xb; ++x) {
+    const double w = line.w0 + line.dw * x;
+    double sx = (line.u0 + line.du * x) / w - 0.5;
+    double sy = (line.v0 + line.dv * x) / w - 0.5;
+    sx = std::min(sx > -1.0 ? sx : -1.0, image.width() - 0.5);
+    sy = std::min(sy > -1.0 ? sy : -1.0, image.height() - 0.5);
+    const int ix = static_cast<int>(std::floor(sx));
+    const int iy = static_cast<int>(std::floor(sy));
+    const double ax = sx - ix, ay = sy - iy;
+    double total = 0.0;
+    for (int c = 0; c < channels; ++c) {
+      const double p00 = image.Value(ix, iy, c), p01 = image.Value(ix + 1, iy, c);
+      const double p10 = image.Value(ix, iy + 1, c), p11 = image.Value(ix + 1, iy + 1, c);
+      const double top = p00 + ax * (p01 - p00);
+      const double bottom = p10 + ax * (p11 - p10);
+      const double value = top + ay * (bottom - top);
+      total += value * value;
+    }
+    sum_squares[x - x0] += total;
+  }
+}
+
 class IntegralRenderer {
  public:
   IntegralRenderer(const LightField& light_field, const IntegralOptions& options)
@@ -299,17 +327,7 @@ class IntegralRenderer {
 };
 
 void IntegralRenderer::SetUpGeometry() {
-  if (options_.pose_view >= 0) {
-    const View& view = light_field_.views[static_cast<size_t>(options_.pose_view)];
-    cam_from_world_ = view.cam_from_world;
-    if (auto problem = DescribeInvalidRigid(cam_from_world_)) {
-      ThrowInvalid("pose_view: view " + std::to_string(options_.pose_view) +
-                   (view.name.empty() ? "" : " (" + view.name + ")") + ": cam_from_world: " +
-                   *problem);
-    }
-  } else {
-    cam_from_world_ = options_.cam_from_world;
-  }
+  cam_from_world_ = VirtualCamFromWorld(light_field_, options_);
   camera_ = VirtualCamera(options_);
   Geometry& g = geometry_;
   g.center = cam_from_world_.Center();
@@ -411,6 +429,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
   const size_t row_values = static_cast<size_t>(tile_width) * channels_;
   buffers.sum.assign(row_values * rows + internal::kSpanPadding, 0.0);
   buffers.count_diff.assign(static_cast<size_t>(tile_width + 1) * rows, 0);
+  if (options_.variance) buffers.sum_squares.assign(static_cast<size_t>(tile_width) * rows, 0.0);
   if (mode_ == Mode::kNearest) {
     buffers.best.assign(static_cast<size_t>(tile_width) * rows,
                         std::numeric_limits<double>::infinity());
@@ -528,6 +547,10 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
                       buffers.best_view.data() + row_offset);
         } else {
           kernel(image, line, xa, xb, tile.x0, sum_row);
+          if (options_.variance) {
+            SquaresSpan(image, line, xa, xb, tile.x0,
+                        buffers.sum_squares.data() + static_cast<size_t>(tile_width) * r);
+          }
           diff_row[xa - tile.x0] += 1;
           diff_row[xb - tile.x0] -= 1;
           used = true;
@@ -554,6 +577,22 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
         count += diff_row[i];
       }
       count_out[i] = static_cast<uint32_t>(count);
+      if (options_.variance) {
+        // Population variance, mean over channels; 0 for fewer than two samples (nearest mode
+        // keeps one sample a pixel).
+        double variance = 0.0;
+        if (count >= 2 && mode_ == Mode::kAverage) {
+          const double n = static_cast<double>(count);
+          double mean_squares = 0.0;
+          for (int c = 0; c < channels_; ++c) {
+            const double mean = sum_row[i * channels_ + c] / n;
+            mean_squares += mean * mean;
+          }
+          const double squares = buffers.sum_squares[static_cast<size_t>(tile_width) * r + i];
+          variance = std::max(0.0, (squares / n - mean_squares) / channels_);
+        }
+        result_.variance.At<float>(tile.x0, y)[i] = static_cast<float>(variance);
+      }
       // Divide (rather than multiply by a reciprocal) so the result is the correctly rounded
       // mean of the double sums.
       for (int c = 0; c < channels_; ++c) {
@@ -576,6 +615,7 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
   const int width = camera_.width, height = camera_.height;
   result_.image = Image(width, height, channels_, PixelType::kF32);
   result_.count = Image(width, height, 1, PixelType::kU32);
+  if (options_.variance) result_.variance = Image(width, height, 1, PixelType::kF32);
   result_.cam_from_world = cam_from_world_;
 
   // Tiles of whole rows (at most kMaxTileWidth columns), enough rows to fill the accumulators.
@@ -643,6 +683,17 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
 
 PinholeCamera VirtualCamera(const IntegralOptions& options) {
   return PinholeCamera::FromFov(options.width, options.height, options.fov_deg);
+}
+
+Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions& options) {
+  if (options.pose_view < 0) return options.cam_from_world;
+  const View& view = light_field.views.at(static_cast<size_t>(options.pose_view));
+  if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {
+    ThrowInvalid("pose_view: view " + std::to_string(options.pose_view) +
+                 (view.name.empty() ? "" : " (" + view.name + ")") + ": cam_from_world: " +
+                 *problem);
+  }
+  return view.cam_from_world;
 }
 
 void IntegralOptions::Check(int view_count) const {

@@ -24,6 +24,10 @@
 //   rays run along it), is an error.
 // - In nearest mode (aperture_radius 0), ties go to the lower view index; views_used counts the
 //   views chosen for at least one pixel.
+// - With `variance`, variance(x, y) = mean over channels of (sum of samples^2 / count - mean^2),
+//   the population variance of the view samples (0 where count < 2, never negative). Points on
+//   the focal surface look alike from every view, occluders and defocused points do not: it is
+//   a focus cue (merge.h).
 //
 // Throws std::invalid_argument (naming the option) for bad options, aos::Cancelled if the
 // progress sink asks to stop.
@@ -60,6 +64,9 @@ struct IntegralOptions {
   double min_view_angle_deg = 1.0;
   // Worker threads; -1 = all cores.
   int num_threads = -1;
+  // Also return the per-pixel variance of the view samples (a second, scalar pass over the
+  // samples: about twice the render time).
+  bool variance = false;
 
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
   // in the light field (for pose_view and view_indices).
@@ -69,6 +76,7 @@ struct IntegralOptions {
 struct IntegralResult {
   Image image;          // float32, width x height x channels of the views
   Image count;          // uint32, width x height: views that contributed to each pixel
+  Image variance;       // float32, width x height, when IntegralOptions::variance (else empty)
   int64_t samples = 0;  // sum of count (view samples taken)
   int views_used = 0;   // selected views that contributed to at least one pixel
   int views_selected = 0;
@@ -81,5 +89,9 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
 
 // The virtual camera's intrinsics for `options` (square pixels, centred principal point).
 PinholeCamera VirtualCamera(const IntegralOptions& options);
+
+// The virtual camera's pose: view pose_view's, or options.cam_from_world. Throws
+// std::invalid_argument if that pose is not a rigid transform.
+Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions& options);
 
 }  // namespace aos

@@ -1,7 +1,4 @@
 // Writing a simulation to a folder (declared in simulator.h).
-#include <unistd.h>
-
-#include <atomic>
 #include <filesystem>
 #include <system_error>
 
@@ -29,22 +26,6 @@ ojson PoseJson(const Rigid3d& pose) {
   return {{"rotation", rotation},
           {"translation", {pose.translation.x, pose.translation.y, pose.translation.z}}};
 }
-
-// Removes a folder tree on destruction unless released.
-class TempFolder {
- public:
-  explicit TempFolder(fs::path path) : path_(std::move(path)) {}
-  ~TempFolder() {
-    if (!path_.empty()) {
-      std::error_code ignored;
-      fs::remove_all(path_, ignored);
-    }
-  }
-  void Release() { path_.clear(); }
-
- private:
-  fs::path path_;
-};
 
 }  // namespace
 
@@ -90,34 +71,8 @@ std::string SimulationSummaryJson(const SimulationResult& result) {
 
 void WriteSimulation(const SimulationResult& result, const Scene& scene,
                      const std::string& output_dir) {
-  if (output_dir.empty()) ThrowInvalid("output folder: empty path");
-  const fs::path final_path = fs::absolute(fs::path(output_dir)).lexically_normal();
-  fs::path target = final_path;
-  if (target.filename().empty()) target = target.parent_path();  // "out/" -> "out"
-  std::error_code error;
-  if (fs::exists(target, error)) {
-    if (!fs::is_directory(target, error)) {
-      ThrowInvalid(output_dir + ": output folder: exists and is not a folder");
-    }
-    if (!fs::is_empty(target, error)) {
-      ThrowInvalid(output_dir + ": output folder: exists and is not empty (nothing is "
-                                "overwritten; choose a new folder)");
-    }
-  }
-  const fs::path parent = target.parent_path();
-  if (!fs::is_directory(parent, error)) {
-    ThrowInvalid(output_dir + ": output folder: the parent folder " + parent.string() +
-                 " does not exist");
-  }
-  static std::atomic<int> counter{0};
-  const fs::path temp = parent / ("." + target.filename().string() + ".partial-" +
-                                  std::to_string(::getpid()) + "-" + std::to_string(counter++));
-  fs::create_directory(temp, error);
-  if (error) {
-    ThrowInvalid(output_dir + ": cannot create a temporary folder beside it (" + error.message() +
-                 ")");
-  }
-  TempFolder cleanup(temp);
+  PendingFolder folder(output_dir);
+  const fs::path temp = folder.TempPath();
   const bool float_views = scene.camera.bit_depth == 32;
   const std::string extension = float_views ? ".tif" : ".png";
 
@@ -137,6 +92,7 @@ void WriteSimulation(const SimulationResult& result, const Scene& scene,
   WriteLightField((temp / "lightfield_true.json").string(), true_field, lf_options);
 
   // Ground truth.
+  std::error_code error;
   const fs::path truth = temp / "truth";
   fs::create_directory(truth, error);
   if (error) ThrowInvalid(truth.string() + ": cannot create the folder (" + error.message() + ")");
@@ -149,14 +105,7 @@ void WriteSimulation(const SimulationResult& result, const Scene& scene,
   WriteTextFileAtomic((truth / "truth.json").string(), SimulationSummaryJson(result));
   WriteTextFileAtomic((temp / "scene.json").string(), SceneToJson(scene));
 
-  // Into place: an existing empty folder is replaced.
-  if (fs::exists(target, error)) fs::remove(target, error);
-  fs::rename(temp, target, error);
-  if (error) {
-    ThrowInvalid(output_dir + ": cannot move the finished output into place (" + error.message() +
-                 ")");
-  }
-  cleanup.Release();
+  folder.Commit();
 }
 
 }  // namespace aos

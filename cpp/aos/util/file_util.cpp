@@ -138,4 +138,54 @@ std::string ReadTextFile(const std::string& path) {
   return buffer.str();
 }
 
+PendingFolder::PendingFolder(const std::string& output_dir) : output_dir_(output_dir) {
+  if (output_dir.empty()) ThrowInvalid("output folder: empty path");
+  fs::path target = fs::absolute(fs::path(output_dir)).lexically_normal();
+  if (target.filename().empty()) target = target.parent_path();  // "out/" -> "out"
+  std::error_code error;
+  if (fs::exists(target, error)) {
+    if (!fs::is_directory(target, error)) {
+      ThrowInvalid(output_dir + ": output folder: exists and is not a folder");
+    }
+    if (!fs::is_empty(target, error)) {
+      ThrowInvalid(output_dir + ": output folder: exists and is not empty (nothing is "
+                                "overwritten; choose a new folder)");
+    }
+  }
+  const fs::path parent = target.parent_path();
+  if (!fs::is_directory(parent, error)) {
+    ThrowInvalid(output_dir + ": output folder: the parent folder " + parent.string() +
+                 " does not exist");
+  }
+  static std::atomic<int> counter{0};
+  const fs::path temp = parent / ("." + target.filename().string() + ".partial-" +
+                                  std::to_string(::getpid()) + "-" + std::to_string(counter++));
+  fs::create_directory(temp, error);
+  if (error) {
+    ThrowInvalid(output_dir + ": cannot create a temporary folder beside it (" + error.message() +
+                 ")");
+  }
+  final_path_ = target.string();
+  temp_path_ = temp.string();
+}
+
+PendingFolder::~PendingFolder() {
+  if (!committed_ && !temp_path_.empty()) {
+    std::error_code ignored;
+    fs::remove_all(temp_path_, ignored);
+  }
+}
+
+void PendingFolder::Commit() {
+  std::error_code error;
+  // An existing empty folder is replaced.
+  if (fs::exists(final_path_, error)) fs::remove(final_path_, error);
+  fs::rename(temp_path_, final_path_, error);
+  if (error) {
+    ThrowInvalid(output_dir_ + ": cannot move the finished output into place (" +
+                 error.message() + ")");
+  }
+  committed_ = true;
+}
+
 }  // namespace aos

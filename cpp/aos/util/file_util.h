@@ -41,6 +41,27 @@ void CommitTogether(const std::vector<PendingFile*>& files);
 void CheckOutputPath(const std::string& output_path, const std::vector<std::string>& input_paths,
                      const std::string& what = "output");
 
+// A pending output folder: the contents are written into a hidden temporary sibling
+// (TempPath()), and Commit() renames it to the final path. The constructor refuses a final path
+// that exists and is not an empty folder (nothing is overwritten) or whose parent folder is
+// missing, naming `output_dir`; the destructor removes the temporary folder unless committed.
+class PendingFolder {
+ public:
+  explicit PendingFolder(const std::string& output_dir);
+  ~PendingFolder();
+  PendingFolder(const PendingFolder&) = delete;
+  PendingFolder& operator=(const PendingFolder&) = delete;
+
+  const std::string& TempPath() const { return temp_path_; }
+  void Commit();
+
+ private:
+  std::string output_dir_;
+  std::string final_path_;
+  std::string temp_path_;
+  bool committed_ = false;
+};
+
 // Writes `text` to `path` atomically (temporary file, then rename).
 void WriteTextFileAtomic(const std::string& path, const std::string& text);
 

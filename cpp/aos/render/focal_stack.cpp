@@ -1,0 +1,373 @@
+#include "aos/render/focal_stack.h"
+
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <limits>
+#include <utility>
+
+#include <nlohmann/json.hpp>
+
+#include "aos/image/image_io.h"
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
+
+namespace fs = std::filesystem;
+
+namespace aos {
+namespace {
+
+using json = nlohmann::json;
+using ojson = nlohmann::ordered_json;
+
+constexpr int kMaxSlices = 100000;
+
+Vec3d UnitNormal(const Plane& plane, const std::string& which) {
+  const Vec3d& n = plane.normal;
+  const double length = glm::length(n);
+  if (!std::isfinite(length) || !(length > 0.0) || !std::isfinite(plane.point.x) ||
+      !std::isfinite(plane.point.y) || !std::isfinite(plane.point.z)) {
+    ThrowInvalid(which + ": point and normal must be finite and the normal non-zero");
+  }
+  return n / length;
+}
+
+std::string SliceName(const char* prefix, int index) {
+  char name[64];
+  std::snprintf(name, sizeof(name), "%s_%04d.tif", prefix, index);
+  return name;
+}
+
+// Strict JSON access for stack.json: errors name the file and the key path.
+const json& Field(const json& object, const std::string& key, const std::string& where,
+                  const std::string& file) {
+  if (!object.is_object() || !object.contains(key)) {
+    ThrowInvalid(Where(file, where + (where.empty() ? "" : ".") + key + ": missing"));
+  }
+  return object.at(key);
+}
+
+double NumberField(const json& object, const std::string& key, const std::string& where,
+                   const std::string& file) {
+  const json& value = Field(object, key, where, file);
+  if (!value.is_number() || !std::isfinite(value.get<double>())) {
+    ThrowInvalid(Where(file, where + (where.empty() ? "" : ".") + key + ": must be a finite number"));
+  }
+  return value.get<double>();
+}
+
+Vec3d VectorField(const json& object, const std::string& key, const std::string& where,
+                  const std::string& file) {
+  const json& value = Field(object, key, where, file);
+  const std::string path = where + (where.empty() ? "" : ".") + key;
+  if (!value.is_array() || value.size() != 3) {
+    ThrowInvalid(Where(file, path + ": must be an array of 3 numbers"));
+  }
+  Vec3d v;
+  for (int i = 0; i < 3; ++i) {
+    if (!value[static_cast<size_t>(i)].is_number() ||
+        !std::isfinite(value[static_cast<size_t>(i)].get<double>())) {
+      ThrowInvalid(Where(file, path + ": must be an array of 3 finite numbers"));
+    }
+    v[i] = value[static_cast<size_t>(i)].get<double>();
+  }
+  return v;
+}
+
+std::string StringField(const json& object, const std::string& key, const std::string& where,
+                        const std::string& file) {
+  const json& value = Field(object, key, where, file);
+  if (!value.is_string()) {
+    ThrowInvalid(Where(file, where + (where.empty() ? "" : ".") + key + ": must be a string"));
+  }
+  return value.get<std::string>();
+}
+
+}  // namespace
+
+void FocalStackOptions::Check(int view_count) const {
+  render.Check(view_count);
+  UnitNormal(first_plane, "first_plane");
+  UnitNormal(last_plane, "last_plane");
+  if (slices < 1 || slices > kMaxSlices) {
+    ThrowInvalid("slices: must be 1.." + std::to_string(kMaxSlices) + " (got " +
+                 std::to_string(slices) + ")");
+  }
+}
+
+Plane InterpolatePlane(const Plane& first, const Plane& last, double s, const Vec3d& center) {
+  const Vec3d n0 = UnitNormal(first, "first_plane");
+  Vec3d n1 = UnitNormal(last, "last_plane");
+  const double h0 = glm::dot(n0, first.point - center);
+  double h1 = glm::dot(n1, last.point - center);
+  if (glm::dot(n0, n1) < 0.0) {
+    n1 = -n1;
+    h1 = -h1;
+  }
+  // n0 + n1 has length >= sqrt(2) after the flip, so the blend never vanishes.
+  const Vec3d n = glm::normalize((1.0 - s) * n0 + s * n1);
+  const double h = (1.0 - s) * h0 + s * h1;
+  return Plane{center + h * n, n};
+}
+
+std::vector<Plane> StackPlanes(const Plane& first, const Plane& last, int slices,
+                               const Vec3d& center) {
+  if (slices < 1) ThrowInvalid("slices: must be >= 1 (got " + std::to_string(slices) + ")");
+  std::vector<Plane> planes;
+  planes.reserve(static_cast<size_t>(slices));
+  for (int i = 0; i < slices; ++i) {
+    const double s = slices == 1 ? 0.5 : static_cast<double>(i) / (slices - 1);
+    planes.push_back(InterpolatePlane(first, last, s, center));
+  }
+  return planes;
+}
+
+Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane) {
+  Image depth(camera.width, camera.height, 1, PixelType::kF32);
+  const Vec3d center = cam_from_world.Center();
+  const Vec3d normal = glm::normalize(plane.normal);
+  const double h = glm::dot(normal, plane.point - center);
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  for (int y = 0; y < camera.height; ++y) {
+    float* row = depth.At<float>(0, y);
+    for (int x = 0; x < camera.width; ++x) {
+      // The ray C + t D with D = R^T K^-1 p has camera depth t (D's camera z is 1).
+      const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+      const double f = glm::dot(normal, direction);
+      const double t = f != 0.0 ? h / f : 0.0;
+      row[x] = t > 0.0 && std::isfinite(t) ? static_cast<float>(t) : 0.0f;
+    }
+  }
+  return depth;
+}
+
+void FocalStack::Check(const std::string& where) const {
+  const size_t n = planes.size();
+  if (n == 0) ThrowInvalid(where + ": the stack has no slices");
+  if (images.size() != n || counts.size() != n || (!variances.empty() && variances.size() != n)) {
+    ThrowInvalid(where + ": planes, images, counts and variances differ in number");
+  }
+  for (size_t i = 0; i < n; ++i) {
+    const std::string slice = where + ": slice " + std::to_string(i);
+    const Image& image = images[i];
+    if (image.width() != camera.width || image.height() != camera.height ||
+        image.type() != PixelType::kF32) {
+      ThrowInvalid(slice + ": image must be float32 of the camera's size " +
+                   std::to_string(camera.width) + "x" + std::to_string(camera.height));
+    }
+    if (image.channels() != images.front().channels()) {
+      ThrowInvalid(slice + ": has " + std::to_string(image.channels()) +
+                   " channels, slice 0 has " + std::to_string(images.front().channels()));
+    }
+    if (counts[i].width() != camera.width || counts[i].height() != camera.height ||
+        counts[i].channels() != 1 || counts[i].type() != PixelType::kU32) {
+      ThrowInvalid(slice + ": count must be 1-channel uint32 of the camera's size");
+    }
+    if (!variances.empty() &&
+        (variances[i].width() != camera.width || variances[i].height() != camera.height ||
+         variances[i].channels() != 1 || variances[i].type() != PixelType::kF32)) {
+      ThrowInvalid(slice + ": variance must be 1-channel float32 of the camera's size");
+    }
+  }
+}
+
+void RenderFocalStackSlices(const LightField& light_field, const FocalStackOptions& options,
+                            const SliceSink& on_slice, ProgressSink* progress) {
+  options.Check(static_cast<int>(light_field.views.size()));
+  const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options.render);
+  const std::vector<Plane> planes =
+      StackPlanes(options.first_plane, options.last_plane, options.slices, cam_from_world.Center());
+  ProgressStart(progress, "focal stack", options.slices);
+  IntegralOptions render = options.render;
+  for (int i = 0; i < options.slices; ++i) {
+    if (ProgressCancelled(progress)) throw Cancelled();
+    render.focal_plane = planes[static_cast<size_t>(i)];
+    IntegralResult slice;
+    try {
+      slice = RenderIntegral(light_field, render);
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid("slice " + std::to_string(i) + ": " + error.what());
+    }
+    on_slice(i, planes[static_cast<size_t>(i)], slice);
+    ProgressAdvance(progress, 1);
+  }
+}
+
+FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptions& options,
+                            ProgressSink* progress) {
+  FocalStack stack;
+  stack.camera = VirtualCamera(options.render);
+  stack.render = options.render;
+  stack.render.cam_from_world = VirtualCamFromWorld(light_field, options.render);
+  stack.render.pose_view = -1;
+  RenderFocalStackSlices(
+      light_field, options,
+      [&](int, const Plane& plane, IntegralResult& slice) {
+        stack.cam_from_world = slice.cam_from_world;
+        stack.planes.push_back(plane);
+        stack.images.push_back(std::move(slice.image));
+        stack.counts.push_back(std::move(slice.count));
+        if (options.render.variance) stack.variances.push_back(std::move(slice.variance));
+      },
+      progress);
+  return stack;
+}
+
+void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
+  stack.Check("focal stack");
+  PendingFolder pending(folder);
+  const fs::path temp = pending.TempPath();
+  ojson j;
+  j["format"] = "aos-focal-stack";
+  j["version"] = 1;
+  const PinholeCamera& c = stack.camera;
+  j["camera"] = {{"model", "pinhole"}, {"width", c.width}, {"height", c.height},
+                 {"fx", c.fx},         {"fy", c.fy},       {"cx", c.cx},
+                 {"cy", c.cy}};
+  ojson rotation = ojson::array();
+  for (int r = 0; r < 3; ++r) {
+    const Vec3d row = Row(stack.cam_from_world.rotation, r);
+    rotation.push_back({row.x, row.y, row.z});
+  }
+  const Vec3d& t = stack.cam_from_world.translation;
+  j["cam_from_world"] = {{"rotation", rotation}, {"translation", {t.x, t.y, t.z}}};
+  const IntegralOptions& r = stack.render;
+  j["render"] = {{"fov_deg", r.fov_deg},
+                 {"aperture_radius", std::isfinite(r.aperture_radius) ? ojson(r.aperture_radius)
+                                                                      : ojson("inf")},
+                 {"min_view_angle_deg", r.min_view_angle_deg},
+                 {"view_indices", r.view_indices}};
+  ojson slices = ojson::array();
+  for (int i = 0; i < stack.size(); ++i) {
+    const Plane& plane = stack.planes[static_cast<size_t>(i)];
+    ojson slice = {{"plane", {{"point", {plane.point.x, plane.point.y, plane.point.z}},
+                              {"normal", {plane.normal.x, plane.normal.y, plane.normal.z}}}},
+                   {"image", SliceName("slice", i)},
+                   {"count", SliceName("count", i)}};
+    WriteImage((temp / SliceName("slice", i)).string(), stack.images[static_cast<size_t>(i)]);
+    WriteImage((temp / SliceName("count", i)).string(), stack.counts[static_cast<size_t>(i)]);
+    if (!stack.variances.empty()) {
+      slice["variance"] = SliceName("variance", i);
+      WriteImage((temp / SliceName("variance", i)).string(),
+                 stack.variances[static_cast<size_t>(i)]);
+    }
+    slices.push_back(slice);
+  }
+  j["slices"] = slices;
+  WriteTextFileAtomic((temp / "stack.json").string(), j.dump(2) + "\n");
+  pending.Commit();
+}
+
+FocalStack ReadFocalStack(const std::string& folder) {
+  const fs::path base(folder);
+  const std::string file = (base / "stack.json").string();
+  json j;
+  try {
+    j = json::parse(ReadTextFile(file));
+  } catch (const json::exception& error) {
+    ThrowInvalid(Where(file, std::string("not valid JSON (") + error.what() + ")"));
+  }
+  if (!j.is_object() || !j.contains("format") || j["format"] != "aos-focal-stack") {
+    ThrowInvalid(Where(file, "format: must be \"aos-focal-stack\""));
+  }
+  if (NumberField(j, "version", "", file) != 1) ThrowInvalid(Where(file, "version: must be 1"));
+  FocalStack stack;
+  const json& camera = Field(j, "camera", "", file);
+  const double width = NumberField(camera, "width", "camera", file);
+  const double height = NumberField(camera, "height", "camera", file);
+  if (width != std::floor(width) || height != std::floor(height) || width < 1 || height < 1 ||
+      width > 65536 || height > 65536) {
+    ThrowInvalid(Where(file, "camera.width/height: must be integers 1..65536"));
+  }
+  stack.camera.width = static_cast<int>(width);
+  stack.camera.height = static_cast<int>(height);
+  stack.camera.fx = NumberField(camera, "fx", "camera", file);
+  stack.camera.fy = NumberField(camera, "fy", "camera", file);
+  stack.camera.cx = NumberField(camera, "cx", "camera", file);
+  stack.camera.cy = NumberField(camera, "cy", "camera", file);
+  stack.camera.Check(file + ": camera");
+  const json& pose = Field(j, "cam_from_world", "", file);
+  const json& rotation = Field(pose, "rotation", "cam_from_world", file);
+  if (!rotation.is_array() || rotation.size() != 3) {
+    ThrowInvalid(Where(file, "cam_from_world.rotation: must be 3 rows of 3 numbers"));
+  }
+  Vec3d rows[3];
+  for (int r = 0; r < 3; ++r) {
+    json holder = {{"row", rotation[static_cast<size_t>(r)]}};
+    rows[r] = VectorField(holder, "row", "cam_from_world.rotation", file);
+  }
+  stack.cam_from_world.rotation = MatFromRows(rows[0], rows[1], rows[2]);
+  stack.cam_from_world.translation = VectorField(pose, "translation", "cam_from_world", file);
+  if (auto problem = DescribeInvalidRigid(stack.cam_from_world)) {
+    ThrowInvalid(Where(file, "cam_from_world: " + *problem));
+  }
+  stack.render.width = stack.camera.width;
+  stack.render.height = stack.camera.height;
+  stack.render.cam_from_world = stack.cam_from_world;
+  if (j.contains("render")) {
+    const json& render = j["render"];
+    stack.render.fov_deg = NumberField(render, "fov_deg", "render", file);
+    const json& radius = Field(render, "aperture_radius", "render", file);
+    if (radius.is_string() && radius.get<std::string>() == "inf") {
+      stack.render.aperture_radius = std::numeric_limits<double>::infinity();
+    } else {
+      stack.render.aperture_radius = NumberField(render, "aperture_radius", "render", file);
+    }
+    stack.render.min_view_angle_deg = NumberField(render, "min_view_angle_deg", "render", file);
+    const json& views = Field(render, "view_indices", "render", file);
+    if (!views.is_array()) ThrowInvalid(Where(file, "render.view_indices: must be an array"));
+    for (const json& v : views) {
+      if (!v.is_number_integer()) {
+        ThrowInvalid(Where(file, "render.view_indices: must hold integers"));
+      }
+      stack.render.view_indices.push_back(v.get<int>());
+    }
+  } else {
+    stack.render.fov_deg = stack.camera.FovXDeg();
+  }
+  const json& slices = Field(j, "slices", "", file);
+  if (!slices.is_array() || slices.empty()) {
+    ThrowInvalid(Where(file, "slices: must be a non-empty array"));
+  }
+  bool has_variance = true;
+  for (size_t i = 0; i < slices.size(); ++i) has_variance = has_variance && slices[i].contains("variance");
+  stack.render.variance = has_variance;  // rendered with variance: its images are stored
+  for (size_t i = 0; i < slices.size(); ++i) {
+    const std::string where = "slices[" + std::to_string(i) + "]";
+    const json& slice = slices[i];
+    const json& plane = Field(slice, "plane", where, file);
+    Plane p{VectorField(plane, "point", where + ".plane", file),
+            VectorField(plane, "normal", where + ".plane", file)};
+    if (!(glm::length(p.normal) > 0.0)) {
+      ThrowInvalid(Where(file, where + ".plane.normal: must not be zero"));
+    }
+    stack.planes.push_back(p);
+    auto read = [&](const std::string& key) {
+      const std::string path = (base / StringField(slice, key, where, file)).string();
+      return ReadImage(path);
+    };
+    stack.images.push_back(read("image"));
+    Image count = read("count");
+    if (count.type() == PixelType::kF32 && count.channels() == 1) {
+      // 32-bit integer files come back as float (image_io.h); counts are exact below 2^24.
+      Image converted(count.width(), count.height(), 1, PixelType::kU32);
+      for (int y = 0; y < count.height(); ++y) {
+        for (int x = 0; x < count.width(); ++x) {
+          const float value = count.At<float>(x, y)[0];
+          if (!(value >= 0.0f && value < 16777216.0f) || value != std::floor(value)) {
+            ThrowInvalid(Where(file, where + ".count: pixel (" + std::to_string(x) + ", " +
+                                         std::to_string(y) + ") is not a count"));
+          }
+          converted.At<uint32_t>(x, y)[0] = static_cast<uint32_t>(value);
+        }
+      }
+      count = std::move(converted);
+    }
+    stack.counts.push_back(std::move(count));
+    if (has_variance) stack.variances.push_back(read("variance"));
+  }
+  stack.Check(file);
+  return stack;
+}
+
+}  // namespace aos

@@ -1,0 +1,84 @@
+#pragma once
+// Focal stacks: integral images of one virtual camera on N focal planes interpolated between two
+// boundary planes (the paper renders 100 between the ground and the canopy top).
+//
+// Contract
+// - Plane interpolation is relative to the virtual camera centre C: a plane is (n, h) with n its
+//   unit normal and h = n . (p - C) its signed distance from C. The last plane's (n, h) is
+//   negated if its normal points against the first's; slice i of N takes
+//   n = normalize((1 - s) n0 + s n1), h = (1 - s) h0 + s h1, s = i / (N - 1) (s = 1/2 when
+//   N = 1), and is stored as the plane through C + h n with normal n. Parallel boundary planes
+//   give equally spaced parallel slices; identical ones give N identical slices.
+// - Each slice is RenderIntegral's result with FocalStackOptions::render (focal_plane replaced),
+//   so every rule of integral.h holds per slice (count 0 where no view sees a pixel).
+// - A stack on disk is a folder: stack.json (camera, pose, planes, file names) and per slice
+//   slice_NNNN.tif (float32 image), count_NNNN.tif (uint32) and, when rendered with variance,
+//   variance_NNNN.tif (float32). WriteFocalStack writes into a hidden temporary folder and renames
+//   it into place; it refuses an existing non-empty folder. ReadFocalStack checks every field and
+//   file and names them in its errors.
+//
+// Throws std::invalid_argument naming the option, file or field; aos::Cancelled on request.
+#include <functional>
+#include <string>
+#include <vector>
+
+#include "aos/render/integral.h"
+
+namespace aos {
+
+struct FocalStackOptions {
+  // Virtual camera, aperture, views, threads and the variance flag of every slice;
+  // render.focal_plane is ignored (the slices replace it).
+  IntegralOptions render;
+  // Boundary planes (local frame): slice 0 lies on the first, slice N-1 on the last.
+  Plane first_plane = Plane::AtHeight(0.0);
+  Plane last_plane = Plane::AtHeight(10.0);
+  // Number of slices, 1 .. 100000.
+  int slices = 100;
+
+  // Throws std::invalid_argument naming the field (render fields as IntegralOptions::Check).
+  void Check(int view_count) const;
+};
+
+// Plane of parameter s in [0, 1] between `first` and `last`, interpolated about `center` as
+// described above. Throws std::invalid_argument if a normal is zero or not finite.
+Plane InterpolatePlane(const Plane& first, const Plane& last, double s, const Vec3d& center);
+
+// The N slice planes.
+std::vector<Plane> StackPlanes(const Plane& first, const Plane& last, int slices,
+                               const Vec3d& center);
+
+// Depth (z in the camera frame, metres) at which each pixel's ray meets `plane`; 0 where the ray
+// meets it behind the camera or never (float32, 1 channel).
+Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane);
+
+struct FocalStack {
+  PinholeCamera camera;        // the virtual camera
+  Rigid3d cam_from_world;      // its pose (local frame)
+  // How the slices were rendered (pose resolved into cam_from_world, pose_view -1): what a
+  // robust merge re-integrates with. Stored in stack.json except num_threads.
+  IntegralOptions render;
+  std::vector<Plane> planes;   // one per slice
+  std::vector<Image> images;   // float32, the views' channels
+  std::vector<Image> counts;   // uint32
+  std::vector<Image> variances;  // float32, empty unless rendered with variance
+
+  int size() const { return static_cast<int>(planes.size()); }
+  // Throws std::invalid_argument if the parts disagree in count or size.
+  void Check(const std::string& where) const;
+};
+
+// Renders every slice and keeps them all (memory grows with N; see RenderFocalStackSlices).
+FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptions& options,
+                            ProgressSink* progress = nullptr);
+
+// Renders the slices one at a time, in order, handing each to `on_slice` (which may move from
+// the result): memory holds one slice whatever N is. Progress counts slices.
+using SliceSink = std::function<void(int index, const Plane& plane, IntegralResult& slice)>;
+void RenderFocalStackSlices(const LightField& light_field, const FocalStackOptions& options,
+                            const SliceSink& on_slice, ProgressSink* progress = nullptr);
+
+void WriteFocalStack(const std::string& folder, const FocalStack& stack);
+FocalStack ReadFocalStack(const std::string& folder);
+
+}  // namespace aos

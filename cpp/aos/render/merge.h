@@ -1,0 +1,97 @@
+#pragma once
+// All-in-focus merging of a focal stack into one image, a depth map and a confidence map.
+//
+// Methods
+// - sobel (the paper's baseline, exactly): per slice the Sobel gradient magnitude of the
+//   luminance (3 x 3 Sobel operator); per pixel the slice where it is largest wins (ties to the
+//   lower slice); the image is that slice's pixel and the depth that slice's plane.
+// - improved (default), context-aware: the focus measure is the Sobel energy gx^2 + gy^2 averaged
+//   over a (2 window_radius + 1)^2 window; the peak of each pixel's focus curve is refined to a
+//   fraction of a slice by a parabola through the best slice and its two neighbours (|offset|
+//   <= 1/2); the fractional slice map is smoothed edge-aware (a joint bilateral filter guided by
+//   the sharpest slice's image, each neighbour weighted by its confidence; smoothing_iterations
+//   passes); the image blends the two slices around the smoothed depth linearly (from a stored
+//   stack), or is re-integrated from the views on the smoothed depth surface (the one-call
+//   pipeline, RenderAllInFocus, which never holds the slices).
+// - robust: the focus cue adds what only the rays show, the per-pixel variance of the view
+//   samples (IntegralOptions::variance; in-focus ground looks the same from every view,
+//   occluders and defocused points do not): the window's Sobel energy divided by its mean
+//   variance (both scale with the square of the values, so the ratio has no units); refinement and smoothing as improved; then the image is
+//   re-integrated on the depth surface with the outlier-rejecting mean of surface_integral.h,
+//   which falls back to the plain mean where too few rays agree. Needs the light field.
+//
+// Contract (all methods)
+// - A slice's pixel with count 0 has no focus value; a Sobel tap on such a pixel takes the centre
+//   pixel's value (no false edge along coverage borders). A pixel no slice covers gets image 0,
+//   depth 0, confidence 0 and slice -1.
+// - depth is z in the virtual camera frame, metres, on the (interpolated) plane of the pixel's
+//   fractional slice; slice is that fractional index in [0, N-1].
+// - confidence = (F_best - mean F) / max(|F_best|, |mean F|) over the slices covering the pixel
+//   (0 when that is 0/0: a constant image or one slice), in [0, 1].
+// - Deterministic: the result depends neither on the thread count nor on the order of
+//   floating-point work across threads; no NaN or infinity reaches an output.
+//
+// Throws std::invalid_argument naming the option or the missing input; aos::Cancelled.
+#include <string>
+
+#include "aos/render/focal_stack.h"
+#include "aos/render/surface_integral.h"
+
+namespace aos {
+
+enum class MergeMethod { kSobel, kImproved, kRobust };
+
+// "sobel", "improved", "robust"; throws std::invalid_argument naming `option` otherwise.
+MergeMethod ParseMergeMethod(const std::string& name, const std::string& option = "method");
+const char* MergeMethodName(MergeMethod method);
+
+struct MergeOptions {
+  MergeMethod method = MergeMethod::kImproved;
+  // improved/robust: focus measure window radius, pixels (window 2r+1 on a side), 0..32.
+  int window_radius = 3;
+  // improved/robust: spatial sigma of the edge-aware depth smoothing, pixels, [0, 16]; 0 = off.
+  double smoothing_sigma = 3.0;
+  // improved/robust: range sigma of the smoothing, as a fraction of the guide image's contrast
+  // (its 1st to 99th percentile), > 0.
+  double edge_sigma = 0.2;
+  // improved/robust: smoothing passes, 0..20.
+  int smoothing_iterations = 3;
+  // robust: the outlier-rejecting mean (surface_integral.h); `robust.robust` is forced on.
+  SurfaceIntegralOptions robust;
+  // Worker threads; -1 = all cores.
+  int num_threads = -1;
+
+  void Check() const;
+};
+
+struct MergeResult {
+  Image image;       // float32, the views' channels: the all-in-focus image
+  Image depth;       // float32, metres (camera z); 0 where no slice covers the pixel
+  Image confidence;  // float32, [0, 1]
+  Image slice;       // float32, fractional slice index; -1 where no slice covers the pixel
+  int64_t uncovered_pixels = 0;  // pixels no slice covers
+  int64_t fallback_pixels = 0;   // robust: pixels that kept the plain mean
+  double seconds_merge = 0.0;    // focus measures, refinement, smoothing, image
+  double seconds_render = 0.0;   // rendering (slices and re-integration)
+};
+
+// Merges a stack held in memory. The robust method needs the stack's variances and the light
+// field it was rendered from (the stack's `render` options are reused).
+MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options,
+                            const LightField* light_field = nullptr,
+                            ProgressSink* progress = nullptr);
+
+struct AllInFocusOptions {
+  FocalStackOptions stack;  // stack.render.variance is set by the method (robust needs it)
+  MergeOptions merge;
+  void Check(int view_count) const;
+};
+
+// The one-call pipeline: renders the slices one at a time and folds each into per-pixel focus
+// state, so memory does not grow with the number of slices; then refines, smooths and
+// re-integrates (improved: plain mean, robust: robust mean) on the depth surface; sobel keeps the
+// winning slice's pixels.
+MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOptions& options,
+                             ProgressSink* progress = nullptr);
+
+}  // namespace aos
