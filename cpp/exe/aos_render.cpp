@@ -19,7 +19,9 @@
 #include "aos/image/image_io.h"
 #include "aos/lightfield/formats.h"
 #include "aos/metrics/quality.h"
+#include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
+#include "aos/render/merge.h"
 #include "aos/sim/scene.h"
 #include "aos/sim/simulator.h"
 #include "aos/util/error.h"
@@ -248,9 +250,9 @@ struct IntegralCommand {
   bool quiet = false;
 };
 
-void AddIntegral(CLI::App& app, IntegralCommand& c) {
-  CLI::App* command = app.add_subcommand(
-      "integral", "Render an integral image (Eq. 1) of a light field onto a focal plane");
+// The light field and the virtual camera: shared by integral, stack and allinfocus.
+// `with_plane` adds --focal-height/--focal-plane (integral only).
+void AddRenderArgs(CLI::App* command, IntegralCommand& c, bool with_plane) {
   command->add_option("lightfield", c.light_field_path,
                       "Light-field file: aos JSON, or a JKU-ICG/AOS poses.json")
       ->required();
@@ -278,12 +280,14 @@ void AddIntegral(CLI::App& app, IntegralCommand& c) {
                       "Radius of the virtual aperture, metres; 0 = pinhole (nearest view), "
                       "inf = every view")
       ->capture_default_str();
-  auto* height = command->add_option("--focal-height", c.focal_height,
-                                     "Horizontal focal plane z = H (local frame, metres)")
-                     ->capture_default_str();
-  auto* plane = command->add_option("--focal-plane", c.focal_plane,
-                                    "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
-  height->excludes(plane);
+  if (with_plane) {
+    auto* height = command->add_option("--focal-height", c.focal_height,
+                                       "Horizontal focal plane z = H (local frame, metres)")
+                       ->capture_default_str();
+    auto* plane = command->add_option("--focal-plane", c.focal_plane,
+                                      "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
+    height->excludes(plane);
+  }
   command->add_option("--views", c.views,
                       "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
                       "(default: all)");
@@ -292,16 +296,20 @@ void AddIntegral(CLI::App& app, IntegralCommand& c) {
       ->capture_default_str();
   command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
       ->capture_default_str();
-  AddOutputOptions(command, c.out, true);
   command->add_flag("-q,--quiet", c.quiet, "No progress output");
 }
 
-int RunIntegral(IntegralCommand& c) {
-  ProgressBar progress(c.quiet);
+void AddIntegral(CLI::App& app, IntegralCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "integral", "Render an integral image (Eq. 1) of a light field onto a focal plane");
+  AddRenderArgs(command, c, true);
+  AddOutputOptions(command, c.out, true);
+}
+
+// Loads the light field and fills c.options' virtual camera (pose, aperture, views) from the
+// command line; the focal plane is left to the caller.
+LoadResult LoadAndResolveCamera(IntegralCommand& c, ProgressBar& progress) {
   c.load.num_threads = c.options.num_threads;
-  // Refuse bad outputs (an input, a missing folder, a format that cannot hold the samples)
-  // before spending time on loading; the frames are checked again once known.
-  CheckOutputs(c.out, c.out.output, c.out.count, {c.light_field_path});
   LoadResult loaded;
   try {
     loaded = LoadLightField(c.light_field_path, c.load, &progress);
@@ -310,7 +318,6 @@ int RunIntegral(IntegralCommand& c) {
   }
   progress.Finish();
   for (const std::string& note : loaded.notes) std::fprintf(stderr, "note: %s\n", note.c_str());
-  const LightField& light_field = loaded.light_field;
   IntegralOptions& options = c.options;
   if (!c.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(c.look_at, "--look-at");
@@ -326,14 +333,26 @@ int RunIntegral(IntegralCommand& c) {
     ThrowInvalid("no virtual camera pose: give --pose-view, --look-at or --cam-from-world");
   }
   options.aperture_radius = ParseRadius(c.aperture_radius);
+  if (!c.views.empty()) {
+    options.view_indices =
+        ParseViewList(c.views, static_cast<int>(loaded.light_field.views.size()));
+  }
+  return loaded;
+}
+
+int RunIntegral(IntegralCommand& c) {
+  ProgressBar progress(c.quiet);
+  // Refuse bad outputs (an input, a missing folder, a format that cannot hold the samples)
+  // before spending time on loading; the frames are checked again once known.
+  CheckOutputs(c.out, c.out.output, c.out.count, {c.light_field_path});
+  const LoadResult loaded = LoadAndResolveCamera(c, progress);
+  const LightField& light_field = loaded.light_field;
+  IntegralOptions& options = c.options;
   if (!c.focal_plane.empty()) {
     const std::vector<double> v = ParseNumbers(c.focal_plane, "--focal-plane", 6);
     options.focal_plane = Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
   } else {
     options.focal_plane = Plane::AtHeight(c.focal_height);
-  }
-  if (!c.views.empty()) {
-    options.view_indices = ParseViewList(c.views, static_cast<int>(light_field.views.size()));
   }
   std::vector<std::string> inputs{c.light_field_path};
   for (const View& view : light_field.views) inputs.push_back(view.image_path);
@@ -521,6 +540,247 @@ int RunDemo(DemoCommand& c) {
   return 0;
 }
 
+// "H" (the horizontal plane z = H) or "PX,PY,PZ,NX,NY,NZ".
+Plane ParsePlane(const std::string& text, const std::string& option) {
+  const std::vector<double> v = ParseNumbers(text, option);
+  if (v.size() == 1) return Plane::AtHeight(v[0]);
+  if (v.size() != 6) {
+    ThrowInvalid(option + ": expected a height H or six numbers PX,PY,PZ,NX,NY,NZ (got '" + text +
+                 "')");
+  }
+  return Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
+}
+
+struct StackArgs {
+  std::string first_plane = "0";
+  std::string last_plane = "10";
+};
+
+void AddStackArgs(CLI::App* command, StackArgs& args, FocalStackOptions& options) {
+  command->add_option("--first-plane", args.first_plane,
+                      "Boundary plane of slice 0: a height H (horizontal plane z = H) or "
+                      "PX,PY,PZ,NX,NY,NZ")
+      ->capture_default_str();
+  command->add_option("--last-plane", args.last_plane,
+                      "Boundary plane of the last slice, as --first-plane")
+      ->capture_default_str();
+  command->add_option("--slices", options.slices, "Number of slices (1..100000)")
+      ->capture_default_str();
+}
+
+const std::vector<std::pair<std::string, std::string>> kStackFlags{
+    {"slices", "--slices"}, {"first_plane", "--first-plane"}, {"last_plane", "--last-plane"}};
+const std::vector<std::pair<std::string, std::string>> kMergeFlags{
+    {"method", "--method"},
+    {"window_radius", "--window-radius"},
+    {"smoothing_sigma", "--smoothing-sigma"},
+    {"edge_sigma", "--edge-sigma"},
+    {"smoothing_iterations", "--smoothing-iterations"},
+    {"agreement", "--agreement"},
+    {"min_inlier_fraction", "--min-inlier-fraction"}};
+
+using FlagList = std::vector<std::pair<std::string, std::string>>;
+FlagList Concat(std::initializer_list<const FlagList*> lists) {
+  FlagList all;
+  for (const FlagList* list : lists) all.insert(all.end(), list->begin(), list->end());
+  return all;
+}
+
+struct MergeArgs {
+  std::string method = "improved";
+};
+
+void AddMergeArgs(CLI::App* command, MergeArgs& args, MergeOptions& options) {
+  command->add_option("--method", args.method,
+                      "sobel (the paper's), improved (context-aware) or robust (view variance "
+                      "and an outlier-rejecting mean; needs the light field)")
+      ->capture_default_str();
+  command->add_option("--window-radius", options.window_radius,
+                      "improved/robust: focus window radius, pixels")
+      ->capture_default_str();
+  command->add_option("--smoothing-sigma", options.smoothing_sigma,
+                      "improved/robust: depth smoothing sigma, pixels (0 = off)")
+      ->capture_default_str();
+  command->add_option("--edge-sigma", options.edge_sigma,
+                      "improved/robust: smoothing range sigma, fraction of the image contrast")
+      ->capture_default_str();
+  command->add_option("--smoothing-iterations", options.smoothing_iterations,
+                      "improved/robust: smoothing passes")
+      ->capture_default_str();
+  command->add_option("--agreement", options.robust.agreement,
+                      "robust: half-width of the band of agreeing samples, fraction of the "
+                      "views' range")
+      ->capture_default_str();
+  command->add_option("--min-inlier-fraction", options.robust.min_inlier_fraction,
+                      "robust: fewest agreeing samples (fraction) for the robust mean")
+      ->capture_default_str();
+}
+
+// Writes image, depth, confidence and slice maps into a new folder (atomically).
+void WriteMergeResult(const std::string& output_dir, const MergeResult& result,
+                      MergeMethod method) {
+  PendingFolder folder(output_dir);
+  const fs::path temp = folder.TempPath();
+  WriteImageOptions write;
+  write.description = std::string("aos all-in-focus image (") + MergeMethodName(method) +
+                      ", float32 in the views' units)";
+  WriteImage((temp / "all_in_focus.tif").string(), result.image, write);
+  write.description = "aos depth map: camera z of the merged surface, metres; 0 = uncovered";
+  WriteImage((temp / "depth.tif").string(), result.depth, write);
+  write.description = "aos merge confidence in [0, 1]";
+  WriteImage((temp / "confidence.tif").string(), result.confidence, write);
+  write.description = "aos fractional slice index; -1 = uncovered";
+  WriteImage((temp / "slice.tif").string(), result.slice, write);
+  folder.Commit();
+  std::printf("wrote %s: all_in_focus.tif, depth.tif, confidence.tif, slice.tif (%dx%d, %s; "
+              "%lld pixels uncovered)\n",
+              output_dir.c_str(), result.image.width(), result.image.height(),
+              MergeMethodName(method), static_cast<long long>(result.uncovered_pixels));
+}
+
+struct StackCommand {
+  IntegralCommand render;
+  StackArgs planes;
+  FocalStackOptions options;
+  std::string output_dir;
+};
+
+void AddStack(CLI::App& app, StackCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "stack",
+      "Render a focal stack: N slices between two boundary planes, written as a folder of "
+      "float32 TIFFs with stack.json");
+  AddRenderArgs(command, c.render, false);
+  AddStackArgs(command, c.planes, c.options);
+  command->add_flag("--variance", c.render.options.variance,
+                    "Also write the per-pixel variance of the view samples (for --method robust)");
+  command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
+      ->required();
+}
+
+int RunStack(StackCommand& c) {
+  ProgressBar progress(c.render.quiet);
+  { PendingFolder check(c.output_dir); }  // refuse a used folder before any work
+  const LoadResult loaded = LoadAndResolveCamera(c.render, progress);
+  c.options.render = c.render.options;
+  c.options.first_plane = ParsePlane(c.planes.first_plane, "--first-plane");
+  c.options.last_plane = ParsePlane(c.planes.last_plane, "--last-plane");
+  FocalStack stack;
+  try {
+    stack = RenderFocalStack(loaded.light_field, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, Concat({&kStackFlags, &kRenderFlags}));
+  }
+  progress.Finish();
+  WriteFocalStack(c.output_dir, stack);
+  std::printf("wrote %s: %d slices of %dx%d (stack.json, slice_*.tif, count_*.tif%s)\n",
+              c.output_dir.c_str(), stack.size(), stack.camera.width, stack.camera.height,
+              stack.variances.empty() ? "" : ", variance_*.tif");
+  return 0;
+}
+
+struct MergeCommand {
+  std::string stack_dir;
+  std::string light_field_path;
+  LoadOptions load;
+  MergeArgs args;
+  MergeOptions options;
+  std::string output_dir;
+  bool quiet = false;
+};
+
+void AddMerge(CLI::App& app, MergeCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "merge",
+      "Merge a focal stack (from `stack`) into an all-in-focus image, a depth map and a "
+      "confidence map");
+  command->add_option("stack", c.stack_dir, "Stack folder (with stack.json)")->required();
+  AddMergeArgs(command, c.args, c.options);
+  command->add_option("--lightfield", c.light_field_path,
+                      "The light field the stack was rendered from (needed by --method robust)");
+  command->add_option("--frames-fov-deg", c.load.fov_deg,
+                      "Horizontal field of view of the frames, degrees (JKU poses.json only)");
+  command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
+      ->capture_default_str();
+  command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
+      ->required();
+  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+}
+
+int RunMerge(MergeCommand& c) {
+  ProgressBar progress(c.quiet);
+  { PendingFolder check(c.output_dir); }
+  c.options.method = ParseMergeMethod(c.args.method, "--method");
+  const FocalStack stack = ReadFocalStack(c.stack_dir);
+  std::optional<LoadResult> loaded;
+  if (!c.light_field_path.empty()) {
+    c.load.num_threads = c.options.num_threads;
+    loaded = LoadLightField(c.light_field_path, c.load, &progress);
+    progress.Finish();
+  } else if (c.options.method == MergeMethod::kRobust) {
+    ThrowInvalid("--method robust: give --lightfield, the light field the stack was rendered "
+                 "from (its rays are re-integrated)");
+  }
+  MergeResult result;
+  try {
+    result = MergeFocalStack(stack, c.options, loaded ? &loaded->light_field : nullptr, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, kMergeFlags);
+  }
+  progress.Finish();
+  std::fprintf(stderr, "merged %d slices (%s) in %.2f s%s\n", stack.size(),
+               MergeMethodName(c.options.method), result.seconds_merge + result.seconds_render,
+               c.options.method == MergeMethod::kRobust
+                   ? (", " + std::to_string(result.fallback_pixels) +
+                      " pixels kept the plain mean").c_str()
+                   : "");
+  WriteMergeResult(c.output_dir, result, c.options.method);
+  return 0;
+}
+
+struct AllInFocusCommand {
+  IntegralCommand render;
+  StackArgs planes;
+  MergeArgs args;
+  AllInFocusOptions options;
+  std::string output_dir;
+};
+
+void AddAllInFocus(CLI::App& app, AllInFocusCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "allinfocus",
+      "One call: render the slices one at a time and merge them (memory does not grow with "
+      "--slices) into an all-in-focus image, a depth map and a confidence map");
+  AddRenderArgs(command, c.render, false);
+  AddStackArgs(command, c.planes, c.options.stack);
+  AddMergeArgs(command, c.args, c.options.merge);
+  command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
+      ->required();
+}
+
+int RunAllInFocus(AllInFocusCommand& c) {
+  ProgressBar progress(c.render.quiet);
+  { PendingFolder check(c.output_dir); }
+  const LoadResult loaded = LoadAndResolveCamera(c.render, progress);
+  c.options.stack.render = c.render.options;
+  c.options.stack.first_plane = ParsePlane(c.planes.first_plane, "--first-plane");
+  c.options.stack.last_plane = ParsePlane(c.planes.last_plane, "--last-plane");
+  c.options.merge.method = ParseMergeMethod(c.args.method, "--method");
+  c.options.merge.num_threads = c.render.options.num_threads;
+  MergeResult result;
+  try {
+    result = RenderAllInFocus(loaded.light_field, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, Concat({&kMergeFlags, &kStackFlags, &kRenderFlags}));
+  }
+  progress.Finish();
+  std::fprintf(stderr, "%d slices rendered and merged (%s): render %.2f s, merge %.2f s\n",
+               c.options.stack.slices, MergeMethodName(c.options.merge.method),
+               result.seconds_render, result.seconds_merge);
+  WriteMergeResult(c.output_dir, result, c.options.merge.method);
+  return 0;
+}
+
 struct MetricsCommand {
   std::string test_path;
   std::string reference_path;
@@ -598,7 +858,13 @@ int main(int argc, char** argv) {
   SimulateCommand simulate;
   DemoCommand demo;
   MetricsCommand metrics;
+  StackCommand stack;
+  MergeCommand merge;
+  AllInFocusCommand all_in_focus;
   AddIntegral(app, integral);
+  AddStack(app, stack);
+  AddMerge(app, merge);
+  AddAllInFocus(app, all_in_focus);
   AddSimulate(app, simulate);
   AddDemo(app, demo);
   AddMetrics(app, metrics);
@@ -612,6 +878,9 @@ int main(int argc, char** argv) {
   InstallInterruptHandler();
   try {
     if (app.got_subcommand("integral")) return RunIntegral(integral);
+    if (app.got_subcommand("stack")) return RunStack(stack);
+    if (app.got_subcommand("merge")) return RunMerge(merge);
+    if (app.got_subcommand("allinfocus")) return RunAllInFocus(all_in_focus);
     if (app.got_subcommand("simulate")) return RunSimulate(simulate);
     if (app.got_subcommand("demo")) return RunDemo(demo);
     if (app.got_subcommand("metrics")) return RunMetrics(metrics);
