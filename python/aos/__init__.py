@@ -255,6 +255,15 @@ def _split_kwargs(
     return sorted_kwargs
 
 
+def _apply_surface(merge: MergeOptions, fields: dict[str, Any]) -> None:
+    """Fields of SurfaceIntegralOptions (agreement, min_inlier_fraction) go to merge.robust."""
+    if fields:
+        robust = copy.copy(merge.robust)
+        for key, value in fields.items():
+            setattr(robust, key, value)
+        merge.robust = robust
+
+
 def _stack_options(
     function: str, options: Optional[FocalStackOptions], kwargs: dict[str, Any]
 ) -> FocalStackOptions:
@@ -301,11 +310,15 @@ def merge_focal_stack(
 ) -> MergeResult:
     """All-in-focus image, depth and confidence of a stack (``method`` sobel/improved/robust).
 
-    ``kwargs`` are fields of :class:`MergeOptions`; ``method`` may be a string. The robust method
+    ``kwargs`` are fields of :class:`MergeOptions` (``method`` may be a string) or of
+    :class:`SurfaceIntegralOptions` (agreement, min_inlier_fraction). The robust method
     needs a stack rendered with ``variance=True`` and the ``light_field`` it came from.
     """
-    groups = _split_kwargs("merge_focal_stack", kwargs, [("merge", MergeOptions)])
+    groups = _split_kwargs(
+        "merge_focal_stack", kwargs, [("merge", MergeOptions), ("surface", SurfaceIntegralOptions)]
+    )
     merged = _merge_options("merge_focal_stack", MergeOptions, options, groups["merge"])
+    _apply_surface(merged, groups["surface"])
     return _core._merge_focal_stack(stack, merged, light_field, progress)
 
 
@@ -319,8 +332,9 @@ def all_in_focus(
     """The one-call pipeline: slices rendered one at a time and merged (memory flat in N).
 
     ``kwargs`` are fields of :class:`MergeOptions` (method as a string or MergeMethod, ...),
-    :class:`FocalStackOptions` (first_plane, last_plane, slices) or :class:`IntegralOptions`
-    (pose_view, fov_deg, width, height, aperture_radius, ...).
+    :class:`FocalStackOptions` (first_plane, last_plane, slices), :class:`IntegralOptions`
+    (pose_view, fov_deg, width, height, aperture_radius, ...) or :class:`SurfaceIntegralOptions`
+    (agreement, min_inlier_fraction: the robust mean).
 
     Example::
 
@@ -331,12 +345,18 @@ def all_in_focus(
     groups = _split_kwargs(
         "all_in_focus",
         kwargs,
-        [("merge", MergeOptions), ("stack", FocalStackOptions), ("render", IntegralOptions)],
+        [
+            ("merge", MergeOptions),
+            ("stack", FocalStackOptions),
+            ("render", IntegralOptions),
+            ("surface", SurfaceIntegralOptions),
+        ],
     )
     merged = copy.copy(options) if options is not None else AllInFocusOptions()
     merge = copy.copy(merged.merge)
     for key, value in groups["merge"].items():
         setattr(merge, key, value)
+    _apply_surface(merge, groups["surface"])
     stack = copy.copy(merged.stack)
     for key, value in groups["stack"].items():
         setattr(stack, key, value)

@@ -204,6 +204,7 @@ class IntegralOptions:
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
         num_threads: int = ...,
+        variance: bool = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     cam_from_world: Rigid3d
@@ -229,6 +230,8 @@ class IntegralOptions:
     """Minimum angle between a view's ray and the focal plane, degrees, [0, 90)."""
     num_threads: int
     """Worker threads; -1 = all cores."""
+    variance: bool
+    """Also return the per-pixel variance of the view samples (about twice the render time)."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
     def __copy__(self) -> IntegralOptions: ...
@@ -242,6 +245,9 @@ class IntegralResult:
     @property
     def count(self) -> numpy.typing.NDArray[numpy.uint32]:
         """uint32 (H, W) views per pixel; shares memory with the result."""
+    @property
+    def variance(self) -> Optional[numpy.typing.NDArray[numpy.float32]]:
+        """float32 (H, W) variance of the view samples when options.variance, else None."""
     @property
     def samples(self) -> int: ...
     @property
@@ -260,6 +266,182 @@ def render_integral(
     """Integral rendering with the GIL released; see aos.render_integral."""
 
 def virtual_camera(options: IntegralOptions) -> PinholeCamera: ...
+
+class SurfaceIntegralOptions:
+    """Options of render_integral_on_depth; fields and defaults of aos::SurfaceIntegralOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self, *, robust: bool = ..., agreement: float = ..., min_inlier_fraction: float = ...
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    robust: bool
+    """Outlier-rejecting (densest agreeing band) mean instead of the plain mean."""
+    agreement: float
+    """Half-width of the agreement band, fraction of the views' full range, (0, 1]."""
+    min_inlier_fraction: float
+    """Fewest agreeing samples (fraction) for the robust mean, [0, 1]; else the plain mean."""
+    def check(self) -> None:
+        """ValueError naming the field."""
+    def __copy__(self) -> SurfaceIntegralOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> SurfaceIntegralOptions: ...
+    def __repr__(self) -> str: ...
+
+class SurfaceIntegralResult:
+    @property
+    def integral(self) -> IntegralResult:
+        """image, count and statistics."""
+    @property
+    def inliers(self) -> Optional[numpy.typing.NDArray[numpy.uint32]]:
+        """uint32 (H, W) samples averaged per pixel (robust only, else None)."""
+    @property
+    def fallback_pixels(self) -> int: ...
+
+def _render_integral_on_depth(
+    light_field: LightField,
+    options: IntegralOptions,
+    depth: numpy.typing.ArrayLike,
+    surface: SurfaceIntegralOptions,
+    progress: _Progress = None,
+) -> SurfaceIntegralResult: ...
+
+class FocalStackOptions:
+    """Options of render_focal_stack; fields and defaults of aos::FocalStackOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        render: IntegralOptions = ...,
+        first_plane: Plane = ...,
+        last_plane: Plane = ...,
+        slices: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    render: IntegralOptions
+    """Virtual camera, aperture, views, threads and variance flag of every slice."""
+    first_plane: Plane
+    """Boundary plane of slice 0."""
+    last_plane: Plane
+    """Boundary plane of slice N-1."""
+    slices: int
+    """Number of slices, 1 .. 100000."""
+    def check(self, view_count: int) -> None:
+        """ValueError naming the offending field."""
+    def __copy__(self) -> FocalStackOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> FocalStackOptions: ...
+    def __repr__(self) -> str: ...
+
+class FocalStack:
+    @property
+    def camera(self) -> PinholeCamera: ...
+    @property
+    def cam_from_world(self) -> Rigid3d: ...
+    @property
+    def render(self) -> IntegralOptions: ...
+    @property
+    def planes(self) -> list[Plane]: ...
+    @property
+    def images(self) -> list[numpy.typing.NDArray[numpy.float32]]:
+        """One float32 image per slice; each shares memory with the stack."""
+    @property
+    def counts(self) -> list[numpy.typing.NDArray[numpy.uint32]]: ...
+    @property
+    def variances(self) -> list[numpy.typing.NDArray[numpy.float32]]: ...
+    def __len__(self) -> int: ...
+    def __repr__(self) -> str: ...
+
+def _render_focal_stack(
+    light_field: LightField, options: FocalStackOptions, progress: _Progress = None
+) -> FocalStack: ...
+def stack_planes(first: Plane, last: Plane, slices: int, center: _Vector) -> list[Plane]: ...
+def interpolate_plane(first: Plane, last: Plane, s: float, center: _Vector) -> Plane: ...
+def plane_depth(
+    camera: PinholeCamera, cam_from_world: Rigid3d, plane: Plane
+) -> numpy.typing.NDArray[numpy.float32]: ...
+def write_focal_stack(folder: str, stack: FocalStack) -> None: ...
+def read_focal_stack(folder: str) -> FocalStack: ...
+
+class MergeMethod:
+    sobel: ClassVar[MergeMethod]
+    improved: ClassVar[MergeMethod]
+    robust: ClassVar[MergeMethod]
+    def __init__(self, value: int) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def value(self) -> int: ...
+
+class MergeOptions:
+    """Options of merge_focal_stack and all_in_focus; fields and defaults of aos::MergeOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        method: MergeMethod = ...,
+        window_radius: int = ...,
+        smoothing_sigma: float = ...,
+        edge_sigma: float = ...,
+        smoothing_iterations: int = ...,
+        robust: SurfaceIntegralOptions = ...,
+        num_threads: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    method: MergeMethod
+    window_radius: int
+    smoothing_sigma: float
+    edge_sigma: float
+    smoothing_iterations: int
+    robust: SurfaceIntegralOptions
+    num_threads: int
+    def check(self) -> None:
+        """ValueError naming the field."""
+    def __copy__(self) -> MergeOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> MergeOptions: ...
+    def __repr__(self) -> str: ...
+
+class MergeResult:
+    @property
+    def image(self) -> numpy.typing.NDArray[numpy.float32]: ...
+    @property
+    def depth(self) -> numpy.typing.NDArray[numpy.float32]: ...
+    @property
+    def confidence(self) -> numpy.typing.NDArray[numpy.float32]: ...
+    @property
+    def slice(self) -> numpy.typing.NDArray[numpy.float32]: ...
+    @property
+    def uncovered_pixels(self) -> int: ...
+    @property
+    def fallback_pixels(self) -> int: ...
+    @property
+    def seconds_merge(self) -> float: ...
+    @property
+    def seconds_render(self) -> float: ...
+
+class AllInFocusOptions:
+    """Options of all_in_focus."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(self, *, stack: FocalStackOptions = ..., merge: MergeOptions = ...) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    stack: FocalStackOptions
+    merge: MergeOptions
+    def check(self, view_count: int) -> None:
+        """ValueError naming the field."""
+    def __copy__(self) -> AllInFocusOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> AllInFocusOptions: ...
+    def __repr__(self) -> str: ...
+
+def _merge_focal_stack(
+    stack: FocalStack,
+    options: MergeOptions,
+    light_field: Optional[LightField] = None,
+    progress: _Progress = None,
+) -> MergeResult: ...
+def _all_in_focus(
+    light_field: LightField, options: AllInFocusOptions, progress: _Progress = None
+) -> MergeResult: ...
 
 class QualityOptions:
     """Options of compare_images; fields and defaults of aos::QualityOptions."""

@@ -19,7 +19,7 @@ from aos import _core
 
 INTEGRAL_FIELDS = (
     "cam_from_world", "pose_view", "fov_deg", "width", "height", "aperture_radius",
-    "focal_plane", "view_indices", "min_view_angle_deg", "num_threads",
+    "focal_plane", "view_indices", "min_view_angle_deg", "num_threads", "variance",
 )
 SIMULATE_FIELDS = ("num_threads",)
 
@@ -37,6 +37,7 @@ def test_integral_options_defaults_match_the_header() -> None:
     assert options.view_indices == []
     assert options.min_view_angle_deg == 1.0
     assert options.num_threads == -1
+    assert options.variance is False
     text = repr(options)
     assert text.startswith("IntegralOptions(")
     for name in INTEGRAL_FIELDS:

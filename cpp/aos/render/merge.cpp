@@ -497,7 +497,6 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
     Reintegrate(*light_field, stack.render, stack.planes.front(), options, accumulator.guide(),
                 &result, progress);
     result.seconds_render = Seconds(render_start);
-    result.seconds_merge -= result.seconds_render;
   }
   return result;
 }
