@@ -40,8 +40,8 @@ void BindIntegral(py::module_& m) {
              "(grazing) rays are ignored.")
       .Field("num_threads", &IntegralOptions::num_threads, "Worker threads; -1 = all cores.")
       .Field("variance", &IntegralOptions::variance,
-             "Also return the per-pixel variance of the view samples (a second, scalar pass over "
-             "the samples: about twice the render time).")
+             "Also return the per-pixel variance of the view samples (the samples then go through "
+             "the scalar kernel, which also sums their squares: a few times slower).")
       .Finish()
       .def("check", &IntegralOptions::Check, "view_count"_a,
            "Raises ValueError naming the offending field. `view_count` is the number of views in "

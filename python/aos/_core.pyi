@@ -231,7 +231,7 @@ class IntegralOptions:
     num_threads: int
     """Worker threads; -1 = all cores."""
     variance: bool
-    """Also return the per-pixel variance of the view samples (about twice the render time)."""
+    """Also return the per-pixel variance of the view samples (scalar kernel: a few times slower)."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
     def __copy__(self) -> IntegralOptions: ...

@@ -272,6 +272,22 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
                  ")");
   }
   output.reset();
+  // libtiff reports some failures (a full disk, a file-size limit) only as a file that cannot
+  // be read back, while every call above succeeds: read the file back, and compare it where the
+  // format is lossless, before it replaces anything.
+  {
+    auto input = oiio::ImageInput::open(pending.TempPath());
+    std::vector<unsigned char> check(buffer.size());
+    const bool readable =
+        input && input->spec().width == width && input->spec().height == height &&
+        input->spec().nchannels == channels &&
+        input->read_image(0, 0, 0, channels, file_type, check.data());
+    if (!readable || (LowerExtension(path) != ".jpg" && LowerExtension(path) != ".jpeg" &&
+                      check != buffer)) {
+      ThrowInvalid(path + ": cannot write image (the written file does not read back intact; "
+                          "is the disk full?)");
+    }
+  }
   pending.Commit();
 }
 

@@ -149,6 +149,13 @@ void FocalStack::Check(const std::string& where) const {
   }
   for (size_t i = 0; i < n; ++i) {
     const std::string slice = where + ": slice " + std::to_string(i);
+    const Plane& plane = planes[i];
+    for (int k = 0; k < 3; ++k) {
+      if (!std::isfinite(plane.point[k]) || !std::isfinite(plane.normal[k])) {
+        ThrowInvalid(slice + ": plane: point and normal must be finite");
+      }
+    }
+    if (!(glm::length(plane.normal) > 0.0)) ThrowInvalid(slice + ": plane: normal must not be zero");
     const Image& image = images[i];
     if (image.width() != camera.width || image.height() != camera.height ||
         image.type() != PixelType::kF32) {

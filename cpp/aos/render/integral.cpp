@@ -274,33 +274,6 @@ void NearestSpan(const Image& image, int32_t view, const RowLine& line,
   }
 }
 
-// Adds, for columns [xa, xb), the sum over channels of the squared bilinear samples into
-// sum_squares[x - x0] (the variance pass; same sample positions as the span kernels).
-void SquaresSpan(const Image& image, const RowLine& line, int xa, int xb, int x0,
-                 double* sum_squares) {
-  const int channels = image.channels();
-  for (int x = xa; x < xb; ++x) {
-    const double w = line.w0 + line.dw * x;
-    double sx = (line.u0 + line.du * x) / w - 0.5;
-    double sy = (line.v0 + line.dv * x) / w - 0.5;
-    sx = std::min(sx > -1.0 ? sx : -1.0, image.width() - 0.5);
-    sy = std::min(sy > -1.0 ? sy : -1.0, image.height() - 0.5);
-    const int ix = static_cast<int>(std::floor(sx));
-    const int iy = static_cast<int>(std::floor(sy));
-    const double ax = sx - ix, ay = sy - iy;
-    double total = 0.0;
-    for (int c = 0; c < channels; ++c) {
-      const double p00 = image.Value(ix, iy, c), p01 = image.Value(ix + 1, iy, c);
-      const double p10 = image.Value(ix, iy + 1, c), p11 = image.Value(ix + 1, iy + 1, c);
-      const double top = p00 + ax * (p01 - p00);
-      const double bottom = p10 + ax * (p11 - p10);
-      const double value = top + ay * (bottom - top);
-      total += value * value;
-    }
-    sum_squares[x - x0] += total;
-  }
-}
-
 class IntegralRenderer {
  public:
   IntegralRenderer(const LightField& light_field, const IntegralOptions& options)
@@ -479,6 +452,8 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
       }
     }
     const SpanKernel kernel = internal::SelectSpanKernel(image);
+    const internal::SquaresKernel squares_kernel =
+        options_.variance ? internal::ScalarSquaresKernel(image) : nullptr;
     // A view whose centre lies on the lens plane crosses it at its own centre for every pixel.
     const bool on_lens_plane = std::abs(view.lens_b) <= 1e-12 * (glm::length(view.b) + 1.0);
     if (finite_aperture && on_lens_plane && glm::dot(view.b, view.b) > r2) continue;
@@ -546,10 +521,11 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
                       tile.x0, sum_row, buffers.best.data() + row_offset,
                       buffers.best_view.data() + row_offset);
         } else {
-          kernel(image, line, xa, xb, tile.x0, sum_row);
-          if (options_.variance) {
-            SquaresSpan(image, line, xa, xb, tile.x0,
-                        buffers.sum_squares.data() + static_cast<size_t>(tile_width) * r);
+          if (squares_kernel != nullptr) {
+            squares_kernel(image, line, xa, xb, tile.x0, sum_row,
+                           buffers.sum_squares.data() + static_cast<size_t>(tile_width) * r);
+          } else {
+            kernel(image, line, xa, xb, tile.x0, sum_row);
           }
           diff_row[xa - tile.x0] += 1;
           diff_row[xb - tile.x0] -= 1;

@@ -27,7 +27,8 @@
 // - With `variance`, variance(x, y) = mean over channels of (sum of samples^2 / count - mean^2),
 //   the population variance of the view samples (0 where count < 2, never negative). Points on
 //   the focal surface look alike from every view, occluders and defocused points do not: it is
-//   a focus cue (merge.h).
+//   a focus cue (merge.h). The image then comes from the scalar kernel (equal to the default
+//   render up to float rounding).
 //
 // Throws std::invalid_argument (naming the option) for bad options, aos::Cancelled if the
 // progress sink asks to stop.
@@ -64,8 +65,8 @@ struct IntegralOptions {
   double min_view_angle_deg = 1.0;
   // Worker threads; -1 = all cores.
   int num_threads = -1;
-  // Also return the per-pixel variance of the view samples (a second, scalar pass over the
-  // samples: about twice the render time).
+  // Also return the per-pixel variance of the view samples (the samples then go through the
+  // scalar kernel, which also sums their squares: a few times slower than the AVX2 one).
   bool variance = false;
 
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views

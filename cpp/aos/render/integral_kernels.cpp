@@ -55,6 +55,59 @@ void AccumulateSpan(const Image& image, const RowLine& line, int xa, int xb, int
   }
 }
 
+// AccumulateSpan that also adds, per column, the sum over channels of the squared samples into
+// sum_squares[x - x0] (the variance pass), with the same sample positions and rounding.
+template <typename T, int kChannels>
+void AccumulateSpanWithSquares(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                               double* sum, double* sum_squares) {
+  const int channels = kChannels > 0 ? kChannels : image.channels();
+  const T* origin = image.At<T>(0, 0);
+  const ptrdiff_t stride = image.row_stride();
+  const float u_a = static_cast<float>(line.u0 + line.du * xa);
+  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
+  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
+  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
+              dw = static_cast<float>(line.dw);
+  double* out = sum + static_cast<ptrdiff_t>(xa - x0) * channels;
+  double* squares = sum_squares + (xa - x0);
+  const float x_max = static_cast<float>(image.width()) - 0.5f;
+  const float y_max = static_cast<float>(image.height()) - 0.5f;
+  const int n = xb - xa;
+  for (int i = 0; i < n; ++i) {
+    const float fi = static_cast<float>(i);
+    const float inv_w = 1.0f / (w_a + dw * fi);
+    const float sx = ClampSample((u_a + du * fi) * inv_w - 0.5f, x_max);
+    const float sy = ClampSample((v_a + dv * fi) * inv_w - 0.5f, y_max);
+    const int ix = static_cast<int>(sx + 1.0f) - 1;
+    const int iy = static_cast<int>(sy + 1.0f) - 1;
+    const float ax = sx - static_cast<float>(ix);
+    const float ay = sy - static_cast<float>(iy);
+    const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + static_cast<ptrdiff_t>(ix) * channels;
+    double total = 0.0;
+    for (int c = 0; c < channels; ++c) {
+      const float p00 = static_cast<float>(p[c]);
+      const float p01 = static_cast<float>(p[c + channels]);
+      const float p10 = static_cast<float>(p[stride + c]);
+      const float p11 = static_cast<float>(p[stride + c + channels]);
+      const float top = p00 + ax * (p01 - p00);
+      const float bottom = p10 + ax * (p11 - p10);
+      const double value = static_cast<double>(top + ay * (bottom - top));
+      out[static_cast<ptrdiff_t>(i) * channels + c] += value;
+      total += value * value;
+    }
+    squares[i] += total;
+  }
+}
+
+template <typename T>
+SquaresKernel SquaresForChannels(int channels) {
+  switch (channels) {
+    case 1: return &AccumulateSpanWithSquares<T, 1>;
+    case 3: return &AccumulateSpanWithSquares<T, 3>;
+    default: return &AccumulateSpanWithSquares<T, 0>;
+  }
+}
+
 template <typename T>
 SpanKernel ForChannels(int channels) {
   switch (channels) {
@@ -71,6 +124,16 @@ SpanKernel ScalarSpanKernel(const Image& image) {
     case PixelType::kU8: return ForChannels<uint8_t>(image.channels());
     case PixelType::kU16: return ForChannels<uint16_t>(image.channels());
     case PixelType::kF32: return ForChannels<float>(image.channels());
+    case PixelType::kU32: break;
+  }
+  return nullptr;
+}
+
+SquaresKernel ScalarSquaresKernel(const Image& image) {
+  switch (image.type()) {
+    case PixelType::kU8: return SquaresForChannels<uint8_t>(image.channels());
+    case PixelType::kU16: return SquaresForChannels<uint16_t>(image.channels());
+    case PixelType::kF32: return SquaresForChannels<float>(image.channels());
     case PixelType::kU32: break;
   }
   return nullptr;

@@ -21,6 +21,13 @@ constexpr int kSpanPadding = 8;
 using SpanKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
                             double* sum);
 
+// A span kernel that also adds the sum over channels of the squared samples into
+// sum_squares[x - x0] (the renderer's variance pass); scalar, the same samples as the scalar
+// span kernel.
+using SquaresKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                               double* sum, double* sum_squares);
+SquaresKernel ScalarSquaresKernel(const Image& image);
+
 // The scalar kernel for the view's pixel type and channel count (nullptr for uint32 views).
 SpanKernel ScalarSpanKernel(const Image& image);
 // The AVX2 kernel, or nullptr when the CPU lacks AVX2/FMA, SIMD is disabled, or the view's type

@@ -23,7 +23,8 @@
 // Contract (all methods)
 // - A slice's pixel with count 0 has no focus value; a Sobel tap on such a pixel takes the centre
 //   pixel's value (no false edge along coverage borders). A pixel no slice covers gets image 0,
-//   depth 0, confidence 0 and slice -1.
+//   depth 0, confidence 0 and slice -1. robust needs a variance, so two views: a pixel that no
+//   slice covers with at least two views is treated the same way (and counted as uncovered).
 // - depth is z in the virtual camera frame, metres, on the (interpolated) plane of the pixel's
 //   fractional slice; slice is that fractional index in [0, N-1].
 // - confidence = (F_best - mean F) / max(|F_best|, |mean F|) over the slices covering the pixel

@@ -182,12 +182,15 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
             const double along = glm::dot(normal, to_view);
             if (along * along < sin2_min * glm::dot(to_view, to_view)) continue;
             if (finite_aperture || nearest) {
-              // The line X + s (C_i - X) meets the lens plane a . (P - C) = 0 at P.
-              const double denominator = view.lens_b - glm::dot(lens_axis, focal);
+              // The line X + s (C_i - X) meets the lens plane a . (P - C) = 0 at
+              // P - C = ((a.b) X - (a.X) b) / ((a.b) - (a.X)), written as integral.cpp does:
+              // exactly b for a view on the lens plane, so symmetric views tie exactly.
+              const double a_x = glm::dot(lens_axis, focal);
+              const double denominator = view.lens_b - a_x;
               if (denominator == 0.0) continue;
-              const double s = -glm::dot(lens_axis, focal) / denominator;
-              const Vec3d on_lens = focal + s * to_view;
-              const double distance2 = glm::dot(on_lens, on_lens);
+              const Vec3d numerator = view.lens_b * focal - a_x * view.b;
+              const double distance2 =
+                  glm::dot(numerator, numerator) / (denominator * denominator);
               if (finite_aperture && distance2 > r2) continue;
               if (nearest) {
                 if (!(distance2 < best)) continue;
