@@ -577,7 +577,8 @@ const std::vector<std::pair<std::string, std::string>> kMergeFlags{
     {"edge_sigma", "--edge-sigma"},
     {"smoothing_iterations", "--smoothing-iterations"},
     {"agreement", "--agreement"},
-    {"min_inlier_fraction", "--min-inlier-fraction"}};
+    {"min_inlier_fraction", "--min-inlier-fraction"},
+    {"num_threads", "--threads"}};
 
 using FlagList = std::vector<std::pair<std::string, std::string>>;
 FlagList Concat(std::initializer_list<const FlagList*> lists) {
@@ -700,6 +701,8 @@ void AddMerge(CLI::App& app, MergeCommand& c) {
                       "The light field the stack was rendered from (needed by --method robust)");
   command->add_option("--frames-fov-deg", c.load.fov_deg,
                       "Horizontal field of view of the frames, degrees (JKU poses.json only)");
+  command->add_option("--images-dir", c.load.images_dir,
+                      "Folder of the frames (JKU poses.json; default: ../images beside it)");
   command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
       ->capture_default_str();
   command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
@@ -715,7 +718,11 @@ int RunMerge(MergeCommand& c) {
   std::optional<LoadResult> loaded;
   if (!c.light_field_path.empty()) {
     c.load.num_threads = c.options.num_threads;
-    loaded = LoadLightField(c.light_field_path, c.load, &progress);
+    try {
+      loaded = LoadLightField(c.light_field_path, c.load, &progress);
+    } catch (const std::invalid_argument& error) {
+      RethrowNamingFlags(error, kLoadFlags);
+    }
     progress.Finish();
   } else if (c.options.method == MergeMethod::kRobust) {
     ThrowInvalid("--method robust: give --lightfield, the light field the stack was rendered "

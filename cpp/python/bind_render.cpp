@@ -253,7 +253,9 @@ void BindMerge(py::module_& m) {
       .Field("robust", &MergeOptions::robust,
              "robust: the outlier-rejecting mean (SurfaceIntegralOptions; its robust flag is "
              "forced on).")
-      .Field("num_threads", &MergeOptions::num_threads, "Worker threads; -1 = all cores.")
+      .Field("num_threads", &MergeOptions::num_threads,
+             "Worker threads of the merge (slices render with render.num_threads); -1 = all "
+             "cores.")
       .Finish()
       .def("check", &MergeOptions::Check, "Raises ValueError naming the field.");
 

@@ -25,6 +25,7 @@
 namespace aos {
 namespace {
 
+using ::testing::AllOf;
 using ::testing::HasSubstr;
 using test_util::AllFinite;
 using test_util::ConstantImage;
@@ -407,6 +408,61 @@ TEST(MergeFocalStack, RobustNeedsVariancesAndTheLightField) {
               HasSubstr("needs the light field"));
   // sobel and improved need neither.
   EXPECT_EQ(ErrorOf([&] { MergeFocalStack(stack, Options(MergeMethod::kImproved)); }), "no error");
+}
+
+TEST(MergeFocalStack, AFlatPatchInsideTextureHasExactlyZeroFocusAndNoConfidence) {
+  // Slices with large-valued texture on the left half and a flat patch (value 0) on the right:
+  // any window lying wholly in the patch has Sobel energy exactly 0 in every slice, so its
+  // focus curve is flat: slice 0 (ties to the lower slice) and confidence exactly 0, and no
+  // rounding residue from the textured part may make one slice win there.
+  const int w = 48, h = 16;
+  std::vector<Image> images;
+  for (int k = 0; k < 4; ++k) {
+    Image image(w, h, 1, PixelType::kF32);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        *image.At<float>(x, y) =
+            x < w / 2 ? static_cast<float>(1000.0 * ((x * 7 + y * 13 + k * 5) % 11)) : 0.0f;
+      }
+    }
+    images.push_back(image);
+  }
+  const FocalStack stack = HandStack(images);
+  MergeOptions options = Options(MergeMethod::kImproved);
+  options.smoothing_sigma = 0.0;  // the raw focus state
+  const MergeResult result = MergeFocalStack(stack, options);
+  ASSERT_TRUE(WellFormed(result, w, h));
+  // Window radius 3 plus the Sobel's 1: columns from w/2 + 4 on see only the patch.
+  for (int y = 0; y < h; ++y) {
+    for (int x = w / 2 + options.window_radius + 1; x < w; ++x) {
+      ASSERT_EQ(*result.confidence.At<float>(x, y), 0.0f) << x << "," << y;
+      ASSERT_EQ(*result.slice.At<float>(x, y), 0.0f) << x << "," << y;
+    }
+  }
+}
+
+TEST(MergeFocalStack, NonFiniteSlicesAndNegativeVariancesAreRefused) {
+  FocalStack stack = HandStack({Ramp(8, 8, 1), Ramp(8, 8, 2)});
+  stack.images[1].At<float>(3, 4)[0] = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THAT(ErrorOf([&] { MergeFocalStack(stack, Options(MergeMethod::kSobel)); }),
+              AllOf(HasSubstr("slice 1"), HasSubstr("image")));
+  FocalStack negative = HandStack({Ramp(8, 8, 1), Ramp(8, 8, 2)});
+  negative.variances = {ConstantImage(8, 8, {0.0f}), ConstantImage(8, 8, {-1.0f})};
+  EXPECT_THAT(ErrorOf([&] { MergeFocalStack(negative, Options(MergeMethod::kImproved)); }),
+              AllOf(HasSubstr("slice 1"), HasSubstr("variance: negative")));
+}
+
+TEST(MergeFocalStack, RobustRefusesAPinholeStack) {
+  FocalStack stack = HandStack({Ramp(8, 8, 1), Ramp(8, 8, 2)});
+  stack.variances = {ConstantImage(8, 8, {0.0f}), ConstantImage(8, 8, {0.0f})};
+  stack.render.aperture_radius = 0.0;
+  LightField light_field;
+  EXPECT_THAT(ErrorOf([&] { MergeFocalStack(stack, Options(MergeMethod::kRobust), &light_field); }),
+              HasSubstr("aperture_radius 0"));
+  AllInFocusOptions options;
+  options.merge.method = MergeMethod::kRobust;
+  options.stack.render.aperture_radius = 0.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(3); }), HasSubstr("aperture_radius"));
 }
 
 // Three constant views at 20 m (for checks that need a light field, not its content).

@@ -175,6 +175,21 @@ void FocalStack::Check(const std::string& where) const {
          variances[i].channels() != 1 || variances[i].type() != PixelType::kF32)) {
       ThrowInvalid(slice + ": variance must be 1-channel float32 of the camera's size");
     }
+    if (auto problem = DescribeNonFinite(image)) ThrowInvalid(slice + ": image: " + *problem);
+    if (!variances.empty()) {
+      if (auto problem = DescribeNonFinite(variances[i])) {
+        ThrowInvalid(slice + ": variance: " + *problem);
+      }
+      for (int y = 0; y < camera.height; ++y) {
+        const float* row = variances[i].At<float>(0, y);
+        for (int x = 0; x < camera.width; ++x) {
+          if (row[x] < 0.0f) {
+            ThrowInvalid(slice + ": variance: negative at pixel (" + std::to_string(x) + ", " +
+                         std::to_string(y) + ")");
+          }
+        }
+      }
+    }
   }
 }
 

@@ -15,7 +15,8 @@
 //   slice_NNNN.tif (float32 image), count_NNNN.tif (uint32) and, when rendered with variance,
 //   variance_NNNN.tif (float32). WriteFocalStack writes into a hidden temporary folder and renames
 //   it into place; it refuses an existing non-empty folder. ReadFocalStack checks every field and
-//   file and names them in its errors.
+//   file and names them in its errors; FocalStack::Check refuses non-finite pixels and negative
+//   variances.
 //
 // Throws std::invalid_argument naming the option, file or field; aos::Cancelled on request.
 #include <functional>
@@ -30,7 +31,8 @@ struct FocalStackOptions {
   // Virtual camera, aperture, views, threads and the variance flag of every slice;
   // render.focal_plane is ignored (the slices replace it).
   IntegralOptions render;
-  // Boundary planes (local frame): slice 0 lies on the first, slice N-1 on the last.
+  // Boundary planes (local frame): slice 0 lies on the first, slice N-1 on the last (for
+  // N = 1, the one slice lies midway).
   Plane first_plane = Plane::AtHeight(0.0);
   Plane last_plane = Plane::AtHeight(10.0);
   // Number of slices, 1 .. 100000.

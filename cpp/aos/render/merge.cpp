@@ -46,37 +46,45 @@ std::vector<float> Luminance(const Image& image) {
   return out;
 }
 
-// Box mean of `value` over the (2r+1)^2 window, over the pixels where `valid` is set, through
-// summed-area tables in double precision (exact order, so deterministic). Invalid centres: kNone.
+// Box mean of `value` over the (2r+1)^2 window, over the pixels where `valid` is set; centres
+// that are not valid get kNone. Each window is summed directly (a row pass, then a column pass
+// of 2r+1 terms each), not from a summed-area table: a table's four-corner differences leave
+// rounding residue where the values are all 0 (flat ground), which a focus measure must see as
+// exactly 0. Fixed order: deterministic.
 std::vector<float> WindowMean(const std::vector<double>& value, const std::vector<uint8_t>& valid,
-                              int w, int h, int r, float sign) {
-  const size_t stride = static_cast<size_t>(w) + 1;
-  std::vector<double> sum(stride * (h + 1), 0.0);
-  std::vector<int32_t> number(stride * (h + 1), 0);
-  for (int y = 0; y < h; ++y) {
-    double row_sum = 0.0;
-    int32_t row_number = 0;
+                              int w, int h, int r, int threads) {
+  const size_t n = static_cast<size_t>(w) * h;
+  std::vector<double> row_sum(n, 0.0);
+  std::vector<int32_t> row_number(n, 0);
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int64_t yy = 0; yy < h; ++yy) {
+    const size_t row = static_cast<size_t>(yy) * w;
     for (int x = 0; x < w; ++x) {
-      const size_t i = static_cast<size_t>(y) * w + x;
-      if (valid[i]) {
-        row_sum += value[i];
-        ++row_number;
+      double sum = 0.0;
+      int32_t number = 0;
+      for (int qx = std::max(0, x - r); qx <= std::min(w - 1, x + r); ++qx) {
+        if (!valid[row + qx]) continue;
+        sum += value[row + qx];
+        ++number;
       }
-      sum[(y + 1) * stride + x + 1] = sum[y * stride + x + 1] + row_sum;
-      number[(y + 1) * stride + x + 1] = number[y * stride + x + 1] + row_number;
+      row_sum[row + x] = sum;
+      row_number[row + x] = number;
     }
   }
-  std::vector<float> out(static_cast<size_t>(w) * h, kNone);
-  for (int y = 0; y < h; ++y) {
-    const int y0 = std::max(0, y - r), y1 = std::min(h, y + r + 1);
+  std::vector<float> out(n, kNone);
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int64_t yy = 0; yy < h; ++yy) {
+    const int y = static_cast<int>(yy);
     for (int x = 0; x < w; ++x) {
-      if (!valid[static_cast<size_t>(y) * w + x]) continue;
-      const int x0 = std::max(0, x - r), x1 = std::min(w, x + r + 1);
-      const double s = sum[y1 * stride + x1] - sum[y0 * stride + x1] - sum[y1 * stride + x0] +
-                       sum[y0 * stride + x0];
-      const int32_t n = number[y1 * stride + x1] - number[y0 * stride + x1] -
-                        number[y1 * stride + x0] + number[y0 * stride + x0];
-      out[static_cast<size_t>(y) * w + x] = sign * static_cast<float>(s / n);
+      const size_t centre = static_cast<size_t>(y) * w + x;
+      if (!valid[centre]) continue;
+      double sum = 0.0;
+      int64_t number = 0;
+      for (int qy = std::max(0, y - r); qy <= std::min(h - 1, y + r); ++qy) {
+        sum += row_sum[static_cast<size_t>(qy) * w + x];
+        number += row_number[static_cast<size_t>(qy) * w + x];
+      }
+      out[centre] = static_cast<float>(sum / static_cast<double>(number));
     }
   }
   return out;
@@ -120,7 +128,7 @@ std::vector<float> FocusValues(MergeMethod method, const Image& image, const Ima
     }
     return out;
   }
-  if (method == MergeMethod::kImproved) return WindowMean(energy, covered, w, h, window_radius, 1.0f);
+  if (method == MergeMethod::kImproved) return WindowMean(energy, covered, w, h, window_radius, threads);
   // Robust: sharpness per unit of disagreement between the views, window energy over window
   // variance. Both scale with the square of the image values, so the ratio does not depend on
   // the views' units; in-focus texture has high energy and low variance, occluders and defocus
@@ -136,8 +144,9 @@ std::vector<float> FocusValues(MergeMethod method, const Image& image, const Ima
       spread[i] = v[x];
     }
   }
-  std::vector<float> sharp = WindowMean(energy, covered, w, h, window_radius, 1.0f);
-  const std::vector<float> disagreement = WindowMean(spread, agreeing, w, h, window_radius, 1.0f);
+  std::vector<float> sharp = WindowMean(energy, covered, w, h, window_radius, threads);
+  const std::vector<float> disagreement =
+      WindowMean(spread, agreeing, w, h, window_radius, threads);
   for (size_t i = 0; i < n; ++i) {
     if (sharp[i] == kNone || disagreement[i] == kNone) {
       sharp[i] = kNone;
@@ -248,7 +257,7 @@ void SmoothSlices(const MergeOptions& options, const Image& guide_image,
     const double d = 4.0 * k / kTable;
     range_weight[static_cast<size_t>(k)] = k == kTable ? 0.0f : static_cast<float>(std::exp(-0.5 * d * d));
   }
-  const double to_table = range_sigma > 0.0 ? kTable / (4.0 * range_sigma) : 0.0;
+  const double to_table = range_sigma > 0.0 ? kTable / (4.0 * range_sigma) : 0.0;  // 0: flat
   const int radius = static_cast<int>(std::ceil(2.0 * options.smoothing_sigma));
   std::vector<float> spatial(static_cast<size_t>(2 * radius + 1) * (2 * radius + 1));
   for (int dy = -radius; dy <= radius; ++dy) {
@@ -257,36 +266,39 @@ void SmoothSlices(const MergeOptions& options, const Image& guide_image,
           std::exp(-0.5 * (dx * dx + dy * dy) / (options.smoothing_sigma * options.smoothing_sigma)));
     }
   }
-  std::vector<float> next(slice->size());
+  // Per pass, a neighbour's weight is base[q] * spatial * range: base is its confidence (0 for
+  // pixels without a slice), range a table lookup on the scaled guide difference (contrast 0:
+  // every difference is 0, the weight 1). Single precision, fixed order: deterministic.
+  const size_t n = slice->size();
+  std::vector<float> scaled(n), base(n), next(n);
+  for (size_t i = 0; i < n; ++i) scaled[i] = static_cast<float>(guide[i] * to_table);
+  const int side = 2 * radius + 1;
   for (int pass = 0; pass < options.smoothing_iterations; ++pass) {
     const std::vector<float>& current = *slice;
+    for (size_t i = 0; i < n; ++i) base[i] = current[i] >= 0.0f && confidence[i] > 0.0f ? confidence[i] : 0.0f;
 #pragma omp parallel for num_threads(threads) schedule(static)
     for (int64_t yy = 0; yy < h; ++yy) {
       const int y = static_cast<int>(yy);
+      const int qy0 = std::max(0, y - radius), qy1 = std::min(h - 1, y + radius);
       for (int x = 0; x < w; ++x) {
         const size_t p = static_cast<size_t>(y) * w + x;
         next[p] = current[p];
         if (current[p] < 0.0f) continue;
-        double weights = 0.0, sum = 0.0;
-        for (int dy = -radius; dy <= radius; ++dy) {
-          const int qy = y + dy;
-          if (qy < 0 || qy >= h) continue;
-          for (int dx = -radius; dx <= radius; ++dx) {
-            const int qx = x + dx;
-            if (qx < 0 || qx >= w) continue;
-            const size_t q = static_cast<size_t>(qy) * w + qx;
-            if (current[q] < 0.0f || confidence[q] <= 0.0f) continue;
-            const double difference = std::abs(static_cast<double>(guide[q]) - guide[p]) * to_table;
-            const float range = range_sigma > 0.0
-                                    ? range_weight[static_cast<size_t>(std::min<double>(difference, kTable))]
-                                    : 1.0f;
-            const double weight = static_cast<double>(confidence[q]) * range *
-                                  spatial[static_cast<size_t>(dy + radius) * (2 * radius + 1) + dx + radius];
+        const float own = scaled[p];
+        const int qx0 = std::max(0, x - radius), qx1 = std::min(w - 1, x + radius);
+        float weights = 0.0f, sum = 0.0f;
+        for (int qy = qy0; qy <= qy1; ++qy) {
+          const size_t row = static_cast<size_t>(qy) * w;
+          const float* spatial_row = spatial.data() + static_cast<size_t>(qy - y + radius) * side + radius - x;
+          for (int qx = qx0; qx <= qx1; ++qx) {
+            const float difference = std::abs(scaled[row + qx] - own);
+            const int k = difference < static_cast<float>(kTable) ? static_cast<int>(difference) : kTable;
+            const float weight = base[row + qx] * spatial_row[qx] * range_weight[static_cast<size_t>(k)];
             weights += weight;
-            sum += weight * current[q];
+            sum += weight * current[row + qx];
           }
         }
-        if (weights > 0.0) next[p] = static_cast<float>(sum / weights);
+        if (weights > 0.0f) next[p] = sum / weights;
       }
     }
     slice->swap(next);
@@ -427,6 +439,10 @@ void MergeOptions::Check() const {
 void AllInFocusOptions::Check(int view_count) const {
   stack.Check(view_count);
   merge.Check();
+  if (merge.method == MergeMethod::kRobust && stack.render.aperture_radius == 0.0) {
+    ThrowInvalid("aperture_radius: 0 (one view a pixel) leaves method robust no variance to "
+                 "work with; use a wider aperture");
+  }
 }
 
 MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options,
@@ -434,6 +450,10 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
   options.Check();
   stack.Check("focal stack");
   if (options.method == MergeMethod::kRobust) {
+    if (stack.render.aperture_radius == 0.0) {
+      ThrowInvalid("method robust: the stack was rendered with aperture_radius 0 (one view a "
+                   "pixel, no variance); robust needs a wider aperture");
+    }
     if (stack.variances.empty()) {
       ThrowInvalid("method robust: the stack has no variance images (render it with variance)");
     }
@@ -506,7 +526,6 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   options.Check(static_cast<int>(light_field.views.size()));
   AllInFocusOptions run = options;
   run.stack.render.variance = options.merge.method == MergeMethod::kRobust;
-  run.stack.render.num_threads = options.merge.num_threads;
   const int threads = Threads(options.merge.num_threads);
   const PinholeCamera camera = VirtualCamera(run.stack.render);
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, run.stack.render);

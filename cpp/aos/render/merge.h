@@ -2,9 +2,10 @@
 // All-in-focus merging of a focal stack into one image, a depth map and a confidence map.
 //
 // Methods
-// - sobel (the paper's baseline, exactly): per slice the Sobel gradient magnitude of the
-//   luminance (3 x 3 Sobel operator); per pixel the slice where it is largest wins (ties to the
-//   lower slice); the image is that slice's pixel and the depth that slice's plane.
+// - sobel (the paper's baseline): per slice the Sobel gradient magnitude of the luminance, the
+//   3 x 3 Sobel operator being the paper's "3x3 neighbourhood" (no further window); per pixel the
+//   slice where it is largest wins (ties to the lower slice); the image is that slice's pixel and
+//   the depth that slice's plane.
 // - improved (default), context-aware: the focus measure is the Sobel energy gx^2 + gy^2 averaged
 //   over a (2 window_radius + 1)^2 window; the peak of each pixel's focus curve is refined to a
 //   fraction of a slice by a parabola through the best slice and its two neighbours (|offset|
@@ -26,7 +27,12 @@
 //   depth 0, confidence 0 and slice -1. robust needs a variance, so two views: a pixel that no
 //   slice covers with at least two views is treated the same way (and counted as uncovered).
 // - depth is z in the virtual camera frame, metres, on the (interpolated) plane of the pixel's
-//   fractional slice; slice is that fractional index in [0, N-1].
+//   fractional slice (0 where that plane is met behind the camera or not at all); slice is that
+//   fractional index in [0, N-1].
+// - The streaming pipeline and the merge of a stored stack fold the same focus values, so their
+//   depth, slice and confidence maps are identical when the stack was rendered as the pipeline
+//   renders it (variance on for robust, off otherwise: the variance pass uses the scalar
+//   kernel, whose samples differ from the AVX2 kernel's in the last float bit).
 // - confidence = (F_best - mean F) / max(|F_best|, |mean F|) over the slices covering the pixel
 //   (0 when that is 0/0: a constant image or one slice), in [0, 1].
 // - Deterministic: the result depends neither on the thread count nor on the order of
@@ -59,7 +65,8 @@ struct MergeOptions {
   int smoothing_iterations = 3;
   // robust: the outlier-rejecting mean (surface_integral.h); `robust.robust` is forced on.
   SurfaceIntegralOptions robust;
-  // Worker threads; -1 = all cores.
+  // Worker threads of the merge (the slices render with their own render.num_threads); -1 = all
+  // cores.
   int num_threads = -1;
 
   void Check() const;
@@ -85,6 +92,7 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
 struct AllInFocusOptions {
   FocalStackOptions stack;  // stack.render.variance is set by the method (robust needs it)
   MergeOptions merge;
+  // Also refuses robust with aperture_radius 0 (one view a pixel has no variance).
   void Check(int view_count) const;
 };
 

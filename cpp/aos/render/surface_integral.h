@@ -17,7 +17,7 @@
 //   agree to float rounding when the depth map is that plane's).
 // - Robust mean (robust = true), per pixel: the samples agree when their luminances (mean over
 //   channels) lie within a band of width 2 * agreement * full range of the views' type (255 for
-//   8-bit, 65535 for 16-bit, 1 for float). The band placed where it holds the most samples (the
+//   8-bit, 65535 for 16-bit, 4294967295 for 32-bit integer, 1 for float). The band placed where it holds the most samples (the
 //   lowest such band on ties) gives the inliers: points on the focal surface look alike from
 //   every view, while occluders seen from different views are different points. If the inliers
 //   are at least min_inlier_fraction of the samples, the pixel is their mean, else the plain mean

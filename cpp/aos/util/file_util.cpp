@@ -178,8 +178,14 @@ PendingFolder::~PendingFolder() {
 
 void PendingFolder::Commit() {
   std::error_code error;
-  // An existing empty folder is replaced.
-  if (fs::exists(final_path_, error)) fs::remove(final_path_, error);
+  // An existing empty folder is replaced; anything else that appeared meanwhile is kept.
+  if (fs::exists(final_path_, error)) {
+    if (!fs::is_directory(final_path_, error) || !fs::is_empty(final_path_, error) ||
+        !fs::remove(final_path_, error)) {
+      ThrowInvalid(output_dir_ + ": output folder: something else was written there meanwhile; "
+                                 "nothing is overwritten");
+    }
+  }
   fs::rename(temp_path_, final_path_, error);
   if (error) {
     ThrowInvalid(output_dir_ + ": cannot move the finished output into place (" +
