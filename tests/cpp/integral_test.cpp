@@ -12,6 +12,7 @@
 #include "aos/render/integral_kernels.h"
 #include "aos/sim/simulator.h"
 #include "plane_scene.h"
+#include "render_test_util.h"
 #include "aos/util/error.h"
 
 namespace aos {
@@ -19,17 +20,8 @@ namespace {
 
 using ::testing::HasSubstr;
 
-// A light field of views rendered from `scene` at the given camera centres (nadir-looking).
-LightField NadirLightField(const SyntheticScene& scene, const PinholeCamera& camera,
-                           const std::vector<Vec3d>& centres, PixelType type) {
-  LightField light_field;
-  for (size_t i = 0; i < centres.size(); ++i) {
-    const Rigid3d pose = NadirCamFromWorld(centres[i]);
-    light_field.views.push_back(MakeView("v" + std::to_string(i), camera, pose,
-                                         RenderSyntheticView(scene, camera, pose, type)));
-  }
-  return light_field;
-}
+using test_util::GridCentres;
+using test_util::NadirLightField;
 
 // A small simulated light field: 8-bit grey nadir views of the chart-textured ground under a
 // 60 %-density voxel volume, per_side x per_side views 3 m apart at 35 m.
@@ -49,17 +41,6 @@ LightField SimulatedLightField(int per_side, int width, int height) {
   scene.truth.blocked_fraction = false;
   scene.truth.width = scene.truth.height = 8;
   return Simulate(scene).light_field;
-}
-
-std::vector<Vec3d> GridCentres(int per_side, double spacing, double altitude) {
-  std::vector<Vec3d> centres;
-  const double half = 0.5 * (per_side - 1) * spacing;
-  for (int j = 0; j < per_side; ++j) {
-    for (int i = 0; i < per_side; ++i) {
-      centres.emplace_back(-half + i * spacing, -half + j * spacing, altitude);
-    }
-  }
-  return centres;
 }
 
 // A float image of one value everywhere (views whose value names them).

@@ -13,9 +13,11 @@ inline float ClampSample(float s, float max) {
   return s < max ? s : max;
 }
 
-template <typename T, int kChannels>
-void AccumulateSpan(const Image& image, const RowLine& line, int xa, int xb, int x0,
-                    double* sum) {
+// The scalar kernel; with kSquares it also adds, per column, the sum over channels of the
+// squared samples into sum_squares[x - x0] (the variance pass), from the same samples.
+template <typename T, int kChannels, bool kSquares>
+void AccumulateSpanImpl(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                        double* sum, double* sum_squares) {
   const int channels = kChannels > 0 ? kChannels : image.channels();
   const T* origin = image.At<T>(0, 0);
   const ptrdiff_t stride = image.row_stride();
@@ -43,47 +45,7 @@ void AccumulateSpan(const Image& image, const RowLine& line, int xa, int xb, int
     const float ax = sx - static_cast<float>(ix);
     const float ay = sy - static_cast<float>(iy);
     const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + static_cast<ptrdiff_t>(ix) * channels;
-    for (int c = 0; c < channels; ++c) {
-      const float p00 = static_cast<float>(p[c]);
-      const float p01 = static_cast<float>(p[c + channels]);
-      const float p10 = static_cast<float>(p[stride + c]);
-      const float p11 = static_cast<float>(p[stride + c + channels]);
-      const float top = p00 + ax * (p01 - p00);
-      const float bottom = p10 + ax * (p11 - p10);
-      out[static_cast<ptrdiff_t>(i) * channels + c] += static_cast<double>(top + ay * (bottom - top));
-    }
-  }
-}
-
-// AccumulateSpan that also adds, per column, the sum over channels of the squared samples into
-// sum_squares[x - x0] (the variance pass), with the same sample positions and rounding.
-template <typename T, int kChannels>
-void AccumulateSpanWithSquares(const Image& image, const RowLine& line, int xa, int xb, int x0,
-                               double* sum, double* sum_squares) {
-  const int channels = kChannels > 0 ? kChannels : image.channels();
-  const T* origin = image.At<T>(0, 0);
-  const ptrdiff_t stride = image.row_stride();
-  const float u_a = static_cast<float>(line.u0 + line.du * xa);
-  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
-  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
-  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
-              dw = static_cast<float>(line.dw);
-  double* out = sum + static_cast<ptrdiff_t>(xa - x0) * channels;
-  double* squares = sum_squares + (xa - x0);
-  const float x_max = static_cast<float>(image.width()) - 0.5f;
-  const float y_max = static_cast<float>(image.height()) - 0.5f;
-  const int n = xb - xa;
-  for (int i = 0; i < n; ++i) {
-    const float fi = static_cast<float>(i);
-    const float inv_w = 1.0f / (w_a + dw * fi);
-    const float sx = ClampSample((u_a + du * fi) * inv_w - 0.5f, x_max);
-    const float sy = ClampSample((v_a + dv * fi) * inv_w - 0.5f, y_max);
-    const int ix = static_cast<int>(sx + 1.0f) - 1;
-    const int iy = static_cast<int>(sy + 1.0f) - 1;
-    const float ax = sx - static_cast<float>(ix);
-    const float ay = sy - static_cast<float>(iy);
-    const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + static_cast<ptrdiff_t>(ix) * channels;
-    double total = 0.0;
+    double squares = 0.0;
     for (int c = 0; c < channels; ++c) {
       const float p00 = static_cast<float>(p[c]);
       const float p01 = static_cast<float>(p[c + channels]);
@@ -93,10 +55,22 @@ void AccumulateSpanWithSquares(const Image& image, const RowLine& line, int xa, 
       const float bottom = p10 + ax * (p11 - p10);
       const double value = static_cast<double>(top + ay * (bottom - top));
       out[static_cast<ptrdiff_t>(i) * channels + c] += value;
-      total += value * value;
+      if constexpr (kSquares) squares += value * value;
     }
-    squares[i] += total;
+    if constexpr (kSquares) sum_squares[xa - x0 + i] += squares;
   }
+}
+
+template <typename T, int kChannels>
+void AccumulateSpan(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                    double* sum) {
+  AccumulateSpanImpl<T, kChannels, false>(image, line, xa, xb, x0, sum, nullptr);
+}
+
+template <typename T, int kChannels>
+void AccumulateSpanWithSquares(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                               double* sum, double* sum_squares) {
+  AccumulateSpanImpl<T, kChannels, true>(image, line, xa, xb, x0, sum, sum_squares);
 }
 
 template <typename T>
