@@ -1,0 +1,271 @@
+#include "aos/geometry/lens.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+// Derivative of the radial map r -> r (1 + k1 r^2 + k2 r^4 + k3 r^6).
+double RadialSlope(const std::array<double, 5>& d, double r) {
+  const double r2 = r * r;
+  return 1.0 + r2 * (3.0 * d[0] + r2 * (5.0 * d[1] + r2 * 7.0 * d[4]));
+}
+
+// Derivative of the fisheye map theta -> theta (1 + k1 theta^2 + ... + k4 theta^8).
+double FisheyeSlope(const std::array<double, 5>& d, double t) {
+  const double t2 = t * t;
+  return 1.0 + t2 * (3.0 * d[0] + t2 * (5.0 * d[1] + t2 * (7.0 * d[2] + t2 * 9.0 * d[3])));
+}
+
+double FisheyeDistort(const std::array<double, 5>& d, double t) {
+  const double t2 = t * t;
+  return t * (1.0 + t2 * (d[0] + t2 * (d[1] + t2 * (d[2] + t2 * d[3]))));
+}
+
+// The first x in (0, limit] where slope(x) <= 0, or `limit` if there is none (scanned in
+// `steps` steps, then bisected).
+template <typename Slope>
+double FirstFold(Slope slope, double limit, int steps) {
+  double previous = 0.0;
+  for (int i = 1; i <= steps; ++i) {
+    const double x = limit * i / steps;
+    if (slope(x) <= 0.0) {
+      double lo = previous, hi = x;
+      for (int k = 0; k < 60; ++k) {
+        const double mid = 0.5 * (lo + hi);
+        (slope(mid) > 0.0 ? lo : hi) = mid;
+      }
+      return lo;
+    }
+    previous = x;
+  }
+  return limit;
+}
+
+}  // namespace
+
+LensModel ParseLensModel(const std::string& name, const std::string& where) {
+  if (name == "pinhole") return LensModel::kPinhole;
+  if (name == "radtan") return LensModel::kRadTan;
+  if (name == "fisheye") return LensModel::kFisheye;
+  if (name == "omnidir") return LensModel::kOmnidir;
+  ThrowInvalid(where + ": unknown lens model '" + name + "' (pinhole, radtan, fisheye, omnidir)");
+}
+
+const char* LensModelName(LensModel model) {
+  switch (model) {
+    case LensModel::kPinhole: return "pinhole";
+    case LensModel::kRadTan: return "radtan";
+    case LensModel::kFisheye: return "fisheye";
+    default: return "omnidir";
+  }
+}
+
+LensCamera LensCamera::FromPinhole(const PinholeCamera& camera) {
+  LensCamera lens;
+  lens.width = camera.width;
+  lens.height = camera.height;
+  lens.fx = camera.fx;
+  lens.fy = camera.fy;
+  lens.cx = camera.cx;
+  lens.cy = camera.cy;
+  lens.Finalize("pinhole camera");
+  return lens;
+}
+
+Vec2d LensCamera::Distort(const Vec2d& p) const {
+  const std::array<double, 5>& d = distortion;
+  const double k3 = model == LensModel::kOmnidir ? 0.0 : d[4];
+  const double x = p.x, y = p.y, r2 = x * x + y * y;
+  const double radial = 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * k3));
+  return Vec2d(x * radial + 2.0 * d[2] * x * y + d[3] * (r2 + 2.0 * x * x),
+               y * radial + d[2] * (r2 + 2.0 * y * y) + 2.0 * d[3] * x * y);
+}
+
+void LensCamera::Finalize(const std::string& where) {
+  if (width <= 0 || height <= 0) ThrowInvalid(where + ": width/height: must be positive");
+  const double values[] = {fx, fy, cx, cy, skew, xi, distortion[0], distortion[1],
+                           distortion[2], distortion[3], distortion[4]};
+  for (double value : values) {
+    if (!std::isfinite(value)) ThrowInvalid(where + ": parameters must be finite");
+  }
+  if (!(fx > 0.0) || !(fy > 0.0)) ThrowInvalid(where + ": fx/fy: must be > 0");
+  if (model == LensModel::kOmnidir && xi < 0.0) {
+    ThrowInvalid(where + ": xi: must be >= 0 (got " + FormatNumber(xi) +
+                 "); the unified model is not invertible otherwise");
+  }
+  if (model == LensModel::kFisheye && distortion[4] != 0.0) {
+    ThrowInvalid(where + ": distortion: the fisheye model has k1..k4 only (fifth value must be 0)");
+  }
+  if (model != LensModel::kOmnidir && (skew != 0.0 || xi != 0.0)) {
+    ThrowInvalid(where + ": skew/xi: only the omnidir model has them");
+  }
+  // The frame's largest distorted normalised radius (its corners), to tell whether a fold of the
+  // distortion lies inside the image.
+  double frame_radius = 0.0;
+  for (double u : {0.0, static_cast<double>(width)}) {
+    for (double v : {0.0, static_cast<double>(height)}) {
+      const double y = (v - cy) / fy;
+      const double x = (u - cx - skew * y) / fx;
+      frame_radius = std::max(frame_radius, std::hypot(x, y));
+    }
+  }
+  max_radius = std::numeric_limits<double>::infinity();
+  theta_max = kPi;
+  switch (model) {
+    case LensModel::kPinhole:
+      theta_max = 0.5 * kPi;
+      break;
+    case LensModel::kRadTan:
+    case LensModel::kOmnidir: {
+      std::array<double, 5> d = distortion;
+      if (model == LensModel::kOmnidir) d[4] = 0.0;
+      const double fold = FirstFold([&](double r) { return RadialSlope(d, r); }, 1e3, 200000);
+      if (fold < 1e3) {
+        max_radius = fold;
+        const double folded_at = fold * (1.0 + fold * fold * (d[0] + fold * fold * (d[1] + fold * fold * d[4])));
+        // A perspective lens must cover its frame; a fold inside it is an error. Omnidirectional
+        // images end at their image circle: beyond the fold is simply not imaged (masked).
+        if (model == LensModel::kRadTan && folded_at < frame_radius) {
+          ThrowInvalid(where + ": distortion: folds the image (the radial distortion stops "
+                               "increasing at normalised radius " + FormatNumber(fold) +
+                       ", inside the frame); the model is not invertible there");
+        }
+      }
+      if (model == LensModel::kRadTan) {
+        theta_max = 0.5 * kPi;
+      } else {
+        // Unified model: injective on the sphere where 1 + xi cos(theta) > 0 and
+        // cos(theta) + xi > 0.
+        theta_max = xi == 0.0 ? 0.5 * kPi : std::acos(-std::min(xi, 1.0 / xi));
+      }
+      break;
+    }
+    case LensModel::kFisheye: {
+      // The image circle ends where the distortion stops increasing (or at 180 degrees):
+      // pixels beyond it have no ray (masked), as for any circular fisheye frame.
+      theta_max = FirstFold([&](double t) { return FisheyeSlope(distortion, t); }, kPi, 100000);
+      if (theta_max >= kPi) theta_max = kPi * (1.0 - 1e-9);
+      break;
+    }
+  }
+}
+
+bool LensCamera::Project(const Vec3d& p, Vec2d* pixel) const {
+  switch (model) {
+    case LensModel::kPinhole:
+      if (!(p.z > 0.0)) return false;
+      *pixel = Vec2d(fx * p.x / p.z + cx, fy * p.y / p.z + cy);
+      return true;
+    case LensModel::kRadTan: {
+      if (!(p.z > 0.0)) return false;
+      const Vec2d n(p.x / p.z, p.y / p.z);
+      if (!(std::hypot(n.x, n.y) <= max_radius)) return false;
+      const Vec2d d = Distort(n);
+      *pixel = Vec2d(fx * d.x + cx, fy * d.y + cy);
+      return true;
+    }
+    case LensModel::kFisheye: {
+      const double r = std::hypot(p.x, p.y);
+      const double theta = std::atan2(r, p.z);
+      if (!(theta <= theta_max) || (r == 0.0 && !(p.z > 0.0))) return false;
+      const double scale = r > 0.0 ? FisheyeDistort(distortion, theta) / r : 0.0;
+      *pixel = Vec2d(fx * scale * p.x + cx, fy * scale * p.y + cy);
+      return true;
+    }
+    case LensModel::kOmnidir: {
+      const double length = glm::length(p);
+      if (!(length > 0.0)) return false;
+      const Vec3d s = p / length;
+      // The angle test (theta < theta_max) as cos(theta) > cos(theta_max).
+      if (!(s.z > std::cos(theta_max))) return false;
+      const double denominator = s.z + xi;
+      if (!(denominator > 0.0)) return false;
+      const Vec2d n(s.x / denominator, s.y / denominator);
+      if (!(std::hypot(n.x, n.y) <= max_radius)) return false;
+      const Vec2d d = Distort(n);
+      *pixel = Vec2d(fx * d.x + skew * d.y + cx, fy * d.y + cy);
+      return true;
+    }
+  }
+  return false;
+}
+
+bool LensCamera::Unproject(const Vec2d& pixel, Vec3d* ray) const {
+  const double yd = (pixel.y - cy) / fy;
+  const double xd = (pixel.x - cx - skew * yd) / fx;
+  if (!std::isfinite(xd) || !std::isfinite(yd)) return false;
+  if (model == LensModel::kPinhole) {
+    *ray = glm::normalize(Vec3d(xd, yd, 1.0));
+    return true;
+  }
+  if (model == LensModel::kFisheye) {
+    const double theta_d = std::hypot(xd, yd);
+    if (theta_d == 0.0) {
+      *ray = Vec3d(0.0, 0.0, 1.0);
+      return true;
+    }
+    if (!(theta_d <= FisheyeDistort(distortion, theta_max))) return false;
+    // Newton on theta (the map is increasing on [0, theta_max]), kept inside the bracket.
+    double lo = 0.0, hi = theta_max, theta = std::min(theta_d, theta_max);
+    for (int i = 0; i < 100; ++i) {
+      const double f = FisheyeDistort(distortion, theta) - theta_d;
+      if (f > 0.0) hi = theta; else lo = theta;
+      double next = theta - f / FisheyeSlope(distortion, theta);
+      if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+      if (std::abs(next - theta) <= 1e-15 * (1.0 + theta)) {
+        theta = next;
+        break;
+      }
+      theta = next;
+    }
+    const double s = std::sin(theta) / theta_d;
+    *ray = Vec3d(s * xd, s * yd, std::cos(theta));
+    return true;
+  }
+  // radtan and omnidir: undo the radial-tangential distortion by Newton's method.
+  const std::array<double, 5>& d = distortion;
+  const double k3 = model == LensModel::kOmnidir ? 0.0 : d[4];
+  Vec2d p(xd, yd);
+  bool converged = false;
+  for (int i = 0; i < 100; ++i) {
+    const Vec2d f = Distort(p) - Vec2d(xd, yd);
+    if (std::abs(f.x) + std::abs(f.y) <= 1e-15 * (1.0 + std::abs(xd) + std::abs(yd))) {
+      converged = true;
+      break;
+    }
+    const double x = p.x, y = p.y, r2 = x * x + y * y;
+    const double radial = 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * k3));
+    const double radial1 = 2.0 * d[0] + r2 * (4.0 * d[1] + r2 * 6.0 * k3);
+    const double a = radial + radial1 * x * x + 2.0 * d[2] * y + 6.0 * d[3] * x;
+    const double b = radial1 * x * y + 2.0 * d[2] * x + 2.0 * d[3] * y;
+    const double c = radial + radial1 * y * y + 6.0 * d[2] * y + 2.0 * d[3] * x;
+    const double det = a * c - b * b;
+    if (!(std::abs(det) > 1e-300)) break;
+    const Vec2d step((c * f.x - b * f.y) / det, (a * f.y - b * f.x) / det);
+    p -= step;
+    if (!std::isfinite(p.x) || !std::isfinite(p.y)) break;
+  }
+  if (!converged || !(std::hypot(p.x, p.y) <= max_radius * (1.0 + 1e-12))) return false;
+  if (model == LensModel::kRadTan) {
+    *ray = glm::normalize(Vec3d(p.x, p.y, 1.0));
+    return true;
+  }
+  // Lift onto the unit sphere (the root with 1 + xi cos(theta) > 0).
+  const double r2 = p.x * p.x + p.y * p.y;
+  const double discriminant = 1.0 + (1.0 - xi * xi) * r2;
+  if (!(discriminant >= 0.0)) return false;
+  const double factor = (xi + std::sqrt(discriminant)) / (r2 + 1.0);
+  const Vec3d s(factor * p.x, factor * p.y, factor - xi);
+  if (!(s.z > std::cos(theta_max) - 1e-12)) return false;
+  *ray = glm::normalize(s);
+  return true;
+}
+
+}  // namespace aos

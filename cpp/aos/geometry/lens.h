@@ -1,0 +1,76 @@
+#pragma once
+// Lens models: the pinhole camera extended with OpenCV's distortion models, each with project
+// (point in the camera frame -> pixel) and unproject (pixel -> unit ray).
+//
+// Contract
+// - Pixel coordinates follow pinhole.h: continuous, pixel centres at +0.5 (OpenCV's centres are
+//   at integers: cx_aos = cx_opencv + 0.5, likewise cy). Camera axes: x right, y down, z forward.
+// - kPinhole: u = fx X/Z + cx, v = fy Y/Z + cy (distortion ignored).
+// - kRadTan (OpenCV's default model; cv::projectPoints): x = X/Z, y = Y/Z, r^2 = x^2 + y^2,
+//   x' = x (1 + k1 r^2 + k2 r^4 + k3 r^6) + 2 p1 x y + p2 (r^2 + 2 x^2),
+//   y' = y (1 + k1 r^2 + k2 r^4 + k3 r^6) + p1 (r^2 + 2 y^2) + 2 p2 x y; u = fx x' + cx.
+//   distortion = {k1, k2, p1, p2, k3}. Valid where Z > 0 and r <= max_radius (see below).
+// - kFisheye (cv::fisheye, equidistant): theta = atan2(sqrt(X^2 + Y^2), Z),
+//   theta_d = theta (1 + k1 theta^2 + k2 theta^4 + k3 theta^6 + k4 theta^8),
+//   (x', y') = theta_d (X, Y) / sqrt(X^2 + Y^2); u = fx x' + cx. distortion = {k1, k2, k3, k4, 0}.
+//   Rays up to theta_max (below pi) are valid, including beyond 90 degrees.
+// - kOmnidir (cv::omnidir, Mei's unified model): X_s = X / |X|; x = X_s.x / (X_s.z + xi),
+//   y = X_s.y / (X_s.z + xi); then the radial-tangential distortion with {k1, k2, p1, p2} (k3 = 0);
+//   u = fx x' + skew y' + cx, v = fy y' + cy. Valid where X_s.z + xi > 0 (with xi > 1, rays beyond
+//   90 degrees) and the distorted radius stays monotonic.
+// - Invertibility: the radial distortion must be increasing over the valid field, so that project
+//   is one-to-one there. Finalize() finds the largest undistorted radius (radtan, omnidir) or
+//   angle (fisheye) up to which it is (max_radius / theta_max); points beyond do not project
+//   (Project returns false) and pixels beyond their image do not unproject: the edge of a
+//   fisheye's or omni lens's image circle. A radtan (perspective) lens must cover its frame: a
+//   fold inside the frame is an error. Unproject solves the distortion by Newton's method to
+//   1e-15 and returns false where it does not converge.
+//
+// Throws std::invalid_argument naming the field for bad parameters (non-finite, fx <= 0,
+// xi < 0, a radtan distortion that folds inside the frame).
+#include <array>
+#include <string>
+
+#include "aos/geometry/pinhole.h"
+#include "aos/geometry/rigid.h"
+
+namespace aos {
+
+enum class LensModel { kPinhole, kRadTan, kFisheye, kOmnidir };
+
+// "pinhole", "radtan", "fisheye", "omnidir"; throws std::invalid_argument naming `where`.
+LensModel ParseLensModel(const std::string& name, const std::string& where);
+const char* LensModelName(LensModel model);
+
+struct LensCamera {
+  LensModel model = LensModel::kPinhole;
+  int width = 0;    // pixels (> 0)
+  int height = 0;
+  double fx = 0.0;  // pixels (> 0)
+  double fy = 0.0;
+  double cx = 0.0;  // continuous coordinates (pixel centres at +0.5)
+  double cy = 0.0;
+  double skew = 0.0;  // omnidir only (OpenCV's s)
+  double xi = 0.0;    // omnidir only, >= 0
+  std::array<double, 5> distortion{0, 0, 0, 0, 0};  // see above, per model
+
+  // Derived by Finalize(): the valid field.
+  double max_radius = 0.0;  // radtan/omnidir: largest normalised undistorted radius
+  double theta_max = 0.0;   // fisheye: largest ray angle from the axis, radians
+
+  static LensCamera FromPinhole(const PinholeCamera& camera);
+
+  // Validates the parameters and computes the valid field. Throws std::invalid_argument
+  // "<where>: <field>: <reason>".
+  void Finalize(const std::string& where);
+
+  // Pixel of a point in the camera frame; false where the point is outside the valid field.
+  bool Project(const Vec3d& point_in_cam, Vec2d* pixel) const;
+  // Unit ray through `pixel`; false where no valid ray maps there.
+  bool Unproject(const Vec2d& pixel, Vec3d* ray) const;
+
+  // The distortion in normalised coordinates (radtan/omnidir): undistorted -> distorted.
+  Vec2d Distort(const Vec2d& undistorted) const;
+};
+
+}  // namespace aos
