@@ -19,6 +19,7 @@
 #include "aos/image/image_io.h"
 #include "aos/lightfield/formats.h"
 #include "aos/metrics/quality.h"
+#include "aos/metrics/resolution.h"
 #include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
 #include "aos/render/merge.h"
@@ -788,6 +789,112 @@ int RunAllInFocus(AllInFocusCommand& c) {
   return 0;
 }
 
+struct ResolutionCommand {
+  int width = 0;
+  int height = 0;
+  double fov_deg = 0.0;
+  std::string focal;      // FX,FY
+  std::string principal;  // CX,CY
+  std::string model = "pinhole";
+  std::string distortion;
+  double xi = 0.0;
+  double skew = 0.0;
+  ResolutionOptions options;
+  bool json = false;
+};
+
+void AddResolution(CLI::App& app, ResolutionCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "resolution",
+      "Spatial sampling resolution of a nadir camera over a focal plane (the AOS paper's Eq. 2 "
+      "and Appendix A back-projection) and the effective resolution under a pose error");
+  command->add_option("--width", c.width, "Image width, pixels")->required();
+  command->add_option("--height", c.height, "Image height, pixels")->required();
+  auto* fov = command->add_option("--fov-deg", c.fov_deg,
+                                  "Horizontal field of view, degrees (square pixels, centred)");
+  auto* focal = command->add_option("--focal", c.focal, "Focal lengths FX,FY in pixels");
+  fov->excludes(focal);
+  command->add_option("--principal", c.principal,
+                      "Principal point CX,CY (pixel centres at +0.5; default: image centre)");
+  command->add_option("--model", c.model, "pinhole, radtan, fisheye or omnidir")
+      ->capture_default_str();
+  command->add_option("--distortion", c.distortion,
+                      "Up to 5 coefficients: radtan k1,k2,p1,p2,k3; fisheye k1,k2,k3,k4; "
+                      "omnidir k1,k2,p1,p2");
+  command->add_option("--xi", c.xi, "omnidir: xi")->capture_default_str();
+  command->add_option("--skew", c.skew, "omnidir: skew")->capture_default_str();
+  command->add_option("--distance", c.options.distance_m,
+                      "Distance to the focal plane (altitude above it), metres")
+      ->capture_default_str();
+  auto* error_px = command->add_option("--pose-error-px", c.options.pose_error_px,
+                                       "Pose error, pixels");
+  auto* error_m = command->add_option("--pose-error-m", c.options.pose_error_m,
+                                      "Pose error at the focal plane, metres");
+  error_px->excludes(error_m);
+  command->add_flag("--json", c.json, "Print one JSON object");
+}
+
+int RunResolution(const ResolutionCommand& c) {
+  LensCamera camera;
+  camera.model = ParseLensModel(c.model, "--model");
+  camera.width = c.width;
+  camera.height = c.height;
+  if (!c.focal.empty()) {
+    const std::vector<double> f = ParseNumbers(c.focal, "--focal", 2);
+    camera.fx = f[0];
+    camera.fy = f[1];
+  } else if (c.fov_deg > 0.0) {
+    const PinholeCamera pinhole = PinholeCamera::FromFov(c.width, c.height, c.fov_deg);
+    camera.fx = pinhole.fx;
+    camera.fy = pinhole.fy;
+  } else {
+    ThrowInvalid("give --fov-deg or --focal");
+  }
+  camera.cx = 0.5 * c.width;
+  camera.cy = 0.5 * c.height;
+  if (!c.principal.empty()) {
+    const std::vector<double> p = ParseNumbers(c.principal, "--principal", 2);
+    camera.cx = p[0];
+    camera.cy = p[1];
+  }
+  if (!c.distortion.empty()) {
+    const std::vector<double> d = ParseNumbers(c.distortion, "--distortion");
+    if (d.size() > 5) ThrowInvalid("--distortion: at most 5 coefficients");
+    std::copy(d.begin(), d.end(), camera.distortion.begin());
+  }
+  camera.xi = c.xi;
+  camera.skew = c.skew;
+  ResolutionResult r;
+  try {
+    r = SamplingResolution(camera, c.options);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, {{"distance_m", "--distance"},
+                               {"pose_error_px", "--pose-error-px"},
+                               {"pose_error_m", "--pose-error-m"}});
+  }
+  if (c.json) {
+    std::printf("{\"eq2_samples_per_m2\": %s, \"eq2_sample_size_m\": %s, \"samples_per_m2\": %s, "
+                "\"sample_size_m\": %s, \"pixels_on_plane\": %lld, \"footprint_m2\": %s, "
+                "\"pose_error_m\": %s, \"effective_sample_size_m\": %s, "
+                "\"effective_samples_per_m2\": %s}\n",
+                FormatNumber(r.eq2_samples_per_m2).c_str(), FormatNumber(r.eq2_sample_size_m).c_str(),
+                FormatNumber(r.samples_per_m2).c_str(), FormatNumber(r.sample_size_m).c_str(),
+                static_cast<long long>(r.pixels_on_plane), FormatNumber(r.footprint_m2).c_str(),
+                FormatNumber(r.pose_error_m).c_str(), FormatNumber(r.effective_sample_size_m).c_str(),
+                FormatNumber(r.effective_samples_per_m2).c_str());
+    return 0;
+  }
+  std::printf("Eq. 2 (pinhole):        %.1f samples/m^2, sample size %.2f cm\n",
+              r.eq2_samples_per_m2, 100.0 * r.eq2_sample_size_m);
+  std::printf("back-projected (App. A): %.1f samples/m^2, sample size %.2f cm (%lld pixels over "
+              "%.1f m^2)\n",
+              r.samples_per_m2, 100.0 * r.sample_size_m, static_cast<long long>(r.pixels_on_plane),
+              r.footprint_m2);
+  std::printf("pose error %.2f cm: effective sample size p' = p + 2e = %.2f cm, %.1f samples/m^2\n",
+              100.0 * r.pose_error_m, 100.0 * r.effective_sample_size_m, r.effective_samples_per_m2);
+  return 0;
+}
+
 struct MetricsCommand {
   std::string test_path;
   std::string reference_path;
@@ -868,7 +975,9 @@ int main(int argc, char** argv) {
   StackCommand stack;
   MergeCommand merge;
   AllInFocusCommand all_in_focus;
+  ResolutionCommand resolution;
   AddIntegral(app, integral);
+  AddResolution(app, resolution);
   AddStack(app, stack);
   AddMerge(app, merge);
   AddAllInFocus(app, all_in_focus);
@@ -886,6 +995,7 @@ int main(int argc, char** argv) {
   try {
     if (app.got_subcommand("integral")) return RunIntegral(integral);
     if (app.got_subcommand("stack")) return RunStack(stack);
+    if (app.got_subcommand("resolution")) return RunResolution(resolution);
     if (app.got_subcommand("merge")) return RunMerge(merge);
     if (app.got_subcommand("allinfocus")) return RunAllInFocus(all_in_focus);
     if (app.got_subcommand("simulate")) return RunSimulate(simulate);

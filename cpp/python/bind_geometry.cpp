@@ -5,6 +5,9 @@
 #include "aos/geometry/pinhole.h"
 #include "aos/geometry/rigid.h"
 #include "aos/util/error.h"
+#include <optional>
+
+#include "aos/geometry/lens.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -118,6 +121,73 @@ void BindGeometry(py::module_& m) {
                ", fy=" + FormatNumber(camera.fy) + ", cx=" + FormatNumber(camera.cx) +
                ", cy=" + FormatNumber(camera.cy) + ")";
       });
+
+  py::enum_<LensModel>(m, "LensModel", "Lens model of a LensCamera (aos/geometry/lens.h).")
+      .value("pinhole", LensModel::kPinhole)
+      .value("radtan", LensModel::kRadTan)
+      .value("fisheye", LensModel::kFisheye)
+      .value("omnidir", LensModel::kOmnidir);
+
+  py::class_<LensCamera>(
+      m, "LensCamera",
+      "A camera with a lens model: pinhole, OpenCV radial-tangential (distortion k1, k2, p1, p2, "
+      "k3), OpenCV fisheye (k1..k4, 0) or OpenCV omnidirectional (Mei: xi, skew, k1, k2, p1, "
+      "p2, 0). Pixel centres at +0.5 (OpenCV's cx = cx - 0.5). Call finalize() after changing "
+      "fields.")
+      .def(py::init([](LensModel model, int width, int height, double fx, double fy, double cx,
+                       double cy, const std::array<double, 5>& distortion, double xi,
+                       double skew) {
+             LensCamera lens;
+             lens.model = model;
+             lens.width = width;
+             lens.height = height;
+             lens.fx = fx;
+             lens.fy = fy;
+             lens.cx = cx;
+             lens.cy = cy;
+             lens.distortion = distortion;
+             lens.xi = xi;
+             lens.skew = skew;
+             lens.Finalize("camera");
+             return lens;
+           }),
+           "model"_a, "width"_a, "height"_a, "fx"_a, "fy"_a, "cx"_a, "cy"_a,
+           "distortion"_a = std::array<double, 5>{0, 0, 0, 0, 0}, "xi"_a = 0.0, "skew"_a = 0.0,
+           "Raises ValueError for parameters that are not invertible (xi < 0, a radtan "
+           "distortion folding inside the frame).")
+      .def_static("from_pinhole", &LensCamera::FromPinhole, "camera"_a)
+      .def_readwrite("model", &LensCamera::model)
+      .def_readwrite("width", &LensCamera::width)
+      .def_readwrite("height", &LensCamera::height)
+      .def_readwrite("fx", &LensCamera::fx)
+      .def_readwrite("fy", &LensCamera::fy)
+      .def_readwrite("cx", &LensCamera::cx)
+      .def_readwrite("cy", &LensCamera::cy)
+      .def_readwrite("skew", &LensCamera::skew)
+      .def_readwrite("xi", &LensCamera::xi)
+      .def_readwrite("distortion", &LensCamera::distortion)
+      .def_readonly("max_radius", &LensCamera::max_radius,
+                    "Largest valid undistorted normalised radius (radtan, omnidir).")
+      .def_readonly("theta_max", &LensCamera::theta_max,
+                    "Largest valid ray angle from the axis, radians.")
+      .def("finalize", &LensCamera::Finalize, "where"_a = "camera",
+           "Validates the parameters and computes the valid field.")
+      .def(
+          "project",
+          [](const LensCamera& lens, const Vec3d& point) -> std::optional<Vec2d> {
+            Vec2d pixel;
+            if (!lens.Project(point, &pixel)) return std::nullopt;
+            return pixel;
+          },
+          "point"_a, "Pixel (u, v) of a point in the camera frame, or None outside the valid field.")
+      .def(
+          "unproject",
+          [](const LensCamera& lens, const Vec2d& pixel) -> std::optional<Vec3d> {
+            Vec3d ray;
+            if (!lens.Unproject(pixel, &ray)) return std::nullopt;
+            return ray;
+          },
+          "pixel"_a, "Unit ray through the pixel, or None where no valid ray maps there.");
 }
 
 }  // namespace aos::python

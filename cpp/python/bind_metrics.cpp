@@ -3,6 +3,7 @@
 #include <optional>
 
 #include "aos/metrics/quality.h"
+#include "aos/metrics/resolution.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -54,6 +55,33 @@ void BindMetrics(py::module_& m) {
       },
       "test"_a, "reference"_a, "mask"_a = py::none(), "options"_a = QualityOptions{},
       "Use aos.compare_images.");
+
+  OptionsClass<ResolutionOptions>(
+      m, "ResolutionOptions",
+      "Options of sampling_resolution (defaults from the C++ struct aos::ResolutionOptions).")
+      .Field("distance_m", &ResolutionOptions::distance_m,
+             "Distance from the camera to the focal plane along its axis, metres (> 0).")
+      .Field("pose_error_px", &ResolutionOptions::pose_error_px,
+             "Pose error in pixels (>= 0), converted to metres with the sample size.")
+      .Field("pose_error_m", &ResolutionOptions::pose_error_m,
+             "Pose error in metres at the focal plane (>= 0); at most one of the two.")
+      .Finish()
+      .def("check", &ResolutionOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<ResolutionResult>(m, "ResolutionResult",
+                               "Sampling resolution (Eq. 2, Appendix A) and its effective value.")
+      .def_readonly("eq2_samples_per_m2", &ResolutionResult::eq2_samples_per_m2)
+      .def_readonly("eq2_sample_size_m", &ResolutionResult::eq2_sample_size_m)
+      .def_readonly("samples_per_m2", &ResolutionResult::samples_per_m2)
+      .def_readonly("sample_size_m", &ResolutionResult::sample_size_m)
+      .def_readonly("pixels_on_plane", &ResolutionResult::pixels_on_plane)
+      .def_readonly("footprint_m2", &ResolutionResult::footprint_m2)
+      .def_readonly("pose_error_m", &ResolutionResult::pose_error_m)
+      .def_readonly("effective_sample_size_m", &ResolutionResult::effective_sample_size_m)
+      .def_readonly("effective_samples_per_m2", &ResolutionResult::effective_samples_per_m2);
+
+  m.def("_sampling_resolution", &SamplingResolution, "camera"_a, "options"_a,
+        "Use aos.sampling_resolution.");
 }
 
 }  // namespace aos::python

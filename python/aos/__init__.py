@@ -31,6 +31,10 @@ from typing import Any, Callable, Optional, TypeVar
 
 from . import _core
 from ._core import (
+    LensCamera,
+    LensModel,
+    ResolutionOptions,
+    ResolutionResult,
     AllInFocusOptions,
     FocalStack,
     FocalStackOptions,
@@ -72,6 +76,11 @@ from ._core import (
 )
 
 __all__ = [
+    "LensCamera",
+    "LensModel",
+    "ResolutionOptions",
+    "ResolutionResult",
+    "sampling_resolution",
     "AllInFocusOptions",
     "FocalStack",
     "FocalStackOptions",
@@ -127,6 +136,7 @@ _Options = TypeVar(
     SurfaceIntegralOptions,
     FocalStackOptions,
     MergeOptions,
+    ResolutionOptions,
 )
 
 
@@ -394,3 +404,22 @@ def render_integral_on_depth(
         "render_integral_on_depth", SurfaceIntegralOptions, surface, groups["surface"]
     )
     return _core._render_integral_on_depth(light_field, render, depth, surf, progress)
+
+
+def sampling_resolution(
+    camera: "LensCamera | PinholeCamera", options: Optional[ResolutionOptions] = None, **kwargs: Any
+) -> ResolutionResult:
+    """Sampling resolution of a nadir camera over a focal plane: Eq. 2 and the Appendix A
+    back-projection of the AOS paper, and the effective value p' = p + 2e under a pose error.
+
+    ``kwargs`` are fields of :class:`ResolutionOptions` (distance_m, pose_error_px, pose_error_m).
+
+    Example::
+
+        cam = aos.LensCamera.from_pinhole(aos.PinholeCamera.from_fov(1871, 1871, 80.0))
+        r = aos.sampling_resolution(cam, distance_m=35.0)   # r.eq2_samples_per_m2 ~ 1014
+    """
+    if isinstance(camera, PinholeCamera):
+        camera = LensCamera.from_pinhole(camera)
+    merged = _merge_options("sampling_resolution", ResolutionOptions, options, kwargs)
+    return _core._sampling_resolution(camera, merged)

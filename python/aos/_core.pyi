@@ -103,6 +103,55 @@ class PinholeCamera:
         """ValueError naming `where` if a field is out of range or not finite."""
     def __repr__(self) -> str: ...
 
+class LensModel:
+    pinhole: ClassVar[LensModel]
+    radtan: ClassVar[LensModel]
+    fisheye: ClassVar[LensModel]
+    omnidir: ClassVar[LensModel]
+    def __init__(self, value: int) -> None: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def value(self) -> int: ...
+
+class LensCamera:
+    """A camera with a lens model (pinhole, radtan, fisheye, omnidir); see aos/geometry/lens.h."""
+
+    def __init__(
+        self,
+        model: LensModel,
+        width: int,
+        height: int,
+        fx: float,
+        fy: float,
+        cx: float,
+        cy: float,
+        distortion: Sequence[float] = ...,
+        xi: float = ...,
+        skew: float = ...,
+    ) -> None: ...
+    @staticmethod
+    def from_pinhole(camera: PinholeCamera) -> LensCamera: ...
+    model: LensModel
+    width: int
+    height: int
+    fx: float
+    fy: float
+    cx: float
+    cy: float
+    skew: float
+    xi: float
+    distortion: list[float]
+    @property
+    def max_radius(self) -> float: ...
+    @property
+    def theta_max(self) -> float: ...
+    def finalize(self, where: str = "camera") -> None: ...
+    def project(self, point: _Vector) -> Optional[_Float64Array]:
+        """Pixel of a camera-frame point, or None outside the valid field."""
+    def unproject(self, pixel: _Vector) -> Optional[_Float64Array]:
+        """Unit ray through the pixel, or None."""
+
 def read_image(path: _PathLike) -> _ImageArray:
     """Reads an image file; uint8/uint16 kept, other types become float32. The returned array
     owns the decoded pixels (no extra copy)."""
@@ -487,6 +536,44 @@ class QualityResult:
     @property
     def ssim_pixels(self) -> int: ...
     def __repr__(self) -> str: ...
+
+class ResolutionOptions:
+    """Options of sampling_resolution; fields and defaults of aos::ResolutionOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self, *, distance_m: float = ..., pose_error_px: float = ..., pose_error_m: float = ...
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    distance_m: float
+    pose_error_px: float
+    pose_error_m: float
+    def check(self) -> None: ...
+    def __copy__(self) -> ResolutionOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> ResolutionOptions: ...
+    def __repr__(self) -> str: ...
+
+class ResolutionResult:
+    @property
+    def eq2_samples_per_m2(self) -> float: ...
+    @property
+    def eq2_sample_size_m(self) -> float: ...
+    @property
+    def samples_per_m2(self) -> float: ...
+    @property
+    def sample_size_m(self) -> float: ...
+    @property
+    def pixels_on_plane(self) -> int: ...
+    @property
+    def footprint_m2(self) -> float: ...
+    @property
+    def pose_error_m(self) -> float: ...
+    @property
+    def effective_sample_size_m(self) -> float: ...
+    @property
+    def effective_samples_per_m2(self) -> float: ...
+
+def _sampling_resolution(camera: LensCamera, options: ResolutionOptions) -> ResolutionResult: ...
 
 def _compare_images(
     test: numpy.typing.ArrayLike,

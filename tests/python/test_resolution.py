@@ -1,0 +1,61 @@
+"""Sampling resolution (the AOS paper's Eq. 2 and Appendix A) from Python and the CLI, and the
+lens models' Python surface."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+
+import numpy as np
+import pytest
+
+import aos
+
+
+def test_paper_figures_from_python() -> None:
+    # n = 3.5 MP (1871^2), FOV 80 degrees, h = 35 m: about 1,014 samples/m^2, p = 3.1 cm.
+    camera = aos.PinholeCamera.from_fov(1871, 1871, 80.0)
+    result = aos.sampling_resolution(camera, distance_m=35.0)
+    assert result.eq2_samples_per_m2 == pytest.approx(1871**2 / (2 * 35 * math.tan(math.radians(40))) ** 2)
+    assert result.eq2_samples_per_m2 == pytest.approx(1014, abs=1.0)
+    assert result.sample_size_m == pytest.approx(0.0314, abs=1e-4)
+    # p' = p + 2 e with e = 4.23 cm.
+    with_error = aos.sampling_resolution(camera, distance_m=35.0, pose_error_m=0.0423)
+    assert with_error.effective_sample_size_m == pytest.approx(result.sample_size_m + 0.0846)
+    assert 1.0 / (0.0318 + 2 * 0.0423) ** 2 == pytest.approx(73.8, abs=0.05)  # the paper's 74
+    with pytest.raises(ValueError, match="not both"):
+        aos.sampling_resolution(camera, pose_error_m=0.1, pose_error_px=1.0)
+
+
+def test_paper_figures_from_the_cli() -> None:
+    done = subprocess.run(["aos-render", "resolution", "--width", "1871", "--height", "1871",
+                           "--fov-deg", "80", "--distance", "35", "--pose-error-m", "0.0423",
+                           "--json"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    figures = json.loads(done.stdout)
+    assert figures["eq2_samples_per_m2"] == pytest.approx(1014, abs=1.0)
+    assert figures["effective_sample_size_m"] == pytest.approx(figures["sample_size_m"] + 0.0846)
+    folded = subprocess.run(["aos-render", "resolution", "--width", "640", "--height", "480",
+                             "--fov-deg", "80", "--model", "radtan", "--distortion", "-0.5"],
+                            capture_output=True, text=True)
+    assert folded.returncode == 1 and "folds the image" in folded.stderr
+
+
+def test_lens_camera_round_trip_and_masks() -> None:
+    lens = aos.LensCamera(aos.LensModel.omnidir, 1024, 1024, 250.0, 250.0, 512.0, 512.0,
+                          distortion=[-0.1, 0.01, 0.0005, 0.0002, 0.0], xi=0.9)
+    ray = np.array([math.sin(1.55), 0.0, math.cos(1.55)])  # 88.8 degrees off-axis
+    pixel = lens.project(ray)
+    assert pixel is not None
+    np.testing.assert_allclose(lens.unproject(pixel), ray, atol=1e-9)
+    assert lens.unproject([math.nan, 512.0]) is None
+    # A fisheye whose distortion stops increasing at some angle: pixels beyond that radius (its
+    # image circle) have no ray.
+    fisheye = aos.LensCamera(aos.LensModel.fisheye, 200, 200, 40.0, 40.0, 100.0, 100.0,
+                             distortion=[-0.05, 0.0, 0.0, 0.0, 0.0])
+    assert fisheye.theta_max < math.pi
+    assert fisheye.unproject([100.0, 100.0]) is not None
+    assert fisheye.unproject([100.0 + 1e4, 100.0]) is None
+    with pytest.raises(ValueError, match="xi"):
+        aos.LensCamera(aos.LensModel.omnidir, 64, 64, 50.0, 50.0, 32.0, 32.0, xi=-1.0)
