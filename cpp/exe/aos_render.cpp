@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <limits>
 #include <optional>
+#include <set>
 #include <sstream>
 #include <string>
 #include <vector>
@@ -17,12 +18,14 @@
 #include <CLI/CLI.hpp>
 
 #include "aos/image/image_io.h"
+#include "aos/lightfield/camera_file.h"
 #include "aos/lightfield/formats.h"
 #include "aos/metrics/quality.h"
 #include "aos/metrics/resolution.h"
 #include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
 #include "aos/render/merge.h"
+#include "aos/render/rectify.h"
 #include "aos/sim/scene.h"
 #include "aos/sim/simulator.h"
 #include "aos/util/error.h"
@@ -895,6 +898,88 @@ int RunResolution(const ResolutionCommand& c) {
   return 0;
 }
 
+struct RectifyCommand {
+  std::string camera_path;
+  std::vector<std::string> frames;
+  RectifyOptions options;
+  std::string output_dir;
+  bool quiet = false;
+};
+
+void AddRectify(CLI::App& app, RectifyCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "rectify",
+      "Resample raw frames taken through a lens model (a camera file) into perspective frames "
+      "with a chosen field of view, size and orientation, in the input's bit depth");
+  command->add_option("frames", c.frames, "Raw frames")->required();
+  command->add_option("--camera", c.camera_path, "Camera file (aos-camera JSON) of the lens")
+      ->required();
+  command->add_option("--fov-deg", c.options.fov_deg, "Horizontal field of view, degrees")
+      ->capture_default_str();
+  command->add_option("--width", c.options.width, "Output width, pixels (0 = the raw width)")
+      ->capture_default_str();
+  command->add_option("--height", c.options.height, "Output height, pixels (0 = the raw height)")
+      ->capture_default_str();
+  command->add_option("--yaw-deg", c.options.yaw_deg, "Turn about the lens's y axis, degrees")
+      ->capture_default_str();
+  command->add_option("--pitch-deg", c.options.pitch_deg, "Turn about the lens's x axis, degrees")
+      ->capture_default_str();
+  command->add_option("--roll-deg", c.options.roll_deg, "Turn about the optical axis, degrees")
+      ->capture_default_str();
+  command->add_option("-o,--output-dir", c.output_dir,
+                      "Output folder (must not exist or be empty): the frames under their own "
+                      "names, and camera.json (the rectified pinhole camera)")
+      ->required();
+  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+}
+
+int RunRectify(const RectifyCommand& c) {
+  ProgressBar progress(c.quiet);
+  PendingFolder folder(c.output_dir);
+  const LensCamera lens = ReadCameraFile(c.camera_path);
+  Rectifier rectifier;
+  try {
+    rectifier = MakeRectifier(lens, c.options);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, {{"fov_deg", "--fov-deg"},
+                               {"width/height", "--width/--height"},
+                               {"yaw_deg/pitch_deg/roll_deg", "--yaw-deg/--pitch-deg/--roll-deg"}});
+  }
+  std::set<std::string> names;
+  for (const std::string& frame : c.frames) {
+    const std::string name = fs::path(frame).filename().string();
+    if (!names.insert(name).second) {
+      ThrowInvalid(frame + ": another frame has the same name " + name +
+                   " (outputs keep the frames' names)");
+    }
+  }
+  ProgressStart(&progress, "rectify", static_cast<int64_t>(c.frames.size()));
+  for (const std::string& frame : c.frames) {
+    if (ProgressCancelled(&progress)) throw Cancelled();
+    const Image raw = ReadImage(frame);
+    if (raw.width() != lens.width || raw.height() != lens.height) {
+      ThrowInvalid(frame + ": is " + std::to_string(raw.width()) + "x" +
+                   std::to_string(raw.height()) + " but the camera (" + c.camera_path + ") is " +
+                   std::to_string(lens.width) + "x" + std::to_string(lens.height));
+    }
+    const Image rectified = Rectify(rectifier, raw);
+    WriteImageOptions write;
+    write.description = "aos rectified frame (" + std::string(LensModelName(lens.model)) +
+                        " -> pinhole, " + FormatNumber(c.options.fov_deg) + " degrees)";
+    WriteImage((fs::path(folder.TempPath()) / fs::path(frame).filename()).string(), rectified,
+               write);
+    ProgressAdvance(&progress, 1);
+  }
+  progress.Finish();
+  WriteCameraFile((fs::path(folder.TempPath()) / "camera.json").string(),
+                  LensCamera::FromPinhole(rectifier.camera));
+  folder.Commit();
+  std::printf("wrote %s: %zu rectified frames (%dx%d, %s degrees) and camera.json\n",
+              c.output_dir.c_str(), c.frames.size(), rectifier.camera.width,
+              rectifier.camera.height, FormatNumber(c.options.fov_deg).c_str());
+  return 0;
+}
+
 struct MetricsCommand {
   std::string test_path;
   std::string reference_path;
@@ -976,7 +1061,9 @@ int main(int argc, char** argv) {
   MergeCommand merge;
   AllInFocusCommand all_in_focus;
   ResolutionCommand resolution;
+  RectifyCommand rectify;
   AddIntegral(app, integral);
+  AddRectify(app, rectify);
   AddResolution(app, resolution);
   AddStack(app, stack);
   AddMerge(app, merge);
@@ -996,6 +1083,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("integral")) return RunIntegral(integral);
     if (app.got_subcommand("stack")) return RunStack(stack);
     if (app.got_subcommand("resolution")) return RunResolution(resolution);
+    if (app.got_subcommand("rectify")) return RunRectify(rectify);
     if (app.got_subcommand("merge")) return RunMerge(merge);
     if (app.got_subcommand("allinfocus")) return RunAllInFocus(all_in_focus);
     if (app.got_subcommand("simulate")) return RunSimulate(simulate);

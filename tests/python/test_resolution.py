@@ -59,3 +59,25 @@ def test_lens_camera_round_trip_and_masks() -> None:
     assert fisheye.unproject([100.0 + 1e4, 100.0]) is None
     with pytest.raises(ValueError, match="xi"):
         aos.LensCamera(aos.LensModel.omnidir, 64, 64, 50.0, 50.0, 32.0, 32.0, xi=-1.0)
+
+
+def test_cli_rectify_keeps_bit_depth_and_refuses_uncovered_views(tmp_path) -> None:
+    camera = {"format": "aos-camera", "version": 1, "model": "fisheye", "width": 160, "height": 120,
+              "fx": 60.0, "fy": 60.0, "cx": 80.0, "cy": 60.0, "distortion": [0.02, 0, 0, 0, 0]}
+    (tmp_path / "cam.json").write_text(json.dumps(camera))
+    frame = (np.arange(160 * 120, dtype=np.uint16).reshape(120, 160) * 3)
+    aos.write_image(str(tmp_path / "f0.png"), frame)
+    done = subprocess.run(["aos-render", "rectify", str(tmp_path / "f0.png"), "--camera",
+                           str(tmp_path / "cam.json"), "--fov-deg", "60", "--width", "80",
+                           "--height", "60", "-q", "-o", str(tmp_path / "out")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    out = aos.read_image(str(tmp_path / "out" / "f0.png"))
+    assert out.dtype == np.uint16 and out.shape == (60, 80)
+    rectified = json.loads((tmp_path / "out" / "camera.json").read_text())
+    assert rectified["model"] == "pinhole" and rectified["width"] == 80
+    refused = subprocess.run(["aos-render", "rectify", str(tmp_path / "f0.png"), "--camera",
+                              str(tmp_path / "cam.json"), "--fov-deg", "179", "-o",
+                              str(tmp_path / "wide")], capture_output=True, text=True)
+    assert refused.returncode == 1 and "does not cover" in refused.stderr
+    assert not (tmp_path / "wide").exists()

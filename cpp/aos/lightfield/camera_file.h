@@ -1,0 +1,23 @@
+#pragma once
+// Camera files: one lens camera as JSON (written by `aos-render calibrate`, read by `rectify`).
+//
+//   {"format": "aos-camera", "version": 1, "model": "radtan" | "pinhole" | "fisheye" | "omnidir",
+//    "width": 640, "height": 480, "fx": ..., "fy": ..., "cx": ..., "cy": ...,
+//    "distortion": [5 numbers, see lens.h], "xi": 0, "skew": 0,
+//    "calibration": {...}}   // optional, free-form (RMS error, frames used)
+//
+// cx, cy follow aos's pixel convention (pixel centres at +0.5; OpenCV's cx + 0.5). Errors name
+// the file and the field.
+#include <string>
+
+#include "aos/geometry/lens.h"
+
+namespace aos {
+
+LensCamera ReadCameraFile(const std::string& path);
+
+// Writes atomically; `calibration_json` (a JSON object's text, or empty) is stored as is.
+void WriteCameraFile(const std::string& path, const LensCamera& camera,
+                     const std::string& calibration_json = "");
+
+}  // namespace aos

@@ -1,0 +1,101 @@
+#include "aos/render/rectify.h"
+
+#include <cmath>
+#include <string>
+
+#include <opencv2/imgproc.hpp>
+
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+
+Mat3d RotationAbout(int axis, double degrees) {
+  const double a = degrees * kPi / 180.0, c = std::cos(a), s = std::sin(a);
+  switch (axis) {
+    case 0: return MatFromRows(Vec3d(1, 0, 0), Vec3d(0, c, -s), Vec3d(0, s, c));
+    case 1: return MatFromRows(Vec3d(c, 0, s), Vec3d(0, 1, 0), Vec3d(-s, 0, c));
+    default: return MatFromRows(Vec3d(c, -s, 0), Vec3d(s, c, 0), Vec3d(0, 0, 1));
+  }
+}
+
+int CvType(const Image& image) {
+  const int channels = image.channels();
+  switch (image.type()) {
+    case PixelType::kU8: return CV_MAKETYPE(CV_8U, channels);
+    case PixelType::kU16: return CV_MAKETYPE(CV_16U, channels);
+    case PixelType::kF32: return CV_MAKETYPE(CV_32F, channels);
+    default: ThrowInvalid("rectify: uint32 images cannot be rectified");
+  }
+}
+
+}  // namespace
+
+void RectifyOptions::Check() const {
+  if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
+    ThrowInvalid("fov_deg: must be in (0, 180) degrees (got " + FormatNumber(fov_deg) + ")");
+  }
+  if (width < 0 || height < 0 || width > 65536 || height > 65536) {
+    ThrowInvalid("width/height: must be 0 (the raw size) or 1..65536 pixels");
+  }
+  for (double angle : {yaw_deg, pitch_deg, roll_deg}) {
+    if (!std::isfinite(angle)) ThrowInvalid("yaw_deg/pitch_deg/roll_deg: must be finite");
+  }
+}
+
+Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options) {
+  options.Check();
+  LensCamera checked = lens;
+  checked.Finalize("camera");
+  Rectifier r;
+  const int width = options.width > 0 ? options.width : lens.width;
+  const int height = options.height > 0 ? options.height : lens.height;
+  r.camera = PinholeCamera::FromFov(width, height, options.fov_deg);
+  r.lens_from_rectified = RotationAbout(2, options.roll_deg) * RotationAbout(0, options.pitch_deg) *
+                          RotationAbout(1, options.yaw_deg);
+  r.map_x.resize(static_cast<size_t>(width) * height);
+  r.map_y.resize(r.map_x.size());
+  int64_t uncovered = 0;
+  double worst_angle = 0.0;
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const Vec3d ray = r.lens_from_rectified * r.camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+      Vec2d pixel;
+      const bool inside = checked.Project(ray, &pixel) && pixel.x >= 0.0 &&
+                          pixel.x <= lens.width && pixel.y >= 0.0 && pixel.y <= lens.height;
+      if (!inside) {
+        ++uncovered;
+        worst_angle = std::max(worst_angle, std::acos(glm::normalize(ray).z) * 180.0 / kPi);
+        pixel = Vec2d(-1.0, -1.0);
+      }
+      const size_t i = static_cast<size_t>(y) * width + x;
+      r.map_x[i] = static_cast<float>(pixel.x - 0.5);  // OpenCV: pixel centres at integers
+      r.map_y[i] = static_cast<float>(pixel.y - 0.5);
+    }
+  }
+  if (uncovered > 0) {
+    ThrowInvalid("fov_deg: the lens does not cover the requested view: " +
+                 std::to_string(uncovered) + " of " + std::to_string(r.map_x.size()) +
+                 " rectified pixels fall outside the raw frame or the lens's valid field (rays up "
+                 "to " + FormatNumber(worst_angle) + " degrees off the lens axis); use a smaller "
+                 "fov_deg or another orientation");
+  }
+  return r;
+}
+
+Image Rectify(const Rectifier& r, const Image& raw) {
+  const int type = CvType(raw);
+  const cv::Mat source(raw.height(), raw.width(), type, const_cast<void*>(raw.RawAt(0, 0)),
+                       static_cast<size_t>(raw.row_stride()) * PixelTypeSize(raw.type()));
+  const cv::Mat map_x(r.camera.height, r.camera.width, CV_32F, const_cast<float*>(r.map_x.data()));
+  const cv::Mat map_y(r.camera.height, r.camera.width, CV_32F, const_cast<float*>(r.map_y.data()));
+  Image out(r.camera.width, r.camera.height, raw.channels(), raw.type());
+  cv::Mat target(out.height(), out.width(), type, out.RawAt(0, 0),
+                 static_cast<size_t>(out.row_stride()) * PixelTypeSize(out.type()));
+  cv::remap(source, target, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  return out;
+}
+
+}  // namespace aos

@@ -1,0 +1,51 @@
+#pragma once
+// Rectification: resample a raw frame taken through a lens model (lens.h) into the perspective
+// (pinhole) image of a virtual camera at the same centre, with a chosen field of view,
+// resolution and orientation; e.g. the paper's 80 degrees out of a 178-degree omni lens.
+//
+// Contract
+// - The rectified camera is PinholeCamera::FromFov(width, height, fov_deg), turned relative to
+//   the lens: a ray d in its frame is R d in the lens's frame, R = Rz(roll) Rx(pitch) Ry(yaw)
+//   (yaw about the y axis, pitch about x, roll about the optical axis z; degrees).
+// - Every output pixel centre's ray must project into the raw frame inside its valid field and
+//   its image area [0, w] x [0, h]; else the requested view is not covered and it is an error
+//   naming the field of view (nothing is resampled outside the lens's image).
+// - Values: bilinear interpolation (cv::remap, replicated border), in the input's type and
+//   channels (8/16-bit rounded to nearest, float unchanged).
+//
+// Throws std::invalid_argument naming the option or the uncovered view.
+#include "aos/geometry/lens.h"
+#include <vector>
+
+#include "aos/image/image.h"
+
+namespace aos {
+
+struct RectifyOptions {
+  // Horizontal field of view of the rectified image, degrees, (0, 180).
+  double fov_deg = 80.0;
+  // Output size, pixels; 0 = the raw frame's size.
+  int width = 0;
+  int height = 0;
+  // Orientation of the rectified camera relative to the lens, degrees.
+  double yaw_deg = 0.0;
+  double pitch_deg = 0.0;
+  double roll_deg = 0.0;
+
+  void Check() const;
+};
+
+struct Rectifier {
+  PinholeCamera camera;          // the rectified camera
+  Mat3d lens_from_rectified{1.0};
+  // Raw-frame sample positions per output pixel (pixel-index space, OpenCV's convention).
+  std::vector<float> map_x, map_y;
+};
+
+// Builds the resampling maps once for a lens and options (reused for every frame).
+Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options);
+
+// Resamples one raw frame (the lens's size; any type but uint32, 1..4 channels).
+Image Rectify(const Rectifier& rectifier, const Image& raw);
+
+}  // namespace aos

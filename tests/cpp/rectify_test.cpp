@@ -1,0 +1,149 @@
+// Tests of rectification (raw lens frames -> perspective frames) and camera files.
+#include "aos/render/rectify.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <functional>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/lightfield/camera_file.h"
+#include "aos/util/error.h"
+#include "temp_folder.h"
+
+namespace aos {
+namespace {
+
+using ::testing::HasSubstr;
+
+// A smooth pattern over ray directions (grey levels), so bilinear resampling is accurate.
+double Pattern(const Vec3d& ray) {
+  const Vec3d d = glm::normalize(ray);
+  return 128.0 + 90.0 * d.x * std::cos(2.0 * d.y) + 20.0 * d.y;
+}
+
+LensCamera Fisheye() {
+  LensCamera lens;
+  lens.model = LensModel::kFisheye;
+  lens.width = 640;
+  lens.height = 480;
+  lens.fx = lens.fy = 200.0;
+  lens.cx = 321.5;
+  lens.cy = 238.0;
+  lens.distortion = {0.03, -0.01, 0.001, 0.0, 0.0};
+  lens.Finalize("fisheye");
+  return lens;
+}
+
+// The raw frame: every pixel centre's ray, through the lens, gets the pattern.
+Image RawFrame(const LensCamera& lens) {
+  Image raw(lens.width, lens.height, 1, PixelType::kF32);
+  for (int y = 0; y < lens.height; ++y) {
+    for (int x = 0; x < lens.width; ++x) {
+      Vec3d ray;
+      raw.At<float>(x, y)[0] =
+          lens.Unproject(Vec2d(x + 0.5, y + 0.5), &ray) ? static_cast<float>(Pattern(ray)) : 0.0f;
+    }
+  }
+  return raw;
+}
+
+TEST(Rectify, MatchesTheAnalyticPerspectiveImage) {
+  const LensCamera lens = Fisheye();
+  RectifyOptions options;
+  options.fov_deg = 80.0;
+  options.width = 320;
+  options.height = 240;
+  options.yaw_deg = 12.0;
+  options.pitch_deg = -5.0;
+  const Rectifier rectifier = MakeRectifier(lens, options);
+  const Image rectified = Rectify(rectifier, RawFrame(lens));
+  ASSERT_EQ(rectified.width(), 320);
+  ASSERT_EQ(rectified.type(), PixelType::kF32);
+  double worst = 0.0, worst_unturned = 0.0;
+  for (int y = 0; y < 240; ++y) {
+    for (int x = 0; x < 320; ++x) {
+      const Vec3d ray = rectifier.camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+      const double value = rectified.At<float>(x, y)[0];
+      worst = std::max(worst, std::abs(value - Pattern(rectifier.lens_from_rectified * ray)));
+      worst_unturned = std::max(worst_unturned, std::abs(value - Pattern(ray)));
+    }
+  }
+  // Bilinear interpolation of the smooth pattern: its second derivative is below ~0.05 grey per
+  // raw pixel^2 here, so the error bound |f''| h^2 / 8 with h = 1 px is ~0.01; allow 0.1.
+  EXPECT_LT(worst, 0.1);
+  // The orientation matters (the test would catch an ignored yaw/pitch).
+  EXPECT_GT(worst_unturned, 5.0);
+}
+
+TEST(Rectify, KeepsTypeAndChannels) {
+  const LensCamera lens = Fisheye();
+  const Rectifier rectifier = MakeRectifier(lens, RectifyOptions{});
+  Image u16(640, 480, 3, PixelType::kU16);
+  for (int y = 0; y < 480; ++y) {
+    for (int x = 0; x < 640; ++x) {
+      for (int c = 0; c < 3; ++c) u16.At<uint16_t>(x, y)[c] = static_cast<uint16_t>(1000 * (c + 1));
+    }
+  }
+  const Image out = Rectify(rectifier, u16);
+  EXPECT_EQ(out.type(), PixelType::kU16);
+  EXPECT_EQ(out.channels(), 3);
+  EXPECT_EQ(out.At<uint16_t>(100, 100)[2], 3000);
+}
+
+std::string ErrorOf(const std::function<void()>& call) {
+  try {
+    call();
+  } catch (const std::invalid_argument& error) {
+    return error.what();
+  }
+  return "no error";
+}
+
+TEST(Rectify, AViewTheLensDoesNotCoverIsAnError) {
+  LensCamera radtan;
+  radtan.model = LensModel::kRadTan;
+  radtan.width = 640;
+  radtan.height = 480;
+  radtan.fx = radtan.fy = 500.0;  // about 65 degrees across
+  radtan.cx = 320.0;
+  radtan.cy = 240.0;
+  radtan.distortion = {-0.1, 0.01, 0.0, 0.0, 0.0};
+  radtan.Finalize("radtan");
+  RectifyOptions options;
+  options.fov_deg = 120.0;
+  EXPECT_THAT(ErrorOf([&] { MakeRectifier(radtan, options); }),
+              HasSubstr("fov_deg: the lens does not cover the requested view"));
+  options.fov_deg = 50.0;
+  EXPECT_EQ(ErrorOf([&] { MakeRectifier(radtan, options); }), "no error");
+  options.fov_deg = 180.0;
+  EXPECT_THAT(ErrorOf([&] { MakeRectifier(radtan, options); }), HasSubstr("fov_deg: must be in"));
+}
+
+using CameraFile = testing_util::TempFolderTest;
+
+TEST_F(CameraFile, RoundTripAndErrorsNameTheFileAndField) {
+  const std::string path = Path("camera.json");
+  const LensCamera lens = Fisheye();
+  WriteCameraFile(path, lens, "{\"rms_px\": 0.21}");
+  const LensCamera back = ReadCameraFile(path);
+  EXPECT_EQ(back.model, LensModel::kFisheye);
+  EXPECT_EQ(back.fx, lens.fx);
+  EXPECT_EQ(back.cx, lens.cx);
+  EXPECT_EQ(back.distortion, lens.distortion);
+  std::ofstream(Path("bad.json"))
+      << R"({"format": "aos-camera", "version": 1, "model": "radtan", "width": 64, "height": 64,
+             "fx": 50, "fy": 50, "cx": 32, "cy": 32, "k1": 0.1})";
+  EXPECT_THAT(ErrorOf([&] { ReadCameraFile(Path("bad.json")); }),
+              HasSubstr("bad.json: k1: unknown key"));
+  std::ofstream(Path("xi.json"))
+      << R"({"format": "aos-camera", "version": 1, "model": "omnidir", "width": 64, "height": 64,
+             "fx": 50, "fy": 50, "cx": 32, "cy": 32, "xi": -0.5})";
+  EXPECT_THAT(ErrorOf([&] { ReadCameraFile(Path("xi.json")); }),
+              HasSubstr("xi.json: xi: must be >= 0"));
+}
+
+}  // namespace
+}  // namespace aos
