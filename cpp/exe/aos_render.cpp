@@ -16,7 +16,9 @@
 #include <vector>
 
 #include <CLI/CLI.hpp>
+#include <nlohmann/json.hpp>
 
+#include "aos/calib/calibrate.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/lightfield/formats.h"
@@ -980,6 +982,64 @@ int RunRectify(const RectifyCommand& c) {
   return 0;
 }
 
+struct CalibrateCommand {
+  std::vector<std::string> frames;
+  std::string pattern = "9x6";
+  std::string model = "radtan";
+  CalibrateOptions options;
+  std::string output;
+  bool quiet = false;
+};
+
+void AddCalibrate(CLI::App& app, CalibrateCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "calibrate",
+      "Calibrate a lens from checkerboard frames (OpenCV): write a camera file with the RMS "
+      "reprojection error and the frames used; frames without the board are listed, not fatal");
+  command->add_option("frames", c.frames, "Checkerboard frames")->required();
+  command->add_option("--pattern", c.pattern, "Inner corners COLUMNSxROWS")->capture_default_str();
+  command->add_option("--square-size", c.options.square_size_m, "Square side, metres")
+      ->capture_default_str();
+  command->add_option("--model", c.model, "pinhole, radtan, fisheye or omnidir")
+      ->capture_default_str();
+  command->add_option("-o,--output", c.output, "Camera file to write (JSON)")->required();
+  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+}
+
+int RunCalibrate(CalibrateCommand& c) {
+  ProgressBar progress(c.quiet);
+  CheckOutputPath(c.output, c.frames, "output");
+  c.options.model = ParseLensModel(c.model, "--model");
+  const size_t x = c.pattern.find('x');
+  if (x == std::string::npos) ThrowInvalid("--pattern: expected COLUMNSxROWS, e.g. 9x6");
+  c.options.pattern_columns = static_cast<int>(ParseNumberText(c.pattern.substr(0, x), "--pattern"));
+  c.options.pattern_rows = static_cast<int>(ParseNumberText(c.pattern.substr(x + 1), "--pattern"));
+  std::vector<Image> frames;
+  for (const std::string& frame : c.frames) frames.push_back(ReadImage(frame));
+  CalibrationResult result;
+  try {
+    result = Calibrate(frames, c.frames, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, {{"pattern", "--pattern"}, {"square_size_m", "--square-size"}});
+  }
+  progress.Finish();
+  for (const std::string& name : result.frames_rejected) {
+    std::fprintf(stderr, "warning: %s: board not found; frame not used\n", name.c_str());
+  }
+  nlohmann::ordered_json calibration;
+  calibration["rms_px"] = result.rms_px;
+  calibration["frames_used"] = result.frames_used;
+  calibration["frames_rejected"] = result.frames_rejected;
+  calibration["pattern"] = c.pattern;
+  calibration["square_size_m"] = c.options.square_size_m;
+  WriteCameraFile(c.output, result.camera, calibration.dump());
+  std::printf("wrote %s: %s lens, RMS reprojection error %.3f px over %zu frames (%zu without the "
+              "board)\n",
+              c.output.c_str(), LensModelName(result.camera.model), result.rms_px,
+              result.frames_used.size(), result.frames_rejected.size());
+  return 0;
+}
+
 struct MetricsCommand {
   std::string test_path;
   std::string reference_path;
@@ -1062,7 +1122,9 @@ int main(int argc, char** argv) {
   AllInFocusCommand all_in_focus;
   ResolutionCommand resolution;
   RectifyCommand rectify;
+  CalibrateCommand calibrate;
   AddIntegral(app, integral);
+  AddCalibrate(app, calibrate);
   AddRectify(app, rectify);
   AddResolution(app, resolution);
   AddStack(app, stack);
@@ -1084,6 +1146,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("stack")) return RunStack(stack);
     if (app.got_subcommand("resolution")) return RunResolution(resolution);
     if (app.got_subcommand("rectify")) return RunRectify(rectify);
+    if (app.got_subcommand("calibrate")) return RunCalibrate(calibrate);
     if (app.got_subcommand("merge")) return RunMerge(merge);
     if (app.got_subcommand("allinfocus")) return RunAllInFocus(all_in_focus);
     if (app.got_subcommand("simulate")) return RunSimulate(simulate);
