@@ -31,6 +31,9 @@ void BindLightField(py::module_& m) {
       .def_readonly("camera", &View::camera, "The view's pinhole camera (matches the image size).")
       .def_readonly("cam_from_world", &View::cam_from_world,
                     "Pose: local frame -> camera (OpenCV axes).")
+      .def_readonly("lens", &View::lens,
+                    "The lens model (model pinhole: `camera` alone describes the view; other "
+                    "models are sampled through directly when rendering).")
       .def_property_readonly(
           "image", [](const View& view) { return ArrayFromImage(view.image); },
           "The pixels as a new numpy array (a COPY: (H, W) or (H, W, C), native dtype), or None "
@@ -53,14 +56,24 @@ void BindLightField(py::module_& m) {
            "Total bytes of the decoded frames (width * height * channels * value size).")
       .def(
           "add_view",
-          [](LightField& light_field, const py::handle& image, const PinholeCamera& camera,
+          [](LightField& light_field, const py::handle& image, const py::object& camera,
              const Rigid3d& cam_from_world, std::string name) {
             Image copy = ImageFromArray(image, /*border=*/1, "add_view: image");
-            light_field.views.push_back(
-                MakeView(std::move(name), camera, cam_from_world, std::move(copy)));
+            if (py::isinstance<LensCamera>(camera)) {
+              LensCamera lens = camera.cast<LensCamera>();
+              lens.Finalize("add_view: camera");
+              const PinholeCamera pinhole{lens.width, lens.height, lens.fx, lens.fy, lens.cx, lens.cy};
+              View view = MakeView(std::move(name), pinhole, cam_from_world, std::move(copy));
+              if (lens.model != LensModel::kPinhole) view.lens = lens;
+              light_field.views.push_back(std::move(view));
+              return;
+            }
+            light_field.views.push_back(MakeView(std::move(name), camera.cast<PinholeCamera>(),
+                                                 cam_from_world, std::move(copy)));
           },
           "image"_a, "camera"_a, "cam_from_world"_a, "name"_a = "",
-          "Appends a view. `image` (H, W) or (H, W, C) of dtype uint8, uint16 or float32 "
+          "Appends a view. `camera` is a PinholeCamera or a LensCamera (raw frames through a lens "
+          "model, rendered by direct sampling). `image` (H, W) or (H, W, C) of dtype uint8, uint16 or float32 "
           "(float64 is converted to float32) is COPIED into the light field with a 1-pixel "
           "border; changing the array afterwards does not change the view. Raises ValueError for "
           "another dtype, a bad camera, a camera that disagrees with the image size, or an "

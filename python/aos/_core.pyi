@@ -179,6 +179,9 @@ class View:
     @property
     def cam_from_world(self) -> Rigid3d: ...
     @property
+    def lens(self) -> LensCamera:
+        """The lens model (pinhole: `camera` alone describes the view)."""
+    @property
     def image(self) -> Optional[_ImageArray]:
         """A COPY of the pixels, native dtype; None if loaded without images."""
     def __repr__(self) -> str: ...
@@ -200,7 +203,7 @@ class LightField:
     def add_view(
         self,
         image: numpy.typing.ArrayLike,
-        camera: PinholeCamera,
+        camera: Union[PinholeCamera, LensCamera],
         cam_from_world: Rigid3d,
         name: str = "",
     ) -> None:

@@ -574,9 +574,35 @@ TEST_F(AosErrorsTest, BadCameras) {
                                "\"fx\": -9, \"fy\": 9, \"cx\": 4, \"cy\": 3"));
   ExpectLoadError({"lf.json", "camera \"cam0\"", "fx"});
   std::string text = AosFile("views/good.png");
+  text.replace(text.find("\"pinhole\""), 9, "\"kannala\"");
+  WriteText("lf.json", text);
+  ExpectLoadError({"lf.json", "camera \"cam0\"", "model", "unknown lens model 'kannala'"});
+  // Lens models need intrinsics (not fov_deg) and a valid parameter set.
+  text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "\"fov_deg\": 60");
   text.replace(text.find("\"pinhole\""), 9, "\"fisheye\"");
   WriteText("lf.json", text);
-  ExpectLoadError({"lf.json", "camera \"cam0\"", "model", "fisheye"});
+  ExpectLoadError({"lf.json", "camera \"cam0\"", "fov_deg: only for pinhole cameras"});
+  text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]",
+                 "\"fx\": 9, \"fy\": 9, \"cx\": 4, \"cy\": 3, \"xi\": -1");
+  text.replace(text.find("\"pinhole\""), 9, "\"omnidir\"");
+  WriteText("lf.json", text);
+  ExpectLoadError({"lf.json", "camera \"cam0\"", "xi: must be >= 0"});
+}
+
+TEST_F(AosErrorsTest, LensCamerasLoadAndRoundTrip) {
+  std::string text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]",
+                             "\"fx\": 9, \"fy\": 9, \"cx\": 4, \"cy\": 3, "
+                             "\"distortion\": [0.01, -0.002, 0, 0]");
+  text.replace(text.find("\"pinhole\""), 9, "\"fisheye\"");
+  WriteText("lf.json", text);
+  const LightField loaded = LoadLightField(Path("lf.json")).light_field;
+  ASSERT_EQ(loaded.views[0].lens.model, LensModel::kFisheye);
+  EXPECT_EQ(loaded.views[0].lens.distortion[0], 0.01);
+  EXPECT_EQ(loaded.views[0].camera.fx, 9.0);
+  WriteLightField(Path("copy.json"), loaded);
+  const LightField again = LoadLightField(Path("copy.json")).light_field;
+  EXPECT_EQ(again.views[0].lens.model, LensModel::kFisheye);
+  EXPECT_EQ(again.views[0].lens.distortion, loaded.views[0].lens.distortion);
 }
 
 TEST_F(AosErrorsTest, VersionAndOrigin) {

@@ -233,12 +233,12 @@ void CheckFrameInfos(const std::vector<Frame>& frames, const std::vector<ImageFi
 // ---------------------------------------------------------------------------------------------
 // The aos format.
 
-PinholeCamera ReadAosCamera(const json& value, const std::string& where) {
+// A camera entry: a pinhole (fov_deg, or fx, fy, cx, cy), or a lens model (radtan, fisheye,
+// omnidir: fx, fy, cx, cy, distortion [up to 5 numbers], xi, skew; see lens.h).
+LensCamera ReadAosCamera(const json& value, const std::string& where) {
   if (!value.is_object()) ThrowInvalid(Where(where, "expected an object, got " + Describe(value)));
-  const std::string model = StringFrom(Field(value, "model", where), where + ": model");
-  if (model != "pinhole") {
-    ThrowInvalid(Where(where, "model: only \"pinhole\" is supported (got " + Quoted(model) + ")"));
-  }
+  const std::string model_name = StringFrom(Field(value, "model", where), where + ": model");
+  const LensModel model = ParseLensModel(model_name, where + ": model");
   const int width = PositiveIntFrom(Field(value, "width", where), where + ": width");
   const int height = PositiveIntFrom(Field(value, "height", where), where + ": height");
   const bool has_fov = value.contains("fov_deg");
@@ -248,6 +248,10 @@ PinholeCamera ReadAosCamera(const json& value, const std::string& where) {
   if (has_fov) {
     if (has_any_intrinsic) {
       ThrowInvalid(Where(where, "give either fov_deg or fx, fy, cx, cy, not both"));
+    }
+    if (model != LensModel::kPinhole) {
+      ThrowInvalid(Where(where, "fov_deg: only for pinhole cameras; a " + model_name +
+                                    " lens needs fx, fy, cx, cy"));
     }
     const double fov_deg = NumberFrom(value["fov_deg"], where + ": fov_deg", false);
     if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
@@ -265,7 +269,28 @@ PinholeCamera ReadAosCamera(const json& value, const std::string& where) {
     camera.cy = NumberFrom(Field(value, "cy", where), where + ": cy", false);
   }
   camera.Check(where);
-  return camera;
+  LensCamera lens = LensCamera::FromPinhole(camera);
+  lens.model = model;
+  if (model != LensModel::kPinhole) {
+    if (value.contains("distortion")) {
+      const json& d = value["distortion"];
+      if (!d.is_array() || d.size() > 5) {
+        ThrowInvalid(Where(where, "distortion: expected an array of at most 5 numbers, got " +
+                                      Describe(d)));
+      }
+      for (size_t i = 0; i < d.size(); ++i) {
+        lens.distortion[i] =
+            NumberFrom(d[i], where + ": distortion[" + std::to_string(i) + "]", false);
+      }
+    }
+    if (value.contains("xi")) lens.xi = NumberFrom(value["xi"], where + ": xi", false);
+    if (value.contains("skew")) lens.skew = NumberFrom(value["skew"], where + ": skew", false);
+  } else if (value.contains("distortion") || value.contains("xi") || value.contains("skew")) {
+    ThrowInvalid(Where(where, "distortion/xi/skew: a pinhole camera has none (model radtan, "
+                              "fisheye or omnidir)"));
+  }
+  lens.Finalize(where);
+  return lens;
 }
 
 Rigid3d ReadAosPose(const json& value, const std::string& where) {
@@ -312,7 +337,7 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     ThrowInvalid(path + ": cameras: expected an object keyed by camera id, got " +
                  Describe(cameras_json));
   }
-  std::map<std::string, PinholeCamera> cameras;
+  std::map<std::string, LensCamera> cameras;
   for (const auto& [id, value] : cameras_json.items()) {
     cameras[id] = ReadAosCamera(value, path + ": camera " + Quoted(id));
   }
@@ -341,7 +366,9 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
       ThrowInvalid(label + ": camera: unknown camera id " + Quoted(camera_id) + " (known: " +
                    (known.empty() ? std::string("none") : known) + ")");
     }
-    view.camera = camera->second;
+    const LensCamera& lens = camera->second;
+    view.camera = PinholeCamera{lens.width, lens.height, lens.fx, lens.fy, lens.cx, lens.cy};
+    view.lens = lens;
     view.cam_from_world =
         ReadAosPose(Field(entry, "cam_from_world", label), label + ": cam_from_world");
     frames.push_back(Frame{label, view.image_path});
@@ -704,22 +731,35 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   root["format"] = kAosFormatName;
   root["version"] = kAosFormatVersion;
   root["origin"] = {light_field.origin.x, light_field.origin.y, light_field.origin.z};
-  std::vector<PinholeCamera> cameras;
+  std::vector<const View*> cameras;  // the first view of each distinct camera
   nlohmann::ordered_json cameras_json = nlohmann::ordered_json::object();
   nlohmann::ordered_json views_json = nlohmann::ordered_json::array();
   for (size_t i = 0; i < light_field.views.size(); ++i) {
     const View& view = light_field.views[i];
     size_t camera_index = 0;
-    while (camera_index < cameras.size() && !SameCamera(cameras[camera_index], view.camera)) {
+    const auto same_lens = [](const LensCamera& a, const LensCamera& b) {
+      return a.model == b.model && a.distortion == b.distortion && a.xi == b.xi &&
+             a.skew == b.skew;
+    };
+    while (camera_index < cameras.size() &&
+           !(SameCamera(cameras[camera_index]->camera, view.camera) &&
+             same_lens(cameras[camera_index]->lens, view.lens))) {
       ++camera_index;
     }
     const std::string camera_id = "cam" + std::to_string(camera_index);
     if (camera_index == cameras.size()) {
-      cameras.push_back(view.camera);
+      cameras.push_back(&view);
       const PinholeCamera& camera = view.camera;
-      cameras_json[camera_id] = {{"model", "pinhole"}, {"width", camera.width},
-                                 {"height", camera.height}, {"fx", camera.fx},
-                                 {"fy", camera.fy}, {"cx", camera.cx}, {"cy", camera.cy}};
+      nlohmann::ordered_json camera_json = {
+          {"model", LensModelName(view.lens.model)}, {"width", camera.width},
+          {"height", camera.height}, {"fx", camera.fx}, {"fy", camera.fy}, {"cx", camera.cx},
+          {"cy", camera.cy}};
+      if (view.lens.model != LensModel::kPinhole) {
+        camera_json["distortion"] = view.lens.distortion;
+        camera_json["xi"] = view.lens.xi;
+        camera_json["skew"] = view.lens.skew;
+      }
+      cameras_json[camera_id] = camera_json;
     }
     const std::string image =
         written[i].empty() ? ReferencePath(view.image_path, folder)

@@ -14,6 +14,17 @@ size_t LightField::ImageBytes() const {
 
 void CheckView(const View& view, const std::string& where) {
   view.camera.Check(where);
+  if (view.lens.model != LensModel::kPinhole) {
+    const LensCamera& lens = view.lens;
+    if (lens.width != view.camera.width || lens.height != view.camera.height ||
+        lens.fx != view.camera.fx || lens.fy != view.camera.fy || lens.cx != view.camera.cx ||
+        lens.cy != view.camera.cy) {
+      ThrowInvalid(Where(where, "lens: its size and intrinsics must equal the camera's"));
+    }
+    if (!(lens.theta_max > 0.0)) {
+      ThrowInvalid(Where(where, "lens: its valid field is not set (LensCamera::Finalize)"));
+    }
+  }
   if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {
     ThrowInvalid(Where(where, "cam_from_world: " + *problem));
   }

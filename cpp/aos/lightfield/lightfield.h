@@ -10,6 +10,7 @@
 #include <string>
 #include <vector>
 
+#include "aos/geometry/lens.h"
 #include "aos/geometry/pinhole.h"
 #include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
@@ -20,6 +21,10 @@ struct View {
   std::string name;        // a label for messages (file name for loaded views)
   std::string image_path;  // source file, if the view was loaded from one (else empty)
   PinholeCamera camera;    // must match the image size
+  // The lens model. kPinhole (the default): `camera` alone describes the view. Other models
+  // (raw frames through a lens): lens.width..cy equal camera's, and the renderer samples the
+  // view through the lens (direct sampling, integral.h).
+  LensCamera lens;
   Rigid3d cam_from_world;  // local frame -> camera (OpenCV axes)
   Image image;             // native pixel type, border 1 (see Image)
 };

@@ -9,7 +9,9 @@
 
 #include <omp.h>
 
+#include "aos/render/focal_stack.h"
 #include "aos/render/integral_kernels.h"
+#include "aos/render/surface_integral.h"
 #include "aos/util/error.h"
 
 // How it works
@@ -725,6 +727,33 @@ void IntegralOptions::Check(int view_count) const {
 
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress) {
+  // Views with a lens model are sampled through it, point by point on the plane's depth map
+  // (direct sampling: one resampling, no rectified copy); pinhole views take the homography path.
+  options.Check(static_cast<int>(light_field.views.size()));
+  bool lens_views = false;
+  for (size_t i = 0; i < light_field.views.size(); ++i) {
+    const bool selected = options.view_indices.empty() ||
+                          std::find(options.view_indices.begin(), options.view_indices.end(),
+                                    static_cast<int>(i)) != options.view_indices.end();
+    lens_views = lens_views || (selected && light_field.views[i].lens.model != LensModel::kPinhole);
+  }
+  if (lens_views) {
+    const PinholeCamera camera = VirtualCamera(options);
+    const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
+    const Image depth = PlaneDepth(camera, cam_from_world, options.focal_plane);
+    bool any_in_front = false;
+    for (int y = 0; y < camera.height && !any_in_front; ++y) {
+      for (int x = 0; x < camera.width && !any_in_front; ++x) {
+        any_in_front = depth.At<float>(x, y)[0] > 0.0f;
+      }
+    }
+    if (!any_in_front) {
+      ThrowInvalid("focal_plane: lies behind the virtual camera or contains its centre: no "
+                   "pixel's ray meets it in front");
+    }
+    return RenderIntegralOnDepth(light_field, options, depth, SurfaceIntegralOptions{}, progress)
+        .integral;
+  }
   IntegralRenderer renderer(light_field, options);
   return renderer.Run(progress);
 }

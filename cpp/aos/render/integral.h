@@ -30,6 +30,12 @@
 //   a focus cue (merge.h). The image then comes from the scalar kernel (equal to the default
 //   render up to float rounding).
 //
+// - Views with a lens model (View::lens, lens.h) are sampled through it directly: each pixel's
+//   focal point is projected through the lens model into the raw frame (one resampling; no
+//   rectified copy). Such renders take surface_integral.h's per-sample path on the plane's depth
+//   map, with the same admission rules and results up to float rounding, but slower than the
+//   homography path pinhole views take.
+//
 // Throws std::invalid_argument (naming the option) for bad options, aos::Cancelled if the
 // progress sink asks to stop.
 #include <cstdint>

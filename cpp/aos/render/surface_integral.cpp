@@ -28,6 +28,7 @@ struct ViewSetup {
   Vec3d b{0.0};             // C_i - C
   double lens_b = 0.0;      // a . b
   double fx = 0, fy = 0, cx = 0, cy = 0, width = 0, height = 0;
+  const LensCamera* lens = nullptr;  // set for views with a lens model (direct sampling)
 };
 
 double FullRange(PixelType type) {
@@ -127,6 +128,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
     setup.cy = view.camera.cy;
     setup.width = view.camera.width;
     setup.height = view.camera.height;
+    if (view.lens.model != LensModel::kPinhole) setup.lens = &view.lens;
     views.push_back(setup);
   }
 
@@ -137,6 +139,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   out.cam_from_world = cam_from_world;
   out.views_selected = static_cast<int>(views.size());
   if (surface.robust) result.inliers = Image(camera.width, camera.height, 1, PixelType::kU32);
+  if (options.variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
 
   const int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
   ProgressStart(progress, "render on depth", camera.height);
@@ -174,9 +177,17 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
           for (size_t i = 0; i < views.size(); ++i) {
             const ViewSetup& view = views[i];
             const Vec3d in_cam = view.rotation * focal + view.offset;
-            if (!(in_cam.z > 0.0)) continue;
-            const double u = view.fx * in_cam.x / in_cam.z + view.cx;
-            const double v = view.fy * in_cam.y / in_cam.z + view.cy;
+            double u, v;
+            if (view.lens != nullptr) {
+              Vec2d pixel;
+              if (!view.lens->Project(in_cam, &pixel)) continue;
+              u = pixel.x;
+              v = pixel.y;
+            } else {
+              if (!(in_cam.z > 0.0)) continue;
+              u = view.fx * in_cam.x / in_cam.z + view.cx;
+              v = view.fy * in_cam.y / in_cam.z + view.cy;
+            }
             if (!(u >= 0.0 && u <= view.width && v >= 0.0 && v <= view.height)) continue;
             const Vec3d to_view = view.b - focal;
             const double along = glm::dot(normal, to_view);
@@ -239,6 +250,21 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
             }
           }
           if (surface.robust) result.inliers.At<uint32_t>(x, row)[0] = static_cast<uint32_t>(kept);
+          if (options.variance && n >= 2 && !nearest) {
+            // Population variance of all the samples, mean over channels (integral.h).
+            double variance = 0.0;
+            for (int c = 0; c < channels; ++c) {
+              double sum = 0.0, squares = 0.0;
+              for (size_t k = 0; k < n; ++k) {
+                const double value = samples[k * channels + static_cast<size_t>(c)];
+                sum += value;
+                squares += value * value;
+              }
+              const double mean = sum / static_cast<double>(n);
+              variance += std::max(0.0, squares / static_cast<double>(n) - mean * mean);
+            }
+            out.variance.At<float>(x, row)[0] = static_cast<float>(variance / channels);
+          }
           for (int c = 0; c < channels; ++c) {
             double sum = 0.0;
             for (size_t k = 0; k < n; ++k) {
