@@ -1,13 +1,13 @@
-// Bindings of geometry/rigid.h and geometry/pinhole.h. Vectors and matrices cross as float64
+// Bindings of geometry/rigid.h, geometry/pinhole.h and geometry/lens.h. Vectors and matrices cross as float64
 // numpy arrays by value (see bindings.h).
+#include <cmath>
+#include <optional>
 #include <sstream>
 
+#include "aos/geometry/lens.h"
 #include "aos/geometry/pinhole.h"
 #include "aos/geometry/rigid.h"
 #include "aos/util/error.h"
-#include <optional>
-
-#include "aos/geometry/lens.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -187,7 +187,32 @@ void BindGeometry(py::module_& m) {
             if (!lens.Unproject(pixel, &ray)) return std::nullopt;
             return ray;
           },
-          "pixel"_a, "Unit ray through the pixel, or None where no valid ray maps there.");
+          "pixel"_a, "Unit ray through the pixel, or None where no valid ray maps there.")
+      .def(
+          "unproject_pixels",
+          [](const LensCamera& lens, const py::array_t<double, py::array::c_style | py::array::forcecast>& pixels) {
+            if (pixels.ndim() != 2 || pixels.shape(1) != 2) {
+              throw py::value_error("unproject_pixels: pixels must have shape (N, 2)");
+            }
+            const ssize_t n = pixels.shape(0);
+            py::array_t<double> rays({n, static_cast<ssize_t>(3)});
+            auto in = pixels.unchecked<2>();
+            auto out = rays.mutable_unchecked<2>();
+            {
+              py::gil_scoped_release release;
+              for (ssize_t i = 0; i < n; ++i) {
+                Vec3d ray;
+                if (!lens.Unproject(Vec2d(in(i, 0), in(i, 1)), &ray)) {
+                  ray = Vec3d(std::nan(""));
+                }
+                for (int k = 0; k < 3; ++k) out(i, k) = ray[k];
+              }
+            }
+            return rays;
+          },
+          "pixels"_a,
+          "Unit rays (N, 3) through pixels (N, 2), float64 (a new array); NaN rows where no "
+          "valid ray maps there.");
 }
 
 }  // namespace aos::python

@@ -3,6 +3,7 @@
 #include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
 #include "aos/render/merge.h"
+#include "aos/render/rectify.h"
 #include "aos/render/surface_integral.h"
 #include "bindings.h"
 
@@ -315,8 +316,46 @@ void BindMerge(py::module_& m) {
 
 }  // namespace
 
+void BindRectify(py::module_& m) {
+  OptionsClass<RectifyOptions>(
+      m, "RectifyOptions",
+      "Options of make_rectifier (defaults from the C++ struct aos::RectifyOptions).")
+      .Field("fov_deg", &RectifyOptions::fov_deg,
+             "Horizontal field of view of the rectified image, degrees, (0, 180).")
+      .Field("width", &RectifyOptions::width, "Output width, pixels; 0 = the raw frame's.")
+      .Field("height", &RectifyOptions::height, "Output height, pixels; 0 = the raw frame's.")
+      .Field("yaw_deg", &RectifyOptions::yaw_deg, "Turn about the lens's y axis, degrees.")
+      .Field("pitch_deg", &RectifyOptions::pitch_deg, "Turn about the lens's x axis, degrees.")
+      .Field("roll_deg", &RectifyOptions::roll_deg, "Turn about the optical axis, degrees.")
+      .Finish()
+      .def("check", &RectifyOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<Rectifier>(m, "Rectifier",
+                        "Resampling maps from a lens to a perspective camera (make_rectifier).")
+      .def_readonly("camera", &Rectifier::camera, "The rectified pinhole camera.")
+      .def(
+          "rectify",
+          [](const Rectifier& rectifier, const py::handle& raw) {
+            const Image image = ImageFromArray(raw, 0, "rectify: image");
+            Image out;
+            {
+              py::gil_scoped_release release;
+              out = Rectify(rectifier, image);
+            }
+            return ArrayFromImage(out);
+          },
+          "image"_a,
+          "The rectified frame (a new array, the input's dtype and channels; the input is "
+          "copied).");
+
+  m.def("make_rectifier", &MakeRectifier, "lens"_a, "options"_a,
+        "Resampling maps for a lens and options; raises ValueError if the lens does not cover "
+        "the requested view.");
+}
+
 void BindRender(py::module_& m) {
   BindIntegral(m);
+  BindRectify(m);
   BindSurfaceIntegral(m);
   BindFocalStack(m);
   BindMerge(m);

@@ -31,6 +31,9 @@ from typing import Any, Callable, Optional, TypeVar
 
 from . import _core
 from ._core import (
+    Rectifier,
+    RectifyOptions,
+    make_rectifier,
     LensCamera,
     LensModel,
     ResolutionOptions,
@@ -76,6 +79,9 @@ from ._core import (
 )
 
 __all__ = [
+    "Rectifier",
+    "RectifyOptions",
+    "make_rectifier",
     "LensCamera",
     "LensModel",
     "ResolutionOptions",

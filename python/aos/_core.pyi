@@ -151,6 +151,8 @@ class LensCamera:
         """Pixel of a camera-frame point, or None outside the valid field."""
     def unproject(self, pixel: _Vector) -> Optional[_Float64Array]:
         """Unit ray through the pixel, or None."""
+    def unproject_pixels(self, pixels: numpy.typing.ArrayLike) -> _Float64Array:
+        """Unit rays (N, 3) through pixels (N, 2); NaN rows where there is none."""
 
 def read_image(path: _PathLike) -> _ImageArray:
     """Reads an image file; uint8/uint16 kept, other types become float32. The returned array
@@ -318,6 +320,40 @@ def render_integral(
     """Integral rendering with the GIL released; see aos.render_integral."""
 
 def virtual_camera(options: IntegralOptions) -> PinholeCamera: ...
+
+class RectifyOptions:
+    """Options of make_rectifier; fields and defaults of aos::RectifyOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        fov_deg: float = ...,
+        width: int = ...,
+        height: int = ...,
+        yaw_deg: float = ...,
+        pitch_deg: float = ...,
+        roll_deg: float = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    fov_deg: float
+    width: int
+    height: int
+    yaw_deg: float
+    pitch_deg: float
+    roll_deg: float
+    def check(self) -> None: ...
+    def __copy__(self) -> RectifyOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> RectifyOptions: ...
+    def __repr__(self) -> str: ...
+
+class Rectifier:
+    @property
+    def camera(self) -> PinholeCamera: ...
+    def rectify(self, image: numpy.typing.ArrayLike) -> _ImageArray:
+        """The rectified frame (new array, the input's dtype and channels)."""
+
+def make_rectifier(lens: LensCamera, options: RectifyOptions) -> Rectifier: ...
 
 class SurfaceIntegralOptions:
     """Options of render_integral_on_depth; fields and defaults of aos::SurfaceIntegralOptions."""
