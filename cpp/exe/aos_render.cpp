@@ -902,6 +902,7 @@ int RunResolution(const ResolutionCommand& c) {
 
 struct RectifyCommand {
   std::string camera_path;
+  std::string light_field_path;
   std::vector<std::string> frames;
   RectifyOptions options;
   std::string output_dir;
@@ -913,9 +914,14 @@ void AddRectify(CLI::App& app, RectifyCommand& c) {
       "rectify",
       "Resample raw frames taken through a lens model (a camera file) into perspective frames "
       "with a chosen field of view, size and orientation, in the input's bit depth");
-  command->add_option("frames", c.frames, "Raw frames")->required();
-  command->add_option("--camera", c.camera_path, "Camera file (aos-camera JSON) of the lens")
-      ->required();
+  auto* frames = command->add_option("frames", c.frames, "Raw frames (with --camera)");
+  auto* camera = command->add_option("--camera", c.camera_path,
+                                     "Camera file (aos-camera JSON) of the lens");
+  auto* light_field = command->add_option(
+      "--lightfield", c.light_field_path,
+      "Instead of frames + --camera: an aos light field whose views have lens cameras; writes "
+      "DIR/lightfield.json pointing at the rectified frames, with pinhole cameras");
+  light_field->excludes(frames)->excludes(camera);
   command->add_option("--fov-deg", c.options.fov_deg, "Horizontal field of view, degrees")
       ->capture_default_str();
   command->add_option("--width", c.options.width, "Output width, pixels (0 = the raw width)")
@@ -935,17 +941,84 @@ void AddRectify(CLI::App& app, RectifyCommand& c) {
   command->add_flag("-q,--quiet", c.quiet, "No progress output");
 }
 
+const std::vector<std::pair<std::string, std::string>> kRectifyFlags{
+    {"fov_deg", "--fov-deg"},
+    {"width/height", "--width/--height"},
+    {"yaw_deg/pitch_deg/roll_deg", "--yaw-deg/--pitch-deg/--roll-deg"}};
+
+// rectify --lightfield: every view with a lens model is rectified (one set of maps per distinct
+// lens) and re-posed (cam_from_world of the rectified camera = R^T cam_from_world of the lens);
+// pinhole views are kept as they are.
+int RunRectifyLightField(const RectifyCommand& c, ProgressBar& progress) {
+  PendingFolder folder(c.output_dir);
+  LoadResult loaded = LoadLightField(c.light_field_path, LoadOptions{}, &progress);
+  progress.Finish();
+  LightField& light_field = loaded.light_field;
+  std::vector<std::pair<LensCamera, Rectifier>> rectifiers;
+  bool float_views = false;
+  ProgressStart(&progress, "rectify", static_cast<int64_t>(light_field.views.size()));
+  int rectified = 0;
+  for (View& view : light_field.views) {
+    if (ProgressCancelled(&progress)) throw Cancelled();
+    float_views = float_views || view.image.type() == PixelType::kF32;
+    if (view.lens.model == LensModel::kPinhole) {
+      ProgressAdvance(&progress, 1);
+      continue;
+    }
+    const auto same = [&](const std::pair<LensCamera, Rectifier>& entry) {
+      const LensCamera& a = entry.first;
+      const LensCamera& b = view.lens;
+      return a.model == b.model && a.width == b.width && a.height == b.height && a.fx == b.fx &&
+             a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion &&
+             a.xi == b.xi && a.skew == b.skew;
+    };
+    auto found = std::find_if(rectifiers.begin(), rectifiers.end(), same);
+    if (found == rectifiers.end()) {
+      try {
+        rectifiers.emplace_back(view.lens, MakeRectifier(view.lens, c.options));
+      } catch (const std::invalid_argument& error) {
+        try {
+          RethrowNamingFlags(error, kRectifyFlags);
+        } catch (const std::invalid_argument& named) {
+          ThrowInvalid(view.name + ": " + named.what());
+        }
+      }
+      found = rectifiers.end() - 1;
+    }
+    const Rectifier& rectifier = found->second;
+    Image image = Rectify(rectifier, view.image);
+    view = MakeView(view.name, rectifier.camera,
+                    Rigid3d{glm::transpose(rectifier.lens_from_rectified) * view.cam_from_world.rotation,
+                            glm::transpose(rectifier.lens_from_rectified) * view.cam_from_world.translation},
+                    std::move(image));
+    ++rectified;
+    ProgressAdvance(&progress, 1);
+  }
+  progress.Finish();
+  WriteLightFieldOptions write;
+  write.images_subdir = "views";
+  write.image_extension = float_views ? ".tif" : ".png";
+  WriteLightField((fs::path(folder.TempPath()) / "lightfield.json").string(), light_field, write);
+  folder.Commit();
+  std::printf("wrote %s: lightfield.json with %d rectified views (%s degrees) of %zu\n",
+              c.output_dir.c_str(), rectified, FormatNumber(c.options.fov_deg).c_str(),
+              light_field.views.size());
+  return 0;
+}
+
 int RunRectify(const RectifyCommand& c) {
   ProgressBar progress(c.quiet);
+  if (!c.light_field_path.empty()) return RunRectifyLightField(c, progress);
+  if (c.frames.empty() || c.camera_path.empty()) {
+    ThrowInvalid("give raw frames and --camera, or --lightfield");
+  }
   PendingFolder folder(c.output_dir);
   const LensCamera lens = ReadCameraFile(c.camera_path);
   Rectifier rectifier;
   try {
     rectifier = MakeRectifier(lens, c.options);
   } catch (const std::invalid_argument& error) {
-    RethrowNamingFlags(error, {{"fov_deg", "--fov-deg"},
-                               {"width/height", "--width/--height"},
-                               {"yaw_deg/pitch_deg/roll_deg", "--yaw-deg/--pitch-deg/--roll-deg"}});
+    RethrowNamingFlags(error, kRectifyFlags);
   }
   std::set<std::string> names;
   for (const std::string& frame : c.frames) {
