@@ -61,6 +61,59 @@ Image BoardFrame(const LensCamera& lens, const Mat3d& rotation, const Vec3d& tra
   return image;
 }
 
+std::vector<Image> BoardFrames(const LensCamera& lens, std::vector<std::string>* names,
+                               double distance) {
+  std::vector<Image> frames;
+  const double angles[][2] = {{0, 0}, {25, 0}, {-25, 0}, {0, 25}, {0, -25}, {20, 20}, {-20, 15}, {15, -20}};
+  int index = 0;
+  for (const auto& a : angles) {
+    const Mat3d rotation = Rotation(a[0], a[1]);
+    const Vec3d centre_in_board(0.5 * (kColumns - 1) * kSquare, 0.5 * (kRows - 1) * kSquare, 0.0);
+    const Vec3d translation = Vec3d(0.03 * (index % 3 - 1), 0.02 * (index % 2), distance) -
+                              rotation * centre_in_board;
+    frames.push_back(BoardFrame(lens, rotation, translation));
+    names->push_back("board_" + std::to_string(index++) + ".png");
+  }
+  return frames;
+}
+
+TEST(Calibrate, RecoversAFisheyeLens) {
+  LensCamera truth;
+  truth.model = LensModel::kFisheye;
+  truth.width = 640;
+  truth.height = 480;
+  truth.fx = 260.0;
+  truth.fy = 258.0;
+  truth.cx = 321.5;
+  truth.cy = 241.5;
+  truth.distortion = {0.05, -0.02, 0.004, -0.0005, 0.0};
+  truth.Finalize("truth");
+  std::vector<std::string> names;
+  const std::vector<Image> frames = BoardFrames(truth, &names, 0.3);
+  CalibrateOptions options;
+  options.model = LensModel::kFisheye;
+  options.pattern_columns = kColumns;
+  options.pattern_rows = kRows;
+  options.square_size_m = kSquare;
+  const CalibrationResult result = Calibrate(frames, names, options);
+  EXPECT_EQ(result.frames_used.size(), 8u);
+  EXPECT_LT(result.rms_px, 0.15);
+  EXPECT_NEAR(result.camera.fx, truth.fx, 0.01 * truth.fx);
+  EXPECT_NEAR(result.camera.cx, truth.cx, 1.0);
+  // The mapping where the boards were seen (their corners reach about 40 degrees off-axis).
+  double worst = 0.0;
+  for (int y = 140; y <= 340; y += 20) {
+    for (int x = 170; x <= 470; x += 20) {
+      Vec3d ray;
+      Vec2d back;
+      ASSERT_TRUE(truth.Unproject(Vec2d(x, y), &ray));
+      ASSERT_TRUE(result.camera.Project(ray, &back));
+      worst = std::max(worst, glm::length(back - Vec2d(x, y)));
+    }
+  }
+  EXPECT_LT(worst, 0.5);
+}
+
 TEST(Calibrate, RecoversARadialTangentialLens) {
   LensCamera truth;
   truth.model = LensModel::kRadTan;
