@@ -69,7 +69,7 @@ std::vector<Image> BoardFrames(const LensCamera& lens, std::vector<std::string>*
   for (const auto& a : angles) {
     const Mat3d rotation = Rotation(a[0], a[1]);
     const Vec3d centre_in_board(0.5 * (kColumns - 1) * kSquare, 0.5 * (kRows - 1) * kSquare, 0.0);
-    const Vec3d translation = Vec3d(0.03 * (index % 3 - 1), 0.02 * (index % 2), distance) -
+    const Vec3d translation = Vec3d(0.02 * (index % 3 - 1), 0.015 * (index % 2), distance) -
                               rotation * centre_in_board;
     frames.push_back(BoardFrame(lens, rotation, translation));
     names->push_back("board_" + std::to_string(index++) + ".png");
@@ -125,18 +125,8 @@ TEST(Calibrate, RecoversARadialTangentialLens) {
   truth.cy = 236.5;
   truth.distortion = {-0.18, 0.06, 0.0012, -0.0008, 0.0};
   truth.Finalize("truth");
-  std::vector<Image> frames;
   std::vector<std::string> names;
-  const double angles[][2] = {{0, 0}, {25, 0}, {-25, 0}, {0, 25}, {0, -25}, {20, 20}, {-20, 15}, {15, -20}};
-  int index = 0;
-  for (const auto& a : angles) {
-    // The board's centre about 0.55 m in front, shifted a little per frame.
-    const Mat3d rotation = Rotation(a[0], a[1]);
-    const Vec3d centre_in_board(0.5 * (kColumns - 1) * kSquare, 0.5 * (kRows - 1) * kSquare, 0.0);
-    const Vec3d translation = Vec3d(0.02 * (index % 3 - 1), 0.015 * (index % 2), 0.55) - rotation * centre_in_board;
-    frames.push_back(BoardFrame(truth, rotation, translation));
-    names.push_back("board_" + std::to_string(index++) + ".png");
-  }
+  std::vector<Image> frames = BoardFrames(truth, &names, 0.55);
   frames.push_back(Image(640, 480, 1, PixelType::kU8));  // black: no board
   names.push_back("blank.png");
   CalibrateOptions options;
