@@ -221,6 +221,10 @@ def test_cancelled_becomes_keyboard_interrupt() -> None:
 def test_ctrl_c_interrupts_without_a_callback() -> None:
     # SIGINT arrives while the C++ loop runs with the GIL released; the sink's periodic
     # PyErr_CheckSignals() on the calling (main) thread turns it into KeyboardInterrupt.
+    # A process started in the background by a non-interactive shell (`cmd &`, some CI runners)
+    # inherits SIGINT as ignored, and Python then installs no handler: install Python's own for
+    # the test, as an interactive session has it.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     timer = threading.Timer(0.2, os.kill, args=(os.getpid(), signal.SIGINT))
     timer.start()
     try:
@@ -228,3 +232,4 @@ def test_ctrl_c_interrupts_without_a_callback() -> None:
             _core._progress_selftest(100000, num_threads=2, sleep_us=1000)  # ~50 s unless stopped
     finally:
         timer.cancel()
+        signal.signal(signal.SIGINT, previous)

@@ -10,8 +10,8 @@
 //   over a (2 window_radius + 1)^2 window; the peak of each pixel's focus curve is refined to a
 //   fraction of a slice by a parabola through the best slice and its two neighbours (|offset|
 //   <= 1/2); the fractional slice map is smoothed edge-aware (a joint bilateral filter guided by
-//   the sharpest slice's image, each neighbour weighted by its confidence; smoothing_iterations
-//   passes); the image blends the two slices around the smoothed depth linearly (from a stored
+//   the sharpest slice's image, each neighbour weighted by its confidence, applied separably:
+//   along rows, then columns; smoothing_iterations passes); the image blends the two slices around the smoothed depth linearly (from a stored
 //   stack), or is re-integrated from the views on the smoothed depth surface (the one-call
 //   pipeline, RenderAllInFocus, which never holds the slices).
 // - robust: the focus cue adds what only the rays show, the per-pixel variance of the view
