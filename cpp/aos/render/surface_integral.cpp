@@ -21,6 +21,9 @@
 namespace aos {
 namespace {
 
+// Bilinear sampling of one view at continuous pixel coordinates into `out` (one per channel).
+using Sampler = void (*)(const Image&, double, double, double*);
+
 struct ViewSetup {
   const Image* image = nullptr;
   Mat3d rotation{1.0};      // R_i
@@ -29,6 +32,7 @@ struct ViewSetup {
   double lens_b = 0.0;      // a . b
   double fx = 0, fy = 0, cx = 0, cy = 0, width = 0, height = 0;
   const LensCamera* lens = nullptr;  // set for views with a lens model (direct sampling)
+  Sampler sample = nullptr;
 };
 
 double FullRange(PixelType type) {
@@ -41,20 +45,33 @@ double FullRange(PixelType type) {
 }
 
 // Bilinear sample at continuous pixel coordinates (u, v), pixel centres at +0.5, clamped into
-// the replicated border like the span kernels.
-void Sample(const Image& image, double u, double v, double* out) {
+// the replicated border like the span kernels; typed access (no per-tap type switch).
+template <typename T>
+void SampleTyped(const Image& image, double u, double v, double* out) {
   double sx = u - 0.5, sy = v - 0.5;
   sx = std::min(sx > -1.0 ? sx : -1.0, image.width() - 0.5);
   sy = std::min(sy > -1.0 ? sy : -1.0, image.height() - 0.5);
   const int ix = static_cast<int>(std::floor(sx));
   const int iy = static_cast<int>(std::floor(sy));
   const double ax = sx - ix, ay = sy - iy;
-  for (int c = 0; c < image.channels(); ++c) {
-    const double p00 = image.Value(ix, iy, c), p01 = image.Value(ix + 1, iy, c);
-    const double p10 = image.Value(ix, iy + 1, c), p11 = image.Value(ix + 1, iy + 1, c);
+  const int channels = image.channels();
+  const T* top_row = image.At<T>(ix, iy);
+  const T* bottom_row = image.At<T>(ix, iy + 1);
+  for (int c = 0; c < channels; ++c) {
+    const double p00 = top_row[c], p01 = top_row[c + channels];
+    const double p10 = bottom_row[c], p11 = bottom_row[c + channels];
     const double top = p00 + ax * (p01 - p00);
     const double bottom = p10 + ax * (p11 - p10);
     out[c] = top + ay * (bottom - top);
+  }
+}
+
+Sampler SamplerFor(const Image& image) {
+  switch (image.type()) {
+    case PixelType::kU8: return &SampleTyped<uint8_t>;
+    case PixelType::kU16: return &SampleTyped<uint16_t>;
+    case PixelType::kU32: return &SampleTyped<uint32_t>;
+    default: return &SampleTyped<float>;
   }
 }
 
@@ -129,6 +146,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
     setup.width = view.camera.width;
     setup.height = view.camera.height;
     if (view.lens.model != LensModel::kPinhole) setup.lens = &view.lens;
+    setup.sample = SamplerFor(view.image);
     views.push_back(setup);
   }
 
@@ -211,7 +229,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
                 luminance.clear();
               }
             }
-            Sample(*view.image, u, v, value.data());
+            view.sample(*view.image, u, v, value.data());
             double mean = 0.0;
             for (int c = 0; c < channels; ++c) {
               samples.push_back(value[static_cast<size_t>(c)]);
