@@ -11,12 +11,13 @@ and merges it with every method. It reports, per method:
   per-pixel depth, the best any depth-based merge can do with plain averaging);
 - banding: the fraction of horizontally neighbouring pixel pairs on smooth ground (true depths
   differ by less than 2 cm) whose merged depths differ by more than 5 cm;
-- depth RMSE over the image;
+- depth RMSE on smooth ground (pixels whose true depth is within 2 cm of all 4 neighbours);
 - merge time.
 
-It also checks the robust mean on its own: on the true depth, the error of the robust and the
-plain mean against the clean ground (the same scene without occluders, integrated the same way),
-split by the truth's per-pixel fraction of blocked rays (below / at least 60 %).
+It also checks robust against the clean ground (the same scene without occluders, integrated on
+the true depth), split by the truth's per-pixel fraction of blocked rays (below / at least
+60 %): the robust mean alone against the plain mean, both on the true depth, and the whole
+robust merge against the improved one.
 
 Usage: python3 tools/merge_study.py [--size 256] [--seeds 5] [--slices 6,12,24]
                                     [--write-docs]   (docs/merge-study.md and .png)
@@ -76,6 +77,22 @@ def camera_options(truth: Any, size: int) -> dict[str, Any]:
             "height": size}
 
 
+def smooth_ground(true_depth: np.ndarray) -> np.ndarray:
+    """Pixels whose true depth differs from each of their 4 neighbours by less than 2 cm: the
+    slope, not the step (nor the image border)."""
+    smooth = np.zeros(true_depth.shape, dtype=bool)
+    smooth[1:-1, 1:-1] = True
+    for axis in (0, 1):
+        step = np.abs(np.diff(true_depth, axis=axis)) >= 0.02
+        if axis == 0:
+            smooth[1:, :] &= ~step
+            smooth[:-1, :] &= ~step
+        else:
+            smooth[:, 1:] &= ~step
+            smooth[:, :-1] &= ~step
+    return smooth
+
+
 def banding(depth: np.ndarray, true_depth: np.ndarray) -> float:
     """Fraction of horizontal neighbour pairs on smooth ground (true depths within 2 cm: the
     slope, not the step) whose merged depths differ by more than 5 cm."""
@@ -91,6 +108,7 @@ def evaluate(seed: int, occluders: str, size: int, slice_counts: list[int]) -> l
     camera = camera_options(truth, size)
     true_depth = np.asarray(truth.depth).astype(np.float32)
     ground = np.asarray(truth.ground).astype(np.float32)
+    smooth = smooth_ground(true_depth)
     oracle = np.asarray(aos.render_integral_on_depth(light_field, true_depth, **camera)
                         .integral.image)
     rows = []
@@ -110,15 +128,17 @@ def evaluate(seed: int, occluders: str, size: int, slice_counts: list[int]) -> l
                 "psnr": versus_truth.psnr_db, "ssim": versus_truth.ssim,
                 "psnr_oracle": versus_oracle.psnr_db, "ssim_oracle": versus_oracle.ssim,
                 "banding": banding(depth, true_depth),
-                "depth_rmse": float(np.sqrt(np.mean((depth - true_depth) ** 2))),
+                "depth_rmse": float(np.sqrt(np.mean((depth[smooth] - true_depth[smooth]) ** 2))),
                 "seconds": seconds, "image": image,
             })
     return rows
 
 
-def robust_bins(seed: int, size: int, density: float) -> dict[str, float]:
-    """RMSE against the clean ground of the plain and robust means on the true depth, split by
-    the fraction of blocked rays (< 0.6, >= 0.6)."""
+def robust_bins(seed: int, size: int, density: float, slices: int = 24) -> dict[str, float]:
+    """RMSE against the clean ground (the same scene without occluders, integrated on the true
+    depth), split by the truth's fraction of blocked rays (< 0.6, >= 0.6), of: the plain and the
+    robust mean on the true depth (the estimator alone), and the improved and robust merges of a
+    stack (the whole method)."""
     scene = study_scene(seed, size, "voxels", density)
     simulation = aos.simulate(scene)
     clean_scene = copy.deepcopy(scene)
@@ -134,10 +154,19 @@ def robust_bins(seed: int, size: int, density: float) -> dict[str, float]:
                        .integral.image)
     robust = np.asarray(aos.render_integral_on_depth(simulation.light_field, true_depth,
                                                      robust=True, **camera).integral.image)
+    stack = aos.render_focal_stack(simulation.light_field,
+                                   first_plane=aos.Plane.at_height(FIRST_HEIGHT),
+                                   last_plane=aos.Plane.at_height(LAST_HEIGHT), slices=slices,
+                                   variance=True, **camera)
+    merged = {method: np.asarray(aos.merge_focal_stack(stack, method=method,
+                                                       light_field=simulation.light_field).image)
+              for method in ("improved", "robust")}
     out: dict[str, float] = {}
     for name, mask in (("below", blocked < 0.6), ("above", blocked >= 0.6)):
         out[f"{name}_pixels"] = float(np.mean(mask))
-        for label, image in (("plain", plain), ("robust", robust)):
+        for label, image in (("plain", plain), ("robust", robust),
+                             ("improved_merge", merged["improved"]),
+                             ("robust_merge", merged["robust"])):
             out[f"{name}_{label}"] = (float(np.sqrt(np.mean((image[mask] - clean[mask]) ** 2)))
                                       if mask.any() else float("nan"))
     return out
@@ -145,7 +174,7 @@ def robust_bins(seed: int, size: int, density: float) -> dict[str, float]:
 
 def summary_table(rows: list[dict[str, Any]]) -> str:
     lines = ["| occluders | N | method | PSNR dB | SSIM | PSNR vs oracle | SSIM vs oracle | "
-             "banding | depth RMSE m | merge ms |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "banding | depth RMSE m (smooth ground) | merge ms |", "|---|---|---|---|---|---|---|---|---|---|"]
     keys = sorted({(r["occluders"], r["slices"]) for r in rows}, key=lambda k: (k[0], k[1]))
     for occluders, slices in keys:
         for method in METHODS:
@@ -202,8 +231,11 @@ def main() -> int:
             b = robust_bins(seed, args.size, density)
             bins.append((density, seed, b))
             print(f"density {density:.1f} seed {seed}: blocked < 60 % ({b['below_pixels']:.0%} of "
-                  f"pixels) RMSE plain {b['below_plain']:.1f} robust {b['below_robust']:.1f}; "
-                  f">= 60 % plain {b['above_plain']:.1f} robust {b['above_robust']:.1f}")
+                  f"pixels) RMSE plain {b['below_plain']:.1f} robust {b['below_robust']:.1f}, "
+                  f"merges improved {b['below_improved_merge']:.1f} robust "
+                  f"{b['below_robust_merge']:.1f}; >= 60 % plain {b['above_plain']:.1f} robust "
+                  f"{b['above_robust']:.1f}, merges improved {b['above_improved_merge']:.1f} robust "
+                  f"{b['above_robust_merge']:.1f}")
     if args.write_docs:
         write_docs(args, rows, summary, seeds, wins, bins)
     return 0
@@ -235,12 +267,15 @@ def write_docs(args: argparse.Namespace, rows: list[dict[str, Any]], summary: st
         axis.axis("off")
     figure.tight_layout()
     figure.savefig(root / "merge-study.png", dpi=110)
-    bin_lines = ["| density | seed | pixels < 60 % blocked | RMSE plain / robust (< 60 %) | "
-                 "RMSE plain / robust (>= 60 %) |", "|---|---|---|---|---|"]
+    bin_lines = ["| density | seed | pixels < 60 % blocked | mean on the true depth, plain / "
+                 "robust (< 60 %) | (>= 60 %) | merge, improved / robust (< 60 %) | (>= 60 %) |",
+                 "|---|---|---|---|---|---|---|"]
     for density, seed, b in bins:
         bin_lines.append(f"| {density:.1f} | {seed} | {b['below_pixels']:.0%} | "
                          f"{b['below_plain']:.1f} / {b['below_robust']:.1f} | "
-                         f"{b['above_plain']:.1f} / {b['above_robust']:.1f} |")
+                         f"{b['above_plain']:.1f} / {b['above_robust']:.1f} | "
+                         f"{b['below_improved_merge']:.1f} / {b['below_robust_merge']:.1f} | "
+                         f"{b['above_improved_merge']:.1f} / {b['above_robust_merge']:.1f} |")
     text = f"""# All-in-focus merging: sobel (the paper's) against improved and robust
 
 Written by `python3 tools/merge_study.py --size {args.size} --seeds {args.seeds} --slices {args.slices} --write-docs`
@@ -263,9 +298,11 @@ depths differ by more than 5 cm.
 Improved beats sobel on PSNR and SSIM against the truth and against the oracle in every
 (occluders, N, seed) case: **{wins}**.
 
-## Robust mean against the clean ground, by fraction of blocked rays
+## Robust against the clean ground, by fraction of blocked rays
 
-On the true depth; RMSE in grey levels against the integral of the same scene without occluders.
+RMSE in grey levels against the integral of the same scene without occluders (on the true
+depth): the robust mean alone (on the true depth, against the plain mean), and the whole robust
+method against the improved one (merges of a 24-slice stack).
 
 {chr(10).join(bin_lines)}
 

@@ -133,13 +133,7 @@ double ParseRadius(const std::string& text) {
 // The value range that maps onto the integer codes of an 8/16-bit output.
 std::pair<double, double> ResolveRange(const std::string& spec, const IntegralResult& result,
                                        PixelType views_type) {
-  if (spec == "views") {
-    switch (views_type) {
-      case PixelType::kU8: return {0.0, 255.0};
-      case PixelType::kU16: return {0.0, 65535.0};
-      default: return {0.0, 1.0};
-    }
-  }
+  if (spec == "views") return {0.0, PixelTypeFullRange(views_type)};
   if (spec == "minmax") {
     double lo = std::numeric_limits<double>::infinity(), hi = -lo;
     for (int y = 0; y < result.image.height(); ++y) {
@@ -395,16 +389,6 @@ Scene LoadSceneOrDefault(const std::string& path, int grid) {
   return scene;
 }
 
-// WriteSimulation refuses a non-empty folder too; checking first saves the simulation's time.
-void RefuseUsedFolder(const std::string& output_dir) {
-  std::error_code error;
-  if (fs::exists(output_dir, error) &&
-      (!fs::is_directory(output_dir, error) || !fs::is_empty(output_dir, error))) {
-    ThrowInvalid(output_dir + ": output folder: exists and is not an empty folder (nothing is "
-                              "overwritten; choose a new folder)");
-  }
-}
-
 void PrintStats(const SimulationResult& result) {
   const SimulationStats& s = result.stats;
   const double rays = static_cast<double>(s.primary_rays);
@@ -452,7 +436,7 @@ int RunSimulate(SimulateCommand& c) {
     return 0;
   }
   if (c.output_dir.empty()) ThrowInvalid("--output-dir: required (a new or empty folder)");
-  RefuseUsedFolder(c.output_dir);
+  CheckOutputFolder(c.output_dir);  // before any work
   ProgressBar progress(c.quiet);
   SimulationResult result;
   try {
@@ -492,7 +476,7 @@ void AddDemo(CLI::App& app, DemoCommand& c) {
 
 int RunDemo(DemoCommand& c) {
   const Scene scene = LoadSceneOrDefault(c.scene_path, c.grid);
-  RefuseUsedFolder(c.output_dir);
+  CheckOutputFolder(c.output_dir);  // before any work
   ProgressBar progress(c.quiet);
   const SimulationResult simulation = Simulate(scene, {}, &progress);
   progress.Finish();
@@ -667,7 +651,7 @@ void AddStack(CLI::App& app, StackCommand& c) {
 
 int RunStack(StackCommand& c) {
   ProgressBar progress(c.render.quiet);
-  { PendingFolder check(c.output_dir); }  // refuse a used folder before any work
+  CheckOutputFolder(c.output_dir);  // before any work
   const LoadResult loaded = LoadAndResolveCamera(c.render, progress);
   c.options.render = c.render.options;
   c.options.first_plane = ParsePlane(c.planes.first_plane, "--first-plane");
@@ -718,7 +702,7 @@ void AddMerge(CLI::App& app, MergeCommand& c) {
 
 int RunMerge(MergeCommand& c) {
   ProgressBar progress(c.quiet);
-  { PendingFolder check(c.output_dir); }
+  CheckOutputFolder(c.output_dir);  // before any work
   c.options.method = ParseMergeMethod(c.args.method, "--method");
   const FocalStack stack = ReadFocalStack(c.stack_dir);
   std::optional<LoadResult> loaded;
@@ -773,7 +757,7 @@ void AddAllInFocus(CLI::App& app, AllInFocusCommand& c) {
 
 int RunAllInFocus(AllInFocusCommand& c) {
   ProgressBar progress(c.render.quiet);
-  { PendingFolder check(c.output_dir); }
+  CheckOutputFolder(c.output_dir);  // before any work
   const LoadResult loaded = LoadAndResolveCamera(c.render, progress);
   c.options.stack.render = c.render.options;
   c.options.stack.first_plane = ParsePlane(c.planes.first_plane, "--first-plane");

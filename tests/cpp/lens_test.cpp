@@ -13,6 +13,8 @@
 
 #include "aos/util/error.h"
 
+#include "error_of.h"
+
 namespace aos {
 namespace {
 
@@ -177,14 +179,7 @@ TEST(Lens, PixelsOutsideTheImageCircleDoNotUnproject) {
   EXPECT_FALSE(lens.Unproject(Vec2d(std::nan(""), lens.cy), &ray));
 }
 
-std::string ErrorOf(const std::function<void()>& call) {
-  try {
-    call();
-  } catch (const std::invalid_argument& error) {
-    return error.what();
-  }
-  return "no error";
-}
+using test_util::ErrorOf;
 
 TEST(Lens, NonInvertibleParametersAreRefused) {
   EXPECT_THAT(ErrorOf([] { Lens(LensModel::kOmnidir, {0, 0, 0, 0, 0}, -0.5); }),

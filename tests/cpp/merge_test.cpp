@@ -22,6 +22,8 @@
 #include "aos/util/error.h"
 #include "render_test_util.h"
 
+#include "error_of.h"
+
 namespace aos {
 namespace {
 
@@ -36,15 +38,7 @@ using test_util::SameImage;
 constexpr MergeMethod kAllMethods[] = {MergeMethod::kSobel, MergeMethod::kImproved,
                                        MergeMethod::kRobust};
 
-template <typename Call>
-std::string ErrorOf(Call&& call) {
-  try {
-    call();
-  } catch (const std::invalid_argument& error) {
-    return error.what();
-  }
-  return "no error";
-}
+using test_util::ErrorOf;
 
 // Every output of a merge is finite and the shapes are the camera's.
 ::testing::AssertionResult WellFormed(const MergeResult& result, int width, int height) {

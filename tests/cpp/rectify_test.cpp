@@ -15,6 +15,8 @@
 #include "aos/util/error.h"
 #include "temp_folder.h"
 
+#include "error_of.h"
+
 namespace aos {
 namespace {
 
@@ -95,14 +97,7 @@ TEST(Rectify, KeepsTypeAndChannels) {
   EXPECT_EQ(out.At<uint16_t>(100, 100)[2], 3000);
 }
 
-std::string ErrorOf(const std::function<void()>& call) {
-  try {
-    call();
-  } catch (const std::invalid_argument& error) {
-    return error.what();
-  }
-  return "no error";
-}
+using test_util::ErrorOf;
 
 TEST(Rectify, AViewTheLensDoesNotCoverIsAnError) {
   LensCamera radtan;

@@ -44,13 +44,16 @@ def test_improved_beats_sobel_on_every_seed_and_slice_count(occluders: str) -> N
 
 
 @pytest.mark.parametrize("density", [0.5, 0.7])
-def test_robust_mean_lowers_the_error_where_fewer_than_60_percent_are_blocked(density: float) -> None:
+def test_robust_lowers_the_error_where_fewer_than_60_percent_are_blocked(density: float) -> None:
     bins = merge_study.robust_bins(1, SIZE, density)
     assert bins["below_pixels"] > 0.3 and bins["above_pixels"] > 0.02, bins
     assert bins["below_robust"] < 0.97 * bins["below_plain"], bins
     # No worse above: the robust mean falls back to the plain mean where too few rays agree
     # (a 1 % margin for the pixels where a cluster of occluders happens to agree).
     assert bins["above_robust"] <= 1.01 * bins["above_plain"], bins
+    # The whole method (its own depth, then the robust re-integration) against improved's merge.
+    assert bins["below_robust_merge"] < 0.97 * bins["below_improved_merge"], bins
+    assert bins["above_robust_merge"] <= 1.01 * bins["above_improved_merge"], bins
 
 
 @pytest.fixture(scope="module")

@@ -15,9 +15,7 @@ namespace {
 // 8-bit grey view of a frame (luminance = mean of the channels), scaled by its type's range.
 cv::Mat Grey8(const Image& image) {
   cv::Mat grey(image.height(), image.width(), CV_8U);
-  const double scale = image.type() == PixelType::kU8    ? 1.0
-                       : image.type() == PixelType::kU16 ? 255.0 / 65535.0
-                                                         : 255.0;
+  const double scale = 255.0 / PixelTypeFullRange(image.type());
   for (int y = 0; y < image.height(); ++y) {
     for (int x = 0; x < image.width(); ++x) {
       double sum = 0.0;

@@ -21,6 +21,16 @@ size_t PixelTypeSize(PixelType type) {
   return 0;
 }
 
+double PixelTypeFullRange(PixelType type) {
+  switch (type) {
+    case PixelType::kU8: return 255.0;
+    case PixelType::kU16: return 65535.0;
+    case PixelType::kU32: return 4294967295.0;
+    case PixelType::kF32: return 1.0;
+  }
+  return 1.0;
+}
+
 const char* PixelTypeName(PixelType type) {
   switch (type) {
     case PixelType::kU8: return "uint8";

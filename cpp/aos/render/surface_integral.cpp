@@ -35,15 +35,6 @@ struct ViewSetup {
   Sampler sample = nullptr;
 };
 
-double FullRange(PixelType type) {
-  switch (type) {
-    case PixelType::kU8: return 255.0;
-    case PixelType::kU16: return 65535.0;
-    case PixelType::kU32: return 4294967295.0;
-    default: return 1.0;
-  }
-}
-
 // Bilinear sample at continuous pixel coordinates (u, v), pixel centres at +0.5, clamped into
 // the replicated border like the span kernels; typed access (no per-tap type switch).
 template <typename T>
@@ -124,7 +115,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   std::vector<ViewSetup> views;
   const int channels = light_field.views[static_cast<size_t>(selection.front())].image.channels();
   const double range =
-      FullRange(light_field.views[static_cast<size_t>(selection.front())].image.type());
+      PixelTypeFullRange(light_field.views[static_cast<size_t>(selection.front())].image.type());
   for (int index : selection) {
     const View& view = light_field.views[static_cast<size_t>(index)];
     CheckView(view, "view " + std::to_string(index) + (view.name.empty() ? "" : " (" + view.name + ")"));

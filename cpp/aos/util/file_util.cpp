@@ -138,25 +138,40 @@ std::string ReadTextFile(const std::string& path) {
   return buffer.str();
 }
 
-PendingFolder::PendingFolder(const std::string& output_dir) : output_dir_(output_dir) {
+namespace {
+
+// The absolute final path of an output folder ("out/" -> ".../out"), checked as
+// CheckOutputFolder says.
+fs::path CheckedOutputFolder(const std::string& output_dir) {
   if (output_dir.empty()) ThrowInvalid("output folder: empty path");
   fs::path target = fs::absolute(fs::path(output_dir)).lexically_normal();
-  if (target.filename().empty()) target = target.parent_path();  // "out/" -> "out"
+  if (target.filename().empty()) target = target.parent_path();
   std::error_code error;
   if (fs::exists(target, error)) {
     if (!fs::is_directory(target, error)) {
       ThrowInvalid(output_dir + ": output folder: exists and is not a folder");
     }
     if (!fs::is_empty(target, error)) {
-      ThrowInvalid(output_dir + ": output folder: exists and is not empty (nothing is "
-                                "overwritten; choose a new folder)");
+      ThrowInvalid(output_dir + ": output folder: exists and is not empty; output goes only to "
+                                "a new folder or an empty one, and this is not an empty folder "
+                                "(nothing is overwritten)");
     }
   }
-  const fs::path parent = target.parent_path();
-  if (!fs::is_directory(parent, error)) {
-    ThrowInvalid(output_dir + ": output folder: the parent folder " + parent.string() +
-                 " does not exist");
+  if (!fs::is_directory(target.parent_path(), error)) {
+    ThrowInvalid(output_dir + ": output folder: the parent folder " +
+                 target.parent_path().string() + " does not exist");
   }
+  return target;
+}
+
+}  // namespace
+
+void CheckOutputFolder(const std::string& output_dir) { CheckedOutputFolder(output_dir); }
+
+PendingFolder::PendingFolder(const std::string& output_dir) : output_dir_(output_dir) {
+  const fs::path target = CheckedOutputFolder(output_dir);
+  const fs::path parent = target.parent_path();
+  std::error_code error;
   static std::atomic<int> counter{0};
   const fs::path temp = parent / ("." + target.filename().string() + ".partial-" +
                                   std::to_string(::getpid()) + "-" + std::to_string(counter++));

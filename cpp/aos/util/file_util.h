@@ -41,6 +41,11 @@ void CommitTogether(const std::vector<PendingFile*>& files);
 void CheckOutputPath(const std::string& output_path, const std::vector<std::string>& input_paths,
                      const std::string& what = "output");
 
+// Refuses an output folder that exists and is not an empty folder (nothing is overwritten), or
+// whose parent folder is missing; the errors name `output_dir`. PendingFolder checks the same;
+// callers check first to fail before a long computation.
+void CheckOutputFolder(const std::string& output_dir);
+
 // A pending output folder: the contents are written into a hidden temporary sibling
 // (TempPath()), and Commit() renames it to the final path. The constructor refuses a final path
 // that exists and is not an empty folder (nothing is overwritten) or whose parent folder is
