@@ -18,7 +18,7 @@ py::dict StatsDict(const SimulationStats& s) {
   d["blocked_fraction_rays"] = s.blocked_fraction_rays;
   d["sensor_noise_draws"] = s.sensor_noise_draws;
   d["pose_noise_draws"] = s.pose_noise_draws;
-  d["lens_resampled_pixels"] = s.lens_resampled_pixels;
+  d["lens_rays"] = s.lens_rays;
   d["voxels"] = s.voxels;
   d["trees"] = s.trees;
   d["leaf_quads"] = s.leaf_quads;

@@ -112,11 +112,58 @@ TEST(Scene, CamerasBelowTheGroundOrInsideOccludersAreErrors) {
               HasSubstr("truth.position: camera at z = -2 m is not above the ground"));
 }
 
-TEST(Scene, LensModelsAndLensDistortionAreRefusedUntilTheyExist) {
-  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye"}})"),
-              HasSubstr("camera.lens: \"fisheye\" is not supported"));
+TEST(Scene, LensCamerasParseCheckAndRoundTrip) {
+  const Scene scene = ParseScene(
+      R"({"camera": {"lens": "omnidir", "fov_deg": 200, "xi": 1.2, "distortion": [-0.05, 0.01]}})",
+      "scene.json");
+  EXPECT_EQ(scene.camera.lens, "omnidir");
+  EXPECT_EQ(scene.camera.distortion, (std::array<double, 5>{-0.05, 0.01, 0, 0, 0}));
+  const Scene again = ParseScene(SceneToJson(scene), "again.json");
+  EXPECT_EQ(again.camera.lens, "omnidir");
+  EXPECT_EQ(again.camera.distortion, scene.camera.distortion);
+  EXPECT_EQ(again.camera.xi, 1.2);
+  EXPECT_EQ(again.camera.fov_deg, 200.0);
+  // The focal length puts the ray at half the field of view on the image's side edges.
+  const LensCamera lens = ViewLens(scene);
+  const double half = 100.0 * M_PI / 180.0;
+  Vec2d pixel;
+  ASSERT_TRUE(lens.Project(Vec3d(std::sin(half), 0.0, std::cos(half)), &pixel));
+  EXPECT_NEAR(pixel.x, scene.camera.width, 1e-9);
+  EXPECT_NEAR(pixel.y, 0.5 * scene.camera.height, 1e-9);
+  // A pinhole scene writes no lens fields and still round-trips.
+  const Scene plain = ParseScene("{}", "plain.json");
+  EXPECT_EQ(SceneToJson(plain).find("distortion"), std::string::npos);
+}
+
+TEST(Scene, LensCamerasThatCannotBeInvertedOverTheFieldAreErrors) {
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye2"}})"),
+              HasSubstr("camera.lens: \"fisheye2\" is not a lens model"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"distortion": [0.1]}})"),
+              HasSubstr("camera.distortion[0]: a pinhole lens has no distortion"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye", "xi": 2}})"),
+              HasSubstr("camera.xi: only the omnidir lens has xi"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye", "distortion": [0, 0, 0, 0, 0.1]}})"),
+              HasSubstr("camera.distortion[4]: the fisheye model has k1..k4 only"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "radtan", "fov_deg": 190}})"),
+              HasSubstr("camera.fov_deg: 190 is outside [0, 180)"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"distortion": []}})"),
+              HasSubstr("camera.distortion: must be an array of 1 to 5 numbers"));
+  // A radtan lens whose distortion folds inside the frame is not invertible.
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "radtan", "fov_deg": 120, "distortion": [-0.2]}})"),
+              HasSubstr("camera: distortion: folds the image"));
+  // A fisheye whose distortion stops increasing before half the field of view.
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye", "fov_deg": 300, "distortion": [-0.05]}})"),
+              HasSubstr("camera.fov_deg: half the field of view (150 degrees) is beyond the "
+                        "lens's valid field"));
+  // Mei's model images rays up to cos(theta) + xi > 0 only.
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "omnidir", "fov_deg": 200, "xi": 0.1}})"),
+              HasSubstr("camera.fov_deg: 200 degrees is beyond what an omnidir lens with xi = 0.1 "
+                        "images"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "omnidir", "xi": -1}})"),
+              HasSubstr("camera.xi: -1 is outside [0, 1000]"));
+  // The lens is set on the camera, not as an effect.
   EXPECT_THAT(ErrorOf(R"({"effects": {"lens_distortion": {"k1": 0.1}}})"),
-              HasSubstr("effects.lens_distortion: is not available yet"));
+              HasSubstr("effects.lens_distortion: is not an effect"));
 }
 
 class SceneFiles : public testing_util::TempFolderTest {};

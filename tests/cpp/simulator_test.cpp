@@ -93,6 +93,89 @@ TEST(Simulator, NadirViewOfACheckerGroundMatchesTheAnalyticPattern) {
   EXPECT_EQ(result.stats.blocked_fraction_rays, 0);  // nothing can block: no rays traced
 }
 
+// Pixels of lens views see, through the lens model, the checker colour where their centre ray
+// meets the ground (within half a code), 0 where the ray points above the horizon or where the
+// lens has no ray (outside a fisheye's image circle). Pixels whose ground point lies within
+// 1e-6 of the distance of a checker edge are skipped (float32 ray directions).
+void ExpectLensViewOfACheckerGround(const SimulationResult& result, int* ground, int* sky,
+                                    int* masked) {
+  const View& view = result.light_field.views[0];
+  const LensCamera& lens = view.lens;
+  for (int y = 0; y < lens.height; ++y) {
+    for (int x = 0; x < lens.width; ++x) {
+      Vec3d ray;
+      const double value = view.image.Value(x, y);
+      if (!lens.Unproject(Vec2d(x + 0.5, y + 0.5), &ray)) {
+        ++*masked;
+        ASSERT_EQ(value, 0.0) << x << "," << y;
+        continue;
+      }
+      if (ray.z < 1e-3) {
+        if (ray.z < -1e-3) {
+          ++*sky;
+          ASSERT_EQ(value, 0.0) << x << "," << y;
+        }
+        continue;
+      }
+      const double t = 20.0 / ray.z;
+      const double gx = t * ray.x, gy = -t * ray.y;
+      const double fx = gx / 0.7 - std::floor(gx / 0.7), fy = gy / 0.7 - std::floor(gy / 0.7);
+      const double margin = 1e-6 * t / 0.7;
+      if (std::min({fx, 1.0 - fx, fy, 1.0 - fy}) < margin) continue;
+      const int64_t parity = static_cast<int64_t>(std::floor(gx / 0.7)) +
+                             static_cast<int64_t>(std::floor(gy / 0.7));
+      ++*ground;
+      ASSERT_NEAR(value, ((parity & 1) == 0 ? 0.9 : 0.1) * 255.0, 0.5 + 1e-9) << x << "," << y;
+    }
+  }
+}
+
+TEST(Simulator, LensViewsTraceEachPixelThroughTheLensModel) {
+  for (const char* model : {"fisheye", "omnidir", "radtan"}) {
+    SCOPED_TRACE(model);
+    Scene scene = SmallScene();
+    scene.camera.width = 64;
+    scene.camera.height = 48;
+    scene.camera.lens = model;
+    if (scene.camera.lens == "fisheye") {
+      // 200 degrees; the distortion stops increasing at 148 degrees, inside the corners.
+      scene.camera.fov_deg = 200.0;
+      scene.camera.distortion = {-0.05, 0, 0, 0, 0};
+    } else if (scene.camera.lens == "omnidir") {
+      scene.camera.fov_deg = 200.0;
+      scene.camera.xi = 1.2;
+      scene.camera.distortion = {-0.02, 0.001, 0.001, -0.001, 0};
+    } else {
+      scene.camera.fov_deg = 90.0;
+      scene.camera.distortion = {-0.1, 0.01, 0.001, 0.002, 0};
+    }
+    scene.sampling.grid = 1;
+    scene.truth.fov_deg = 60.0;
+    scene.ground.texture.kind = TextureSpec::Kind::kChecker;
+    scene.ground.texture.square = 0.7;
+    const SimulationResult result = Simulate(scene);
+    const View& view = result.light_field.views[0];
+    EXPECT_EQ(LensModelName(view.lens.model), scene.camera.lens);
+    int ground = 0, sky = 0, masked = 0;
+    ExpectLensViewOfACheckerGround(result, &ground, &sky, &masked);
+    EXPECT_GT(ground, 64 * 48 / 3);
+    if (scene.camera.lens == "fisheye") {
+      EXPECT_GT(sky, 0);
+      EXPECT_GT(masked, 0);
+    }
+    if (scene.camera.lens == "omnidir") EXPECT_GT(sky, 0);
+    // The lens stage ran: every traced ray came through the lens; masked pixels traced none.
+    EXPECT_EQ(result.stats.lens_rays, result.stats.primary_rays);
+    EXPECT_EQ(result.stats.primary_rays, 64 * 48 - masked);
+    // The truth camera (60 degrees) sees ground that the lens view sees.
+    for (int y = 0; y < result.truth.views_seeing.height(); ++y) {
+      for (int x = 0; x < result.truth.views_seeing.width(); ++x) {
+        ASSERT_EQ(result.truth.views_seeing.Value(x, y), 1.0) << x << "," << y;
+      }
+    }
+  }
+}
+
 TEST(Simulator, VoxelDensityIsTheFractionOfNadirColumnsBlocked) {
   for (double density : {0.1, 0.5, 0.9}) {
     VoxelSpec spec;
@@ -150,7 +233,7 @@ TEST(Simulator, OnlyRequestedStagesRun) {
   EXPECT_EQ(s.sensor_noise_draws, 0);
   EXPECT_EQ(s.pose_noise_draws, 0);
   EXPECT_EQ(s.blocked_fraction_rays, 0);
-  EXPECT_EQ(s.lens_resampled_pixels, 0);
+  EXPECT_EQ(s.lens_rays, 0);
   EXPECT_EQ(s.seconds_geometry, 0.0);
   EXPECT_EQ(s.seconds_blocked_fraction, 0.0);
 

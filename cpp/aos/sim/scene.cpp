@@ -350,13 +350,28 @@ void Scene::Check() const {
   // Camera.
   c.IntRange(camera.width, 1, 16384, "camera.width");
   c.IntRange(camera.height, 1, 16384, "camera.height");
-  c.InRange(camera.fov_deg, 0.0, 180.0, "camera.fov_deg", true);
-  c.Positive(camera.fov_deg, "camera.fov_deg");
-  if (camera.lens != "pinhole") {
+  if (camera.lens != "pinhole" && camera.lens != "radtan" && camera.lens != "fisheye" &&
+      camera.lens != "omnidir") {
     c.Fail("camera.lens", "\"" + camera.lens +
-                              "\" is not supported (only \"pinhole\"; fisheye and "
-                              "omnidirectional lenses come with the lens-model issue)");
+                              "\" is not a lens model (pinhole, radtan, fisheye or omnidir)");
   }
+  const bool wide = camera.lens == "fisheye" || camera.lens == "omnidir";
+  c.InRange(camera.fov_deg, 0.0, wide ? 360.0 : 180.0, "camera.fov_deg", true);
+  c.Positive(camera.fov_deg, "camera.fov_deg");
+  for (size_t i = 0; i < camera.distortion.size(); ++i) {
+    const std::string path = "camera.distortion[" + std::to_string(i) + "]";
+    if (!std::isfinite(camera.distortion[i])) c.Fail(path, "must be finite");
+    if (camera.distortion[i] == 0.0) continue;
+    if (camera.lens == "pinhole") c.Fail(path, "a pinhole lens has no distortion");
+    if (camera.lens == "fisheye" && i == 4) c.Fail(path, "the fisheye model has k1..k4 only");
+    if (camera.lens == "omnidir" && i == 4) c.Fail(path, "the omnidir model has k1, k2, p1, p2 only");
+  }
+  if (camera.lens == "omnidir") {
+    c.InRange(camera.xi, 0.0, 1e3, "camera.xi");
+  } else if (camera.xi != CameraSpec{}.xi) {
+    c.Fail("camera.xi", "only the omnidir lens has xi");
+  }
+  ViewLens(*this);  // the lens must be invertible and cover the field of view
   if (camera.channels != 1 && camera.channels != 3) c.Fail("camera.channels", "must be 1 or 3");
   if (camera.bit_depth != 8 && camera.bit_depth != 16 && camera.bit_depth != 32) {
     c.Fail("camera.bit_depth", "must be 8, 16 or 32");
@@ -443,6 +458,70 @@ void Scene::Check() const {
     }
   }
   if (positions.empty()) c.Fail("sampling", "no views (the disk aperture holds no grid point)");
+}
+
+LensCamera ViewLens(const Scene& scene) {
+  constexpr double kPi = 3.14159265358979323846;
+  const CameraSpec& c = scene.camera;
+  const auto fail = [&](const std::string& field, const std::string& reason) {
+    ThrowInvalid(Where(scene.source, Where("camera." + field, reason)));
+  };
+  LensCamera lens;
+  lens.model = ParseLensModel(c.lens, scene.source + ": camera.lens");
+  lens.width = c.width;
+  lens.height = c.height;
+  lens.distortion = c.distortion;
+  if (lens.model == LensModel::kOmnidir) lens.xi = c.xi;
+  // The normalised radius that the ray at half the field of view maps to (radial part only):
+  // the focal length puts it at the image's left and right edges.
+  const double half = 0.5 * c.fov_deg * kPi / 180.0;
+  const std::array<double, 5>& d = c.distortion;
+  double undistorted = 0.0, radius = 0.0;
+  switch (lens.model) {
+    case LensModel::kPinhole:
+    case LensModel::kRadTan:
+      undistorted = std::tan(half);
+      break;
+    case LensModel::kFisheye:
+      radius = half * (1.0 + half * half * (d[0] + half * half * (d[1] + half * half *
+                                                                  (d[2] + half * half * d[3]))));
+      break;
+    case LensModel::kOmnidir: {
+      const double denominator = std::cos(half) + c.xi;
+      if (!(denominator > 0.0)) {
+        fail("fov_deg", FormatNumber(c.fov_deg) + " degrees is beyond what an omnidir lens with xi = " +
+                            FormatNumber(c.xi) + " images (cos(fov/2) + xi must be > 0)");
+      }
+      undistorted = std::sin(half) / denominator;
+      break;
+    }
+  }
+  if (lens.model == LensModel::kPinhole) radius = undistorted;
+  if (lens.model == LensModel::kRadTan || lens.model == LensModel::kOmnidir) {
+    const double r2 = undistorted * undistorted;
+    const double k3 = lens.model == LensModel::kRadTan ? d[4] : 0.0;
+    radius = undistorted * (1.0 + r2 * (d[0] + r2 * (d[1] + r2 * k3)));
+  }
+  if (!(radius > 0.0) || !std::isfinite(radius)) {
+    fail("distortion", "maps the edge of the field of view (fov_deg / 2 = " +
+                           FormatNumber(0.5 * c.fov_deg) + " degrees) to radius " +
+                           FormatNumber(radius) + " (must be > 0)");
+  }
+  lens.fx = lens.fy = 0.5 * c.width / radius;
+  lens.cx = 0.5 * c.width;
+  lens.cy = 0.5 * c.height;
+  lens.Finalize(scene.source + ": camera");
+  // The field of view must lie where the lens is invertible.
+  const bool beyond_angle = (lens.model == LensModel::kFisheye ||
+                             lens.model == LensModel::kOmnidir) && half > lens.theta_max;
+  const bool beyond_radius = (lens.model == LensModel::kRadTan ||
+                              lens.model == LensModel::kOmnidir) && undistorted > lens.max_radius;
+  if (beyond_angle || beyond_radius) {
+    fail("fov_deg", "half the field of view (" + FormatNumber(0.5 * c.fov_deg) +
+                        " degrees) is beyond the lens's valid field (its distortion stops "
+                        "increasing before it)");
+  }
+  return lens;
 }
 
 std::vector<Vec3d> ViewPositions(const Scene& scene) {
@@ -581,6 +660,16 @@ Scene ParseScene(const std::string& json_text, const std::string& source,
     c.height = r.Int("height", c.height);
     c.fov_deg = r.Number("fov_deg", c.fov_deg);
     c.lens = r.String("lens", c.lens);
+    if (r.Has("distortion")) {
+      const json& values = r.Array("distortion");
+      const std::string path = Join(r.path(), "distortion");
+      if (values.empty() || values.size() > 5) r.Fail(path, "must be an array of 1 to 5 numbers");
+      c.distortion = {0, 0, 0, 0, 0};
+      for (size_t i = 0; i < values.size(); ++i) {
+        c.distortion[i] = r.NumberOf(values[i], path + "[" + std::to_string(i) + "]");
+      }
+    }
+    c.xi = r.Number("xi", c.xi);
     c.channels = r.Int("channels", c.channels);
     c.bit_depth = r.Int("bit_depth", c.bit_depth);
     c.samples_per_pixel = r.Int("samples_per_pixel", c.samples_per_pixel);
@@ -647,7 +736,7 @@ Scene ParseScene(const std::string& json_text, const std::string& source,
     }
     if (e.Has("lens_distortion")) {
       e.Fail("effects.lens_distortion",
-             "is not available yet (lens models come with the lens-model issue)");
+             "is not an effect: a lens is set by camera.lens, camera.distortion and camera.xi");
     }
     e.Finish();
   }
@@ -762,6 +851,8 @@ std::string SceneToJson(const Scene& s) {
                  {"fov_deg", c.fov_deg},   {"lens", c.lens},
                  {"channels", c.channels}, {"bit_depth", c.bit_depth},
                  {"samples_per_pixel", c.samples_per_pixel}};
+  if (c.lens != "pinhole") j["camera"]["distortion"] = c.distortion;
+  if (c.lens == "omnidir") j["camera"]["xi"] = c.xi;
   ojson sampling;
   sampling["altitude"] = s.sampling.altitude;
   sampling["aperture"] = {{"shape", s.sampling.aperture_shape},

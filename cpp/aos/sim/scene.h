@@ -4,9 +4,9 @@
 //
 // A scene is: a ground (a plane, optionally tilted, or a height field made of slopes and steps)
 // with a texture; targets lying on the ground; optional occluders (a random voxel volume and/or
-// procedural trees); a nadir-looking pinhole camera and where it takes its views; optional
-// effects; and the virtual camera whose ground truth is written. Frames: the local world frame
-// of the light field, z up, metres; degrees only in fields named *_deg.
+// procedural trees); a nadir-looking camera (pinhole or a lens model) and where it takes its
+// views; optional effects; and the virtual camera whose ground truth is written. Frames: the
+// local world frame of the light field, z up, metres; degrees only in fields named *_deg.
 //
 // Only what a scene names is simulated: an absent "occluders" entry means no occluder geometry,
 // an absent effect means that stage never runs (see simulator.h).
@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "aos/geometry/lens.h"
 #include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
 
@@ -108,8 +109,16 @@ struct TreeSpec {
 struct CameraSpec {
   int width = 512;          // pixels, 1..16384
   int height = 512;
-  double fov_deg = 80.0;    // horizontal, (0, 180)
-  std::string lens = "pinhole";  // only "pinhole" until the lens-model issue
+  // Horizontal field of view across the image centre, from the lens's radial mapping (tangential
+  // terms ignored): (0, 180) for "pinhole"/"radtan", (0, 360) for "fisheye"/"omnidir", and
+  // inside the lens's valid field. Square pixels, principal point at the image centre.
+  double fov_deg = 80.0;
+  // "pinhole", "radtan", "fisheye" (equidistant) or "omnidir" (Mei), as in geometry/lens.h.
+  std::string lens = "pinhole";
+  // The lens's distortion (lens.h order): radtan {k1, k2, p1, p2, k3}, fisheye {k1..k4},
+  // omnidir {k1, k2, p1, p2}; all zero for a pinhole.
+  std::array<double, 5> distortion{0, 0, 0, 0, 0};
+  double xi = 1.0;          // omnidir only, >= 0
   int channels = 1;         // 1 (grey) or 3 (RGB)
   int bit_depth = 8;        // 8, 16 (integer) or 32 (float) views
   int samples_per_pixel = 1;  // n: an n x n stratified grid of rays per pixel, 1..8
@@ -167,7 +176,9 @@ struct EffectsSpec {
 struct TruthSpec {
   // Virtual camera centre; unset (NaN) = the sampling centre at the mean view altitude.
   std::array<double, 3> position{std::nan(""), std::nan(""), std::nan("")};
-  double fov_deg = 0.0;   // 0 = the camera's
+  // Horizontal, (0, 180); 0 = the camera's, at most 100 degrees for a fisheye or omnidir camera
+  // (the truth camera is a pinhole).
+  double fov_deg = 0.0;
   int width = 0;          // 0 = the camera's
   int height = 0;
   // Per pixel, the fraction of the views seeing the ground point whose ray to it is blocked
@@ -205,6 +216,11 @@ std::string SceneToJson(const Scene& scene);
 // The built-in default scene of `aos-render demo`: a chart-textured ground with a 2.4 x 0.8 m
 // target under a 50 %-density voxel volume, 11 x 11 views over a 30 m aperture at 20 m.
 Scene DefaultScene();
+
+// The views' lens model from scene.camera (focal length from fov_deg, see CameraSpec). Throws
+// std::invalid_argument "<source>: camera.<field>: <reason>" for a lens that is not invertible
+// over the field of view.
+LensCamera ViewLens(const Scene& scene);
 
 // The camera centres of the views (true positions) in view order.
 std::vector<Vec3d> ViewPositions(const Scene& scene);

@@ -52,7 +52,7 @@ std::string SimulationSummaryJson(const SimulationResult& result) {
                 {"blocked_fraction_rays", s.blocked_fraction_rays},
                 {"sensor_noise_draws", s.sensor_noise_draws},
                 {"pose_noise_draws", s.pose_noise_draws},
-                {"lens_resampled_pixels", s.lens_resampled_pixels},
+                {"lens_rays", s.lens_rays},
                 {"voxels", s.voxels},
                 {"trees", s.trees},
                 {"leaf_quads", s.leaf_quads},

@@ -307,7 +307,7 @@ class World {
     }
   }
 
-  // Whether the segment o + t d, t in (0, t_max), hits anything (d unit).  // Whether the segment o + t d, t in (0, t_max), hits anything (d unit).
+  // Whether the segment o + t d, t in (0, t_max), hits anything (d unit).
   bool Occluded(const Vec3d& o, const Vec3d& d, double t_max, bool with_occluders) const {
     const float tfar = static_cast<float>(std::min<double>(t_max, kInf));
     if (with_occluders && occluders_) {
@@ -669,6 +669,29 @@ std::array<double, 4> Footprint(const Scene& scene, const std::vector<Vec3d>& ca
   return box;
 }
 
+// The largest angle from the optical axis that a lens camera's frame sees (over its border
+// pixels; a fisheye's image circle ends at theta_max), capped at 70 degrees: the extent of the
+// occluders and height field built around the views (beyond it, the plane ground only).
+double LensFootprintAngle(const LensCamera& lens) {
+  constexpr double kCap = 70.0 * kPi / 180.0;
+  double angle = 0.0;
+  const auto visit = [&](double u, double v) {
+    Vec3d ray;
+    angle = std::max(angle, lens.Unproject(Vec2d(u, v), &ray)
+                                ? std::acos(std::clamp(ray.z / glm::length(ray), -1.0, 1.0))
+                                : lens.theta_max);
+  };
+  for (int x = 0; x <= lens.width; ++x) {
+    visit(x, 0.0);
+    visit(x, lens.height);
+  }
+  for (int y = 0; y <= lens.height; ++y) {
+    visit(0.0, y);
+    visit(lens.width, y);
+  }
+  return std::min(angle, kCap);
+}
+
 // A small rotation exp([w]_x) (Rodrigues).
 Mat3d RotationFromVector(const Vec3d& w) {
   const double angle = glm::length(w);
@@ -714,7 +737,22 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
 
   // Cameras.
   const CameraSpec& cam = scene.camera;
-  const PinholeCamera camera = PinholeCamera::FromFov(cam.width, cam.height, cam.fov_deg);
+  // A lens camera traces each pixel's rays through the lens model (unprojected exactly, no
+  // resampling); pixels outside its valid field (a fisheye's image circle) trace nothing and
+  // stay 0. Its view keeps the pinhole intrinsics in View::camera and the lens in View::lens.
+  const LensCamera lens = ViewLens(scene);
+  const bool through_lens = lens.model != LensModel::kPinhole;
+  PinholeCamera camera;
+  if (through_lens) {
+    camera.width = lens.width;
+    camera.height = lens.height;
+    camera.fx = lens.fx;
+    camera.fy = lens.fy;
+    camera.cx = lens.cx;
+    camera.cy = lens.cy;
+  } else {
+    camera = PinholeCamera::FromFov(cam.width, cam.height, cam.fov_deg);
+  }
   const std::vector<Vec3d> positions = ViewPositions(scene);
   stats.views = static_cast<int64_t>(positions.size());
   Vec3d truth_position(scene.truth.position[0], scene.truth.position[1], scene.truth.position[2]);
@@ -727,13 +765,20 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
       truth_position.y = scene.sampling.center[1];
     }
   }
+  const bool wide_lens = lens.model == LensModel::kFisheye || lens.model == LensModel::kOmnidir;
   const PinholeCamera truth_camera = PinholeCamera::FromFov(
       scene.truth.width > 0 ? scene.truth.width : cam.width,
       scene.truth.height > 0 ? scene.truth.height : cam.height,
-      scene.truth.fov_deg > 0 ? scene.truth.fov_deg : cam.fov_deg);
+      scene.truth.fov_deg > 0 ? scene.truth.fov_deg
+                              : (wide_lens ? std::min(cam.fov_deg, 100.0) : cam.fov_deg));
   std::vector<Vec3d> all_cameras = positions;
   std::vector<double> tan_x(positions.size(), 0.5 * cam.width / camera.fx);
   std::vector<double> tan_y(positions.size(), 0.5 * cam.height / camera.fy);
+  if (through_lens) {
+    const double tan_half = std::tan(LensFootprintAngle(lens));
+    std::fill(tan_x.begin(), tan_x.end(), tan_half);
+    std::fill(tan_y.begin(), tan_y.end(), tan_half);
+  }
   all_cameras.push_back(truth_position);
   tan_x.push_back(0.5 * truth_camera.width / truth_camera.fx);
   tan_y.push_back(0.5 * truth_camera.height / truth_camera.fy);
@@ -784,9 +829,12 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
   constexpr int kTileX = 4, kTileY = 4;
   constexpr size_t kDirectionCacheBytes = size_t{256} << 20;
   const int per_pixel = spp * spp;
+  // A zero direction marks a lens sample outside the valid field: no ray, value 0.
   const auto camera_direction = [&](int x, int y, int k) {
     const Vec2d pixel(x + ((k % spp) + 0.5) / spp, y + ((k / spp) + 0.5) / spp);
-    return glm::vec3(glm::normalize(camera.Unproject(pixel)));
+    if (!through_lens) return glm::vec3(glm::normalize(camera.Unproject(pixel)));
+    Vec3d ray;
+    return lens.Unproject(pixel, &ray) ? glm::vec3(glm::normalize(ray)) : glm::vec3(0.0f);
   };
   const size_t ray_count = static_cast<size_t>(cam.width) * cam.height * per_pixel;
   std::vector<glm::vec3> direction_cache;
@@ -818,13 +866,15 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
       Counters local;
       std::vector<Vec3d> directions(static_cast<size_t>(kTileX) * kTileY * per_pixel);
       std::vector<Hit> hits(directions.size());
+      std::vector<int> slots(directions.size());  // sample -> traced ray, -1 = none (lens)
+      const Hit no_hit;
 #pragma omp for schedule(dynamic, 4)
       for (int64_t tile = 0; tile < tile_count; ++tile) {
         const int x0 = static_cast<int>(tile % tiles_x) * kTileX;
         const int y0 = static_cast<int>(tile / tiles_x) * kTileY;
         const int x1 = std::min(x0 + kTileX, cam.width), y1 = std::min(y0 + kTileY, cam.height);
         // The tile's rays, pixel by pixel in row-major order, samples row-major within a pixel.
-        size_t n = 0;
+        size_t n = 0, samples = 0;
         for (int y = y0; y < y1; ++y) {
           for (int x = x0; x < x1; ++x) {
             for (int k = 0; k < per_pixel; ++k) {
@@ -832,6 +882,11 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
                                 ? camera_direction(x, y, k)
                                 : direction_cache[(static_cast<size_t>(y) * cam.width + x) *
                                                       per_pixel + k]);
+              if (d == Vec3d(0.0)) {
+                slots[samples++] = -1;
+                continue;
+              }
+              slots[samples++] = static_cast<int>(n);
               directions[n++] = world_from_cam_rotation * d;
             }
           }
@@ -839,12 +894,12 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
         world.TracePackets(centre, directions.data(), static_cast<int>(n),
                            /*with_occluders=*/true, hits.data());
         local.primary += static_cast<int64_t>(n);
-        const Hit* hit = hits.data();
+        const int* slot = slots.data();
         for (int y = y0; y < y1; ++y) {
           for (int x = x0; x < x1; ++x) {
             Rgb sum{0, 0, 0};
-            for (int k = 0; k < per_pixel; ++k, ++hit) {
-              const Rgb c = world.Shade(*hit, true, &local);
+            for (int k = 0; k < per_pixel; ++k, ++slot) {
+              const Rgb c = world.Shade(*slot >= 0 ? hits[*slot] : no_hit, true, &local);
               for (int channel = 0; channel < 3; ++channel) sum[channel] += c[channel];
             }
             const double inv = 1.0 / per_pixel;
@@ -876,9 +931,11 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
     char name[32];
     std::snprintf(name, sizeof(name), "view_%04zu", v);
     result.light_field.views.push_back(MakeView(name, camera, recorded[v], image));
+    if (through_lens) result.light_field.views.back().lens = lens;
     ProgressAdvance(progress, 1);
   }
   stats.primary_rays = totals.primary;
+  stats.lens_rays = through_lens ? totals.primary : 0;
   stats.shadow_rays = totals.shadow;
   stats.sensor_noise_draws = totals.noise;
   stats.seconds_views = Seconds(start);
@@ -940,8 +997,13 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
           const Vec3d origin = hit.point + kSurfaceOffset * hit.normal;
           for (size_t v = 0; v < positions.size(); ++v) {
             const Vec3d in_cam = result.true_cam_from_world[v] * hit.point;
-            if (!(in_cam.z > 0.0)) continue;
-            const Vec2d uv = camera.Project(in_cam);
+            if (!through_lens && !(in_cam.z > 0.0)) continue;
+            Vec2d uv;
+            if (through_lens) {
+              if (!lens.Project(in_cam, &uv)) continue;
+            } else {
+              uv = camera.Project(in_cam);
+            }
             if (!(uv.x >= 0.0 && uv.x <= camera.width && uv.y >= 0.0 && uv.y <= camera.height)) continue;
             ++seeing;
             if (!blocked_rays) continue;

@@ -3,10 +3,10 @@
 // ground truth a study needs.
 //
 // Contract
-// - Views are nadir-looking pinhole cameras (image top towards +y) at ViewPositions(scene). Each
-//   pixel averages samples_per_pixel^2 stratified rays; a ray takes the value of the first surface
-//   it hits (ground, target, voxel, leaf or trunk), 0 where it hits nothing. Values are linear in
-//   [0, 1] and stored in the views' type: 8-bit (x 255), 16-bit (x 65535), rounded and clamped,
+// - Views are nadir-looking cameras (image top towards +y; pinhole or a lens model, scene.h) at
+//   ViewPositions(scene). Each pixel averages samples_per_pixel^2 stratified rays; a ray takes
+//   the value of the first surface it hits (ground, target, voxel, leaf or trunk), 0 where it
+//   hits nothing. Values are linear in [0, 1] and stored in the views' type: 8-bit (x 255), 16-bit (x 65535), rounded and clamped,
 //   or float32 unscaled.
 // - Only the stages a scene names run (SimulationStats counts what each did):
 //   * occluders: geometry and an Embree BVH only when the scene has voxels or trees; ground
@@ -17,14 +17,17 @@
 //   * pose noise: six draws per view, only with effects.pose_noise; the light field then holds
 //     the recorded (noisy) poses while the images are rendered from the true ones;
 //   * thermal: emission per material replaces albedo (no extra rays);
-//   * lens: pinhole only (no resampling stage exists yet).
+//   * lens: only for a lens camera (camera.lens other than "pinhole"): each sample's ray is
+//     unprojected through the lens model (exact, no resampling; directions computed once for
+//     all views); samples outside the lens's valid field (a fisheye's image circle) trace no
+//     ray and count as 0. Views carry the lens (View::lens) for direct sampling.
 //   Each random stage has its own stream (random.h), so adding an effect never changes what
 //   other stages produce.
 // - Ground truth, seen by the truth camera (nadir, at truth.position): the ground alone (no
 //   occluders, no noise; sun shading and the ground's own shadows when a sun is given), in the
 //   views' type; the ground's depth along the camera axis and its height z (float32, metres, 0
 //   where a ray misses the ground); per pixel the number of views that see the ground point
-//   (it lies in front of the view and inside its image) and the fraction of those whose ray to
+//   (it lies in the view's valid field and inside its image) and the fraction of those whose ray to
 //   it is blocked (by occluders or the ground itself).
 // - Deterministic: the same scene (and seed) gives the same bytes for any thread count.
 //
@@ -57,7 +60,7 @@ struct SimulationStats {
   int64_t blocked_fraction_rays = 0;   // ground-point-to-view rays of the blocked fraction
   int64_t sensor_noise_draws = 0;
   int64_t pose_noise_draws = 0;
-  int64_t lens_resampled_pixels = 0;   // always 0 until lens models exist
+  int64_t lens_rays = 0;               // primary rays unprojected through a lens model (0: pinhole)
   int64_t voxels = 0;                  // occupied voxel cells
   int64_t trees = 0;
   int64_t leaf_quads = 0;
