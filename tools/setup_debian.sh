@@ -11,7 +11,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 packages=(
   cmake ninja-build g++ pkg-config
   libopencv-dev libopencv-contrib-dev libembree-dev libglm-dev
-  libopenimageio-dev openimageio-tools colmap
+  libopenimageio-dev openimageio-tools colmap libsqlite3-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev
 )
 # Debian's own Python (missing, or externally managed) needs its headers and venv support.

@@ -19,6 +19,7 @@
 #include <nlohmann/json.hpp>
 
 #include "aos/calib/calibrate.h"
+#include "aos/sfm/colmap_pipeline.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/lightfield/formats.h"
@@ -1097,6 +1098,103 @@ int RunCalibrate(CalibrateCommand& c) {
   return 0;
 }
 
+struct PosesCommand {
+  std::string frames_dir;
+  std::string output;
+  PosesOptions options;
+  bool quiet = false;
+};
+
+void AddPoses(CLI::App& app, PosesCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "poses",
+      "Estimate the frames' poses with COLMAP (CPU, headless) and write a light field; "
+      "optionally geo-referenced by known positions");
+  command->add_option("frames", c.frames_dir, "Folder of frames (never modified)")->required();
+  command->add_option("-o,--output", c.output, "Light-field file to write (JSON)")->required();
+  command->add_option("--workspace", c.options.workspace,
+                      "Keep COLMAP's workspace in this new folder (default: a temporary one)");
+  command->add_option("--matcher", c.options.matcher, "sequential, spatial or exhaustive")
+      ->capture_default_str();
+  command->add_option("--overlap", c.options.sequential_overlap,
+                      "Sequential matching: successors each frame is matched with")
+      ->capture_default_str();
+  command->add_option("--camera", c.options.camera_file,
+                      "Known camera (aos-camera file from `calibrate`); default: self-calibration");
+  command->add_option("--camera-model", c.options.camera_model,
+                      "COLMAP model to self-calibrate")
+      ->capture_default_str();
+  command->add_option("--fov-deg", c.options.fov_deg,
+                      "Self-calibration's starting horizontal field of view (0 = COLMAP's guess)")
+      ->capture_default_str();
+  command->add_option("--positions", c.options.positions_file,
+                      "CSV of name,x,y,z camera positions (metres, e.g. UTM): geo-reference, and "
+                      "priors for spatial matching");
+  command->add_option("--max-image-size", c.options.max_image_size,
+                      "Features on frames downscaled to this longest side")
+      ->capture_default_str();
+  command->add_option("--max-features", c.options.max_num_features, "Features per frame")
+      ->capture_default_str();
+  command->add_option("--min-registered", c.options.min_registered_fraction,
+                      "Fail below this fraction of frames registered")
+      ->capture_default_str();
+  command->add_option("--colmap", c.options.colmap, "COLMAP executable")->capture_default_str();
+  command->add_option("--threads", c.options.num_threads, "COLMAP's threads; -1 = all cores")
+      ->capture_default_str();
+  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+}
+
+int RunPoses(PosesCommand& c) {
+  ProgressBar progress(c.quiet);
+  CheckOutputPath(c.output, {}, "output");
+  PosesResult result;
+  try {
+    result = EstimatePoses(c.frames_dir, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, {{"matcher", "--matcher"},
+                               {"sequential_overlap", "--overlap"},
+                               {"camera_model", "--camera-model"},
+                               {"fov_deg", "--fov-deg"},
+                               {"max_image_size", "--max-image-size"},
+                               {"max_num_features", "--max-features"},
+                               {"min_registered_fraction", "--min-registered"},
+                               {"num_threads", "--threads"},
+                               {"colmap", "--colmap"}});
+  }
+  progress.Finish();
+  for (const std::string& warning : result.warnings) {
+    std::fprintf(stderr, "warning: %s\n", warning.c_str());
+  }
+  WriteLightField(c.output, result.light_field);
+  std::printf("wrote %s: %zu of %zu frames registered, %zu points, mean reprojection error "
+              "%.3f px\n",
+              c.output.c_str(), result.registered.size(), result.frames.size(), result.points,
+              result.mean_reprojection_error_px);
+  const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
+  if (result.georeferenced) {
+    std::printf("geo-referenced by %d positions: RMS %.3f m; origin %.3f %.3f %.3f\n",
+                result.georeference_frames, result.georeference_rms_m,
+                result.light_field.origin.x, result.light_field.origin.y,
+                result.light_field.origin.z);
+  }
+  std::printf("pose error e = %.4g%s at the median depth %.4g%s\n", result.pose_error, unit,
+              result.median_depth, unit);
+  if (result.georeferenced && !result.light_field.views.empty()) {
+    ResolutionOptions resolution;
+    resolution.distance_m = result.median_depth;
+    resolution.pose_error_m = result.pose_error;
+    const ResolutionResult r = SamplingResolution(result.light_field.views[0].lens, resolution);
+    std::printf("sampling at that depth: p = %.2f cm, p' = p + 2e = %.2f cm (%.1f samples/m^2)\n",
+                100.0 * r.sample_size_m, 100.0 * r.effective_sample_size_m,
+                r.effective_samples_per_m2);
+  }
+  for (const auto& stage : result.stages) {
+    std::printf("  %-9s %7.1f s\n", stage.name.c_str(), stage.seconds);
+  }
+  if (!result.workspace.empty()) std::printf("COLMAP workspace kept in %s\n", result.workspace.c_str());
+  return 0;
+}
+
 struct MetricsCommand {
   std::string test_path;
   std::string reference_path;
@@ -1180,8 +1278,10 @@ int main(int argc, char** argv) {
   ResolutionCommand resolution;
   RectifyCommand rectify;
   CalibrateCommand calibrate;
+  PosesCommand poses;
   AddIntegral(app, integral);
   AddCalibrate(app, calibrate);
+  AddPoses(app, poses);
   AddRectify(app, rectify);
   AddResolution(app, resolution);
   AddStack(app, stack);
@@ -1204,6 +1304,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("resolution")) return RunResolution(resolution);
     if (app.got_subcommand("rectify")) return RunRectify(rectify);
     if (app.got_subcommand("calibrate")) return RunCalibrate(calibrate);
+    if (app.got_subcommand("poses")) return RunPoses(poses);
     if (app.got_subcommand("merge")) return RunMerge(merge);
     if (app.got_subcommand("allinfocus")) return RunAllInFocus(all_in_focus);
     if (app.got_subcommand("simulate")) return RunSimulate(simulate);

@@ -42,10 +42,27 @@ void BindLightField(py::module_& m) {
         return "View(name='" + view.name + "', " + ImageSummary(view.image) + ")";
       });
 
+  py::class_<PoseSource>(m, "PoseSource",
+                         "Where a light field's estimated poses came from and how good they are.")
+      .def_readonly("method", &PoseSource::method, "e.g. 'colmap'.")
+      .def_readonly("mean_reprojection_error_px", &PoseSource::mean_reprojection_error_px,
+                    "COLMAP's mean reprojection error, pixels.")
+      .def_readonly("median_depth", &PoseSource::median_depth,
+                    "Median depth of the reconstructed points (light-field units).")
+      .def_readonly("pose_error", &PoseSource::pose_error,
+                    "e = error_px * median_depth / fx (light-field units).")
+      .def_readonly("georeferenced", &PoseSource::georeferenced,
+                    "Whether units are metres (else COLMAP's arbitrary scale).")
+      .def_readonly("georeference_rms_m", &PoseSource::georeference_rms_m,
+                    "RMS of the camera-centre residuals of the geo-referencing, metres.")
+      .def_readonly("unregistered", &PoseSource::unregistered, "Frames that got no pose.");
+
   py::class_<LightField>(m, "LightField",
                          "A light field: views (image, pinhole camera, cam_from_world) in a "
                          "local frame whose zero lies at `origin` in world coordinates.")
       .def(py::init<>(), "An empty light field (origin at zero, no views).")
+      .def_readonly("pose_source", &LightField::pose_source,
+                    "PoseSource of estimated poses (estimate_poses, import_colmap), or None.")
       .def_readwrite("origin", &LightField::origin,
                      "World position of the local frame's zero (float64 copy; e.g. UTM).")
       .def_property_readonly(

@@ -109,6 +109,8 @@ void BindLightField(py::module_& m);
 void BindRender(py::module_& m);
 void BindSim(py::module_& m);
 void BindMetrics(py::module_& m);
+void BindCalib(py::module_& m);
+void BindSfm(py::module_& m);
 
 // Copies a numpy array (or anything numpy.asarray accepts) of dtype uint8, uint16, uint32,
 // float32 or float64 (-> float32) and shape (H, W) or (H, W, C), C in 1..4, into a new Image with

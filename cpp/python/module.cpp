@@ -149,6 +149,8 @@ PYBIND11_MODULE(_core, m) {
   BindRender(m);
   BindMetrics(m);
   BindSim(m);
+  BindCalib(m);
+  BindSfm(m);
 
   m.def(
       "_progress_selftest",

@@ -27,10 +27,19 @@ from __future__ import annotations
 import copy
 import json
 import os
-from typing import Any, Callable, Optional, TypeVar
+from typing import Any, Callable, Optional, Sequence, TypeVar
 
 from . import _core
 from ._core import (
+    ColmapImport,
+    PosesOptions,
+    PosesResult,
+    PoseSource,
+    import_colmap,
+    read_positions,
+    CalibrateOptions,
+    CalibrationResult,
+    read_camera_file,
     Rectifier,
     RectifyOptions,
     make_rectifier,
@@ -79,6 +88,18 @@ from ._core import (
 )
 
 __all__ = [
+    "ColmapImport",
+    "PosesOptions",
+    "PosesResult",
+    "PoseSource",
+    "estimate_poses",
+    "import_colmap",
+    "read_positions",
+    "CalibrateOptions",
+    "CalibrationResult",
+    "calibrate",
+    "read_camera_file",
+    "write_camera_file",
     "Rectifier",
     "RectifyOptions",
     "make_rectifier",
@@ -143,6 +164,7 @@ _Options = TypeVar(
     FocalStackOptions,
     MergeOptions,
     ResolutionOptions,
+    CalibrateOptions,
 )
 
 
@@ -429,3 +451,113 @@ def sampling_resolution(
         camera = LensCamera.from_pinhole(camera)
     merged = _merge_options("sampling_resolution", ResolutionOptions, options, kwargs)
     return _core._sampling_resolution(camera, merged)
+
+
+def _lens_model(value: Any) -> Any:
+    """A lens model given by name (pinhole, radtan, fisheye, omnidir) becomes a LensModel."""
+    if isinstance(value, str):
+        if value not in LensModel.__members__:
+            raise ValueError(
+                f"model: unknown lens model {value!r} (pinhole, radtan, fisheye or omnidir)"
+            )
+        return LensModel.__members__[value]
+    return value
+
+
+def calibrate(
+    frames: "Sequence[Any]",
+    names: "Optional[Sequence[str]]" = None,
+    options: Optional[CalibrateOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Any,
+) -> CalibrationResult:
+    """Calibrates a lens from checkerboard frames (OpenCV), as ``aos-render calibrate`` does.
+
+    ``frames`` are numpy arrays ((H, W) or (H, W, C) of uint8, uint16 or float32; float64 is
+    converted to float32; COPIED) or image file paths (str or os.PathLike, read by the core's
+    image reader), all of the same size. ``names`` label them in the result and in errors
+    (default: the path, or ``frame_0000``, ``frame_0001``, ... for arrays). ``kwargs`` are fields
+    of :class:`CalibrateOptions`: ``model`` (a LensModel or "pinhole", "radtan", "fisheye",
+    "omnidir"), ``pattern_columns`` and ``pattern_rows`` (inner corners), ``square_size_m``.
+    Frames where the board is not found are listed in ``frames_rejected``; at least 3 must be
+    used. The GIL is released while reading and fitting; ``progress(stage, done, total)`` works
+    as in :func:`render_integral`. Raises ValueError naming the option or the frame.
+
+    Example::
+
+        options = aos.CalibrateOptions(model=aos.LensModel.fisheye, square_size_m=0.03)
+        result = aos.calibrate(sorted(glob.glob("board/*.png")), options=options)
+        aos.write_camera_file("camera.json", result.camera, result, options)  # as the CLI writes
+    """
+    frames = list(frames)
+    if names is None:
+        names = [
+            os.fsdecode(frame) if isinstance(frame, (str, bytes, os.PathLike)) else f"frame_{i:04d}"
+            for i, frame in enumerate(frames)
+        ]
+    overrides = {
+        key: _lens_model(value) if key == "model" else value for key, value in kwargs.items()
+    }
+    merged = _merge_options("calibrate", CalibrateOptions, options, overrides)
+    return _core._calibrate(frames, list(names), merged, progress)
+
+
+def write_camera_file(
+    path: "str | os.PathLike[str]",
+    camera: LensCamera,
+    calibration: "CalibrationResult | dict[str, Any] | None" = None,
+    options: Optional[CalibrateOptions] = None,
+) -> None:
+    """Writes ``camera`` as a camera file (JSON, read by :func:`read_camera_file` and by
+    ``aos-render rectify --camera``), atomically.
+
+    ``calibration`` is stored as the file's free-form "calibration" record: a dict (any JSON
+    object), or a :class:`CalibrationResult`, recorded as ``aos-render calibrate`` records it
+    (rms_px, frames_used, frames_rejected, and with ``options`` the pattern "COLUMNSxROWS" and
+    square_size_m). Raises ValueError naming the file and the field for an invalid camera.
+    """
+    if isinstance(calibration, CalibrationResult):
+        record: dict[str, Any] = {
+            "rms_px": calibration.rms_px,
+            "frames_used": list(calibration.frames_used),
+            "frames_rejected": list(calibration.frames_rejected),
+        }
+        if options is not None:
+            record["pattern"] = f"{options.pattern_columns}x{options.pattern_rows}"
+            record["square_size_m"] = options.square_size_m
+    elif calibration is None or isinstance(calibration, dict):
+        if options is not None:
+            raise TypeError("write_camera_file(): options is for a CalibrationResult calibration")
+        record = calibration if calibration is not None else {}
+    else:
+        raise TypeError(
+            "write_camera_file(): calibration must be a CalibrationResult, a dict or None, not "
+            f"{type(calibration).__name__}"
+        )
+    text = json.dumps(record, allow_nan=False) if record else ""  # ValueError for NaN, inf
+    _core._write_camera_file(os.fspath(path), camera, text)
+
+
+def estimate_poses(
+    frames_dir: str | os.PathLike[str],
+    options: Optional[PosesOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Any,
+) -> PosesResult:
+    """Estimates the poses of a folder of frames with COLMAP (CPU, headless), as
+    ``aos-render poses`` does; the frames are never modified.
+
+    ``kwargs`` are fields of :class:`PosesOptions` (matcher, sequential_overlap, camera_file,
+    camera_model, fov_deg, positions_file, workspace, ...). Progress stages: features,
+    matching, mapping, import. Raises ValueError for bad options, COLMAP missing or failing, or
+    too few frames registered; unregistered frames are listed in ``result.unregistered``.
+
+    Example::
+
+        result = aos.estimate_poses("flight/", positions_file="gps.csv", fov_deg=60)
+        aos.write_lightfield("flight.json", result.light_field)
+    """
+    merged = _merge_options("estimate_poses", PosesOptions, options, kwargs)
+    return _core._estimate_poses(os.fspath(frames_dir), merged, progress)

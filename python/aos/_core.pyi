@@ -188,10 +188,31 @@ class View:
         """A COPY of the pixels, native dtype; None if loaded without images."""
     def __repr__(self) -> str: ...
 
+class PoseSource:
+    """Where a light field's estimated poses came from and how good they are."""
+
+    @property
+    def method(self) -> str: ...
+    @property
+    def mean_reprojection_error_px(self) -> float: ...
+    @property
+    def median_depth(self) -> float: ...
+    @property
+    def pose_error(self) -> float: ...
+    @property
+    def georeferenced(self) -> bool: ...
+    @property
+    def georeference_rms_m(self) -> float: ...
+    @property
+    def unregistered(self) -> list[str]: ...
+
 class LightField:
     """Views (image, pinhole camera, cam_from_world) in a local frame whose zero lies at origin."""
 
     def __init__(self) -> None: ...
+    @property
+    def pose_source(self) -> Optional[PoseSource]:
+        """PoseSource of estimated poses, or None."""
     @property
     def origin(self) -> _Float64Array:
         """World position of the local frame's zero (float64 copy)."""
@@ -354,6 +375,59 @@ class Rectifier:
         """The rectified frame (new array, the input's dtype and channels)."""
 
 def make_rectifier(lens: LensCamera, options: RectifyOptions) -> Rectifier: ...
+
+class CalibrateOptions:
+    """Options of calibrate; fields and defaults of aos::CalibrateOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        model: LensModel = ...,
+        pattern_columns: int = ...,
+        pattern_rows: int = ...,
+        square_size_m: float = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    model: LensModel
+    """Lens model to fit (pinhole, radtan, fisheye, omnidir)."""
+    pattern_columns: int
+    """Inner corners of the checkerboard per row (>= 2)."""
+    pattern_rows: int
+    """Inner corners of the checkerboard per column (>= 2)."""
+    square_size_m: float
+    """Side of one square, metres (> 0)."""
+    def check(self) -> None:
+        """ValueError naming the field."""
+    def __copy__(self) -> CalibrateOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> CalibrateOptions: ...
+    def __repr__(self) -> str: ...
+
+class CalibrationResult:
+    @property
+    def camera(self) -> LensCamera:
+        """The calibrated lens (aos pixel convention: cx = OpenCV's cx + 0.5)."""
+    @property
+    def rms_px(self) -> float:
+        """RMS reprojection error, pixels."""
+    @property
+    def frames_used(self) -> list[str]: ...
+    @property
+    def frames_rejected(self) -> list[str]:
+        """Frames where the board was not found."""
+    def __repr__(self) -> str: ...
+
+def _calibrate(
+    frames: Sequence[Union[numpy.typing.ArrayLike, _PathLike]],
+    names: Sequence[str],
+    options: CalibrateOptions,
+    progress: _Progress = None,
+) -> CalibrationResult:
+    """Frames are numpy arrays (COPIED) or image paths; GIL released. See aos.calibrate."""
+def read_camera_file(path: _PathLike) -> LensCamera:
+    """Reads a camera file (format 'aos-camera'); ValueError naming the file and the field."""
+def _write_camera_file(path: _PathLike, camera: LensCamera, calibration_json: str = "") -> None:
+    """Writes a camera file atomically; see aos.write_camera_file."""
 
 class SurfaceIntegralOptions:
     """Options of render_integral_on_depth; fields and defaults of aos::SurfaceIntegralOptions."""
@@ -695,3 +769,96 @@ def _simulate(
     scene: Scene, options: SimulateOptions, progress: _Progress = None
 ) -> SimulationResult: ...
 def write_simulation(result: SimulationResult, scene: Scene, output_dir: str) -> None: ...
+
+class PosesOptions:
+    """Options of estimate_poses; fields and defaults of aos::PosesOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        colmap: str = ...,
+        workspace: str = ...,
+        matcher: str = ...,
+        sequential_overlap: int = ...,
+        camera_file: str = ...,
+        camera_model: str = ...,
+        fov_deg: float = ...,
+        positions_file: str = ...,
+        max_image_size: int = ...,
+        max_num_features: int = ...,
+        min_registered_fraction: float = ...,
+        num_threads: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    colmap: str
+    workspace: str
+    matcher: str
+    sequential_overlap: int
+    camera_file: str
+    camera_model: str
+    fov_deg: float
+    positions_file: str
+    max_image_size: int
+    max_num_features: int
+    min_registered_fraction: float
+    num_threads: int
+    def check(self) -> None: ...
+    def __copy__(self) -> PosesOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> PosesOptions: ...
+    def __repr__(self) -> str: ...
+
+class PosesResult:
+    """What estimate_poses found."""
+
+    @property
+    def light_field(self) -> LightField: ...
+    @property
+    def frames(self) -> list[str]: ...
+    @property
+    def registered(self) -> list[str]: ...
+    @property
+    def unregistered(self) -> list[str]: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    @property
+    def models(self) -> int: ...
+    @property
+    def points(self) -> int: ...
+    @property
+    def observations(self) -> int: ...
+    @property
+    def mean_reprojection_error_px(self) -> float: ...
+    @property
+    def median_depth(self) -> float: ...
+    @property
+    def pose_error(self) -> float: ...
+    @property
+    def georeferenced(self) -> bool: ...
+    @property
+    def georeference_rms_m(self) -> float: ...
+    @property
+    def georeference_frames(self) -> int: ...
+    @property
+    def stage_seconds(self) -> dict[str, float]: ...
+    @property
+    def workspace(self) -> str: ...
+
+def _estimate_poses(
+    frames_dir: str, options: PosesOptions, progress: _Progress = None
+) -> PosesResult: ...
+
+class ColmapImport:
+    """A COLMAP model imported as a light field."""
+
+    @property
+    def light_field(self) -> LightField: ...
+    @property
+    def registered(self) -> list[str]: ...
+    @property
+    def unregistered(self) -> list[str]: ...
+
+def import_colmap(
+    model_dir: str, images_dir: str, load_images: bool = True, num_threads: int = -1
+) -> ColmapImport: ...
+def read_positions(path: str) -> dict[str, tuple[float, float, float]]: ...

@@ -1,6 +1,7 @@
 // Calibration from synthetic checkerboard frames rendered through a known lens model.
 #include "aos/calib/calibrate.h"
 
+#include <algorithm>
 #include <cmath>
 
 #include <gmock/gmock.h>
@@ -161,6 +162,94 @@ TEST(Calibrate, RecoversARadialTangentialLens) {
     }
   }
   EXPECT_LT(worst, 0.5);
+}
+
+TEST(Calibrate, RecoversAnOmnidirectionalLens) {
+  // Mei's unified model with xi = 1 (cv::omnidir's initial guess) and modest distortion: the
+  // frame spans about 172 degrees across (86 degrees either side), 137 down, 200 corner to corner.
+  LensCamera truth;
+  truth.model = LensModel::kOmnidir;
+  truth.width = 640;
+  truth.height = 480;
+  truth.fx = 360.0;
+  truth.fy = 358.0;
+  truth.cx = 322.5;
+  truth.cy = 238.5;
+  truth.xi = 1.0;
+  truth.distortion = {-0.06, 0.01, 0.0006, -0.0004, 0.0};
+  truth.Finalize("truth");
+  // Boards facing the camera from a spread of directions (pitch about x, yaw about y, degrees),
+  // some tilted, so that together they reach 82 degrees off-axis; each lies whole in the frame
+  // with its lines only moderately bent, as omnidir's initialisation (a per-board fit with
+  // xi = 1, no distortion) needs.
+  struct BoardPose {
+    double pitch_deg, yaw_deg, tilt_x_deg, tilt_y_deg, distance_m;
+  };
+  const BoardPose poses[] = {{0, 0, 0, 0, 0.3},      {0, 0, 20, -15, 0.28},  {0, 45, 0, 0, 0.3},
+                             {0, -45, 0, 0, 0.3},    {35, 0, 0, 0, 0.3},     {-35, 0, 0, 0, 0.3},
+                             {30, 40, 10, 0, 0.3},   {-30, -40, 0, 10, 0.3}, {-30, 40, 0, -10, 0.3},
+                             {30, -40, -10, 0, 0.3}, {5, 58, 0, 0, 0.42},    {-5, -58, 0, 0, 0.42}};
+  const Vec3d centre_in_board(0.5 * (kColumns - 1) * kSquare, 0.5 * (kRows - 1) * kSquare, 0.0);
+  std::vector<Image> frames;
+  std::vector<std::string> names;
+  std::vector<Rigid3d> cam_from_boards;
+  for (const BoardPose& pose : poses) {
+    const Vec3d direction = Rotation(pose.pitch_deg, pose.yaw_deg) * Vec3d(0, 0, 1);
+    Rigid3d cam_from_board;
+    cam_from_board.rotation =
+        Rotation(pose.pitch_deg + pose.tilt_x_deg, pose.yaw_deg + pose.tilt_y_deg);
+    cam_from_board.translation =
+        pose.distance_m * direction - cam_from_board.rotation * centre_in_board;
+    frames.push_back(BoardFrame(truth, cam_from_board.rotation, cam_from_board.translation));
+    names.push_back("board_" + std::to_string(names.size()) + ".png");
+    cam_from_boards.push_back(cam_from_board);
+  }
+  CalibrateOptions options;
+  options.model = LensModel::kOmnidir;
+  options.pattern_columns = kColumns;
+  options.pattern_rows = kRows;
+  options.square_size_m = kSquare;
+  const CalibrationResult result = Calibrate(frames, names, options);
+  // Every board is found and kept by omnidir's initialisation.
+  EXPECT_EQ(result.frames_used, names);
+  EXPECT_TRUE(result.frames_rejected.empty());
+  // Corners as exact as in the other models' tests (measured: 0.082 px).
+  EXPECT_LT(result.rms_px, 0.15);
+  const LensCamera& c = result.camera;
+  // xi and fx trade off along a shallow valley of the cost (xi 0.97 with fx 354 fits these
+  // boards as well as the truth does), so each alone is checked loosely; their combination
+  // fx / (1 + xi), the focal length on the axis (r = tan(theta / 2) with xi = 1), is pinned down
+  // (measured: 0.07 % off).
+  EXPECT_NEAR(c.xi, truth.xi, 0.1);
+  EXPECT_NEAR(c.fx, truth.fx, 0.03 * truth.fx);
+  EXPECT_NEAR(c.fy, truth.fy, 0.03 * truth.fy);
+  EXPECT_NEAR(c.fx / (1.0 + c.xi), truth.fx / (1.0 + truth.xi), 0.005 * truth.fx / 2.0);
+  EXPECT_NEAR(c.fy / (1.0 + c.xi), truth.fy / (1.0 + truth.xi), 0.005 * truth.fy / 2.0);
+  EXPECT_NEAR(c.cx, truth.cx, 1.0);
+  EXPECT_NEAR(c.cy, truth.cy, 1.0);
+  // The mapping, ray to pixel, where the boards were seen: a quarter-square grid over each
+  // board's inner corners. Measured: 0.36 px at worst, 0.19 px on average, nearly all of it a
+  // common shift of the principal point by (0.17, 0.05) px, as weakly fixed as in the radtan and
+  // fisheye tests (0.1 - 0.25 px there).
+  double worst = 0.0, sum = 0.0, widest_deg = 0.0;
+  int count = 0;
+  for (const Rigid3d& cam_from_board : cam_from_boards) {
+    for (double v = 0.0; v <= kRows - 1; v += 0.25) {
+      for (double u = 0.0; u <= kColumns - 1; u += 0.25) {
+        const Vec3d point = cam_from_board * Vec3d(u * kSquare, v * kSquare, 0.0);
+        Vec2d expected, got;
+        ASSERT_TRUE(truth.Project(point, &expected));
+        ASSERT_TRUE(c.Project(point, &got));
+        worst = std::max(worst, glm::length(got - expected));
+        sum += glm::length(got - expected);
+        ++count;
+        widest_deg = std::max(widest_deg, std::acos(glm::normalize(point).z) * 180.0 / M_PI);
+      }
+    }
+  }
+  EXPECT_GT(widest_deg, 80.0);
+  EXPECT_LT(worst, 0.5);
+  EXPECT_LT(sum / count, 0.25);
 }
 
 TEST(Calibrate, TooFewFramesListsThoseWithoutTheBoard) {

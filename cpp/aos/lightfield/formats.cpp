@@ -331,6 +331,35 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     const auto origin = NumbersFrom<3>(*it, path + ": origin", false);
     light_field.origin = Vec3d(origin[0], origin[1], origin[2]);
   }
+  if (auto it = root.find("pose_source"); it != root.end()) {
+    const std::string where = path + ": pose_source";
+    if (!it->is_object()) ThrowInvalid(where + ": expected an object, got " + Describe(*it));
+    PoseSource p;
+    const auto number = [&](const char* key, double* value) {
+      if (auto field = it->find(key); field != it->end()) {
+        if (!field->is_number() || !std::isfinite(field->get<double>()) || field->get<double>() < 0) {
+          ThrowInvalid(where + ": " + key + ": expected a finite number >= 0, got " + Describe(*field));
+        }
+        *value = field->get<double>();
+      }
+    };
+    if (auto field = it->find("method"); field != it->end() && field->is_string()) {
+      p.method = field->get<std::string>();
+    }
+    number("mean_reprojection_error_px", &p.mean_reprojection_error_px);
+    number("median_depth", &p.median_depth);
+    number("pose_error", &p.pose_error);
+    number("georeference_rms_m", &p.georeference_rms_m);
+    if (auto field = it->find("georeferenced"); field != it->end() && field->is_boolean()) {
+      p.georeferenced = field->get<bool>();
+    }
+    if (auto field = it->find("unregistered"); field != it->end() && field->is_array()) {
+      for (const json& name : *field) {
+        if (name.is_string()) p.unregistered.push_back(name.get<std::string>());
+      }
+    }
+    light_field.pose_source = p;
+  }
 
   const json& cameras_json = Field(root, "cameras", path);
   if (!cameras_json.is_object()) {
@@ -731,6 +760,16 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   root["format"] = kAosFormatName;
   root["version"] = kAosFormatVersion;
   root["origin"] = {light_field.origin.x, light_field.origin.y, light_field.origin.z};
+  if (light_field.pose_source) {
+    const PoseSource& p = *light_field.pose_source;
+    root["pose_source"] = {{"method", p.method},
+                           {"mean_reprojection_error_px", p.mean_reprojection_error_px},
+                           {"median_depth", p.median_depth},
+                           {"pose_error", p.pose_error},
+                           {"georeferenced", p.georeferenced},
+                           {"georeference_rms_m", p.georeference_rms_m},
+                           {"unregistered", p.unregistered}};
+  }
   std::vector<const View*> cameras;  // the first view of each distinct camera
   nlohmann::ordered_json cameras_json = nlohmann::ordered_json::object();
   nlohmann::ordered_json views_json = nlohmann::ordered_json::array();

@@ -12,6 +12,9 @@
 //                "cam_from_world": {"rotation": [[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]],
 //                                   "translation": [t0, t1, t2]}}]
 //   }
+//   Optional "pose_source" (PoseSource in lightfield.h) says where estimated poses came from:
+//   {"method": "colmap", "mean_reprojection_error_px", "median_depth", "pose_error",
+//    "georeferenced", "georeference_rms_m", "unregistered": [frame names]}.
 //   Poses map the local frame (world - origin) to OpenCV camera axes, metres. A camera may give
 //   "fov_deg" (horizontal, square pixels, centred principal point) instead of fx/fy/cx/cy. A lens
 //   camera has "model" "radtan", "fisheye" or "omnidir", fx/fy/cx/cy, "distortion" (up to 5

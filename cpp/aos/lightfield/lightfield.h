@@ -7,6 +7,7 @@
 // in double precision and never enters float arithmetic: world = origin + local. Poses far from
 // zero (millions of metres) also work, since the renderer composes transforms in double precision
 // relative to the virtual camera, but a local origin keeps files readable.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -29,9 +30,22 @@ struct View {
   Image image;             // native pixel type, border 1 (see Image)
 };
 
+// Where estimated poses came from and how good they are (aos-render poses, sfm/); stored in
+// the light-field file as "pose_source".
+struct PoseSource {
+  std::string method;                     // e.g. "colmap"
+  double mean_reprojection_error_px = 0.0;
+  double median_depth = 0.0;              // of the reconstructed points, light-field units
+  double pose_error = 0.0;                // e = error_px * median_depth / fx, light-field units
+  bool georeferenced = false;             // units are metres (else the method's arbitrary scale)
+  double georeference_rms_m = 0.0;        // centre residuals of the geo-referencing
+  std::vector<std::string> unregistered;  // frames that got no pose
+};
+
 struct LightField {
   Vec3d origin{0.0};  // world position of the local frame's zero (double; e.g. UTM)
   std::vector<View> views;
+  std::optional<PoseSource> pose_source;  // set when the poses were estimated
 
   // Total bytes of the decoded frames (width * height * channels * value size, summed).
   size_t ImageBytes() const;

@@ -1,0 +1,570 @@
+#include "aos/sfm/colmap_pipeline.h"
+
+#include <sqlite3.h>
+#include <stdlib.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <deque>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <set>
+#include <sstream>
+
+#include "aos/image/image_io.h"
+#include "aos/lightfield/camera_file.h"
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
+#include "aos/util/process.h"
+
+namespace fs = std::filesystem;
+
+namespace aos {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+using Clock = std::chrono::steady_clock;
+
+double Seconds(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+std::string Number(double value) {
+  std::ostringstream out;
+  out.precision(17);
+  out << value;
+  return out.str();
+}
+
+// A temporary workspace removed on destruction, or the user's (kept).
+class Workspace {
+ public:
+  explicit Workspace(const std::string& named) {
+    if (!named.empty()) {
+      CheckOutputFolder(named);
+      fs::create_directories(named);
+      path_ = named;
+      return;
+    }
+    std::string pattern = (fs::temp_directory_path() / "aos-poses-XXXXXX").string();
+    if (::mkdtemp(pattern.data()) == nullptr) {
+      ThrowInvalid("workspace: cannot create a temporary folder in " +
+                   fs::temp_directory_path().string());
+    }
+    path_ = pattern;
+    temporary_ = true;
+  }
+  ~Workspace() {
+    if (temporary_) {
+      std::error_code ignored;
+      fs::remove_all(path_, ignored);
+    }
+  }
+  Workspace(const Workspace&) = delete;
+  Workspace& operator=(const Workspace&) = delete;
+  const fs::path& path() const { return path_; }
+  bool temporary() const { return temporary_; }
+
+ private:
+  fs::path path_;
+  bool temporary_ = false;
+};
+
+// Runs one COLMAP command, logging its output to `log` and calling `on_line` per line. A
+// non-zero exit is an error quoting the end of the log.
+void RunColmap(const std::string& stage, std::vector<std::string> argv, const fs::path& log_path,
+               const std::function<void(const std::string&)>& on_line, ProgressSink* progress) {
+  std::ofstream log(log_path);
+  log << "$";
+  for (const std::string& arg : argv) log << " " << arg;
+  log << "\n";
+  std::deque<std::string> tail;
+  const int status = RunProcess(
+      argv,
+      [&](const std::string& line) {
+        log << line << "\n";
+        tail.push_back(line);
+        if (tail.size() > 12) tail.pop_front();
+        if (on_line) on_line(line);
+      },
+      [&] { return ProgressCancelled(progress); });
+  log.flush();
+  if (status != 0) {
+    std::string end;
+    for (const std::string& line : tail) end += "\n  " + line;
+    ThrowInvalid("COLMAP " + argv[1] + " (" + stage + ") failed with exit status " +
+                 std::to_string(status) + "; the end of its output:" + end);
+  }
+}
+
+// "[i/N]" after `marker` in a COLMAP log line: i, or -1.
+int BracketIndex(const std::string& line, const std::string& marker) {
+  const size_t at = line.find(marker);
+  if (at == std::string::npos) return -1;
+  const size_t open = line.find('[', at);
+  if (open == std::string::npos) return -1;
+  try {
+    return std::stoi(line.substr(open + 1));
+  } catch (const std::exception&) {
+    return -1;
+  }
+}
+
+// COLMAP's camera model and parameters for a known aos lens.
+std::pair<std::string, std::string> ColmapCameraFor(const LensCamera& lens, const std::string& where) {
+  const auto& d = lens.distortion;
+  const std::string f = Number(lens.fx) + "," + Number(lens.fy) + "," + Number(lens.cx) + "," +
+                        Number(lens.cy);
+  switch (lens.model) {
+    case LensModel::kPinhole:
+      return {"PINHOLE", f};
+    case LensModel::kRadTan:
+      if (d[4] != 0.0) {
+        return {"FULL_OPENCV", f + "," + Number(d[0]) + "," + Number(d[1]) + "," + Number(d[2]) +
+                                   "," + Number(d[3]) + "," + Number(d[4]) + ",0,0,0"};
+      }
+      return {"OPENCV", f + "," + Number(d[0]) + "," + Number(d[1]) + "," + Number(d[2]) + "," +
+                            Number(d[3])};
+    case LensModel::kFisheye:
+      return {"OPENCV_FISHEYE", f + "," + Number(d[0]) + "," + Number(d[1]) + "," +
+                                    Number(d[2]) + "," + Number(d[3])};
+    case LensModel::kOmnidir:
+      break;
+  }
+  ThrowInvalid(where + ": model: COLMAP has no omnidir (Mei) model; rectify the frames first "
+                       "(aos-render rectify) and give the rectified camera");
+}
+
+// Starting parameters of a self-calibrated COLMAP model from a horizontal FOV.
+std::string InitialParams(const std::string& model, int width, int height, double fov_deg) {
+  const double half = 0.5 * fov_deg * kPi / 180.0;
+  const bool fisheye = model.find("FISHEYE") != std::string::npos;
+  const double f = 0.5 * width / (fisheye ? half : std::tan(half));
+  const std::string fs_ = Number(f), c = Number(0.5 * width) + "," + Number(0.5 * height);
+  if (model == "SIMPLE_PINHOLE") return fs_ + "," + c;
+  if (model == "PINHOLE") return fs_ + "," + fs_ + "," + c;
+  if (model == "SIMPLE_RADIAL" || model == "SIMPLE_RADIAL_FISHEYE") return fs_ + "," + c + ",0";
+  if (model == "RADIAL" || model == "RADIAL_FISHEYE") return fs_ + "," + c + ",0,0";
+  if (model == "OPENCV") return fs_ + "," + fs_ + "," + c + ",0,0,0,0";
+  return fs_ + "," + fs_ + "," + c + ",0,0,0,0";  // OPENCV_FISHEYE
+}
+
+// Writes position priors into COLMAP's database (images.prior_tx/ty/tz) for spatial matching.
+void WritePriors(const fs::path& database, const std::vector<NamedPosition>& positions,
+                 const Vec3d& origin) {
+  sqlite3* db = nullptr;
+  if (sqlite3_open_v2(database.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr) != SQLITE_OK) {
+    const std::string message = db ? sqlite3_errmsg(db) : "out of memory";
+    sqlite3_close(db);
+    ThrowInvalid(database.string() + ": cannot open COLMAP's database: " + message);
+  }
+  sqlite3_stmt* statement = nullptr;
+  const char* sql = "UPDATE images SET prior_tx = ?1, prior_ty = ?2, prior_tz = ?3 WHERE name = ?4";
+  bool ok = sqlite3_prepare_v2(db, sql, -1, &statement, nullptr) == SQLITE_OK &&
+            sqlite3_exec(db, "BEGIN", nullptr, nullptr, nullptr) == SQLITE_OK;
+  for (size_t i = 0; ok && i < positions.size(); ++i) {
+    const Vec3d local = positions[i].position - origin;
+    sqlite3_reset(statement);
+    sqlite3_bind_double(statement, 1, local.x);
+    sqlite3_bind_double(statement, 2, local.y);
+    sqlite3_bind_double(statement, 3, local.z);
+    sqlite3_bind_text(statement, 4, positions[i].name.c_str(), -1, SQLITE_TRANSIENT);
+    ok = sqlite3_step(statement) == SQLITE_DONE;
+  }
+  ok = ok && sqlite3_exec(db, "COMMIT", nullptr, nullptr, nullptr) == SQLITE_OK;
+  const std::string message = sqlite3_errmsg(db);
+  sqlite3_finalize(statement);
+  sqlite3_close(db);
+  if (!ok) ThrowInvalid(database.string() + ": cannot write position priors: " + message);
+}
+
+Vec3d Mean(const std::vector<NamedPosition>& positions) {
+  Vec3d sum(0.0);
+  for (const NamedPosition& p : positions) sum += p.position;
+  return positions.empty() ? sum : sum / static_cast<double>(positions.size());
+}
+
+std::string ListSome(const std::vector<std::string>& names, size_t most = 8) {
+  std::string text;
+  for (size_t i = 0; i < names.size() && i < most; ++i) text += (i ? ", " : "") + names[i];
+  if (names.size() > most) text += ", ... (" + std::to_string(names.size()) + " in all)";
+  return text;
+}
+
+// Median depth along the optical axes of the model's points, over (view, point) pairs where the
+// point lies in front of the view and inside its frame.
+double MedianDepth(const ColmapModel& model, const LightField& light_field) {
+  std::vector<double> depths;
+  const size_t step = std::max<size_t>(1, model.points.size() / 20000);  // bounded work
+  for (size_t p = 0; p < model.points.size(); p += step) {
+    for (const View& view : light_field.views) {
+      const Vec3d in_cam = view.cam_from_world * model.points[p].position;
+      if (!(in_cam.z > 0.0)) continue;
+      Vec2d pixel;
+      if (!view.lens.Project(in_cam, &pixel)) continue;
+      if (pixel.x < 0 || pixel.y < 0 || pixel.x > view.camera.width || pixel.y > view.camera.height) continue;
+      depths.push_back(in_cam.z);
+    }
+  }
+  if (depths.empty()) return 0.0;
+  std::nth_element(depths.begin(), depths.begin() + depths.size() / 2, depths.end());
+  return depths[depths.size() / 2];
+}
+
+}  // namespace
+
+void PosesOptions::Check() const {
+  if (colmap.empty()) ThrowInvalid("colmap: must name the COLMAP executable");
+  if (matcher != "sequential" && matcher != "spatial" && matcher != "exhaustive") {
+    ThrowInvalid("matcher: \"" + matcher + "\" is not one of sequential, spatial, exhaustive");
+  }
+  if (matcher == "spatial" && positions_file.empty()) {
+    ThrowInvalid("matcher: spatial matching needs positions (positions_file)");
+  }
+  if (sequential_overlap < 1) ThrowInvalid("sequential_overlap: must be >= 1");
+  static const std::set<std::string> kModels = {
+      "SIMPLE_PINHOLE", "PINHOLE",        "SIMPLE_RADIAL",         "RADIAL",
+      "OPENCV",         "OPENCV_FISHEYE", "SIMPLE_RADIAL_FISHEYE", "RADIAL_FISHEYE"};
+  if (kModels.count(camera_model) == 0) {
+    ThrowInvalid("camera_model: \"" + camera_model + "\" is not a supported COLMAP model (" +
+                 "SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, "
+                 "SIMPLE_RADIAL_FISHEYE, RADIAL_FISHEYE)");
+  }
+  const bool fisheye = camera_model.find("FISHEYE") != std::string::npos;
+  if (!(fov_deg == 0.0 || (fov_deg > 0.0 && fov_deg < (fisheye ? 360.0 : 180.0)))) {
+    ThrowInvalid("fov_deg: must be 0 (unknown) or in (0, " + std::string(fisheye ? "360" : "180") +
+                 ") degrees");
+  }
+  if (max_image_size < 100) ThrowInvalid("max_image_size: must be >= 100");
+  if (max_num_features < 100) ThrowInvalid("max_num_features: must be >= 100");
+  if (!(min_registered_fraction > 0.0 && min_registered_fraction <= 1.0)) {
+    ThrowInvalid("min_registered_fraction: must be in (0, 1]");
+  }
+  if (num_threads == 0 || num_threads < -1) ThrowInvalid("num_threads: must be -1 (all cores) or >= 1");
+}
+
+std::vector<NamedPosition> ReadPositionsFile(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) ThrowInvalid(path + ": cannot read the positions file");
+  std::vector<NamedPosition> positions;
+  std::set<std::string> seen;
+  std::string line;
+  int number = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const std::string where = path + ": line " + std::to_string(number);
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    const size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::vector<std::string> fields;
+    std::string field;
+    std::istringstream split(line);
+    while (std::getline(split, field, ',')) {
+      const size_t a = field.find_first_not_of(" \t"), b = field.find_last_not_of(" \t");
+      fields.push_back(a == std::string::npos ? "" : field.substr(a, b - a + 1));
+    }
+    if (fields.size() != 4) {
+      ThrowInvalid(where + ": expected 4 comma-separated fields (name, x, y, z), got " +
+                   std::to_string(fields.size()));
+    }
+    NamedPosition p;
+    p.name = fields[0];
+    bool numeric = true;
+    for (int k = 0; k < 3; ++k) {
+      const std::string& text = fields[1 + k];
+      char* end = nullptr;
+      const double value = std::strtod(text.c_str(), &end);
+      if (text.empty() || end != text.c_str() + text.size()) {
+        numeric = false;
+        break;
+      }
+      if (!std::isfinite(value)) {
+        ThrowInvalid(where + ": " + std::string("xyz").substr(k, 1) + ": " + text + " is not finite");
+      }
+      p.position[k] = value;
+    }
+    if (!numeric) {
+      if (positions.empty() && seen.empty()) {  // a header line
+        seen.insert("");
+        continue;
+      }
+      ThrowInvalid(where + ": x, y, z must be numbers (got \"" + fields[1] + "\", \"" + fields[2] +
+                   "\", \"" + fields[3] + "\")");
+    }
+    if (p.name.empty()) ThrowInvalid(where + ": name: is empty");
+    if (!seen.insert(p.name).second) ThrowInvalid(where + ": name: \"" + p.name + "\" is repeated");
+    positions.push_back(p);
+  }
+  if (positions.empty()) ThrowInvalid(path + ": no positions (expected lines name, x, y, z)");
+  return positions;
+}
+
+GeoreferenceResult Georeference(LightField* light_field, const std::vector<std::string>& names,
+                                const std::vector<NamedPosition>& positions,
+                                const std::string& where) {
+  if (names.size() != light_field->views.size()) {
+    ThrowInvalid(where + ": one name per view is needed");
+  }
+  std::map<std::string, Vec3d> by_name;
+  for (const NamedPosition& p : positions) by_name[p.name] = p.position;
+  std::vector<Vec3d> model_centres, known;
+  for (size_t i = 0; i < names.size(); ++i) {
+    auto it = by_name.find(names[i]);
+    if (it == by_name.end()) it = by_name.find(fs::path(names[i]).filename().string());
+    if (it == by_name.end()) continue;
+    model_centres.push_back(light_field->views[i].cam_from_world.Center() +
+                            light_field->origin);
+    known.push_back(it->second);
+  }
+  if (known.size() < 3) {
+    ThrowInvalid(where + ": only " + std::to_string(known.size()) +
+                 " registered frames have a position; geo-referencing needs at least 3");
+  }
+  // The origin: the positions' mean, in double; the similarity maps to positions relative to it
+  // (keeps UTM-sized coordinates out of the poses).
+  Vec3d origin(0.0);
+  for (const Vec3d& p : known) origin += p;
+  origin /= static_cast<double>(known.size());
+  std::vector<Vec3d> local(known.size());
+  for (size_t i = 0; i < known.size(); ++i) local[i] = known[i] - origin;
+  const SimilarityResult fit = EstimateSimilarity(model_centres, local, where);
+  GeoreferenceResult result;
+  result.local_from_model = fit.dst_from_src;
+  result.rms_m = fit.rms_residual;
+  result.frames = static_cast<int>(known.size());
+  // Views in the model frame (origin added back) -> local frame about the new origin.
+  Sim3d shifted = fit.dst_from_src;
+  shifted.translation += shifted.scale * (shifted.rotation * light_field->origin);
+  for (View& view : light_field->views) {
+    view.cam_from_world = TransformCamFromWorld(shifted, view.cam_from_world);
+  }
+  light_field->origin = origin;
+  return result;
+}
+
+PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& options,
+                          ProgressSink* progress) {
+  options.Check();
+  if (frames_dir.empty() || !fs::is_directory(frames_dir)) {
+    ThrowInvalid(frames_dir + ": not a folder of frames");
+  }
+  if (!ProgramExists(options.colmap)) {
+    ThrowInvalid("colmap: \"" + options.colmap +
+                 "\" not found; install COLMAP (Debian: apt-get install colmap) or give its path");
+  }
+  PosesResult result;
+  // Known inputs first (cheap errors before COLMAP runs).
+  LensCamera known_camera;
+  const bool known = !options.camera_file.empty();
+  if (known) known_camera = ReadCameraFile(options.camera_file);
+  std::vector<NamedPosition> positions;
+  if (!options.positions_file.empty()) positions = ReadPositionsFile(options.positions_file);
+
+  // Frames: readable ones, one size.
+  std::vector<std::string> unreadable;
+  int width = 0, height = 0;
+  std::string first_frame;
+  std::vector<std::string> other_size;
+  for (const std::string& name : ListFrameFiles(frames_dir)) {
+    ImageFileInfo info;
+    try {
+      info = ReadImageInfo((fs::path(frames_dir) / name).string());
+    } catch (const std::invalid_argument&) {
+      unreadable.push_back(name);
+      continue;
+    }
+    if (first_frame.empty()) {
+      first_frame = name;
+      width = info.width;
+      height = info.height;
+    } else if (info.width != width || info.height != height) {
+      other_size.push_back(name + " (" + std::to_string(info.width) + "x" +
+                           std::to_string(info.height) + ")");
+    }
+    result.frames.push_back(name);
+  }
+  if (!unreadable.empty()) {
+    result.warnings.push_back("skipped " + std::to_string(unreadable.size()) +
+                              " unreadable frame(s): " + ListSome(unreadable));
+  }
+  if (result.frames.empty()) {
+    ThrowInvalid(frames_dir + ": no readable frames (.png .jpg .jpeg .tif .tiff .exr)");
+  }
+  if (!other_size.empty()) {
+    ThrowInvalid(frames_dir + ": frames differ in size (one camera for all frames): " +
+                 first_frame + " is " + std::to_string(width) + "x" + std::to_string(height) +
+                 " but " + ListSome(other_size));
+  }
+  if (known && (known_camera.width != width || known_camera.height != height)) {
+    ThrowInvalid(options.camera_file + ": the camera is " + std::to_string(known_camera.width) +
+                 "x" + std::to_string(known_camera.height) + " but the frames are " +
+                 std::to_string(width) + "x" + std::to_string(height));
+  }
+  if (result.frames.size() < 2) ThrowInvalid(frames_dir + ": one frame cannot give poses (need >= 2)");
+
+  Workspace workspace(options.workspace);
+  if (!workspace.temporary()) result.workspace = workspace.path().string();
+  const fs::path database = workspace.path() / "database.db";
+  const fs::path list = workspace.path() / "frames.txt";
+  {
+    std::ofstream out(list);
+    for (const std::string& name : result.frames) out << name << "\n";
+    if (!out) ThrowInvalid(list.string() + ": cannot write the frame list");
+  }
+  const std::string threads = std::to_string(options.num_threads);
+  const int total = static_cast<int>(result.frames.size());
+
+  // 1. Features.
+  auto start = Clock::now();
+  ProgressStart(progress, "features", total);
+  std::vector<std::string> extract = {
+      options.colmap, "feature_extractor", "--database_path", database.string(), "--image_path",
+      frames_dir, "--image_list_path", list.string(), "--ImageReader.single_camera", "1",
+      "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads", threads,
+      "--SiftExtraction.max_image_size", std::to_string(options.max_image_size),
+      "--SiftExtraction.max_num_features", std::to_string(options.max_num_features)};
+  if (known) {
+    const auto [model, params] = ColmapCameraFor(known_camera, options.camera_file);
+    extract.insert(extract.end(), {"--ImageReader.camera_model", model,
+                                   "--ImageReader.camera_params", params});
+  } else {
+    extract.insert(extract.end(), {"--ImageReader.camera_model", options.camera_model});
+    if (options.fov_deg > 0.0) {
+      extract.insert(extract.end(), {"--ImageReader.camera_params",
+                                     InitialParams(options.camera_model, width, height, options.fov_deg)});
+    }
+  }
+  RunColmap("features", extract, workspace.path() / "colmap_features.log",
+            [&](const std::string& line) {
+              if (BracketIndex(line, "Processed file") > 0) ProgressAdvance(progress, 1);
+            },
+            progress);
+  result.stages.push_back({"features", Seconds(start)});
+
+  // 2. Matching.
+  start = Clock::now();
+  if (!positions.empty()) WritePriors(database, positions, Mean(positions));
+  std::vector<std::string> match = {options.colmap, options.matcher + "_matcher", "--database_path",
+                                    database.string(), "--SiftMatching.use_gpu", "0",
+                                    "--SiftMatching.num_threads", threads};
+  int64_t match_total = total;
+  std::string marker = "Matching image";
+  if (options.matcher == "sequential") {
+    match.insert(match.end(), {"--SequentialMatching.overlap",
+                               std::to_string(options.sequential_overlap)});
+  } else if (options.matcher == "spatial") {
+    match.insert(match.end(), {"--SpatialMatching.is_gps", "0"});
+  } else {
+    // Exhaustive matching goes in blocks of 50 frames: "Matching block [i/B, j/B]".
+    const int64_t blocks = (total + 49) / 50;
+    match_total = blocks * blocks;
+    marker = "Matching block";
+  }
+  ProgressStart(progress, "matching", match_total);
+  RunColmap("matching", match, workspace.path() / "colmap_matching.log",
+            [&](const std::string& line) {
+              if (BracketIndex(line, marker) > 0) ProgressAdvance(progress, 1);
+            },
+            progress);
+  result.stages.push_back({"matching", Seconds(start)});
+
+  // 3. Mapping.
+  start = Clock::now();
+  const fs::path sparse = workspace.path() / "sparse";
+  fs::create_directories(sparse);
+  std::vector<std::string> map = {options.colmap, "mapper", "--database_path", database.string(),
+                                  "--image_path", frames_dir, "--output_path", sparse.string(),
+                                  "--Mapper.num_threads", threads};
+  if (known) {
+    map.insert(map.end(), {"--Mapper.ba_refine_focal_length", "0",
+                           "--Mapper.ba_refine_principal_point", "0",
+                           "--Mapper.ba_refine_extra_params", "0"});
+  }
+  ProgressStart(progress, "mapping", total);
+  RunColmap("mapping", map, workspace.path() / "colmap_mapping.log",
+            [&](const std::string& line) {
+              if (line.rfind("Registering image #", 0) == 0) ProgressAdvance(progress, 1);
+            },
+            progress);
+  result.stages.push_back({"mapping", Seconds(start)});
+
+  // 4. Import the largest model.
+  start = Clock::now();
+  ProgressStart(progress, "import", 1);
+  std::vector<fs::path> models;
+  for (const auto& entry : fs::directory_iterator(sparse)) {
+    if (entry.is_directory()) models.push_back(entry.path());
+  }
+  std::sort(models.begin(), models.end());
+  result.models = static_cast<int>(models.size());
+  if (models.empty()) {
+    ThrowInvalid(frames_dir + ": COLMAP registered no frames (no model was built from " +
+                 std::to_string(total) + " frames; the frames may not overlap or lack texture)");
+  }
+  ColmapModel model;
+  for (const fs::path& folder : models) {
+    ColmapModel candidate = ReadColmapModel(folder.string());
+    if (candidate.images.size() > model.images.size()) model = std::move(candidate);
+  }
+  if (models.size() > 1) {
+    result.warnings.push_back("COLMAP built " + std::to_string(models.size()) +
+                              " separate models; the largest (" + std::to_string(model.images.size()) +
+                              " frames) is used, the others' frames count as unregistered");
+  }
+  ColmapImportOptions import_options;
+  import_options.load_images = false;
+  ColmapImport imported = ImportColmapModel(model, frames_dir, import_options);
+  result.light_field = std::move(imported.light_field);
+  result.registered = imported.registered;
+  // Unregistered: the listed frames the model lacks (not every file in the folder: unreadable
+  // ones were never given to COLMAP and are reported as skipped).
+  const std::set<std::string> registered(result.registered.begin(), result.registered.end());
+  for (const std::string& name : result.frames) {
+    if (registered.count(name) == 0) result.unregistered.push_back(name);
+  }
+  if (!result.unregistered.empty()) {
+    result.warnings.push_back(std::to_string(result.unregistered.size()) + " of " +
+                              std::to_string(total) + " frames were not registered: " +
+                              ListSome(result.unregistered));
+  }
+  const double fraction = static_cast<double>(result.registered.size()) / total;
+  if (fraction < options.min_registered_fraction) {
+    ThrowInvalid(frames_dir + ": COLMAP registered only " + std::to_string(result.registered.size()) +
+                 " of " + std::to_string(total) + " frames (below min_registered_fraction " +
+                 Number(options.min_registered_fraction) + "); not registered: " +
+                 ListSome(result.unregistered));
+  }
+  result.points = model.points.size();
+  result.observations = model.num_observations;
+  result.mean_reprojection_error_px = model.mean_reprojection_error_px;
+  if (!positions.empty()) {
+    const GeoreferenceResult geo = Georeference(&result.light_field, result.registered, positions,
+                                                options.positions_file);
+    result.georeferenced = true;
+    result.local_from_model = geo.local_from_model;
+    result.georeference_rms_m = geo.rms_m;
+    result.georeference_frames = geo.frames;
+    for (ColmapPoint& point : model.points) {
+      point.position = geo.local_from_model * point.position;
+    }
+  }
+  result.median_depth = MedianDepth(model, result.light_field);
+  const double focal = result.light_field.views.empty() ? 0.0 : result.light_field.views[0].camera.fx;
+  if (focal > 0.0) result.pose_error = result.mean_reprojection_error_px * result.median_depth / focal;
+  PoseSource source;
+  source.method = "colmap";
+  source.mean_reprojection_error_px = result.mean_reprojection_error_px;
+  source.median_depth = result.median_depth;
+  source.pose_error = result.pose_error;
+  source.georeferenced = result.georeferenced;
+  source.georeference_rms_m = result.georeference_rms_m;
+  source.unregistered = result.unregistered;
+  result.light_field.pose_source = source;
+  ProgressAdvance(progress, 1);
+  result.stages.push_back({"import", Seconds(start)});
+  return result;
+}
+
+}  // namespace aos

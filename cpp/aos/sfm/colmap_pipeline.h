@@ -1,0 +1,117 @@
+#pragma once
+// Poses from a folder of frames: runs Debian's COLMAP headless on the CPU (feature extraction,
+// matching, incremental mapping), imports the largest model it builds (colmap_model.h), and
+// optionally geo-references it with known camera positions (similarity.h).
+//
+// Contract
+// - Inputs are never modified: COLMAP only reads the frames. Its workspace (database.db,
+//   sparse/N/, colmap_<stage>.log) is options.workspace, which must not exist or be empty and is
+//   kept, or a temporary folder that is removed afterwards.
+// - COLMAP runs with --SiftExtraction.use_gpu 0 and --SiftMatching.use_gpu 0 (it aborts without
+//   a display otherwise), one camera shared by all frames, and:
+//   * matcher "sequential" (frames in name order, like a flight's video order; each matched
+//     with its sequential_overlap successors), "spatial" (pairs by position: needs positions,
+//     which are written into the database as priors), or "exhaustive" (all pairs; small sets);
+//   * camera: a known camera (options.camera_file, an aos-camera file from `aos-render
+//     calibrate`; its intrinsics are fixed during mapping) or self-calibration of
+//     options.camera_model, started from fov_deg when given.
+// - Progress: one stage per COLMAP step ("features", "matching", "mapping"), advanced per frame
+//   from COLMAP's own log lines, then "import". Cancelling stops COLMAP and throws
+//   aos::Cancelled.
+// - Frames: every image file (.png .jpg .jpeg .tif .tiff .exr, any case) under frames_dir.
+//   Frames whose header cannot be read are skipped with a warning naming them; frames of
+//   another size than the first are an error naming them (one camera for all frames).
+// - Registration: frames COLMAP leaves out are listed (PosesResult::unregistered) and warned
+//   about; fewer than min_registered_fraction of the frames registered is an error.
+// - Geo-referencing: with positions (a CSV file of `name,x,y,z` lines, metres in any metric
+//   frame, e.g. UTM easting, northing, altitude; a header line and '#' comments allowed), the
+//   model is mapped by the least-squares similarity from its camera centres to the given
+//   positions of the registered frames (at least 3, not collinear). That fixes scale,
+//   orientation (up axis) and origin; LightField::origin holds the positions' mean in double
+//   precision and the poses are relative to it. Without positions the light field keeps COLMAP's
+//   frame: arbitrary scale, orientation and origin.
+// - Pose quality: COLMAP's mean reprojection error (pixels), and e in metres at the median
+//   depth of the model's points (e_px times depth over focal length; metres only when
+//   geo-referenced), which the effective sample size p' = p + 2e of metrics/resolution.h takes.
+//
+// Throws std::invalid_argument for bad options (naming the field), a missing or empty frames
+// folder, COLMAP missing or failing (with the end of its log), or too few frames registered.
+#include <string>
+#include <vector>
+
+#include "aos/geometry/similarity.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/sfm/colmap_model.h"
+#include "aos/util/progress.h"
+
+namespace aos {
+
+struct PosesOptions {
+  std::string colmap = "colmap";        // the COLMAP executable (on PATH or a path)
+  std::string workspace;                // kept COLMAP workspace; empty = temporary, removed
+  std::string matcher = "sequential";   // "sequential", "spatial" or "exhaustive"
+  int sequential_overlap = 5;           // sequential: successors each frame is matched with, >= 1
+  // Known camera: an aos-camera file (pinhole, radtan or fisheye; omnidir frames must be
+  // rectified first). Empty = self-calibration of camera_model.
+  std::string camera_file;
+  // COLMAP camera model for self-calibration: SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL,
+  // OPENCV, OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE or RADIAL_FISHEYE.
+  std::string camera_model = "SIMPLE_RADIAL";
+  double fov_deg = 0.0;                 // self-calibration's starting horizontal FOV; 0 = COLMAP's
+  std::string positions_file;           // CSV name,x,y,z (see above); empty = none
+  int max_image_size = 1600;            // SIFT on frames downscaled to this longest side, >= 100
+  int max_num_features = 4096;          // per frame, >= 100
+  double min_registered_fraction = 0.5; // (0, 1]
+  int num_threads = -1;                 // COLMAP's threads; -1 = all cores
+  void Check() const;
+};
+
+struct PosesResult {
+  LightField light_field;                 // images not loaded; image_path = the frame files
+  std::vector<std::string> frames;        // every readable frame, relative to frames_dir
+  std::vector<std::string> registered;    // in view order
+  std::vector<std::string> unregistered;  // frames COLMAP did not register
+  std::vector<std::string> warnings;      // skipped frames, unregistered frames, other models
+  int models = 0;                         // models COLMAP built (the largest is used)
+  size_t points = 0;
+  size_t observations = 0;
+  double mean_reprojection_error_px = 0.0;
+  double median_depth = 0.0;              // of the points, along the optical axes (model units)
+  double pose_error = 0.0;                // e at that depth, same units
+  bool georeferenced = false;
+  Sim3d local_from_model;                 // the geo-referencing similarity (identity without)
+  double georeference_rms_m = 0.0;        // RMS of centre residuals after it
+  int georeference_frames = 0;            // registered frames with a position
+  struct Stage {
+    std::string name;
+    double seconds = 0.0;
+  };
+  std::vector<Stage> stages;              // features, matching, mapping, import
+  std::string workspace;                  // the kept workspace, or empty
+};
+
+PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& options,
+                          ProgressSink* progress = nullptr);
+
+// Camera positions from a CSV file (see above): name -> position. Throws std::invalid_argument
+// naming the file and line for a malformed line, a non-finite value or a repeated name.
+struct NamedPosition {
+  std::string name;
+  Vec3d position{0.0};
+};
+std::vector<NamedPosition> ReadPositionsFile(const std::string& path);
+
+// Maps a light field of COLMAP's frame onto the positions of its views (by image_path's file
+// name relative to frames_dir, or by name): sets origin to the positions' mean and the poses to
+// local = position - origin. Returns the similarity and its residuals. Throws
+// std::invalid_argument when fewer than 3 views have a position or they are degenerate.
+struct GeoreferenceResult {
+  Sim3d local_from_model;
+  double rms_m = 0.0;
+  int frames = 0;
+};
+GeoreferenceResult Georeference(LightField* light_field, const std::vector<std::string>& names,
+                                const std::vector<NamedPosition>& positions,
+                                const std::string& where);
+
+}  // namespace aos

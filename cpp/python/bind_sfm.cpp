@@ -1,0 +1,117 @@
+// Bindings of sfm/colmap_model.h and sfm/colmap_pipeline.h: poses from frames with COLMAP,
+// importing COLMAP models, geo-referencing.
+#include "aos/sfm/colmap_model.h"
+#include "aos/sfm/colmap_pipeline.h"
+#include "bindings.h"
+
+namespace aos::python {
+
+using namespace pybind11::literals;
+
+void BindSfm(py::module_& m) {
+  OptionsClass<PosesOptions>(
+      m, "PosesOptions",
+      "Options of estimate_poses (defaults from the C++ struct aos::PosesOptions).")
+      .Field("colmap", &PosesOptions::colmap, "The COLMAP executable (on PATH or a path).")
+      .Field("workspace", &PosesOptions::workspace,
+             "Keep COLMAP's workspace in this new folder; '' = a temporary one, removed.")
+      .Field("matcher", &PosesOptions::matcher, "'sequential', 'spatial' or 'exhaustive'.")
+      .Field("sequential_overlap", &PosesOptions::sequential_overlap,
+             "Sequential matching: successors each frame is matched with.")
+      .Field("camera_file", &PosesOptions::camera_file,
+             "Known camera (aos-camera file); '' = self-calibration of camera_model.")
+      .Field("camera_model", &PosesOptions::camera_model, "COLMAP model to self-calibrate.")
+      .Field("fov_deg", &PosesOptions::fov_deg,
+             "Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's guess.")
+      .Field("positions_file", &PosesOptions::positions_file,
+             "CSV of name,x,y,z positions (metres): geo-reference and spatial priors.")
+      .Field("max_image_size", &PosesOptions::max_image_size,
+             "Features on frames downscaled to this longest side.")
+      .Field("max_num_features", &PosesOptions::max_num_features, "Features per frame.")
+      .Field("min_registered_fraction", &PosesOptions::min_registered_fraction,
+             "Error below this fraction of frames registered.")
+      .Field("num_threads", &PosesOptions::num_threads, "COLMAP's threads; -1 = all cores.")
+      .Finish()
+      .def("check", &PosesOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<PosesResult>(m, "PosesResult", "What estimate_poses found.")
+      .def_readonly("light_field", &PosesResult::light_field,
+                    "Registered frames with their poses (images not loaded).")
+      .def_readonly("frames", &PosesResult::frames, "Every readable frame, relative paths.")
+      .def_readonly("registered", &PosesResult::registered, "Registered frames, in view order.")
+      .def_readonly("unregistered", &PosesResult::unregistered, "Frames COLMAP left out.")
+      .def_readonly("warnings", &PosesResult::warnings, "Skipped frames, unregistered ones, ...")
+      .def_readonly("models", &PosesResult::models, "Models COLMAP built (the largest is used).")
+      .def_readonly("points", &PosesResult::points, "3-D points of the model.")
+      .def_readonly("observations", &PosesResult::observations, "Their observations.")
+      .def_readonly("mean_reprojection_error_px", &PosesResult::mean_reprojection_error_px,
+                    "COLMAP's mean reprojection error, pixels.")
+      .def_readonly("median_depth", &PosesResult::median_depth,
+                    "Median depth of the points along the optical axes.")
+      .def_readonly("pose_error", &PosesResult::pose_error,
+                    "e at the median depth (metres when geo-referenced).")
+      .def_readonly("georeferenced", &PosesResult::georeferenced, "Whether positions were used.")
+      .def_readonly("georeference_rms_m", &PosesResult::georeference_rms_m,
+                    "RMS of the centre residuals after geo-referencing, metres.")
+      .def_readonly("georeference_frames", &PosesResult::georeference_frames,
+                    "Registered frames with a position.")
+      .def_property_readonly(
+          "stage_seconds",
+          [](const PosesResult& r) {
+            py::dict seconds;
+            for (const auto& stage : r.stages) seconds[py::str(stage.name)] = stage.seconds;
+            return seconds;
+          },
+          "Wall time per stage: features, matching, mapping, import.")
+      .def_readonly("workspace", &PosesResult::workspace, "The kept workspace, or ''.");
+
+  m.def(
+      "_estimate_poses",
+      [](const std::string& frames_dir, const PosesOptions& options, const py::object& progress) {
+        const PosesOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return EstimatePoses(frames_dir, options_copy, sink);
+        });
+      },
+      "frames_dir"_a, "options"_a, "progress"_a = py::none(),
+      "Runs COLMAP, GIL released. Prefer aos.estimate_poses.");
+
+  py::class_<ColmapImport>(m, "ColmapImport", "A COLMAP model imported as a light field.")
+      .def_readonly("light_field", &ColmapImport::light_field,
+                    "One view per registered image, sorted by name, in the model's frame.")
+      .def_readonly("registered", &ColmapImport::registered, "Image names, in view order.")
+      .def_readonly("unregistered", &ColmapImport::unregistered,
+                    "Frames in images_dir the model does not register.");
+  m.def(
+      "import_colmap",
+      [](const std::string& model_dir, const std::string& images_dir, bool load_images,
+         int num_threads) {
+        ColmapImportOptions options;
+        options.load_images = load_images;
+        options.num_threads = num_threads;
+        py::gil_scoped_release release;
+        const ColmapModel model = ReadColmapModel(model_dir);
+        ColmapImport imported = ImportColmapModel(model, images_dir, options);
+        PoseSource source;
+        source.method = "colmap";
+        source.mean_reprojection_error_px = model.mean_reprojection_error_px;
+        source.unregistered = imported.unregistered;
+        imported.light_field.pose_source = source;
+        return imported;
+      },
+      "model_dir"_a, "images_dir"_a, "load_images"_a = true, "num_threads"_a = -1,
+      "Imports a COLMAP sparse model (text or binary) with the frames in images_dir; raises "
+      "ValueError naming the file and field.");
+  m.def(
+      "read_positions",
+      [](const std::string& path) {
+        py::dict positions;
+        for (const NamedPosition& p : ReadPositionsFile(path)) {
+          positions[py::str(p.name)] = py::make_tuple(p.position.x, p.position.y, p.position.z);
+        }
+        return positions;
+      },
+      "path"_a, "A positions CSV (name,x,y,z) as {name: (x, y, z)}.");
+}
+
+}  // namespace aos::python

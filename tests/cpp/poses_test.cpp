@@ -1,0 +1,254 @@
+// The COLMAP pipeline's parts that need no COLMAP: the process runner, positions files,
+// geo-referencing of a light field, and the pipeline's errors (with a stand-in COLMAP script).
+// The pipeline itself against COLMAP is tested from Python (tests/python/test_poses.py).
+#include "aos/sfm/colmap_pipeline.h"
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <random>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/image/image_io.h"
+#include "aos/util/error.h"
+#include "aos/util/process.h"
+#include "error_of.h"
+#include "temp_folder.h"
+
+namespace aos {
+namespace {
+
+using ::testing::ElementsAre;
+using ::testing::HasSubstr;
+using test_util::ErrorOf;
+
+TEST(Process, StreamsLinesAndReturnsTheExitStatus) {
+  std::vector<std::string> lines;
+  const int status = RunProcess({"sh", "-c", "echo one; echo two 1>&2; printf 'a\\rb'; exit 3"},
+                                [&](const std::string& line) { lines.push_back(line); });
+  EXPECT_EQ(status, 3);
+  EXPECT_THAT(lines, ElementsAre("one", "two", "a", "b"));
+  EXPECT_EQ(RunProcess({"sh", "-c", "kill -9 $$"}, nullptr), 128 + 9);
+}
+
+TEST(Process, MissingProgramsAreNamed) {
+  EXPECT_FALSE(ProgramExists("no-such-program-aos"));
+  EXPECT_TRUE(ProgramExists("sh"));
+  EXPECT_THAT(ErrorOf([] { RunProcess({"no-such-program-aos", "x"}, nullptr); }),
+              HasSubstr("no-such-program-aos: not found"));
+  EXPECT_THAT(ErrorOf([] { RunProcess({"/nonexistent/colmap"}, nullptr); }),
+              HasSubstr("/nonexistent/colmap: not found"));
+}
+
+TEST(Process, CancellingStopsTheChildPromptly) {
+  const auto start = std::chrono::steady_clock::now();
+  int polls = 0;
+  EXPECT_THROW(RunProcess({"sleep", "30"}, nullptr, [&] { return ++polls > 2; }), Cancelled);
+  // SIGTERM ends sleep at once; the bound only guards against waiting for the 30 s.
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+}
+
+class PositionsFiles : public testing_util::TempFolderTest {
+ protected:
+  std::string Write(const std::string& name, const std::string& text) {
+    std::ofstream(Path(name)) << text;
+    return Path(name);
+  }
+};
+
+TEST_F(PositionsFiles, ReadsNamesAndMetricCoordinates) {
+  const std::string path = Write("gps.csv",
+                                 "name, x, y, z\r\n# a comment\n\na.png, 500000.25, 5300000.5, "
+                                 "420\nb.png,500010,5300001,421.5\n");
+  const std::vector<NamedPosition> positions = ReadPositionsFile(path);
+  ASSERT_EQ(positions.size(), 2u);
+  EXPECT_EQ(positions[0].name, "a.png");
+  EXPECT_EQ(positions[0].position, Vec3d(500000.25, 5300000.5, 420.0));
+  EXPECT_EQ(positions[1].position, Vec3d(500010.0, 5300001.0, 421.5));
+}
+
+TEST_F(PositionsFiles, MalformedLinesAreNamed) {
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("a.csv", "a.png,1,2\n")); }),
+              HasSubstr("a.csv: line 1: expected 4 comma-separated fields"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("b.csv", "a.png,1,2,3\nb.png,1,x,3\n")); }),
+              HasSubstr("b.csv: line 2: x, y, z must be numbers"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("c.csv", "a.png,1,2,3\na.png,1,2,3\n")); }),
+              HasSubstr("c.csv: line 2: name: \"a.png\" is repeated"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("d.csv", "a.png,1,inf,3\n")); }),
+              HasSubstr("d.csv: line 1: y: inf is not finite"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("e.csv", "# nothing\n")); }),
+              HasSubstr("e.csv: no positions"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Path("missing.csv")); }),
+              HasSubstr("missing.csv: cannot read"));
+}
+
+// Views whose poses are the true ones seen through an arbitrary similarity (COLMAP's frame).
+struct ModelFrameLightField {
+  LightField light_field;
+  std::vector<std::string> names;
+  std::vector<NamedPosition> positions;  // true centres, UTM-sized
+  std::vector<Rigid3d> true_local;       // true poses about the positions' mean
+};
+
+ModelFrameLightField MakeModelFrameLightField(double baseline_m) {
+  ModelFrameLightField m;
+  const Vec3d utm(512345.678, 5301234.567, 431.0);
+  Sim3d model_from_true;
+  model_from_true.scale = 0.037;
+  model_from_true.rotation = LookAt(Vec3d(0.0), Vec3d(0.3, -0.2, 1.0), Vec3d(0.1, 1.0, 0.2)).rotation;
+  model_from_true.translation = Vec3d(3.0, -1.0, 2.5);
+  std::vector<Vec3d> centres;
+  for (int j = 0; j < 3; ++j) {
+    for (int i = 0; i < 3; ++i) {
+      centres.push_back(utm + Vec3d(baseline_m * i, baseline_m * j + 0.1 * baseline_m * i,
+                                    0.05 * baseline_m * (i + j) * (i == 1 ? 1 : 0)));
+    }
+  }
+  Vec3d mean(0.0);
+  for (const Vec3d& c : centres) mean += c;
+  mean /= static_cast<double>(centres.size());
+  for (size_t k = 0; k < centres.size(); ++k) {
+    const std::string name = "f" + std::to_string(k) + ".png";
+    m.names.push_back("flight/" + name);
+    m.positions.push_back({name, centres[k]});
+    const Rigid3d local = NadirCamFromWorld(centres[k] - mean);
+    m.true_local.push_back(local);
+    // Model frame: x_model = s R (x_true - mean) + t, so cam_from_model = cam_from_true o inverse.
+    View view;
+    view.cam_from_world = TransformCamFromWorld(model_from_true, local);
+    m.light_field.views.push_back(view);
+  }
+  return m;
+}
+
+TEST(Georeference, RecoversTheTrueFrameAtUtmCoordinates) {
+  ModelFrameLightField m = MakeModelFrameLightField(8.0);
+  const GeoreferenceResult result = Georeference(&m.light_field, m.names, m.positions, "gps.csv");
+  EXPECT_EQ(result.frames, 9);
+  EXPECT_LT(result.rms_m, 1e-9);
+  Vec3d mean(0.0);
+  for (const NamedPosition& p : m.positions) mean += p.position;
+  mean /= 9.0;
+  EXPECT_EQ(m.light_field.origin, mean);
+  for (size_t k = 0; k < m.true_local.size(); ++k) {
+    const Rigid3d& got = m.light_field.views[k].cam_from_world;
+    // Centres to 1e-9 m: the poses are about the origin, so UTM magnitudes never enter them.
+    EXPECT_LT(glm::length(got.Center() - m.true_local[k].Center()), 1e-9);
+    for (int c = 0; c < 3; ++c) {
+      EXPECT_LT(glm::length(got.rotation[c] - m.true_local[k].rotation[c]), 1e-9);
+    }
+  }
+}
+
+TEST(Georeference, TooFewOrDegeneratePositionsAreRefused) {
+  ModelFrameLightField m = MakeModelFrameLightField(8.0);
+  std::vector<NamedPosition> two(m.positions.begin(), m.positions.begin() + 2);
+  EXPECT_THAT(ErrorOf([&] { Georeference(&m.light_field, m.names, two, "gps.csv"); }),
+              HasSubstr("gps.csv: only 2 registered frames have a position"));
+  // All centres on one line: orientation about that line is unknown.
+  std::vector<NamedPosition> line = m.positions;
+  for (size_t k = 0; k < line.size(); ++k) line[k].position = Vec3d(500000.0 + k, 5300000.0, 400.0);
+  EXPECT_THAT(ErrorOf([&] { Georeference(&m.light_field, m.names, line, "gps.csv"); }),
+              HasSubstr("gps.csv"));
+}
+
+TEST(Georeference, TinyBaselinesStayAccurateOrAreRefused) {
+  // 5 cm between frames at UTM coordinates: still solvable in double (centred first).
+  ModelFrameLightField m = MakeModelFrameLightField(0.05);
+  const GeoreferenceResult result = Georeference(&m.light_field, m.names, m.positions, "gps.csv");
+  EXPECT_LT(result.rms_m, 1e-9);
+  for (size_t k = 0; k < m.true_local.size(); ++k) {
+    EXPECT_LT(glm::length(m.light_field.views[k].cam_from_world.Center() - m.true_local[k].Center()),
+              1e-8);
+  }
+  // Coincident positions carry no scale or orientation at all.
+  ModelFrameLightField same = MakeModelFrameLightField(8.0);
+  for (NamedPosition& p : same.positions) p.position = Vec3d(500000.0, 5300000.0, 400.0);
+  EXPECT_THAT(ErrorOf([&] { Georeference(&same.light_field, same.names, same.positions, "gps.csv"); }),
+              HasSubstr("gps.csv"));
+}
+
+class PosesPipeline : public testing_util::TempFolderTest {
+ protected:
+  void WriteFrame(const std::string& name, int width, int height) {
+    std::filesystem::create_directories(std::filesystem::path(Path(name)).parent_path());
+    Image image(width, height, 1, PixelType::kU8);
+    WriteImage(Path(name), image);
+  }
+  // A stand-in COLMAP that prints a line and exits with `status`.
+  std::string FakeColmap(int status) {
+    const std::string path = Path("fake_colmap.sh");
+    std::ofstream(path) << "#!/bin/sh\necho \"fake colmap: $1\"\nexit " << status << "\n";
+    std::filesystem::permissions(path, std::filesystem::perms::owner_all);
+    return path;
+  }
+};
+
+TEST_F(PosesPipeline, OptionsAreChecked) {
+  PosesOptions options;
+  options.matcher = "vocab_tree";
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("matcher: \"vocab_tree\" is not one of"));
+  options = PosesOptions();
+  options.matcher = "spatial";
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("matcher: spatial matching needs positions"));
+  options = PosesOptions();
+  options.camera_model = "FOV";
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("camera_model: \"FOV\" is not a supported"));
+  options = PosesOptions();
+  options.min_registered_fraction = 0.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("min_registered_fraction"));
+  options = PosesOptions();
+  options.fov_deg = 200.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("fov_deg"));
+}
+
+TEST_F(PosesPipeline, BadFoldersAndMissingColmapAreClearErrors) {
+  PosesOptions options;
+  options.colmap = FakeColmap(0);
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("missing"), options); }),
+              HasSubstr("missing: not a folder of frames"));
+  std::filesystem::create_directories(Path("empty"));
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("empty"), options); }),
+              HasSubstr("empty: no readable frames"));
+  WriteFrame("mixed/a.png", 32, 24);
+  WriteFrame("mixed/b.png", 32, 24);
+  WriteFrame("mixed/c.png", 24, 32);
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("mixed"), options); }),
+              HasSubstr("frames differ in size (one camera for all frames): a.png is 32x24 but "
+                        "c.png (24x32)"));
+  options.colmap = "/nonexistent/colmap";
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("mixed"), options); }),
+              HasSubstr("colmap: \"/nonexistent/colmap\" not found"));
+}
+
+TEST_F(PosesPipeline, ColmapFailingIsReportedWithItsOutputAndLeavesNothingBehind) {
+  WriteFrame("frames/a.png", 32, 24);
+  WriteFrame("frames/b.png", 32, 24);
+  std::ofstream(Path("frames/broken.png")) << "not a png";
+  PosesOptions options;
+  options.colmap = FakeColmap(1);
+  options.workspace = Path("ws");
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("COLMAP feature_extractor (features) failed with exit status 1; the end "
+                        "of its output:\n  fake colmap: feature_extractor"));
+  // The named workspace is kept (with the log); the frames are untouched.
+  EXPECT_TRUE(std::filesystem::exists(Path("ws/colmap_features.log")));
+  EXPECT_EQ(std::filesystem::file_size(Path("frames/broken.png")), 9u);
+  // A used workspace is refused before anything runs.
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }), HasSubstr("ws"));
+}
+
+TEST_F(PosesPipeline, ColmapBuildingNoModelIsAnError) {
+  WriteFrame("frames/a.png", 32, 24);
+  WriteFrame("frames/b.png", 32, 24);
+  PosesOptions options;
+  options.colmap = FakeColmap(0);  // "succeeds" without writing anything
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("COLMAP registered no frames"));
+}
+
+}  // namespace
+}  // namespace aos
