@@ -1130,6 +1130,8 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
   command->add_option("--positions", c.options.positions_file,
                       "CSV of name,x,y,z camera positions (metres, e.g. UTM): geo-reference, and "
                       "priors for spatial matching");
+  command->add_flag("--positions-from-exif", c.options.exif_positions,
+                    "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
   command->add_option("--max-image-size", c.options.max_image_size,
                       "Features on frames downscaled to this longest side")
       ->capture_default_str();
@@ -1159,7 +1161,8 @@ int RunPoses(PosesCommand& c) {
                                {"max_num_features", "--max-features"},
                                {"min_registered_fraction", "--min-registered"},
                                {"num_threads", "--threads"},
-                               {"colmap", "--colmap"}});
+                               {"colmap", "--colmap"},
+                               {"positions_file/exif_positions", "--positions/--positions-from-exif"}});
   }
   progress.Finish();
   for (const std::string& warning : result.warnings) {
@@ -1172,8 +1175,8 @@ int RunPoses(PosesCommand& c) {
               result.mean_reprojection_error_px);
   const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
   if (result.georeferenced) {
-    std::printf("geo-referenced by %d positions: RMS %.3f m; origin %.3f %.3f %.3f\n",
-                result.georeference_frames, result.georeference_rms_m,
+    std::printf("geo-referenced by %d positions (%s): RMS %.3f m; origin %.3f %.3f %.3f\n",
+                result.georeference_frames, result.world_frame.c_str(), result.georeference_rms_m,
                 result.light_field.origin.x, result.light_field.origin.y,
                 result.light_field.origin.z);
   }

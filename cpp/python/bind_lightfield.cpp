@@ -55,6 +55,8 @@ void BindLightField(py::module_& m) {
                     "Whether units are metres (else COLMAP's arbitrary scale).")
       .def_readonly("georeference_rms_m", &PoseSource::georeference_rms_m,
                     "RMS of the camera-centre residuals of the geo-referencing, metres.")
+      .def_readonly("world_frame", &PoseSource::world_frame,
+                    "What origin and world coordinates are in, e.g. 'UTM 31N (WGS84)'.")
       .def_readonly("unregistered", &PoseSource::unregistered, "Frames that got no pose.");
 
   py::class_<LightField>(m, "LightField",

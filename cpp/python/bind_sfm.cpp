@@ -25,6 +25,8 @@ void BindSfm(py::module_& m) {
              "Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's guess.")
       .Field("positions_file", &PosesOptions::positions_file,
              "CSV of name,x,y,z positions (metres): geo-reference and spatial priors.")
+      .Field("exif_positions", &PosesOptions::exif_positions,
+             "Positions from the frames' EXIF GPS tags (UTM) instead of a file.")
       .Field("max_image_size", &PosesOptions::max_image_size,
              "Features on frames downscaled to this longest side.")
       .Field("max_num_features", &PosesOptions::max_num_features, "Features per frame.")
@@ -55,6 +57,8 @@ void BindSfm(py::module_& m) {
                     "RMS of the centre residuals after geo-referencing, metres.")
       .def_readonly("georeference_frames", &PosesResult::georeference_frames,
                     "Registered frames with a position.")
+      .def_readonly("world_frame", &PosesResult::world_frame,
+                    "What the light field's world frame is, e.g. 'UTM 31N (WGS84)'.")
       .def_property_readonly(
           "stage_seconds",
           [](const PosesResult& r) {

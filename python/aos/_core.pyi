@@ -204,6 +204,8 @@ class PoseSource:
     @property
     def georeference_rms_m(self) -> float: ...
     @property
+    def world_frame(self) -> str: ...
+    @property
     def unregistered(self) -> list[str]: ...
 
 class LightField:
@@ -785,6 +787,7 @@ class PosesOptions:
         camera_model: str = ...,
         fov_deg: float = ...,
         positions_file: str = ...,
+        exif_positions: bool = ...,
         max_image_size: int = ...,
         max_num_features: int = ...,
         min_registered_fraction: float = ...,
@@ -799,6 +802,7 @@ class PosesOptions:
     camera_model: str
     fov_deg: float
     positions_file: str
+    exif_positions: bool
     max_image_size: int
     max_num_features: int
     min_registered_fraction: float
@@ -839,6 +843,8 @@ class PosesResult:
     def georeference_rms_m(self) -> float: ...
     @property
     def georeference_frames(self) -> int: ...
+    @property
+    def world_frame(self) -> str: ...
     @property
     def stage_seconds(self) -> dict[str, float]: ...
     @property

@@ -12,6 +12,9 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <OpenImageIO/imageio.h>
+
+#include "aos/geometry/geodesy.h"
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
 #include "aos/util/process.h"
@@ -49,6 +52,97 @@ TEST(Process, CancellingStopsTheChildPromptly) {
   EXPECT_THROW(RunProcess({"sleep", "30"}, nullptr, [&] { return ++polls > 2; }), Cancelled);
   // SIGTERM ends sleep at once; the bound only guards against waiting for the 30 s.
   EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+}
+
+TEST(Geodesy, UtmMatchesReferenceCoordinates) {
+  // The Eiffel Tower, 48.8582 N 2.2945 E: 31N 448251.795 E 5411932.678 N (GeographicLib, as
+  // pygeodesy's tests give it to the millimetre).
+  const UtmCoordinate paris = UtmFromWgs84(48.8582, 2.2945);
+  EXPECT_EQ(paris.zone, 31);
+  EXPECT_TRUE(paris.north);
+  EXPECT_NEAR(paris.easting, 448251.795, 1e-3);
+  EXPECT_NEAR(paris.northing, 5411932.678, 1e-3);
+  // On the central meridian the easting is exactly the false easting; the equator is northing 0.
+  EXPECT_NEAR(UtmFromWgs84(0.0, 3.0).easting, 500000.0, 1e-9);
+  EXPECT_NEAR(UtmFromWgs84(0.0, 3.0).northing, 0.0, 1e-9);
+  // The projection is symmetric about the equator: south = 10,000 km - north.
+  const UtmCoordinate south = UtmFromWgs84(-48.8582, 2.2945);
+  EXPECT_FALSE(south.north);
+  EXPECT_NEAR(south.easting, paris.easting, 1e-6);
+  EXPECT_NEAR(south.northing, 10000000.0 - paris.northing, 1e-6);
+  // A forced zone keeps neighbours in one frame (the next zone's meridian is 6 degrees east).
+  const UtmCoordinate forced = UtmFromWgs84(48.8582, 2.2945, 32);
+  EXPECT_EQ(forced.zone, 32);
+  EXPECT_LT(forced.easting, 100000.0);
+  // Longitudes wrap; zone 60 ends at 180 degrees.
+  EXPECT_EQ(UtmFromWgs84(10.0, 179.9).zone, 60);
+  EXPECT_EQ(UtmFromWgs84(10.0, -179.9).zone, 1);
+  EXPECT_THAT(ErrorOf([] { UtmFromWgs84(85.0, 0.0, 0, "frame.jpg: GPS"); }),
+              HasSubstr("frame.jpg: GPS: latitude 85 is outside UTM's range"));
+  EXPECT_THAT(ErrorOf([] { UtmFromWgs84(std::nan(""), 0.0); }), HasSubstr("must be finite"));
+}
+
+class ExifFrames : public testing_util::TempFolderTest {
+ protected:
+  // A small JPEG with GPS tags as a drone writes them (degrees, minutes, seconds + refs).
+  void WriteTagged(const std::string& name, double lat, double lon, double altitude,
+                   bool with_altitude = true) {
+    OIIO::ImageSpec spec(16, 12, 1, OIIO::TypeDesc::UINT8);
+    const auto dms = [](double value, float out[3]) {
+      value = std::abs(value);
+      out[0] = static_cast<float>(std::floor(value));
+      out[1] = static_cast<float>(std::floor((value - out[0]) * 60.0));
+      out[2] = static_cast<float>((value - out[0] - out[1] / 60.0) * 3600.0);
+    };
+    float lat_dms[3], lon_dms[3];
+    dms(lat, lat_dms);
+    dms(lon, lon_dms);
+    spec.attribute("GPS:Latitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), lat_dms);
+    spec.attribute("GPS:LatitudeRef", lat < 0 ? "S" : "N");
+    spec.attribute("GPS:Longitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), lon_dms);
+    spec.attribute("GPS:LongitudeRef", lon < 0 ? "W" : "E");
+    if (with_altitude) {
+      spec.attribute("GPS:Altitude", static_cast<float>(std::abs(altitude)));
+      spec.attribute("GPS:AltitudeRef", altitude < 0 ? 1 : 0);
+    }
+    std::vector<uint8_t> pixels(16 * 12, 100);
+    auto out = OIIO::ImageOutput::create(Path(name));
+    ASSERT_TRUE(out && out->open(Path(name), spec));
+    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, pixels.data()));
+    out->close();
+  }
+};
+
+TEST_F(ExifFrames, GpsTagsBecomeUtmPositions) {
+  WriteTagged("a.jpg", 48.8582, 2.2945, 135.5);
+  WriteTagged("b.jpg", -33.5, -70.25, -12.0);  // south, west, below sea level
+  WriteTagged("c.jpg", 48.8583, 2.2946, 0.0, /*with_altitude=*/false);
+  Image plain(8, 8, 1, PixelType::kU8);
+  WriteImage(Path("d.png"), plain);
+  const std::optional<GpsTag> a = ReadGpsTag(Path("a.jpg"));
+  ASSERT_TRUE(a.has_value());
+  // EXIF stores seconds as rationals (float here): within 1e-6 degrees (0.1 m).
+  EXPECT_NEAR(a->latitude_deg, 48.8582, 1e-6);
+  EXPECT_NEAR(a->longitude_deg, 2.2945, 1e-6);
+  EXPECT_NEAR(a->altitude_m, 135.5, 1e-4);
+  const std::optional<GpsTag> b = ReadGpsTag(Path("b.jpg"));
+  ASSERT_TRUE(b.has_value());
+  EXPECT_NEAR(b->latitude_deg, -33.5, 1e-6);
+  EXPECT_NEAR(b->longitude_deg, -70.25, 1e-6);
+  EXPECT_NEAR(b->altitude_m, -12.0, 1e-4);
+  EXPECT_TRUE(std::isnan(ReadGpsTag(Path("c.jpg"))->altitude_m));
+  EXPECT_FALSE(ReadGpsTag(Path("d.png")).has_value());
+  // Positions: UTM in the first tagged frame's zone; frames without a full fix are skipped.
+  std::vector<std::string> skipped;
+  std::string zone;
+  const std::vector<NamedPosition> positions =
+      PositionsFromExif(dir_.string(), {"a.jpg", "c.jpg", "d.png"}, &skipped, &zone);
+  ASSERT_EQ(positions.size(), 1u);
+  EXPECT_EQ(zone, "UTM 31N (WGS84)");
+  EXPECT_THAT(skipped, ElementsAre("c.jpg", "d.png"));
+  EXPECT_NEAR(positions[0].position.x, 448251.795, 0.1);
+  EXPECT_NEAR(positions[0].position.y, 5411932.678, 0.1);
+  EXPECT_NEAR(positions[0].position.z, 135.5, 1e-4);
 }
 
 class PositionsFiles : public testing_util::TempFolderTest {
@@ -200,6 +294,10 @@ TEST_F(PosesPipeline, OptionsAreChecked) {
   options = PosesOptions();
   options.min_registered_fraction = 0.0;
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("min_registered_fraction"));
+  options = PosesOptions();
+  options.positions_file = "gps.csv";
+  options.exif_positions = true;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("give one source of positions"));
   options = PosesOptions();
   options.fov_deg = 200.0;
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("fov_deg"));

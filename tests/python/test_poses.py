@@ -133,6 +133,8 @@ def test_python_api_and_bad_input(flight, tmp_path) -> None:
         aos.estimate_poses(flight["root"] / "sim" / "views", colmap="/nonexistent/colmap")
     with pytest.raises(ValueError, match="matcher"):
         aos.estimate_poses(tmp_path, matcher="vocab")
+    with pytest.raises(ValueError, match="only 0 frames carry EXIF GPS positions"):
+        aos.estimate_poses(flight["root"] / "sim" / "views", exif_positions=True)
     with pytest.raises(TypeError, match="unexpected keyword argument 'overlap'"):
         aos.estimate_poses(tmp_path, overlap=3)
     # The CLI names its flags, exits 1, and writes nothing.

@@ -66,6 +66,38 @@ ImageFileInfo ReadImageInfo(const std::string& path) {
   return info;
 }
 
+std::optional<GpsTag> ReadGpsTag(const std::string& path) {
+  auto input = Open(path);
+  const oiio::ImageSpec& spec = input->spec();
+  // Degrees, minutes, seconds (three rationals or floats) and a hemisphere letter.
+  const auto angle = [&](const char* name, const char* ref_name, const char* negative,
+                         double* degrees) {
+    const oiio::ParamValue* value = spec.find_attribute(name);
+    if (value == nullptr) return false;
+    const int n = static_cast<int>(value->type().numelements() * value->type().aggregate);
+    if (n != 3 && n != 1) ThrowInvalid(path + ": " + name + ": expected degrees, minutes, seconds");
+    double dms[3] = {0, 0, 0};
+    for (int i = 0; i < n; ++i) dms[i] = value->get_float_indexed(i);
+    *degrees = dms[0] + dms[1] / 60.0 + dms[2] / 3600.0;
+    if (!std::isfinite(*degrees)) ThrowInvalid(path + ": " + name + ": not finite");
+    const std::string ref = spec.get_string_attribute(ref_name);
+    if (!ref.empty() && (ref[0] == negative[0] || ref[0] == std::tolower(negative[0]))) {
+      *degrees = -*degrees;
+    }
+    return true;
+  };
+  GpsTag tag;
+  const bool has_latitude = angle("GPS:Latitude", "GPS:LatitudeRef", "S", &tag.latitude_deg);
+  const bool has_longitude = angle("GPS:Longitude", "GPS:LongitudeRef", "W", &tag.longitude_deg);
+  if (!has_latitude || !has_longitude) return std::nullopt;
+  if (const oiio::ParamValue* altitude = spec.find_attribute("GPS:Altitude")) {
+    tag.altitude_m = altitude->get_float_indexed(0);
+    if (spec.get_int_attribute("GPS:AltitudeRef", 0) == 1) tag.altitude_m = -tag.altitude_m;
+  }
+  input->close();
+  return tag;
+}
+
 Image ReadImage(const std::string& path, int border) {
   auto input = Open(path);
   const oiio::ImageSpec& spec = input->spec();

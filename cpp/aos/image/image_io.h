@@ -8,6 +8,8 @@
 // 16 bit) use the stated normalisation code = round((value - range_min) / (range_max - range_min)
 // * max_code), clamped to [0, max_code]; integer images written to an integer type of at least
 // their size are stored unchanged. Writes go to a temporary file renamed into place on success.
+#include <cmath>
+#include <optional>
 #include <string>
 
 #include "aos/image/image.h"
@@ -23,6 +25,17 @@ struct ImageFileInfo {
 
 // Header only. Throws std::invalid_argument "<path>: <reason>" if unreadable.
 ImageFileInfo ReadImageInfo(const std::string& path);
+
+// A frame's GPS position from its EXIF tags (GPS:Latitude/LatitudeRef, GPS:Longitude/
+// LongitudeRef, GPS:Altitude/AltitudeRef), WGS84 degrees (south and west negative) and metres;
+// nullopt when the frame has no latitude/longitude. altitude_m is NaN when absent. Throws like
+// ReadImageInfo for an unreadable file, and for malformed tags (naming the tag).
+struct GpsTag {
+  double latitude_deg = 0.0;
+  double longitude_deg = 0.0;
+  double altitude_m = std::nan("");
+};
+std::optional<GpsTag> ReadGpsTag(const std::string& path);
 
 // Reads the whole image with `border` replicated border pixels (see Image).
 Image ReadImage(const std::string& path, int border = 0);

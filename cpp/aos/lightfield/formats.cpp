@@ -346,6 +346,9 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     if (auto field = it->find("method"); field != it->end() && field->is_string()) {
       p.method = field->get<std::string>();
     }
+    if (auto field = it->find("world_frame"); field != it->end() && field->is_string()) {
+      p.world_frame = field->get<std::string>();
+    }
     number("mean_reprojection_error_px", &p.mean_reprojection_error_px);
     number("median_depth", &p.median_depth);
     number("pose_error", &p.pose_error);
@@ -768,6 +771,7 @@ void WriteLightField(const std::string& path, const LightField& light_field,
                            {"pose_error", p.pose_error},
                            {"georeferenced", p.georeferenced},
                            {"georeference_rms_m", p.georeference_rms_m},
+                           {"world_frame", p.world_frame},
                            {"unregistered", p.unregistered}};
   }
   std::vector<const View*> cameras;  // the first view of each distinct camera

@@ -14,7 +14,7 @@
 //   }
 //   Optional "pose_source" (PoseSource in lightfield.h) says where estimated poses came from:
 //   {"method": "colmap", "mean_reprojection_error_px", "median_depth", "pose_error",
-//    "georeferenced", "georeference_rms_m", "unregistered": [frame names]}.
+//    "georeferenced", "georeference_rms_m", "world_frame", "unregistered": [frame names]}.
 //   Poses map the local frame (world - origin) to OpenCV camera axes, metres. A camera may give
 //   "fov_deg" (horizontal, square pixels, centred principal point) instead of fx/fy/cx/cy. A lens
 //   camera has "model" "radtan", "fisheye" or "omnidir", fx/fy/cx/cy, "distortion" (up to 5

@@ -39,6 +39,7 @@ struct PoseSource {
   double pose_error = 0.0;                // e = error_px * median_depth / fx, light-field units
   bool georeferenced = false;             // units are metres (else the method's arbitrary scale)
   double georeference_rms_m = 0.0;        // centre residuals of the geo-referencing
+  std::string world_frame;                // what origin and world are in, e.g. "UTM 31N (WGS84)"
   std::vector<std::string> unregistered;  // frames that got no pose
 };
 

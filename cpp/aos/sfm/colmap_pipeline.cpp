@@ -13,6 +13,7 @@
 #include <set>
 #include <sstream>
 
+#include "aos/geometry/geodesy.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/util/error.h"
@@ -220,8 +221,11 @@ void PosesOptions::Check() const {
   if (matcher != "sequential" && matcher != "spatial" && matcher != "exhaustive") {
     ThrowInvalid("matcher: \"" + matcher + "\" is not one of sequential, spatial, exhaustive");
   }
-  if (matcher == "spatial" && positions_file.empty()) {
-    ThrowInvalid("matcher: spatial matching needs positions (positions_file)");
+  if (!positions_file.empty() && exif_positions) {
+    ThrowInvalid("positions_file/exif_positions: give one source of positions, not both");
+  }
+  if (matcher == "spatial" && positions_file.empty() && !exif_positions) {
+    ThrowInvalid("matcher: spatial matching needs positions (positions_file or exif_positions)");
   }
   if (sequential_overlap < 1) ThrowInvalid("sequential_overlap: must be >= 1");
   static const std::set<std::string> kModels = {
@@ -301,6 +305,30 @@ std::vector<NamedPosition> ReadPositionsFile(const std::string& path) {
   return positions;
 }
 
+std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
+                                             const std::vector<std::string>& frames,
+                                             std::vector<std::string>* skipped,
+                                             std::string* zone_label) {
+  std::vector<NamedPosition> positions;
+  int zone = 0;
+  for (const std::string& name : frames) {
+    const std::string path = (fs::path(frames_dir) / name).string();
+    const std::optional<GpsTag> tag = ReadGpsTag(path);
+    if (!tag || !std::isfinite(tag->altitude_m)) {
+      skipped->push_back(name);
+      continue;
+    }
+    const UtmCoordinate utm = UtmFromWgs84(tag->latitude_deg, tag->longitude_deg, zone,
+                                           path + ": GPS");
+    if (zone == 0) {
+      zone = utm.zone;
+      *zone_label = "UTM " + std::to_string(utm.zone) + (utm.north ? "N" : "S") + " (WGS84)";
+    }
+    positions.push_back({name, Vec3d(utm.easting, utm.northing, tag->altitude_m)});
+  }
+  return positions;
+}
+
 GeoreferenceResult Georeference(LightField* light_field, const std::vector<std::string>& names,
                                 const std::vector<NamedPosition>& positions,
                                 const std::string& where) {
@@ -362,6 +390,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   std::vector<NamedPosition> positions;
   if (!options.positions_file.empty()) positions = ReadPositionsFile(options.positions_file);
 
+  // Positions from EXIF come after the frame list (below).
   // Frames: readable ones, one size.
   std::vector<std::string> unreadable;
   int width = 0, height = 0;
@@ -403,6 +432,20 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
                  std::to_string(width) + "x" + std::to_string(height));
   }
   if (result.frames.size() < 2) ThrowInvalid(frames_dir + ": one frame cannot give poses (need >= 2)");
+  if (!options.positions_file.empty()) result.world_frame = "positions file " + options.positions_file;
+  if (options.exif_positions) {
+    std::vector<std::string> untagged;
+    positions = PositionsFromExif(frames_dir, result.frames, &untagged, &result.world_frame);
+    if (!untagged.empty()) {
+      result.warnings.push_back(std::to_string(untagged.size()) +
+                                " frame(s) without an EXIF GPS latitude, longitude and altitude: " +
+                                ListSome(untagged));
+    }
+    if (positions.size() < 3) {
+      ThrowInvalid(frames_dir + ": only " + std::to_string(positions.size()) +
+                   " frames carry EXIF GPS positions; geo-referencing needs at least 3");
+    }
+  }
 
   Workspace workspace(options.workspace);
   if (!workspace.temporary()) result.workspace = workspace.path().string();
@@ -540,8 +583,9 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   result.observations = model.num_observations;
   result.mean_reprojection_error_px = model.mean_reprojection_error_px;
   if (!positions.empty()) {
-    const GeoreferenceResult geo = Georeference(&result.light_field, result.registered, positions,
-                                                options.positions_file);
+    const GeoreferenceResult geo = Georeference(
+        &result.light_field, result.registered, positions,
+        options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file);
     result.georeferenced = true;
     result.local_from_model = geo.local_from_model;
     result.georeference_rms_m = geo.rms_m;
@@ -560,6 +604,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   source.pose_error = result.pose_error;
   source.georeferenced = result.georeferenced;
   source.georeference_rms_m = result.georeference_rms_m;
+  source.world_frame = result.world_frame;
   source.unregistered = result.unregistered;
   result.light_field.pose_source = source;
   ProgressAdvance(progress, 1);

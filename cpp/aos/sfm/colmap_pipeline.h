@@ -24,8 +24,10 @@
 // - Registration: frames COLMAP leaves out are listed (PosesResult::unregistered) and warned
 //   about; fewer than min_registered_fraction of the frames registered is an error.
 // - Geo-referencing: with positions (a CSV file of `name,x,y,z` lines, metres in any metric
-//   frame, e.g. UTM easting, northing, altitude; a header line and '#' comments allowed), the
-//   model is mapped by the least-squares similarity from its camera centres to the given
+//   frame, e.g. UTM easting, northing, altitude; a header line and '#' comments allowed; or
+//   with exif_positions, the frames' EXIF GPS tags projected to UTM in the zone of the first
+//   tagged frame, altitude as z; frames without latitude, longitude and altitude are skipped
+//   with a warning), the model is mapped by the least-squares similarity from its camera centres to the given
 //   positions of the registered frames (at least 3, not collinear). That fixes scale,
 //   orientation (up axis) and origin; LightField::origin holds the positions' mean in double
 //   precision and the poses are relative to it. Without positions the light field keeps COLMAP's
@@ -59,6 +61,7 @@ struct PosesOptions {
   std::string camera_model = "SIMPLE_RADIAL";
   double fov_deg = 0.0;                 // self-calibration's starting horizontal FOV; 0 = COLMAP's
   std::string positions_file;           // CSV name,x,y,z (see above); empty = none
+  bool exif_positions = false;          // positions from the frames' EXIF GPS (UTM); not both
   int max_image_size = 1600;            // SIFT on frames downscaled to this longest side, >= 100
   int max_num_features = 4096;          // per frame, >= 100
   double min_registered_fraction = 0.5; // (0, 1]
@@ -82,6 +85,7 @@ struct PosesResult {
   Sim3d local_from_model;                 // the geo-referencing similarity (identity without)
   double georeference_rms_m = 0.0;        // RMS of centre residuals after it
   int georeference_frames = 0;            // registered frames with a position
+  std::string world_frame;                // "UTM 31N (WGS84, EXIF GPS)", "positions file", or ""
   struct Stage {
     std::string name;
     double seconds = 0.0;
@@ -100,6 +104,14 @@ struct NamedPosition {
   Vec3d position{0.0};
 };
 std::vector<NamedPosition> ReadPositionsFile(const std::string& path);
+
+// Positions from the EXIF GPS tags of `frames` (relative to frames_dir), in UTM (zone of the
+// first tagged frame; *zone_label gets e.g. "UTM 31N (WGS84)"). Frames without a full fix are
+// reported in *skipped.
+std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
+                                             const std::vector<std::string>& frames,
+                                             std::vector<std::string>* skipped,
+                                             std::string* zone_label);
 
 // Maps a light field of COLMAP's frame onto the positions of its views (by image_path's file
 // name relative to frames_dir, or by name): sets origin to the positions' mean and the poses to
