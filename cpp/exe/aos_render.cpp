@@ -1146,32 +1146,14 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
   command->add_flag("-q,--quiet", c.quiet, "No progress output");
 }
 
-int RunPoses(PosesCommand& c) {
-  ProgressBar progress(c.quiet);
-  CheckOutputPath(c.output, {}, "output");
-  PosesResult result;
-  try {
-    result = EstimatePoses(c.frames_dir, c.options, &progress);
-  } catch (const std::invalid_argument& error) {
-    RethrowNamingFlags(error, {{"matcher", "--matcher"},
-                               {"sequential_overlap", "--overlap"},
-                               {"camera_model", "--camera-model"},
-                               {"fov_deg", "--fov-deg"},
-                               {"max_image_size", "--max-image-size"},
-                               {"max_num_features", "--max-features"},
-                               {"min_registered_fraction", "--min-registered"},
-                               {"num_threads", "--threads"},
-                               {"colmap", "--colmap"},
-                               {"positions_file/exif_positions", "--positions/--positions-from-exif"}});
-  }
-  progress.Finish();
+// Warnings, then the light field and what the user needs to judge the poses.
+void ReportPoses(const PosesResult& result, const std::string& output) {
   for (const std::string& warning : result.warnings) {
     std::fprintf(stderr, "warning: %s\n", warning.c_str());
   }
-  WriteLightField(c.output, result.light_field);
   std::printf("wrote %s: %zu of %zu frames registered, %zu points, mean reprojection error "
               "%.3f px\n",
-              c.output.c_str(), result.registered.size(), result.frames.size(), result.points,
+              output.c_str(), result.registered.size(), result.frames.size(), result.points,
               result.mean_reprojection_error_px);
   const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
   if (result.georeferenced) {
@@ -1182,7 +1164,7 @@ int RunPoses(PosesCommand& c) {
   }
   std::printf("pose error e = %.4g%s at the median depth %.4g%s\n", result.pose_error, unit,
               result.median_depth, unit);
-  if (result.georeferenced && !result.light_field.views.empty()) {
+  if (result.georeferenced && !result.light_field.views.empty() && result.median_depth > 0.0) {
     ResolutionOptions resolution;
     resolution.distance_m = result.median_depth;
     resolution.pose_error_m = result.pose_error;
@@ -1195,6 +1177,69 @@ int RunPoses(PosesCommand& c) {
     std::printf("  %-9s %7.1f s\n", stage.name.c_str(), stage.seconds);
   }
   if (!result.workspace.empty()) std::printf("COLMAP workspace kept in %s\n", result.workspace.c_str());
+}
+
+const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
+    {"matcher", "--matcher"},
+    {"sequential_overlap", "--overlap"},
+    {"camera_model", "--camera-model"},
+    {"fov_deg", "--fov-deg"},
+    {"max_image_size", "--max-image-size"},
+    {"max_num_features", "--max-features"},
+    {"min_registered_fraction", "--min-registered"},
+    {"num_threads", "--threads"},
+    {"colmap", "--colmap"},
+    {"positions_file/exif_positions", "--positions/--positions-from-exif"}};
+
+int RunPoses(PosesCommand& c) {
+  ProgressBar progress(c.quiet);
+  CheckOutputPath(c.output, {}, "output");
+  PosesResult result;
+  try {
+    result = EstimatePoses(c.frames_dir, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, kPosesFlags);
+  }
+  progress.Finish();
+  WriteLightField(c.output, result.light_field);
+  ReportPoses(result, c.output);
+  return 0;
+}
+
+struct ImportColmapCommand {
+  std::string model_dir;
+  std::string frames_dir;
+  std::string output;
+  PosesOptions options;
+};
+
+void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
+  CLI::App* command = app.add_subcommand(
+      "import-colmap",
+      "Import a COLMAP sparse model (text or binary) as a light field; optionally "
+      "geo-referenced by known positions");
+  command->add_option("model", c.model_dir, "COLMAP model folder (e.g. sparse/0)")->required();
+  command->add_option("--images", c.frames_dir, "The frames folder COLMAP was given")->required();
+  command->add_option("-o,--output", c.output, "Light-field file to write (JSON)")->required();
+  command->add_option("--positions", c.options.positions_file,
+                      "CSV of name,x,y,z camera positions (metres, e.g. UTM): geo-reference");
+  command->add_flag("--positions-from-exif", c.options.exif_positions,
+                    "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
+  command->add_option("--min-registered", c.options.min_registered_fraction,
+                      "Fail below this fraction of frames registered")
+      ->capture_default_str();
+}
+
+int RunImportColmap(ImportColmapCommand& c) {
+  CheckOutputPath(c.output, {}, "output");
+  PosesResult result;
+  try {
+    result = ImportColmapPoses(c.model_dir, c.frames_dir, c.options);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, kPosesFlags);
+  }
+  WriteLightField(c.output, result.light_field);
+  ReportPoses(result, c.output);
   return 0;
 }
 
@@ -1282,9 +1327,11 @@ int main(int argc, char** argv) {
   RectifyCommand rectify;
   CalibrateCommand calibrate;
   PosesCommand poses;
+  ImportColmapCommand import_colmap;
   AddIntegral(app, integral);
   AddCalibrate(app, calibrate);
   AddPoses(app, poses);
+  AddImportColmap(app, import_colmap);
   AddRectify(app, rectify);
   AddResolution(app, resolution);
   AddStack(app, stack);
@@ -1308,6 +1355,7 @@ int main(int argc, char** argv) {
     if (app.got_subcommand("rectify")) return RunRectify(rectify);
     if (app.got_subcommand("calibrate")) return RunCalibrate(calibrate);
     if (app.got_subcommand("poses")) return RunPoses(poses);
+    if (app.got_subcommand("import-colmap")) return RunImportColmap(import_colmap);
     if (app.got_subcommand("merge")) return RunMerge(merge);
     if (app.got_subcommand("allinfocus")) return RunAllInFocus(all_in_focus);
     if (app.got_subcommand("simulate")) return RunSimulate(simulate);

@@ -80,32 +80,14 @@ void BindSfm(py::module_& m) {
       "frames_dir"_a, "options"_a, "progress"_a = py::none(),
       "Runs COLMAP, GIL released. Prefer aos.estimate_poses.");
 
-  py::class_<ColmapImport>(m, "ColmapImport", "A COLMAP model imported as a light field.")
-      .def_readonly("light_field", &ColmapImport::light_field,
-                    "One view per registered image, sorted by name, in the model's frame.")
-      .def_readonly("registered", &ColmapImport::registered, "Image names, in view order.")
-      .def_readonly("unregistered", &ColmapImport::unregistered,
-                    "Frames in images_dir the model does not register.");
   m.def(
-      "import_colmap",
-      [](const std::string& model_dir, const std::string& images_dir, bool load_images,
-         int num_threads) {
-        ColmapImportOptions options;
-        options.load_images = load_images;
-        options.num_threads = num_threads;
+      "_import_colmap",
+      [](const std::string& model_dir, const std::string& images_dir, const PosesOptions& options) {
         py::gil_scoped_release release;
-        const ColmapModel model = ReadColmapModel(model_dir);
-        ColmapImport imported = ImportColmapModel(model, images_dir, options);
-        PoseSource source;
-        source.method = "colmap";
-        source.mean_reprojection_error_px = model.mean_reprojection_error_px;
-        source.unregistered = imported.unregistered;
-        imported.light_field.pose_source = source;
-        return imported;
+        return ImportColmapPoses(model_dir, images_dir, options);
       },
-      "model_dir"_a, "images_dir"_a, "load_images"_a = true, "num_threads"_a = -1,
-      "Imports a COLMAP sparse model (text or binary) with the frames in images_dir; raises "
-      "ValueError naming the file and field.");
+      "model_dir"_a, "images_dir"_a, "options"_a,
+      "Imports a COLMAP sparse model, GIL released. Prefer aos.import_colmap.");
   m.def(
       "read_positions",
       [](const std::string& path) {

@@ -31,11 +31,9 @@ from typing import Any, Callable, Optional, Sequence, TypeVar
 
 from . import _core
 from ._core import (
-    ColmapImport,
     PosesOptions,
     PosesResult,
     PoseSource,
-    import_colmap,
     read_positions,
     CalibrateOptions,
     CalibrationResult,
@@ -88,7 +86,6 @@ from ._core import (
 )
 
 __all__ = [
-    "ColmapImport",
     "PosesOptions",
     "PosesResult",
     "PoseSource",
@@ -561,3 +558,19 @@ def estimate_poses(
     """
     merged = _merge_options("estimate_poses", PosesOptions, options, kwargs)
     return _core._estimate_poses(os.fspath(frames_dir), merged, progress)
+
+
+def import_colmap(
+    model_dir: str | os.PathLike[str],
+    images_dir: str | os.PathLike[str],
+    options: Optional[PosesOptions] = None,
+    **kwargs: Any,
+) -> PosesResult:
+    """Imports an existing COLMAP sparse model (a ``sparse/N`` folder, text or binary) with the
+    frames COLMAP was given, as ``aos-render import-colmap`` does: registered frames become
+    views (images not loaded), the others are listed as unregistered, and ``positions_file`` or
+    ``exif_positions`` (fields of :class:`PosesOptions`, like ``min_registered_fraction``)
+    geo-reference it. Raises ValueError naming the file and the field.
+    """
+    merged = _merge_options("import_colmap", PosesOptions, options, kwargs)
+    return _core._import_colmap(os.fspath(model_dir), os.fspath(images_dir), merged)

@@ -9,6 +9,8 @@
 #include <fstream>
 #include <random>
 
+#include <sys/wait.h>
+
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
@@ -16,7 +18,9 @@
 
 #include "aos/geometry/geodesy.h"
 #include "aos/image/image_io.h"
+#include "aos/lightfield/formats.h"
 #include "aos/util/error.h"
+#include "aos/util/file_util.h"
 #include "aos/util/process.h"
 #include "error_of.h"
 #include "temp_folder.h"
@@ -44,6 +48,35 @@ TEST(Process, MissingProgramsAreNamed) {
               HasSubstr("no-such-program-aos: not found"));
   EXPECT_THAT(ErrorOf([] { RunProcess({"/nonexistent/colmap"}, nullptr); }),
               HasSubstr("/nonexistent/colmap: not found"));
+}
+
+TEST(Process, LargeOutputNeverDeadlocks) {
+  int64_t lines = 0;
+  EXPECT_EQ(RunProcess({"seq", "1", "300000"}, [&](const std::string&) { ++lines; }), 0);
+  EXPECT_EQ(lines, 300000);
+}
+
+TEST(Process, AThrowingCallbackStopsAndReapsTheChild) {
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_THROW(RunProcess({"sh", "-c", "echo first; sleep 30"},
+                          [](const std::string&) { throw std::runtime_error("stop"); }),
+               std::runtime_error);
+  EXPECT_LT(std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count(), 10.0);
+  EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1);  // no child of ours is left (ECHILD)
+}
+
+TEST(Process, AChildIgnoringSigtermIsKilled) {
+  // The child ignores SIGTERM: after the 2 s grace period it gets SIGKILL.
+  int polls = 0;
+  const auto start = std::chrono::steady_clock::now();
+  EXPECT_THROW(RunProcess({"sh", "-c", "trap '' TERM; echo ready; while :; do sleep 1; done"},
+                          nullptr, [&] { return ++polls > 3; }),
+               Cancelled);
+  const double seconds =
+      std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_GT(seconds, 1.9);
+  EXPECT_LT(seconds, 10.0);
+  EXPECT_EQ(::waitpid(-1, nullptr, WNOHANG), -1);
 }
 
 TEST(Process, CancellingStopsTheChildPromptly) {
@@ -145,6 +178,46 @@ TEST_F(ExifFrames, GpsTagsBecomeUtmPositions) {
   EXPECT_NEAR(positions[0].position.z, 135.5, 1e-4);
 }
 
+class PoseSourceFiles : public testing_util::TempFolderTest {};
+
+TEST_F(PoseSourceFiles, RoundTripAndWrongTypesAreNamed) {
+  LightField light_field;
+  Image image(8, 6, 1, PixelType::kU8);
+  light_field.views.push_back(MakeView("a", PinholeCamera::FromFov(8, 6, 60.0), Rigid3d(), image));
+  PoseSource source;
+  source.method = "colmap";
+  source.mean_reprojection_error_px = 0.4;
+  source.median_depth = 20.0;
+  source.pose_error = 0.02;
+  source.georeferenced = true;
+  source.georeference_rms_m = 0.01;
+  source.world_frame = "UTM 33N (WGS84)";
+  source.unregistered = {"x.png"};
+  light_field.pose_source = source;
+  WriteLightField(Path("lf.json"), light_field);
+  const LightField back = LoadLightField(Path("lf.json")).light_field;
+  ASSERT_TRUE(back.pose_source.has_value());
+  EXPECT_EQ(back.pose_source->world_frame, "UTM 33N (WGS84)");
+  EXPECT_EQ(back.pose_source->unregistered, std::vector<std::string>{"x.png"});
+  EXPECT_EQ(back.pose_source->pose_error, 0.02);
+  EXPECT_TRUE(back.pose_source->georeferenced);
+  const std::string text = ReadTextFile(Path("lf.json"));
+  const auto corrupt = [&](const std::string& from, const std::string& to) {
+    std::string bad = text;
+    const size_t at = bad.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    bad.replace(at, from.size(), to);
+    WriteTextFileAtomic(Path("bad.json"), bad);
+    return ErrorOf([&] { LoadLightField(Path("bad.json")); });
+  };
+  EXPECT_THAT(corrupt("\"georeferenced\": true", "\"georeferenced\": 1"),
+              HasSubstr("bad.json: pose_source: georeferenced: expected true or false"));
+  EXPECT_THAT(corrupt("\"pose_error\": 0.02", "\"pose_error\": -1"),
+              HasSubstr("bad.json: pose_source: pose_error: expected a finite number >= 0"));
+  EXPECT_THAT(corrupt("\"method\": \"colmap\"", "\"method\": 3"),
+              HasSubstr("bad.json: pose_source: method: expected a string"));
+}
+
 class PositionsFiles : public testing_util::TempFolderTest {
  protected:
   std::string Write(const std::string& name, const std::string& text) {
@@ -237,6 +310,44 @@ TEST(Georeference, RecoversTheTrueFrameAtUtmCoordinates) {
   }
 }
 
+TEST(Georeference, AnIncomingOriginIsAccountedFor) {
+  // The same model, but its light field already has an origin (world = origin + local).
+  ModelFrameLightField m = MakeModelFrameLightField(8.0);
+  const Vec3d incoming(120.0, -40.0, 7.5);
+  for (View& view : m.light_field.views) {
+    view.cam_from_world.translation += view.cam_from_world.rotation * incoming;  // local shift
+  }
+  m.light_field.origin = incoming;
+  const GeoreferenceResult result = Georeference(&m.light_field, m.names, m.positions, "gps.csv");
+  EXPECT_LT(result.rms_m, 1e-9);
+  for (size_t k = 0; k < m.true_local.size(); ++k) {
+    EXPECT_LT(glm::length(m.light_field.views[k].cam_from_world.Center() - m.true_local[k].Center()),
+              1e-8);
+  }
+}
+
+TEST(Georeference, PositionsMatchFramesByPathOrFileName) {
+  std::vector<std::string> warnings;
+  const std::vector<std::string> frames = {"a/1.png", "a/2.png", "b/3.png", "b/1.png"};
+  const std::vector<NamedPosition> given = {
+      {"a/1.png", Vec3d(1, 0, 0)}, {"2.png", Vec3d(2, 0, 0)}, {"3.png", Vec3d(3, 0, 0)},
+      {"1.png", Vec3d(9, 9, 9)},  // ambiguous file name: matches nothing
+      {"z.png", Vec3d(4, 0, 0)}};
+  const std::vector<NamedPosition> matched = MatchPositionsToFrames(given, frames, "gps.csv", &warnings);
+  ASSERT_EQ(matched.size(), 3u);
+  EXPECT_EQ(matched[0].name, "a/1.png");
+  EXPECT_EQ(matched[1].name, "a/2.png");
+  EXPECT_EQ(matched[2].name, "b/3.png");
+  EXPECT_THAT(warnings, ElementsAre(HasSubstr("gps.csv: 2 position(s) name no frame: 1.png, z.png")));
+  EXPECT_THAT(ErrorOf([&] { MatchPositionsToFrames({given[0], given[1]}, frames, "gps.csv", nullptr); }),
+              HasSubstr("gps.csv: only 2 positions name a frame"));
+  EXPECT_THAT(ErrorOf([&] {
+                MatchPositionsToFrames({given[0], given[1], given[2], {"a/1.png", Vec3d(0.0)}},
+                                       frames, "gps.csv", nullptr);
+              }),
+              HasSubstr("two positions name frame a/1.png"));
+}
+
 TEST(Georeference, TooFewOrDegeneratePositionsAreRefused) {
   ModelFrameLightField m = MakeModelFrameLightField(8.0);
   std::vector<NamedPosition> two(m.positions.begin(), m.positions.begin() + 2);
@@ -246,7 +357,7 @@ TEST(Georeference, TooFewOrDegeneratePositionsAreRefused) {
   std::vector<NamedPosition> line = m.positions;
   for (size_t k = 0; k < line.size(); ++k) line[k].position = Vec3d(500000.0 + k, 5300000.0, 400.0);
   EXPECT_THAT(ErrorOf([&] { Georeference(&m.light_field, m.names, line, "gps.csv"); }),
-              HasSubstr("gps.csv"));
+              HasSubstr("gps.csv: target points are collinear"));
 }
 
 TEST(Georeference, TinyBaselinesStayAccurateOrAreRefused) {
@@ -262,7 +373,7 @@ TEST(Georeference, TinyBaselinesStayAccurateOrAreRefused) {
   ModelFrameLightField same = MakeModelFrameLightField(8.0);
   for (NamedPosition& p : same.positions) p.position = Vec3d(500000.0, 5300000.0, 400.0);
   EXPECT_THAT(ErrorOf([&] { Georeference(&same.light_field, same.names, same.positions, "gps.csv"); }),
-              HasSubstr("gps.csv"));
+              HasSubstr("gps.csv: target points are coincident"));
 }
 
 class PosesPipeline : public testing_util::TempFolderTest {
@@ -337,6 +448,101 @@ TEST_F(PosesPipeline, ColmapFailingIsReportedWithItsOutputAndLeavesNothingBehind
   EXPECT_EQ(std::filesystem::file_size(Path("frames/broken.png")), 9u);
   // A used workspace is refused before anything runs.
   EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }), HasSubstr("ws"));
+}
+
+// A stand-in COLMAP whose mapper copies prepared text models into the output folder: the
+// pipeline's handling of partial registration and several models, without COLMAP.
+class FakeMapper : public PosesPipeline {
+ protected:
+  // A text model registering `names` (identity rotations, centres (i, i^2, -10), one point
+  // 10 m in front of each).
+  void WriteModel(const std::string& folder, const std::vector<std::string>& names) {
+    std::filesystem::create_directories(Path(folder));
+    std::ofstream(Path(folder + "/cameras.txt")) << "1 PINHOLE 32 24 30 30 16 12\n";
+    std::ofstream images(Path(folder + "/images.txt"));
+    std::ofstream points(Path(folder + "/points3D.txt"));
+    for (size_t i = 0; i < names.size(); ++i) {
+      images << i + 1 << " 1 0 0 0 " << -static_cast<double>(i) << " "
+             << -static_cast<double>(i * i) << " 10 1 " << names[i]
+             << "\n16 12 " << i + 1 << "\n";
+      points << i + 1 << " " << i << " " << i * i << " 0 255 255 255 0.5 " << i + 1 << " 0\n";
+    }
+  }
+  std::string Mapper() {
+    const std::string path = Path("fake_mapper.sh");
+    std::ofstream(path) << "#!/bin/sh\n"
+                           "[ \"$1\" = mapper ] || exit 0\n"
+                           "while [ $# -gt 0 ]; do [ \"$1\" = --output_path ] && out=$2; shift; done\n"
+                           "cp -r " << Path("models") << "/. \"$out\"\n";
+    std::filesystem::permissions(path, std::filesystem::perms::owner_all);
+    return path;
+  }
+  void Frames(int count) {
+    for (int i = 0; i < count; ++i) WriteFrame("frames/f" + std::to_string(i) + ".png", 32, 24);
+  }
+};
+
+TEST_F(FakeMapper, PartialRegistrationIsListedAndUsable) {
+  Frames(5);
+  std::ofstream(Path("frames/broken.png")) << "not a png";
+  WriteModel("models/0", {"f0.png", "f1.png", "f2.png"});
+  PosesOptions options;
+  options.colmap = Mapper();
+  const PosesResult result = EstimatePoses(Path("frames"), options);
+  EXPECT_EQ(result.registered, (std::vector<std::string>{"f0.png", "f1.png", "f2.png"}));
+  EXPECT_EQ(result.unregistered, (std::vector<std::string>{"f3.png", "f4.png"}));
+  EXPECT_THAT(result.warnings, ElementsAre(HasSubstr("skipped 1 unreadable frame(s): broken.png"),
+                                           HasSubstr("2 of 5 frames were not registered: f3.png, f4.png")));
+  ASSERT_TRUE(result.light_field.pose_source.has_value());
+  EXPECT_EQ(result.light_field.pose_source->unregistered, result.unregistered);
+  EXPECT_DOUBLE_EQ(result.mean_reprojection_error_px, 0.5);
+  // Median depth 10 (the points lie 10 m in front), e = 0.5 px * 10 / 30 px.
+  EXPECT_NEAR(result.median_depth, 10.0, 1e-9);
+  EXPECT_NEAR(result.pose_error, 0.5 * 10.0 / 30.0, 1e-12);
+  // Below the stated fraction it is an error naming the frames left out.
+  options.min_registered_fraction = 0.7;
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("COLMAP registered only 3 of 5 frames (below min_registered_fraction "
+                        "0.7); not registered: f3.png, f4.png"));
+}
+
+TEST_F(FakeMapper, TheLargestOfSeveralModelsIsUsed) {
+  Frames(5);
+  WriteModel("models/0", {"f0.png", "f1.png"});
+  WriteModel("models/1", {"f2.png", "f3.png", "f4.png"});
+  PosesOptions options;
+  options.colmap = Mapper();
+  const PosesResult result = EstimatePoses(Path("frames"), options);
+  EXPECT_EQ(result.models, 2);
+  EXPECT_EQ(result.registered, (std::vector<std::string>{"f2.png", "f3.png", "f4.png"}));
+  EXPECT_THAT(result.warnings, ::testing::Contains(HasSubstr("COLMAP built 2 separate models")));
+  // The same model imported directly, geo-referenced by a positions file.
+  std::ofstream(Path("gps.csv")) << "f2.png,500000,5300000,100\nf3.png,500002,5300000,100\n"
+                                    "f4.png,500004,5300001,100\n";
+  options.positions_file = Path("gps.csv");
+  options.min_registered_fraction = 0.5;
+  const PosesResult imported = ImportColmapPoses(Path("models/1"), Path("frames"), options);
+  EXPECT_TRUE(imported.georeferenced);
+  EXPECT_EQ(imported.unregistered, (std::vector<std::string>{"f0.png", "f1.png"}));
+  EXPECT_NEAR(imported.light_field.origin.x, 500002.0, 1e-6);
+}
+
+TEST_F(FakeMapper, FloatFramesAndUnmatchedPositionsAreRefusedBeforeColmapRuns) {
+  Frames(3);
+  Image frame(32, 24, 1, PixelType::kF32);
+  WriteImage(Path("frames/thermal.tif"), frame);
+  PosesOptions options;
+  options.colmap = FakeColmap(1);  // would fail if it ran
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("COLMAP reads 8- and 16-bit frames only; convert these to 16-bit first: "
+                        "thermal.tif"));
+  std::filesystem::remove(Path("frames/thermal.tif"));
+  std::ofstream(Path("gps.csv")) << "x.png,1,2,3\nf0.png,1,2,3\n";
+  options.positions_file = Path("gps.csv");
+  options.workspace = Path("ws");
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("only 1 positions name a frame"));
+  EXPECT_FALSE(std::filesystem::exists(Path("ws")));  // nothing was started
 }
 
 TEST_F(PosesPipeline, ColmapBuildingNoModelIsAnError) {

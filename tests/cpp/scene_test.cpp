@@ -130,6 +130,15 @@ TEST(Scene, LensCamerasParseCheckAndRoundTrip) {
   ASSERT_TRUE(lens.Project(Vec3d(std::sin(half), 0.0, std::cos(half)), &pixel));
   EXPECT_NEAR(pixel.x, scene.camera.width, 1e-9);
   EXPECT_NEAR(pixel.y, 0.5 * scene.camera.height, 1e-9);
+  // The same for the other models (radial part: tangential terms are not in the definition).
+  for (const char* json : {R"({"camera": {"lens": "fisheye", "fov_deg": 190, "distortion": [0.02, -0.003]}})",
+                           R"({"camera": {"lens": "radtan", "fov_deg": 100, "distortion": [-0.1, 0.01, 0, 0, 0.001]}})",
+                           R"({"camera": {"fov_deg": 70}})"}) {
+    const LensCamera other = ViewLens(ParseScene(json, "scene.json"));
+    const double h = 0.5 * ParseScene(json, "scene.json").camera.fov_deg * M_PI / 180.0;
+    ASSERT_TRUE(other.Project(Vec3d(std::sin(h), 0.0, std::cos(h)), &pixel)) << json;
+    EXPECT_NEAR(pixel.x, other.width, 1e-9) << json;
+  }
   // A pinhole scene writes no lens fields and still round-trips.
   const Scene plain = ParseScene("{}", "plain.json");
   EXPECT_EQ(SceneToJson(plain).find("distortion"), std::string::npos);

@@ -176,6 +176,48 @@ TEST(Simulator, LensViewsTraceEachPixelThroughTheLensModel) {
   }
 }
 
+TEST(Simulator, ViewsSeeingCountsTheLensFieldNotItsPinholeApproximation) {
+  // A barrel-distorted radtan view covers more ground than a pinhole with its focal length; a
+  // truth camera wider than the view sees its frame edge. Each truth pixel's count must follow
+  // the lens (lens.Project inside the frame), which differs from the pinhole along that edge.
+  Scene scene = SmallScene();
+  scene.camera.width = 64;
+  scene.camera.height = 48;
+  scene.camera.lens = "radtan";
+  scene.camera.fov_deg = 70.0;
+  scene.camera.distortion = {-0.25, 0.05, 0, 0, 0};
+  scene.sampling.grid = 1;
+  scene.truth.fov_deg = 110.0;
+  scene.truth.width = 64;
+  scene.truth.height = 64;
+  const SimulationResult result = Simulate(scene);
+  const View& view = result.light_field.views[0];
+  const GroundTruth& truth = result.truth;
+  int differ = 0, seen = 0;
+  for (int y = 0; y < 64; ++y) {
+    for (int x = 0; x < 64; ++x) {
+      // The truth pixel's ground point (flat ground at z = 0, truth at the view's centre).
+      const Vec3d d = glm::transpose(truth.cam_from_world.rotation) *
+                      Vec3d((x + 0.5 - truth.camera.cx) / truth.camera.fx,
+                            (y + 0.5 - truth.camera.cy) / truth.camera.fy, 1.0);
+      const Vec3d centre = truth.cam_from_world.Center();
+      const Vec3d ground = centre + (-centre.z / d.z) * d;
+      const Vec3d in_cam = view.cam_from_world * ground;
+      Vec2d lens_pixel;
+      const bool in_lens = view.lens.Project(in_cam, &lens_pixel) && lens_pixel.x >= 0 &&
+                           lens_pixel.x <= 64 && lens_pixel.y >= 0 && lens_pixel.y <= 48;
+      const Vec2d pinhole_pixel = view.camera.Project(in_cam);
+      const bool in_pinhole = pinhole_pixel.x >= 0 && pinhole_pixel.x <= 64 &&
+                              pinhole_pixel.y >= 0 && pinhole_pixel.y <= 48;
+      differ += in_lens != in_pinhole;
+      seen += in_lens;
+      ASSERT_EQ(truth.views_seeing.Value(x, y), in_lens ? 1.0 : 0.0) << x << "," << y;
+    }
+  }
+  EXPECT_GT(differ, 20);  // the test tells the two apart
+  EXPECT_GT(seen, 64 * 64 / 8);
+}
+
 TEST(Simulator, VoxelDensityIsTheFractionOfNadirColumnsBlocked) {
   for (double density : {0.1, 0.5, 0.9}) {
     VoxelSpec spec;

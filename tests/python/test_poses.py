@@ -146,11 +146,25 @@ def test_python_api_and_bad_input(flight, tmp_path) -> None:
                            str(tmp_path / "out.json"), "--matcher", "vocab"],
                           capture_output=True, text=True)
     assert done.returncode == 1 and "--matcher" in done.stderr
-    # The kept workspace holds COLMAP's model, which import_colmap reads back.
-    imported = aos.import_colmap(str(flight["root"] / "ws" / "sparse" / "0"),
-                                 str(flight["root"] / "sim" / "views"), load_images=False)
+    # The kept workspace holds COLMAP's model, which import_colmap (and the CLI) read back,
+    # geo-referenced the same way.
+    model = flight["root"] / "ws" / "sparse" / "0"
+    frames = flight["root"] / "sim" / "views"
+    imported = aos.import_colmap(model, frames, positions_file=str(flight["root"] / "gps.csv"))
     assert len(imported.registered) == 16
     assert imported.unregistered == ["9998.png", "9999.png"]
+    assert imported.georeferenced and imported.light_field.pose_source.pose_error > 0
+    done = subprocess.run(["aos-render", "import-colmap", str(model), "--images", str(frames),
+                           "--positions", str(flight["root"] / "gps.csv"), "-o",
+                           str(tmp_path / "imported.json")], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "16 of 18 frames registered" in done.stdout
+    assert "2 of 18 frames were not registered" in done.stderr
+    again = aos.load_lightfield(str(tmp_path / "imported.json"), load_images=False).light_field
+    original = aos.load_lightfield(str(flight["root"] / "poses.json"), load_images=False).light_field
+    np.testing.assert_allclose(np.asarray(again.origin), np.asarray(original.origin), atol=1e-9)
+    for a, b in zip(again.views, original.views):
+        np.testing.assert_allclose(a.cam_from_world.center, b.cam_from_world.center, atol=1e-9)
     positions = aos.read_positions(str(flight["root"] / "gps.csv"))
     assert len(positions) == 16 and positions["0000.png"][0] > 500000.0
     report = json.loads((flight["root"] / "poses.json").read_text())["pose_source"]

@@ -343,22 +343,33 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
         *value = field->get<double>();
       }
     };
-    if (auto field = it->find("method"); field != it->end() && field->is_string()) {
-      p.method = field->get<std::string>();
-    }
-    if (auto field = it->find("world_frame"); field != it->end() && field->is_string()) {
-      p.world_frame = field->get<std::string>();
-    }
+    const auto text = [&](const char* key, std::string* value) {
+      if (auto field = it->find(key); field != it->end()) {
+        if (!field->is_string()) ThrowInvalid(where + ": " + key + ": expected a string, got " + Describe(*field));
+        *value = field->get<std::string>();
+      }
+    };
+    text("method", &p.method);
+    text("world_frame", &p.world_frame);
     number("mean_reprojection_error_px", &p.mean_reprojection_error_px);
     number("median_depth", &p.median_depth);
     number("pose_error", &p.pose_error);
     number("georeference_rms_m", &p.georeference_rms_m);
-    if (auto field = it->find("georeferenced"); field != it->end() && field->is_boolean()) {
+    if (auto field = it->find("georeferenced"); field != it->end()) {
+      if (!field->is_boolean()) {
+        ThrowInvalid(where + ": georeferenced: expected true or false, got " + Describe(*field));
+      }
       p.georeferenced = field->get<bool>();
     }
-    if (auto field = it->find("unregistered"); field != it->end() && field->is_array()) {
+    if (auto field = it->find("unregistered"); field != it->end()) {
+      if (!field->is_array()) {
+        ThrowInvalid(where + ": unregistered: expected an array of frame names, got " + Describe(*field));
+      }
       for (const json& name : *field) {
-        if (name.is_string()) p.unregistered.push_back(name.get<std::string>());
+        if (!name.is_string()) {
+          ThrowInvalid(where + ": unregistered: expected frame names, got " + Describe(name));
+        }
+        p.unregistered.push_back(name.get<std::string>());
       }
     }
     light_field.pose_source = p;

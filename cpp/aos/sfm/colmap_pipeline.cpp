@@ -153,8 +153,9 @@ std::string InitialParams(const std::string& model, int width, int height, doubl
 }
 
 // Writes position priors into COLMAP's database (images.prior_tx/ty/tz) for spatial matching.
-void WritePriors(const fs::path& database, const std::vector<NamedPosition>& positions,
-                 const Vec3d& origin) {
+// Returns the number of frames that got a prior.
+int WritePriors(const fs::path& database, const std::vector<NamedPosition>& positions,
+                const Vec3d& origin) {
   sqlite3* db = nullptr;
   if (sqlite3_open_v2(database.c_str(), &db, SQLITE_OPEN_READWRITE, nullptr) != SQLITE_OK) {
     const std::string message = db ? sqlite3_errmsg(db) : "out of memory";
@@ -162,7 +163,9 @@ void WritePriors(const fs::path& database, const std::vector<NamedPosition>& pos
     ThrowInvalid(database.string() + ": cannot open COLMAP's database: " + message);
   }
   sqlite3_stmt* statement = nullptr;
+  // COLMAP 3.8's schema: priors are columns of the images table (later versions moved them).
   const char* sql = "UPDATE images SET prior_tx = ?1, prior_ty = ?2, prior_tz = ?3 WHERE name = ?4";
+  int updated = 0;
   bool ok = sqlite3_prepare_v2(db, sql, -1, &statement, nullptr) == SQLITE_OK &&
             sqlite3_exec(db, "BEGIN", nullptr, nullptr, nullptr) == SQLITE_OK;
   for (size_t i = 0; ok && i < positions.size(); ++i) {
@@ -173,12 +176,14 @@ void WritePriors(const fs::path& database, const std::vector<NamedPosition>& pos
     sqlite3_bind_double(statement, 3, local.z);
     sqlite3_bind_text(statement, 4, positions[i].name.c_str(), -1, SQLITE_TRANSIENT);
     ok = sqlite3_step(statement) == SQLITE_DONE;
+    if (ok) updated += sqlite3_changes(db);
   }
   ok = ok && sqlite3_exec(db, "COMMIT", nullptr, nullptr, nullptr) == SQLITE_OK;
   const std::string message = sqlite3_errmsg(db);
   sqlite3_finalize(statement);
   sqlite3_close(db);
   if (!ok) ThrowInvalid(database.string() + ": cannot write position priors: " + message);
+  return updated;
 }
 
 Vec3d Mean(const std::vector<NamedPosition>& positions) {
@@ -214,6 +219,67 @@ double MedianDepth(const ColmapModel& model, const LightField& light_field) {
   return depths[depths.size() / 2];
 }
 
+// Fills `result` from `model` (COLMAP's frame) for the frames result->frames (relative to
+// frames_dir): the light field, registered and unregistered frames, geo-referencing by
+// `positions` (matched to frame names), and the pose record.
+void ImportInto(ColmapModel model, const std::string& frames_dir,
+                const std::vector<NamedPosition>& positions, const std::string& positions_where,
+                double min_registered_fraction, PosesResult* result) {
+  ColmapImportOptions import_options;
+  import_options.load_images = false;
+  ColmapImport imported = ImportColmapModel(model, frames_dir, import_options);
+  result->light_field = std::move(imported.light_field);
+  result->registered = imported.registered;
+  // Unregistered: the listed frames the model lacks (not every file in the folder: unreadable
+  // ones were never given to COLMAP and are reported as skipped).
+  const std::set<std::string> registered(result->registered.begin(), result->registered.end());
+  for (const std::string& name : result->frames) {
+    if (registered.count(name) == 0) result->unregistered.push_back(name);
+  }
+  if (!result->unregistered.empty()) {
+    result->warnings.push_back(std::to_string(result->unregistered.size()) + " of " +
+                               std::to_string(result->frames.size()) +
+                               " frames were not registered: " + ListSome(result->unregistered));
+  }
+  const size_t total = std::max<size_t>(1, result->frames.size());
+  if (static_cast<double>(result->registered.size()) / total < min_registered_fraction) {
+    ThrowInvalid(frames_dir + ": COLMAP registered only " +
+                 std::to_string(result->registered.size()) + " of " + std::to_string(total) +
+                 " frames (below min_registered_fraction " + FormatNumber(min_registered_fraction) +
+                 "); not registered: " + ListSome(result->unregistered));
+  }
+  result->points = model.points.size();
+  result->observations = model.num_observations;
+  result->mean_reprojection_error_px = model.mean_reprojection_error_px;
+  if (!positions.empty()) {
+    const GeoreferenceResult geo =
+        Georeference(&result->light_field, result->registered, positions, positions_where);
+    result->georeferenced = true;
+    result->local_from_model = geo.local_from_model;
+    result->georeference_rms_m = geo.rms_m;
+    result->georeference_frames = geo.frames;
+    for (ColmapPoint& point : model.points) {
+      point.position = geo.local_from_model * point.position;
+    }
+  }
+  result->median_depth = MedianDepth(model, result->light_field);
+  const double focal =
+      result->light_field.views.empty() ? 0.0 : result->light_field.views[0].camera.fx;
+  if (focal > 0.0) {
+    result->pose_error = result->mean_reprojection_error_px * result->median_depth / focal;
+  }
+  PoseSource source;
+  source.method = "colmap";
+  source.mean_reprojection_error_px = result->mean_reprojection_error_px;
+  source.median_depth = result->median_depth;
+  source.pose_error = result->pose_error;
+  source.georeferenced = result->georeferenced;
+  source.georeference_rms_m = result->georeference_rms_m;
+  source.world_frame = result->world_frame;
+  source.unregistered = result->unregistered;
+  result->light_field.pose_source = source;
+}
+
 }  // namespace
 
 void PosesOptions::Check() const {
@@ -240,6 +306,9 @@ void PosesOptions::Check() const {
   if (!(fov_deg == 0.0 || (fov_deg > 0.0 && fov_deg < (fisheye ? 360.0 : 180.0)))) {
     ThrowInvalid("fov_deg: must be 0 (unknown) or in (0, " + std::string(fisheye ? "360" : "180") +
                  ") degrees");
+  }
+  if (!camera_file.empty() && fov_deg != 0.0) {
+    ThrowInvalid("fov_deg: only for self-calibration; a known camera (camera_file) has its own");
   }
   if (max_image_size < 100) ThrowInvalid("max_image_size: must be >= 100");
   if (max_num_features < 100) ThrowInvalid("max_num_features: must be >= 100");
@@ -305,12 +374,53 @@ std::vector<NamedPosition> ReadPositionsFile(const std::string& path) {
   return positions;
 }
 
+std::vector<NamedPosition> MatchPositionsToFrames(const std::vector<NamedPosition>& positions,
+                                                  const std::vector<std::string>& frames,
+                                                  const std::string& where,
+                                                  std::vector<std::string>* warnings) {
+  std::map<std::string, std::string> by_file_name;  // file name -> frame ("" when ambiguous)
+  std::set<std::string> exact(frames.begin(), frames.end());
+  for (const std::string& frame : frames) {
+    const std::string file = fs::path(frame).filename().string();
+    auto [it, inserted] = by_file_name.emplace(file, frame);
+    if (!inserted) it->second.clear();
+  }
+  std::vector<NamedPosition> matched;
+  std::vector<std::string> unknown;
+  std::set<std::string> used;
+  for (const NamedPosition& p : positions) {
+    std::string frame;
+    if (exact.count(p.name) != 0) {
+      frame = p.name;
+    } else if (auto it = by_file_name.find(fs::path(p.name).filename().string());
+               it != by_file_name.end() && !it->second.empty()) {
+      frame = it->second;
+    }
+    if (frame.empty()) {
+      unknown.push_back(p.name);
+      continue;
+    }
+    if (!used.insert(frame).second) ThrowInvalid(where + ": two positions name frame " + frame);
+    matched.push_back({frame, p.position});
+  }
+  if (!unknown.empty() && warnings != nullptr) {
+    warnings->push_back(where + ": " + std::to_string(unknown.size()) +
+                        " position(s) name no frame: " + ListSome(unknown));
+  }
+  if (matched.size() < 3) {
+    ThrowInvalid(where + ": only " + std::to_string(matched.size()) +
+                 " positions name a frame; geo-referencing needs at least 3");
+  }
+  return matched;
+}
+
 std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
                                              const std::vector<std::string>& frames,
                                              std::vector<std::string>* skipped,
                                              std::string* zone_label) {
   std::vector<NamedPosition> positions;
   int zone = 0;
+  bool north = true;
   for (const std::string& name : frames) {
     const std::string path = (fs::path(frames_dir) / name).string();
     const std::optional<GpsTag> tag = ReadGpsTag(path);
@@ -318,12 +428,15 @@ std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
       skipped->push_back(name);
       continue;
     }
-    const UtmCoordinate utm = UtmFromWgs84(tag->latitude_deg, tag->longitude_deg, zone,
-                                           path + ": GPS");
+    UtmCoordinate utm = UtmFromWgs84(tag->latitude_deg, tag->longitude_deg, zone,
+                                     path + ": GPS");
     if (zone == 0) {
       zone = utm.zone;
+      north = utm.north;
       *zone_label = "UTM " + std::to_string(utm.zone) + (utm.north ? "N" : "S") + " (WGS84)";
     }
+    // One hemisphere's false northing for the whole flight (one that crosses the equator).
+    if (utm.north != north) utm.northing += north ? -10000000.0 : 10000000.0;
     positions.push_back({name, Vec3d(utm.easting, utm.northing, tag->altitude_m)});
   }
   return positions;
@@ -395,7 +508,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   std::vector<std::string> unreadable;
   int width = 0, height = 0;
   std::string first_frame;
-  std::vector<std::string> other_size;
+  std::vector<std::string> other_size, float_frames;
   for (const std::string& name : ListFrameFiles(frames_dir)) {
     ImageFileInfo info;
     try {
@@ -412,6 +525,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
       other_size.push_back(name + " (" + std::to_string(info.width) + "x" +
                            std::to_string(info.height) + ")");
     }
+    if (info.type != PixelType::kU8 && info.type != PixelType::kU16) float_frames.push_back(name);
     result.frames.push_back(name);
   }
   if (!unreadable.empty()) {
@@ -426,13 +540,24 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
                  first_frame + " is " + std::to_string(width) + "x" + std::to_string(height) +
                  " but " + ListSome(other_size));
   }
+  if (!float_frames.empty()) {
+    // COLMAP 3.8 cannot read them (it logs "Failed to read image file format" and skips them).
+    ThrowInvalid(frames_dir + ": COLMAP reads 8- and 16-bit frames only; convert these to "
+                              "16-bit first: " + ListSome(float_frames));
+  }
   if (known && (known_camera.width != width || known_camera.height != height)) {
     ThrowInvalid(options.camera_file + ": the camera is " + std::to_string(known_camera.width) +
                  "x" + std::to_string(known_camera.height) + " but the frames are " +
                  std::to_string(width) + "x" + std::to_string(height));
   }
   if (result.frames.size() < 2) ThrowInvalid(frames_dir + ": one frame cannot give poses (need >= 2)");
-  if (!options.positions_file.empty()) result.world_frame = "positions file " + options.positions_file;
+  std::pair<std::string, std::string> known_colmap_camera;
+  if (known) known_colmap_camera = ColmapCameraFor(known_camera, options.camera_file);
+  if (!options.positions_file.empty()) {
+    result.world_frame = "the frame of " + options.positions_file;
+    positions = MatchPositionsToFrames(positions, result.frames, options.positions_file,
+                                       &result.warnings);
+  }
   if (options.exif_positions) {
     std::vector<std::string> untagged;
     positions = PositionsFromExif(frames_dir, result.frames, &untagged, &result.world_frame);
@@ -469,7 +594,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
       "--SiftExtraction.max_image_size", std::to_string(options.max_image_size),
       "--SiftExtraction.max_num_features", std::to_string(options.max_num_features)};
   if (known) {
-    const auto [model, params] = ColmapCameraFor(known_camera, options.camera_file);
+    const auto& [model, params] = known_colmap_camera;
     extract.insert(extract.end(), {"--ImageReader.camera_model", model,
                                    "--ImageReader.camera_params", params});
   } else {
@@ -488,7 +613,14 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
 
   // 2. Matching.
   start = Clock::now();
-  if (!positions.empty()) WritePriors(database, positions, Mean(positions));
+  if (!positions.empty()) {
+    const int with_prior = WritePriors(database, positions, Mean(positions));
+    if (options.matcher == "spatial" && with_prior < total) {
+      result.warnings.push_back(std::to_string(total - with_prior) + " of " +
+                                std::to_string(total) + " frames have no position prior; spatial "
+                                "matching cannot match (or register) them");
+    }
+  }
   std::vector<std::string> match = {options.colmap, options.matcher + "_matcher", "--database_path",
                                     database.string(), "--SiftMatching.use_gpu", "0",
                                     "--SiftMatching.num_threads", threads};
@@ -526,9 +658,12 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
                            "--Mapper.ba_refine_extra_params", "0"});
   }
   ProgressStart(progress, "mapping", total);
+  std::set<std::string> mapped;  // COLMAP may retry an image: count each once
   RunColmap("mapping", map, workspace.path() / "colmap_mapping.log",
             [&](const std::string& line) {
-              if (line.rfind("Registering image #", 0) == 0) ProgressAdvance(progress, 1);
+              if (line.rfind("Registering image #", 0) != 0) return;
+              const std::string id = line.substr(19, line.find(' ', 19) - 19);
+              if (mapped.insert(id).second) ProgressAdvance(progress, 1);
             },
             progress);
   result.stages.push_back({"mapping", Seconds(start)});
@@ -556,58 +691,39 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
                               " separate models; the largest (" + std::to_string(model.images.size()) +
                               " frames) is used, the others' frames count as unregistered");
   }
-  ColmapImportOptions import_options;
-  import_options.load_images = false;
-  ColmapImport imported = ImportColmapModel(model, frames_dir, import_options);
-  result.light_field = std::move(imported.light_field);
-  result.registered = imported.registered;
-  // Unregistered: the listed frames the model lacks (not every file in the folder: unreadable
-  // ones were never given to COLMAP and are reported as skipped).
-  const std::set<std::string> registered(result.registered.begin(), result.registered.end());
-  for (const std::string& name : result.frames) {
-    if (registered.count(name) == 0) result.unregistered.push_back(name);
+  ImportInto(std::move(model), frames_dir, positions,
+             options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
+             options.min_registered_fraction, &result);
+  ProgressAdvance(progress, 1);
+  result.stages.push_back({"import", Seconds(start)});
+  return result;
+}
+
+PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& frames_dir,
+                              const PosesOptions& options) {
+  options.Check();
+  const auto start = Clock::now();
+  ColmapModel model = ReadColmapModel(model_dir);
+  PosesResult result;
+  result.models = 1;
+  result.frames = ListFrameFiles(frames_dir);  // a registered frame missing here is an error
+  std::vector<NamedPosition> positions;
+  if (!options.positions_file.empty()) {
+    result.world_frame = "the frame of " + options.positions_file;
+    positions = MatchPositionsToFrames(ReadPositionsFile(options.positions_file), result.frames,
+                                       options.positions_file, &result.warnings);
   }
-  if (!result.unregistered.empty()) {
-    result.warnings.push_back(std::to_string(result.unregistered.size()) + " of " +
-                              std::to_string(total) + " frames were not registered: " +
-                              ListSome(result.unregistered));
-  }
-  const double fraction = static_cast<double>(result.registered.size()) / total;
-  if (fraction < options.min_registered_fraction) {
-    ThrowInvalid(frames_dir + ": COLMAP registered only " + std::to_string(result.registered.size()) +
-                 " of " + std::to_string(total) + " frames (below min_registered_fraction " +
-                 Number(options.min_registered_fraction) + "); not registered: " +
-                 ListSome(result.unregistered));
-  }
-  result.points = model.points.size();
-  result.observations = model.num_observations;
-  result.mean_reprojection_error_px = model.mean_reprojection_error_px;
-  if (!positions.empty()) {
-    const GeoreferenceResult geo = Georeference(
-        &result.light_field, result.registered, positions,
-        options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file);
-    result.georeferenced = true;
-    result.local_from_model = geo.local_from_model;
-    result.georeference_rms_m = geo.rms_m;
-    result.georeference_frames = geo.frames;
-    for (ColmapPoint& point : model.points) {
-      point.position = geo.local_from_model * point.position;
+  if (options.exif_positions) {
+    std::vector<std::string> untagged;
+    positions = PositionsFromExif(frames_dir, result.frames, &untagged, &result.world_frame);
+    if (positions.size() < 3) {
+      ThrowInvalid(frames_dir + ": only " + std::to_string(positions.size()) +
+                   " frames carry EXIF GPS positions; geo-referencing needs at least 3");
     }
   }
-  result.median_depth = MedianDepth(model, result.light_field);
-  const double focal = result.light_field.views.empty() ? 0.0 : result.light_field.views[0].camera.fx;
-  if (focal > 0.0) result.pose_error = result.mean_reprojection_error_px * result.median_depth / focal;
-  PoseSource source;
-  source.method = "colmap";
-  source.mean_reprojection_error_px = result.mean_reprojection_error_px;
-  source.median_depth = result.median_depth;
-  source.pose_error = result.pose_error;
-  source.georeferenced = result.georeferenced;
-  source.georeference_rms_m = result.georeference_rms_m;
-  source.world_frame = result.world_frame;
-  source.unregistered = result.unregistered;
-  result.light_field.pose_source = source;
-  ProgressAdvance(progress, 1);
+  ImportInto(std::move(model), frames_dir, positions,
+             options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
+             options.min_registered_fraction, &result);
   result.stages.push_back({"import", Seconds(start)});
   return result;
 }

@@ -7,34 +7,37 @@
 // - Inputs are never modified: COLMAP only reads the frames. Its workspace (database.db,
 //   sparse/N/, colmap_<stage>.log) is options.workspace, which must not exist or be empty and is
 //   kept, or a temporary folder that is removed afterwards.
-// - COLMAP runs with --SiftExtraction.use_gpu 0 and --SiftMatching.use_gpu 0 (it aborts without
-//   a display otherwise), one camera shared by all frames, and:
-//   * matcher "sequential" (frames in name order, like a flight's video order; each matched
-//     with its sequential_overlap successors), "spatial" (pairs by position: needs positions,
-//     which are written into the database as priors), or "exhaustive" (all pairs; small sets);
-//   * camera: a known camera (options.camera_file, an aos-camera file from `aos-render
-//     calibrate`; its intrinsics are fixed during mapping) or self-calibration of
-//     options.camera_model, started from fov_deg when given.
+// - COLMAP runs with --SiftExtraction.use_gpu 0 and --SiftMatching.use_gpu 0 (it aborts without a
+//   display otherwise), one camera shared by all frames, and:
+//   * matcher "sequential" (frames in name order, like a flight's video order; each matched with
+//     its sequential_overlap successors, and, COLMAP's default quadratic overlap, with the
+//     successors 2, 4, 8, ... apart up to that count), "spatial" (pairs by position: needs
+//     positions, which are written into the database as priors), or "exhaustive" (all pairs; small
+//     sets);
+//   * camera: a known camera (options.camera_file, an aos-camera file from `aos-render calibrate`;
+//     its intrinsics are fixed during mapping) or self-calibration of options.camera_model,
+//     started from fov_deg when given.
 // - Progress: one stage per COLMAP step ("features", "matching", "mapping"), advanced per frame
-//   from COLMAP's own log lines, then "import". Cancelling stops COLMAP and throws
-//   aos::Cancelled.
-// - Frames: every image file (.png .jpg .jpeg .tif .tiff .exr, any case) under frames_dir.
-//   Frames whose header cannot be read are skipped with a warning naming them; frames of
-//   another size than the first are an error naming them (one camera for all frames).
+//   from COLMAP's own log lines, then "import". Cancelling stops COLMAP and throws aos::Cancelled.
+// - Frames: every image file (.png .jpg .jpeg .tif .tiff .exr, any case) under frames_dir. Frames
+//   whose header cannot be read are skipped with a warning naming them; frames of another size
+//   than the first are an error naming them (one camera for all frames).
 // - Registration: frames COLMAP leaves out are listed (PosesResult::unregistered) and warned
 //   about; fewer than min_registered_fraction of the frames registered is an error.
-// - Geo-referencing: with positions (a CSV file of `name,x,y,z` lines, metres in any metric
-//   frame, e.g. UTM easting, northing, altitude; a header line and '#' comments allowed; or
-//   with exif_positions, the frames' EXIF GPS tags projected to UTM in the zone of the first
-//   tagged frame, altitude as z; frames without latitude, longitude and altitude are skipped
-//   with a warning), the model is mapped by the least-squares similarity from its camera centres to the given
-//   positions of the registered frames (at least 3, not collinear). That fixes scale,
+// - Geo-referencing: with positions (a CSV file of `name,x,y,z` lines, metres in any metric frame,
+//   e.g. UTM easting, northing, altitude; a header line and '#' comments allowed; or with
+//   exif_positions, the frames' EXIF GPS tags projected to UTM in the zone of the first tagged
+//   frame, altitude as z; frames without latitude, longitude and altitude are skipped with a
+//   warning), the model is mapped by the least-squares similarity from its camera centres to the
+//   given positions of the registered frames (at least 3, not collinear). That fixes scale,
 //   orientation (up axis) and origin; LightField::origin holds the positions' mean in double
 //   precision and the poses are relative to it. Without positions the light field keeps COLMAP's
 //   frame: arbitrary scale, orientation and origin.
-// - Pose quality: COLMAP's mean reprojection error (pixels), and e in metres at the median
-//   depth of the model's points (e_px times depth over focal length; metres only when
-//   geo-referenced), which the effective sample size p' = p + 2e of metrics/resolution.h takes.
+// - Pose quality: COLMAP's mean reprojection error (pixels), and e in metres at the median depth
+//   of the model's points (e_px times depth over focal length; metres only when geo-referenced),
+//   which the effective sample size p' = p + 2e of metrics/resolution.h takes.
+// - Frames COLMAP cannot read (float TIFF or EXR) are refused before it runs; so are position
+//   files naming fewer than 3 frames and a known omnidir camera (COLMAP has no such model).
 //
 // Throws std::invalid_argument for bad options (naming the field), a missing or empty frames
 // folder, COLMAP missing or failing (with the end of its log), or too few frames registered.
@@ -85,7 +88,7 @@ struct PosesResult {
   Sim3d local_from_model;                 // the geo-referencing similarity (identity without)
   double georeference_rms_m = 0.0;        // RMS of centre residuals after it
   int georeference_frames = 0;            // registered frames with a position
-  std::string world_frame;                // "UTM 31N (WGS84, EXIF GPS)", "positions file", or ""
+  std::string world_frame;                // "UTM 31N (WGS84)", "the frame of gps.csv", or ""
   struct Stage {
     std::string name;
     double seconds = 0.0;
@@ -97,6 +100,13 @@ struct PosesResult {
 PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& options,
                           ProgressSink* progress = nullptr);
 
+// An existing COLMAP model (a sparse/N folder, text or binary) imported as EstimatePoses' last
+// stage does it: the frames in frames_dir (the images folder COLMAP was given) that the model
+// lacks are unregistered, positions (options.positions_file or exif_positions) geo-reference
+// it, min_registered_fraction applies; the COLMAP options are not used.
+PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& frames_dir,
+                              const PosesOptions& options);
+
 // Camera positions from a CSV file (see above): name -> position. Throws std::invalid_argument
 // naming the file and line for a malformed line, a non-finite value or a repeated name.
 struct NamedPosition {
@@ -104,6 +114,14 @@ struct NamedPosition {
   Vec3d position{0.0};
 };
 std::vector<NamedPosition> ReadPositionsFile(const std::string& path);
+
+// The positions renamed to the frames they name: a position's name is a frame's path relative
+// to the frames folder, or (when unique) its file name. Names matching no frame are reported in
+// *warnings; fewer than 3 matches, or two positions for one frame, throw naming `where`.
+std::vector<NamedPosition> MatchPositionsToFrames(const std::vector<NamedPosition>& positions,
+                                                  const std::vector<std::string>& frames,
+                                                  const std::string& where,
+                                                  std::vector<std::string>* warnings);
 
 // Positions from the EXIF GPS tags of `frames` (relative to frames_dir), in UTM (zone of the
 // first tagged frame; *zone_label gets e.g. "UTM 31N (WGS84)"). Frames without a full fix are
@@ -113,9 +131,9 @@ std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
                                              std::vector<std::string>* skipped,
                                              std::string* zone_label);
 
-// Maps a light field of COLMAP's frame onto the positions of its views (by image_path's file
-// name relative to frames_dir, or by name): sets origin to the positions' mean and the poses to
-// local = position - origin. Returns the similarity and its residuals. Throws
+// Maps a light field of COLMAP's frame onto the positions of its views (views[i] is frame
+// names[i]; a position names a frame, or its file name): sets origin to the positions' mean and
+// the poses to local = position - origin. Returns the similarity and its residuals. Throws
 // std::invalid_argument when fewer than 3 views have a position or they are degenerate.
 struct GeoreferenceResult {
   Sim3d local_from_model;

@@ -898,7 +898,9 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
         for (int y = y0; y < y1; ++y) {
           for (int x = x0; x < x1; ++x) {
             Rgb sum{0, 0, 0};
+            bool imaged = false;  // some sample lies in the lens's valid field
             for (int k = 0; k < per_pixel; ++k, ++slot) {
+              imaged = imaged || *slot >= 0;
               const Rgb c = world.Shade(*slot >= 0 ? hits[*slot] : no_hit, true, &local);
               for (int channel = 0; channel < 3; ++channel) sum[channel] += c[channel];
             }
@@ -906,7 +908,8 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
             const Rgb mean{sum[0] * inv, sum[1] * inv, sum[2] * inv};
             for (int k = 0; k < channels; ++k) {
               double value = channels == 1 ? Luminance(mean) : mean[k];
-              if (scene.effects.sensor_noise) {
+              // No sensor behind pixels outside the image circle: they stay exactly 0.
+              if (scene.effects.sensor_noise && imaged) {
                 const uint64_t pixel_index = static_cast<uint64_t>(y) * cam.width + x;
                 Random random(Hash(scene.seed, Stream::kSensorNoise, v, pixel_index, k));
                 value += sigma * random.Normal();

@@ -13,14 +13,16 @@
 //     rays are intersected analytically for a (tilted) plane and through an Embree grid BVH only
 //     for a height field (steps);
 //   * sun: one shadow ray per shaded sample, only with effects.sun;
-//   * sensor noise: one Gaussian draw per stored value, only with effects.sensor_noise;
+//   * sensor noise: one Gaussian draw per stored value (of an imaged pixel), only with
+//     effects.sensor_noise;
 //   * pose noise: six draws per view, only with effects.pose_noise; the light field then holds
 //     the recorded (noisy) poses while the images are rendered from the true ones;
 //   * thermal: emission per material replaces albedo (no extra rays);
 //   * lens: only for a lens camera (camera.lens other than "pinhole"): each sample's ray is
 //     unprojected through the lens model (exact, no resampling; directions computed once for
 //     all views); samples outside the lens's valid field (a fisheye's image circle) trace no
-//     ray and count as 0. Views carry the lens (View::lens) for direct sampling.
+//     ray and count as 0 (a pixel with no such sample stays 0, without sensor noise). Views
+//     carry the lens (View::lens) for direct sampling.
 //   Each random stage has its own stream (random.h), so adding an effect never changes what
 //   other stages produce.
 // - Ground truth, seen by the truth camera (nadir, at truth.position): the ground alone (no

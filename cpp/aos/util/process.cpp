@@ -68,14 +68,15 @@ int RunProcess(const std::vector<std::string>& argv,
     ThrowInvalid(argv[0] + ": not found (not an executable file, nor on PATH)");
   }
   int fds[2];
-  if (::pipe(fds) != 0) ThrowInvalid(argv[0] + ": cannot create a pipe: " + std::strerror(errno));
-  ::fcntl(fds[0], F_SETFD, FD_CLOEXEC);
+  if (::pipe2(fds, O_CLOEXEC) != 0) {
+    ThrowInvalid(argv[0] + ": cannot create a pipe: " + std::strerror(errno));
+  }
   posix_spawn_file_actions_t actions;
   posix_spawn_file_actions_init(&actions);
   posix_spawn_file_actions_addopen(&actions, 0, "/dev/null", O_RDONLY, 0);
+  // dup2 clears close-on-exec on the copies, so the child keeps exactly stdout and stderr.
   posix_spawn_file_actions_adddup2(&actions, fds[1], 1);
   posix_spawn_file_actions_adddup2(&actions, fds[1], 2);
-  posix_spawn_file_actions_addclose(&actions, fds[1]);
   // The child starts with default signal handling (a parent that ignores SIGINT or SIGPIPE
   // must not pass that on) and in its own process group, so a terminal's Ctrl-C reaches the
   // parent, which then stops the child itself.
@@ -86,6 +87,7 @@ int RunProcess(const std::vector<std::string>& argv,
   sigaddset(&defaults, SIGINT);
   sigaddset(&defaults, SIGPIPE);
   sigaddset(&defaults, SIGTERM);
+  sigaddset(&defaults, SIGHUP);
   posix_spawnattr_setsigdefault(&attributes, &defaults);
   sigset_t none;
   sigemptyset(&none);
@@ -106,6 +108,26 @@ int RunProcess(const std::vector<std::string>& argv,
     ThrowInvalid(argv[0] + ": cannot start: " + std::strerror(spawned));
   }
 
+  // From here on every way out closes the pipe and reaps the child (killing it first when it
+  // may still run), so no process or descriptor is left behind.
+  int status = -1;  // the child's exit status once reaped
+  const auto stop_child = [&](bool gently) {
+    if (status >= 0) return;
+    if (gently) {
+      ::kill(pid, SIGTERM);
+      for (int i = 0; i < 20; ++i) {
+        int raw = 0;
+        if (::waitpid(pid, &raw, WNOHANG) == pid) {
+          status = 0;
+          return;
+        }
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      }
+    }
+    ::kill(pid, SIGKILL);
+    Reap(pid);
+    status = 0;
+  };
   std::string pending;
   const auto emit = [&](bool flush) {
     size_t start = 0;
@@ -121,48 +143,55 @@ int RunProcess(const std::vector<std::string>& argv,
       pending.clear();
     }
   };
-  bool stop = false;
-  char buffer[4096];
-  for (;;) {
-    if (cancelled && cancelled()) {
-      stop = true;
-      break;
-    }
-    pollfd poll_fd{fds[0], POLLIN, 0};
-    const int ready = ::poll(&poll_fd, 1, 100);
-    if (ready < 0 && errno != EINTR) break;
-    if (ready <= 0) continue;
-    const ssize_t n = ::read(fds[0], buffer, sizeof(buffer));
-    if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
-    if (n <= 0) break;  // end of output: the child closed its side (normally on exit)
-    pending.append(buffer, static_cast<size_t>(n));
-    try {
-      emit(false);
-    } catch (...) {  // a throwing callback must not leave the child running
-      ::kill(pid, SIGKILL);
-      ::close(fds[0]);
-      Reap(pid);
-      throw;
-    }
-  }
-  if (stop) {
-    ::kill(pid, SIGTERM);
-    for (int i = 0; i < 20; ++i) {
-      int status = 0;
-      if (::waitpid(pid, &status, WNOHANG) == pid) {
-        ::close(fds[0]);
-        throw Cancelled();
+  bool cancel = false;
+  try {
+    char buffer[4096];
+    for (;;) {
+      if (cancelled && cancelled()) {
+        cancel = true;
+        break;
       }
-      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      pollfd poll_fd{fds[0], POLLIN, 0};
+      const int ready = ::poll(&poll_fd, 1, 100);
+      if (ready < 0) {
+        if (errno == EINTR) continue;
+        ThrowInvalid(argv[0] + ": cannot read its output: " + std::strerror(errno));
+      }
+      if (ready == 0) {
+        // The child may have exited while something it started still holds the pipe open.
+        int raw = 0;
+        if (::waitpid(pid, &raw, WNOHANG) == pid) {
+          status = WIFEXITED(raw) ? WEXITSTATUS(raw) : WIFSIGNALED(raw) ? 128 + WTERMSIG(raw) : 255;
+          // Drain what is already buffered, then stop.
+          for (;;) {
+            pollfd again{fds[0], POLLIN, 0};
+            if (::poll(&again, 1, 0) <= 0) break;
+            const ssize_t n = ::read(fds[0], buffer, sizeof(buffer));
+            if (n <= 0) break;
+            pending.append(buffer, static_cast<size_t>(n));
+          }
+          break;
+        }
+        continue;
+      }
+      const ssize_t n = ::read(fds[0], buffer, sizeof(buffer));
+      if (n < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+      if (n <= 0) break;  // end of output: the child closed its side (normally on exit)
+      pending.append(buffer, static_cast<size_t>(n));
+      emit(false);
     }
-    ::kill(pid, SIGKILL);
+    if (!cancel) emit(true);
+  } catch (...) {  // a failing read or a throwing callback must not leave the child running
     ::close(fds[0]);
-    Reap(pid);
-    throw Cancelled();
+    stop_child(/*gently=*/false);
+    throw;
   }
   ::close(fds[0]);
-  emit(true);
-  return Reap(pid);
+  if (cancel) {
+    stop_child(/*gently=*/true);
+    throw Cancelled();
+  }
+  return status >= 0 ? status : Reap(pid);
 }
 
 }  // namespace aos
