@@ -1,6 +1,7 @@
 // Tests of the integral renderer against analytic truth and a brute-force reference.
 #include "aos/render/integral.h"
 
+#include <algorithm>
 #include <cmath>
 #include <atomic>
 #include <random>
@@ -455,6 +456,71 @@ TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
   EXPECT_GT(compared, options.width * options.height / 2);
   EXPECT_GE(chosen.size(), 3u) << "the nearest view should change across the image";
   EXPECT_EQ(result.views_used, static_cast<int>(chosen.size()));
+}
+
+TEST(Integral, PinholeOnTheFlightPlaneTakesTheNearestViewThatSeesEachPixel) {
+  // Every view and the virtual camera at the same height (the common case, which takes the
+  // sorted fast path): each pixel's view must be the one nearest the virtual centre among the
+  // views that see its focal point. Narrow views make the nearest one miss some pixels, and a
+  // symmetric grid makes exact ties, which go to the lower index.
+  for (const double view_fov : {30.0, 100.0}) {
+    // 100 degrees: every view sees every pixel, so tiles are complete early (and stop there).
+    const PinholeCamera camera = PinholeCamera::FromFov(32, 32, view_fov);
+    LightField light_field;
+    std::vector<Vec3d> centres;
+    for (int j = 0; j < 7; ++j) {
+      for (int i = 0; i < 7; ++i) centres.emplace_back(3.0 * (i - 3), 3.0 * (j - 3), 20.0);
+    }
+    std::mt19937 random(7);
+    std::shuffle(centres.begin(), centres.end(), random);  // index order unrelated to distance
+    for (size_t i = 0; i < centres.size(); ++i) {
+      light_field.views.push_back(MakeView("v" + std::to_string(i), camera,
+                                           NadirCamFromWorld(centres[i]),
+                                           ConstantImage(32, 32, static_cast<float>(i))));
+    }
+    for (const Vec3d& virtual_centre : {Vec3d(1.0, -0.5, 20.0), Vec3d(1.5, 1.5, 20.0)}) {
+      IntegralOptions options;
+      options.cam_from_world = NadirCamFromWorld(virtual_centre);
+      options.fov_deg = 70.0;
+      options.width = 40;
+      options.height = 40;
+      options.aperture_radius = 0.0;
+      const IntegralResult result = RenderIntegral(light_field, options);
+      int ties = 0, far = 0;
+      for (int y = 0; y < options.height; ++y) {
+        for (int x = 0; x < options.width; ++x) {
+          const Vec3d X = FocalPoint(options, options.cam_from_world, x, y);
+          double best = std::numeric_limits<double>::infinity();
+          int best_view = -1, nearest_any = -1;
+          double nearest_any_distance = best;
+          for (size_t i = 0; i < centres.size(); ++i) {
+            const double distance = glm::length(centres[i] - virtual_centre);
+            if (distance < nearest_any_distance) {
+              nearest_any_distance = distance;
+              nearest_any = static_cast<int>(i);
+            }
+            const Vec2d uv = camera.Project(light_field.views[i].cam_from_world * X);
+            if (uv.x < 0 || uv.x > 32 || uv.y < 0 || uv.y > 32) continue;
+            ties += distance == best;  // a later index at the same distance loses
+            if (distance < best) {
+              best = distance;
+              best_view = static_cast<int>(i);
+            }
+          }
+          if (best_view < 0) {
+            ASSERT_EQ(*result.count.At<uint32_t>(x, y), 0u);
+            continue;
+          }
+          far += best_view != nearest_any;
+          ASSERT_EQ(*result.count.At<uint32_t>(x, y), 1u);
+          ASSERT_EQ(*result.image.At<float>(x, y), static_cast<float>(best_view)) << x << "," << y;
+        }
+      }
+      if (view_fov < 90.0) EXPECT_GT(far, 100);  // many pixels are outside the nearest frame
+      if (virtual_centre.x == 1.5) EXPECT_GT(ties, 0);
+      if (view_fov > 90.0) EXPECT_EQ(result.views_used, 1);
+    }
+  }
 }
 
 TEST(Integral, PinholeTiesGoToTheLowerViewIndex) {

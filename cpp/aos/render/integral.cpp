@@ -243,19 +243,26 @@ void PrefetchSpan(const Image& image, const RowLine& line, int xa, int xb) {
 }
 
 // Nearest mode: per pixel keep the sample of the view whose line to the focal point crosses the
-// lens plane nearest to the virtual camera centre.
-void NearestSpan(const Image& image, int32_t view, const RowLine& line,
-                 const LinearVec& lens_offset, double m0, double m1, int xa, int xb, int x0,
-                 double* sum, double* best, int32_t* best_view) {
+// lens plane nearest to the virtual camera centre. `fixed_distance2` >= 0 is that distance for a
+// view centred on the lens plane (the same for every pixel); negative computes it per pixel.
+// Returns the number of pixels that had no view before.
+int NearestSpan(const Image& image, int32_t view, const RowLine& line,
+                const LinearVec& lens_offset, double m0, double m1, double fixed_distance2,
+                int xa, int xb, int x0, double* sum, double* best, int32_t* best_view) {
   const int channels = image.channels();
+  int newly_covered = 0;
   for (int x = xa; x < xb; ++x) {
-    const double m = m0 + m1 * x;
-    if (m == 0.0) continue;
-    const Vec3d n = lens_offset.v0 + static_cast<double>(x) * lens_offset.v1;
-    const double distance2 = glm::dot(n, n) / (m * m);
+    double distance2 = fixed_distance2;
+    if (distance2 < 0.0) {
+      const double m = m0 + m1 * x;
+      if (m == 0.0) continue;
+      const Vec3d n = lens_offset.v0 + static_cast<double>(x) * lens_offset.v1;
+      distance2 = glm::dot(n, n) / (m * m);
+    }
     double& current = best[x - x0];
     if (!(distance2 < current)) continue;
     current = distance2;
+    newly_covered += best_view[x - x0] < 0;
     best_view[x - x0] = view;
     const double w = line.w0 + line.dw * x;
     // Clamped like the span kernels' positions (NaN gives -1).
@@ -274,6 +281,7 @@ void NearestSpan(const Image& image, int32_t view, const RowLine& line,
       sum[static_cast<ptrdiff_t>(x - x0) * channels + c] = top + ay * (bottom - top);
     }
   }
+  return newly_covered;
 }
 
 class IntegralRenderer {
@@ -442,13 +450,32 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
 
   const bool finite_aperture = std::isfinite(options_.aperture_radius) && mode_ == Mode::kAverage;
   const double r2 = options_.aperture_radius * options_.aperture_radius;
-  for (size_t view_index = 0; view_index < views_.size(); ++view_index) {
+  // A view centred on the lens plane crosses it at its own centre for every pixel.
+  const auto on_lens_plane_of = [](const ViewSetup& view) {
+    return std::abs(view.lens_b) <= 1e-12 * (glm::length(view.b) + 1.0);
+  };
+  // Views in index order; in nearest mode with every view on the lens plane (the virtual camera
+  // on the flight plane), in order of their fixed lens-plane distance, ties by index: the first
+  // view that sees a pixel is then its nearest, each pixel is sampled once, and the tile is done
+  // as soon as every pixel has a view.
+  std::vector<size_t> order(views_.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  bool sorted_nearest = mode_ == Mode::kNearest;
+  for (const ViewSetup& view : views_) sorted_nearest = sorted_nearest && on_lens_plane_of(view);
+  if (sorted_nearest) {
+    std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+      return glm::dot(views_[a].b, views_[a].b) < glm::dot(views_[b].b, views_[b].b);
+    });
+  }
+  int64_t uncovered = static_cast<int64_t>(tile_width) * rows;
+  for (size_t k = 0; k < order.size() && (!sorted_nearest || uncovered > 0); ++k) {
+    const size_t view_index = order[k];
     const ViewSetup& view = views_[view_index];
     if (TileRejects(view, tile)) continue;
     const Image& image = *view.image;
     // The first rows of the next view are not covered by the row-ahead prefetch below.
-    if (view_index + 1 < views_.size()) {
-      const ViewSetup& next = views_[view_index + 1];
+    if (k + 1 < order.size()) {
+      const ViewSetup& next = views_[order[k + 1]];
       for (int r = 0; r < std::min(rows, kPrefetchRows); ++r) {
         PrefetchSpan(*next.image, MakeRowLine(next.H, tile.y0 + r), tile.x0, tile.x1);
       }
@@ -456,8 +483,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
     const SpanKernel kernel = internal::SelectSpanKernel(image);
     const internal::SquaresKernel squares_kernel =
         options_.variance ? internal::ScalarSquaresKernel(image) : nullptr;
-    // A view whose centre lies on the lens plane crosses it at its own centre for every pixel.
-    const bool on_lens_plane = std::abs(view.lens_b) <= 1e-12 * (glm::length(view.b) + 1.0);
+    const bool on_lens_plane = on_lens_plane_of(view);
     if (finite_aperture && on_lens_plane && glm::dot(view.b, view.b) > r2) continue;
     bool grazing_test = sin2_min_angle_ > 0.0;
     if (grazing_test && corners_valid) {
@@ -519,9 +545,10 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
         const auto [xa, xb] = spans.range[s];
         if (mode_ == Mode::kNearest) {
           const size_t row_offset = static_cast<size_t>(tile_width) * r;
-          NearestSpan(image, static_cast<int32_t>(view_index), line, lens_offset, m0, m1, xa, xb,
-                      tile.x0, sum_row, buffers.best.data() + row_offset,
-                      buffers.best_view.data() + row_offset);
+          uncovered -= NearestSpan(image, static_cast<int32_t>(view_index), line, lens_offset, m0,
+                                   m1, sorted_nearest ? glm::dot(view.b, view.b) : -1.0, xa, xb,
+                                   tile.x0, sum_row, buffers.best.data() + row_offset,
+                                   buffers.best_view.data() + row_offset);
         } else {
           if (squares_kernel != nullptr) {
             squares_kernel(image, line, xa, xb, tile.x0, sum_row,
