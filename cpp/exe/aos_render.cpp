@@ -1084,13 +1084,7 @@ int RunCalibrate(CalibrateCommand& c) {
   for (const std::string& name : result.frames_rejected) {
     std::fprintf(stderr, "warning: %s: board not found; frame not used\n", name.c_str());
   }
-  nlohmann::ordered_json calibration;
-  calibration["rms_px"] = result.rms_px;
-  calibration["frames_used"] = result.frames_used;
-  calibration["frames_rejected"] = result.frames_rejected;
-  calibration["pattern"] = c.pattern;
-  calibration["square_size_m"] = c.options.square_size_m;
-  WriteCameraFile(c.output, result.camera, calibration.dump());
+  WriteCameraFile(c.output, result.camera, CalibrationRecordJson(result, &c.options));
   std::printf("wrote %s: %s lens, RMS reprojection error %.3f px over %zu frames (%zu without the "
               "board)\n",
               c.output.c_str(), LensModelName(result.camera.model), result.rms_px,

@@ -1,6 +1,7 @@
 // Bindings of calib/calibrate.h and of the camera files it produces (lightfield/camera_file.h).
 // The kwargs merge and the default frame names of aos.calibrate live in python/aos/__init__.py.
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <variant>
 #include <vector>
@@ -105,6 +106,13 @@ void BindCalib(py::module_& m) {
       "Reads a camera file (JSON, format 'aos-camera', as written by `aos-render calibrate` and "
       "write_camera_file) into a LensCamera. Raises ValueError naming the file and the field.");
 
+  m.def(
+      "_calibration_record",
+      [](const CalibrationResult& result, const std::optional<CalibrateOptions>& options) {
+        return CalibrationRecordJson(result, options ? &*options : nullptr);
+      },
+      "result"_a, "options"_a = py::none(),
+      "The calibration record (JSON text) `aos-render calibrate` stores in a camera file.");
   m.def(
       "_write_camera_file",
       [](const std::filesystem::path& path, const LensCamera& camera,

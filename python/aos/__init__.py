@@ -515,15 +515,10 @@ def write_camera_file(
     square_size_m). Raises ValueError naming the file and the field for an invalid camera.
     """
     if isinstance(calibration, CalibrationResult):
-        record: dict[str, Any] = {
-            "rms_px": calibration.rms_px,
-            "frames_used": list(calibration.frames_used),
-            "frames_rejected": list(calibration.frames_rejected),
-        }
-        if options is not None:
-            record["pattern"] = f"{options.pattern_columns}x{options.pattern_rows}"
-            record["square_size_m"] = options.square_size_m
-    elif calibration is None or isinstance(calibration, dict):
+        _core._write_camera_file(os.fspath(path), camera,
+                                 _core._calibration_record(calibration, options))
+        return
+    if calibration is None or isinstance(calibration, dict):
         if options is not None:
             raise TypeError("write_camera_file(): options is for a CalibrationResult calibration")
         record = calibration if calibration is not None else {}

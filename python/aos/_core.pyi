@@ -428,6 +428,9 @@ def _calibrate(
     """Frames are numpy arrays (COPIED) or image paths; GIL released. See aos.calibrate."""
 def read_camera_file(path: _PathLike) -> LensCamera:
     """Reads a camera file (format 'aos-camera'); ValueError naming the file and the field."""
+def _calibration_record(
+    result: CalibrationResult, options: Optional[CalibrateOptions] = None
+) -> str: ...
 def _write_camera_file(path: _PathLike, camera: LensCamera, calibration_json: str = "") -> None:
     """Writes a camera file atomically; see aos.write_camera_file."""
 

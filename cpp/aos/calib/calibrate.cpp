@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 #include <opencv2/ccalib/omnidir.hpp>
 #include <opencv2/imgproc.hpp>
@@ -157,6 +158,20 @@ CalibrationResult Calibrate(const std::vector<Image>& frames, const std::vector<
   camera.cy = K(1, 2) + 0.5;
   camera.Finalize("calibrated camera");
   return result;
+}
+
+std::string CalibrationRecordJson(const CalibrationResult& result,
+                                  const CalibrateOptions* options) {
+  nlohmann::ordered_json record;
+  record["rms_px"] = result.rms_px;
+  record["frames_used"] = result.frames_used;
+  record["frames_rejected"] = result.frames_rejected;
+  if (options != nullptr) {
+    record["pattern"] = std::to_string(options->pattern_columns) + "x" +
+                        std::to_string(options->pattern_rows);
+    record["square_size_m"] = options->square_size_m;
+  }
+  return record.dump();
 }
 
 }  // namespace aos

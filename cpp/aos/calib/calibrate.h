@@ -43,4 +43,10 @@ struct CalibrationResult {
 CalibrationResult Calibrate(const std::vector<Image>& frames, const std::vector<std::string>& names,
                             const CalibrateOptions& options, ProgressSink* progress = nullptr);
 
+// The record a camera file keeps of its calibration (camera_file.h's calibration_json):
+// {"rms_px", "frames_used", "frames_rejected", "pattern": "COLUMNSxROWS", "square_size_m"}
+// (the last two only with `options`). The CLI and Python both record calibrations this way.
+std::string CalibrationRecordJson(const CalibrationResult& result,
+                                  const CalibrateOptions* options = nullptr);
+
 }  // namespace aos
