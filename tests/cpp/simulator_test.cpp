@@ -465,6 +465,63 @@ TEST(Simulator, GrazingRaysAndExactVoxelEdgesGiveFiniteValues) {
   }
 }
 
+TEST(Simulator, ZeroAndMaximalVoxelDensitiesAreExact) {
+  // The ends of density's range [0, 1). Density 0: a voxel volume with no voxel, so the views
+  // are the occluder-free scene's to the byte and no ground point is blocked (exactly 0).
+  // The largest double below 1: each of the 16 layers' cells is occupied with probability
+  // q = 1 - (1 - density)^(1/16) = 0.9, so a column (or any segment crossing all 16 layers) is
+  // clear with probability 1 - density = 1.1e-16. Every column blocks, and so does every segment
+  // from the ground under the volume's middle to a view (views at 20 m within 5 m of the axis,
+  // the volume from 4 to 12 m and 20 x 20 m wide): blocked fraction exactly 1 there.
+  Scene clear = SmallScene();
+  clear.truth.blocked_fraction = true;
+  const SimulationResult reference = Simulate(clear);
+  const SimulationResult empty = Simulate(WithVoxels(clear, 0.0));
+  EXPECT_EQ(empty.stats.voxels, 0);
+  EXPECT_EQ(empty.stats.nadir_blocked_fraction, 0.0);
+  ASSERT_EQ(empty.light_field.views.size(), reference.light_field.views.size());
+  for (size_t i = 0; i < reference.light_field.views.size(); ++i) {
+    EXPECT_TRUE(SameBytes(empty.light_field.views[i].image, reference.light_field.views[i].image))
+        << i;
+  }
+  const Image& none_blocked = empty.truth.blocked_fraction;
+  for (int y = 0; y < none_blocked.height(); ++y) {
+    for (int x = 0; x < none_blocked.width(); ++x) {
+      ASSERT_EQ(none_blocked.Value(x, y), 0.0) << x << "," << y;
+    }
+  }
+
+  const SimulationResult full = Simulate(WithVoxels(clear, std::nextafter(1.0, 0.0)));
+  EXPECT_EQ(full.stats.nadir_blocked_fraction, 1.0);
+  EXPECT_GT(full.stats.voxels, 40 * 40);  // at least one cell per column
+  const Image& blocked = full.truth.blocked_fraction;
+  const Image& seeing = full.truth.views_seeing;
+  int asserted = 0;
+  for (int y = 0; y < blocked.height(); ++y) {
+    for (int x = 0; x < blocked.width(); ++x) {
+      ASSERT_TRUE(std::isfinite(blocked.Value(x, y)));
+      ASSERT_GE(blocked.Value(x, y), 0.0);
+      ASSERT_LE(blocked.Value(x, y), 1.0);
+      // The truth camera's middle 4 x 4 pixels (1.44 m each at 20 m) see the ground within
+      // 2.9 m of the axis; their segments to the views stay inside the volume's sides.
+      const bool middle = std::abs(x + 0.5 - blocked.width() / 2) < 2 &&
+                          std::abs(y + 0.5 - blocked.height() / 2) < 2;
+      if (middle && seeing.Value(x, y) > 0) {
+        EXPECT_EQ(blocked.Value(x, y), 1.0) << x << "," << y;
+        ++asserted;
+      }
+    }
+  }
+  EXPECT_EQ(asserted, 16);
+  for (const View& view : full.light_field.views) {
+    for (int y = 0; y < view.image.height(); ++y) {
+      for (int x = 0; x < view.image.width(); ++x) {
+        ASSERT_TRUE(std::isfinite(view.image.Value(x, y)));
+      }
+    }
+  }
+}
+
 TEST(Simulator, A512CubedGridAt90PercentStaysSmall) {
   // 512^3 cells at 90 %: about -ln(0.1) * 512^2 = 604,000 occupied cells at 4 bytes each
   // (2.4 MB), instead of 134 million cells; generation is O(occupied cells).

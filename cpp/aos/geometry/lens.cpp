@@ -140,6 +140,26 @@ void LensCamera::Finalize(const std::string& where) {
       }
       if (model == LensModel::kRadTan) {
         theta_max = 0.5 * kPi;
+        // With tangential terms the covered region is not a disk: every pixel of the frame's
+        // border must still have a ray (the region is simply connected, so then all do).
+        if (d[2] != 0.0 || d[3] != 0.0) {
+          const auto check = [&](double u, double v) {
+            Vec3d ray;
+            if (!Unproject(Vec2d(u, v), &ray)) {
+              ThrowInvalid(where + ": distortion: folds the image (with its tangential terms "
+                                   "p1, p2, no ray maps to pixel (" + FormatNumber(u) + ", " +
+                           FormatNumber(v) + ") of the frame); the model is not invertible there");
+            }
+          };
+          for (int u = 0; u <= width; ++u) {
+            check(u, 0.0);
+            check(u, height);
+          }
+          for (int v = 0; v <= height; ++v) {
+            check(0.0, v);
+            check(width, v);
+          }
+        }
       } else {
         // Unified model: injective on the sphere where 1 + xi cos(theta) > 0 and
         // cos(theta) + xi > 0.
@@ -229,17 +249,44 @@ bool LensCamera::Unproject(const Vec2d& pixel, Vec3d* ray) const {
     *ray = Vec3d(s * xd, s * yd, std::cos(theta));
     return true;
   }
-  // radtan and omnidir: undo the radial-tangential distortion by Newton's method.
+  // radtan and omnidir: undo the radial-tangential distortion. Start from the radial part's
+  // inverse (increasing on [0, max_radius]: a bracketed 1-D Newton), then Newton's method on
+  // the full map with backtracking, so no step overshoots past the fold or raises the residual.
   const std::array<double, 5>& d = distortion;
   const double k3 = model == LensModel::kOmnidir ? 0.0 : d[4];
+  const auto radial_of = [&](double r) {
+    const double r2 = r * r;
+    return r * (1.0 + r2 * (d[0] + r2 * (d[1] + r2 * k3)));
+  };
+  const double r_limit = std::isfinite(max_radius) ? max_radius : 1e3;
+  const double rd = std::hypot(xd, yd);
   Vec2d p(xd, yd);
-  bool converged = false;
-  for (int i = 0; i < 100; ++i) {
-    const Vec2d f = Distort(p) - Vec2d(xd, yd);
-    if (std::abs(f.x) + std::abs(f.y) <= 1e-15 * (1.0 + std::abs(xd) + std::abs(yd))) {
-      converged = true;
-      break;
+  if (rd > 0.0) {
+    double lo = 0.0, hi = r_limit, r = std::min(rd, r_limit);
+    if (radial_of(r_limit) <= rd) {
+      r = r_limit;
+    } else {
+      for (int i = 0; i < 200; ++i) {
+        const double f = radial_of(r) - rd;
+        if (f > 0.0) hi = r; else lo = r;
+        double next = r - f / RadialSlope(d, r);
+        if (!(next > lo && next < hi)) next = 0.5 * (lo + hi);
+        if (std::abs(next - r) <= 1e-15 * (1.0 + r)) {
+          r = next;
+          break;
+        }
+        r = next;
+      }
     }
+    p = Vec2d(xd, yd) * (r / rd);
+  }
+  const Vec2d target(xd, yd);
+  const auto residual = [&](const Vec2d& q) { return glm::length(Distort(q) - target); };
+  const double tolerance = 1e-15 * (1.0 + std::abs(xd) + std::abs(yd));
+  double error = residual(p);
+  bool converged = error <= tolerance;
+  for (int i = 0; i < 100 && !converged; ++i) {
+    const Vec2d f = Distort(p) - target;
     const double x = p.x, y = p.y, r2 = x * x + y * y;
     const double radial = 1.0 + r2 * (d[0] + r2 * (d[1] + r2 * k3));
     const double radial1 = 2.0 * d[0] + r2 * (4.0 * d[1] + r2 * 6.0 * k3);
@@ -249,9 +296,24 @@ bool LensCamera::Unproject(const Vec2d& pixel, Vec3d* ray) const {
     const double det = a * c - b * b;
     if (!(std::abs(det) > 1e-300)) break;
     const Vec2d step((c * f.x - b * f.y) / det, (a * f.y - b * f.x) / det);
-    p -= step;
-    if (!std::isfinite(p.x) || !std::isfinite(p.y)) break;
+    // Backtracking: halve the step until it stays inside the valid radius and lowers the error.
+    double scale = 1.0;
+    bool improved = false;
+    for (int k = 0; k < 60; ++k, scale *= 0.5) {
+      const Vec2d candidate = p - scale * step;
+      if (!(std::hypot(candidate.x, candidate.y) <= r_limit)) continue;
+      const double candidate_error = residual(candidate);
+      if (candidate_error < error || candidate_error <= tolerance) {
+        p = candidate;
+        error = candidate_error;
+        improved = true;
+        break;
+      }
+    }
+    converged = error <= tolerance;
+    if (!improved) break;
   }
+  if (!converged) converged = error <= 1e-12 * (1.0 + rd);  // rounding floor near the fold
   if (!converged || !(std::hypot(p.x, p.y) <= max_radius * (1.0 + 1e-12))) return false;
   if (model == LensModel::kRadTan) {
     *ray = glm::normalize(Vec3d(p.x, p.y, 1.0));

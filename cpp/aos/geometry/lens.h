@@ -23,8 +23,10 @@
 //   angle (fisheye) up to which it is (max_radius / theta_max); points beyond do not project
 //   (Project returns false) and pixels beyond their image do not unproject: the edge of a
 //   fisheye's or omni lens's image circle. A radtan (perspective) lens must cover its frame: a
-//   fold inside the frame is an error. Unproject solves the distortion by Newton's method to
-//   1e-15 and returns false where it does not converge.
+//   fold inside the frame is an error (with tangential terms: a border pixel without a ray).
+//   Unproject inverts the radial part by a bracketed 1-D Newton iteration, then solves the full
+//   distortion by Newton's method with backtracking (no step leaves the valid radius or raises
+//   the residual) to 1e-15, and returns false where it does not converge.
 //
 // Throws std::invalid_argument naming the field for bad parameters (non-finite, fx <= 0,
 // xi < 0, a radtan distortion that folds inside the frame).

@@ -66,7 +66,7 @@ struct PosesOptions {
   std::string positions_file;           // CSV name,x,y,z (see above); empty = none
   bool exif_positions = false;          // positions from the frames' EXIF GPS (UTM); not both
   int max_image_size = 1600;            // SIFT on frames downscaled to this longest side, >= 100
-  int max_num_features = 4096;          // per frame, >= 100
+  int max_num_features = 2048;          // per frame, >= 100 (matching cost grows with its square)
   double min_registered_fraction = 0.5; // (0, 1]
   int num_threads = -1;                 // COLMAP's threads; -1 = all cores
   void Check() const;
