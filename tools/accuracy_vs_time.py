@@ -838,7 +838,7 @@ def reading_guide(knobs: dict[str, Knob], config: Config) -> list[str]:
         # A radius that admits the centre view alone renders the pinhole's image: compare times.
         one = next((r for r in views.rows if r.label.startswith(f"{n} r=")
                     and r.columns["views used"] == "1" and r is not pin), None)
-        if pin and one and abs(one.psnr - pin.psnr) < 1e-6 and pin.seconds > 3 * one.seconds:
+        if pin and one and abs(one.psnr - pin.psnr) < 1e-6 and pin.seconds > 10 * one.seconds:
             guide.append(
                 f"aperture_radius 0 is a slow path: {ms(pin.seconds)} ms with {n} views, while "
                 f"aperture_radius {one.columns['aperture_radius']}, which admits the centre view "

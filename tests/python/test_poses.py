@@ -169,3 +169,21 @@ def test_python_api_and_bad_input(flight, tmp_path) -> None:
     assert len(positions) == 16 and positions["0000.png"][0] > 500000.0
     report = json.loads((flight["root"] / "poses.json").read_text())["pose_source"]
     assert report["georeferenced"] is True
+
+
+def test_spatial_and_exhaustive_matching_with_real_colmap(flight, tmp_path) -> None:
+    # Spatial matching takes its pairs from the positions, which the pipeline writes into
+    # COLMAP's database as priors; exhaustive matches all pairs. Both register the flight.
+    frames = flight["root"] / "sim" / "views"
+    gps = str(flight["root"] / "gps.csv")
+    spatial = aos.estimate_poses(frames, matcher="spatial", positions_file=gps,
+                                 camera_model="PINHOLE", fov_deg=FOV, max_num_features=1024)
+    assert len(spatial.registered) == 16 and spatial.georeferenced
+    assert any("2 of 18 frames have no position prior" in w for w in spatial.warnings)
+    assert spatial.georeference_rms_m < 0.05
+    stages = []
+    exhaustive = aos.estimate_poses(frames, matcher="exhaustive", positions_file=gps,
+                                    camera_model="PINHOLE", fov_deg=FOV, max_num_features=1024,
+                                    progress=lambda stage, done, total: stages.append(stage))
+    assert len(exhaustive.registered) == 16 and exhaustive.georeference_rms_m < 0.05
+    assert {"features", "matching", "mapping", "import"} <= set(stages)

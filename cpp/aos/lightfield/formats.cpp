@@ -1,10 +1,8 @@
 #include "aos/lightfield/formats.h"
 
-#include <omp.h>
 
 #include <algorithm>
 #include <array>
-#include <atomic>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -13,7 +11,6 @@
 #include <filesystem>
 #include <functional>
 #include <map>
-#include <mutex>
 #include <system_error>
 #include <utility>
 
@@ -21,6 +18,7 @@
 
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
+#include "aos/util/parallel.h"
 #include "aos/util/file_util.h"
 
 namespace fs = std::filesystem;
@@ -123,41 +121,6 @@ bool IsFile(const std::string& path) {
   return fs::is_regular_file(path, error);
 }
 
-int ResolveThreads(int num_threads) {
-  return num_threads == -1 ? std::max(1, omp_get_max_threads()) : num_threads;
-}
-
-// Runs fn(i) for i in [0, n) on `num_threads` threads. Exceptions stay inside the parallel
-// region: the one from the lowest failing index is stored and rethrown after the loop, so the
-// error reported does not depend on scheduling; indices above a known failure are skipped.
-// Cancellation is polled from the calling thread (OpenMP thread 0) only.
-void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
-                 const std::function<void(int64_t)>& fn) {
-  std::atomic<int64_t> first_error_index{n};
-  std::exception_ptr first_error;
-  std::mutex error_mutex;
-  std::atomic<bool> cancelled{false};
-#pragma omp parallel for schedule(dynamic) num_threads(num_threads)
-  for (int64_t i = 0; i < n; ++i) {
-    if (omp_get_thread_num() == 0 && !cancelled.load() && ProgressCancelled(progress)) {
-      cancelled.store(true);
-    }
-    if (cancelled.load() || i > first_error_index.load()) continue;
-    try {
-      fn(i);
-      ProgressAdvance(progress, 1);
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(error_mutex);
-      if (i < first_error_index.load()) {
-        first_error_index.store(i);
-        first_error = std::current_exception();
-      }
-    }
-  }
-  if (cancelled.load() || ProgressCancelled(progress)) throw Cancelled();
-  if (first_error) std::rethrow_exception(first_error);
-}
-
 // One frame to decode (or probe) and where it came from, for messages.
 struct Frame {
   std::string label;  // "file: view 3 (a.png)" / "file: image 3 (a.tiff)"
@@ -177,7 +140,7 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
   data.infos.resize(frames.size());
   if (options.load_images) data.images.resize(frames.size());
   ProgressStart(progress, "load", n);
-  ParallelFor(n, ResolveThreads(options.num_threads), progress, [&](int64_t i) {
+  ParallelFor(n, options.num_threads, progress, [&](int64_t i) {
     const Frame& frame = frames[i];
     try {
       ImageFileInfo& info = data.infos[i];
@@ -764,7 +727,7 @@ void WriteLightField(const std::string& path, const LightField& light_field,
     CheckOutputPath(written[i], inputs, "view image");
   }
 
-  ParallelFor(static_cast<int64_t>(light_field.views.size()), ResolveThreads(-1), nullptr,
+  ParallelFor(static_cast<int64_t>(light_field.views.size()), -1, nullptr,
               [&](int64_t i) {
                 if (!written[i].empty()) WriteImage(written[i], light_field.views[i].image);
               });

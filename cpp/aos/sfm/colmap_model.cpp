@@ -1,9 +1,7 @@
 #include "aos/sfm/colmap_model.h"
 
-#include <omp.h>
 
 #include <algorithm>
-#include <atomic>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -13,7 +11,6 @@
 #include <fstream>
 #include <limits>
 #include <map>
-#include <mutex>
 #include <string_view>
 #include <system_error>
 #include <unordered_set>
@@ -21,6 +18,7 @@
 
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
+#include "aos/util/parallel.h"
 
 namespace fs = std::filesystem;
 
@@ -840,50 +838,28 @@ ColmapImport ImportColmapModel(const ColmapModel& model, const std::string& imag
   std::vector<View>& views = result.light_field.views;
   const int64_t n = static_cast<int64_t>(views.size());
   std::vector<ImageFileInfo> infos(views.size());
-  std::atomic<int64_t> first_error_index{n};
-  std::exception_ptr first_error;
-  std::mutex error_mutex;
-  std::atomic<bool> cancelled{false};
-  const int num_threads =
-      options.num_threads == -1 ? std::max(1, omp_get_max_threads()) : options.num_threads;
   ProgressStart(progress, "load", n);
-#pragma omp parallel for schedule(dynamic) num_threads(num_threads)
-  for (int64_t i = 0; i < n; ++i) {
-    if (omp_get_thread_num() == 0 && !cancelled.load() && ProgressCancelled(progress)) {
-      cancelled.store(true);
-    }
-    if (cancelled.load() || i > first_error_index.load()) continue;
+  ParallelFor(n, options.num_threads, progress, [&](int64_t i) {
+    View& view = views[i];
+    ImageFileInfo& info = infos[i];
     try {
-      View& view = views[i];
-      ImageFileInfo& info = infos[i];
-      try {
-        if (options.load_images) {
-          Image image = ReadImage(view.image_path, 1);
-          if (auto problem = DescribeNonFinite(image)) ThrowInvalid(*problem);
-          info = ImageFileInfo{image.width(), image.height(), image.channels(), image.type()};
-          view.image = std::move(image);
-        } else {
-          info = ReadImageInfo(view.image_path);
-        }
-      } catch (const std::invalid_argument& problem) {
-        ThrowInvalid(labels[i] + ": " + problem.what());
+      if (options.load_images) {
+        Image image = ReadImage(view.image_path, 1);
+        if (auto problem = DescribeNonFinite(image)) ThrowInvalid(*problem);
+        info = ImageFileInfo{image.width(), image.height(), image.channels(), image.type()};
+        view.image = std::move(image);
+      } else {
+        info = ReadImageInfo(view.image_path);
       }
-      if (info.width != view.camera.width || info.height != view.camera.height) {
-        ThrowInvalid(labels[i] + ": frame " + view.image_path + " is " +
-                     SizeText(info.width, info.height) + " but its COLMAP camera says " +
-                     SizeText(view.camera.width, view.camera.height));
-      }
-      ProgressAdvance(progress, 1);
-    } catch (...) {
-      std::lock_guard<std::mutex> lock(error_mutex);
-      if (i < first_error_index.load()) {
-        first_error_index.store(i);
-        first_error = std::current_exception();
-      }
+    } catch (const std::invalid_argument& problem) {
+      ThrowInvalid(labels[i] + ": " + problem.what());
     }
-  }
-  if (cancelled.load() || ProgressCancelled(progress)) throw Cancelled();
-  if (first_error) std::rethrow_exception(first_error);
+    if (info.width != view.camera.width || info.height != view.camera.height) {
+      ThrowInvalid(labels[i] + ": frame " + view.image_path + " is " +
+                   SizeText(info.width, info.height) + " but its COLMAP camera says " +
+                   SizeText(view.camera.width, view.camera.height));
+    }
+  });
   for (size_t i = 0; i < infos.size(); ++i) {
     if (infos[i].channels != infos[0].channels) {
       ThrowInvalid(labels[i] + ": frame has " + std::to_string(infos[i].channels) +

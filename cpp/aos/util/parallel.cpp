@@ -1,0 +1,45 @@
+#include "aos/util/parallel.h"
+
+#include <omp.h>
+
+#include <algorithm>
+#include <atomic>
+#include <exception>
+#include <mutex>
+
+#include "aos/util/error.h"
+
+namespace aos {
+
+int ResolveThreadCount(int num_threads) {
+  return num_threads == -1 ? std::max(1, omp_get_max_threads()) : num_threads;
+}
+
+void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
+                 const std::function<void(int64_t)>& fn) {
+  std::atomic<int64_t> first_error_index{n};
+  std::exception_ptr first_error;
+  std::mutex error_mutex;
+  std::atomic<bool> cancelled{false};
+#pragma omp parallel for schedule(dynamic) num_threads(ResolveThreadCount(num_threads))
+  for (int64_t i = 0; i < n; ++i) {
+    if (omp_get_thread_num() == 0 && !cancelled.load() && ProgressCancelled(progress)) {
+      cancelled.store(true);
+    }
+    if (cancelled.load() || i > first_error_index.load()) continue;
+    try {
+      fn(i);
+      ProgressAdvance(progress, 1);
+    } catch (...) {
+      std::lock_guard<std::mutex> lock(error_mutex);
+      if (i < first_error_index.load()) {
+        first_error_index.store(i);
+        first_error = std::current_exception();
+      }
+    }
+  }
+  if (cancelled.load() || ProgressCancelled(progress)) throw Cancelled();
+  if (first_error) std::rethrow_exception(first_error);
+}
+
+}  // namespace aos

@@ -1,0 +1,25 @@
+#pragma once
+// Parallel loops over independent items (frames to decode, views to write) with deterministic
+// errors and cancellation.
+//
+// Contract
+// - ParallelFor runs fn(i) for i in [0, n) on `num_threads` OpenMP threads (-1 = all cores),
+//   advancing `progress` by one per finished item. An exception stays inside the parallel
+//   region: the one from the lowest failing index is rethrown after the loop, so the error
+//   reported does not depend on scheduling; indices above a known failure are skipped.
+// - Cancellation is polled from the calling thread (OpenMP thread 0) only; the loop then stops
+//   taking items and throws aos::Cancelled.
+#include <cstdint>
+#include <functional>
+
+#include "aos/util/progress.h"
+
+namespace aos {
+
+// -1 -> all cores (at least 1); other values unchanged.
+int ResolveThreadCount(int num_threads);
+
+void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
+                 const std::function<void(int64_t)>& fn);
+
+}  // namespace aos
