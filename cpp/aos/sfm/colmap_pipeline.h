@@ -16,7 +16,8 @@
 //     sets);
 //   * camera: a known camera (options.camera_file, an aos-camera file from `aos-render calibrate`;
 //     its intrinsics are fixed during mapping) or self-calibration of options.camera_model,
-//     started from fov_deg when given.
+//     started from fov_deg when given. Self-calibration is ill-posed for nadir views of nearly
+//     flat ground (focal length and altitude trade off; docs/poses.md): give a known camera.
 // - Progress: one stage per COLMAP step ("features", "matching", "mapping"), advanced per frame
 //   from COLMAP's own log lines, then "import". Cancelling stops COLMAP and throws aos::Cancelled.
 // - Frames: every image file (.png .jpg .jpeg .tif .tiff .exr, any case) under frames_dir. Frames
