@@ -1,7 +1,7 @@
 // aos-render: the command-line front end. Subcommands fill the core's Options structs (the same
 // ones Python fills), run the algorithm with a progress bar, and write outputs atomically.
-// Exit codes: 0 success, 1 bad input or failure (one line on stderr), 2 bad command line,
-// 130 interrupted.
+// Exit codes: 0 success, 1 bad input or failure (one line on stderr), 2 bad command line (an
+// unknown flag, or a value out of range: UsageError), 130 interrupted (SIGINT, SIGTERM, SIGHUP).
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -41,14 +41,51 @@ namespace fs = std::filesystem;
 namespace aos::cli {
 namespace {
 
+// A mistake on the command line found while interpreting the values (out of range, malformed
+// lists, unknown names): exit code 2, like the parser's own errors.
+class UsageError : public std::invalid_argument {
+ public:
+  explicit UsageError(const std::string& message) : std::invalid_argument(OneLine(message)) {}
+};
+
+[[noreturn]] void ThrowUsage(const std::string& message) { throw UsageError(message); }
+
+// Runs `interpret` (which reads a flag's value) and turns its std::invalid_argument into a
+// UsageError.
+template <class Interpret>
+auto AsUsage(Interpret&& interpret) -> decltype(interpret()) {
+  try {
+    return interpret();
+  } catch (const UsageError&) {
+    throw;
+  } catch (const std::invalid_argument& error) {
+    throw UsageError(error.what());
+  }
+}
+
+// A validator for whole-number flags: refuses values below `minimum` with a plain message (the
+// parser then exits with code 2).
+CLI::Validator AtLeast(long long minimum) {
+  return CLI::Validator(
+      [minimum](std::string& text) -> std::string {
+        char* end = nullptr;
+        const long long value = std::strtoll(text.c_str(), &end, 10);
+        if (end == text.c_str() || *end != '\0') return "'" + text + "' is not a whole number";
+        if (value < minimum) {
+          return "must be >= " + std::to_string(minimum) + " (got " + text + ")";
+        }
+        return std::string();
+      },
+      "INT>=" + std::to_string(minimum));
+}
+
 // "a,b,c" -> numbers; throws std::invalid_argument naming the option.
 std::vector<double> ParseNumbers(const std::string& text, const std::string& option) {
   std::vector<double> values;
   std::stringstream stream(text);
   std::string item;
   while (std::getline(stream, item, ',')) {
-    const double value = ParseNumberText(item, option);
-    values.push_back(value);
+    values.push_back(AsUsage([&] { return ParseNumberText(item, option); }));
   }
   return values;
 }
@@ -57,7 +94,7 @@ std::vector<double> ParseNumbers(const std::string& text, const std::string& opt
                                  size_t count) {
   std::vector<double> values = ParseNumbers(text, option);
   if (values.size() != count) {
-    ThrowInvalid(option + ": expected " + std::to_string(count) +
+    ThrowUsage(option + ": expected " + std::to_string(count) +
                  " comma-separated numbers (got '" + text + "')");
   }
   return values;
@@ -71,10 +108,10 @@ std::vector<int> ParseViewList(const std::string& text, int view_count) {
   std::string item;
   auto to_index = [&](const std::string& part, int fallback, int upper) {
     if (part.empty()) return fallback;
-    const double value = ParseNumberText(part, "--views");
-    if (value != std::floor(value)) ThrowInvalid("--views: '" + part + "' is not an integer");
+    const double value = AsUsage([&] { return ParseNumberText(part, "--views"); });
+    if (value != std::floor(value)) ThrowUsage("--views: '" + part + "' is not an integer");
     if (value < 0 || value > upper) {
-      ThrowInvalid("--views: index " + part + " is outside 0.." + std::to_string(upper) +
+      ThrowUsage("--views: index " + part + " is outside 0.." + std::to_string(upper) +
                    " (the light field has " + std::to_string(view_count) + " views)");
     }
     return static_cast<int>(value);
@@ -87,12 +124,12 @@ std::vector<int> ParseViewList(const std::string& text, int view_count) {
     } else {
       const int begin = to_index(item.substr(0, colon), 0, view_count);
       const int end = to_index(item.substr(colon + 1), view_count, view_count);
-      if (begin > end) ThrowInvalid("--views: range '" + item + "' runs backwards");
+      if (begin > end) ThrowUsage("--views: range '" + item + "' runs backwards");
       for (int i = begin; i < end; ++i) indices.push_back(i);
     }
   }
   if (indices.empty()) {
-    ThrowInvalid("--views: the selection '" + text + "' is empty (view selection is empty)");
+    ThrowUsage("--views: the selection '" + text + "' is empty (view selection is empty)");
   }
   return indices;
 }
@@ -107,7 +144,7 @@ std::vector<int> ParseViewList(const std::string& text, int view_count) {
     const bool names_field = message.rfind(field + ":", 0) == 0 ||
                              message.rfind(field + "/", 0) == 0 ||
                              message.find("(LoadOptions::" + field + ")") != std::string::npos;
-    if (names_field) throw std::invalid_argument(message + " [option " + flag + "]");
+    if (names_field) throw UsageError(message + " [option " + flag + "]");
   }
   throw;
 }
@@ -127,8 +164,7 @@ const std::vector<std::pair<std::string, std::string>> kRenderFlags{
 
 double ParseRadius(const std::string& text) {
   if (text == "inf" || text == "infinity") return std::numeric_limits<double>::infinity();
-  const double value = ParseNumberText(text, "--aperture-radius");
-  return value;
+  return AsUsage([&] { return ParseNumberText(text, "--aperture-radius"); });
 }
 
 // The value range that maps onto the integer codes of an 8/16-bit output.
@@ -186,9 +222,15 @@ void AddOutputOptions(CLI::App* command, OutputOptions& out, bool with_output) {
 void CheckOutputs(const OutputOptions& out, const std::string& image_path,
                   const std::string& count_path, const std::vector<std::string>& inputs) {
   CheckOutputPath(image_path, inputs, "output");
+  if (out.range != "views" && out.range != "minmax") {
+    const std::vector<double> range = ParseNumbers(out.range, "--range", 2);
+    if (!(range[1] > range[0])) {
+      ThrowUsage("--range: expected LO,HI with HI > LO (got '" + out.range + "')");
+    }
+  }
   WriteImageOptions write;
-  write.sample_type = ParseSampleType(out.sample_type);
-  ResolveSampleType(image_path, Image(1, 1, 1, PixelType::kF32), write);
+  write.sample_type = AsUsage([&] { return ParseSampleType(out.sample_type); });
+  AsUsage([&] { return ResolveSampleType(image_path, Image(1, 1, 1, PixelType::kF32), write); });
   if (count_path.empty()) return;
   CheckOutputPath(count_path, inputs, "count");
   if (fs::weakly_canonical(fs::absolute(count_path)) ==
@@ -262,7 +304,8 @@ void AddRenderArgs(CLI::App* command, IntegralCommand& c, bool with_plane) {
   command->add_option("--images-dir", c.load.images_dir,
                       "Folder of the frames (JKU poses.json; default: ../images beside it)");
   auto* pose_view = command->add_option("--pose-view", c.options.pose_view,
-                                        "Virtual camera = the pose of view K (0-based)");
+                                        "Virtual camera = the pose of view K (0-based)")
+                        ->check(AtLeast(0));
   auto* look_at = command->add_option("--look-at", c.look_at,
                                       "Virtual camera at EX,EY,EZ looking at TX,TY,TZ (optional "
                                       "up UX,UY,UZ, default 0,0,1)");
@@ -322,7 +365,7 @@ LoadResult LoadAndResolveCamera(IntegralCommand& c, ProgressBar& progress) {
   IntegralOptions& options = c.options;
   if (!c.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(c.look_at, "--look-at");
-    if (v.size() != 6 && v.size() != 9) ThrowInvalid("--look-at: expected 6 or 9 numbers");
+    if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");
     const Vec3d up = v.size() == 9 ? Vec3d(v[6], v[7], v[8]) : Vec3d(0, 0, 1);
     options.cam_from_world = LookAt(Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5]), up);
   } else if (!c.cam_from_world.empty()) {
@@ -331,7 +374,7 @@ LoadResult LoadAndResolveCamera(IntegralCommand& c, ProgressBar& progress) {
     std::copy(v.begin(), v.end(), m.begin());
     options.cam_from_world = Rigid3d::FromMatrix3x4(m);
   } else if (options.pose_view < 0) {
-    ThrowInvalid("no virtual camera pose: give --pose-view, --look-at or --cam-from-world");
+    ThrowUsage("no virtual camera pose: give --pose-view, --look-at or --cam-from-world");
   }
   options.aperture_radius = ParseRadius(c.aperture_radius);
   if (!c.views.empty()) {
@@ -382,7 +425,7 @@ Scene LoadSceneOrDefault(const std::string& path, int grid) {
   Scene scene = path.empty() ? DefaultScene() : LoadScene(path);
   if (grid > 0) {
     if (!scene.sampling.positions.empty()) {
-      ThrowInvalid("--grid: the scene lists explicit sampling.positions; a grid does not apply");
+      ThrowUsage("--grid: the scene lists explicit sampling.positions; a grid does not apply");
     }
     scene.sampling.grid = grid;
     scene.Check();
@@ -422,7 +465,8 @@ void AddSimulate(CLI::App& app, SimulateCommand& c) {
                       "Scene file (JSON); omitted = the built-in default scene");
   command->add_option("-o,--output-dir", c.output_dir,
                       "Output folder; must not exist or be empty");
-  command->add_option("--grid", c.grid, "Override sampling.grid (views per side)");
+  command->add_option("--grid", c.grid, "Override sampling.grid (views per side, >= 1)")
+      ->check(AtLeast(1));
   command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
       ->capture_default_str();
   command->add_flag("--print-scene", c.print_scene,
@@ -436,7 +480,7 @@ int RunSimulate(SimulateCommand& c) {
     std::fputs(SceneToJson(scene).c_str(), stdout);
     return 0;
   }
-  if (c.output_dir.empty()) ThrowInvalid("--output-dir: required (a new or empty folder)");
+  if (c.output_dir.empty()) ThrowUsage("--output-dir: required (a new or empty folder)");
   CheckOutputFolder(c.output_dir);  // before any work
   ProgressBar progress(c.quiet);
   SimulationResult result;
@@ -471,7 +515,8 @@ void AddDemo(CLI::App& app, DemoCommand& c) {
   command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
       ->capture_default_str();
   command->add_option("--scene", c.scene_path, "A scene file instead of the built-in default");
-  command->add_option("--grid", c.grid, "Override sampling.grid (views per side)");
+  command->add_option("--grid", c.grid, "Override sampling.grid (views per side, >= 1)")
+      ->check(AtLeast(1));
   command->add_flag("-q,--quiet", c.quiet, "No progress output");
 }
 
@@ -536,7 +581,7 @@ Plane ParsePlane(const std::string& text, const std::string& option) {
   const std::vector<double> v = ParseNumbers(text, option);
   if (v.size() == 1) return Plane::AtHeight(v[0]);
   if (v.size() != 6) {
-    ThrowInvalid(option + ": expected a height H or six numbers PX,PY,PZ,NX,NY,NZ (got '" + text +
+    ThrowUsage(option + ": expected a height H or six numbers PX,PY,PZ,NX,NY,NZ (got '" + text +
                  "')");
   }
   return Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
@@ -704,7 +749,7 @@ void AddMerge(CLI::App& app, MergeCommand& c) {
 int RunMerge(MergeCommand& c) {
   ProgressBar progress(c.quiet);
   CheckOutputFolder(c.output_dir);  // before any work
-  c.options.method = ParseMergeMethod(c.args.method, "--method");
+  c.options.method = AsUsage([&] { return ParseMergeMethod(c.args.method, "--method"); });
   const FocalStack stack = ReadFocalStack(c.stack_dir);
   std::optional<LoadResult> loaded;
   if (!c.light_field_path.empty()) {
@@ -716,7 +761,7 @@ int RunMerge(MergeCommand& c) {
     }
     progress.Finish();
   } else if (c.options.method == MergeMethod::kRobust) {
-    ThrowInvalid("--method robust: give --lightfield, the light field the stack was rendered "
+    ThrowUsage("--method robust: give --lightfield, the light field the stack was rendered "
                  "from (its rays are re-integrated)");
   }
   MergeResult result;
@@ -763,7 +808,7 @@ int RunAllInFocus(AllInFocusCommand& c) {
   c.options.stack.render = c.render.options;
   c.options.stack.first_plane = ParsePlane(c.planes.first_plane, "--first-plane");
   c.options.stack.last_plane = ParsePlane(c.planes.last_plane, "--last-plane");
-  c.options.merge.method = ParseMergeMethod(c.args.method, "--method");
+  c.options.merge.method = AsUsage([&] { return ParseMergeMethod(c.args.method, "--method"); });
   c.options.merge.num_threads = c.render.options.num_threads;
   MergeResult result;
   try {
@@ -826,7 +871,7 @@ void AddResolution(CLI::App& app, ResolutionCommand& c) {
 
 int RunResolution(const ResolutionCommand& c) {
   LensCamera camera;
-  camera.model = ParseLensModel(c.model, "--model");
+  camera.model = AsUsage([&] { return ParseLensModel(c.model, "--model"); });
   camera.width = c.width;
   camera.height = c.height;
   if (!c.focal.empty()) {
@@ -838,7 +883,7 @@ int RunResolution(const ResolutionCommand& c) {
     camera.fx = pinhole.fx;
     camera.fy = pinhole.fy;
   } else {
-    ThrowInvalid("give --fov-deg or --focal");
+    ThrowUsage("give --fov-deg or --focal");
   }
   camera.cx = 0.5 * c.width;
   camera.cy = 0.5 * c.height;
@@ -849,7 +894,7 @@ int RunResolution(const ResolutionCommand& c) {
   }
   if (!c.distortion.empty()) {
     const std::vector<double> d = ParseNumbers(c.distortion, "--distortion");
-    if (d.size() > 5) ThrowInvalid("--distortion: at most 5 coefficients");
+    if (d.size() > 5) ThrowUsage("--distortion: at most 5 coefficients");
     std::copy(d.begin(), d.end(), camera.distortion.begin());
   }
   camera.xi = c.xi;
@@ -995,7 +1040,7 @@ int RunRectify(const RectifyCommand& c) {
   ProgressBar progress(c.quiet);
   if (!c.light_field_path.empty()) return RunRectifyLightField(c, progress);
   if (c.frames.empty() || c.camera_path.empty()) {
-    ThrowInvalid("give raw frames and --camera, or --lightfield");
+    ThrowUsage("give raw frames and --camera, or --lightfield");
   }
   PendingFolder folder(c.output_dir);
   const LensCamera lens = ReadCameraFile(c.camera_path);
@@ -1067,11 +1112,19 @@ void AddCalibrate(CLI::App& app, CalibrateCommand& c) {
 int RunCalibrate(CalibrateCommand& c) {
   ProgressBar progress(c.quiet);
   CheckOutputPath(c.output, c.frames, "output");
-  c.options.model = ParseLensModel(c.model, "--model");
+  c.options.model = AsUsage([&] { return ParseLensModel(c.model, "--model"); });
   const size_t x = c.pattern.find('x');
-  if (x == std::string::npos) ThrowInvalid("--pattern: expected COLUMNSxROWS, e.g. 9x6");
-  c.options.pattern_columns = static_cast<int>(ParseNumberText(c.pattern.substr(0, x), "--pattern"));
-  c.options.pattern_rows = static_cast<int>(ParseNumberText(c.pattern.substr(x + 1), "--pattern"));
+  if (x == std::string::npos) ThrowUsage("--pattern: expected COLUMNSxROWS, e.g. 9x6");
+  const auto count = [&](const std::string& text) {
+    const double value = AsUsage([&] { return ParseNumberText(text, "--pattern"); });
+    if (value != std::floor(value) || value < 2 || value > 1000) {
+      ThrowUsage("--pattern: expected COLUMNSxROWS of whole numbers 2..1000, e.g. 9x6 (got '" +
+                 c.pattern + "')");
+    }
+    return static_cast<int>(value);
+  };
+  c.options.pattern_columns = count(c.pattern.substr(0, x));
+  c.options.pattern_rows = count(c.pattern.substr(x + 1));
   std::vector<Image> frames;
   for (const std::string& frame : c.frames) frames.push_back(ReadImage(frame));
   CalibrationResult result;
@@ -1187,7 +1240,9 @@ const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
 
 int RunPoses(PosesCommand& c) {
   ProgressBar progress(c.quiet);
-  CheckOutputPath(c.output, {}, "output");
+  // The frames folder (every file in it), the camera and the positions are inputs.
+  CheckOutputPath(c.output, {c.frames_dir, c.options.camera_file, c.options.positions_file},
+                  "output");
   PosesResult result;
   try {
     result = EstimatePoses(c.frames_dir, c.options, &progress);
@@ -1225,13 +1280,16 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
 }
 
 int RunImportColmap(ImportColmapCommand& c) {
-  CheckOutputPath(c.output, {}, "output");
+  // The model folder (cameras, images, points3D), the frames folder and the positions are inputs.
+  const std::vector<std::string> inputs{c.model_dir, c.frames_dir, c.options.positions_file};
+  CheckOutputPath(c.output, inputs, "output");
   PosesResult result;
   try {
     result = ImportColmapPoses(c.model_dir, c.frames_dir, c.options);
   } catch (const std::invalid_argument& error) {
     RethrowNamingFlags(error, kPosesFlags);
   }
+  CheckOutputPath(c.output, inputs, "output");  // again: the model may have changed meanwhile
   WriteLightField(c.output, result.light_field);
   ReportPoses(result, c.output);
   return 0;
@@ -1334,6 +1392,8 @@ int main(int argc, char** argv) {
   AddSimulate(app, simulate);
   AddDemo(app, demo);
   AddMetrics(app, metrics);
+  // First of all, so that a signal is never lost, whatever stage the command is in.
+  InstallInterruptHandler();
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {
@@ -1341,7 +1401,6 @@ int main(int argc, char** argv) {
     const int code = app.exit(error);
     return code == 0 ? 0 : 2;
   }
-  InstallInterruptHandler();
   try {
     if (app.got_subcommand("integral")) return RunIntegral(integral);
     if (app.got_subcommand("stack")) return RunStack(stack);
@@ -1358,9 +1417,14 @@ int main(int argc, char** argv) {
   } catch (const aos::Cancelled&) {
     std::fprintf(stderr, "aos-render: interrupted; no output written\n");
     return 130;
-  } catch (const std::exception& error) {
+  } catch (const UsageError& error) {
     std::fprintf(stderr, "aos-render: error: %s\n", error.what());
-    return 1;
+    return 2;
+  } catch (const std::exception& error) {
+    // One line, naming the user's paths (also for errors that did not come through ThrowInvalid).
+    std::fprintf(stderr, "aos-render: error: %s\n",
+                 aos::OneLine(aos::UserPaths(error.what())).c_str());
+    return Interrupted() ? 130 : 1;
   }
   return 2;
 }

@@ -13,10 +13,15 @@ void OnInterrupt(int) { g_interrupted = 1; }
 
 void InstallInterruptHandler() {
   // Ctrl-C, and a polite kill or a closed terminal: the work stops at the next progress poll,
-  // child processes (COLMAP) are stopped and temporary files removed.
-  std::signal(SIGINT, OnInterrupt);
-  std::signal(SIGTERM, OnInterrupt);
-  std::signal(SIGHUP, OnInterrupt);
+  // child processes (COLMAP) are stopped and temporary files removed. Without SA_RESTART, so a
+  // system call blocked when the signal comes returns (EINTR) instead of resuming.
+  struct sigaction action {};
+  action.sa_handler = OnInterrupt;
+  sigemptyset(&action.sa_mask);
+  action.sa_flags = 0;
+  for (const int signal_number : {SIGINT, SIGTERM, SIGHUP}) {
+    sigaction(signal_number, &action, nullptr);
+  }
 }
 bool Interrupted() { return g_interrupted != 0; }
 

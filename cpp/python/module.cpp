@@ -1,6 +1,7 @@
 // The single entry point of aos._core: version, exception translation, the Python progress sink,
 // and one BindX(m) call per binding file.
 #include <exception>
+#include <filesystem>
 #include <thread>
 #include <vector>
 
@@ -140,6 +141,9 @@ PYBIND11_MODULE(_core, m) {
       if (pointer) std::rethrow_exception(pointer);
     } catch (const aos::Cancelled& error) {
       PyErr_SetString(PyExc_KeyboardInterrupt, error.what());
+    } catch (const std::filesystem::filesystem_error& error) {
+      // A path the filesystem refused is bad input like any other: ValueError, one line.
+      PyErr_SetString(PyExc_ValueError, aos::OneLine(error.what()).c_str());
     }
   });
 

@@ -62,7 +62,10 @@ TEST(Scene, WrongTypesAreErrorsWithTheirPath) {
               HasSubstr("truth.blocked_fraction: must be true or false"));
   EXPECT_THAT(ErrorOf(R"({"occluders": []})"), HasSubstr("occluders: must be an object"));
   EXPECT_THAT(ErrorOf("[1, 2]"), HasSubstr("must be an object"));
-  EXPECT_THAT(ErrorOf("{\"seed\": 1,"), HasSubstr("scene.json: not valid JSON"));
+  // Syntax errors name the file and the key path where the parser stopped.
+  EXPECT_THAT(ErrorOf("{\"seed\": 1,"), HasSubstr("scene.json: /seed: not valid JSON"));
+  EXPECT_THAT(ErrorOf(R"({"sampling": {"grid": 1e999}})"),
+              HasSubstr("scene.json: /sampling/grid: not valid JSON (number overflow"));
 }
 
 TEST(Scene, OutOfRangeValuesAreErrors) {

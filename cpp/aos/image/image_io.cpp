@@ -4,13 +4,17 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <vector>
 
 #include <OpenImageIO/imageio.h>
+#include <zlib.h>
 
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/memory.h"
 
 namespace aos {
 namespace {
@@ -40,9 +44,57 @@ std::string LowerExtension(const std::string& path) {
   return extension;
 }
 
+// A PNG file's chunk structure and checksums, walked before libpng sees the file: libpng prints
+// its own "libpng error: ..." line to stderr on a damaged file (OpenImageIO does not catch it),
+// so damage is found here first and reported as one error naming the file. A file that does not
+// start with the PNG signature is left to the decoders.
+void CheckPngChunks(const std::string& path, uint64_t file_bytes) {
+  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  std::ifstream file(path, std::ios::binary);
+  unsigned char signature[8] = {};
+  if (!file.read(reinterpret_cast<char*>(signature), 8) ||
+      std::memcmp(signature, kSignature, 8) != 0) {
+    return;
+  }
+  uint64_t offset = 8;
+  std::vector<unsigned char> data;
+  while (true) {
+    unsigned char header[8];
+    const auto damaged = [&](const std::string& what) {
+      ThrowInvalid(path + ": damaged PNG file: " + what + " (byte " + std::to_string(offset) +
+                   " of " + std::to_string(file_bytes) + "; nothing was decoded)");
+    };
+    if (!file.read(reinterpret_cast<char*>(header), 8)) damaged("the file ends before IEND");
+    const uint64_t length = (uint64_t{header[0]} << 24) | (uint64_t{header[1]} << 16) |
+                            (uint64_t{header[2]} << 8) | header[3];
+    std::string type(reinterpret_cast<const char*>(header + 4), 4);
+    for (char& c : type) {
+      if (!std::isalpha(static_cast<unsigned char>(c))) damaged("invalid chunk type");
+    }
+    if (length > 0x7FFFFFFFu || offset + 12 + length > file_bytes) {
+      damaged("chunk " + type + " runs past the end of the file");
+    }
+    data.resize(static_cast<size_t>(length) + 4);
+    std::memcpy(data.data(), header + 4, 4);
+    unsigned char crc_bytes[4];
+    if (!file.read(reinterpret_cast<char*>(data.data() + 4), static_cast<std::streamsize>(length)) ||
+        !file.read(reinterpret_cast<char*>(crc_bytes), 4)) {
+      damaged("chunk " + type + " runs past the end of the file");
+    }
+    const uint32_t stored = (uint32_t{crc_bytes[0]} << 24) | (uint32_t{crc_bytes[1]} << 16) |
+                            (uint32_t{crc_bytes[2]} << 8) | crc_bytes[3];
+    const uint32_t computed = static_cast<uint32_t>(
+        ::crc32(::crc32(0L, Z_NULL, 0), data.data(), static_cast<uInt>(data.size())));
+    if (stored != computed) damaged("chunk " + type + " fails its CRC check");
+    offset += 12 + length;
+    if (type == "IEND") return;
+  }
+}
+
 std::unique_ptr<oiio::ImageInput> Open(const std::string& path) {
-  std::error_code error;
-  if (!std::filesystem::exists(path, error)) ThrowInvalid(path + ": image file not found");
+  // Regular files only: a FIFO blocks the decoder forever and /dev/zero never ends.
+  const uint64_t file_bytes = CheckRegularFile(path, "image file");
+  CheckPngChunks(path, file_bytes);
   auto input = oiio::ImageInput::open(path);
   if (!input) {
     std::string reason = oiio::geterror();
@@ -50,6 +102,34 @@ std::unique_ptr<oiio::ImageInput> Open(const std::string& path) {
     ThrowInvalid(path + ": cannot read image (" + reason + ")");
   }
   return input;
+}
+
+// Refuses a header whose pixels cannot be in a file of this size, before anything is decoded:
+// lossless codecs the formats use (deflate, LZW, PackBits, RLE, PIZ) shrink even a constant image
+// by far less than kMaxCompressionRatio, so a 69-byte PNG claiming 46340 x 46340 pixels is a lie,
+// not an image. Also refuses images larger than the memory budget.
+void CheckPlausibleSize(const std::string& path, const oiio::ImageSpec& spec, PixelType type) {
+  constexpr uint64_t kMaxCompressionRatio = 16384;
+  constexpr uint64_t kAlwaysPlausibleBytes = uint64_t{64} << 20;
+  const uint64_t file_bytes = CheckRegularFile(path, "image file");
+  const uint64_t decoded = SaturatingProduct(
+      {static_cast<uint64_t>(spec.width), static_cast<uint64_t>(spec.height),
+       static_cast<uint64_t>(spec.nchannels), PixelTypeSize(type)});
+  const std::string size = std::to_string(spec.width) + "x" + std::to_string(spec.height) + "x" +
+                           std::to_string(spec.nchannels);
+  if (decoded > kAlwaysPlausibleBytes && decoded / kMaxCompressionRatio > file_bytes) {
+    ThrowInvalid(path + ": the header claims " + size + " pixels (" + FormatBytes(decoded) +
+                 " decoded) but the file has only " + std::to_string(file_bytes) +
+                 " bytes; a damaged or forged header (nothing was decoded)");
+  }
+  CheckMemoryBudget(decoded, path + ": image of " + size + " pixels", "decoded samples");
+}
+
+// OpenImageIO's error text for `input` (the reader's, else the global one), or a fallback.
+std::string ReaderError(oiio::ImageInput& input) {
+  std::string reason = input.geterror();
+  if (reason.empty()) reason = oiio::geterror();
+  return reason.empty() ? std::string("unknown reason") : reason;
 }
 
 }  // namespace
@@ -112,6 +192,7 @@ Image ReadImage(const std::string& path, int border) {
     ThrowInvalid(path + ": image of " + std::to_string(spec.width) + "x" +
                  std::to_string(spec.height) + " pixels is larger than aos accepts (2^31 pixels)");
   }
+  CheckPlausibleSize(path, spec, NativeType(spec.format));
   Image image;
   try {
     image = Image(spec.width, spec.height, spec.nchannels, NativeType(spec.format), border);
@@ -122,11 +203,7 @@ Image ReadImage(const std::string& path, int border) {
   const oiio::stride_t value_size = static_cast<oiio::stride_t>(PixelTypeSize(image.type()));
   const oiio::stride_t x_stride = value_size * image.channels();
   const oiio::stride_t y_stride = value_size * image.row_stride();
-  auto fail = [&] {
-    std::string reason = input->geterror();
-    if (reason.empty()) reason = "unknown reason";
-    ThrowInvalid(path + ": cannot decode image (" + reason + ")");
-  };
+  auto fail = [&] { ThrowInvalid(path + ": cannot decode image (" + ReaderError(*input) + ")"); };
   const oiio::TypeDesc file_type = spec.format;
   const bool other_integer = !file_type.is_floating_point() && image.type() == PixelType::kF32;
   if (other_integer) {
@@ -160,7 +237,14 @@ Image ReadImage(const std::string& path, int border) {
                                 image.RawAt(0, 0), x_stride, y_stride)) {
     fail();
   }
+  // Some readers (TIFF strips past the end of the file, for one) report missing data only in
+  // their error state while read_image returns true: a truncated file is an error, never pixels
+  // padded with junk.
+  if (input->has_error()) fail();
   input->close();
+  if (auto problem = DescribeNonFinite(image)) {
+    ThrowInvalid(path + ": " + *problem + "; aos refuses non-finite samples in its inputs");
+  }
   image.FillBorder();
   return image;
 }
@@ -308,7 +392,13 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
   // be read back, while every call above succeeds: read the file back, and compare it where the
   // format is lossless, before it replaces anything.
   {
-    auto input = oiio::ImageInput::open(pending.TempPath());
+    bool intact_png = true;  // checked first: libpng would print its own error line
+    try {
+      CheckPngChunks(pending.TempPath(), CheckRegularFile(pending.TempPath()));
+    } catch (const std::invalid_argument&) {
+      intact_png = false;
+    }
+    auto input = intact_png ? oiio::ImageInput::open(pending.TempPath()) : nullptr;
     std::vector<unsigned char> check(buffer.size());
     const bool readable =
         input && input->spec().width == width && input->spec().height == height &&

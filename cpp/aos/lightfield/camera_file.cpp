@@ -7,6 +7,7 @@
 
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/json_file.h"
 
 namespace aos {
 namespace {
@@ -25,16 +26,20 @@ double Number(const json& j, const std::string& key, const std::string& file, bo
   return j[key].get<double>();
 }
 
+LensCamera CameraFromJson(const json& j, const std::string& path);
+
 }  // namespace
 
 LensCamera ReadCameraFile(const std::string& path) {
-  json j;
-  try {
-    j = json::parse(ReadTextFile(path));
-  } catch (const json::exception& error) {
-    ThrowInvalid(Where(path, std::string("not valid JSON (") + error.what() + ")"));
-  }
-  if (!j.is_object() || j.value("format", "") != "aos-camera") {
+  const json j = ParseJsonFile(path);
+  return WithJsonErrorsNamed(path, [&] { return CameraFromJson(j, path); });
+}
+
+namespace {
+
+LensCamera CameraFromJson(const json& j, const std::string& path) {
+  if (!j.is_object() || !j.contains("format") || !j["format"].is_string() ||
+      j["format"].get<std::string>() != "aos-camera") {
     ThrowInvalid(Where(path, "format: must be \"aos-camera\""));
   }
   static const std::set<std::string> kKeys{"format", "version", "model", "width", "height", "fx",
@@ -77,6 +82,8 @@ LensCamera ReadCameraFile(const std::string& path) {
   camera.Finalize(path);
   return camera;
 }
+
+}  // namespace
 
 void WriteCameraFile(const std::string& path, const LensCamera& camera,
                      const std::string& calibration_json) {

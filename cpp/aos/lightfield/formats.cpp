@@ -20,6 +20,8 @@
 #include "aos/util/error.h"
 #include "aos/util/parallel.h"
 #include "aos/util/file_util.h"
+#include "aos/util/json_file.h"
+#include "aos/util/memory.h"
 
 namespace fs = std::filesystem;
 
@@ -121,6 +123,10 @@ bool IsFile(const std::string& path) {
   return fs::is_regular_file(path, error);
 }
 
+std::string SizeText(int width, int height) {
+  return std::to_string(width) + "x" + std::to_string(height);
+}
+
 // One frame to decode (or probe) and where it came from, for messages.
 struct Frame {
   std::string label;  // "file: view 3 (a.png)" / "file: image 3 (a.tiff)"
@@ -139,14 +145,30 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
   FrameData data;
   data.infos.resize(frames.size());
   if (options.load_images) data.images.resize(frames.size());
+  if (options.load_images && n > 0) {
+    // Refuse a light field the machine cannot hold before decoding any of it (estimated from the
+    // first frame's header; every frame's own header is checked again as it is decoded).
+    ImageFileInfo first;
+    try {
+      first = ReadImageInfo(frames[0].path);
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid(Where(frames[0].label, error.what()));
+    }
+    CheckMemoryBudget(
+        SaturatingProduct({static_cast<uint64_t>(n), static_cast<uint64_t>(first.width) + 2,
+                           static_cast<uint64_t>(first.height) + 2,
+                           static_cast<uint64_t>(first.channels), PixelTypeSize(first.type)}),
+        frames[0].label + ": light field of " + std::to_string(n) + " frames of " +
+            SizeText(first.width, first.height),
+        "the decoded frames, estimated from the first frame's header");
+  }
   ProgressStart(progress, "load", n);
   ParallelFor(n, options.num_threads, progress, [&](int64_t i) {
     const Frame& frame = frames[i];
     try {
       ImageFileInfo& info = data.infos[i];
       if (options.load_images) {
-        Image image = ReadImage(frame.path, 1);
-        if (auto problem = DescribeNonFinite(image)) ThrowInvalid(frame.path + ": " + *problem);
+        Image image = ReadImage(frame.path, 1);  // refuses non-finite samples
         info.width = image.width();
         info.height = image.height();
         info.channels = image.channels();
@@ -167,9 +189,6 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
   return data;
 }
 
-std::string SizeText(int width, int height) {
-  return std::to_string(width) + "x" + std::to_string(height);
-}
 
 // Checks frame sizes against the cameras and channel counts against frame 0 (the checks
 // CheckView/CheckLightField make, done from the file headers so they also apply when the
@@ -629,16 +648,22 @@ double ParseNumberText(const std::string& text, const std::string& where) {
   return value;
 }
 
+namespace {
+LoadResult LoadFromJson(const std::string& path, const json& root, const LoadOptions& options,
+                        ProgressSink* progress);
+}  // namespace
+
 LoadResult LoadLightField(const std::string& path, const LoadOptions& options,
                           ProgressSink* progress) {
   options.Check();
-  const std::string text = ReadTextFile(path);
-  json root;
-  try {
-    root = json::parse(text);
-  } catch (const json::parse_error& error) {
-    ThrowInvalid(path + ": not valid JSON (" + error.what() + ")");
-  }
+  const json root = ParseJsonFile(path);
+  return WithJsonErrorsNamed(path, [&] { return LoadFromJson(path, root, options, progress); });
+}
+
+namespace {
+
+LoadResult LoadFromJson(const std::string& path, const json& root, const LoadOptions& options,
+                        ProgressSink* progress) {
   const std::string expected =
       "expected an aos light field ({\"format\": \"aos-lightfield\", ...}) or a JKU poses file "
       "({\"images\": [{\"imagefile\": ..., \"M3x4\": ...}]})";
@@ -653,6 +678,8 @@ LoadResult LoadLightField(const std::string& path, const LoadOptions& options,
   if (LooksLikeJku(root)) return LoadJku(path, root, options, progress);
   ThrowInvalid(path + ": unknown light-field format; " + expected);
 }
+
+}  // namespace
 
 void WriteLightField(const std::string& path, const LightField& light_field,
                      const WriteLightFieldOptions& options) {

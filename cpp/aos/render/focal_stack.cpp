@@ -11,6 +11,7 @@
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/json_file.h"
 
 namespace fs = std::filesystem;
 
@@ -280,15 +281,20 @@ void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
   pending.Commit();
 }
 
+namespace {
+FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::string& file);
+}  // namespace
+
 FocalStack ReadFocalStack(const std::string& folder) {
   const fs::path base(folder);
   const std::string file = (base / "stack.json").string();
-  json j;
-  try {
-    j = json::parse(ReadTextFile(file));
-  } catch (const json::exception& error) {
-    ThrowInvalid(Where(file, std::string("not valid JSON (") + error.what() + ")"));
-  }
+  const json j = ParseJsonFile(file);
+  return WithJsonErrorsNamed(file, [&] { return FocalStackFromJson(j, base, file); });
+}
+
+namespace {
+
+FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::string& file) {
   if (!j.is_object() || !j.contains("format") || j["format"] != "aos-focal-stack") {
     ThrowInvalid(Where(file, "format: must be \"aos-focal-stack\""));
   }
@@ -391,5 +397,7 @@ FocalStack ReadFocalStack(const std::string& folder) {
   stack.Check(file);
   return stack;
 }
+
+}  // namespace
 
 }  // namespace aos

@@ -13,6 +13,7 @@
 #include "aos/render/integral_kernels.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/error.h"
+#include "aos/util/memory.h"
 
 // How it works
 // For a planar focal surface the map from an output pixel to a view pixel is a homography H_i
@@ -618,6 +619,14 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
   SetUpViews();
 
   const int width = camera_.width, height = camera_.height;
+  // The outputs dominate (the tile accumulators are a few MiB per thread): refuse a size the
+  // machine cannot hold before allocating it.
+  CheckMemoryBudget(
+      SaturatingProduct({static_cast<uint64_t>(width), static_cast<uint64_t>(height),
+                         static_cast<uint64_t>(channels_) * 4 + 4 + (options_.variance ? 4 : 0)}),
+      "width/height: " + std::to_string(width) + " x " + std::to_string(height) + " pixels",
+      "a float32 image of " + std::to_string(channels_) + " channel(s), a uint32 count map" +
+          (options_.variance ? std::string(", a float32 variance map") : std::string()));
   result_.image = Image(width, height, channels_, PixelType::kF32);
   result_.count = Image(width, height, 1, PixelType::kU32);
   if (options_.variance) result_.variance = Image(width, height, 1, PixelType::kF32);

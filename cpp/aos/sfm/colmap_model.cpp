@@ -18,6 +18,7 @@
 
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
+#include "aos/util/file_util.h"
 #include "aos/util/parallel.h"
 
 namespace fs = std::filesystem;
@@ -136,7 +137,9 @@ std::string_view Trim(std::string_view text) {
 // Reads a text file line by line; `Fail` messages carry "<path>: line <n>: <entry>: ".
 class TextReader {
  public:
-  explicit TextReader(std::string path) : path_(std::move(path)), file_(path_, std::ios::binary) {
+  explicit TextReader(std::string path) : path_(std::move(path)) {
+    CheckRegularFile(path_, "COLMAP model file");
+    file_.open(path_, std::ios::binary);
     if (!file_) ThrowInvalid(path_ + ": cannot open the file");
   }
 
@@ -313,10 +316,10 @@ void ReadPointsText(const std::string& path, ColmapModel* model) {
 // Sequential little-endian reads through a buffer, every read checked against the file size.
 class BinaryReader {
  public:
-  explicit BinaryReader(std::string path) : path_(std::move(path)), file_(path_, std::ios::binary) {
-    std::error_code error;
-    size_ = fs::file_size(path_, error);
-    if (!file_ || error) ThrowInvalid(path_ + ": cannot open the file");
+  explicit BinaryReader(std::string path) : path_(std::move(path)) {
+    size_ = CheckRegularFile(path_, "COLMAP model file");
+    file_.open(path_, std::ios::binary);
+    if (!file_) ThrowInvalid(path_ + ": cannot open the file");
   }
 
   uint64_t Remaining() const { return size_ - offset_; }
@@ -540,6 +543,7 @@ void Finish(ColmapModel* model) {
                               " (" + image.name + ")";
     if (!image_ids.insert(image.image_id).second) ThrowInvalid(label + ": image_id: listed twice");
     if (image.name.empty()) ThrowInvalid(label + ": name: is empty");
+    if (!IsValidUtf8(image.name)) ThrowInvalid(label + ": name: is not valid UTF-8");
     if (!names.insert(image.name).second) ThrowInvalid(label + ": name: listed twice");
     if (camera_ids.count(image.camera_id) == 0) {
       ThrowInvalid(label + ": camera_id: camera " + std::to_string(image.camera_id) +

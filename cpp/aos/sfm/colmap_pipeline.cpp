@@ -319,6 +319,7 @@ void PosesOptions::Check() const {
 }
 
 std::vector<NamedPosition> ReadPositionsFile(const std::string& path) {
+  CheckRegularFile(path, "positions file");
   std::ifstream in(path);
   if (!in) ThrowInvalid(path + ": cannot read the positions file");
   std::vector<NamedPosition> positions;

@@ -11,6 +11,7 @@
 #include "aos/image/image_io.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/json_file.h"
 
 namespace fs = std::filesystem;
 
@@ -546,17 +547,19 @@ std::vector<Vec3d> ViewPositions(const Scene& scene) {
   return positions;
 }
 
+namespace {
+Scene SceneFromJson(const json& root, const std::string& source, const std::string& base_dir);
+}  // namespace
+
 Scene ParseScene(const std::string& json_text, const std::string& source,
                  const std::string& base_dir) {
-  json root;
-  try {
-    root = json::parse(json_text);
-  } catch (const json::parse_error& error) {
-    std::string what = error.what();
-    const size_t bracket = what.find("] ");
-    if (bracket != std::string::npos) what = what.substr(bracket + 2);
-    ThrowInvalid(Where(source, "not valid JSON (" + what + ")"));
-  }
+  const json root = ParseJsonText(json_text, source);
+  return WithJsonErrorsNamed(source, [&] { return SceneFromJson(root, source, base_dir); });
+}
+
+namespace {
+
+Scene SceneFromJson(const json& root, const std::string& source, const std::string& base_dir) {
   Scene scene;
   scene.source = source;
   Reader top(root, "", scene.source);
@@ -754,6 +757,8 @@ Scene ParseScene(const std::string& json_text, const std::string& source,
   scene.Check();
   return scene;
 }
+
+}  // namespace
 
 Scene LoadScene(const std::string& path) {
   const std::string text = ReadTextFile(path);

@@ -1,5 +1,6 @@
 #include "aos/util/file_util.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cerrno>
 #include <cstdio>
@@ -9,6 +10,8 @@
 #include <sstream>
 #include <system_error>
 
+#include <fcntl.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "aos/util/error.h"
@@ -31,7 +34,9 @@ std::string MakeTempPath(const std::string& final_path) {
 }  // namespace
 
 PendingFile::PendingFile(std::string final_path)
-    : final_path_(std::move(final_path)), temp_path_(MakeTempPath(final_path_)) {}
+    : final_path_(std::move(final_path)), temp_path_(MakeTempPath(final_path_)) {
+  RegisterPathAlias(temp_path_, final_path_);
+}
 
 PendingFile::PendingFile(PendingFile&& other) noexcept
     : final_path_(std::move(other.final_path_)),
@@ -92,6 +97,63 @@ void CommitTogether(const std::vector<PendingFile*>& files) {
   for (const Backup& backup : backups) fs::remove(backup.backup_path, ignored);
 }
 
+namespace {
+
+const char* FileKind(mode_t mode) {
+  if (S_ISDIR(mode)) return "a folder";
+  if (S_ISFIFO(mode)) return "a FIFO (named pipe)";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISSOCK(mode)) return "a socket";
+  return "not a regular file";
+}
+
+[[noreturn]] void RefuseKind(const std::string& path, const std::string& what, mode_t mode) {
+  ThrowInvalid(path + ": " + what + ": is " + FileKind(mode) + ", expected a regular file");
+}
+
+// Device and inode of a path (links followed), or false if it cannot be stat'ed.
+bool FileId(const std::string& path, dev_t* device, ino_t* inode) {
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0) return false;
+  *device = info.st_dev;
+  *inode = info.st_ino;
+  return true;
+}
+
+// Whether the regular file (device, inode) is a file in the tree of `folder` (bounded walk: an
+// input folder of more than a million entries is not searched further).
+bool FolderHolds(const fs::path& folder, dev_t device, ino_t inode) {
+  std::error_code error;
+  fs::recursive_directory_iterator it(folder, fs::directory_options::skip_permission_denied,
+                                      error);
+  int64_t visited = 0;
+  for (; !error && it != fs::recursive_directory_iterator(); it.increment(error)) {
+    if (++visited > 1000000) break;
+    dev_t entry_device;
+    ino_t entry_inode;
+    if (FileId(it->path().string(), &entry_device, &entry_inode) && entry_device == device &&
+        entry_inode == inode) {
+      return true;
+    }
+  }
+  return false;
+}
+
+}  // namespace
+
+uint64_t CheckRegularFile(const std::string& path, const std::string& what) {
+  if (path.empty()) ThrowInvalid(what + ": the path is empty");
+  struct stat info {};
+  if (::stat(path.c_str(), &info) != 0) {
+    const int code = errno;
+    ThrowInvalid(path + ": " + what + ": " +
+                 (code == ENOENT ? std::string("file not found") : std::strerror(code)));
+  }
+  if (!S_ISREG(info.st_mode)) RefuseKind(path, what, info.st_mode);
+  return static_cast<uint64_t>(info.st_size);
+}
+
 void CheckOutputPath(const std::string& output_path, const std::vector<std::string>& input_paths,
                      const std::string& what) {
   if (output_path.empty()) ThrowInvalid(what + ": the output path is empty");
@@ -104,13 +166,22 @@ void CheckOutputPath(const std::string& output_path, const std::vector<std::stri
   if (fs::is_directory(path, error)) {
     ThrowInvalid(output_path + ": " + what + ": is a folder, expected a file name");
   }
-  if (!fs::exists(path, error)) return;
+  dev_t device;
+  ino_t inode;
+  if (!FileId(output_path, &device, &inode)) return;  // nothing there: it is no input
   for (const std::string& input : input_paths) {
     if (input.empty()) continue;
-    std::error_code equivalent_error;
-    if (fs::equivalent(path, fs::path(input), equivalent_error)) {
+    dev_t input_device;
+    ino_t input_inode;
+    if (!FileId(input, &input_device, &input_inode)) continue;
+    if (input_device == device && input_inode == inode) {
       ThrowInvalid(output_path + ": " + what +
                    ": refusing to overwrite an input file (it is the same file as " + input + ")");
+    }
+    if (fs::is_directory(input, error) && FolderHolds(input, device, inode)) {
+      ThrowInvalid(output_path + ": " + what +
+                   ": refusing to overwrite an input file (it is a file of the input folder " +
+                   input + ")");
     }
   }
 }
@@ -127,15 +198,52 @@ void WriteTextFileAtomic(const std::string& path, const std::string& text) {
   pending.Commit();
 }
 
-std::string ReadTextFile(const std::string& path) {
-  std::ifstream stream(path, std::ios::binary);
-  if (!stream) {
-    ThrowInvalid(path + ": cannot open (" + std::string(std::strerror(errno)) + ")");
+std::string ReadTextFile(const std::string& path, uint64_t max_bytes) {
+  // Opened without blocking (a FIFO swapped in after a check would block a plain open), then
+  // checked on the open descriptor.
+  const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
+  if (fd < 0) {
+    const int code = errno;
+    ThrowInvalid(path + ": cannot open (" +
+                 (code == ENOENT ? std::string("file not found") : std::strerror(code)) + ")");
   }
-  std::ostringstream buffer;
-  buffer << stream.rdbuf();
-  if (stream.bad()) ThrowInvalid(path + ": read failed");
-  return buffer.str();
+  struct Closer {
+    int fd;
+    ~Closer() { ::close(fd); }
+  } closer{fd};
+  struct stat info {};
+  if (::fstat(fd, &info) != 0) ThrowInvalid(path + ": cannot read (" + std::strerror(errno) + ")");
+  if (!S_ISREG(info.st_mode)) RefuseKind(path, "input file", info.st_mode);
+  const uint64_t size = static_cast<uint64_t>(info.st_size);
+  const auto too_large = [&](uint64_t bytes) {
+    ThrowInvalid(path + ": file of " + std::to_string(bytes) + " bytes is larger than aos reads (" +
+                 std::to_string(max_bytes) + " bytes)");
+  };
+  if (size > max_bytes) too_large(size);
+  std::string text;
+  text.resize(static_cast<size_t>(size));
+  size_t done = 0;
+  while (true) {
+    if (done == text.size()) {
+      // The file may have grown since fstat: read on, still bounded.
+      if (text.size() >= max_bytes) {
+        char probe;
+        const ssize_t more = ::read(fd, &probe, 1);
+        if (more > 0) too_large(text.size() + 1);
+        break;
+      }
+      text.resize(std::min<uint64_t>(max_bytes, text.size() + 65536));
+    }
+    const ssize_t n = ::read(fd, text.data() + done, text.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      ThrowInvalid(path + ": read failed (" + std::strerror(errno) + ")");
+    }
+    if (n == 0) break;
+    done += static_cast<size_t>(n);
+  }
+  text.resize(done);
+  return text;
 }
 
 namespace {
@@ -182,6 +290,9 @@ PendingFolder::PendingFolder(const std::string& output_dir) : output_dir_(output
   }
   final_path_ = target.string();
   temp_path_ = temp.string();
+  std::string shown = output_dir;
+  while (shown.size() > 1 && shown.back() == '/') shown.pop_back();
+  RegisterPathAlias(temp_path_, shown);
 }
 
 PendingFolder::~PendingFolder() {

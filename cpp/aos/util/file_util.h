@@ -1,11 +1,28 @@
 #pragma once
-// Safe output files. Outputs are written under a temporary name in the destination folder and
-// renamed into place only when complete, so a failure never leaves a half-written file, and an
-// output path that names an input file is refused before anything is written.
+// Safe input and output files.
+//
+// Inputs: every reader accepts regular files only (after following links): a FIFO would block
+// the reader forever and a device such as /dev/zero never ends, so both are refused before they
+// are opened for reading, and text files are read with a size bound.
+//
+// Outputs are written under a temporary name in the destination folder and renamed into place
+// only when complete, so a failure never leaves a half-written file, and an output path that
+// names an input file (or a file inside an input folder; links resolved) is refused before
+// anything is written.
+#include <cstdint>
 #include <string>
 #include <vector>
 
 namespace aos {
+
+// Largest text file (JSON, CSV, COLMAP text model) any reader accepts: 1 GiB. A larger file is
+// refused with its size rather than read into memory.
+inline constexpr uint64_t kMaxTextFileBytes = uint64_t{1} << 30;
+
+// Throws std::invalid_argument "<path>: <what>: ..." unless `path` names an existing regular
+// file (links followed): a folder, FIFO, socket or device is refused by kind. Returns its size in
+// bytes.
+uint64_t CheckRegularFile(const std::string& path, const std::string& what = "input file");
 
 // A pending output file. TempPath() is where to write (same folder and extension as the final
 // path, so format detection by extension still works). Commit() renames it to the final path;
@@ -37,7 +54,9 @@ class PendingFile {
 void CommitTogether(const std::vector<PendingFile*>& files);
 
 // Throws std::invalid_argument if `output_path` is the same file as any of `input_paths`
-// (compared after resolving links), or if its folder does not exist.
+// (compared by device and inode, so symbolic and hard links are resolved), or lies in the tree of
+// an input that is a folder and is the same file as one in it, or if its folder does not exist.
+// Every command checks each output against every input it reads with this one rule.
 void CheckOutputPath(const std::string& output_path, const std::vector<std::string>& input_paths,
                      const std::string& what = "output");
 
@@ -70,7 +89,8 @@ class PendingFolder {
 // Writes `text` to `path` atomically (temporary file, then rename).
 void WriteTextFileAtomic(const std::string& path, const std::string& text);
 
-// Reads a whole text file; throws std::invalid_argument naming the file if it cannot be read.
-std::string ReadTextFile(const std::string& path);
+// Reads a whole file (regular files only, at most `max_bytes`); throws std::invalid_argument
+// naming the file if it cannot be read, is not a regular file or is larger.
+std::string ReadTextFile(const std::string& path, uint64_t max_bytes = kMaxTextFileBytes);
 
 }  // namespace aos

@@ -1,0 +1,423 @@
+"""Never lose data, never hang, never eat the machine (issue 13): each failure the fuzz campaign
+found, as a test that failed on the code before the fix.
+
+Every bad input must give exit code != 0 with one error line naming the file (and the key path for
+JSON), no output and no leftover temporary file, and inputs byte-for-byte unchanged. Bad values of
+options exit with 2, like unknown flags. Python raises ValueError for every bad input.
+"""
+from __future__ import annotations
+
+import json
+import os
+import resource
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import time
+import zlib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import aos
+
+EXE = shutil.which("aos-render")
+pytestmark = pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
+
+# 3 x 3 grey 8-bit views of 32 x 24 pixels from 20 m.
+TINY_SCENE = {
+    "occluders": {"voxels": {"center": [0, 0, 8], "size": [10, 10, 4], "grid": [10, 10, 4],
+                             "density": 0.3}},
+    "camera": {"width": 32, "height": 24, "fov_deg": 50},
+    "sampling": {"altitude": 20, "grid": 3, "aperture": {"diameter": 4}},
+    "truth": {"width": 8, "height": 8, "blocked_fraction": False},
+}
+CAMERA = ["--pose-view", "4", "--fov-deg", "50", "--width", "32", "--height", "24"]
+
+
+def run(*args: str | Path, timeout: float = 60, env: dict | None = None,
+        preexec=None) -> subprocess.CompletedProcess:
+    return subprocess.run([EXE, *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, env=env, preexec_fn=preexec, errors="replace")
+
+
+def snapshot(folder: Path) -> dict[str, tuple[bytes, int]]:
+    """Every file below `folder` with its bytes and modification time."""
+    return {str(p.relative_to(folder)): (p.read_bytes(), p.stat().st_mtime_ns)
+            for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def assert_refused(result: subprocess.CompletedProcess, *names: str, code: int = 1) -> str:
+    """Exit code `code`, exactly one stderr line (the error), naming each of `names`."""
+    assert result.returncode == code, (result.returncode, result.stdout, result.stderr)
+    lines = [line for line in result.stderr.splitlines() if line.strip()]
+    errors = [line for line in lines if "error" in line]
+    assert len(errors) == 1 and lines[-1] == errors[0], result.stderr
+    for name in names:
+        assert name in errors[0], (name, errors[0])
+    return errors[0]
+
+
+def no_leftovers(folder: Path, allowed: set[str]) -> None:
+    """Nothing in `folder` but the `allowed` entries (no outputs, no hidden temporary files)."""
+    assert {p.name for p in folder.iterdir()} <= allowed, sorted(p.name for p in folder.iterdir())
+
+
+@pytest.fixture(scope="module")
+def light_field(tmp_path_factory) -> Path:
+    folder = tmp_path_factory.mktemp("robust") / "lf"
+    folder.mkdir()
+    aos.write_lightfield(str(folder / "lightfield.json"), aos.simulate(TINY_SCENE).light_field)
+    return folder / "lightfield.json"
+
+
+# ---------------------------------------------------------------------------------------------
+# Data loss: an output that is one of the inputs, for every command.
+
+def write_colmap_text_model(light_field: Path, model: Path) -> None:
+    """A COLMAP text model of the light field's views (poses are not checked by the import)."""
+    lf = json.loads(light_field.read_text())
+    camera = next(iter(lf["cameras"].values()))
+    model.mkdir()
+    (model / "cameras.txt").write_text(
+        f"1 PINHOLE {camera['width']} {camera['height']} {camera['fx']} {camera['fy']} "
+        f"{camera['cx']} {camera['cy']}\n")
+    lines = []
+    for i, view in enumerate(lf["views"], start=1):
+        t = view["cam_from_world"]["translation"]
+        # cam_from_world = diag(1, -1, -1): the quaternion (w, x, y, z) = (0, 1, 0, 0).
+        lines += [f"{i} 0 1 0 0 {t[0]} {t[1]} {t[2]} 1 {Path(view['image']).name}", ""]
+    (model / "images.txt").write_text("\n".join(lines) + "\n")
+    (model / "points3D.txt").write_text("")
+
+
+def write_colmap_binary_model(light_field: Path, model: Path) -> None:
+    lf = json.loads(light_field.read_text())
+    camera = next(iter(lf["cameras"].values()))
+    model.mkdir()
+    (model / "cameras.bin").write_bytes(
+        struct.pack("<QIiQQ4d", 1, 1, 1, camera["width"], camera["height"], camera["fx"],
+                    camera["fy"], camera["cx"], camera["cy"]))
+    images = struct.pack("<Q", len(lf["views"]))
+    for i, view in enumerate(lf["views"], start=1):
+        t = view["cam_from_world"]["translation"]
+        images += struct.pack("<I7dI", i, 0, 1, 0, 0, *t, 1)
+        images += Path(view["image"]).name.encode() + b"\0" + struct.pack("<Q", 0)
+    (model / "images.bin").write_bytes(images)
+    (model / "points3D.bin").write_bytes(struct.pack("<Q", 0))
+
+
+@pytest.mark.parametrize("kind", ["txt", "bin"])
+def test_import_colmap_never_writes_over_its_model(light_field: Path, tmp_path: Path,
+                                                   kind: str) -> None:
+    model = tmp_path / "model"
+    (write_colmap_text_model if kind == "txt" else write_colmap_binary_model)(light_field, model)
+    images = light_field.parent / "views"
+    ok = run("import-colmap", model, "--images", images, "-o", tmp_path / "lf.json")
+    assert ok.returncode == 0, ok.stderr
+    before = snapshot(model)
+    frames_before = snapshot(images)
+    # The model's files, a symbolic link and a hard link to one of them, and a frame.
+    (tmp_path / "link.json").symlink_to(model / f"images.{kind}")
+    os.link(model / f"cameras.{kind}", tmp_path / "hard.json")
+    targets = [model / f"{name}.{kind}" for name in ("cameras", "images", "points3D")]
+    targets += [tmp_path / "link.json", tmp_path / "hard.json", images / "0000.png"]
+    for target in targets:
+        result = run("import-colmap", model, "--images", images, "-o", target)
+        assert_refused(result, str(target), "input")
+    assert snapshot(model) == before and snapshot(images) == frames_before
+
+
+def test_poses_and_calibrate_refuse_an_input_as_output(light_field: Path, tmp_path: Path) -> None:
+    frames = light_field.parent / "views"
+    before = snapshot(frames)
+    positions = tmp_path / "positions.csv"
+    positions.write_text("name,x,y,z\n0000.png,0,0,0\n")
+    for target in (frames / "0003.png", positions):
+        result = run("poses", frames, "--positions", positions, "-o", target)
+        assert_refused(result, str(target), "input")
+    result = run("calibrate", frames / "0000.png", frames / "0001.png", "-o", frames / "0001.png")
+    assert_refused(result, "0001.png", "input")
+    assert snapshot(frames) == before and positions.read_text().startswith("name,x,y,z")
+
+
+# ---------------------------------------------------------------------------------------------
+# Hangs and signals: regular files only, bounded reads, SIGTERM/SIGINT at every stage.
+
+def test_fifo_and_devices_are_refused_at_once(light_field: Path, tmp_path: Path) -> None:
+    fifo = tmp_path / "fifo.json"
+    os.mkfifo(fifo)
+    out = tmp_path / "out.png"
+    for source in (fifo, Path("/dev/zero"), tmp_path):
+        result = run("integral", source, *CAMERA, "-o", out, timeout=20)
+        message = assert_refused(result, str(source))
+        assert "regular file" in message or "folder" in message
+    result = run("metrics", "/dev/zero", "/dev/zero", timeout=20)
+    assert_refused(result, "/dev/zero", "regular file")
+    # A frame of the light field that is a FIFO.
+    folder = tmp_path / "lf"
+    shutil.copytree(light_field.parent, folder)
+    (folder / "views" / "0002.png").unlink()
+    os.mkfifo(folder / "views" / "0002.png")
+    result = run("integral", folder / "lightfield.json", *CAMERA, "-o", out, timeout=20)
+    assert_refused(result, "0002.png", "FIFO")
+    assert not out.exists()
+    with pytest.raises(ValueError, match="FIFO"):
+        aos.load_lightfield(str(fifo))
+    with pytest.raises(ValueError, match="regular file"):
+        aos.read_image("/dev/zero")
+
+
+F0 = Path(__file__).resolve().parents[3] / "shared" / "data" / "jku-f0" / "poses" / "poses.json"
+
+
+@pytest.mark.skipif(not F0.exists(), reason="the F0 light field is not in ../shared/data")
+@pytest.mark.parametrize("signal_number", [signal.SIGTERM, signal.SIGINT])
+def test_signal_while_loading_stops_at_once(tmp_path: Path, signal_number: int) -> None:
+    out = tmp_path / "f0.png"
+    process = subprocess.Popen(
+        [EXE, "integral", str(F0), "--frames-fov-deg", "50.815436217896945", "--pose-view", "191",
+         "--focal-height", "21", "-o", str(out), "--threads", "1"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        # A process started in the background inherits SIGINT ignored; restore the default.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
+    try:
+        # Signal once it reads the frames (loading 382 thermal frames on one thread takes about a
+        # second or more), however slowly it started.
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and process.poll() is None:
+            try:
+                open_files = [os.readlink(f"/proc/{process.pid}/fd/{fd}")
+                              for fd in os.listdir(f"/proc/{process.pid}/fd")]
+            except OSError:
+                open_files = []
+            if any("jku-f0/images" in name for name in open_files):
+                break
+            time.sleep(0.005)
+        process.send_signal(signal_number)
+        _, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert process.returncode == 130, stderr
+    assert "interrupted" in stderr
+    no_leftovers(tmp_path, set())
+
+
+# ---------------------------------------------------------------------------------------------
+# Memory: estimated before allocating, refused with the options and the figure.
+
+def test_output_larger_than_memory_is_refused(light_field: Path, tmp_path: Path) -> None:
+    out = tmp_path / "big.exr"
+    result = run("integral", light_field, "--pose-view", "4", "--width", "65536", "--height",
+                 "65536", "-o", out, timeout=60,
+                 preexec=lambda: resource.setrlimit(resource.RLIMIT_AS, (6 << 30, 6 << 30)))
+    message = assert_refused(result, "--width", code=2)
+    assert "GiB" in message and "65536" in message
+    # The documented limit: AOS_MEMORY_LIMIT_MB (4096 x 4096 needs 128 MiB for image and count).
+    env = dict(os.environ, AOS_MEMORY_LIMIT_MB="64")
+    result = run("integral", light_field, "--pose-view", "4", "--width", "4096", "--height",
+                 "4096", "-o", out, env=env)
+    message = assert_refused(result, "--width", "AOS_MEMORY_LIMIT_MB", code=2)
+    assert "128 MiB" in message
+    env["AOS_MEMORY_LIMIT_MB"] = "lots"
+    assert_refused(run("integral", light_field, *CAMERA, "-o", out, env=env), "AOS_MEMORY_LIMIT_MB")
+    no_leftovers(tmp_path, set())
+
+
+def png_chunk(kind: bytes, data: bytes) -> bytes:
+    return (struct.pack(">I", len(data)) + kind + data +
+            struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+
+
+def forged_png(width: int, height: int) -> bytes:
+    """A well-formed PNG header (valid CRCs) claiming width x height grey pixels, no pixels."""
+    header = struct.pack(">IIBBBBB", width, height, 8, 0, 0, 0, 0)
+    return (b"\x89PNG\r\n\x1a\n" + png_chunk(b"IHDR", header) +
+            png_chunk(b"IDAT", zlib.compress(b"")) + png_chunk(b"IEND", b""))
+
+
+def forged_tiff(width: int, height: int, data: bytes, claimed_bytes: int) -> bytes:
+    """An uncompressed float32 grey TIFF of width x height in one strip that claims
+    `claimed_bytes` of pixel data but holds `data`."""
+    entries = [(256, 4, 1, width), (257, 4, 1, height), (258, 3, 1, 32), (259, 3, 1, 1),
+               (262, 3, 1, 1), (273, 4, 1, 0), (277, 3, 1, 1), (278, 4, 1, height),
+               (279, 4, 1, claimed_bytes), (339, 3, 1, 3)]
+    ifd_size = 2 + 12 * len(entries) + 4
+    data_offset = 8 + ifd_size
+    body = struct.pack("<H", len(entries))
+    for tag, kind, count, value in entries:
+        value = data_offset if tag == 273 else value
+        packed = struct.pack("<I", value) if kind == 4 else struct.pack("<HH", value, 0)
+        body += struct.pack("<HHI", tag, kind, count) + packed
+    body += struct.pack("<I", 0)
+    return b"II*\x00" + struct.pack("<I", 8) + body + data
+
+
+def test_image_headers_that_lie_are_refused_before_decoding(tmp_path: Path) -> None:
+    png = tmp_path / "huge.png"
+    png.write_bytes(forged_png(46340, 46340))
+    tiff = tmp_path / "huge.tif"
+    tiff.write_bytes(forged_tiff(30000, 30000, b"\0" * 64, 30000 * 30000 * 4))
+    assert len(png.read_bytes()) < 100 and len(tiff.read_bytes()) < 300
+    small = tmp_path / "small.png"
+    aos.write_image(str(small), np.zeros((8, 8), np.uint8))
+    for image in (png, tiff):
+        # 1 GiB of address space is far less than either image would take decoded.
+        result = run("metrics", image, small,
+                     preexec=lambda: resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30)))
+        message = assert_refused(result, str(image))
+        assert "header claims" in message, message
+        with pytest.raises(ValueError, match="header claims"):
+            aos.read_image(str(image))
+
+
+# ---------------------------------------------------------------------------------------------
+# Accepted but wrong.
+
+def test_truncated_tiff_is_an_error_not_junk(light_field: Path, tmp_path: Path) -> None:
+    # A 32 x 32 float TIFF holding 16 of its 1024 pixels.
+    truncated = tmp_path / "truncated.tif"
+    truncated.write_bytes(forged_tiff(32, 32, np.ones(16, np.float32).tobytes(), 32 * 32 * 4))
+    with pytest.raises(ValueError, match="truncated.tif"):
+        aos.read_image(str(truncated))
+    small = tmp_path / "ok.tif"
+    aos.write_image(str(small), np.ones((32, 32), np.float32))
+    assert_refused(run("metrics", truncated, small), "truncated.tif")
+    # A truncated slice of a focal stack.
+    stack = tmp_path / "stack"
+    result = run("stack", light_field, *CAMERA, "--slices", "3", "-q", "-o", stack)
+    assert result.returncode == 0, result.stderr
+    slice_file = stack / "slice_0001.tif"
+    assert slice_file.exists(), sorted(p.name for p in stack.iterdir())
+    slice_file.write_bytes(slice_file.read_bytes()[: slice_file.stat().st_size // 2])
+    result = run("merge", stack, "-o", tmp_path / "merged")
+    assert_refused(result, "slice_0001.tif")
+    assert not (tmp_path / "merged").exists()
+
+
+def test_rectify_refuses_non_finite_frames(tmp_path: Path) -> None:
+    camera = tmp_path / "camera.json"
+    camera.write_text(json.dumps({"format": "aos-camera", "version": 1, "model": "fisheye",
+                                  "width": 32, "height": 24, "fx": 12, "fy": 12, "cx": 16,
+                                  "cy": 12, "distortion": [0, 0, 0, 0]}))
+    for bad in (np.nan, np.inf):
+        frame = tmp_path / "frame.tif"
+        pixels = np.full((24, 32), 0.5, np.float32)
+        pixels[5, 7] = bad
+        aos.write_image(str(frame), pixels)
+        out = tmp_path / "rectified"
+        result = run("rectify", frame, "--camera", camera, "--fov-deg", "60", "-o", out)
+        message = assert_refused(result, "frame.tif")
+        assert "(7, 5)" in message and ("NaN" in message or "infinite" in message)
+        assert not out.exists()
+
+
+def test_bad_values_of_options_exit_2(light_field: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    for grid in ("0", "-3"):
+        result = run("simulate", "--grid", grid, "-o", out)
+        assert result.returncode == 2 and "--grid" in result.stderr, result.stderr
+    result = run("integral", light_field, "--pose-view", "-1", "-o", tmp_path / "a.png")
+    assert result.returncode == 2 and "--pose-view" in result.stderr, result.stderr
+    for args in (["--width", "-5"], ["--views", "5:2"], ["--range", "3,1"],
+                 ["--aperture-radius", "x"]):
+        result = run("integral", light_field, "--pose-view", "4", *args, "-o", tmp_path / "a.png")
+        assert_refused(result, args[0], code=2)
+    result = run("allinfocus", light_field, *CAMERA, "--method", "foo", "-o", out)
+    assert_refused(result, "--method", code=2)
+    no_leftovers(tmp_path, set())
+
+
+# ---------------------------------------------------------------------------------------------
+# Errors that say where.
+
+def test_json_errors_name_the_file_and_key(light_field: Path, tmp_path: Path) -> None:
+    lf = json.loads(light_field.read_text())
+    text = json.dumps(lf, indent=1).replace('"translation": [', '"translation": [1e999, ', 1)
+    overflow = light_field.parent / "overflow.json"
+    overflow.write_text(text)
+    message = assert_refused(run("integral", overflow, *CAMERA, "-o", tmp_path / "a.png"),
+                             "overflow.json", "/views/0/cam_from_world/translation/0")
+    assert "[json.exception" not in message
+    with pytest.raises(ValueError, match="overflow.json: /views/0/cam_from_world/translation"):
+        aos.load_lightfield(str(overflow))
+
+    camera = tmp_path / "camera.json"
+    camera.write_text(json.dumps({"format": 7, "version": 1}))
+    message = assert_refused(run("rectify", light_field.parent / "views" / "0000.png",
+                                 "--camera", camera, "-o", tmp_path / "r"), "camera.json", "format")
+    assert "[json.exception" not in message
+    camera.write_text('{"format": "aos-camera", "version": 1, "model": "pinhole", '
+                      '"width": 1e999}')
+    with pytest.raises(ValueError, match="camera.json: /width"):
+        aos.read_camera_file(str(camera))
+
+    scene = tmp_path / "scene.json"
+    scene.write_text('{"sampling": {"grid": 1e999}}')
+    assert_refused(run("simulate", scene, "-o", tmp_path / "s"), "scene.json", "/sampling/grid")
+    scene.write_text('{"sampling": {"grid": "three"}}')
+    assert_refused(run("simulate", scene, "-o", tmp_path / "s"), "scene.json", "grid")
+    no_leftovers(tmp_path, {"camera.json", "scene.json"})
+
+
+def test_invalid_utf8_raises_value_error(light_field: Path, tmp_path: Path) -> None:
+    bad = tmp_path / "bad.json"
+    bad.write_bytes(b'{"format": "aos-lightfield", "version": 1, "na\xffme": 1}')
+    with pytest.raises(ValueError, match="bad.json"):
+        aos.load_lightfield(str(bad))
+    bad.write_bytes(b'{"format": "aos-camera", "model": "pin\xc3\x28hole"}')
+    with pytest.raises(ValueError, match="bad.json"):
+        aos.read_camera_file(str(bad))
+    with pytest.raises(ValueError, match="bad.json"):
+        aos.load_scene(str(bad))
+    assert_refused(run("integral", bad, *CAMERA, "-o", tmp_path / "a.png"), "bad.json")
+    # A COLMAP model naming a frame in invalid UTF-8.
+    model = tmp_path / "model"
+    write_colmap_text_model(light_field, model)
+    images = (model / "images.txt").read_bytes().replace(b"0000.png", b"00\xff0.png", 1)
+    (model / "images.txt").write_bytes(images)
+    with pytest.raises(ValueError, match="UTF-8"):
+        aos.import_colmap(str(model), str(light_field.parent / "views"))
+
+
+def test_damaged_png_gives_one_line(light_field: Path, tmp_path: Path) -> None:
+    png = bytearray((light_field.parent / "views" / "0000.png").read_bytes())
+    for position in (12, 40, len(png) // 2, len(png) - 6):
+        damaged = tmp_path / "damaged.png"
+        mutated = png.copy()
+        mutated[position] ^= 0x5A
+        damaged.write_bytes(bytes(mutated))
+        assert_refused(run("metrics", damaged, light_field.parent / "views" / "0001.png"),
+                       "damaged.png")
+    damaged.write_bytes(bytes(png[:100]))
+    assert_refused(run("metrics", damaged, damaged), "damaged.png")
+
+
+def test_write_failure_names_the_users_path(light_field: Path, tmp_path: Path) -> None:
+    """A full disk (here: a file-size limit of 300 bytes) while writing: the error names -o."""
+    def small_files() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+        resource.setrlimit(resource.RLIMIT_FSIZE, (300, 300))
+
+    out = tmp_path / "out"
+    out.mkdir()
+    for name in ("image.png", "image.tif", "image.exr"):
+        result = run("integral", light_field, *CAMERA, "-o", out / name, preexec=small_files)
+        message = assert_refused(result, str(out / name))
+        assert ".tmp" not in message, message
+    result = run("allinfocus", light_field, *CAMERA, "--slices", "2", "-o", out / "aif",
+                 preexec=small_files)
+    message = assert_refused(result, str(out / "aif"))
+    assert ".partial" not in message, message
+    no_leftovers(out, set())
+
+
+def test_python_raises_value_error_for_library_errors(tmp_path: Path) -> None:
+    """The bindings turn the JSON library's and the filesystem's exceptions into ValueError."""
+    with pytest.raises(ValueError, match="<dict>"):
+        aos.simulate({"sampling": {"grid": float("nan")}})
+    with pytest.raises(ValueError, match="not valid JSON"):
+        aos.parse_scene('{"seed": 1e999}', "inline")
