@@ -249,7 +249,7 @@ TEST_F(PositionsFiles, MalformedLinesAreNamed) {
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("e.csv", "# nothing\n")); }),
               HasSubstr("e.csv: no positions"));
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Path("missing.csv")); }),
-              HasSubstr("missing.csv: positions file: file not found"));
+              HasSubstr("missing.csv: positions file not found"));
 }
 
 // Views whose poses are the true ones seen through an arbitrary similarity (COLMAP's frame).

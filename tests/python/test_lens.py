@@ -79,7 +79,7 @@ def test_cli_rectify_keeps_bit_depth_and_refuses_uncovered_views(tmp_path) -> No
     refused = subprocess.run(["aos-render", "rectify", str(tmp_path / "f0.png"), "--camera",
                               str(tmp_path / "cam.json"), "--fov-deg", "179", "-o",
                               str(tmp_path / "wide")], capture_output=True, text=True)
-    assert refused.returncode == 1 and "does not cover" in refused.stderr
+    assert refused.returncode == 2 and "does not cover" in refused.stderr
     assert not (tmp_path / "wide").exists()
 
 

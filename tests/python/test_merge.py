@@ -176,7 +176,7 @@ def test_cli_stack_merge_and_allinfocus(tmp_path: Path) -> None:
         assert depth.shape == (48, 48) and np.isfinite(depth).all()
     refused = aos_render("merge", str(tmp_path / "stack"), "--method", "robust", "-o",
                          str(tmp_path / "robust"))
-    assert refused.returncode == 1 and "--lightfield" in refused.stderr
+    assert refused.returncode == 2 and "--lightfield" in refused.stderr
     assert not (tmp_path / "robust").exists()
     done = aos_render("merge", str(tmp_path / "stack"), "--method", "robust", "--lightfield",
                       lightfield, "-q", "-o", str(tmp_path / "robust"))
@@ -190,5 +190,5 @@ def test_cli_stack_merge_and_allinfocus(tmp_path: Path) -> None:
     assert again.returncode == 1 and "not empty" in again.stderr
     bad = aos_render("allinfocus", lightfield, *common[:-3], "--slices", "0", "-o",
                      str(tmp_path / "bad"))
-    assert bad.returncode == 1 and "--slices" in bad.stderr
+    assert bad.returncode == 2 and "--slices" in bad.stderr
     assert not (tmp_path / "bad").exists()

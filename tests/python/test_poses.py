@@ -152,7 +152,7 @@ def test_python_api_and_bad_input(flight, tmp_path) -> None:
     done = subprocess.run(["aos-render", "poses", str(tmp_path / "empty"), "-o",
                            str(tmp_path / "out.json"), "--matcher", "vocab"],
                           capture_output=True, text=True)
-    assert done.returncode == 1 and "--matcher" in done.stderr
+    assert done.returncode == 2 and "--matcher" in done.stderr
     # The kept workspace holds COLMAP's model, which import_colmap (and the CLI) read back,
     # geo-referenced the same way.
     model = flight["root"] / "ws" / "sparse" / "0"

@@ -222,6 +222,18 @@ def test_output_larger_than_memory_is_refused(light_field: Path, tmp_path: Path)
                  "4096", "-o", out, env=env)
     message = assert_refused(result, "--width", "AOS_MEMORY_LIMIT_MB", code=2)
     assert "128 MiB" in message
+    # A focal stack keeps every slice; a simulation every view.
+    result = run("stack", light_field, "--pose-view", "4", "--width", "1024", "--height", "1024",
+                 "--slices", "100", "-o", tmp_path / "stack", env=env)
+    message = assert_refused(result, "--slices", code=2)
+    assert "800 MiB" in message, message
+    scene = tmp_path / "scene.json"
+    scene.write_text(json.dumps({"camera": {"width": 2000, "height": 1500},
+                                 "sampling": {"grid": 30}}))
+    message = assert_refused(run("simulate", scene, "-o", tmp_path / "sim", env=env),
+                             "scene.json", "900 views of 2000 x 1500")
+    assert "2.5 GiB" in message, message
+    scene.unlink()
     env["AOS_MEMORY_LIMIT_MB"] = "lots"
     assert_refused(run("integral", light_field, *CAMERA, "-o", out, env=env), "AOS_MEMORY_LIMIT_MB")
     no_leftovers(tmp_path, set())

@@ -12,6 +12,7 @@
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/json_file.h"
+#include "aos/util/memory.h"
 
 namespace fs = std::filesystem;
 
@@ -220,6 +221,20 @@ FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptio
                             ProgressSink* progress) {
   FocalStack stack;
   stack.camera = VirtualCamera(options.render);
+  if (!light_field.views.empty()) {
+    // Every slice is kept: refuse a stack the machine cannot hold before rendering any of it.
+    const uint64_t channels = static_cast<uint64_t>(light_field.views.front().image.channels());
+    CheckMemoryBudget(
+        SaturatingProduct({static_cast<uint64_t>(std::max(options.slices, 0)),
+                           static_cast<uint64_t>(stack.camera.width),
+                           static_cast<uint64_t>(stack.camera.height),
+                           channels * 4 + 4 + (options.render.variance ? 4 : 0)}),
+        "slices: " + std::to_string(options.slices) + " slices of " +
+            std::to_string(stack.camera.width) + " x " + std::to_string(stack.camera.height) +
+            " pixels",
+        "each slice's float32 image, uint32 count" +
+            std::string(options.render.variance ? " and float32 variance" : ""));
+  }
   stack.render = options.render;
   stack.render.cam_from_world = VirtualCamFromWorld(light_field, options.render);
   stack.render.pose_view = -1;

@@ -11,6 +11,7 @@
 #include <omp.h>
 
 #include "aos/util/error.h"
+#include "aos/util/memory.h"
 
 // How it works
 // Every method reduces a slice to one focus value per pixel (higher = sharper) and folds the
@@ -532,6 +533,18 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   const int threads = Threads(options.merge.num_threads);
   const PinholeCamera camera = VirtualCamera(run.stack.render);
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, run.stack.render);
+  {
+    // Streaming keeps one slice and the merge state (best image, focus, depth, confidence,
+    // slice, counts): about twice a slice plus 24 bytes a pixel, whatever the number of slices.
+    const uint64_t channels = static_cast<uint64_t>(light_field.views.front().image.channels());
+    CheckMemoryBudget(
+        SaturatingProduct({static_cast<uint64_t>(camera.width),
+                           static_cast<uint64_t>(camera.height),
+                           2 * (channels * 4 + 8) + 24}),
+        "width/height: " + std::to_string(camera.width) + " x " + std::to_string(camera.height) +
+            " pixels",
+        "one slice and the merge state, estimated");
+  }
   std::unique_ptr<FocusAccumulator> accumulator;
   std::vector<Plane> planes;
   double seconds_merge = 0.0;

@@ -15,6 +15,7 @@
 #include "aos/sim/occluders.h"
 #include "aos/sim/random.h"
 #include "aos/util/error.h"
+#include "aos/util/memory.h"
 
 namespace aos {
 namespace {
@@ -755,6 +756,16 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
   }
   const std::vector<Vec3d> positions = ViewPositions(scene);
   stats.views = static_cast<int64_t>(positions.size());
+  // The views dominate what the simulation keeps; refuse a scene the machine cannot hold before
+  // tracing any of it.
+  CheckMemoryBudget(
+      SaturatingProduct({static_cast<uint64_t>(positions.size()),
+                         static_cast<uint64_t>(camera.width), static_cast<uint64_t>(camera.height),
+                         static_cast<uint64_t>(cam.channels),
+                         static_cast<uint64_t>(cam.bit_depth / 8)}),
+      scene.source + ": sampling/camera: " + std::to_string(positions.size()) + " views of " +
+          std::to_string(camera.width) + " x " + std::to_string(camera.height) + " pixels",
+      "the views' samples");
   Vec3d truth_position(scene.truth.position[0], scene.truth.position[1], scene.truth.position[2]);
   if (std::isnan(truth_position.x)) {
     truth_position = Vec3d(0.0);

@@ -147,8 +147,8 @@ uint64_t CheckRegularFile(const std::string& path, const std::string& what) {
   struct stat info {};
   if (::stat(path.c_str(), &info) != 0) {
     const int code = errno;
-    ThrowInvalid(path + ": " + what + ": " +
-                 (code == ENOENT ? std::string("file not found") : std::strerror(code)));
+    if (code == ENOENT) ThrowInvalid(path + ": " + what + " not found");
+    ThrowInvalid(path + ": " + what + ": " + std::strerror(code));
   }
   if (!S_ISREG(info.st_mode)) RefuseKind(path, what, info.st_mode);
   return static_cast<uint64_t>(info.st_size);
