@@ -248,6 +248,7 @@ void WriteOutputs(const IntegralResult& result, const std::string& image_path,
   CheckOutputs(out, image_path, count_path, inputs);
   WriteImageOptions write;
   write.sample_type = ParseSampleType(out.sample_type);
+  write.units = views_type;  // renders keep the views' units (image_io.h states the rule)
   const auto [lo, hi] = ResolveRange(out.range, result, views_type);
   write.range_min = lo;
   write.range_max = hi;
@@ -866,36 +867,45 @@ void AddResolution(CLI::App& app, ResolutionCommand& c) {
   auto* error_m = command->add_option("--pose-error-m", c.options.pose_error_m,
                                       "Pose error at the focal plane, metres");
   error_px->excludes(error_m);
+  command->add_option("--max-off-axis-deg", c.options.max_off_axis_deg,
+                      "Back-projected figure over pixels within this angle of the axis, degrees")
+      ->capture_default_str();
   command->add_flag("--json", c.json, "Print one JSON object");
 }
 
 int RunResolution(const ResolutionCommand& c) {
+  const LensModel model = AsUsage([&] { return ParseLensModel(c.model, "--model"); });
+  std::array<double, 5> distortion{0, 0, 0, 0, 0};
+  if (!c.distortion.empty()) {
+    const std::vector<double> d = ParseNumbers(c.distortion, "--distortion");
+    if (d.size() > 5) ThrowUsage("--distortion: at most 5 coefficients");
+    std::copy(d.begin(), d.end(), distortion.begin());
+  }
   LensCamera camera;
-  camera.model = AsUsage([&] { return ParseLensModel(c.model, "--model"); });
-  camera.width = c.width;
-  camera.height = c.height;
   if (!c.focal.empty()) {
     const std::vector<double> f = ParseNumbers(c.focal, "--focal", 2);
+    camera.model = model;
+    camera.width = c.width;
+    camera.height = c.height;
     camera.fx = f[0];
     camera.fy = f[1];
+    camera.cx = 0.5 * c.width;
+    camera.cy = 0.5 * c.height;
+    camera.distortion = distortion;
   } else if (c.fov_deg > 0.0) {
-    const PinholeCamera pinhole = PinholeCamera::FromFov(c.width, c.height, c.fov_deg);
-    camera.fx = pinhole.fx;
-    camera.fy = pinhole.fy;
+    // The field of view through the lens's own radial map (a fisheye's 180 degrees is fine).
+    try {
+      camera = LensFromFov(model, c.width, c.height, c.fov_deg, distortion, c.xi, "camera");
+    } catch (const std::invalid_argument& error) {
+      ThrowUsage(std::string(error.what()) + " [option --fov-deg/--model/--distortion]");
+    }
   } else {
     ThrowUsage("give --fov-deg or --focal");
   }
-  camera.cx = 0.5 * c.width;
-  camera.cy = 0.5 * c.height;
   if (!c.principal.empty()) {
     const std::vector<double> p = ParseNumbers(c.principal, "--principal", 2);
     camera.cx = p[0];
     camera.cy = p[1];
-  }
-  if (!c.distortion.empty()) {
-    const std::vector<double> d = ParseNumbers(c.distortion, "--distortion");
-    if (d.size() > 5) ThrowUsage("--distortion: at most 5 coefficients");
-    std::copy(d.begin(), d.end(), camera.distortion.begin());
   }
   camera.xi = c.xi;
   camera.skew = c.skew;
@@ -904,27 +914,34 @@ int RunResolution(const ResolutionCommand& c) {
     r = SamplingResolution(camera, c.options);
   } catch (const std::invalid_argument& error) {
     RethrowNamingFlags(error, {{"distance_m", "--distance"},
+                               {"max_off_axis_deg", "--max-off-axis-deg"},
                                {"pose_error_px", "--pose-error-px"},
                                {"pose_error_m", "--pose-error-m"}});
   }
   if (c.json) {
     std::printf("{\"eq2_samples_per_m2\": %s, \"eq2_sample_size_m\": %s, \"samples_per_m2\": %s, "
-                "\"sample_size_m\": %s, \"pixels_on_plane\": %lld, \"footprint_m2\": %s, "
+                "\"sample_size_m\": %s, \"pixels_on_plane\": %lld, \"pixels_off_axis\": %lld, "
+                "\"footprint_m2\": %s, "
                 "\"pose_error_m\": %s, \"effective_sample_size_m\": %s, "
                 "\"effective_samples_per_m2\": %s}\n",
                 FormatNumber(r.eq2_samples_per_m2).c_str(), FormatNumber(r.eq2_sample_size_m).c_str(),
                 FormatNumber(r.samples_per_m2).c_str(), FormatNumber(r.sample_size_m).c_str(),
-                static_cast<long long>(r.pixels_on_plane), FormatNumber(r.footprint_m2).c_str(),
+                static_cast<long long>(r.pixels_on_plane), static_cast<long long>(r.pixels_off_axis),
+                FormatNumber(r.footprint_m2).c_str(),
                 FormatNumber(r.pose_error_m).c_str(), FormatNumber(r.effective_sample_size_m).c_str(),
                 FormatNumber(r.effective_samples_per_m2).c_str());
     return 0;
   }
-  std::printf("Eq. 2 (pinhole):        %.1f samples/m^2, sample size %.2f cm\n",
+  std::printf("Eq. 2 (at nadir):        %.1f samples/m^2, sample size %.2f cm\n",
               r.eq2_samples_per_m2, 100.0 * r.eq2_sample_size_m);
-  std::printf("back-projected (App. A): %.1f samples/m^2, sample size %.2f cm (%lld pixels over "
-              "%.1f m^2)\n",
+  std::printf("back-projected (App. A): %.1f samples/m^2, sample size %.2f cm (%lld pixels within "
+              "%s degrees of the axis over %.1f m^2",
               r.samples_per_m2, 100.0 * r.sample_size_m, static_cast<long long>(r.pixels_on_plane),
-              r.footprint_m2);
+              FormatNumber(c.options.max_off_axis_deg).c_str(), r.footprint_m2);
+  if (r.pixels_off_axis > 0) {
+    std::printf("; %lld pixels further off the axis left out", static_cast<long long>(r.pixels_off_axis));
+  }
+  std::printf(")\n");
   std::printf("pose error %.2f cm: effective sample size p' = p + 2e = %.2f cm, %.1f samples/m^2\n",
               100.0 * r.pose_error_m, 100.0 * r.effective_sample_size_m, r.effective_samples_per_m2);
   return 0;
@@ -1341,6 +1358,7 @@ int RunMetrics(const MetricsCommand& c) {
   auto number = [](double value) {
     return std::isfinite(value) ? FormatNumber(value) : std::string(value > 0 ? "inf" : "nan");
   };
+  if (!r.note.empty()) std::fprintf(stderr, "note: %s\n", r.note.c_str());
   if (c.json) {
     std::printf("{\"mse\": %s, \"psnr_db\": %s, \"ssim\": %s, \"color_ssim\": %s, "
                 "\"data_range\": %s, \"mse_pixels\": %lld, \"ssim_pixels\": %lld}\n",

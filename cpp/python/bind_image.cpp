@@ -1,5 +1,6 @@
 // numpy <-> aos::Image conversions (copy rules in bindings.h) and the bindings of image_io.h.
 #include <filesystem>
+#include <optional>
 
 #include <pybind11/stl/filesystem.h>
 
@@ -102,24 +103,30 @@ void BindImage(py::module_& m) {
   m.def(
       "write_image",
       [](const std::filesystem::path& path, const py::handle& array, const std::string& sample_type,
-         double range_min, double range_max, std::string description) {
+         std::optional<double> range_min, std::optional<double> range_max, std::string description,
+         const std::string& units) {
         WriteImageOptions options;
         options.sample_type = ParseSampleType(sample_type);
-        options.range_min = range_min;
-        options.range_max = range_max;
+        options.units = ParsePixelTypeName(units, "units");
+        if (range_min) options.range_min = *range_min;
+        if (range_max) options.range_max = *range_max;
         options.description = std::move(description);
         const Image image = ImageFromArray(array, /*border=*/0, "write_image: " + path.string());
         py::gil_scoped_release release;
         WriteImage(path.string(), image, options);
       },
       "path"_a, "array"_a, "sample_type"_a = std::string(SampleTypeName(defaults.sample_type)),
-      "range_min"_a = defaults.range_min, "range_max"_a = defaults.range_max,
+      "range_min"_a = py::none(), "range_max"_a = py::none(),
       "description"_a = defaults.description,
+      "units"_a = std::string(PixelTypeName(defaults.units)),
       "Writes an image (format from the extension). `array` (H, W) or (H, W, C) of dtype uint8, "
-      "uint16, uint32 or float32 (float64 is converted to float32) is copied first. sample_type: "
-      "'auto', 'uint8', 'uint16', 'uint32', 'float32'; float images written as integers map "
-      "[range_min, range_max] to [0, max code]. The file appears atomically; raises ValueError "
-      "on failure.");
+      "uint16, uint32 or float32 (float64 is converted to float32) is copied first. A float "
+      "array's values are in the units of `units` ('uint8': 0..255, 'uint16': 0..65535, "
+      "'float32': 0..1; aos renders keep their views' units); written to an integer format with "
+      "sample_type 'auto' they take the depth of `units` (uint16 for 16-bit or float units) and "
+      "[range_min, range_max] (default: the units' full range) maps to [0, max code]; the same "
+      "rule as aos-render. sample_type: 'auto', 'uint8', 'uint16', 'uint32', 'float32'. The file "
+      "appears atomically; raises ValueError on failure.");
 }
 
 }  // namespace aos::python

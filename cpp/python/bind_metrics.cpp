@@ -36,6 +36,10 @@ void BindMetrics(py::module_& m) {
       .def_readonly("data_range", &QualityResult::data_range, "The L used.")
       .def_readonly("mse_pixels", &QualityResult::mse_pixels, "Pixels in MSE/PSNR.")
       .def_readonly("ssim_pixels", &QualityResult::ssim_pixels, "Pixels in the SSIM averages.")
+      .def_readonly("test_scale", &QualityResult::test_scale,
+                    "Factor applied to the test image (integer images of different types).")
+      .def_readonly("note", &QualityResult::note,
+                    "How mismatched sample types were reconciled; empty when the types agree.")
       .def("__repr__", [](const QualityResult& r) {
         return "QualityResult(psnr_db=" + std::to_string(r.psnr_db) + ", ssim=" +
                std::to_string(r.ssim) + ", color_ssim=" + std::to_string(r.color_ssim) + ")";
@@ -65,6 +69,9 @@ void BindMetrics(py::module_& m) {
              "Pose error in pixels (>= 0), converted to metres with the sample size.")
       .Field("pose_error_m", &ResolutionOptions::pose_error_m,
              "Pose error in metres at the focal plane (>= 0); at most one of the two.")
+      .Field("max_off_axis_deg", &ResolutionOptions::max_off_axis_deg,
+             "The back-projected figure counts pixels whose ray is within this angle of the "
+             "axis, degrees in (0, 90).")
       .Finish()
       .def("check", &ResolutionOptions::Check, "Raises ValueError naming the field.");
 
@@ -75,6 +82,7 @@ void BindMetrics(py::module_& m) {
       .def_readonly("samples_per_m2", &ResolutionResult::samples_per_m2)
       .def_readonly("sample_size_m", &ResolutionResult::sample_size_m)
       .def_readonly("pixels_on_plane", &ResolutionResult::pixels_on_plane)
+      .def_readonly("pixels_off_axis", &ResolutionResult::pixels_off_axis)
       .def_readonly("footprint_m2", &ResolutionResult::footprint_m2)
       .def_readonly("pose_error_m", &ResolutionResult::pose_error_m)
       .def_readonly("effective_sample_size_m", &ResolutionResult::effective_sample_size_m)

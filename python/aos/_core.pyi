@@ -162,12 +162,16 @@ def write_image(
     path: _PathLike,
     array: numpy.typing.ArrayLike,
     sample_type: str = "auto",
-    range_min: float = 0.0,
-    range_max: float = 255.0,
+    range_min: float | None = None,
+    range_max: float | None = None,
     description: str = "",
+    units: str = "uint8",
 ) -> None:
     """Writes `array` (COPIED first; uint8, uint16, uint32, float32, float64 -> float32) to `path`
-    atomically. sample_type: 'auto', 'uint8', 'uint16', 'uint32', 'float32'."""
+    atomically. A float array's values are in the units of `units` ('uint8' 0..255, 'uint16'
+    0..65535, 'float32' 0..1); to an integer format they take its depth and map the range
+    (default: the units' full range) onto the codes, as aos-render does.
+    sample_type: 'auto', 'uint8', 'uint16', 'uint32', 'float32'."""
 
 class View:
     """One view of a light field (read-only)."""
@@ -650,6 +654,10 @@ class QualityResult:
     @property
     def data_range(self) -> float: ...
     @property
+    def test_scale(self) -> float: ...
+    @property
+    def note(self) -> str: ...
+    @property
     def mse_pixels(self) -> int: ...
     @property
     def ssim_pixels(self) -> int: ...
@@ -660,12 +668,18 @@ class ResolutionOptions:
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
-        self, *, distance_m: float = ..., pose_error_px: float = ..., pose_error_m: float = ...
+        self,
+        *,
+        distance_m: float = ...,
+        pose_error_px: float = ...,
+        pose_error_m: float = ...,
+        max_off_axis_deg: float = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     distance_m: float
     pose_error_px: float
     pose_error_m: float
+    max_off_axis_deg: float
     def check(self) -> None: ...
     def __copy__(self) -> ResolutionOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> ResolutionOptions: ...
@@ -682,6 +696,8 @@ class ResolutionResult:
     def sample_size_m(self) -> float: ...
     @property
     def pixels_on_plane(self) -> int: ...
+    @property
+    def pixels_off_axis(self) -> int: ...
     @property
     def footprint_m2(self) -> float: ...
     @property

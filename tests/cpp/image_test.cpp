@@ -267,8 +267,9 @@ TEST_F(FilesTest, WriteErrors) {
   ExpectInvalid([&] { WriteImage(Path("a.exr"), image); }, {"a.exr", "EXR"});
   ExpectInvalid([&] { WriteImage(Path("a.png"), Image()); }, {"a.png", "empty"});
   WriteImageOptions options;
-  options.range_max = options.range_min;
-  ExpectInvalid([&] { WriteImage(Path("a.png"), image, options); }, {"range"});
+  options.range_min = options.range_max = 5.0;
+  ExpectInvalid([&] { WriteImage(Path("a.png"), Sweep(4, 4, 1, PixelType::kF32), options); },
+                {"range"});
   EXPECT_THAT(Entries(), testing::IsEmpty());
   ExpectInvalid([] { ParseSampleType("int8"); }, {"sample_type", "int8"});
   EXPECT_EQ(ParseSampleType("uint16"), SampleType::kU16);

@@ -62,9 +62,36 @@ TEST(Resolution, AFisheyeCoversMoreGroundPerPixelOffAxis) {
   LensCamera fisheye = Camera(400, 80.0, LensModel::kFisheye);
   ResolutionOptions options;
   options.distance_m = 20.0;
+  options.max_off_axis_deg = 89.0;  // every pixel
   const ResolutionResult r = SamplingResolution(fisheye, options);
   EXPECT_EQ(r.pixels_on_plane, 400 * 400);
+  EXPECT_EQ(r.pixels_off_axis, 0);
   EXPECT_LT(r.samples_per_m2, 0.9 * r.eq2_samples_per_m2);
+  // By default the pixels further than 60 degrees off the axis are left out (their footprints
+  // are long slivers); the figure then comes nearer Eq. 2's.
+  options.max_off_axis_deg = 60.0;
+  const ResolutionResult central = SamplingResolution(fisheye, options);
+  EXPECT_GT(central.pixels_off_axis, 0);
+  EXPECT_EQ(central.pixels_on_plane + central.pixels_off_axis, 400 * 400);
+  EXPECT_GT(central.samples_per_m2, r.samples_per_m2);
+}
+
+TEST(Resolution, AFieldOfViewGoesThroughTheLenssRadialMap) {
+  // Equidistant fisheye: r = f theta, so a 180-degree field across 1000 pixels has
+  // f = 500 / (pi / 2); a pinhole cannot see 180 degrees.
+  const LensCamera fisheye =
+      LensFromFov(LensModel::kFisheye, 1000, 800, 180.0, {0, 0, 0, 0, 0}, 0.0, "camera");
+  EXPECT_NEAR(fisheye.fx, 500.0 / (M_PI / 2.0), 1e-9);
+  EXPECT_EQ(fisheye.cx, 500.0);
+  const LensCamera pinhole =
+      LensFromFov(LensModel::kPinhole, 1000, 800, 90.0, {0, 0, 0, 0, 0}, 0.0, "camera");
+  EXPECT_NEAR(pinhole.fx, 500.0, 1e-9);
+  try {
+    LensFromFov(LensModel::kPinhole, 1000, 800, 180.0, {0, 0, 0, 0, 0}, 0.0, "camera");
+    FAIL();
+  } catch (const std::invalid_argument& error) {
+    EXPECT_THAT(error.what(), testing::HasSubstr("camera.fov_deg: a pinhole lens's field of view"));
+  }
 }
 
 TEST(Resolution, OptionsAreChecked) {

@@ -39,7 +39,7 @@ def test_paper_figures_from_the_cli() -> None:
     folded = subprocess.run(["aos-render", "resolution", "--width", "640", "--height", "480",
                              "--fov-deg", "80", "--model", "radtan", "--distortion", "-0.5"],
                             capture_output=True, text=True)
-    assert folded.returncode == 1 and "folds the image" in folded.stderr
+    assert folded.returncode == 2 and "folds the image" in folded.stderr
 
 
 def test_lens_camera_round_trip_and_masks() -> None:
@@ -115,3 +115,28 @@ def test_simulated_fisheye_light_field_renders_directly_and_after_rectify(tmp_pa
     # rectifying adds a second resampling, which costs quality.
     assert direct_psnr > 35.0 and two_step_psnr > 30.0
     assert direct_psnr > two_step_psnr
+
+
+def test_cli_resolution_of_wide_lenses_is_sane() -> None:
+    """A fisheye's field of view goes through its own radial map (180 degrees was refused with
+    a pinhole message) and the back-projected sample size leaves out the pixels near the horizon
+    (it printed 124 m)."""
+    def resolution(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run(["aos-render", "resolution", "--width", "1024", "--height", "1024",
+                               "--distance", "35", "--json", *args], capture_output=True,
+                              text=True)
+
+    for fov in ("170", "180"):
+        done = resolution("--model", "fisheye", "--fov-deg", fov)
+        assert done.returncode == 0, done.stderr
+        r = json.loads(done.stdout)
+        # Equidistant: fx = (w / 2) / (fov / 2 in radians); at nadir p = d / fx.
+        fx = 512.0 / math.radians(float(fov) / 2.0)
+        assert abs(r["eq2_sample_size_m"] - 35.0 / fx) < 1e-9
+        assert r["eq2_sample_size_m"] < r["sample_size_m"] < 3.0 * r["eq2_sample_size_m"]
+        assert r["pixels_off_axis"] > 0
+    # A 60-degree fisheye: every pixel within 60 degrees of the axis, none left out.
+    r = json.loads(resolution("--model", "fisheye", "--fov-deg", "60").stdout)
+    assert r["pixels_off_axis"] == 0 and r["sample_size_m"] < 0.05
+    refused = resolution("--fov-deg", "180")
+    assert refused.returncode == 2 and "pinhole lens's field of view" in refused.stderr

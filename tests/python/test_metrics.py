@@ -1,6 +1,9 @@
 """Quality metrics from Python, against an independent numpy implementation of the definitions
 in docs/metrics.md (Gaussian-window SSIM of Wang et al. 2004)."""
+import json
 import math
+import shutil
+import subprocess
 
 import numpy as np
 import pytest
@@ -73,3 +76,37 @@ def test_integral_of_the_default_scene_beats_a_single_view():
     # Measured here: integral 11.0 dB / SSIM 0.46, single view 9.1 dB / 0.25.
     assert a.psnr_db > s.psnr_db + 1.0
     assert a.ssim > s.ssim + 0.1
+
+
+def test_mismatched_sample_types_are_normalised_or_refused(tmp_path) -> None:
+    """8-bit against a 16-bit truth is compared by each type's range (it compared raw codes)."""
+    rng = np.random.default_rng(3)
+    truth16 = rng.integers(0, 65536, (48, 64)).astype(np.uint16)
+    test8 = np.clip(np.round(truth16 / 257.0) + rng.normal(0, 4, truth16.shape), 0, 255)
+    test8 = test8.astype(np.uint8)
+    same_scale = aos.compare_images(test8.astype(np.uint16) * np.uint16(257), truth16)
+    mixed = aos.compare_images(test8, truth16)
+    assert mixed.test_scale == 257.0 and "scaled by 257" in mixed.note
+    assert mixed.data_range == 65535.0
+    assert abs(mixed.psnr_db - same_scale.psnr_db) < 1e-9 and mixed.psnr_db > 30.0
+    assert aos.compare_images(truth16, truth16).note == ""
+    # A float render in the views' units against an 8-bit truth: compared in 8-bit units.
+    render = test8.astype(np.float32)
+    truth8 = np.round(truth16 / 257.0).astype(np.uint8)
+    result = aos.compare_images(render, truth8)
+    assert result.data_range == 255.0 and "units of the uint8" in result.note
+    assert abs(result.psnr_db - aos.compare_images(test8, truth8).psnr_db) < 1e-9
+    # A float image normalised to [0, 1] against an 8-bit truth is refused, not scored.
+    with pytest.raises(ValueError, match="looks normalised"):
+        aos.compare_images(render / 255.0, truth8)
+    # The CLI says what it did.
+    aos.write_image(str(tmp_path / "test.png"), test8)
+    aos.write_image(str(tmp_path / "truth.png"), truth16)
+    exe = shutil.which("aos-render")
+    if exe:
+        done = subprocess.run([exe, "metrics", str(tmp_path / "test.png"),
+                               str(tmp_path / "truth.png"), "--json"], capture_output=True,
+                              text=True)
+        assert done.returncode == 0, done.stderr
+        assert "scaled by 257" in done.stderr
+        assert abs(json.loads(done.stdout)["psnr_db"] - same_scale.psnr_db) < 1e-6

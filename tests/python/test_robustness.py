@@ -433,3 +433,31 @@ def test_python_raises_value_error_for_library_errors(tmp_path: Path) -> None:
         aos.simulate({"sampling": {"grid": float("nan")}})
     with pytest.raises(ValueError, match="not valid JSON"):
         aos.parse_scene('{"seed": 1e999}', "inline")
+
+
+def test_sixteen_bit_frames_give_sixteen_bit_pngs(tmp_path: Path) -> None:
+    """One rule for float -> integer samples (image_io.h): renders keep the views' units and, to
+    PNG, their depth; the CLI wrote 8-bit PNGs of 16-bit thermal frames."""
+    from conftest import build_lightfield
+
+    folder = tmp_path / "lf"
+    folder.mkdir()
+    lf = build_lightfield(dtype=np.uint16, value=40001.0)
+    aos.write_lightfield(str(folder / "lightfield.json"), lf)
+    out = tmp_path / "integral.png"
+    result = run("integral", folder / "lightfield.json", "--pose-view", "4", "--width", "16",
+                 "--height", "12", "--fov-deg", "30", "-o", out)
+    assert result.returncode == 0, result.stderr
+    image = aos.read_image(str(out))
+    assert image.dtype == np.uint16 and np.all(image == 40001), (image.dtype, image.max())
+    # Python's write_image follows the same rule, with the units stated.
+    floats = np.full((4, 5), 40001.0, np.float32)
+    aos.write_image(str(tmp_path / "a.png"), floats, units="uint16")
+    back = aos.read_image(str(tmp_path / "a.png"))
+    assert back.dtype == np.uint16 and np.all(back == 40001)
+    aos.write_image(str(tmp_path / "b.png"), np.full((4, 5), 0.5, np.float32), units="float32")
+    back = aos.read_image(str(tmp_path / "b.png"))
+    assert back.dtype == np.uint16 and np.all(back == 32768)
+    aos.write_image(str(tmp_path / "c.png"), np.full((4, 5), 100.0, np.float32))
+    back = aos.read_image(str(tmp_path / "c.png"))
+    assert back.dtype == np.uint8 and np.all(back == 100)

@@ -330,4 +330,75 @@ bool LensCamera::Unproject(const Vec2d& pixel, Vec3d* ray) const {
   return true;
 }
 
+LensCamera LensFromFov(LensModel model, int width, int height, double fov_deg,
+                       const std::array<double, 5>& distortion, double xi,
+                       const std::string& where) {
+  constexpr double kPi = 3.14159265358979323846;
+  const auto fail = [&](const std::string& field, const std::string& reason) {
+    ThrowInvalid(where + "." + field + ": " + reason);
+  };
+  const bool wide = model == LensModel::kFisheye || model == LensModel::kOmnidir;
+  const double limit = wide ? 360.0 : 180.0;
+  if (!(fov_deg > 0.0 && (wide ? fov_deg <= limit : fov_deg < limit))) {
+    fail("fov_deg", "a " + std::string(LensModelName(model)) + " lens's field of view must be in " +
+                        "(0, " + FormatNumber(limit) + (wide ? "]" : ")") + " degrees (got " +
+                        FormatNumber(fov_deg) + ")");
+  }
+  LensCamera lens;
+  lens.model = model;
+  lens.width = width;
+  lens.height = height;
+  lens.distortion = distortion;
+  if (model == LensModel::kOmnidir) lens.xi = xi;
+  // The normalised radius that the ray at half the field of view maps to (radial part only):
+  // the focal length puts it at the image's left and right edges.
+  const double half = 0.5 * fov_deg * kPi / 180.0;
+  const std::array<double, 5>& d = distortion;
+  double undistorted = 0.0, radius = 0.0;
+  switch (model) {
+    case LensModel::kPinhole:
+    case LensModel::kRadTan:
+      undistorted = std::tan(half);
+      break;
+    case LensModel::kFisheye:
+      radius = half * (1.0 + half * half * (d[0] + half * half * (d[1] + half * half *
+                                                                  (d[2] + half * half * d[3]))));
+      break;
+    case LensModel::kOmnidir: {
+      const double denominator = std::cos(half) + xi;
+      if (!(denominator > 0.0)) {
+        fail("fov_deg", FormatNumber(fov_deg) + " degrees is beyond what an omnidir lens with xi = " +
+                            FormatNumber(xi) + " images (cos(fov/2) + xi must be > 0)");
+      }
+      undistorted = std::sin(half) / denominator;
+      break;
+    }
+  }
+  if (model == LensModel::kPinhole) radius = undistorted;
+  if (model == LensModel::kRadTan || model == LensModel::kOmnidir) {
+    const double r2 = undistorted * undistorted;
+    const double k3 = model == LensModel::kRadTan ? d[4] : 0.0;
+    radius = undistorted * (1.0 + r2 * (d[0] + r2 * (d[1] + r2 * k3)));
+  }
+  if (!(radius > 0.0) || !std::isfinite(radius)) {
+    fail("distortion", "maps the edge of the field of view (fov_deg / 2 = " +
+                           FormatNumber(0.5 * fov_deg) + " degrees) to radius " +
+                           FormatNumber(radius) + " (must be > 0)");
+  }
+  lens.fx = lens.fy = 0.5 * width / radius;
+  lens.cx = 0.5 * width;
+  lens.cy = 0.5 * height;
+  lens.Finalize(where);
+  // The field of view must lie where the lens is invertible.
+  const bool beyond_angle = wide && half > lens.theta_max;
+  const bool beyond_radius = (model == LensModel::kRadTan || model == LensModel::kOmnidir) &&
+                             undistorted > lens.max_radius;
+  if (beyond_angle || beyond_radius) {
+    fail("fov_deg", "half the field of view (" + FormatNumber(0.5 * fov_deg) +
+                        " degrees) is beyond the lens's valid field (its distortion stops "
+                        "increasing before it)");
+  }
+  return lens;
+}
+
 }  // namespace aos

@@ -75,4 +75,14 @@ struct LensCamera {
   Vec2d Distort(const Vec2d& undistorted) const;
 };
 
+// A centred lens camera of `model` whose horizontal field of view is `fov_deg`, defined through
+// the lens's radial map: the ray at fov_deg / 2 off the axis lands on the image's left and right
+// edges (fx = fy = width / 2 / r(fov / 2)). Valid up to the model's own limit (a pinhole or
+// radial-tangential lens below 180 degrees, a fisheye or omnidirectional one up to 360), and only
+// where the lens is invertible. Throws std::invalid_argument "<where>.fov_deg: ..." or
+// "<where>.distortion: ..." naming what is wrong.
+LensCamera LensFromFov(LensModel model, int width, int height, double fov_deg,
+                       const std::array<double, 5>& distortion, double xi,
+                       const std::string& where);
+
 }  // namespace aos

@@ -41,6 +41,13 @@ const char* PixelTypeName(PixelType type) {
   return "?";
 }
 
+PixelType ParsePixelTypeName(const std::string& name, const std::string& where) {
+  for (const PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kU32, PixelType::kF32}) {
+    if (name == PixelTypeName(type)) return type;
+  }
+  ThrowInvalid(where + ": expected uint8, uint16, uint32 or float32 (got '" + name + "')");
+}
+
 Image::Image(int width, int height, int channels, PixelType type, int border)
     : width_(width), height_(height), channels_(channels), border_(border), type_(type) {
   if (width <= 0 || height <= 0) {

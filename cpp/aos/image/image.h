@@ -20,6 +20,8 @@ enum class PixelType { kU8, kU16, kU32, kF32 };
 size_t PixelTypeSize(PixelType type);
 // "uint8", "uint16", "uint32", "float32" (also the numpy dtype name).
 const char* PixelTypeName(PixelType type);
+// The inverse of PixelTypeName; throws std::invalid_argument "<where>: ..." for other names.
+PixelType ParsePixelTypeName(const std::string& name, const std::string& where);
 // The full value range of a pixel type: 255 (uint8), 65535 (uint16), 4294967295 (uint32) and 1
 // for float32 (whose images hold values in [0, 1] by convention).
 double PixelTypeFullRange(PixelType type);

@@ -269,10 +269,19 @@ const char* SampleTypeName(SampleType type) {
   return "?";
 }
 
+double WriteImageOptions::RangeMin() const { return std::isnan(range_min) ? 0.0 : range_min; }
+
+double WriteImageOptions::RangeMax() const {
+  return std::isnan(range_max) ? PixelTypeFullRange(units) : range_max;
+}
+
 void WriteImageOptions::Check() const {
-  if (!std::isfinite(range_min) || !std::isfinite(range_max) || !(range_max > range_min)) {
+  if (units == PixelType::kU32) {
+    ThrowInvalid("units: must be uint8, uint16 or float32 (the views' sample types)");
+  }
+  if (!std::isfinite(RangeMin()) || !std::isfinite(RangeMax()) || !(RangeMax() > RangeMin())) {
     ThrowInvalid("range: range_max must be greater than range_min and both finite (got [" +
-                 FormatNumber(range_min) + ", " + FormatNumber(range_max) + "])");
+                 FormatNumber(RangeMin()) + ", " + FormatNumber(RangeMax()) + "])");
   }
 }
 
@@ -285,7 +294,10 @@ SampleType ResolveSampleType(const std::string& path, const Image& image,
   SampleType type = options.sample_type;
   if (type == SampleType::kAuto) {
     switch (image.type()) {
-      case PixelType::kF32: type = float_format ? SampleType::kF32 : SampleType::kU8; break;
+      case PixelType::kF32:
+        type = float_format ? SampleType::kF32
+                            : (options.units == PixelType::kU8 ? SampleType::kU8 : SampleType::kU16);
+        break;
       case PixelType::kU8: type = SampleType::kU8; break;
       case PixelType::kU16: type = SampleType::kU16; break;
       case PixelType::kU32:
@@ -334,7 +346,8 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
     const bool keep = integer_image && image.type() != PixelType::kU32 &&
                       PixelTypeSize(image.type()) <= sizeof(Code);
     const bool keep_counts = image.type() == PixelType::kU32;
-    const double scale = max_code / (options.range_max - options.range_min);
+    const double range_min = options.RangeMin();
+    const double scale = max_code / (options.RangeMax() - range_min);
     for_each_value([&](size_t i, double value) {
       double code;
       if (keep) {
@@ -346,7 +359,7 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
         }
         code = value;
       } else {
-        code = std::isfinite(value) ? std::round((value - options.range_min) * scale) : 0.0;
+        code = std::isfinite(value) ? std::round((value - range_min) * scale) : 0.0;
         code = std::clamp(code, 0.0, max_code);
       }
       out[i] = static_cast<Code>(code);

@@ -45,17 +45,29 @@ enum class SampleType { kAuto, kU8, kU16, kU32, kF32 };
 SampleType ParseSampleType(const std::string& name);
 const char* SampleTypeName(SampleType type);
 
+// How float images become integer samples: one rule, used by the CLI and Python alike. A float
+// image's values are in the units of a pixel type (`units`; aos renders keep the views' units:
+// 0..255 for 8-bit views, 0..65535 for 16-bit, 0..1 for float). Written to an integer format with
+// sample_type auto, the samples take that type's depth (uint16 for float units, so no precision
+// is lost to 8 bits), and [range_min, range_max] defaults to the units' full range.
 struct WriteImageOptions {
-  // Sample type in the file. kAuto: float32 for .exr/.tif/.tiff/.pfm, uint8 for other formats,
-  // and for integer images (e.g. count maps) their own type where the format allows it.
+  // Sample type in the file. kAuto: float32 for .exr/.tif/.tiff/.pfm; for other formats, a float
+  // image takes the depth of `units` (uint8 for 8-bit units, uint16 for 16-bit or float units),
+  // and integer images (e.g. count maps) their own type where the format allows it.
   SampleType sample_type = SampleType::kAuto;
-  // Value mapped to code 0 when converting a float image to integer samples.
-  double range_min = 0.0;
-  // Value mapped to the largest code (255 or 65535); must be > range_min.
-  double range_max = 255.0;
+  // The pixel type whose units a float image's values are in (see above).
+  PixelType units = PixelType::kU8;
+  // Value mapped to code 0 when converting a float image to integer samples; NaN = 0.
+  double range_min = std::nan("");
+  // Value mapped to the largest code (255 or 65535); NaN = the full range of `units` (255, 65535,
+  // or 1 for float). Must be > range_min.
+  double range_max = std::nan("");
   // Free text stored in the file's ImageDescription (e.g. how it was normalised).
   std::string description;
   void Check() const;
+  // [range_min, range_max] with the defaults filled in.
+  double RangeMin() const;
+  double RangeMax() const;
 };
 
 // Writes `image` to `path` (format from the extension). Throws std::invalid_argument naming the

@@ -67,7 +67,47 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
   }
   const int width = test.width(), height = test.height(), channels = test.channels();
   QualityResult result;
-  result.data_range = options.data_range > 0.0 ? options.data_range : DefaultRange(reference.type());
+  // Images of different sample types are brought to one scale before anything is compared
+  // (comparing raw codes of an 8-bit and a 16-bit image is meaningless); see the header.
+  const bool test_float = test.type() == PixelType::kF32;
+  const bool reference_float = reference.type() == PixelType::kF32;
+  PixelType units = reference.type();
+  if (test.type() != reference.type()) {
+    if (!test_float && !reference_float) {
+      result.test_scale = DefaultRange(reference.type()) / DefaultRange(test.type());
+      result.note = std::string("the ") + PixelTypeName(test.type()) +
+                    " test image was scaled by " + FormatNumber(result.test_scale) +
+                    " to the " + PixelTypeName(reference.type()) +
+                    " reference's range (each normalised by its type's full range)";
+    } else {
+      const Image& floating = test_float ? test : reference;
+      const Image& integer = test_float ? reference : test;
+      units = integer.type();
+      double float_max = 0.0, integer_max = 0.0;
+      for (int y = 0; y < height; ++y) {
+        for (int x = 0; x < width; ++x) {
+          for (int c = 0; c < channels; ++c) {
+            float_max = std::max(float_max, std::abs(floating.Value(x, y, c)));
+            integer_max = std::max(integer_max, integer.Value(x, y, c));
+          }
+        }
+      }
+      if (float_max > 0.0 && float_max <= 1.0 && integer_max > 1.0) {
+        ThrowInvalid(std::string("compare: the ") + (test_float ? "test" : "reference") +
+                     " image is float32 with values in [-1, 1] but the " +
+                     (test_float ? "reference" : "test") + " image is " +
+                     PixelTypeName(integer.type()) + " with values up to " +
+                     FormatNumber(integer_max) +
+                     ": the float image looks normalised to [0, 1] while aos compares a float "
+                     "image in the units of the integer one (as aos writes float renders); "
+                     "convert one of them so both are in the same units");
+      }
+      result.note = std::string("the float32 ") + (test_float ? "test" : "reference") +
+                    " image was compared in the units of the " + PixelTypeName(integer.type()) +
+                    " " + (test_float ? "reference" : "test") + " image";
+    }
+  }
+  result.data_range = options.data_range > 0.0 ? options.data_range : DefaultRange(units);
   const double L = result.data_range;
   const double C1 = (options.k1 * L) * (options.k1 * L), C2 = (options.k2 * L) * (options.k2 * L);
 
@@ -86,7 +126,7 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
   std::vector<cv::Mat> a(channels), b(channels);
   double squared_error = 0.0;
   for (int c = 0; c < channels; ++c) {
-    a[c] = ChannelPlane(test, c);
+    a[c] = ChannelPlane(test, c) * result.test_scale;
     b[c] = ChannelPlane(reference, c);
     if (!cv::checkRange(a[c]) || !cv::checkRange(b[c])) {
       ThrowInvalid("compare: the images contain NaN or infinite values");

@@ -13,9 +13,18 @@
 // with a mask (any integer image, e.g. a count map; non-zero = valid) only pixels whose window
 // lies entirely in valid pixels count, and MSE/PSNR use the valid pixels.
 //
+// Sample types: images of the same type are compared as they are. An integer test image of
+// another integer type than the reference (8-bit against 16-bit) is normalised by each type's full
+// range: its values are multiplied by range(reference) / range(test) (257 for 8 -> 16 bit), and L
+// defaults to the reference's range. A float32 image against an integer one is compared in the
+// integer image's units (aos writes float renders in the views' units) with L from the integer
+// type; when the float image's values all lie in [-1, 1] while the integer one's exceed 1 (a
+// normalised float image), the comparison is refused. QualityResult::note says what was done.
+//
 // Throws std::invalid_argument for images of different size or channel count, a mask of another
 // size, no pixel to compare, non-finite values, or bad options.
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "aos/image/image.h"
@@ -45,6 +54,8 @@ struct QualityResult {
   double data_range = 0.0;          // L used
   int64_t mse_pixels = 0;           // pixels in MSE/PSNR
   int64_t ssim_pixels = 0;          // pixels in the SSIM averages
+  double test_scale = 1.0;          // factor applied to the test image (mismatched integer types)
+  std::string note;                 // how mismatched sample types were reconciled; empty if same
 };
 
 QualityResult CompareImages(const Image& test, const Image& reference, const Image* mask = nullptr,

@@ -17,6 +17,10 @@ void ResolutionOptions::Check() const {
   if (!(pose_error_m >= 0.0) || !std::isfinite(pose_error_m)) {
     ThrowInvalid("pose_error_m: must be >= 0 metres (got " + FormatNumber(pose_error_m) + ")");
   }
+  if (!(max_off_axis_deg > 0.0 && max_off_axis_deg < 90.0)) {
+    ThrowInvalid("max_off_axis_deg: must be in (0, 90) degrees (got " +
+                 FormatNumber(max_off_axis_deg) + ")");
+  }
   if (pose_error_px > 0.0 && pose_error_m > 0.0) {
     ThrowInvalid("pose_error_px/pose_error_m: give the pose error in pixels or in metres, not both");
   }
@@ -46,6 +50,7 @@ ResolutionResult SamplingResolution(const LensCamera& camera, const ResolutionOp
   }
   double area = 0.0;
   int64_t pixels = 0;
+  const double min_cos_off_axis = std::cos(options.max_off_axis_deg * 3.14159265358979323846 / 180.0);
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const Vec2d q[4] = {corners[static_cast<size_t>(y) * (w + 1) + x],
@@ -55,6 +60,12 @@ ResolutionResult SamplingResolution(const LensCamera& camera, const ResolutionOp
       bool valid = true;
       for (const Vec2d& c : q) valid = valid && std::isfinite(c.x);
       if (!valid) continue;
+      Vec3d centre_ray;
+      if (!lens.Unproject(Vec2d(x + 0.5, y + 0.5), &centre_ray) ||
+          centre_ray.z < min_cos_off_axis * glm::length(centre_ray)) {
+        ++result.pixels_off_axis;
+        continue;
+      }
       double twice = 0.0;  // shoelace
       for (int k = 0; k < 4; ++k) twice += q[k].x * q[(k + 1) % 4].y - q[(k + 1) % 4].x * q[k].y;
       area += 0.5 * std::abs(twice);
@@ -64,7 +75,8 @@ ResolutionResult SamplingResolution(const LensCamera& camera, const ResolutionOp
   result.pixels_on_plane = pixels;
   result.footprint_m2 = area;
   if (pixels == 0 || !(area > 0.0)) {
-    ThrowInvalid("camera: no pixel's footprint meets the focal plane in front of the camera");
+    ThrowInvalid("camera: no pixel's footprint within max_off_axis_deg of the axis meets the focal "
+                 "plane in front of the camera");
   }
   result.samples_per_m2 = static_cast<double>(pixels) / area;
   result.sample_size_m = 1.0 / std::sqrt(result.samples_per_m2);

@@ -8,9 +8,13 @@
 // - Eq. 2 (pinhole): samples per square metre = n / A, n = width x height pixels and A the
 //   footprint (2 d tan(fov_x / 2)) (2 d tan(fov_y / 2)) = n d^2 / (fx fy), so n / A = fx fy / d^2;
 //   sample size p = 1 / sqrt(n / A). For other lens models this is their pinhole part (fx, fy).
+//   Eq. 2's sample size is also the sample size at nadir (the image centre) for every model.
 // - Appendix A (any model): every pixel's four corners are unprojected and intersected with the
 //   plane; samples per square metre = pixels whose corners all meet the plane / the area their
-//   footprints cover. For a pinhole it equals Eq. 2 (to rounding); off-axis pixels of a fisheye
+//   footprints cover, over the pixels whose ray lies within max_off_axis_deg of the camera axis
+//   (a wide lens's pixels towards the horizon cover long slivers of ground, tens of metres for a
+//   fisheye, which AOS does not integrate usefully; without the limit they dominate the figure).
+//   For a pinhole within the limit it equals Eq. 2 (to rounding); off-axis pixels of a fisheye
 //   cover more ground, so the estimate falls.
 // - Pose error: e in pixels is converted to metres at the plane with the back-projected sample
 //   size, e_m = e_px p (or given in metres directly); the effective sample size is p' = p + 2 e
@@ -30,6 +34,9 @@ struct ResolutionOptions {
   double pose_error_px = 0.0;
   // Pose error in metres at the focal plane (>= 0); give at most one of the two.
   double pose_error_m = 0.0;
+  // Pixels whose ray is further than this from the camera axis are left out of the
+  // back-projected figure, degrees in (0, 90).
+  double max_off_axis_deg = 60.0;
 
   void Check() const;
 };
@@ -40,6 +47,7 @@ struct ResolutionResult {
   double samples_per_m2 = 0.0;      // Appendix A, back-projected
   double sample_size_m = 0.0;
   int64_t pixels_on_plane = 0;      // pixels whose footprint was counted
+  int64_t pixels_off_axis = 0;      // pixels meeting the plane but beyond max_off_axis_deg
   double footprint_m2 = 0.0;        // the area they cover
   double pose_error_m = 0.0;        // e in metres at the plane
   double effective_sample_size_m = 0.0;   // p' = p + 2 e

@@ -462,67 +462,9 @@ void Scene::Check() const {
 }
 
 LensCamera ViewLens(const Scene& scene) {
-  constexpr double kPi = 3.14159265358979323846;
   const CameraSpec& c = scene.camera;
-  const auto fail = [&](const std::string& field, const std::string& reason) {
-    ThrowInvalid(Where(scene.source, Where("camera." + field, reason)));
-  };
-  LensCamera lens;
-  lens.model = ParseLensModel(c.lens, scene.source + ": camera.lens");
-  lens.width = c.width;
-  lens.height = c.height;
-  lens.distortion = c.distortion;
-  if (lens.model == LensModel::kOmnidir) lens.xi = c.xi;
-  // The normalised radius that the ray at half the field of view maps to (radial part only):
-  // the focal length puts it at the image's left and right edges.
-  const double half = 0.5 * c.fov_deg * kPi / 180.0;
-  const std::array<double, 5>& d = c.distortion;
-  double undistorted = 0.0, radius = 0.0;
-  switch (lens.model) {
-    case LensModel::kPinhole:
-    case LensModel::kRadTan:
-      undistorted = std::tan(half);
-      break;
-    case LensModel::kFisheye:
-      radius = half * (1.0 + half * half * (d[0] + half * half * (d[1] + half * half *
-                                                                  (d[2] + half * half * d[3]))));
-      break;
-    case LensModel::kOmnidir: {
-      const double denominator = std::cos(half) + c.xi;
-      if (!(denominator > 0.0)) {
-        fail("fov_deg", FormatNumber(c.fov_deg) + " degrees is beyond what an omnidir lens with xi = " +
-                            FormatNumber(c.xi) + " images (cos(fov/2) + xi must be > 0)");
-      }
-      undistorted = std::sin(half) / denominator;
-      break;
-    }
-  }
-  if (lens.model == LensModel::kPinhole) radius = undistorted;
-  if (lens.model == LensModel::kRadTan || lens.model == LensModel::kOmnidir) {
-    const double r2 = undistorted * undistorted;
-    const double k3 = lens.model == LensModel::kRadTan ? d[4] : 0.0;
-    radius = undistorted * (1.0 + r2 * (d[0] + r2 * (d[1] + r2 * k3)));
-  }
-  if (!(radius > 0.0) || !std::isfinite(radius)) {
-    fail("distortion", "maps the edge of the field of view (fov_deg / 2 = " +
-                           FormatNumber(0.5 * c.fov_deg) + " degrees) to radius " +
-                           FormatNumber(radius) + " (must be > 0)");
-  }
-  lens.fx = lens.fy = 0.5 * c.width / radius;
-  lens.cx = 0.5 * c.width;
-  lens.cy = 0.5 * c.height;
-  lens.Finalize(scene.source + ": camera");
-  // The field of view must lie where the lens is invertible.
-  const bool beyond_angle = (lens.model == LensModel::kFisheye ||
-                             lens.model == LensModel::kOmnidir) && half > lens.theta_max;
-  const bool beyond_radius = (lens.model == LensModel::kRadTan ||
-                              lens.model == LensModel::kOmnidir) && undistorted > lens.max_radius;
-  if (beyond_angle || beyond_radius) {
-    fail("fov_deg", "half the field of view (" + FormatNumber(0.5 * c.fov_deg) +
-                        " degrees) is beyond the lens's valid field (its distortion stops "
-                        "increasing before it)");
-  }
-  return lens;
+  return LensFromFov(ParseLensModel(c.lens, scene.source + ": camera.lens"), c.width, c.height,
+                     c.fov_deg, c.distortion, c.xi, scene.source + ": camera");
 }
 
 std::vector<Vec3d> ViewPositions(const Scene& scene) {
