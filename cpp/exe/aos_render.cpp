@@ -1192,8 +1192,11 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
                       "Self-calibration's starting horizontal field of view (0 = COLMAP's guess)")
       ->capture_default_str();
   command->add_option("--positions", c.options.positions_file,
-                      "CSV of name,x,y,z camera positions (metres, e.g. UTM): geo-reference, and "
-                      "priors for spatial matching");
+                      "CSV of camera positions, columns by header name: name,x,y,z (metres, e.g. "
+                      "UTM) or name,lat,lon,alt (degrees, projected with PROJ): geo-reference, "
+                      "and priors for spatial matching");
+  command->add_option("--positions-crs", c.options.positions_crs,
+                      "CRS of the --positions coordinates (e.g. EPSG:4326, EPSG:25833)");
   command->add_flag("--positions-from-exif", c.options.exif_positions,
                     "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
   command->add_option("--max-image-size", c.options.max_image_size,
@@ -1253,7 +1256,8 @@ const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
     {"min_registered_fraction", "--min-registered"},
     {"num_threads", "--threads"},
     {"colmap", "--colmap"},
-    {"positions_file/exif_positions", "--positions/--positions-from-exif"}};
+    {"positions_file/exif_positions", "--positions/--positions-from-exif"},
+    {"positions_crs", "--positions-crs"}};
 
 int RunPoses(PosesCommand& c) {
   ProgressBar progress(c.quiet);
@@ -1288,7 +1292,10 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
   command->add_option("--images", c.frames_dir, "The frames folder COLMAP was given")->required();
   command->add_option("-o,--output", c.output, "Light-field file to write (JSON)")->required();
   command->add_option("--positions", c.options.positions_file,
-                      "CSV of name,x,y,z camera positions (metres, e.g. UTM): geo-reference");
+                      "CSV of camera positions, columns by header name: name,x,y,z (metres) or "
+                      "name,lat,lon,alt (degrees, projected with PROJ): geo-reference");
+  command->add_option("--positions-crs", c.options.positions_crs,
+                      "CRS of the --positions coordinates (e.g. EPSG:4326, EPSG:25833)");
   command->add_flag("--positions-from-exif", c.options.exif_positions,
                     "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
   command->add_option("--min-registered", c.options.min_registered_fraction,

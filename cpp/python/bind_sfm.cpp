@@ -25,6 +25,9 @@ void BindSfm(py::module_& m) {
              "Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's guess.")
       .Field("positions_file", &PosesOptions::positions_file,
              "CSV of name,x,y,z positions (metres): geo-reference and spatial priors.")
+      .Field("positions_crs", &PosesOptions::positions_crs,
+             "CRS of positions_file as PROJ names it (e.g. EPSG:4326, EPSG:25833); empty: from "
+             "the header (lat/lon columns are WGS84 degrees, x/y/z metres in an unstated frame).")
       .Field("exif_positions", &PosesOptions::exif_positions,
              "Positions from the frames' EXIF GPS tags (UTM) instead of a file.")
       .Field("max_image_size", &PosesOptions::max_image_size,
@@ -90,14 +93,16 @@ void BindSfm(py::module_& m) {
       "Imports a COLMAP sparse model, GIL released. Prefer aos.import_colmap.");
   m.def(
       "read_positions",
-      [](const std::string& path) {
+      [](const std::string& path, const std::string& crs) {
         py::dict positions;
-        for (const NamedPosition& p : ReadPositionsFile(path)) {
+        for (const NamedPosition& p : ReadPositionsFile(path, crs).positions) {
           positions[py::str(p.name)] = py::make_tuple(p.position.x, p.position.y, p.position.z);
         }
         return positions;
       },
-      "path"_a, "A positions CSV (name,x,y,z) as {name: (x, y, z)}.");
+      "path"_a, "crs"_a = "",
+      "A positions CSV as {name: (x, y, z)} in metres: columns by their header names (name, x, "
+      "y, z or name, lat, lon, alt; degrees projected to UTM with PROJ); `crs` states the CRS.");
 }
 
 }  // namespace aos::python

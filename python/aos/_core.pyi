@@ -806,6 +806,7 @@ class PosesOptions:
         camera_model: str = ...,
         fov_deg: float = ...,
         positions_file: str = ...,
+        positions_crs: str = ...,
         exif_positions: bool = ...,
         max_image_size: int = ...,
         max_num_features: int = ...,
@@ -821,6 +822,7 @@ class PosesOptions:
     camera_model: str
     fov_deg: float
     positions_file: str
+    positions_crs: str
     exif_positions: bool
     max_image_size: int
     max_num_features: int
@@ -874,4 +876,4 @@ def _estimate_poses(
 ) -> PosesResult: ...
 
 def _import_colmap(model_dir: str, images_dir: str, options: PosesOptions) -> PosesResult: ...
-def read_positions(path: str) -> dict[str, tuple[float, float, float]]: ...
+def read_positions(path: str, crs: str = "") -> dict[str, tuple[float, float, float]]: ...

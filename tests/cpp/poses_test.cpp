@@ -230,18 +230,56 @@ TEST_F(PositionsFiles, ReadsNamesAndMetricCoordinates) {
   const std::string path = Write("gps.csv",
                                  "name, x, y, z\r\n# a comment\n\na.png, 500000.25, 5300000.5, "
                                  "420\nb.png,500010,5300001,421.5\n");
-  const std::vector<NamedPosition> positions = ReadPositionsFile(path);
+  const PositionsFile file = ReadPositionsFile(path);
+  const std::vector<NamedPosition>& positions = file.positions;
+  EXPECT_EQ(file.world_frame, "the frame of " + path);
   ASSERT_EQ(positions.size(), 2u);
   EXPECT_EQ(positions[0].name, "a.png");
   EXPECT_EQ(positions[0].position, Vec3d(500000.25, 5300000.5, 420.0));
   EXPECT_EQ(positions[1].position, Vec3d(500010.0, 5300001.0, 421.5));
 }
 
+TEST_F(PositionsFiles, ColumnsAreReadByNameAndDegreesProjectedWithProj) {
+  // A name,lat,lon,alt file was read as metres (origin "48.300 14.300"): columns go by name now,
+  // and degrees are projected to UTM (zone 33 for 14.3 E) through PROJ.
+  const std::string path = Write("gps.csv",
+                                 "name,lat,lon,alt\na.png,48.3,14.3,350\nb.png,48.3001,14.3,351\n");
+  const PositionsFile file = ReadPositionsFile(path);
+  EXPECT_EQ(file.world_frame, "UTM 33N (WGS 84)");
+  const UtmCoordinate a = UtmFromWgs84(48.3, 14.3);
+  EXPECT_NEAR(file.positions[0].position.x, a.easting, 1e-6);
+  EXPECT_NEAR(file.positions[0].position.y, a.northing, 1e-6);
+  EXPECT_EQ(file.positions[0].position.z, 350.0);
+  // 0.0001 degrees of latitude is about 11.1 m.
+  EXPECT_NEAR(file.positions[1].position.y - file.positions[0].position.y, 11.12, 0.01);
+  // Columns in another order, other names, and an explicit projected CRS (ETRS89 / UTM 33N).
+  const PositionsFile utm = ReadPositionsFile(
+      Write("utm.csv", "Easting,Northing,Altitude,Image\n500000,5300000,400,a.png\n"), "EPSG:25833");
+  EXPECT_EQ(utm.positions[0].name, "a.png");
+  EXPECT_EQ(utm.positions[0].position, Vec3d(500000.0, 5300000.0, 400.0));
+  EXPECT_THAT(utm.world_frame, HasSubstr("UTM zone 33N"));
+  // x, y in degrees with the CRS stated.
+  const PositionsFile stated =
+      ReadPositionsFile(Write("xy.csv", "name,x,y,z\na.png,14.3,48.3,350\n"), "EPSG:4326");
+  EXPECT_NEAR(stated.positions[0].position.x, a.easting, 1e-6);
+  // Degrees given as metres are refused, as are unknown columns and CRSs.
+  EXPECT_THAT(ErrorOf([&] {
+                ReadPositionsFile(Write("deg.csv", "a.png,48.3,14.3,350\nb.png,48.3001,14.3,351\n"));
+              }),
+              HasSubstr("deg.csv: x, y look like degrees"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("f.csv", "name,lat,lon,speed\na,1,2,3\n")); }),
+              HasSubstr("f.csv: line 1: column 4 \"speed\" is not one of"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(path, "EPSG:999999"); }),
+              HasSubstr("'EPSG:999999' is not known to PROJ"));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("feet.csv", "a.png,1,2,3\n"), "EPSG:2263"); }),
+              HasSubstr("aos needs metres"));
+}
+
 TEST_F(PositionsFiles, MalformedLinesAreNamed) {
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("a.csv", "a.png,1,2\n")); }),
               HasSubstr("a.csv: line 1: expected 4 comma-separated fields"));
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("b.csv", "a.png,1,2,3\nb.png,1,x,3\n")); }),
-              HasSubstr("b.csv: line 2: x, y, z must be numbers"));
+              HasSubstr("b.csv: line 2: y: \"x\" is not a number"));
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("c.csv", "a.png,1,2,3\na.png,1,2,3\n")); }),
               HasSubstr("c.csv: line 2: name: \"a.png\" is repeated"));
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("d.csv", "a.png,1,inf,3\n")); }),

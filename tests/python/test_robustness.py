@@ -461,3 +461,42 @@ def test_sixteen_bit_frames_give_sixteen_bit_pngs(tmp_path: Path) -> None:
     aos.write_image(str(tmp_path / "c.png"), np.full((4, 5), 100.0, np.float32))
     back = aos.read_image(str(tmp_path / "c.png"))
     assert back.dtype == np.uint8 and np.all(back == 100)
+
+
+def test_positions_in_degrees_are_projected_not_read_as_metres(light_field: Path,
+                                                                tmp_path: Path) -> None:
+    """A name,lat,lon,alt file was read as metres (origin "48.300 14.300", exit 0)."""
+    model = tmp_path / "model"
+    write_colmap_text_model(light_field, model)
+    lf = json.loads(light_field.read_text())
+    lat0, lon0 = 48.3, 14.3
+    lines = ["name,lat,lon,alt"]
+    for view in lf["views"]:
+        rotation = np.array(view["cam_from_world"]["rotation"])
+        centre = -rotation.T @ np.array(view["cam_from_world"]["translation"])
+        lat = lat0 + centre[1] / 111_200.0
+        lon = lon0 + centre[0] / (111_320.0 * np.cos(np.radians(lat0)))
+        lines.append(f"{Path(view['image']).name},{lat:.9f},{lon:.9f},{300 + centre[2]:.3f}")
+    positions = tmp_path / "gps.csv"
+    positions.write_text("\n".join(lines) + "\n")
+    images = light_field.parent / "views"
+    out = tmp_path / "lf.json"
+    result = run("import-colmap", model, "--images", images, "--positions", positions, "-o", out)
+    assert result.returncode == 0, result.stderr
+    assert "UTM 33N" in result.stdout, result.stdout
+    origin = json.loads(out.read_text())["origin"]
+    assert 400_000 < origin[0] < 600_000 and 5_300_000 < origin[1] < 5_400_000, origin
+    # The same numbers without a header are evidently degrees: refused, not read as metres.
+    positions.write_text("\n".join(lines[1:]) + "\n")
+    message = assert_refused(run("import-colmap", model, "--images", images, "--positions",
+                                 positions, "-o", tmp_path / "lf2.json"), "gps.csv")
+    assert "look like degrees" in message
+    # ... unless the CRS is stated (x = longitude, y = latitude in EPSG:4326's GIS order).
+    swapped = ["name,x,y,z"] + [
+        ",".join([f[0], f[2], f[1], f[3]]) for f in (line.split(",") for line in lines[1:])]
+    positions.write_text("\n".join(swapped) + "\n")
+    result = run("import-colmap", model, "--images", images, "--positions", positions,
+                 "--positions-crs", "EPSG:4326", "-o", tmp_path / "lf3.json")
+    assert result.returncode == 0, result.stderr
+    origin3 = json.loads((tmp_path / "lf3.json").read_text())["origin"]
+    assert np.allclose(origin3, origin, atol=1e-6)

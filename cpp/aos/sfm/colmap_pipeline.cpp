@@ -10,6 +10,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <optional>
 #include <set>
 #include <sstream>
 
@@ -287,6 +288,9 @@ void PosesOptions::Check() const {
   if (matcher != "sequential" && matcher != "spatial" && matcher != "exhaustive") {
     ThrowInvalid("matcher: \"" + matcher + "\" is not one of sequential, spatial, exhaustive");
   }
+  if (!positions_crs.empty() && positions_file.empty()) {
+    ThrowInvalid("positions_crs: applies to positions_file, which is not given");
+  }
   if (!positions_file.empty() && exif_positions) {
     ThrowInvalid("positions_file/exif_positions: give one source of positions, not both");
   }
@@ -318,14 +322,71 @@ void PosesOptions::Check() const {
   if (num_threads == 0 || num_threads < -1) ThrowInvalid("num_threads: must be -1 (all cores) or >= 1");
 }
 
-std::vector<NamedPosition> ReadPositionsFile(const std::string& path) {
+namespace {
+
+std::string LowerText(std::string text) {
+  for (char& c : text) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return text;
+}
+
+// Which column holds what, from a header line (names case-insensitive).
+struct PositionColumns {
+  int name = -1, x = -1, y = -1, z = -1;  // z may be absent for lat/lon (height 0)
+  bool degrees = false;                   // lat/lon columns: x = longitude, y = latitude
+};
+
+PositionColumns ColumnsFromHeader(const std::vector<std::string>& fields, const std::string& where) {
+  PositionColumns columns;
+  bool metric = false;
+  for (int i = 0; i < static_cast<int>(fields.size()); ++i) {
+    const std::string key = LowerText(fields[i]);
+    int* slot = nullptr;
+    if (key == "name" || key == "image" || key == "file" || key == "frame" || key == "filename") {
+      slot = &columns.name;
+    } else if (key == "x" || key == "easting" || key == "east") {
+      slot = &columns.x;
+      metric = true;
+    } else if (key == "y" || key == "northing" || key == "north") {
+      slot = &columns.y;
+      metric = true;
+    } else if (key == "lon" || key == "lng" || key == "long" || key == "longitude") {
+      slot = &columns.x;
+      columns.degrees = true;
+    } else if (key == "lat" || key == "latitude") {
+      slot = &columns.y;
+      columns.degrees = true;
+    } else if (key == "z" || key == "alt" || key == "altitude" || key == "height" ||
+               key == "elevation" || key == "h") {
+      slot = &columns.z;
+    } else {
+      ThrowInvalid(where + ": column " + std::to_string(i + 1) + " \"" + fields[i] +
+                   "\" is not one of name, x, y, z (or easting, northing, altitude) or lat, lon, alt");
+    }
+    if (*slot >= 0) ThrowInvalid(where + ": column \"" + fields[i] + "\" is given twice");
+    *slot = i;
+  }
+  if (metric && columns.degrees) {
+    ThrowInvalid(where + ": the header mixes metric columns (x, y) with degrees (lat, lon)");
+  }
+  if (columns.name < 0 || columns.x < 0 || columns.y < 0 || (!columns.degrees && columns.z < 0)) {
+    ThrowInvalid(where + ": the header needs name, x, y, z (metres) or name, lat, lon[, alt] "
+                         "(degrees)");
+  }
+  return columns;
+}
+
+}  // namespace
+
+PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs) {
   CheckRegularFile(path, "positions file");
-  std::ifstream in(path);
-  if (!in) ThrowInvalid(path + ": cannot read the positions file");
+  const std::string text = ReadTextFile(path);
+  std::istringstream in(text);
   std::vector<NamedPosition> positions;
   std::set<std::string> seen;
+  std::optional<PositionColumns> columns;
   std::string line;
   int number = 0;
+  bool header = false;
   while (std::getline(in, line)) {
     ++number;
     const std::string where = path + ": line " + std::to_string(number);
@@ -339,40 +400,92 @@ std::vector<NamedPosition> ReadPositionsFile(const std::string& path) {
       const size_t a = field.find_first_not_of(" \t"), b = field.find_last_not_of(" \t");
       fields.push_back(a == std::string::npos ? "" : field.substr(a, b - a + 1));
     }
-    if (fields.size() != 4) {
-      ThrowInvalid(where + ": expected 4 comma-separated fields (name, x, y, z), got " +
-                   std::to_string(fields.size()));
-    }
-    NamedPosition p;
-    p.name = fields[0];
-    bool numeric = true;
-    for (int k = 0; k < 3; ++k) {
-      const std::string& text = fields[1 + k];
-      char* end = nullptr;
-      const double value = std::strtod(text.c_str(), &end);
-      if (text.empty() || end != text.c_str() + text.size()) {
-        numeric = false;
-        break;
+    if (!columns) {
+      // The first line: a header when its coordinate fields are not numbers.
+      bool numbers = fields.size() >= 2;
+      for (size_t k = 1; k < fields.size() && numbers; ++k) {
+        char* end = nullptr;
+        std::strtod(fields[k].c_str(), &end);
+        numbers = !fields[k].empty() && end == fields[k].c_str() + fields[k].size();
       }
-      if (!std::isfinite(value)) {
-        ThrowInvalid(where + ": " + std::string("xyz").substr(k, 1) + ": " + text + " is not finite");
-      }
-      p.position[k] = value;
-    }
-    if (!numeric) {
-      if (positions.empty() && seen.empty()) {  // a header line
-        seen.insert("");
+      if (!numbers) {
+        columns = ColumnsFromHeader(fields, where);
+        header = true;
         continue;
       }
-      ThrowInvalid(where + ": x, y, z must be numbers (got \"" + fields[1] + "\", \"" + fields[2] +
-                   "\", \"" + fields[3] + "\")");
+      columns = PositionColumns{0, 1, 2, 3, false};  // no header: name, x, y, z
+    }
+    const int needed =
+        1 + std::max({columns->name, columns->x, columns->y, columns->z});
+    if (static_cast<int>(fields.size()) != needed &&
+        !(header && static_cast<int>(fields.size()) >= needed)) {
+      ThrowInvalid(where + ": expected " + std::to_string(needed) +
+                   " comma-separated fields, got " + std::to_string(fields.size()));
+    }
+    NamedPosition p;
+    p.name = fields[columns->name];
+    const int indices[3] = {columns->x, columns->y, columns->z};
+    const char* axis_names[3] = {columns->degrees ? "lon" : "x", columns->degrees ? "lat" : "y",
+                                 columns->degrees ? "alt" : "z"};
+    for (int k = 0; k < 3; ++k) {
+      if (indices[k] < 0) continue;  // no altitude column: 0
+      const std::string& value_text = fields[indices[k]];
+      char* end = nullptr;
+      const double value = std::strtod(value_text.c_str(), &end);
+      if (value_text.empty() || end != value_text.c_str() + value_text.size()) {
+        ThrowInvalid(where + ": " + axis_names[k] + ": \"" + value_text + "\" is not a number");
+      }
+      if (!std::isfinite(value)) {
+        ThrowInvalid(where + ": " + axis_names[k] + ": " + value_text + " is not finite");
+      }
+      p.position[k] = value;
     }
     if (p.name.empty()) ThrowInvalid(where + ": name: is empty");
     if (!seen.insert(p.name).second) ThrowInvalid(where + ": name: \"" + p.name + "\" is repeated");
     positions.push_back(p);
   }
   if (positions.empty()) ThrowInvalid(path + ": no positions (expected lines name, x, y, z)");
-  return positions;
+
+  PositionsFile result;
+  result.positions = positions;
+  const bool degrees = columns->degrees || (!crs.empty() && IsGeographicCrs(crs, path));
+  if (degrees) {
+    // Degrees in the file's column order (lon, lat) are projected through PROJ to UTM.
+    std::vector<Vec3d> points;
+    for (const NamedPosition& p : positions) points.push_back(p.position);
+    const MetricPoints metric = MetricFromCrs(points, crs.empty() ? "EPSG:4326" : crs, path);
+    for (size_t i = 0; i < positions.size(); ++i) result.positions[i].position = metric.points[i];
+    result.world_frame = metric.frame;
+    return result;
+  }
+  if (!crs.empty()) {
+    std::vector<Vec3d> points;
+    for (const NamedPosition& p : positions) points.push_back(p.position);
+    result.world_frame = MetricFromCrs(points, crs, path).frame;  // checks it is metric
+    return result;
+  }
+  // Metres in an unstated frame. Refuse what are evidently degrees read as metres (a whole
+  // flight inside a square of 0.1 x 0.1 "metres" with longitude- and latitude-like values).
+  double min_x = positions[0].position.x, max_x = min_x;
+  double min_y = positions[0].position.y, max_y = min_y;
+  for (const NamedPosition& p : positions) {
+    min_x = std::min(min_x, p.position.x);
+    max_x = std::max(max_x, p.position.x);
+    min_y = std::min(min_y, p.position.y);
+    max_y = std::max(max_y, p.position.y);
+  }
+  const bool like_degrees = positions.size() >= 2 && max_x - min_x < 0.1 && max_y - min_y < 0.1 &&
+                            (max_x - min_x > 0.0 || max_y - min_y > 0.0) &&
+                            std::abs(min_x) <= 180.0 && std::abs(min_y) <= 180.0 &&
+                            std::abs(max_x) <= 180.0 && std::abs(max_y) <= 180.0;
+  if (like_degrees) {
+    ThrowInvalid(path + ": x, y look like degrees (all within 0.1 of (" + FormatNumber(min_x) +
+                 ", " + FormatNumber(min_y) +
+                 ")): name the columns lat, lon, alt in a header line, or give the CRS "
+                 "(positions_crs, e.g. EPSG:4326), or give metres");
+  }
+  result.world_frame = "the frame of " + path;
+  return result;
 }
 
 std::vector<NamedPosition> MatchPositionsToFrames(const std::vector<NamedPosition>& positions,
@@ -502,7 +615,12 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   const bool known = !options.camera_file.empty();
   if (known) known_camera = ReadCameraFile(options.camera_file);
   std::vector<NamedPosition> positions;
-  if (!options.positions_file.empty()) positions = ReadPositionsFile(options.positions_file);
+  std::string positions_frame;
+  if (!options.positions_file.empty()) {
+    PositionsFile file = ReadPositionsFile(options.positions_file, options.positions_crs);
+    positions = std::move(file.positions);
+    positions_frame = std::move(file.world_frame);
+  }
 
   // Positions from EXIF come after the frame list (below).
   // Frames: readable ones, one size.
@@ -555,7 +673,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   std::pair<std::string, std::string> known_colmap_camera;
   if (known) known_colmap_camera = ColmapCameraFor(known_camera, options.camera_file);
   if (!options.positions_file.empty()) {
-    result.world_frame = "the frame of " + options.positions_file;
+    result.world_frame = positions_frame;
     positions = MatchPositionsToFrames(positions, result.frames, options.positions_file,
                                        &result.warnings);
   }
@@ -710,9 +828,10 @@ PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& f
   result.frames = ListFrameFiles(frames_dir);  // a registered frame missing here is an error
   std::vector<NamedPosition> positions;
   if (!options.positions_file.empty()) {
-    result.world_frame = "the frame of " + options.positions_file;
-    positions = MatchPositionsToFrames(ReadPositionsFile(options.positions_file), result.frames,
-                                       options.positions_file, &result.warnings);
+    PositionsFile file = ReadPositionsFile(options.positions_file, options.positions_crs);
+    result.world_frame = file.world_frame;
+    positions = MatchPositionsToFrames(file.positions, result.frames, options.positions_file,
+                                       &result.warnings);
   }
   if (options.exif_positions) {
     std::vector<std::string> untagged;

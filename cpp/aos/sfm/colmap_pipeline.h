@@ -26,7 +26,8 @@
 // - Registration: frames COLMAP leaves out are listed (PosesResult::unregistered) and warned
 //   about; fewer than min_registered_fraction of the frames registered is an error.
 // - Geo-referencing: with positions (a CSV file of `name,x,y,z` lines, metres in any metric frame,
-//   e.g. UTM easting, northing, altitude; a header line and '#' comments allowed; or with
+//   e.g. UTM easting, northing, altitude, or `name,lat,lon,alt` degrees projected with PROJ; see
+//   ReadPositionsFile; a header line and '#' comments allowed; or with
 //   exif_positions, the frames' EXIF GPS tags projected to UTM in the zone of the first tagged
 //   frame, altitude as z; frames without latitude, longitude and altitude are skipped with a
 //   warning), the model is mapped by the least-squares similarity from its camera centres to the
@@ -64,7 +65,8 @@ struct PosesOptions {
   // OPENCV, OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE or RADIAL_FISHEYE.
   std::string camera_model = "SIMPLE_RADIAL";
   double fov_deg = 0.0;                 // self-calibration's starting horizontal FOV; 0 = COLMAP's
-  std::string positions_file;           // CSV name,x,y,z (see above); empty = none
+  std::string positions_file;           // CSV of positions (see ReadPositionsFile); empty = none
+  std::string positions_crs;            // CRS of positions_file ("EPSG:4326", ...); "" = header
   bool exif_positions = false;          // positions from the frames' EXIF GPS (UTM); not both
   int max_image_size = 1600;            // SIFT on frames downscaled to this longest side, >= 100
   int max_num_features = 2048;          // per frame, >= 100 (matching cost grows with its square)
@@ -114,7 +116,18 @@ struct NamedPosition {
   std::string name;
   Vec3d position{0.0};
 };
-std::vector<NamedPosition> ReadPositionsFile(const std::string& path);
+// Columns are read by the header's names (case-insensitive): name (or image, file, frame) and
+// either x, y, z (or easting, northing, altitude/height) in metres, or lat, lon[, alt] in
+// degrees; without a header the columns are name, x, y, z. Degrees (lat/lon columns, or a
+// geographic `crs`) are projected through PROJ to the UTM zone of their mean longitude; `crs`
+// ("EPSG:25833", ...; empty = not stated) names the CRS of the coordinates. Metres in an unstated
+// frame that evidently are degrees (the whole flight within 0.1 x 0.1 of a longitude/latitude-
+// like point) are refused. world_frame says which frame the positions are in.
+struct PositionsFile {
+  std::vector<NamedPosition> positions;
+  std::string world_frame;
+};
+PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs = "");
 
 // The positions renamed to the frames they name: a position's name is a frame's path relative
 // to the frames folder, or (when unique) its file name. Names matching no frame are reported in
