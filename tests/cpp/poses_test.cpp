@@ -3,6 +3,7 @@
 // The pipeline itself against COLMAP is tested from Python (tests/python/test_poses.py).
 #include "aos/sfm/colmap_pipeline.h"
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -346,6 +347,80 @@ TEST(Georeference, RecoversTheTrueFrameAtUtmCoordinates) {
       EXPECT_LT(glm::length(got.rotation[c] - m.true_local[k].rotation[c]), 1e-9);
     }
   }
+}
+
+// The angle between the optical axes (camera z in world) of two poses, degrees.
+double AxisAngleDeg(const Rigid3d& a, const Rigid3d& b) {
+  const double c = glm::dot(Row(a.rotation, 2), Row(b.rotation, 2));
+  return std::acos(std::clamp(c, -1.0, 1.0)) * 180.0 / M_PI;
+}
+
+TEST(Georeference, AStraightFlightTakesItsRollFromTheViewingDirection) {
+  // Eight nadir cameras on a 70 m straight line, GPS noise of up to 0.25 m across it: a plain
+  // similarity fit let the noise pick the roll about the line (it tilted the cameras by tens of
+  // degrees with a sub-metre residual). The viewing direction fixes it: the cameras come out
+  // within a degree of nadir, and a warning says how the roll was found.
+  const Vec3d utm(512345.678, 5301234.567, 431.0);
+  Sim3d model_from_true;
+  model_from_true.scale = 0.05;
+  model_from_true.rotation = LookAt(Vec3d(0.0), Vec3d(0.3, -0.2, 1.0), Vec3d(0.1, 1.0, 0.2)).rotation;
+  model_from_true.translation = Vec3d(3.0, -1.0, 2.5);
+  const double noise[8][2] = {{0.1, -0.2}, {-0.25, 0.1}, {0.2, 0.05}, {-0.1, -0.15},
+                              {0.15, 0.2}, {-0.2, -0.05}, {0.05, 0.25}, {0.0, -0.1}};
+  LightField light_field;
+  std::vector<std::string> names;
+  std::vector<NamedPosition> positions;
+  std::vector<Rigid3d> truth;
+  for (int k = 0; k < 8; ++k) {
+    // Local, about the line's mean; the flight itself wavers by centimetres.
+    const Vec3d centre(10.0 * k - 35.0, 0.03 * std::sin(1.7 * k), 0.02 * std::cos(2.3 * k));
+    truth.push_back(NadirCamFromWorld(centre));
+    View view;
+    view.cam_from_world = TransformCamFromWorld(model_from_true, truth.back());
+    light_field.views.push_back(view);
+    names.push_back("f" + std::to_string(k) + ".png");
+    positions.push_back({names.back(), utm + centre + Vec3d(0.0, noise[k][0], noise[k][1])});
+  }
+  // What the plain fit does with this noise: the roll is whatever the noise says.
+  std::vector<Vec3d> model_centres, local;
+  Vec3d mean(0.0);
+  for (const NamedPosition& p : positions) mean += p.position / 8.0;
+  for (int k = 0; k < 8; ++k) {
+    model_centres.push_back(light_field.views[k].cam_from_world.Center());
+    local.push_back(positions[k].position - mean);
+  }
+  const Sim3d plain = EstimateSimilarity(model_centres, local, "plain").dst_from_src;
+  EXPECT_GT(AxisAngleDeg(TransformCamFromWorld(plain, light_field.views[0].cam_from_world),
+                         truth[0]),
+            10.0);
+
+  const GeoreferenceResult result = Georeference(&light_field, names, positions, "gps.csv");
+  EXPECT_TRUE(result.roll_from_down_prior);
+  EXPECT_LT(result.width, kNearlyCollinearWidth);
+  EXPECT_THAT(result.warning, HasSubstr("gps.csv: the positions lie nearly on a line"));
+  for (int k = 0; k < 8; ++k) {
+    EXPECT_LT(AxisAngleDeg(light_field.views[k].cam_from_world, truth[k]), 1.0) << k;
+  }
+  EXPECT_LT(result.rms_m, 0.3);
+}
+
+TEST(Georeference, CamerasLookingAlongTheirLineAreRefused) {
+  std::vector<Vec3d> src, dst;
+  for (int k = 0; k < 5; ++k) {
+    src.push_back(Vec3d(k, 0.0, 0.0));
+    dst.push_back(Vec3d(2.0 * k, 0.0, 0.0));
+  }
+  EXPECT_THAT(ErrorOf([&] {
+                EstimateSimilarityOnLine(src, dst, Vec3d(1.0, 0.0, 0.01), Vec3d(0, 0, -1), "gps");
+              }),
+              HasSubstr("gps: the points lie on a line and the cameras look along it"));
+  const SimilarityResult fit =
+      EstimateSimilarityOnLine(src, dst, Vec3d(0.0, 0.0, 1.0), Vec3d(0, 0, -1), "gps");
+  EXPECT_NEAR(fit.dst_from_src.scale, 2.0, 1e-12);
+  EXPECT_LT(glm::length(fit.dst_from_src * Vec3d(0.0, 0.0, 1.0) - fit.dst_from_src * Vec3d(0.0) -
+                        Vec3d(0.0, 0.0, -2.0)),
+            1e-9);
+  EXPECT_LT(fit.rms_residual, 1e-12);
 }
 
 TEST(Georeference, AnIncomingOriginIsAccountedFor) {

@@ -187,4 +187,103 @@ Rigid3d TransformCamFromWorld(const Sim3d& new_world_from_world, const Rigid3d& 
   return result;
 }
 
+PointSetShape ShapeOf(const std::vector<Vec3d>& points) {
+  PointSetShape shape;
+  if (points.empty()) return shape;
+  const Vec3d first = points[0];
+  Vec3d mean_offset(0.0);
+  for (const Vec3d& point : points) mean_offset += point - first;
+  mean_offset /= static_cast<double>(points.size());
+  shape.centroid = first + mean_offset;
+  Mat3d scatter(0.0);
+  for (const Vec3d& point : points) {
+    const Vec3d offset = (point - first) - mean_offset;
+    scatter += glm::outerProduct(offset, offset);
+  }
+  const Svd3 svd = Decompose(scatter);  // symmetric PSD: u = v = the principal axes
+  shape.axes = svd.u;
+  for (int k = 0; k < 3; ++k) {
+    shape.rms_extent[k] = std::sqrt(std::max(svd.singular_values[k], 0.0) / points.size());
+  }
+  shape.width = shape.rms_extent[0] > 0.0 ? shape.rms_extent[1] / shape.rms_extent[0] : 0.0;
+  return shape;
+}
+
+namespace {
+
+// The rotation by `angle` radians about the unit `axis` (Rodrigues).
+Mat3d AxisAngle(const Vec3d& axis, double angle) {
+  const double c = std::cos(angle), s = std::sin(angle);
+  const Mat3d k = MatFromRows(Vec3d(0.0, -axis.z, axis.y), Vec3d(axis.z, 0.0, -axis.x),
+                              Vec3d(-axis.y, axis.x, 0.0));
+  return Mat3d(1.0) + s * k + (1.0 - c) * (k * k);
+}
+
+// The smallest rotation taking unit `from` to unit `to`.
+Mat3d RotationBetween(const Vec3d& from, const Vec3d& to) {
+  const Vec3d cross = glm::cross(from, to);
+  const double sine = glm::length(cross), cosine = glm::dot(from, to);
+  if (sine < 1e-12) {
+    if (cosine > 0.0) return Mat3d(1.0);
+    // Opposite: half a turn about any axis perpendicular to `from`.
+    Vec3d other = std::abs(from.x) < 0.9 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0);
+    return AxisAngle(glm::normalize(glm::cross(from, other)), M_PI);
+  }
+  return AxisAngle(cross / sine, std::atan2(sine, cosine));
+}
+
+}  // namespace
+
+SimilarityResult EstimateSimilarityOnLine(const std::vector<Vec3d>& src,
+                                          const std::vector<Vec3d>& dst, const Vec3d& src_down,
+                                          const Vec3d& dst_down, const std::string& where) {
+  if (src.size() != dst.size() || src.size() < 2) {
+    ThrowInvalid(Where(where, "a line needs at least 2 pairs of points"));
+  }
+  const PointSetShape a = ShapeOf(src), b = ShapeOf(dst);
+  const Vec3d src_axis = a.axes[0];
+  Vec3d dst_axis = b.axes[0];
+  double along_product = 0.0, along_src_squares = 0.0;
+  for (size_t i = 0; i < src.size(); ++i) {
+    along_product += glm::dot(src[i] - a.centroid, src_axis) * glm::dot(dst[i] - b.centroid, dst_axis);
+    along_src_squares += std::pow(glm::dot(src[i] - a.centroid, src_axis), 2);
+  }
+  if (along_product < 0.0) {  // the two lines run opposite ways
+    dst_axis = -dst_axis;
+    along_product = -along_product;
+  }
+  if (!(along_src_squares > 0.0) || !(along_product > 0.0)) {
+    ThrowInvalid(Where(where, "the points do not spread along a line"));
+  }
+  const double scale = along_product / along_src_squares;
+  const Mat3d align = RotationBetween(src_axis, dst_axis);
+  // The rotation about the line: the down directions' parts across it made parallel.
+  const auto across = [&](const Vec3d& direction) {
+    const Vec3d unit = glm::normalize(direction);
+    return unit - glm::dot(unit, dst_axis) * dst_axis;
+  };
+  const Vec3d mapped_down = across(align * src_down);
+  const Vec3d target_down = across(dst_down);
+  const double min_across = std::sin(10.0 * M_PI / 180.0);
+  if (!(glm::length(mapped_down) >= min_across) || !(glm::length(target_down) >= min_across)) {
+    ThrowInvalid(Where(where, "the points lie on a line and the cameras look along it, so "
+                              "nothing fixes the rotation about the line; give positions off "
+                              "the line (fly a second line)"));
+  }
+  const double angle = std::atan2(glm::dot(dst_axis, glm::cross(mapped_down, target_down)),
+                                  glm::dot(mapped_down, target_down));
+  SimilarityResult result;
+  result.dst_from_src.scale = scale;
+  result.dst_from_src.rotation = AxisAngle(dst_axis, angle) * align;
+  result.dst_from_src.translation = b.centroid - scale * (result.dst_from_src.rotation * a.centroid);
+  double sum = 0.0;
+  for (size_t i = 0; i < src.size(); ++i) {
+    const double residual = glm::length(dst[i] - result.dst_from_src * src[i]);
+    sum += residual * residual;
+    result.max_residual = std::max(result.max_residual, residual);
+  }
+  result.rms_residual = std::sqrt(sum / src.size());
+  return result;
+}
+
 }  // namespace aos

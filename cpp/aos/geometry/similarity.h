@@ -63,6 +63,27 @@ struct SimilarityResult {
 SimilarityResult EstimateSimilarity(const std::vector<Vec3d>& src, const std::vector<Vec3d>& dst,
                                     const std::string& where);
 
+// The shape of a point set: centroid, principal axes (columns of `axes`, by decreasing extent)
+// and the RMS extent along each; width = rms_extent[1] / rms_extent[0] (0 for points on a line).
+struct PointSetShape {
+  Vec3d centroid{0.0};
+  Mat3d axes{1.0};
+  Vec3d rms_extent{0.0};
+  double width = 0.0;
+};
+PointSetShape ShapeOf(const std::vector<Vec3d>& points);
+
+// dst_from_src for pairs that lie (nearly) on a line, where the points cannot fix the rotation
+// about it: the lines' directions are matched (oriented by the order of the points along them),
+// the scale is the least-squares ratio of the positions along them, and the rotation about the
+// line is chosen so that the direction `src_down` (in src, e.g. the cameras' mean viewing
+// direction) maps as near as possible to `dst_down` (e.g. straight down). Throws
+// std::invalid_argument "<where>: ..." when src_down or dst_down lies within 10 degrees of the
+// line (nothing then fixes the rotation about it), or for fewer than 2 pairs.
+SimilarityResult EstimateSimilarityOnLine(const std::vector<Vec3d>& src,
+                                          const std::vector<Vec3d>& dst, const Vec3d& src_down,
+                                          const Vec3d& dst_down, const std::string& where);
+
 // A camera pose after its world is mapped by new_world_from_world (x' = s R x + t): the returned
 // cam_from_new_world has rotation R_c R^T and translation s t_c - R_c R^T t, so that the camera
 // centre maps as c' = s R c + t and a world point x and its image x' land on the same pixel

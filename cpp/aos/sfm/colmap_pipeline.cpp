@@ -6,6 +6,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <deque>
 #include <filesystem>
 #include <fstream>
@@ -259,6 +260,7 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
     result->local_from_model = geo.local_from_model;
     result->georeference_rms_m = geo.rms_m;
     result->georeference_frames = geo.frames;
+    if (!geo.warning.empty()) result->warnings.push_back(geo.warning);
     for (ColmapPoint& point : model.points) {
       point.position = geo.local_from_model * point.position;
     }
@@ -584,8 +586,31 @@ GeoreferenceResult Georeference(LightField* light_field, const std::vector<std::
   origin /= static_cast<double>(known.size());
   std::vector<Vec3d> local(known.size());
   for (size_t i = 0; i < known.size(); ++i) local[i] = known[i] - origin;
-  const SimilarityResult fit = EstimateSimilarity(model_centres, local, where);
   GeoreferenceResult result;
+  const PointSetShape shape = ShapeOf(local);
+  result.width = shape.width;
+  SimilarityResult fit;
+  // Both sets nearly on a line (the model's centres too; if only one is, the data disagree and
+  // the plain fit's own checks speak).
+  if (shape.width < kNearlyCollinearWidth && shape.rms_extent[0] > 0.0 &&
+      ShapeOf(model_centres).width < kNearlyCollinearWidth) {
+    // The cameras' mean viewing direction in the model frame (camera z axis in world).
+    Vec3d viewing(0.0);
+    for (size_t i = 0; i < names.size(); ++i) {
+      viewing += Row(light_field->views[i].cam_from_world.rotation, 2);
+    }
+    fit = EstimateSimilarityOnLine(model_centres, local, viewing, Vec3d(0.0, 0.0, -1.0), where);
+    result.roll_from_down_prior = true;
+    char text[256];
+    std::snprintf(text, sizeof(text),
+                  "the positions lie nearly on a line (%.2f m across over %.1f m along, RMS); "
+                  "they do not fix the roll about it, so the cameras' mean viewing direction was "
+                  "taken as straight down",
+                  shape.rms_extent[1], shape.rms_extent[0]);
+    result.warning = Where(where, text);
+  } else {
+    fit = EstimateSimilarity(model_centres, local, where);
+  }
   result.local_from_model = fit.dst_from_src;
   result.rms_m = fit.rms_residual;
   result.frames = static_cast<int>(known.size());

@@ -149,10 +149,20 @@ std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
 // names[i]; a position names a frame, or its file name): sets origin to the positions' mean and
 // the poses to local = position - origin. Returns the similarity and its residuals. Throws
 // std::invalid_argument when fewer than 3 views have a position or they are degenerate.
+// Positions nearly on a line (a straight flight: the RMS extent across the line below
+// kNearlyCollinearWidth of the extent along it, GPS noise included) do not fix the roll about the
+// line: a plain similarity fit then tilts the cameras arbitrarily (43 degrees seen) with a
+// small residual. There the roll comes from the cameras' own mean viewing direction, taken as
+// straight down in the positions' frame (z up), and a warning says so; cameras looking along the
+// line are refused.
+constexpr double kNearlyCollinearWidth = 0.05;
 struct GeoreferenceResult {
   Sim3d local_from_model;
   double rms_m = 0.0;
   int frames = 0;
+  double width = 0.0;                  // the positions' RMS extent across / along their main axis
+  bool roll_from_down_prior = false;   // nearly collinear: roll fixed by the viewing direction
+  std::string warning;                 // non-empty when roll_from_down_prior
 };
 GeoreferenceResult Georeference(LightField* light_field, const std::vector<std::string>& names,
                                 const std::vector<NamedPosition>& positions,
