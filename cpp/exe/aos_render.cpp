@@ -1189,8 +1189,15 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
                       "COLMAP model to self-calibrate")
       ->capture_default_str();
   command->add_option("--fov-deg", c.options.fov_deg,
-                      "Self-calibration's starting horizontal field of view (0 = COLMAP's guess)")
+                      "The frames' horizontal field of view: self-calibration's start and the "
+                      "prior its result is checked against (0 = none)")
       ->capture_default_str();
+  command->add_option("--max-focal-deviation", c.options.max_focal_deviation,
+                      "Refuse a self-calibrated focal length further than this fraction from "
+                      "the --fov-deg prior's")
+      ->capture_default_str();
+  command->add_flag("--allow-implausible", c.options.allow_implausible,
+                    "Keep implausible self-calibrated intrinsics (with a warning)");
   command->add_option("--positions", c.options.positions_file,
                       "CSV of camera positions, columns by header name: name,x,y,z (metres, e.g. "
                       "UTM) or name,lat,lon,alt (degrees, projected with PROJ): geo-reference, "
@@ -1257,7 +1264,8 @@ const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
     {"num_threads", "--threads"},
     {"colmap", "--colmap"},
     {"positions_file/exif_positions", "--positions/--positions-from-exif"},
-    {"positions_crs", "--positions-crs"}};
+    {"positions_crs", "--positions-crs"},
+    {"max_focal_deviation", "--max-focal-deviation"}};
 
 int RunPoses(PosesCommand& c) {
   ProgressBar progress(c.quiet);

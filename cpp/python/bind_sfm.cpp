@@ -36,6 +36,11 @@ void BindSfm(py::module_& m) {
       .Field("min_registered_fraction", &PosesOptions::min_registered_fraction,
              "Error below this fraction of frames registered.")
       .Field("num_threads", &PosesOptions::num_threads, "COLMAP's threads; -1 = all cores.")
+      .Field("max_focal_deviation", &PosesOptions::max_focal_deviation,
+             "Self-calibration: refuse a focal length further than this fraction from the "
+             "fov_deg prior's, > 0.")
+      .Field("allow_implausible", &PosesOptions::allow_implausible,
+             "Keep implausible self-calibrated intrinsics with a warning instead of refusing.")
       .Finish()
       .def("check", &PosesOptions::Check, "Raises ValueError naming the field.");
 
@@ -70,7 +75,13 @@ void BindSfm(py::module_& m) {
             return seconds;
           },
           "Wall time per stage: features, matching, mapping, import.")
-      .def_readonly("workspace", &PosesResult::workspace, "The kept workspace, or ''.");
+      .def_readonly("workspace", &PosesResult::workspace, "The kept workspace, or ''.")
+      .def_readonly("focal_prior_px", &PosesResult::focal_prior_px,
+                    "Self-calibration: the focal length of the fov_deg prior (0 if none).")
+      .def_readonly("focal_deviation", &PosesResult::focal_deviation,
+                    "Recovered / prior focal length - 1; NaN when unchecked.")
+      .def_readonly("implausible", &PosesResult::implausible,
+                    "The self-calibration exceeded max_focal_deviation (kept: allow_implausible).");
 
   m.def(
       "_estimate_poses",

@@ -812,6 +812,8 @@ class PosesOptions:
         max_num_features: int = ...,
         min_registered_fraction: float = ...,
         num_threads: int = ...,
+        max_focal_deviation: float = ...,
+        allow_implausible: bool = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     colmap: str
@@ -828,6 +830,8 @@ class PosesOptions:
     max_num_features: int
     min_registered_fraction: float
     num_threads: int
+    max_focal_deviation: float
+    allow_implausible: bool
     def check(self) -> None: ...
     def __copy__(self) -> PosesOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> PosesOptions: ...
@@ -870,6 +874,12 @@ class PosesResult:
     def stage_seconds(self) -> dict[str, float]: ...
     @property
     def workspace(self) -> str: ...
+    @property
+    def focal_prior_px(self) -> float: ...
+    @property
+    def focal_deviation(self) -> float: ...
+    @property
+    def implausible(self) -> bool: ...
 
 def _estimate_poses(
     frames_dir: str, options: PosesOptions, progress: _Progress = None

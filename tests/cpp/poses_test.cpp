@@ -605,7 +605,9 @@ TEST_F(FakeMapper, PartialRegistrationIsListedAndUsable) {
   EXPECT_EQ(result.registered, (std::vector<std::string>{"f0.png", "f1.png", "f2.png"}));
   EXPECT_EQ(result.unregistered, (std::vector<std::string>{"f3.png", "f4.png"}));
   EXPECT_THAT(result.warnings, ElementsAre(HasSubstr("skipped 1 unreadable frame(s): broken.png"),
-                                           HasSubstr("2 of 5 frames were not registered: f3.png, f4.png")));
+                                           HasSubstr("2 of 5 frames were not registered: f3.png, f4.png"),
+                                           HasSubstr("focal length (30.0 px, a 56.1-degree field "
+                                                     "of view) could not be checked")));
   ASSERT_TRUE(result.light_field.pose_source.has_value());
   EXPECT_EQ(result.light_field.pose_source->unregistered, result.unregistered);
   EXPECT_DOUBLE_EQ(result.mean_reprojection_error_px, 0.5);
@@ -617,6 +619,34 @@ TEST_F(FakeMapper, PartialRegistrationIsListedAndUsable) {
   EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
               HasSubstr("COLMAP registered only 3 of 5 frames (below min_registered_fraction "
                         "0.7); not registered: f3.png, f4.png"));
+}
+
+TEST_F(FakeMapper, ImplausibleSelfCalibrationIsRefusedOrFlagged) {
+  // The stand-in model's camera: fx = 30 px on 32-pixel-wide frames, a 56.1-degree field of view.
+  Frames(3);
+  WriteModel("models/0", {"f0.png", "f1.png", "f2.png"});
+  PosesOptions options;
+  options.colmap = Mapper();
+  // No prior: kept, with a warning that the intrinsics could not be checked.
+  PosesResult result = EstimatePoses(Path("frames"), options);
+  EXPECT_THAT(result.warnings, ::testing::Contains(HasSubstr("could not be checked")));
+  EXPECT_TRUE(std::isnan(result.focal_deviation));
+  EXPECT_FALSE(result.implausible);
+  // The right prior: checked and fine.
+  options.fov_deg = 2.0 * std::atan(16.0 / 30.0) * 180.0 / M_PI;
+  result = EstimatePoses(Path("frames"), options);
+  EXPECT_NEAR(result.focal_prior_px, 30.0, 1e-9);
+  EXPECT_NEAR(result.focal_deviation, 0.0, 1e-9);
+  EXPECT_FALSE(result.implausible);
+  // A 40-degree prior (fx 44 px): 32 % off, refused; kept with allow_implausible, loudly.
+  options.fov_deg = 40.0;
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("IMPLAUSIBLE self-calibration: the focal length came out at 30.0 px"));
+  options.allow_implausible = true;
+  result = EstimatePoses(Path("frames"), options);
+  EXPECT_TRUE(result.implausible);
+  EXPECT_NEAR(result.focal_deviation, 30.0 / (16.0 / std::tan(20.0 * M_PI / 180.0)) - 1.0, 1e-9);
+  EXPECT_THAT(result.warnings, ::testing::Contains(HasSubstr("IMPLAUSIBLE")));
 }
 
 TEST_F(FakeMapper, TheLargestOfSeveralModelsIsUsed) {

@@ -283,12 +283,55 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
   result->light_field.pose_source = source;
 }
 
+// Self-calibrated intrinsics against the fov_deg prior (see PosesOptions::max_focal_deviation):
+// implausible ones are refused, or accepted with a loud warning under allow_implausible; without
+// a prior the warning says they could not be checked.
+void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
+  if (result->light_field.views.empty()) return;
+  const LensCamera& lens = result->light_field.views[0].lens;
+  const double focal = std::sqrt(lens.fx * lens.fy);
+  const double recovered_fov_deg = 2.0 * std::atan(0.5 * lens.width / lens.fx) * 180.0 / M_PI;
+  char text[512];
+  if (!(options.fov_deg > 0.0)) {
+    std::snprintf(text, sizeof(text),
+                  "the self-calibrated focal length (%.1f px, a %.1f-degree field of view) could "
+                  "not be checked: give fov_deg (--fov-deg), the frames' known field of view, or "
+                  "a camera file; self-calibration from nadir views of flat ground is ill-posed "
+                  "(docs/poses.md)",
+                  focal, recovered_fov_deg);
+    result->warnings.push_back(text);
+    return;
+  }
+  result->focal_prior_px = 0.5 * lens.width / std::tan(0.5 * options.fov_deg * M_PI / 180.0);
+  result->focal_deviation = focal / result->focal_prior_px - 1.0;
+  const double ratio = focal / result->focal_prior_px;
+  const double limit = 1.0 + options.max_focal_deviation;
+  if (ratio <= limit && ratio >= 1.0 / limit) return;
+  result->implausible = true;
+  std::snprintf(text, sizeof(text),
+                "IMPLAUSIBLE self-calibration: the focal length came out at %.1f px (a %.1f-degree "
+                "field of view) but the %s-degree prior gives %.1f px (%+.0f %%, more than "
+                "max_focal_deviation %s); poses, scale and depths built on it are wrong (nadir "
+                "views of flat ground leave the focal length ill-determined)",
+                focal, recovered_fov_deg, FormatNumber(options.fov_deg).c_str(),
+                result->focal_prior_px, 100.0 * result->focal_deviation,
+                FormatNumber(options.max_focal_deviation).c_str());
+  if (!options.allow_implausible) {
+    ThrowInvalid(std::string(text) + "; give a camera file from `calibrate` (--camera), or "
+                 "allow_implausible (--allow-implausible) to keep the result anyway");
+  }
+  result->warnings.push_back(text);
+}
+
 }  // namespace
 
 void PosesOptions::Check() const {
   if (colmap.empty()) ThrowInvalid("colmap: must name the COLMAP executable");
   if (matcher != "sequential" && matcher != "spatial" && matcher != "exhaustive") {
     ThrowInvalid("matcher: \"" + matcher + "\" is not one of sequential, spatial, exhaustive");
+  }
+  if (!(max_focal_deviation > 0.0) || !std::isfinite(max_focal_deviation)) {
+    ThrowInvalid("max_focal_deviation: must be > 0 (a fraction of the prior's focal length)");
   }
   if (!positions_crs.empty() && positions_file.empty()) {
     ThrowInvalid("positions_crs: applies to positions_file, which is not given");
@@ -838,6 +881,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   ImportInto(std::move(model), frames_dir, positions,
              options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
              options.min_registered_fraction, &result);
+  if (!known) CheckSelfCalibration(options, &result);
   ProgressAdvance(progress, 1);
   result.stages.push_back({"import", Seconds(start)});
   return result;

@@ -43,6 +43,7 @@
 //
 // Throws std::invalid_argument for bad options (naming the field), a missing or empty frames
 // folder, COLMAP missing or failing (with the end of its log), or too few frames registered.
+#include <cmath>
 #include <string>
 #include <vector>
 
@@ -72,6 +73,13 @@ struct PosesOptions {
   int max_num_features = 2048;          // per frame, >= 100 (matching cost grows with its square)
   double min_registered_fraction = 0.5; // (0, 1]
   int num_threads = -1;                 // COLMAP's threads; -1 = all cores
+  // Self-calibration is checked against the fov_deg prior: a focal length further than this
+  // fraction from the prior's (1 + d or 1 / (1 + d) times it) is implausible, > 0. Nadir views
+  // of nearly flat ground leave the focal length ill-determined (a 60-degree, 640-pixel flight
+  // came out at 768 px instead of 554 with a healthy-looking 0.045 px reprojection error).
+  double max_focal_deviation = 0.1;
+  // Accept implausible intrinsics with a warning instead of refusing them.
+  bool allow_implausible = false;
   void Check() const;
 };
 
@@ -92,6 +100,12 @@ struct PosesResult {
   double georeference_rms_m = 0.0;        // RMS of centre residuals after it
   int georeference_frames = 0;            // registered frames with a position
   std::string world_frame;                // "UTM 31N (WGS84)", "the frame of gps.csv", or ""
+  // Self-calibration's check: the focal length the fov_deg prior gives (0 without a prior or
+  // with a known camera), the recovered one's deviation from it (recovered / prior - 1; NaN when
+  // unchecked), and whether it exceeded max_focal_deviation (accepted with allow_implausible).
+  double focal_prior_px = 0.0;
+  double focal_deviation = std::nan("");
+  bool implausible = false;
   struct Stage {
     std::string name;
     double seconds = 0.0;
