@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdarg>
 #include <cstdio>
 #include <cstdlib>
 #include <filesystem>
@@ -49,6 +50,24 @@ class UsageError : public std::invalid_argument {
 };
 
 [[noreturn]] void ThrowUsage(const std::string& message) { throw UsageError(message); }
+
+// -q / --quiet, on every command: no progress and no report lines ("wrote ..."); errors and
+// warnings still go to stderr, and a command's result (metrics, resolution) still prints.
+bool g_quiet = false;
+
+// printf to stdout unless -q.
+__attribute__((format(printf, 1, 2))) void Say(const char* format, ...) {
+  if (g_quiet) return;
+  va_list arguments;
+  va_start(arguments, format);
+  std::vfprintf(stdout, format, arguments);
+  va_end(arguments);
+}
+
+void AddQuiet(CLI::App* command) {
+  command->add_flag("-q,--quiet", g_quiet, "No progress and no report lines (errors and warnings "
+                                           "still print)");
+}
 
 // Runs `interpret` (which reads a flag's value) and turns its std::invalid_argument into a
 // UsageError.
@@ -273,10 +292,10 @@ void WriteOutputs(const IntegralResult& result, const std::string& image_path,
   std::vector<PendingFile*> files{&image_file};
   if (count_file) files.push_back(&*count_file);
   CommitTogether(files);
-  std::printf("wrote %s (%dx%d, %s)\n", image_path.c_str(), result.image.width(),
+  Say("wrote %s (%dx%d, %s)\n", image_path.c_str(), result.image.width(),
               result.image.height(), how.c_str());
   if (count_file) {
-    std::printf("wrote %s (count of contributing views per pixel)\n", count_path.c_str());
+    Say("wrote %s (count of contributing views per pixel)\n", count_path.c_str());
   }
 }
 
@@ -291,7 +310,6 @@ struct IntegralCommand {
   std::string focal_plane;
   std::string views;
   OutputOptions out;
-  bool quiet = false;
 };
 
 // The light field and the virtual camera: shared by integral, stack and allinfocus.
@@ -341,7 +359,7 @@ void AddRenderArgs(CLI::App* command, IntegralCommand& c, bool with_plane) {
       ->capture_default_str();
   command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
       ->capture_default_str();
-  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+  AddQuiet(command);
 }
 
 void AddIntegral(CLI::App& app, IntegralCommand& c) {
@@ -386,7 +404,7 @@ LoadResult LoadAndResolveCamera(IntegralCommand& c, ProgressBar& progress) {
 }
 
 int RunIntegral(IntegralCommand& c) {
-  ProgressBar progress(c.quiet);
+  ProgressBar progress(g_quiet);
   // Refuse bad outputs (an input, a missing folder, a format that cannot hold the samples)
   // before spending time on loading; the frames are checked again once known.
   CheckOutputs(c.out, c.out.output, c.out.count, {c.light_field_path});
@@ -410,7 +428,7 @@ int RunIntegral(IntegralCommand& c) {
     RethrowNamingFlags(error, kRenderFlags);
   }
   progress.Finish();
-  std::fprintf(stderr,
+  if (!g_quiet) std::fprintf(stderr,
                "integrated %d of %d selected views: %lld samples, %lld of %lld pixels uncovered\n",
                result.views_used, result.views_selected, static_cast<long long>(result.samples),
                static_cast<long long>(result.uncovered_pixels),
@@ -454,7 +472,6 @@ struct SimulateCommand {
   int grid = 0;
   SimulateOptions options;
   bool print_scene = false;
-  bool quiet = false;
 };
 
 void AddSimulate(CLI::App& app, SimulateCommand& c) {
@@ -472,7 +489,7 @@ void AddSimulate(CLI::App& app, SimulateCommand& c) {
       ->capture_default_str();
   command->add_flag("--print-scene", c.print_scene,
                     "Print the scene with every field written out and exit");
-  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+  AddQuiet(command);
 }
 
 int RunSimulate(SimulateCommand& c) {
@@ -483,7 +500,7 @@ int RunSimulate(SimulateCommand& c) {
   }
   if (c.output_dir.empty()) ThrowUsage("--output-dir: required (a new or empty folder)");
   CheckOutputFolder(c.output_dir);  // before any work
-  ProgressBar progress(c.quiet);
+  ProgressBar progress(g_quiet);
   SimulationResult result;
   try {
     result = Simulate(scene, c.options, &progress);
@@ -491,9 +508,9 @@ int RunSimulate(SimulateCommand& c) {
     RethrowNamingFlags(error, {{"num_threads", "--threads"}});
   }
   progress.Finish();
-  if (!c.quiet) PrintStats(result);
+  if (!g_quiet) PrintStats(result);
   WriteSimulation(result, scene, c.output_dir);
-  std::printf("wrote %s: %zu views, lightfield.json, truth/ (focal plane z = %s m)\n",
+  Say("wrote %s: %zu views, lightfield.json, truth/ (focal plane z = %s m)\n",
               c.output_dir.c_str(), result.light_field.views.size(),
               FormatNumber(result.truth.ground_height_at_center).c_str());
   return 0;
@@ -504,7 +521,6 @@ struct DemoCommand {
   std::string scene_path;
   int grid = 0;
   OutputOptions out;
-  bool quiet = false;
 };
 
 void AddDemo(CLI::App& app, DemoCommand& c) {
@@ -518,22 +534,22 @@ void AddDemo(CLI::App& app, DemoCommand& c) {
   command->add_option("--scene", c.scene_path, "A scene file instead of the built-in default");
   command->add_option("--grid", c.grid, "Override sampling.grid (views per side, >= 1)")
       ->check(AtLeast(1));
-  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+  AddQuiet(command);
 }
 
 int RunDemo(DemoCommand& c) {
   const Scene scene = LoadSceneOrDefault(c.scene_path, c.grid);
   CheckOutputFolder(c.output_dir);  // before any work
-  ProgressBar progress(c.quiet);
+  ProgressBar progress(g_quiet);
   const SimulationResult simulation = Simulate(scene, {}, &progress);
   progress.Finish();
-  if (!c.quiet) PrintStats(simulation);
+  if (!g_quiet) PrintStats(simulation);
   WriteSimulation(simulation, scene, c.output_dir);
   int files = 0;
   for (const auto& entry : fs::recursive_directory_iterator(c.output_dir)) {
     files += entry.is_regular_file() ? 1 : 0;
   }
-  std::printf("wrote %s (%zu views of %s, ground truth in truth/)\n", c.output_dir.c_str(),
+  Say("wrote %s (%zu views of %s, ground truth in truth/)\n", c.output_dir.c_str(),
               simulation.light_field.views.size(), scene.source.c_str());
 
   // Renders from the truth camera: one view (radius 0), the integral focused on the ground, and
@@ -571,7 +587,7 @@ int RunDemo(DemoCommand& c) {
                 "truth\n",
                 job.name.c_str(), job.height, quality.psnr_db, quality.ssim);
   }
-  std::printf("demo: %d files in %s (open %s/integral_ground.png: the ground seen through the "
+  Say("demo: %d files in %s (open %s/integral_ground.png: the ground seen through the "
               "occluders; truth/ground.png is the truth)\n",
               files, c.output_dir.c_str(), c.output_dir.c_str());
   return 0;
@@ -670,7 +686,7 @@ void WriteMergeResult(const std::string& output_dir, const MergeResult& result,
   write.description = "aos fractional slice index; -1 = uncovered";
   WriteImage((temp / "slice.tif").string(), result.slice, write);
   folder.Commit();
-  std::printf("wrote %s: all_in_focus.tif, depth.tif, confidence.tif, slice.tif (%dx%d, %s; "
+  Say("wrote %s: all_in_focus.tif, depth.tif, confidence.tif, slice.tif (%dx%d, %s; "
               "%lld pixels uncovered)\n",
               output_dir.c_str(), result.image.width(), result.image.height(),
               MergeMethodName(method), static_cast<long long>(result.uncovered_pixels));
@@ -697,7 +713,7 @@ void AddStack(CLI::App& app, StackCommand& c) {
 }
 
 int RunStack(StackCommand& c) {
-  ProgressBar progress(c.render.quiet);
+  ProgressBar progress(g_quiet);
   CheckOutputFolder(c.output_dir);  // before any work
   const LoadResult loaded = LoadAndResolveCamera(c.render, progress);
   c.options.render = c.render.options;
@@ -711,7 +727,7 @@ int RunStack(StackCommand& c) {
   }
   progress.Finish();
   WriteFocalStack(c.output_dir, stack);
-  std::printf("wrote %s: %d slices of %dx%d (stack.json, slice_*.tif, count_*.tif%s)\n",
+  Say("wrote %s: %d slices of %dx%d (stack.json, slice_*.tif, count_*.tif%s)\n",
               c.output_dir.c_str(), stack.size(), stack.camera.width, stack.camera.height,
               stack.variances.empty() ? "" : ", variance_*.tif");
   return 0;
@@ -724,7 +740,6 @@ struct MergeCommand {
   MergeArgs args;
   MergeOptions options;
   std::string output_dir;
-  bool quiet = false;
 };
 
 void AddMerge(CLI::App& app, MergeCommand& c) {
@@ -744,11 +759,11 @@ void AddMerge(CLI::App& app, MergeCommand& c) {
       ->capture_default_str();
   command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
       ->required();
-  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+  AddQuiet(command);
 }
 
 int RunMerge(MergeCommand& c) {
-  ProgressBar progress(c.quiet);
+  ProgressBar progress(g_quiet);
   CheckOutputFolder(c.output_dir);  // before any work
   c.options.method = AsUsage([&] { return ParseMergeMethod(c.args.method, "--method"); });
   const FocalStack stack = ReadFocalStack(c.stack_dir);
@@ -772,7 +787,7 @@ int RunMerge(MergeCommand& c) {
     RethrowNamingFlags(error, kMergeFlags);
   }
   progress.Finish();
-  std::fprintf(stderr, "merged %d slices (%s) in %.2f s%s\n", stack.size(),
+  if (!g_quiet) std::fprintf(stderr, "merged %d slices (%s) in %.2f s%s\n", stack.size(),
                MergeMethodName(c.options.method), result.seconds_merge + result.seconds_render,
                c.options.method == MergeMethod::kRobust
                    ? (", " + std::to_string(result.fallback_pixels) +
@@ -803,7 +818,7 @@ void AddAllInFocus(CLI::App& app, AllInFocusCommand& c) {
 }
 
 int RunAllInFocus(AllInFocusCommand& c) {
-  ProgressBar progress(c.render.quiet);
+  ProgressBar progress(g_quiet);
   CheckOutputFolder(c.output_dir);  // before any work
   const LoadResult loaded = LoadAndResolveCamera(c.render, progress);
   c.options.stack.render = c.render.options;
@@ -818,7 +833,7 @@ int RunAllInFocus(AllInFocusCommand& c) {
     RethrowNamingFlags(error, Concat({&kMergeFlags, &kStackFlags, &kRenderFlags}));
   }
   progress.Finish();
-  std::fprintf(stderr, "%d slices rendered and merged (%s): render %.2f s, merge %.2f s\n",
+  if (!g_quiet) std::fprintf(stderr, "%d slices rendered and merged (%s): render %.2f s, merge %.2f s\n",
                c.options.stack.slices, MergeMethodName(c.options.merge.method),
                result.seconds_render, result.seconds_merge);
   WriteMergeResult(c.output_dir, result, c.options.merge.method);
@@ -871,6 +886,7 @@ void AddResolution(CLI::App& app, ResolutionCommand& c) {
                       "Back-projected figure over pixels within this angle of the axis, degrees")
       ->capture_default_str();
   command->add_flag("--json", c.json, "Print one JSON object");
+  AddQuiet(command);
 }
 
 int RunResolution(const ResolutionCommand& c) {
@@ -953,7 +969,6 @@ struct RectifyCommand {
   std::vector<std::string> frames;
   RectifyOptions options;
   std::string output_dir;
-  bool quiet = false;
 };
 
 void AddRectify(CLI::App& app, RectifyCommand& c) {
@@ -985,7 +1000,7 @@ void AddRectify(CLI::App& app, RectifyCommand& c) {
                       "Output folder (must not exist or be empty): the frames under their own "
                       "names, and camera.json (the rectified pinhole camera)")
       ->required();
-  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+  AddQuiet(command);
 }
 
 const std::vector<std::pair<std::string, std::string>> kRectifyFlags{
@@ -1047,14 +1062,14 @@ int RunRectifyLightField(const RectifyCommand& c, ProgressBar& progress) {
   write.image_extension = float_views ? ".tif" : ".png";
   WriteLightField((fs::path(folder.TempPath()) / "lightfield.json").string(), light_field, write);
   folder.Commit();
-  std::printf("wrote %s: lightfield.json with %d rectified views (%s degrees) of %zu\n",
+  Say("wrote %s: lightfield.json with %d rectified views (%s degrees) of %zu\n",
               c.output_dir.c_str(), rectified, FormatNumber(c.options.fov_deg).c_str(),
               light_field.views.size());
   return 0;
 }
 
 int RunRectify(const RectifyCommand& c) {
-  ProgressBar progress(c.quiet);
+  ProgressBar progress(g_quiet);
   if (!c.light_field_path.empty()) return RunRectifyLightField(c, progress);
   if (c.frames.empty() || c.camera_path.empty()) {
     ThrowUsage("give raw frames and --camera, or --lightfield");
@@ -1096,7 +1111,7 @@ int RunRectify(const RectifyCommand& c) {
   WriteCameraFile((fs::path(folder.TempPath()) / "camera.json").string(),
                   LensCamera::FromPinhole(rectifier.camera));
   folder.Commit();
-  std::printf("wrote %s: %zu rectified frames (%dx%d, %s degrees) and camera.json\n",
+  Say("wrote %s: %zu rectified frames (%dx%d, %s degrees) and camera.json\n",
               c.output_dir.c_str(), c.frames.size(), rectifier.camera.width,
               rectifier.camera.height, FormatNumber(c.options.fov_deg).c_str());
   return 0;
@@ -1108,7 +1123,6 @@ struct CalibrateCommand {
   std::string model = "radtan";
   CalibrateOptions options;
   std::string output;
-  bool quiet = false;
 };
 
 void AddCalibrate(CLI::App& app, CalibrateCommand& c) {
@@ -1123,11 +1137,11 @@ void AddCalibrate(CLI::App& app, CalibrateCommand& c) {
   command->add_option("--model", c.model, "pinhole, radtan, fisheye or omnidir")
       ->capture_default_str();
   command->add_option("-o,--output", c.output, "Camera file to write (JSON)")->required();
-  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+  AddQuiet(command);
 }
 
 int RunCalibrate(CalibrateCommand& c) {
-  ProgressBar progress(c.quiet);
+  ProgressBar progress(g_quiet);
   CheckOutputPath(c.output, c.frames, "output");
   c.options.model = AsUsage([&] { return ParseLensModel(c.model, "--model"); });
   const size_t x = c.pattern.find('x');
@@ -1155,7 +1169,7 @@ int RunCalibrate(CalibrateCommand& c) {
     std::fprintf(stderr, "warning: %s: board not found; frame not used\n", name.c_str());
   }
   WriteCameraFile(c.output, result.camera, CalibrationRecordJson(result, &c.options));
-  std::printf("wrote %s: %s lens, RMS reprojection error %.3f px over %zu frames (%zu without the "
+  Say("wrote %s: %s lens, RMS reprojection error %.3f px over %zu frames (%zu without the "
               "board)\n",
               c.output.c_str(), LensModelName(result.camera.model), result.rms_px,
               result.frames_used.size(), result.frames_rejected.size());
@@ -1166,7 +1180,6 @@ struct PosesCommand {
   std::string frames_dir;
   std::string output;
   PosesOptions options;
-  bool quiet = false;
 };
 
 void AddPoses(CLI::App& app, PosesCommand& c) {
@@ -1217,7 +1230,7 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
   command->add_option("--colmap", c.options.colmap, "COLMAP executable")->capture_default_str();
   command->add_option("--threads", c.options.num_threads, "COLMAP's threads; -1 = all cores")
       ->capture_default_str();
-  command->add_flag("-q,--quiet", c.quiet, "No progress output");
+  AddQuiet(command);
 }
 
 // Warnings, then the light field and what the user needs to judge the poses.
@@ -1225,32 +1238,32 @@ void ReportPoses(const PosesResult& result, const std::string& output) {
   for (const std::string& warning : result.warnings) {
     std::fprintf(stderr, "warning: %s\n", warning.c_str());
   }
-  std::printf("wrote %s: %zu of %zu frames registered, %zu points, mean reprojection error "
+  Say("wrote %s: %zu of %zu frames registered, %zu points, mean reprojection error "
               "%.3f px\n",
               output.c_str(), result.registered.size(), result.frames.size(), result.points,
               result.mean_reprojection_error_px);
   const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
   if (result.georeferenced) {
-    std::printf("geo-referenced by %d positions (%s): RMS %.3f m; origin %.3f %.3f %.3f\n",
+    Say("geo-referenced by %d positions (%s): RMS %.3f m; origin %.3f %.3f %.3f\n",
                 result.georeference_frames, result.world_frame.c_str(), result.georeference_rms_m,
                 result.light_field.origin.x, result.light_field.origin.y,
                 result.light_field.origin.z);
   }
-  std::printf("pose error e = %.4g%s at the median depth %.4g%s\n", result.pose_error, unit,
+  Say("pose error e = %.4g%s at the median depth %.4g%s\n", result.pose_error, unit,
               result.median_depth, unit);
   if (result.georeferenced && !result.light_field.views.empty() && result.median_depth > 0.0) {
     ResolutionOptions resolution;
     resolution.distance_m = result.median_depth;
     resolution.pose_error_m = result.pose_error;
     const ResolutionResult r = SamplingResolution(result.light_field.views[0].lens, resolution);
-    std::printf("sampling at that depth: p = %.2f cm, p' = p + 2e = %.2f cm (%.1f samples/m^2)\n",
+    Say("sampling at that depth: p = %.2f cm, p' = p + 2e = %.2f cm (%.1f samples/m^2)\n",
                 100.0 * r.sample_size_m, 100.0 * r.effective_sample_size_m,
                 r.effective_samples_per_m2);
   }
   for (const auto& stage : result.stages) {
-    std::printf("  %-9s %7.1f s\n", stage.name.c_str(), stage.seconds);
+    Say("  %-9s %7.1f s\n", stage.name.c_str(), stage.seconds);
   }
-  if (!result.workspace.empty()) std::printf("COLMAP workspace kept in %s\n", result.workspace.c_str());
+  if (!result.workspace.empty()) Say("COLMAP workspace kept in %s\n", result.workspace.c_str());
 }
 
 const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
@@ -1268,7 +1281,7 @@ const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
     {"max_focal_deviation", "--max-focal-deviation"}};
 
 int RunPoses(PosesCommand& c) {
-  ProgressBar progress(c.quiet);
+  ProgressBar progress(g_quiet);
   // The frames folder (every file in it), the camera and the positions are inputs.
   CheckOutputPath(c.output, {c.frames_dir, c.options.camera_file, c.options.positions_file},
                   "output");
@@ -1309,6 +1322,7 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
   command->add_option("--min-registered", c.options.min_registered_fraction,
                       "Fail below this fraction of frames registered")
       ->capture_default_str();
+  AddQuiet(command);
 }
 
 int RunImportColmap(ImportColmapCommand& c) {
@@ -1354,6 +1368,7 @@ void AddMetrics(CLI::App& app, MetricsCommand& c) {
   command->add_option("--k1", c.options.k1, "SSIM constant k1")->capture_default_str();
   command->add_option("--k2", c.options.k2, "SSIM constant k2")->capture_default_str();
   command->add_flag("--json", c.json, "Print one JSON object instead of a line of text");
+  AddQuiet(command);
 }
 
 int RunMetrics(const MetricsCommand& c) {

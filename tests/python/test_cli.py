@@ -202,3 +202,26 @@ def test_metrics_subcommand_matches_python(tmp_path: Path) -> None:
     assert text.returncode == 0 and text.stdout.startswith("PSNR ")
     bad = run("metrics", str(tmp_path / "t.png"), str(tmp_path / "missing.png"))
     assert_clean_failure(bad, "missing.png", "not found")
+
+
+def test_quiet_means_quiet_on_every_command(scene: Path, tmp_path: Path) -> None:
+    """-q printed "wrote ..." lines; now every command takes -q, and with it a successful run
+    prints nothing but its result (metrics, resolution)."""
+    for command in ("integral", "stack", "merge", "allinfocus", "simulate", "demo", "metrics",
+                    "resolution", "rectify", "calibrate", "poses", "import-colmap"):
+        assert "--quiet" in run(command, "--help").stdout, command
+    out = tmp_path / "out"
+    runs = [("integral", str(scene), *BASE, "-o", str(out / "a.png"), "--count",
+             str(out / "c.tif")),
+            ("stack", str(scene), *BASE, "--slices", "2", "-o", str(out / "stack")),
+            ("merge", str(out / "stack"), "-o", str(out / "merged")),
+            ("allinfocus", str(scene), *BASE, "--slices", "2", "-o", str(out / "aif")),
+            ("simulate", "--grid", "2", "-o", str(out / "sim"))]
+    out.mkdir()
+    for args in runs:
+        loud = run(*args[:-1], args[-1] + "_loud") if args[0] != "integral" else None
+        if loud is not None:
+            assert loud.returncode == 0 and "wrote" in loud.stdout, loud.stderr
+        done = run(*args, "-q")
+        assert done.returncode == 0, done.stderr
+        assert done.stdout == "" and done.stderr == "", (args[0], done.stdout, done.stderr)
