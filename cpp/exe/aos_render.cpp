@@ -308,6 +308,8 @@ struct IntegralCommand {
   std::string aperture_radius = "inf";
   double focal_height = 0.0;
   std::string focal_plane;
+  double focal_distance = 0.0;
+  bool horizontal = false;
   std::string views;
   OutputOptions out;
 };
@@ -327,17 +329,22 @@ void AddRenderArgs(CLI::App* command, IntegralCommand& c, bool with_plane) {
                         ->check(AtLeast(0));
   auto* look_at = command->add_option("--look-at", c.look_at,
                                       "Virtual camera at EX,EY,EZ looking at TX,TY,TZ (optional "
-                                      "up UX,UY,UZ, default 0,0,1)");
+                                      "up UX,UY,UZ; default 0,0,1, or 0,1,0 looking straight "
+                                      "down or up)");
   auto* pose = command->add_option("--cam-from-world", c.cam_from_world,
                                    "Virtual camera pose as 12 numbers: the 3x4 matrix [R|t] "
                                    "row by row (local frame -> camera, OpenCV axes)");
   pose_view->excludes(look_at)->excludes(pose);
   look_at->excludes(pose);
   command->add_option("--fov-deg", c.options.fov_deg,
-                      "Horizontal field of view of the virtual camera, degrees")
+                      "Horizontal field of view of the virtual camera, degrees; 0 = the pose "
+                      "view's, else 50")
       ->capture_default_str();
-  command->add_option("--width", c.options.width, "Output width, pixels")->capture_default_str();
-  command->add_option("--height", c.options.height, "Output height, pixels")
+  command->add_option("--width", c.options.width,
+                      "Output width, pixels; 0 = the pose view's, else 512")
+      ->capture_default_str();
+  command->add_option("--height", c.options.height,
+                      "Output height, pixels; 0 = the pose view's, else 512")
       ->capture_default_str();
   command->add_option("--aperture-radius", c.aperture_radius,
                       "Radius of the virtual aperture, metres; 0 = pinhole (nearest view), "
@@ -349,7 +356,16 @@ void AddRenderArgs(CLI::App* command, IntegralCommand& c, bool with_plane) {
                        ->capture_default_str();
     auto* plane = command->add_option("--focal-plane", c.focal_plane,
                                       "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
-    height->excludes(plane);
+    auto* distance = command->add_option(
+        "--focal-distance", c.focal_distance,
+        "Focal plane D metres in front of the virtual camera, perpendicular to its axis (e.g. "
+        "35 for 'focus 35 m below the drone')");
+    auto* horizontal = command->add_flag("--horizontal", c.horizontal,
+                                         "With --focal-distance: the horizontal plane through "
+                                         "that point instead");
+    height->excludes(plane)->excludes(distance);
+    plane->excludes(distance);
+    horizontal->needs(distance);
   }
   command->add_option("--views", c.views,
                       "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
@@ -385,8 +401,10 @@ LoadResult LoadAndResolveCamera(IntegralCommand& c, ProgressBar& progress) {
   if (!c.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(c.look_at, "--look-at");
     if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");
-    const Vec3d up = v.size() == 9 ? Vec3d(v[6], v[7], v[8]) : Vec3d(0, 0, 1);
-    options.cam_from_world = LookAt(Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5]), up);
+    const Vec3d eye(v[0], v[1], v[2]), target(v[3], v[4], v[5]);
+    options.cam_from_world = AsUsage([&] {
+      return v.size() == 9 ? LookAt(eye, target, Vec3d(v[6], v[7], v[8])) : LookAt(eye, target);
+    });
   } else if (!c.cam_from_world.empty()) {
     const std::vector<double> v = ParseNumbers(c.cam_from_world, "--cam-from-world", 12);
     std::array<double, 12> m{};
@@ -414,6 +432,11 @@ int RunIntegral(IntegralCommand& c) {
   if (!c.focal_plane.empty()) {
     const std::vector<double> v = ParseNumbers(c.focal_plane, "--focal-plane", 6);
     options.focal_plane = Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
+  } else if (c.focal_distance != 0.0) {
+    const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
+    options.focal_plane = AsUsage([&] {
+      return Plane::InFrontOf(cam_from_world, c.focal_distance, c.horizontal);
+    });
   } else {
     options.focal_plane = Plane::AtHeight(c.focal_height);
   }

@@ -67,10 +67,16 @@ void BindGeometry(py::module_& m) {
         return stream.str();
       });
 
-  m.def("look_at", &LookAt, "eye"_a, "target"_a, "up"_a = Vec3d(0, 0, 1),
-        "cam_from_world of a camera at `eye` looking at `target`; `up` is the world direction "
-        "that appears up in the image (image y points down). Raises ValueError if eye == target "
-        "or up is parallel to the viewing direction.");
+  m.def(
+      "look_at",
+      [](const Vec3d& eye, const Vec3d& target, const std::optional<Vec3d>& up) {
+        return up ? LookAt(eye, target, *up) : LookAt(eye, target);
+      },
+      "eye"_a, "target"_a, "up"_a = py::none(),
+      "cam_from_world of a camera at `eye` looking at `target`; `up` is the world direction "
+      "that appears up in the image (image y points down); None = +z, or +y for a camera "
+      "looking straight along z (a nadir view). Raises ValueError if eye == target or up is "
+      "parallel to the viewing direction.");
 
   py::class_<Plane>(m, "Plane",
                     "A plane through `point` with normal `normal` (any length > 0; the side does "
@@ -80,6 +86,10 @@ void BindGeometry(py::module_& m) {
       .def_readwrite("point", &Plane::point, "A point on the plane (float64 copy).")
       .def_readwrite("normal", &Plane::normal, "The plane normal (float64 copy).")
       .def_static("at_height", &Plane::AtHeight, "z"_a, "The horizontal plane at height z.")
+      .def_static("in_front_of", &Plane::InFrontOf, "cam_from_world"_a, "distance"_a,
+                  "horizontal"_a = false,
+                  "The plane `distance` metres in front of a camera along its axis: "
+                  "perpendicular to the axis, or horizontal through that point.")
       .def("__repr__", [](const Plane& plane) {
         py::object point = py::cast(plane.point);
         py::object normal = py::cast(plane.normal);

@@ -96,8 +96,10 @@ void BindIntegral(py::module_& m) {
       "propagates. Ctrl-C raises KeyboardInterrupt. Raises ValueError for bad options. Prefer "
       "aos.render_integral, which also takes the options as keywords.");
 
-  m.def("virtual_camera", &VirtualCamera, "options"_a,
-        "The virtual camera's intrinsics for `options` (square pixels, centred principal point).");
+  m.def("virtual_camera", &VirtualCamera, "light_field"_a, "options"_a,
+        "The virtual camera's intrinsics for `options` (square pixels, centred principal point): "
+        "fov_deg, width and height where given (non-zero), else view pose_view's, else 50 "
+        "degrees and 512 x 512.");
 }
 
 std::vector<py::object> Arrays(const std::vector<Image>& images) {

@@ -56,9 +56,10 @@ class Rigid3d:
         """From [R | t] as a (3, 4) array-like, or 12 numbers row by row."""
     def __repr__(self) -> str: ...
 
-def look_at(eye: _Vector, target: _Vector, up: _Vector = ...) -> Rigid3d:
-    """cam_from_world of a camera at eye looking at target; up (default (0, 0, 1)) appears up in
-    the image. ValueError if eye == target or up is parallel to the viewing direction."""
+def look_at(eye: _Vector, target: _Vector, up: _Vector | None = None) -> Rigid3d:
+    """cam_from_world of a camera at eye looking at target; up appears up in the image (None:
+    (0, 0, 1), or (0, 1, 0) for a camera looking straight along z). ValueError if eye == target
+    or up is parallel to the viewing direction."""
 
 class Plane:
     """A plane through point with normal normal (local frame, metres)."""
@@ -77,6 +78,10 @@ class Plane:
     def at_height(z: float) -> Plane:
         """The horizontal plane at height z."""
     def __repr__(self) -> str: ...
+    @staticmethod
+    def in_front_of(cam_from_world: Rigid3d, distance: float, horizontal: bool = False) -> Plane:
+        """The plane `distance` metres in front of a camera along its axis (perpendicular to it,
+        or horizontal through that point)."""
 
 class PinholeCamera:
     """Pinhole camera; pixel centres at (i + 0.5, j + 0.5); u = fx x / z + cx, v = fy y / z + cy."""
@@ -346,7 +351,7 @@ def render_integral(
 ) -> IntegralResult:
     """Integral rendering with the GIL released; see aos.render_integral."""
 
-def virtual_camera(options: IntegralOptions) -> PinholeCamera: ...
+def virtual_camera(light_field: LightField, options: IntegralOptions) -> PinholeCamera: ...
 
 class RectifyOptions:
     """Options of make_rectifier; fields and defaults of aos::RectifyOptions."""

@@ -281,7 +281,7 @@ TEST(FocalStack, EverySliceIsRenderIntegralOnItsPlaneBitForBit) {
     EXPECT_EQ(stack.render.pose_view, -1);
     EXPECT_EQ(stack.render.cam_from_world.rotation, pose.rotation);
     EXPECT_EQ(stack.render.cam_from_world.translation, pose.translation);
-    const PinholeCamera camera = VirtualCamera(options.render);
+    const PinholeCamera camera = VirtualCamera(light_field, options.render);
     EXPECT_EQ(stack.camera.width, camera.width);
     EXPECT_EQ(stack.camera.height, camera.height);
     EXPECT_EQ(stack.camera.fx, camera.fx);

@@ -54,8 +54,8 @@ Image ConstantImage(int width, int height, float value) {
 }
 
 // Focal point of output pixel (x, y) (pixel centre) of the virtual camera.
-Vec3d FocalPoint(const IntegralOptions& options, const Rigid3d& cam_from_world, int x, int y) {
-  const PinholeCamera camera = VirtualCamera(options);
+Vec3d FocalPoint(const LightField& light_field, const IntegralOptions& options, const Rigid3d& cam_from_world, int x, int y) {
+  const PinholeCamera camera = VirtualCamera(light_field, options);
   const Vec3d direction =
       glm::transpose(cam_from_world.rotation) * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
   const Vec3d centre = cam_from_world.Center();
@@ -159,7 +159,7 @@ TEST_P(TexturedPlane, ComesBackWithinHalfAnEightBitStep) {
     for (int y = 8; y < options.height - 8; ++y) {
       for (int x = 8; x < options.width - 8; ++x) {
         ASSERT_GT(*result.count.At<uint32_t>(x, y), 40u);
-        const Vec3d point = FocalPoint(options, options.cam_from_world, x, y) - plane.point;
+        const Vec3d point = FocalPoint(light_field, options, options.cam_from_world, x, y) - plane.point;
         const double truth = texture.Value(glm::dot(point, s_axis), glm::dot(point, t_axis));
         const double error = std::abs(*result.image.At<float>(x, y) - truth);
         max_error = std::max(max_error, error);
@@ -281,7 +281,7 @@ struct BruteForce {
 };
 
 BruteForce BruteForceIntegral(const LightField& light_field, const IntegralOptions& options) {
-  const PinholeCamera camera = VirtualCamera(options);
+  const PinholeCamera camera = VirtualCamera(light_field, options);
   const Rigid3d& pose = options.cam_from_world;
   const Vec3d c = pose.Center();
   const Vec3d axis = Row(pose.rotation, 2);
@@ -421,7 +421,7 @@ TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
   int compared = 0;
   for (int y = 0; y < options.height; ++y) {
     for (int x = 0; x < options.width; ++x) {
-      const Vec3d X = FocalPoint(options, pose, x, y);
+      const Vec3d X = FocalPoint(light_field, options, pose, x, y);
       double best = std::numeric_limits<double>::infinity(), second = best;
       int best_view = -1;
       for (size_t i = 0; i < light_field.views.size(); ++i) {
@@ -489,7 +489,7 @@ TEST(Integral, PinholeOnTheFlightPlaneTakesTheNearestViewThatSeesEachPixel) {
       int ties = 0, far = 0;
       for (int y = 0; y < options.height; ++y) {
         for (int x = 0; x < options.width; ++x) {
-          const Vec3d X = FocalPoint(options, options.cam_from_world, x, y);
+          const Vec3d X = FocalPoint(light_field, options, options.cam_from_world, x, y);
           double best = std::numeric_limits<double>::infinity();
           int best_view = -1, nearest_any = -1;
           double nearest_any_distance = best;
@@ -781,7 +781,8 @@ class IntegralBadInput : public ::testing::Test {
 };
 
 TEST_F(IntegralBadInput, FieldOfView) {
-  for (double fov : {0.0, -5.0, 180.0, 200.0, std::nan("")}) {
+  // 0 is "not given" (the pose view's, else 50 degrees): no error.
+  for (double fov : {-5.0, 180.0, 200.0, std::nan("")}) {
     IntegralOptions bad = options;
     bad.fov_deg = fov;
     EXPECT_THAT(ErrorOf(bad), HasSubstr("fov_deg")) << fov;

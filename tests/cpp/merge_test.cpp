@@ -888,7 +888,7 @@ TEST(RenderIntegralOnDepth, PlainMeanOnAPlanesDepthIsRenderIntegralOnThatPlane) 
     options.focal_plane = Plane{Vec3d(0, 0, 0.3), Vec3d(0.1, -0.05, 1)};
     options.num_threads = 1;
     const IntegralResult reference = RenderIntegral(light_field, options);
-    const Image depth = PlaneDepth(VirtualCamera(options), options.cam_from_world, options.focal_plane);
+    const Image depth = PlaneDepth(VirtualCamera(light_field, options), options.cam_from_world, options.focal_plane);
     const SurfaceIntegralResult result = RenderIntegralOnDepth(light_field, options, depth);
     EXPECT_TRUE(result.inliers.empty());
     EXPECT_EQ(result.fallback_pixels, 0);
@@ -1129,7 +1129,7 @@ TEST(RenderIntegralOnDepth, RobustResultDoesNotDependOnTheThreadCount) {
   options.cam_from_world = NadirCamFromWorld(Vec3d(0, 0, 20));
   options.fov_deg = 40.0;
   options.width = options.height = 24;
-  Image depth = PlaneDepth(VirtualCamera(options), options.cam_from_world, Plane::AtHeight(0.0));
+  Image depth = PlaneDepth(VirtualCamera(light_field, options), options.cam_from_world, Plane::AtHeight(0.0));
   SurfaceIntegralOptions surface;
   surface.robust = true;
   options.num_threads = 1;

@@ -191,7 +191,7 @@ TEST(DirectSampling, FisheyeViewsGiveTheTexturedPlaneBack) {
   options.fov_deg = 60.0;
   options.width = options.height = 96;
   const IntegralResult direct = RenderIntegral(light_field, options);
-  const PinholeCamera camera = VirtualCamera(options);
+  const PinholeCamera camera = VirtualCamera(light_field, options);
   double worst = 0.0;
   int64_t checked = 0;
   for (int y = 0; y < 96; ++y) {

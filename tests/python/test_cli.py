@@ -225,3 +225,33 @@ def test_quiet_means_quiet_on_every_command(scene: Path, tmp_path: Path) -> None
         done = run(*args, "-q")
         assert done.returncode == 0, done.stderr
         assert done.stdout == "" and done.stderr == "", (args[0], done.stdout, done.stderr)
+
+
+def test_defaults_from_the_data_and_focus_by_distance(scene: Path, tmp_path: Path) -> None:
+    """--pose-view K takes view K's field of view and size unless given; --look-at works for a
+    straight-down camera without an up vector; --focal-distance D focuses D metres in front."""
+    out = tmp_path / "view.tif"
+    done = run("integral", str(scene), "--pose-view", "4", "-o", str(out))
+    assert done.returncode == 0, done.stderr
+    assert aos.read_image(str(out)).shape == (40, 48)  # the views are 48 x 40
+    done = run("integral", str(scene), "--pose-view", "4", "--width", "24", "-o",
+               str(tmp_path / "narrow.tif"))
+    assert aos.read_image(str(tmp_path / "narrow.tif")).shape == (40, 24)
+    # Straight down from 35 m over the ground (z = 0), no up vector.
+    look = ["--look-at", "0,0,35,0,0,0", "--fov-deg", "50", "--width", "40", "--height", "32"]
+    done = run("integral", str(scene), *look, "--focal-height", "0", "-o",
+               str(tmp_path / "height.tif"))
+    assert done.returncode == 0, done.stderr
+    # Focus 35 m in front of that camera = the ground plane, perpendicular or horizontal.
+    for extra in ([], ["--horizontal"]):
+        done = run("integral", str(scene), *look, "--focal-distance", "35", *extra, "-o",
+                   str(tmp_path / "distance.tif"))
+        assert done.returncode == 0, done.stderr
+        np.testing.assert_allclose(aos.read_image(str(tmp_path / "distance.tif")),
+                                   aos.read_image(str(tmp_path / "height.tif")), atol=1e-4)
+        (tmp_path / "distance.tif").unlink()
+    assert run("integral", str(scene), *look, "--focal-distance", "-3", "-o",
+               str(tmp_path / "x.tif")).returncode == 2
+    pose = aos.look_at((0.0, 0.0, 35.0), (0.0, 0.0, 0.0))
+    plane = aos.Plane.in_front_of(pose, 35.0)
+    np.testing.assert_allclose(plane.point, (0.0, 0.0, 0.0), atol=1e-12)

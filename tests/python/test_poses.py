@@ -58,7 +58,7 @@ def flight(tmp_path_factory):
     done = subprocess.run(["aos-render", "poses", str(frames), "-o", str(root / "poses.json"),
                            "--positions", str(root / "gps.csv"), "--camera",
                            str(root / "camera.json"), "--max-features", "1024", "--overlap", "4",
-                           "--workspace", str(root / "ws"), "-q"],
+                           "--workspace", str(root / "ws")],
                           capture_output=True, text=True)
     after = {p.name: p.read_bytes() for p in frames.iterdir()}
     return {"root": root, "simulation": simulation, "done": done, "unchanged": before == after}

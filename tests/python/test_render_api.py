@@ -29,8 +29,9 @@ def test_integral_options_defaults_match_the_header() -> None:
     assert aos.IntegralOptions._fields == INTEGRAL_FIELDS
     np.testing.assert_array_equal(options.cam_from_world.matrix3x4, np.eye(3, 4))
     assert options.pose_view == -1
-    assert options.fov_deg == 50.0
-    assert (options.width, options.height) == (512, 512)
+    # 0 = from the pose view, else 50 degrees and 512 x 512 (aos.virtual_camera).
+    assert options.fov_deg == 0.0
+    assert (options.width, options.height) == (0, 0)
     assert options.aperture_radius == math.inf
     np.testing.assert_array_equal(options.focal_plane.point, [0, 0, 0])
     np.testing.assert_array_equal(options.focal_plane.normal, [0, 0, 1])
@@ -67,7 +68,7 @@ def test_integral_options_kwargs_and_copies() -> None:
 
 def test_check_errors_are_value_errors() -> None:
     with pytest.raises(ValueError, match="width"):
-        aos.IntegralOptions(width=0).check(1)
+        aos.IntegralOptions(width=-1).check(1)
     with pytest.raises(ValueError, match="fov_deg"):
         aos.IntegralOptions(fov_deg=180.0).check(1)
     with pytest.raises(ValueError, match="pose_view"):
@@ -85,12 +86,24 @@ def test_render_integral_kwargs_errors(make_lightfield) -> None:
         aos.render_integral(light_field, aos.IntegralOptions(), None)  # progress is keyword-only
 
 
-def test_virtual_camera() -> None:
+def test_virtual_camera(make_lightfield) -> None:
+    light_field = make_lightfield(width=16, height=12, fov_deg=60.0)
     options = aos.IntegralOptions(width=100, height=50, fov_deg=40.0)
-    camera = aos.virtual_camera(options)
+    camera = aos.virtual_camera(light_field, options)
     expected = aos.PinholeCamera.from_fov(100, 50, 40.0)
     assert (camera.width, camera.height) == (100, 50)
     assert camera.fx == pytest.approx(expected.fx) and camera.cy == pytest.approx(25.0)
+    # Nothing given: 50 degrees and 512 x 512.
+    camera = aos.virtual_camera(light_field, aos.IntegralOptions())
+    assert (camera.width, camera.height) == (512, 512)
+    assert camera.fx == pytest.approx(aos.PinholeCamera.from_fov(512, 512, 50.0).fx)
+    # With a pose view, what is not given is the view's: its field of view and size.
+    camera = aos.virtual_camera(light_field, aos.IntegralOptions(pose_view=4))
+    assert (camera.width, camera.height) == (16, 12)
+    assert camera.fx == pytest.approx(aos.PinholeCamera.from_fov(16, 12, 60.0).fx)
+    camera = aos.virtual_camera(light_field, aos.IntegralOptions(pose_view=4, width=32))
+    assert (camera.width, camera.height) == (32, 12)
+    assert camera.fx == pytest.approx(aos.PinholeCamera.from_fov(32, 12, 60.0).fx)
 
 
 def _centre_options(**kwargs) -> aos.IntegralOptions:

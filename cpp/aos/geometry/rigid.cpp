@@ -86,6 +86,22 @@ Rigid3d LookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up) {
   return cam_from_world;
 }
 
+Rigid3d LookAt(const Vec3d& eye, const Vec3d& target) {
+  const Vec3d forward = target - eye;
+  const double length = glm::length(forward);
+  const bool along_z = length > 0.0 && std::abs(forward.z) / length > std::cos(M_PI / 180.0);
+  return LookAt(eye, target, along_z ? Vec3d(0, 1, 0) : Vec3d(0, 0, 1));
+}
+
+Plane Plane::InFrontOf(const Rigid3d& cam_from_world, double distance, bool horizontal) {
+  if (!(distance > 0.0) || !std::isfinite(distance)) {
+    ThrowInvalid("focal_distance: must be > 0 metres (got " + FormatNumber(distance) + ")");
+  }
+  const Vec3d axis = Row(cam_from_world.rotation, 2);  // optical axis in the world
+  const Vec3d point = cam_from_world.Center() + distance * axis;
+  return Plane{point, horizontal ? Vec3d(0, 0, 1) : axis};
+}
+
 Rigid3d NadirCamFromWorld(const Vec3d& position) {
   return LookAt(position, position - Vec3d(0, 0, 1), Vec3d(0, 1, 0));
 }

@@ -48,7 +48,11 @@ std::optional<std::string> DescribeInvalidRigid(const Rigid3d& transform, double
 // A camera at `eye` looking at `target`; `up` is the world direction that appears up in the image
 // (image y points down, so camera y = -up projected onto the image plane). Throws
 // std::invalid_argument if eye == target or up is parallel to the viewing direction.
-Rigid3d LookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up = Vec3d(0, 0, 1));
+Rigid3d LookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up);
+
+// The same with the default up: +z, or +y when the camera looks (within 1 degree) straight
+// along the z axis (a nadir view: image top towards +y, as NadirCamFromWorld).
+Rigid3d LookAt(const Vec3d& eye, const Vec3d& target);
 
 // A nadir-looking camera (looking down -z, image top towards +y) centred at `position`.
 Rigid3d NadirCamFromWorld(const Vec3d& position);
@@ -59,6 +63,10 @@ struct Plane {
   Vec3d normal{0.0, 0.0, 1.0};
   // The horizontal plane z = height.
   static Plane AtHeight(double height) { return Plane{Vec3d(0, 0, height), Vec3d(0, 0, 1)}; }
+  // The plane `distance` metres in front of a camera along its optical axis ("focus 35 m below
+  // the drone"): perpendicular to the axis, or horizontal (z = const through that point) when
+  // `horizontal`. Throws std::invalid_argument for a distance that is not > 0 and finite.
+  static Plane InFrontOf(const Rigid3d& cam_from_world, double distance, bool horizontal);
 };
 
 }  // namespace aos

@@ -220,7 +220,7 @@ void RenderFocalStackSlices(const LightField& light_field, const FocalStackOptio
 FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptions& options,
                             ProgressSink* progress) {
   FocalStack stack;
-  stack.camera = VirtualCamera(options.render);
+  stack.camera = VirtualCamera(light_field, options.render);
   if (!light_field.views.empty()) {
     // Every slice is kept: refuse a stack the machine cannot hold before rendering any of it.
     const uint64_t channels = static_cast<uint64_t>(light_field.views.front().image.channels());
@@ -236,6 +236,10 @@ FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptio
             std::string(options.render.variance ? " and float32 variance" : ""));
   }
   stack.render = options.render;
+  // The resolved virtual camera (fov and size may come from the pose view).
+  stack.render.fov_deg = stack.camera.FovXDeg();
+  stack.render.width = stack.camera.width;
+  stack.render.height = stack.camera.height;
   stack.render.cam_from_world = VirtualCamFromWorld(light_field, options.render);
   stack.render.pose_view = -1;
   RenderFocalStackSlices(

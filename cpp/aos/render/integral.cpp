@@ -312,7 +312,7 @@ class IntegralRenderer {
 
 void IntegralRenderer::SetUpGeometry() {
   cam_from_world_ = VirtualCamFromWorld(light_field_, options_);
-  camera_ = VirtualCamera(options_);
+  camera_ = VirtualCamera(light_field_, options_);
   Geometry& g = geometry_;
   g.center = cam_from_world_.Center();
   g.normal = glm::normalize(options_.focal_plane.normal);
@@ -695,8 +695,19 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
 
 }  // namespace
 
-PinholeCamera VirtualCamera(const IntegralOptions& options) {
-  return PinholeCamera::FromFov(options.width, options.height, options.fov_deg);
+PinholeCamera VirtualCamera(const LightField& light_field, const IntegralOptions& options) {
+  const bool from_view = options.pose_view >= 0 &&
+                         options.pose_view < static_cast<int>(light_field.views.size());
+  if (from_view) {
+    const PinholeCamera& view = light_field.views[static_cast<size_t>(options.pose_view)].camera;
+    const int width = options.width > 0 ? options.width : view.width;
+    const int height = options.height > 0 ? options.height : view.height;
+    const double fov_deg = options.fov_deg > 0.0 ? options.fov_deg : view.FovXDeg();
+    return PinholeCamera::FromFov(width, height, fov_deg);
+  }
+  return PinholeCamera::FromFov(options.width > 0 ? options.width : kDefaultSize,
+                                options.height > 0 ? options.height : kDefaultSize,
+                                options.fov_deg > 0.0 ? options.fov_deg : kDefaultFovDeg);
 }
 
 Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions& options) {
@@ -711,13 +722,13 @@ Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions
 }
 
 void IntegralOptions::Check(int view_count) const {
-  if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
-    ThrowInvalid("fov_deg: a pinhole field of view must be in (0, 180) degrees (got " +
-                 FormatNumber(fov_deg) + ")");
+  if (!(fov_deg == 0.0 || (fov_deg > 0.0 && fov_deg < 180.0))) {
+    ThrowInvalid("fov_deg: a pinhole field of view must be in (0, 180) degrees, or 0 for the "
+                 "pose view's (got " + FormatNumber(fov_deg) + ")");
   }
-  if (width < 1 || width > 65536 || height < 1 || height > 65536) {
-    ThrowInvalid("width/height: must be 1..65536 pixels (got " + std::to_string(width) + "x" +
-                 std::to_string(height) + ")");
+  if (width < 0 || width > 65536 || height < 0 || height > 65536) {
+    ThrowInvalid("width/height: must be 1..65536 pixels, or 0 for the pose view's (got " +
+                 std::to_string(width) + "x" + std::to_string(height) + ")");
   }
   if (!(aperture_radius >= 0.0)) {
     ThrowInvalid("aperture_radius: must be >= 0 metres or infinity (got " +
@@ -774,7 +785,7 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
     lens_views = lens_views || (selected && light_field.views[i].lens.model != LensModel::kPinhole);
   }
   if (lens_views) {
-    const PinholeCamera camera = VirtualCamera(options);
+    const PinholeCamera camera = VirtualCamera(light_field, options);
     const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
     const Image depth = PlaneDepth(camera, cam_from_world, options.focal_plane);
     bool any_in_front = false;

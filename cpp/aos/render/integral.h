@@ -49,16 +49,22 @@
 
 namespace aos {
 
+// The virtual camera when neither it nor a pose view gives one.
+constexpr double kDefaultFovDeg = 50.0;
+constexpr int kDefaultSize = 512;
+
 struct IntegralOptions {
   // Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when pose_view >= 0.
   Rigid3d cam_from_world;
   // If >= 0, the virtual camera takes the pose of this view (index into the light field).
   int pose_view = -1;
-  // Horizontal field of view of the virtual camera, degrees, (0, 180).
-  double fov_deg = 50.0;
-  // Output size, pixels (1 .. 65536 each).
-  int width = 512;
-  int height = 512;
+  // Horizontal field of view of the virtual camera, degrees, (0, 180); 0 = view pose_view's
+  // (its pinhole part), or kDefaultFovDeg without pose_view.
+  double fov_deg = 0.0;
+  // Output size, pixels (1 .. 65536 each); 0 = view pose_view's size, or kDefaultSize without
+  // pose_view.
+  int width = 0;
+  int height = 0;
   // Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
   // pixel), infinity means every view.
   double aperture_radius = std::numeric_limits<double>::infinity();
@@ -94,8 +100,10 @@ struct IntegralResult {
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress = nullptr);
 
-// The virtual camera's intrinsics for `options` (square pixels, centred principal point).
-PinholeCamera VirtualCamera(const IntegralOptions& options);
+// The virtual camera's intrinsics for `options`: square pixels, centred principal point, and
+// fov_deg, width and height where given; what is not given (0) comes from view pose_view's
+// camera (its horizontal field of view and size), else from kDefaultFovDeg and kDefaultSize.
+PinholeCamera VirtualCamera(const LightField& light_field, const IntegralOptions& options);
 
 // The virtual camera's pose: view pose_view's, or options.cam_from_world. Throws
 // std::invalid_argument if that pose is not a rigid transform.

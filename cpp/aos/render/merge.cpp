@@ -531,7 +531,7 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   AllInFocusOptions run = options;
   run.stack.render.variance = options.merge.method == MergeMethod::kRobust;
   const int threads = Threads(options.merge.num_threads);
-  const PinholeCamera camera = VirtualCamera(run.stack.render);
+  const PinholeCamera camera = VirtualCamera(light_field, run.stack.render);
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, run.stack.render);
   {
     // Streaming keeps one slice and the merge state (best image, focus, depth, confidence,

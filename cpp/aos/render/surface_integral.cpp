@@ -84,7 +84,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
                                             ProgressSink* progress) {
   options.Check(static_cast<int>(light_field.views.size()));
   surface.Check();
-  const PinholeCamera camera = VirtualCamera(options);
+  const PinholeCamera camera = VirtualCamera(light_field, options);
   if (depth.empty() || depth.width() != camera.width || depth.height() != camera.height ||
       depth.channels() != 1 || depth.type() != PixelType::kF32) {
     ThrowInvalid("depth: must be a 1-channel float32 image of the virtual camera's size " +
