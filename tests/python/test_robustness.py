@@ -500,3 +500,24 @@ def test_positions_in_degrees_are_projected_not_read_as_metres(light_field: Path
     assert result.returncode == 0, result.stderr
     origin3 = json.loads((tmp_path / "lf3.json").read_text())["origin"]
     assert np.allclose(origin3, origin, atol=1e-6)
+
+
+def test_light_field_files_refuse_unknown_keys(light_field: Path) -> None:
+    """A misspelled "orgin" was ignored (origin silently 0) while the camera and scene readers
+    refused unknown keys: the light-field reader refuses them too, naming the place."""
+    lf = json.loads(light_field.read_text())
+    cases = [("orgin", lambda d: d.__setitem__("orgin", [1.0, 2.0, 3.0]), '"orgin": unknown key'),
+             ("view", lambda d: d["views"][2].__setitem__("exposure", 1),
+              'view 2: "exposure": unknown key'),
+             ("camera", lambda d: next(iter(d["cameras"].values())).__setitem__("k1", 0.1),
+              '"k1": unknown key'),
+             ("pose", lambda d: d["views"][0]["cam_from_world"].__setitem__("scale", 2),
+              'cam_from_world: "scale": unknown key')]
+    for name, mutate, expected in cases:
+        document = json.loads(json.dumps(lf))
+        mutate(document)
+        bad = light_field.parent / f"bad_{name}.json"
+        bad.write_text(json.dumps(document))
+        with pytest.raises(ValueError, match=expected):
+            aos.load_lightfield(str(bad))
+        bad.unlink()

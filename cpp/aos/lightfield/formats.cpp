@@ -217,8 +217,27 @@ void CheckFrameInfos(const std::vector<Frame>& frames, const std::vector<ImageFi
 
 // A camera entry: a pinhole (fov_deg, or fx, fy, cx, cy), or a lens model (radtan, fisheye,
 // omnidir: fx, fy, cx, cy, distortion [up to 5 numbers], xi, skew; see lens.h).
+// Refuses keys of `object` that the format does not define (a misspelled "orgin" must not read
+// as origin 0), naming the key with its place.
+void RefuseUnknownKeys(const json& object, std::initializer_list<const char*> known,
+                       const std::string& where) {
+  if (!object.is_object()) return;  // the callers report the type
+  for (const auto& item : object.items()) {
+    bool found = false;
+    for (const char* key : known) found = found || item.key() == key;
+    if (!found) {
+      std::string list;
+      for (const char* key : known) list += (list.empty() ? "" : ", ") + std::string(key);
+      ThrowInvalid(Where(where, Quoted(item.key()) + ": unknown key (known: " + list + ")"));
+    }
+  }
+}
+
 LensCamera ReadAosCamera(const json& value, const std::string& where) {
   if (!value.is_object()) ThrowInvalid(Where(where, "expected an object, got " + Describe(value)));
+  RefuseUnknownKeys(value, {"model", "width", "height", "fov_deg", "fx", "fy", "cx", "cy",
+                           "distortion", "xi", "skew"},
+                    where);
   const std::string model_name = StringFrom(Field(value, "model", where), where + ": model");
   const LensModel model = ParseLensModel(model_name, where + ": model");
   const int width = PositiveIntFrom(Field(value, "width", where), where + ": width");
@@ -280,6 +299,7 @@ Rigid3d ReadAosPose(const json& value, const std::string& where) {
     ThrowInvalid(Where(where, "expected an object with rotation and translation, got " +
                                   Describe(value)));
   }
+  RefuseUnknownKeys(value, {"rotation", "translation"}, where);
   const json& rotation = Field(value, "rotation", where);
   if (!rotation.is_array() || rotation.size() != 3) {
     ThrowInvalid(Where(where, "rotation: expected 3 rows of 3 numbers, got " +
@@ -306,6 +326,7 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     ThrowInvalid(path + ": version: expected " + std::to_string(kAosFormatVersion) + ", got " +
                  Describe(version) + " (written by a newer aos?)");
   }
+  RefuseUnknownKeys(root, {"format", "version", "origin", "pose_source", "cameras", "views"}, path);
   LoadResult result;
   result.format = "aos";
   LightField& light_field = result.light_field;
@@ -316,6 +337,9 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
   if (auto it = root.find("pose_source"); it != root.end()) {
     const std::string where = path + ": pose_source";
     if (!it->is_object()) ThrowInvalid(where + ": expected an object, got " + Describe(*it));
+    RefuseUnknownKeys(*it, {"method", "mean_reprojection_error_px", "median_depth", "pose_error",
+                            "georeferenced", "georeference_rms_m", "world_frame", "unregistered"},
+                      where);
     PoseSource p;
     const auto number = [&](const char* key, double* value) {
       if (auto field = it->find(key); field != it->end()) {
@@ -378,6 +402,7 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     const json& entry = views_json[i];
     std::string label = path + ": view " + std::to_string(i);
     if (!entry.is_object()) ThrowInvalid(label + ": expected an object, got " + Describe(entry));
+    RefuseUnknownKeys(entry, {"image", "camera", "cam_from_world"}, label);
     const std::string image = StringFrom(Field(entry, "image", label), label + ": image");
     label += " (" + image + ")";
     View view;
