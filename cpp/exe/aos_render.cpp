@@ -22,6 +22,7 @@
 #include "aos/calib/calibrate.h"
 #include "aos/sfm/colmap_pipeline.h"
 #include "aos/image/image_io.h"
+#include "aos/image/preview.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/lightfield/formats.h"
 #include "aos/metrics/quality.h"
@@ -708,11 +709,37 @@ void WriteMergeResult(const std::string& output_dir, const MergeResult& result,
   WriteImage((temp / "confidence.tif").string(), result.confidence, write);
   write.description = "aos fractional slice index; -1 = uncovered";
   WriteImage((temp / "slice.tif").string(), result.slice, write);
+  // Previews that open correctly in ordinary viewers (the float TIFFs open all white or black).
+  Image covered(result.slice.width(), result.slice.height(), 1, PixelType::kU8);
+  for (int y = 0; y < covered.height(); ++y) {
+    for (int x = 0; x < covered.width(); ++x) {
+      *covered.At<uint8_t>(x, y) = result.slice.At<float>(x, y)[0] >= 0.0f ? 1 : 0;
+    }
+  }
+  PreviewRange image_range;
+  const Image image_preview = StretchedPreview(result.image, &covered, 1.0, 99.0, &image_range);
+  WriteImageOptions preview_write;
+  preview_write.description = "aos all-in-focus preview: values " +
+                              FormatNumber(image_range.lo) + ".." + FormatNumber(image_range.hi) +
+                              " (1st..99th percentile) mapped to 0..255; uncovered pixels black";
+  WriteImage((temp / "all_in_focus_preview.png").string(), image_preview, preview_write);
+  const PreviewRange depth_range = PercentileRange(result.depth, &covered, 1.0, 99.0);
+  preview_write.description = "aos depth preview (turbo colour map): blue = " +
+                              FormatNumber(depth_range.lo) + " m, red = " +
+                              FormatNumber(depth_range.hi) +
+                              " m camera depth; uncovered pixels black";
+  WriteImage((temp / "depth_preview.png").string(),
+             ColourMappedPreview(result.depth, &covered, depth_range), preview_write);
+  preview_write.description = "aos confidence preview: 0..1 mapped to 0..255";
+  WriteImage((temp / "confidence_preview.png").string(),
+             ColourMappedPreview(result.confidence, nullptr, PreviewRange{0.0, 1.0}),
+             preview_write);
   folder.Commit();
-  Say("wrote %s: all_in_focus.tif, depth.tif, confidence.tif, slice.tif (%dx%d, %s; "
-              "%lld pixels uncovered)\n",
-              output_dir.c_str(), result.image.width(), result.image.height(),
-              MergeMethodName(method), static_cast<long long>(result.uncovered_pixels));
+  Say("wrote %s: all_in_focus.tif, depth.tif, confidence.tif, slice.tif and *_preview.png "
+      "(depth preview %s..%s m) (%dx%d, %s; %lld pixels uncovered)\n",
+      output_dir.c_str(), FormatNumber(depth_range.lo).c_str(),
+      FormatNumber(depth_range.hi).c_str(), result.image.width(), result.image.height(),
+      MergeMethodName(method), static_cast<long long>(result.uncovered_pixels));
 }
 
 struct StackCommand {

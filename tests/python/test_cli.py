@@ -117,7 +117,7 @@ def corrupt(scene: Path, edit) -> None:
 
 @pytest.mark.parametrize("case", ["missing image", "unreadable image", "size mismatch", "non-orthonormal",
                                   "nan in jku pose", "empty selection", "plane behind", "plane parallel",
-                                  "fov zero", "fov 180", "output is an input", "output is the light field",
+                                  "fov negative", "fov 180", "output is an input", "output is the light field",
                                   "count format", "count is the output", "views out of range"])
 def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None:
     folder = scene.parent
@@ -157,8 +157,8 @@ def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None
     elif case == "plane parallel":  # through the camera centre: its rays run along it
         args += ["--focal-plane", "0,0,35,0.3,0,1"]
         expect = ("focal_plane", "parallel", "--focal-height/--focal-plane")
-    elif case == "fov zero":
-        args[args.index("--fov-deg") + 1] = "0"
+    elif case == "fov negative":  # 0 means the pose view's; below 0 is refused
+        args[args.index("--fov-deg") + 1] = "-5"
         expect = ("fov_deg",)
     elif case == "fov 180":
         args[args.index("--fov-deg") + 1] = "180"

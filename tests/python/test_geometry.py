@@ -30,8 +30,13 @@ def test_look_at_default_up_and_errors() -> None:
     np.testing.assert_allclose(cam_from_world.rotation[1], [0, 0, -1], atol=1e-12)
     with pytest.raises(ValueError, match="distinct"):
         aos.look_at((1, 2, 3), (1, 2, 3))
+    # Without an up vector, looking straight down works: image y is world -y (north up in a
+    # y-north frame); an explicit up along the viewing direction is refused.
+    nadir = aos.look_at((0, 0, 10), (0, 0, 0))
+    np.testing.assert_allclose(nadir.rotation[2], [0, 0, -1], atol=1e-12)
+    np.testing.assert_allclose(nadir.center, [0, 0, 10], atol=1e-12)
     with pytest.raises(ValueError, match="parallel"):
-        aos.look_at((0, 0, 10), (0, 0, 0))  # looking along the default up
+        aos.look_at((0, 0, 10), (0, 0, 0), up=(0, 0, 1))
 
 
 def test_rigid_inverse_round_trip() -> None:

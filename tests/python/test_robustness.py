@@ -521,3 +521,93 @@ def test_light_field_files_refuse_unknown_keys(light_field: Path) -> None:
         with pytest.raises(ValueError, match=expected):
             aos.load_lightfield(str(bad))
         bad.unlink()
+
+
+# ---------------------------------------------------------------------------------------------
+# Found by the libFuzzer campaign (tests/fuzz, tools/run_sanitizers.sh --fuzz-only).
+
+def test_huge_lens_frames_are_refused_not_walked() -> None:
+    # A radtan lens with tangential terms checks its frame's border; it used to visit every
+    # border pixel, so a camera claiming 2^31 pixels across hung (camera files allow any int).
+    with pytest.raises(ValueError, match="at most 65536"):
+        aos.LensCamera(aos.LensModel.radtan, 2**31 - 1, 480, 500, 500, 320, 240,
+                       distortion=[0.01, 0, 0.001, 0.001, 0])
+    with pytest.raises(ValueError, match="at most 65536"):
+        aos.PinholeCamera(70000, 480, 500, 500, 320, 240).check("camera")
+    start = time.monotonic()
+    lens = aos.LensCamera(aos.LensModel.radtan, 65536, 65536, 40000, 40000, 32768, 32768,
+                          distortion=[0.01, 0, 0.001, 0.001, 0])
+    assert lens.width == 65536 and time.monotonic() - start < 30  # a bound against hanging
+
+
+def test_integer_images_count_their_conversion_buffer(tmp_path: Path) -> None:
+    # uint32 samples are read natively and converted to float: 16 MiB of floats plus 16 MiB of
+    # uint32 are in memory at once, over a 24 MiB limit (the check counted the floats only).
+    path = tmp_path / "counts.tif"
+    aos.write_image(str(path), np.arange(2048 * 2048, dtype=np.uint32).reshape(2048, 2048))
+    code = ("import aos, sys\n"
+            "try:\n    aos.read_image(sys.argv[1])\n"
+            "except ValueError as error:\n    print(error)\n")
+    env = dict(os.environ, AOS_MEMORY_LIMIT_MB="24")
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                         text=True, env=env, timeout=60)
+    assert "counts.tif" in out.stdout and "32 MiB" in out.stdout, out
+    env["AOS_MEMORY_LIMIT_MB"] = "40"
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True,
+                         text=True, env=env, timeout=60)
+    assert out.returncode == 0 and out.stdout == "", out
+
+
+def test_focal_stack_is_refused_before_its_slices_are_decoded(tmp_path: Path) -> None:
+    # 100 slices of 512 x 512 (every one the same two small files): each file fits the limit, the
+    # stack (100 x 512 x 512 x 8 bytes = 200 MiB) does not.
+    folder = tmp_path / "stack"
+    folder.mkdir()
+    aos.write_image(str(folder / "image.tif"), np.ones((512, 512), np.float32))
+    aos.write_image(str(folder / "count.tif"), np.ones((512, 512), np.uint32))
+    stack = {"format": "aos-focal-stack", "version": 1,
+             "camera": {"width": 512, "height": 512, "fx": 400, "fy": 400, "cx": 256, "cy": 256},
+             "cam_from_world": {"rotation": [[1, 0, 0], [0, -1, 0], [0, 0, -1]],
+                                "translation": [0, 0, 30]},
+             "slices": [{"plane": {"point": [0, 0, i * 0.1], "normal": [0, 0, 1]},
+                         "image": "image.tif", "count": "count.tif"} for i in range(100)]}
+    (folder / "stack.json").write_text(json.dumps(stack))
+    before = snapshot(tmp_path)
+    env = dict(os.environ, AOS_MEMORY_LIMIT_MB="64")
+    result = run("merge", folder, "-o", tmp_path / "merged", env=env)
+    message = assert_refused(result, "stack.json", "100 slices of 512x512")
+    assert "200 MiB" in message, message
+    assert snapshot(tmp_path) == before
+
+
+def test_exr_attribute_sizes_past_the_end_are_refused(tmp_path: Path) -> None:
+    # 24 bytes: magic, version 2, and a string attribute declaring 2 GiB (OpenEXR allocated it).
+    exr = tmp_path / "forged.exr"
+    exr.write_bytes(b"\x76\x2f\x31\x01" + struct.pack("<I", 2) + b"a\0string\0" +
+                    struct.pack("<i", 0x7FFFFFF0) + b"xx")
+    small = tmp_path / "small.png"
+    aos.write_image(str(small), np.zeros((8, 8), np.uint8))
+    result = run("metrics", exr, small,
+                 preexec=lambda: resource.setrlimit(resource.RLIMIT_AS, (1 << 30, 1 << 30)))
+    message = assert_refused(result, str(exr), "damaged OpenEXR file")
+    assert "past the end" in message, message
+    with pytest.raises(ValueError, match="damaged OpenEXR file"):
+        aos.read_image(str(exr))
+    # A real EXR still reads.
+    good = tmp_path / "good.exr"
+    values = np.linspace(0, 1, 64, dtype=np.float32).reshape(8, 8)
+    aos.write_image(str(good), values)
+    np.testing.assert_array_equal(aos.read_image(str(good)), values)
+
+
+@pytest.mark.parametrize("suffix", [".png", ".tif"])
+def test_two_and_four_channel_images_read_back_as_written(tmp_path: Path, suffix: str) -> None:
+    # The last channel is data, not alpha to multiply the others by (the writer used to refuse
+    # a 4-channel PNG, blaming the disk, because the read-back was premultiplied).
+    rng = np.random.default_rng(7)
+    for channels in (2, 4):
+        values = rng.integers(0, 256, (6, 5, channels), dtype=np.uint8)
+        values[0, 0, -1] = 0
+        path = tmp_path / f"c{channels}{suffix}"
+        aos.write_image(str(path), values)
+        np.testing.assert_array_equal(aos.read_image(str(path)), values)

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "aos/util/error.h"
@@ -90,6 +91,10 @@ Vec2d LensCamera::Distort(const Vec2d& p) const {
 
 void LensCamera::Finalize(const std::string& where) {
   if (width <= 0 || height <= 0) ThrowInvalid(where + ": width/height: must be positive");
+  if (width > kMaxImageSide || height > kMaxImageSide) {
+    ThrowInvalid(where + ": width/height: must be at most " + std::to_string(kMaxImageSide) +
+                 " pixels (got " + std::to_string(width) + "x" + std::to_string(height) + ")");
+  }
   const double values[] = {fx, fy, cx, cy, skew, xi, distortion[0], distortion[1],
                            distortion[2], distortion[3], distortion[4]};
   for (double value : values) {
@@ -151,14 +156,21 @@ void LensCamera::Finalize(const std::string& where) {
                            FormatNumber(v) + ") of the frame); the model is not invertible there");
             }
           };
-          for (int u = 0; u <= width; ++u) {
+          // At most kBorderSamples + 1 points per edge, corners included (a whole-pixel walk
+          // would take minutes for the largest frames).
+          constexpr int64_t kBorderSamples = 4096;
+          const auto walk = [&](int64_t length, const auto& point) {
+            const int64_t steps = std::min<int64_t>(length, kBorderSamples);
+            for (int64_t i = 0; i <= steps; ++i) point(static_cast<double>(length) * i / steps);
+          };
+          walk(width, [&](double u) {
             check(u, 0.0);
             check(u, height);
-          }
-          for (int v = 0; v <= height; ++v) {
+          });
+          walk(height, [&](double v) {
             check(0.0, v);
             check(width, v);
-          }
+          });
         }
       } else {
         // Unified model: injective on the sphere where 1 + xi cos(theta) > 0 and

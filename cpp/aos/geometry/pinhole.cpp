@@ -36,6 +36,11 @@ void PinholeCamera::Check(const std::string& where) const {
     ThrowInvalid(Where(where, "camera width/height must be positive (got " +
                                   std::to_string(width) + "x" + std::to_string(height) + ")"));
   }
+  if (width > kMaxImageSide || height > kMaxImageSide) {
+    ThrowInvalid(Where(where, "camera width/height must be at most " +
+                                  std::to_string(kMaxImageSide) + " pixels (got " +
+                                  std::to_string(width) + "x" + std::to_string(height) + ")"));
+  }
   const char* names[] = {"fx", "fy", "cx", "cy"};
   const double values[] = {fx, fy, cx, cy};
   for (int i = 0; i < 4; ++i) {

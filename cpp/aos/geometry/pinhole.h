@@ -14,9 +14,12 @@
 
 namespace aos {
 
+// The largest image side aos accepts anywhere (cameras, frames, renders), pixels.
+inline constexpr int kMaxImageSide = 65536;
+
 struct PinholeCamera {
-  int width = 0;    // image width, pixels (> 0)
-  int height = 0;   // image height, pixels (> 0)
+  int width = 0;    // image width, pixels (1 .. kMaxImageSide)
+  int height = 0;   // image height, pixels (1 .. kMaxImageSide)
   double fx = 0.0;  // focal length in pixels along u (> 0)
   double fy = 0.0;  // focal length in pixels along v (> 0)
   double cx = 0.0;  // principal point u, pixels (continuous coordinates, see above)

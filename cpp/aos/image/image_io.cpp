@@ -91,11 +91,78 @@ void CheckPngChunks(const std::string& path, uint64_t file_bytes) {
   }
 }
 
+// Samples as stored: a 2- or 4-channel PNG or TIFF is read without multiplying the other channels
+// by the last one (OpenImageIO "associates" alpha by default), so what aos writes reads back
+// bit for bit.
+const oiio::ImageSpec& RawSamplesConfig() {
+  static const oiio::ImageSpec config = [] {
+    oiio::ImageSpec spec;
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    return spec;
+  }();
+  return config;
+}
+
+// An OpenEXR file's header attributes, walked before OpenEXR sees the file: OpenEXR allocates
+// an attribute's declared size before reading it, so a 24-byte file declaring a 2 GiB string
+// attribute would cost 2 GiB. Every attribute (name\0 type\0 int32 size, then size bytes) must
+// lie inside the file. A file that does not start with the EXR magic is left to the decoders.
+void CheckExrHeader(const std::string& path, uint64_t file_bytes) {
+  static const unsigned char kMagic[4] = {0x76, 0x2f, 0x31, 0x01};
+  std::ifstream file(path, std::ios::binary);
+  unsigned char start[8] = {};
+  if (!file.read(reinterpret_cast<char*>(start), 8) || std::memcmp(start, kMagic, 4) != 0) return;
+  const bool multipart = (start[5] & 0x10) != 0;  // version flags, bit 12
+  uint64_t offset = 8;
+  const auto damaged = [&](const std::string& what) {
+    ThrowInvalid(path + ": damaged OpenEXR file: " + what + " (byte " + std::to_string(offset) +
+                 " of " + std::to_string(file_bytes) + "; nothing was decoded)");
+  };
+  const auto read_name = [&](std::string* name) {
+    name->clear();
+    char c = 0;
+    while (true) {
+      if (!file.get(c)) damaged("the header ends before its attributes do");
+      ++offset;
+      if (c == '\0') return;
+      if (name->size() >= 255) damaged("an attribute name or type longer than 255 bytes");
+      name->push_back(c);
+    }
+  };
+  std::string name;
+  std::string type;
+  for (int part = 0;; ++part) {
+    int attributes = 0;
+    while (true) {
+      read_name(&name);
+      if (name.empty()) break;  // the end of this part's header
+      read_name(&type);
+      unsigned char size_bytes[4];
+      if (!file.read(reinterpret_cast<char*>(size_bytes), 4)) damaged("attribute " + name + " is cut");
+      offset += 4;
+      const int32_t size = static_cast<int32_t>(
+          uint32_t{size_bytes[0]} | (uint32_t{size_bytes[1]} << 8) |
+          (uint32_t{size_bytes[2]} << 16) | (uint32_t{size_bytes[3]} << 24));
+      if (size < 0 || offset + static_cast<uint64_t>(size) > file_bytes) {
+        damaged("attribute " + name + " declares " + std::to_string(size) +
+                " bytes, past the end of the file");
+      }
+      file.seekg(size, std::ios::cur);
+      offset += static_cast<uint64_t>(size);
+      ++attributes;
+    }
+    // A single-part header ends at its first empty name; a multi-part file's list of headers
+    // ends with an empty header.
+    if (!multipart || attributes == 0) return;
+  }
+}
+
 std::unique_ptr<oiio::ImageInput> Open(const std::string& path) {
   // Regular files only: a FIFO blocks the decoder forever and /dev/zero never ends.
   const uint64_t file_bytes = CheckRegularFile(path, "image file");
   CheckPngChunks(path, file_bytes);
-  auto input = oiio::ImageInput::open(path);
+  CheckExrHeader(path, file_bytes);
+  auto input = oiio::ImageInput::open(path, &RawSamplesConfig());
   if (!input) {
     std::string reason = oiio::geterror();
     if (reason.empty()) reason = "unknown reason";
@@ -112,9 +179,13 @@ void CheckPlausibleSize(const std::string& path, const oiio::ImageSpec& spec, Pi
   constexpr uint64_t kMaxCompressionRatio = 16384;
   constexpr uint64_t kAlwaysPlausibleBytes = uint64_t{64} << 20;
   const uint64_t file_bytes = CheckRegularFile(path, "image file");
+  // Integer types aos reads as float (int8/16/32/64, uint32/64) pass through a buffer of the
+  // file's own type first: both are in memory at once.
+  const bool converted = !spec.format.is_floating_point() && type == PixelType::kF32;
+  const uint64_t sample_bytes = PixelTypeSize(type) + (converted ? spec.format.size() : 0);
   const uint64_t decoded = SaturatingProduct(
       {static_cast<uint64_t>(spec.width), static_cast<uint64_t>(spec.height),
-       static_cast<uint64_t>(spec.nchannels), PixelTypeSize(type)});
+       static_cast<uint64_t>(spec.nchannels), sample_bytes});
   const std::string size = std::to_string(spec.width) + "x" + std::to_string(spec.height) + "x" +
                            std::to_string(spec.nchannels);
   if (decoded > kAlwaysPlausibleBytes && decoded / kMaxCompressionRatio > file_bytes) {
@@ -394,6 +465,7 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
   oiio::ImageSpec spec(width, height, channels, file_type);
   if (!options.description.empty()) spec.attribute("ImageDescription", options.description);
   if (LowerExtension(path) == ".exr") spec.attribute("compression", "zip");
+  spec.attribute("oiio:UnassociatedAlpha", 1);  // the samples as given (see RawSamplesConfig)
   if (!output->open(pending.TempPath(), spec) ||
       !output->write_image(file_type, buffer.data()) || !output->close()) {
     std::string reason = output->geterror();
@@ -411,7 +483,8 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
     } catch (const std::invalid_argument&) {
       intact_png = false;
     }
-    auto input = intact_png ? oiio::ImageInput::open(pending.TempPath()) : nullptr;
+    auto input =
+        intact_png ? oiio::ImageInput::open(pending.TempPath(), &RawSamplesConfig()) : nullptr;
     std::vector<unsigned char> check(buffer.size());
     const bool readable =
         input && input->spec().width == width && input->spec().height == height &&

@@ -235,13 +235,8 @@ FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptio
         "each slice's float32 image, uint32 count" +
             std::string(options.render.variance ? " and float32 variance" : ""));
   }
-  stack.render = options.render;
   // The resolved virtual camera (fov and size may come from the pose view).
-  stack.render.fov_deg = stack.camera.FovXDeg();
-  stack.render.width = stack.camera.width;
-  stack.render.height = stack.camera.height;
-  stack.render.cam_from_world = VirtualCamFromWorld(light_field, options.render);
-  stack.render.pose_view = -1;
+  stack.render = WithResolvedCamera(light_field, options.render);
   RenderFocalStackSlices(
       light_field, options,
       [&](int, const Plane& plane, IntegralResult& slice) {
@@ -394,6 +389,19 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
       return ReadImage(path);
     };
     stack.images.push_back(read("image"));
+    if (i == 0) {
+      // Every slice stays in memory: refuse before decoding the rest (image and variance of
+      // slice 0's channels, float; count, 4 bytes).
+      const uint64_t channels = static_cast<uint64_t>(stack.images[0].channels());
+      const uint64_t per_pixel = 4 * channels + 4 + (has_variance ? 4 * channels : 0);
+      CheckMemoryBudget(
+          SaturatingProduct({static_cast<uint64_t>(slices.size()),
+                             static_cast<uint64_t>(stack.camera.width),
+                             static_cast<uint64_t>(stack.camera.height), per_pixel}),
+          file + ": " + std::to_string(slices.size()) + " slices of " +
+              std::to_string(stack.camera.width) + "x" + std::to_string(stack.camera.height),
+          "images, counts" + std::string(has_variance ? " and variances" : "") + " in memory");
+    }
     Image count = read("count");
     if (count.type() == PixelType::kF32 && count.channels() == 1) {
       // 32-bit integer files come back as float (image_io.h); counts are exact below 2^24.

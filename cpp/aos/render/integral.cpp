@@ -710,6 +710,17 @@ PinholeCamera VirtualCamera(const LightField& light_field, const IntegralOptions
                                 options.fov_deg > 0.0 ? options.fov_deg : kDefaultFovDeg);
 }
 
+IntegralOptions WithResolvedCamera(const LightField& light_field, const IntegralOptions& options) {
+  IntegralOptions resolved = options;
+  const PinholeCamera camera = VirtualCamera(light_field, options);
+  resolved.cam_from_world = VirtualCamFromWorld(light_field, options);
+  resolved.fov_deg = camera.FovXDeg();
+  resolved.width = camera.width;
+  resolved.height = camera.height;
+  resolved.pose_view = -1;
+  return resolved;
+}
+
 Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions& options) {
   if (options.pose_view < 0) return options.cam_from_world;
   const View& view = light_field.views.at(static_cast<size_t>(options.pose_view));

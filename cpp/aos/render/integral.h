@@ -105,6 +105,11 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
 // camera (its horizontal field of view and size), else from kDefaultFovDeg and kDefaultSize.
 PinholeCamera VirtualCamera(const LightField& light_field, const IntegralOptions& options);
 
+// `options` with the virtual camera made explicit: cam_from_world, fov_deg, width and height as
+// VirtualCamFromWorld and VirtualCamera resolve them, pose_view -1. Renders with it equal renders
+// with `options` (what stacks and merges pass on).
+IntegralOptions WithResolvedCamera(const LightField& light_field, const IntegralOptions& options);
+
 // The virtual camera's pose: view pose_view's, or options.cam_from_world. Throws
 // std::invalid_argument if that pose is not a rigid transform.
 Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions& options);

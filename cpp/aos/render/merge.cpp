@@ -576,9 +576,7 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
     result.seconds_render = seconds_stack;
   } else {
     const auto render_start = Clock::now();
-    IntegralOptions render = run.stack.render;
-    render.cam_from_world = cam_from_world;
-    render.pose_view = -1;
+    const IntegralOptions render = WithResolvedCamera(light_field, run.stack.render);
     Reintegrate(light_field, render, planes.front(), run.merge, accumulator->guide(), &result,
                 progress);
     result.seconds_render = seconds_stack + Seconds(render_start);

@@ -1,0 +1,33 @@
+#pragma once
+// Previews: 8-bit images that open correctly in ordinary viewers, made from float results (an
+// all-in-focus image in the views' units, a depth map in metres, a count map) that open all
+// white or all black there.
+//
+// Contract
+// - StretchedPreview: 8-bit, the image's channels (a fourth is dropped); the valid samples'
+//   low_percentile..high_percentile (over all channels) map linearly onto 0..255, clamped;
+//   invalid pixels are 0. `range` receives the values mapped to 0 and 255.
+// - ColourMappedPreview: 8-bit RGB of a one-channel image through the turbo colour map (blue =
+//   range.lo, red = range.hi); invalid pixels black.
+// - `valid` (optional, any type, the image's size): non-zero = valid.
+// Throws std::invalid_argument for an empty image, percentiles outside 0 <= low < high <= 100, a
+// mask of another size, or (colour map) an image of more than one channel.
+#include "aos/image/image.h"
+
+namespace aos {
+
+struct PreviewRange {
+  double lo = 0.0;
+  double hi = 1.0;
+};
+
+Image StretchedPreview(const Image& image, const Image* valid, double low_percentile,
+                       double high_percentile, PreviewRange* range);
+
+// The low..high percentile range of the valid samples of a one-channel image (lo < hi).
+PreviewRange PercentileRange(const Image& image, const Image* valid, double low_percentile,
+                             double high_percentile);
+
+Image ColourMappedPreview(const Image& image, const Image* valid, const PreviewRange& range);
+
+}  // namespace aos
