@@ -1,8 +1,11 @@
 // Bindings of geometry/rigid.h, geometry/pinhole.h and geometry/lens.h. Vectors and matrices cross as float64
 // numpy arrays by value (see bindings.h).
 #include <cmath>
+#include <algorithm>
 #include <optional>
 #include <sstream>
+#include <string>
+#include <vector>
 
 #include "aos/geometry/lens.h"
 #include "aos/geometry/pinhole.h"
@@ -19,6 +22,85 @@ std::string ReprNumbers(const py::handle& array) {
   return py::str(py::module_::import("numpy").attr("array2string")(array, "separator"_a = ", "));
 }
 
+// A number (int or float, numpy scalars included; not bool): a plane may be given as its height.
+bool IsRealNumber(const py::handle& value) {
+  if (PyBool_Check(value.ptr())) return false;
+  return py::isinstance(value, py::module_::import("numbers").attr("Real"));
+}
+
+// Plane(point, normal), or Plane(z): the horizontal plane at height z (what a number means
+// wherever a plane is taken).
+Plane PlaneFromPython(const py::object& point, const std::optional<Vec3d>& normal) {
+  if (IsRealNumber(point)) {
+    if (normal) {
+      throw py::type_error("Plane(z): a height takes no normal (give a point and a normal)");
+    }
+    return Plane::AtHeight(point.cast<double>());
+  }
+  Plane plane;
+  if (PyBool_Check(point.ptr())) {
+    throw py::type_error("Plane: expected a height or a point (3 numbers), got bool");
+  }
+  if (!point.is_none()) {
+    try {
+      plane.point = point.cast<Vec3d>();
+    } catch (const py::cast_error&) {
+      throw py::type_error("Plane: point must be 3 numbers (or the plane a height), got " +
+                           std::string(py::repr(point)));
+    }
+  }
+  if (normal) plane.normal = *normal;
+  return plane;
+}
+
+// Lens distortion in Python has the model's natural length: radtan k1, k2, p1, p2, k3; fisheye
+// k1..k4; omnidir k1, k2, p1, p2; pinhole none (C++ keeps 5 numbers, the rest 0).
+size_t DistortionLength(LensModel model) {
+  switch (model) {
+    case LensModel::kRadTan:
+      return 5;
+    case LensModel::kFisheye:
+    case LensModel::kOmnidir:
+      return 4;
+    case LensModel::kPinhole:
+      break;
+  }
+  return 0;
+}
+
+const char* DistortionNames(LensModel model) {
+  switch (model) {
+    case LensModel::kRadTan:
+      return "k1, k2, p1, p2, k3";
+    case LensModel::kFisheye:
+      return "k1, k2, k3, k4";
+    case LensModel::kOmnidir:
+      return "k1, k2, p1, p2";
+    case LensModel::kPinhole:
+      break;
+  }
+  return "none";
+}
+
+std::vector<double> GetDistortion(const LensCamera& lens) {
+  const size_t n = DistortionLength(lens.model);
+  return std::vector<double>(lens.distortion.begin(), lens.distortion.begin() + n);
+}
+
+void SetDistortion(LensCamera& lens, const std::vector<double>& values) {
+  const size_t n = DistortionLength(lens.model);
+  if (values.size() != n) {
+    throw py::value_error("distortion: the " + std::string(LensModelName(lens.model)) +
+                          " model takes " + std::to_string(n) + " values (" +
+                          DistortionNames(lens.model) + "), got " +
+                          std::to_string(values.size()));
+  }
+  lens.distortion = {0, 0, 0, 0, 0};
+  std::copy(values.begin(), values.end(), lens.distortion.begin());
+}
+
+std::string ReprNumber(double value) { return FormatNumber(value); }
+
 Rigid3d RigidFromMatrix3x4(const py::array_t<double, py::array::c_style | py::array::forcecast>& m) {
   const bool shape_ok = (m.ndim() == 2 && m.shape(0) == 3 && m.shape(1) == 4) ||
                         (m.ndim() == 1 && m.shape(0) == 12);
@@ -32,6 +114,22 @@ Rigid3d RigidFromMatrix3x4(const py::array_t<double, py::array::c_style | py::ar
 }
 
 }  // namespace
+
+bool LensEqual(const LensCamera& a, const LensCamera& b) {
+  return a.model == b.model && a.width == b.width && a.height == b.height && a.fx == b.fx &&
+         a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.skew == b.skew && a.xi == b.xi &&
+         a.distortion == b.distortion && a.max_radius == b.max_radius &&
+         a.theta_max == b.theta_max;
+}
+
+bool PinholeEqual(const PinholeCamera& a, const PinholeCamera& b) {
+  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
+         a.cx == b.cx && a.cy == b.cy;
+}
+
+bool RigidEqual(const Rigid3d& a, const Rigid3d& b) {
+  return a.rotation == b.rotation && a.translation == b.translation;
+}
 
 void BindGeometry(py::module_& m) {
   py::class_<Rigid3d>(m, "Rigid3d",
@@ -61,6 +159,24 @@ void BindGeometry(py::module_& m) {
       .def_static("from_matrix3x4", &RigidFromMatrix3x4, "m"_a,
                   "From the 3x4 matrix [R | t] (array-like of shape (3, 4), or 12 numbers row by "
                   "row).")
+      .def(
+          "__eq__",
+          [](const Rigid3d& a, const py::object& other) -> py::object {
+            if (!py::isinstance<Rigid3d>(other)) {
+              return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+            }
+            return py::bool_(RigidEqual(a, other.cast<const Rigid3d&>()));
+          },
+          "other"_a, "Exact equality of rotation and translation.")
+      .def(py::pickle(
+          [](const Rigid3d& transform) {
+            return py::dict("rotation"_a = transform.rotation,
+                            "translation"_a = transform.translation);
+          },
+          [](const py::object& state) {
+            const py::dict values = StateDict(state, "Rigid3d", {"rotation", "translation"});
+            return Rigid3d{values["rotation"].cast<Mat3d>(), values["translation"].cast<Vec3d>()};
+          }))
       .def("__repr__", [](const Rigid3d& transform) {
         std::ostringstream stream;
         stream << transform;
@@ -81,8 +197,10 @@ void BindGeometry(py::module_& m) {
   py::class_<Plane>(m, "Plane",
                     "A plane through `point` with normal `normal` (any length > 0; the side does "
                     "not matter). Local frame, metres.")
-      .def(py::init([](const Vec3d& point, const Vec3d& normal) { return Plane{point, normal}; }),
-           "point"_a = Plane{}.point, "normal"_a = Plane{}.normal)
+      .def(py::init(&PlaneFromPython), "point"_a = Plane{}.point, "normal"_a = py::none(),
+           "A plane through `point` with `normal` (default (0, 0, 1)); Plane(z) with a number "
+           "is the horizontal plane at height z, as Plane.at_height(z). Numbers are accepted as "
+           "planes wherever a Plane is taken.")
       .def_readwrite("point", &Plane::point, "A point on the plane (float64 copy).")
       .def_readwrite("normal", &Plane::normal, "The plane normal (float64 copy).")
       .def_static("at_height", &Plane::AtHeight, "z"_a, "The horizontal plane at height z.")
@@ -90,11 +208,34 @@ void BindGeometry(py::module_& m) {
                   "horizontal"_a = false,
                   "The plane `distance` metres in front of a camera along its axis: "
                   "perpendicular to the axis, or horizontal through that point.")
+      .def(
+          "__eq__",
+          [](const Plane& a, const py::object& other) -> py::object {
+            if (!py::isinstance<Plane>(other)) {
+              return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+            }
+            const Plane& b = other.cast<const Plane&>();
+            return py::bool_(a.point == b.point && a.normal == b.normal);
+          },
+          "other"_a, "Exact equality of point and normal (not of the planes as sets).")
+      .def(py::pickle(
+          [](const Plane& plane) {
+            return py::dict("point"_a = plane.point, "normal"_a = plane.normal);
+          },
+          [](const py::object& state) {
+            const py::dict values = StateDict(state, "Plane", {"point", "normal"});
+            return Plane{values["point"].cast<Vec3d>(), values["normal"].cast<Vec3d>()};
+          }))
       .def("__repr__", [](const Plane& plane) {
         py::object point = py::cast(plane.point);
         py::object normal = py::cast(plane.normal);
         return "Plane(point=" + ReprNumbers(point) + ", normal=" + ReprNumbers(normal) + ")";
       });
+
+  // A number wherever a Plane is taken (options fields, function arguments) is the horizontal
+  // plane at that height: the conversion calls Plane(z) above (bool is refused there).
+  py::implicitly_convertible<double, Plane>();
+  py::implicitly_convertible<int, Plane>();
 
   py::class_<PinholeCamera>(
       m, "PinholeCamera",
@@ -125,6 +266,27 @@ void BindGeometry(py::module_& m) {
            "The ray direction (z = 1) through continuous pixel coordinates (u, v).")
       .def("check", &PinholeCamera::Check, "where"_a = "camera",
            "Raises ValueError naming `where` if a field is out of range or not finite.")
+      .def(
+          "__eq__",
+          [](const PinholeCamera& a, const py::object& other) -> py::object {
+            if (!py::isinstance<PinholeCamera>(other)) {
+              return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+            }
+            return py::bool_(PinholeEqual(a, other.cast<const PinholeCamera&>()));
+          },
+          "other"_a, "Exact equality of every field.")
+      .def(py::pickle(
+          [](const PinholeCamera& c) {
+            return py::dict("width"_a = c.width, "height"_a = c.height, "fx"_a = c.fx,
+                            "fy"_a = c.fy, "cx"_a = c.cx, "cy"_a = c.cy);
+          },
+          [](const py::object& state) {
+            const py::dict v =
+                StateDict(state, "PinholeCamera", {"width", "height", "fx", "fy", "cx", "cy"});
+            return PinholeCamera{v["width"].cast<int>(), v["height"].cast<int>(),
+                                 v["fx"].cast<double>(), v["fy"].cast<double>(),
+                                 v["cx"].cast<double>(), v["cy"].cast<double>()};
+          }))
       .def("__repr__", [](const PinholeCamera& camera) {
         return "PinholeCamera(width=" + std::to_string(camera.width) +
                ", height=" + std::to_string(camera.height) + ", fx=" + FormatNumber(camera.fx) +
@@ -143,10 +305,11 @@ void BindGeometry(py::module_& m) {
       "A camera with a lens model: pinhole, OpenCV radial-tangential (distortion k1, k2, p1, p2, "
       "k3), OpenCV fisheye (k1..k4, 0) or OpenCV omnidirectional (Mei: xi, skew, k1, k2, p1, "
       "p2, 0). Pixel centres at +0.5 (OpenCV's cx = cx - 0.5). Call finalize() after changing "
-      "fields.")
+      "fields. `distortion` has the model's natural length: radtan 5 (k1, k2, p1, p2, k3), "
+      "fisheye 4 (k1..k4), omnidir 4 (k1, k2, p1, p2), pinhole 0.")
       .def(py::init([](LensModel model, int width, int height, double fx, double fy, double cx,
-                       double cy, const std::array<double, 5>& distortion, double xi,
-                       double skew) {
+                       double cy, const std::optional<std::vector<double>>& distortion,
+                       double xi, double skew) {
              LensCamera lens;
              lens.model = model;
              lens.width = width;
@@ -155,16 +318,17 @@ void BindGeometry(py::module_& m) {
              lens.fy = fy;
              lens.cx = cx;
              lens.cy = cy;
-             lens.distortion = distortion;
+             if (distortion) SetDistortion(lens, *distortion);
              lens.xi = xi;
              lens.skew = skew;
              lens.Finalize("camera");
              return lens;
            }),
            "model"_a, "width"_a, "height"_a, "fx"_a, "fy"_a, "cx"_a, "cy"_a,
-           "distortion"_a = std::array<double, 5>{0, 0, 0, 0, 0}, "xi"_a = 0.0, "skew"_a = 0.0,
+           "distortion"_a = py::none(), "xi"_a = 0.0, "skew"_a = 0.0,
            "Raises ValueError for parameters that are not invertible (xi < 0, a radtan "
-           "distortion folding inside the frame).")
+           "distortion folding inside the frame) and for a distortion list whose length is not "
+           "the model's (None: no distortion).")
       .def_static("from_pinhole", &LensCamera::FromPinhole, "camera"_a)
       .def_readwrite("model", &LensCamera::model)
       .def_readwrite("width", &LensCamera::width)
@@ -175,7 +339,11 @@ void BindGeometry(py::module_& m) {
       .def_readwrite("cy", &LensCamera::cy)
       .def_readwrite("skew", &LensCamera::skew)
       .def_readwrite("xi", &LensCamera::xi)
-      .def_readwrite("distortion", &LensCamera::distortion)
+      .def_property("distortion", &GetDistortion, &SetDistortion,
+                    "The model's distortion coefficients, a new list of its natural length: "
+                    "radtan k1, k2, p1, p2, k3; fisheye k1..k4; omnidir k1, k2, p1, p2; pinhole "
+                    "none. Setting another length raises ValueError naming the model (set model "
+                    "first).")
       .def_readonly("max_radius", &LensCamera::max_radius,
                     "Largest valid undistorted normalised radius (radtan, omnidir).")
       .def_readonly("theta_max", &LensCamera::theta_max,
@@ -222,7 +390,59 @@ void BindGeometry(py::module_& m) {
           },
           "pixels"_a,
           "Unit rays (N, 3) through pixels (N, 2), float64 (a new array); NaN rows where no "
-          "valid ray maps there.");
+          "valid ray maps there.")
+      .def(
+          "__eq__",
+          [](const LensCamera& a, const py::object& other) -> py::object {
+            if (!py::isinstance<LensCamera>(other)) {
+              return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+            }
+            return py::bool_(LensEqual(a, other.cast<const LensCamera&>()));
+          },
+          "other"_a, "Exact equality of every field.")
+      .def(py::pickle(
+          [](const LensCamera& c) {
+            // All five stored coefficients and the derived valid field: the copy is exact.
+            return py::dict("model"_a = c.model, "width"_a = c.width, "height"_a = c.height,
+                            "fx"_a = c.fx, "fy"_a = c.fy, "cx"_a = c.cx, "cy"_a = c.cy,
+                            "skew"_a = c.skew, "xi"_a = c.xi, "coefficients"_a = c.distortion,
+                            "max_radius"_a = c.max_radius, "theta_max"_a = c.theta_max);
+          },
+          [](const py::object& state) {
+            const py::dict v = StateDict(state, "LensCamera",
+                                         {"model", "width", "height", "fx", "fy", "cx", "cy",
+                                          "skew", "xi", "coefficients", "max_radius",
+                                          "theta_max"});
+            LensCamera c;
+            c.model = v["model"].cast<LensModel>();
+            c.width = v["width"].cast<int>();
+            c.height = v["height"].cast<int>();
+            c.fx = v["fx"].cast<double>();
+            c.fy = v["fy"].cast<double>();
+            c.cx = v["cx"].cast<double>();
+            c.cy = v["cy"].cast<double>();
+            c.skew = v["skew"].cast<double>();
+            c.xi = v["xi"].cast<double>();
+            c.distortion = v["coefficients"].cast<std::array<double, 5>>();
+            c.max_radius = v["max_radius"].cast<double>();
+            c.theta_max = v["theta_max"].cast<double>();
+            return c;
+          }))
+      .def("__repr__", [](const LensCamera& c) {
+        std::string distortion;
+        for (double value : GetDistortion(c)) {
+          distortion += (distortion.empty() ? "" : ", ") + ReprNumber(value);
+        }
+        std::string text = std::string("LensCamera(model=") + LensModelName(c.model) +
+                           ", width=" + std::to_string(c.width) +
+                           ", height=" + std::to_string(c.height) + ", fx=" + ReprNumber(c.fx) +
+                           ", fy=" + ReprNumber(c.fy) + ", cx=" + ReprNumber(c.cx) +
+                           ", cy=" + ReprNumber(c.cy) + ", distortion=[" + distortion + "]";
+        if (c.model == LensModel::kOmnidir) {
+          text += ", xi=" + ReprNumber(c.xi) + ", skew=" + ReprNumber(c.skew);
+        }
+        return text + ")";
+      });
 }
 
 }  // namespace aos::python

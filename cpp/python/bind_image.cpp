@@ -1,4 +1,5 @@
 // numpy <-> aos::Image conversions (copy rules in bindings.h) and the bindings of image_io.h.
+#include <cstring>
 #include <filesystem>
 #include <optional>
 
@@ -59,6 +60,20 @@ Image ImageFromArray(py::handle object, int border, const std::string& what) {
   }
   throw py::value_error(what + ": unsupported dtype " + dtype +
                         " (expected uint8, uint16 or float32; float64 is converted to float32)");
+}
+
+bool ImagesEqual(const Image& a, const Image& b) {
+  if (a.empty() || b.empty()) return a.empty() && b.empty();
+  if (a.width() != b.width() || a.height() != b.height() || a.channels() != b.channels() ||
+      a.type() != b.type()) {
+    return false;
+  }
+  const size_t row_bytes =
+      static_cast<size_t>(a.width()) * a.channels() * PixelTypeSize(a.type());
+  for (int y = 0; y < a.height(); ++y) {
+    if (std::memcmp(a.RawAt(0, y), b.RawAt(0, y), row_bytes) != 0) return false;
+  }
+  return true;
 }
 
 py::object ArrayFromImage(const Image& image) {

@@ -19,6 +19,39 @@ std::string ImageSummary(const Image& image) {
          std::to_string(image.channels()) + " " + PixelTypeName(image.type());
 }
 
+bool ViewsEqual(const View& a, const View& b) {
+  return a.name == b.name && a.image_path == b.image_path &&
+         PinholeEqual(a.camera, b.camera) && LensEqual(a.lens, b.lens) &&
+         RigidEqual(a.cam_from_world, b.cam_from_world) &&
+         ImagesEqual(a.image, b.image);
+}
+
+bool PoseSourcesEqual(const PoseSource& a, const PoseSource& b) {
+  return a.method == b.method && a.mean_reprojection_error_px == b.mean_reprojection_error_px &&
+         a.median_depth == b.median_depth && a.pose_error == b.pose_error &&
+         a.georeferenced == b.georeferenced && a.georeference_rms_m == b.georeference_rms_m &&
+         a.world_frame == b.world_frame && a.unregistered == b.unregistered;
+}
+
+bool LightFieldsEqual(const LightField& a, const LightField& b) {
+  if (a.origin != b.origin || a.views.size() != b.views.size()) return false;
+  if (a.pose_source.has_value() != b.pose_source.has_value()) return false;
+  if (a.pose_source && !PoseSourcesEqual(*a.pose_source, *b.pose_source)) return false;
+  for (size_t i = 0; i < a.views.size(); ++i) {
+    if (!ViewsEqual(a.views[i], b.views[i])) return false;
+  }
+  return true;
+}
+
+// __eq__ of a bound class from a C++ predicate (NotImplemented for another type).
+template <typename T, typename Equal>
+auto EqualityMethod(Equal equal) {
+  return [equal](const T& a, const py::object& other) -> py::object {
+    if (!py::isinstance<T>(other)) return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+    return py::bool_(equal(a, other.cast<const T&>()));
+  };
+}
+
 }  // namespace
 
 void BindLightField(py::module_& m) {
@@ -38,8 +71,36 @@ void BindLightField(py::module_& m) {
           "image", [](const View& view) { return ArrayFromImage(view.image); },
           "The pixels as a new numpy array (a COPY: (H, W) or (H, W, C), native dtype), or None "
           "if the light field was loaded without images.")
+      .def("__eq__", EqualityMethod<View>(&ViewsEqual), "other"_a,
+           "Exact equality of every field and of the pixels.")
+      .def(py::pickle(
+          [](const View& view) {
+            // The pixels travel as a numpy array (a copy without the border).
+            return py::dict("name"_a = view.name, "image_path"_a = view.image_path,
+                            "camera"_a = view.camera, "lens"_a = view.lens,
+                            "cam_from_world"_a = view.cam_from_world,
+                            "image"_a = ArrayFromImage(view.image));
+          },
+          [](const py::object& state) {
+            const py::dict v = StateDict(
+                state, "View", {"name", "image_path", "camera", "lens", "cam_from_world", "image"});
+            View view;
+            view.name = v["name"].cast<std::string>();
+            view.image_path = v["image_path"].cast<std::string>();
+            view.camera = v["camera"].cast<PinholeCamera>();
+            view.lens = v["lens"].cast<LensCamera>();
+            view.cam_from_world = v["cam_from_world"].cast<Rigid3d>();
+            if (!v["image"].is_none()) {
+              view.image = ImageFromArray(v["image"], /*border=*/1, "View: image");
+              CheckView(view, "View '" + view.name + "'");
+            }
+            return view;
+          }))
       .def("__repr__", [](const View& view) {
-        return "View(name='" + view.name + "', " + ImageSummary(view.image) + ")";
+        const py::object camera = view.lens.model == LensModel::kPinhole ? py::cast(view.camera)
+                                                                         : py::cast(view.lens);
+        return "View(name='" + view.name + "', " + ImageSummary(view.image) + ", " +
+               std::string(py::repr(camera)) + ")";
       });
 
   py::class_<PoseSource>(m, "PoseSource",
@@ -57,7 +118,41 @@ void BindLightField(py::module_& m) {
                     "RMS of the camera-centre residuals of the geo-referencing, metres.")
       .def_readonly("world_frame", &PoseSource::world_frame,
                     "What origin and world coordinates are in, e.g. 'UTM 31N (WGS84)'.")
-      .def_readonly("unregistered", &PoseSource::unregistered, "Frames that got no pose.");
+      .def_readonly("unregistered", &PoseSource::unregistered, "Frames that got no pose.")
+      .def("__eq__", EqualityMethod<PoseSource>(&PoseSourcesEqual), "other"_a,
+           "Exact equality of every field.")
+      .def(py::pickle(
+          [](const PoseSource& p) {
+            return py::dict("method"_a = p.method,
+                            "mean_reprojection_error_px"_a = p.mean_reprojection_error_px,
+                            "median_depth"_a = p.median_depth, "pose_error"_a = p.pose_error,
+                            "georeferenced"_a = p.georeferenced,
+                            "georeference_rms_m"_a = p.georeference_rms_m,
+                            "world_frame"_a = p.world_frame, "unregistered"_a = p.unregistered);
+          },
+          [](const py::object& state) {
+            const py::dict v = StateDict(
+                state, "PoseSource",
+                {"method", "mean_reprojection_error_px", "median_depth", "pose_error",
+                 "georeferenced", "georeference_rms_m", "world_frame", "unregistered"});
+            PoseSource p;
+            p.method = v["method"].cast<std::string>();
+            p.mean_reprojection_error_px = v["mean_reprojection_error_px"].cast<double>();
+            p.median_depth = v["median_depth"].cast<double>();
+            p.pose_error = v["pose_error"].cast<double>();
+            p.georeferenced = v["georeferenced"].cast<bool>();
+            p.georeference_rms_m = v["georeference_rms_m"].cast<double>();
+            p.world_frame = v["world_frame"].cast<std::string>();
+            p.unregistered = v["unregistered"].cast<std::vector<std::string>>();
+            return p;
+          }))
+      .def("__repr__", [](const PoseSource& p) {
+        return "PoseSource(method='" + p.method + "', mean_reprojection_error_px=" +
+               FormatNumber(p.mean_reprojection_error_px) +
+               ", pose_error=" + FormatNumber(p.pose_error) +
+               ", georeferenced=" + (p.georeferenced ? "True" : "False") + ", world_frame='" +
+               p.world_frame + "', unregistered=" + std::to_string(p.unregistered.size()) + ")";
+      });
 
   py::class_<LightField>(m, "LightField",
                          "A light field: views (image, pinhole camera, cam_from_world) in a "
@@ -97,6 +192,30 @@ void BindLightField(py::module_& m) {
           "border; changing the array afterwards does not change the view. Raises ValueError for "
           "another dtype, a bad camera, a camera that disagrees with the image size, or an "
           "invalid cam_from_world (non-finite, not orthonormal, a reflection).")
+      .def("__eq__", EqualityMethod<LightField>(&LightFieldsEqual), "other"_a,
+           "Exact equality of origin, pose_source and every view (fields and pixels).")
+      .def("__copy__", [](const LightField& light_field) { return LightField(light_field); },
+           "A copy; the pixels are shared, which cannot be told apart from a deep copy since "
+           "views are read-only.")
+      .def(
+          "__deepcopy__",
+          [](const LightField& light_field, const py::dict&) { return LightField(light_field); },
+          "memo"_a, "As __copy__ (the read-only pixels are shared).")
+      .def(py::pickle(
+          [](const LightField& light_field) {
+            py::list views;
+            for (const View& view : light_field.views) views.append(py::cast(view));
+            return py::dict("origin"_a = light_field.origin, "views"_a = views,
+                            "pose_source"_a = light_field.pose_source);
+          },
+          [](const py::object& state) {
+            const py::dict v = StateDict(state, "LightField", {"origin", "views", "pose_source"});
+            LightField light_field;
+            light_field.origin = v["origin"].cast<Vec3d>();
+            light_field.views = v["views"].cast<std::vector<View>>();
+            light_field.pose_source = v["pose_source"].cast<std::optional<PoseSource>>();
+            return light_field;
+          }))
       .def("__repr__", [](const LightField& light_field) {
         py::object origin = py::cast(light_field.origin);
         return "LightField(views=" + std::to_string(light_field.views.size()) + ", origin=" +
@@ -110,6 +229,26 @@ void BindLightField(py::module_& m) {
       .def_readonly("format", &LoadResult::format, "'aos' or 'jku'.")
       .def_readonly("notes", &LoadResult::notes,
                     "Things the user should know (e.g. substituted frame names).")
+      .def(
+          "__eq__",
+          EqualityMethod<LoadResult>([](const LoadResult& a, const LoadResult& b) {
+            return a.format == b.format && a.notes == b.notes &&
+                   LightFieldsEqual(a.light_field, b.light_field);
+          }),
+          "other"_a, "Exact equality of format, notes and light field.")
+      .def(py::pickle(
+          [](const LoadResult& result) {
+            return py::dict("light_field"_a = result.light_field, "format"_a = result.format,
+                            "notes"_a = result.notes);
+          },
+          [](const py::object& state) {
+            const py::dict v = StateDict(state, "LoadResult", {"light_field", "format", "notes"});
+            LoadResult result;
+            result.light_field = v["light_field"].cast<LightField>();
+            result.format = v["format"].cast<std::string>();
+            result.notes = v["notes"].cast<std::vector<std::string>>();
+            return result;
+          }))
       .def("__repr__", [](const LoadResult& result) {
         return "LoadResult(format='" + result.format + "', views=" +
                std::to_string(result.light_field.views.size()) +

@@ -4,6 +4,7 @@
 
 #include "aos/metrics/quality.h"
 #include "aos/metrics/resolution.h"
+#include "aos/util/error.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -86,7 +87,13 @@ void BindMetrics(py::module_& m) {
       .def_readonly("footprint_m2", &ResolutionResult::footprint_m2)
       .def_readonly("pose_error_m", &ResolutionResult::pose_error_m)
       .def_readonly("effective_sample_size_m", &ResolutionResult::effective_sample_size_m)
-      .def_readonly("effective_samples_per_m2", &ResolutionResult::effective_samples_per_m2);
+      .def_readonly("effective_samples_per_m2", &ResolutionResult::effective_samples_per_m2)
+      .def("__repr__", [](const ResolutionResult& r) {
+        return "ResolutionResult(samples_per_m2=" + FormatNumber(r.samples_per_m2) +
+               ", sample_size_m=" + FormatNumber(r.sample_size_m) +
+               ", eq2_samples_per_m2=" + FormatNumber(r.eq2_samples_per_m2) +
+               ", effective_sample_size_m=" + FormatNumber(r.effective_sample_size_m) + ")";
+      });
 
   m.def("_sampling_resolution", &SamplingResolution, "camera"_a, "options"_a,
         "Use aos.sampling_resolution.");

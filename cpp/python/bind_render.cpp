@@ -5,6 +5,7 @@
 #include "aos/render/merge.h"
 #include "aos/render/rectify.h"
 #include "aos/render/surface_integral.h"
+#include "aos/util/error.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -102,10 +103,37 @@ void BindIntegral(py::module_& m) {
         "degrees and 512 x 512.");
 }
 
-std::vector<py::object> Arrays(const std::vector<Image>& images) {
-  std::vector<py::object> arrays;
-  for (const Image& image : images) arrays.push_back(ArrayFromImage(image));
-  return arrays;
+// The slices' images stacked into one new array (N, H, W) or (N, H, W, C) of their dtype (a
+// copy: the slices are separate images in C++). An empty list gives (0, height, width) of
+// `type`.
+py::array StackArrays(const std::vector<Image>& images, int width, int height, PixelType type) {
+  const Image* first = images.empty() ? nullptr : &images.front();
+  const PixelType dtype_type = first ? first->type() : type;
+  const py::dtype dtype = py::dtype::from_args(py::str(PixelTypeName(dtype_type)));
+  std::vector<py::ssize_t> shape{static_cast<py::ssize_t>(images.size()),
+                                 first ? first->height() : height, first ? first->width() : width};
+  const int channels = first ? first->channels() : 1;
+  if (channels > 1) shape.push_back(channels);
+  py::array array(dtype, shape);
+  const size_t plane_bytes = static_cast<size_t>(shape[1]) * shape[2] * channels *
+                             PixelTypeSize(dtype_type);
+  auto* out = static_cast<unsigned char*>(array.mutable_data());
+  for (size_t i = 0; i < images.size(); ++i) {
+    const Image& image = images[i];
+    if (image.width() != shape[2] || image.height() != shape[1] ||
+        image.channels() != channels || image.type() != dtype_type) {
+      throw py::value_error("FocalStack: slice " + std::to_string(i) +
+                            " differs in size, channels or type from slice 0");
+    }
+    image.CopyTo(out + i * plane_bytes, static_cast<ptrdiff_t>(image.width()) * channels);
+  }
+  return array;
+}
+
+std::string SizeText(const Image& image) {
+  if (image.empty()) return "empty";
+  return std::to_string(image.width()) + "x" + std::to_string(image.height()) + "x" +
+         std::to_string(image.channels());
 }
 
 void BindSurfaceIntegral(py::module_& m) {
@@ -132,8 +160,25 @@ void BindSurfaceIntegral(py::module_& m) {
           "inliers",
           [](const SurfaceIntegralResult& result) { return ArrayFromImage(result.inliers); },
           "uint32 (H, W): samples averaged per pixel (robust only, else None); shares memory.")
+      .def_property_readonly(
+          "image",
+          [](const SurfaceIntegralResult& result) { return ArrayFromImage(result.integral.image); },
+          "The integral image on the surface (integral.image): float32 (H, W) or (H, W, C); "
+          "shares memory with the result.")
+      .def_property_readonly(
+          "count",
+          [](const SurfaceIntegralResult& result) { return ArrayFromImage(result.integral.count); },
+          "uint32 (H, W): views that contributed to each pixel (integral.count); shared.")
       .def_readonly("fallback_pixels", &SurfaceIntegralResult::fallback_pixels,
-                    "Robust: pixels that kept the plain mean (too few rays agreed).");
+                    "Robust: pixels that kept the plain mean (too few rays agreed).")
+      .def("__repr__", [](const SurfaceIntegralResult& result) {
+        return "SurfaceIntegralResult(" + SizeText(result.integral.image) +
+               ", views_used=" + std::to_string(result.integral.views_used) + "/" +
+               std::to_string(result.integral.views_selected) +
+               ", uncovered_pixels=" + std::to_string(result.integral.uncovered_pixels) +
+               ", robust=" + (result.inliers.empty() ? "False" : "True") +
+               ", fallback_pixels=" + std::to_string(result.fallback_pixels) + ")";
+      });
 
   m.def(
       "_render_integral_on_depth",
@@ -175,14 +220,30 @@ void BindFocalStack(py::module_& m) {
                     "How the slices were rendered (pose resolved, pose_view -1).")
       .def_readonly("planes", &FocalStack::planes, "The slice planes (a copy).")
       .def_property_readonly(
-          "images", [](const FocalStack& stack) { return Arrays(stack.images); },
-          "float32 images, one per slice; each shares memory with the stack.")
+          "images",
+          [](const FocalStack& stack) {
+            return StackArrays(stack.images, stack.camera.width, stack.camera.height,
+                               PixelType::kF32);
+          },
+          "float32 (N, H, W) or (N, H, W, C): the slices' integral images, slice index first. A "
+          "new array (a COPY) on every access: keep it in a variable rather than reading "
+          "stack.images[i] in a loop.")
       .def_property_readonly(
-          "counts", [](const FocalStack& stack) { return Arrays(stack.counts); },
-          "uint32 count maps, one per slice; shared.")
+          "counts",
+          [](const FocalStack& stack) {
+            return StackArrays(stack.counts, stack.camera.width, stack.camera.height,
+                               PixelType::kU32);
+          },
+          "uint32 (N, H, W): views per pixel of each slice; a new array (a COPY) per access.")
       .def_property_readonly(
-          "variances", [](const FocalStack& stack) { return Arrays(stack.variances); },
-          "float32 variance maps (empty list unless rendered with variance); shared.")
+          "variances",
+          [](const FocalStack& stack) -> py::object {
+            if (stack.variances.empty()) return py::none();
+            return StackArrays(stack.variances, stack.camera.width, stack.camera.height,
+                               PixelType::kF32);
+          },
+          "float32 (N, H, W): variance of the view samples per slice, or None unless rendered "
+          "with variance; a new array (a COPY) per access.")
       .def("__len__", &FocalStack::size)
       .def("__repr__", [](const FocalStack& stack) {
         return "FocalStack(" + std::to_string(stack.size()) + " slices of " +
@@ -282,7 +343,14 @@ void BindMerge(py::module_& m) {
       .def_readonly("seconds_merge", &MergeResult::seconds_merge,
                     "Time of focus measures, refinement, smoothing and image assembly, s.")
       .def_readonly("seconds_render", &MergeResult::seconds_render,
-                    "Time of rendering (slices, re-integration), s.");
+                    "Time of rendering (slices, re-integration), s.")
+      .def("__repr__", [](const MergeResult& r) {
+        return "MergeResult(" + SizeText(r.image) +
+               ", uncovered_pixels=" + std::to_string(r.uncovered_pixels) +
+               ", fallback_pixels=" + std::to_string(r.fallback_pixels) +
+               ", seconds_render=" + FormatNumber(r.seconds_render) +
+               ", seconds_merge=" + FormatNumber(r.seconds_merge) + ")";
+      });
 
   OptionsClass<AllInFocusOptions>(m, "AllInFocusOptions", "Options of all_in_focus.")
       .Field("stack", &AllInFocusOptions::stack, "The slices (FocalStackOptions).")
@@ -348,7 +416,10 @@ void BindRectify(py::module_& m) {
           },
           "image"_a,
           "The rectified frame (a new array, the input's dtype and channels; the input is "
-          "copied).");
+          "copied).")
+      .def("__repr__", [](const Rectifier& rectifier) {
+        return "Rectifier(camera=" + std::string(py::repr(py::cast(rectifier.camera))) + ")";
+      });
 
   m.def("make_rectifier", &MakeRectifier, "lens"_a, "options"_a,
         "Resampling maps for a lens and options; raises ValueError if the lens does not cover "

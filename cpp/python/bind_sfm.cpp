@@ -2,6 +2,7 @@
 // importing COLMAP models, geo-referencing.
 #include "aos/sfm/colmap_model.h"
 #include "aos/sfm/colmap_pipeline.h"
+#include "aos/util/error.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -81,7 +82,16 @@ void BindSfm(py::module_& m) {
       .def_readonly("focal_deviation", &PosesResult::focal_deviation,
                     "Recovered / prior focal length - 1; NaN when unchecked.")
       .def_readonly("implausible", &PosesResult::implausible,
-                    "The self-calibration exceeded max_focal_deviation (kept: allow_implausible).");
+                    "The self-calibration exceeded max_focal_deviation (kept: allow_implausible).")
+      .def("__repr__", [](const PosesResult& r) {
+        return "PosesResult(registered=" + std::to_string(r.registered.size()) + "/" +
+               std::to_string(r.frames.size()) +
+               ", mean_reprojection_error_px=" + FormatNumber(r.mean_reprojection_error_px) +
+               ", pose_error=" + FormatNumber(r.pose_error) +
+               ", georeferenced=" + (r.georeferenced ? "True" : "False") +
+               ", implausible=" + (r.implausible ? "True" : "False") +
+               ", warnings=" + std::to_string(r.warnings.size()) + ")";
+      });
 
   m.def(
       "_estimate_poses",

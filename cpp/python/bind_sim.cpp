@@ -2,6 +2,7 @@
 // a dict through aos.simulate), so the scene schema is defined once, in the C++ parser.
 #include "aos/sim/scene.h"
 #include "aos/sim/simulator.h"
+#include "aos/util/error.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -88,8 +89,16 @@ void BindSim(py::module_& m) {
           [](const GroundTruth& t) { return ArrayFromImage(t.blocked_fraction); },
           "float32 in [0, 1]: fraction of the seeing views whose ray is blocked; None when "
           "truth.blocked_fraction is off.")
+      .def_property_readonly(
+          "image", [](const GroundTruth& t) { return ArrayFromImage(t.ground); },
+          "The truth image: the occluder-free ground (same array as `ground`).")
       .def_readonly("ground_height_at_center", &GroundTruth::ground_height_at_center,
-                    "Ground z under the truth camera (the focal plane to render).");
+                    "Ground z under the truth camera (the focal plane to render).")
+      .def("__repr__", [](const GroundTruth& t) {
+        return "GroundTruth(" + std::to_string(t.ground.width()) + "x" +
+               std::to_string(t.ground.height()) + "x" + std::to_string(t.ground.channels()) +
+               ", ground_height_at_center=" + FormatNumber(t.ground_height_at_center) + ")";
+      });
 
   py::class_<SimulationResult>(m, "SimulationResult", "What simulate returns.")
       .def_readonly("light_field", &SimulationResult::light_field,
@@ -97,6 +106,11 @@ void BindSim(py::module_& m) {
       .def_readonly("true_cam_from_world", &SimulationResult::true_cam_from_world,
                     "True poses, in view order.")
       .def_readonly("truth", &SimulationResult::truth, "The ground truth.")
+      .def_property_readonly(
+          "image", [](const SimulationResult& r) { return ArrayFromImage(r.truth.ground); },
+          "The truth image (truth.ground): the occluder-free ground seen by the truth camera, "
+          "what an integral focused on the ground from truth.cam_from_world should approach. "
+          "The simulated views themselves are in light_field.")
       .def_property_readonly(
           "stats", [](const SimulationResult& r) { return StatsDict(r.stats); },
           "What each stage did: ray and draw counters, sizes and seconds (a new dict).")

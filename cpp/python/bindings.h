@@ -31,6 +31,9 @@
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>
 
+#include "aos/geometry/lens.h"
+#include "aos/geometry/pinhole.h"
+#include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
 #include "aos/util/error.h"
 #include "aos/util/progress.h"
@@ -112,6 +115,23 @@ void BindMetrics(py::module_& m);
 void BindCalib(py::module_& m);
 void BindSfm(py::module_& m);
 
+// Python's `a == b` as a bool, numpy arrays compared whole (numpy.array_equal: same shape and
+// values). Used by the __eq__ of options, cameras, poses and light fields.
+bool ValuesEqual(const py::handle& a, const py::handle& b);
+
+// `state` (what __getstate__ returned when pickling `class_name`) as a dict with exactly `keys`;
+// raises ValueError naming a missing or unknown key (e.g. a pickle from another aos version).
+py::dict StateDict(const py::handle& state, const std::string& class_name,
+                   const std::vector<std::string>& keys);
+
+// Exact equality of every field (bind_geometry.cpp); LensEqual includes the derived valid field.
+bool RigidEqual(const Rigid3d& a, const Rigid3d& b);
+bool PinholeEqual(const PinholeCamera& a, const PinholeCamera& b);
+bool LensEqual(const LensCamera& a, const LensCamera& b);
+
+// Whether two images have the same size, channels, pixel type and pixels (borders ignored).
+bool ImagesEqual(const Image& a, const Image& b);
+
 // Copies a numpy array (or anything numpy.asarray accepts) of dtype uint8, uint16, uint32,
 // float32 or float64 (-> float32) and shape (H, W) or (H, W, C), C in 1..4, into a new Image with
 // `border` replicated border pixels. Throws ValueError "<what>: ..." naming the dtype or shape.
@@ -187,7 +207,8 @@ auto RunWithProgress(const py::object& callback, Compute&& compute) {
 // Binds an XxxOptions struct as a Python class whose read/write properties are exactly the
 // struct's fields (defaults therefore come from C++), with
 //   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
-//   __repr__ listing the fields, __copy__ and __deepcopy__.
+//   __repr__ listing the fields, __eq__ comparing them, __copy__ and __deepcopy__ (C++ copies),
+//   and pickling (the state is a dict of the fields, nested options pickled the same way).
 template <typename Options>
 class OptionsClass {
  public:
@@ -228,9 +249,37 @@ class OptionsClass {
       }
       return text + ")";
     });
+    class_.def(
+        "__eq__",
+        [fields](const py::object& self, const py::object& other) -> py::object {
+          if (!py::isinstance<Options>(other)) {
+            return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+          }
+          for (const std::string& field : fields) {
+            if (!ValuesEqual(self.attr(field.c_str()), other.attr(field.c_str()))) {
+              return py::bool_(false);
+            }
+          }
+          return py::bool_(true);
+        },
+        py::arg("other"), "Whether every field is equal.");
     class_.def("__copy__", [](const Options& self) { return Options(self); });
     class_.def("__deepcopy__", [](const Options& self, const py::dict&) { return Options(self); },
                py::arg("memo"));
+    class_.def(py::pickle(
+        [fields](const py::object& self) {
+          py::dict state;
+          for (const std::string& field : fields) state[py::str(field)] = self.attr(field.c_str());
+          return state;
+        },
+        [fields, class_name](const py::object& state) {
+          const py::dict values = StateDict(state, class_name, fields);
+          py::object options = py::cast(Options{});
+          for (const std::string& field : fields) {
+            py::setattr(options, field.c_str(), values[py::str(field)]);
+          }
+          return options.cast<Options>();
+        }));
     return class_;
   }
 

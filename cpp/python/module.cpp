@@ -1,5 +1,6 @@
 // The single entry point of aos._core: version, exception translation, the Python progress sink,
 // and one BindX(m) call per binding file.
+#include <algorithm>
 #include <exception>
 #include <filesystem>
 #include <thread>
@@ -90,6 +91,40 @@ void PythonProgress::Report(bool force) {
     error_.emplace(std::move(error));
     failed_.store(true);
   }
+}
+
+bool ValuesEqual(const py::handle& a, const py::handle& b) {
+  const py::module_ numpy = py::module_::import("numpy");
+  const py::object ndarray = numpy.attr("ndarray");
+  if (py::isinstance(a, ndarray) || py::isinstance(b, ndarray)) {
+    return numpy.attr("array_equal")(a, b).cast<bool>();
+  }
+  const int equal = PyObject_RichCompareBool(a.ptr(), b.ptr(), Py_EQ);
+  if (equal < 0) throw py::error_already_set();
+  return equal == 1;
+}
+
+py::dict StateDict(const py::handle& state, const std::string& class_name,
+                   const std::vector<std::string>& keys) {
+  if (!py::isinstance<py::dict>(state)) {
+    throw py::value_error(class_name + ": pickled state must be a dict, got " +
+                          std::string(py::str(py::type::handle_of(state).attr("__name__"))));
+  }
+  py::dict dict = py::reinterpret_borrow<py::dict>(state);
+  for (const std::string& key : keys) {
+    if (!dict.contains(py::str(key))) {
+      throw py::value_error(class_name + ": pickled state has no '" + key +
+                            "' (written by another aos version?)");
+    }
+  }
+  for (const auto& item : dict) {
+    const std::string key = py::str(item.first);
+    if (std::find(keys.begin(), keys.end(), key) == keys.end()) {
+      throw py::value_error(class_name + ": pickled state has an unknown key '" + key +
+                            "' (written by another aos version?)");
+    }
+  }
+  return dict;
 }
 
 namespace {

@@ -1,9 +1,18 @@
 """aos: Airborne Optical Sectioning -- drone light fields and integral rendering.
 
 The algorithms live in the C++ core (``aos._core``); this package re-exports it and adds the
-keyword-argument conveniences. Every option is declared once, in the C++ ``XxxOptions`` structs:
-``IntegralOptions``, ``QualityOptions`` and ``SimulateOptions`` expose exactly their fields with the
-C++ defaults. Simulated scenes are JSON documents (docs/scenes.md) parsed by the C++ core.
+keyword-argument conveniences. Every option is declared once, in the C++ ``XxxOptions`` structs,
+which Python exposes with exactly their fields and the C++ defaults. Each function takes an
+Options object and/or keywords; one mechanism (``_Router``) sends every keyword to the field of
+that name, nested structs included (``all_in_focus(num_threads=3)`` sets the rendering's and the
+merge's), refusing unknown or ambiguous names with TypeError. The keywords are typed for type
+checkers (``aos._keywords``). A number is a horizontal plane wherever a plane is taken
+(``focal_plane=21.0`` is ``Plane.at_height(21.0)``); enums are also taken by name
+(``method="robust"``). Simulated scenes are JSON documents (docs/scenes.md) parsed by the C++ core.
+
+Objects: every class has a repr; results that are images have ``.image``. Light fields, views,
+cameras, poses, planes and every Options struct compare with ``==`` (exact), pickle (process
+pools, Dask) and copy/deepcopy; a light field pickles with its pixels.
 
 Frames and units: metres and radians inside, degrees only where named ``*_deg``; poses are named
 by what they map (``cam_from_world``), cameras use OpenCV axes (x right, y down, z forward), and
@@ -14,8 +23,10 @@ numpy copy rules:
 * Images passed in (``LightField.add_view``, ``write_image``) are always COPIED; accepted dtypes
   are uint8, uint16 and float32 (float64 is converted to float32; ``write_image`` also takes
   uint32), shape (H, W) or (H, W, C). Other dtypes raise ValueError.
-* Result images (``read_image``, ``IntegralResult.image`` / ``.count``) share memory with the C++
-  result, which the array keeps alive. ``View.image`` returns a copy.
+* Result images (``read_image``, ``IntegralResult.image`` / ``.count``, ``MergeResult.image``,
+  ...) share memory with the C++ result, which the array keeps alive. ``View.image`` returns a
+  copy; ``FocalStack.images`` / ``.counts`` / ``.variances`` stack the slices into a new
+  (N, H, W[, C]) array, a copy on every access.
 * Vectors and matrices are float64 arrays converted by value both ways.
 
 Errors: bad input raises ValueError naming the field; a progress callback that raises stops the
@@ -27,9 +38,24 @@ from __future__ import annotations
 import copy
 import json
 import os
-from typing import Any, Callable, Optional, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence, TypeVar
 
 from . import _core
+from ._keywords import (
+    AllInFocusKeywords,
+    CalibrateKeywords,
+    FocalStackKeywords,
+    IntegralKeywords,
+    MergeKeywords,
+    PosesKeywords,
+    QualityKeywords,
+    ResolutionKeywords,
+    SimulateKeywords,
+    SurfaceIntegralKeywords,
+)
+
+if TYPE_CHECKING:
+    from typing_extensions import Unpack
 from ._core import (
     PosesOptions,
     PosesResult,
@@ -152,39 +178,169 @@ __all__ = [
     "write_simulation",
 ]
 
-_Options = TypeVar(
-    "_Options",
-    IntegralOptions,
-    SimulateOptions,
-    QualityOptions,
-    SurfaceIntegralOptions,
-    FocalStackOptions,
-    MergeOptions,
-    ResolutionOptions,
-    CalibrateOptions,
-)
+# Keyword routing: every wrapper below takes its options as an Options object and/or as keywords,
+# and one mechanism sorts the keywords into the (possibly nested) Options structs by field name.
+
+# Fields that name one setting for every stage that has it, set everywhere at once (as the CLI's
+# --threads sets the rendering and the merge of `allinfocus`).
+_SHARED_FIELDS = frozenset({"num_threads"})
 
 
-def _merge_options(
-    function: str, cls: type[_Options], options: Optional[_Options], overrides: dict[str, Any]
-) -> _Options:
-    """A copy of ``options`` (or of the defaults) with ``overrides`` applied by field name."""
+def _is_options(value: Any) -> bool:
+    return hasattr(type(value), "_fields")
+
+
+def _words(class_name: str) -> str:
+    """MergeMethod -> 'merge method'."""
+    return "".join(" " + c.lower() if c.isupper() else c for c in class_name).strip()
+
+
+class _Router:
+    """Routes keyword arguments to the fields of one or more Options structs by field name.
+
+    A keyword goes to the field of that name wherever it lies in the structs, nested Options
+    included (FocalStackOptions.render, AllInFocusOptions.merge.robust, ...): a struct-valued
+    field takes an Options object of its type, otherwise the keyword names a plain field. A name
+    at several plain fields is refused as ambiguous, unless it is one of _SHARED_FIELDS, which is
+    set at all of them. Unknown names raise TypeError listing the valid ones; ``exclude`` lists
+    fields the function ignores (a stack's render.focal_plane), which are refused likewise.
+    Values: an enum field takes its member's name (``method="robust"``, ValueError for an unknown
+    one), a plane field a number (its height; converted by aos._core).
+    """
+
+    def __init__(self, function: str, *root_types: type, exclude: Sequence[Sequence[str]] = ()):
+        self.function = function
+        self.root_types = root_types
+        excluded = {tuple(path) for path in exclude}
+        # Paths (root index, field, nested field, ...) by the field name they end with.
+        self.paths: dict[str, list[tuple[Any, ...]]] = {}
+
+        def walk(options: Any, prefix: tuple[Any, ...]) -> None:
+            for name in type(options)._fields:
+                path = prefix + (name,)
+                if path[1:] in excluded:
+                    continue
+                self.paths.setdefault(name, []).append(path)
+                value = getattr(options, name)
+                if _is_options(value):
+                    walk(value, path)
+
+        for index, root_type in enumerate(root_types):
+            walk(root_type(), (index,))
+
+    def names(self) -> set[str]:
+        """Every keyword this router accepts."""
+        return set(self.paths)
+
+    def apply(self, roots: Sequence[Any], kwargs: dict[str, Any]) -> None:
+        """Sets each keyword on its field(s) of ``roots`` (Options objects of root_types), in
+        place. Outer fields first: ``stack=FocalStackOptions(...)`` is set before ``slices=``."""
+        assignments = [(path, value) for key, value in kwargs.items()
+                       for path in self._targets(roots, key, value)]
+        for path, value in sorted(assignments, key=lambda assignment: len(assignment[0])):
+            self._set(roots, path, value)
+
+    def _targets(self, roots: Sequence[Any], key: str, value: Any) -> list[tuple[Any, ...]]:
+        if key not in self.paths:
+            raise TypeError(
+                f"{self.function}() got an unexpected keyword argument {key!r} "
+                f"(options: {', '.join(sorted(self.paths))})"
+            )
+        struct = [path for path in self.paths[key] if _is_options(self._get(roots, path))]
+        plain = [path for path in self.paths[key] if path not in struct]
+        if struct and (not plain or isinstance(value, type(self._get(roots, struct[0])))):
+            targets = struct
+        else:
+            targets = plain
+        if len(targets) > 1 and key not in _SHARED_FIELDS:
+            where = ", ".join(".".join(path[1:]) for path in targets)
+            raise TypeError(
+                f"{self.function}(): keyword argument {key!r} is ambiguous ({where}); "
+                "set it on an options object instead"
+            )
+        return targets
+
+    @staticmethod
+    def _get(roots: Sequence[Any], path: tuple[Any, ...]) -> Any:
+        value = roots[path[0]]
+        for name in path[1:]:
+            value = getattr(value, name)
+        return value
+
+    def _set(self, roots: Sequence[Any], path: tuple[Any, ...], value: Any) -> None:
+        chain = [roots[path[0]]]
+        for name in path[1:-1]:
+            chain.append(getattr(chain[-1], name))
+        name = path[-1]
+        current = getattr(chain[-1], name)
+        members = getattr(type(current), "__members__", None)
+        if isinstance(value, str) and members is not None:
+            if value not in members:
+                names = list(members)
+                raise ValueError(
+                    f"{name}: unknown {_words(type(current).__name__)} {value!r} "
+                    f"({', '.join(names[:-1])} or {names[-1]})"
+                )
+            value = members[value]
+        try:
+            setattr(chain[-1], name, value)
+        except TypeError:
+            expected = type(current).__name__
+            if isinstance(current, Plane):
+                expected = "Plane or a number (the height of a horizontal plane)"
+            raise TypeError(
+                f"{self.function}(): {name}: expected {expected}, got {type(value).__name__} "
+                f"{value!r}"
+            ) from None
+        # Write the nested structs back up (pybind11 hands out references to nested fields, but
+        # this does not rely on it).
+        for index in range(len(chain) - 1, 0, -1):
+            setattr(chain[index - 1], path[index], chain[index])
+
+
+_Options = TypeVar("_Options")
+
+
+def _copy_options(function: str, cls: type[_Options], options: Optional[_Options]) -> _Options:
+    """A copy of ``options`` (the caller's object is never changed), or the defaults."""
     if options is None:
-        merged = cls()
-    elif isinstance(options, cls):
-        merged = copy.copy(options)
-    else:
+        return cls()
+    if not isinstance(options, cls):
         raise TypeError(
             f"{function}(): options must be {cls.__name__} or None, not {type(options).__name__}"
         )
-    for name, value in overrides.items():
-        if name not in cls._fields:
-            raise TypeError(
-                f"{function}() got an unexpected keyword argument {name!r} "
-                f"(options: {', '.join(cls._fields)})"
-            )
-        setattr(merged, name, value)
-    return merged
+    return copy.copy(options)
+
+
+def _require_pose(function: str, render: IntegralOptions, kwargs: dict[str, Any]) -> None:
+    """Refuses a virtual camera without a pose: neither pose_view nor cam_from_world given (an
+    identity cam_from_world counts as not given unless passed as a keyword)."""
+    if render.pose_view >= 0 or "cam_from_world" in kwargs:
+        return
+    if render.cam_from_world == Rigid3d():
+        raise ValueError(
+            f"{function}(): no virtual camera pose: give pose_view or cam_from_world (a view's "
+            "index, or a pose such as aos.look_at(eye, target))"
+        )
+
+
+_RENDER_INTEGRAL = _Router("render_integral", IntegralOptions)
+_RENDER_FOCAL_STACK = _Router(
+    "render_focal_stack", FocalStackOptions, exclude=[("render", "focal_plane")]
+)
+_MERGE_FOCAL_STACK = _Router("merge_focal_stack", MergeOptions)
+_ALL_IN_FOCUS = _Router(
+    "all_in_focus", AllInFocusOptions, exclude=[("stack", "render", "focal_plane")]
+)
+_RENDER_INTEGRAL_ON_DEPTH = _Router(
+    "render_integral_on_depth", IntegralOptions, SurfaceIntegralOptions
+)
+_SIMULATE = _Router("simulate", SimulateOptions)
+_COMPARE_IMAGES = _Router("compare_images", QualityOptions)
+_SAMPLING_RESOLUTION = _Router("sampling_resolution", ResolutionOptions)
+_CALIBRATE = _Router("calibrate", CalibrateOptions)
+_ESTIMATE_POSES = _Router("estimate_poses", PosesOptions)
+_IMPORT_COLMAP = _Router("import_colmap", PosesOptions)
 
 
 def render_integral(
@@ -192,21 +348,25 @@ def render_integral(
     options: Optional[IntegralOptions] = None,
     *,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[IntegralKeywords],
 ) -> IntegralResult:
     """Integral rendering of ``light_field`` (Eq. 1 of the AOS paper).
 
     ``kwargs`` are fields of :class:`IntegralOptions` overriding those of a copy of ``options``
-    (or of the defaults); unknown names raise TypeError. ``progress(stage, done, total)`` is
-    called from this thread at most every 0.1 s (and once when done == total); if it raises,
-    rendering stops and the exception propagates. The GIL is released while rendering.
+    (or of the defaults); unknown names raise TypeError. ``focal_plane`` may be a number: the
+    horizontal plane at that height. The virtual camera needs a pose: ``pose_view`` or
+    ``cam_from_world`` (ValueError otherwise). ``progress(stage, done, total)`` is called from
+    this thread at most every 0.1 s (and once when done == total); if it raises, rendering stops
+    and the exception propagates. The GIL is released while rendering.
 
     Example::
 
-        result = aos.render_integral(lf, focal_plane=aos.Plane.at_height(0.0), pose_view=60)
+        result = aos.render_integral(lf, focal_plane=0.0, pose_view=60)
         image, count = result.image, result.count   # float32 and uint32, no copies
     """
-    merged = _merge_options("render_integral", IntegralOptions, options, kwargs)
+    merged = _copy_options("render_integral", IntegralOptions, options)
+    _RENDER_INTEGRAL.apply([merged], dict(kwargs))
+    _require_pose("render_integral", merged, dict(kwargs))
     return _core.render_integral(light_field, merged, progress)
 
 
@@ -216,7 +376,7 @@ def simulate(
     options: Optional[SimulateOptions] = None,
     *,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[SimulateKeywords],
 ) -> SimulationResult:
     """Simulates a scene (docs/scenes.md): its views, recorded poses and ground truth.
 
@@ -241,7 +401,8 @@ def simulate(
         raise TypeError(
             f"simulate(): scene must be a Scene, a dict or a path, not {type(scene).__name__}"
         )
-    merged = _merge_options("simulate", SimulateOptions, options, kwargs)
+    merged = _copy_options("simulate", SimulateOptions, options)
+    _SIMULATE.apply([merged], dict(kwargs))
     result = _core._simulate(parsed, merged, progress)
     if output_dir is not None:
         write_simulation(result, parsed, os.fspath(output_dir))
@@ -249,8 +410,11 @@ def simulate(
 
 
 def compare_images(
-    test: Any, reference: Any, mask: Any = None, options: Optional[QualityOptions] = None,
-    **kwargs: Any
+    test: Any,
+    reference: Any,
+    mask: Any = None,
+    options: Optional[QualityOptions] = None,
+    **kwargs: Unpack[QualityKeywords],
 ) -> QualityResult:
     """PSNR, SSIM and colour (quaternion) SSIM of ``test`` against ``reference``.
 
@@ -258,59 +422,9 @@ def compare_images(
     ``mask`` (e.g. a count map): non-zero pixels are compared (SSIM: pixels whose whole window is
     valid). ``kwargs`` are fields of :class:`QualityOptions`. Definitions: docs/metrics.md.
     """
-    merged = _merge_options("compare_images", QualityOptions, options, kwargs)
+    merged = _copy_options("compare_images", QualityOptions, options)
+    _COMPARE_IMAGES.apply([merged], dict(kwargs))
     return _core._compare_images(test, reference, mask, merged)
-
-
-
-def _method(value: Any) -> Any:
-    """A merge method given by name ("sobel", "improved", "robust") becomes a MergeMethod."""
-    if isinstance(value, str):
-        if value not in MergeMethod.__members__:
-            raise ValueError(
-                f"method: unknown merge method {value!r} (sobel, improved or robust)"
-            )
-        return MergeMethod.__members__[value]
-    return value
-
-
-def _split_kwargs(
-    function: str, kwargs: dict[str, Any], groups: "list[tuple[str, Any]]"
-) -> "dict[str, dict[str, Any]]":
-    """Sorts keyword arguments into the options classes whose field they name (first wins)."""
-    sorted_kwargs: dict[str, dict[str, Any]] = {name: {} for name, _ in groups}
-    for key, value in kwargs.items():
-        for name, cls in groups:
-            if key in cls._fields:
-                sorted_kwargs[name][key] = _method(value) if key == "method" else value
-                break
-        else:
-            names = ", ".join(f for _, cls in groups for f in cls._fields)
-            raise TypeError(f"{function}() got an unexpected keyword argument {key!r} (options: {names})")
-    return sorted_kwargs
-
-
-def _apply_surface(merge: MergeOptions, fields: dict[str, Any]) -> None:
-    """Fields of SurfaceIntegralOptions (agreement, min_inlier_fraction) go to merge.robust."""
-    if fields:
-        robust = copy.copy(merge.robust)
-        for key, value in fields.items():
-            setattr(robust, key, value)
-        merge.robust = robust
-
-
-def _stack_options(
-    function: str, options: Optional[FocalStackOptions], kwargs: dict[str, Any]
-) -> FocalStackOptions:
-    groups = _split_kwargs(
-        function, kwargs, [("stack", FocalStackOptions), ("render", IntegralOptions)]
-    )
-    merged = _merge_options(function, FocalStackOptions, options, groups["stack"])
-    render = copy.copy(merged.render)
-    for key, value in groups["render"].items():
-        setattr(render, key, value)
-    merged.render = render
-    return merged
 
 
 def render_focal_stack(
@@ -318,20 +432,25 @@ def render_focal_stack(
     options: Optional[FocalStackOptions] = None,
     *,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[FocalStackKeywords],
 ) -> FocalStack:
     """Renders a focal stack: N slices between ``first_plane`` and ``last_plane``.
 
-    ``kwargs`` are fields of :class:`FocalStackOptions` (first_plane, last_plane, slices) or of
-    :class:`IntegralOptions` (applied to ``options.render``: pose_view, fov_deg, width,
-    aperture_radius, variance, ...). All slices stay in memory; :func:`all_in_focus` streams.
+    ``kwargs`` are fields of :class:`FocalStackOptions` (first_plane, last_plane, slices; a
+    number is the horizontal plane at that height) or of :class:`IntegralOptions` (applied to
+    ``options.render``: pose_view, fov_deg, width, aperture_radius, variance, ...; not
+    focal_plane, which the slices replace). All slices stay in memory; :func:`all_in_focus`
+    streams.
 
     Example::
 
-        stack = aos.render_focal_stack(lf, pose_view=60, first_plane=aos.Plane.at_height(0),
-                                       last_plane=aos.Plane.at_height(20), slices=100)
+        stack = aos.render_focal_stack(lf, pose_view=60, first_plane=0.0, last_plane=20.0,
+                                       slices=100)
+        images = stack.images   # float32 (100, H, W[, C]), a copy
     """
-    merged = _stack_options("render_focal_stack", options, kwargs)
+    merged = _copy_options("render_focal_stack", FocalStackOptions, options)
+    _RENDER_FOCAL_STACK.apply([merged], dict(kwargs))
+    _require_pose("render_focal_stack", merged.render, dict(kwargs))
     return _core._render_focal_stack(light_field, merged, progress)
 
 
@@ -341,7 +460,7 @@ def merge_focal_stack(
     *,
     light_field: Optional[LightField] = None,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[MergeKeywords],
 ) -> MergeResult:
     """All-in-focus image, depth and confidence of a stack (``method`` sobel/improved/robust).
 
@@ -349,11 +468,8 @@ def merge_focal_stack(
     :class:`SurfaceIntegralOptions` (agreement, min_inlier_fraction). The robust method
     needs a stack rendered with ``variance=True`` and the ``light_field`` it came from.
     """
-    groups = _split_kwargs(
-        "merge_focal_stack", kwargs, [("merge", MergeOptions), ("surface", SurfaceIntegralOptions)]
-    )
-    merged = _merge_options("merge_focal_stack", MergeOptions, options, groups["merge"])
-    _apply_surface(merged, groups["surface"])
+    merged = _copy_options("merge_focal_stack", MergeOptions, options)
+    _MERGE_FOCAL_STACK.apply([merged], dict(kwargs))
     return _core._merge_focal_stack(stack, merged, light_field, progress)
 
 
@@ -362,45 +478,26 @@ def all_in_focus(
     options: Optional[AllInFocusOptions] = None,
     *,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[AllInFocusKeywords],
 ) -> MergeResult:
     """The one-call pipeline: slices rendered one at a time and merged (memory flat in N).
 
-    ``kwargs`` are fields of :class:`MergeOptions` (method as a string or MergeMethod, ...),
-    :class:`FocalStackOptions` (first_plane, last_plane, slices), :class:`IntegralOptions`
-    (pose_view, fov_deg, width, height, aperture_radius, ...) or :class:`SurfaceIntegralOptions`
-    (agreement, min_inlier_fraction: the robust mean).
+    ``kwargs`` are fields of :class:`AllInFocusOptions`, nested ones included: of
+    :class:`MergeOptions` (method as a string or MergeMethod, ...), :class:`FocalStackOptions`
+    (first_plane, last_plane, slices; a number is the horizontal plane at that height),
+    :class:`IntegralOptions` (pose_view, fov_deg, width, height, aperture_radius, ...) or
+    :class:`SurfaceIntegralOptions` (agreement, min_inlier_fraction: the robust mean).
+    ``num_threads`` limits the rendering and the merge alike, as ``aos-render allinfocus
+    --threads`` does.
 
     Example::
 
-        result = aos.all_in_focus(lf, pose_view=60, first_plane=aos.Plane.at_height(0),
-                                  last_plane=aos.Plane.at_height(20), slices=100)
+        result = aos.all_in_focus(lf, pose_view=60, first_plane=0.0, last_plane=20.0, slices=100)
         image, depth = result.image, result.depth
     """
-    groups = _split_kwargs(
-        "all_in_focus",
-        kwargs,
-        [
-            ("merge", MergeOptions),
-            ("stack", FocalStackOptions),
-            ("render", IntegralOptions),
-            ("surface", SurfaceIntegralOptions),
-        ],
-    )
-    merged = copy.copy(options) if options is not None else AllInFocusOptions()
-    merge = copy.copy(merged.merge)
-    for key, value in groups["merge"].items():
-        setattr(merge, key, value)
-    _apply_surface(merge, groups["surface"])
-    stack = copy.copy(merged.stack)
-    for key, value in groups["stack"].items():
-        setattr(stack, key, value)
-    render = copy.copy(stack.render)
-    for key, value in groups["render"].items():
-        setattr(render, key, value)
-    stack.render = render
-    merged.merge = merge
-    merged.stack = stack
+    merged = _copy_options("all_in_focus", AllInFocusOptions, options)
+    _ALL_IN_FOCUS.apply([merged], dict(kwargs))
+    _require_pose("all_in_focus", merged.stack.render, dict(kwargs))
     return _core._all_in_focus(light_field, merged, progress)
 
 
@@ -411,7 +508,7 @@ def render_integral_on_depth(
     surface: Optional[SurfaceIntegralOptions] = None,
     *,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[SurfaceIntegralKeywords],
 ) -> SurfaceIntegralResult:
     """Integral on a per-pixel depth surface (``depth``: camera z in metres, (H, W), copied).
 
@@ -419,20 +516,17 @@ def render_integral_on_depth(
     (robust, agreement, min_inlier_fraction). Used for the "oracle" image on
     a true depth map and for re-integrating a merged depth map.
     """
-    groups = _split_kwargs(
-        "render_integral_on_depth",
-        kwargs,
-        [("render", IntegralOptions), ("surface", SurfaceIntegralOptions)],
-    )
-    render = _merge_options("render_integral_on_depth", IntegralOptions, options, groups["render"])
-    surf = _merge_options(
-        "render_integral_on_depth", SurfaceIntegralOptions, surface, groups["surface"]
-    )
+    render = _copy_options("render_integral_on_depth", IntegralOptions, options)
+    surf = _copy_options("render_integral_on_depth", SurfaceIntegralOptions, surface)
+    _RENDER_INTEGRAL_ON_DEPTH.apply([render, surf], dict(kwargs))
+    _require_pose("render_integral_on_depth", render, dict(kwargs))
     return _core._render_integral_on_depth(light_field, render, depth, surf, progress)
 
 
 def sampling_resolution(
-    camera: "LensCamera | PinholeCamera", options: Optional[ResolutionOptions] = None, **kwargs: Any
+    camera: "LensCamera | PinholeCamera",
+    options: Optional[ResolutionOptions] = None,
+    **kwargs: Unpack[ResolutionKeywords],
 ) -> ResolutionResult:
     """Sampling resolution of a nadir camera over a focal plane: Eq. 2 and the Appendix A
     back-projection of the AOS paper, and the effective value p' = p + 2e under a pose error.
@@ -446,19 +540,9 @@ def sampling_resolution(
     """
     if isinstance(camera, PinholeCamera):
         camera = LensCamera.from_pinhole(camera)
-    merged = _merge_options("sampling_resolution", ResolutionOptions, options, kwargs)
+    merged = _copy_options("sampling_resolution", ResolutionOptions, options)
+    _SAMPLING_RESOLUTION.apply([merged], dict(kwargs))
     return _core._sampling_resolution(camera, merged)
-
-
-def _lens_model(value: Any) -> Any:
-    """A lens model given by name (pinhole, radtan, fisheye, omnidir) becomes a LensModel."""
-    if isinstance(value, str):
-        if value not in LensModel.__members__:
-            raise ValueError(
-                f"model: unknown lens model {value!r} (pinhole, radtan, fisheye or omnidir)"
-            )
-        return LensModel.__members__[value]
-    return value
 
 
 def calibrate(
@@ -467,7 +551,7 @@ def calibrate(
     options: Optional[CalibrateOptions] = None,
     *,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[CalibrateKeywords],
 ) -> CalibrationResult:
     """Calibrates a lens from checkerboard frames (OpenCV), as ``aos-render calibrate`` does.
 
@@ -493,10 +577,8 @@ def calibrate(
             os.fsdecode(frame) if isinstance(frame, (str, bytes, os.PathLike)) else f"frame_{i:04d}"
             for i, frame in enumerate(frames)
         ]
-    overrides = {
-        key: _lens_model(value) if key == "model" else value for key, value in kwargs.items()
-    }
-    merged = _merge_options("calibrate", CalibrateOptions, options, overrides)
+    merged = _copy_options("calibrate", CalibrateOptions, options)
+    _CALIBRATE.apply([merged], dict(kwargs))
     return _core._calibrate(frames, list(names), merged, progress)
 
 
@@ -536,7 +618,7 @@ def estimate_poses(
     options: Optional[PosesOptions] = None,
     *,
     progress: Optional[Callable[[str, int, int], object]] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[PosesKeywords],
 ) -> PosesResult:
     """Estimates the poses of a folder of frames with COLMAP (CPU, headless), as
     ``aos-render poses`` does; the frames are never modified.
@@ -551,7 +633,8 @@ def estimate_poses(
         result = aos.estimate_poses("flight/", positions_file="gps.csv", fov_deg=60)
         aos.write_lightfield("flight.json", result.light_field)
     """
-    merged = _merge_options("estimate_poses", PosesOptions, options, kwargs)
+    merged = _copy_options("estimate_poses", PosesOptions, options)
+    _ESTIMATE_POSES.apply([merged], dict(kwargs))
     return _core._estimate_poses(os.fspath(frames_dir), merged, progress)
 
 
@@ -559,7 +642,7 @@ def import_colmap(
     model_dir: str | os.PathLike[str],
     images_dir: str | os.PathLike[str],
     options: Optional[PosesOptions] = None,
-    **kwargs: Any,
+    **kwargs: Unpack[PosesKeywords],
 ) -> PosesResult:
     """Imports an existing COLMAP sparse model (a ``sparse/N`` folder, text or binary) with the
     frames COLMAP was given, as ``aos-render import-colmap`` does: registered frames become
@@ -567,5 +650,6 @@ def import_colmap(
     ``exif_positions`` (fields of :class:`PosesOptions`, like ``min_registered_fraction``)
     geo-reference it. Raises ValueError naming the file and the field.
     """
-    merged = _merge_options("import_colmap", PosesOptions, options, kwargs)
+    merged = _copy_options("import_colmap", PosesOptions, options)
+    _IMPORT_COLMAP.apply([merged], dict(kwargs))
     return _core._import_colmap(os.fspath(model_dir), os.fspath(images_dir), merged)

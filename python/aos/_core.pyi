@@ -10,8 +10,14 @@ numpy copy rules:
   uint32 accepted by write_image only. Shape (H, W) or (H, W, C), C in 1..4, any strides.
   Other dtypes raise ValueError naming the dtype.
 * Images coming out: (H, W) for one channel, else (H, W, C). Result images (read_image,
-  IntegralResult.image / .count) SHARE memory with the C++ result, which the array keeps alive;
-  View.image is a COPY.
+  IntegralResult.image / .count, MergeResult.image, ...) SHARE memory with the C++ result, which
+  the array keeps alive; View.image is a COPY; FocalStack.images / .counts / .variances are new
+  (N, H, W[, C]) arrays (COPIES) on every access.
+
+Values: a number is accepted wherever a Plane is taken (the horizontal plane at that height).
+Rigid3d, Plane, PinholeCamera, LensCamera, View, PoseSource, LightField, LoadResult and every
+Options class compare with == (exact) and pickle; Options and LightField also define __copy__ and
+__deepcopy__ (the others copy through pickling).
 """
 
 import os
@@ -27,6 +33,8 @@ _Vector = numpy.typing.ArrayLike
 _Float64Array = numpy.typing.NDArray[numpy.float64]
 _ImageArray = numpy.typing.NDArray[Any]
 _Progress = Optional[Callable[[str, int, int], object]]
+# A plane, or a number: the horizontal plane at that height.
+_PlaneLike = Union[Plane, float]
 
 class Rigid3d:
     """x_b = rotation @ x_a + translation, named b_from_a (cam_from_world: world -> OpenCV camera
@@ -54,6 +62,7 @@ class Rigid3d:
     @staticmethod
     def from_matrix3x4(m: _Vector) -> Rigid3d:
         """From [R | t] as a (3, 4) array-like, or 12 numbers row by row."""
+    def __eq__(self, other: object) -> bool: ...
     def __repr__(self) -> str: ...
 
 def look_at(eye: _Vector, target: _Vector, up: _Vector | None = None) -> Rigid3d:
@@ -64,8 +73,9 @@ def look_at(eye: _Vector, target: _Vector, up: _Vector | None = None) -> Rigid3d
 class Plane:
     """A plane through point with normal normal (local frame, metres)."""
 
-    def __init__(self, point: _Vector = ..., normal: _Vector = ...) -> None:
-        """Defaults: point (0, 0, 0), normal (0, 0, 1)."""
+    def __init__(self, point: _Vector | float = ..., normal: _Vector | None = None) -> None:
+        """Defaults: point (0, 0, 0), normal (0, 0, 1). Plane(z) with a number is the horizontal
+        plane at height z (Plane.at_height(z))."""
     @property
     def point(self) -> _Float64Array: ...
     @point.setter
@@ -77,6 +87,8 @@ class Plane:
     @staticmethod
     def at_height(z: float) -> Plane:
         """The horizontal plane at height z."""
+    def __eq__(self, other: object) -> bool:
+        """Exact equality of point and normal."""
     def __repr__(self) -> str: ...
     @staticmethod
     def in_front_of(cam_from_world: Rigid3d, distance: float, horizontal: bool = False) -> Plane:
@@ -106,6 +118,7 @@ class PinholeCamera:
         """Ray direction (x, y, 1) through continuous pixel coordinates (u, v)."""
     def check(self, where: str = "camera") -> None:
         """ValueError naming `where` if a field is out of range or not finite."""
+    def __eq__(self, other: object) -> bool: ...
     def __repr__(self) -> str: ...
 
 class LensModel:
@@ -131,10 +144,12 @@ class LensCamera:
         fy: float,
         cx: float,
         cy: float,
-        distortion: Sequence[float] = ...,
+        distortion: Optional[Sequence[float]] = None,
         xi: float = ...,
         skew: float = ...,
-    ) -> None: ...
+    ) -> None:
+        """`distortion` of the model's natural length (radtan 5, fisheye 4, omnidir 4, pinhole
+        0; None: no distortion); another length raises ValueError naming the model."""
     @staticmethod
     def from_pinhole(camera: PinholeCamera) -> LensCamera: ...
     model: LensModel
@@ -146,7 +161,13 @@ class LensCamera:
     cy: float
     skew: float
     xi: float
-    distortion: list[float]
+    @property
+    def distortion(self) -> list[float]:
+        """A new list of the model's natural length: radtan k1, k2, p1, p2, k3; fisheye k1..k4;
+        omnidir k1, k2, p1, p2; pinhole none."""
+    @distortion.setter
+    def distortion(self, value: Sequence[float]) -> None:
+        """ValueError naming the model for another length (set model first)."""
     @property
     def max_radius(self) -> float: ...
     @property
@@ -158,6 +179,8 @@ class LensCamera:
         """Unit ray through the pixel, or None."""
     def unproject_pixels(self, pixels: numpy.typing.ArrayLike) -> _Float64Array:
         """Unit rays (N, 3) through pixels (N, 2); NaN rows where there is none."""
+    def __eq__(self, other: object) -> bool: ...
+    def __repr__(self) -> str: ...
 
 def read_image(path: _PathLike) -> _ImageArray:
     """Reads an image file; uint8/uint16 kept, other types become float32. The returned array
@@ -195,6 +218,8 @@ class View:
     @property
     def image(self) -> Optional[_ImageArray]:
         """A COPY of the pixels, native dtype; None if loaded without images."""
+    def __eq__(self, other: object) -> bool:
+        """Exact equality of every field and of the pixels."""
     def __repr__(self) -> str: ...
 
 class PoseSource:
@@ -216,6 +241,8 @@ class PoseSource:
     def world_frame(self) -> str: ...
     @property
     def unregistered(self) -> list[str]: ...
+    def __eq__(self, other: object) -> bool: ...
+    def __repr__(self) -> str: ...
 
 class LightField:
     """Views (image, pinhole camera, cam_from_world) in a local frame whose zero lies at origin."""
@@ -243,6 +270,11 @@ class LightField:
     ) -> None:
         """Appends a view; `image` is COPIED (uint8, uint16, float32; float64 -> float32).
         ValueError for another dtype, a bad camera, a size mismatch or an invalid pose."""
+    def __eq__(self, other: object) -> bool:
+        """Exact equality of origin, pose_source and every view (fields and pixels)."""
+    def __copy__(self) -> LightField:
+        """A copy sharing the (read-only) pixels."""
+    def __deepcopy__(self, memo: dict[int, Any]) -> LightField: ...
     def __repr__(self) -> str: ...
 
 class LoadResult:
@@ -253,6 +285,7 @@ class LoadResult:
         """'aos' or 'jku'."""
     @property
     def notes(self) -> list[str]: ...
+    def __eq__(self, other: object) -> bool: ...
     def __repr__(self) -> str: ...
 
 def load_lightfield(
@@ -286,7 +319,7 @@ class IntegralOptions:
         width: int = ...,
         height: int = ...,
         aperture_radius: float = ...,
-        focal_plane: Plane = ...,
+        focal_plane: _PlaneLike = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
         num_threads: int = ...,
@@ -305,8 +338,12 @@ class IntegralOptions:
     """Output height, pixels (1 .. 65536)."""
     aperture_radius: float
     """Radius of the virtual aperture on the lens plane, metres; 0 = pinhole, inf = every view."""
-    focal_plane: Plane
-    """The focal plane (local frame): any point on it and its normal."""
+    @property
+    def focal_plane(self) -> Plane:
+        """The focal plane (local frame): any point on it and its normal."""
+    @focal_plane.setter
+    def focal_plane(self, value: _PlaneLike) -> None:
+        """A Plane, or a number: the horizontal plane at that height."""
     @property
     def view_indices(self) -> list[int]:
         """Views to integrate; empty means all. Reading returns a new list."""
@@ -320,6 +357,7 @@ class IntegralOptions:
     """Also return the per-pixel variance of the view samples (scalar kernel: a few times slower)."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> IntegralOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> IntegralOptions: ...
     def __repr__(self) -> str: ...
@@ -375,6 +413,7 @@ class RectifyOptions:
     pitch_deg: float
     roll_deg: float
     def check(self) -> None: ...
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> RectifyOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> RectifyOptions: ...
     def __repr__(self) -> str: ...
@@ -384,6 +423,7 @@ class Rectifier:
     def camera(self) -> PinholeCamera: ...
     def rectify(self, image: numpy.typing.ArrayLike) -> _ImageArray:
         """The rectified frame (new array, the input's dtype and channels)."""
+    def __repr__(self) -> str: ...
 
 def make_rectifier(lens: LensCamera, options: RectifyOptions) -> Rectifier: ...
 
@@ -410,6 +450,7 @@ class CalibrateOptions:
     """Side of one square, metres (> 0)."""
     def check(self) -> None:
         """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> CalibrateOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> CalibrateOptions: ...
     def __repr__(self) -> str: ...
@@ -459,6 +500,7 @@ class SurfaceIntegralOptions:
     """Fewest agreeing samples (fraction) for the robust mean, [0, 1]; else the plain mean."""
     def check(self) -> None:
         """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> SurfaceIntegralOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> SurfaceIntegralOptions: ...
     def __repr__(self) -> str: ...
@@ -468,10 +510,17 @@ class SurfaceIntegralResult:
     def integral(self) -> IntegralResult:
         """image, count and statistics."""
     @property
+    def image(self) -> numpy.typing.NDArray[numpy.float32]:
+        """integral.image: float32 (H, W) or (H, W, C); shares memory with the result."""
+    @property
+    def count(self) -> numpy.typing.NDArray[numpy.uint32]:
+        """integral.count: uint32 (H, W) views per pixel; shares memory with the result."""
+    @property
     def inliers(self) -> Optional[numpy.typing.NDArray[numpy.uint32]]:
         """uint32 (H, W) samples averaged per pixel (robust only, else None)."""
     @property
     def fallback_pixels(self) -> int: ...
+    def __repr__(self) -> str: ...
 
 def _render_integral_on_depth(
     light_field: LightField,
@@ -489,21 +538,28 @@ class FocalStackOptions:
         self,
         *,
         render: IntegralOptions = ...,
-        first_plane: Plane = ...,
-        last_plane: Plane = ...,
+        first_plane: _PlaneLike = ...,
+        last_plane: _PlaneLike = ...,
         slices: int = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     render: IntegralOptions
     """Virtual camera, aperture, views, threads and variance flag of every slice."""
-    first_plane: Plane
-    """Boundary plane of slice 0."""
-    last_plane: Plane
-    """Boundary plane of slice N-1."""
+    @property
+    def first_plane(self) -> Plane:
+        """Boundary plane of slice 0."""
+    @first_plane.setter
+    def first_plane(self, value: _PlaneLike) -> None: ...
+    @property
+    def last_plane(self) -> Plane:
+        """Boundary plane of slice N-1."""
+    @last_plane.setter
+    def last_plane(self, value: _PlaneLike) -> None: ...
     slices: int
     """Number of slices, 1 .. 100000."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> FocalStackOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> FocalStackOptions: ...
     def __repr__(self) -> str: ...
@@ -518,22 +574,26 @@ class FocalStack:
     @property
     def planes(self) -> list[Plane]: ...
     @property
-    def images(self) -> list[numpy.typing.NDArray[numpy.float32]]:
-        """One float32 image per slice; each shares memory with the stack."""
+    def images(self) -> numpy.typing.NDArray[numpy.float32]:
+        """float32 (N, H, W) or (N, H, W, C), slice index first; a new array (COPY) per access."""
     @property
-    def counts(self) -> list[numpy.typing.NDArray[numpy.uint32]]: ...
+    def counts(self) -> numpy.typing.NDArray[numpy.uint32]:
+        """uint32 (N, H, W); a new array (COPY) per access."""
     @property
-    def variances(self) -> list[numpy.typing.NDArray[numpy.float32]]: ...
+    def variances(self) -> Optional[numpy.typing.NDArray[numpy.float32]]:
+        """float32 (N, H, W), or None unless rendered with variance; a COPY per access."""
     def __len__(self) -> int: ...
     def __repr__(self) -> str: ...
 
 def _render_focal_stack(
     light_field: LightField, options: FocalStackOptions, progress: _Progress = None
 ) -> FocalStack: ...
-def stack_planes(first: Plane, last: Plane, slices: int, center: _Vector) -> list[Plane]: ...
-def interpolate_plane(first: Plane, last: Plane, s: float, center: _Vector) -> Plane: ...
+def stack_planes(
+    first: _PlaneLike, last: _PlaneLike, slices: int, center: _Vector
+) -> list[Plane]: ...
+def interpolate_plane(first: _PlaneLike, last: _PlaneLike, s: float, center: _Vector) -> Plane: ...
 def plane_depth(
-    camera: PinholeCamera, cam_from_world: Rigid3d, plane: Plane
+    camera: PinholeCamera, cam_from_world: Rigid3d, plane: _PlaneLike
 ) -> numpy.typing.NDArray[numpy.float32]: ...
 def write_focal_stack(folder: str, stack: FocalStack) -> None: ...
 def read_focal_stack(folder: str) -> FocalStack: ...
@@ -573,6 +633,7 @@ class MergeOptions:
     num_threads: int
     def check(self) -> None:
         """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> MergeOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> MergeOptions: ...
     def __repr__(self) -> str: ...
@@ -594,6 +655,7 @@ class MergeResult:
     def seconds_merge(self) -> float: ...
     @property
     def seconds_render(self) -> float: ...
+    def __repr__(self) -> str: ...
 
 class AllInFocusOptions:
     """Options of all_in_focus."""
@@ -605,6 +667,7 @@ class AllInFocusOptions:
     merge: MergeOptions
     def check(self, view_count: int) -> None:
         """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> AllInFocusOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> AllInFocusOptions: ...
     def __repr__(self) -> str: ...
@@ -639,6 +702,7 @@ class QualityOptions:
     k1: float
     k2: float
     def check(self) -> None: ...
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> QualityOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> QualityOptions: ...
     def __repr__(self) -> str: ...
@@ -686,6 +750,7 @@ class ResolutionOptions:
     pose_error_m: float
     max_off_axis_deg: float
     def check(self) -> None: ...
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> ResolutionOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> ResolutionOptions: ...
     def __repr__(self) -> str: ...
@@ -711,6 +776,7 @@ class ResolutionResult:
     def effective_sample_size_m(self) -> float: ...
     @property
     def effective_samples_per_m2(self) -> float: ...
+    def __repr__(self) -> str: ...
 
 def _sampling_resolution(camera: LensCamera, options: ResolutionOptions) -> ResolutionResult: ...
 
@@ -753,6 +819,7 @@ class SimulateOptions:
         """Defaults from C++; unknown names raise TypeError."""
     num_threads: int
     def check(self) -> None: ...
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> SimulateOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> SimulateOptions: ...
     def __repr__(self) -> str: ...
@@ -775,7 +842,11 @@ class GroundTruth:
     @property
     def blocked_fraction(self) -> Optional[numpy.typing.NDArray[numpy.float32]]: ...
     @property
+    def image(self) -> _ImageArray:
+        """The truth image: the occluder-free ground (as `ground`)."""
+    @property
     def ground_height_at_center(self) -> float: ...
+    def __repr__(self) -> str: ...
 
 class SimulationResult:
     """What simulate returns."""
@@ -786,6 +857,9 @@ class SimulationResult:
     def true_cam_from_world(self) -> list[Rigid3d]: ...
     @property
     def truth(self) -> GroundTruth: ...
+    @property
+    def image(self) -> _ImageArray:
+        """The truth image (truth.ground): the occluder-free ground seen by the truth camera."""
     @property
     def stats(self) -> dict[str, Any]: ...
     def summary_json(self) -> str: ...
@@ -838,6 +912,7 @@ class PosesOptions:
     max_focal_deviation: float
     allow_implausible: bool
     def check(self) -> None: ...
+    def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> PosesOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> PosesOptions: ...
     def __repr__(self) -> str: ...
@@ -885,6 +960,7 @@ class PosesResult:
     def focal_deviation(self) -> float: ...
     @property
     def implausible(self) -> bool: ...
+    def __repr__(self) -> str: ...
 
 def _estimate_poses(
     frames_dir: str, options: PosesOptions, progress: _Progress = None

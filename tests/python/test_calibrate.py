@@ -120,7 +120,7 @@ def test_calibrate_reads_paths_and_takes_options(frames: list[np.ndarray], tmp_p
     result = aos.calibrate([str(paths[0])] + paths[1:], options=options, square_size_m=SQUARE)
     assert result.frames_used == [str(path) for path in paths]  # names default to the paths
     assert result.camera.model == aos.LensModel.pinhole
-    assert list(result.camera.distortion) == [0.0] * 5
+    assert result.camera.distortion == []  # a pinhole has none
     # A pinhole fit of a barrel-distorted lens: the residual is the distortion, pixels.
     assert result.rms_px > 0.2
     named = aos.calibrate(frames[:4], names=["a", "b", "c", "d"], model="fisheye")
@@ -173,7 +173,7 @@ def test_camera_file_round_trip(frames: list[np.ndarray], tmp_path) -> None:
                       "square_size_m": SQUARE}
     # A free-form record, or none; an omnidir lens keeps xi and skew.
     omni = aos.LensCamera(aos.LensModel.omnidir, 640, 480, 360.0, 358.0, 322.5, 238.5,
-                          distortion=[-0.06, 0.01, 0.0006, -0.0004, 0.0], xi=1.0, skew=0.1)
+                          distortion=[-0.06, 0.01, 0.0006, -0.0004], xi=1.0, skew=0.1)
     aos.write_camera_file(str(tmp_path / "omni.json"), omni, {"note": "by hand"})
     assert json.loads((tmp_path / "omni.json").read_text())["calibration"] == {"note": "by hand"}
     back = aos.read_camera_file(str(tmp_path / "omni.json"))

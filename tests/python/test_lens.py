@@ -44,7 +44,7 @@ def test_paper_figures_from_the_cli() -> None:
 
 def test_lens_camera_round_trip_and_masks() -> None:
     lens = aos.LensCamera(aos.LensModel.omnidir, 1024, 1024, 250.0, 250.0, 512.0, 512.0,
-                          distortion=[-0.1, 0.01, 0.0005, 0.0002, 0.0], xi=0.9)
+                          distortion=[-0.1, 0.01, 0.0005, 0.0002], xi=0.9)
     ray = np.array([math.sin(1.55), 0.0, math.cos(1.55)])  # 88.8 degrees off-axis
     pixel = lens.project(ray)
     assert pixel is not None
@@ -53,7 +53,7 @@ def test_lens_camera_round_trip_and_masks() -> None:
     # A fisheye whose distortion stops increasing at some angle: pixels beyond that radius (its
     # image circle) have no ray.
     fisheye = aos.LensCamera(aos.LensModel.fisheye, 200, 200, 40.0, 40.0, 100.0, 100.0,
-                             distortion=[-0.05, 0.0, 0.0, 0.0, 0.0])
+                             distortion=[-0.05, 0.0, 0.0, 0.0])
     assert fisheye.theta_max < math.pi
     assert fisheye.unproject([100.0, 100.0]) is not None
     assert fisheye.unproject([100.0 + 1e4, 100.0]) is None

@@ -70,7 +70,7 @@ def test_stack_planes_interpolate_between_the_boundaries(simulation: aos.Simulat
                                    last_plane=aos.Plane.at_height(2.0), slices=4, **camera(simulation))
     heights = [plane.point[2] for plane in stack.planes]
     np.testing.assert_allclose(heights, [-1.0, 0.0, 1.0, 2.0], atol=1e-9)
-    assert len(stack) == 4 and len(stack.images) == 4 and stack.variances == []
+    assert len(stack) == 4 and stack.images.shape == (4, 48, 48) and stack.variances is None
     single = aos.render_integral(simulation.light_field, focal_plane=stack.planes[2], **camera(simulation))
     np.testing.assert_array_equal(stack.images[2], single.image)
 
@@ -183,8 +183,27 @@ def test_cli_stack_merge_and_allinfocus(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     done = aos_render("allinfocus", lightfield, *common, "-o", str(tmp_path / "aif"))
     assert done.returncode == 0, done.stderr
-    assert sorted(os.listdir(tmp_path / "aif")) == ["all_in_focus.tif", "confidence.tif",
-                                                    "depth.tif", "slice.tif"]
+    assert sorted(os.listdir(tmp_path / "aif")) == [
+        "all_in_focus.tif", "all_in_focus_preview.png", "confidence.tif",
+        "confidence_preview.png", "depth.tif", "depth_preview.png", "slice.tif"]
+    # Previews a user can open: 8-bit, the image stretched (not all one grey), the depth in
+    # colour (turbo), the confidence likewise; each the size of the render.
+    image_preview = aos.read_image(str(tmp_path / "aif" / "all_in_focus_preview.png"))
+    depth_preview = aos.read_image(str(tmp_path / "aif" / "depth_preview.png"))
+    confidence_preview = aos.read_image(str(tmp_path / "aif" / "confidence_preview.png"))
+    assert image_preview.dtype == np.uint8 and image_preview.shape[:2] == (48, 48)
+    assert image_preview.max() - image_preview.min() > 128
+    assert depth_preview.dtype == np.uint8 and depth_preview.shape == (48, 48, 3)
+    assert len(np.unique(depth_preview.reshape(-1, 3), axis=0)) > 4
+    assert confidence_preview.dtype == np.uint8 and confidence_preview.shape == (48, 48, 3)
+    # The depth preview orders depths by colour: the nearest and the farthest covered pixels
+    # get the two ends of the turbo map (blue and red dominated).
+    depth = aos.read_image(str(tmp_path / "aif" / "depth.tif"))
+    shown = np.where(depth_preview.sum(axis=2) > 0, depth, np.nan)   # uncovered pixels: black
+    near = np.unravel_index(np.nanargmin(shown), depth.shape)
+    far = np.unravel_index(np.nanargmax(shown), depth.shape)
+    assert depth_preview[near][2] > depth_preview[near][0]   # more blue than red
+    assert depth_preview[far][0] > depth_preview[far][2]     # more red than blue
     # Never overwrite: a used output folder is refused and left as it was.
     again = aos_render("allinfocus", lightfield, *common, "-o", str(tmp_path / "aif"))
     assert again.returncode == 1 and "not empty" in again.stderr

@@ -1,0 +1,147 @@
+"""The keyword arguments of the aos wrappers, typed for type checkers.
+
+Each wrapper (``aos.render_integral(light_field, **kwargs)``, ...) routes its keywords by name to
+the fields of its C++ Options structs (see ``aos._Router``); these TypedDicts give those keywords
+their types, so that ``**kwargs: Unpack[IntegralKeywords]`` lets mypy reject
+``aos.render_integral(lf, pose_view="191")``. One key per routed field name: the test
+tests/python/test_python_api.py checks them against the Options structs, so they cannot drift.
+Types follow the bindings: a plane may be given as a number (its height, ``Plane.at_height``) and
+an enum by its name.
+"""
+
+from __future__ import annotations
+
+from typing import Literal, Sequence, TypedDict, Union
+
+from ._core import (
+    FocalStackOptions,
+    IntegralOptions,
+    LensModel,
+    MergeMethod,
+    MergeOptions,
+    Plane,
+    Rigid3d,
+    SurfaceIntegralOptions,
+)
+
+# A plane, or a number: the horizontal plane at that height.
+PlaneLike = Union[Plane, float]
+MergeMethodLike = Union[MergeMethod, Literal["sobel", "improved", "robust"]]
+LensModelLike = Union[LensModel, Literal["pinhole", "radtan", "fisheye", "omnidir"]]
+
+
+class VirtualCameraKeywords(TypedDict, total=False):
+    """Fields of IntegralOptions except the focal plane: the virtual camera and the views."""
+
+    cam_from_world: Rigid3d
+    pose_view: int
+    fov_deg: float
+    width: int
+    height: int
+    aperture_radius: float
+    view_indices: Sequence[int]
+    min_view_angle_deg: float
+    num_threads: int
+    variance: bool
+
+
+class IntegralKeywords(VirtualCameraKeywords, total=False):
+    """Fields of IntegralOptions (render_integral)."""
+
+    focal_plane: PlaneLike
+
+
+class SurfaceIntegralKeywords(IntegralKeywords, total=False):
+    """Fields of IntegralOptions and SurfaceIntegralOptions (render_integral_on_depth)."""
+
+    robust: bool
+    agreement: float
+    min_inlier_fraction: float
+
+
+class FocalStackKeywords(VirtualCameraKeywords, total=False):
+    """Fields of FocalStackOptions and of its render options (render_focal_stack); the slices'
+    planes come from first_plane and last_plane, so focal_plane is not one."""
+
+    render: IntegralOptions
+    first_plane: PlaneLike
+    last_plane: PlaneLike
+    slices: int
+
+
+class MergeKeywords(TypedDict, total=False):
+    """Fields of MergeOptions and of its robust mean (merge_focal_stack). ``robust`` is the
+    SurfaceIntegralOptions, or its flag."""
+
+    method: MergeMethodLike
+    window_radius: int
+    smoothing_sigma: float
+    edge_sigma: float
+    smoothing_iterations: int
+    robust: Union[SurfaceIntegralOptions, bool]
+    agreement: float
+    min_inlier_fraction: float
+    num_threads: int
+
+
+class AllInFocusKeywords(FocalStackKeywords, MergeKeywords, total=False):
+    """Fields of AllInFocusOptions, nested ones included (all_in_focus). ``num_threads`` sets
+    the rendering and the merge."""
+
+    stack: FocalStackOptions
+    merge: MergeOptions
+
+
+class SimulateKeywords(TypedDict, total=False):
+    """Fields of SimulateOptions (simulate)."""
+
+    num_threads: int
+
+
+class QualityKeywords(TypedDict, total=False):
+    """Fields of QualityOptions (compare_images)."""
+
+    data_range: float
+    gaussian_sigma: float
+    window_radius: int
+    k1: float
+    k2: float
+
+
+class ResolutionKeywords(TypedDict, total=False):
+    """Fields of ResolutionOptions (sampling_resolution)."""
+
+    distance_m: float
+    pose_error_px: float
+    pose_error_m: float
+    max_off_axis_deg: float
+
+
+class CalibrateKeywords(TypedDict, total=False):
+    """Fields of CalibrateOptions (calibrate)."""
+
+    model: LensModelLike
+    pattern_columns: int
+    pattern_rows: int
+    square_size_m: float
+
+
+class PosesKeywords(TypedDict, total=False):
+    """Fields of PosesOptions (estimate_poses, import_colmap)."""
+
+    colmap: str
+    workspace: str
+    matcher: str
+    sequential_overlap: int
+    camera_file: str
+    camera_model: str
+    fov_deg: float
+    positions_file: str
+    positions_crs: str
+    exif_positions: bool
+    max_image_size: int
+    max_num_features: int
+    min_registered_fraction: float
+    num_threads: int
+    max_focal_deviation: float
+    allow_implausible: bool
