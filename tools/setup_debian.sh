@@ -12,7 +12,8 @@ packages=(
   cmake ninja-build g++ pkg-config
   libopencv-dev libopencv-contrib-dev libembree-dev libglm-dev
   libopenimageio-dev openimageio-tools colmap libsqlite3-dev
-  nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev zlib1g-dev libproj-dev proj-data
+  nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev zlib1g-dev libpng-dev libproj-dev
+  proj-data
 )
 # Debian's own Python (missing, or externally managed) needs its headers and venv support.
 if ! command -v python3 >/dev/null 2>&1 || python3 -c 'import os, sys, sysconfig

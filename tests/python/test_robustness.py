@@ -611,3 +611,66 @@ def test_two_and_four_channel_images_read_back_as_written(tmp_path: Path, suffix
         path = tmp_path / f"c{channels}{suffix}"
         aos.write_image(str(path), values)
         np.testing.assert_array_equal(aos.read_image(str(path)), values)
+
+
+# ---------------------------------------------------------------------------------------------
+# Found by tools/fuzz.py (tests/python/test_fuzz.py runs a seeded campaign).
+
+def corrupt_first_chunk_data(png: bytes, kind: bytes, offset: int) -> bytes:
+    """`png` with one byte of its first `kind` chunk's data flipped and the CRC fixed."""
+    position = 8
+    while True:
+        length, name = struct.unpack(">I4s", png[position:position + 8])
+        if name == kind:
+            data = bytearray(png[position + 8:position + 8 + length])
+            data[offset] ^= 0xFF
+            return (png[:position] + png_chunk(kind, bytes(data)) +
+                    png[position + 12 + length:])
+        position += 12 + length
+
+
+def test_damaged_pixel_data_gives_one_error_line(light_field: Path, tmp_path: Path) -> None:
+    # libpng printed its own "libpng error: ..." line before ours when the zlib stream of IDAT
+    # (CRC valid) or the IHDR values were bad; a damaged deflate strip of a TIFF read as zeros.
+    rng = np.random.default_rng(3)
+    good_png = tmp_path / "good.png"
+    aos.write_image(str(good_png), rng.integers(0, 255, (32, 32), dtype=np.uint8))
+    png = good_png.read_bytes()
+    cases = {"idat.png": corrupt_first_chunk_data(png, b"IDAT", 20),
+             "ihdr.png": corrupt_first_chunk_data(png, b"IHDR", 9)}   # bit depth 8 -> 247
+    good_tif = tmp_path / "good.tif"
+    aos.write_image(str(good_tif), rng.integers(0, 60000, (32, 32), dtype=np.uint16))
+    tif = bytearray(good_tif.read_bytes())
+    offset = struct.unpack("<I", tif[4:8])[0]
+    entries = {struct.unpack("<H", tif[offset + 2 + 12 * i:offset + 4 + 12 * i])[0]: offset + 2 + 12 * i
+               for i in range(struct.unpack("<H", tif[offset:offset + 2])[0])}
+    assert struct.unpack("<H", tif[entries[259] + 8:entries[259] + 10])[0] == 8   # deflate
+    strip = struct.unpack("<I", tif[entries[273] + 8:entries[273] + 12])[0]
+    tif[strip + 30:strip + 34] = b"\xff\x00\xff\x00"
+    cases["strip.tif"] = bytes(tif)
+    for name, data in cases.items():
+        path = tmp_path / name
+        path.write_bytes(data)
+        reference = good_tif if name.endswith(".tif") else good_png
+        message = assert_refused(run("metrics", path, reference), str(path))
+        assert "libpng" not in message, message
+        with pytest.raises(ValueError, match=name):
+            aos.read_image(str(path))
+
+
+@pytest.mark.parametrize("kind", ["txt", "bin"])
+def test_a_special_file_in_a_colmap_model_is_named(light_field: Path, tmp_path: Path,
+                                                   kind: str) -> None:
+    # A FIFO or a link to /dev/zero in place of one model file made the folder "not a COLMAP
+    # sparse model"; the error names the file.
+    model = tmp_path / "model"
+    (write_colmap_text_model if kind == "txt" else write_colmap_binary_model)(light_field, model)
+    (model / f"images.{kind}").unlink()
+    os.mkfifo(model / f"images.{kind}")
+    (model / f"points3D.{kind}").unlink()
+    (model / f"points3D.{kind}").symlink_to("/dev/zero")
+    result = run("import-colmap", model, "--images", light_field.parent / "views", "-o",
+                 tmp_path / "lf.json", timeout=30)
+    message = assert_refused(result, f"images.{kind}")
+    assert "FIFO" in message, message
+    no_leftovers(tmp_path, {"model"})

@@ -10,6 +10,7 @@
 #include <vector>
 
 #include <OpenImageIO/imageio.h>
+#include <png.h>
 #include <zlib.h>
 
 #include "aos/util/error.h"
@@ -91,6 +92,115 @@ void CheckPngChunks(const std::string& path, uint64_t file_bytes) {
   }
 }
 
+// PNG through libpng directly, with its errors and warnings captured: OpenImageIO 2.4 leaves
+// libpng's default handlers in place, which print "libpng error: ..." to stderr before OpenImageIO
+// reports the failure (two error lines for one damaged file). Headers are validated here before
+// OpenImageIO opens a PNG, and pixels are decoded here (same layout as OpenImageIO's: palettes
+// expanded to RGB, grey below 8 bits to 8 bits, tRNS to an alpha channel, 16-bit samples in host
+// order).
+class PngReader {
+ public:
+  PngReader(const std::string& path) : path_(path) {
+    file_ = std::fopen(path.c_str(), "rb");
+    if (file_ == nullptr) ThrowInvalid(path + ": cannot open image file");
+    png_ = png_create_read_struct(PNG_LIBPNG_VER_STRING, this, &PngReader::OnError,
+                                  &PngReader::OnWarning);
+    if (png_ != nullptr) info_ = png_create_info_struct(png_);
+    if (png_ == nullptr || info_ == nullptr) {
+      Close();
+      ThrowInvalid(path + ": cannot read image (libpng could not start)");
+    }
+  }
+  ~PngReader() { Close(); }
+  PngReader(const PngReader&) = delete;
+  PngReader& operator=(const PngReader&) = delete;
+
+  // Reads and checks the header (IHDR and the chunks before the pixels); sets the transforms.
+  // Returns false with error() set if libpng refused it.
+  bool ReadHeader() {
+    if (setjmp(png_jmpbuf(png_))) return false;
+    png_init_io(png_, file_);
+    png_read_info(png_, info_);
+    const int color_type = png_get_color_type(png_, info_);
+    const int bit_depth = png_get_bit_depth(png_, info_);
+    if (color_type == PNG_COLOR_TYPE_PALETTE) png_set_palette_to_rgb(png_);
+    if (color_type == PNG_COLOR_TYPE_GRAY && bit_depth < 8) png_set_expand_gray_1_2_4_to_8(png_);
+    if (png_get_valid(png_, info_, PNG_INFO_tRNS)) png_set_tRNS_to_alpha(png_);
+    if (bit_depth == 16) png_set_swap(png_);  // network to host (little-endian) order
+    png_set_interlace_handling(png_);
+    png_read_update_info(png_, info_);
+    return true;
+  }
+  int channels() const { return png_get_channels(png_, info_); }
+  int bit_depth() const { return png_get_bit_depth(png_, info_); }
+
+  // Decodes every row into `rows` (one pointer per row). Returns false with error() set if
+  // libpng failed (a damaged zlib stream, missing data).
+  bool ReadRows(png_bytep* rows) {
+    if (setjmp(png_jmpbuf(png_))) return false;
+    png_read_image(png_, rows);
+    png_read_end(png_, nullptr);
+    return true;
+  }
+  const std::string& error() const { return error_; }
+
+ private:
+  static void OnError(png_structp png, png_const_charp message) {
+    static_cast<PngReader*>(png_get_error_ptr(png))->error_ = message;
+    png_longjmp(png, 1);
+  }
+  static void OnWarning(png_structp, png_const_charp) {}  // ancillary problems: not fatal
+  void Close() {
+    if (png_ != nullptr) png_destroy_read_struct(&png_, info_ != nullptr ? &info_ : nullptr, nullptr);
+    if (file_ != nullptr) std::fclose(file_);
+    png_ = nullptr;
+    info_ = nullptr;
+    file_ = nullptr;
+  }
+
+  std::string path_;
+  std::FILE* file_ = nullptr;
+  png_structp png_ = nullptr;
+  png_infop info_ = nullptr;
+  std::string error_;
+};
+
+bool IsPngFile(const std::string& path) {
+  static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
+  std::ifstream file(path, std::ios::binary);
+  unsigned char signature[8] = {};
+  return file.read(reinterpret_cast<char*>(signature), 8) &&
+         std::memcmp(signature, kSignature, 8) == 0;
+}
+
+void CheckPngHeader(const std::string& path) {
+  PngReader reader(path);
+  if (!reader.ReadHeader()) {
+    ThrowInvalid(path + ": cannot read image (PNG: " + OneLine(reader.error()) + ")");
+  }
+}
+
+// Decodes a PNG whose header OpenImageIO reported as `image`'s size, channels and type.
+void DecodePng(const std::string& path, Image* image) {
+  PngReader reader(path);
+  if (!reader.ReadHeader()) {
+    ThrowInvalid(path + ": cannot read image (PNG: " + OneLine(reader.error()) + ")");
+  }
+  const int depth = image->type() == PixelType::kU16 ? 16 : 8;
+  if (reader.channels() != image->channels() || reader.bit_depth() != depth ||
+      (image->type() != PixelType::kU8 && image->type() != PixelType::kU16)) {
+    ThrowInvalid(path + ": unsupported PNG layout (" + std::to_string(reader.channels()) +
+                 " channels of " + std::to_string(reader.bit_depth()) + " bits)");
+  }
+  std::vector<png_bytep> rows(static_cast<size_t>(image->height()));
+  for (int y = 0; y < image->height(); ++y) {
+    rows[static_cast<size_t>(y)] = static_cast<png_bytep>(image->RawAt(0, y));
+  }
+  if (!reader.ReadRows(rows.data())) {
+    ThrowInvalid(path + ": cannot decode image (PNG: " + OneLine(reader.error()) + ")");
+  }
+}
+
 // Samples as stored: a 2- or 4-channel PNG or TIFF is read without multiplying the other channels
 // by the last one (OpenImageIO "associates" alpha by default), so what aos writes reads back
 // bit for bit.
@@ -161,6 +271,7 @@ std::unique_ptr<oiio::ImageInput> Open(const std::string& path) {
   // Regular files only: a FIFO blocks the decoder forever and /dev/zero never ends.
   const uint64_t file_bytes = CheckRegularFile(path, "image file");
   CheckPngChunks(path, file_bytes);
+  if (IsPngFile(path)) CheckPngHeader(path);
   CheckExrHeader(path, file_bytes);
   auto input = oiio::ImageInput::open(path, &RawSamplesConfig());
   if (!input) {
@@ -194,6 +305,26 @@ void CheckPlausibleSize(const std::string& path, const oiio::ImageSpec& spec, Pi
                  " bytes; a damaged or forged header (nothing was decoded)");
   }
   CheckMemoryBudget(decoded, path + ": image of " + size + " pixels", "decoded samples");
+}
+
+// Reads every pixel of `input` as `type` into `data` (rows y_stride bytes apart). A compressed
+// TIFF is read one scanline at a time: OpenImageIO 2.4 inflates whole deflate strips itself in
+// read_image and ignores a stream that fails (the strip comes back as zeros, no error), while
+// its scanline path goes through libtiff, which reports it.
+bool ReadAllPixels(oiio::ImageInput& input, const oiio::TypeDesc& type, void* data,
+                   oiio::stride_t x_stride, oiio::stride_t y_stride) {
+  const oiio::ImageSpec& spec = input.spec();
+  const bool compressed_tiff = input.format_name() == std::string("tiff") &&
+                               spec.tile_width == 0 &&
+                               spec.get_int_attribute("tiff:Compression", 1) != 1;
+  if (!compressed_tiff) {
+    return input.read_image(0, 0, 0, spec.nchannels, type, data, x_stride, y_stride);
+  }
+  auto* row = static_cast<unsigned char*>(data);
+  for (int y = 0; y < spec.height; ++y, row += y_stride) {
+    if (!input.read_scanline(spec.y + y, 0, type, row, x_stride)) return false;
+  }
+  return true;
 }
 
 // OpenImageIO's error text for `input` (the reader's, else the global one), or a fallback.
@@ -277,12 +408,20 @@ Image ReadImage(const std::string& path, int border) {
   auto fail = [&] { ThrowInvalid(path + ": cannot decode image (" + ReaderError(*input) + ")"); };
   const oiio::TypeDesc file_type = spec.format;
   const bool other_integer = !file_type.is_floating_point() && image.type() == PixelType::kF32;
+  // libtiff reports a damaged compressed strip (a deflate stream that fails) through its error
+  // handler, which OpenImageIO 2.4 passes to the global (per-thread) error, while read_image
+  // returns true with zeros in place of the strip: clear it now, check it after.
+  oiio::geterror(true);
   if (other_integer) {
     // OpenImageIO converts integers to float normalised to [0, 1] (or [-1, 1]); aos keeps their
     // values (a uint32 count map of 70000 reads as 70000.0), so read natively and convert here.
     const size_t count = static_cast<size_t>(spec.width) * spec.height * spec.nchannels;
     std::vector<unsigned char> buffer(count * file_type.size());
-    if (!input->read_image(0, 0, 0, spec.nchannels, file_type, buffer.data())) fail();
+    const oiio::stride_t file_x_stride = static_cast<oiio::stride_t>(file_type.size()) * spec.nchannels;
+    if (!ReadAllPixels(*input, file_type, buffer.data(), file_x_stride,
+                       file_x_stride * spec.width)) {
+      fail();
+    }
     auto convert = [&](auto tag) {
       using Value = decltype(tag);
       const Value* values = reinterpret_cast<const Value*>(buffer.data());
@@ -304,14 +443,19 @@ Image ReadImage(const std::string& path, int border) {
       default:
         ThrowInvalid(path + ": unsupported sample type " + std::string(file_type.c_str()));
     }
-  } else if (!input->read_image(0, 0, 0, spec.nchannels, ToTypeDesc(image.type()),
-                                image.RawAt(0, 0), x_stride, y_stride)) {
+  } else if (input->format_name() == std::string("png")) {
+    DecodePng(path, &image);
+  } else if (!ReadAllPixels(*input, ToTypeDesc(image.type()), image.RawAt(0, 0), x_stride,
+                            y_stride)) {
     fail();
   }
   // Some readers (TIFF strips past the end of the file, for one) report missing data only in
   // their error state while read_image returns true: a truncated file is an error, never pixels
   // padded with junk.
   if (input->has_error()) fail();
+  if (oiio::has_error()) {
+    ThrowInvalid(path + ": cannot decode image (" + OneLine(oiio::geterror(true)) + ")");
+  }
   input->close();
   if (auto problem = DescribeNonFinite(image)) {
     ThrowInvalid(path + ": " + *problem + "; aos refuses non-finite samples in its inputs");

@@ -60,9 +60,11 @@ std::string Lower(std::string text) {
   return text;
 }
 
+// Whether something is at `path` (a FIFO, a device or a folder too: the reader then refuses it
+// by name, instead of the model folder being called "not a COLMAP model").
 bool IsFile(const fs::path& path) {
   std::error_code error;
-  return fs::is_regular_file(path, error);
+  return fs::exists(path, error);
 }
 
 // Rotation of the unit quaternion (w, x, y, z) (Hamilton convention, as Eigen's, which COLMAP

@@ -1,0 +1,267 @@
+"""The fuzzer of issue 13 (tools/fuzz.py): a short seeded campaign over every file reader of aos
+finds no failure, and the fuzzer's classifier recognises each failure class (fake targets that
+fail on purpose), so a clean campaign means something.
+
+The campaign fuzzes the `aos-render` on PATH and the installed aos; AOS_FUZZ_AOS_RENDER and
+AOS_FUZZ_PYTHON_PATH select another build (e.g. a baseline snapshot).
+"""
+from __future__ import annotations
+
+import importlib.util
+import json
+import os
+import shutil
+import struct
+import subprocess
+import sys
+import textwrap
+import zlib
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+FUZZ_PATH = ROOT / "tools" / "fuzz.py"
+EXE = os.environ.get("AOS_FUZZ_AOS_RENDER") or shutil.which("aos-render")
+PYTHON_PATH = os.environ.get("AOS_FUZZ_PYTHON_PATH")
+
+# 12 rounds over the 19 targets: rounds 1 to 4 give every target a FIFO, a link to /dev/zero and
+# a folder in place of one of its files and (where it writes one file) its output path set to an
+# input; the other 8 rounds are mutations. About 40 s on 2 cores when every case is refused.
+CASES = 228
+
+
+def load_fuzz():
+    spec = importlib.util.spec_from_file_location("aos_fuzz", FUZZ_PATH)
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["aos_fuzz"] = module   # dataclasses resolve their module while it is executed
+    spec.loader.exec_module(module)
+    return module
+
+
+fuzz = load_fuzz()
+
+
+@pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
+def test_a_seeded_campaign_over_every_target_finds_no_failure(tmp_path: Path) -> None:
+    out = tmp_path / "fuzz-out"
+    command = [sys.executable, str(FUZZ_PATH), "--seed", "1", "--cases", str(CASES),
+               "--jobs", "2", "--time-limit", "600", "--minimise-time", "5",
+               "--minimise-per-class", "1", "--aos-render", EXE, "--out", str(out), "--json"]
+    if PYTHON_PATH:
+        command += ["--python-path", PYTHON_PATH]
+    result = subprocess.run(command, capture_output=True, text=True, timeout=1200)
+    assert result.returncode in (0, 1), result.stderr[-3000:]   # 2: the set-up failed
+    report = json.loads(result.stdout)
+    assert report["cases"] == CASES, "the time limit cut the campaign short"
+    assert set(report["targets"]) == {t.name for t in fuzz.TARGETS}
+    if report["failures"]:
+        lines = [f"{report['failures']} of {report['cases']} cases failed: "
+                 f"{ {c: n for c, n in report['classes'].items() if n} }"]
+        for group in report["distinct_failures"]:
+            record = json.loads((Path(group["reproducer"]) / "case.json").read_text())
+            lines += [f"{group['class']} x{group['count']} in {group['target']}: "
+                      f"{group['example_detail'][:300]}",
+                      f"    mutation: {record['mutation'][:200]}",
+                      f"    reproduce: sh {group['reproducer']}/reproduce.sh",
+                      f"    command: {record['command'][:300]}"]
+        pytest.fail("\n".join(lines), pytrace=False)
+    assert result.returncode == 0
+
+
+# ---------------------------------------------------------------------------------------------
+# The classifier can fail: fake targets, one per failure class.
+
+FAKE = textwrap.dedent("""
+    import os, signal, sys, time
+    mode, path, out = sys.argv[1], sys.argv[2], sys.argv[3]
+    name = os.path.basename(path)
+
+    def error(message):
+        print(message, file=sys.stderr)
+        sys.exit(1)
+
+    open(path, "rb").read()
+    if mode == "ok":
+        open(out, "w").write("fine")
+    elif mode == "refuse":
+        error(f"fake: error: {path}: bad input")
+    elif mode == "refuse-after-warning":
+        print("fake: warning: odd but fine", file=sys.stderr)
+        error(f"fake: error: {path}: bad input")
+    elif mode == "partial":
+        open(out, "w").write("half")
+        error(f"fake: error: {path}: bad input")
+    elif mode == "hidden-temporary":
+        open(os.path.join(os.path.dirname(out), ".result.txt.tmp-12"), "w").write("half")
+        error(f"fake: error: {path}: bad input")
+    elif mode == "leftover-beside-input":
+        open(path + ".partial-1", "w").write("half")
+        error(f"fake: error: {path}: bad input")
+    elif mode == "empty-output-folder":
+        os.mkdir(out + ".d")
+        error(f"fake: error: {path}: bad input")
+    elif mode == "hang":
+        time.sleep(600)
+    elif mode == "ignore-sigterm":
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        time.sleep(600)
+    elif mode == "multi-line":
+        error(f"fake: error: {path}: bad input\\n  (more detail)")
+    elif mode == "two-errors":
+        print("libfake error: bad chunk", file=sys.stderr)
+        error(f"fake: error: {path}: bad input")
+    elif mode == "unnamed":
+        error("fake: error: [json.exception.out_of_range.406] number overflow parsing '1e999'")
+    elif mode == "no-error-line":
+        error("fake: cannot go on")
+    elif mode == "modify":
+        open(path, "ab").write(b"x")
+        open(out, "w").write("fine")
+    elif mode == "touch":
+        os.utime(path, (0, 0))
+        open(out, "w").write("fine")
+    elif mode == "segfault":
+        os.kill(os.getpid(), signal.SIGSEGV)
+    elif mode == "abort":
+        os.abort()
+    elif mode == "traceback":
+        raise RuntimeError("an exception the program did not catch")
+    elif mode == "resident":
+        block = bytearray(800 << 20)   # touched: 800 MiB resident
+        error(f"fake: error: {path}: bad input")
+    elif mode == "address-space":
+        block = bytearray(8 << 30)   # beyond RLIMIT_AS: MemoryError
+    elif mode == "oom-killed":
+        os.kill(os.getpid(), signal.SIGKILL)
+    elif mode == "nan-output":
+        nan = os.path.join(os.path.dirname(sys.argv[0]), "nan.tif")
+        open(out, "wb").write(open(nan, "rb").read())
+    elif mode == "non-finite-json":
+        open(out, "w").write('{"psnr": NaN}')
+    elif mode == "accept":   # exit 0 whatever the input
+        open(out, "w").write("fine")
+    elif mode == "no-output":
+        pass
+""")
+
+CLI_CASES = [
+    ("ok", "ok"), ("refuse", "refused"), ("refuse-after-warning", "refused"),
+    ("partial", "partial-output"), ("hidden-temporary", "partial-output"),
+    ("leftover-beside-input", "partial-output"), ("empty-output-folder", "partial-output"),
+    ("hang", "timeout"), ("ignore-sigterm", "timeout"),
+    ("multi-line", "multi-line-error"), ("two-errors", "multi-line-error"),
+    ("unnamed", "unnamed-error"), ("no-error-line", "unnamed-error"),
+    ("modify", "modified-input"), ("touch", "modified-input"),
+    ("segfault", "signal"), ("abort", "signal"), ("traceback", "traceback"),
+    ("resident", "memory"), ("address-space", "memory"), ("oom-killed", "memory"),
+    ("nan-output", "accepted-invalid"), ("non-finite-json", "accepted-invalid"),
+    ("no-output", "accepted-invalid"),
+]
+
+PYTHON_CASES = [
+    ("result = len(open({file!r}, 'rb').read())", "ok"),
+    ("raise ValueError({file!r} + ': bad input')", "refused"),
+    ("raise RuntimeError({file!r} + ': bad input')", "traceback"),
+    ("open({file!r}, 'rb').read().decode('utf-8')", "traceback"),   # UnicodeDecodeError
+    ("raise ValueError('[json.exception.out_of_range.406] number overflow')", "unnamed-error"),
+    ("raise ValueError({file!r} + ': bad input\\nPNG library error')", "multi-line-error"),
+    ("raise MemoryError()", "memory"),
+    ("block = bytearray(800 << 20)", "memory"),
+    ("import os; os.kill(os.getpid(), 11)", "signal"),
+    ("import time; time.sleep(600)", "timeout"),
+    ("result = np.array([1.0, np.nan], np.float32)", "accepted-invalid"),
+    ("open('out/result.txt', 'w').write('half'); raise ValueError({file!r} + ': bad')",
+     "partial-output"),
+    ("open({file!r}, 'ab').write(b'x')", "modified-input"),
+]
+
+
+# A 66-byte PNG claiming 46340 x 46340 pixels (2 GiB), with valid CRCs.
+PNG_BOMB = (b"\x89PNG\r\n\x1a\n"
+            + fuzz.png_chunk(b"IHDR", struct.pack(">IIBBBBB", 46340, 46340, 8, 0, 0, 0, 0))
+            + fuzz.png_chunk(b"IDAT", zlib.compress(b"\0" * 64))
+            + fuzz.png_chunk(b"IEND", b""))
+
+
+@pytest.fixture(scope="module")
+def fake_fuzzer(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fake")
+    corpus = root / "corpus"
+    corpus.mkdir()
+    (corpus / "input.txt").write_bytes(b"\xffinput\n")
+    (corpus / "image.png").write_bytes(PNG_BOMB)
+    (root / "fake.py").write_text(FAKE)
+    pixels = struct.pack("<16f", *[0.5, float("nan")] * 8)
+    (root / "nan.tif").write_bytes(fuzz.tiff_file(4, 4, pixels, 32, 3))
+    (root / "work").mkdir()
+    # The Python worker holds about 160 MiB with aos imported; the fakes allocate 800 MiB.
+    limits = fuzz.Limits(timeout_s=2, address_space_mb=2048, rss_mb=400)
+    fuzzer = fuzz.Fuzzer(EXE or "aos-render", PYTHON_PATH, limits, root / "work", corpus)
+    yield fuzzer, root
+    fuzzer.close()
+
+
+def fake_target(root: Path, mode: str, file: str = "input.txt", **fields) -> "fuzz.Target":
+    """The fake program in `mode` reading `file`; its output's suffix is what the checks read."""
+    output = {"nan-output": "out/result.tif", "non-finite-json": "out/result.json"}.get(
+        mode, "out/result.txt")
+    return fuzz.Target(f"fake-{mode}", (file,), argv=(sys.executable, str(root / "fake.py"), mode,
+                                                      "{file}", output), **fields)
+
+
+def run_fake(fuzzer, target, file: str = "input.txt"):
+    data = (fuzzer.corpus / file).read_bytes()
+    return fuzzer.execute(fuzz.Case(0, target, file, "bytes", data, "none"))
+
+
+@pytest.mark.parametrize("mode,expected", CLI_CASES, ids=[m for m, _ in CLI_CASES])
+def test_the_classifier_recognises_each_cli_outcome(fake_fuzzer, mode: str, expected: str) -> None:
+    fuzzer, root = fake_fuzzer
+    outputs = ("out/result.txt",) if mode == "no-output" else ()
+    outcome = run_fake(fuzzer, fake_target(root, mode, outputs=outputs))
+    assert outcome.cls == expected, (outcome.detail, outcome.execution.stderr[-500:])
+
+
+def test_an_accepted_image_without_its_pixels_is_accepted_invalid(fake_fuzzer) -> None:
+    fuzzer, root = fake_fuzzer
+    assert len(PNG_BOMB) < 70
+    outcome = run_fake(fuzzer, fake_target(root, "accept", "image.png"), "image.png")
+    assert outcome.cls == "accepted-invalid" and "IHDR size needs" in outcome.detail, outcome.detail
+    # The same file refused is fine.
+    assert run_fake(fuzzer, fake_target(root, "refuse", "image.png"), "image.png").cls == "refused"
+
+
+@pytest.mark.skipif(not PYTHON_PATH and importlib.util.find_spec("aos") is None,
+                    reason="aos is not installed")
+@pytest.mark.parametrize("code,expected", PYTHON_CASES, ids=[e for _, e in PYTHON_CASES])
+def test_the_classifier_recognises_each_python_outcome(fake_fuzzer, code: str,
+                                                       expected: str) -> None:
+    fuzzer, _ = fake_fuzzer
+    outcome = run_fake(fuzzer, fuzz.Target("fake-python", ("input.txt",), code=code))
+    assert outcome.cls == expected, (outcome.detail, outcome.execution.stderr[-500:])
+
+
+def test_special_files_and_an_output_on_an_input_are_set_up(fake_fuzzer) -> None:
+    """FIFO, /dev/zero and folder cases put that file in place (the fake program opens it:
+    a FIFO hangs it, the others make it fail); output-is-input points the output at the input."""
+    fuzzer, root = fake_fuzzer
+    target = fake_target(root, "ok", output_file="out/result.txt")
+    # Reading /dev/zero to the end fills the 2 GiB address space (memory), unless the 2 s
+    # timeout comes first on a loaded machine: either shows the link is in place.
+    expected = {"fifo": {"timeout"}, "devzero": {"memory", "timeout"}, "folder": {"traceback"},
+                "output-is-input": {"modified-input"}}
+    for kind, classes in expected.items():
+        outcome = fuzzer.execute(fuzz.Case(0, target, "input.txt", kind, None, kind))
+        assert outcome.cls in classes, (kind, outcome.detail)
+
+
+def test_cases_are_reproducible_from_the_seed(fake_fuzzer) -> None:
+    fuzzer, root = fake_fuzzer
+    targets = [fuzz.Target("fake", ("input.txt",), argv=("true",))]
+    first = [fuzzer.make_case(7, i, targets) for i in range(30)]
+    again = [fuzzer.make_case(7, i, targets) for i in range(30)]
+    other = [fuzzer.make_case(8, i, targets) for i in range(30)]
+    assert [(c.kind, c.data, c.mutation) for c in first] == \
+        [(c.kind, c.data, c.mutation) for c in again]
+    assert [c.data for c in first] != [c.data for c in other]
