@@ -1130,7 +1130,10 @@ int RunRectify(const RectifyCommand& c) {
   try {
     rectifier = MakeRectifier(lens, c.options);
   } catch (const std::invalid_argument& error) {
-    RethrowNamingFlags(error, kRectifyFlags);
+    // The lens comes from the camera file: name it (its values may be what is wrong).
+    RethrowNamingFlags(std::invalid_argument(std::string(error.what()) + " (the lens of " +
+                                             c.camera_path + ")"),
+                       kRectifyFlags);
   }
   std::set<std::string> names;
   for (const std::string& frame : c.frames) {

@@ -545,14 +545,15 @@ TEST_F(FocalStackFiles, ErrorsNameTheFileAndTheField) {
   fs::copy(Path("good"), missing);
   fs::remove(missing + "/count_0001.tif");
   EXPECT_THAT(ErrorReading(missing), HasSubstr("count_0001.tif"));
-  // A slice of the wrong size is named by its index.
+  // A slice of the wrong size is named by its index and its file.
   const std::string resized = Path("resized");
   fs::copy(Path("good"), resized);
   fs::remove(resized + "/slice_0002.tif");
   WriteImage(resized + "/slice_0002.tif", ConstantImage(7, 5, {1.0f}));
   const std::string error = ErrorReading(resized);
   EXPECT_THAT(error, HasSubstr("stack.json"));
-  EXPECT_THAT(error, HasSubstr("slice 2"));
+  EXPECT_THAT(error, HasSubstr("slices[2].image"));
+  EXPECT_THAT(error, HasSubstr("slice_0002.tif: is 7x5x1"));
   // And the untouched copy still reads.
   EXPECT_EQ(ErrorReading(Path("good")), "no error");
 }

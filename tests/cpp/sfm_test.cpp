@@ -796,7 +796,8 @@ TEST_F(ColmapImportTest, BadFramesAreNamed) {
     options.load_images = load_images;
     EXPECT_THAT(ErrorOf([&] { ImportColmapModel(model, Path("images"), options); }),
                 HasSubstr(images_path + ": image 9 (c.png): frame " + Path("images/c.png") +
-                          " is 64x48 but its COLMAP camera says 80x60"));
+                          " is 64x48 but its COLMAP camera in " + Path("sparse/cameras.bin") +
+                          " says 80x60"));
   }
   fs::remove(Path("images/c.png"));
   EXPECT_THAT(ErrorOf([&] { ImportColmapModel(model, Path("images")); }),

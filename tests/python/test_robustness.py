@@ -674,3 +674,66 @@ def test_a_special_file_in_a_colmap_model_is_named(light_field: Path, tmp_path: 
     message = assert_refused(result, f"images.{kind}")
     assert "FIFO" in message, message
     no_leftovers(tmp_path, {"model"})
+
+
+def test_deeply_nested_json_is_refused_not_a_crash(light_field: Path, tmp_path: Path) -> None:
+    # 100000 nested arrays in a view's "image" crashed integral with SIGSEGV (stack overflow).
+    lf = json.loads(light_field.read_text())
+    text = json.dumps(lf).replace('"image": "views/0003.png"', '"image": ' + "[" * 100000 +
+                                  "]" * 100000, 1)
+    assert text.count("[") > 100000
+    deep = light_field.parent / "deep.json"
+    deep.write_text(text)
+    try:
+        message = assert_refused(run("integral", deep, *CAMERA, "-o", tmp_path / "a.png"),
+                                 "deep.json", "/views/3/image/0/0")
+        assert "nested deeper than 256 levels" in message and len(message) < 300, message
+        with pytest.raises(ValueError, match="nested deeper than 256"):
+            aos.load_lightfield(str(deep))
+    finally:
+        deep.unlink()
+    no_leftovers(tmp_path, set())
+
+
+def test_stack_and_model_errors_name_the_file_at_fault(light_field: Path, tmp_path: Path) -> None:
+    # A stack slice with values that overflow the merge's float32 focus measures wrote NaN
+    # confidences (exit 0); a wrong count file and a COLMAP camera of the wrong size were blamed
+    # on stack.json / images.bin; a camera file whose lens cannot cover the view was not named.
+    folder = tmp_path / "stack"
+    done = run("stack", light_field, *CAMERA, "--first-plane", "-1", "--last-plane", "1",
+               "--slices", "2", "-q", "-o", folder)
+    assert done.returncode == 0, done.stderr
+    meta = json.loads((folder / "stack.json").read_text())
+    slice_file = folder / meta["slices"][1]["image"]
+    count_file = folder / meta["slices"][0]["count"]
+    values = aos.read_image(str(slice_file))
+    values[3, 4] = 3e20
+    slice_file.unlink()
+    aos.write_image(str(slice_file), values)
+    message = assert_refused(run("merge", folder, "-o", tmp_path / "m"), slice_file.name,
+                             "beyond +-1e15")
+    with pytest.raises(ValueError, match=slice_file.name):
+        aos.read_focal_stack(str(folder))
+    values[3, 4] = 0
+    slice_file.unlink()
+    aos.write_image(str(slice_file), values)
+    count_file.unlink()
+    aos.write_image(str(count_file), np.ones((24, 32), np.uint16))
+    assert_refused(run("merge", folder, "-o", tmp_path / "m"), count_file.name, "32-bit counts")
+
+    model = tmp_path / "model"
+    write_colmap_text_model(light_field, model)
+    cameras = (model / "cameras.txt").read_text()
+    (model / "cameras.txt").write_text(cameras.replace(" 32 24 ", " 64 24 "))
+    assert (model / "cameras.txt").read_text() != cameras
+    assert_refused(run("import-colmap", model, "--images", light_field.parent / "views", "-o",
+                       tmp_path / "lf.json"), "cameras.txt", "64x24")
+
+    camera = tmp_path / "camera.json"
+    camera.write_text(json.dumps({"format": "aos-camera", "version": 1, "model": "pinhole",
+                                  "width": 32, "height": 24, "fx": 30, "fy": 30, "cx": -200,
+                                  "cy": 12}))
+    result = run("rectify", light_field.parent / "views" / "0000.png", "--camera", camera,
+                 "--fov-deg", "40", "-o", tmp_path / "r")
+    assert_refused(result, "camera.json", "does not cover", code=2)
+    no_leftovers(tmp_path, {"stack", "model", "camera.json"})

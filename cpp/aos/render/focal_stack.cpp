@@ -178,6 +178,9 @@ void FocalStack::Check(const std::string& where) const {
       ThrowInvalid(slice + ": variance must be 1-channel float32 of the camera's size");
     }
     if (auto problem = DescribeNonFinite(image)) ThrowInvalid(slice + ": image: " + *problem);
+    if (auto problem = DescribeOutOfStackRange(image)) {
+      ThrowInvalid(slice + ": image: " + *problem);
+    }
     if (!variances.empty()) {
       if (auto problem = DescribeNonFinite(variances[i])) {
         ThrowInvalid(slice + ": variance: " + *problem);
@@ -299,6 +302,22 @@ namespace {
 FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::string& file);
 }  // namespace
 
+std::optional<std::string> DescribeOutOfStackRange(const Image& image) {
+  if (image.type() != PixelType::kF32) return std::nullopt;
+  for (int y = 0; y < image.height(); ++y) {
+    const float* row = image.At<float>(0, y);
+    for (int i = 0; i < image.width() * image.channels(); ++i) {
+      if (std::fabs(row[i]) > kMaxStackMagnitude) {
+        return "pixel (" + std::to_string(i / image.channels()) + ", " + std::to_string(y) +
+               ") channel " + std::to_string(i % image.channels()) + " is " +
+               FormatNumber(row[i]) + ", beyond +-1e15 (the merge's focus measures would "
+               "overflow float32)";
+      }
+    }
+  }
+  return std::nullopt;
+}
+
 FocalStack ReadFocalStack(const std::string& folder) {
   const fs::path base(folder);
   const std::string file = (base / "stack.json").string();
@@ -384,11 +403,31 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
       ThrowInvalid(Where(file, where + ".plane.normal: must not be zero"));
     }
     stack.planes.push_back(p);
-    auto read = [&](const std::string& key) {
-      const std::string path = (base / StringField(slice, key, where, file)).string();
-      return ReadImage(path);
+    // Each file is checked as it is read, so that errors name it (FocalStack::Check then finds
+    // nothing more to say about sizes and types).
+    std::string path;
+    auto read = [&](const std::string& key, int channels, const char* what) {
+      path = (base / StringField(slice, key, where, file)).string();
+      Image image = ReadImage(path);
+      if (image.width() != stack.camera.width || image.height() != stack.camera.height ||
+          (channels > 0 && image.channels() != channels)) {
+        ThrowInvalid(Where(file, where + "." + key) + ": " + path + ": is " +
+                     std::to_string(image.width()) + "x" + std::to_string(image.height()) + "x" +
+                     std::to_string(image.channels()) + ", expected " + what + " of " +
+                     std::to_string(stack.camera.width) + "x" +
+                     std::to_string(stack.camera.height) + " (the stack's camera)");
+      }
+      return image;
     };
-    stack.images.push_back(read("image"));
+    stack.images.push_back(read("image", i == 0 ? 0 : stack.images[0].channels(),
+                                i == 0 ? "an image" : "an image with slice 0's channels"));
+    if (stack.images.back().type() != PixelType::kF32) {
+      ThrowInvalid(Where(file, where + ".image") + ": " + path + ": holds " +
+                   PixelTypeName(stack.images.back().type()) + " samples, expected float32");
+    }
+    if (auto problem = DescribeOutOfStackRange(stack.images.back())) {
+      ThrowInvalid(Where(file, where + ".image") + ": " + path + ": " + *problem);
+    }
     if (i == 0) {
       // Every slice stays in memory: refuse before decoding the rest (image and variance of
       // slice 0's channels, float; count, 4 bytes).
@@ -402,7 +441,7 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
               std::to_string(stack.camera.width) + "x" + std::to_string(stack.camera.height),
           "images, counts" + std::string(has_variance ? " and variances" : "") + " in memory");
     }
-    Image count = read("count");
+    Image count = read("count", 1, "a 1-channel count map");
     if (count.type() == PixelType::kF32 && count.channels() == 1) {
       // 32-bit integer files come back as float (image_io.h); counts are exact below 2^24.
       Image converted(count.width(), count.height(), 1, PixelType::kU32);
@@ -410,16 +449,20 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
         for (int x = 0; x < count.width(); ++x) {
           const float value = count.At<float>(x, y)[0];
           if (!(value >= 0.0f && value < 16777216.0f) || value != std::floor(value)) {
-            ThrowInvalid(Where(file, where + ".count: pixel (" + std::to_string(x) + ", " +
-                                         std::to_string(y) + ") is not a count"));
+            ThrowInvalid(Where(file, where + ".count") + ": " + path + ": pixel (" +
+                         std::to_string(x) + ", " + std::to_string(y) + ") is not a count");
           }
           converted.At<uint32_t>(x, y)[0] = static_cast<uint32_t>(value);
         }
       }
       count = std::move(converted);
     }
+    if (count.type() != PixelType::kU32) {
+      ThrowInvalid(Where(file, where + ".count") + ": " + path + ": holds " +
+                   PixelTypeName(count.type()) + " samples, expected 32-bit counts");
+    }
     stack.counts.push_back(std::move(count));
-    if (has_variance) stack.variances.push_back(read("variance"));
+    if (has_variance) stack.variances.push_back(read("variance", 1, "a 1-channel variance map"));
   }
   stack.Check(file);
   return stack;

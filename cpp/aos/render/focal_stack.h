@@ -20,6 +20,7 @@
 //
 // Throws std::invalid_argument naming the option, file or field; aos::Cancelled on request.
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -66,9 +67,20 @@ struct FocalStack {
   std::vector<Image> variances;  // float32, empty unless rendered with variance
 
   int size() const { return static_cast<int>(planes.size()); }
-  // Throws std::invalid_argument if the parts disagree in count or size.
+  // Throws std::invalid_argument if the parts disagree in count or size, or if an image or a
+  // variance holds a non-finite value or one beyond kMaxStackMagnitude.
   void Check(const std::string& where) const;
 };
+
+// The largest magnitude a stack's image and variance samples may have: the merge's focus
+// measures square differences of samples in float32, which overflows to infinity (and NaN
+// depths and confidences) for magnitudes near 1e19. Real data (8/16-bit units, radiometric
+// temperatures) stays far below.
+inline constexpr double kMaxStackMagnitude = 1e15;
+
+// "pixel (x, y) channel c is <value>, beyond +-1e15 ..." for the first sample of `image` whose
+// magnitude exceeds kMaxStackMagnitude, or nullopt.
+std::optional<std::string> DescribeOutOfStackRange(const Image& image);
 
 // Renders every slice and keeps them all (memory grows with N; see RenderFocalStackSlices).
 FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptions& options,

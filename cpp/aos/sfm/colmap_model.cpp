@@ -862,7 +862,8 @@ ColmapImport ImportColmapModel(const ColmapModel& model, const std::string& imag
     }
     if (info.width != view.camera.width || info.height != view.camera.height) {
       ThrowInvalid(labels[i] + ": frame " + view.image_path + " is " +
-                   SizeText(info.width, info.height) + " but its COLMAP camera says " +
+                   SizeText(info.width, info.height) + " but its COLMAP camera in " +
+                   cameras_source + " says " +
                    SizeText(view.camera.width, view.camera.height));
     }
   });

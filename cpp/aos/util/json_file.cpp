@@ -76,7 +76,18 @@ nlohmann::json ParseJsonText(const std::string& text, const std::string& path) {
   KeyPathTracker tracker;
   try {
     return nlohmann::json::parse(
-        text, [&tracker](int depth, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+        text,
+        [&tracker, &path](int depth, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+          // Deeper documents are refused: every later walk of the value (type errors that print
+          // it, the destructor) recurses, and 100000 levels overflowed the stack.
+          if (depth >= kMaxJsonDepth && (event == nlohmann::json::parse_event_t::object_start ||
+                                         event == nlohmann::json::parse_event_t::array_start)) {
+            std::string where = tracker.Path();
+            if (where.size() > 80) where = where.substr(0, where.find('/', 60)) + "/...";
+            ThrowInvalid(path + ": " + (where.empty() ? std::string() : where + ": ") +
+                         "nested deeper than " + std::to_string(kMaxJsonDepth) +
+                         " levels (arrays and objects)");
+          }
           return tracker(depth, event, parsed);
         });
   } catch (const nlohmann::json::exception& error) {

@@ -14,7 +14,11 @@
 
 namespace aos {
 
-// Parses `text` (the contents of `path`, which is only named in errors).
+// Arrays and objects nest at most this deep in any aos file (far more than any format needs).
+inline constexpr int kMaxJsonDepth = 256;
+
+// Parses `text` (the contents of `path`, which is only named in errors). Refuses documents
+// nested deeper than kMaxJsonDepth.
 nlohmann::json ParseJsonText(const std::string& text, const std::string& path);
 
 // Reads (regular files only, size-bounded; see ReadTextFile) and parses `path`.
