@@ -600,7 +600,7 @@ def json_dump(doc) -> bytes:
 def mutate_json(rng, data, ctx):
     try:
         doc = json.loads(data)
-    except (ValueError, UnicodeDecodeError):
+    except (ValueError, UnicodeDecodeError, RecursionError):  # deep nesting from a mutation
         return rng.choice(BYTE_MUTATIONS)(rng, data, ctx)
     paths = list(json_paths(doc))
     # A third of the time a top-level field ("format", "version", "views", ...): few, and each
@@ -940,15 +940,15 @@ TARGETS = (
            argv=("{aos_render}", "merge", "in/stack", "-o", "out/merge", QUIET),
            outputs=("out/merge/all_in_focus.tif",)),
     Target("import-colmap-txt", ("colmap_txt/*.txt",),
-           argv=("{aos_render}", "import-colmap", "in/colmap_txt", "--images", "in/sim/views",
+           argv=("{aos_render}", "import-colmap", "in/colmap_txt", "--images-dir", "in/sim/views",
                  "-o", "out/lf.json"),
            outputs=("out/lf.json",), output_file="out/lf.json"),
     Target("import-colmap-bin", ("colmap_bin/*.bin",),
-           argv=("{aos_render}", "import-colmap", "in/colmap_bin", "--images", "in/sim/views",
+           argv=("{aos_render}", "import-colmap", "in/colmap_bin", "--images-dir", "in/sim/views",
                  "-o", "out/lf.json"),
            outputs=("out/lf.json",), output_file="out/lf.json"),
     Target("import-colmap-positions", ("positions.csv",),
-           argv=("{aos_render}", "import-colmap", "in/colmap_txt", "--images", "in/sim/views",
+           argv=("{aos_render}", "import-colmap", "in/colmap_txt", "--images-dir", "in/sim/views",
                  "--positions", "in/positions.csv", "-o", "out/lf.json"),
            outputs=("out/lf.json",), output_file="out/lf.json"),
     Target("rectify-camera", ("camera.json",),

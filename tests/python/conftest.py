@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -43,3 +45,20 @@ def build_lightfield(
 def make_lightfield() -> Callable[..., aos.LightField]:
     """Builder of tiny constant-valued light fields (see build_lightfield)."""
     return build_lightfield
+
+
+def write_colmap_text_model(light_field: Path, model: Path) -> None:
+    """A COLMAP text model of the light field's views (poses are not checked by the import)."""
+    lf = json.loads(light_field.read_text())
+    camera = next(iter(lf["cameras"].values()))
+    model.mkdir()
+    (model / "cameras.txt").write_text(
+        f"1 PINHOLE {camera['width']} {camera['height']} {camera['fx']} {camera['fy']} "
+        f"{camera['cx']} {camera['cy']}\n")
+    lines = []
+    for i, view in enumerate(lf["views"], start=1):
+        t = view["cam_from_world"]["translation"]
+        # cam_from_world = diag(1, -1, -1): the quaternion (w, x, y, z) = (0, 1, 0, 0).
+        lines += [f"{i} 0 1 0 0 {t[0]} {t[1]} {t[2]} 1 {Path(view['image']).name}", ""]
+    (model / "images.txt").write_text("\n".join(lines) + "\n")
+    (model / "points3D.txt").write_text("")

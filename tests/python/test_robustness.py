@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 import aos
+from conftest import write_colmap_text_model
 
 EXE = shutil.which("aos-render")
 pytestmark = pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
@@ -77,23 +78,6 @@ def light_field(tmp_path_factory) -> Path:
 # ---------------------------------------------------------------------------------------------
 # Data loss: an output that is one of the inputs, for every command.
 
-def write_colmap_text_model(light_field: Path, model: Path) -> None:
-    """A COLMAP text model of the light field's views (poses are not checked by the import)."""
-    lf = json.loads(light_field.read_text())
-    camera = next(iter(lf["cameras"].values()))
-    model.mkdir()
-    (model / "cameras.txt").write_text(
-        f"1 PINHOLE {camera['width']} {camera['height']} {camera['fx']} {camera['fy']} "
-        f"{camera['cx']} {camera['cy']}\n")
-    lines = []
-    for i, view in enumerate(lf["views"], start=1):
-        t = view["cam_from_world"]["translation"]
-        # cam_from_world = diag(1, -1, -1): the quaternion (w, x, y, z) = (0, 1, 0, 0).
-        lines += [f"{i} 0 1 0 0 {t[0]} {t[1]} {t[2]} 1 {Path(view['image']).name}", ""]
-    (model / "images.txt").write_text("\n".join(lines) + "\n")
-    (model / "points3D.txt").write_text("")
-
-
 def write_colmap_binary_model(light_field: Path, model: Path) -> None:
     lf = json.loads(light_field.read_text())
     camera = next(iter(lf["cameras"].values()))
@@ -116,7 +100,7 @@ def test_import_colmap_never_writes_over_its_model(light_field: Path, tmp_path: 
     model = tmp_path / "model"
     (write_colmap_text_model if kind == "txt" else write_colmap_binary_model)(light_field, model)
     images = light_field.parent / "views"
-    ok = run("import-colmap", model, "--images", images, "-o", tmp_path / "lf.json")
+    ok = run("import-colmap", model, "--images-dir", images, "-o", tmp_path / "lf.json")
     assert ok.returncode == 0, ok.stderr
     before = snapshot(model)
     frames_before = snapshot(images)
@@ -126,7 +110,7 @@ def test_import_colmap_never_writes_over_its_model(light_field: Path, tmp_path: 
     targets = [model / f"{name}.{kind}" for name in ("cameras", "images", "points3D")]
     targets += [tmp_path / "link.json", tmp_path / "hard.json", images / "0000.png"]
     for target in targets:
-        result = run("import-colmap", model, "--images", images, "-o", target)
+        result = run("import-colmap", model, "--images-dir", images, "-o", target)
         assert_refused(result, str(target), "input")
     assert snapshot(model) == before and snapshot(images) == frames_before
 
@@ -481,21 +465,21 @@ def test_positions_in_degrees_are_projected_not_read_as_metres(light_field: Path
     positions.write_text("\n".join(lines) + "\n")
     images = light_field.parent / "views"
     out = tmp_path / "lf.json"
-    result = run("import-colmap", model, "--images", images, "--positions", positions, "-o", out)
+    result = run("import-colmap", model, "--images-dir", images, "--positions", positions, "-o", out)
     assert result.returncode == 0, result.stderr
     assert "UTM 33N" in result.stdout, result.stdout
     origin = json.loads(out.read_text())["origin"]
     assert 400_000 < origin[0] < 600_000 and 5_300_000 < origin[1] < 5_400_000, origin
     # The same numbers without a header are evidently degrees: refused, not read as metres.
     positions.write_text("\n".join(lines[1:]) + "\n")
-    message = assert_refused(run("import-colmap", model, "--images", images, "--positions",
+    message = assert_refused(run("import-colmap", model, "--images-dir", images, "--positions",
                                  positions, "-o", tmp_path / "lf2.json"), "gps.csv")
     assert "look like degrees" in message
     # ... unless the CRS is stated (x = longitude, y = latitude in EPSG:4326's GIS order).
     swapped = ["name,x,y,z"] + [
         ",".join([f[0], f[2], f[1], f[3]]) for f in (line.split(",") for line in lines[1:])]
     positions.write_text("\n".join(swapped) + "\n")
-    result = run("import-colmap", model, "--images", images, "--positions", positions,
+    result = run("import-colmap", model, "--images-dir", images, "--positions", positions,
                  "--positions-crs", "EPSG:4326", "-o", tmp_path / "lf3.json")
     assert result.returncode == 0, result.stderr
     origin3 = json.loads((tmp_path / "lf3.json").read_text())["origin"]
@@ -669,7 +653,7 @@ def test_a_special_file_in_a_colmap_model_is_named(light_field: Path, tmp_path: 
     os.mkfifo(model / f"images.{kind}")
     (model / f"points3D.{kind}").unlink()
     (model / f"points3D.{kind}").symlink_to("/dev/zero")
-    result = run("import-colmap", model, "--images", light_field.parent / "views", "-o",
+    result = run("import-colmap", model, "--images-dir", light_field.parent / "views", "-o",
                  tmp_path / "lf.json", timeout=30)
     message = assert_refused(result, f"images.{kind}")
     assert "FIFO" in message, message
@@ -726,7 +710,7 @@ def test_stack_and_model_errors_name_the_file_at_fault(light_field: Path, tmp_pa
     cameras = (model / "cameras.txt").read_text()
     (model / "cameras.txt").write_text(cameras.replace(" 32 24 ", " 64 24 "))
     assert (model / "cameras.txt").read_text() != cameras
-    assert_refused(run("import-colmap", model, "--images", light_field.parent / "views", "-o",
+    assert_refused(run("import-colmap", model, "--images-dir", light_field.parent / "views", "-o",
                        tmp_path / "lf.json"), "cameras.txt", "64x24")
 
     camera = tmp_path / "camera.json"
@@ -737,3 +721,17 @@ def test_stack_and_model_errors_name_the_file_at_fault(light_field: Path, tmp_pa
                  "--fov-deg", "40", "-o", tmp_path / "r")
     assert_refused(result, "camera.json", "does not cover", code=2)
     no_leftovers(tmp_path, {"stack", "model", "camera.json"})
+
+
+def test_positions_with_invalid_utf8_and_mismatched_metrics_are_named(tmp_path: Path) -> None:
+    # Found by a 3000-case run of tools/fuzz.py: a positions CSV with a byte 0xff in a name raised
+    # UnicodeDecodeError in Python; metrics of two images of different sizes named neither file.
+    positions = tmp_path / "positions.csv"
+    positions.write_bytes(b"name,x,y,z\n\xffa.png,1,2,3\n")
+    with pytest.raises(ValueError, match=r"positions.csv: line 2: not valid UTF-8"):
+        aos.read_positions(str(positions))
+    small, tall = tmp_path / "small.png", tmp_path / "tall.png"
+    aos.write_image(str(small), np.zeros((8, 8), np.uint8))
+    aos.write_image(str(tall), np.zeros((16, 8), np.uint8))
+    message = assert_refused(run("metrics", tall, small), str(tall), str(small))
+    assert "8x16x1" in message, message

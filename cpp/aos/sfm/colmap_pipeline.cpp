@@ -436,6 +436,7 @@ PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs)
     ++number;
     const std::string where = path + ": line " + std::to_string(number);
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (!IsValidUtf8(line)) ThrowInvalid(where + ": not valid UTF-8 text");
     const size_t first = line.find_first_not_of(" \t");
     if (first == std::string::npos || line[first] == '#') continue;
     std::vector<std::string> fields;
