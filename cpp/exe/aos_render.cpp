@@ -70,6 +70,28 @@ void AddQuiet(CLI::App* command) {
                                            "still print)");
 }
 
+// --force, on every command that writes files: an output file that exists is refused unless
+// given (it is then replaced atomically, when the new one is complete). Output folders are never
+// replaced, --force or not: removing a tree is left to the user.
+bool g_force = false;
+
+void AddForce(CLI::App* command) {
+  command->add_flag("--force", g_force, "Replace output files that exist (refused otherwise)");
+}
+
+// Refuses an existing `path` (a file, a folder or a link, dangling or not) unless --force.
+void RefuseExisting(const std::string& path, const std::string& what) {
+  std::error_code error;
+  const fs::file_status status = fs::symlink_status(path, error);
+  if (error || !fs::exists(status)) return;
+  if (fs::is_directory(fs::status(path, error))) {
+    ThrowInvalid(path + ": " + what + " is a folder; give a file name");
+  }
+  if (!g_force) {
+    ThrowInvalid(path + ": " + what + " exists; give --force to replace it (nothing was written)");
+  }
+}
+
 // Runs `interpret` (which reads a flag's value) and turns its std::invalid_argument into a
 // UsageError.
 template <class Interpret>
@@ -242,6 +264,7 @@ void AddOutputOptions(CLI::App* command, OutputOptions& out, bool with_output) {
 void CheckOutputs(const OutputOptions& out, const std::string& image_path,
                   const std::string& count_path, const std::vector<std::string>& inputs) {
   CheckOutputPath(image_path, inputs, "output");
+  RefuseExisting(image_path, "output");
   if (out.range != "views" && out.range != "minmax") {
     const std::vector<double> range = ParseNumbers(out.range, "--range", 2);
     if (!(range[1] > range[0])) {
@@ -257,6 +280,7 @@ void CheckOutputs(const OutputOptions& out, const std::string& image_path,
       fs::weakly_canonical(fs::absolute(image_path))) {
     ThrowInvalid(count_path + ": --count and --output name the same file");
   }
+  RefuseExisting(count_path, "count");
   ResolveSampleType(count_path, Image(1, 1, 1, PixelType::kU32), WriteImageOptions{});
 }
 
@@ -384,6 +408,7 @@ void AddIntegral(CLI::App& app, IntegralCommand& c) {
       "integral", "Render an integral image (Eq. 1) of a light field onto a focal plane");
   AddRenderArgs(command, c, true);
   AddOutputOptions(command, c.out, true);
+  AddForce(command);
 }
 
 // Loads the light field and fills c.options' virtual camera (pose, aperture, views) from the
@@ -1191,11 +1216,13 @@ void AddCalibrate(CLI::App& app, CalibrateCommand& c) {
       ->capture_default_str();
   command->add_option("-o,--output", c.output, "Camera file to write (JSON)")->required();
   AddQuiet(command);
+  AddForce(command);
 }
 
 int RunCalibrate(CalibrateCommand& c) {
   ProgressBar progress(g_quiet);
   CheckOutputPath(c.output, c.frames, "output");
+  RefuseExisting(c.output, "output");
   c.options.model = AsUsage([&] { return ParseLensModel(c.model, "--model"); });
   const size_t x = c.pattern.find('x');
   if (x == std::string::npos) ThrowUsage("--pattern: expected COLUMNSxROWS, e.g. 9x6");
@@ -1284,6 +1311,7 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
   command->add_option("--threads", c.options.num_threads, "COLMAP's threads; -1 = all cores")
       ->capture_default_str();
   AddQuiet(command);
+  AddForce(command);
 }
 
 // Warnings, then the light field and what the user needs to judge the poses.
@@ -1338,6 +1366,7 @@ int RunPoses(PosesCommand& c) {
   // The frames folder (every file in it), the camera and the positions are inputs.
   CheckOutputPath(c.output, {c.frames_dir, c.options.camera_file, c.options.positions_file},
                   "output");
+  RefuseExisting(c.output, "output");
   PosesResult result;
   try {
     result = EstimatePoses(c.frames_dir, c.options, &progress);
@@ -1353,6 +1382,7 @@ int RunPoses(PosesCommand& c) {
 struct ImportColmapCommand {
   std::string model_dir;
   std::string frames_dir;
+  std::string frames_dir_deprecated;  // --images, the name before --images-dir (CHANGELOG.md)
   std::string output;
   PosesOptions options;
 };
@@ -1363,7 +1393,9 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
       "Import a COLMAP sparse model (text or binary) as a light field; optionally "
       "geo-referenced by known positions");
   command->add_option("model", c.model_dir, "COLMAP model folder (e.g. sparse/0)")->required();
-  command->add_option("--images", c.frames_dir, "The frames folder COLMAP was given")->required();
+  command->add_option("--images-dir", c.frames_dir, "The frames folder COLMAP was given");
+  command->add_option("--images", c.frames_dir_deprecated,
+                      "Deprecated spelling of --images-dir (kept for one release)");
   command->add_option("-o,--output", c.output, "Light-field file to write (JSON)")->required();
   command->add_option("--positions", c.options.positions_file,
                       "CSV of camera positions, columns by header name: name,x,y,z (metres) or "
@@ -1376,12 +1408,20 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
                       "Fail below this fraction of frames registered")
       ->capture_default_str();
   AddQuiet(command);
+  AddForce(command);
 }
 
 int RunImportColmap(ImportColmapCommand& c) {
+  if (!c.frames_dir_deprecated.empty()) {
+    if (!c.frames_dir.empty()) ThrowUsage("give --images-dir only (--images is its old name)");
+    std::fprintf(stderr, "warning: --images is deprecated; use --images-dir\n");
+    c.frames_dir = c.frames_dir_deprecated;
+  }
+  if (c.frames_dir.empty()) ThrowUsage("--images-dir is required (the frames folder)");
   // The model folder (cameras, images, points3D), the frames folder and the positions are inputs.
   const std::vector<std::string> inputs{c.model_dir, c.frames_dir, c.options.positions_file};
   CheckOutputPath(c.output, inputs, "output");
+  RefuseExisting(c.output, "output");
   PosesResult result;
   try {
     result = ImportColmapPoses(c.model_dir, c.frames_dir, c.options);
@@ -1433,6 +1473,13 @@ int RunMetrics(const MetricsCommand& c) {
   try {
     r = CompareImages(test, reference, mask ? &*mask : nullptr, c.options);
   } catch (const std::invalid_argument& error) {
+    // Name the files: "compare: the test image is ..." does not say which ones.
+    const std::string message = error.what();
+    if (message.rfind("compare: ", 0) == 0) {
+      ThrowInvalid(c.test_path + " against " + c.reference_path +
+                   (c.mask_path.empty() ? std::string() : " (mask " + c.mask_path + ")") + ": " +
+                   message.substr(9));
+    }
     RethrowNamingFlags(error, {{"data_range", "--data-range"},
                                {"gaussian_sigma", "--gaussian-sigma"},
                                {"window_radius", "--window-radius"},

@@ -21,7 +21,7 @@ std::string ImageSummary(const Image& image) {
 
 bool ViewsEqual(const View& a, const View& b) {
   return a.name == b.name && a.image_path == b.image_path &&
-         PinholeEqual(a.camera, b.camera) && LensEqual(a.lens, b.lens) &&
+         PinholeEqual(a.camera, b.camera) && LensEqual(a.Lens(), b.Lens()) &&
          RigidEqual(a.cam_from_world, b.cam_from_world) &&
          ImagesEqual(a.image, b.image);
 }
@@ -64,9 +64,11 @@ void BindLightField(py::module_& m) {
       .def_readonly("camera", &View::camera, "The view's pinhole camera (matches the image size).")
       .def_readonly("cam_from_world", &View::cam_from_world,
                     "Pose: local frame -> camera (OpenCV axes).")
-      .def_readonly("lens", &View::lens,
-                    "The lens model (model pinhole: `camera` alone describes the view; other "
-                    "models are sampled through directly when rendering).")
+      .def_property_readonly("lens", &View::Lens,
+                    "The view's complete lens model (a copy): for pinhole views the pinhole "
+                    "`camera` as a LensCamera, for raw lens frames their model, which the "
+                    "renderer samples through directly. The same whether the view was added "
+                    "with add_view or loaded from a file.")
       .def_property_readonly(
           "image", [](const View& view) { return ArrayFromImage(view.image); },
           "The pixels as a new numpy array (a COPY: (H, W) or (H, W, C), native dtype), or None "

@@ -214,7 +214,8 @@ class View:
     def cam_from_world(self) -> Rigid3d: ...
     @property
     def lens(self) -> LensCamera:
-        """The lens model (pinhole: `camera` alone describes the view)."""
+        """The view's complete lens model (a copy; pinhole views: `camera` as a LensCamera), the
+        same for views added with add_view and views loaded from a file."""
     @property
     def image(self) -> Optional[_ImageArray]:
         """A COPY of the pixels, native dtype; None if loaded without images."""

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import aos
+from conftest import write_colmap_text_model
 
 EXE = shutil.which("aos-render")
 pytestmark = pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
@@ -255,3 +256,45 @@ def test_defaults_from_the_data_and_focus_by_distance(scene: Path, tmp_path: Pat
     pose = aos.look_at((0.0, 0.0, 35.0), (0.0, 0.0, 0.0))
     plane = aos.Plane.in_front_of(pose, 35.0)
     np.testing.assert_allclose(plane.point, (0.0, 0.0, 0.0), atol=1e-12)
+
+
+def test_existing_output_files_need_force(scene: Path, tmp_path: Path) -> None:
+    out_dir = tmp_path / "out"
+    out_dir.mkdir()
+    image, count = out_dir / "a.png", out_dir / "a_count.png"
+    first = run("integral", str(scene), *BASE, "-o", str(image), "--count", str(count), "-q")
+    assert first.returncode == 0, first.stderr
+    written = image.read_bytes(), count.read_bytes()
+    # Without --force an existing output (image or count) is refused before any work, untouched.
+    for args in (["-o", str(image)], ["-o", str(out_dir / "b.png"), "--count", str(count)]):
+        again = run("integral", str(scene), *BASE, *args, "--focal-height", "3")
+        assert again.returncode == 1, again.stderr
+        assert "exists; give --force to replace it" in again.stderr
+    assert (image.read_bytes(), count.read_bytes()) == written
+    assert sorted(p.name for p in out_dir.iterdir()) == ["a.png", "a_count.png"]
+    # With --force both are replaced by the new render.
+    forced = run("integral", str(scene), *BASE, "-o", str(image), "--count", str(count),
+                 "--focal-height", "3", "--force", "-q")
+    assert forced.returncode == 0, forced.stderr
+    assert image.read_bytes() != written[0]
+    # --force never lets an output replace an input, and a folder is not a file.
+    refused = run("integral", str(scene), *BASE, "-o", str(scene), "--force")
+    assert refused.returncode == 1 and "input" in refused.stderr
+    refused = run("integral", str(scene), *BASE, "-o", str(out_dir), "--force")
+    assert refused.returncode != 0 and str(out_dir) in refused.stderr
+
+
+def test_import_colmap_images_dir_and_its_deprecated_alias(scene: Path, tmp_path: Path) -> None:
+    model = tmp_path / "model"
+    write_colmap_text_model(scene, model)
+    views = str(scene.parent / "views")
+    done = run("import-colmap", str(model), "--images-dir", views, "-o", str(tmp_path / "a.json"))
+    assert done.returncode == 0 and "deprecated" not in done.stderr, done.stderr
+    old = run("import-colmap", str(model), "--images", views, "-o", str(tmp_path / "b.json"))
+    assert old.returncode == 0 and "warning: --images is deprecated; use --images-dir" in old.stderr
+    assert (tmp_path / "a.json").read_text() == (tmp_path / "b.json").read_text()
+    both = run("import-colmap", str(model), "--images", views, "--images-dir", views, "-o",
+               str(tmp_path / "c.json"))
+    assert both.returncode == 2 and "--images-dir" in both.stderr
+    missing = run("import-colmap", str(model), "-o", str(tmp_path / "c.json"))
+    assert missing.returncode == 2 and "--images-dir is required" in missing.stderr

@@ -182,3 +182,20 @@ def test_add_view_refuses_non_finite_pixels() -> None:
     with pytest.raises(ValueError, match=r"pixel \(5, 2\) channel 0 is infinite"):
         light_field.add_view(image, camera, aos.Rigid3d(), name="hot.exr")
     assert len(light_field) == 0
+
+
+def test_view_lens_is_complete_however_the_view_was_made(tmp_path) -> None:
+    # A pinhole view added in memory had an empty lens (width 0), so
+    # aos.sampling_resolution(view.lens) failed until the light field was written and read back.
+    light_field = aos.LightField()
+    camera = aos.PinholeCamera.from_fov(64, 48, 60.0)
+    light_field.add_view(np.zeros((48, 64), np.uint8), camera, nadir_pose(0, 0, 10), name="a.png")
+    lens = light_field.views[0].lens
+    assert (lens.model, lens.width, lens.height, lens.fx, lens.cx) == (
+        aos.LensModel.pinhole, 64, 48, camera.fx, camera.cx)
+    in_memory = aos.sampling_resolution(lens, distance_m=10.0).sample_size_m
+    path = tmp_path / "lf.json"
+    aos.write_lightfield(str(path), light_field)
+    loaded = aos.load_lightfield(str(path)).light_field
+    assert loaded.views[0].lens == lens
+    assert aos.sampling_resolution(loaded.views[0].lens, distance_m=10.0).sample_size_m == in_memory

@@ -168,6 +168,14 @@ def test_cli_stack_merge_and_allinfocus(tmp_path: Path) -> None:
     assert done.returncode == 0, done.stderr
     meta = json.loads((tmp_path / "stack" / "stack.json").read_text())
     assert len(meta["slices"]) == 8 and "variance" in meta["slices"][0]
+    # Contact sheets that open in any viewer: 8 tiles of 48 x 48 in one row, 2-pixel gaps; the
+    # slices share one stretch (so they compare), the counts run from black to white.
+    sheet = aos.read_image(str(tmp_path / "stack" / "stack_preview.png"))
+    counts = aos.read_image(str(tmp_path / "stack" / "count_preview.png"))
+    assert sheet.dtype == np.uint8 and sheet.shape[:2] == (48, 8 * 48 + 7 * 2)
+    assert counts.dtype == np.uint8 and counts.shape == (48, 8 * 48 + 7 * 2)
+    assert sheet.max() - sheet.min() > 128 and counts.max() == 255
+    assert (sheet[:, 48:50] == 0).all() and (counts[:, 48:50] == 0).all()   # the gaps
     for method in ("sobel", "improved"):
         done = aos_render("merge", str(tmp_path / "stack"), "--method", method, "-q",
                           "-o", str(tmp_path / method))

@@ -161,7 +161,7 @@ def test_python_api_and_bad_input(flight, tmp_path) -> None:
     assert len(imported.registered) == 16
     assert imported.unregistered == ["9998.png", "9999.png"]
     assert imported.georeferenced and imported.light_field.pose_source.pose_error > 0
-    done = subprocess.run(["aos-render", "import-colmap", str(model), "--images", str(frames),
+    done = subprocess.run(["aos-render", "import-colmap", str(model), "--images-dir", str(frames),
                            "--positions", str(flight["root"] / "gps.csv"), "-o",
                            str(tmp_path / "imported.json")], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr

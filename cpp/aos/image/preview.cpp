@@ -58,10 +58,46 @@ PreviewRange PercentileRange(const Image& image, const Image* valid, double low_
   return RangeOf(std::move(samples), low_percentile, high_percentile);
 }
 
+PreviewRange PercentileRange(const std::vector<const Image*>& images,
+                             const std::vector<const Image*>& valid, double low_percentile,
+                             double high_percentile) {
+  if (images.empty() || valid.size() != images.size()) {
+    ThrowInvalid("preview: give one mask (or null) per image, and at least one image");
+  }
+  // At most about 4 M samples in all: every k-th pixel of each image.
+  size_t pixels = 0;
+  for (size_t i = 0; i < images.size(); ++i) {
+    CheckInputs(*images[i], valid[i], low_percentile, high_percentile);
+    pixels += static_cast<size_t>(images[i]->width()) * images[i]->height();
+  }
+  const size_t step = std::max<size_t>(1, pixels / (size_t{4} << 20));
+  std::vector<double> samples;
+  for (size_t i = 0; i < images.size(); ++i) {
+    const Image& image = *images[i];
+    size_t k = 0;
+    for (int y = 0; y < image.height(); ++y) {
+      for (int x = 0; x < image.width(); ++x, ++k) {
+        if (k % step != 0 || !IsValid(valid[i], x, y)) continue;
+        for (int c = 0; c < image.channels(); ++c) {
+          const double value = image.Value(x, y, c);
+          if (std::isfinite(value)) samples.push_back(value);
+        }
+      }
+    }
+  }
+  return RangeOf(std::move(samples), low_percentile, high_percentile);
+}
+
 Image StretchedPreview(const Image& image, const Image* valid, double low_percentile,
                        double high_percentile, PreviewRange* range) {
   const PreviewRange r = PercentileRange(image, valid, low_percentile, high_percentile);
   if (range != nullptr) *range = r;
+  return MappedPreview(image, valid, r);
+}
+
+Image MappedPreview(const Image& image, const Image* valid, const PreviewRange& r) {
+  CheckInputs(image, valid, 0.0, 100.0);
+  if (!(r.hi > r.lo)) ThrowInvalid("preview: the range must have hi > lo");
   const int channels = std::min(image.channels(), 3);
   Image preview(image.width(), image.height(), channels, PixelType::kU8);
   const double scale = 255.0 / (r.hi - r.lo);
@@ -108,6 +144,48 @@ Image ColourMappedPreview(const Image& image, const Image* valid, const PreviewR
     }
   }
   return preview;
+}
+
+Image ContactSheet(const std::vector<Image>& previews, int columns, int max_tile_width) {
+  if (previews.empty() || columns < 1 || max_tile_width < 1) {
+    ThrowInvalid("preview: a contact sheet needs images, columns >= 1 and a tile width >= 1");
+  }
+  const Image& first = previews.front();
+  for (const Image& preview : previews) {
+    if (preview.type() != PixelType::kU8 || preview.width() != first.width() ||
+        preview.height() != first.height() || preview.channels() != first.channels()) {
+      ThrowInvalid("preview: contact-sheet tiles must be 8-bit images of one size and layout");
+    }
+  }
+  const double scale = std::min(1.0, static_cast<double>(max_tile_width) / first.width());
+  const int tile_w = std::max(1, static_cast<int>(std::lround(first.width() * scale)));
+  const int tile_h = std::max(1, static_cast<int>(std::lround(first.height() * scale)));
+  constexpr int kGap = 2;
+  const int n = static_cast<int>(previews.size());
+  const int cols = std::min(columns, n);
+  const int rows = (n + cols - 1) / cols;
+  const int channels = first.channels();
+  const int cv_type = CV_8UC(channels);
+  cv::Mat sheet(rows * tile_h + (rows - 1) * kGap, cols * tile_w + (cols - 1) * kGap, cv_type,
+                cv::Scalar::all(0));
+  for (int i = 0; i < n; ++i) {
+    const Image& preview = previews[static_cast<size_t>(i)];
+    cv::Mat full(preview.height(), preview.width(), cv_type);
+    for (int y = 0; y < preview.height(); ++y) {
+      std::copy_n(preview.At<uint8_t>(0, y), static_cast<size_t>(preview.width()) * channels,
+                  full.ptr<uint8_t>(y));
+    }
+    cv::Mat tile;
+    cv::resize(full, tile, cv::Size(tile_w, tile_h), 0, 0, cv::INTER_AREA);
+    tile.copyTo(sheet(cv::Rect((i % cols) * (tile_w + kGap), (i / cols) * (tile_h + kGap),
+                               tile_w, tile_h)));
+  }
+  Image result(sheet.cols, sheet.rows, channels, PixelType::kU8);
+  for (int y = 0; y < sheet.rows; ++y) {
+    std::copy_n(sheet.ptr<uint8_t>(y), static_cast<size_t>(sheet.cols) * channels,
+                result.At<uint8_t>(0, y));
+  }
+  return result;
 }
 
 }  // namespace aos

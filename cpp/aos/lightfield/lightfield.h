@@ -28,6 +28,12 @@ struct View {
   LensCamera lens;
   Rigid3d cam_from_world;  // local frame -> camera (OpenCV axes)
   Image image;             // native pixel type, border 1 (see Image)
+
+  // The view's complete camera model whatever way the view was made: `lens` for lens models,
+  // LensCamera::FromPinhole(camera) for pinhole views (whose `lens` may be left default).
+  LensCamera Lens() const {
+    return lens.model == LensModel::kPinhole ? LensCamera::FromPinhole(camera) : lens;
+  }
 };
 
 // Where estimated poses came from and how good they are (aos-render poses, sfm/); stored in

@@ -1,14 +1,17 @@
 #include "aos/render/focal_stack.h"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
 #include <limits>
 #include <utility>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
 #include "aos/image/image_io.h"
+#include "aos/image/preview.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/json_file.h"
@@ -253,6 +256,50 @@ FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptio
   return stack;
 }
 
+namespace {
+
+// stack_preview.png: every slice stretched with one range (the 1st..99th percentile of all
+// slices' covered samples, so slices compare), and count_preview.png: the count maps with 0 ->
+// black and the largest count -> white; contact sheets of up to 10 tiles per row, each at most
+// 256 pixels wide. The ranges are in the PNGs' descriptions.
+void WriteStackPreviews(const fs::path& folder, const FocalStack& stack) {
+  std::vector<const Image*> images;
+  std::vector<const Image*> covered;
+  double max_count = 0.0;
+  for (int i = 0; i < stack.size(); ++i) {
+    images.push_back(&stack.images[static_cast<size_t>(i)]);
+    covered.push_back(&stack.counts[static_cast<size_t>(i)]);
+    const Image& count = stack.counts[static_cast<size_t>(i)];
+    for (int y = 0; y < count.height(); ++y) {
+      for (int x = 0; x < count.width(); ++x) max_count = std::max(max_count, count.Value(x, y));
+    }
+  }
+  const PreviewRange range = PercentileRange(images, covered, 1.0, 99.0);
+  const PreviewRange count_range{0.0, std::max(1.0, max_count)};
+  std::vector<Image> slice_tiles;
+  std::vector<Image> count_tiles;
+  for (int i = 0; i < stack.size(); ++i) {
+    slice_tiles.push_back(MappedPreview(*images[static_cast<size_t>(i)],
+                                        covered[static_cast<size_t>(i)], range));
+    count_tiles.push_back(MappedPreview(*covered[static_cast<size_t>(i)], nullptr, count_range));
+  }
+  constexpr int kColumns = 10;
+  constexpr int kTileWidth = 256;
+  WriteImageOptions write;
+  write.description = "aos focal-stack preview: slices 0.." + std::to_string(stack.size() - 1) +
+                      " left to right, top to bottom; values " + FormatNumber(range.lo) + ".." +
+                      FormatNumber(range.hi) + " (1st..99th percentile of all slices) mapped "
+                      "to 0..255; uncovered pixels black";
+  WriteImage((folder / "stack_preview.png").string(),
+             ContactSheet(slice_tiles, kColumns, kTileWidth), write);
+  write.description = "aos count preview: views per pixel, 0 (black) .. " +
+                      FormatNumber(count_range.hi) + " (white), slices as in stack_preview.png";
+  WriteImage((folder / "count_preview.png").string(),
+             ContactSheet(count_tiles, kColumns, kTileWidth), write);
+}
+
+}  // namespace
+
 void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
   stack.Check("focal stack");
   PendingFolder pending(folder);
@@ -295,6 +342,7 @@ void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
   }
   j["slices"] = slices;
   WriteTextFileAtomic((temp / "stack.json").string(), j.dump(2) + "\n");
+  WriteStackPreviews(temp, stack);
   pending.Commit();
 }
 
