@@ -1,0 +1,54 @@
+"""The vocabulary (issue 14): every field of every Options struct is on the CLI under its own name
+(or a listed spelling, or a stated reason) with the struct's default, and docs/vocabulary.md is
+what tools/vocabulary.py generates from the package and `aos-render --help`."""
+from __future__ import annotations
+
+import importlib.util
+import shutil
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+EXE = shutil.which("aos-render")
+pytestmark = pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
+
+
+def load_tool():
+    spec = importlib.util.spec_from_file_location("aos_vocabulary", ROOT / "tools" / "vocabulary.py")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules["aos_vocabulary"] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+vocabulary = load_tool()
+
+
+def test_every_option_is_on_the_cli_with_its_default_and_the_page_is_current() -> None:
+    table, problems = vocabulary.rows(EXE)
+    assert problems == []
+    # Every command's struct is walked, nested structs included.
+    assert {row["command"] for row in table} == {c for c, _ in vocabulary.COMMANDS}
+    assert any(row["python"] == "AllInFocusOptions.merge.robust.agreement" and
+               row["flag"] == "--agreement" for row in table)
+    assert vocabulary.PAGE.read_text() == vocabulary.page(table), \
+        "docs/vocabulary.md is stale: run python3 tools/vocabulary.py"
+
+
+def test_drift_is_reported(monkeypatch) -> None:
+    real = vocabulary.cli_flags
+
+    def drifted(aos_render: str, command: str):
+        flags = real(aos_render, command)
+        if command == "merge":
+            flags["--window-radius"] = "4"        # a default re-declared wrongly
+            del flags["--smoothing-sigma"]        # a field the CLI forgot
+        return flags
+
+    monkeypatch.setattr(vocabulary, "cli_flags", drifted)
+    _, problems = vocabulary.rows(EXE)
+    assert any("merge --window-radius: the CLI default '4' is not MergeOptions.window_radius's 3"
+               in p for p in problems), problems
+    assert any("merge: MergeOptions.smoothing_sigma has no flag" in p for p in problems), problems

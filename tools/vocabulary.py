@@ -1,0 +1,272 @@
+#!/usr/bin/env python3
+"""The vocabulary of aos: every field of every Options struct, its Python name, its CLI flag on
+each command, its default and its unit, generated from the package and `aos-render --help`.
+
+    python3 tools/vocabulary.py              # writes docs/vocabulary.md
+    python3 tools/vocabulary.py --check      # exit 1 if the page is stale or the surfaces drift
+
+The options are defined once, in the C++ Options structs; Python exposes their fields under the
+same names with the C++ defaults (aos.XxxOptions), and the CLI binds flags to them. This tool
+walks every field of the struct each command fills (nested structs included) and finds its flag:
+the field's name in kebab case (`min_view_angle_deg` -> `--min-view-angle-deg`), or a spelling
+listed in FLAGS below, or a reason in NOT_ON_THE_CLI. `problems()` lists every field with neither
+and every flag whose default differs from the struct's; tests/python/test_vocabulary.py asserts
+there are none and that docs/vocabulary.md is what this tool writes. Standard library only (and
+the aos under test).
+"""
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import re
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any, Optional
+
+ROOT = Path(__file__).resolve().parents[1]
+PAGE = ROOT / "docs" / "vocabulary.md"
+
+# Command -> the Options struct its flags fill (by Python class name).
+COMMANDS = [
+    ("integral", "IntegralOptions"),
+    ("stack", "FocalStackOptions"),
+    ("merge", "MergeOptions"),
+    ("allinfocus", "AllInFocusOptions"),
+    ("simulate", "SimulateOptions"),
+    ("rectify", "RectifyOptions"),
+    ("calibrate", "CalibrateOptions"),
+    ("poses", "PosesOptions"),
+    ("import-colmap", "PosesOptions"),
+    ("resolution", "ResolutionOptions"),
+    ("metrics", "QualityOptions"),
+]
+
+# Fields whose flag is not their kebab-case name: field -> flag (same on every command).
+FLAGS = {
+    "num_threads": "--threads",
+    "view_indices": "--views",
+    "pattern_columns": "--pattern",
+    "pattern_rows": "--pattern",
+    "square_size_m": "--square-size",
+    "camera_file": "--camera",
+    "positions_file": "--positions",
+    "exif_positions": "--positions-from-exif",
+    "sequential_overlap": "--overlap",
+    "max_num_features": "--max-features",
+    "min_registered_fraction": "--min-registered",
+    "distance_m": "--distance",
+}
+
+# Fields set on the command line in another way, or Python only: (command or "*", field) -> why.
+NOT_ON_THE_CLI = {
+    ("*", "cam_from_world"): "--pose-view, --look-at or --cam-from-world",
+    ("*", "focal_plane"): "--focal-height, --focal-plane or --focal-distance",
+    ("stack", "render.focal_plane"): "the slices' planes replace it",
+    ("allinfocus", "stack.render.focal_plane"): "the slices' planes replace it",
+    ("integral", "variance"): "Python only (render_integral(variance=True))",
+    ("allinfocus", "stack.render.variance"): "set by --method robust",
+    ("merge", "robust.robust"): "set by --method robust",
+    ("allinfocus", "merge.robust.robust"): "set by --method robust",
+    ("allinfocus", "merge.num_threads"): "--threads sets the rendering's and the merge's",
+    ("stack", "render.variance"): "--variance",
+    ("import-colmap", "colmap"): "import-colmap runs no COLMAP",
+    ("import-colmap", "workspace"): "import-colmap runs no COLMAP",
+    ("import-colmap", "matcher"): "import-colmap runs no COLMAP",
+    ("import-colmap", "sequential_overlap"): "import-colmap runs no COLMAP",
+    ("import-colmap", "camera_file"): "the model holds the cameras",
+    ("import-colmap", "camera_model"): "the model holds the cameras",
+    ("import-colmap", "fov_deg"): "the model holds the cameras",
+    ("import-colmap", "max_image_size"): "import-colmap runs no COLMAP",
+    ("import-colmap", "max_num_features"): "import-colmap runs no COLMAP",
+    ("import-colmap", "max_focal_deviation"): "the model's intrinsics are kept as they are",
+    ("import-colmap", "allow_implausible"): "the model's intrinsics are kept as they are",
+    ("import-colmap", "num_threads"): "import-colmap decodes frames on all cores",
+}
+
+# Flags on two commands with the same spelling and different meanings (listed on the page).
+UNITS = [("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
+         ("width", "pixels"), ("height", "pixels"), ("sigma", "pixels"), ("fraction", "0..1")]
+
+
+def unit_of(command: str, field: str) -> str:
+    name = field.rsplit(".", 1)[-1]
+    if name == "window_radius":
+        return "pixels"
+    if name == "edge_sigma":
+        return "fraction of the image's range"
+    if name == "agreement":
+        return "fraction of the image's range"
+    for suffix, unit in UNITS:
+        if name.endswith(suffix):
+            return unit
+    return ""
+
+
+def leaves(options: Any, prefix: str = "") -> list[tuple[str, Any]]:
+    """(dotted field path, default value) of every field, nested Options expanded."""
+    result = []
+    for name in type(options)._fields:
+        value = getattr(options, name)
+        path = prefix + name
+        if hasattr(type(value), "_fields"):
+            result += leaves(value, path + ".")
+        else:
+            result.append((path, value))
+    return result
+
+
+HELP_LINE = re.compile(r"^\s{2}(-\w,)?(--[\w-]+)(?:\s+([A-Z]+(?::[A-Z]+>=-?\d+)?)(?:=(\S+))?)?")
+
+
+def cli_flags(aos_render: str, command: str) -> dict[str, Optional[str]]:
+    """Flag -> its default as `--help` prints it (None when it prints none)."""
+    text = subprocess.run([aos_render, command, "--help"], capture_output=True, text=True,
+                          check=True, timeout=30).stdout
+    flags: dict[str, Optional[str]] = {}
+    for line in text.splitlines():
+        match = HELP_LINE.match(line)
+        if match:
+            flags[match.group(2)] = match.group(4)
+    return flags
+
+
+def python_default(value: Any) -> str:
+    if hasattr(value, "name") and hasattr(type(value), "__members__"):
+        return value.name
+    if isinstance(value, float):
+        return "inf" if math.isinf(value) else repr(value)
+    if isinstance(value, (list, tuple)):
+        return "[]" if not value else repr(list(value))
+    if isinstance(value, str):
+        return value if value else "''"
+    if type(value).__name__ == "Plane":
+        point = list(value.point)
+        if list(value.normal) == [0.0, 0.0, 1.0] and point[:2] == [0.0, 0.0]:
+            return f"z = {point[2]:g}"
+        return repr(value)
+    if type(value).__name__ == "Rigid3d":
+        return "identity" if value == type(value)() else repr(value)
+    return repr(value)
+
+
+def same_default(python_value: Any, cli: Optional[str], path: str = "") -> bool:
+    """Whether the CLI's printed default means the struct's default."""
+    if cli is None:
+        return True  # the flag prints none: the struct's applies
+    if path.endswith(("pattern_columns", "pattern_rows")):  # --pattern COLUMNSxROWS
+        parts = cli.split("x")
+        return len(parts) == 2 and parts[0 if path.endswith("columns") else 1] == str(python_value)
+    if hasattr(python_value, "name") and hasattr(type(python_value), "__members__"):
+        return cli == python_value.name
+    if type(python_value).__name__ == "Plane":
+        try:
+            return float(cli) == python_value.point[2] and list(python_value.normal) == [0, 0, 1]
+        except ValueError:
+            return False
+    if isinstance(python_value, bool):
+        return cli.lower() in (("true", "1") if python_value else ("false", "0"))
+    if isinstance(python_value, (int, float)):
+        try:
+            return float(cli) == float(python_value)
+        except ValueError:
+            return False
+    if isinstance(python_value, str):
+        return cli == python_value
+    return True
+
+
+def flag_for(command: str, path: str, flags: dict[str, Optional[str]]) -> Optional[str]:
+    name = path.rsplit(".", 1)[-1]
+    for candidate in (FLAGS.get(name), "--" + name.replace("_", "-")):
+        if candidate and candidate in flags:
+            return candidate
+    return None
+
+
+def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
+    """One row per (command, field), and the problems found."""
+    import aos
+
+    table: list[dict[str, str]] = []
+    problems: list[str] = []
+    for command, class_name in COMMANDS:
+        flags = cli_flags(aos_render, command)
+        for path, value in leaves(getattr(aos, class_name)()):
+            name = path.rsplit(".", 1)[-1]
+            flag = flag_for(command, path, flags)
+            why = (NOT_ON_THE_CLI.get((command, path)) or NOT_ON_THE_CLI.get(("*", name)))
+            row = {"command": command, "python": f"{class_name}.{path}", "flag": flag or "",
+                   "default": python_default(value), "unit": unit_of(command, path),
+                   "note": ""}
+            if flag is None:
+                if why is None:
+                    problems.append(f"{command}: {class_name}.{path} has no flag "
+                                    f"(--{name.replace('_', '-')}) and no reason in NOT_ON_THE_CLI")
+                row["note"] = why or "MISSING"
+            else:
+                if not same_default(value, flags[flag], path):
+                    problems.append(f"{command} {flag}: the CLI default {flags[flag]!r} is not "
+                                    f"{class_name}.{path}'s {python_default(value)}")
+                if flag != "--" + name.replace("_", "-"):
+                    row["note"] = "flag spelled differently from the field"
+            table.append(row)
+    return table, problems
+
+
+def page(table: list[dict[str, str]]) -> str:
+    lines = """\
+# Vocabulary: every option, its Python name, CLI flag, default and unit
+
+Generated by `python3 tools/vocabulary.py` from the installed `aos` (the C++ Options structs as
+Python exposes them) and `aos-render <command> --help`. `tests/python/test_vocabulary.py` fails
+when this page is stale, when a field has neither a flag nor a stated reason, or when a flag's
+default differs from the struct's. In Python every field is also a keyword argument of the
+command's function, routed by its name (`aos.all_in_focus(lf, agreement=0.1)` sets
+`merge.robust.agreement`).
+
+Flags outside the Options structs: `-q/--quiet` (every command), `-o` (the output path),
+`--force` (commands that write files), `--json` (`metrics`, `resolution`). Inconsistencies still
+open (issue 14): `--fov-deg` is the virtual camera's field of view on `integral`, `stack` and
+`allinfocus`, the rectified view's on `rectify`, the lens's on `resolution` and the frames' on
+`poses`; `--window-radius` is the focus window on `merge`/`allinfocus` and the SSIM window on
+`metrics`.
+""".split("\n")
+    for command, class_name in COMMANDS:
+        lines += [f"## `aos-render {command}` ({class_name})", "",
+                  "| Python field | CLI flag | Default | Unit | Note |",
+                  "|---|---|---|---|---|"]
+        for row in table:
+            if row["command"] == command:
+                flag = f"`{row['flag']}`" if row["flag"] else ""
+                lines.append(f"| `{row['python']}` | {flag} | `{row['default']}` | {row['unit']} "
+                             f"| {row['note']} |")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true",
+                        help="exit 1 if docs/vocabulary.md is stale or a field has no flag")
+    parser.add_argument("--aos-render", default=shutil.which("aos-render") or "aos-render")
+    args = parser.parse_args()
+    table, problems = rows(args.aos_render)
+    text = page(table)
+    for problem in problems:
+        print(f"vocabulary: {problem}", file=sys.stderr)
+    if args.check:
+        stale = not PAGE.exists() or PAGE.read_text() != text
+        if stale:
+            print(f"vocabulary: {os.path.relpath(PAGE)} is stale: run tools/vocabulary.py",
+                  file=sys.stderr)
+        return 1 if stale or problems else 0
+    PAGE.write_text(text)
+    print(f"wrote {os.path.relpath(PAGE)} ({len(table)} fields, {len(problems)} problems)")
+    return 1 if problems else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
