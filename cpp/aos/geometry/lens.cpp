@@ -6,11 +6,10 @@
 #include <limits>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 
 namespace aos {
 namespace {
-
-constexpr double kPi = 3.14159265358979323846;
 
 // Derivative of the radial map r -> r (1 + k1 r^2 + k2 r^4 + k3 r^6).
 double RadialSlope(const std::array<double, 5>& d, double r) {
@@ -345,7 +344,6 @@ bool LensCamera::Unproject(const Vec2d& pixel, Vec3d* ray) const {
 LensCamera LensFromFov(LensModel model, int width, int height, double fov_deg,
                        const std::array<double, 5>& distortion, double xi,
                        const std::string& where) {
-  constexpr double kPi = 3.14159265358979323846;
   const auto fail = [&](const std::string& field, const std::string& reason) {
     ThrowInvalid(where + "." + field + ": " + reason);
   };

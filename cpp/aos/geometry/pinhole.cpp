@@ -3,6 +3,7 @@
 #include <cmath>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 
 namespace aos {
 
@@ -18,7 +19,7 @@ PinholeCamera PinholeCamera::FromFov(int width, int height, double fov_deg) {
   PinholeCamera camera;
   camera.width = width;
   camera.height = height;
-  camera.fx = 0.5 * width / std::tan(0.5 * fov_deg * M_PI / 180.0);
+  camera.fx = 0.5 * width / std::tan(0.5 * DegToRad(fov_deg));
   camera.fy = camera.fx;
   camera.cx = 0.5 * width;
   camera.cy = 0.5 * height;
@@ -29,7 +30,7 @@ Mat3d PinholeCamera::K() const {
   return MatFromRows(Vec3d(fx, 0, cx), Vec3d(0, fy, cy), Vec3d(0, 0, 1));
 }
 
-double PinholeCamera::FovXDeg() const { return 2.0 * std::atan(0.5 * width / fx) * 180.0 / M_PI; }
+double PinholeCamera::FovXDeg() const { return RadToDeg(2.0 * std::atan(0.5 * width / fx)); }
 
 void PinholeCamera::Check(const std::string& where) const {
   if (!(width > 0 && height > 0)) {

@@ -4,6 +4,7 @@
 #include <ostream>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 
 namespace aos {
 
@@ -89,7 +90,7 @@ Rigid3d LookAt(const Vec3d& eye, const Vec3d& target, const Vec3d& up) {
 Rigid3d LookAt(const Vec3d& eye, const Vec3d& target) {
   const Vec3d forward = target - eye;
   const double length = glm::length(forward);
-  const bool along_z = length > 0.0 && std::abs(forward.z) / length > std::cos(M_PI / 180.0);
+  const bool along_z = length > 0.0 && std::abs(forward.z) / length > std::cos(DegToRad(1.0));
   return LookAt(eye, target, along_z ? Vec3d(0, 1, 0) : Vec3d(0, 0, 1));
 }
 

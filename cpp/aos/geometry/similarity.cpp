@@ -7,6 +7,7 @@
 #include <opencv2/core.hpp>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 
 namespace aos {
 namespace {
@@ -227,7 +228,7 @@ Mat3d RotationBetween(const Vec3d& from, const Vec3d& to) {
     if (cosine > 0.0) return Mat3d(1.0);
     // Opposite: half a turn about any axis perpendicular to `from`.
     Vec3d other = std::abs(from.x) < 0.9 ? Vec3d(1, 0, 0) : Vec3d(0, 1, 0);
-    return AxisAngle(glm::normalize(glm::cross(from, other)), M_PI);
+    return AxisAngle(glm::normalize(glm::cross(from, other)), kPi);
   }
   return AxisAngle(cross / sine, std::atan2(sine, cosine));
 }
@@ -264,7 +265,7 @@ SimilarityResult EstimateSimilarityOnLine(const std::vector<Vec3d>& src,
   };
   const Vec3d mapped_down = across(align * src_down);
   const Vec3d target_down = across(dst_down);
-  const double min_across = std::sin(10.0 * M_PI / 180.0);
+  const double min_across = std::sin(DegToRad(10.0));
   if (!(glm::length(mapped_down) >= min_across) || !(glm::length(target_down) >= min_across)) {
     ThrowInvalid(Where(where, "the points lie on a line and the cameras look along it, so "
                               "nothing fixes the rotation about the line; give positions off "

@@ -4,6 +4,7 @@
 #include <vector>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 
 namespace aos {
 
@@ -50,7 +51,7 @@ ResolutionResult SamplingResolution(const LensCamera& camera, const ResolutionOp
   }
   double area = 0.0;
   int64_t pixels = 0;
-  const double min_cos_off_axis = std::cos(options.max_off_axis_deg * 3.14159265358979323846 / 180.0);
+  const double min_cos_off_axis = std::cos(DegToRad(options.max_off_axis_deg));
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
       const Vec2d q[4] = {corners[static_cast<size_t>(y) * (w + 1) + x],

@@ -13,7 +13,9 @@
 #include "aos/render/integral_kernels.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 #include "aos/util/memory.h"
+#include "aos/util/parallel.h"
 
 // How it works
 // For a planar focal surface the map from an output pixel to a view pixel is a homography H_i
@@ -614,7 +616,7 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
   options_.Check(static_cast<int>(light_field_.views.size()));
   SetUpGeometry();
   mode_ = options_.aperture_radius == 0.0 ? Mode::kNearest : Mode::kAverage;
-  const double min_angle = options_.min_view_angle_deg * M_PI / 180.0;
+  const double min_angle = DegToRad(options_.min_view_angle_deg);
   sin2_min_angle_ = std::sin(min_angle) * std::sin(min_angle);
   SetUpViews();
 
@@ -644,7 +646,7 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
     }
   }
 
-  const int threads = options_.num_threads > 0 ? options_.num_threads : omp_get_max_threads();
+  const int threads = ResolveThreadCount(options_.num_threads);
   ProgressStart(progress, "render", static_cast<int64_t>(tiles.size()));
   std::vector<uint8_t> view_used(views_.size(), 0);
   bool cancelled = false;
@@ -749,10 +751,7 @@ void IntegralOptions::Check(int view_count) const {
     ThrowInvalid("min_view_angle_deg: must be in [0, 90) degrees (got " +
                  FormatNumber(min_view_angle_deg) + ")");
   }
-  if (num_threads == 0 || num_threads < -1) {
-    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " +
-                 std::to_string(num_threads) + ")");
-  }
+  CheckThreadCount(num_threads);
   for (int i = 0; i < 3; ++i) {
     if (!std::isfinite(focal_plane.point[i]) || !std::isfinite(focal_plane.normal[i])) {
       ThrowInvalid("focal_plane: point and normal must be finite");

@@ -12,6 +12,7 @@
 
 #include "aos/util/error.h"
 #include "aos/util/memory.h"
+#include "aos/util/parallel.h"
 
 // How it works
 // Every method reduces a slice to one focus value per pixel (higher = sharper) and folds the
@@ -30,7 +31,6 @@ double Seconds(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-int Threads(int num_threads) { return num_threads > 0 ? num_threads : omp_get_max_threads(); }
 
 // Luminance (mean over channels) of a float32 image.
 std::vector<float> Luminance(const Image& image) {
@@ -434,9 +434,7 @@ void MergeOptions::Check() const {
   if (smoothing_iterations < 0 || smoothing_iterations > 20) {
     ThrowInvalid("smoothing_iterations: must be 0..20 (got " + std::to_string(smoothing_iterations) + ")");
   }
-  if (num_threads == 0 || num_threads < -1) {
-    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " + std::to_string(num_threads) + ")");
-  }
+  CheckThreadCount(num_threads);
   robust.Check();
 }
 
@@ -466,7 +464,7 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
                    "are re-integrated)");
     }
   }
-  const int threads = Threads(options.num_threads);
+  const int threads = ResolveThreadCount(options.num_threads);
   const auto start = Clock::now();
   ProgressStart(progress, "merge", stack.size());
   FocusAccumulator accumulator(stack.camera, stack.images.front().channels(), stack.size());
@@ -530,7 +528,7 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   options.Check(static_cast<int>(light_field.views.size()));
   AllInFocusOptions run = options;
   run.stack.render.variance = options.merge.method == MergeMethod::kRobust;
-  const int threads = Threads(options.merge.num_threads);
+  const int threads = ResolveThreadCount(options.merge.num_threads);
   const PinholeCamera camera = VirtualCamera(light_field, run.stack.render);
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, run.stack.render);
   {

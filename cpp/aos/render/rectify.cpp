@@ -6,11 +6,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 
 namespace aos {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 
 Mat3d RotationAbout(int axis, double degrees) {
   const double a = degrees * kPi / 180.0, c = std::cos(a), s = std::sin(a);

@@ -10,6 +10,8 @@
 #include <omp.h>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
+#include "aos/util/parallel.h"
 
 // How it works
 // Unlike a plane, a depth map gives no homography, so every (pixel, view) pair is projected on
@@ -100,7 +102,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   const Vec3d lens_axis = Row(cam_from_world.rotation, 2);
   const Mat3d world_from_pixel = glm::transpose(cam_from_world.rotation) * glm::inverse(camera.K());
   const Vec3d normal = glm::normalize(options.focal_plane.normal);
-  const double min_angle = options.min_view_angle_deg * M_PI / 180.0;
+  const double min_angle = DegToRad(options.min_view_angle_deg);
   const double sin2_min = std::sin(min_angle) * std::sin(min_angle);
   const bool nearest = options.aperture_radius == 0.0;
   const bool finite_aperture = std::isfinite(options.aperture_radius) && !nearest;
@@ -150,7 +152,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   if (surface.robust) result.inliers = Image(camera.width, camera.height, 1, PixelType::kU32);
   if (options.variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
 
-  const int threads = options.num_threads > 0 ? options.num_threads : omp_get_max_threads();
+  const int threads = ResolveThreadCount(options.num_threads);
   ProgressStart(progress, "render on depth", camera.height);
   std::vector<uint8_t> view_used(views.size(), 0);
   int64_t fallback = 0;

@@ -781,10 +781,7 @@ LensCamera LensFromColmapCamera(const ColmapCamera& camera, const std::string& w
 }
 
 void ColmapImportOptions::Check() const {
-  if (!(num_threads == -1 || num_threads >= 1)) {
-    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " +
-                 std::to_string(num_threads) + ")");
-  }
+  CheckThreadCount(num_threads);
 }
 
 ColmapImport ImportColmapModel(const ColmapModel& model, const std::string& images_dir,

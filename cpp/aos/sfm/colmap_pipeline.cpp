@@ -20,6 +20,8 @@
 #include "aos/lightfield/camera_file.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/math.h"
+#include "aos/util/parallel.h"
 #include "aos/util/process.h"
 
 namespace fs = std::filesystem;
@@ -27,7 +29,6 @@ namespace fs = std::filesystem;
 namespace aos {
 namespace {
 
-constexpr double kPi = 3.14159265358979323846;
 using Clock = std::chrono::steady_clock;
 
 double Seconds(Clock::time_point start) {
@@ -290,7 +291,7 @@ void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
   if (result->light_field.views.empty()) return;
   const LensCamera& lens = result->light_field.views[0].lens;
   const double focal = std::sqrt(lens.fx * lens.fy);
-  const double recovered_fov_deg = 2.0 * std::atan(0.5 * lens.width / lens.fx) * 180.0 / M_PI;
+  const double recovered_fov_deg = RadToDeg(2.0 * std::atan(0.5 * lens.width / lens.fx));
   char text[512];
   if (!(options.fov_deg > 0.0)) {
     std::snprintf(text, sizeof(text),
@@ -302,7 +303,7 @@ void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
     result->warnings.push_back(text);
     return;
   }
-  result->focal_prior_px = 0.5 * lens.width / std::tan(0.5 * options.fov_deg * M_PI / 180.0);
+  result->focal_prior_px = 0.5 * lens.width / std::tan(0.5 * DegToRad(options.fov_deg));
   result->focal_deviation = focal / result->focal_prior_px - 1.0;
   const double ratio = focal / result->focal_prior_px;
   const double limit = 1.0 + options.max_focal_deviation;
@@ -364,7 +365,7 @@ void PosesOptions::Check() const {
   if (!(min_registered_fraction > 0.0 && min_registered_fraction <= 1.0)) {
     ThrowInvalid("min_registered_fraction: must be in (0, 1]");
   }
-  if (num_threads == 0 || num_threads < -1) ThrowInvalid("num_threads: must be -1 (all cores) or >= 1");
+  CheckThreadCount(num_threads);
 }
 
 namespace {

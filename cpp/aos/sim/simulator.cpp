@@ -15,7 +15,9 @@
 #include "aos/sim/occluders.h"
 #include "aos/sim/random.h"
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 #include "aos/util/memory.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 namespace {
@@ -25,7 +27,6 @@ using sim::Random;
 using sim::Stream;
 using Clock = std::chrono::steady_clock;
 
-constexpr double kPi = 3.14159265358979323846;
 constexpr float kInf = std::numeric_limits<float>::infinity();
 // Offset of secondary-ray origins from the surface they leave, metres (well above float
 // resolution at the coordinates a scene uses, well below any feature size).
@@ -37,7 +38,6 @@ double Seconds(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-int ResolveThreads(int num_threads) { return num_threads > 0 ? num_threads : omp_get_max_threads(); }
 
 Rgb Lerp(const Rgb& a, const Rgb& b, double t) {
   return Rgb{a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t};
@@ -725,14 +725,14 @@ PixelType ViewType(int bit_depth) {
 }  // namespace
 
 void SimulateOptions::Check() const {
-  if (num_threads == 0 || num_threads < -1) ThrowInvalid("num_threads: must be -1 (all cores) or >= 1");
+  CheckThreadCount(num_threads);
 }
 
 SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
                           ProgressSink* progress) {
   options.Check();
   scene.Check();
-  const int threads = ResolveThreads(options.num_threads);
+  const int threads = ResolveThreadCount(options.num_threads);
   SimulationResult result;
   SimulationStats& stats = result.stats;
 

@@ -15,6 +15,12 @@ int ResolveThreadCount(int num_threads) {
   return num_threads == -1 ? std::max(1, omp_get_max_threads()) : num_threads;
 }
 
+void CheckThreadCount(int num_threads) {
+  if (num_threads == -1 || num_threads >= 1) return;
+  ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " + std::to_string(num_threads) +
+               ")");
+}
+
 void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
                  const std::function<void(int64_t)>& fn) {
   std::atomic<int64_t> first_error_index{n};

@@ -16,8 +16,12 @@
 
 namespace aos {
 
-// -1 -> all cores (at least 1); other values unchanged.
+// -1 -> all cores (at least 1); other values unchanged. The one place a thread count is resolved.
 int ResolveThreadCount(int num_threads);
+
+// Throws std::invalid_argument "num_threads: must be -1 (all cores) or >= 1 (got N)" otherwise.
+// The one check every Options::Check() with a num_threads field calls.
+void CheckThreadCount(int num_threads);
 
 void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
                  const std::function<void(int64_t)>& fn);
