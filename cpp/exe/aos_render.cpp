@@ -1090,46 +1090,17 @@ int RunRectifyLightField(const RectifyCommand& c, ProgressBar& progress) {
   PendingFolder folder(c.output_dir);
   LoadResult loaded = LoadLightField(c.light_field_path, LoadOptions{}, &progress);
   progress.Finish();
-  LightField& light_field = loaded.light_field;
-  std::vector<std::pair<LensCamera, Rectifier>> rectifiers;
+  RectifyLightFieldResult result;
+  try {
+    result = RectifyLightField(loaded.light_field, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, kRectifyFlags);
+  }
+  const LightField& light_field = result.light_field;
+  const int rectified = result.rectified_views;
   bool float_views = false;
-  ProgressStart(&progress, "rectify", static_cast<int64_t>(light_field.views.size()));
-  int rectified = 0;
-  for (View& view : light_field.views) {
-    if (ProgressCancelled(&progress)) throw Cancelled();
+  for (const View& view : light_field.views) {
     float_views = float_views || view.image.type() == PixelType::kF32;
-    if (view.lens.model == LensModel::kPinhole) {
-      ProgressAdvance(&progress, 1);
-      continue;
-    }
-    const auto same = [&](const std::pair<LensCamera, Rectifier>& entry) {
-      const LensCamera& a = entry.first;
-      const LensCamera& b = view.lens;
-      return a.model == b.model && a.width == b.width && a.height == b.height && a.fx == b.fx &&
-             a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion &&
-             a.xi == b.xi && a.skew == b.skew;
-    };
-    auto found = std::find_if(rectifiers.begin(), rectifiers.end(), same);
-    if (found == rectifiers.end()) {
-      try {
-        rectifiers.emplace_back(view.lens, MakeRectifier(view.lens, c.options));
-      } catch (const std::invalid_argument& error) {
-        try {
-          RethrowNamingFlags(error, kRectifyFlags);
-        } catch (const std::invalid_argument& named) {
-          ThrowInvalid(view.name + ": " + named.what());
-        }
-      }
-      found = rectifiers.end() - 1;
-    }
-    const Rectifier& rectifier = found->second;
-    Image image = Rectify(rectifier, view.image);
-    view = MakeView(view.name, rectifier.camera,
-                    Rigid3d{glm::transpose(rectifier.lens_from_rectified) * view.cam_from_world.rotation,
-                            glm::transpose(rectifier.lens_from_rectified) * view.cam_from_world.translation},
-                    std::move(image));
-    ++rectified;
-    ProgressAdvance(&progress, 1);
   }
   progress.Finish();
   WriteLightFieldOptions write;

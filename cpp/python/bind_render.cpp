@@ -424,6 +424,29 @@ void BindRectify(py::module_& m) {
   m.def("make_rectifier", &MakeRectifier, "lens"_a, "options"_a,
         "Resampling maps for a lens and options; raises ValueError if the lens does not cover "
         "the requested view.");
+
+  py::class_<RectifyLightFieldResult>(m, "RectifyLightFieldResult",
+                                      "What rectify_light_field returns.")
+      .def_readonly("light_field", &RectifyLightFieldResult::light_field,
+                    "The light field with every view pinhole (a copy).")
+      .def_readonly("rectified_views", &RectifyLightFieldResult::rectified_views,
+                    "Views that went through a lens model (the rest were pinhole already).")
+      .def("__repr__", [](const RectifyLightFieldResult& r) {
+        return "RectifyLightFieldResult(views=" + std::to_string(r.light_field.views.size()) +
+               ", rectified_views=" + std::to_string(r.rectified_views) + ")";
+      });
+  m.def(
+      "_rectify_light_field",
+      [](const LightField& light_field, const RectifyOptions& options,
+         const py::object& progress) {
+        const LightField light_field_copy = light_field;
+        const RectifyOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return RectifyLightField(light_field_copy, options_copy, sink);
+        });
+      },
+      "light_field"_a, "options"_a, "progress"_a = py::none(),
+      "Rectifies every lens view, GIL released. Prefer aos.rectify_light_field.");
 }
 
 void BindRender(py::module_& m) {

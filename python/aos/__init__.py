@@ -49,6 +49,7 @@ from ._keywords import (
     MergeKeywords,
     PosesKeywords,
     QualityKeywords,
+    RectifyKeywords,
     ResolutionKeywords,
     SimulateKeywords,
     SurfaceIntegralKeywords,
@@ -65,6 +66,7 @@ from ._core import (
     CalibrationResult,
     read_camera_file,
     Rectifier,
+    RectifyLightFieldResult,
     RectifyOptions,
     make_rectifier,
     LensCamera,
@@ -124,6 +126,7 @@ __all__ = [
     "read_camera_file",
     "write_camera_file",
     "Rectifier",
+    "RectifyLightFieldResult",
     "RectifyOptions",
     "make_rectifier",
     "LensCamera",
@@ -170,6 +173,7 @@ __all__ = [
     "look_at",
     "parse_scene",
     "read_image",
+    "rectify_light_field",
     "render_integral",
     "simulate",
     "virtual_camera",
@@ -339,6 +343,7 @@ _SIMULATE = _Router("simulate", SimulateOptions)
 _COMPARE_IMAGES = _Router("compare_images", QualityOptions)
 _SAMPLING_RESOLUTION = _Router("sampling_resolution", ResolutionOptions)
 _CALIBRATE = _Router("calibrate", CalibrateOptions)
+_RECTIFY_LIGHT_FIELD = _Router("rectify_light_field", RectifyOptions)
 _ESTIMATE_POSES = _Router("estimate_poses", PosesOptions)
 _IMPORT_COLMAP = _Router("import_colmap", PosesOptions)
 
@@ -543,6 +548,30 @@ def sampling_resolution(
     merged = _copy_options("sampling_resolution", ResolutionOptions, options)
     _SAMPLING_RESOLUTION.apply([merged], dict(kwargs))
     return _core._sampling_resolution(camera, merged)
+
+
+def rectify_light_field(
+    light_field: LightField,
+    options: Optional[RectifyOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Unpack[RectifyKeywords],
+) -> RectifyLightFieldResult:
+    """Rectifies every lens view of ``light_field`` into a perspective view, as ``aos-render
+    rectify --lightfield`` does: its pixels are resampled (``make_rectifier``, one per distinct
+    lens), its camera becomes the rectified pinhole camera and its pose turns with it; pinhole
+    views are kept. ``kwargs`` are fields of :class:`RectifyOptions` (fov_deg, width, height,
+    yaw_deg, pitch_deg, roll_deg). Raises ValueError naming the field and the view when a lens
+    does not cover the requested view. The GIL is released.
+
+    Example::
+
+        pinhole = aos.rectify_light_field(raw_lf, fov_deg=80).light_field
+        image = aos.render_integral(pinhole, pose_view=10, focal_plane=0.0).image
+    """
+    merged = _copy_options("rectify_light_field", RectifyOptions, options)
+    _RECTIFY_LIGHT_FIELD.apply([merged], dict(kwargs))
+    return _core._rectify_light_field(light_field, merged, progress)
 
 
 def calibrate(

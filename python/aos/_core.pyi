@@ -428,6 +428,23 @@ class Rectifier:
 
 def make_rectifier(lens: LensCamera, options: RectifyOptions) -> Rectifier: ...
 
+class RectifyLightFieldResult:
+    """What rectify_light_field returns."""
+
+    @property
+    def light_field(self) -> LightField:
+        """The light field with every view pinhole (a copy)."""
+    @property
+    def rectified_views(self) -> int:
+        """Views that went through a lens model."""
+    def __repr__(self) -> str: ...
+
+def _rectify_light_field(
+    light_field: LightField,
+    options: RectifyOptions,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+) -> RectifyLightFieldResult: ...
+
 class CalibrateOptions:
     """Options of calibrate; fields and defaults of aos::CalibrateOptions."""
 

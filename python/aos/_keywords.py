@@ -117,6 +117,17 @@ class ResolutionKeywords(TypedDict, total=False):
     max_off_axis_deg: float
 
 
+class RectifyKeywords(TypedDict, total=False):
+    """Fields of RectifyOptions (rectify_light_field)."""
+
+    fov_deg: float
+    width: int
+    height: int
+    yaw_deg: float
+    pitch_deg: float
+    roll_deg: float
+
+
 class CalibrateKeywords(TypedDict, total=False):
     """Fields of CalibrateOptions (calibrate)."""
 

@@ -102,6 +102,15 @@ def test_simulated_fisheye_light_field_renders_directly_and_after_rectify(tmp_pa
     rectified = aos.load_lightfield(str(tmp_path / "rect" / "lightfield.json")).light_field
     assert all(view.lens.model == aos.LensModel.pinhole for view in rectified.views)
     assert rectified.views[0].camera.width == 192
+    # The same from Python (the core's RectifyLightField): identical cameras, poses and pixels
+    # (float views: the CLI stores them as float32 TIFFs, so nothing is lost on the way).
+    in_python = aos.rectify_light_field(raw, fov_deg=100)
+    assert in_python.rectified_views == 9 and repr(in_python).startswith("RectifyLightFieldResult")
+    for mine, written in zip(in_python.light_field.views, rectified.views):
+        assert mine.camera == written.camera and mine.cam_from_world == written.cam_from_world
+        np.testing.assert_array_equal(mine.image, written.image)
+    with pytest.raises(ValueError, match=r"fov_deg: .*does not cover.*\(view "):
+        aos.rectify_light_field(raw, fov_deg=100, pitch_deg=80)
     truth = simulation.truth
     options = dict(cam_from_world=truth.cam_from_world, fov_deg=truth.camera.fov_x_deg(),
                    width=64, height=64)

@@ -366,6 +366,7 @@ ROUTED = [
     ("_CALIBRATE", "CalibrateKeywords"),
     ("_ESTIMATE_POSES", "PosesKeywords"),
     ("_IMPORT_COLMAP", "PosesKeywords"),
+    ("_RECTIFY_LIGHT_FIELD", "RectifyKeywords"),
 ]
 
 

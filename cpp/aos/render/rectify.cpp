@@ -1,7 +1,9 @@
 #include "aos/render/rectify.h"
 
+#include <algorithm>
 #include <cmath>
 #include <string>
+#include <utility>
 
 #include <opencv2/imgproc.hpp>
 
@@ -96,6 +98,50 @@ Image Rectify(const Rectifier& r, const Image& raw) {
                  static_cast<size_t>(out.row_stride()) * PixelTypeSize(out.type()));
   cv::remap(source, target, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
   return out;
+}
+
+RectifyLightFieldResult RectifyLightField(const LightField& light_field,
+                                          const RectifyOptions& options,
+                                          ProgressSink* progress) {
+  options.Check();
+  RectifyLightFieldResult result;
+  result.light_field.origin = light_field.origin;
+  result.light_field.pose_source = light_field.pose_source;
+  std::vector<std::pair<LensCamera, Rectifier>> rectifiers;  // one per distinct lens
+  const auto same_lens = [](const LensCamera& a, const LensCamera& b) {
+    return a.model == b.model && a.width == b.width && a.height == b.height && a.fx == b.fx &&
+           a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion &&
+           a.xi == b.xi && a.skew == b.skew;
+  };
+  ProgressStart(progress, "rectify", static_cast<int64_t>(light_field.views.size()));
+  for (const View& view : light_field.views) {
+    if (ProgressCancelled(progress)) throw Cancelled();
+    if (view.lens.model == LensModel::kPinhole) {
+      result.light_field.views.push_back(view);
+      ProgressAdvance(progress, 1);
+      continue;
+    }
+    auto found = std::find_if(rectifiers.begin(), rectifiers.end(),
+                              [&](const auto& entry) { return same_lens(entry.first, view.lens); });
+    if (found == rectifiers.end()) {
+      try {
+        rectifiers.emplace_back(view.lens, MakeRectifier(view.lens, options));
+      } catch (const std::invalid_argument& error) {
+        ThrowInvalid(std::string(error.what()) + " (view " + view.name + ")");
+      }
+      found = rectifiers.end() - 1;
+    }
+    const Rectifier& rectifier = found->second;
+    const Mat3d rectified_from_lens = glm::transpose(rectifier.lens_from_rectified);
+    View rectified = MakeView(view.name, rectifier.camera,
+                              Rigid3d{rectified_from_lens * view.cam_from_world.rotation,
+                                      rectified_from_lens * view.cam_from_world.translation},
+                              Rectify(rectifier, view.image));
+    result.light_field.views.push_back(std::move(rectified));
+    ++result.rectified_views;
+    ProgressAdvance(progress, 1);
+  }
+  return result;
 }
 
 }  // namespace aos

@@ -18,6 +18,8 @@
 #include <vector>
 
 #include "aos/image/image.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/util/progress.h"
 
 namespace aos {
 
@@ -47,5 +49,21 @@ Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options);
 
 // Resamples one raw frame (the lens's size; any type but uint32, 1..4 channels).
 Image Rectify(const Rectifier& rectifier, const Image& raw);
+
+struct RectifyLightFieldResult {
+  LightField light_field;   // every view pinhole: lens views rectified, pinhole views as they were
+  int rectified_views = 0;  // views that went through a lens model
+};
+
+// Rectifies every lens view of `light_field` (one Rectifier per distinct lens): its image is
+// resampled, its camera becomes the rectified pinhole camera and its pose turns with it
+// (cam_from_world of the rectified camera = lens_from_rectified^T * the lens's); pinhole views
+// are copied unchanged. Names, origin and pose source are kept (rectified views have no
+// image_path: their pixels are new). Throws
+// std::invalid_argument "<field>: ... (view <name>)" for a lens the options do not fit; the
+// progress stage is "rectify" (one unit per view), and cancellation throws aos::Cancelled.
+RectifyLightFieldResult RectifyLightField(const LightField& light_field,
+                                          const RectifyOptions& options,
+                                          ProgressSink* progress = nullptr);
 
 }  // namespace aos
