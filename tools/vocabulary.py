@@ -58,20 +58,17 @@ FLAGS = {
     "max_num_features": "--max-features",
     "min_registered_fraction": "--min-registered",
     "distance_m": "--distance",
+    "focal_plane": "--focal-height",  # or --focal-plane / --focal-distance
 }
 
 # Fields set on the command line in another way, or Python only: (command or "*", field) -> why.
 NOT_ON_THE_CLI = {
-    ("*", "cam_from_world"): "--pose-view, --look-at or --cam-from-world",
-    ("*", "focal_plane"): "--focal-height, --focal-plane or --focal-distance",
     ("stack", "render.focal_plane"): "the slices' planes replace it",
     ("allinfocus", "stack.render.focal_plane"): "the slices' planes replace it",
     ("integral", "variance"): "Python only (render_integral(variance=True))",
     ("allinfocus", "stack.render.variance"): "set by --method robust",
     ("merge", "robust.robust"): "set by --method robust",
     ("allinfocus", "merge.robust.robust"): "set by --method robust",
-    ("allinfocus", "merge.num_threads"): "--threads sets the rendering's and the merge's",
-    ("stack", "render.variance"): "--variance",
     ("import-colmap", "colmap"): "import-colmap runs no COLMAP",
     ("import-colmap", "workspace"): "import-colmap runs no COLMAP",
     ("import-colmap", "matcher"): "import-colmap runs no COLMAP",
@@ -85,6 +82,13 @@ NOT_ON_THE_CLI = {
     ("import-colmap", "allow_implausible"): "the model's intrinsics are kept as they are",
     ("import-colmap", "num_threads"): "import-colmap decodes frames on all cores",
 }
+
+# Fields whose flag prints no default in --help, because "not given" is the default and means
+# something the help text states (no pose, all views, no file); every other flag must print the
+# struct's default, so that a drifted default is seen.
+NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file",
+                      "positions_file", "positions_crs", "workspace",
+                      "pose_error_px", "pose_error_m"}  # exclusive flags; none = no pose error
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).
 UNITS = [("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
@@ -207,6 +211,14 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
                                     f"(--{name.replace('_', '-')}) and no reason in NOT_ON_THE_CLI")
                 row["note"] = why or "MISSING"
             else:
+                if why is not None:
+                    problems.append(f"{command}: NOT_ON_THE_CLI gives a reason for "
+                                    f"{class_name}.{path}, but {flag} sets it: a stale entry")
+                printed = flags[flag]
+                if printed is None and not (value is False or name in NO_PRINTED_DEFAULT):
+                    problems.append(f"{command} {flag}: --help prints no default for "
+                                    f"{class_name}.{path} ({python_default(value)}): bind it "
+                                    "with capture_default_str() or list it in NO_PRINTED_DEFAULT")
                 if not same_default(value, flags[flag], path):
                     problems.append(f"{command} {flag}: the CLI default {flags[flag]!r} is not "
                                     f"{class_name}.{path}'s {python_default(value)}")

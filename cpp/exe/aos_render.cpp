@@ -1126,10 +1126,13 @@ int RunRectify(const RectifyCommand& c) {
   try {
     rectifier = MakeRectifier(lens, c.options);
   } catch (const std::invalid_argument& error) {
-    // The lens comes from the camera file: name it (its values may be what is wrong).
-    RethrowNamingFlags(std::invalid_argument(std::string(error.what()) + " (the lens of " +
-                                             c.camera_path + ")"),
-                       kRectifyFlags);
+    // A lens that cannot cover the view comes from the camera file: name it too (its values
+    // may be what is wrong). Other errors name their flag.
+    const std::string message = error.what();
+    if (message.rfind("fov_deg: the lens does not cover", 0) == 0) {
+      throw UsageError(message + " (the lens of " + c.camera_path + ") [option --fov-deg]");
+    }
+    RethrowNamingFlags(error, kRectifyFlags);
   }
   std::set<std::string> names;
   for (const std::string& frame : c.frames) {

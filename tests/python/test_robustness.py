@@ -584,6 +584,22 @@ def test_exr_attribute_sizes_past_the_end_are_refused(tmp_path: Path) -> None:
     np.testing.assert_array_equal(aos.read_image(str(good)), values)
 
 
+def test_four_channel_tiffs_read_the_same_in_other_programs(tmp_path: Path) -> None:
+    # Only PNGs are written with OpenImageIO's "unassociated alpha" hint: in a TIFF it tags the
+    # last channel as alpha, and other programs (oiiotool, OpenImageIO's defaults) then multiply
+    # the others by it.
+    oiiotool = shutil.which("oiiotool")
+    if oiiotool is None:
+        pytest.skip("oiiotool (openimageio-tools) is not installed")
+    values = np.array([[[0.8, 0.6, 0.4, 0.5]]], np.float32).repeat(4, 0).repeat(4, 1)
+    path = tmp_path / "rgba.tif"
+    aos.write_image(str(path), values)
+    copy = tmp_path / "copy.exr"
+    done = subprocess.run([oiiotool, str(path), "-o", str(copy)], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    np.testing.assert_allclose(aos.read_image(str(copy)), values, rtol=1e-6)
+
+
 @pytest.mark.parametrize("suffix", [".png", ".tif"])
 def test_two_and_four_channel_images_read_back_as_written(tmp_path: Path, suffix: str) -> None:
     # The last channel is data, not alpha to multiply the others by (the writer used to refuse

@@ -37,6 +37,17 @@ def test_every_option_is_on_the_cli_with_its_default_and_the_page_is_current() -
         "docs/vocabulary.md is stale: run python3 tools/vocabulary.py"
 
 
+def test_the_help_parser_reads_real_defaults() -> None:
+    # If --help's format changed so that no default were parsed, every default check would pass
+    # silently: read a few known ones from the real CLI.
+    merge = vocabulary.cli_flags(EXE, "merge")
+    assert (merge["--window-radius"], merge["--edge-sigma"], merge["--method"]) == \
+        ("3", "0.2", "improved")
+    integral = vocabulary.cli_flags(EXE, "integral")
+    assert integral["--aperture-radius"] == "inf" and integral["--pose-view"] is None
+    assert "--force" in integral and integral["--force"] is None
+
+
 def test_drift_is_reported(monkeypatch) -> None:
     real = vocabulary.cli_flags
 
@@ -52,3 +63,13 @@ def test_drift_is_reported(monkeypatch) -> None:
     assert any("merge --window-radius: the CLI default '4' is not MergeOptions.window_radius's 3"
                in p for p in problems), problems
     assert any("merge: MergeOptions.smoothing_sigma has no flag" in p for p in problems), problems
+
+    def unprinted(aos_render: str, command: str):
+        flags = real(aos_render, command)
+        if command == "metrics":
+            flags["--k1"] = None                  # a default --help no longer prints
+        return flags
+
+    monkeypatch.setattr(vocabulary, "cli_flags", unprinted)
+    _, problems = vocabulary.rows(EXE)
+    assert any("metrics --k1: --help prints no default" in p for p in problems), problems

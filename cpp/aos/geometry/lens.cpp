@@ -362,7 +362,7 @@ LensCamera LensFromFov(LensModel model, int width, int height, double fov_deg,
   if (model == LensModel::kOmnidir) lens.xi = xi;
   // The normalised radius that the ray at half the field of view maps to (radial part only):
   // the focal length puts it at the image's left and right edges.
-  const double half = 0.5 * fov_deg * kPi / 180.0;
+  const double half = DegToRad(0.5 * fov_deg);
   const std::array<double, 5>& d = distortion;
   double undistorted = 0.0, radius = 0.0;
   switch (model) {

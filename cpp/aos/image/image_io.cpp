@@ -609,7 +609,10 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
   oiio::ImageSpec spec(width, height, channels, file_type);
   if (!options.description.empty()) spec.attribute("ImageDescription", options.description);
   if (LowerExtension(path) == ".exr") spec.attribute("compression", "zip");
-  spec.attribute("oiio:UnassociatedAlpha", 1);  // the samples as given (see RawSamplesConfig)
+  // PNG: the samples as given (OpenImageIO would divide the others by the last channel). Not
+  // for TIFF, where the attribute tags the last channel as alpha and makes other programs
+  // multiply by it on reading.
+  if (LowerExtension(path) == ".png") spec.attribute("oiio:UnassociatedAlpha", 1);
   if (!output->open(pending.TempPath(), spec) ||
       !output->write_image(file_type, buffer.data()) || !output->close()) {
     std::string reason = output->geterror();

@@ -64,13 +64,14 @@ PreviewRange PercentileRange(const std::vector<const Image*>& images,
   if (images.empty() || valid.size() != images.size()) {
     ThrowInvalid("preview: give one mask (or null) per image, and at least one image");
   }
-  // At most about 4 M samples in all: every k-th pixel of each image.
-  size_t pixels = 0;
+  // At most about 4 M samples in all (channels counted): every k-th pixel of each image.
+  size_t samples_total = 0;
   for (size_t i = 0; i < images.size(); ++i) {
     CheckInputs(*images[i], valid[i], low_percentile, high_percentile);
-    pixels += static_cast<size_t>(images[i]->width()) * images[i]->height();
+    samples_total += static_cast<size_t>(images[i]->width()) * images[i]->height() *
+                     images[i]->channels();
   }
-  const size_t step = std::max<size_t>(1, pixels / (size_t{4} << 20));
+  const size_t step = std::max<size_t>(1, samples_total / (size_t{4} << 20));
   std::vector<double> samples;
   for (size_t i = 0; i < images.size(); ++i) {
     const Image& image = *images[i];
@@ -98,7 +99,9 @@ Image StretchedPreview(const Image& image, const Image* valid, double low_percen
 Image MappedPreview(const Image& image, const Image* valid, const PreviewRange& r) {
   CheckInputs(image, valid, 0.0, 100.0);
   if (!(r.hi > r.lo)) ThrowInvalid("preview: the range must have hi > lo");
-  const int channels = std::min(image.channels(), 3);
+  // Grey or RGB: a fourth channel is dropped, and a second one too (a grey+alpha PNG would show
+  // the stretched second band as transparency).
+  const int channels = image.channels() == 2 ? 1 : std::min(image.channels(), 3);
   Image preview(image.width(), image.height(), channels, PixelType::kU8);
   const double scale = 255.0 / (r.hi - r.lo);
   for (int y = 0; y < image.height(); ++y) {

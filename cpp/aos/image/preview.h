@@ -4,8 +4,9 @@
 // white or all black there.
 //
 // Contract
-// - StretchedPreview: 8-bit, the image's channels (a fourth is dropped); the valid samples'
-//   low_percentile..high_percentile (over all channels) map linearly onto 0..255, clamped;
+// - StretchedPreview: 8-bit, grey or RGB (of 2 channels the first, of 4 the first three); the
+//   valid samples' low_percentile..high_percentile (over all channels) map linearly onto 0..255,
+//   clamped;
 //   invalid pixels are 0. `range` receives the values mapped to 0 and 255.
 // - MappedPreview: as StretchedPreview with a given range (lo -> 0, hi -> 255).
 // - PercentileRange over several images: one range for a set (a focal stack's slices), from

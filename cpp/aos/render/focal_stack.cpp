@@ -477,10 +477,10 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
       ThrowInvalid(Where(file, where + ".image") + ": " + path + ": " + *problem);
     }
     if (i == 0) {
-      // Every slice stays in memory: refuse before decoding the rest (image and variance of
-      // slice 0's channels, float; count, 4 bytes).
+      // Every slice stays in memory: refuse before decoding the rest (image of slice 0's
+      // channels, float; count and variance, 4 bytes each).
       const uint64_t channels = static_cast<uint64_t>(stack.images[0].channels());
-      const uint64_t per_pixel = 4 * channels + 4 + (has_variance ? 4 * channels : 0);
+      const uint64_t per_pixel = 4 * channels + 4 + (has_variance ? 4 : 0);
       CheckMemoryBudget(
           SaturatingProduct({static_cast<uint64_t>(slices.size()),
                              static_cast<uint64_t>(stack.camera.width),
@@ -510,7 +510,14 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
                    PixelTypeName(count.type()) + " samples, expected 32-bit counts");
     }
     stack.counts.push_back(std::move(count));
-    if (has_variance) stack.variances.push_back(read("variance", 1, "a 1-channel variance map"));
+    if (has_variance) {
+      stack.variances.push_back(read("variance", 1, "a 1-channel variance map"));
+      if (stack.variances.back().type() != PixelType::kF32) {
+        ThrowInvalid(Where(file, where + ".variance") + ": " + path + ": holds " +
+                     PixelTypeName(stack.variances.back().type()) +
+                     " samples, expected float32");
+      }
+    }
   }
   stack.Check(file);
   return stack;

@@ -67,8 +67,8 @@ struct FocalStack {
   std::vector<Image> variances;  // float32, empty unless rendered with variance
 
   int size() const { return static_cast<int>(planes.size()); }
-  // Throws std::invalid_argument if the parts disagree in count or size, or if an image or a
-  // variance holds a non-finite value or one beyond kMaxStackMagnitude.
+  // Throws std::invalid_argument if the parts disagree in count or size, if an image or a
+  // variance holds a non-finite value, or if an image holds one beyond kMaxStackMagnitude.
   void Check(const std::string& where) const;
 };
 

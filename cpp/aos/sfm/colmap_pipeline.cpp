@@ -143,7 +143,7 @@ std::pair<std::string, std::string> ColmapCameraFor(const LensCamera& lens, cons
 
 // Starting parameters of a self-calibrated COLMAP model from a horizontal FOV.
 std::string InitialParams(const std::string& model, int width, int height, double fov_deg) {
-  const double half = 0.5 * fov_deg * kPi / 180.0;
+  const double half = DegToRad(0.5 * fov_deg);
   const bool fisheye = model.find("FISHEYE") != std::string::npos;
   const double f = 0.5 * width / (fisheye ? half : std::tan(half));
   const std::string fs_ = Number(f), c = Number(0.5 * width) + "," + Number(0.5 * height);
