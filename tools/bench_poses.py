@@ -72,7 +72,7 @@ def run(args: argparse.Namespace, work: Path) -> dict:
     (work / "gps.csv").write_text("\n".join(lines) + "\n")
     command = ["aos-render", "poses", str(frames), "-o", str(work / "poses.json"),
                "--positions", str(work / "gps.csv"), "--camera-model", "PINHOLE",
-               "--fov-deg", str(FOV), "--overlap", str(args.overlap)]
+               "--frames-fov-deg", str(FOV), "--overlap", str(args.overlap)]
     print("$ " + " ".join(command), flush=True)
     start = time.perf_counter()
     done = subprocess.run(command, stdout=subprocess.PIPE, text=True)

@@ -61,6 +61,15 @@ FLAGS = {
     "focal_plane": "--focal-height",  # or --focal-plane / --focal-distance
 }
 
+# Flags named by what they describe where one field name means different things on different
+# commands: (command, field) -> flag. The old spellings (--fov-deg, --window-radius) still work
+# there for one release, with a warning (CHANGELOG.md).
+COMMAND_FLAGS = {
+    ("poses", "fov_deg"): "--frames-fov-deg",
+    ("rectify", "fov_deg"): "--rectified-fov-deg",
+    ("metrics", "window_radius"): "--ssim-window-radius",
+}
+
 # Fields set on the command line in another way, or Python only: (command or "*", field) -> why.
 NOT_ON_THE_CLI = {
     ("stack", "render.focal_plane"): "the slices' planes replace it",
@@ -122,7 +131,7 @@ def leaves(options: Any, prefix: str = "") -> list[tuple[str, Any]]:
     return result
 
 
-HELP_LINE = re.compile(r"^\s{2}(-\w,)?(--[\w-]+)(?:\s+([A-Z]+(?::[A-Z]+>=-?\d+)?)(?:=(\S+))?)?")
+HELP_LINE = re.compile(r"^\s{2}(-\w,)?(--[\w-]+)(?:,--[\w-]+)*(?:\s+([A-Z]+(?::[A-Z]+>=-?\d+)?)(?:=(\S+))?)?")
 
 
 def cli_flags(aos_render: str, command: str) -> dict[str, Optional[str]]:
@@ -184,7 +193,8 @@ def same_default(python_value: Any, cli: Optional[str], path: str = "") -> bool:
 
 def flag_for(command: str, path: str, flags: dict[str, Optional[str]]) -> Optional[str]:
     name = path.rsplit(".", 1)[-1]
-    for candidate in (FLAGS.get(name), "--" + name.replace("_", "-")):
+    for candidate in (COMMAND_FLAGS.get((command, name)), FLAGS.get(name),
+                      "--" + name.replace("_", "-")):
         if candidate and candidate in flags:
             return candidate
     return None
@@ -240,11 +250,14 @@ command's function, routed by its name (`aos.all_in_focus(lf, agreement=0.1)` se
 `merge.robust.agreement`).
 
 Flags outside the Options structs: `-q/--quiet` (every command), `-o` (the output path),
-`--force` (commands that write files), `--json` (`metrics`, `resolution`). Inconsistencies still
-open (issue 14): `--fov-deg` is the virtual camera's field of view on `integral`, `stack` and
-`allinfocus`, the rectified view's on `rectify`, the lens's on `resolution` and the frames' on
-`poses`; `--window-radius` is the focus window on `merge`/`allinfocus` and the SSIM window on
-`metrics`.
+`--force` (commands that write files), `--json` (`metrics`, `resolution`). Fields of
+different meaning have flags named by what they describe: `--fov-deg` is the virtual camera's
+field of view (`integral`, `stack`, `allinfocus`), `--frames-fov-deg` the input frames'
+(`poses`; JKU frames on `integral`), `--rectified-fov-deg` the rectified frames' (`rectify`),
+`--lens-fov-deg` the lens's (`resolution`); `--window-radius` is the focus window
+(`merge`, `allinfocus`), `--ssim-window-radius` the SSIM window (`metrics`). The old spellings
+(`--fov-deg` on `poses`, `rectify` and `resolution`, `--window-radius` on `metrics`,
+`--images` on `import-colmap`) work for one release with a warning (CHANGELOG.md).
 """.split("\n")
     for command, class_name in COMMANDS:
         lines += [f"## `aos-render {command}` ({class_name})", "",

@@ -79,6 +79,38 @@ void AddForce(CLI::App* command) {
   command->add_flag("--force", g_force, "Replace output files that exist (refused otherwise)");
 }
 
+// Old spellings kept for one release (CHANGELOG.md): the option accepts both names, and using
+// the old one prints a warning naming the new one. One line per renamed flag.
+struct DeprecatedSpelling {
+  const char* command;
+  const char* old_flag;
+  const char* new_flag;
+};
+constexpr DeprecatedSpelling kDeprecatedSpellings[] = {
+    {"import-colmap", "--images", "--images-dir"},
+    {"poses", "--fov-deg", "--frames-fov-deg"},
+    {"rectify", "--fov-deg", "--rectified-fov-deg"},
+    {"resolution", "--fov-deg", "--lens-fov-deg"},
+    {"metrics", "--window-radius", "--ssim-window-radius"},
+};
+
+// Warns for each old spelling on the command line (after the subcommand; also --old=value).
+void WarnDeprecatedSpellings(int argc, char** argv) {
+  if (argc < 2) return;
+  const std::string command = argv[1];
+  for (int i = 2; i < argc; ++i) {
+    const std::string argument = argv[i];
+    for (const DeprecatedSpelling& spelling : kDeprecatedSpellings) {
+      const std::string old_flag = spelling.old_flag;
+      if (command == spelling.command &&
+          (argument == old_flag || argument.rfind(old_flag + "=", 0) == 0)) {
+        std::fprintf(stderr, "warning: %s is deprecated; use %s\n", spelling.old_flag,
+                     spelling.new_flag);
+      }
+    }
+  }
+}
+
 // Refuses an existing `path` (a file, a folder or a link, dangling or not) unless --force.
 void RefuseExisting(const std::string& path, const std::string& what) {
   std::error_code error;
@@ -936,8 +968,9 @@ void AddResolution(CLI::App& app, ResolutionCommand& c) {
       "and Appendix A back-projection) and the effective resolution under a pose error");
   command->add_option("--width", c.width, "Image width, pixels")->required();
   command->add_option("--height", c.height, "Image height, pixels")->required();
-  auto* fov = command->add_option("--fov-deg", c.fov_deg,
-                                  "Horizontal field of view, degrees (square pixels, centred)");
+  auto* fov = command->add_option("--lens-fov-deg,--fov-deg", c.fov_deg,
+                                  "Horizontal field of view of the lens, degrees (square pixels, "
+                                  "centred; --fov-deg is its old name)");
   auto* focal = command->add_option("--focal", c.focal, "Focal lengths FX,FY in pixels");
   fov->excludes(focal);
   command->add_option("--principal", c.principal,
@@ -988,10 +1021,10 @@ int RunResolution(const ResolutionCommand& c) {
     try {
       camera = LensFromFov(model, c.width, c.height, c.fov_deg, distortion, c.xi, "camera");
     } catch (const std::invalid_argument& error) {
-      ThrowUsage(std::string(error.what()) + " [option --fov-deg/--model/--distortion]");
+      ThrowUsage(std::string(error.what()) + " [option --lens-fov-deg/--model/--distortion]");
     }
   } else {
-    ThrowUsage("give --fov-deg or --focal");
+    ThrowUsage("give --lens-fov-deg or --focal");
   }
   if (!c.principal.empty()) {
     const std::vector<double> p = ParseNumbers(c.principal, "--principal", 2);
@@ -1059,7 +1092,9 @@ void AddRectify(CLI::App& app, RectifyCommand& c) {
       "Instead of frames + --camera: an aos light field whose views have lens cameras; writes "
       "DIR/lightfield.json pointing at the rectified frames, with pinhole cameras");
   light_field->excludes(frames)->excludes(camera);
-  command->add_option("--fov-deg", c.options.fov_deg, "Horizontal field of view, degrees")
+  command->add_option("--rectified-fov-deg,--fov-deg", c.options.fov_deg,
+                      "Horizontal field of view of the rectified frames, degrees (--fov-deg is "
+                      "its old name)")
       ->capture_default_str();
   command->add_option("--width", c.options.width, "Output width, pixels (0 = the raw width)")
       ->capture_default_str();
@@ -1079,7 +1114,7 @@ void AddRectify(CLI::App& app, RectifyCommand& c) {
 }
 
 const std::vector<std::pair<std::string, std::string>> kRectifyFlags{
-    {"fov_deg", "--fov-deg"},
+    {"fov_deg", "--rectified-fov-deg"},
     {"width/height", "--width/--height"},
     {"yaw_deg/pitch_deg/roll_deg", "--yaw-deg/--pitch-deg/--roll-deg"}};
 
@@ -1130,7 +1165,8 @@ int RunRectify(const RectifyCommand& c) {
     // may be what is wrong). Other errors name their flag.
     const std::string message = error.what();
     if (message.rfind("fov_deg: the lens does not cover", 0) == 0) {
-      throw UsageError(message + " (the lens of " + c.camera_path + ") [option --fov-deg]");
+      throw UsageError(message + " (the lens of " + c.camera_path +
+                       ") [option --rectified-fov-deg]");
     }
     RethrowNamingFlags(error, kRectifyFlags);
   }
@@ -1255,13 +1291,14 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
   command->add_option("--camera-model", c.options.camera_model,
                       "COLMAP model to self-calibrate")
       ->capture_default_str();
-  command->add_option("--fov-deg", c.options.fov_deg,
+  command->add_option("--frames-fov-deg,--fov-deg", c.options.fov_deg,
                       "The frames' horizontal field of view: self-calibration's start and the "
-                      "prior its result is checked against (0 = none)")
+                      "prior its result is checked against (0 = none; --fov-deg is its old "
+                      "name)")
       ->capture_default_str();
   command->add_option("--max-focal-deviation", c.options.max_focal_deviation,
                       "Refuse a self-calibrated focal length further than this fraction from "
-                      "the --fov-deg prior's")
+                      "the --frames-fov-deg prior's")
       ->capture_default_str();
   command->add_flag("--allow-implausible", c.options.allow_implausible,
                     "Keep implausible self-calibrated intrinsics (with a warning)");
@@ -1325,7 +1362,7 @@ const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
     {"matcher", "--matcher"},
     {"sequential_overlap", "--overlap"},
     {"camera_model", "--camera-model"},
-    {"fov_deg", "--fov-deg"},
+    {"fov_deg", "--frames-fov-deg"},
     {"max_image_size", "--max-image-size"},
     {"max_num_features", "--max-features"},
     {"min_registered_fraction", "--min-registered"},
@@ -1356,7 +1393,6 @@ int RunPoses(PosesCommand& c) {
 struct ImportColmapCommand {
   std::string model_dir;
   std::string frames_dir;
-  std::string frames_dir_deprecated;  // --images, the name before --images-dir (CHANGELOG.md)
   std::string output;
   PosesOptions options;
 };
@@ -1367,9 +1403,9 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
       "Import a COLMAP sparse model (text or binary) as a light field; optionally "
       "geo-referenced by known positions");
   command->add_option("model", c.model_dir, "COLMAP model folder (e.g. sparse/0)")->required();
-  command->add_option("--images-dir", c.frames_dir, "The frames folder COLMAP was given");
-  command->add_option("--images", c.frames_dir_deprecated,
-                      "Deprecated spelling of --images-dir (kept for one release)");
+  command->add_option("--images-dir,--images", c.frames_dir,
+                      "The frames folder COLMAP was given (--images is its old name)")
+      ->required();
   command->add_option("-o,--output", c.output, "Light-field file to write (JSON)")->required();
   command->add_option("--positions", c.options.positions_file,
                       "CSV of camera positions, columns by header name: name,x,y,z (metres) or "
@@ -1386,12 +1422,6 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
 }
 
 int RunImportColmap(ImportColmapCommand& c) {
-  if (!c.frames_dir_deprecated.empty()) {
-    if (!c.frames_dir.empty()) ThrowUsage("give --images-dir only (--images is its old name)");
-    std::fprintf(stderr, "warning: --images is deprecated; use --images-dir\n");
-    c.frames_dir = c.frames_dir_deprecated;
-  }
-  if (c.frames_dir.empty()) ThrowUsage("--images-dir is required (the frames folder)");
   // The model folder (cameras, images, points3D), the frames folder and the positions are inputs.
   const std::vector<std::string> inputs{c.model_dir, c.frames_dir, c.options.positions_file};
   CheckOutputPath(c.output, inputs, "output");
@@ -1430,7 +1460,8 @@ void AddMetrics(CLI::App& app, MetricsCommand& c) {
       ->capture_default_str();
   command->add_option("--gaussian-sigma", c.options.gaussian_sigma, "SSIM window sigma, pixels")
       ->capture_default_str();
-  command->add_option("--window-radius", c.options.window_radius, "SSIM window radius, pixels")
+  command->add_option("--ssim-window-radius,--window-radius", c.options.window_radius,
+                      "SSIM window radius, pixels (--window-radius is its old name)")
       ->capture_default_str();
   command->add_option("--k1", c.options.k1, "SSIM constant k1")->capture_default_str();
   command->add_option("--k2", c.options.k2, "SSIM constant k2")->capture_default_str();
@@ -1456,7 +1487,7 @@ int RunMetrics(const MetricsCommand& c) {
     }
     RethrowNamingFlags(error, {{"data_range", "--data-range"},
                                {"gaussian_sigma", "--gaussian-sigma"},
-                               {"window_radius", "--window-radius"},
+                               {"window_radius", "--ssim-window-radius"},
                                {"k1/k2", "--k1/--k2"}});
   }
   auto number = [](double value) {
@@ -1516,6 +1547,7 @@ int main(int argc, char** argv) {
   AddMetrics(app, metrics);
   // First of all, so that a signal is never lost, whatever stage the command is in.
   InstallInterruptHandler();
+  WarnDeprecatedSpellings(argc, argv);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& error) {

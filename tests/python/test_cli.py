@@ -298,3 +298,23 @@ def test_import_colmap_images_dir_and_its_deprecated_alias(scene: Path, tmp_path
     assert both.returncode == 2 and "--images-dir" in both.stderr
     missing = run("import-colmap", str(model), "-o", str(tmp_path / "c.json"))
     assert missing.returncode == 2 and "--images-dir is required" in missing.stderr
+
+
+def test_renamed_flags_keep_their_old_spelling_with_a_warning(tmp_path: Path) -> None:
+    # Flags named by what they describe (docs/vocabulary.md); the old spellings work for one
+    # release and say what replaced them.
+    common = ["resolution", "--width", "640", "--height", "480", "--distance", "30"]
+    new = run(*common, "--lens-fov-deg", "60", "--json")
+    old = run(*common, "--fov-deg", "60", "--json")
+    assert new.returncode == old.returncode == 0 and new.stdout == old.stdout, old.stderr
+    assert new.stderr == "" and old.stderr == "warning: --fov-deg is deprecated; use --lens-fov-deg\n"
+    image = tmp_path / "a.png"
+    aos.write_image(str(image), (np.arange(64 * 48) % 251).astype(np.uint8).reshape(48, 64))
+    new = run("metrics", str(image), str(image), "--ssim-window-radius", "3", "--json")
+    old = run("metrics", str(image), str(image), "--window-radius", "3", "--json")
+    assert new.stdout == old.stdout and "ssim" in new.stdout
+    assert "warning: --window-radius is deprecated; use --ssim-window-radius" in old.stderr
+    for command, old_flag, new_flag in [("poses", "--fov-deg", "--frames-fov-deg"),
+                                        ("rectify", "--fov-deg", "--rectified-fov-deg")]:
+        text = run(command, "--help").stdout
+        assert f"{new_flag},{old_flag}" in text, command

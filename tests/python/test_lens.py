@@ -30,14 +30,14 @@ def test_paper_figures_from_python() -> None:
 
 def test_paper_figures_from_the_cli() -> None:
     done = subprocess.run(["aos-render", "resolution", "--width", "1871", "--height", "1871",
-                           "--fov-deg", "80", "--distance", "35", "--pose-error-m", "0.0423",
+                           "--lens-fov-deg", "80", "--distance", "35", "--pose-error-m", "0.0423",
                            "--json"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     figures = json.loads(done.stdout)
     assert figures["eq2_samples_per_m2"] == pytest.approx(1014, abs=1.0)
     assert figures["effective_sample_size_m"] == pytest.approx(figures["sample_size_m"] + 0.0846)
     folded = subprocess.run(["aos-render", "resolution", "--width", "640", "--height", "480",
-                             "--fov-deg", "80", "--model", "radtan", "--distortion", "-0.5"],
+                             "--lens-fov-deg", "80", "--model", "radtan", "--distortion", "-0.5"],
                             capture_output=True, text=True)
     assert folded.returncode == 2 and "folds the image" in folded.stderr
 
@@ -68,7 +68,7 @@ def test_cli_rectify_keeps_bit_depth_and_refuses_uncovered_views(tmp_path) -> No
     frame = (np.arange(160 * 120, dtype=np.uint16).reshape(120, 160) * 3)
     aos.write_image(str(tmp_path / "f0.png"), frame)
     done = subprocess.run(["aos-render", "rectify", str(tmp_path / "f0.png"), "--camera",
-                           str(tmp_path / "cam.json"), "--fov-deg", "60", "--width", "80",
+                           str(tmp_path / "cam.json"), "--rectified-fov-deg", "60", "--width", "80",
                            "--height", "60", "-q", "-o", str(tmp_path / "out")],
                           capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
@@ -77,7 +77,7 @@ def test_cli_rectify_keeps_bit_depth_and_refuses_uncovered_views(tmp_path) -> No
     rectified = json.loads((tmp_path / "out" / "camera.json").read_text())
     assert rectified["model"] == "pinhole" and rectified["width"] == 80
     refused = subprocess.run(["aos-render", "rectify", str(tmp_path / "f0.png"), "--camera",
-                              str(tmp_path / "cam.json"), "--fov-deg", "179", "-o",
+                              str(tmp_path / "cam.json"), "--rectified-fov-deg", "179", "-o",
                               str(tmp_path / "wide")], capture_output=True, text=True)
     assert refused.returncode == 2 and "does not cover" in refused.stderr
     assert not (tmp_path / "wide").exists()
@@ -96,7 +96,7 @@ def test_simulated_fisheye_light_field_renders_directly_and_after_rectify(tmp_pa
     raw = aos.load_lightfield(str(tmp_path / "sim" / "lightfield.json")).light_field
     assert all(view.lens.model == aos.LensModel.fisheye for view in raw.views)
     done = subprocess.run(["aos-render", "rectify", "--lightfield",
-                           str(tmp_path / "sim" / "lightfield.json"), "--fov-deg", "100", "-q",
+                           str(tmp_path / "sim" / "lightfield.json"), "--rectified-fov-deg", "100", "-q",
                            "-o", str(tmp_path / "rect")], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     rectified = aos.load_lightfield(str(tmp_path / "rect" / "lightfield.json")).light_field
@@ -136,7 +136,7 @@ def test_cli_resolution_of_wide_lenses_is_sane() -> None:
                               text=True)
 
     for fov in ("170", "180"):
-        done = resolution("--model", "fisheye", "--fov-deg", fov)
+        done = resolution("--model", "fisheye", "--lens-fov-deg", fov)
         assert done.returncode == 0, done.stderr
         r = json.loads(done.stdout)
         # Equidistant: fx = (w / 2) / (fov / 2 in radians); at nadir p = d / fx.
@@ -145,7 +145,7 @@ def test_cli_resolution_of_wide_lenses_is_sane() -> None:
         assert r["eq2_sample_size_m"] < r["sample_size_m"] < 3.0 * r["eq2_sample_size_m"]
         assert r["pixels_off_axis"] > 0
     # A 60-degree fisheye: every pixel within 60 degrees of the axis, none left out.
-    r = json.loads(resolution("--model", "fisheye", "--fov-deg", "60").stdout)
+    r = json.loads(resolution("--model", "fisheye", "--lens-fov-deg", "60").stdout)
     assert r["pixels_off_axis"] == 0 and r["sample_size_m"] < 0.05
-    refused = resolution("--fov-deg", "180")
+    refused = resolution("--lens-fov-deg", "180")
     assert refused.returncode == 2 and "pinhole lens's field of view" in refused.stderr

@@ -305,7 +305,7 @@ def test_rectify_refuses_non_finite_frames(tmp_path: Path) -> None:
         pixels[5, 7] = bad
         aos.write_image(str(frame), pixels)
         out = tmp_path / "rectified"
-        result = run("rectify", frame, "--camera", camera, "--fov-deg", "60", "-o", out)
+        result = run("rectify", frame, "--camera", camera, "--rectified-fov-deg", "60", "-o", out)
         message = assert_refused(result, "frame.tif")
         assert "(7, 5)" in message and ("NaN" in message or "infinite" in message)
         assert not out.exists()
@@ -734,7 +734,7 @@ def test_stack_and_model_errors_name_the_file_at_fault(light_field: Path, tmp_pa
                                   "width": 32, "height": 24, "fx": 30, "fy": 30, "cx": -200,
                                   "cy": 12}))
     result = run("rectify", light_field.parent / "views" / "0000.png", "--camera", camera,
-                 "--fov-deg", "40", "-o", tmp_path / "r")
+                 "--rectified-fov-deg", "40", "-o", tmp_path / "r")
     assert_refused(result, "camera.json", "does not cover", code=2)
     no_leftovers(tmp_path, {"stack", "model", "camera.json"})
 
