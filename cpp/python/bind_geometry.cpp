@@ -116,10 +116,7 @@ Rigid3d RigidFromMatrix3x4(const py::array_t<double, py::array::c_style | py::ar
 }  // namespace
 
 bool LensEqual(const LensCamera& a, const LensCamera& b) {
-  return a.model == b.model && a.width == b.width && a.height == b.height && a.fx == b.fx &&
-         a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.skew == b.skew && a.xi == b.xi &&
-         a.distortion == b.distortion && a.max_radius == b.max_radius &&
-         a.theta_max == b.theta_max;
+  return a.SameParameters(b) && a.max_radius == b.max_radius && a.theta_max == b.theta_max;
 }
 
 bool PinholeEqual(const PinholeCamera& a, const PinholeCamera& b) {

@@ -24,6 +24,7 @@
 #include "aos/util/file_util.h"
 #include "aos/util/process.h"
 #include "error_of.h"
+#include "gps_frame.h"
 #include "temp_folder.h"
 
 namespace aos {
@@ -121,29 +122,9 @@ class ExifFrames : public testing_util::TempFolderTest {
   // A small JPEG with GPS tags as a drone writes them (degrees, minutes, seconds + refs).
   void WriteTagged(const std::string& name, double lat, double lon, double altitude,
                    bool with_altitude = true) {
-    OIIO::ImageSpec spec(16, 12, 1, OIIO::TypeDesc::UINT8);
-    const auto dms = [](double value, float out[3]) {
-      value = std::abs(value);
-      out[0] = static_cast<float>(std::floor(value));
-      out[1] = static_cast<float>(std::floor((value - out[0]) * 60.0));
-      out[2] = static_cast<float>((value - out[0] - out[1] / 60.0) * 3600.0);
-    };
-    float lat_dms[3], lon_dms[3];
-    dms(lat, lat_dms);
-    dms(lon, lon_dms);
-    spec.attribute("GPS:Latitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), lat_dms);
-    spec.attribute("GPS:LatitudeRef", lat < 0 ? "S" : "N");
-    spec.attribute("GPS:Longitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), lon_dms);
-    spec.attribute("GPS:LongitudeRef", lon < 0 ? "W" : "E");
-    if (with_altitude) {
-      spec.attribute("GPS:Altitude", static_cast<float>(std::abs(altitude)));
-      spec.attribute("GPS:AltitudeRef", altitude < 0 ? 1 : 0);
-    }
-    std::vector<uint8_t> pixels(16 * 12, 100);
-    auto out = OIIO::ImageOutput::create(Path(name));
-    ASSERT_TRUE(out && out->open(Path(name), spec));
-    ASSERT_TRUE(out->write_image(OIIO::TypeDesc::UINT8, pixels.data()));
-    out->close();
+    const std::optional<double> tagged_altitude =
+        with_altitude ? std::optional<double>(altitude) : std::nullopt;
+    ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(Path(name), 16, 12, lat, lon, tagged_altitude));
   }
 };
 

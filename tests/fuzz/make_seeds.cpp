@@ -23,6 +23,7 @@
 #include "aos/lightfield/formats.h"
 #include "aos/render/focal_stack.h"
 #include "aos/sim/scene.h"
+#include "../cpp/gps_frame.h"
 #include "fuzz_util.h"
 
 namespace {
@@ -351,30 +352,9 @@ void ColmapSeeds(const fs::path& out_text, const fs::path& out_binary) {
 
 // A small frame with the GPS tags a drone writes (ReadGpsTag).
 void WriteGpsTagged(const fs::path& path, double lat, double lon, double altitude) {
-  OIIO::ImageSpec spec(8, 6, 1, OIIO::TypeDesc::UINT8);
-  const auto dms = [](double value, float result[3]) {
-    value = std::abs(value);
-    result[0] = static_cast<float>(std::floor(value));
-    result[1] = static_cast<float>(std::floor((value - result[0]) * 60.0));
-    result[2] = static_cast<float>((value - result[0] - result[1] / 60.0) * 3600.0);
-  };
-  float lat_dms[3], lon_dms[3];
-  dms(lat, lat_dms);
-  dms(lon, lon_dms);
-  spec.attribute("GPS:Latitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), lat_dms);
-  spec.attribute("GPS:LatitudeRef", lat < 0 ? "S" : "N");
-  spec.attribute("GPS:Longitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), lon_dms);
-  spec.attribute("GPS:LongitudeRef", lon < 0 ? "W" : "E");
-  spec.attribute("GPS:Altitude", static_cast<float>(std::abs(altitude)));
-  spec.attribute("GPS:AltitudeRef", altitude < 0 ? 1 : 0);
-  std::vector<uint8_t> pixels(8 * 6);
-  for (size_t i = 0; i < pixels.size(); ++i) pixels[i] = static_cast<uint8_t>(i * 5);
-  auto output = OIIO::ImageOutput::create(path.string());
-  if (!output || !output->open(path.string(), spec) ||
-      !output->write_image(OIIO::TypeDesc::UINT8, pixels.data())) {
+  if (!aos::testing_util::WriteGpsTaggedFrame(path.string(), 8, 6, lat, lon, altitude)) {
     throw std::runtime_error(path.string() + ": cannot write the GPS-tagged seed");
   }
-  output->close();
 }
 
 void ImageSeeds(const fs::path& work, const fs::path& out, const std::string& extension) {

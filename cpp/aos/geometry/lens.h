@@ -73,6 +73,14 @@ struct LensCamera {
 
   // The distortion in normalised coordinates (radtan/omnidir): undistorted -> distorted.
   Vec2d Distort(const Vec2d& undistorted) const;
+
+  // Whether `other` has the same model and parameters (size, intrinsics, skew, xi, distortion);
+  // the derived valid field follows from them.
+  bool SameParameters(const LensCamera& other) const {
+    return model == other.model && width == other.width && height == other.height &&
+           fx == other.fx && fy == other.fy && cx == other.cx && cy == other.cy &&
+           skew == other.skew && xi == other.xi && distortion == other.distortion;
+  }
 };
 
 // A centred lens camera of `model` whose horizontal field of view is `fov_deg`, defined through

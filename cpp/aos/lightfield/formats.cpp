@@ -806,13 +806,9 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   for (size_t i = 0; i < light_field.views.size(); ++i) {
     const View& view = light_field.views[i];
     size_t camera_index = 0;
-    const auto same_lens = [](const LensCamera& a, const LensCamera& b) {
-      return a.model == b.model && a.distortion == b.distortion && a.xi == b.xi &&
-             a.skew == b.skew;
-    };
     while (camera_index < cameras.size() &&
            !(SameCamera(cameras[camera_index]->camera, view.camera) &&
-             same_lens(cameras[camera_index]->lens, view.lens))) {
+             cameras[camera_index]->Lens().SameParameters(view.Lens()))) {
       ++camera_index;
     }
     const std::string camera_id = "cam" + std::to_string(camera_index);

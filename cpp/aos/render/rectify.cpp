@@ -108,11 +108,6 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
   result.light_field.origin = light_field.origin;
   result.light_field.pose_source = light_field.pose_source;
   std::vector<std::pair<LensCamera, Rectifier>> rectifiers;  // one per distinct lens
-  const auto same_lens = [](const LensCamera& a, const LensCamera& b) {
-    return a.model == b.model && a.width == b.width && a.height == b.height && a.fx == b.fx &&
-           a.fy == b.fy && a.cx == b.cx && a.cy == b.cy && a.distortion == b.distortion &&
-           a.xi == b.xi && a.skew == b.skew;
-  };
   ProgressStart(progress, "rectify", static_cast<int64_t>(light_field.views.size()));
   for (const View& view : light_field.views) {
     if (ProgressCancelled(progress)) throw Cancelled();
@@ -122,7 +117,7 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
       continue;
     }
     auto found = std::find_if(rectifiers.begin(), rectifiers.end(),
-                              [&](const auto& entry) { return same_lens(entry.first, view.lens); });
+                              [&](const auto& entry) { return entry.first.SameParameters(view.lens); });
     if (found == rectifiers.end()) {
       try {
         rectifiers.emplace_back(view.lens, MakeRectifier(view.lens, options));
