@@ -157,7 +157,7 @@ same size (cv::remap, bilinear; maps from the lens model built once):
 
 ## Sampling resolution (Eq. 2, Appendix A)
 
-`aos-render resolution --width 1871 --height 1871 --lens-fov-deg 80 --distance 35 --pose-error-m 0.0423`
+`aos-render resolution --width 1871 --height 1871 --lens-fov-deg 80 --distance-m 35 --pose-error-m 0.0423`
 reproduces the paper: 1014.7 samples/m^2 by Eq. 2 (p = 3.14 cm), the same by back-projection
 for a pinhole, and p' = p + 2e = 11.60 cm (74.3 samples/m^2) with e = 4.23 cm (the paper,
 starting from its measured p = 3.18 cm: 11.64 cm, 74 samples/m^2).

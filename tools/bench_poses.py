@@ -71,8 +71,8 @@ def run(args: argparse.Namespace, work: Path) -> dict:
         lines.append(f"{k:04d}.png,{c[0]:.4f},{c[1]:.4f},{c[2]:.4f}")
     (work / "gps.csv").write_text("\n".join(lines) + "\n")
     command = ["aos-render", "poses", str(frames), "-o", str(work / "poses.json"),
-               "--positions", str(work / "gps.csv"), "--camera-model", "PINHOLE",
-               "--frames-fov-deg", str(FOV), "--overlap", str(args.overlap)]
+               "--positions-file", str(work / "gps.csv"), "--camera-model", "PINHOLE",
+               "--frames-fov-deg", str(FOV), "--sequential-overlap", str(args.overlap)]
     print("$ " + " ".join(command), flush=True)
     start = time.perf_counter()
     done = subprocess.run(command, stdout=subprocess.PIPE, text=True)
@@ -163,7 +163,7 @@ self-calibrated PINHOLE camera started from the true FOV, and the true centres (
 UTM-sized coordinates) as the positions CSV that geo-references the model.
 
 {summary}
-How the pieces fit: `aos-render poses frames/ -o lightfield.json [--positions gps.csv]` (or
+How the pieces fit: `aos-render poses frames/ -o lightfield.json [--positions-file gps.csv]` (or
 `aos.estimate_poses`) writes the light field with a `pose_source` record: COLMAP's mean
 reprojection error, the median depth of its points, and the pose error e (reprojection error
 times depth over focal length), which sets the effective sample size p' = p + 2e of the

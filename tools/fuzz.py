@@ -949,7 +949,7 @@ TARGETS = (
            outputs=("out/lf.json",), output_file="out/lf.json"),
     Target("import-colmap-positions", ("positions.csv",),
            argv=("{aos_render}", "import-colmap", "in/colmap_txt", "--images-dir", "in/sim/views",
-                 "--positions", "in/positions.csv", "-o", "out/lf.json"),
+                 "--positions-file", "in/positions.csv", "-o", "out/lf.json"),
            outputs=("out/lf.json",), output_file="out/lf.json"),
     Target("rectify-camera", ("camera.json",),
            argv=("{aos_render}", "rectify", "in/images/gray8.png", "--camera", "in/camera.json",

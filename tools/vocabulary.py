@@ -6,17 +6,19 @@ each command, its default and its unit, generated from the package and `aos-rend
     python3 tools/vocabulary.py --check      # exit 1 if the page is stale or the surfaces drift
 
 The options are defined once, in the C++ Options structs; Python exposes their fields under the
-same names with the C++ defaults (aos.XxxOptions), and the CLI binds flags to them. This tool
-walks every field of the struct each command fills (nested structs included) and finds its flag:
-the field's name in kebab case (`min_view_angle_deg` -> `--min-view-angle-deg`), or a spelling
-listed in FLAGS below, or a reason in NOT_ON_THE_CLI. `problems()` lists every field with neither
-and every flag whose default differs from the struct's; tests/python/test_vocabulary.py asserts
-there are none and that docs/vocabulary.md is what this tool writes. Standard library only (and
-the aos under test).
+same names with the C++ defaults (aos.XxxOptions), and the CLI binds each flag to the field it
+sets (cpp/exe/cli.h: Flags). `aos-render flags` lists those bindings (command, flag, field path,
+default as --help prints it). This tool walks every field of the struct each command fills
+(nested structs included) and finds its binding, or a reason in NOT_ON_THE_CLI. `rows()` lists
+as problems every field with neither, every binding whose default differs from the struct's (as
+Python sees it) or from what --help prints, and bindings of fields the struct does not have;
+tests/python/test_vocabulary.py asserts there are none and that docs/vocabulary.md is what this
+tool writes. Standard library only (and the aos under test).
 """
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import os
 import re
@@ -43,32 +45,6 @@ COMMANDS = [
     ("resolution", "ResolutionOptions"),
     ("metrics", "QualityOptions"),
 ]
-
-# Fields whose flag is not their kebab-case name: field -> flag (same on every command).
-FLAGS = {
-    "num_threads": "--threads",
-    "view_indices": "--views",
-    "pattern_columns": "--pattern",
-    "pattern_rows": "--pattern",
-    "square_size_m": "--square-size",
-    "camera_file": "--camera",
-    "positions_file": "--positions",
-    "exif_positions": "--positions-from-exif",
-    "sequential_overlap": "--overlap",
-    "max_num_features": "--max-features",
-    "min_registered_fraction": "--min-registered",
-    "distance_m": "--distance",
-    "focal_plane": "--focal-height",  # or --focal-plane / --focal-distance
-}
-
-# Flags named by what they describe where one field name means different things on different
-# commands: (command, field) -> flag. The old spellings (--fov-deg, --window-radius) still work
-# there for one release, with a warning (CHANGELOG.md).
-COMMAND_FLAGS = {
-    ("poses", "fov_deg"): "--frames-fov-deg",
-    ("rectify", "fov_deg"): "--rectified-fov-deg",
-    ("metrics", "window_radius"): "--ssim-window-radius",
-}
 
 # Fields set on the command line in another way, or Python only: (command or "*", field) -> why.
 NOT_ON_THE_CLI = {
@@ -191,12 +167,21 @@ def same_default(python_value: Any, cli: Optional[str], path: str = "") -> bool:
     return True
 
 
-def flag_for(command: str, path: str, flags: dict[str, Optional[str]]) -> Optional[str]:
-    name = path.rsplit(".", 1)[-1]
-    for candidate in (COMMAND_FLAGS.get((command, name)), FLAGS.get(name),
-                      "--" + name.replace("_", "-")):
-        if candidate and candidate in flags:
-            return candidate
+def cli_bindings(aos_render: str) -> list[dict[str, str]]:
+    """Every flag bound to an Options field, from `aos-render flags`."""
+    text = subprocess.run([aos_render, "flags"], capture_output=True, text=True, check=True,
+                          timeout=30).stdout
+    return json.loads(text)
+
+
+def binding_for(bindings: list[dict[str, str]], command: str, path: str) -> Optional[dict]:
+    """The binding of one field: a single flag with a printed default first (a field set by
+    several flags, such as focal_plane, also has a combined entry naming them all)."""
+    found = [b for b in bindings if b["command"] == command and b["field"] == path]
+    single = [b for b in found if "/" not in b["flag"]]
+    for candidates in ([b for b in single if b["default"]], single, found):
+        if candidates:
+            return candidates[0]
     return None
 
 
@@ -206,16 +191,26 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
 
     table: list[dict[str, str]] = []
     problems: list[str] = []
+    bindings = cli_bindings(aos_render)
     for command, class_name in COMMANDS:
         flags = cli_flags(aos_render, command)
-        for path, value in leaves(getattr(aos, class_name)()):
+        fields = leaves(getattr(aos, class_name)())
+        known = {path for path, _ in fields}
+        for binding in bindings:
+            field = binding["field"]
+            if (binding["command"] == command and field not in known and "/" not in field
+                    and not field.startswith("load.")):
+                problems.append(f"{command} {binding['flag']}: bound to {class_name}.{field}, "
+                                "which the struct does not have")
+        for path, value in fields:
             name = path.rsplit(".", 1)[-1]
-            flag = flag_for(command, path, flags)
+            binding = binding_for(bindings, command, path)
+            flag = binding["flag"] if binding else None
             why = (NOT_ON_THE_CLI.get((command, path)) or NOT_ON_THE_CLI.get(("*", name)))
             row = {"command": command, "python": f"{class_name}.{path}", "flag": flag or "",
                    "default": python_default(value), "unit": unit_of(command, path),
                    "note": ""}
-            if flag is None:
+            if binding is None:
                 if why is None:
                     problems.append(f"{command}: {class_name}.{path} has no flag "
                                     f"(--{name.replace('_', '-')}) and no reason in NOT_ON_THE_CLI")
@@ -224,14 +219,18 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
                 if why is not None:
                     problems.append(f"{command}: NOT_ON_THE_CLI gives a reason for "
                                     f"{class_name}.{path}, but {flag} sets it: a stale entry")
-                printed = flags[flag]
-                if printed is None and not (value is False or name in NO_PRINTED_DEFAULT):
+                bound = binding["default"] or None
+                if bound is None and not (value is False or name in NO_PRINTED_DEFAULT):
                     problems.append(f"{command} {flag}: --help prints no default for "
                                     f"{class_name}.{path} ({python_default(value)}): bind it "
-                                    "with capture_default_str() or list it in NO_PRINTED_DEFAULT")
-                if not same_default(value, flags[flag], path):
-                    problems.append(f"{command} {flag}: the CLI default {flags[flag]!r} is not "
+                                    "with Flags::Field or list it in NO_PRINTED_DEFAULT")
+                if not same_default(value, bound, path):
+                    problems.append(f"{command} {flag}: the CLI default {bound!r} is not "
                                     f"{class_name}.{path}'s {python_default(value)}")
+                if "/" not in flag and flags.get(flag) != bound and not (
+                        bound is None and value is False):
+                    problems.append(f"{command} {flag}: --help prints {flags.get(flag)!r} but "
+                                    f"the flag is bound with the default {bound!r}")
                 if flag != "--" + name.replace("_", "-"):
                     row["note"] = "flag spelled differently from the field"
             table.append(row)
@@ -249,15 +248,27 @@ default differs from the struct's. In Python every field is also a keyword argum
 command's function, routed by its name (`aos.all_in_focus(lf, agreement=0.1)` sets
 `merge.robust.agreement`).
 
-Flags outside the Options structs: `-q/--quiet` (every command), `-o` (the output path),
-`--force` (commands that write files), `--json` (`metrics`, `resolution`). Fields of
-different meaning have flags named by what they describe: `--fov-deg` is the virtual camera's
-field of view (`integral`, `stack`, `allinfocus`), `--frames-fov-deg` the input frames'
-(`poses`; JKU frames on `integral`), `--rectified-fov-deg` the rectified frames' (`rectify`),
-`--lens-fov-deg` the lens's (`resolution`); `--window-radius` is the focus window
-(`merge`, `allinfocus`), `--ssim-window-radius` the SSIM window (`metrics`). The old spellings
-(`--fov-deg` on `poses`, `rectify` and `resolution`, `--window-radius` on `metrics`,
-`--images` on `import-colmap`) work for one release with a warning (CHANGELOG.md).
+Every flag is bound to the Options field it sets and named after it (cpp/exe/cli.h: Flags);
+`aos-render flags` lists the bindings. The exceptions, named by what they describe: `--threads`
+(`num_threads`, on every command: every stage of the command, and a cap on the process's
+workers), `--views` (`view_indices`), `--pattern COLUMNSxROWS` (`pattern_columns`,
+`pattern_rows`), `--focal-height`/`--focal-plane`/`--focal-distance` (`focal_plane`), and the
+fields of one name but different meaning: `--fov-deg` is the virtual camera's field of view
+(`integral`, `stack`, `allinfocus`), `--frames-fov-deg` the input frames' (`poses`; JKU frames
+on the rendering commands), `--rectified-fov-deg` the rectified frames' (`rectify`),
+`--lens-fov-deg` the lens's (`resolution`); `--window-radius` is the focus window (`merge`,
+`allinfocus`), `--ssim-window-radius` the SSIM window (`metrics`).
+
+Flags outside the Options structs: `-q/--quiet`, `--json` (the command's report as one JSON
+object on stdout) and `--threads` on every command, `-o` (the output path) on every command that
+writes, `--force` on commands that write files (output folders are never replaced),
+`--sample-type`/`--range` where a rendered image is written (`integral`, `demo`).
+
+Old spellings work for one release with a warning naming the new one (CHANGELOG.md): `--fov-deg`
+on `poses`, `rectify` and `resolution`; `--window-radius` on `metrics`; `--images` on
+`import-colmap`; `--square-size` (`calibrate`), `--distance` (`resolution`), `--camera`,
+`--overlap`, `--max-features` (`poses`), `--min-registered`, `--positions`,
+`--positions-from-exif` (`poses`, `import-colmap`).
 """.split("\n")
     for command, class_name in COMMANDS:
         lines += [f"## `aos-render {command}` ({class_name})", "",

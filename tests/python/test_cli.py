@@ -303,7 +303,7 @@ def test_import_colmap_images_dir_and_its_deprecated_alias(scene: Path, tmp_path
 def test_renamed_flags_keep_their_old_spelling_with_a_warning(tmp_path: Path) -> None:
     # Flags named by what they describe (docs/vocabulary.md); the old spellings work for one
     # release and say what replaced them.
-    common = ["resolution", "--width", "640", "--height", "480", "--distance", "30"]
+    common = ["resolution", "--width", "640", "--height", "480", "--distance-m", "30"]
     new = run(*common, "--lens-fov-deg", "60", "--json")
     old = run(*common, "--fov-deg", "60", "--json")
     assert new.returncode == old.returncode == 0 and new.stdout == old.stdout, old.stderr

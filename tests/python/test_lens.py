@@ -30,7 +30,7 @@ def test_paper_figures_from_python() -> None:
 
 def test_paper_figures_from_the_cli() -> None:
     done = subprocess.run(["aos-render", "resolution", "--width", "1871", "--height", "1871",
-                           "--lens-fov-deg", "80", "--distance", "35", "--pose-error-m", "0.0423",
+                           "--lens-fov-deg", "80", "--distance-m", "35", "--pose-error-m", "0.0423",
                            "--json"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     figures = json.loads(done.stdout)
@@ -132,7 +132,7 @@ def test_cli_resolution_of_wide_lenses_is_sane() -> None:
     (it printed 124 m)."""
     def resolution(*args: str) -> subprocess.CompletedProcess:
         return subprocess.run(["aos-render", "resolution", "--width", "1024", "--height", "1024",
-                               "--distance", "35", "--json", *args], capture_output=True,
+                               "--distance-m", "35", "--json", *args], capture_output=True,
                               text=True)
 
     for fov in ("170", "180"):

@@ -56,8 +56,8 @@ def flight(tmp_path_factory):
                                          camera.fx, camera.fy, camera.cx, camera.cy))
     before = {p.name: p.read_bytes() for p in frames.iterdir()}
     done = subprocess.run(["aos-render", "poses", str(frames), "-o", str(root / "poses.json"),
-                           "--positions", str(root / "gps.csv"), "--camera",
-                           str(root / "camera.json"), "--max-features", "1024", "--overlap", "4",
+                           "--positions-file", str(root / "gps.csv"), "--camera-file",
+                           str(root / "camera.json"), "--max-num-features", "1024", "--sequential-overlap", "4",
                            "--workspace", str(root / "ws")],
                           capture_output=True, text=True)
     after = {p.name: p.read_bytes() for p in frames.iterdir()}
@@ -162,7 +162,7 @@ def test_python_api_and_bad_input(flight, tmp_path) -> None:
     assert imported.unregistered == ["9998.png", "9999.png"]
     assert imported.georeferenced and imported.light_field.pose_source.pose_error > 0
     done = subprocess.run(["aos-render", "import-colmap", str(model), "--images-dir", str(frames),
-                           "--positions", str(flight["root"] / "gps.csv"), "-o",
+                           "--positions-file", str(flight["root"] / "gps.csv"), "-o",
                            str(tmp_path / "imported.json")], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     assert "16 of 18 frames registered" in done.stdout

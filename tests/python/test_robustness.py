@@ -121,7 +121,7 @@ def test_poses_and_calibrate_refuse_an_input_as_output(light_field: Path, tmp_pa
     positions = tmp_path / "positions.csv"
     positions.write_text("name,x,y,z\n0000.png,0,0,0\n")
     for target in (frames / "0003.png", positions):
-        result = run("poses", frames, "--positions", positions, "-o", target)
+        result = run("poses", frames, "--positions-file", positions, "-o", target)
         assert_refused(result, str(target), "input")
     result = run("calibrate", frames / "0000.png", frames / "0001.png", "-o", frames / "0001.png")
     assert_refused(result, "0001.png", "input")
@@ -465,21 +465,21 @@ def test_positions_in_degrees_are_projected_not_read_as_metres(light_field: Path
     positions.write_text("\n".join(lines) + "\n")
     images = light_field.parent / "views"
     out = tmp_path / "lf.json"
-    result = run("import-colmap", model, "--images-dir", images, "--positions", positions, "-o", out)
+    result = run("import-colmap", model, "--images-dir", images, "--positions-file", positions, "-o", out)
     assert result.returncode == 0, result.stderr
     assert "UTM 33N" in result.stdout, result.stdout
     origin = json.loads(out.read_text())["origin"]
     assert 400_000 < origin[0] < 600_000 and 5_300_000 < origin[1] < 5_400_000, origin
     # The same numbers without a header are evidently degrees: refused, not read as metres.
     positions.write_text("\n".join(lines[1:]) + "\n")
-    message = assert_refused(run("import-colmap", model, "--images-dir", images, "--positions",
+    message = assert_refused(run("import-colmap", model, "--images-dir", images, "--positions-file",
                                  positions, "-o", tmp_path / "lf2.json"), "gps.csv")
     assert "look like degrees" in message
     # ... unless the CRS is stated (x = longitude, y = latitude in EPSG:4326's GIS order).
     swapped = ["name,x,y,z"] + [
         ",".join([f[0], f[2], f[1], f[3]]) for f in (line.split(",") for line in lines[1:])]
     positions.write_text("\n".join(swapped) + "\n")
-    result = run("import-colmap", model, "--images-dir", images, "--positions", positions,
+    result = run("import-colmap", model, "--images-dir", images, "--positions-file", positions,
                  "--positions-crs", "EPSG:4326", "-o", tmp_path / "lf3.json")
     assert result.returncode == 0, result.stderr
     origin3 = json.loads((tmp_path / "lf3.json").read_text())["origin"]

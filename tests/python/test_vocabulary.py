@@ -49,27 +49,66 @@ def test_the_help_parser_reads_real_defaults() -> None:
 
 
 def test_drift_is_reported(monkeypatch) -> None:
-    real = vocabulary.cli_flags
+    real = vocabulary.cli_bindings
 
-    def drifted(aos_render: str, command: str):
-        flags = real(aos_render, command)
-        if command == "merge":
-            flags["--window-radius"] = "4"        # a default re-declared wrongly
-            del flags["--smoothing-sigma"]        # a field the CLI forgot
-        return flags
+    def drifted(aos_render: str):
+        bindings = [dict(b) for b in real(aos_render)]
+        for b in bindings:
+            if b["command"] == "merge" and b["flag"] == "--window-radius":
+                b["default"] = "4"                # a default re-declared wrongly
+        # a field the CLI forgot
+        return [b for b in bindings
+                if not (b["command"] == "merge" and b["flag"] == "--smoothing-sigma")]
 
-    monkeypatch.setattr(vocabulary, "cli_flags", drifted)
+    monkeypatch.setattr(vocabulary, "cli_bindings", drifted)
     _, problems = vocabulary.rows(EXE)
     assert any("merge --window-radius: the CLI default '4' is not MergeOptions.window_radius's 3"
                in p for p in problems), problems
     assert any("merge: MergeOptions.smoothing_sigma has no flag" in p for p in problems), problems
+    # The binding and --help disagree (the default printed is not the one bound).
+    assert any("merge --window-radius: --help prints '3' but the flag is bound with the default "
+               "'4'" in p for p in problems), problems
 
-    def unprinted(aos_render: str, command: str):
-        flags = real(aos_render, command)
-        if command == "metrics":
-            flags["--k1"] = None                  # a default --help no longer prints
-        return flags
+    def unprinted(aos_render: str):
+        bindings = [dict(b) for b in real(aos_render)]
+        for b in bindings:
+            if b["command"] == "metrics" and b["flag"] == "--k1":
+                b["default"] = ""                 # a default --help no longer prints
+        return bindings
 
-    monkeypatch.setattr(vocabulary, "cli_flags", unprinted)
+    monkeypatch.setattr(vocabulary, "cli_bindings", unprinted)
     _, problems = vocabulary.rows(EXE)
     assert any("metrics --k1: --help prints no default" in p for p in problems), problems
+
+    def stale(aos_render: str):
+        return real(aos_render) + [{"command": "merge", "flag": "--gone", "field": "gone",
+                                    "default": "1"}]
+
+    monkeypatch.setattr(vocabulary, "cli_bindings", stale)
+    _, problems = vocabulary.rows(EXE)
+    assert any("merge --gone: bound to MergeOptions.gone, which the struct does not have" in p
+               for p in problems), problems
+
+
+def test_every_command_has_quiet_json_and_threads() -> None:
+    import subprocess
+    commands = [c for c, _ in vocabulary.COMMANDS] + ["demo"]
+    for command in commands:
+        flags = vocabulary.cli_flags(EXE, command)
+        for flag in ("--quiet", "--json", "--threads"):
+            assert flag in flags, (command, flag)
+    # Flags are named after their fields: the binding list says which field each flag sets.
+    bindings = vocabulary.cli_bindings(EXE)
+    poses = {b["flag"]: b["field"] for b in bindings if b["command"] == "poses"}
+    assert poses["--sequential-overlap"] == "sequential_overlap"
+    assert poses["--max-num-features"] == "max_num_features"
+    assert poses["--threads"] == "num_threads"
+    allinfocus = {b["flag"]: b["field"] for b in bindings if b["command"] == "allinfocus"}
+    assert allinfocus["--agreement"] == "merge.robust.agreement"
+    assert allinfocus["--fov-deg"] == "stack.render.fov_deg"
+    # An old spelling still works, with a warning naming the new one.
+    result = subprocess.run([EXE, "resolution", "--width", "640", "--height", "480",
+                             "--lens-fov-deg", "60", "--distance", "20", "--json"],
+                            capture_output=True, text=True, timeout=30)
+    assert result.returncode == 0, result.stderr
+    assert "warning: --distance is deprecated; use --distance-m" in result.stderr

@@ -1,0 +1,273 @@
+#pragma once
+// The CLI's shared machinery: the command table's types, flags bound to Options fields, the
+// flags every command has, the report a command prints, and output checks.
+//
+// A command is one function `CommandRunner DefineX(CLI::App* command)` that declares its flags on
+// `command` (through a Flags binder) and returns the function that runs it once parsed; the
+// table in aos_render.cpp lists each command once (name, one-line help, Define function), the
+// way COLMAP's exe/colmap.cc does. Each area's commands live in their own file.
+//
+// A flag is a field: Flags::Field binds `--kebab-name` to the Options field `kebab_name`, prints
+// the struct's default in --help (read from the field itself, never re-typed), and records the
+// binding, so that an error from Options::Check() ("fov_deg: ...") names the flag that set the
+// field, and `aos-render flags` lists every binding (tools/vocabulary.py reads it).
+//
+// Exit codes: 0 success, 1 bad input or failure, 2 bad command line (UsageError), 130
+// interrupted.
+#include <cstdio>
+#include <functional>
+#include <map>
+#include <memory>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <type_traits>
+#include <utility>
+#include <vector>
+
+#include <CLI/CLI.hpp>
+
+#include "aos/geometry/rigid.h"
+#include "aos/image/image.h"
+#include "aos/util/error.h"
+
+namespace aos::cli {
+
+// The command table's types.
+using CommandRunner = std::function<int()>;
+using DefineCommand = CommandRunner (*)(CLI::App* command);
+struct CommandEntry {
+  const char* name;
+  const char* help;
+  DefineCommand define;
+};
+
+// A mistake on the command line found while interpreting the values (out of range, malformed
+// lists, unknown names): exit code 2, like the parser's own errors.
+class UsageError : public std::invalid_argument {
+ public:
+  explicit UsageError(const std::string& message) : std::invalid_argument(OneLine(message)) {}
+};
+
+[[noreturn]] void ThrowUsage(const std::string& message);
+
+// Runs `interpret` (which reads a flag's value) and turns its std::invalid_argument into a
+// UsageError.
+template <class Interpret>
+auto AsUsage(Interpret&& interpret) -> decltype(interpret()) {
+  try {
+    return interpret();
+  } catch (const UsageError&) {
+    throw;
+  } catch (const std::invalid_argument& error) {
+    throw UsageError(error.what());
+  }
+}
+
+// The flags every command has (-q, --json, --threads; --force where it writes files), set by
+// the parser for the one command that runs.
+struct CommonFlags {
+  bool quiet = false;  // -q: no progress, no report lines (errors and warnings still print)
+  bool json = false;   // --json: the report as one JSON object on stdout, nothing else there
+  bool force = false;  // --force: replace output files that exist (refused otherwise)
+  // Each command's --threads value (its Options field, or a spare): after parsing, the
+  // running command's value also caps the process's OpenMP workers.
+  std::map<std::string, int*> num_threads;
+};
+CommonFlags& Common();
+
+// printf to stdout unless -q or --json.
+__attribute__((format(printf, 1, 2))) void Say(const char* format, ...);
+// "warning: ..." / "note: ..." on stderr (even with -q: warnings are never silenced).
+void Warn(const std::string& message);
+void Note(const std::string& message);
+
+// One flag bound to an Options field.
+struct FlagBinding {
+  std::string command;  // e.g. "allinfocus"
+  std::string flag;     // e.g. "--agreement" (the new spelling)
+  std::string field;    // dotted path in the command's Options struct, e.g. "merge.robust.agreement"
+  std::string default_text;  // as --help prints it ("" when it prints none)
+};
+// Every binding of every command, in declaration order (for `aos-render flags`).
+const std::vector<FlagBinding>& AllBindings();
+
+// Refuses whole numbers below `minimum` with a plain message (the parser then exits with 2).
+CLI::Validator AtLeast(long long minimum);
+
+// Old spellings kept for one release (CHANGELOG.md): (command, new flag) -> old flag. The binder
+// adds the old spelling as an alias; WarnDeprecatedSpellings prints a warning naming the new one.
+struct DeprecatedSpelling {
+  const char* command;
+  const char* old_flag;
+  const char* new_flag;
+};
+const std::vector<DeprecatedSpelling>& DeprecatedSpellings();
+void WarnDeprecatedSpellings(int argc, char** argv);
+
+// Default text of a value as --help prints it.
+template <class T>
+std::string DefaultText(const T& value) {
+  if constexpr (std::is_same_v<T, bool>) {
+    return value ? "true" : "false";
+  } else if constexpr (std::is_floating_point_v<T>) {
+    return FormatNumber(static_cast<double>(value));
+  } else if constexpr (std::is_arithmetic_v<T>) {
+    return std::to_string(value);
+  } else {
+    return std::string(value);
+  }
+}
+
+// Binds one command's flags to the fields of its Options struct (see the header comment).
+class Flags {
+ public:
+  Flags(CLI::App* command, std::string prefix = "");
+  // The same binder for a nested struct: fields are recorded as `prefix + field`.
+  Flags Nested(const std::string& prefix) const;
+  // The same binder for a struct outside the command's Options (e.g. "load." for LoadOptions).
+  Flags At(const std::string& prefix) const;
+
+  // --kebab-case(field) -> `value`, with the field's current value as the printed default.
+  template <class T>
+  CLI::Option* Field(const std::string& field, T& value, const std::string& help) {
+    return Field(FlagOf(field), field, value, help);
+  }
+  // A flag spelled differently from its field (e.g. --threads for num_threads).
+  template <class T>
+  CLI::Option* Field(const std::string& flag, const std::string& field, T& value,
+                     const std::string& help) {
+    CLI::Option* option = command_->add_option(Names(flag), value, help);
+    const std::string text = DefaultText(value);
+    option->default_str(text);
+    Record(flag, field, text);
+    return option;
+  }
+  // A field whose "not given" means something the help states (no default printed).
+  template <class T>
+  CLI::Option* Optional(const std::string& flag, const std::string& field, T& value,
+                        const std::string& help) {
+    CLI::Option* option = command_->add_option(Names(flag), value, help);
+    Record(flag, field, "");
+    return option;
+  }
+  // A whole-number field with a lower bound (the parser refuses less, exit code 2).
+  CLI::Option* Field(const std::string& flag, const std::string& field, int& value,
+                     long long minimum, const std::string& help);
+  // A switch (a bool field, default false).
+  CLI::Option* Switch(const std::string& field, bool& value, const std::string& help);
+  // A field given as text and converted by `parse` (planes, enums, "inf"), which may throw
+  // std::invalid_argument; `default_text` is the field's default in the same spelling.
+  template <class T, class Parse>
+  CLI::Option* Parsed(const std::string& flag, const std::string& field, T& value, Parse parse,
+                      const std::string& default_text, const std::string& help) {
+    CLI::Option* option = command_->add_option_function<std::string>(
+        Names(flag),
+        [&value, parse](const std::string& text) {
+          try {
+            value = parse(text);
+          } catch (const std::invalid_argument& error) {
+            throw CLI::ValidationError(OneLine(error.what()));
+          }
+        },
+        help);
+    if (!default_text.empty()) option->default_str(default_text);
+    Record(flag, field, default_text);
+    return option;
+  }
+  // Records that `field` is set by the flags `flags` (e.g. "--focal-height/--focal-plane"),
+  // declared by hand; errors about the field then name them.
+  void Describe(const std::string& field, const std::string& flags,
+                const std::string& default_text = "");
+
+  // --threads bound to `num_threads` (an Options field; all stages of the command read it).
+  CLI::Option* Threads(int& num_threads, const std::string& field = "num_threads");
+  // --threads for a command whose Options have no thread count: caps the process's workers.
+  CLI::Option* Threads();
+  // -q and --json (every command has them; Define functions get them from the table).
+  void Quiet();
+  void Json();
+  // --force, on commands that write files.
+  void Force();
+
+  // Rethrows an Options::Check() error ("field: ...", also "(LoadOptions::field)") as a
+  // UsageError naming the flag bound to that field; other errors unchanged.
+  [[noreturn]] void RethrowNamingFlags(const std::invalid_argument& error) const;
+  // Runs `run` and names flags in its std::invalid_argument.
+  template <class Run>
+  auto NamingFlags(Run&& run) const -> decltype(run()) {
+    try {
+      return run();
+    } catch (const UsageError&) {
+      throw;
+    } catch (const std::invalid_argument& error) {
+      RethrowNamingFlags(error);
+    }
+  }
+
+  CLI::App* command() const { return command_; }
+
+ private:
+  static std::string FlagOf(const std::string& field);
+  std::string Names(const std::string& flag) const;
+  void Record(const std::string& flag, const std::string& field, const std::string& text);
+
+  CLI::App* command_;
+  std::string prefix_;
+  // field path or leaf name -> flag(s), this command only (shared by Nested binders).
+  std::shared_ptr<std::vector<std::pair<std::string, std::string>>> fields_;
+};
+
+// What a command reports: with --json one JSON object on stdout (nothing else there), else
+// text lines (unless -q). Keys are added in order; values are numbers, strings or lists.
+class Report {
+ public:
+  explicit Report(std::string command);
+  ~Report();
+  void Set(const std::string& key, double value);
+  void Set(const std::string& key, long long value);
+  void Set(const std::string& key, int value) { Set(key, static_cast<long long>(value)); }
+  void Set(const std::string& key, size_t value) { Set(key, static_cast<long long>(value)); }
+  void Set(const std::string& key, bool value);
+  void Set(const std::string& key, const std::string& value);
+  void Set(const std::string& key, const char* value) { Set(key, std::string(value)); }
+  void Set(const std::string& key, const std::vector<std::string>& values);
+  void Set(const std::string& key, const std::vector<double>& values);
+  // A nested object, e.g. report.Nested("single_view").Set(...).
+  Report& Nested(const std::string& key);
+  // A text line for the plain report (printed by Print unless --json or -q). Lines that are
+  // the command's result (metrics, resolution) print even with -q: pass result = true.
+  __attribute__((format(printf, 2, 3))) void Line(const char* format, ...);
+  __attribute__((format(printf, 2, 3))) void Result(const char* format, ...);
+  // Prints the report (once).
+  void Print();
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+// "a,b,c" -> numbers (a UsageError naming `option` for a bad one); `count` > 0 checks the count.
+std::vector<double> ParseNumbers(const std::string& text, const std::string& option,
+                                 size_t count = 0);
+// "H" (the horizontal plane z = H) or "PX,PY,PZ,NX,NY,NZ".
+Plane ParsePlane(const std::string& text, const std::string& option);
+// "inf"/"infinity" or a number.
+double ParseRadius(const std::string& text);
+// "0:10,15,20:30" -> indices checked against [0, view_count).
+std::vector<int> ParseViewList(const std::string& text, int view_count);
+
+// Refuses an existing `path` (a file, a folder or a link) unless --force (files only: folders
+// are never replaced).
+void RefuseExisting(const std::string& path, const std::string& what);
+
+// Sample type and value range of written images (--sample-type, --range).
+struct ImageOutputOptions {
+  std::string sample_type = "auto";  // auto, uint8, uint16, float32
+  std::string range = "views";       // views, minmax, or LO,HI
+};
+void AddImageOutputFlags(Flags& flags, ImageOutputOptions& out);
+// Checks --sample-type/--range and that `path` can hold the samples; throws a UsageError.
+void CheckImageOutput(const ImageOutputOptions& out, const std::string& path);
+
+}  // namespace aos::cli

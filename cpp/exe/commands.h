@@ -1,0 +1,27 @@
+#pragma once
+// The commands of aos-render, one Define function each, grouped by area (one file per area):
+//   render_commands.cpp   integral, stack, merge, allinfocus
+//   sim_commands.cpp      simulate, demo
+//   lens_commands.cpp     calibrate, rectify, resolution
+//   sfm_commands.cpp      poses, import-colmap
+//   metrics_commands.cpp  metrics
+// The command table (name, help, Define) is in aos_render.cpp. A Define function declares the
+// command's flags on `command` and returns the function that runs it after parsing.
+#include "cli.h"
+
+namespace aos::cli {
+
+CommandRunner DefineIntegral(CLI::App* command);
+CommandRunner DefineStack(CLI::App* command);
+CommandRunner DefineMerge(CLI::App* command);
+CommandRunner DefineAllInFocus(CLI::App* command);
+CommandRunner DefineSimulate(CLI::App* command);
+CommandRunner DefineDemo(CLI::App* command);
+CommandRunner DefineCalibrate(CLI::App* command);
+CommandRunner DefineRectify(CLI::App* command);
+CommandRunner DefineResolution(CLI::App* command);
+CommandRunner DefinePoses(CLI::App* command);
+CommandRunner DefineImportColmap(CLI::App* command);
+CommandRunner DefineMetrics(CLI::App* command);
+
+}  // namespace aos::cli

@@ -1,0 +1,368 @@
+// Lens commands: calibrate, rectify, resolution.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <memory>
+#include <set>
+
+#include "aos/calib/calibrate.h"
+#include "aos/image/image_io.h"
+#include "aos/lightfield/camera_file.h"
+#include "aos/lightfield/formats.h"
+#include "aos/metrics/resolution.h"
+#include "aos/render/rectify.h"
+#include "aos/util/file_util.h"
+#include "commands.h"
+#include "progress_bar.h"
+
+namespace fs = std::filesystem;
+
+namespace aos::cli {
+namespace {
+
+LensModel ParseModelFlag(const std::string& text) { return ParseLensModel(text, "--model"); }
+
+// ---- calibrate ----
+
+struct CalibrateCommand {
+  std::vector<std::string> frames;
+  CalibrateOptions options;
+  std::string output;
+};
+
+// "9x6" -> (9, 6), whole numbers 2..1000.
+std::pair<int, int> ParsePattern(const std::string& pattern) {
+  const size_t x = pattern.find('x');
+  if (x == std::string::npos) ThrowUsage("--pattern: expected COLUMNSxROWS, e.g. 9x6");
+  const auto count = [&](const std::string& text) {
+    const double value = AsUsage([&] { return ParseNumberText(text, "--pattern"); });
+    if (value != std::floor(value) || value < 2 || value > 1000) {
+      ThrowUsage("--pattern: expected COLUMNSxROWS of whole numbers 2..1000, e.g. 9x6 (got '" +
+                 pattern + "')");
+    }
+    return static_cast<int>(value);
+  };
+  return {count(pattern.substr(0, x)), count(pattern.substr(x + 1))};
+}
+
+int RunCalibrate(CalibrateCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  CheckOutputPath(c.output, c.frames, "output");
+  RefuseExisting(c.output, "output");
+  std::vector<Image> frames;
+  for (const std::string& frame : c.frames) frames.push_back(ReadImage(frame));
+  const CalibrationResult result =
+      flags.NamingFlags([&] { return Calibrate(frames, c.frames, c.options, &progress); });
+  progress.Finish();
+  for (const std::string& name : result.frames_rejected) {
+    Warn(name + ": board not found; frame not used");
+  }
+  WriteCameraFile(c.output, result.camera, CalibrationRecordJson(result, &c.options));
+  Report report("calibrate");
+  report.Set("output", c.output);
+  report.Set("model", LensModelName(result.camera.model));
+  report.Set("rms_px", result.rms_px);
+  report.Set("frames_used", result.frames_used);
+  report.Set("frames_rejected", result.frames_rejected);
+  report.Line("wrote %s: %s lens, RMS reprojection error %.3f px over %zu frames (%zu without "
+              "the board)",
+              c.output.c_str(), LensModelName(result.camera.model), result.rms_px,
+              result.frames_used.size(), result.frames_rejected.size());
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineCalibrate(CLI::App* command) {
+  auto c = std::make_shared<CalibrateCommand>();
+  Flags flags(command);
+  command->add_option("frames", c->frames, "Checkerboard frames")->required();
+  CalibrateOptions& options = c->options;
+  const std::string pattern = std::to_string(options.pattern_columns) + "x" +
+                              std::to_string(options.pattern_rows);
+  flags.Describe("pattern_columns", "--pattern", pattern);
+  flags.Describe("pattern_rows", "--pattern", pattern);
+  command
+      ->add_option_function<std::string>(
+          "--pattern",
+          [c](const std::string& text) {
+            try {
+              std::tie(c->options.pattern_columns, c->options.pattern_rows) = ParsePattern(text);
+            } catch (const std::invalid_argument& error) {
+              throw CLI::ValidationError(OneLine(error.what()));
+            }
+          },
+          "Inner corners COLUMNSxROWS")
+      ->default_str(pattern);
+  flags.Field("square_size_m", options.square_size_m, "Square side, metres");
+  flags.Parsed("--model", "model", options.model, ParseModelFlag, LensModelName(options.model),
+               "pinhole, radtan, fisheye or omnidir");
+  command->add_option("-o,--output", c->output, "Camera file to write (JSON)")->required();
+  flags.Threads();
+  flags.Force();
+  return [c, flags] { return RunCalibrate(*c, flags); };
+}
+
+// ---- rectify ----
+
+namespace {
+
+struct RectifyCommand {
+  std::string camera_path;
+  std::string light_field_path;
+  std::vector<std::string> frames;
+  RectifyOptions options;
+  std::string output_dir;
+};
+
+// rectify --lightfield: every view with a lens model is rectified (one set of maps per distinct
+// lens) and re-posed; pinhole views are kept as they are.
+int RunRectifyLightField(const RectifyCommand& c, const Flags& flags, ProgressBar& progress) {
+  PendingFolder folder(c.output_dir);
+  LoadResult loaded = LoadLightField(c.light_field_path, LoadOptions{}, &progress);
+  progress.Finish();
+  const RectifyLightFieldResult result =
+      flags.NamingFlags([&] { return RectifyLightField(loaded.light_field, c.options, &progress); });
+  const LightField& light_field = result.light_field;
+  bool float_views = false;
+  for (const View& view : light_field.views) {
+    float_views = float_views || view.image.type() == PixelType::kF32;
+  }
+  progress.Finish();
+  WriteLightFieldOptions write;
+  write.images_subdir = "views";
+  write.image_extension = float_views ? ".tif" : ".png";
+  WriteLightField((fs::path(folder.TempPath()) / "lightfield.json").string(), light_field, write);
+  folder.Commit();
+  Report report("rectify");
+  report.Set("output_dir", c.output_dir);
+  report.Set("rectified_views", result.rectified_views);
+  report.Set("views", light_field.views.size());
+  report.Line("wrote %s: lightfield.json with %d rectified views (%s degrees) of %zu",
+              c.output_dir.c_str(), result.rectified_views,
+              FormatNumber(c.options.fov_deg).c_str(), light_field.views.size());
+  report.Print();
+  return 0;
+}
+
+int RunRectify(const RectifyCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  if (!c.light_field_path.empty()) return RunRectifyLightField(c, flags, progress);
+  if (c.frames.empty() || c.camera_path.empty()) {
+    ThrowUsage("give raw frames and --camera, or --lightfield");
+  }
+  PendingFolder folder(c.output_dir);
+  const LensCamera lens = ReadCameraFile(c.camera_path);
+  Rectifier rectifier;
+  try {
+    rectifier = MakeRectifier(lens, c.options);
+  } catch (const std::invalid_argument& error) {
+    // A lens that cannot cover the view comes from the camera file: name it too (its values
+    // may be what is wrong). Other errors name their flag.
+    const std::string message = error.what();
+    if (message.rfind("fov_deg: the lens does not cover", 0) == 0) {
+      throw UsageError(message + " (the lens of " + c.camera_path +
+                       ") [option --rectified-fov-deg]");
+    }
+    flags.RethrowNamingFlags(error);
+  }
+  std::set<std::string> names;
+  for (const std::string& frame : c.frames) {
+    const std::string name = fs::path(frame).filename().string();
+    if (!names.insert(name).second) {
+      ThrowInvalid(frame + ": another frame has the same name " + name +
+                   " (outputs keep the frames' names)");
+    }
+  }
+  ProgressStart(&progress, "rectify", static_cast<int64_t>(c.frames.size()));
+  for (const std::string& frame : c.frames) {
+    if (ProgressCancelled(&progress)) throw Cancelled();
+    const Image raw = ReadImage(frame);
+    if (raw.width() != lens.width || raw.height() != lens.height) {
+      ThrowInvalid(frame + ": is " + std::to_string(raw.width()) + "x" +
+                   std::to_string(raw.height()) + " but the camera (" + c.camera_path + ") is " +
+                   std::to_string(lens.width) + "x" + std::to_string(lens.height));
+    }
+    const Image rectified = Rectify(rectifier, raw);
+    WriteImageOptions write;
+    write.description = "aos rectified frame (" + std::string(LensModelName(lens.model)) +
+                        " -> pinhole, " + FormatNumber(c.options.fov_deg) + " degrees)";
+    WriteImage((fs::path(folder.TempPath()) / fs::path(frame).filename()).string(), rectified,
+               write);
+    ProgressAdvance(&progress, 1);
+  }
+  progress.Finish();
+  WriteCameraFile((fs::path(folder.TempPath()) / "camera.json").string(),
+                  LensCamera::FromPinhole(rectifier.camera));
+  folder.Commit();
+  Report report("rectify");
+  report.Set("output_dir", c.output_dir);
+  report.Set("frames", c.frames.size());
+  report.Set("width", rectifier.camera.width);
+  report.Set("height", rectifier.camera.height);
+  report.Line("wrote %s: %zu rectified frames (%dx%d, %s degrees) and camera.json",
+              c.output_dir.c_str(), c.frames.size(), rectifier.camera.width,
+              rectifier.camera.height, FormatNumber(c.options.fov_deg).c_str());
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineRectify(CLI::App* command) {
+  auto c = std::make_shared<RectifyCommand>();
+  Flags flags(command);
+  auto* frames = command->add_option("frames", c->frames, "Raw frames (with --camera)");
+  auto* camera = command->add_option("--camera", c->camera_path,
+                                     "Camera file (aos-camera JSON) of the lens");
+  auto* light_field = command->add_option(
+      "--lightfield", c->light_field_path,
+      "Instead of frames + --camera: an aos light field whose views have lens cameras; writes "
+      "DIR/lightfield.json pointing at the rectified frames, with pinhole cameras");
+  light_field->excludes(frames)->excludes(camera);
+  RectifyOptions& options = c->options;
+  flags.Field("--rectified-fov-deg", "fov_deg", options.fov_deg,
+              "Horizontal field of view of the rectified frames, degrees (--fov-deg is its old "
+              "name)");
+  flags.Field("width", options.width, "Output width, pixels (0 = the raw width)");
+  flags.Field("height", options.height, "Output height, pixels (0 = the raw height)");
+  flags.Field("yaw_deg", options.yaw_deg, "Turn about the lens's y axis, degrees");
+  flags.Field("pitch_deg", options.pitch_deg, "Turn about the lens's x axis, degrees");
+  flags.Field("roll_deg", options.roll_deg, "Turn about the optical axis, degrees");
+  command->add_option("-o,--output-dir", c->output_dir,
+                      "Output folder (must not exist or be empty): the frames under their own "
+                      "names, and camera.json (the rectified pinhole camera)")
+      ->required();
+  flags.Threads();
+  return [c, flags] { return RunRectify(*c, flags); };
+}
+
+// ---- resolution ----
+
+namespace {
+
+struct ResolutionCommand {
+  int width = 0;
+  int height = 0;
+  double fov_deg = 0.0;
+  std::string focal;      // FX,FY
+  std::string principal;  // CX,CY
+  std::string model = "pinhole";
+  std::string distortion;
+  double xi = 0.0;
+  double skew = 0.0;
+  ResolutionOptions options;
+};
+
+LensCamera CameraOf(const ResolutionCommand& c) {
+  const LensModel model = AsUsage([&] { return ParseLensModel(c.model, "--model"); });
+  std::array<double, 5> distortion{0, 0, 0, 0, 0};
+  if (!c.distortion.empty()) {
+    const std::vector<double> d = ParseNumbers(c.distortion, "--distortion");
+    if (d.size() > 5) ThrowUsage("--distortion: at most 5 coefficients");
+    std::copy(d.begin(), d.end(), distortion.begin());
+  }
+  LensCamera camera;
+  if (!c.focal.empty()) {
+    const std::vector<double> f = ParseNumbers(c.focal, "--focal", 2);
+    camera.model = model;
+    camera.width = c.width;
+    camera.height = c.height;
+    camera.fx = f[0];
+    camera.fy = f[1];
+    camera.cx = 0.5 * c.width;
+    camera.cy = 0.5 * c.height;
+    camera.distortion = distortion;
+  } else if (c.fov_deg > 0.0) {
+    // The field of view through the lens's own radial map (a fisheye's 180 degrees is fine).
+    try {
+      camera = LensFromFov(model, c.width, c.height, c.fov_deg, distortion, c.xi, "camera");
+    } catch (const std::invalid_argument& error) {
+      ThrowUsage(std::string(error.what()) + " [option --lens-fov-deg/--model/--distortion]");
+    }
+  } else {
+    ThrowUsage("give --lens-fov-deg or --focal");
+  }
+  if (!c.principal.empty()) {
+    const std::vector<double> p = ParseNumbers(c.principal, "--principal", 2);
+    camera.cx = p[0];
+    camera.cy = p[1];
+  }
+  camera.xi = c.xi;
+  camera.skew = c.skew;
+  return camera;
+}
+
+int RunResolution(const ResolutionCommand& c, const Flags& flags) {
+  const LensCamera camera = CameraOf(c);
+  const ResolutionResult r =
+      flags.NamingFlags([&] { return SamplingResolution(camera, c.options); });
+  Report report("resolution");
+  report.Set("eq2_samples_per_m2", r.eq2_samples_per_m2);
+  report.Set("eq2_sample_size_m", r.eq2_sample_size_m);
+  report.Set("samples_per_m2", r.samples_per_m2);
+  report.Set("sample_size_m", r.sample_size_m);
+  report.Set("pixels_on_plane", static_cast<long long>(r.pixels_on_plane));
+  report.Set("pixels_off_axis", static_cast<long long>(r.pixels_off_axis));
+  report.Set("footprint_m2", r.footprint_m2);
+  report.Set("pose_error_m", r.pose_error_m);
+  report.Set("effective_sample_size_m", r.effective_sample_size_m);
+  report.Set("effective_samples_per_m2", r.effective_samples_per_m2);
+  report.Result("Eq. 2 (at nadir):        %.1f samples/m^2, sample size %.2f cm",
+                r.eq2_samples_per_m2, 100.0 * r.eq2_sample_size_m);
+  std::string off_axis;
+  if (r.pixels_off_axis > 0) {
+    off_axis = "; " + std::to_string(r.pixels_off_axis) + " pixels further off the axis left out";
+  }
+  report.Result("back-projected (App. A): %.1f samples/m^2, sample size %.2f cm (%lld pixels "
+                "within %s degrees of the axis over %.1f m^2%s)",
+                r.samples_per_m2, 100.0 * r.sample_size_m,
+                static_cast<long long>(r.pixels_on_plane),
+                FormatNumber(c.options.max_off_axis_deg).c_str(), r.footprint_m2,
+                off_axis.c_str());
+  report.Result("pose error %.2f cm: effective sample size p' = p + 2e = %.2f cm, %.1f "
+                "samples/m^2",
+                100.0 * r.pose_error_m, 100.0 * r.effective_sample_size_m,
+                r.effective_samples_per_m2);
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineResolution(CLI::App* command) {
+  auto c = std::make_shared<ResolutionCommand>();
+  Flags flags(command);
+  command->add_option("--width", c->width, "Image width, pixels")->required();
+  command->add_option("--height", c->height, "Image height, pixels")->required();
+  auto* fov = command->add_option("--lens-fov-deg,--fov-deg", c->fov_deg,
+                                  "Horizontal field of view of the lens, degrees (square pixels, "
+                                  "centred; --fov-deg is its old name)");
+  auto* focal = command->add_option("--focal", c->focal, "Focal lengths FX,FY in pixels");
+  fov->excludes(focal);
+  command->add_option("--principal", c->principal,
+                      "Principal point CX,CY (pixel centres at +0.5; default: image centre)");
+  command->add_option("--model", c->model, "pinhole, radtan, fisheye or omnidir")
+      ->capture_default_str();
+  command->add_option("--distortion", c->distortion,
+                      "Up to 5 coefficients: radtan k1,k2,p1,p2,k3; fisheye k1,k2,k3,k4; "
+                      "omnidir k1,k2,p1,p2");
+  command->add_option("--xi", c->xi, "omnidir: xi")->capture_default_str();
+  command->add_option("--skew", c->skew, "omnidir: skew")->capture_default_str();
+  ResolutionOptions& options = c->options;
+  flags.Field("distance_m", options.distance_m,
+              "Distance to the focal plane (altitude above it), metres");
+  auto* error_px = flags.Optional("--pose-error-px", "pose_error_px", options.pose_error_px,
+                                  "Pose error, pixels (default: none)");
+  auto* error_m = flags.Optional("--pose-error-m", "pose_error_m", options.pose_error_m,
+                                 "Pose error at the focal plane, metres (default: none)");
+  error_px->excludes(error_m);
+  flags.Field("max_off_axis_deg", options.max_off_axis_deg,
+              "Back-projected figure over pixels within this angle of the axis, degrees");
+  flags.Threads();
+  return [c, flags] { return RunResolution(*c, flags); };
+}
+
+}  // namespace aos::cli

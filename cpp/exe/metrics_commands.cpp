@@ -1,0 +1,83 @@
+// Image quality: metrics.
+#include <cmath>
+#include <memory>
+#include <optional>
+
+#include "aos/image/image_io.h"
+#include "aos/metrics/quality.h"
+#include "commands.h"
+
+namespace aos::cli {
+namespace {
+
+struct MetricsCommand {
+  std::string test_path;
+  std::string reference_path;
+  std::string mask_path;
+  QualityOptions options;
+};
+
+int RunMetrics(const MetricsCommand& c, const Flags& flags) {
+  const Image test = ReadImage(c.test_path);
+  const Image reference = ReadImage(c.reference_path);
+  std::optional<Image> mask;
+  if (!c.mask_path.empty()) mask = ReadImage(c.mask_path);
+  QualityResult r;
+  try {
+    r = CompareImages(test, reference, mask ? &*mask : nullptr, c.options);
+  } catch (const std::invalid_argument& error) {
+    // Name the files: "compare: the test image is ..." does not say which ones.
+    const std::string message = error.what();
+    if (message.rfind("compare: ", 0) == 0) {
+      ThrowInvalid(c.test_path + " against " + c.reference_path +
+                   (c.mask_path.empty() ? std::string() : " (mask " + c.mask_path + ")") + ": " +
+                   message.substr(9));
+    }
+    flags.RethrowNamingFlags(error);
+  }
+  if (!r.note.empty()) Note(r.note);
+  Report report("metrics");
+  report.Set("mse", r.mse);
+  report.Set("psnr_db", r.psnr_db);  // null when the images are identical (infinite PSNR)
+  report.Set("ssim", r.ssim);
+  report.Set("color_ssim", r.color_ssim);
+  report.Set("data_range", r.data_range);
+  report.Set("mse_pixels", static_cast<long long>(r.mse_pixels));
+  report.Set("ssim_pixels", static_cast<long long>(r.ssim_pixels));
+  report.Set("test_scale", r.test_scale);
+  char psnr[32];
+  std::snprintf(psnr, sizeof(psnr), "%.2f", r.psnr_db);
+  report.Result("PSNR %s dB  SSIM %.4f  colour SSIM %.4f  (MSE %s over %lld pixels, SSIM over "
+                "%lld, L = %s)",
+                std::isfinite(r.psnr_db) ? psnr : "inf", r.ssim, r.color_ssim,
+                FormatNumber(r.mse).c_str(), static_cast<long long>(r.mse_pixels),
+                static_cast<long long>(r.ssim_pixels), FormatNumber(r.data_range).c_str());
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineMetrics(CLI::App* command) {
+  auto c = std::make_shared<MetricsCommand>();
+  Flags flags(command);
+  command->add_option("test", c->test_path, "Image to assess")->required();
+  command->add_option("reference", c->reference_path, "Reference image (ground truth)")
+      ->required();
+  command->add_option("--mask", c->mask_path,
+                      "Only pixels where this image (e.g. a count map) is non-zero");
+  QualityOptions& options = c->options;
+  flags.Field("data_range", options.data_range,
+              "Peak value range L; 0 = from the reference's type (8-bit 255, 16-bit 65535, "
+              "float 1)");
+  flags.Field("gaussian_sigma", options.gaussian_sigma, "SSIM window sigma, pixels");
+  flags.Field("--ssim-window-radius", "window_radius", options.window_radius,
+              "SSIM window radius, pixels (--window-radius is its old name)");
+  flags.Describe("k1/k2", "--k1/--k2");
+  flags.Field("k1", options.k1, "SSIM constant k1");
+  flags.Field("k2", options.k2, "SSIM constant k2");
+  flags.Threads();
+  return [c, flags] { return RunMetrics(*c, flags); };
+}
+
+}  // namespace aos::cli

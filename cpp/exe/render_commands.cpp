@@ -1,0 +1,468 @@
+// Rendering commands: integral, stack, merge, allinfocus.
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <memory>
+#include <optional>
+
+#include "aos/image/image_io.h"
+#include "aos/image/preview.h"
+#include "aos/lightfield/formats.h"
+#include "aos/render/focal_stack.h"
+#include "aos/render/integral.h"
+#include "aos/render/merge.h"
+#include "aos/util/file_util.h"
+#include "commands.h"
+#include "progress_bar.h"
+#include "render_output.h"
+
+namespace fs = std::filesystem;
+
+namespace aos::cli {
+namespace {
+
+std::string PlaneText(const Plane& plane) {
+  if (plane.normal == Vec3d(0.0, 0.0, 1.0) && plane.point.x == 0.0 && plane.point.y == 0.0) {
+    return FormatNumber(plane.point.z);
+  }
+  std::string text;
+  for (double v : {plane.point.x, plane.point.y, plane.point.z, plane.normal.x, plane.normal.y,
+                   plane.normal.z}) {
+    text += (text.empty() ? "" : ",") + FormatNumber(v);
+  }
+  return text;
+}
+
+std::string RadiusText(double radius) {
+  return std::isinf(radius) ? "inf" : FormatNumber(radius);
+}
+
+// The light field to load and the virtual camera: shared by integral, stack and allinfocus.
+struct RenderArgs {
+  std::string light_field_path;
+  LoadOptions load;
+  std::string look_at;
+  std::string cam_from_world;
+  std::string views;
+};
+
+void AddLoadFlags(const Flags& flags, LoadOptions& load) {
+  Flags loader = flags.At("load.");
+  loader.Optional("--frames-fov-deg", "fov_deg", load.fov_deg,
+                  "Horizontal field of view of the frames, degrees (JKU poses.json only)");
+  loader.Optional("--images-dir", "images_dir", load.images_dir,
+                  "Folder of the frames (JKU poses.json; default: ../images beside it)");
+}
+
+// `render` binds the IntegralOptions fields (nested for stack and allinfocus).
+void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
+  render.command()
+      ->add_option("lightfield", args.light_field_path,
+                   "Light-field file: aos JSON, or a JKU-ICG/AOS poses.json")
+      ->required();
+  AddLoadFlags(render, args.load);
+  auto* pose_view = render.Optional("--pose-view", "pose_view", options.pose_view,
+                                    "Virtual camera = the pose of view K (0-based)");
+  pose_view->check(AtLeast(0));
+  render.Describe("cam_from_world", "--cam-from-world/--look-at");
+  auto* look_at = render.command()->add_option(
+      "--look-at", args.look_at,
+      "Virtual camera at EX,EY,EZ looking at TX,TY,TZ (optional up UX,UY,UZ; default 0,0,1, or "
+      "0,1,0 looking straight down or up)");
+  auto* pose = render.command()->add_option(
+      "--cam-from-world", args.cam_from_world,
+      "Virtual camera pose as 12 numbers: the 3x4 matrix [R|t] row by row (local frame -> "
+      "camera, OpenCV axes)");
+  pose_view->excludes(look_at)->excludes(pose);
+  look_at->excludes(pose);
+  render.Field("fov_deg", options.fov_deg,
+               "Horizontal field of view of the virtual camera, degrees; 0 = the pose view's, "
+               "else 50");
+  render.Field("width", options.width, "Output width, pixels; 0 = the pose view's, else 512");
+  render.Field("height", options.height, "Output height, pixels; 0 = the pose view's, else 512");
+  render.Parsed("--aperture-radius", "aperture_radius", options.aperture_radius, ParseRadius,
+                RadiusText(options.aperture_radius),
+                "Radius of the virtual aperture, metres; 0 = pinhole (nearest view), inf = "
+                "every view");
+  render.Describe("view_indices", "--views");
+  render.command()->add_option("--views", args.views,
+                               "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
+                               "(default: all)");
+  render.Field("min_view_angle_deg", options.min_view_angle_deg,
+               "Ignore rays meeting the focal plane at less than this angle, degrees");
+  render.Threads(options.num_threads);
+}
+
+// Loads the light field and fills `options`' virtual camera (pose, views) from the command
+// line; the focal plane is left to the caller.
+LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
+                                ProgressBar& progress) {
+  args.load.num_threads = options.num_threads;
+  LoadResult loaded =
+      flags.NamingFlags([&] { return LoadLightField(args.light_field_path, args.load, &progress); });
+  progress.Finish();
+  for (const std::string& note : loaded.notes) Note(note);
+  if (!args.look_at.empty()) {
+    const std::vector<double> v = ParseNumbers(args.look_at, "--look-at");
+    if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");
+    const Vec3d eye(v[0], v[1], v[2]), target(v[3], v[4], v[5]);
+    options.cam_from_world = AsUsage([&] {
+      return v.size() == 9 ? LookAt(eye, target, Vec3d(v[6], v[7], v[8])) : LookAt(eye, target);
+    });
+  } else if (!args.cam_from_world.empty()) {
+    const std::vector<double> v = ParseNumbers(args.cam_from_world, "--cam-from-world", 12);
+    std::array<double, 12> m{};
+    std::copy(v.begin(), v.end(), m.begin());
+    options.cam_from_world = Rigid3d::FromMatrix3x4(m);
+  } else if (options.pose_view < 0) {
+    ThrowUsage("no virtual camera pose: give --pose-view, --look-at or --cam-from-world");
+  }
+  if (!args.views.empty()) {
+    options.view_indices =
+        ParseViewList(args.views, static_cast<int>(loaded.light_field.views.size()));
+  }
+  return loaded;
+}
+
+std::vector<std::string> InputsOf(const std::string& light_field_path,
+                                  const LightField& light_field) {
+  std::vector<std::string> inputs{light_field_path};
+  for (const View& view : light_field.views) inputs.push_back(view.image_path);
+  return inputs;
+}
+
+// ---- integral ----
+
+struct IntegralCommand {
+  RenderArgs args;
+  IntegralOptions options;
+  double focal_distance = 0.0;
+  bool horizontal = false;
+  RenderOutput out;
+};
+
+int RunIntegral(IntegralCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  // Refuse bad outputs (an input, a missing folder, a format that cannot hold the samples)
+  // before spending time on loading; the frames are checked again once known.
+  CheckRenderOutput(c.out, {c.args.light_field_path});
+  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options, flags, progress);
+  const LightField& light_field = loaded.light_field;
+  if (c.focal_distance != 0.0) {
+    const Rigid3d cam_from_world = flags.NamingFlags(
+        [&] { return VirtualCamFromWorld(light_field, c.options); });
+    c.options.focal_plane = AsUsage([&] {
+      return Plane::InFrontOf(cam_from_world, c.focal_distance, c.horizontal);
+    });
+  }
+  const std::vector<std::string> inputs = InputsOf(c.args.light_field_path, light_field);
+  CheckRenderOutput(c.out, inputs);
+  const IntegralResult result =
+      flags.NamingFlags([&] { return RenderIntegral(light_field, c.options, &progress); });
+  progress.Finish();
+  if (!Common().quiet && !Common().json) {
+    std::fprintf(stderr,
+                 "integrated %d of %d selected views: %lld samples, %lld of %lld pixels "
+                 "uncovered\n",
+                 result.views_used, result.views_selected, static_cast<long long>(result.samples),
+                 static_cast<long long>(result.uncovered_pixels),
+                 static_cast<long long>(result.image.width()) * result.image.height());
+  }
+  Report report("integral");
+  report.Set("views_used", result.views_used);
+  report.Set("views_selected", result.views_selected);
+  report.Set("samples", static_cast<long long>(result.samples));
+  report.Set("uncovered_pixels", static_cast<long long>(result.uncovered_pixels));
+  WriteRenderOutput(result, c.out, light_field.views.front().image.type(), inputs, report);
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineIntegral(CLI::App* command) {
+  auto c = std::make_shared<IntegralCommand>();
+  Flags flags(command);
+  AddRenderFlags(flags, c->args, c->options);
+  flags.Describe("focal_plane", "--focal-height/--focal-plane/--focal-distance");
+  auto* height = flags.Parsed(
+      "--focal-height", "focal_plane", c->options.focal_plane,
+      [](const std::string& text) {
+        return Plane::AtHeight(ParseNumberText(text, "--focal-height"));
+      },
+      PlaneText(c->options.focal_plane), "Horizontal focal plane z = H (local frame, metres)");
+  auto* plane = flags.Parsed(
+      "--focal-plane", "focal_plane", c->options.focal_plane,
+      [](const std::string& text) {
+        const std::vector<double> v = ParseNumbers(text, "--focal-plane", 6);
+        return Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
+      },
+      "", "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
+  auto* distance = command->add_option(
+      "--focal-distance", c->focal_distance,
+      "Focal plane D metres in front of the virtual camera, perpendicular to its axis (e.g. 35 "
+      "for 'focus 35 m below the drone')");
+  auto* horizontal = command->add_flag("--horizontal", c->horizontal,
+                                       "With --focal-distance: the horizontal plane through that "
+                                       "point instead");
+  height->excludes(plane)->excludes(distance);
+  plane->excludes(distance);
+  horizontal->needs(distance);
+  AddRenderOutputFlags(flags, c->out);
+  flags.Force();
+  return [c, flags] { return RunIntegral(*c, flags); };
+}
+
+// ---- stack ----
+
+namespace {
+
+void AddStackFlags(Flags& stack, FocalStackOptions& options) {
+  stack.Parsed("--first-plane", "first_plane", options.first_plane,
+               [](const std::string& text) { return ParsePlane(text, "--first-plane"); },
+               PlaneText(options.first_plane),
+               "Boundary plane of slice 0: a height H (horizontal plane z = H) or "
+               "PX,PY,PZ,NX,NY,NZ");
+  stack.Parsed("--last-plane", "last_plane", options.last_plane,
+               [](const std::string& text) { return ParsePlane(text, "--last-plane"); },
+               PlaneText(options.last_plane), "Boundary plane of the last slice, as --first-plane");
+  stack.Field("slices", options.slices, "Number of slices (1..100000)");
+}
+
+void AddMergeFlags(Flags& merge, MergeOptions& options) {
+  merge.Parsed("--method", "method", options.method,
+               [](const std::string& text) { return ParseMergeMethod(text, "--method"); },
+               MergeMethodName(options.method),
+               "sobel (the paper's), improved (context-aware) or robust (view variance and an "
+               "outlier-rejecting mean; needs the light field)");
+  merge.Field("window_radius", options.window_radius,
+              "improved/robust: focus window radius, pixels");
+  merge.Field("smoothing_sigma", options.smoothing_sigma,
+              "improved/robust: depth smoothing sigma, pixels (0 = off)");
+  merge.Field("edge_sigma", options.edge_sigma,
+              "improved/robust: smoothing range sigma, fraction of the image contrast");
+  merge.Field("smoothing_iterations", options.smoothing_iterations,
+              "improved/robust: smoothing passes");
+  Flags robust = merge.Nested("robust.");
+  robust.Field("agreement", options.robust.agreement,
+               "robust: half-width of the band of agreeing samples, fraction of the views' range");
+  robust.Field("min_inlier_fraction", options.robust.min_inlier_fraction,
+               "robust: fewest agreeing samples (fraction) for the robust mean");
+}
+
+// Writes image, depth, confidence and slice maps and their previews into a new folder
+// (atomically).
+void WriteMergeResult(const std::string& output_dir, const MergeResult& result,
+                      MergeMethod method, Report& report) {
+  PendingFolder folder(output_dir);
+  const fs::path temp = folder.TempPath();
+  WriteImageOptions write;
+  write.description = std::string("aos all-in-focus image (") + MergeMethodName(method) +
+                      ", float32 in the views' units)";
+  WriteImage((temp / "all_in_focus.tif").string(), result.image, write);
+  write.description = "aos depth map: camera z of the merged surface, metres; 0 = uncovered";
+  WriteImage((temp / "depth.tif").string(), result.depth, write);
+  write.description = "aos merge confidence in [0, 1]";
+  WriteImage((temp / "confidence.tif").string(), result.confidence, write);
+  write.description = "aos fractional slice index; -1 = uncovered";
+  WriteImage((temp / "slice.tif").string(), result.slice, write);
+  // Previews that open correctly in ordinary viewers (the float TIFFs open all white or black).
+  Image covered(result.slice.width(), result.slice.height(), 1, PixelType::kU8);
+  for (int y = 0; y < covered.height(); ++y) {
+    for (int x = 0; x < covered.width(); ++x) {
+      *covered.At<uint8_t>(x, y) = result.slice.At<float>(x, y)[0] >= 0.0f ? 1 : 0;
+    }
+  }
+  PreviewRange image_range;
+  const Image image_preview = StretchedPreview(result.image, &covered, 1.0, 99.0, &image_range);
+  WriteImageOptions preview_write;
+  preview_write.description = "aos all-in-focus preview: values " +
+                              FormatNumber(image_range.lo) + ".." + FormatNumber(image_range.hi) +
+                              " (1st..99th percentile) mapped to 0..255; uncovered pixels black";
+  WriteImage((temp / "all_in_focus_preview.png").string(), image_preview, preview_write);
+  const PreviewRange depth_range = PercentileRange(result.depth, &covered, 1.0, 99.0);
+  preview_write.description = "aos depth preview (turbo colour map): blue = " +
+                              FormatNumber(depth_range.lo) + " m, red = " +
+                              FormatNumber(depth_range.hi) +
+                              " m camera depth; uncovered pixels black";
+  WriteImage((temp / "depth_preview.png").string(),
+             ColourMappedPreview(result.depth, &covered, depth_range), preview_write);
+  preview_write.description = "aos confidence preview: 0..1 mapped to 0..255";
+  WriteImage((temp / "confidence_preview.png").string(),
+             ColourMappedPreview(result.confidence, nullptr, PreviewRange{0.0, 1.0}),
+             preview_write);
+  folder.Commit();
+  report.Set("output_dir", output_dir);
+  report.Set("files", std::vector<std::string>{"all_in_focus.tif", "depth.tif", "confidence.tif",
+                                               "slice.tif", "all_in_focus_preview.png",
+                                               "depth_preview.png", "confidence_preview.png"});
+  report.Set("width", result.image.width());
+  report.Set("height", result.image.height());
+  report.Set("method", MergeMethodName(method));
+  report.Set("uncovered_pixels", static_cast<long long>(result.uncovered_pixels));
+  report.Set("depth_preview_range_m", std::vector<double>{depth_range.lo, depth_range.hi});
+  report.Set("seconds_render", result.seconds_render);
+  report.Set("seconds_merge", result.seconds_merge);
+  report.Line("wrote %s: all_in_focus.tif, depth.tif, confidence.tif, slice.tif and *_preview.png "
+              "(depth preview %s..%s m) (%dx%d, %s; %lld pixels uncovered)",
+              output_dir.c_str(), FormatNumber(depth_range.lo).c_str(),
+              FormatNumber(depth_range.hi).c_str(), result.image.width(), result.image.height(),
+              MergeMethodName(method), static_cast<long long>(result.uncovered_pixels));
+}
+
+struct StackCommand {
+  RenderArgs args;
+  FocalStackOptions options;
+  std::string output_dir;
+};
+
+int RunStack(StackCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  CheckOutputFolder(c.output_dir);  // before any work
+  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.render, flags, progress);
+  const FocalStack stack =
+      flags.NamingFlags([&] { return RenderFocalStack(loaded.light_field, c.options, &progress); });
+  progress.Finish();
+  WriteFocalStack(c.output_dir, stack);
+  Report report("stack");
+  report.Set("output_dir", c.output_dir);
+  report.Set("slices", stack.size());
+  report.Set("width", stack.camera.width);
+  report.Set("height", stack.camera.height);
+  report.Set("variance", !stack.variances.empty());
+  report.Line("wrote %s: %d slices of %dx%d (stack.json, slice_*.tif, count_*.tif%s)",
+              c.output_dir.c_str(), stack.size(), stack.camera.width, stack.camera.height,
+              stack.variances.empty() ? "" : ", variance_*.tif");
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineStack(CLI::App* command) {
+  auto c = std::make_shared<StackCommand>();
+  Flags flags(command);
+  Flags render = flags.Nested("render.");
+  AddRenderFlags(render, c->args, c->options.render);
+  render.Switch("variance", c->options.render.variance,
+                "Also write the per-pixel variance of the view samples (for --method robust)");
+  AddStackFlags(flags, c->options);
+  command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
+      ->required();
+  return [c, flags] { return RunStack(*c, flags); };
+}
+
+// ---- merge ----
+
+namespace {
+
+struct MergeCommand {
+  std::string stack_dir;
+  std::string light_field_path;
+  LoadOptions load;
+  MergeOptions options;
+  std::string output_dir;
+};
+
+int RunMerge(MergeCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  CheckOutputFolder(c.output_dir);  // before any work
+  const FocalStack stack = ReadFocalStack(c.stack_dir);
+  std::optional<LoadResult> loaded;
+  if (!c.light_field_path.empty()) {
+    c.load.num_threads = c.options.num_threads;
+    loaded = flags.NamingFlags([&] { return LoadLightField(c.light_field_path, c.load, &progress); });
+    progress.Finish();
+  } else if (c.options.method == MergeMethod::kRobust) {
+    ThrowUsage("--method robust: give --lightfield, the light field the stack was rendered "
+               "from (its rays are re-integrated)");
+  }
+  const MergeResult result = flags.NamingFlags([&] {
+    return MergeFocalStack(stack, c.options, loaded ? &loaded->light_field : nullptr, &progress);
+  });
+  progress.Finish();
+  if (!Common().quiet && !Common().json) {
+    std::fprintf(stderr, "merged %d slices (%s) in %.2f s%s\n", stack.size(),
+                 MergeMethodName(c.options.method), result.seconds_merge + result.seconds_render,
+                 c.options.method == MergeMethod::kRobust
+                     ? (", " + std::to_string(result.fallback_pixels) +
+                        " pixels kept the plain mean").c_str()
+                     : "");
+  }
+  Report report("merge");
+  report.Set("slices", stack.size());
+  if (c.options.method == MergeMethod::kRobust) {
+    report.Set("fallback_pixels", static_cast<long long>(result.fallback_pixels));
+  }
+  WriteMergeResult(c.output_dir, result, c.options.method, report);
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineMerge(CLI::App* command) {
+  auto c = std::make_shared<MergeCommand>();
+  Flags flags(command);
+  command->add_option("stack", c->stack_dir, "Stack folder (with stack.json)")->required();
+  AddMergeFlags(flags, c->options);
+  command->add_option("--lightfield", c->light_field_path,
+                      "The light field the stack was rendered from (needed by --method robust)");
+  AddLoadFlags(flags, c->load);
+  flags.Threads(c->options.num_threads);
+  command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
+      ->required();
+  return [c, flags] { return RunMerge(*c, flags); };
+}
+
+// ---- allinfocus ----
+
+namespace {
+
+struct AllInFocusCommand {
+  RenderArgs args;
+  AllInFocusOptions options;
+  std::string output_dir;
+};
+
+int RunAllInFocus(AllInFocusCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  CheckOutputFolder(c.output_dir);  // before any work
+  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.stack.render, flags, progress);
+  // --threads sets every stage's thread count.
+  c.options.merge.num_threads = c.options.stack.render.num_threads;
+  const MergeResult result =
+      flags.NamingFlags([&] { return RenderAllInFocus(loaded.light_field, c.options, &progress); });
+  progress.Finish();
+  if (!Common().quiet && !Common().json) {
+    std::fprintf(stderr, "%d slices rendered and merged (%s): render %.2f s, merge %.2f s\n",
+                 c.options.stack.slices, MergeMethodName(c.options.merge.method),
+                 result.seconds_render, result.seconds_merge);
+  }
+  Report report("allinfocus");
+  report.Set("slices", c.options.stack.slices);
+  WriteMergeResult(c.output_dir, result, c.options.merge.method, report);
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineAllInFocus(CLI::App* command) {
+  auto c = std::make_shared<AllInFocusCommand>();
+  Flags flags(command);
+  Flags render = flags.Nested("stack.render.");
+  AddRenderFlags(render, c->args, c->options.stack.render);
+  flags.Describe("merge.num_threads", "--threads", DefaultText(c->options.merge.num_threads));
+  Flags stack = flags.Nested("stack.");
+  AddStackFlags(stack, c->options.stack);
+  Flags merge = flags.Nested("merge.");
+  AddMergeFlags(merge, c->options.merge);
+  command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
+      ->required();
+  return [c, flags] { return RunAllInFocus(*c, flags); };
+}
+
+}  // namespace aos::cli

@@ -1,0 +1,169 @@
+// Pose commands: poses (COLMAP from frames), import-colmap (an existing COLMAP model).
+#include <memory>
+
+#include "aos/lightfield/formats.h"
+#include "aos/metrics/resolution.h"
+#include "aos/sfm/colmap_pipeline.h"
+#include "aos/util/file_util.h"
+#include "commands.h"
+#include "progress_bar.h"
+
+namespace aos::cli {
+namespace {
+
+struct PosesCommand {
+  std::string frames_dir;  // poses: the frames; import-colmap: the frames folder COLMAP was given
+  std::string model_dir;   // import-colmap: the COLMAP model folder
+  std::string output;
+  PosesOptions options;
+};
+
+// The geo-referencing flags, shared by poses and import-colmap.
+void AddPositionFlags(Flags& flags, PosesOptions& options) {
+  flags.Optional("--positions-file", "positions_file", options.positions_file,
+                 "CSV of camera positions, columns by header name: name,x,y,z (metres, e.g. "
+                 "UTM) or name,lat,lon,alt (degrees, projected with PROJ): geo-reference, and "
+                 "priors for spatial matching");
+  flags.Optional("--positions-crs", "positions_crs", options.positions_crs,
+                 "CRS of the --positions-file coordinates (e.g. EPSG:4326, EPSG:25833)");
+  flags.Switch("exif_positions", options.exif_positions,
+               "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
+  flags.Field("min_registered_fraction", options.min_registered_fraction,
+              "Fail below this fraction of frames registered");
+}
+
+// Warnings, then the light field and what the user needs to judge the poses.
+void ReportPoses(const PosesResult& result, const std::string& output, Report& report) {
+  for (const std::string& warning : result.warnings) Warn(warning);
+  report.Set("output", output);
+  report.Set("frames", result.frames.size());
+  report.Set("registered", result.registered.size());
+  report.Set("unregistered", result.unregistered);
+  report.Set("points", result.points);
+  report.Set("mean_reprojection_error_px", result.mean_reprojection_error_px);
+  report.Set("georeferenced", result.georeferenced);
+  report.Set("median_depth", result.median_depth);
+  report.Set("pose_error", result.pose_error);
+  report.Set("focal_prior_px", result.focal_prior_px);
+  report.Set("focal_deviation", result.focal_deviation);
+  report.Set("implausible", result.implausible);
+  report.Set("warnings", result.warnings);
+  report.Line("wrote %s: %zu of %zu frames registered, %zu points, mean reprojection error "
+              "%.3f px",
+              output.c_str(), result.registered.size(), result.frames.size(), result.points,
+              result.mean_reprojection_error_px);
+  const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
+  if (result.georeferenced) {
+    report.Set("world_frame", result.world_frame);
+    report.Set("georeference_rms_m", result.georeference_rms_m);
+    report.Set("origin", std::vector<double>{result.light_field.origin.x,
+                                             result.light_field.origin.y,
+                                             result.light_field.origin.z});
+    report.Line("geo-referenced by %d positions (%s): RMS %.3f m; origin %.3f %.3f %.3f",
+                result.georeference_frames, result.world_frame.c_str(),
+                result.georeference_rms_m, result.light_field.origin.x,
+                result.light_field.origin.y, result.light_field.origin.z);
+  }
+  report.Line("pose error e = %.4g%s at the median depth %.4g%s", result.pose_error, unit,
+              result.median_depth, unit);
+  if (result.georeferenced && !result.light_field.views.empty() && result.median_depth > 0.0) {
+    ResolutionOptions resolution;
+    resolution.distance_m = result.median_depth;
+    resolution.pose_error_m = result.pose_error;
+    const ResolutionResult r = SamplingResolution(result.light_field.views[0].lens, resolution);
+    report.Set("effective_sample_size_m", r.effective_sample_size_m);
+    report.Line("sampling at that depth: p = %.2f cm, p' = p + 2e = %.2f cm (%.1f samples/m^2)",
+                100.0 * r.sample_size_m, 100.0 * r.effective_sample_size_m,
+                r.effective_samples_per_m2);
+  }
+  Report& stages = report.Nested("stage_seconds");
+  for (const auto& stage : result.stages) {
+    stages.Set(stage.name, stage.seconds);
+    report.Line("  %-9s %7.1f s", stage.name.c_str(), stage.seconds);
+  }
+  if (!result.workspace.empty()) {
+    report.Set("workspace", result.workspace);
+    report.Line("COLMAP workspace kept in %s", result.workspace.c_str());
+  }
+}
+
+int RunPoses(PosesCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  // The frames folder (every file in it), the camera and the positions are inputs.
+  CheckOutputPath(c.output, {c.frames_dir, c.options.camera_file, c.options.positions_file},
+                  "output");
+  RefuseExisting(c.output, "output");
+  const PosesResult result =
+      flags.NamingFlags([&] { return EstimatePoses(c.frames_dir, c.options, &progress); });
+  progress.Finish();
+  WriteLightField(c.output, result.light_field);
+  Report report("poses");
+  ReportPoses(result, c.output, report);
+  report.Print();
+  return 0;
+}
+
+int RunImportColmap(PosesCommand& c, const Flags& flags) {
+  // The model folder (cameras, images, points3D), the frames folder and the positions are inputs.
+  const std::vector<std::string> inputs{c.model_dir, c.frames_dir, c.options.positions_file};
+  CheckOutputPath(c.output, inputs, "output");
+  RefuseExisting(c.output, "output");
+  const PosesResult result =
+      flags.NamingFlags([&] { return ImportColmapPoses(c.model_dir, c.frames_dir, c.options); });
+  CheckOutputPath(c.output, inputs, "output");  // again: the model may have changed meanwhile
+  WriteLightField(c.output, result.light_field);
+  Report report("import-colmap");
+  ReportPoses(result, c.output, report);
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefinePoses(CLI::App* command) {
+  auto c = std::make_shared<PosesCommand>();
+  Flags flags(command);
+  PosesOptions& options = c->options;
+  command->add_option("frames", c->frames_dir, "Folder of frames (never modified)")->required();
+  command->add_option("-o,--output", c->output, "Light-field file to write (JSON)")->required();
+  flags.Optional("--workspace", "workspace", options.workspace,
+                 "Keep COLMAP's workspace in this new folder (default: a temporary one)");
+  flags.Field("matcher", options.matcher, "sequential, spatial or exhaustive");
+  flags.Field("sequential_overlap", options.sequential_overlap,
+              "Sequential matching: successors each frame is matched with");
+  flags.Optional("--camera-file", "camera_file", options.camera_file,
+                 "Known camera (aos-camera file from `calibrate`); default: self-calibration");
+  flags.Field("camera_model", options.camera_model, "COLMAP model to self-calibrate");
+  flags.Field("--frames-fov-deg", "fov_deg", options.fov_deg,
+              "The frames' horizontal field of view: self-calibration's start and the prior its "
+              "result is checked against (0 = none; --fov-deg is its old name)");
+  flags.Field("max_focal_deviation", options.max_focal_deviation,
+              "Refuse a self-calibrated focal length further than this fraction from the "
+              "--frames-fov-deg prior's");
+  flags.Switch("allow_implausible", options.allow_implausible,
+               "Keep implausible self-calibrated intrinsics (with a warning)");
+  AddPositionFlags(flags, options);
+  flags.Field("max_image_size", options.max_image_size,
+              "Features on frames downscaled to this longest side");
+  flags.Field("max_num_features", options.max_num_features, "Features per frame");
+  flags.Field("colmap", options.colmap, "COLMAP executable");
+  flags.Threads(options.num_threads);
+  flags.Force();
+  return [c, flags] { return RunPoses(*c, flags); };
+}
+
+CommandRunner DefineImportColmap(CLI::App* command) {
+  auto c = std::make_shared<PosesCommand>();
+  Flags flags(command);
+  command->add_option("model", c->model_dir, "COLMAP model folder (e.g. sparse/0)")->required();
+  command->add_option("--images-dir,--images", c->frames_dir,
+                      "The frames folder COLMAP was given (--images is its old name)")
+      ->required();
+  command->add_option("-o,--output", c->output, "Light-field file to write (JSON)")->required();
+  AddPositionFlags(flags, c->options);
+  flags.Threads();
+  flags.Force();
+  return [c, flags] { return RunImportColmap(*c, flags); };
+}
+
+}  // namespace aos::cli
