@@ -228,6 +228,41 @@ def test_quiet_means_quiet_on_every_command(scene: Path, tmp_path: Path) -> None
         assert done.stdout == "" and done.stderr == "", (args[0], done.stdout, done.stderr)
 
 
+def test_json_report_on_every_command(scene: Path, tmp_path: Path) -> None:
+    """--json: the command's report as one JSON object on stdout and nothing else there (no
+    'wrote' lines), with what it wrote and its figures; the text report without it."""
+    out = tmp_path / "out"
+    out.mkdir()
+    runs = [("integral", str(scene), *BASE, "-o", str(out / "a.png"), "--count",
+             str(out / "c.tif")),
+            ("stack", str(scene), *BASE, "--slices", "2", "-o", str(out / "stack")),
+            ("merge", str(out / "stack"), "-o", str(out / "merged")),
+            ("allinfocus", str(scene), *BASE, "--slices", "2", "-o", str(out / "aif")),
+            ("simulate", "--grid", "2", "-o", str(out / "sim")),
+            ("metrics", str(out / "a.png"), str(out / "a.png")),
+            ("resolution", "--width", "64", "--height", "48", "--lens-fov-deg", "60")]
+    reports = {}
+    for args in runs:
+        done = run(*args, "--json")
+        assert done.returncode == 0, done.stderr
+        lines = done.stdout.splitlines()
+        assert len(lines) == 1, (args[0], done.stdout)
+        reports[args[0]] = json.loads(lines[0])
+        assert reports[args[0]]["command"] == args[0]
+    integral = reports["integral"]
+    assert integral["output"] == str(out / "a.png") and integral["count"] == str(out / "c.tif")
+    assert (integral["width"], integral["height"], integral["sample_type"]) == (40, 32, "uint8")
+    assert integral["views_used"] == 9 and integral["range"] == [0, 255]
+    assert reports["stack"]["slices"] == 2 and (out / "stack" / "stack.json").exists()
+    assert "depth.tif" in reports["allinfocus"]["files"]
+    assert reports["metrics"]["psnr_db"] is None and reports["metrics"]["ssim"] == 1.0
+    assert reports["simulate"]["views"] == 4
+    # --threads is checked on every command (here one without a thread count of its own).
+    bad = run("resolution", "--width", "64", "--height", "48", "--lens-fov-deg", "60",
+              "--threads", "0")
+    assert bad.returncode == 2 and "--threads" in bad.stderr, bad.stderr
+
+
 def test_defaults_from_the_data_and_focus_by_distance(scene: Path, tmp_path: Path) -> None:
     """--pose-view K takes view K's field of view and size unless given; --look-at works for a
     straight-down camera without an up vector; --focal-distance D focuses D metres in front."""
