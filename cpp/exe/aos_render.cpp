@@ -1300,8 +1300,15 @@ void AddPoses(CLI::App& app, PosesCommand& c) {
                       "Refuse a self-calibrated focal length further than this fraction from "
                       "the --frames-fov-deg prior's")
       ->capture_default_str();
+  command->add_option("--flight-height-m", c.options.flight_height_m,
+                      "The cameras' height above the ground as flown, metres: check the "
+                      "geo-referenced scene scale (median depth) against it (0 = not checked)")
+      ->capture_default_str();
+  command->add_option("--max-scale-deviation", c.options.max_scale_deviation,
+                      "Refuse a median depth further than this fraction from --flight-height-m")
+      ->capture_default_str();
   command->add_flag("--allow-implausible", c.options.allow_implausible,
-                    "Keep implausible self-calibrated intrinsics (with a warning)");
+                    "Keep implausible self-calibrated intrinsics or scene scale (with a warning)");
   command->add_option("--positions", c.options.positions_file,
                       "CSV of camera positions, columns by header name: name,x,y,z (metres, e.g. "
                       "UTM) or name,lat,lon,alt (degrees, projected with PROJ): geo-reference, "
@@ -1370,7 +1377,9 @@ const std::vector<std::pair<std::string, std::string>> kPosesFlags = {
     {"colmap", "--colmap"},
     {"positions_file/exif_positions", "--positions/--positions-from-exif"},
     {"positions_crs", "--positions-crs"},
-    {"max_focal_deviation", "--max-focal-deviation"}};
+    {"max_focal_deviation", "--max-focal-deviation"},
+    {"flight_height_m", "--flight-height-m"},
+    {"max_scale_deviation", "--max-scale-deviation"}};
 
 int RunPoses(PosesCommand& c) {
   ProgressBar progress(g_quiet);
@@ -1417,6 +1426,15 @@ void AddImportColmap(CLI::App& app, ImportColmapCommand& c) {
   command->add_option("--min-registered", c.options.min_registered_fraction,
                       "Fail below this fraction of frames registered")
       ->capture_default_str();
+  command->add_option("--flight-height-m", c.options.flight_height_m,
+                      "The cameras' height above the ground as flown, metres: check the "
+                      "geo-referenced scene scale (median depth) against it (0 = not checked)")
+      ->capture_default_str();
+  command->add_option("--max-scale-deviation", c.options.max_scale_deviation,
+                      "Refuse a median depth further than this fraction from --flight-height-m")
+      ->capture_default_str();
+  command->add_flag("--allow-implausible", c.options.allow_implausible,
+                    "Keep an implausible scene scale (with a warning)");
   AddQuiet(command);
   AddForce(command);
 }

@@ -318,6 +318,43 @@ void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
   result->warnings.push_back(text);
 }
 
+// A geo-referenced model's scene scale against the flight height (see
+// PosesOptions::flight_height_m): implausible scale is refused, or accepted with a loud warning
+// under allow_implausible. Without a flight height, `warn_unchecked` adds a warning that the
+// scale was not checked.
+void CheckSceneScale(const PosesOptions& options, bool warn_unchecked, PosesResult* result) {
+  if (!result->georeferenced) return;  // Check() refuses flight_height_m without positions
+  char text[640];
+  if (!(options.flight_height_m > 0.0)) {
+    if (warn_unchecked) {
+      std::snprintf(text, sizeof(text),
+                    "the scene scale (median depth %.1f m) was not checked: give flight_height_m "
+                    "(--flight-height-m), the cameras' height above the ground",
+                    result->median_depth);
+      result->warnings.push_back(text);
+    }
+    return;
+  }
+  const double ratio = result->median_depth / options.flight_height_m;
+  result->scale_deviation = ratio - 1.0;
+  const double limit = 1.0 + options.max_scale_deviation;
+  if (ratio <= limit && ratio >= 1.0 / limit) return;
+  result->implausible = true;
+  std::snprintf(text, sizeof(text),
+                "IMPLAUSIBLE scene scale: the views' median depth came out at %.1f m but the "
+                "flight height is %s m (%+.0f %%, more than max_scale_deviation %s); check the "
+                "focal length (a self-calibrated one is ill-determined over flat ground: give a "
+                "camera file or the frames' field of view) and the positions (altitudes, units, "
+                "frame)",
+                result->median_depth, FormatNumber(options.flight_height_m).c_str(),
+                100.0 * result->scale_deviation, FormatNumber(options.max_scale_deviation).c_str());
+  if (!options.allow_implausible) {
+    ThrowInvalid(std::string(text) + "; or allow_implausible (--allow-implausible) to keep the "
+                 "result anyway");
+  }
+  result->warnings.push_back(text);
+}
+
 }  // namespace
 
 void PosesOptions::Check() const {
@@ -327,6 +364,19 @@ void PosesOptions::Check() const {
   }
   if (!(max_focal_deviation > 0.0) || !std::isfinite(max_focal_deviation)) {
     ThrowInvalid("max_focal_deviation: must be > 0 (a fraction of the prior's focal length)");
+  }
+  if (!(flight_height_m >= 0.0) || !std::isfinite(flight_height_m)) {
+    ThrowInvalid("flight_height_m: must be >= 0 metres (0 = not checked; got " +
+                 FormatNumber(flight_height_m) + ")");
+  }
+  if (!(max_scale_deviation > 0.0) || !std::isfinite(max_scale_deviation)) {
+    ThrowInvalid("max_scale_deviation: must be > 0 (a fraction of flight_height_m; got " +
+                 FormatNumber(max_scale_deviation) + ")");
+  }
+  if (flight_height_m > 0.0 && positions_file.empty() && !exif_positions) {
+    ThrowInvalid("flight_height_m: checks a geo-referenced model's scale, which needs positions "
+                 "(positions_file or exif_positions); without them the model's units are "
+                 "arbitrary");
   }
   if (!positions_crs.empty() && positions_file.empty()) {
     ThrowInvalid("positions_crs: applies to positions_file, which is not given");
@@ -957,6 +1007,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
              options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
              options.min_registered_fraction, &result);
   if (!known) CheckSelfCalibration(options, &result);
+  CheckSceneScale(options, /*warn_unchecked=*/!known, &result);
   ProgressAdvance(progress, 1);
   result.stages.push_back({"import", timer.Seconds()});
   return result;
@@ -988,6 +1039,7 @@ PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& f
   ImportInto(std::move(model), frames_dir, positions,
              options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
              options.min_registered_fraction, &result);
+  CheckSceneScale(options, /*warn_unchecked=*/false, &result);
   result.stages.push_back({"import", timer.Seconds()});
   return result;
 }
