@@ -33,7 +33,6 @@ constexpr double kSurfaceOffset = 1e-3;
 
 enum Material : int { kNone = -1, kGround = 0, kTarget = 1, kVoxel = 2, kLeaf = 3, kTrunk = 4 };
 
-
 Rgb Lerp(const Rgb& a, const Rgb& b, double t) {
   return Rgb{a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t};
 }
@@ -698,12 +697,12 @@ Mat3d RotationFromVector(const Vec3d& w) {
 void Store(Image& image, int x, int y, int channel, double value) {
   switch (image.type()) {
     case PixelType::kU8:
-      image.At<uint8_t>(x, y)[channel] =
-          static_cast<uint8_t>(std::lround(std::clamp(value, 0.0, 1.0) * PixelTypeMax<uint8_t>()));
+      image.At<uint8_t>(x, y)[channel] = static_cast<uint8_t>(
+          std::lround(std::clamp(value, 0.0, 1.0) * PixelTypeMax<uint8_t>()));
       break;
     case PixelType::kU16:
-      image.At<uint16_t>(x, y)[channel] =
-          static_cast<uint16_t>(std::lround(std::clamp(value, 0.0, 1.0) * PixelTypeMax<uint16_t>()));
+      image.At<uint16_t>(x, y)[channel] = static_cast<uint16_t>(
+          std::lround(std::clamp(value, 0.0, 1.0) * PixelTypeMax<uint16_t>()));
       break;
     default:
       image.At<float>(x, y)[channel] = static_cast<float>(value);
