@@ -64,7 +64,6 @@ NOT_ON_THE_CLI = {
     ("import-colmap", "max_image_size"): "import-colmap runs no COLMAP",
     ("import-colmap", "max_num_features"): "import-colmap runs no COLMAP",
     ("import-colmap", "max_focal_deviation"): "the model's intrinsics are kept as they are",
-    ("import-colmap", "allow_implausible"): "the model's intrinsics are kept as they are",
     ("import-colmap", "num_threads"): "import-colmap decodes frames on all cores",
 }
 

@@ -32,6 +32,15 @@ void AddPositionFlags(Flags& flags, PosesOptions& options) {
               "Fail below this fraction of frames registered");
 }
 
+// The scene-scale check against the flight height, shared by poses and import-colmap.
+void AddScaleFlags(Flags& flags, PosesOptions& options) {
+  flags.Field("flight_height_m", options.flight_height_m,
+              "The cameras' height above the ground as flown, metres (e.g. 35): the model's "
+              "median depth is checked against it (0 = not checked)");
+  flags.Field("max_scale_deviation", options.max_scale_deviation,
+              "Refuse a median depth further than this fraction from --flight-height-m");
+}
+
 // Warnings, then the light field and what the user needs to judge the poses.
 void ReportPoses(const PosesResult& result, const std::string& output, Report& report) {
   for (const std::string& warning : result.warnings) Warn(warning);
@@ -46,6 +55,7 @@ void ReportPoses(const PosesResult& result, const std::string& output, Report& r
   report.Set("pose_error", result.pose_error);
   report.Set("focal_prior_px", result.focal_prior_px);
   report.Set("focal_deviation", result.focal_deviation);
+  report.Set("scale_deviation", result.scale_deviation);
   report.Set("implausible", result.implausible);
   report.Set("warnings", result.warnings);
   report.Line("wrote %s: %zu of %zu frames registered, %zu points, mean reprojection error "
@@ -140,8 +150,9 @@ CommandRunner DefinePoses(CLI::App* command) {
   flags.Field("max_focal_deviation", options.max_focal_deviation,
               "Refuse a self-calibrated focal length further than this fraction from the "
               "--frames-fov-deg prior's");
+  AddScaleFlags(flags, options);
   flags.Switch("allow_implausible", options.allow_implausible,
-               "Keep implausible self-calibrated intrinsics (with a warning)");
+               "Keep implausible self-calibrated intrinsics or scene scale (with a warning)");
   AddPositionFlags(flags, options);
   flags.Field("max_image_size", options.max_image_size,
               "Features on frames downscaled to this longest side");
@@ -161,6 +172,9 @@ CommandRunner DefineImportColmap(CLI::App* command) {
       ->required();
   command->add_option("-o,--output", c->output, "Light-field file to write (JSON)")->required();
   AddPositionFlags(flags, c->options);
+  AddScaleFlags(flags, c->options);
+  flags.Switch("allow_implausible", c->options.allow_implausible,
+               "Keep an implausible scene scale (with a warning)");
   flags.Threads();
   flags.Force();
   return [c, flags] { return RunImportColmap(*c, flags); };

@@ -40,8 +40,15 @@ void BindSfm(py::module_& m) {
       .Field("max_focal_deviation", &PosesOptions::max_focal_deviation,
              "Self-calibration: refuse a focal length further than this fraction from the "
              "fov_deg prior's, > 0.")
+      .Field("flight_height_m", &PosesOptions::flight_height_m,
+             "The cameras' height above the ground as flown, metres (e.g. 35 for a flight 35 m "
+             "above the ground): the geo-referenced median depth is checked against it; 0 = not "
+             "checked. Needs positions.")
+      .Field("max_scale_deviation", &PosesOptions::max_scale_deviation,
+             "Refuse a median depth further than this fraction from flight_height_m, > 0.")
       .Field("allow_implausible", &PosesOptions::allow_implausible,
-             "Keep implausible self-calibrated intrinsics with a warning instead of refusing.")
+             "Keep implausible self-calibrated intrinsics or scene scale with a warning instead "
+             "of refusing.")
       .Finish()
       .def("check", &PosesOptions::Check, "Raises ValueError naming the field.");
 
@@ -81,8 +88,11 @@ void BindSfm(py::module_& m) {
                     "Self-calibration: the focal length of the fov_deg prior (0 if none).")
       .def_readonly("focal_deviation", &PosesResult::focal_deviation,
                     "Recovered / prior focal length - 1; NaN when unchecked.")
+      .def_readonly("scale_deviation", &PosesResult::scale_deviation,
+                    "Median depth / flight_height_m - 1; NaN when unchecked.")
       .def_readonly("implausible", &PosesResult::implausible,
-                    "The self-calibration exceeded max_focal_deviation (kept: allow_implausible).")
+                    "The self-calibration exceeded max_focal_deviation or the scene scale "
+                    "max_scale_deviation (kept: allow_implausible).")
       .def("__repr__", [](const PosesResult& r) {
         return "PosesResult(registered=" + std::to_string(r.registered.size()) + "/" +
                std::to_string(r.frames.size()) +

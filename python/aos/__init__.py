@@ -656,6 +656,9 @@ def estimate_poses(
     camera_model, fov_deg, positions_file, workspace, ...). Progress stages: features,
     matching, mapping, import. Raises ValueError for bad options, COLMAP missing or failing, or
     too few frames registered; unregistered frames are listed in ``result.unregistered``.
+    Implausible results (a self-calibrated focal length off the ``fov_deg`` prior, a median
+    depth off ``flight_height_m``) raise too, or with ``allow_implausible=True`` come back
+    with an "IMPLAUSIBLE" warning and ``result.implausible`` set (docs/poses.md).
 
     Example::
 
@@ -677,7 +680,8 @@ def import_colmap(
     frames COLMAP was given, as ``aos-render import-colmap`` does: registered frames become
     views (images not loaded), the others are listed as unregistered, and ``positions_file`` or
     ``exif_positions`` (fields of :class:`PosesOptions`, like ``min_registered_fraction``)
-    geo-reference it. Raises ValueError naming the file and the field.
+    geo-reference it; ``flight_height_m`` checks the geo-referenced scale, as for
+    :func:`estimate_poses`. Raises ValueError naming the file and the field.
     """
     merged = _copy_options("import_colmap", PosesOptions, options)
     _IMPORT_COLMAP.apply([merged], dict(kwargs))

@@ -910,6 +910,8 @@ class PosesOptions:
         min_registered_fraction: float = ...,
         num_threads: int = ...,
         max_focal_deviation: float = ...,
+        flight_height_m: float = ...,
+        max_scale_deviation: float = ...,
         allow_implausible: bool = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
@@ -928,6 +930,8 @@ class PosesOptions:
     min_registered_fraction: float
     num_threads: int
     max_focal_deviation: float
+    flight_height_m: float
+    max_scale_deviation: float
     allow_implausible: bool
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
@@ -976,6 +980,8 @@ class PosesResult:
     def focal_prior_px(self) -> float: ...
     @property
     def focal_deviation(self) -> float: ...
+    @property
+    def scale_deviation(self) -> float: ...
     @property
     def implausible(self) -> bool: ...
     def __repr__(self) -> str: ...

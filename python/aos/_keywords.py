@@ -155,4 +155,6 @@ class PosesKeywords(TypedDict, total=False):
     min_registered_fraction: float
     num_threads: int
     max_focal_deviation: float
+    flight_height_m: float
+    max_scale_deviation: float
     allow_implausible: bool

@@ -121,6 +121,19 @@ INSTANTIATE_TEST_SUITE_P(AllTypes, ImageTypes,
                            return std::string(PixelTypeName(info.param));
                          });
 
+TEST(Image, PixelTypeRangesAreOneHelper) {
+  // The templated maximum is the full range of the runtime type, bit for bit, and the integer
+  // type's largest value; float images hold [0, 1].
+  static_assert(PixelTypeMax<uint8_t>() == 255.0, "uint8");
+  static_assert(PixelTypeMax<uint16_t>() == 65535.0, "uint16");
+  static_assert(PixelTypeMax<uint32_t>() == 4294967295.0, "uint32");
+  EXPECT_EQ(PixelTypeFullRange(PixelType::kU8), PixelTypeMax<uint8_t>());
+  EXPECT_EQ(PixelTypeFullRange(PixelType::kU16), PixelTypeMax<uint16_t>());
+  EXPECT_EQ(PixelTypeFullRange(PixelType::kU32), PixelTypeMax<uint32_t>());
+  EXPECT_EQ(PixelTypeFullRange(PixelType::kF32), 1.0);
+  EXPECT_EQ(1.0 / PixelTypeFullRange(PixelType::kU16), 1.0 / 65535.0);
+}
+
 TEST(Image, SizesAndErrors) {
   const Image image(6, 5, 3, PixelType::kU16, 1);
   EXPECT_EQ(image.row_stride(), 8 * 3);

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <random>
 
+#include <sqlite3.h>
 #include <sys/wait.h>
 
 #include <gmock/gmock.h>
@@ -506,6 +507,14 @@ TEST_F(PosesPipeline, OptionsAreChecked) {
   options = PosesOptions();
   options.fov_deg = 200.0;
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("fov_deg"));
+  options = PosesOptions();
+  options.flight_height_m = -1.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("flight_height_m: must be >= 0"));
+  options.flight_height_m = std::nan("");
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("flight_height_m: must be >= 0"));
+  options = PosesOptions();
+  options.max_scale_deviation = 0.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("max_scale_deviation: must be > 0"));
 }
 
 TEST_F(PosesPipeline, BadFoldersAndMissingColmapAreClearErrors) {
@@ -562,9 +571,21 @@ class FakeMapper : public PosesPipeline {
       points << i + 1 << " " << i << " " << i * i << " 0 255 255 255 0.5 " << i + 1 << " 0\n";
     }
   }
+  // A database with COLMAP 3.8's position-prior columns, which the stand-in's feature_extractor
+  // hands on (spatial priors are written when positions are given).
+  void PrepareDatabase() {
+    sqlite3* db = nullptr;
+    ASSERT_EQ(sqlite3_open(Path("prepared.db").c_str(), &db), SQLITE_OK);
+    ASSERT_EQ(sqlite3_exec(db, "CREATE TABLE images (name TEXT, prior_tx REAL, prior_ty REAL, "
+                               "prior_tz REAL)", nullptr, nullptr, nullptr),
+              SQLITE_OK);
+    sqlite3_close(db);
+  }
   std::string Mapper() {
     const std::string path = Path("fake_mapper.sh");
     std::ofstream(path) << "#!/bin/sh\n"
+                           "[ \"$1\" = feature_extractor ] && [ -f " << Path("prepared.db")
+                        << " ] && cp " << Path("prepared.db") << " \"$3\"\n"
                            "[ \"$1\" = mapper ] || exit 0\n"
                            "while [ $# -gt 0 ]; do [ \"$1\" = --output_path ] && out=$2; shift; done\n"
                            "cp -r " << Path("models") << "/. \"$out\"\n";
@@ -628,6 +649,76 @@ TEST_F(FakeMapper, ImplausibleSelfCalibrationIsRefusedOrFlagged) {
   EXPECT_TRUE(result.implausible);
   EXPECT_NEAR(result.focal_deviation, 30.0 / (16.0 / std::tan(20.0 * M_PI / 180.0)) - 1.0, 1e-9);
   EXPECT_THAT(result.warnings, ::testing::Contains(HasSubstr("IMPLAUSIBLE")));
+}
+
+TEST_F(FakeMapper, SceneScaleIsCheckedAgainstTheFlightHeight) {
+  // Positions at twice the model's camera centres (i, i^2, -10): geo-referencing scales the
+  // model by 2, so the points 10 model units in front of the cameras lie 20 m below them.
+  Frames(3);
+  WriteModel("models/0", {"f0.png", "f1.png", "f2.png"});
+  std::ofstream(Path("gps.csv")) << "f0.png,500000,5300000,100\nf1.png,500002,5300002,100\n"
+                                    "f2.png,500004,5300008,100\n";
+  PosesOptions options;
+  options.positions_file = Path("gps.csv");
+  // The right height: checked and fine.
+  options.flight_height_m = 20.0;
+  PosesResult result = ImportColmapPoses(Path("models/0"), Path("frames"), options);
+  ASSERT_TRUE(result.georeferenced);
+  EXPECT_NEAR(result.median_depth, 20.0, 1e-6);
+  EXPECT_NEAR(result.scale_deviation, 0.0, 1e-6);
+  EXPECT_FALSE(result.implausible);
+  EXPECT_THAT(result.warnings, ::testing::Not(::testing::Contains(HasSubstr("scene scale"))));
+  // Within max_scale_deviation (20 / 18 = 1.11 < 1.15, 20 / 22.5 = 1 / 1.125): kept.
+  options.flight_height_m = 18.0;
+  EXPECT_FALSE(ImportColmapPoses(Path("models/0"), Path("frames"), options).implausible);
+  options.flight_height_m = 22.5;
+  EXPECT_FALSE(ImportColmapPoses(Path("models/0"), Path("frames"), options).implausible);
+  // A 14 m flight read as 20 m deep (+43 %): refused naming both figures, or kept loudly.
+  options.flight_height_m = 14.0;
+  EXPECT_THAT(ErrorOf([&] { ImportColmapPoses(Path("models/0"), Path("frames"), options); }),
+              HasSubstr("IMPLAUSIBLE scene scale: the views' median depth came out at 20.0 m but "
+                        "the flight height is 14 m (+43 %, more than max_scale_deviation 0.15)"));
+  options.max_scale_deviation = 0.5;  // a documented threshold, changeable
+  EXPECT_FALSE(ImportColmapPoses(Path("models/0"), Path("frames"), options).implausible);
+  options.max_scale_deviation = 0.15;
+  options.allow_implausible = true;
+  result = ImportColmapPoses(Path("models/0"), Path("frames"), options);
+  EXPECT_TRUE(result.implausible);
+  EXPECT_NEAR(result.scale_deviation, 20.0 / 14.0 - 1.0, 1e-6);
+  EXPECT_THAT(result.warnings, ::testing::Contains(HasSubstr("IMPLAUSIBLE scene scale")));
+  // Too deep a scene the other way: a 30 m flight read as 20 m.
+  options.allow_implausible = false;
+  options.flight_height_m = 30.0;
+  EXPECT_THAT(ErrorOf([&] { ImportColmapPoses(Path("models/0"), Path("frames"), options); }),
+              HasSubstr("(-33 %, more than max_scale_deviation 0.15)"));
+  // Self-calibrated and geo-referenced without a flight height: the scale is said unchecked.
+  options.flight_height_m = 0.0;
+  options.colmap = Mapper();
+  PrepareDatabase();
+  result = EstimatePoses(Path("frames"), options);
+  EXPECT_TRUE(std::isnan(result.scale_deviation));
+  EXPECT_THAT(result.warnings, ::testing::Contains(HasSubstr(
+                                   "the scene scale (median depth 20.0 m) was not checked")));
+  // With the flight height the pipeline checks it too.
+  options.flight_height_m = 14.0;
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("IMPLAUSIBLE scene scale"));
+}
+
+TEST_F(FakeMapper, AFlightHeightNeedsPositions) {
+  // Without positions the model's units are arbitrary: refused before anything runs.
+  Frames(3);
+  WriteModel("models/0", {"f0.png", "f1.png", "f2.png"});
+  PosesOptions options;
+  options.flight_height_m = 20.0;
+  options.colmap = FakeColmap(1);  // would fail if it ran
+  EXPECT_THAT(ErrorOf([&] { ImportColmapPoses(Path("models/0"), Path("frames"), options); }),
+              HasSubstr("flight_height_m: checks a geo-referenced model's scale, which needs "
+                        "positions (positions_file or exif_positions)"));
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("flight_height_m: checks a geo-referenced model's scale"));
+  options.exif_positions = true;
+  EXPECT_NO_THROW(options.Check());
 }
 
 TEST_F(FakeMapper, TheLargestOfSeveralModelsIsUsed) {

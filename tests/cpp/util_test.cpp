@@ -6,6 +6,7 @@
 #include <fstream>
 #include <limits>
 #include <string>
+#include <thread>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -16,6 +17,7 @@
 #include "aos/util/file_util.h"
 #include "aos/util/json_file.h"
 #include "aos/util/memory.h"
+#include "aos/util/timer.h"
 #include "error_of.h"
 #include "temp_folder.h"
 
@@ -133,6 +135,24 @@ TEST(Memory, TheBudgetComesFromTheEnvironmentOrTheMachine) {
   ::setenv("AOS_MEMORY_LIMIT_MB", "-4", 1);
   EXPECT_THAT(ErrorOf([] { MemoryBudgetBytes(); }), HasSubstr("AOS_MEMORY_LIMIT_MB: expected"));
   ::unsetenv("AOS_MEMORY_LIMIT_MB");
+}
+
+TEST(Timer, CountsSecondsFromItsStartOrRestart) {
+  // Orderings that hold on any machine, however loaded: a timer started 20 ms before another
+  // reads at least 20 ms more (read second), and a restart starts it anew.
+  const Timer first;
+  EXPECT_GE(first.Seconds(), 0.0);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  Timer second;
+  const double second_reads = second.Seconds();
+  const double first_reads = first.Seconds();
+  EXPECT_GE(first_reads - second_reads, 0.02);
+  std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  Timer third;
+  second.Restart();
+  const double restarted_reads = second.Seconds();
+  EXPECT_LE(restarted_reads, third.Seconds());
+  EXPECT_GE(first.Seconds(), first_reads);
 }
 
 }  // namespace

@@ -195,3 +195,48 @@ def test_spatial_and_exhaustive_matching_with_real_colmap(flight, tmp_path) -> N
                                     progress=lambda stage, done, total: stages.append(stage))
     assert len(exhaustive.registered) == 16 and exhaustive.georeference_rms_m < 0.05
     assert {"features", "matching", "mapping", "import"} <= set(stages)
+
+
+def test_scene_scale_is_checked_against_the_flight_height(flight, tmp_path) -> None:
+    # The flight's kept COLMAP model (known camera, so its scale is right: median depth about
+    # 20 m) imported with a stated flight height.
+    model = flight["root"] / "ws" / "sparse" / "0"
+    frames = flight["root"] / "sim" / "views"
+    gps = str(flight["root"] / "gps.csv")
+    right = aos.import_colmap(model, frames, positions_file=gps, flight_height_m=20.0)
+    assert not right.implausible
+    assert abs(right.scale_deviation) < 0.15
+    assert right.scale_deviation == pytest.approx(right.median_depth / 20.0 - 1.0, rel=1e-12)
+    assert not any("scene scale" in w for w in right.warnings)
+    unchecked = aos.import_colmap(model, frames, positions_file=gps)
+    assert math.isnan(unchecked.scale_deviation)
+    # A 14 m flight that reads about 20 m deep: refused, or kept loudly with the fields set.
+    with pytest.raises(ValueError, match=r"IMPLAUSIBLE scene scale: the views' median depth came "
+                                         r"out at .* m but the flight height is 14 m"):
+        aos.import_colmap(model, frames, positions_file=gps, flight_height_m=14.0)
+    kept = aos.import_colmap(model, frames, positions_file=gps, flight_height_m=14.0,
+                             allow_implausible=True)
+    assert kept.implausible
+    assert kept.scale_deviation == pytest.approx(kept.median_depth / 14.0 - 1.0, rel=1e-12)
+    assert kept.scale_deviation > 0.15
+    assert any(w.startswith("IMPLAUSIBLE scene scale") for w in kept.warnings)
+    # Without positions the units are arbitrary: a flight height is refused.
+    with pytest.raises(ValueError, match="flight_height_m: checks a geo-referenced model's scale"):
+        aos.import_colmap(model, frames, flight_height_m=20.0)
+    # The CLI: refused (exit 1, nothing written), kept with --allow-implausible (warning on
+    # stderr), and a flight height without positions names its flag (exit 2).
+    command = ["aos-render", "import-colmap", str(model), "--images-dir", str(frames),
+               "--positions", gps, "--flight-height-m", "14"]
+    done = subprocess.run(command + ["-o", str(tmp_path / "a.json")], capture_output=True,
+                          text=True)
+    assert done.returncode == 1 and "IMPLAUSIBLE scene scale" in done.stderr
+    assert "--allow-implausible" in done.stderr
+    assert not (tmp_path / "a.json").exists()
+    done = subprocess.run(command + ["--allow-implausible", "-o", str(tmp_path / "b.json")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    assert "warning: IMPLAUSIBLE scene scale" in done.stderr
+    done = subprocess.run(["aos-render", "import-colmap", str(model), "--images-dir",
+                           str(frames), "--flight-height-m", "20", "-o",
+                           str(tmp_path / "c.json")], capture_output=True, text=True)
+    assert done.returncode == 2 and "--flight-height-m" in done.stderr

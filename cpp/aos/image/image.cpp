@@ -23,9 +23,9 @@ size_t PixelTypeSize(PixelType type) {
 
 double PixelTypeFullRange(PixelType type) {
   switch (type) {
-    case PixelType::kU8: return 255.0;
-    case PixelType::kU16: return 65535.0;
-    case PixelType::kU32: return 4294967295.0;
+    case PixelType::kU8: return PixelTypeMax<uint8_t>();
+    case PixelType::kU16: return PixelTypeMax<uint16_t>();
+    case PixelType::kU32: return PixelTypeMax<uint32_t>();
     case PixelType::kF32: return 1.0;
   }
   return 1.0;

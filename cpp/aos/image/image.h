@@ -8,6 +8,7 @@
 // [0, width] x [0, height] needs no bounds checks: its taps fall in [-1, width] x [-1, height].
 #include <cstddef>
 #include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -25,6 +26,13 @@ PixelType ParsePixelTypeName(const std::string& name, const std::string& where);
 // The full value range of a pixel type: 255 (uint8), 65535 (uint16), 4294967295 (uint32) and 1
 // for float32 (whose images hold values in [0, 1] by convention).
 double PixelTypeFullRange(PixelType type);
+// The same range for a sample type known at compile time: PixelTypeMax<uint8_t>() = 255.0,
+// <uint16_t> 65535.0, <uint32_t> 4294967295.0 (integer types only; float's range is 1).
+template <typename T>
+constexpr double PixelTypeMax() {
+  static_assert(std::numeric_limits<T>::is_integer, "PixelTypeMax: an integer sample type");
+  return static_cast<double>(std::numeric_limits<T>::max());
+}
 
 class Image {
  public:

@@ -553,8 +553,9 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
       }
     }
   };
-  auto to_codes = [&](auto code_type_tag, double max_code) {
+  auto to_codes = [&](auto code_type_tag) {
     using Code = decltype(code_type_tag);
+    constexpr double max_code = PixelTypeMax<Code>();
     buffer.resize(count * sizeof(Code));
     Code* out = reinterpret_cast<Code*>(buffer.data());
     // Integer images already in a type that fits keep their values unchanged.
@@ -581,13 +582,13 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
     });
   };
   switch (sample_type) {
-    case SampleType::kU8: to_codes(uint8_t{}, 255.0); file_type = oiio::TypeDesc::UINT8; break;
-    case SampleType::kU16: to_codes(uint16_t{}, 65535.0); file_type = oiio::TypeDesc::UINT16; break;
+    case SampleType::kU8: to_codes(uint8_t{}); file_type = oiio::TypeDesc::UINT8; break;
+    case SampleType::kU16: to_codes(uint16_t{}); file_type = oiio::TypeDesc::UINT16; break;
     case SampleType::kU32: {
       if (image.type() != PixelType::kU32) {
         ThrowInvalid(path + ": uint32 output is for count maps (uint32 images) only");
       }
-      to_codes(uint32_t{}, 4294967295.0);
+      to_codes(uint32_t{});
       file_type = oiio::TypeDesc::UINT32;
       break;
     }

@@ -22,16 +22,6 @@ cv::Mat ChannelPlane(const Image& image, int c) {
   return plane;
 }
 
-double DefaultRange(PixelType type) {
-  switch (type) {
-    case PixelType::kU8: return 255.0;
-    case PixelType::kU16: return 65535.0;
-    case PixelType::kU32: return 4294967295.0;
-    case PixelType::kF32: return 1.0;
-  }
-  return 1.0;
-}
-
 }  // namespace
 
 void QualityOptions::Check() const {
@@ -74,7 +64,7 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
   PixelType units = reference.type();
   if (test.type() != reference.type()) {
     if (!test_float && !reference_float) {
-      result.test_scale = DefaultRange(reference.type()) / DefaultRange(test.type());
+      result.test_scale = PixelTypeFullRange(reference.type()) / PixelTypeFullRange(test.type());
       result.note = std::string("the ") + PixelTypeName(test.type()) +
                     " test image was scaled by " + FormatNumber(result.test_scale) +
                     " to the " + PixelTypeName(reference.type()) +
@@ -107,7 +97,7 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
                     " " + (test_float ? "reference" : "test") + " image";
     }
   }
-  result.data_range = options.data_range > 0.0 ? options.data_range : DefaultRange(units);
+  result.data_range = options.data_range > 0.0 ? options.data_range : PixelTypeFullRange(units);
   const double L = result.data_range;
   const double C1 = (options.k1 * L) * (options.k1 * L), C2 = (options.k2 * L) * (options.k2 * L);
 

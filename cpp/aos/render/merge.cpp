@@ -1,7 +1,6 @@
 #include "aos/render/merge.h"
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -13,6 +12,7 @@
 #include "aos/util/error.h"
 #include "aos/util/memory.h"
 #include "aos/util/parallel.h"
+#include "aos/util/timer.h"
 
 // How it works
 // Every method reduces a slice to one focus value per pixel (higher = sharper) and folds the
@@ -24,13 +24,7 @@
 namespace aos {
 namespace {
 
-using Clock = std::chrono::steady_clock;
 constexpr float kNone = -std::numeric_limits<float>::infinity();
-
-double Seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
 
 // Luminance (mean over channels) of a float32 image.
 std::vector<float> Luminance(const Image& image) {
@@ -465,7 +459,7 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
     }
   }
   const int threads = ResolveThreadCount(options.num_threads);
-  const auto start = Clock::now();
+  const Timer timer;
   ProgressStart(progress, "merge", stack.size());
   FocusAccumulator accumulator(stack.camera, stack.images.front().channels(), stack.size());
   for (int i = 0; i < stack.size(); ++i) {
@@ -513,12 +507,12 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
       }
     }
   }
-  result.seconds_merge = Seconds(start);
+  result.seconds_merge = timer.Seconds();
   if (options.method == MergeMethod::kRobust) {
-    const auto render_start = Clock::now();
+    const Timer render_timer;
     Reintegrate(*light_field, stack.render, stack.planes.front(), options, accumulator.guide(),
                 &result, progress);
-    result.seconds_render = Seconds(render_start);
+    result.seconds_render = render_timer.Seconds();
   }
   return result;
 }
@@ -546,11 +540,11 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   std::unique_ptr<FocusAccumulator> accumulator;
   std::vector<Plane> planes;
   double seconds_merge = 0.0;
-  const auto start = Clock::now();
+  const Timer timer;
   RenderFocalStackSlices(
       light_field, run.stack,
       [&](int index, const Plane& plane, IntegralResult& slice) {
-        const auto merge_start = Clock::now();
+        const Timer merge_timer;
         if (!accumulator) {
           accumulator = std::make_unique<FocusAccumulator>(camera, slice.image.channels(),
                                                            run.stack.slices);
@@ -561,23 +555,23 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
                         run.stack.render.variance ? &slice.variance : nullptr,
                         run.merge.window_radius, threads);
         accumulator->Add(index, slice.image, focus);
-        seconds_merge += Seconds(merge_start);
+        seconds_merge += merge_timer.Seconds();
       },
       progress);
-  const double seconds_stack = Seconds(start) - seconds_merge;
-  const auto refine_start = Clock::now();
+  const double seconds_stack = timer.Seconds() - seconds_merge;
+  const Timer refine_timer;
   const Folded folded = Refine(*accumulator, run.merge, threads);
   MergeResult result = Assemble(folded, camera, cam_from_world, planes, threads);
-  seconds_merge += Seconds(refine_start);
+  seconds_merge += refine_timer.Seconds();
   if (run.merge.method == MergeMethod::kSobel) {
     result.image = accumulator->guide().Clone();
     result.seconds_render = seconds_stack;
   } else {
-    const auto render_start = Clock::now();
+    const Timer render_timer;
     const IntegralOptions render = WithResolvedCamera(light_field, run.stack.render);
     Reintegrate(light_field, render, planes.front(), run.merge, accumulator->guide(), &result,
                 progress);
-    result.seconds_render = seconds_stack + Seconds(render_start);
+    result.seconds_render = seconds_stack + render_timer.Seconds();
   }
   result.seconds_merge = seconds_merge;
   return result;

@@ -4,7 +4,6 @@
 #include <stdlib.h>
 
 #include <algorithm>
-#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <deque>
@@ -23,17 +22,12 @@
 #include "aos/util/math.h"
 #include "aos/util/parallel.h"
 #include "aos/util/process.h"
+#include "aos/util/timer.h"
 
 namespace fs = std::filesystem;
 
 namespace aos {
 namespace {
-
-using Clock = std::chrono::steady_clock;
-
-double Seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 std::string Number(double value) {
   std::ostringstream out;
@@ -296,7 +290,7 @@ void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
   if (!(options.fov_deg > 0.0)) {
     std::snprintf(text, sizeof(text),
                   "the self-calibrated focal length (%.1f px, a %.1f-degree field of view) could "
-                  "not be checked: give fov_deg (--fov-deg), the frames' known field of view, or "
+                  "not be checked: give fov_deg (--frames-fov-deg), the frames' known field of view, or "
                   "a camera file; self-calibration from nadir views of flat ground is ill-posed "
                   "(docs/poses.md)",
                   focal, recovered_fov_deg);
@@ -324,6 +318,43 @@ void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
   result->warnings.push_back(text);
 }
 
+// A geo-referenced model's scene scale against the flight height (see
+// PosesOptions::flight_height_m): implausible scale is refused, or accepted with a loud warning
+// under allow_implausible. Without a flight height, `warn_unchecked` adds a warning that the
+// scale was not checked.
+void CheckSceneScale(const PosesOptions& options, bool warn_unchecked, PosesResult* result) {
+  if (!result->georeferenced) return;  // Check() refuses flight_height_m without positions
+  char text[640];
+  if (!(options.flight_height_m > 0.0)) {
+    if (warn_unchecked) {
+      std::snprintf(text, sizeof(text),
+                    "the scene scale (median depth %.1f m) was not checked: give flight_height_m "
+                    "(--flight-height-m), the cameras' height above the ground",
+                    result->median_depth);
+      result->warnings.push_back(text);
+    }
+    return;
+  }
+  const double ratio = result->median_depth / options.flight_height_m;
+  result->scale_deviation = ratio - 1.0;
+  const double limit = 1.0 + options.max_scale_deviation;
+  if (ratio <= limit && ratio >= 1.0 / limit) return;
+  result->implausible = true;
+  std::snprintf(text, sizeof(text),
+                "IMPLAUSIBLE scene scale: the views' median depth came out at %.1f m but the "
+                "flight height is %s m (%+.0f %%, more than max_scale_deviation %s); check the "
+                "focal length (a self-calibrated one is ill-determined over flat ground: give a "
+                "camera file or the frames' field of view) and the positions (altitudes, units, "
+                "frame)",
+                result->median_depth, FormatNumber(options.flight_height_m).c_str(),
+                100.0 * result->scale_deviation, FormatNumber(options.max_scale_deviation).c_str());
+  if (!options.allow_implausible) {
+    ThrowInvalid(std::string(text) + "; or allow_implausible (--allow-implausible) to keep the "
+                 "result anyway");
+  }
+  result->warnings.push_back(text);
+}
+
 }  // namespace
 
 void PosesOptions::Check() const {
@@ -333,6 +364,19 @@ void PosesOptions::Check() const {
   }
   if (!(max_focal_deviation > 0.0) || !std::isfinite(max_focal_deviation)) {
     ThrowInvalid("max_focal_deviation: must be > 0 (a fraction of the prior's focal length)");
+  }
+  if (!(flight_height_m >= 0.0) || !std::isfinite(flight_height_m)) {
+    ThrowInvalid("flight_height_m: must be >= 0 metres (0 = not checked; got " +
+                 FormatNumber(flight_height_m) + ")");
+  }
+  if (!(max_scale_deviation > 0.0) || !std::isfinite(max_scale_deviation)) {
+    ThrowInvalid("max_scale_deviation: must be > 0 (a fraction of flight_height_m; got " +
+                 FormatNumber(max_scale_deviation) + ")");
+  }
+  if (flight_height_m > 0.0 && positions_file.empty() && !exif_positions) {
+    ThrowInvalid("flight_height_m: checks a geo-referenced model's scale, which needs positions "
+                 "(positions_file or exif_positions); without them the model's units are "
+                 "arbitrary");
   }
   if (!positions_crs.empty() && positions_file.empty()) {
     ThrowInvalid("positions_crs: applies to positions_file, which is not given");
@@ -669,33 +713,29 @@ GeoreferenceResult Georeference(LightField* light_field, const std::vector<std::
   return result;
 }
 
-PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& options,
-                          ProgressSink* progress) {
-  options.Check();
-  if (frames_dir.empty() || !fs::is_directory(frames_dir)) {
-    ThrowInvalid(frames_dir + ": not a folder of frames");
-  }
-  if (!ProgramExists(options.colmap)) {
-    ThrowInvalid("colmap: \"" + options.colmap +
-                 "\" not found; install COLMAP (Debian: apt-get install colmap) or give its path");
-  }
-  PosesResult result;
-  // Known inputs first (cheap errors before COLMAP runs).
-  LensCamera known_camera;
-  const bool known = !options.camera_file.empty();
-  if (known) known_camera = ReadCameraFile(options.camera_file);
-  std::vector<NamedPosition> positions;
-  std::string positions_frame;
-  if (!options.positions_file.empty()) {
-    PositionsFile file = ReadPositionsFile(options.positions_file, options.positions_crs);
-    positions = std::move(file.positions);
-    positions_frame = std::move(file.world_frame);
-  }
+namespace {
 
-  // Positions from EXIF come after the frame list (below).
-  // Frames: readable ones, one size.
-  std::vector<std::string> unreadable;
+// What every COLMAP stage runs with.
+struct ColmapRun {
+  std::string colmap;      // the executable
+  std::string frames_dir;  // COLMAP's --image_path
+  fs::path workspace;      // its workspace folder
+  fs::path database;       // workspace/database.db
+  fs::path list;           // workspace/frames.txt: the frames to use, one a line
+  std::string threads;     // num_threads as COLMAP takes it
+  int total = 0;           // frames
+  ProgressSink* progress = nullptr;
+};
+
+struct FrameSize {
   int width = 0, height = 0;
+};
+
+// The frames of frames_dir into result->frames: the readable ones (the others skipped with a
+// warning), all of one size and in a type COLMAP reads (else an error naming them).
+FrameSize ListFrames(const std::string& frames_dir, PosesResult* result) {
+  std::vector<std::string> unreadable;
+  FrameSize size;
   std::string first_frame;
   std::vector<std::string> other_size, float_frames;
   for (const std::string& name : ListFrameFiles(frames_dir)) {
@@ -708,109 +748,117 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
     }
     if (first_frame.empty()) {
       first_frame = name;
-      width = info.width;
-      height = info.height;
-    } else if (info.width != width || info.height != height) {
+      size.width = info.width;
+      size.height = info.height;
+    } else if (info.width != size.width || info.height != size.height) {
       other_size.push_back(name + " (" + std::to_string(info.width) + "x" +
                            std::to_string(info.height) + ")");
     }
     if (info.type != PixelType::kU8 && info.type != PixelType::kU16) float_frames.push_back(name);
-    result.frames.push_back(name);
+    result->frames.push_back(name);
   }
   if (!unreadable.empty()) {
-    result.warnings.push_back("skipped " + std::to_string(unreadable.size()) +
-                              " unreadable frame(s): " + ListSome(unreadable));
+    result->warnings.push_back("skipped " + std::to_string(unreadable.size()) +
+                               " unreadable frame(s): " + ListSome(unreadable));
   }
-  if (result.frames.empty()) {
+  if (result->frames.empty()) {
     ThrowInvalid(frames_dir + ": no readable frames (.png .jpg .jpeg .tif .tiff .exr)");
   }
   if (!other_size.empty()) {
     ThrowInvalid(frames_dir + ": frames differ in size (one camera for all frames): " +
-                 first_frame + " is " + std::to_string(width) + "x" + std::to_string(height) +
-                 " but " + ListSome(other_size));
+                 first_frame + " is " + std::to_string(size.width) + "x" +
+                 std::to_string(size.height) + " but " + ListSome(other_size));
   }
   if (!float_frames.empty()) {
     // COLMAP 3.8 cannot read them (it logs "Failed to read image file format" and skips them).
     ThrowInvalid(frames_dir + ": COLMAP reads 8- and 16-bit frames only; convert these to "
                               "16-bit first: " + ListSome(float_frames));
   }
-  if (known && (known_camera.width != width || known_camera.height != height)) {
-    ThrowInvalid(options.camera_file + ": the camera is " + std::to_string(known_camera.width) +
-                 "x" + std::to_string(known_camera.height) + " but the frames are " +
-                 std::to_string(width) + "x" + std::to_string(height));
-  }
-  if (result.frames.size() < 2) ThrowInvalid(frames_dir + ": one frame cannot give poses (need >= 2)");
-  std::pair<std::string, std::string> known_colmap_camera;
-  if (known) known_colmap_camera = ColmapCameraFor(known_camera, options.camera_file);
+  return size;
+}
+
+// The positions of result->frames: those of the positions file (read before the frames were
+// listed, for its cheap errors) matched to the frames, or the frames' EXIF GPS tags.
+std::vector<NamedPosition> FramePositions(const std::string& frames_dir,
+                                          const PosesOptions& options, const PositionsFile& file,
+                                          PosesResult* result) {
+  std::vector<NamedPosition> positions;
   if (!options.positions_file.empty()) {
-    result.world_frame = positions_frame;
-    positions = MatchPositionsToFrames(positions, result.frames, options.positions_file,
-                                       &result.warnings);
+    result->world_frame = file.world_frame;
+    positions = MatchPositionsToFrames(file.positions, result->frames, options.positions_file,
+                                       &result->warnings);
   }
   if (options.exif_positions) {
     std::vector<std::string> untagged;
-    positions = PositionsFromExif(frames_dir, result.frames, &untagged, &result.world_frame);
+    positions = PositionsFromExif(frames_dir, result->frames, &untagged, &result->world_frame);
     if (!untagged.empty()) {
-      result.warnings.push_back(std::to_string(untagged.size()) +
-                                " frame(s) without an EXIF GPS latitude, longitude and altitude: " +
-                                ListSome(untagged));
+      result->warnings.push_back(std::to_string(untagged.size()) +
+                                 " frame(s) without an EXIF GPS latitude, longitude and altitude: " +
+                                 ListSome(untagged));
     }
     if (positions.size() < 3) {
       ThrowInvalid(frames_dir + ": only " + std::to_string(positions.size()) +
                    " frames carry EXIF GPS positions; geo-referencing needs at least 3");
     }
   }
+  return positions;
+}
 
-  Workspace workspace(options.workspace);
-  if (!workspace.temporary()) result.workspace = workspace.path().string();
-  const fs::path database = workspace.path() / "database.db";
-  const fs::path list = workspace.path() / "frames.txt";
-  {
-    std::ofstream out(list);
-    for (const std::string& name : result.frames) out << name << "\n";
-    if (!out) ThrowInvalid(list.string() + ": cannot write the frame list");
-  }
-  const std::string threads = std::to_string(options.num_threads);
-  const int total = static_cast<int>(result.frames.size());
-
-  // 1. Features.
-  auto start = Clock::now();
+// 1. SIFT features of every listed frame, with the known camera (fixed) or self-calibration's
+// model (started from fov_deg when given).
+void ExtractFeatures(const ColmapRun& run, const PosesOptions& options,
+                     const std::pair<std::string, std::string>* known_colmap_camera,
+                     const FrameSize& size, PosesResult* result) {
+  const std::string& frames_dir = run.frames_dir;
+  const fs::path& database = run.database;
+  const std::string& threads = run.threads;
+  const int total = run.total;
+  ProgressSink* progress = run.progress;
+  const Timer timer;
   ProgressStart(progress, "features", total);
   std::vector<std::string> extract = {
-      options.colmap, "feature_extractor", "--database_path", database.string(), "--image_path",
-      frames_dir, "--image_list_path", list.string(), "--ImageReader.single_camera", "1",
+      run.colmap, "feature_extractor", "--database_path", database.string(), "--image_path",
+      frames_dir, "--image_list_path", run.list.string(), "--ImageReader.single_camera", "1",
       "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads", threads,
       "--SiftExtraction.max_image_size", std::to_string(options.max_image_size),
       "--SiftExtraction.max_num_features", std::to_string(options.max_num_features)};
-  if (known) {
-    const auto& [model, params] = known_colmap_camera;
+  if (known_colmap_camera != nullptr) {
+    const auto& [model, params] = *known_colmap_camera;
     extract.insert(extract.end(), {"--ImageReader.camera_model", model,
                                    "--ImageReader.camera_params", params});
   } else {
     extract.insert(extract.end(), {"--ImageReader.camera_model", options.camera_model});
     if (options.fov_deg > 0.0) {
       extract.insert(extract.end(), {"--ImageReader.camera_params",
-                                     InitialParams(options.camera_model, width, height, options.fov_deg)});
+                                     InitialParams(options.camera_model, size.width, size.height,
+                                                   options.fov_deg)});
     }
   }
-  RunColmap("features", extract, workspace.path() / "colmap_features.log",
+  RunColmap("features", extract, run.workspace / "colmap_features.log",
             [&](const std::string& line) {
               if (BracketIndex(line, "Processed file") > 0) ProgressAdvance(progress, 1);
             },
             progress);
-  result.stages.push_back({"features", Seconds(start)});
+  result->stages.push_back({"features", timer.Seconds()});
+}
 
-  // 2. Matching.
-  start = Clock::now();
+// 2. Matching (options.matcher), with the positions written into the database as priors.
+void MatchFeatures(const ColmapRun& run, const PosesOptions& options,
+                   const std::vector<NamedPosition>& positions, PosesResult* result) {
+  const fs::path& database = run.database;
+  const std::string& threads = run.threads;
+  const int total = run.total;
+  ProgressSink* progress = run.progress;
+  const Timer timer;
   if (!positions.empty()) {
     const int with_prior = WritePriors(database, positions, Mean(positions));
     if (options.matcher == "spatial" && with_prior < total) {
-      result.warnings.push_back(std::to_string(total - with_prior) + " of " +
-                                std::to_string(total) + " frames have no position prior; spatial "
-                                "matching cannot match (or register) them");
+      result->warnings.push_back(std::to_string(total - with_prior) + " of " +
+                                 std::to_string(total) + " frames have no position prior; spatial "
+                                 "matching cannot match (or register) them");
     }
   }
-  std::vector<std::string> match = {options.colmap, options.matcher + "_matcher", "--database_path",
+  std::vector<std::string> match = {run.colmap, options.matcher + "_matcher", "--database_path",
                                     database.string(), "--SiftMatching.use_gpu", "0",
                                     "--SiftMatching.num_threads", threads};
   int64_t match_total = total;
@@ -827,18 +875,26 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
     marker = "Matching block";
   }
   ProgressStart(progress, "matching", match_total);
-  RunColmap("matching", match, workspace.path() / "colmap_matching.log",
+  RunColmap("matching", match, run.workspace / "colmap_matching.log",
             [&](const std::string& line) {
               if (BracketIndex(line, marker) > 0) ProgressAdvance(progress, 1);
             },
             progress);
-  result.stages.push_back({"matching", Seconds(start)});
+  result->stages.push_back({"matching", timer.Seconds()});
+}
 
-  // 3. Mapping.
-  start = Clock::now();
-  const fs::path sparse = workspace.path() / "sparse";
+// 3. Incremental mapping into workspace/sparse/N (the known camera's intrinsics fixed).
+// Returns the sparse folder.
+fs::path MapFrames(const ColmapRun& run, bool known, PosesResult* result) {
+  const std::string& frames_dir = run.frames_dir;
+  const fs::path& database = run.database;
+  const std::string& threads = run.threads;
+  const int total = run.total;
+  ProgressSink* progress = run.progress;
+  const Timer timer;
+  const fs::path sparse = run.workspace / "sparse";
   fs::create_directories(sparse);
-  std::vector<std::string> map = {options.colmap, "mapper", "--database_path", database.string(),
+  std::vector<std::string> map = {run.colmap, "mapper", "--database_path", database.string(),
                                   "--image_path", frames_dir, "--output_path", sparse.string(),
                                   "--Mapper.num_threads", threads};
   if (known) {
@@ -848,24 +904,27 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
   }
   ProgressStart(progress, "mapping", total);
   std::set<std::string> mapped;  // COLMAP may retry an image: count each once
-  RunColmap("mapping", map, workspace.path() / "colmap_mapping.log",
+  RunColmap("mapping", map, run.workspace / "colmap_mapping.log",
             [&](const std::string& line) {
               if (line.rfind("Registering image #", 0) != 0) return;
               const std::string id = line.substr(19, line.find(' ', 19) - 19);
               if (mapped.insert(id).second) ProgressAdvance(progress, 1);
             },
             progress);
-  result.stages.push_back({"mapping", Seconds(start)});
+  result->stages.push_back({"mapping", timer.Seconds()});
+  return sparse;
+}
 
-  // 4. Import the largest model.
-  start = Clock::now();
-  ProgressStart(progress, "import", 1);
+// The largest of the models COLMAP built in `sparse` (result->models counts them; more than one
+// is warned about); none is an error.
+ColmapModel ReadLargestModel(const fs::path& sparse, const std::string& frames_dir, int total,
+                             PosesResult* result) {
   std::vector<fs::path> models;
   for (const auto& entry : fs::directory_iterator(sparse)) {
     if (entry.is_directory()) models.push_back(entry.path());
   }
   std::sort(models.begin(), models.end());
-  result.models = static_cast<int>(models.size());
+  result->models = static_cast<int>(models.size());
   if (models.empty()) {
     ThrowInvalid(frames_dir + ": COLMAP registered no frames (no model was built from " +
                  std::to_string(total) + " frames; the frames may not overlap or lack texture)");
@@ -876,23 +935,88 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
     if (candidate.images.size() > model.images.size()) model = std::move(candidate);
   }
   if (models.size() > 1) {
-    result.warnings.push_back("COLMAP built " + std::to_string(models.size()) +
-                              " separate models; the largest (" + std::to_string(model.images.size()) +
-                              " frames) is used, the others' frames count as unregistered");
+    result->warnings.push_back("COLMAP built " + std::to_string(models.size()) +
+                               " separate models; the largest (" +
+                               std::to_string(model.images.size()) +
+                               " frames) is used, the others' frames count as unregistered");
   }
-  ImportInto(std::move(model), frames_dir, positions,
+  return model;
+}
+
+}  // namespace
+
+PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& options,
+                          ProgressSink* progress) {
+  options.Check();
+  if (frames_dir.empty() || !fs::is_directory(frames_dir)) {
+    ThrowInvalid(frames_dir + ": not a folder of frames");
+  }
+  if (!ProgramExists(options.colmap)) {
+    ThrowInvalid("colmap: \"" + options.colmap +
+                 "\" not found; install COLMAP (Debian: apt-get install colmap) or give its path");
+  }
+  PosesResult result;
+  // Known inputs first (cheap errors before COLMAP runs).
+  LensCamera known_camera;
+  const bool known = !options.camera_file.empty();
+  if (known) known_camera = ReadCameraFile(options.camera_file);
+  PositionsFile positions_file;
+  if (!options.positions_file.empty()) {
+    positions_file = ReadPositionsFile(options.positions_file, options.positions_crs);
+  }
+
+  // Frames: readable ones, one size; then their positions (from EXIF too).
+  const FrameSize size = ListFrames(frames_dir, &result);
+  if (known && (known_camera.width != size.width || known_camera.height != size.height)) {
+    ThrowInvalid(options.camera_file + ": the camera is " + std::to_string(known_camera.width) +
+                 "x" + std::to_string(known_camera.height) + " but the frames are " +
+                 std::to_string(size.width) + "x" + std::to_string(size.height));
+  }
+  if (result.frames.size() < 2) ThrowInvalid(frames_dir + ": one frame cannot give poses (need >= 2)");
+  std::pair<std::string, std::string> known_colmap_camera;
+  if (known) known_colmap_camera = ColmapCameraFor(known_camera, options.camera_file);
+  const std::vector<NamedPosition> positions =
+      FramePositions(frames_dir, options, positions_file, &result);
+
+  Workspace workspace(options.workspace);
+  if (!workspace.temporary()) result.workspace = workspace.path().string();
+  ColmapRun run;
+  run.colmap = options.colmap;
+  run.frames_dir = frames_dir;
+  run.workspace = workspace.path();
+  run.database = workspace.path() / "database.db";
+  run.list = workspace.path() / "frames.txt";
+  {
+    std::ofstream out(run.list);
+    for (const std::string& name : result.frames) out << name << "\n";
+    if (!out) ThrowInvalid(run.list.string() + ": cannot write the frame list");
+  }
+  run.threads = std::to_string(options.num_threads);
+  run.total = static_cast<int>(result.frames.size());
+  run.progress = progress;
+
+  // 1. Features, 2. matching, 3. mapping.
+  ExtractFeatures(run, options, known ? &known_colmap_camera : nullptr, size, &result);
+  MatchFeatures(run, options, positions, &result);
+  const fs::path sparse = MapFrames(run, known, &result);
+
+  // 4. Import the largest model, geo-referenced, and check it.
+  const Timer timer;
+  ProgressStart(progress, "import", 1);
+  ImportInto(ReadLargestModel(sparse, frames_dir, run.total, &result), frames_dir, positions,
              options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
              options.min_registered_fraction, &result);
   if (!known) CheckSelfCalibration(options, &result);
+  CheckSceneScale(options, /*warn_unchecked=*/!known, &result);
   ProgressAdvance(progress, 1);
-  result.stages.push_back({"import", Seconds(start)});
+  result.stages.push_back({"import", timer.Seconds()});
   return result;
 }
 
 PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& frames_dir,
                               const PosesOptions& options) {
   options.Check();
-  const auto start = Clock::now();
+  const Timer timer;
   ColmapModel model = ReadColmapModel(model_dir);
   PosesResult result;
   result.models = 1;
@@ -915,7 +1039,8 @@ PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& f
   ImportInto(std::move(model), frames_dir, positions,
              options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
              options.min_registered_fraction, &result);
-  result.stages.push_back({"import", Seconds(start)});
+  CheckSceneScale(options, /*warn_unchecked=*/false, &result);
+  result.stages.push_back({"import", timer.Seconds()});
   return result;
 }
 

@@ -35,6 +35,10 @@
 //   orientation (up axis) and origin; LightField::origin holds the positions' mean in double
 //   precision and the poses are relative to it. Without positions the light field keeps COLMAP's
 //   frame: arbitrary scale, orientation and origin.
+// - Plausibility: a self-calibrated focal length is checked against the fov_deg prior
+//   (max_focal_deviation) and a geo-referenced model's median depth against flight_height_m
+//   (max_scale_deviation); beyond either the result is refused unless allow_implausible, which
+//   keeps it with an "IMPLAUSIBLE" warning and PosesResult::implausible set.
 // - Pose quality: COLMAP's mean reprojection error (pixels), and e in metres at the median depth
 //   of the model's points (e_px times depth over focal length; metres only when geo-referenced),
 //   which the effective sample size p' = p + 2e of metrics/resolution.h takes.
@@ -78,7 +82,15 @@ struct PosesOptions {
   // of nearly flat ground leave the focal length ill-determined (a 60-degree, 640-pixel flight
   // came out at 768 px instead of 554 with a healthy-looking 0.045 px reprojection error).
   double max_focal_deviation = 0.1;
-  // Accept implausible intrinsics with a warning instead of refusing them.
+  // The cameras' height above the ground as flown, metres, e.g. 35 for a flight 35 m above the
+  // ground; 0 = not checked, >= 0. Checks the scene scale of a geo-referenced model (so it needs
+  // positions): the views' median depth (for nadir views, their height above the ground) must
+  // lie within max_scale_deviation of it. A wrong focal length or wrong positions scale the
+  // depths (a 20 m flight self-calibrated to 768 px instead of 554 read 27.7 m).
+  double flight_height_m = 0.0;
+  // The median depth may be 1 + d or 1 / (1 + d) times flight_height_m at most, > 0.
+  double max_scale_deviation = 0.15;
+  // Accept implausible intrinsics or scene scale with a warning instead of refusing them.
   bool allow_implausible = false;
   void Check() const;
 };
@@ -105,6 +117,11 @@ struct PosesResult {
   // unchecked), and whether it exceeded max_focal_deviation (accepted with allow_implausible).
   double focal_prior_px = 0.0;
   double focal_deviation = std::nan("");
+  // The scene-scale check: the median depth's deviation from flight_height_m (median_depth /
+  // flight_height_m - 1; NaN when unchecked).
+  double scale_deviation = std::nan("");
+  // The focal length or the scene scale exceeded its limit (kept under allow_implausible, with a
+  // warning starting "IMPLAUSIBLE").
   bool implausible = false;
   struct Stage {
     std::string name;
@@ -120,7 +137,8 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
 // An existing COLMAP model (a sparse/N folder, text or binary) imported as EstimatePoses' last
 // stage does it: the frames in frames_dir (the images folder COLMAP was given) that the model
 // lacks are unregistered, positions (options.positions_file or exif_positions) geo-reference
-// it, min_registered_fraction applies; the COLMAP options are not used.
+// it, min_registered_fraction and the scene-scale check (flight_height_m) apply; the COLMAP and
+// self-calibration options are not used.
 PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& frames_dir,
                               const PosesOptions& options);
 

@@ -4,7 +4,6 @@
 
 #include <algorithm>
 #include <atomic>
-#include <chrono>
 #include <cmath>
 #include <limits>
 #include <memory>
@@ -18,6 +17,7 @@
 #include "aos/util/math.h"
 #include "aos/util/memory.h"
 #include "aos/util/parallel.h"
+#include "aos/util/timer.h"
 
 namespace aos {
 namespace {
@@ -25,7 +25,6 @@ namespace {
 using sim::Hash;
 using sim::Random;
 using sim::Stream;
-using Clock = std::chrono::steady_clock;
 
 constexpr float kInf = std::numeric_limits<float>::infinity();
 // Offset of secondary-ray origins from the surface they leave, metres (well above float
@@ -33,11 +32,6 @@ constexpr float kInf = std::numeric_limits<float>::infinity();
 constexpr double kSurfaceOffset = 1e-3;
 
 enum Material : int { kNone = -1, kGround = 0, kTarget = 1, kVoxel = 2, kLeaf = 3, kTrunk = 4 };
-
-double Seconds(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
-
 
 Rgb Lerp(const Rgb& a, const Rgb& b, double t) {
   return Rgb{a[0] + (b[0] - a[0]) * t, a[1] + (b[1] - a[1]) * t, a[2] + (b[2] - a[2]) * t};
@@ -55,10 +49,7 @@ class TextureSampler {
       width_ = image.width();
       height_ = image.height();
       pixels_.resize(static_cast<size_t>(width_) * height_);
-      const double scale = image.type() == PixelType::kU8    ? 1.0 / 255.0
-                           : image.type() == PixelType::kU16 ? 1.0 / 65535.0
-                           : image.type() == PixelType::kU32 ? 1.0 / 4294967295.0
-                                                             : 1.0;
+      const double scale = 1.0 / PixelTypeFullRange(image.type());
       for (int y = 0; y < height_; ++y) {
         for (int x = 0; x < width_; ++x) {
           Rgb c;
@@ -706,12 +697,12 @@ Mat3d RotationFromVector(const Vec3d& w) {
 void Store(Image& image, int x, int y, int channel, double value) {
   switch (image.type()) {
     case PixelType::kU8:
-      image.At<uint8_t>(x, y)[channel] =
-          static_cast<uint8_t>(std::lround(std::clamp(value, 0.0, 1.0) * 255.0));
+      image.At<uint8_t>(x, y)[channel] = static_cast<uint8_t>(
+          std::lround(std::clamp(value, 0.0, 1.0) * PixelTypeMax<uint8_t>()));
       break;
     case PixelType::kU16:
-      image.At<uint16_t>(x, y)[channel] =
-          static_cast<uint16_t>(std::lround(std::clamp(value, 0.0, 1.0) * 65535.0));
+      image.At<uint16_t>(x, y)[channel] = static_cast<uint16_t>(
+          std::lround(std::clamp(value, 0.0, 1.0) * PixelTypeMax<uint16_t>()));
       break;
     default:
       image.At<float>(x, y)[channel] = static_cast<float>(value);
@@ -722,21 +713,19 @@ PixelType ViewType(int bit_depth) {
   return bit_depth == 8 ? PixelType::kU8 : bit_depth == 16 ? PixelType::kU16 : PixelType::kF32;
 }
 
-}  // namespace
+// The views' cameras, where they are, and the truth camera: what the later stages share.
+struct SimCameras {
+  LensCamera lens;                 // the views' lens (model kPinhole: traced as pinholes)
+  bool through_lens = false;       // rays go through `lens`, not the pinhole `camera`
+  PinholeCamera camera;            // the views' pinhole intrinsics
+  std::vector<Vec3d> positions;    // the views' centres, world metres
+  Vec3d truth_position{0.0};       // the truth camera's centre
+  PinholeCamera truth_camera;
+  std::array<double, 4> footprint;  // what all of them see of the ground (see Footprint)
+};
 
-void SimulateOptions::Check() const {
-  CheckThreadCount(num_threads);
-}
-
-SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
-                          ProgressSink* progress) {
-  options.Check();
-  scene.Check();
-  const int threads = ResolveThreadCount(options.num_threads);
-  SimulationResult result;
-  SimulationStats& stats = result.stats;
-
-  // Cameras.
+// Stage 1: the cameras. Refuses a scene whose views would not fit in memory.
+SimCameras PlaceCameras(const Scene& scene, SimulationStats* stats) {
   const CameraSpec& cam = scene.camera;
   // A lens camera traces each pixel's rays through the lens model (unprojected exactly, no
   // resampling); pixels outside its valid field (a fisheye's image circle) trace nothing and
@@ -755,7 +744,7 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
     camera = PinholeCamera::FromFov(cam.width, cam.height, cam.fov_deg);
   }
   const std::vector<Vec3d> positions = ViewPositions(scene);
-  stats.views = static_cast<int64_t>(positions.size());
+  stats->views = static_cast<int64_t>(positions.size());
   // The views dominate what the simulation keeps; refuse a scene the machine cannot hold before
   // tracing any of it.
   CheckMemoryBudget(
@@ -793,21 +782,22 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
   all_cameras.push_back(truth_position);
   tan_x.push_back(0.5 * truth_camera.width / truth_camera.fx);
   tan_y.push_back(0.5 * truth_camera.height / truth_camera.fy);
-  const std::array<double, 4> footprint = Footprint(scene, all_cameras, tan_x, tan_y);
+  SimCameras cameras;
+  cameras.lens = lens;
+  cameras.through_lens = through_lens;
+  cameras.camera = camera;
+  cameras.positions = positions;
+  cameras.truth_position = truth_position;
+  cameras.truth_camera = truth_camera;
+  cameras.footprint = Footprint(scene, all_cameras, tan_x, tan_y);
+  return cameras;
+}
 
-  // Geometry (occluders and a height-field ground only when the scene has them).
-  ProgressStart(progress, "geometry", 1);
-  auto start = Clock::now();
-  const World world(scene, footprint, &stats);
-  stats.occluder_bytes = world.OccluderBytes();
-  stats.seconds_geometry = scene.HasOccluders() || scene.ground.IsHeightField() ? Seconds(start) : 0.0;
-  ProgressAdvance(progress, 1);
-  if (ProgressCancelled(progress)) throw Cancelled();
-
-  // Poses: true ones, then the recorded ones (pose noise).
-  result.true_cam_from_world.reserve(positions.size());
-  for (const Vec3d& p : positions) result.true_cam_from_world.push_back(NadirCamFromWorld(p));
-  std::vector<Rigid3d> recorded = result.true_cam_from_world;
+// Stage 3: the recorded poses, the true ones with pose noise when the scene has it.
+std::vector<Rigid3d> RecordedPoses(const Scene& scene, const std::vector<Vec3d>& positions,
+                                   const std::vector<Rigid3d>& true_cam_from_world,
+                                   SimulationStats* stats) {
+  std::vector<Rigid3d> recorded = true_cam_from_world;
   if (scene.effects.pose_noise) {
     const double sigma_m = scene.effects.pose_noise_spec.position_sigma_cm / 100.0;
     const double sigma_rad = scene.effects.pose_noise_spec.rotation_sigma_deg * kPi / 180.0;
@@ -816,21 +806,32 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
       Vec3d dp, w;
       for (int k = 0; k < 3; ++k) dp[k] = sigma_m * random.Normal();
       for (int k = 0; k < 3; ++k) w[k] = sigma_rad * random.Normal();
-      stats.pose_noise_draws += 6;
+      stats->pose_noise_draws += 6;
       Rigid3d& pose = recorded[v];
       const Vec3d centre = pose.Center() + dp;
       pose.rotation = RotationFromVector(w) * pose.rotation;
       pose.translation = -(pose.rotation * centre);
     }
   }
+  return recorded;
+}
 
-  // Views.
+// Stage 4: the views, traced from the true poses and stored with the recorded ones.
+void TraceViews(const Scene& scene, const World& world, const SimCameras& cameras,
+                const std::vector<Rigid3d>& recorded, int threads, ProgressSink* progress,
+                SimulationResult& result) {
+  const CameraSpec& cam = scene.camera;
+  const LensCamera& lens = cameras.lens;
+  const bool through_lens = cameras.through_lens;
+  const PinholeCamera& camera = cameras.camera;
+  const std::vector<Vec3d>& positions = cameras.positions;
+  SimulationStats& stats = result.stats;
   const PixelType type = ViewType(cam.bit_depth);
   const int spp = cam.samples_per_pixel;
   const int channels = cam.channels;
   const double sigma = scene.effects.sensor_noise ? scene.effects.sensor_noise_spec.sigma : 0.0;
   ProgressStart(progress, "views", static_cast<int64_t>(positions.size()));
-  start = Clock::now();
+  const Timer timer;
   // The views are traced in tiles of kTileX x kTileY pixels, whose rays go to Embree as packets
   // of 8 (4 x 2 pixels at one sample per pixel): packets of neighbours in both directions stay
   // coherent longer than runs along a row (measured on the forest: 9-10 M rays/s as row streams,
@@ -952,9 +953,23 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
   stats.lens_rays = through_lens ? totals.primary : 0;
   stats.shadow_rays = totals.shadow;
   stats.sensor_noise_draws = totals.noise;
-  stats.seconds_views = Seconds(start);
+  stats.seconds_views = timer.Seconds();
+}
 
-  // Ground truth: the ground alone, seen by the truth camera.
+// Stage 5: the ground truth: the ground alone, seen by the truth camera.
+void RenderTruth(const Scene& scene, const World& world, const SimCameras& cameras, int threads,
+                 ProgressSink* progress, SimulationResult& result) {
+  const CameraSpec& cam = scene.camera;
+  const LensCamera& lens = cameras.lens;
+  const bool through_lens = cameras.through_lens;
+  const PinholeCamera& camera = cameras.camera;
+  const std::vector<Vec3d>& positions = cameras.positions;
+  const Vec3d& truth_position = cameras.truth_position;
+  const PinholeCamera& truth_camera = cameras.truth_camera;
+  const PixelType type = ViewType(cam.bit_depth);
+  const int spp = cam.samples_per_pixel;
+  const int channels = cam.channels;
+  SimulationStats& stats = result.stats;
   GroundTruth& truth = result.truth;
   truth.camera = truth_camera;
   truth.cam_from_world = NadirCamFromWorld(truth_position);
@@ -969,7 +984,7 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
   const Mat3d truth_rotation = glm::transpose(truth.cam_from_world.rotation);
   const bool blocked_rays = truth.has_blocked_fraction && world.CanBlock(true);
   ProgressStart(progress, "ground truth", th);
-  start = Clock::now();
+  const Timer timer;
   std::atomic<bool> cancelled{false};
   int64_t truth_rays = 0, truth_shadow = 0, fraction_rays = 0;
   double seconds_fraction = 0.0;
@@ -1039,7 +1054,7 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
     truth_shadow += local.shadow;
   }
   if (cancelled) throw Cancelled();
-  const double seconds_truth_total = Seconds(start);
+  const double seconds_truth_total = timer.Seconds();
   // The blocked-fraction rays share the truth loop; split its time by ray count.
   const double total_rays = static_cast<double>(truth_rays + fraction_rays + truth_shadow);
   if (fraction_rays > 0 && total_rays > 0) {
@@ -1050,6 +1065,40 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
   stats.blocked_fraction_rays = fraction_rays;
   stats.seconds_blocked_fraction = seconds_fraction;
   stats.seconds_truth = seconds_truth_total - seconds_fraction;
+}
+
+}  // namespace
+
+void SimulateOptions::Check() const {
+  CheckThreadCount(num_threads);
+}
+
+SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
+                          ProgressSink* progress) {
+  options.Check();
+  scene.Check();
+  const int threads = ResolveThreadCount(options.num_threads);
+  SimulationResult result;
+  SimulationStats& stats = result.stats;
+  // 1. Cameras.
+  const SimCameras cameras = PlaceCameras(scene, &stats);
+  // 2. Geometry (occluders and a height-field ground only when the scene has them).
+  ProgressStart(progress, "geometry", 1);
+  const Timer timer;
+  const World world(scene, cameras.footprint, &stats);
+  stats.occluder_bytes = world.OccluderBytes();
+  stats.seconds_geometry = scene.HasOccluders() || scene.ground.IsHeightField() ? timer.Seconds() : 0.0;
+  ProgressAdvance(progress, 1);
+  if (ProgressCancelled(progress)) throw Cancelled();
+  // 3. Poses: true ones, then the recorded ones (pose noise).
+  result.true_cam_from_world.reserve(cameras.positions.size());
+  for (const Vec3d& p : cameras.positions) result.true_cam_from_world.push_back(NadirCamFromWorld(p));
+  const std::vector<Rigid3d> recorded =
+      RecordedPoses(scene, cameras.positions, result.true_cam_from_world, &stats);
+  // 4. Views.
+  TraceViews(scene, world, cameras, recorded, threads, progress, result);
+  // 5. Ground truth.
+  RenderTruth(scene, world, cameras, threads, progress, result);
   return result;
 }
 
