@@ -91,6 +91,17 @@ void ExpectSameCamera(const PinholeCamera& a, const PinholeCamera& b) {
   EXPECT_EQ(a.cy, b.cy);
 }
 
+void ExpectSameCamera(const LensCamera& a, const PinholeCamera& b) {
+  EXPECT_EQ(a.model, LensModel::kPinhole);
+  ExpectSameCamera(a.Pinhole(), b);
+}
+
+void ExpectSameCamera(const LensCamera& a, const LensCamera& b) {
+  EXPECT_TRUE(a.SameParameters(b));
+  EXPECT_EQ(a.theta_max, b.theta_max);
+  EXPECT_EQ(a.max_radius, b.max_radius);
+}
+
 // Runs `load` and expects std::invalid_argument whose message contains every substring.
 void ExpectInvalid(const std::function<void()>& load, std::initializer_list<std::string> parts) {
   try {
@@ -596,13 +607,13 @@ TEST_F(AosErrorsTest, LensCamerasLoadAndRoundTrip) {
   text.replace(text.find("\"pinhole\""), 9, "\"fisheye\"");
   WriteText("lf.json", text);
   const LightField loaded = LoadLightField(Path("lf.json")).light_field;
-  ASSERT_EQ(loaded.views[0].lens.model, LensModel::kFisheye);
-  EXPECT_EQ(loaded.views[0].lens.distortion[0], 0.01);
+  ASSERT_EQ(loaded.views[0].camera.model, LensModel::kFisheye);
+  EXPECT_EQ(loaded.views[0].camera.distortion[0], 0.01);
   EXPECT_EQ(loaded.views[0].camera.fx, 9.0);
   WriteLightField(Path("copy.json"), loaded);
   const LightField again = LoadLightField(Path("copy.json")).light_field;
-  EXPECT_EQ(again.views[0].lens.model, LensModel::kFisheye);
-  EXPECT_EQ(again.views[0].lens.distortion, loaded.views[0].lens.distortion);
+  EXPECT_EQ(again.views[0].camera.model, LensModel::kFisheye);
+  EXPECT_EQ(again.views[0].camera.distortion, loaded.views[0].camera.distortion);
 }
 
 TEST_F(AosErrorsTest, VersionAndOrigin) {
@@ -651,7 +662,7 @@ TEST(JkuF0, LoadsFirst30Frames) {
     EXPECT_EQ(view.image.height(), 512);
     EXPECT_EQ(view.image.channels(), 1);
     EXPECT_EQ(view.image.type(), PixelType::kU8);
-    EXPECT_NEAR(view.camera.FovXDeg(), 50.815436217896945, 1e-9);
+    EXPECT_NEAR(view.camera.Pinhole().FovXDeg(), 50.815436217896945, 1e-9);
   }
   EXPECT_EQ(light_field.views[0].name, "20191004_091652.tiff");
   ASSERT_EQ(loaded.notes.size(), 1u);

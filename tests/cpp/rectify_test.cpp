@@ -154,7 +154,6 @@ double Texture(double x, double y) { return 128.0 + 80.0 * std::sin(0.9 * x) * s
 
 LightField FisheyeGroundViews(const LensCamera& lens) {
   LightField light_field;
-  PinholeCamera pinhole{lens.width, lens.height, lens.fx, lens.fy, lens.cx, lens.cy};
   for (int j = 0; j < 3; ++j) {
     for (int i = 0; i < 3; ++i) {
       const Vec3d centre(2.0 * (i - 1), 2.0 * (j - 1), 10.0);
@@ -175,9 +174,7 @@ LightField FisheyeGroundViews(const LensCamera& lens) {
           image.At<float>(x, y)[0] = value;
         }
       }
-      View view = MakeView("v" + std::to_string(3 * j + i), pinhole, pose, image);
-      view.lens = lens;
-      light_field.views.push_back(std::move(view));
+      light_field.views.push_back(MakeView("v" + std::to_string(3 * j + i), lens, pose, image));
     }
   }
   return light_field;
@@ -210,7 +207,7 @@ TEST(DirectSampling, FisheyeViewsGiveTheTexturedPlaneBack) {
   EXPECT_LT(worst, 1.0);
   // The same views as pinholes (lens ignored) would be wrong by far more.
   LightField as_pinholes = light_field;
-  for (View& view : as_pinholes.views) view.lens = LensCamera();
+  for (View& view : as_pinholes.views) view.camera = LensCamera::FromPinhole(view.camera.Pinhole());
   const IntegralResult wrong = RenderIntegral(as_pinholes, options);
   double worst_wrong = 0.0;
   for (int y = 40; y < 56; ++y) {

@@ -197,7 +197,7 @@ void CheckFrameInfos(const std::vector<Frame>& frames, const std::vector<ImageFi
                      const std::vector<View>& views) {
   for (size_t i = 0; i < frames.size(); ++i) {
     const ImageFileInfo& info = infos[i];
-    const PinholeCamera& camera = views[i].camera;
+    const LensCamera& camera = views[i].camera;
     if (info.width != camera.width || info.height != camera.height) {
       ThrowInvalid(Where(frames[i].label, "image " + frames[i].path + " is " +
                                               SizeText(info.width, info.height) +
@@ -416,9 +416,7 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
       ThrowInvalid(label + ": camera: unknown camera id " + Quoted(camera_id) + " (known: " +
                    (known.empty() ? std::string("none") : known) + ")");
     }
-    const LensCamera& lens = camera->second;
-    view.camera = PinholeCamera{lens.width, lens.height, lens.fx, lens.fy, lens.cx, lens.cy};
-    view.lens = lens;
+    view.camera = camera->second;
     view.cam_from_world =
         ReadAosPose(Field(entry, "cam_from_world", label), label + ": cam_from_world");
     frames.push_back(Frame{label, view.image_path});
@@ -575,7 +573,7 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
                    SizeText(camera.width, camera.height) +
                    " (all frames of a poses file share one camera)");
     }
-    light_field.views[i].camera = camera;
+    light_field.views[i].camera = LensCamera::FromPinhole(camera);
   }
   CheckFrameInfos(frames, data.infos, light_field.views);
   if (options.load_images) {
@@ -608,11 +606,6 @@ std::string ReferencePath(const std::string& image_path, const std::string& json
     return image.string();
   }
   return relative.generic_string();
-}
-
-bool SameCamera(const PinholeCamera& a, const PinholeCamera& b) {
-  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
-         a.cx == b.cx && a.cy == b.cy;
 }
 
 std::string ViewLabel(const std::string& where, size_t index, const View& view) {
@@ -728,7 +721,7 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   for (size_t i = 0; i < light_field.views.size(); ++i) {
     const View& view = light_field.views[i];
     const std::string label = ViewLabel(path, i, view);
-    view.camera.Check(label);
+    view.camera.Pinhole().Check(label);
     if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {
       ThrowInvalid(label + ": cam_from_world: " + *problem);
     }
@@ -807,22 +800,21 @@ void WriteLightField(const std::string& path, const LightField& light_field,
     const View& view = light_field.views[i];
     size_t camera_index = 0;
     while (camera_index < cameras.size() &&
-           !(SameCamera(cameras[camera_index]->camera, view.camera) &&
-             cameras[camera_index]->Lens().SameParameters(view.Lens()))) {
+           !cameras[camera_index]->camera.SameParameters(view.camera)) {
       ++camera_index;
     }
     const std::string camera_id = "cam" + std::to_string(camera_index);
     if (camera_index == cameras.size()) {
       cameras.push_back(&view);
-      const PinholeCamera& camera = view.camera;
+      const LensCamera& camera = view.camera;
       nlohmann::ordered_json camera_json = {
-          {"model", LensModelName(view.lens.model)}, {"width", camera.width},
+          {"model", LensModelName(camera.model)}, {"width", camera.width},
           {"height", camera.height}, {"fx", camera.fx}, {"fy", camera.fy}, {"cx", camera.cx},
           {"cy", camera.cy}};
-      if (view.lens.model != LensModel::kPinhole) {
-        camera_json["distortion"] = view.lens.distortion;
-        camera_json["xi"] = view.lens.xi;
-        camera_json["skew"] = view.lens.skew;
+      if (camera.model != LensModel::kPinhole) {
+        camera_json["distortion"] = camera.distortion;
+        camera_json["xi"] = camera.xi;
+        camera_json["skew"] = camera.skew;
       }
       cameras_json[camera_id] = camera_json;
     }

@@ -18,7 +18,7 @@
 //   Poses map the local frame (world - origin) to OpenCV camera axes, metres. A camera may give
 //   "fov_deg" (horizontal, square pixels, centred principal point) instead of fx/fy/cx/cy. A lens
 //   camera has "model" "radtan", "fisheye" or "omnidir", fx/fy/cx/cy, "distortion" (up to 5
-//   numbers) and, for omnidir, "xi" and "skew" (lens.h); its views carry View::lens.
+//   numbers) and, for omnidir, "xi" and "skew" (lens.h); a view's camera is View::camera.
 //
 // 2. The JKU-ICG/AOS poses.json: {"images": [{"imagefile": "a.tiff", "M3x4": [[...], [...], [...]]}]}
 //   M3x4 is the world-to-camera matrix [R | t] (numbers or numeric strings), OpenCV axes. The
