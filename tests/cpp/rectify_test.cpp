@@ -134,12 +134,34 @@ TEST_F(CameraFile, RoundTripAndErrorsNameTheFileAndField) {
       << R"({"format": "aos-camera", "version": 1, "model": "radtan", "width": 64, "height": 64,
              "fx": 50, "fy": 50, "cx": 32, "cy": 32, "k1": 0.1})";
   EXPECT_THAT(ErrorOf([&] { ReadCameraFile(Path("bad.json")); }),
-              HasSubstr("bad.json: k1: unknown key"));
+              HasSubstr("bad.json: /k1: unknown key"));
   std::ofstream(Path("xi.json"))
       << R"({"format": "aos-camera", "version": 1, "model": "omnidir", "width": 64, "height": 64,
              "fx": 50, "fy": 50, "cx": 32, "cy": 32, "xi": -0.5})";
   EXPECT_THAT(ErrorOf([&] { ReadCameraFile(Path("xi.json")); }),
               HasSubstr("xi.json: xi: must be >= 0"));
+  // A pinhole camera file may give its field of view, as a light field's camera may (the shared
+  // codec, json_codec.h; camera files refused fov_deg before).
+  std::ofstream(Path("fov.json"))
+      << R"({"format": "aos-camera", "version": 1, "model": "pinhole", "width": 64, "height": 48,
+             "fov_deg": 60})";
+  const LensCamera fov = ReadCameraFile(Path("fov.json"));
+  const PinholeCamera expected = PinholeCamera::FromFov(64, 48, 60.0);
+  EXPECT_EQ(fov.model, LensModel::kPinhole);
+  EXPECT_EQ(fov.fx, expected.fx);
+  EXPECT_EQ(fov.cx, expected.cx);
+  // A pinhole camera file of the previous version (distortion, xi and skew written as zeros)
+  // still reads; non-zero distortion on a pinhole is refused (it was silently ignored).
+  std::ofstream(Path("old.json"))
+      << R"({"format": "aos-camera", "version": 1, "model": "pinhole", "width": 64, "height": 48,
+             "fx": 50, "fy": 50, "cx": 32, "cy": 24, "distortion": [0, 0, 0, 0, 0], "xi": 0,
+             "skew": 0, "calibration": {"rms_px": 0.3}})";
+  EXPECT_EQ(ReadCameraFile(Path("old.json")).fx, 50.0);
+  std::ofstream(Path("k1.json"))
+      << R"({"format": "aos-camera", "version": 1, "model": "pinhole", "width": 64, "height": 48,
+             "fx": 50, "fy": 50, "cx": 32, "cy": 24, "distortion": [0.1]})";
+  EXPECT_THAT(ErrorOf([&] { ReadCameraFile(Path("k1.json")); }),
+              HasSubstr("k1.json: distortion/xi/skew: a pinhole camera has none"));
 }
 
 }  // namespace
