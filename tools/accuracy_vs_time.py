@@ -615,7 +615,7 @@ def knob_lens(run: Run) -> Knob:
         frames = [view.image for view in views]
         for width in (c.lens_size, c.lens_size // 2):
             start = time.perf_counter()
-            rectifier = aos.make_rectifier(views[0].lens, aos.RectifyOptions(
+            rectifier = aos.make_rectifier(views[0].camera, aos.RectifyOptions(
                 fov_deg=100.0, width=width, height=width))
             maps = time.perf_counter() - start
             rectify_s, rectified = run.timed(lambda: [rectifier.rectify(f) for f in frames])

@@ -65,7 +65,7 @@ def compare(camera: dict, name: str, repeats: int, size: int = SIZE, grid: int =
             truth_spec: dict | None = None) -> dict:
     simulation = aos.simulate(scene(camera, size, grid, truth_spec))
     truth = simulation.truth
-    lens = simulation.light_field.views[0].lens
+    lens = simulation.light_field.views[0].camera
     options = aos.IntegralOptions(cam_from_world=truth.cam_from_world,
                                   fov_deg=truth.camera.fov_x_deg(), width=truth.camera.width,
                                   height=truth.camera.height)

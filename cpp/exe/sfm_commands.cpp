@@ -80,7 +80,7 @@ void ReportPoses(const PosesResult& result, const std::string& output, Report& r
     ResolutionOptions resolution;
     resolution.distance_m = result.median_depth;
     resolution.pose_error_m = result.pose_error;
-    const ResolutionResult r = SamplingResolution(result.light_field.views[0].lens, resolution);
+    const ResolutionResult r = SamplingResolution(result.light_field.views[0].camera, resolution);
     report.Set("effective_sample_size_m", r.effective_sample_size_m);
     report.Line("sampling at that depth: p = %.2f cm, p' = p + 2e = %.2f cm (%.1f samples/m^2)",
                 100.0 * r.sample_size_m, 100.0 * r.effective_sample_size_m,

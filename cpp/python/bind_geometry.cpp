@@ -327,6 +327,9 @@ void BindGeometry(py::module_& m) {
            "distortion folding inside the frame) and for a distortion list whose length is not "
            "the model's (None: no distortion).")
       .def_static("from_pinhole", &LensCamera::FromPinhole, "camera"_a)
+      .def("pinhole", &LensCamera::Pinhole,
+           "The pinhole part as a PinholeCamera (size, fx, fy, cx, cy; for a lens model its "
+           "distortion, skew and xi are dropped).")
       .def_readwrite("model", &LensCamera::model)
       .def_readwrite("width", &LensCamera::width)
       .def_readwrite("height", &LensCamera::height)

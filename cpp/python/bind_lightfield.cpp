@@ -21,7 +21,7 @@ std::string ImageSummary(const Image& image) {
 
 bool ViewsEqual(const View& a, const View& b) {
   return a.name == b.name && a.image_path == b.image_path &&
-         PinholeEqual(a.camera, b.camera) && LensEqual(a.Lens(), b.Lens()) &&
+         LensEqual(a.camera, b.camera) &&
          RigidEqual(a.cam_from_world, b.cam_from_world) &&
          ImagesEqual(a.image, b.image);
 }
@@ -56,19 +56,30 @@ auto EqualityMethod(Equal equal) {
 
 void BindLightField(py::module_& m) {
   py::class_<View>(m, "View",
-                   "One view of a light field: an image with its pinhole camera and pose. "
+                   "One view of a light field: an image with its camera (a LensCamera: pinhole or "
+                   "a lens model) and pose. "
                    "Read-only; build views with LightField.add_view.")
       .def_readonly("name", &View::name, "A label for messages (file name for loaded views).")
       .def_readonly("image_path", &View::image_path,
                     "Source file, if the view was loaded from one (else '').")
-      .def_readonly("camera", &View::camera, "The view's pinhole camera (matches the image size).")
+      .def_readonly("camera", &View::camera,
+                    "The view's camera, a LensCamera (model 'pinhole' for pinhole views; its size "
+                    "matches the image), the same whether the view was added with add_view or "
+                    "loaded from a file. camera.pinhole() gives its PinholeCamera.")
       .def_readonly("cam_from_world", &View::cam_from_world,
                     "Pose: local frame -> camera (OpenCV axes).")
-      .def_property_readonly("lens", &View::Lens,
-                    "The view's complete lens model (a copy): for pinhole views the pinhole "
-                    "`camera` as a LensCamera, for raw lens frames their model, which the "
-                    "renderer samples through directly. The same whether the view was added "
-                    "with add_view or loaded from a file.")
+      .def_property_readonly(
+          "lens",
+          [](const View& view) {
+            // Deprecated alias of `camera` (kept for one release, see CHANGELOG.md).
+            if (PyErr_WarnEx(PyExc_DeprecationWarning,
+                             "View.lens is deprecated: use View.camera (a LensCamera)", 1) != 0) {
+              throw py::error_already_set();
+            }
+            return view.camera;
+          },
+          "Deprecated alias of `camera` (a copy); emits DeprecationWarning. Removed in the next "
+          "release.")
       .def_property_readonly(
           "image", [](const View& view) { return ArrayFromImage(view.image); },
           "The pixels as a new numpy array (a COPY: (H, W) or (H, W, C), native dtype), or None "
@@ -79,18 +90,31 @@ void BindLightField(py::module_& m) {
           [](const View& view) {
             // The pixels travel as a numpy array (a copy without the border).
             return py::dict("name"_a = view.name, "image_path"_a = view.image_path,
-                            "camera"_a = view.camera, "lens"_a = view.lens,
+                            "camera"_a = view.camera,
                             "cam_from_world"_a = view.cam_from_world,
                             "image"_a = ArrayFromImage(view.image));
           },
           [](const py::object& state) {
-            const py::dict v = StateDict(
-                state, "View", {"name", "image_path", "camera", "lens", "cam_from_world", "image"});
+            // Pickles of aos 0.x before the one-camera view also carry "lens" (and "camera" is
+            // a PinholeCamera there): the lens is the camera unless it is a pinhole.
+            const bool old_state =
+                py::isinstance<py::dict>(state) && py::reinterpret_borrow<py::dict>(state).contains("lens");
+            const py::dict v =
+                old_state ? StateDict(state, "View",
+                                      {"name", "image_path", "camera", "lens", "cam_from_world", "image"})
+                          : StateDict(state, "View",
+                                      {"name", "image_path", "camera", "cam_from_world", "image"});
             View view;
             view.name = v["name"].cast<std::string>();
             view.image_path = v["image_path"].cast<std::string>();
-            view.camera = v["camera"].cast<PinholeCamera>();
-            view.lens = v["lens"].cast<LensCamera>();
+            if (old_state) {
+              const LensCamera lens = v["lens"].cast<LensCamera>();
+              view.camera = lens.model == LensModel::kPinhole
+                                ? LensCamera::FromPinhole(v["camera"].cast<PinholeCamera>())
+                                : lens;
+            } else {
+              view.camera = v["camera"].cast<LensCamera>();
+            }
             view.cam_from_world = v["cam_from_world"].cast<Rigid3d>();
             if (!v["image"].is_none()) {
               view.image = ImageFromArray(v["image"], /*border=*/1, "View: image");
@@ -99,8 +123,7 @@ void BindLightField(py::module_& m) {
             return view;
           }))
       .def("__repr__", [](const View& view) {
-        const py::object camera = view.lens.model == LensModel::kPinhole ? py::cast(view.camera)
-                                                                         : py::cast(view.lens);
+        const py::object camera = py::cast(view.camera);
         return "View(name='" + view.name + "', " + ImageSummary(view.image) + ", " +
                std::string(py::repr(camera)) + ")";
       });
@@ -178,10 +201,8 @@ void BindLightField(py::module_& m) {
             if (py::isinstance<LensCamera>(camera)) {
               LensCamera lens = camera.cast<LensCamera>();
               lens.Finalize("add_view: camera");
-              const PinholeCamera pinhole{lens.width, lens.height, lens.fx, lens.fy, lens.cx, lens.cy};
-              View view = MakeView(std::move(name), pinhole, cam_from_world, std::move(copy));
-              if (lens.model != LensModel::kPinhole) view.lens = lens;
-              light_field.views.push_back(std::move(view));
+              light_field.views.push_back(
+                  MakeView(std::move(name), lens, cam_from_world, std::move(copy)));
               return;
             }
             light_field.views.push_back(MakeView(std::move(name), camera.cast<PinholeCamera>(),

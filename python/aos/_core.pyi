@@ -152,6 +152,8 @@ class LensCamera:
         0; None: no distortion); another length raises ValueError naming the model."""
     @staticmethod
     def from_pinhole(camera: PinholeCamera) -> LensCamera: ...
+    def pinhole(self) -> PinholeCamera:
+        """The pinhole part (size, fx, fy, cx, cy); distortion, skew and xi dropped."""
     model: LensModel
     width: int
     height: int
@@ -209,13 +211,14 @@ class View:
     @property
     def image_path(self) -> str: ...
     @property
-    def camera(self) -> PinholeCamera: ...
+    def camera(self) -> LensCamera:
+        """The view's one camera (model 'pinhole' for pinhole views), the same for views added
+        with add_view and views loaded from a file; camera.pinhole() is its PinholeCamera."""
     @property
     def cam_from_world(self) -> Rigid3d: ...
     @property
     def lens(self) -> LensCamera:
-        """The view's complete lens model (a copy; pinhole views: `camera` as a LensCamera), the
-        same for views added with add_view and views loaded from a file."""
+        """Deprecated alias of `camera` (emits DeprecationWarning); removed in the next release."""
     @property
     def image(self) -> Optional[_ImageArray]:
         """A COPY of the pixels, native dtype; None if loaded without images."""

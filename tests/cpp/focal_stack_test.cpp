@@ -19,6 +19,8 @@
 #include <nlohmann/json.hpp>
 
 #include "aos/image/image_io.h"
+#include "aos/lightfield/camera_file.h"
+#include "aos/lightfield/formats.h"
 #include "aos/util/error.h"
 #include "render_test_util.h"
 #include "temp_folder.h"
@@ -516,20 +518,34 @@ TEST_F(FocalStackFiles, ErrorsNameTheFileAndTheField) {
     const char* field;
   };
   const std::vector<Case> cases = {
-      {"missing key", [](nlohmann::json& j) { j["camera"].erase("fx"); }, "camera.fx: missing"},
-      {"missing slices", [](nlohmann::json& j) { j.erase("slices"); }, "slices: missing"},
-      {"wrong type", [](nlohmann::json& j) { j["version"] = "1"; }, "version: must be a finite number"},
+      {"missing key", [](nlohmann::json& j) { j["camera"].erase("fx"); }, "/camera/fx: missing"},
+      {"missing slices", [](nlohmann::json& j) { j.erase("slices"); }, "/slices: missing"},
+      {"wrong type", [](nlohmann::json& j) { j["version"] = "1"; }, "/version: expected a number"},
       {"wrong type in a slice", [](nlohmann::json& j) { j["slices"][1]["plane"]["normal"] = "up"; },
-       "slices[1].plane.normal"},
+       "/slices/1/plane/normal"},
       {"short vector", [](nlohmann::json& j) { j["cam_from_world"]["translation"] = {1, 2}; },
-       "cam_from_world.translation"},
+       "/cam_from_world/translation"},
       {"aperture text", [](nlohmann::json& j) { j["render"]["aperture_radius"] = "wide"; },
-       "render.aperture_radius"},
+       "/render/aperture_radius"},
       {"view index", [](nlohmann::json& j) { j["render"]["view_indices"] = {0.5}; },
-       "render.view_indices"},
+       "/render/view_indices/0"},
       {"file name type", [](nlohmann::json& j) { j["slices"][2]["count"] = 7; },
-       "slices[2].count: must be a string"},
+       "/slices/2/count: must be a string"},
       {"bad format", [](nlohmann::json& j) { j["format"] = "other"; }, "format"},
+      // Misspelled keys are refused with their key path at every level (they were ignored).
+      {"unknown key", [](nlohmann::json& j) { j["slicess"] = 1; }, "stack.json: /slicess: unknown key"},
+      {"unknown camera key", [](nlohmann::json& j) { j["camera"]["fxx"] = 1; },
+       "stack.json: /camera/fxx: unknown key"},
+      {"unknown pose key", [](nlohmann::json& j) { j["cam_from_world"]["scale"] = 1; },
+       "stack.json: /cam_from_world/scale: unknown key"},
+      {"unknown render key", [](nlohmann::json& j) { j["render"]["fov"] = 1; },
+       "stack.json: /render/fov: unknown key"},
+      {"unknown slice key", [](nlohmann::json& j) { j["slices"][1]["depth"] = 1; },
+       "stack.json: /slices/1/depth: unknown key"},
+      {"unknown plane key", [](nlohmann::json& j) { j["slices"][0]["plane"]["nromal"] = {0, 0, 1}; },
+       "stack.json: /slices/0/plane/nromal: unknown key"},
+      {"lens camera", [](nlohmann::json& j) { j["camera"]["model"] = "fisheye"; },
+       "stack.json: /camera/model: a focal stack's camera is a pinhole"},
   };
   int index = 0;
   for (const Case& c : cases) {
@@ -552,10 +568,119 @@ TEST_F(FocalStackFiles, ErrorsNameTheFileAndTheField) {
   WriteImage(resized + "/slice_0002.tif", ConstantImage(7, 5, {1.0f}));
   const std::string error = ErrorReading(resized);
   EXPECT_THAT(error, HasSubstr("stack.json"));
-  EXPECT_THAT(error, HasSubstr("slices[2].image"));
+  EXPECT_THAT(error, HasSubstr("/slices/2/image"));
   EXPECT_THAT(error, HasSubstr("slice_0002.tif: is 7x5x1"));
   // And the untouched copy still reads.
   EXPECT_EQ(ErrorReading(Path("good")), "no error");
+}
+
+// The formats that take a camera (light field, camera file, stack.json) read and write it with
+// one codec (lightfield/json_codec.h): the camera object one of them writes reads in the others,
+// to the same camera. Camera files refused fov_deg and stack.json ignored misspelled keys before.
+TEST_F(FocalStackFiles, ACameraWrittenByOneFormatReadsInEveryOther) {
+  const auto read_json = [](const std::string& file) {
+    std::ifstream in(file);
+    return nlohmann::json::parse(in);
+  };
+  const auto write_json = [](const std::string& file, const nlohmann::json& j) {
+    std::ofstream(file) << j.dump(2);
+  };
+  int files = 0;
+  // The camera object read as a camera file's fields.
+  const auto in_camera_file = [&](nlohmann::json camera) {
+    camera["format"] = "aos-camera";
+    camera["version"] = 1;
+    const std::string file = Path("camera" + std::to_string(files++) + ".json");
+    write_json(file, camera);
+    return ReadCameraFile(file);
+  };
+  // ... as a light field's camera (one view of a frame of the camera's size).
+  const auto in_light_field = [&](const nlohmann::json& camera) {
+    const int width = camera["width"].get<int>(), height = camera["height"].get<int>();
+    const std::string frame = "frame" + std::to_string(files) + ".tif";
+    WriteImage(Path(frame), ConstantImage(width, height, {1.0f}));
+    const nlohmann::json lf = {
+        {"format", "aos-lightfield"}, {"version", 1}, {"cameras", {{"c", camera}}},
+        {"views", {{{"image", frame}, {"camera", "c"},
+                    {"cam_from_world", {{"rotation", {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}},
+                                        {"translation", {0, 0, 5}}}}}}}};
+    const std::string file = Path("lf" + std::to_string(files++) + ".json");
+    write_json(file, lf);
+    return LoadLightField(file).light_field.views[0].camera;
+  };
+  // ... as stack.json's camera (a copy of the stack written below).
+  WriteFocalStack(Path("stack"), Stack(false, 5.0));
+  const PinholeCamera stack_camera = ReadFocalStack(Path("stack")).camera;
+  const auto in_stack = [&](const nlohmann::json& camera) {
+    const std::string folder = Path("stack" + std::to_string(files++));
+    fs::copy(Path("stack"), folder);
+    EditJson(folder, [&](nlohmann::json& j) { j["camera"] = camera; });
+    return LensCamera::FromPinhole(ReadFocalStack(folder).camera);
+  };
+  const auto expect_same = [](const LensCamera& a, const LensCamera& b, const char* what) {
+    EXPECT_TRUE(a.SameParameters(b)) << what;
+    EXPECT_EQ(a.theta_max, b.theta_max) << what;
+    EXPECT_EQ(a.max_radius, b.max_radius) << what;
+  };
+
+  // A lens camera: camera file <-> light field.
+  LensCamera fisheye;
+  fisheye.model = LensModel::kFisheye;
+  fisheye.width = 16;
+  fisheye.height = 12;
+  fisheye.fx = fisheye.fy = 8.0;
+  fisheye.cx = 8.0;
+  fisheye.cy = 6.0;
+  fisheye.distortion = {0.01, -0.002, 0.0, 0.0, 0.0};
+  fisheye.Finalize("fisheye");
+  WriteCameraFile(Path("fisheye.json"), fisheye, "{\"rms_px\": 0.2}");
+  nlohmann::json written = read_json(Path("fisheye.json"));
+  for (const char* key : {"format", "version", "calibration"}) written.erase(key);
+  expect_same(in_light_field(written), fisheye, "camera file -> light field");
+  LightField light_field;
+  light_field.views.push_back(MakeView("a", fisheye, NadirCamFromWorld(Vec3d(0, 0, 10)),
+                                       ConstantImage(16, 12, {1.0f})));
+  WriteLightField(Path("written_lf.json"), light_field);
+  written = read_json(Path("written_lf.json"))["cameras"]["cam0"];
+  expect_same(in_camera_file(written), fisheye, "light field -> camera file");
+
+  // The stack's pinhole camera: stack.json -> camera file, light field, and back.
+  const LensCamera pinhole = LensCamera::FromPinhole(stack_camera);
+  written = read_json(Path("stack/stack.json"))["camera"];
+  expect_same(in_camera_file(written), pinhole, "stack.json -> camera file");
+  expect_same(in_light_field(written), pinhole, "stack.json -> light field");
+  WriteCameraFile(Path("pinhole.json"), pinhole);
+  written = read_json(Path("pinhole.json"));
+  for (const char* key : {"format", "version"}) written.erase(key);
+  expect_same(in_stack(written), pinhole, "camera file -> stack.json");
+  light_field.views.assign(1, MakeView("b", pinhole, NadirCamFromWorld(Vec3d(0, 0, 10)),
+                                       ConstantImage(pinhole.width, pinhole.height, {1.0f})));
+  WriteLightField(Path("pinhole_lf.json"), light_field);
+  written = read_json(Path("pinhole_lf.json"))["cameras"]["cam0"];
+  expect_same(in_stack(written), pinhole, "light field -> stack.json");
+
+  // fov_deg for a pinhole, in every format alike.
+  const nlohmann::json by_fov = {{"model", "pinhole"},
+                                 {"width", stack_camera.width},
+                                 {"height", stack_camera.height},
+                                 {"fov_deg", 40.0}};
+  const LensCamera fov = LensCamera::FromPinhole(
+      PinholeCamera::FromFov(stack_camera.width, stack_camera.height, 40.0));
+  expect_same(in_camera_file(by_fov), fov, "fov_deg in a camera file");
+  expect_same(in_light_field(by_fov), fov, "fov_deg in a light field");
+  expect_same(in_stack(by_fov), fov, "fov_deg in stack.json");
+  // And a lens model refuses fov_deg in every format alike.
+  nlohmann::json fisheye_by_fov = by_fov;
+  fisheye_by_fov["model"] = "fisheye";
+  for (const auto& read : {std::function<LensCamera(const nlohmann::json&)>(in_camera_file),
+                           std::function<LensCamera(const nlohmann::json&)>(in_light_field)}) {
+    try {
+      read(fisheye_by_fov);
+      ADD_FAILURE() << "fov_deg for a fisheye must be refused";
+    } catch (const std::invalid_argument& error) {
+      EXPECT_THAT(error.what(), HasSubstr("fov_deg: only for pinhole cameras"));
+    }
+  }
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -91,6 +91,17 @@ void ExpectSameCamera(const PinholeCamera& a, const PinholeCamera& b) {
   EXPECT_EQ(a.cy, b.cy);
 }
 
+void ExpectSameCamera(const LensCamera& a, const PinholeCamera& b) {
+  EXPECT_EQ(a.model, LensModel::kPinhole);
+  ExpectSameCamera(a.Pinhole(), b);
+}
+
+void ExpectSameCamera(const LensCamera& a, const LensCamera& b) {
+  EXPECT_TRUE(a.SameParameters(b));
+  EXPECT_EQ(a.theta_max, b.theta_max);
+  EXPECT_EQ(a.max_radius, b.max_radius);
+}
+
 // Runs `load` and expects std::invalid_argument whose message contains every substring.
 void ExpectInvalid(const std::function<void()>& load, std::initializer_list<std::string> parts) {
   try {
@@ -548,16 +559,15 @@ TEST_F(AosErrorsTest, NanInPose) {
   ExpectLoadError({"lf.json", "not valid JSON"});
   // A string where a number belongs.
   WriteText("lf.json", AosFile("views/good.png", "cam0", "[[\"nan\", 0, 0], [0, 1, 0], [0, 0, 1]]"));
-  ExpectLoadError({"lf.json", "view 0 (views/good.png)", "cam_from_world", "rotation[0][0]",
-                   "expected a number"});
+  ExpectLoadError({"lf.json", "/views/0/cam_from_world/rotation/0/0", "expected a number"});
 }
 
 TEST_F(AosErrorsTest, NonOrthonormalRotation) {
   WriteText("lf.json", AosFile("views/good.png", "cam0", "[[1, 0.2, 0], [0, 1, 0], [0, 0, 1]]"));
   ExpectLoadError(
-      {"lf.json: view 0 (views/good.png): cam_from_world: rotation is not orthonormal"});
+      {"lf.json: /views/0/cam_from_world: rotation is not orthonormal"});
   WriteText("lf.json", AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0]]"));
-  ExpectLoadError({"lf.json", "view 0 (views/good.png)", "rotation", "3 rows of 3"});
+  ExpectLoadError({"lf.json", "/views/0/cam_from_world/rotation", "3 rows of 3"});
 }
 
 TEST_F(AosErrorsTest, UnknownCameraId) {
@@ -569,24 +579,62 @@ TEST_F(AosErrorsTest, UnknownCameraId) {
 TEST_F(AosErrorsTest, BadCameras) {
   WriteText("lf.json", AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]",
                                "\"fx\": 9, \"fy\": 9, \"cx\": 4"));
-  ExpectLoadError({"lf.json", "camera \"cam0\"", "cy: missing"});
+  ExpectLoadError({"lf.json", "/cameras/cam0/cy: missing"});
   WriteText("lf.json", AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]",
                                "\"fx\": -9, \"fy\": 9, \"cx\": 4, \"cy\": 3"));
-  ExpectLoadError({"lf.json", "camera \"cam0\"", "fx"});
+  ExpectLoadError({"lf.json", "/cameras/cam0", "fx"});
   std::string text = AosFile("views/good.png");
   text.replace(text.find("\"pinhole\""), 9, "\"kannala\"");
   WriteText("lf.json", text);
-  ExpectLoadError({"lf.json", "camera \"cam0\"", "model", "unknown lens model 'kannala'"});
+  ExpectLoadError({"lf.json", "/cameras/cam0/model", "unknown lens model 'kannala'"});
   // Lens models need intrinsics (not fov_deg) and a valid parameter set.
   text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "\"fov_deg\": 60");
   text.replace(text.find("\"pinhole\""), 9, "\"fisheye\"");
   WriteText("lf.json", text);
-  ExpectLoadError({"lf.json", "camera \"cam0\"", "fov_deg: only for pinhole cameras"});
+  ExpectLoadError({"lf.json", "/cameras/cam0/fov_deg: only for pinhole cameras"});
   text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]",
                  "\"fx\": 9, \"fy\": 9, \"cx\": 4, \"cy\": 3, \"xi\": -1");
   text.replace(text.find("\"pinhole\""), 9, "\"omnidir\"");
   WriteText("lf.json", text);
-  ExpectLoadError({"lf.json", "camera \"cam0\"", "xi: must be >= 0"});
+  ExpectLoadError({"lf.json", "/cameras/cam0", "xi: must be >= 0"});
+}
+
+// Every object of the file refuses keys it does not define, naming the key by its JSON pointer
+// (the shared codec, json_codec.h): the camera, the pose, the origin's file level, the views and
+// the pose record ("pose_source").
+TEST_F(AosErrorsTest, MisspelledKeysAreRefusedWithTheirKeyPath) {
+  const auto edited = [](const std::string& from, const std::string& to) {
+    std::string text = AosFile("views/good.png");
+    const size_t at = text.find(from);
+    EXPECT_NE(at, std::string::npos) << from;
+    return text.replace(at, from.size(), to);
+  };
+  const struct {
+    std::string text;
+    std::string error;
+  } cases[] = {
+      {edited("\"origin\"", "\"orgin\""), "lf.json: /orgin: unknown key"},
+      {edited("\"fx\"", "\"fxx\""), "lf.json: /cameras/cam0/fxx: unknown key"},
+      {edited("\"image\"", "\"exposure\": 1, \"image\""), "lf.json: /views/0/exposure: unknown key"},
+      {edited("\"translation\"", "\"scale\": 1, \"translation\""),
+       "lf.json: /views/0/cam_from_world/scale: unknown key"},
+      {edited("\"origin\"", "\"pose_source\": {\"method\": \"colmap\", \"pose_eror\": 1}, \"origin\""),
+       "lf.json: /pose_source/pose_eror: unknown key"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.error);
+    WriteText("lf.json", c.text);
+    ExpectLoadError({c.error});
+  }
+  // The pose record as the writer writes it reads back.
+  WriteText("lf.json", AosFile("views/good.png"));
+  LightField light_field = LoadLightField(Path("lf.json")).light_field;
+  light_field.pose_source = PoseSource{"colmap", 0.4, 20.0, 0.01, true, 0.2, "UTM 33N", {"x.png"}};
+  WriteLightField(Path("copy.json"), light_field);
+  const LightField back = LoadLightField(Path("copy.json")).light_field;
+  ASSERT_TRUE(back.pose_source.has_value());
+  EXPECT_EQ(back.pose_source->world_frame, "UTM 33N");
+  EXPECT_EQ(back.pose_source->unregistered, std::vector<std::string>{"x.png"});
 }
 
 TEST_F(AosErrorsTest, LensCamerasLoadAndRoundTrip) {
@@ -596,13 +644,13 @@ TEST_F(AosErrorsTest, LensCamerasLoadAndRoundTrip) {
   text.replace(text.find("\"pinhole\""), 9, "\"fisheye\"");
   WriteText("lf.json", text);
   const LightField loaded = LoadLightField(Path("lf.json")).light_field;
-  ASSERT_EQ(loaded.views[0].lens.model, LensModel::kFisheye);
-  EXPECT_EQ(loaded.views[0].lens.distortion[0], 0.01);
+  ASSERT_EQ(loaded.views[0].camera.model, LensModel::kFisheye);
+  EXPECT_EQ(loaded.views[0].camera.distortion[0], 0.01);
   EXPECT_EQ(loaded.views[0].camera.fx, 9.0);
   WriteLightField(Path("copy.json"), loaded);
   const LightField again = LoadLightField(Path("copy.json")).light_field;
-  EXPECT_EQ(again.views[0].lens.model, LensModel::kFisheye);
-  EXPECT_EQ(again.views[0].lens.distortion, loaded.views[0].lens.distortion);
+  EXPECT_EQ(again.views[0].camera.model, LensModel::kFisheye);
+  EXPECT_EQ(again.views[0].camera.distortion, loaded.views[0].camera.distortion);
 }
 
 TEST_F(AosErrorsTest, VersionAndOrigin) {
@@ -651,7 +699,7 @@ TEST(JkuF0, LoadsFirst30Frames) {
     EXPECT_EQ(view.image.height(), 512);
     EXPECT_EQ(view.image.channels(), 1);
     EXPECT_EQ(view.image.type(), PixelType::kU8);
-    EXPECT_NEAR(view.camera.FovXDeg(), 50.815436217896945, 1e-9);
+    EXPECT_NEAR(view.camera.Pinhole().FovXDeg(), 50.815436217896945, 1e-9);
   }
   EXPECT_EQ(light_field.views[0].name, "20191004_091652.tiff");
   ASSERT_EQ(loaded.notes.size(), 1u);

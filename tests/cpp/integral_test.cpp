@@ -309,7 +309,7 @@ BruteForce BruteForceIntegral(const LightField& light_field, const IntegralOptio
           continue;
         }
         if (in_cam.z <= 0.0) continue;
-        const Vec2d uv = view.camera.Project(in_cam);
+        const Vec2d uv = view.camera.Pinhole().Project(in_cam);
         const double margin_uv = std::min(std::min(uv.x, view.camera.width - uv.x),
                                           std::min(uv.y, view.camera.height - uv.y));
         if (std::abs(margin_uv) < 1e-6) out.ambiguous[p] = 1;
@@ -428,7 +428,7 @@ TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
         const View& view = light_field.views[i];
         const Vec3d in_cam = view.cam_from_world * X;
         if (in_cam.z <= 0.0) continue;
-        const Vec2d uv = view.camera.Project(in_cam);
+        const Vec2d uv = view.camera.Pinhole().Project(in_cam);
         if (uv.x < 0 || uv.x > 48 || uv.y < 0 || uv.y > 40) continue;
         const Vec3d to_view = view.cam_from_world.Center() - X;
         if (std::abs(glm::dot(n, to_view)) < sin_min * glm::length(to_view)) continue;

@@ -194,11 +194,16 @@ TEST_F(PoseSourceFiles, RoundTripAndWrongTypesAreNamed) {
     return ErrorOf([&] { LoadLightField(Path("bad.json")); });
   };
   EXPECT_THAT(corrupt("\"georeferenced\": true", "\"georeferenced\": 1"),
-              HasSubstr("bad.json: pose_source: georeferenced: expected true or false"));
+              HasSubstr("bad.json: /pose_source/georeferenced: expected true or false"));
   EXPECT_THAT(corrupt("\"pose_error\": 0.02", "\"pose_error\": -1"),
-              HasSubstr("bad.json: pose_source: pose_error: expected a finite number >= 0"));
+              HasSubstr("bad.json: /pose_source/pose_error: expected a finite number >= 0"));
   EXPECT_THAT(corrupt("\"method\": \"colmap\"", "\"method\": 3"),
-              HasSubstr("bad.json: pose_source: method: expected a string"));
+              HasSubstr("bad.json: /pose_source/method: expected a string"));
+  // A misspelled key of the pose record is refused with its key path (json_codec.h).
+  EXPECT_THAT(corrupt("\"world_frame\"", "\"world_frmae\""),
+              HasSubstr("bad.json: /pose_source/world_frmae: unknown key"));
+  EXPECT_THAT(corrupt("\"unregistered\": [", "\"unregistered\": [7, "),
+              HasSubstr("bad.json: /pose_source/unregistered/0: expected a frame name"));
 }
 
 class PositionsFiles : public testing_util::TempFolderTest {

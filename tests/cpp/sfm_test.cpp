@@ -752,19 +752,19 @@ TEST_F(ColmapImportTest, BuildsViewsAndListsUnregisteredFrames) {
     // a.png: image 2, SIMPLE_PINHOLE camera 1.
     EXPECT_EQ(views[0].name, "a.png");
     EXPECT_EQ(views[0].image_path, (dir_ / "images" / "a.png").string());
-    EXPECT_EQ(views[0].lens.model, LensModel::kPinhole);
+    EXPECT_EQ(views[0].camera.model, LensModel::kPinhole);
     EXPECT_EQ(views[0].camera.fx, 70.5);
     EXPECT_EQ(views[0].camera.cx, 32.25);
     EXPECT_EQ(views[0].cam_from_world.ToMatrix3x4(), model.images[1].cam_from_world.ToMatrix3x4());
     // c.png: OPENCV_FISHEYE camera 3 -> a fisheye lens whose intrinsics equal the camera's.
-    EXPECT_EQ(views[1].lens.model, LensModel::kFisheye);
+    EXPECT_EQ(views[1].camera.model, LensModel::kFisheye);
     EXPECT_EQ(views[1].camera.width, 80);
     EXPECT_EQ(views[1].camera.fy, 40.3);
-    EXPECT_EQ(views[1].lens.fy, 40.3);
-    EXPECT_EQ(views[1].lens.distortion[3], -0.0004);
+    EXPECT_EQ(views[1].camera.fy, 40.3);
+    EXPECT_EQ(views[1].camera.distortion[3], -0.0004);
     // frames/b.png: OPENCV camera 7 -> radtan.
-    EXPECT_EQ(views[2].lens.model, LensModel::kRadTan);
-    EXPECT_EQ(views[2].lens.distortion[2], 0.001);
+    EXPECT_EQ(views[2].camera.model, LensModel::kRadTan);
+    EXPECT_EQ(views[2].camera.distortion[2], 0.001);
     EXPECT_EQ(views[2].image_path, (dir_ / "images" / "frames" / "b.png").string());
     for (const View& view : views) {
       EXPECT_EQ(view.image.empty(), !load_images);

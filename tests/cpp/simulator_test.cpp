@@ -67,7 +67,7 @@ TEST(Simulator, NadirViewOfACheckerGroundMatchesTheAnalyticPattern) {
   const SimulationResult result = Simulate(scene);
   ASSERT_EQ(result.light_field.views.size(), 1u);
   const View& view = result.light_field.views[0];
-  const PinholeCamera& camera = view.camera;
+  const PinholeCamera camera = view.camera.Pinhole();
   for (int y = 0; y < camera.height; ++y) {
     for (int x = 0; x < camera.width; ++x) {
       // Nadir camera at (0, 0, 20), image top towards +y: x_world = 20 (u - cx) / fx,
@@ -100,7 +100,7 @@ TEST(Simulator, NadirViewOfACheckerGroundMatchesTheAnalyticPattern) {
 void ExpectLensViewOfACheckerGround(const SimulationResult& result, int* ground, int* sky,
                                     int* masked) {
   const View& view = result.light_field.views[0];
-  const LensCamera& lens = view.lens;
+  const LensCamera& lens = view.camera;
   for (int y = 0; y < lens.height; ++y) {
     for (int x = 0; x < lens.width; ++x) {
       Vec3d ray;
@@ -155,7 +155,7 @@ TEST(Simulator, LensViewsTraceEachPixelThroughTheLensModel) {
     scene.ground.texture.square = 0.7;
     const SimulationResult result = Simulate(scene);
     const View& view = result.light_field.views[0];
-    EXPECT_EQ(LensModelName(view.lens.model), scene.camera.lens);
+    EXPECT_EQ(LensModelName(view.camera.model), scene.camera.lens);
     int ground = 0, sky = 0, masked = 0;
     ExpectLensViewOfACheckerGround(result, &ground, &sky, &masked);
     EXPECT_GT(ground, 64 * 48 / 3);
@@ -204,9 +204,9 @@ TEST(Simulator, ViewsSeeingCountsTheLensFieldNotItsPinholeApproximation) {
       const Vec3d ground = centre + (-centre.z / d.z) * d;
       const Vec3d in_cam = view.cam_from_world * ground;
       Vec2d lens_pixel;
-      const bool in_lens = view.lens.Project(in_cam, &lens_pixel) && lens_pixel.x >= 0 &&
+      const bool in_lens = view.camera.Project(in_cam, &lens_pixel) && lens_pixel.x >= 0 &&
                            lens_pixel.x <= 64 && lens_pixel.y >= 0 && lens_pixel.y <= 48;
-      const Vec2d pinhole_pixel = view.camera.Project(in_cam);
+      const Vec2d pinhole_pixel = view.camera.Pinhole().Project(in_cam);
       const bool in_pinhole = pinhole_pixel.x >= 0 && pinhole_pixel.x <= 64 &&
                               pinhole_pixel.y >= 0 && pinhole_pixel.y <= 48;
       differ += in_lens != in_pinhole;
@@ -410,7 +410,7 @@ TEST(Simulator, BlockedFractionMatchesSegmentsThroughAnOpaqueBox) {
   int seeing = 0, blocked = 0;
   for (const Vec3d& c : views) {
     const Vec3d in_cam = NadirCamFromWorld(c) * Vec3d(0, 0, 0);
-    const Vec2d uv = result.light_field.views[0].camera.Project(in_cam);
+    const Vec2d uv = result.light_field.views[0].camera.Pinhole().Project(in_cam);
     if (uv.x < 0 || uv.x > 24 || uv.y < 0 || uv.y > 20) continue;
     ++seeing;
     // The segment crosses z = 9.5..10.5 at x, y = c.xy * z / c.z; it is inside the box (|x|,

@@ -83,9 +83,7 @@ void LightFieldSeeds(const fs::path& work, const fs::path& out) {
       aos::View view;
       view.name = name;
       view.image_path = (work / name).string();
-      view.lens = variant == 0 ? aos::LensCamera::FromPinhole(pinhole) : lenses[i];
-      view.camera = aos::PinholeCamera{kFrameWidth, kFrameHeight, view.lens.fx, view.lens.fy,
-                                       view.lens.cx, view.lens.cy};
+      view.camera = variant == 0 ? aos::LensCamera::FromPinhole(pinhole) : lenses[i];
       view.cam_from_world = NadirPose(i % 2, i / 2, 20.0);
       light_field.views.push_back(view);
     }

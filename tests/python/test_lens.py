@@ -94,13 +94,13 @@ def test_simulated_fisheye_light_field_renders_directly_and_after_rectify(tmp_pa
     simulation = aos.simulate(scene, tmp_path / "sim")
     assert simulation.stats["lens_rays"] == simulation.stats["primary_rays"] > 0
     raw = aos.load_lightfield(str(tmp_path / "sim" / "lightfield.json")).light_field
-    assert all(view.lens.model == aos.LensModel.fisheye for view in raw.views)
+    assert all(view.camera.model == aos.LensModel.fisheye for view in raw.views)
     done = subprocess.run(["aos-render", "rectify", "--lightfield",
                            str(tmp_path / "sim" / "lightfield.json"), "--rectified-fov-deg", "100", "-q",
                            "-o", str(tmp_path / "rect")], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     rectified = aos.load_lightfield(str(tmp_path / "rect" / "lightfield.json")).light_field
-    assert all(view.lens.model == aos.LensModel.pinhole for view in rectified.views)
+    assert all(view.camera.model == aos.LensModel.pinhole for view in rectified.views)
     assert rectified.views[0].camera.width == 192
     # The same from Python (the core's RectifyLightField): identical cameras, poses and pixels
     # (float views: the CLI stores them as float32 TIFFs, so nothing is lost on the way).

@@ -4,6 +4,7 @@ rules, dtypes, errors, and file round trips."""
 from __future__ import annotations
 
 import gc
+import pickle
 
 import numpy as np
 import pytest
@@ -184,18 +185,60 @@ def test_add_view_refuses_non_finite_pixels() -> None:
     assert len(light_field) == 0
 
 
-def test_view_lens_is_complete_however_the_view_was_made(tmp_path) -> None:
-    # A pinhole view added in memory had an empty lens (width 0), so
-    # aos.sampling_resolution(view.lens) failed until the light field was written and read back.
+def test_view_camera_is_one_lens_camera_however_the_view_was_made(tmp_path) -> None:
+    # A view kept its intrinsics twice (a PinholeCamera and a LensCamera); a pinhole view added in
+    # memory had an empty lens (width 0), so aos.sampling_resolution(view.lens) failed until the
+    # light field was written and read back. Now view.camera is the one LensCamera.
     light_field = aos.LightField()
     camera = aos.PinholeCamera.from_fov(64, 48, 60.0)
     light_field.add_view(np.zeros((48, 64), np.uint8), camera, nadir_pose(0, 0, 10), name="a.png")
-    lens = light_field.views[0].lens
+    fisheye = aos.LensCamera(aos.LensModel.fisheye, 64, 48, 30.0, 30.0, 32.0, 24.0,
+                             [0.01, 0.0, 0.0, 0.0])
+    light_field.add_view(np.ones((48, 64), np.uint8), fisheye, nadir_pose(1, 0, 10), name="b.png")
+    lens = light_field.views[0].camera
+    assert isinstance(lens, aos.LensCamera)
     assert (lens.model, lens.width, lens.height, lens.fx, lens.cx) == (
         aos.LensModel.pinhole, 64, 48, camera.fx, camera.cx)
+    assert lens.pinhole() == camera
+    assert lens == aos.LensCamera.from_pinhole(camera)
+    assert light_field.views[1].camera == fisheye
     in_memory = aos.sampling_resolution(lens, distance_m=10.0).sample_size_m
+    assert in_memory == aos.sampling_resolution(camera, distance_m=10.0).sample_size_m
     path = tmp_path / "lf.json"
     aos.write_lightfield(str(path), light_field)
     loaded = aos.load_lightfield(str(path)).light_field
-    assert loaded.views[0].lens == lens
-    assert aos.sampling_resolution(loaded.views[0].lens, distance_m=10.0).sample_size_m == in_memory
+    assert loaded.views[0].camera == lens and loaded.views[1].camera == fisheye
+    assert aos.sampling_resolution(loaded.views[0].camera, distance_m=10.0).sample_size_m == in_memory
+    for a, b in zip(loaded.views, light_field.views):
+        assert a.camera == b.camera and a.cam_from_world == b.cam_from_world
+        np.testing.assert_array_equal(a.image, b.image)
+    # The loaded views differ only in name and image_path (the written files): a light field
+    # rebuilt from them with add_view equals the original, and so does a pickle round trip.
+    rebuilt = aos.LightField()
+    for view, original in zip(loaded.views, light_field.views):
+        rebuilt.add_view(view.image, view.camera, view.cam_from_world, name=original.name)
+    assert rebuilt == light_field
+    assert pickle.loads(pickle.dumps(light_field)) == light_field
+
+
+def test_view_lens_is_a_deprecated_alias_of_camera() -> None:
+    light_field = aos.LightField()
+    camera = aos.PinholeCamera.from_fov(16, 12, 60.0)
+    light_field.add_view(np.zeros((12, 16), np.uint8), camera, aos.Rigid3d(), name="a.png")
+    view = light_field.views[0]
+    with pytest.warns(DeprecationWarning, match="View.camera"):
+        assert view.lens == view.camera
+
+
+def test_view_pickled_by_the_previous_version_still_loads() -> None:
+    # Before one camera per view, the pickled state held "camera" (a PinholeCamera) and "lens".
+    camera = aos.PinholeCamera.from_fov(16, 12, 60.0)
+    fisheye = aos.LensCamera(aos.LensModel.fisheye, 16, 12, 8.0, 8.0, 8.0, 6.0, [0.01, 0, 0, 0])
+    image = np.zeros((12, 16), np.uint8)
+    for pinhole_camera, lens, expected in [
+            (camera, aos.LensCamera.from_pinhole(camera), aos.LensCamera.from_pinhole(camera)),
+            (fisheye.pinhole(), fisheye, fisheye)]:
+        view = aos.View.__new__(aos.View)
+        view.__setstate__({"name": "a.png", "image_path": "", "camera": pinhole_camera,
+                           "lens": lens, "cam_from_world": aos.Rigid3d(), "image": image})
+        assert view.camera == expected

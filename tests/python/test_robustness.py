@@ -486,25 +486,52 @@ def test_positions_in_degrees_are_projected_not_read_as_metres(light_field: Path
     assert np.allclose(origin3, origin, atol=1e-6)
 
 
-def test_light_field_files_refuse_unknown_keys(light_field: Path) -> None:
+def test_light_field_files_refuse_unknown_keys(light_field: Path, tmp_path: Path) -> None:
     """A misspelled "orgin" was ignored (origin silently 0) while the camera and scene readers
-    refused unknown keys: the light-field reader refuses them too, naming the place."""
+    refused unknown keys. Every format reads cameras, poses and the pose record with one codec
+    now, which refuses unknown keys naming the file and the key's JSON pointer."""
     lf = json.loads(light_field.read_text())
-    cases = [("orgin", lambda d: d.__setitem__("orgin", [1.0, 2.0, 3.0]), '"orgin": unknown key'),
+    camera_id = next(iter(lf["cameras"]))
+    cases = [("orgin", lambda d: d.__setitem__("orgin", [1.0, 2.0, 3.0]), "/orgin: unknown key"),
              ("view", lambda d: d["views"][2].__setitem__("exposure", 1),
-              'view 2: "exposure": unknown key'),
-             ("camera", lambda d: next(iter(d["cameras"].values())).__setitem__("k1", 0.1),
-              '"k1": unknown key'),
+              "/views/2/exposure: unknown key"),
+             ("camera", lambda d: d["cameras"][camera_id].__setitem__("k1", 0.1),
+              f"/cameras/{camera_id}/k1: unknown key"),
              ("pose", lambda d: d["views"][0]["cam_from_world"].__setitem__("scale", 2),
-              'cam_from_world: "scale": unknown key')]
+              "/views/0/cam_from_world/scale: unknown key"),
+             ("pose_source", lambda d: d.__setitem__("pose_source", {"method": "colmap",
+                                                                     "median_dept": 3}),
+              "/pose_source/median_dept: unknown key")]
     for name, mutate, expected in cases:
         document = json.loads(json.dumps(lf))
         mutate(document)
         bad = light_field.parent / f"bad_{name}.json"
         bad.write_text(json.dumps(document))
-        with pytest.raises(ValueError, match=expected):
+        with pytest.raises(ValueError, match=f"bad_{name}.json: {expected}"):
             aos.load_lightfield(str(bad))
         bad.unlink()
+    # The camera file: the same rule and the same fields (fov_deg for a pinhole included).
+    camera = dict(lf["cameras"][camera_id], format="aos-camera", version=1)
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(dict(camera, fxx=1)))
+    with pytest.raises(ValueError, match="camera.json: /fxx: unknown key"):
+        aos.read_camera_file(path)
+    path.write_text(json.dumps(camera))
+    loaded = aos.load_lightfield(str(light_field), load_images=False).light_field
+    assert aos.read_camera_file(path) == loaded.views[0].camera
+
+
+def test_truth_camera_reads_as_a_camera_file(tmp_path: Path) -> None:
+    # truth/truth.json writes its camera and pose with the shared codec: the camera reads in a
+    # camera file (it carried fov_deg beside fx, fy, cx, cy, which no reader accepts).
+    simulation = aos.simulate({"sampling": {"grid": 1}, "camera": {"width": 16, "height": 12},
+                               "truth": {"width": 16, "height": 12}})
+    summary = json.loads(simulation.summary_json())
+    path = tmp_path / "camera.json"
+    path.write_text(json.dumps(dict(summary["truth_camera"], format="aos-camera", version=1)))
+    camera = aos.read_camera_file(path)
+    assert camera.pinhole() == simulation.truth.camera
+    assert summary["truth_fov_deg"] == pytest.approx(simulation.truth.camera.fov_x_deg())
 
 
 # ---------------------------------------------------------------------------------------------

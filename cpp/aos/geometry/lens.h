@@ -61,6 +61,9 @@ struct LensCamera {
   double theta_max = 0.0;   // fisheye: largest ray angle from the axis, radians
 
   static LensCamera FromPinhole(const PinholeCamera& camera);
+  // The pinhole part (size, fx, fy, cx, cy): the whole camera for kPinhole, the intrinsics a
+  // lens model shares with its pinhole for the others (skew, xi and distortion dropped).
+  PinholeCamera Pinhole() const { return PinholeCamera{width, height, fx, fy, cx, cy}; }
 
   // Validates the parameters and computes the valid field. Throws std::invalid_argument
   // "<where>: <field>: <reason>".

@@ -3,11 +3,14 @@
 //
 //   {"format": "aos-camera", "version": 1, "model": "radtan" | "pinhole" | "fisheye" | "omnidir",
 //    "width": 640, "height": 480, "fx": ..., "fy": ..., "cx": ..., "cy": ...,
-//    "distortion": [5 numbers, see lens.h], "xi": 0, "skew": 0,
+//    "distortion": [up to 5 numbers, see lens.h], "xi": 0, "skew": 0,   // lens models
 //    "calibration": {...}}   // optional, free-form (RMS error, frames used)
 //
-// cx, cy follow aos's pixel convention (pixel centres at +0.5; OpenCV's cx + 0.5). Errors name
-// the file and the field.
+// The camera fields are the shared codec's (json_codec.h), as in a light field's "cameras": a
+// pinhole may give "fov_deg" instead of fx, fy, cx, cy; distortion, xi and skew are optional
+// (written for lens models only). cx, cy follow aos's pixel convention (pixel centres at +0.5;
+// OpenCV's cx + 0.5). Unknown keys are refused; errors name the file and the key path
+// ("cam.json: /fxx: unknown key").
 #include <string>
 
 #include "aos/geometry/lens.h"

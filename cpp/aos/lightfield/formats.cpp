@@ -17,6 +17,7 @@
 #include <nlohmann/json.hpp>
 
 #include "aos/image/image_io.h"
+#include "aos/lightfield/json_codec.h"
 #include "aos/util/error.h"
 #include "aos/util/parallel.h"
 #include "aos/util/file_util.h"
@@ -63,14 +64,6 @@ double NumberFrom(const json& value, const std::string& where, bool allow_string
   ThrowInvalid(Where(where, std::string("expected a number") +
                                 (allow_strings ? " or a numeric string" : "") + ", got " +
                                 Describe(value)));
-}
-
-int PositiveIntFrom(const json& value, const std::string& where) {
-  const double number = NumberFrom(value, where, false);
-  if (!(number >= 1.0 && number <= 1e9) || number != std::floor(number)) {
-    ThrowInvalid(Where(where, "expected a positive whole number, got " + Describe(value)));
-  }
-  return static_cast<int>(number);
 }
 
 const json& Field(const json& object, const char* name, const std::string& where) {
@@ -197,7 +190,7 @@ void CheckFrameInfos(const std::vector<Frame>& frames, const std::vector<ImageFi
                      const std::vector<View>& views) {
   for (size_t i = 0; i < frames.size(); ++i) {
     const ImageFileInfo& info = infos[i];
-    const PinholeCamera& camera = views[i].camera;
+    const LensCamera& camera = views[i].camera;
     if (info.width != camera.width || info.height != camera.height) {
       ThrowInvalid(Where(frames[i].label, "image " + frames[i].path + " is " +
                                               SizeText(info.width, info.height) +
@@ -215,108 +208,58 @@ void CheckFrameInfos(const std::vector<Frame>& frames, const std::vector<ImageFi
 // ---------------------------------------------------------------------------------------------
 // The aos format.
 
-// A camera entry: a pinhole (fov_deg, or fx, fy, cx, cy), or a lens model (radtan, fisheye,
-// omnidir: fx, fy, cx, cy, distortion [up to 5 numbers], xi, skew; see lens.h).
-// Refuses keys of `object` that the format does not define (a misspelled "orgin" must not read
-// as origin 0), naming the key with its place.
-void RefuseUnknownKeys(const json& object, std::initializer_list<const char*> known,
-                       const std::string& where) {
-  if (!object.is_object()) return;  // the callers report the type
-  for (const auto& item : object.items()) {
-    bool found = false;
-    for (const char* key : known) found = found || item.key() == key;
-    if (!found) {
-      std::string list;
-      for (const char* key : known) list += (list.empty() ? "" : ", ") + std::string(key);
-      ThrowInvalid(Where(where, Quoted(item.key()) + ": unknown key (known: " + list + ")"));
+// The pose record ("pose_source"): where estimated poses came from (sfm/).
+PoseSource ReadPoseSourceJson(const json& value, const JsonPath& at) {
+  RequireKnownKeys(value, {"method", "mean_reprojection_error_px", "median_depth", "pose_error",
+                           "georeferenced", "georeference_rms_m", "world_frame", "unregistered"},
+                   at);
+  PoseSource p;
+  const auto number = [&](const char* key, double* out) {
+    if (auto field = value.find(key); field != value.end()) {
+      *out = ReadJsonNumber(*field, at / key);
+      if (*out < 0) (at / key).Fail("expected a finite number >= 0, got " + DescribeJson(*field));
+    }
+  };
+  const auto text = [&](const char* key, std::string* out) {
+    if (auto field = value.find(key); field != value.end()) {
+      if (!field->is_string()) (at / key).Fail("expected a string, got " + DescribeJson(*field));
+      *out = field->get<std::string>();
+    }
+  };
+  text("method", &p.method);
+  text("world_frame", &p.world_frame);
+  number("mean_reprojection_error_px", &p.mean_reprojection_error_px);
+  number("median_depth", &p.median_depth);
+  number("pose_error", &p.pose_error);
+  number("georeference_rms_m", &p.georeference_rms_m);
+  if (auto field = value.find("georeferenced"); field != value.end()) {
+    if (!field->is_boolean()) {
+      (at / "georeferenced").Fail("expected true or false, got " + DescribeJson(*field));
+    }
+    p.georeferenced = field->get<bool>();
+  }
+  if (auto field = value.find("unregistered"); field != value.end()) {
+    if (!field->is_array()) {
+      (at / "unregistered").Fail("expected an array of frame names, got " + DescribeJson(*field));
+    }
+    for (size_t i = 0; i < field->size(); ++i) {
+      const json& name = (*field)[i];
+      if (!name.is_string()) (at / "unregistered" / i).Fail("expected a frame name, got " + DescribeJson(name));
+      p.unregistered.push_back(name.get<std::string>());
     }
   }
+  return p;
 }
 
-LensCamera ReadAosCamera(const json& value, const std::string& where) {
-  if (!value.is_object()) ThrowInvalid(Where(where, "expected an object, got " + Describe(value)));
-  RefuseUnknownKeys(value, {"model", "width", "height", "fov_deg", "fx", "fy", "cx", "cy",
-                           "distortion", "xi", "skew"},
-                    where);
-  const std::string model_name = StringFrom(Field(value, "model", where), where + ": model");
-  const LensModel model = ParseLensModel(model_name, where + ": model");
-  const int width = PositiveIntFrom(Field(value, "width", where), where + ": width");
-  const int height = PositiveIntFrom(Field(value, "height", where), where + ": height");
-  const bool has_fov = value.contains("fov_deg");
-  const bool has_any_intrinsic = value.contains("fx") || value.contains("fy") ||
-                                 value.contains("cx") || value.contains("cy");
-  PinholeCamera camera;
-  if (has_fov) {
-    if (has_any_intrinsic) {
-      ThrowInvalid(Where(where, "give either fov_deg or fx, fy, cx, cy, not both"));
-    }
-    if (model != LensModel::kPinhole) {
-      ThrowInvalid(Where(where, "fov_deg: only for pinhole cameras; a " + model_name +
-                                    " lens needs fx, fy, cx, cy"));
-    }
-    const double fov_deg = NumberFrom(value["fov_deg"], where + ": fov_deg", false);
-    if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
-      ThrowInvalid(Where(where, "fov_deg: must be in (0, 180) degrees (got " +
-                                    FormatNumber(fov_deg) + ")"));
-    }
-    camera = PinholeCamera::FromFov(width, height, fov_deg);
-  } else {
-    if (!has_any_intrinsic) ThrowInvalid(Where(where, "needs fx, fy, cx, cy or fov_deg"));
-    camera.width = width;
-    camera.height = height;
-    camera.fx = NumberFrom(Field(value, "fx", where), where + ": fx", false);
-    camera.fy = NumberFrom(Field(value, "fy", where), where + ": fy", false);
-    camera.cx = NumberFrom(Field(value, "cx", where), where + ": cx", false);
-    camera.cy = NumberFrom(Field(value, "cy", where), where + ": cy", false);
-  }
-  camera.Check(where);
-  LensCamera lens = LensCamera::FromPinhole(camera);
-  lens.model = model;
-  if (model != LensModel::kPinhole) {
-    if (value.contains("distortion")) {
-      const json& d = value["distortion"];
-      if (!d.is_array() || d.size() > 5) {
-        ThrowInvalid(Where(where, "distortion: expected an array of at most 5 numbers, got " +
-                                      Describe(d)));
-      }
-      for (size_t i = 0; i < d.size(); ++i) {
-        lens.distortion[i] =
-            NumberFrom(d[i], where + ": distortion[" + std::to_string(i) + "]", false);
-      }
-    }
-    if (value.contains("xi")) lens.xi = NumberFrom(value["xi"], where + ": xi", false);
-    if (value.contains("skew")) lens.skew = NumberFrom(value["skew"], where + ": skew", false);
-  } else if (value.contains("distortion") || value.contains("xi") || value.contains("skew")) {
-    ThrowInvalid(Where(where, "distortion/xi/skew: a pinhole camera has none (model radtan, "
-                              "fisheye or omnidir)"));
-  }
-  lens.Finalize(where);
-  return lens;
-}
-
-Rigid3d ReadAosPose(const json& value, const std::string& where) {
-  if (!value.is_object()) {
-    ThrowInvalid(Where(where, "expected an object with rotation and translation, got " +
-                                  Describe(value)));
-  }
-  RefuseUnknownKeys(value, {"rotation", "translation"}, where);
-  const json& rotation = Field(value, "rotation", where);
-  if (!rotation.is_array() || rotation.size() != 3) {
-    ThrowInvalid(Where(where, "rotation: expected 3 rows of 3 numbers, got " +
-                                  Describe(rotation)));
-  }
-  std::array<double, 12> rows{};
-  for (int r = 0; r < 3; ++r) {
-    const auto row = NumbersFrom<3>(rotation[r], where + ": rotation[" + std::to_string(r) + "]",
-                                    false);
-    for (int c = 0; c < 3; ++c) rows[4 * r + c] = row[c];
-  }
-  const auto translation =
-      NumbersFrom<3>(Field(value, "translation", where), where + ": translation", false);
-  for (int r = 0; r < 3; ++r) rows[4 * r + 3] = translation[r];
-  const Rigid3d pose = Rigid3d::FromMatrix3x4(rows);
-  CheckPose(pose, where);
-  return pose;
+nlohmann::ordered_json PoseSourceToJson(const PoseSource& p) {
+  return {{"method", p.method},
+          {"mean_reprojection_error_px", p.mean_reprojection_error_px},
+          {"median_depth", p.median_depth},
+          {"pose_error", p.pose_error},
+          {"georeferenced", p.georeferenced},
+          {"georeference_rms_m", p.georeference_rms_m},
+          {"world_frame", p.world_frame},
+          {"unregistered", p.unregistered}};
 }
 
 LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions& options,
@@ -326,59 +269,16 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     ThrowInvalid(path + ": version: expected " + std::to_string(kAosFormatVersion) + ", got " +
                  Describe(version) + " (written by a newer aos?)");
   }
-  RefuseUnknownKeys(root, {"format", "version", "origin", "pose_source", "cameras", "views"}, path);
+  const JsonPath top(path);
+  RequireKnownKeys(root, {"format", "version", "origin", "pose_source", "cameras", "views"}, top);
   LoadResult result;
   result.format = "aos";
   LightField& light_field = result.light_field;
   if (auto it = root.find("origin"); it != root.end()) {
-    const auto origin = NumbersFrom<3>(*it, path + ": origin", false);
-    light_field.origin = Vec3d(origin[0], origin[1], origin[2]);
+    light_field.origin = ReadVec3Json(*it, top / "origin");
   }
   if (auto it = root.find("pose_source"); it != root.end()) {
-    const std::string where = path + ": pose_source";
-    if (!it->is_object()) ThrowInvalid(where + ": expected an object, got " + Describe(*it));
-    RefuseUnknownKeys(*it, {"method", "mean_reprojection_error_px", "median_depth", "pose_error",
-                            "georeferenced", "georeference_rms_m", "world_frame", "unregistered"},
-                      where);
-    PoseSource p;
-    const auto number = [&](const char* key, double* value) {
-      if (auto field = it->find(key); field != it->end()) {
-        if (!field->is_number() || !std::isfinite(field->get<double>()) || field->get<double>() < 0) {
-          ThrowInvalid(where + ": " + key + ": expected a finite number >= 0, got " + Describe(*field));
-        }
-        *value = field->get<double>();
-      }
-    };
-    const auto text = [&](const char* key, std::string* value) {
-      if (auto field = it->find(key); field != it->end()) {
-        if (!field->is_string()) ThrowInvalid(where + ": " + key + ": expected a string, got " + Describe(*field));
-        *value = field->get<std::string>();
-      }
-    };
-    text("method", &p.method);
-    text("world_frame", &p.world_frame);
-    number("mean_reprojection_error_px", &p.mean_reprojection_error_px);
-    number("median_depth", &p.median_depth);
-    number("pose_error", &p.pose_error);
-    number("georeference_rms_m", &p.georeference_rms_m);
-    if (auto field = it->find("georeferenced"); field != it->end()) {
-      if (!field->is_boolean()) {
-        ThrowInvalid(where + ": georeferenced: expected true or false, got " + Describe(*field));
-      }
-      p.georeferenced = field->get<bool>();
-    }
-    if (auto field = it->find("unregistered"); field != it->end()) {
-      if (!field->is_array()) {
-        ThrowInvalid(where + ": unregistered: expected an array of frame names, got " + Describe(*field));
-      }
-      for (const json& name : *field) {
-        if (!name.is_string()) {
-          ThrowInvalid(where + ": unregistered: expected frame names, got " + Describe(name));
-        }
-        p.unregistered.push_back(name.get<std::string>());
-      }
-    }
-    light_field.pose_source = p;
+    light_field.pose_source = ReadPoseSourceJson(*it, top / "pose_source");
   }
 
   const json& cameras_json = Field(root, "cameras", path);
@@ -388,7 +288,7 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
   }
   std::map<std::string, LensCamera> cameras;
   for (const auto& [id, value] : cameras_json.items()) {
-    cameras[id] = ReadAosCamera(value, path + ": camera " + Quoted(id));
+    cameras[id] = ReadCameraJson(value, top / "cameras" / id);
   }
 
   const json& views_json = Field(root, "views", path);
@@ -402,7 +302,7 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     const json& entry = views_json[i];
     std::string label = path + ": view " + std::to_string(i);
     if (!entry.is_object()) ThrowInvalid(label + ": expected an object, got " + Describe(entry));
-    RefuseUnknownKeys(entry, {"image", "camera", "cam_from_world"}, label);
+    RequireKnownKeys(entry, {"image", "camera", "cam_from_world"}, top / "views" / i);
     const std::string image = StringFrom(Field(entry, "image", label), label + ": image");
     label += " (" + image + ")";
     View view;
@@ -416,11 +316,9 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
       ThrowInvalid(label + ": camera: unknown camera id " + Quoted(camera_id) + " (known: " +
                    (known.empty() ? std::string("none") : known) + ")");
     }
-    const LensCamera& lens = camera->second;
-    view.camera = PinholeCamera{lens.width, lens.height, lens.fx, lens.fy, lens.cx, lens.cy};
-    view.lens = lens;
+    view.camera = camera->second;
     view.cam_from_world =
-        ReadAosPose(Field(entry, "cam_from_world", label), label + ": cam_from_world");
+        ReadPoseJson(Field(entry, "cam_from_world", label), top / "views" / i / "cam_from_world");
     frames.push_back(Frame{label, view.image_path});
     light_field.views.push_back(std::move(view));
   }
@@ -575,7 +473,7 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
                    SizeText(camera.width, camera.height) +
                    " (all frames of a poses file share one camera)");
     }
-    light_field.views[i].camera = camera;
+    light_field.views[i].camera = LensCamera::FromPinhole(camera);
   }
   CheckFrameInfos(frames, data.infos, light_field.views);
   if (options.load_images) {
@@ -608,11 +506,6 @@ std::string ReferencePath(const std::string& image_path, const std::string& json
     return image.string();
   }
   return relative.generic_string();
-}
-
-bool SameCamera(const PinholeCamera& a, const PinholeCamera& b) {
-  return a.width == b.width && a.height == b.height && a.fx == b.fx && a.fy == b.fy &&
-         a.cx == b.cx && a.cy == b.cy;
 }
 
 std::string ViewLabel(const std::string& where, size_t index, const View& view) {
@@ -728,7 +621,7 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   for (size_t i = 0; i < light_field.views.size(); ++i) {
     const View& view = light_field.views[i];
     const std::string label = ViewLabel(path, i, view);
-    view.camera.Check(label);
+    view.camera.Pinhole().Check(label);
     if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {
       ThrowInvalid(label + ": cam_from_world: " + *problem);
     }
@@ -788,18 +681,8 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   nlohmann::ordered_json root;
   root["format"] = kAosFormatName;
   root["version"] = kAosFormatVersion;
-  root["origin"] = {light_field.origin.x, light_field.origin.y, light_field.origin.z};
-  if (light_field.pose_source) {
-    const PoseSource& p = *light_field.pose_source;
-    root["pose_source"] = {{"method", p.method},
-                           {"mean_reprojection_error_px", p.mean_reprojection_error_px},
-                           {"median_depth", p.median_depth},
-                           {"pose_error", p.pose_error},
-                           {"georeferenced", p.georeferenced},
-                           {"georeference_rms_m", p.georeference_rms_m},
-                           {"world_frame", p.world_frame},
-                           {"unregistered", p.unregistered}};
-  }
+  root["origin"] = Vec3ToJson(light_field.origin);
+  if (light_field.pose_source) root["pose_source"] = PoseSourceToJson(*light_field.pose_source);
   std::vector<const View*> cameras;  // the first view of each distinct camera
   nlohmann::ordered_json cameras_json = nlohmann::ordered_json::object();
   nlohmann::ordered_json views_json = nlohmann::ordered_json::array();
@@ -807,42 +690,22 @@ void WriteLightField(const std::string& path, const LightField& light_field,
     const View& view = light_field.views[i];
     size_t camera_index = 0;
     while (camera_index < cameras.size() &&
-           !(SameCamera(cameras[camera_index]->camera, view.camera) &&
-             cameras[camera_index]->Lens().SameParameters(view.Lens()))) {
+           !cameras[camera_index]->camera.SameParameters(view.camera)) {
       ++camera_index;
     }
     const std::string camera_id = "cam" + std::to_string(camera_index);
     if (camera_index == cameras.size()) {
       cameras.push_back(&view);
-      const PinholeCamera& camera = view.camera;
-      nlohmann::ordered_json camera_json = {
-          {"model", LensModelName(view.lens.model)}, {"width", camera.width},
-          {"height", camera.height}, {"fx", camera.fx}, {"fy", camera.fy}, {"cx", camera.cx},
-          {"cy", camera.cy}};
-      if (view.lens.model != LensModel::kPinhole) {
-        camera_json["distortion"] = view.lens.distortion;
-        camera_json["xi"] = view.lens.xi;
-        camera_json["skew"] = view.lens.skew;
-      }
-      cameras_json[camera_id] = camera_json;
+      cameras_json[camera_id] = CameraToJson(view.camera);
     }
     const std::string image =
         written[i].empty() ? ReferencePath(view.image_path, folder)
                            : (fs::path(options.images_subdir) / fs::path(written[i]).filename())
                                  .generic_string();
-    const Rigid3d& pose = view.cam_from_world;
-    nlohmann::ordered_json rotation = nlohmann::ordered_json::array();
-    for (int r = 0; r < 3; ++r) {
-      const Vec3d row = Row(pose.rotation, r);
-      rotation.push_back({row.x, row.y, row.z});
-    }
-    nlohmann::ordered_json pose_json;
-    pose_json["rotation"] = rotation;
-    pose_json["translation"] = {pose.translation.x, pose.translation.y, pose.translation.z};
     nlohmann::ordered_json view_json;
     view_json["image"] = image;
     view_json["camera"] = camera_id;
-    view_json["cam_from_world"] = pose_json;
+    view_json["cam_from_world"] = PoseToJson(view.cam_from_world);
     views_json.push_back(view_json);
   }
   root["cameras"] = cameras_json;

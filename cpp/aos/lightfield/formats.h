@@ -15,10 +15,11 @@
 //   Optional "pose_source" (PoseSource in lightfield.h) says where estimated poses came from:
 //   {"method": "colmap", "mean_reprojection_error_px", "median_depth", "pose_error",
 //    "georeferenced", "georeference_rms_m", "world_frame", "unregistered": [frame names]}.
-//   Poses map the local frame (world - origin) to OpenCV camera axes, metres. A camera may give
-//   "fov_deg" (horizontal, square pixels, centred principal point) instead of fx/fy/cx/cy. A lens
-//   camera has "model" "radtan", "fisheye" or "omnidir", fx/fy/cx/cy, "distortion" (up to 5
-//   numbers) and, for omnidir, "xi" and "skew" (lens.h); its views carry View::lens.
+//   Poses map the local frame (world - origin) to OpenCV camera axes, metres. Cameras, poses,
+//   the origin and the pose record are read and written by the shared codec (json_codec.h: the
+//   same camera fields as a camera file, "fov_deg" for a pinhole, lens models with
+//   "distortion", "xi", "skew"); a view's camera is View::camera. Unknown keys are refused,
+//   named by their JSON pointer ("lf.json: /cameras/cam0/fxx: unknown key").
 //
 // 2. The JKU-ICG/AOS poses.json: {"images": [{"imagefile": "a.tiff", "M3x4": [[...], [...], [...]]}]}
 //   M3x4 is the world-to-camera matrix [R | t] (numbers or numeric strings), OpenCV axes. The

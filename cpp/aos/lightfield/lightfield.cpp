@@ -13,17 +13,9 @@ size_t LightField::ImageBytes() const {
 }
 
 void CheckView(const View& view, const std::string& where) {
-  view.camera.Check(where);
-  if (view.lens.model != LensModel::kPinhole) {
-    const LensCamera& lens = view.lens;
-    if (lens.width != view.camera.width || lens.height != view.camera.height ||
-        lens.fx != view.camera.fx || lens.fy != view.camera.fy || lens.cx != view.camera.cx ||
-        lens.cy != view.camera.cy) {
-      ThrowInvalid(Where(where, "lens: its size and intrinsics must equal the camera's"));
-    }
-    if (!(lens.theta_max > 0.0)) {
-      ThrowInvalid(Where(where, "lens: its valid field is not set (LensCamera::Finalize)"));
-    }
+  view.camera.Pinhole().Check(where);
+  if (view.camera.model != LensModel::kPinhole && !(view.camera.theta_max > 0.0)) {
+    ThrowInvalid(Where(where, "camera: the lens's valid field is not set (LensCamera::Finalize)"));
   }
   if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {
     ThrowInvalid(Where(where, "cam_from_world: " + *problem));
@@ -68,7 +60,7 @@ void CheckLightField(const LightField& light_field, const std::string& where) {
   }
 }
 
-View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_from_world,
+View MakeView(std::string name, const LensCamera& camera, const Rigid3d& cam_from_world,
               Image image, std::string image_path) {
   View view;
   view.name = std::move(name);
@@ -82,9 +74,19 @@ View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_
   }
   view.image = std::move(image);
   const std::string where = view.name.empty() ? std::string("view") : "view " + view.name;
+  view.camera.Pinhole().Check(where);
+  if (!(view.camera.theta_max > 0.0)) view.camera.Finalize(Where(where, "camera"));
   CheckView(view, where);
   if (auto problem = DescribeNonFinite(view.image)) ThrowInvalid(Where(where, "image: " + *problem));
   return view;
+}
+
+View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_from_world,
+              Image image, std::string image_path) {
+  const std::string where = name.empty() ? std::string("view") : "view " + name;
+  camera.Check(where);
+  return MakeView(std::move(name), LensCamera::FromPinhole(camera), cam_from_world,
+                  std::move(image), std::move(image_path));
 }
 
 }  // namespace aos

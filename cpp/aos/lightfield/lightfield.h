@@ -1,5 +1,6 @@
 #pragma once
-// A light field: views, each an image with a pinhole camera and a cam_from_world pose.
+// A light field: views, each an image with a camera (pinhole or lens model) and a cam_from_world
+// pose.
 //
 // World frame. Poses and every geometric input of the renderer (virtual camera, focal plane) are
 // in the light field's local frame, metres. `origin` is where that local frame's zero lies in
@@ -21,19 +22,13 @@ namespace aos {
 struct View {
   std::string name;        // a label for messages (file name for loaded views)
   std::string image_path;  // source file, if the view was loaded from one (else empty)
-  PinholeCamera camera;    // must match the image size
-  // The lens model. kPinhole (the default): `camera` alone describes the view. Other models
-  // (raw frames through a lens): lens.width..cy equal camera's, and the renderer samples the
-  // view through the lens (direct sampling, integral.h).
-  LensCamera lens;
+  // The view's one camera model; its size must match the image. kPinhole (fx, fy, cx, cy, no
+  // distortion) is the plain pinhole camera, camera.Pinhole() its PinholeCamera; other models
+  // (raw frames through a lens) are sampled through the lens (direct sampling, integral.h) and
+  // must be finalized (LensCamera::Finalize).
+  LensCamera camera;
   Rigid3d cam_from_world;  // local frame -> camera (OpenCV axes)
   Image image;             // native pixel type, border 1 (see Image)
-
-  // The view's complete camera model whatever way the view was made: `lens` for lens models,
-  // LensCamera::FromPinhole(camera) for pinhole views (whose `lens` may be left default).
-  LensCamera Lens() const {
-    return lens.model == LensModel::kPinhole ? LensCamera::FromPinhole(camera) : lens;
-  }
 };
 
 // Where estimated poses came from and how good they are (aos-render poses, sfm/); stored in
@@ -62,10 +57,14 @@ struct LightField {
 // has none (else its pixels are shared). Throws std::invalid_argument naming `name` and the field
 // for a bad camera, a camera that disagrees with the image size, an invalid pose, or a
 // non-finite pixel in a float image (loaded frames are checked the same way).
+// A lens camera is used as given (finalized here if it was not); a PinholeCamera becomes
+// LensCamera::FromPinhole(camera).
+View MakeView(std::string name, const LensCamera& camera, const Rigid3d& cam_from_world,
+              Image image, std::string image_path = "");
 View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_from_world,
               Image image, std::string image_path = "");
 
-// Checks one view (camera fields, camera vs image size, pose finite and orthonormal, image
+// Checks one view (camera fields, a lens model finalized, camera vs image size, pose finite and orthonormal, image
 // present with border >= 1). `where` prefixes the message, e.g. "lf.json: view 3 (a.png)".
 void CheckView(const View& view, const std::string& where);
 

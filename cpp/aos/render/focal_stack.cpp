@@ -12,6 +12,7 @@
 
 #include "aos/image/image_io.h"
 #include "aos/image/preview.h"
+#include "aos/lightfield/json_codec.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/json_file.h"
@@ -41,51 +42,6 @@ std::string SliceName(const char* prefix, int index) {
   char name[64];
   std::snprintf(name, sizeof(name), "%s_%04d.tif", prefix, index);
   return name;
-}
-
-// Strict JSON access for stack.json: errors name the file and the key path.
-const json& Field(const json& object, const std::string& key, const std::string& where,
-                  const std::string& file) {
-  if (!object.is_object() || !object.contains(key)) {
-    ThrowInvalid(Where(file, where + (where.empty() ? "" : ".") + key + ": missing"));
-  }
-  return object.at(key);
-}
-
-double NumberField(const json& object, const std::string& key, const std::string& where,
-                   const std::string& file) {
-  const json& value = Field(object, key, where, file);
-  if (!value.is_number() || !std::isfinite(value.get<double>())) {
-    ThrowInvalid(Where(file, where + (where.empty() ? "" : ".") + key + ": must be a finite number"));
-  }
-  return value.get<double>();
-}
-
-Vec3d VectorField(const json& object, const std::string& key, const std::string& where,
-                  const std::string& file) {
-  const json& value = Field(object, key, where, file);
-  const std::string path = where + (where.empty() ? "" : ".") + key;
-  if (!value.is_array() || value.size() != 3) {
-    ThrowInvalid(Where(file, path + ": must be an array of 3 numbers"));
-  }
-  Vec3d v;
-  for (int i = 0; i < 3; ++i) {
-    if (!value[static_cast<size_t>(i)].is_number() ||
-        !std::isfinite(value[static_cast<size_t>(i)].get<double>())) {
-      ThrowInvalid(Where(file, path + ": must be an array of 3 finite numbers"));
-    }
-    v[i] = value[static_cast<size_t>(i)].get<double>();
-  }
-  return v;
-}
-
-std::string StringField(const json& object, const std::string& key, const std::string& where,
-                        const std::string& file) {
-  const json& value = Field(object, key, where, file);
-  if (!value.is_string()) {
-    ThrowInvalid(Where(file, where + (where.empty() ? "" : ".") + key + ": must be a string"));
-  }
-  return value.get<std::string>();
 }
 
 }  // namespace
@@ -307,17 +263,8 @@ void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
   ojson j;
   j["format"] = "aos-focal-stack";
   j["version"] = 1;
-  const PinholeCamera& c = stack.camera;
-  j["camera"] = {{"model", "pinhole"}, {"width", c.width}, {"height", c.height},
-                 {"fx", c.fx},         {"fy", c.fy},       {"cx", c.cx},
-                 {"cy", c.cy}};
-  ojson rotation = ojson::array();
-  for (int r = 0; r < 3; ++r) {
-    const Vec3d row = Row(stack.cam_from_world.rotation, r);
-    rotation.push_back({row.x, row.y, row.z});
-  }
-  const Vec3d& t = stack.cam_from_world.translation;
-  j["cam_from_world"] = {{"rotation", rotation}, {"translation", {t.x, t.y, t.z}}};
+  j["camera"] = CameraToJson(LensCamera::FromPinhole(stack.camera));
+  j["cam_from_world"] = PoseToJson(stack.cam_from_world);
   const IntegralOptions& r = stack.render;
   j["render"] = {{"fov_deg", r.fov_deg},
                  {"aperture_radius", std::isfinite(r.aperture_radius) ? ojson(r.aperture_radius)
@@ -327,8 +274,7 @@ void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
   ojson slices = ojson::array();
   for (int i = 0; i < stack.size(); ++i) {
     const Plane& plane = stack.planes[static_cast<size_t>(i)];
-    ojson slice = {{"plane", {{"point", {plane.point.x, plane.point.y, plane.point.z}},
-                              {"normal", {plane.normal.x, plane.normal.y, plane.normal.z}}}},
+    ojson slice = {{"plane", PlaneToJson(plane)},
                    {"image", SliceName("slice", i)},
                    {"count", SliceName("count", i)}};
     WriteImage((temp / SliceName("slice", i)).string(), stack.images[static_cast<size_t>(i)]);
@@ -376,90 +322,70 @@ FocalStack ReadFocalStack(const std::string& folder) {
 namespace {
 
 FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::string& file) {
+  const JsonPath top(file);
   if (!j.is_object() || !j.contains("format") || j["format"] != "aos-focal-stack") {
     ThrowInvalid(Where(file, "format: must be \"aos-focal-stack\""));
   }
-  if (NumberField(j, "version", "", file) != 1) ThrowInvalid(Where(file, "version: must be 1"));
+  RequireKnownKeys(j, {"format", "version", "camera", "cam_from_world", "render", "slices"}, top);
+  if (ReadJsonNumber(RequireMember(j, "version", top), top / "version") != 1) {
+    (top / "version").Fail("must be 1");
+  }
   FocalStack stack;
-  const json& camera = Field(j, "camera", "", file);
-  const double width = NumberField(camera, "width", "camera", file);
-  const double height = NumberField(camera, "height", "camera", file);
-  if (width != std::floor(width) || height != std::floor(height) || width < 1 || height < 1 ||
-      width > 65536 || height > 65536) {
-    ThrowInvalid(Where(file, "camera.width/height: must be integers 1..65536"));
+  const LensCamera camera = ReadCameraJson(RequireMember(j, "camera", top), top / "camera");
+  if (camera.model != LensModel::kPinhole) {
+    (top / "camera" / "model").Fail("a focal stack's camera is a pinhole, not " +
+                                    std::string(LensModelName(camera.model)));
   }
-  stack.camera.width = static_cast<int>(width);
-  stack.camera.height = static_cast<int>(height);
-  stack.camera.fx = NumberField(camera, "fx", "camera", file);
-  stack.camera.fy = NumberField(camera, "fy", "camera", file);
-  stack.camera.cx = NumberField(camera, "cx", "camera", file);
-  stack.camera.cy = NumberField(camera, "cy", "camera", file);
-  stack.camera.Check(file + ": camera");
-  const json& pose = Field(j, "cam_from_world", "", file);
-  const json& rotation = Field(pose, "rotation", "cam_from_world", file);
-  if (!rotation.is_array() || rotation.size() != 3) {
-    ThrowInvalid(Where(file, "cam_from_world.rotation: must be 3 rows of 3 numbers"));
-  }
-  Vec3d rows[3];
-  for (int r = 0; r < 3; ++r) {
-    json holder = {{"row", rotation[static_cast<size_t>(r)]}};
-    rows[r] = VectorField(holder, "row", "cam_from_world.rotation", file);
-  }
-  stack.cam_from_world.rotation = MatFromRows(rows[0], rows[1], rows[2]);
-  stack.cam_from_world.translation = VectorField(pose, "translation", "cam_from_world", file);
-  if (auto problem = DescribeInvalidRigid(stack.cam_from_world)) {
-    ThrowInvalid(Where(file, "cam_from_world: " + *problem));
-  }
+  stack.camera = camera.Pinhole();
+  stack.cam_from_world =
+      ReadPoseJson(RequireMember(j, "cam_from_world", top), top / "cam_from_world");
   stack.render.width = stack.camera.width;
   stack.render.height = stack.camera.height;
   stack.render.cam_from_world = stack.cam_from_world;
   if (j.contains("render")) {
     const json& render = j["render"];
-    stack.render.fov_deg = NumberField(render, "fov_deg", "render", file);
-    const json& radius = Field(render, "aperture_radius", "render", file);
+    const JsonPath at = top / "render";
+    RequireKnownKeys(render, {"fov_deg", "aperture_radius", "min_view_angle_deg", "view_indices"},
+                     at);
+    stack.render.fov_deg = ReadJsonNumber(RequireMember(render, "fov_deg", at), at / "fov_deg");
+    const json& radius = RequireMember(render, "aperture_radius", at);
     if (radius.is_string() && radius.get<std::string>() == "inf") {
       stack.render.aperture_radius = std::numeric_limits<double>::infinity();
     } else {
-      stack.render.aperture_radius = NumberField(render, "aperture_radius", "render", file);
+      stack.render.aperture_radius = ReadJsonNumber(radius, at / "aperture_radius");
     }
-    stack.render.min_view_angle_deg = NumberField(render, "min_view_angle_deg", "render", file);
-    const json& views = Field(render, "view_indices", "render", file);
-    if (!views.is_array()) ThrowInvalid(Where(file, "render.view_indices: must be an array"));
-    for (const json& v : views) {
-      if (!v.is_number_integer()) {
-        ThrowInvalid(Where(file, "render.view_indices: must hold integers"));
-      }
-      stack.render.view_indices.push_back(v.get<int>());
+    stack.render.min_view_angle_deg =
+        ReadJsonNumber(RequireMember(render, "min_view_angle_deg", at), at / "min_view_angle_deg");
+    const json& views = RequireMember(render, "view_indices", at);
+    if (!views.is_array()) (at / "view_indices").Fail("must be an array");
+    for (size_t i = 0; i < views.size(); ++i) {
+      if (!views[i].is_number_integer()) (at / "view_indices" / i).Fail("must be an integer");
+      stack.render.view_indices.push_back(views[i].get<int>());
     }
   } else {
     stack.render.fov_deg = stack.camera.FovXDeg();
   }
-  const json& slices = Field(j, "slices", "", file);
-  if (!slices.is_array() || slices.empty()) {
-    ThrowInvalid(Where(file, "slices: must be a non-empty array"));
-  }
+  const json& slices = RequireMember(j, "slices", top);
+  if (!slices.is_array() || slices.empty()) (top / "slices").Fail("must be a non-empty array");
   bool has_variance = true;
   for (size_t i = 0; i < slices.size(); ++i) has_variance = has_variance && slices[i].contains("variance");
   stack.render.variance = has_variance;  // rendered with variance: its images are stored
   for (size_t i = 0; i < slices.size(); ++i) {
-    const std::string where = "slices[" + std::to_string(i) + "]";
+    const JsonPath at = top / "slices" / i;
     const json& slice = slices[i];
-    const json& plane = Field(slice, "plane", where, file);
-    Plane p{VectorField(plane, "point", where + ".plane", file),
-            VectorField(plane, "normal", where + ".plane", file)};
-    if (!(glm::length(p.normal) > 0.0)) {
-      ThrowInvalid(Where(file, where + ".plane.normal: must not be zero"));
-    }
-    stack.planes.push_back(p);
+    RequireKnownKeys(slice, {"plane", "image", "count", "variance"}, at);
+    stack.planes.push_back(ReadPlaneJson(RequireMember(slice, "plane", at), at / "plane"));
     // Each file is checked as it is read, so that errors name it (FocalStack::Check then finds
     // nothing more to say about sizes and types).
     std::string path;
     auto read = [&](const std::string& key, int channels, const char* what) {
-      path = (base / StringField(slice, key, where, file)).string();
+      const json& name = RequireMember(slice, key.c_str(), at);
+      if (!name.is_string()) (at / key).Fail("must be a string, got " + DescribeJson(name));
+      path = (base / name.get<std::string>()).string();
       Image image = ReadImage(path);
       if (image.width() != stack.camera.width || image.height() != stack.camera.height ||
           (channels > 0 && image.channels() != channels)) {
-        ThrowInvalid(Where(file, where + "." + key) + ": " + path + ": is " +
+        ThrowInvalid((at / key).Text() + ": " + path + ": is " +
                      std::to_string(image.width()) + "x" + std::to_string(image.height()) + "x" +
                      std::to_string(image.channels()) + ", expected " + what + " of " +
                      std::to_string(stack.camera.width) + "x" +
@@ -470,11 +396,11 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
     stack.images.push_back(read("image", i == 0 ? 0 : stack.images[0].channels(),
                                 i == 0 ? "an image" : "an image with slice 0's channels"));
     if (stack.images.back().type() != PixelType::kF32) {
-      ThrowInvalid(Where(file, where + ".image") + ": " + path + ": holds " +
+      ThrowInvalid((at / "image").Text() + ": " + path + ": holds " +
                    PixelTypeName(stack.images.back().type()) + " samples, expected float32");
     }
     if (auto problem = DescribeOutOfStackRange(stack.images.back())) {
-      ThrowInvalid(Where(file, where + ".image") + ": " + path + ": " + *problem);
+      ThrowInvalid((at / "image").Text() + ": " + path + ": " + *problem);
     }
     if (i == 0) {
       // Every slice stays in memory: refuse before decoding the rest (image of slice 0's
@@ -497,7 +423,7 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
         for (int x = 0; x < count.width(); ++x) {
           const float value = count.At<float>(x, y)[0];
           if (!(value >= 0.0f && value < 16777216.0f) || value != std::floor(value)) {
-            ThrowInvalid(Where(file, where + ".count") + ": " + path + ": pixel (" +
+            ThrowInvalid((at / "count").Text() + ": " + path + ": pixel (" +
                          std::to_string(x) + ", " + std::to_string(y) + ") is not a count");
           }
           converted.At<uint32_t>(x, y)[0] = static_cast<uint32_t>(value);
@@ -506,14 +432,14 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
       count = std::move(converted);
     }
     if (count.type() != PixelType::kU32) {
-      ThrowInvalid(Where(file, where + ".count") + ": " + path + ": holds " +
+      ThrowInvalid((at / "count").Text() + ": " + path + ": holds " +
                    PixelTypeName(count.type()) + " samples, expected 32-bit counts");
     }
     stack.counts.push_back(std::move(count));
     if (has_variance) {
       stack.variances.push_back(read("variance", 1, "a 1-channel variance map"));
       if (stack.variances.back().type() != PixelType::kF32) {
-        ThrowInvalid(Where(file, where + ".variance") + ": " + path + ": holds " +
+        ThrowInvalid((at / "variance").Text() + ": " + path + ": holds " +
                      PixelTypeName(stack.variances.back().type()) +
                      " samples, expected float32");
       }

@@ -16,7 +16,9 @@
 //   variance_NNNN.tif (float32). WriteFocalStack writes into a hidden temporary folder and renames
 //   it into place; it refuses an existing non-empty folder. ReadFocalStack checks every field and
 //   file and names them in its errors; FocalStack::Check refuses non-finite pixels and negative
-//   variances.
+//   variances. stack.json's camera (a pinhole), cam_from_world and slice planes use the shared
+//   JSON codec (lightfield/json_codec.h): the camera reads as any aos camera does, and unknown
+//   keys are refused at every level ("stack.json: /camera/fxx: unknown key").
 //
 // Throws std::invalid_argument naming the option, file or field; aos::Cancelled on request.
 #include <functional>

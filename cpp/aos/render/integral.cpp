@@ -377,7 +377,7 @@ void IntegralRenderer::SetUpViews() {
     // tau n^T as a GLM matrix: column j is tau * n[j].
     const Mat3d tau_n(tau * g.normal.x, tau * g.normal.y, tau * g.normal.z);
     const Mat3d M = g.h * R_i + tau_n;
-    setup.H = g.sign_h * (view.camera.K() * M * R_v_t * K_v_inverse);
+    setup.H = g.sign_h * (view.camera.Pinhole().K() * M * R_v_t * K_v_inverse);
     double norm = 0.0;
     for (int c = 0; c < 3; ++c) {
       for (int r = 0; r < 3; ++r) norm = std::max(norm, std::abs(setup.H[c][r]));
@@ -701,7 +701,8 @@ PinholeCamera VirtualCamera(const LightField& light_field, const IntegralOptions
   const bool from_view = options.pose_view >= 0 &&
                          options.pose_view < static_cast<int>(light_field.views.size());
   if (from_view) {
-    const PinholeCamera& view = light_field.views[static_cast<size_t>(options.pose_view)].camera;
+    const PinholeCamera view =
+        light_field.views[static_cast<size_t>(options.pose_view)].camera.Pinhole();
     const int width = options.width > 0 ? options.width : view.width;
     const int height = options.height > 0 ? options.height : view.height;
     const double fov_deg = options.fov_deg > 0.0 ? options.fov_deg : view.FovXDeg();
@@ -792,7 +793,7 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
     const bool selected = options.view_indices.empty() ||
                           std::find(options.view_indices.begin(), options.view_indices.end(),
                                     static_cast<int>(i)) != options.view_indices.end();
-    lens_views = lens_views || (selected && light_field.views[i].lens.model != LensModel::kPinhole);
+    lens_views = lens_views || (selected && light_field.views[i].camera.model != LensModel::kPinhole);
   }
   if (lens_views) {
     const PinholeCamera camera = VirtualCamera(light_field, options);

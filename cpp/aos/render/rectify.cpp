@@ -111,16 +111,16 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
   ProgressStart(progress, "rectify", static_cast<int64_t>(light_field.views.size()));
   for (const View& view : light_field.views) {
     if (ProgressCancelled(progress)) throw Cancelled();
-    if (view.lens.model == LensModel::kPinhole) {
+    if (view.camera.model == LensModel::kPinhole) {
       result.light_field.views.push_back(view);
       ProgressAdvance(progress, 1);
       continue;
     }
     auto found = std::find_if(rectifiers.begin(), rectifiers.end(),
-                              [&](const auto& entry) { return entry.first.SameParameters(view.lens); });
+                              [&](const auto& entry) { return entry.first.SameParameters(view.camera); });
     if (found == rectifiers.end()) {
       try {
-        rectifiers.emplace_back(view.lens, MakeRectifier(view.lens, options));
+        rectifiers.emplace_back(view.camera, MakeRectifier(view.camera, options));
       } catch (const std::invalid_argument& error) {
         ThrowInvalid(std::string(error.what()) + " (view " + view.name + ")");
       }

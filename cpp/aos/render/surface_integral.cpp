@@ -138,7 +138,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
     setup.cy = view.camera.cy;
     setup.width = view.camera.width;
     setup.height = view.camera.height;
-    if (view.lens.model != LensModel::kPinhole) setup.lens = &view.lens;
+    if (view.camera.model != LensModel::kPinhole) setup.lens = &view.camera;
     setup.sample = SamplerFor(view.image);
     views.push_back(setup);
   }

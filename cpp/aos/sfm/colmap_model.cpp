@@ -827,10 +827,7 @@ ColmapImport ImportColmapModel(const ColmapModel& model, const std::string& imag
     if (!IsFile(view.image_path)) {
       ThrowInvalid(label + ": frame " + Quoted(view.image_path) + " not found in images_dir");
     }
-    const LensCamera& camera = lens->second;
-    view.camera = PinholeCamera{camera.width, camera.height, camera.fx, camera.fy, camera.cx,
-                                camera.cy};
-    view.lens = camera;
+    view.camera = lens->second;
     view.cam_from_world = image->cam_from_world;
     result.light_field.views.push_back(std::move(view));
     result.registered.push_back(image->name);

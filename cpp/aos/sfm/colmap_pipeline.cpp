@@ -206,7 +206,7 @@ double MedianDepth(const ColmapModel& model, const LightField& light_field) {
       const Vec3d in_cam = view.cam_from_world * model.points[p].position;
       if (!(in_cam.z > 0.0)) continue;
       Vec2d pixel;
-      if (!view.lens.Project(in_cam, &pixel)) continue;
+      if (!view.camera.Project(in_cam, &pixel)) continue;
       if (pixel.x < 0 || pixel.y < 0 || pixel.x > view.camera.width || pixel.y > view.camera.height) continue;
       depths.push_back(in_cam.z);
     }
@@ -283,7 +283,7 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
 // a prior the warning says they could not be checked.
 void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
   if (result->light_field.views.empty()) return;
-  const LensCamera& lens = result->light_field.views[0].lens;
+  const LensCamera& lens = result->light_field.views[0].camera;
   const double focal = std::sqrt(lens.fx * lens.fy);
   const double recovered_fov_deg = RadToDeg(2.0 * std::atan(0.5 * lens.width / lens.fx));
   char text[512];

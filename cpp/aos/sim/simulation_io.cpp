@@ -6,6 +6,7 @@
 
 #include "aos/image/image_io.h"
 #include "aos/lightfield/formats.h"
+#include "aos/lightfield/json_codec.h"
 #include "aos/sim/simulator.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
@@ -13,35 +14,18 @@
 namespace fs = std::filesystem;
 
 namespace aos {
-namespace {
 
 using ojson = nlohmann::ordered_json;
-
-ojson PoseJson(const Rigid3d& pose) {
-  ojson rotation = ojson::array();
-  for (int r = 0; r < 3; ++r) {
-    const Vec3d row = Row(pose.rotation, r);
-    rotation.push_back({row.x, row.y, row.z});
-  }
-  return {{"rotation", rotation},
-          {"translation", {pose.translation.x, pose.translation.y, pose.translation.z}}};
-}
-
-}  // namespace
 
 std::string SimulationSummaryJson(const SimulationResult& result) {
   const SimulationStats& s = result.stats;
   const GroundTruth& t = result.truth;
   ojson j;
-  j["truth_camera"] = {{"model", "pinhole"},
-                       {"width", t.camera.width},
-                       {"height", t.camera.height},
-                       {"fx", t.camera.fx},
-                       {"fy", t.camera.fy},
-                       {"cx", t.camera.cx},
-                       {"cy", t.camera.cy},
-                       {"fov_deg", t.camera.FovXDeg()}};
-  j["truth_cam_from_world"] = PoseJson(t.cam_from_world);
+  // The camera and pose in the shapes every aos format shares (json_codec.h): the camera reads
+  // back as a light field's or a camera file's; its field of view is given beside it.
+  j["truth_camera"] = CameraToJson(LensCamera::FromPinhole(t.camera));
+  j["truth_fov_deg"] = t.camera.FovXDeg();
+  j["truth_cam_from_world"] = PoseToJson(t.cam_from_world);
   const Vec3d centre = t.cam_from_world.Center();
   j["truth_position"] = {centre.x, centre.y, centre.z};
   j["focal_plane_height"] = t.ground_height_at_center;

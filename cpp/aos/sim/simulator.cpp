@@ -734,12 +734,7 @@ SimCameras PlaceCameras(const Scene& scene, SimulationStats* stats) {
   const bool through_lens = lens.model != LensModel::kPinhole;
   PinholeCamera camera;
   if (through_lens) {
-    camera.width = lens.width;
-    camera.height = lens.height;
-    camera.fx = lens.fx;
-    camera.fy = lens.fy;
-    camera.cx = lens.cx;
-    camera.cy = lens.cy;
+    camera = lens.Pinhole();
   } else {
     camera = PinholeCamera::FromFov(cam.width, cam.height, cam.fov_deg);
   }
@@ -945,8 +940,8 @@ void TraceViews(const Scene& scene, const World& world, const SimCameras& camera
     image.FillBorder();
     char name[32];
     std::snprintf(name, sizeof(name), "view_%04zu", v);
-    result.light_field.views.push_back(MakeView(name, camera, recorded[v], image));
-    if (through_lens) result.light_field.views.back().lens = lens;
+    result.light_field.views.push_back(
+        MakeView(name, through_lens ? lens : LensCamera::FromPinhole(camera), recorded[v], image));
     ProgressAdvance(progress, 1);
   }
   stats.primary_rays = totals.primary;

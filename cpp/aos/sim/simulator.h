@@ -110,7 +110,8 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options = {
 void WriteSimulation(const SimulationResult& result, const Scene& scene,
                      const std::string& output_dir);
 
-// The stats and the truth camera as a JSON object (what truth/truth.json holds).
+// The stats and the truth camera as a JSON object (what truth/truth.json holds): truth_camera and
+// truth_cam_from_world in the shared shapes of lightfield/json_codec.h, truth_fov_deg beside.
 std::string SimulationSummaryJson(const SimulationResult& result);
 
 }  // namespace aos
