@@ -20,6 +20,7 @@
 #include <nlohmann/json.hpp>
 
 #include "aos/calib/calibrate.h"
+#include "aos/demo/demo.h"
 #include "aos/sfm/colmap_pipeline.h"
 #include "aos/image/image_io.h"
 #include "aos/image/preview.h"
@@ -601,76 +602,66 @@ struct DemoCommand {
   std::string output_dir = "aos-demo";
   std::string scene_path;
   int grid = 0;
-  OutputOptions out;
+  DemoOptions options;
 };
 
 void AddDemo(CLI::App& app, DemoCommand& c) {
   CLI::App* command = app.add_subcommand(
       "demo",
-      "Simulate the built-in default scene (a chart-textured ground and a target under a "
-      "50 %-density voxel volume), write it, and render a single view and integral images "
-      "against its ground truth");
+      "Simulate the built-in default scene (a red person-sized target on a forest floor under "
+      "procedural trees, RGB), render a single view, integral images and an all-in-focus image "
+      "from above, score them against the ground truth, and write it all with an index.html");
   command->add_option("-o,--output-dir", c.output_dir, "Output folder; must not exist or be empty")
       ->capture_default_str();
   command->add_option("--scene", c.scene_path, "A scene file instead of the built-in default");
   command->add_option("--grid", c.grid, "Override sampling.grid (views per side, >= 1)")
       ->check(AtLeast(1));
+  command->add_option("--all-in-focus-slices", c.options.all_in_focus_slices,
+                      "Slices of the all-in-focus stack (ground to the top of the occluders); "
+                      "0 = no all-in-focus image")
+      ->capture_default_str();
+  command->add_option("--target-margin", c.options.target_margin_m,
+                      "Ring of ground around each target used as its surroundings in the "
+                      "visibility figures, metres")
+      ->capture_default_str();
+  command->add_option("--threads", c.options.num_threads, "Worker threads; -1 = all cores")
+      ->capture_default_str();
   AddQuiet(command);
 }
 
 int RunDemo(DemoCommand& c) {
   const Scene scene = LoadSceneOrDefault(c.scene_path, c.grid);
-  CheckOutputFolder(c.output_dir);  // before any work
+  CheckDemoFolder(c.output_dir);  // before any work
   ProgressBar progress(g_quiet);
-  const SimulationResult simulation = Simulate(scene, {}, &progress);
+  DemoResult result;
+  try {
+    result = aos::RunDemo(scene, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    RethrowNamingFlags(error, {{"num_threads", "--threads"},
+                               {"all_in_focus_slices", "--all-in-focus-slices"},
+                               {"target_margin_m", "--target-margin"}});
+  }
   progress.Finish();
-  if (!g_quiet) PrintStats(simulation);
-  WriteSimulation(simulation, scene, c.output_dir);
-  int files = 0;
-  for (const auto& entry : fs::recursive_directory_iterator(c.output_dir)) {
-    files += entry.is_regular_file() ? 1 : 0;
-  }
+  if (!g_quiet) PrintStats(result.simulation);
+  const std::vector<std::string> files = WriteDemo(result, c.output_dir);
   Say("wrote %s (%zu views of %s, ground truth in truth/)\n", c.output_dir.c_str(),
-              simulation.light_field.views.size(), scene.source.c_str());
-
-  // Renders from the truth camera: one view (radius 0), the integral focused on the ground, and
-  // one focused inside the occluders; each compared with the ground truth.
-  const GroundTruth& truth = simulation.truth;
-  IntegralOptions options;
-  options.cam_from_world = truth.cam_from_world;
-  options.fov_deg = truth.camera.FovXDeg();
-  options.width = truth.camera.width;
-  options.height = truth.camera.height;
-  struct Job {
-    std::string name;
-    double height;
-    double radius;
-  };
-  const double ground = truth.ground_height_at_center;
-  std::vector<Job> jobs{{"single_view", ground, 0.0},
-                        {"integral_ground", ground, std::numeric_limits<double>::infinity()}};
-  if (scene.has_voxels) {
-    jobs.push_back({"integral_occluders", scene.voxels.center[2],
-                    std::numeric_limits<double>::infinity()});
+      result.simulation.light_field.views.size(), scene.source.c_str());
+  if (result.target_blocked_fraction >= 0) {
+    std::printf("  the occluders block %.0f %% of the views' rays to the target\n",
+                100.0 * result.target_blocked_fraction);
   }
-  const PixelType views_type = simulation.light_field.views.front().image.type();
-  for (const Job& job : jobs) {
-    options.focal_plane = Plane::AtHeight(job.height);
-    options.aperture_radius = job.radius;
-    const IntegralResult result = RenderIntegral(simulation.light_field, options, &progress);
-    progress.Finish();
-    const std::string base = (fs::path(c.output_dir) / job.name).string();
-    const std::string extension = views_type == PixelType::kF32 ? ".tif" : ".png";
-    WriteOutputs(result, base + extension, base + "_count.png", c.out, views_type, {});
-    files += 2;
-    const QualityResult quality = CompareImages(result.image, truth.ground, nullptr, {});
+  for (const DemoRender& r : result.renders) {
     std::printf("  %-20s focal plane z = %6.2f m: PSNR %6.2f dB, SSIM %.3f against the ground "
-                "truth\n",
-                job.name.c_str(), job.height, quality.psnr_db, quality.ssim);
+                "truth",
+                r.name.c_str(), r.focal_height, r.quality.psnr_db, r.quality.ssim);
+    if (r.visibility.has_target) {
+      std::printf("; target stands out %3.0f %%, contrast/noise %.2f",
+                  100.0 * r.visibility.standout_fraction, r.visibility.contrast_to_noise);
+    }
+    std::printf("\n");
   }
-  Say("demo: %d files in %s (open %s/integral_ground.png: the ground seen through the "
-              "occluders; truth/ground.png is the truth)\n",
-              files, c.output_dir.c_str(), c.output_dir.c_str());
+  Say("demo: %zu files in %s in %.1f s; open %s/index.html\n", files.size(),
+      c.output_dir.c_str(), result.seconds_total, c.output_dir.c_str());
   return 0;
 }
 
