@@ -36,6 +36,7 @@ COMMANDS = [
     ("merge", "MergeOptions"),
     ("allinfocus", "AllInFocusOptions"),
     ("simulate", "SimulateOptions"),
+    ("demo", "DemoOptions"),
     ("rectify", "RectifyOptions"),
     ("calibrate", "CalibrateOptions"),
     ("poses", "PosesOptions"),
@@ -58,6 +59,7 @@ FLAGS = {
     "max_num_features": "--max-features",
     "min_registered_fraction": "--min-registered",
     "distance_m": "--distance",
+    "target_margin_m": "--target-margin",
     "focal_plane": "--focal-height",  # or --focal-plane / --focal-distance
 }
 

@@ -87,7 +87,7 @@ void BindDemo(py::module_& m) {
                ", renders=" + std::to_string(r.renders.size()) + ")";
       });
 
-  m.def("check_demo_folder", &CheckDemoFolder, "folder"_a,
+  m.def("_check_demo_folder", &CheckDemoFolder, "folder"_a,
         "Raises ValueError unless `folder` is missing or empty and its parent exists.");
   m.def(
       "_run_demo",

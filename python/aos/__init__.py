@@ -470,7 +470,7 @@ def run_demo(
     _RUN_DEMO.apply([merged], dict(kwargs))
     merged.check()
     if output_dir is not None:
-        _core.check_demo_folder(os.fspath(output_dir))  # before any work
+        _core._check_demo_folder(os.fspath(output_dir))  # before any work
     result = _core._run_demo(parsed, merged, progress)
     if output_dir is not None:
         write_demo(result, os.fspath(output_dir))

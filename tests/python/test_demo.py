@@ -61,7 +61,7 @@ def test_options_by_keyword_and_checked() -> None:
         aos.run_demo(small_default_scene(), all_in_focus_slice=3)
     with pytest.raises(ValueError, match="target_margin_m"):
         aos.run_demo(small_default_scene(), target_margin_m=0.0)
-    assert aos.DemoOptions().all_in_focus_slices == 24
+    assert aos.DemoOptions().all_in_focus_slices == 16
 
 
 def links_of(html: str) -> list[str]:

@@ -175,12 +175,27 @@ std::string TruthPng(const DemoResult& result) {
 // Shell-ready "--look-at ... --fov-deg ... --width ... --height ..." of the truth camera.
 std::string TruthCameraFlags(const DemoResult& result) {
   const GroundTruth& truth = result.simulation.truth;
-  const Vec3d c = truth.cam_from_world.Center();
+  // + 0.0 turns -0 (from the pose inversion) into 0 for the reader.
+  const Vec3d c = truth.cam_from_world.Center() + Vec3d(0.0, 0.0, 0.0);
   const std::string x = FormatNumber(c.x), y = FormatNumber(c.y);
   return "--look-at " + x + "," + y + "," + FormatNumber(c.z) + "," + x + "," + y + "," +
-         FormatNumber(result.ground_height) + " --fov-deg " +
+         FormatNumber(result.ground_height + 0.0) + " --fov-deg " +
          FormatNumber(truth.camera.FovXDeg()) + " --width " + std::to_string(truth.camera.width) +
          " --height " + std::to_string(truth.camera.height);
+}
+
+// The demo flags of the options that differ from the defaults (threads aside: they change
+// nothing in the output).
+std::string DemoFlags(const DemoOptions& options) {
+  const DemoOptions defaults;
+  std::string flags;
+  if (options.all_in_focus_slices != defaults.all_in_focus_slices) {
+    flags += " --all-in-focus-slices " + std::to_string(options.all_in_focus_slices);
+  }
+  if (options.target_margin_m != defaults.target_margin_m) {
+    flags += " --target-margin " + FormatNumber(options.target_margin_m);
+  }
+  return flags;
 }
 
 }  // namespace
@@ -372,6 +387,9 @@ std::string DemoIndexHtml(const DemoResult& result) {
     << "h1{margin-bottom:.2em}\n.grid{display:flex;flex-wrap:wrap;gap:14px}\n"
     << "figure{margin:0;width:268px}\nfigure img{width:268px;height:auto;"
        "image-rendering:pixelated;border:1px solid #999;display:block}\n"
+    << ".big figure,.big figure img{width:360px}\n"
+    << ".lead{font-size:1.1em;background:#fff6e0;padding:.5em .8em;border-left:4px solid "
+       "#e0a000}\n"
     << "figcaption{font-size:.85em;margin-top:.3em}\n.big figcaption b{font-size:1.05em}\n"
     << "table{border-collapse:collapse;margin:.5em 0;font-size:.92em}\n"
     << "td,th{border:1px solid #bbb;padding:.25em .6em;text-align:right}\n"
@@ -407,6 +425,23 @@ std::string DemoIndexHtml(const DemoResult& result) {
       << " % of the views' rays to the target.";
   }
   h << "</p>\n";
+
+  // What to look for, in the figures' words.
+  const DemoRender* single = nullptr;
+  const DemoRender* integral = nullptr;
+  for (const DemoRender& r : result.renders) {
+    if (r.name == "single_view") single = &r;
+    if (r.name == "integral_ground") integral = &r;
+  }
+  if (single != nullptr && integral != nullptr && single->visibility.has_target &&
+      integral->visibility.has_target) {
+    h << "<p class=\"lead\">Look for the target in the centre of each image. In the single "
+         "view only "
+      << Fixed(100.0 * single->visibility.standout_fraction, 0)
+      << " % of its pixels stand out from the ground around it; in the integral image focused "
+         "on the ground, "
+      << Fixed(100.0 * integral->visibility.standout_fraction, 0) << " % do.</p>\n";
+  }
 
   // The images.
   auto figure = [&](const std::string& file, const std::string& title, const std::string& text) {
@@ -479,7 +514,8 @@ std::string DemoIndexHtml(const DemoResult& result) {
   // Reproduce.
   const std::string camera = TruthCameraFlags(result);
   h << "<h2>Reproduce</h2>\n<p>From this folder (each command writes a new file or folder):</p>\n"
-    << "<pre>aos-render demo --scene scene.json -o ../aos-demo-again\n"
+    << "<pre>aos-render demo --scene scene.json" << DemoFlags(result.options)
+    << " -o ../aos-demo-again\n"
     << "aos-render simulate scene.json -o ../simulation\n"
     << "aos-render integral lightfield.json " << camera << " \\\n    --focal-height "
     << FormatNumber(result.ground_height) << " --aperture-radius 0 -o ../single_view.png\n"

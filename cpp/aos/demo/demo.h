@@ -65,7 +65,7 @@ struct DemoOptions {
   int num_threads = -1;
   // Slices of the all-in-focus focal stack, from the ground to the top of the occluders,
   // 0..1000; 0 = no all-in-focus image, 1 = a stack of one slice.
-  int all_in_focus_slices = 24;
+  int all_in_focus_slices = 16;
   // Width of the ring of ground around each target whose pixels are the target's surroundings
   // in the visibility figures, metres (> 0).
   double target_margin_m = 1.0;
