@@ -121,3 +121,24 @@ def test_the_page_commands_reproduce_its_images(demo: aos.DemoResult, tmp_path: 
 def test_default_scene_is_the_forest_person_file() -> None:
     assert aos.load_scene(str(ROOT / "scenes" / "forest_person.json")).to_json() == \
         aos.default_scene().to_json()
+
+
+def test_run_demo_writes_the_folder_and_float_views_get_a_png_truth(tmp_path: Path) -> None:
+    # Float views: truth/ground is a TIFF, which browsers do not show, so the page shows
+    # truth_ground.png (16-bit). No all-in-focus image with 0 slices.
+    scene = small_default_scene()
+    scene["sampling"]["grid"] = 3
+    scene["camera"].update(width=64, height=64, bit_depth=32)
+    scene["truth"].update(width=48, height=48)
+    folder = tmp_path / "float"
+    result = aos.run_demo(scene, folder, all_in_focus_slices=0)
+    assert [r.name for r in result.renders] == ["single_view", "integral_ground",
+                                                "integral_occluders"]
+    html = (folder / "index.html").read_text()
+    assert 'src="truth_ground.png"' in html and "all_in_focus" not in html
+    for link in links_of(html):
+        assert (folder / link).is_file(), link
+    truth_png = aos.read_image(str(folder / "truth_ground.png"))
+    assert truth_png.dtype == np.uint16 and truth_png.shape == (48, 48, 3)
+    assert (folder / "truth" / "ground.tif").is_file()
+    assert "--all-in-focus-slices 0" in html
