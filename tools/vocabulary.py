@@ -38,6 +38,7 @@ COMMANDS = [
     ("merge", "MergeOptions"),
     ("allinfocus", "AllInFocusOptions"),
     ("simulate", "SimulateOptions"),
+    ("demo", "DemoOptions"),
     ("rectify", "RectifyOptions"),
     ("calibrate", "CalibrateOptions"),
     ("poses", "PosesOptions"),
@@ -261,7 +262,8 @@ on the rendering commands), `--rectified-fov-deg` the rectified frames' (`rectif
 Flags outside the Options structs: `-q/--quiet`, `--json` (the command's report as one JSON
 object on stdout) and `--threads` on every command, `-o` (the output path) on every command that
 writes, `--force` on commands that write files (output folders are never replaced),
-`--sample-type`/`--range` where a rendered image is written (`integral`, `demo`).
+`--sample-type`/`--range` where a rendered image is written in a chosen type (`integral`; the
+other commands write float32 data products, 8-bit previews, or frames in their input's type).
 
 Old spellings work for one release with a warning naming the new one (CHANGELOG.md): `--fov-deg`
 on `poses`, `rectify` and `resolution`; `--window-radius` on `metrics`; `--images` on

@@ -78,8 +78,9 @@ const CommandEntry kCommands[] = {
      "the ground truth into a new folder",
      DefineSimulate},
     {"demo",
-     "Simulate the built-in default scene, write it, and render a single view and integral "
-     "images against its ground truth",
+     "Simulate the built-in default scene (a red person-sized target on a forest floor under "
+     "procedural trees, RGB), render a single view, integral images and an all-in-focus image "
+     "from above, score them against the ground truth, and write it all with an index.html",
      DefineDemo},
     {"metrics",
      "Compare an image with a reference: MSE, PSNR, SSIM and colour (quaternion) SSIM "

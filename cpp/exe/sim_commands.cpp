@@ -3,13 +3,13 @@
 #include <limits>
 #include <memory>
 
+#include "aos/demo/demo.h"
 #include "aos/metrics/quality.h"
 #include "aos/sim/scene.h"
 #include "aos/sim/simulator.h"
 #include "aos/util/file_util.h"
 #include "commands.h"
 #include "progress_bar.h"
-#include "render_output.h"
 
 namespace fs = std::filesystem;
 
@@ -104,76 +104,50 @@ struct DemoCommand {
   std::string output_dir = "aos-demo";
   std::string scene_path;
   int grid = 0;
-  SimulateOptions options;
-  ImageOutputOptions image;
+  DemoOptions options;
 };
 
 int RunDemo(DemoCommand& c, const Flags& flags) {
   const Scene scene = LoadSceneOrDefault(c.scene_path, c.grid);
-  CheckOutputFolder(c.output_dir);  // before any work
-  CheckImageOutput(c.image, "x.png");
+  CheckDemoFolder(c.output_dir);  // before any work
   ProgressBar progress(Common().quiet);
-  const SimulationResult simulation =
-      flags.NamingFlags([&] { return Simulate(scene, c.options, &progress); });
+  const DemoResult result =
+      flags.NamingFlags([&] { return aos::RunDemo(scene, c.options, &progress); });
   progress.Finish();
   Report report("demo");
-  ReportStats(simulation, report);
-  WriteSimulation(simulation, scene, c.output_dir);
-  int files = 0;
-  for (const auto& entry : fs::recursive_directory_iterator(c.output_dir)) {
-    files += entry.is_regular_file() ? 1 : 0;
-  }
+  ReportStats(result.simulation, report);
+  const std::vector<std::string> files = WriteDemo(result, c.output_dir);
   report.Line("wrote %s (%zu views of %s, ground truth in truth/)", c.output_dir.c_str(),
-              simulation.light_field.views.size(), scene.source.c_str());
-
-  // Renders from the truth camera: one view (radius 0), the integral focused on the ground, and
-  // one focused inside the occluders; each compared with the ground truth.
-  const GroundTruth& truth = simulation.truth;
-  IntegralOptions options;
-  options.cam_from_world = truth.cam_from_world;
-  options.fov_deg = truth.camera.FovXDeg();
-  options.width = truth.camera.width;
-  options.height = truth.camera.height;
-  options.num_threads = c.options.num_threads;
-  struct Job {
-    std::string name;
-    double height;
-    double radius;
-  };
-  const double ground = truth.ground_height_at_center;
-  std::vector<Job> jobs{{"single_view", ground, 0.0},
-                        {"integral_ground", ground, std::numeric_limits<double>::infinity()}};
-  if (scene.has_voxels) {
-    jobs.push_back({"integral_occluders", scene.voxels.center[2],
-                    std::numeric_limits<double>::infinity()});
+              result.simulation.light_field.views.size(), scene.source.c_str());
+  if (result.target_blocked_fraction >= 0) {
+    report.Set("target_blocked_fraction", result.target_blocked_fraction);
+    report.Result("  the occluders block %.0f %% of the views' rays to the target",
+                  100.0 * result.target_blocked_fraction);
   }
-  const PixelType views_type = simulation.light_field.views.front().image.type();
-  for (const Job& job : jobs) {
-    options.focal_plane = Plane::AtHeight(job.height);
-    options.aperture_radius = job.radius;
-    const IntegralResult result = RenderIntegral(simulation.light_field, options, &progress);
-    progress.Finish();
-    const std::string base = (fs::path(c.output_dir) / job.name).string();
-    RenderOutput out;
-    out.output = base + (views_type == PixelType::kF32 ? ".tif" : ".png");
-    out.count = base + "_count.png";
-    out.image = c.image;
-    Report& entry = report.Nested(job.name);
-    WriteRenderOutput(result, out, views_type, {}, entry);
-    files += 2;
-    const QualityResult quality = CompareImages(result.image, truth.ground, nullptr, {});
-    entry.Set("focal_height", job.height);
-    entry.Set("psnr_db", quality.psnr_db);
-    entry.Set("ssim", quality.ssim);
+  for (const DemoRender& r : result.renders) {
+    Report& entry = report.Nested(r.name);
+    entry.Set("focal_height", r.focal_height);
+    entry.Set("psnr_db", r.quality.psnr_db);
+    entry.Set("ssim", r.quality.ssim);
+    std::string target;
+    if (r.visibility.has_target) {
+      entry.Set("target_standout_fraction", r.visibility.standout_fraction);
+      entry.Set("target_contrast_to_noise", r.visibility.contrast_to_noise);
+      char text[96];
+      std::snprintf(text, sizeof(text), "; target stands out %3.0f %%, contrast/noise %.2f",
+                    100.0 * r.visibility.standout_fraction, r.visibility.contrast_to_noise);
+      target = text;
+    }
     report.Result("  %-20s focal plane z = %6.2f m: PSNR %6.2f dB, SSIM %.3f against the ground "
-                  "truth",
-                  job.name.c_str(), job.height, quality.psnr_db, quality.ssim);
+                  "truth%s",
+                  r.name.c_str(), r.focal_height, r.quality.psnr_db, r.quality.ssim,
+                  target.c_str());
   }
   report.Set("output_dir", c.output_dir);
-  report.Set("files", files);
-  report.Line("demo: %d files in %s (open %s/integral_ground.png: the ground seen through the "
-              "occluders; truth/ground.png is the truth)",
-              files, c.output_dir.c_str(), c.output_dir.c_str());
+  report.Set("files", files.size());
+  report.Set("seconds_total", result.seconds_total);
+  report.Line("demo: %zu files in %s in %.1f s; open %s/index.html", files.size(),
+              c.output_dir.c_str(), result.seconds_total, c.output_dir.c_str());
   report.Print();
   return 0;
 }
@@ -188,8 +162,14 @@ CommandRunner DefineDemo(CLI::App* command) {
   command->add_option("--scene", c->scene_path, "A scene file instead of the built-in default");
   command->add_option("--grid", c->grid, "Override sampling.grid (views per side, >= 1)")
       ->check(AtLeast(1));
-  flags.Threads(c->options.num_threads);
-  AddImageOutputFlags(flags, c->image);
+  DemoOptions& options = c->options;
+  flags.Field("all_in_focus_slices", options.all_in_focus_slices,
+              "Slices of the all-in-focus stack (ground to the top of the occluders); 0 = no "
+              "all-in-focus image");
+  flags.Field("target_margin_m", options.target_margin_m,
+              "Ring of ground around each target used as its surroundings in the visibility "
+              "figures, metres");
+  flags.Threads(options.num_threads);
   return [c, flags] { return RunDemo(*c, flags); };
 }
 

@@ -190,6 +190,7 @@ PYBIND11_MODULE(_core, m) {
   BindSim(m);
   BindCalib(m);
   BindSfm(m);
+  BindDemo(m);
 
   m.def(
       "_progress_selftest",

@@ -44,6 +44,7 @@ from . import _core
 from ._keywords import (
     AllInFocusKeywords,
     CalibrateKeywords,
+    DemoKeywords,
     FocalStackKeywords,
     IntegralKeywords,
     MergeKeywords,
@@ -73,6 +74,11 @@ from ._core import (
     LensModel,
     ResolutionOptions,
     ResolutionResult,
+    DemoOptions,
+    DemoRender,
+    DemoResult,
+    TargetVisibility,
+    write_demo,
     AllInFocusOptions,
     FocalStack,
     FocalStackOptions,
@@ -114,6 +120,12 @@ from ._core import (
 )
 
 __all__ = [
+    "DemoOptions",
+    "DemoRender",
+    "DemoResult",
+    "TargetVisibility",
+    "run_demo",
+    "write_demo",
     "PosesOptions",
     "PosesResult",
     "PoseSource",
@@ -340,6 +352,7 @@ _RENDER_INTEGRAL_ON_DEPTH = _Router(
     "render_integral_on_depth", IntegralOptions, SurfaceIntegralOptions
 )
 _SIMULATE = _Router("simulate", SimulateOptions)
+_RUN_DEMO = _Router("run_demo", DemoOptions)
 _COMPARE_IMAGES = _Router("compare_images", QualityOptions)
 _SAMPLING_RESOLUTION = _Router("sampling_resolution", ResolutionOptions)
 _CALIBRATE = _Router("calibrate", CalibrateOptions)
@@ -411,6 +424,56 @@ def simulate(
     result = _core._simulate(parsed, merged, progress)
     if output_dir is not None:
         write_simulation(result, parsed, os.fspath(output_dir))
+    return result
+
+
+def _scene_of(function: str, scene: Any) -> Scene:
+    """A Scene from a Scene, a dict in the scene-file schema, or the path of a scene file."""
+    if isinstance(scene, Scene):
+        return scene
+    if isinstance(scene, dict):
+        return parse_scene(json.dumps(scene), "<dict>", os.getcwd())
+    if isinstance(scene, (str, os.PathLike)):
+        return load_scene(os.fspath(scene))
+    raise TypeError(
+        f"{function}(): scene must be a Scene, a dict or a path, not {type(scene).__name__}"
+    )
+
+
+def run_demo(
+    scene: "Optional[Scene | dict[str, Any] | str | os.PathLike[str]]" = None,
+    output_dir: "Optional[str | os.PathLike[str]]" = None,
+    options: Optional[DemoOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Unpack[DemoKeywords],
+) -> DemoResult:
+    """What ``aos-render demo`` does: simulate a scene (None: the built-in default, a red target
+    under forest canopy), render a single view, integral images and an all-in-focus image from
+    its truth camera, and score each against the ground truth and by how clearly the target
+    shows (``DemoRender.visibility``).
+
+    ``scene`` is a :class:`Scene`, a dict in the scene-file schema or a path, as for
+    :func:`simulate`. ``kwargs`` are fields of :class:`DemoOptions`. With ``output_dir`` the
+    result is also written there with :func:`write_demo` (a new or empty folder, refused before
+    any work otherwise): the simulation, the PNGs, demo.json and an index.html to open in a
+    browser. The GIL is released while working; ``progress(stage, done, total)`` works as in
+    :func:`render_integral`.
+
+    Example::
+
+        result = aos.run_demo(output_dir="aos-demo")   # then open aos-demo/index.html
+        print(result.render("integral_ground").visibility.standout_fraction)
+    """
+    parsed = default_scene() if scene is None else _scene_of("run_demo", scene)
+    merged = _copy_options("run_demo", DemoOptions, options)
+    _RUN_DEMO.apply([merged], dict(kwargs))
+    merged.check()
+    if output_dir is not None:
+        _core._check_demo_folder(os.fspath(output_dir))  # before any work
+    result = _core._run_demo(parsed, merged, progress)
+    if output_dir is not None:
+        write_demo(result, os.fspath(output_dir))
     return result
 
 

@@ -92,6 +92,14 @@ class AllInFocusKeywords(FocalStackKeywords, MergeKeywords, total=False):
     merge: MergeOptions
 
 
+class DemoKeywords(TypedDict, total=False):
+    """Fields of DemoOptions (run_demo)."""
+
+    num_threads: int
+    all_in_focus_slices: int
+    target_margin_m: float
+
+
 class SimulateKeywords(TypedDict, total=False):
     """Fields of SimulateOptions (simulate)."""
 

@@ -93,10 +93,16 @@ def test_demo_runs_on_the_default_scene(tmp_path: Path) -> None:
     assert result.returncode == 0, result.stderr
     names = {p.name for p in (tmp_path / "demo").iterdir()}
     assert {"lightfield.json", "lightfield_true.json", "scene.json", "views", "truth",
-            "integral_ground.png", "single_view.png", "integral_occluders.png"} <= names
+            "integral_ground.png", "single_view.png", "integral_occluders.png",
+            "all_in_focus.png", "demo.json", "index.html"} <= names
     loaded = aos.load_lightfield(str(tmp_path / "demo" / "lightfield.json"))
     assert len(loaded.light_field) == 9
-    assert "against the ground truth" in result.stdout
+    assert loaded.light_field.views[0].image.shape[2] == 3  # the default scene is in colour
+    assert "against the ground truth" in result.stdout and "target stands out" in result.stdout
+    summary = json.loads((tmp_path / "demo" / "demo.json").read_text())
+    assert summary["views"] == 9 and len(summary["renders"]) == 4
+    for name in ("single_view", "integral_ground"):
+        assert f"{name}.png" in (tmp_path / "demo" / "index.html").read_text()
     # Nothing is overwritten: a second run into the same folder is refused.
     again = run("demo", "-o", str(tmp_path / "demo"), "--grid", "3", "-q")
     assert again.returncode == 1 and "not an empty folder" in again.stderr

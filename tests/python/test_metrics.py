@@ -73,7 +73,8 @@ def test_integral_of_the_default_scene_beats_a_single_view():
     single = aos.render_integral(result.light_field, aperture_radius=0.0, **options).image
     a = aos.compare_images(integral, truth.ground)
     s = aos.compare_images(single, truth.ground)
-    # Measured here: integral 11.0 dB / SSIM 0.46, single view 9.1 dB / 0.25.
+    # Measured here (the forest scene, RGB): integral 23.1 dB / SSIM 0.95, single view 19.7 dB /
+    # 0.74.
     assert a.psnr_db > s.psnr_db + 1.0
     assert a.ssim > s.ssim + 0.1
 

@@ -361,6 +361,7 @@ ROUTED = [
     ("_ALL_IN_FOCUS", "AllInFocusKeywords"),
     ("_RENDER_INTEGRAL_ON_DEPTH", "SurfaceIntegralKeywords"),
     ("_SIMULATE", "SimulateKeywords"),
+    ("_RUN_DEMO", "DemoKeywords"),
     ("_COMPARE_IMAGES", "QualityKeywords"),
     ("_SAMPLING_RESOLUTION", "ResolutionKeywords"),
     ("_CALIBRATE", "CalibrateKeywords"),

@@ -842,21 +842,42 @@ std::string SceneToJson(const Scene& s) {
 }
 
 Scene DefaultScene() {
+  // scenes/forest_person.json, field for field (tests/cpp/scene_test.cpp checks they agree): a
+  // red 0.6 x 1.8 m target (a person lying down) on a brown-green forest floor under 300
+  // procedural trees per hectare (8-13 m tall, sparse 500-leaf crowns) that block about two
+  // thirds of the views' rays to it; RGB views of 384 x 384 pixels, 11 x 11 over a 30 m square
+  // from 30 m; no sun (shadows would darken the target the canopy already hides).
   Scene scene;
   scene.source = "<built-in default scene>";
-  scene.seed = 1;
-  // Ground: the multi-resolution chart, 4 m patches with 1 m .. 12.5 cm squares.
+  scene.seed = 5;
+  scene.ground.texture.kind = TextureSpec::Kind::kNoise;
+  scene.ground.texture.square = 0.4;
+  scene.ground.texture.color_a = {0.16, 0.22, 0.08};
+  scene.ground.texture.color_b = {0.42, 0.32, 0.18};
   TargetSpec target;
+  target.center = {0.0, 0.0};
+  target.size = {0.6, 1.8};
+  target.rotation_deg = 25.0;
   target.texture = DefaultTargetTexture();
+  target.texture.kind = TextureSpec::Kind::kConstant;
+  target.texture.color_a = {0.95, 0.12, 0.04};
   scene.targets.push_back(target);
-  scene.has_voxels = true;  // 10 m box above the target, 10 cm voxels, half the ground hidden
-  scene.camera.width = 256;
-  scene.camera.height = 256;
+  scene.has_trees = true;
+  scene.trees.area = {-40.0, -40.0, 40.0, 40.0};
+  scene.trees.per_hectare = 300.0;
+  scene.trees.height = {8.0, 13.0};
+  scene.trees.crown_radius = {2.0, 3.5};
+  scene.trees.crown_fraction = 0.6;
+  scene.trees.leaf_size = 0.35;
+  scene.trees.leaves_per_tree = 500;
+  scene.camera.width = 384;
+  scene.camera.height = 384;
   scene.camera.fov_deg = 60.0;
+  scene.camera.channels = 3;
   scene.sampling.grid = 11;
   scene.sampling.aperture_diameter = 30.0;
-  scene.sampling.altitude = 20.0;
-  scene.truth.fov_deg = 30.0;
+  scene.sampling.altitude = 30.0;
+  scene.truth.fov_deg = 20.0;
   scene.Check();
   return scene;
 }

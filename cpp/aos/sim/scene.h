@@ -213,8 +213,10 @@ Scene LoadScene(const std::string& path);
 // The scene as JSON with every field written out (what was simulated; parses back equal).
 std::string SceneToJson(const Scene& scene);
 
-// The built-in default scene of `aos-render demo`: a chart-textured ground with a 2.4 x 0.8 m
-// target under a 50 %-density voxel volume, 11 x 11 views over a 30 m aperture at 20 m.
+// The built-in default scene of `aos-render demo` (the same as scenes/forest_person.json): a red
+// 0.6 x 1.8 m target on a noise-textured forest floor under procedural trees that block about
+// two thirds of the views' rays to it, RGB, 11 x 11 views of 384 x 384 over a 30 m aperture at
+// 30 m, a 20-degree truth camera.
 Scene DefaultScene();
 
 // The views' lens model from scene.camera (focal length from fov_deg, see CameraSpec). Throws
