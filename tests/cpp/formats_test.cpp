@@ -565,7 +565,7 @@ TEST_F(AosErrorsTest, NanInPose) {
 TEST_F(AosErrorsTest, NonOrthonormalRotation) {
   WriteText("lf.json", AosFile("views/good.png", "cam0", "[[1, 0.2, 0], [0, 1, 0], [0, 0, 1]]"));
   ExpectLoadError(
-      {"lf.json: /views/0/cam_from_world: rotation is not orthonormal"});
+      {"lf.json: /views/0/cam_from_world (view 0: views/good.png): rotation is not orthonormal"});
   WriteText("lf.json", AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0]]"));
   ExpectLoadError({"lf.json", "/views/0/cam_from_world/rotation", "3 rows of 3"});
 }
@@ -617,7 +617,7 @@ TEST_F(AosErrorsTest, MisspelledKeysAreRefusedWithTheirKeyPath) {
       {edited("\"fx\"", "\"fxx\""), "lf.json: /cameras/cam0/fxx: unknown key"},
       {edited("\"image\"", "\"exposure\": 1, \"image\""), "lf.json: /views/0/exposure: unknown key"},
       {edited("\"translation\"", "\"scale\": 1, \"translation\""),
-       "lf.json: /views/0/cam_from_world/scale: unknown key"},
+       "lf.json: /views/0/cam_from_world/scale (view 0: views/good.png): unknown key"},
       {edited("\"origin\"", "\"pose_source\": {\"method\": \"colmap\", \"pose_eror\": 1}, \"origin\""),
        "lf.json: /pose_source/pose_eror: unknown key"},
   };

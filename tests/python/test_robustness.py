@@ -498,7 +498,7 @@ def test_light_field_files_refuse_unknown_keys(light_field: Path, tmp_path: Path
              ("camera", lambda d: d["cameras"][camera_id].__setitem__("k1", 0.1),
               f"/cameras/{camera_id}/k1: unknown key"),
              ("pose", lambda d: d["views"][0]["cam_from_world"].__setitem__("scale", 2),
-              "/views/0/cam_from_world/scale: unknown key"),
+              r"/views/0/cam_from_world/scale \(view 0: views/0000\.png\): unknown key"),
              ("pose_source", lambda d: d.__setitem__("pose_source", {"method": "colmap",
                                                                      "median_dept": 3}),
               "/pose_source/median_dept: unknown key")]

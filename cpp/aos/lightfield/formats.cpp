@@ -317,8 +317,10 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
                    (known.empty() ? std::string("none") : known) + ")");
     }
     view.camera = camera->second;
-    view.cam_from_world =
-        ReadPoseJson(Field(entry, "cam_from_world", label), top / "views" / i / "cam_from_world");
+    // Errors name the JSON pointer and, for people, the view and its image.
+    const JsonPath view_at = (top / "views" / i).Noted("view " + std::to_string(i) + ": " + image);
+    view.cam_from_world = ReadPoseJson(Field(entry, "cam_from_world", label),
+                                       view_at / "cam_from_world");
     frames.push_back(Frame{label, view.image_path});
     light_field.views.push_back(std::move(view));
   }

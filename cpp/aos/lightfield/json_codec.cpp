@@ -20,14 +20,17 @@ JsonPath JsonPath::operator/(const std::string& key) const {
       escaped += c;
     }
   }
-  return JsonPath(file_, pointer_ + "/" + escaped);
+  return JsonPath(file_, pointer_ + "/" + escaped).Noted(note_);
 }
 
 JsonPath JsonPath::operator/(size_t index) const {
-  return JsonPath(file_, pointer_ + "/" + std::to_string(index));
+  return JsonPath(file_, pointer_ + "/" + std::to_string(index)).Noted(note_);
 }
 
-std::string JsonPath::Text() const { return pointer_.empty() ? file_ : file_ + ": " + pointer_; }
+std::string JsonPath::Text() const {
+  const std::string place = pointer_.empty() ? file_ : file_ + ": " + pointer_;
+  return note_.empty() ? place : place + " (" + note_ + ")";
+}
 
 void JsonPath::Fail(const std::string& reason) const { ThrowInvalid(Text() + ": " + reason); }
 

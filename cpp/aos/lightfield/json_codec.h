@@ -44,6 +44,14 @@ class JsonPath {
   JsonPath operator/(const char* key) const { return *this / std::string(key); }
   JsonPath operator/(size_t index) const;
 
+  // The same place with a note for people, kept by every child path and written after the
+  // pointer: "lf.json: /views/3/cam_from_world (view 3: a.png): ...".
+  JsonPath Noted(std::string note) const {
+    JsonPath noted = *this;
+    noted.note_ = std::move(note);
+    return noted;
+  }
+
   const std::string& file() const { return file_; }
   const std::string& pointer() const { return pointer_; }
   // "file: /a/b" ("file" for the document).
@@ -54,6 +62,7 @@ class JsonPath {
  private:
   std::string file_;
   std::string pointer_;
+  std::string note_;
 };
 
 // A JSON value as short text for messages.
