@@ -111,6 +111,9 @@ int main(int argc, char** argv) {
   WarnDeprecatedSpellings(argc, argv);
   try {
     app.parse(argc, argv);
+  } catch (const CLI::ConversionError& error) {
+    std::fprintf(stderr, "aos-render: error: %s\n", aos::OneLine(error.what()).c_str());
+    return 2;
   } catch (const CLI::ValidationError& error) {
     // A flag's value refused while parsing: one line, like every other error.
     std::fprintf(stderr, "aos-render: error: %s\n", aos::OneLine(error.what()).c_str());

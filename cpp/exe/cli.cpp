@@ -101,6 +101,7 @@ Flags Flags::Nested(const std::string& prefix) const {
 Flags Flags::At(const std::string& prefix) const {
   Flags other = *this;
   other.prefix_ = prefix;
+  other.scope_ = prefix;
   return other;
 }
 
@@ -158,7 +159,7 @@ CLI::Option* Flags::Threads() {
   Common().num_threads[command_->get_name()] = spare;
   CLI::Option* option = command_->add_option(
       "--threads", *spare, "Worker threads (caps the process's parallel loops); -1 = all cores");
-  option->default_str("-1");
+  option->default_str(DefaultText(*spare));
   return option;
 }
 
@@ -193,29 +194,51 @@ void Flags::Force() {
 
 void Flags::RethrowNamingFlags(const std::invalid_argument& error) const {
   const std::string message = error.what();
-  auto name_it = [&](const std::string& flag) -> void {
-    throw UsageError(message + " [option " + flag + "]");
-  };
   auto leaf_of = [](const std::string& path) {
     const size_t dot = path.rfind('.');
     return dot == std::string::npos ? path : path.substr(dot + 1);
   };
-  auto starts_with_field = [&](const std::string& field) {
-    return message.rfind(field + ":", 0) == 0 || message.rfind(field + "/", 0) == 0;
+  auto in_scope = [&](const std::string& path) {
+    return scope_.empty() ? path.rfind("load.", 0) != 0 : path.rfind(scope_, 0) == 0;
+  };
+  // The flag bound to one field named in a message: its path, else its name in scope.
+  auto flag_of = [&](const std::string& field) -> std::string {
+    for (const auto& [path, flag] : *fields_) {
+      if (in_scope(path) && (path == field || path == scope_ + field)) return flag;
+    }
+    for (const auto& [path, flag] : *fields_) {
+      if (in_scope(path) && leaf_of(path) == field) return flag;
+    }
+    return "";
   };
   // The loader asks for its own fields as "(LoadOptions::fov_deg)".
   for (const auto& [path, flag] : *fields_) {
     if (path.rfind("load.", 0) == 0 &&
         message.find("(LoadOptions::" + leaf_of(path) + ")") != std::string::npos) {
-      name_it(flag);
+      throw UsageError(message + " [option " + flag + "]");
     }
   }
-  // Options::Check() errors start with the field's path or its name.
-  for (const auto& [path, flag] : *fields_) {
-    if (starts_with_field(path)) name_it(flag);
-  }
-  for (const auto& [path, flag] : *fields_) {
-    if (path.rfind("load.", 0) != 0 && starts_with_field(leaf_of(path))) name_it(flag);
+  // Options::Check() errors start with the field's path or name, or several joined by '/'
+  // ("width/height: ..."): name the flag of each.
+  const size_t colon = message.find(':');
+  if (colon != std::string::npos && colon > 0 &&
+      message.find_first_of(" \t", 0) > colon) {
+    const std::string head = message.substr(0, colon);
+    std::string flags;
+    std::stringstream fields(head);
+    std::string field;
+    bool all = true;
+    while (std::getline(fields, field, '/')) {
+      const std::string flag = flag_of(field);
+      if (flag.empty()) {
+        all = false;
+        continue;
+      }
+      if (flags.find(flag) == std::string::npos) flags += (flags.empty() ? "" : "/") + flag;
+    }
+    if (!flags.empty() && (all || head.find('/') != std::string::npos)) {
+      throw UsageError(message + " [option " + flags + "]");
+    }
   }
   throw;
 }
@@ -224,7 +247,11 @@ void Flags::RethrowNamingFlags(const std::invalid_argument& error) const {
 
 struct Report::Impl {
   nlohmann::ordered_json root = nlohmann::ordered_json::object();
-  nlohmann::ordered_json* node = &root;
+  // Where this report writes: the top report's root, and a JSON pointer into it (a pointer to
+  // an element would dangle when the parent object grows).
+  nlohmann::ordered_json* top = &root;
+  nlohmann::ordered_json::json_pointer at;
+  nlohmann::ordered_json& Node() { return (*top)[at]; }
   std::vector<std::pair<std::string, bool>> lines;  // (text, is a result line)
   std::vector<std::pair<std::string, std::unique_ptr<Report>>> children;
   bool printed = false;
@@ -252,28 +279,29 @@ std::string Format(const char* format, va_list arguments) {
 }
 }  // namespace
 
-void Report::Set(const std::string& key, double value) { (*impl_->node)[key] = Number(value); }
-void Report::Set(const std::string& key, long long value) { (*impl_->node)[key] = value; }
-void Report::Set(const std::string& key, bool value) { (*impl_->node)[key] = value; }
+void Report::Set(const std::string& key, double value) { impl_->Node()[key] = Number(value); }
+void Report::Set(const std::string& key, long long value) { impl_->Node()[key] = value; }
+void Report::Set(const std::string& key, bool value) { impl_->Node()[key] = value; }
 void Report::Set(const std::string& key, const std::string& value) {
-  (*impl_->node)[key] = value;
+  impl_->Node()[key] = value;
 }
 void Report::Set(const std::string& key, const std::vector<std::string>& values) {
-  (*impl_->node)[key] = values;
+  impl_->Node()[key] = values;
 }
 void Report::Set(const std::string& key, const std::vector<double>& values) {
   nlohmann::ordered_json list = nlohmann::ordered_json::array();
   for (double value : values) list.push_back(Number(value));
-  (*impl_->node)[key] = list;
+  impl_->Node()[key] = list;
 }
 
 Report& Report::Nested(const std::string& key) {
   for (auto& [name, child] : impl_->children) {
     if (name == key) return *child;
   }
-  (*impl_->node)[key] = nlohmann::ordered_json::object();
+  impl_->Node()[key] = nlohmann::ordered_json::object();
   auto child = std::make_unique<Report>("");
-  child->impl_->node = &(*impl_->node)[key];
+  child->impl_->top = impl_->top;
+  child->impl_->at = impl_->at / key;
   impl_->children.emplace_back(key, std::move(child));
   return *impl_->children.back().second;
 }

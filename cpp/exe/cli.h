@@ -125,7 +125,9 @@ class Flags {
   Flags(CLI::App* command, std::string prefix = "");
   // The same binder for a nested struct: fields are recorded as `prefix + field`.
   Flags Nested(const std::string& prefix) const;
-  // The same binder for a struct outside the command's Options (e.g. "load." for LoadOptions).
+  // The same binder for a struct outside the command's Options (e.g. "load." for LoadOptions);
+  // its RethrowNamingFlags names only flags bound under that prefix (a loader's "fov_deg: ..."
+  // is --frames-fov-deg's, not the virtual camera's --fov-deg).
   Flags At(const std::string& prefix) const;
 
   // --kebab-case(field) -> `value`, with the field's current value as the printed default.
@@ -214,6 +216,7 @@ class Flags {
 
   CLI::App* command_;
   std::string prefix_;
+  std::string scope_;  // set by At(): only bindings under it name flags
   // field path or leaf name -> flag(s), this command only (shared by Nested binders).
   std::shared_ptr<std::vector<std::pair<std::string, std::string>>> fields_;
 };
@@ -233,7 +236,8 @@ class Report {
   void Set(const std::string& key, const char* value) { Set(key, std::string(value)); }
   void Set(const std::string& key, const std::vector<std::string>& values);
   void Set(const std::string& key, const std::vector<double>& values);
-  // A nested object, e.g. report.Nested("single_view").Set(...).
+  // A nested object for values, e.g. report.Nested("single_view").Set(...) (its text lines are
+  // not printed: add those to the top report).
   Report& Nested(const std::string& key);
   // A text line for the plain report (printed by Print unless --json or -q). Lines that are
   // the command's result (metrics, resolution) print even with -q: pass result = true.

@@ -100,8 +100,8 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
 LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
                                 ProgressBar& progress) {
   args.load.num_threads = options.num_threads;
-  LoadResult loaded =
-      flags.NamingFlags([&] { return LoadLightField(args.light_field_path, args.load, &progress); });
+  LoadResult loaded = flags.At("load.").NamingFlags(
+      [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
   if (!args.look_at.empty()) {
@@ -373,7 +373,8 @@ int RunMerge(MergeCommand& c, const Flags& flags) {
   std::optional<LoadResult> loaded;
   if (!c.light_field_path.empty()) {
     c.load.num_threads = c.options.num_threads;
-    loaded = flags.NamingFlags([&] { return LoadLightField(c.light_field_path, c.load, &progress); });
+    loaded = flags.At("load.").NamingFlags(
+        [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
     progress.Finish();
   } else if (c.options.method == MergeMethod::kRobust) {
     ThrowUsage("--method robust: give --lightfield, the light field the stack was rendered "

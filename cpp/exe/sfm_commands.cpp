@@ -38,7 +38,8 @@ void AddScaleFlags(Flags& flags, PosesOptions& options) {
               "The cameras' height above the ground as flown, metres (e.g. 35): the model's "
               "median depth is checked against it (0 = not checked)");
   flags.Field("max_scale_deviation", options.max_scale_deviation,
-              "Refuse a median depth further than this fraction from --flight-height-m");
+              "Refuse a median depth more than 1 + d or less than 1 / (1 + d) times "
+              "--flight-height-m (d = this)");
 }
 
 // Warnings, then the light field and what the user needs to judge the poses.

@@ -682,7 +682,8 @@ TEST_F(FakeMapper, SceneScaleIsCheckedAgainstTheFlightHeight) {
   options.flight_height_m = 14.0;
   EXPECT_THAT(ErrorOf([&] { ImportColmapPoses(Path("models/0"), Path("frames"), options); }),
               HasSubstr("IMPLAUSIBLE scene scale: the views' median depth came out at 20.0 m but "
-                        "the flight height is 14 m (+43 %, more than max_scale_deviation 0.15)"));
+                        "the flight height is 14 m (1.43 times it, outside 1/(1 + d)..1 + d for "
+                        "max_scale_deviation d = 0.15)"));
   options.max_scale_deviation = 0.5;  // a documented threshold, changeable
   EXPECT_FALSE(ImportColmapPoses(Path("models/0"), Path("frames"), options).implausible);
   options.max_scale_deviation = 0.15;
@@ -695,7 +696,7 @@ TEST_F(FakeMapper, SceneScaleIsCheckedAgainstTheFlightHeight) {
   options.allow_implausible = false;
   options.flight_height_m = 30.0;
   EXPECT_THAT(ErrorOf([&] { ImportColmapPoses(Path("models/0"), Path("frames"), options); }),
-              HasSubstr("(-33 %, more than max_scale_deviation 0.15)"));
+              HasSubstr("(0.67 times it, outside 1/(1 + d)..1 + d"));
   // Self-calibrated and geo-referenced without a flight height: the scale is said unchecked.
   options.flight_height_m = 0.0;
   options.colmap = Mapper();

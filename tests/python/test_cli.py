@@ -269,6 +269,35 @@ def test_json_report_on_every_command(scene: Path, tmp_path: Path) -> None:
     assert bad.returncode == 2 and "--threads" in bad.stderr, bad.stderr
 
 
+def test_errors_name_the_flag_that_set_the_field(scene: Path, tmp_path: Path) -> None:
+    """An Options::Check() error names the flag bound to its field: the loader's fov_deg is
+    --frames-fov-deg (not the virtual camera's --fov-deg), and an error about two fields names
+    both flags."""
+    folder = scene.parent
+    poses = {"images": [{"imagefile": v["image"].split("/")[-1],
+                         "M3x4": [[1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 35]]}
+                        for v in json.loads(scene.read_text())["views"]]}
+    jku = folder / "views" / "poses.json"
+    jku.write_text(json.dumps(poses))
+    for command in ("integral", "stack", "allinfocus"):
+        output = tmp_path / (command + (".png" if command == "integral" else ""))
+        frames = run(command, str(jku), "--frames-fov-deg", "190", "--images-dir",
+                     str(folder / "views"), "--pose-view", "0", "-o", str(output))
+        assert frames.returncode == 2 and frames.stderr.strip().endswith(
+            "[option --frames-fov-deg]"), (command, frames.stderr)
+        camera = run(command, str(scene), "--pose-view", "0", "--fov-deg", "190", "-o",
+                     str(output))
+        assert camera.returncode == 2 and camera.stderr.strip().endswith("[option --fov-deg]"), \
+            (command, camera.stderr)
+        assert not output.exists()
+    both = run("rectify", "--lightfield", str(scene), "--width", "-3", "-o", str(tmp_path / "r"))
+    assert both.returncode == 2 and "[option --width/--height]" in both.stderr, both.stderr
+    bad = run("stack", str(scene), "--pose-view", "0", "--slices", "abc", "-o",
+              str(tmp_path / "s"))
+    assert bad.returncode == 2 and bad.stderr.splitlines() == [
+        "aos-render: error: Could not convert: --slices = abc"], bad.stderr
+
+
 def test_defaults_from_the_data_and_focus_by_distance(scene: Path, tmp_path: Path) -> None:
     """--pose-view K takes view K's field of view and size unless given; --look-at works for a
     straight-down camera without an up vector; --focal-distance D focuses D metres in front."""

@@ -226,7 +226,7 @@ def test_scene_scale_is_checked_against_the_flight_height(flight, tmp_path) -> N
     # The CLI: refused (exit 1, nothing written), kept with --allow-implausible (warning on
     # stderr), and a flight height without positions names its flag (exit 2).
     command = ["aos-render", "import-colmap", str(model), "--images-dir", str(frames),
-               "--positions", gps, "--flight-height-m", "14"]
+               "--positions-file", gps, "--flight-height-m", "14"]
     done = subprocess.run(command + ["-o", str(tmp_path / "a.json")], capture_output=True,
                           text=True)
     assert done.returncode == 1 and "IMPLAUSIBLE scene scale" in done.stderr

@@ -17,17 +17,13 @@
 #include "aos/util/file_util.h"
 #include "aos/util/math.h"
 #include "aos/util/parallel.h"
+#include "aos/util/timer.h"
 
 namespace aos {
 namespace {
 
 namespace fs = std::filesystem;
 using ojson = nlohmann::ordered_json;
-using Clock = std::chrono::steady_clock;
-
-double SecondsSince(Clock::time_point start) {
-  return std::chrono::duration<double>(Clock::now() - start).count();
-}
 
 constexpr double kInf = std::numeric_limits<double>::infinity();
 // Surroundings percentile a target pixel must exceed to "stand out" (see demo.h).
@@ -224,14 +220,14 @@ void CheckDemoFolder(const std::string& folder) { CheckOutputFolder(folder); }
 DemoResult RunDemo(const Scene& scene, const DemoOptions& options, ProgressSink* progress) {
   options.Check();
   scene.Check();
-  const Clock::time_point start = Clock::now();
+  const Timer total;
   DemoResult result;
   result.scene = scene;
   result.options = options;
   SimulateOptions simulate;
   simulate.num_threads = options.num_threads;
   result.simulation = Simulate(scene, simulate, progress);
-  result.seconds_simulation = SecondsSince(start);
+  result.seconds_simulation = total.Seconds();
   const GroundTruth& truth = result.simulation.truth;
   const LightField& light_field = result.simulation.light_field;
 
@@ -302,7 +298,7 @@ DemoResult RunDemo(const Scene& scene, const DemoOptions& options, ProgressSink*
                     result.occluder_height, kInf});
   }
   for (const Job& job : jobs) {
-    const Clock::time_point render_start = Clock::now();
+    const Timer render_timer;
     render.focal_plane = Plane::AtHeight(job.height);
     render.aperture_radius = job.radius;
     IntegralResult integral = RenderIntegral(light_field, render, progress);
@@ -315,11 +311,11 @@ DemoResult RunDemo(const Scene& scene, const DemoOptions& options, ProgressSink*
     out.count = integral.count;
     out.quality = CompareImages(out.image, truth.ground, &out.count, {});
     out.visibility = Visibility(out.image, &out.count, result.target_mask, direction);
-    out.seconds = SecondsSince(render_start);
+    out.seconds = render_timer.Seconds();
     result.renders.push_back(std::move(out));
   }
   if (options.all_in_focus_slices > 0) {
-    const Clock::time_point render_start = Clock::now();
+    const Timer render_timer;
     AllInFocusOptions all;
     all.stack.render = render;
     all.stack.render.aperture_radius = kInf;
@@ -337,10 +333,10 @@ DemoResult RunDemo(const Scene& scene, const DemoOptions& options, ProgressSink*
     out.image = merged.image;
     out.quality = CompareImages(out.image, truth.ground, nullptr, {});
     out.visibility = Visibility(out.image, nullptr, result.target_mask, direction);
-    out.seconds = SecondsSince(render_start);
+    out.seconds = render_timer.Seconds();
     result.renders.push_back(std::move(out));
   }
-  result.seconds_total = SecondsSince(start);
+  result.seconds_total = total.Seconds();
   return result;
 }
 

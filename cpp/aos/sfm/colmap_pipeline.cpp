@@ -312,7 +312,7 @@ void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
                 result->focal_prior_px, 100.0 * result->focal_deviation,
                 FormatNumber(options.max_focal_deviation).c_str());
   if (!options.allow_implausible) {
-    ThrowInvalid(std::string(text) + "; give a camera file from `calibrate` (--camera), or "
+    ThrowInvalid(std::string(text) + "; give a camera file from `calibrate` (camera_file, --camera-file), or "
                  "allow_implausible (--allow-implausible) to keep the result anyway");
   }
   result->warnings.push_back(text);
@@ -342,12 +342,12 @@ void CheckSceneScale(const PosesOptions& options, bool warn_unchecked, PosesResu
   result->implausible = true;
   std::snprintf(text, sizeof(text),
                 "IMPLAUSIBLE scene scale: the views' median depth came out at %.1f m but the "
-                "flight height is %s m (%+.0f %%, more than max_scale_deviation %s); check the "
-                "focal length (a self-calibrated one is ill-determined over flat ground: give a "
+                "flight height is %s m (%.2f times it, outside 1/(1 + d)..1 + d for "
+                "max_scale_deviation d = %s); check the focal length (a self-calibrated one is ill-determined over flat ground: give a "
                 "camera file or the frames' field of view) and the positions (altitudes, units, "
                 "frame)",
                 result->median_depth, FormatNumber(options.flight_height_m).c_str(),
-                100.0 * result->scale_deviation, FormatNumber(options.max_scale_deviation).c_str());
+                ratio, FormatNumber(options.max_scale_deviation).c_str());
   if (!options.allow_implausible) {
     ThrowInvalid(std::string(text) + "; or allow_implausible (--allow-implausible) to keep the "
                  "result anyway");
