@@ -278,6 +278,14 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
   result->light_field.pose_source = source;
 }
 
+
+// Whether `ratio` (recovered / expected) lies within 1 / (1 + deviation) .. 1 + deviation: the
+// plausibility band of the focal-length and scene-scale checks.
+bool WithinRatio(double ratio, double deviation) {
+  const double limit = 1.0 + deviation;
+  return ratio <= limit && ratio >= 1.0 / limit;
+}
+
 // Self-calibrated intrinsics against the fov_deg prior (see PosesOptions::max_focal_deviation):
 // implausible ones are refused, or accepted with a loud warning under allow_implausible; without
 // a prior the warning says they could not be checked.
@@ -299,9 +307,7 @@ void CheckSelfCalibration(const PosesOptions& options, PosesResult* result) {
   }
   result->focal_prior_px = 0.5 * lens.width / std::tan(0.5 * DegToRad(options.fov_deg));
   result->focal_deviation = focal / result->focal_prior_px - 1.0;
-  const double ratio = focal / result->focal_prior_px;
-  const double limit = 1.0 + options.max_focal_deviation;
-  if (ratio <= limit && ratio >= 1.0 / limit) return;
+  if (WithinRatio(focal / result->focal_prior_px, options.max_focal_deviation)) return;
   result->implausible = true;
   std::snprintf(text, sizeof(text),
                 "IMPLAUSIBLE self-calibration: the focal length came out at %.1f px (a %.1f-degree "
@@ -337,15 +343,14 @@ void CheckSceneScale(const PosesOptions& options, bool warn_unchecked, PosesResu
   }
   const double ratio = result->median_depth / options.flight_height_m;
   result->scale_deviation = ratio - 1.0;
-  const double limit = 1.0 + options.max_scale_deviation;
-  if (ratio <= limit && ratio >= 1.0 / limit) return;
+  if (WithinRatio(ratio, options.max_scale_deviation)) return;
   result->implausible = true;
   std::snprintf(text, sizeof(text),
                 "IMPLAUSIBLE scene scale: the views' median depth came out at %.1f m but the "
                 "flight height is %s m (%.2f times it, outside 1/(1 + d)..1 + d for "
-                "max_scale_deviation d = %s); check the focal length (a self-calibrated one is ill-determined over flat ground: give a "
-                "camera file or the frames' field of view) and the positions (altitudes, units, "
-                "frame)",
+                "max_scale_deviation d = %s); check the focal length (a self-calibrated one is "
+                "ill-determined over flat ground: give a camera file or the frames' field of "
+                "view) and the positions (altitudes, units, frame)",
                 result->median_depth, FormatNumber(options.flight_height_m).c_str(),
                 ratio, FormatNumber(options.max_scale_deviation).c_str());
   if (!options.allow_implausible) {
