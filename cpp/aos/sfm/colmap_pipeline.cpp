@@ -278,7 +278,6 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
   result->light_field.pose_source = source;
 }
 
-
 // Whether `ratio` (recovered / expected) lies within 1 / (1 + deviation) .. 1 + deviation: the
 // plausibility band of the focal-length and scene-scale checks.
 bool WithinRatio(double ratio, double deviation) {
