@@ -161,3 +161,47 @@ def test_example_scenes_parse_and_round_trip(path: Path) -> None:
     scene = aos.load_scene(str(path))
     text = scene.to_json()
     assert aos.parse_scene(text, "again", str(path.parent)).to_json() == text
+
+
+def test_the_scene_camera_takes_the_fields_of_every_aos_camera(tmp_path: Path) -> None:
+    """The scene's camera reads the same camera fields as every other format (json_codec.h):
+    `model` (its older name `lens`), fov_deg or fx, fy, cx, cy, distortion, xi, skew. A pinhole
+    given by the intrinsics its field of view implies gives identical views; a fisheye from a
+    camera file simulates through that exact lens; contradictions are refused."""
+    base = {"camera": {"width": 48, "height": 40, "fov_deg": 50},
+            "sampling": {"altitude": 35, "grid": 2, "aperture": {"diameter": 6}},
+            "truth": {"width": 8, "height": 8, "blocked_fraction": False}}
+    by_fov = aos.simulate(base)
+    pinhole = aos.PinholeCamera.from_fov(48, 40, 50)
+    explicit = json.loads(json.dumps(base))
+    del explicit["camera"]["fov_deg"]
+    explicit["camera"].update({"model": "pinhole", "fx": pinhole.fx, "fy": pinhole.fy,
+                               "cx": pinhole.cx, "cy": pinhole.cy})
+    by_intrinsics = aos.simulate(explicit)
+    assert by_intrinsics.truth.camera == by_fov.truth.camera
+    for a, b in zip(by_fov.light_field.views, by_intrinsics.light_field.views):
+        assert a.camera == b.camera and np.array_equal(a.image, b.image)
+    # A camera file's fisheye, its camera fields pasted into a scene.
+    lens = aos.LensCamera(model=aos.LensModel.fisheye, width=48, height=40, fx=20.0, fy=20.0,
+                          cx=24.0, cy=20.0, distortion=[0.01, 0.0, 0.0, 0.0])
+    aos.write_camera_file(tmp_path / "fisheye.json", lens)
+    document = json.loads((tmp_path / "fisheye.json").read_text())
+    scene = json.loads(json.dumps(base))
+    scene["camera"] = {key: document[key] for key in
+                       ("model", "width", "height", "fx", "fy", "cx", "cy", "distortion", "xi",
+                        "skew") if key in document}
+    scene["truth"]["fov_deg"] = 40
+    simulated = aos.simulate(scene)
+    assert simulated.light_field.views[0].camera == aos.read_camera_file(tmp_path / "fisheye.json")
+    for bad, fragment in (({"lens": "pinhole", "model": "pinhole"}, "give model or lens"),
+                          ({"fx": 10.0}, "give either fov_deg or fx, fy, cx, cy"),
+                          ({"fx": 10.0, "fy": 10.0, "cx": 1.0, "cy": 1.0},
+                           "give either fov_deg or fx, fy, cx, cy")):
+        wrong = json.loads(json.dumps(base))
+        wrong["camera"].update(bad)
+        with pytest.raises(ValueError, match=fragment):
+            aos.simulate(wrong)
+    missing = json.loads(json.dumps(explicit))
+    del missing["camera"]["cy"]
+    with pytest.raises(ValueError, match=r"camera\.cy: missing"):
+        aos.simulate(missing)

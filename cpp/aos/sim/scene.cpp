@@ -357,8 +357,17 @@ void Scene::Check() const {
                               "\" is not a lens model (pinhole, radtan, fisheye or omnidir)");
   }
   const bool wide = camera.lens == "fisheye" || camera.lens == "omnidir";
-  c.InRange(camera.fov_deg, 0.0, wide ? 360.0 : 180.0, "camera.fov_deg", true);
-  c.Positive(camera.fov_deg, "camera.fov_deg");
+  if (camera.fx > 0.0) {
+    for (const auto& [value, name] : {std::pair{camera.fy, "camera.fy"}, {camera.cx, "camera.cx"},
+                                      {camera.cy, "camera.cy"}}) {
+      if (!std::isfinite(value)) c.Fail(name, "must be finite");
+    }
+    if (!std::isfinite(camera.fx)) c.Fail("camera.fx", "must be finite");
+    if (!(camera.fy > 0.0)) c.Fail("camera.fy", "must be > 0");
+  } else {
+    c.InRange(camera.fov_deg, 0.0, wide ? 360.0 : 180.0, "camera.fov_deg", true);
+    c.Positive(camera.fov_deg, "camera.fov_deg");
+  }
   for (size_t i = 0; i < camera.distortion.size(); ++i) {
     const std::string path = "camera.distortion[" + std::to_string(i) + "]";
     if (!std::isfinite(camera.distortion[i])) c.Fail(path, "must be finite");
@@ -369,8 +378,12 @@ void Scene::Check() const {
   }
   if (camera.lens == "omnidir") {
     c.InRange(camera.xi, 0.0, 1e3, "camera.xi");
-  } else if (camera.xi != CameraSpec{}.xi) {
+  } else if (camera.xi != CameraSpec{}.xi && camera.xi != 0.0) {
     c.Fail("camera.xi", "only the omnidir lens has xi");
+  }
+  if (!std::isfinite(camera.skew)) c.Fail("camera.skew", "must be finite");
+  if (camera.lens != "omnidir" && camera.skew != 0.0) {
+    c.Fail("camera.skew", "only the omnidir lens has skew");
   }
   ViewLens(*this);  // the lens must be invertible and cover the field of view
   if (camera.channels != 1 && camera.channels != 3) c.Fail("camera.channels", "must be 1 or 3");
@@ -463,7 +476,25 @@ void Scene::Check() const {
 
 LensCamera ViewLens(const Scene& scene) {
   const CameraSpec& c = scene.camera;
-  return LensFromFov(ParseLensModel(c.lens, scene.source + ": camera.lens"), c.width, c.height,
+  const LensModel model = ParseLensModel(c.lens, scene.source + ": camera.lens");
+  if (c.fx > 0.0) {
+    LensCamera lens;
+    lens.model = model;
+    lens.width = c.width;
+    lens.height = c.height;
+    lens.fx = c.fx;
+    lens.fy = c.fy;
+    lens.cx = c.cx;
+    lens.cy = c.cy;
+    if (model != LensModel::kPinhole) lens.distortion = c.distortion;
+    if (model == LensModel::kOmnidir) {
+      lens.xi = c.xi;
+      lens.skew = c.skew;
+    }
+    lens.Finalize(scene.source + ": camera");
+    return lens;
+  }
+  return LensFromFov(model, c.width, c.height,
                      c.fov_deg, c.distortion, c.xi, scene.source + ": camera");
 }
 
@@ -603,8 +634,27 @@ Scene SceneFromJson(const json& root, const std::string& source, const std::stri
     CameraSpec& c = scene.camera;
     c.width = r.Int("width", c.width);
     c.height = r.Int("height", c.height);
+    // The camera takes the fields of every aos camera (json_codec.h: model, width, height,
+    // fov_deg or fx, fy, cx, cy, distortion, xi, skew) and the sensor's; "lens" is the scene
+    // format's older name of "model".
     c.fov_deg = r.Number("fov_deg", c.fov_deg);
+    if (r.Has("model") && r.Has("lens")) r.Fail(r.path(), "give model or lens (its older name), not both");
     c.lens = r.String("lens", c.lens);
+    c.lens = r.String("model", c.lens);
+    const bool has_intrinsic = r.Has("fx") || r.Has("fy") || r.Has("cx") || r.Has("cy");
+    if (has_intrinsic) {
+      if (r.Has("fov_deg")) r.Fail(r.path(), "give either fov_deg or fx, fy, cx, cy, not both");
+      for (const char* key : {"fx", "fy", "cx", "cy"}) {
+        if (!r.Has(key)) r.Fail(Join(r.path(), key), "missing (fx, fy, cx, cy go together)");
+      }
+      c.fx = r.Number("fx", 0.0);
+      c.fy = r.Number("fy", 0.0);
+      c.cx = r.Number("cx", 0.0);
+      c.cy = r.Number("cy", 0.0);
+      if (!(c.fx > 0.0)) r.Fail(Join(r.path(), "fx"), "must be > 0");
+      if (!(c.fy > 0.0)) r.Fail(Join(r.path(), "fy"), "must be > 0");
+    }
+    c.skew = r.Number("skew", c.skew);
     if (r.Has("distortion")) {
       const json& values = r.Array("distortion");
       const std::string path = Join(r.path(), "distortion");
@@ -798,6 +848,14 @@ std::string SceneToJson(const Scene& s) {
                  {"fov_deg", c.fov_deg},   {"lens", c.lens},
                  {"channels", c.channels}, {"bit_depth", c.bit_depth},
                  {"samples_per_pixel", c.samples_per_pixel}};
+  if (c.fx > 0.0) {
+    j["camera"].erase("fov_deg");
+    j["camera"]["fx"] = c.fx;
+    j["camera"]["fy"] = c.fy;
+    j["camera"]["cx"] = c.cx;
+    j["camera"]["cy"] = c.cy;
+  }
+  if (c.lens == "omnidir" && c.skew != 0.0) j["camera"]["skew"] = c.skew;
   if (c.lens != "pinhole") j["camera"]["distortion"] = c.distortion;
   if (c.lens == "omnidir") j["camera"]["xi"] = c.xi;
   ojson sampling;

@@ -119,6 +119,13 @@ struct CameraSpec {
   // omnidir {k1, k2, p1, p2}; all zero for a pinhole.
   std::array<double, 5> distortion{0, 0, 0, 0, 0};
   double xi = 1.0;          // omnidir only, >= 0
+  // Explicit intrinsics instead of fov_deg (the shape every aos camera has: a camera file's
+  // fx, fy, cx, cy, pixels, with the pixel convention of lens.h); fx = 0 means "from fov_deg".
+  double fx = 0.0;
+  double fy = 0.0;
+  double cx = 0.0;
+  double cy = 0.0;
+  double skew = 0.0;        // omnidir only
   int channels = 1;         // 1 (grey) or 3 (RGB)
   int bit_depth = 8;        // 8, 16 (integer) or 32 (float) views
   int samples_per_pixel = 1;  // n: an n x n stratified grid of rays per pixel, 1..8

@@ -724,6 +724,12 @@ struct SimCameras {
   std::array<double, 4> footprint;  // what all of them see of the ground (see Footprint)
 };
 
+// The views' horizontal field of view, degrees: the scene's fov_deg, or for explicit
+// intrinsics the pinhole field of view of their fx (`camera`: the views' pinhole intrinsics).
+double ViewsFovDeg(const CameraSpec& spec, const PinholeCamera& camera) {
+  return spec.fx > 0.0 ? RadToDeg(2.0 * std::atan(0.5 * camera.width / camera.fx)) : spec.fov_deg;
+}
+
 // Stage 1: the cameras. Refuses a scene whose views would not fit in memory.
 SimCameras PlaceCameras(const Scene& scene, SimulationStats* stats) {
   const CameraSpec& cam = scene.camera;
@@ -733,7 +739,7 @@ SimCameras PlaceCameras(const Scene& scene, SimulationStats* stats) {
   const LensCamera lens = ViewLens(scene);
   const bool through_lens = lens.model != LensModel::kPinhole;
   PinholeCamera camera;
-  if (through_lens) {
+  if (through_lens || cam.fx > 0.0) {
     camera = lens.Pinhole();
   } else {
     camera = PinholeCamera::FromFov(cam.width, cam.height, cam.fov_deg);
@@ -765,7 +771,8 @@ SimCameras PlaceCameras(const Scene& scene, SimulationStats* stats) {
       scene.truth.width > 0 ? scene.truth.width : cam.width,
       scene.truth.height > 0 ? scene.truth.height : cam.height,
       scene.truth.fov_deg > 0 ? scene.truth.fov_deg
-                              : (wide_lens ? std::min(cam.fov_deg, 100.0) : cam.fov_deg));
+                              : (wide_lens ? std::min(ViewsFovDeg(cam, camera), 100.0)
+                                           : ViewsFovDeg(cam, camera)));
   std::vector<Vec3d> all_cameras = positions;
   std::vector<double> tan_x(positions.size(), 0.5 * cam.width / camera.fx);
   std::vector<double> tan_y(positions.size(), 0.5 * cam.height / camera.fy);
