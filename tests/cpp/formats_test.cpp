@@ -587,11 +587,11 @@ TEST_F(AosErrorsTest, BadCameras) {
   text.replace(text.find("\"pinhole\""), 9, "\"kannala\"");
   WriteText("lf.json", text);
   ExpectLoadError({"lf.json", "/cameras/cam0/model", "unknown lens model 'kannala'"});
-  // Lens models need intrinsics (not fov_deg) and a valid parameter set.
-  text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "\"fov_deg\": 60");
-  text.replace(text.find("\"pinhole\""), 9, "\"fisheye\"");
+  // A lens model's fov_deg must be one its radial map reaches, and its parameters valid.
+  text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]", "\"fov_deg\": 200");
+  text.replace(text.find("\"pinhole\""), 9, "\"radtan\"");
   WriteText("lf.json", text);
-  ExpectLoadError({"lf.json", "/cameras/cam0/fov_deg: only for pinhole cameras"});
+  ExpectLoadError({"lf.json", "/cameras/cam0", "fov_deg"});
   text = AosFile("views/good.png", "cam0", "[[1, 0, 0], [0, 1, 0], [0, 0, 1]]",
                  "\"fx\": 9, \"fy\": 9, \"cx\": 4, \"cy\": 3, \"xi\": -1");
   text.replace(text.find("\"pinhole\""), 9, "\"omnidir\"");

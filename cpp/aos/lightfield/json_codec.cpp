@@ -150,12 +150,14 @@ LensCamera ReadCameraJson(const json& value, const JsonPath& at,
   camera.height = ReadJsonInt(RequireMember(value, "height", at), at / "height", 1, kMaxImageSide);
   const bool has_any_intrinsic = value.contains("fx") || value.contains("fy") ||
                                  value.contains("cx") || value.contains("cy");
-  if (value.contains("fov_deg")) {
-    if (has_any_intrinsic) at.Fail("give either fov_deg or fx, fy, cx, cy, not both");
-    if (camera.model != LensModel::kPinhole) {
-      (at / "fov_deg").Fail("only for pinhole cameras; a " + model_name +
-                            " lens needs fx, fy, cx, cy");
-    }
+  const bool lens_by_fov = value.contains("fov_deg") && camera.model != LensModel::kPinhole;
+  if (value.contains("fov_deg") && has_any_intrinsic) {
+    at.Fail("give either fov_deg or fx, fy, cx, cy, not both");
+  }
+  if (lens_by_fov) {
+    // A lens model's fov_deg goes through its radial map (LensFromFov), once its distortion
+    // and xi are read (below), as a scene's camera does.
+  } else if (value.contains("fov_deg")) {
     const double fov_deg = ReadJsonNumber(value["fov_deg"], at / "fov_deg");
     if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
       (at / "fov_deg").Fail("must be in (0, 180) degrees (got " + FormatNumber(fov_deg) + ")");
@@ -182,6 +184,13 @@ LensCamera ReadCameraJson(const json& value, const JsonPath& at,
   }
   if (auto it = value.find("xi"); it != value.end()) camera.xi = ReadJsonNumber(*it, at / "xi");
   if (auto it = value.find("skew"); it != value.end()) camera.skew = ReadJsonNumber(*it, at / "skew");
+  if (lens_by_fov) {
+    const double fov_deg = ReadJsonNumber(value["fov_deg"], at / "fov_deg");
+    const double skew = camera.skew;
+    camera = LensFromFov(camera.model, camera.width, camera.height, fov_deg, camera.distortion,
+                         camera.xi, at.Text());
+    camera.skew = skew;
+  }
   if (camera.model == LensModel::kPinhole &&
       (camera.xi != 0.0 || camera.skew != 0.0 ||
        camera.distortion != std::array<double, 5>{0, 0, 0, 0, 0})) {
