@@ -73,7 +73,6 @@ CommandRunner DefineMetrics(CLI::App* command) {
   flags.Field("gaussian_sigma", options.gaussian_sigma, "SSIM window sigma, pixels");
   flags.Field("--ssim-window-radius", "window_radius", options.window_radius,
               "SSIM window radius, pixels (--window-radius is its old name)");
-  flags.Describe("k1/k2", "--k1/--k2");
   flags.Field("k1", options.k1, "SSIM constant k1");
   flags.Field("k2", options.k2, "SSIM constant k2");
   flags.Threads();

@@ -727,7 +727,7 @@ struct SimCameras {
 // The views' horizontal field of view, degrees: the scene's fov_deg, or for explicit
 // intrinsics the pinhole field of view of their fx (`camera`: the views' pinhole intrinsics).
 double ViewsFovDeg(const CameraSpec& spec, const PinholeCamera& camera) {
-  return spec.fx > 0.0 ? RadToDeg(2.0 * std::atan(0.5 * camera.width / camera.fx)) : spec.fov_deg;
+  return spec.fx > 0.0 ? camera.FovXDeg() : spec.fov_deg;
 }
 
 // Stage 1: the cameras. Refuses a scene whose views would not fit in memory.
