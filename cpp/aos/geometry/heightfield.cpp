@@ -29,6 +29,13 @@ std::string GdalMessage() {
                                                  : std::string();
 }
 
+// Keeps GDAL's own error printing off stderr while in scope (library code never prints); the
+// message is still read with CPLGetLastErrorMsg.
+struct QuietGdal {
+  QuietGdal() { CPLPushErrorHandler(CPLQuietErrorHandler); }
+  ~QuietGdal() { CPLPopErrorHandler(); }
+};
+
 struct DatasetCloser {
   GDALDatasetH dataset = nullptr;
   ~DatasetCloser() {
@@ -76,6 +83,7 @@ void Heightfield::Check(const std::string& where) const {
 Heightfield ReadHeightfield(const std::string& path) {
   CheckRegularFile(path, "height field");
   RegisterGdalOnce();
+  QuietGdal quiet;
   CPLErrorReset();
   DatasetCloser closer;
   closer.dataset = GDALOpen(path.c_str(), GA_ReadOnly);
@@ -126,6 +134,7 @@ void WriteHeightfield(const std::string& path, const Heightfield& heightfield, b
   }
   CheckOutputPath(path, {}, "height field");
   RegisterGdalOnce();
+  QuietGdal quiet;
   PendingFile pending(path);
   {
     GDALDriverH driver = GDALGetDriverByName("GTiff");
