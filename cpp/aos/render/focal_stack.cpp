@@ -48,6 +48,10 @@ std::string SliceName(const char* prefix, int index) {
 
 void FocalStackOptions::Check(int view_count) const {
   render.Check(view_count);
+  if (render.focal_surface) {
+    ThrowInvalid("render.focal_surface: focal stacks on a surface (terrain-following slices) are "
+                 "not supported yet; the slices are planes (first_plane .. last_plane)");
+  }
   UnitNormal(first_plane, "first_plane");
   UnitNormal(last_plane, "last_plane");
   if (slices < 1 || slices > kMaxSlices) {

@@ -95,6 +95,9 @@ class FocalSurface {
   // One line: "mesh terrain.obj (5837 vertices, 11424 triangles, 0 degenerate dropped)".
   std::string Describe() const;
 
+  // Whether both share one surface (copies of one FocalSurface do; equal data read twice does not).
+  bool SameAs(const FocalSurface& other) const { return impl_ == other.impl_; }
+
   // The reference point used to resolve up, in the local frame for `origin`.
   Vec3d ReferencePoint(const Vec3d& origin) const;
 
