@@ -115,6 +115,14 @@ CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& o
 LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
                                 ProgressBar& progress) {
   args.load.num_threads = options.num_threads;
+  // The surface first: a bad mesh or DEM fails before the frames are loaded.
+  if (!args.focal_surface.empty()) {
+    options.focal_surface =
+        std::make_shared<const FocalSurface>(FocalSurface::Read(args.focal_surface));
+    if (!Common().quiet && !Common().json) {
+      std::fprintf(stderr, "focal surface: %s\n", options.focal_surface->Describe().c_str());
+    }
+  }
   LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
@@ -137,13 +145,6 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
   if (!args.views.empty()) {
     options.view_indices =
         ParseViewList(args.views, static_cast<int>(loaded.light_field.views.size()));
-  }
-  if (!args.focal_surface.empty()) {
-    options.focal_surface =
-        std::make_shared<const FocalSurface>(FocalSurface::Read(args.focal_surface));
-    if (!Common().quiet && !Common().json) {
-      std::fprintf(stderr, "focal surface: %s\n", options.focal_surface->Describe().c_str());
-    }
   }
   return loaded;
 }

@@ -265,7 +265,13 @@ void BindTerrain(py::module_& m) {
       .def_readonly("width", &Heightfield::width, "Pixels.")
       .def_readonly("height", &Heightfield::height, "Pixels.")
       .def_property_readonly("heights", &HeightArray, "float32 (H, W), metres, NaN = nodata (a copy).")
-      .def_readonly("geotransform", &Heightfield::geotransform, "GDAL geotransform (6 numbers).")
+      .def_property_readonly(
+          "geotransform",
+          [](const Heightfield& field) {
+            const auto& g = field.geotransform;
+            return py::make_tuple(g[0], g[1], g[2], g[3], g[4], g[5]);
+          },
+          "GDAL geotransform (6 numbers, a tuple).")
       .def_readonly("crs", &Heightfield::crs_wkt, "The CRS as WKT; empty when the raster has none.")
       .def("__eq__",
            [](const Heightfield& a, const py::object& other) -> py::object {
