@@ -51,6 +51,10 @@ COMMANDS = [
 NOT_ON_THE_CLI = {
     ("stack", "render.focal_plane"): "the slices' planes replace it",
     ("allinfocus", "stack.render.focal_plane"): "the slices' planes replace it",
+    ("stack", "render.focal_surface"): "terrain-following stacks are not implemented yet",
+    ("stack", "render.surface_offset"): "terrain-following stacks are not implemented yet",
+    ("allinfocus", "stack.render.focal_surface"): "terrain-following stacks are not implemented yet",
+    ("allinfocus", "stack.render.surface_offset"): "terrain-following stacks are not implemented yet",
     ("integral", "variance"): "Python only (render_integral(variance=True))",
     ("allinfocus", "stack.render.variance"): "set by --method robust",
     ("merge", "robust.robust"): "set by --method robust",
@@ -71,7 +75,7 @@ NOT_ON_THE_CLI = {
 # Fields whose flag prints no default in --help, because "not given" is the default and means
 # something the help text states (no pose, all views, no file); every other flag must print the
 # struct's default, so that a drifted default is seen.
-NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file",
+NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file", "focal_surface",
                       "positions_file", "positions_crs", "workspace",
                       "pose_error_px", "pose_error_m"}  # exclusive flags; none = no pose error
 
@@ -84,6 +88,8 @@ def unit_of(command: str, field: str) -> str:
     name = field.rsplit(".", 1)[-1]
     if name == "window_radius":
         return "pixels"
+    if name == "surface_offset":
+        return "metres"
     if name == "edge_sigma":
         return "fraction of the image's range"
     if name == "agreement":

@@ -46,6 +46,7 @@ struct RenderArgs {
   std::string look_at;
   std::string cam_from_world;
   std::string views;
+  std::string focal_surface;  // --focal-surface FILE (mesh or DEM raster)
 };
 
 void AddLoadFlags(const Flags& flags, LoadOptions& load) {
@@ -95,11 +96,33 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   render.Threads(options.num_threads);
 }
 
+// --focal-surface and --surface-offset (IntegralOptions::focal_surface, surface_offset).
+CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
+  render.Describe("focal_surface", "--focal-surface");
+  CLI::Option* surface = render.command()->add_option(
+      "--focal-surface", args.focal_surface,
+      "Focus on a terrain instead of a plane: an OBJ or PLY mesh, or a DEM raster GDAL reads "
+      "(GeoTIFF...), in world coordinates (light field origin + local); pixels whose rays miss "
+      "it are uncovered");
+  render.Field("surface_offset", options.surface_offset,
+               "Move the focal surface this far along up (towards the views), metres: 1.0 = one "
+               "metre above the terrain");
+  return surface;
+}
+
 // Loads the light field and fills `options`' virtual camera (pose, views) from the command
 // line; the focal plane is left to the caller.
 LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
                                 ProgressBar& progress) {
   args.load.num_threads = options.num_threads;
+  // The surface first: a bad mesh or DEM fails before the frames are loaded.
+  if (!args.focal_surface.empty()) {
+    options.focal_surface =
+        std::make_shared<const FocalSurface>(FocalSurface::Read(args.focal_surface));
+    if (!Common().quiet && !Common().json) {
+      std::fprintf(stderr, "focal surface: %s\n", options.focal_surface->Describe().c_str());
+    }
+  }
   LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
@@ -157,7 +180,8 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
       return Plane::InFrontOf(cam_from_world, c.focal_distance, c.horizontal);
     });
   }
-  const std::vector<std::string> inputs = InputsOf(c.args.light_field_path, light_field);
+  std::vector<std::string> inputs = InputsOf(c.args.light_field_path, light_field);
+  if (!c.args.focal_surface.empty()) inputs.push_back(c.args.focal_surface);
   CheckRenderOutput(c.out, inputs);
   const IntegralResult result =
       flags.NamingFlags([&] { return RenderIntegral(light_field, c.options, &progress); });
@@ -186,6 +210,7 @@ CommandRunner DefineIntegral(CLI::App* command) {
   auto c = std::make_shared<IntegralCommand>();
   Flags flags(command);
   AddRenderFlags(flags, c->args, c->options);
+  CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
   flags.Describe("focal_plane", "--focal-height/--focal-plane/--focal-distance");
   auto* height = flags.Parsed(
       "--focal-height", "focal_plane", c->options.focal_plane,
@@ -207,8 +232,9 @@ CommandRunner DefineIntegral(CLI::App* command) {
   auto* horizontal = command->add_flag("--horizontal", c->horizontal,
                                        "With --focal-distance: the horizontal plane through that "
                                        "point instead");
-  height->excludes(plane)->excludes(distance);
-  plane->excludes(distance);
+  height->excludes(plane)->excludes(distance)->excludes(surface);
+  plane->excludes(distance)->excludes(surface);
+  distance->excludes(surface);
   horizontal->needs(distance);
   AddRenderOutputFlags(flags, c->out);
   flags.Force();

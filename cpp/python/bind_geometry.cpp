@@ -7,7 +7,9 @@
 #include <string>
 #include <vector>
 
+#include "aos/geometry/heightfield.h"
 #include "aos/geometry/lens.h"
+#include "aos/geometry/mesh.h"
 #include "aos/geometry/pinhole.h"
 #include "aos/geometry/rigid.h"
 #include "aos/util/error.h"
@@ -126,6 +128,179 @@ bool PinholeEqual(const PinholeCamera& a, const PinholeCamera& b) {
 
 bool RigidEqual(const Rigid3d& a, const Rigid3d& b) {
   return a.rotation == b.rotation && a.translation == b.translation;
+}
+
+// Mesh and Heightfield (geometry/mesh.h, geometry/heightfield.h): arrays cross by copy.
+py::array_t<double> MeshVertices(const Mesh& mesh) {
+  py::array_t<double> array({static_cast<py::ssize_t>(mesh.vertices.size()), py::ssize_t{3}});
+  auto out = array.mutable_unchecked<2>();
+  for (size_t i = 0; i < mesh.vertices.size(); ++i) {
+    for (int k = 0; k < 3; ++k) out(static_cast<py::ssize_t>(i), k) = mesh.vertices[i][k];
+  }
+  return array;
+}
+
+py::array_t<int32_t> MeshTriangles(const Mesh& mesh) {
+  py::array_t<int32_t> array({static_cast<py::ssize_t>(mesh.triangles.size()), py::ssize_t{3}});
+  auto out = array.mutable_unchecked<2>();
+  for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+    for (int k = 0; k < 3; ++k) out(static_cast<py::ssize_t>(i), k) = mesh.triangles[i][k];
+  }
+  return array;
+}
+
+Mesh MeshFromArrays(const py::handle& vertices_object, const py::handle& triangles_object,
+                    int64_t dropped) {
+  const auto vertices = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(vertices_object);
+  const auto triangles = py::array_t<int64_t, py::array::c_style | py::array::forcecast>::ensure(triangles_object);
+  if (!vertices || vertices.ndim() != 2 || vertices.shape(1) != 3) {
+    throw py::value_error("Mesh: vertices must be an (N, 3) array of numbers");
+  }
+  if (!triangles || triangles.ndim() != 2 || triangles.shape(1) != 3) {
+    throw py::value_error("Mesh: triangles must be an (M, 3) array of integers");
+  }
+  Mesh mesh;
+  auto v = vertices.unchecked<2>();
+  for (py::ssize_t i = 0; i < v.shape(0); ++i) mesh.vertices.emplace_back(v(i, 0), v(i, 1), v(i, 2));
+  auto t = triangles.unchecked<2>();
+  for (py::ssize_t i = 0; i < t.shape(0); ++i) {
+    std::array<int, 3> triangle{};
+    for (int k = 0; k < 3; ++k) {
+      if (t(i, k) < 0 || t(i, k) >= static_cast<int64_t>(mesh.vertices.size())) {
+        throw py::value_error("Mesh: triangle " + std::to_string(i) + ": vertex index " +
+                              std::to_string(t(i, k)) + " is out of range (" +
+                              std::to_string(mesh.vertices.size()) + " vertices)");
+      }
+      triangle[static_cast<size_t>(k)] = static_cast<int>(t(i, k));
+    }
+    mesh.triangles.push_back(triangle);
+  }
+  mesh.dropped_triangles = dropped;
+  DropDegenerateTriangles(mesh);
+  mesh.Check("Mesh");
+  return mesh;
+}
+
+py::array_t<float> HeightArray(const Heightfield& field) {
+  py::array_t<float> array({static_cast<py::ssize_t>(field.height), static_cast<py::ssize_t>(field.width)});
+  std::copy(field.heights.begin(), field.heights.end(), array.mutable_data());
+  return array;
+}
+
+Heightfield HeightfieldFromArrays(const py::handle& heights_object, const std::array<double, 6>& geotransform,
+                                  const std::string& crs) {
+  const auto heights = py::array_t<float, py::array::c_style | py::array::forcecast>::ensure(heights_object);
+  if (!heights || heights.ndim() != 2) throw py::value_error("Heightfield: heights must be an (H, W) array");
+  Heightfield field;
+  field.height = static_cast<int>(heights.shape(0));
+  field.width = static_cast<int>(heights.shape(1));
+  field.geotransform = geotransform;
+  field.crs_wkt = crs;
+  field.heights.assign(heights.data(), heights.data() + heights.size());
+  field.Check("Heightfield");
+  return field;
+}
+
+void BindTerrain(py::module_& m) {
+  py::class_<Mesh>(m, "Mesh",
+                   "A triangle mesh in WORLD coordinates (light field origin + local), e.g. a "
+                   "terrain (DEM) for a focal surface. Arrays are copies.")
+      .def(py::init([](const py::object& vertices, const py::object& triangles) {
+             return MeshFromArrays(vertices, triangles, 0);
+           }),
+           "vertices"_a, "triangles"_a,
+           "From (N, 3) vertices and (M, 3) 0-based triangle indices; degenerate triangles are "
+           "dropped and counted in dropped_triangles. Raises ValueError for non-finite vertices, "
+           "indices out of range, or no triangle.")
+      .def_static("read", &ReadMesh, "path"_a,
+                  "Reads an OBJ or PLY (ascii or binary_little_endian) mesh; degenerate "
+                  "triangles are dropped and counted. Raises ValueError naming the file, line or "
+                  "element and field.")
+      .def_property_readonly("vertices", &MeshVertices, "float64 (N, 3), world metres (a copy).")
+      .def_property_readonly("triangles", &MeshTriangles, "int32 (M, 3) vertex indices (a copy).")
+      .def_readonly("dropped_triangles", &Mesh::dropped_triangles,
+                    "Degenerate triangles (repeated index or zero area) dropped on reading.")
+      .def("__eq__",
+           [](const Mesh& a, const py::object& other) -> py::object {
+             if (!py::isinstance<Mesh>(other)) return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+             const Mesh& b = other.cast<const Mesh&>();
+             return py::bool_(a.vertices == b.vertices && a.triangles == b.triangles &&
+                              a.dropped_triangles == b.dropped_triangles);
+           },
+           "other"_a)
+      .def(py::pickle(
+          [](const Mesh& mesh) {
+            return py::dict("vertices"_a = MeshVertices(mesh), "triangles"_a = MeshTriangles(mesh),
+                            "dropped_triangles"_a = mesh.dropped_triangles);
+          },
+          [](const py::object& state) {
+            const py::dict values = StateDict(state, "Mesh", {"vertices", "triangles", "dropped_triangles"});
+            return MeshFromArrays(values["vertices"], values["triangles"],
+                                  values["dropped_triangles"].cast<int64_t>());
+          }))
+      .def("__repr__", [](const Mesh& mesh) {
+        return "Mesh(" + std::to_string(mesh.vertices.size()) + " vertices, " +
+               std::to_string(mesh.triangles.size()) + " triangles, dropped_triangles=" +
+               std::to_string(mesh.dropped_triangles) + ")";
+      });
+
+  py::class_<Heightfield>(m, "Heightfield",
+                          "A DEM raster: heights (H, W) at the pixel centres the geotransform "
+                          "places in WORLD coordinates (x = gt[0] + (i + 0.5) gt[1], y = gt[3] + "
+                          "(j + 0.5) gt[5]); NaN = nodata.")
+      .def(py::init(&HeightfieldFromArrays), "heights"_a, "geotransform"_a, "crs"_a = "",
+           "From float32 heights (H, W) (copied; NaN = nodata), a north-up GDAL geotransform "
+           "(6 numbers) and a CRS as WKT (or empty).")
+      .def_static("read", &ReadHeightfield, "path"_a,
+                  "Reads band 1 of a GDAL raster (GeoTIFF, ...): nodata becomes NaN. Raises "
+                  "ValueError for rotated geotransforms, absurd sizes, all-nodata rasters.")
+      .def("write", [](const Heightfield& field, const std::string& path, bool overwrite) {
+             WriteHeightfield(path, field, overwrite);
+           },
+           "path"_a, "overwrite"_a = false,
+           "Writes a float32 GeoTIFF (nodata NaN), atomically; refuses an existing file unless "
+           "overwrite.")
+      .def("to_mesh", [](const Heightfield& field) { return HeightfieldToMesh(field); },
+           "Two triangles per cell of 2 x 2 valid pixel centres (world coordinates).")
+      .def_readonly("width", &Heightfield::width, "Pixels.")
+      .def_readonly("height", &Heightfield::height, "Pixels.")
+      .def_property_readonly("heights", &HeightArray, "float32 (H, W), metres, NaN = nodata (a copy).")
+      .def_property_readonly(
+          "geotransform",
+          [](const Heightfield& field) {
+            const auto& g = field.geotransform;
+            return py::make_tuple(g[0], g[1], g[2], g[3], g[4], g[5]);
+          },
+          "GDAL geotransform (6 numbers, a tuple).")
+      .def_readonly("crs", &Heightfield::crs_wkt, "The CRS as WKT; empty when the raster has none.")
+      .def("__eq__",
+           [](const Heightfield& a, const py::object& other) -> py::object {
+             if (!py::isinstance<Heightfield>(other)) return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+             const Heightfield& b = other.cast<const Heightfield&>();
+             bool same = a.width == b.width && a.height == b.height && a.geotransform == b.geotransform &&
+                         a.crs_wkt == b.crs_wkt && a.heights.size() == b.heights.size();
+             for (size_t i = 0; same && i < a.heights.size(); ++i) {
+               same = a.heights[i] == b.heights[i] || (std::isnan(a.heights[i]) && std::isnan(b.heights[i]));
+             }
+             return py::bool_(same);
+           },
+           "other"_a, "Exact equality (NaN equals NaN).")
+      .def(py::pickle(
+          [](const Heightfield& field) {
+            return py::dict("heights"_a = HeightArray(field), "geotransform"_a = field.geotransform,
+                            "crs"_a = field.crs_wkt);
+          },
+          [](const py::object& state) {
+            const py::dict values = StateDict(state, "Heightfield", {"heights", "geotransform", "crs"});
+            return HeightfieldFromArrays(values["heights"], values["geotransform"].cast<std::array<double, 6>>(),
+                                         values["crs"].cast<std::string>());
+          }))
+      .def("__repr__", [](const Heightfield& field) {
+        return "Heightfield(" + std::to_string(field.width) + "x" + std::to_string(field.height) +
+               ", pixel " + FormatNumber(field.geotransform[1]) + " x " +
+               FormatNumber(field.geotransform[5]) + ", crs=" +
+               (field.crs_wkt.empty() ? std::string("none") : std::string("set")) + ")";
+      });
 }
 
 void BindGeometry(py::module_& m) {
@@ -443,6 +618,7 @@ void BindGeometry(py::module_& m) {
         }
         return text + ")";
       });
+  BindTerrain(m);
 }
 
 }  // namespace aos::python

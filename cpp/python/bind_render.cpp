@@ -1,6 +1,7 @@
 // Bindings of render/integral.h. The kwargs merge of aos.render_integral lives in
 // python/aos/__init__.py.
 #include "aos/render/focal_stack.h"
+#include "aos/render/focal_surface.h"
 #include "aos/render/integral.h"
 #include "aos/render/merge.h"
 #include "aos/render/rectify.h"
@@ -13,7 +14,121 @@ namespace {
 
 using namespace pybind11::literals;
 
+// A focal surface from what Python passes: None, a FocalSurface, a Mesh, a Heightfield, a Plane
+// or a number (a horizontal plane).
+std::shared_ptr<const FocalSurface> SurfaceFromPython(const py::object& value) {
+  if (value.is_none()) return nullptr;
+  if (py::isinstance<FocalSurface>(value)) return std::make_shared<const FocalSurface>(value.cast<FocalSurface>());
+  if (py::isinstance<Mesh>(value)) return std::make_shared<const FocalSurface>(FocalSurface::FromMesh(value.cast<Mesh>()));
+  if (py::isinstance<Heightfield>(value)) {
+    return std::make_shared<const FocalSurface>(FocalSurface::FromHeightfield(value.cast<Heightfield>()));
+  }
+  try {
+    return std::make_shared<const FocalSurface>(FocalSurface::FromPlane(value.cast<Plane>()));
+  } catch (const py::cast_error&) {
+    throw py::type_error("focal_surface: expected None, a FocalSurface, Mesh, Heightfield, Plane or "
+                         "a number, got " + std::string(py::str(py::type::of(value).attr("__name__"))));
+  }
+}
+
+void BindFocalSurface(py::module_& m) {
+  py::class_<FocalSurface>(m, "FocalSurface",
+                           "Where the virtual camera focuses (render/focal_surface.h): a plane "
+                           "(local frame), a mesh or a DEM height field (world coordinates), or a "
+                           "depth map of a virtual camera. Shared and immutable; its Embree BVH is "
+                           "built once on first use. Up = +z or -z, whichever points from the "
+                           "surface towards the views' mean centre; an offset moves it along up.")
+      .def(py::init([](const py::object& value) { return *SurfaceFromPython(value); }), "surface"_a,
+           "From a Mesh, a Heightfield, a Plane or a number (horizontal plane).")
+      .def_static("read", &FocalSurface::Read, "path"_a,
+                  "A mesh (OBJ/PLY) or else any GDAL raster (a DEM). Raises ValueError naming the file.")
+      .def_static("from_depth_map",
+                  [](const py::object& depth, const PinholeCamera& camera, const Rigid3d& cam_from_world) {
+                    return FocalSurface::FromDepthMap(ImageFromArray(depth, 0, "depth"), camera, cam_from_world);
+                  },
+                  "depth"_a, "camera"_a, "cam_from_world"_a,
+                  "A depth map (float32 (H, W), camera z in metres, copied) of the virtual camera "
+                  "`camera` at `cam_from_world` (local frame).")
+      .def_property_readonly("kind", [](const FocalSurface& s) { return FocalSurfaceKindName(s.kind()); },
+                             "'plane', 'mesh', 'heightfield' or 'depth_map'.")
+      .def_property_readonly("source", &FocalSurface::source, "The file it was read from, or ''.")
+      .def("describe", &FocalSurface::Describe, "One line: kind, source, size.")
+      .def(
+          "depth_for",
+          [](const FocalSurface& surface, const LightField& light_field, const PinholeCamera& camera,
+             const Rigid3d& cam_from_world, double offset, const std::vector<int>& view_indices) {
+            const SurfacePlacement placement =
+                ResolveSurfacePlacement(surface, light_field, view_indices, offset);
+            Image depth;
+            {
+              py::gil_scoped_release release;
+              depth = surface.DepthFor(camera, cam_from_world, placement);
+            }
+            return ArrayFromImage(depth);
+          },
+          "light_field"_a, "camera"_a, "cam_from_world"_a, "offset"_a = 0.0,
+          "view_indices"_a = std::vector<int>{},
+          "float32 (H, W): camera z where each pixel's ray first meets the surface (placed for "
+          "`light_field`: its origin, up from its views), 0 where it misses.")
+      .def(
+          "heights_at",
+          [](const FocalSurface& surface, const LightField& light_field, const py::object& xy_object,
+             double offset) {
+            const auto xy = py::array_t<double, py::array::c_style | py::array::forcecast>::ensure(xy_object);
+            if (!xy || xy.ndim() != 2 || xy.shape(1) != 2) throw py::value_error("xy: must be an (N, 2) array");
+            std::vector<Vec2d> points;
+            for (py::ssize_t i = 0; i < xy.shape(0); ++i) points.emplace_back(xy.at(i, 0), xy.at(i, 1));
+            const SurfacePlacement placement = ResolveSurfacePlacement(surface, light_field, {}, offset);
+            const std::vector<double> z = surface.HeightsAt(points, placement);
+            return py::array_t<double>(static_cast<py::ssize_t>(z.size()), z.data());
+          },
+          "light_field"_a, "xy"_a, "offset"_a = 0.0,
+          "World z of the (offset) surface under world (x, y) points (N, 2), met by vertical rays "
+          "from the up side; NaN where they miss.")
+      .def(py::pickle(
+          [](const FocalSurface& surface) {
+            py::dict state;
+            state["kind"] = FocalSurfaceKindName(surface.kind());
+            state["source"] = surface.source();
+            switch (surface.kind()) {
+              case FocalSurfaceKind::kPlane: state["data"] = py::cast(surface.plane()); break;
+              case FocalSurfaceKind::kMesh: state["data"] = py::cast(surface.mesh()); break;
+              case FocalSurfaceKind::kHeightfield: state["data"] = py::cast(surface.heightfield()); break;
+              case FocalSurfaceKind::kDepthMap:
+                state["data"] = py::make_tuple(ArrayFromImage(surface.depth()).attr("copy")(),
+                                               surface.depth_camera(), surface.depth_cam_from_world());
+                break;
+            }
+            return state;
+          },
+          [](const py::object& state) {
+            const py::dict values = StateDict(state, "FocalSurface", {"kind", "source", "data"});
+            const std::string kind = values["kind"].cast<std::string>();
+            const std::string source = values["source"].cast<std::string>();
+            if (kind == "plane") return FocalSurface::FromPlane(values["data"].cast<Plane>());
+            if (kind == "mesh") return FocalSurface::FromMesh(values["data"].cast<Mesh>(), source);
+            if (kind == "heightfield") return FocalSurface::FromHeightfield(values["data"].cast<Heightfield>(), source);
+            if (kind == "depth_map") {
+              const py::tuple data = values["data"];
+              return FocalSurface::FromDepthMap(ImageFromArray(data[0], 0, "depth"), data[1].cast<PinholeCamera>(),
+                                                data[2].cast<Rigid3d>());
+            }
+            throw py::value_error("FocalSurface: unknown kind '" + kind + "'");
+          }))
+      .def("__eq__",
+           [](const FocalSurface& a, const py::object& other) -> py::object {
+             if (!py::isinstance<FocalSurface>(other)) return py::reinterpret_borrow<py::object>(Py_NotImplemented);
+             return py::bool_(a.SameAs(other.cast<const FocalSurface&>()));
+           },
+           "other"_a, "Identity of the shared surface (copies and options holding it compare equal).")
+      .def("__hash__", [](const FocalSurface& s) { return std::hash<std::string>()(s.Describe()); })
+      .def("__repr__", [](const FocalSurface& s) { return "FocalSurface(" + s.Describe() + ")"; });
+  py::implicitly_convertible<Mesh, FocalSurface>();
+  py::implicitly_convertible<Heightfield, FocalSurface>();
+}
+
 void BindIntegral(py::module_& m) {
+  BindFocalSurface(m);
   // Docstrings are the header's field comments.
   OptionsClass<IntegralOptions>(
       m, "IntegralOptions",
@@ -33,7 +148,20 @@ void BindIntegral(py::module_& m) {
              "Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one "
              "view per pixel), infinity means every view.")
       .Field("focal_plane", &IntegralOptions::focal_plane,
-             "The focal plane (local frame): any point on it and its normal.")
+             "The focal plane (local frame): any point on it and its normal. With a focal_surface "
+             "only its normal is used (grazing test).")
+      .Property(
+          "focal_surface",
+          [](const IntegralOptions& o) -> py::object {
+            if (!o.focal_surface) return py::none();
+            return py::cast(*o.focal_surface);
+          },
+          [](IntegralOptions& o, const py::object& value) { o.focal_surface = SurfaceFromPython(value); },
+          "A focal surface instead of focal_plane: FocalSurface, Mesh, Heightfield (or a Plane); "
+          "None = focal_plane. Reading returns a FocalSurface sharing the BVH.")
+      .Field("surface_offset", &IntegralOptions::surface_offset,
+             "Offset of focal_surface along up (towards the views), metres; must be 0 without a "
+             "focal_surface.")
       .Field("view_indices", &IntegralOptions::view_indices,
              "Views to integrate (indices into the light field); empty means all views. Reading "
              "returns a new list: assign a list to change it.")

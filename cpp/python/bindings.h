@@ -284,6 +284,15 @@ class OptionsClass {
     return class_;
   }
 
+  // A field bound through a getter and a setter (a value needing conversion, e.g. a shared
+  // pointer), recorded like Field for the protocol methods.
+  template <class Getter, class Setter>
+  OptionsClass& Property(const char* name, Getter getter, Setter setter, const char* doc) {
+    class_.def_property(name, getter, setter, doc);
+    fields_.emplace_back(name);
+    return *this;
+  }
+
   py::class_<Options>& cls() { return class_; }
 
  private:

@@ -81,6 +81,8 @@ from ._core import (
     write_demo,
     AllInFocusOptions,
     FocalStack,
+    FocalSurface,
+    Heightfield,
     FocalStackOptions,
     GroundTruth,
     MergeMethod,
@@ -94,6 +96,7 @@ from ._core import (
     IntegralResult,
     LightField,
     LoadResult,
+    Mesh,
     PinholeCamera,
     Plane,
     Rigid3d,
@@ -148,6 +151,8 @@ __all__ = [
     "sampling_resolution",
     "AllInFocusOptions",
     "FocalStack",
+    "FocalSurface",
+    "Heightfield",
     "FocalStackOptions",
     "MergeMethod",
     "MergeOptions",
@@ -171,6 +176,7 @@ __all__ = [
     "IntegralResult",
     "LightField",
     "LoadResult",
+    "Mesh",
     "PinholeCamera",
     "Plane",
     "Rigid3d",
@@ -341,15 +347,25 @@ def _require_pose(function: str, render: IntegralOptions, kwargs: dict[str, Any]
 
 
 _RENDER_INTEGRAL = _Router("render_integral", IntegralOptions)
+# Stacks and merges focus on planes only (terrain-following stacks are not implemented yet).
+_SURFACE_FIELDS = ("focal_surface", "surface_offset")
 _RENDER_FOCAL_STACK = _Router(
-    "render_focal_stack", FocalStackOptions, exclude=[("render", "focal_plane")]
+    "render_focal_stack",
+    FocalStackOptions,
+    exclude=[("render", "focal_plane")] + [("render", name) for name in _SURFACE_FIELDS],
 )
 _MERGE_FOCAL_STACK = _Router("merge_focal_stack", MergeOptions)
 _ALL_IN_FOCUS = _Router(
-    "all_in_focus", AllInFocusOptions, exclude=[("stack", "render", "focal_plane")]
+    "all_in_focus",
+    AllInFocusOptions,
+    exclude=[("stack", "render", "focal_plane")]
+    + [("stack", "render", name) for name in _SURFACE_FIELDS],
 )
 _RENDER_INTEGRAL_ON_DEPTH = _Router(
-    "render_integral_on_depth", IntegralOptions, SurfaceIntegralOptions
+    "render_integral_on_depth",
+    IntegralOptions,
+    SurfaceIntegralOptions,
+    exclude=[(name,) for name in _SURFACE_FIELDS],
 )
 _SIMULATE = _Router("simulate", SimulateOptions)
 _RUN_DEMO = _Router("run_demo", DemoOptions)
@@ -359,6 +375,17 @@ _CALIBRATE = _Router("calibrate", CalibrateOptions)
 _RECTIFY_LIGHT_FIELD = _Router("rectify_light_field", RectifyOptions)
 _ESTIMATE_POSES = _Router("estimate_poses", PosesOptions)
 _IMPORT_COLMAP = _Router("import_colmap", PosesOptions)
+
+
+def _surface_as_focal_surface(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """A Mesh, Heightfield or FocalSurface given as ``focal_plane`` is the focal_surface (a
+    surface is accepted wherever a plane is)."""
+    value = kwargs.get("focal_plane")
+    if isinstance(value, (_core.Mesh, _core.Heightfield, _core.FocalSurface)):
+        if kwargs.get("focal_surface") is not None:
+            raise TypeError("render_integral(): give the surface as focal_plane or focal_surface, not both")
+        kwargs["focal_surface"] = kwargs.pop("focal_plane")
+    return kwargs
 
 
 def render_integral(
@@ -383,8 +410,9 @@ def render_integral(
         image, count = result.image, result.count   # float32 and uint32, no copies
     """
     merged = _copy_options("render_integral", IntegralOptions, options)
-    _RENDER_INTEGRAL.apply([merged], dict(kwargs))
-    _require_pose("render_integral", merged, dict(kwargs))
+    kwargs = _surface_as_focal_surface(dict(kwargs))
+    _RENDER_INTEGRAL.apply([merged], kwargs)
+    _require_pose("render_integral", merged, kwargs)
     return _core.render_integral(light_field, merged, progress)
 
 

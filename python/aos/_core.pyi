@@ -324,6 +324,8 @@ class IntegralOptions:
         height: int = ...,
         aperture_radius: float = ...,
         focal_plane: _PlaneLike = ...,
+        focal_surface: _SurfaceLike | None = ...,
+        surface_offset: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
         num_threads: int = ...,
@@ -349,6 +351,14 @@ class IntegralOptions:
     def focal_plane(self, value: _PlaneLike) -> None:
         """A Plane, or a number: the horizontal plane at that height."""
     @property
+    def focal_surface(self) -> Optional[FocalSurface]:
+        """A focal surface instead of focal_plane (None = focal_plane)."""
+    @focal_surface.setter
+    def focal_surface(self, value: _SurfaceLike | None) -> None:
+        """A FocalSurface, Mesh, Heightfield, Plane or number, or None."""
+    surface_offset: float
+    """Offset of focal_surface along up (towards the views), metres; 0 without a surface."""
+    @property
     def view_indices(self) -> list[int]:
         """Views to integrate; empty means all. Reading returns a new list."""
     @view_indices.setter
@@ -365,6 +375,81 @@ class IntegralOptions:
     def __copy__(self) -> IntegralOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> IntegralOptions: ...
     def __repr__(self) -> str: ...
+
+class Mesh:
+    """A triangle mesh in world coordinates (light field origin + local); arrays are copies."""
+
+    def __init__(self, vertices: _Vector, triangles: _Vector) -> None:
+        """(N, 3) vertices and (M, 3) 0-based indices; degenerate triangles are dropped."""
+    @staticmethod
+    def read(path: str) -> Mesh:
+        """Reads an OBJ or PLY (ascii / binary_little_endian) mesh."""
+    @property
+    def vertices(self) -> _Float64Array: ...
+    @property
+    def triangles(self) -> numpy.typing.NDArray[numpy.int32]: ...
+    @property
+    def dropped_triangles(self) -> int:
+        """Degenerate triangles dropped on reading."""
+    def __eq__(self, other: object) -> bool: ...
+    def __repr__(self) -> str: ...
+
+class Heightfield:
+    """A DEM raster: heights at pixel centres placed by a north-up GDAL geotransform; NaN = nodata."""
+
+    def __init__(self, heights: _Vector, geotransform: Sequence[float], crs: str = "") -> None: ...
+    @staticmethod
+    def read(path: str) -> Heightfield:
+        """Reads band 1 of a GDAL raster (nodata -> NaN)."""
+    def write(self, path: str, overwrite: bool = False) -> None:
+        """Writes a float32 GeoTIFF atomically; refuses an existing file unless overwrite."""
+    def to_mesh(self) -> Mesh: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def heights(self) -> numpy.typing.NDArray[numpy.float32]:
+        """float32 (H, W), metres, NaN = nodata (a copy)."""
+    @property
+    def geotransform(self) -> tuple[float, float, float, float, float, float]: ...
+    @property
+    def crs(self) -> str:
+        """WKT, or '' when the raster has no CRS."""
+    def __eq__(self, other: object) -> bool: ...
+    def __repr__(self) -> str: ...
+
+class FocalSurface:
+    """Where the virtual camera focuses: a plane, a mesh, a DEM height field or a depth map."""
+
+    def __init__(self, surface: _SurfaceLike) -> None: ...
+    @staticmethod
+    def read(path: str) -> FocalSurface:
+        """A mesh (OBJ/PLY) or else any GDAL raster (a DEM)."""
+    @staticmethod
+    def from_depth_map(depth: _Vector, camera: PinholeCamera, cam_from_world: Rigid3d) -> FocalSurface: ...
+    @property
+    def kind(self) -> str:
+        """'plane', 'mesh', 'heightfield' or 'depth_map'."""
+    @property
+    def source(self) -> str: ...
+    def describe(self) -> str: ...
+    def depth_for(
+        self,
+        light_field: LightField,
+        camera: PinholeCamera,
+        cam_from_world: Rigid3d,
+        offset: float = 0.0,
+        view_indices: Sequence[int] = ...,
+    ) -> numpy.typing.NDArray[numpy.float32]:
+        """Camera z where each pixel's ray first meets the surface; 0 where it misses."""
+    def heights_at(self, light_field: LightField, xy: _Vector, offset: float = 0.0) -> _Float64Array:
+        """World z under world (x, y) points (N, 2); NaN where vertical rays miss."""
+    def __eq__(self, other: object) -> bool: ...
+    def __hash__(self) -> int: ...
+    def __repr__(self) -> str: ...
+
+_SurfaceLike = Union[FocalSurface, Mesh, Heightfield, Plane, float]
 
 class IntegralResult:
     @property

@@ -14,6 +14,9 @@ from __future__ import annotations
 from typing import Literal, Sequence, TypedDict, Union
 
 from ._core import (
+    FocalSurface,
+    Heightfield,
+    Mesh,
     FocalStackOptions,
     IntegralOptions,
     LensModel,
@@ -46,13 +49,19 @@ class VirtualCameraKeywords(TypedDict, total=False):
 
 
 class IntegralKeywords(VirtualCameraKeywords, total=False):
-    """Fields of IntegralOptions (render_integral)."""
+    """Fields of IntegralOptions (render_integral). ``focal_plane`` also takes a Mesh,
+    Heightfield or FocalSurface (then it is the focal_surface)."""
+
+    focal_plane: Union[PlaneLike, Mesh, Heightfield, FocalSurface]
+    focal_surface: Union[FocalSurface, Mesh, Heightfield, PlaneLike, None]
+    surface_offset: float
+
+
+class SurfaceIntegralKeywords(VirtualCameraKeywords, total=False):
+    """Fields of IntegralOptions (but the focal surface: the depth map is the surface) and
+    SurfaceIntegralOptions (render_integral_on_depth)."""
 
     focal_plane: PlaneLike
-
-
-class SurfaceIntegralKeywords(IntegralKeywords, total=False):
-    """Fields of IntegralOptions and SurfaceIntegralOptions (render_integral_on_depth)."""
 
     robust: bool
     agreement: float

@@ -48,6 +48,10 @@ std::string SliceName(const char* prefix, int index) {
 
 void FocalStackOptions::Check(int view_count) const {
   render.Check(view_count);
+  if (render.focal_surface) {
+    ThrowInvalid("render.focal_surface: focal stacks on a surface (terrain-following slices) are "
+                 "not supported yet; the slices are planes (first_plane .. last_plane)");
+  }
   UnitNormal(first_plane, "first_plane");
   UnitNormal(last_plane, "last_plane");
   if (slices < 1 || slices > kMaxSlices) {
@@ -81,25 +85,6 @@ std::vector<Plane> StackPlanes(const Plane& first, const Plane& last, int slices
     planes.push_back(InterpolatePlane(first, last, s, center));
   }
   return planes;
-}
-
-Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane) {
-  Image depth(camera.width, camera.height, 1, PixelType::kF32);
-  const Vec3d center = cam_from_world.Center();
-  const Vec3d normal = glm::normalize(plane.normal);
-  const double h = glm::dot(normal, plane.point - center);
-  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
-  for (int y = 0; y < camera.height; ++y) {
-    float* row = depth.At<float>(0, y);
-    for (int x = 0; x < camera.width; ++x) {
-      // The ray C + t D with D = R^T K^-1 p has camera depth t (D's camera z is 1).
-      const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
-      const double f = glm::dot(normal, direction);
-      const double t = f != 0.0 ? h / f : 0.0;
-      row[x] = t > 0.0 && std::isfinite(t) ? static_cast<float>(t) : 0.0f;
-    }
-  }
-  return depth;
 }
 
 void FocalStack::Check(const std::string& where) const {

@@ -26,6 +26,7 @@
 #include <string>
 #include <vector>
 
+#include "aos/render/focal_surface.h"
 #include "aos/render/integral.h"
 
 namespace aos {
@@ -53,9 +54,7 @@ Plane InterpolatePlane(const Plane& first, const Plane& last, double s, const Ve
 std::vector<Plane> StackPlanes(const Plane& first, const Plane& last, int slices,
                                const Vec3d& center);
 
-// Depth (z in the camera frame, metres) at which each pixel's ray meets `plane`; 0 where the ray
-// meets it behind the camera or never (float32, 1 channel).
-Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane);
+// PlaneDepth (the depth map of a plane) lives in focal_surface.h.
 
 struct FocalStack {
   PinholeCamera camera;        // the virtual camera

@@ -9,7 +9,7 @@
 
 #include <omp.h>
 
-#include "aos/render/focal_stack.h"
+#include "aos/render/focal_surface.h"
 #include "aos/render/integral_kernels.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/error.h"
@@ -761,6 +761,12 @@ void IntegralOptions::Check(int view_count) const {
   if (!(glm::length(focal_plane.normal) > 0.0)) {
     ThrowInvalid("focal_plane: normal must not be zero");
   }
+  if (!std::isfinite(surface_offset)) {
+    ThrowInvalid("surface_offset: must be finite metres (got " + FormatNumber(surface_offset) + ")");
+  }
+  if (surface_offset != 0.0 && !focal_surface) {
+    ThrowInvalid("surface_offset: needs a focal_surface (for a plane, move focal_plane instead)");
+  }
   if (view_count <= 0) ThrowInvalid("view selection is empty: the light field has no views");
   if (pose_view < -1 || pose_view >= view_count) {
     ThrowInvalid("pose_view: no view " + std::to_string(pose_view) + " (the light field has " +
@@ -785,8 +791,9 @@ void IntegralOptions::Check(int view_count) const {
 
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress) {
-  // Views with a lens model are sampled through it, point by point on the plane's depth map
-  // (direct sampling: one resampling, no rectified copy); pinhole views take the homography path.
+  // One route for every surface: a plane over pinhole views takes the homography kernel; any
+  // other surface, or views with a lens model (sampled through the lens directly: one resampling,
+  // no rectified copy), take the per-sample path on the surface's depth map.
   options.Check(static_cast<int>(light_field.views.size()));
   bool lens_views = false;
   for (size_t i = 0; i < light_field.views.size(); ++i) {
@@ -795,10 +802,33 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
                                     static_cast<int>(i)) != options.view_indices.end();
     lens_views = lens_views || (selected && light_field.views[i].camera.model != LensModel::kPinhole);
   }
-  if (lens_views) {
-    const PinholeCamera camera = VirtualCamera(light_field, options);
-    const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
-    const Image depth = PlaneDepth(camera, cam_from_world, options.focal_plane);
+  const FocalSurface surface = options.focal_surface ? *options.focal_surface
+                                                     : FocalSurface::FromPlane(options.focal_plane);
+  const bool is_plane = surface.kind() == FocalSurfaceKind::kPlane;
+  if (is_plane && !lens_views) {
+    if (!options.focal_surface) {
+      IntegralRenderer renderer(light_field, options);
+      return renderer.Run(progress);
+    }
+    // A plane given as a surface: move it by the offset and render it as focal_plane.
+    const SurfacePlacement placement = ResolveSurfacePlacement(
+        surface, light_field, options.view_indices, options.surface_offset);
+    IntegralOptions plane_options = options;
+    plane_options.focal_surface.reset();
+    plane_options.surface_offset = 0.0;
+    plane_options.focal_plane = surface.plane();
+    plane_options.focal_plane.point += placement.offset * placement.up;
+    IntegralRenderer renderer(light_field, plane_options);
+    return renderer.Run(progress);
+  }
+  const PinholeCamera camera = VirtualCamera(light_field, options);
+  const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
+  const SurfacePlacement placement = ResolveSurfacePlacement(
+      surface, light_field, options.view_indices, options.surface_offset);
+  const Image depth = surface.DepthFor(camera, cam_from_world, placement);
+  IntegralOptions depth_options = options;
+  if (is_plane) {
+    depth_options.focal_plane = surface.plane();
     bool any_in_front = false;
     for (int y = 0; y < camera.height && !any_in_front; ++y) {
       for (int x = 0; x < camera.width && !any_in_front; ++x) {
@@ -809,11 +839,13 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
       ThrowInvalid("focal_plane: lies behind the virtual camera or contains its centre: no "
                    "pixel's ray meets it in front");
     }
-    return RenderIntegralOnDepth(light_field, options, depth, SurfaceIntegralOptions{}, progress)
-        .integral;
+  } else {
+    // Grazing angles are measured against the horizontal (the up axis is the normal).
+    depth_options.focal_plane = Plane{Vec3d(0.0), placement.up};
   }
-  IntegralRenderer renderer(light_field, options);
-  return renderer.Run(progress);
+  return RenderIntegralOnDepth(light_field, depth_options, depth, SurfaceIntegralOptions{},
+                               progress)
+      .integral;
 }
 
 }  // namespace aos

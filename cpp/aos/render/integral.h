@@ -36,10 +36,16 @@
 //   map, with the same admission rules and results up to float rounding, but slower than the
 //   homography path pinhole views take.
 //
+// - With a focal_surface (focal_surface.h) that is not a plane, or with views that have a lens
+//   model, the render takes surface_integral.h's path on the surface's depth map
+//   (FocalSurface::DepthFor): pixels whose rays miss the surface get count 0 and count in
+//   uncovered_pixels. A plane surface over pinhole views takes the homography path.
+//
 // Throws std::invalid_argument (naming the option) for bad options, aos::Cancelled if the
 // progress sink asks to stop.
 #include <cstdint>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "aos/geometry/rigid.h"
@@ -48,6 +54,8 @@
 #include "aos/util/progress.h"
 
 namespace aos {
+
+class FocalSurface;  // render/focal_surface.h
 
 // The virtual camera when neither it nor a pose view gives one.
 constexpr double kDefaultFovDeg = 50.0;
@@ -68,8 +76,16 @@ struct IntegralOptions {
   // Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
   // pixel), infinity means every view.
   double aperture_radius = std::numeric_limits<double>::infinity();
-  // The focal plane (local frame): any point on it and its normal.
+  // The focal plane (local frame): any point on it and its normal. Used when focal_surface is
+  // null; with a focal_surface only its normal is used, for the grazing-angle test (set to the
+  // up axis, +-z, by RenderIntegral for mesh, height field and depth-map surfaces).
   Plane focal_plane = Plane::AtHeight(0.0);
+  // A focal surface other than focal_plane (a mesh, a DEM height field, a depth map or a plane:
+  // focal_surface.h); null = focal_plane. Shared, never modified.
+  std::shared_ptr<const FocalSurface> focal_surface;
+  // Offset of focal_surface along the up axis (focal_surface.h: +-z, towards the views), metres:
+  // 1.0 focuses one metre above the terrain. Must be 0 without a focal_surface (move the plane).
+  double surface_offset = 0.0;
   // Views to integrate (indices into the light field); empty means all views.
   std::vector<int> view_indices;
   // Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)

@@ -1,0 +1,53 @@
+#pragma once
+// Triangle meshes read from OBJ and PLY files: the terrain meshes (DEMs) that focal surfaces are
+// made of (render/focal_surface.h).
+//
+// Contract
+// - Vertices are in WORLD coordinates as the file gives them (metres; for a light field,
+//   world = LightField::origin + local). They are kept in double precision; whoever ray casts
+//   them moves them near the data first (focal_surface.h).
+// - OBJ: `v x y z [w]` lines (w ignored) and `f` lines whose corners are `v`, `v/vt`, `v/vt/vn`
+//   or `v//vn` with 1-based indices, negative ones counting back from the last vertex read so
+//   far (a face may use only vertices defined before it, as writers do); polygons with more than three corners are fan-triangulated (0,1,2), (0,2,3), ...
+//   Every other line (vt, vn, o, g, s, usemtl, mtllib, comments) is ignored.
+// - PLY: `format ascii 1.0` or `format binary_little_endian 1.0`; element `vertex` with float or
+//   double (any PLY scalar type) properties x, y, z (other properties skipped); element `face`
+//   with a list property `vertex_indices` (or `vertex_index`), polygons fan-triangulated as for
+//   OBJ; other elements skipped.
+// - Degenerate triangles (a repeated vertex index, or zero area in double precision: the cross
+//   product of two edges is exactly zero) are dropped, not an error, and counted in
+//   Mesh::dropped_triangles.
+//
+// Throws std::invalid_argument naming the file, the line (OBJ) or element (PLY) and the field for
+// a file that cannot be read, a non-finite vertex coordinate, a face index out of range, a face
+// with fewer than 3 corners, an unknown PLY format or property type, a truncated file, and a mesh
+// with no vertex or no (non-degenerate) triangle.
+#include <array>
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "aos/geometry/rigid.h"
+
+namespace aos {
+
+struct Mesh {
+  std::vector<Vec3d> vertices;                // world coordinates, metres
+  std::vector<std::array<int, 3>> triangles;  // 0-based indices into vertices
+  // Degenerate triangles (repeated index or zero area) dropped by ReadMesh (or
+  // DropDegenerateTriangles); they are not in `triangles`.
+  int64_t dropped_triangles = 0;
+
+  // Throws std::invalid_argument ("<where>: ...") for no vertices, no triangles, a non-finite
+  // vertex or an index out of range.
+  void Check(const std::string& where) const;
+};
+
+// Reads an OBJ (.obj) or PLY (.ply) mesh; the format is chosen by the file's first bytes ("ply"
+// starts a PLY file), else the extension. See the contract above.
+Mesh ReadMesh(const std::string& path);
+
+// Removes degenerate triangles from `mesh`, adding their number to mesh.dropped_triangles.
+void DropDegenerateTriangles(Mesh& mesh);
+
+}  // namespace aos

@@ -1,0 +1,436 @@
+#include "aos/render/focal_surface.h"
+
+#include <algorithm>
+#include <cstdio>
+#include <cmath>
+#include <limits>
+#include <mutex>
+#include <stdexcept>
+
+#include <embree3/rtcore.h>
+#include <omp.h>
+
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
+
+namespace aos {
+
+// What a surface holds: its source data and, for everything but a plane, a triangle mesh ray cast
+// through an Embree BVH built on first use.
+struct FocalSurface::Impl {
+  FocalSurfaceKind kind = FocalSurfaceKind::kPlane;
+  Plane plane;
+  Mesh mesh;  // mesh, height field triangulation, or a depth map's focal points
+  bool mesh_in_local_frame = false;  // true for a depth map's mesh (no origin to subtract)
+  Heightfield heightfield;
+  Image depth;
+  PinholeCamera depth_camera;
+  Rigid3d depth_cam_from_world;
+  std::string source;
+  Vec3d centroid{0.0};  // of the mesh's vertices (mesh frame), double
+  double min_z = 0.0, max_z = 0.0;
+
+  mutable std::once_flag bvh_once;
+  mutable RTCDevice device = nullptr;
+  mutable RTCScene scene = nullptr;
+  mutable std::string bvh_error;
+
+  ~Impl() {
+    if (scene != nullptr) rtcReleaseScene(scene);
+    if (device != nullptr) rtcReleaseDevice(device);
+  }
+
+  void Finish() {
+    Vec3d sum(0.0);
+    min_z = std::numeric_limits<double>::infinity();
+    max_z = -min_z;
+    for (const Vec3d& v : mesh.vertices) {
+      sum += v;
+      min_z = std::min(min_z, v.z);
+      max_z = std::max(max_z, v.z);
+    }
+    centroid = mesh.vertices.empty() ? Vec3d(0.0) : sum / static_cast<double>(mesh.vertices.size());
+  }
+
+  // Builds the BVH once (float vertices relative to the centroid).
+  RTCScene Scene() const {
+    std::call_once(bvh_once, [this] {
+      device = rtcNewDevice(nullptr);
+      if (device == nullptr) {
+        bvh_error = "Embree: cannot create a device";
+        return;
+      }
+      scene = rtcNewScene(device);
+      rtcSetSceneFlags(scene, RTC_SCENE_FLAG_ROBUST);
+      rtcSetSceneBuildQuality(scene, RTC_BUILD_QUALITY_HIGH);
+      RTCGeometry geometry = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+      auto* vertices = static_cast<float*>(rtcSetNewGeometryBuffer(
+          geometry, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3, 3 * sizeof(float),
+          mesh.vertices.size()));
+      auto* indices = static_cast<unsigned*>(rtcSetNewGeometryBuffer(
+          geometry, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3, 3 * sizeof(unsigned),
+          mesh.triangles.size()));
+      if (vertices == nullptr || indices == nullptr) {
+        rtcReleaseGeometry(geometry);
+        bvh_error = "Embree: out of memory for the mesh's buffers";
+        return;
+      }
+      for (size_t i = 0; i < mesh.vertices.size(); ++i) {
+        const Vec3d v = mesh.vertices[i] - centroid;
+        vertices[3 * i] = static_cast<float>(v.x);
+        vertices[3 * i + 1] = static_cast<float>(v.y);
+        vertices[3 * i + 2] = static_cast<float>(v.z);
+      }
+      for (size_t i = 0; i < mesh.triangles.size(); ++i) {
+        for (int k = 0; k < 3; ++k) indices[3 * i + k] = static_cast<unsigned>(mesh.triangles[i][k]);
+      }
+      rtcCommitGeometry(geometry);
+      rtcAttachGeometry(scene, geometry);
+      rtcReleaseGeometry(geometry);
+      rtcCommitScene(scene);
+      if (rtcGetDeviceError(device) != RTC_ERROR_NONE) bvh_error = "Embree: building the BVH failed";
+    });
+    if (!bvh_error.empty()) throw std::runtime_error(bvh_error);
+    return scene;
+  }
+
+  // Distance t >= 0 along origin + t direction (mesh frame, double) to the first triangle hit,
+  // or NaN. Embree finds the triangle in float; t is recomputed on its plane in double.
+  double Cast(RTCScene bvh, const Vec3d& origin, const Vec3d& direction) const {
+    RTCIntersectContext context;
+    rtcInitIntersectContext(&context);
+    RTCRayHit rayhit;
+    const Vec3d o = origin - centroid;
+    rayhit.ray.org_x = static_cast<float>(o.x);
+    rayhit.ray.org_y = static_cast<float>(o.y);
+    rayhit.ray.org_z = static_cast<float>(o.z);
+    rayhit.ray.dir_x = static_cast<float>(direction.x);
+    rayhit.ray.dir_y = static_cast<float>(direction.y);
+    rayhit.ray.dir_z = static_cast<float>(direction.z);
+    rayhit.ray.tnear = 0.0f;
+    rayhit.ray.tfar = std::numeric_limits<float>::infinity();
+    rayhit.ray.mask = ~0u;
+    rayhit.ray.flags = 0;
+    rayhit.ray.time = 0.0f;
+    rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+    rayhit.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    rtcIntersect1(bvh, &context, &rayhit);
+    if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::numeric_limits<double>::quiet_NaN();
+    const auto& triangle = mesh.triangles[rayhit.hit.primID];
+    const Vec3d& a = mesh.vertices[static_cast<size_t>(triangle[0])];
+    const Vec3d normal = glm::cross(mesh.vertices[static_cast<size_t>(triangle[1])] - a,
+                                    mesh.vertices[static_cast<size_t>(triangle[2])] - a);
+    const double f = glm::dot(normal, direction);
+    const double t = f != 0.0 ? glm::dot(normal, a - origin) / f : static_cast<double>(rayhit.ray.tfar);
+    return std::isfinite(t) && t > 0.0 ? t : static_cast<double>(rayhit.ray.tfar);
+  }
+
+  // The mesh frame's origin in the local frame, and the shift of the placement: a point p of the
+  // mesh frame lies at p + to_local in the local frame.
+  Vec3d ToLocal(const SurfacePlacement& placement) const {
+    const Vec3d frame_shift = mesh_in_local_frame ? Vec3d(0.0) : WorldToLocal(Vec3d(0.0), placement.origin);
+    return frame_shift + placement.offset * placement.up;
+  }
+};
+
+namespace {
+
+std::shared_ptr<FocalSurface::Impl> NewImpl(FocalSurfaceKind kind) {
+  auto impl = std::make_shared<FocalSurface::Impl>();
+  impl->kind = kind;
+  return impl;
+}
+
+const Heightfield kEmptyHeightfield{};
+const Image kEmptyImage{};
+
+bool EndsWithNoCase(const std::string& text, const std::string& suffix) {
+  if (text.size() < suffix.size()) return false;
+  for (size_t i = 0; i < suffix.size(); ++i) {
+    if (std::tolower(static_cast<unsigned char>(text[text.size() - suffix.size() + i])) != suffix[i]) {
+      return false;
+    }
+  }
+  return true;
+}
+
+}  // namespace
+
+const char* FocalSurfaceKindName(FocalSurfaceKind kind) {
+  switch (kind) {
+    case FocalSurfaceKind::kPlane: return "plane";
+    case FocalSurfaceKind::kMesh: return "mesh";
+    case FocalSurfaceKind::kHeightfield: return "heightfield";
+    case FocalSurfaceKind::kDepthMap: return "depth_map";
+  }
+  return "?";
+}
+
+void SurfacePlacement::Check() const {
+  if (!std::isfinite(origin.x) || !std::isfinite(origin.y) || !std::isfinite(origin.z)) {
+    ThrowInvalid("origin: must be finite");
+  }
+  if (!std::isfinite(offset)) ThrowInvalid("surface_offset: must be finite (got " + FormatNumber(offset) + ")");
+  if (!(up.x == 0.0 && up.y == 0.0 && std::abs(up.z) == 1.0)) {
+    ThrowInvalid("up: must be (0, 0, 1) or (0, 0, -1)");
+  }
+}
+
+FocalSurface FocalSurface::FromPlane(const Plane& plane) {
+  const double length = glm::length(plane.normal);
+  if (!std::isfinite(length) || !(length > 0.0) || !std::isfinite(plane.point.x) ||
+      !std::isfinite(plane.point.y) || !std::isfinite(plane.point.z)) {
+    ThrowInvalid("focal_plane: point and normal must be finite and the normal non-zero");
+  }
+  auto impl = NewImpl(FocalSurfaceKind::kPlane);
+  impl->plane = plane;
+  FocalSurface surface;
+  surface.impl_ = impl;
+  return surface;
+}
+
+FocalSurface FocalSurface::FromMesh(Mesh mesh, std::string source) {
+  DropDegenerateTriangles(mesh);
+  mesh.Check(source);
+  auto impl = NewImpl(FocalSurfaceKind::kMesh);
+  impl->mesh = std::move(mesh);
+  impl->source = std::move(source);
+  impl->Finish();
+  FocalSurface surface;
+  surface.impl_ = impl;
+  return surface;
+}
+
+FocalSurface FocalSurface::FromHeightfield(Heightfield heightfield, std::string source) {
+  auto impl = NewImpl(FocalSurfaceKind::kHeightfield);
+  impl->mesh = HeightfieldToMesh(heightfield, source);
+  impl->heightfield = std::move(heightfield);
+  impl->source = std::move(source);
+  impl->Finish();
+  FocalSurface surface;
+  surface.impl_ = impl;
+  return surface;
+}
+
+FocalSurface FocalSurface::FromDepthMap(const Image& depth, const PinholeCamera& camera,
+                                        const Rigid3d& cam_from_world) {
+  camera.Check("depth camera");
+  if (depth.type() != PixelType::kF32 || depth.channels() != 1) {
+    ThrowInvalid("depth: must be float32 with 1 channel");
+  }
+  if (depth.width() != camera.width || depth.height() != camera.height) {
+    ThrowInvalid("depth: " + std::to_string(depth.width()) + "x" + std::to_string(depth.height()) +
+                 " does not match the camera's " + std::to_string(camera.width) + "x" +
+                 std::to_string(camera.height));
+  }
+  if (auto problem = DescribeInvalidRigid(cam_from_world)) ThrowInvalid("cam_from_world: " + *problem);
+  auto impl = NewImpl(FocalSurfaceKind::kDepthMap);
+  impl->depth = depth.Clone();
+  impl->depth_camera = camera;
+  impl->depth_cam_from_world = cam_from_world;
+  impl->mesh_in_local_frame = true;
+  // The focal points, triangulated as a height field of the image grid.
+  const int w = camera.width, h = camera.height;
+  const Vec3d center = cam_from_world.Center();
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  std::vector<int> index(static_cast<size_t>(w) * h, -1);
+  for (int y = 0; y < h; ++y) {
+    const float* row = depth.At<float>(0, y);
+    for (int x = 0; x < w; ++x) {
+      const double z = row[x];
+      if (!(std::isfinite(z) && z > 0.0)) continue;
+      index[static_cast<size_t>(y) * w + x] = static_cast<int>(impl->mesh.vertices.size());
+      impl->mesh.vertices.push_back(center + z * (world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5))));
+    }
+  }
+  for (int y = 0; y + 1 < h; ++y) {
+    for (int x = 0; x + 1 < w; ++x) {
+      const int a = index[static_cast<size_t>(y) * w + x], b = index[static_cast<size_t>(y) * w + x + 1];
+      const int c = index[static_cast<size_t>(y + 1) * w + x], d = index[static_cast<size_t>(y + 1) * w + x + 1];
+      if (a < 0 || b < 0 || c < 0 || d < 0) continue;
+      impl->mesh.triangles.push_back({a, b, d});
+      impl->mesh.triangles.push_back({a, d, c});
+    }
+  }
+  if (impl->mesh.vertices.empty()) ThrowInvalid("depth: no pixel has a finite depth > 0");
+  DropDegenerateTriangles(impl->mesh);
+  impl->Finish();
+  FocalSurface surface;
+  surface.impl_ = impl;
+  return surface;
+}
+
+FocalSurface FocalSurface::Read(const std::string& path) {
+  CheckRegularFile(path, "focal surface");
+  std::string head;
+  {
+    std::FILE* file = std::fopen(path.c_str(), "rb");
+    if (file == nullptr) ThrowInvalid(path + ": focal surface: cannot open the file");
+    char bytes[3] = {0, 0, 0};
+    const size_t n = std::fread(bytes, 1, 3, file);
+    std::fclose(file);
+    head.assign(bytes, n);
+  }
+  if (head == "ply" || EndsWithNoCase(path, ".obj") || EndsWithNoCase(path, ".ply")) {
+    return FromMesh(ReadMesh(path), path);
+  }
+  return FromHeightfield(ReadHeightfield(path), path);
+}
+
+FocalSurfaceKind FocalSurface::kind() const { return impl_->kind; }
+const Plane& FocalSurface::plane() const { return impl_->plane; }
+const Mesh& FocalSurface::mesh() const { return impl_->mesh; }
+const Heightfield& FocalSurface::heightfield() const {
+  return impl_->kind == FocalSurfaceKind::kHeightfield ? impl_->heightfield : kEmptyHeightfield;
+}
+const Image& FocalSurface::depth() const { return impl_->kind == FocalSurfaceKind::kDepthMap ? impl_->depth : kEmptyImage; }
+const PinholeCamera& FocalSurface::depth_camera() const { return impl_->depth_camera; }
+const Rigid3d& FocalSurface::depth_cam_from_world() const { return impl_->depth_cam_from_world; }
+const std::string& FocalSurface::source() const { return impl_->source; }
+
+std::string FocalSurface::Describe() const {
+  const Impl& s = *impl_;
+  std::string text = FocalSurfaceKindName(s.kind);
+  if (!s.source.empty()) text += " " + s.source;
+  switch (s.kind) {
+    case FocalSurfaceKind::kPlane:
+      return text + " through (" + FormatNumber(s.plane.point.x) + ", " + FormatNumber(s.plane.point.y) +
+             ", " + FormatNumber(s.plane.point.z) + ")";
+    case FocalSurfaceKind::kHeightfield:
+      text += " (" + std::to_string(s.heightfield.width) + " x " + std::to_string(s.heightfield.height) + " pixels, ";
+      break;
+    case FocalSurfaceKind::kDepthMap:
+      text += " (" + std::to_string(s.depth.width()) + " x " + std::to_string(s.depth.height()) + " pixels, ";
+      break;
+    case FocalSurfaceKind::kMesh:
+      text += " (";
+      break;
+  }
+  text += std::to_string(s.mesh.vertices.size()) + " vertices, " + std::to_string(s.mesh.triangles.size()) +
+          " triangles";
+  if (s.mesh.dropped_triangles > 0) text += ", " + std::to_string(s.mesh.dropped_triangles) + " degenerate dropped";
+  return text + ")";
+}
+
+Vec3d FocalSurface::ReferencePoint(const Vec3d& origin) const {
+  const Impl& s = *impl_;
+  if (s.kind == FocalSurfaceKind::kPlane) return s.plane.point;
+  return s.mesh_in_local_frame ? s.centroid : WorldToLocal(s.centroid, origin);
+}
+
+Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane) {
+  Image depth(camera.width, camera.height, 1, PixelType::kF32);
+  const Vec3d center = cam_from_world.Center();
+  const Vec3d normal = glm::normalize(plane.normal);
+  const double h = glm::dot(normal, plane.point - center);
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  for (int y = 0; y < camera.height; ++y) {
+    float* row = depth.At<float>(0, y);
+    for (int x = 0; x < camera.width; ++x) {
+      // The ray C + t D with D = R^T K^-1 p has camera depth t (D's camera z is 1).
+      const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+      const double f = glm::dot(normal, direction);
+      const double t = f != 0.0 ? h / f : 0.0;
+      row[x] = t > 0.0 && std::isfinite(t) ? static_cast<float>(t) : 0.0f;
+    }
+  }
+  return depth;
+}
+
+Image FocalSurface::DepthFor(const PinholeCamera& camera, const Rigid3d& cam_from_world,
+                             const SurfacePlacement& placement) const {
+  placement.Check();
+  camera.Check("virtual camera");
+  const Impl& s = *impl_;
+  if (s.kind == FocalSurfaceKind::kPlane) {
+    Plane shifted = s.plane;
+    shifted.point += placement.offset * placement.up;
+    return PlaneDepth(camera, cam_from_world, shifted);
+  }
+  if (s.kind == FocalSurfaceKind::kDepthMap && placement.offset == 0.0 &&
+      camera.width == s.depth_camera.width && camera.height == s.depth_camera.height &&
+      camera.fx == s.depth_camera.fx && camera.fy == s.depth_camera.fy &&
+      camera.cx == s.depth_camera.cx && camera.cy == s.depth_camera.cy &&
+      cam_from_world.rotation == s.depth_cam_from_world.rotation &&
+      cam_from_world.translation == s.depth_cam_from_world.translation) {
+    return s.depth.Clone();
+  }
+  RTCScene bvh = s.Scene();
+  // Ray origin in the mesh frame: the local camera centre minus the mesh frame's local position.
+  const Vec3d origin = cam_from_world.Center() - s.ToLocal(placement);
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  Image depth(camera.width, camera.height, 1, PixelType::kF32);
+#pragma omp parallel for schedule(dynamic, 8)
+  for (int64_t y = 0; y < camera.height; ++y) {
+    float* row = depth.At<float>(0, static_cast<int>(y));
+    for (int x = 0; x < camera.width; ++x) {
+      const Vec3d direction =
+          world_from_cam * camera.Unproject(Vec2d(x + 0.5, static_cast<double>(y) + 0.5));
+      const double t = s.Cast(bvh, origin, direction);
+      row[x] = std::isfinite(t) && t > 0.0 ? static_cast<float>(t) : 0.0f;
+    }
+  }
+  return depth;
+}
+
+std::vector<double> FocalSurface::HeightsAt(const std::vector<Vec2d>& xy_in_world,
+                                            const SurfacePlacement& placement) const {
+  placement.Check();
+  const Impl& s = *impl_;
+  std::vector<double> heights(xy_in_world.size(), std::numeric_limits<double>::quiet_NaN());
+  const double up_z = placement.up.z;
+  if (s.kind == FocalSurfaceKind::kPlane) {
+    const Vec3d n = glm::normalize(s.plane.normal);
+    const Vec3d point = s.plane.point + placement.origin + placement.offset * placement.up;  // world
+    for (size_t i = 0; i < xy_in_world.size(); ++i) {
+      if (n.z == 0.0) continue;
+      const double dx = xy_in_world[i].x - point.x, dy = xy_in_world[i].y - point.y;
+      heights[i] = point.z - (n.x * dx + n.y * dy) / n.z;
+    }
+    return heights;
+  }
+  RTCScene bvh = s.Scene();
+  // Mesh frame -> world: + (local shift) + origin.
+  const Vec3d to_world = s.ToLocal(placement) + placement.origin;
+  // Start above the highest point along up (mesh frame).
+  const double start_z = (up_z > 0.0 ? s.max_z : s.min_z) + up_z * (1.0 + (s.max_z - s.min_z));
+  const Vec3d direction(0.0, 0.0, -up_z);
+#pragma omp parallel for schedule(static)
+  for (int64_t i = 0; i < static_cast<int64_t>(xy_in_world.size()); ++i) {
+    const Vec3d origin(xy_in_world[static_cast<size_t>(i)].x - to_world.x,
+                       xy_in_world[static_cast<size_t>(i)].y - to_world.y, start_z);
+    const double t = s.Cast(bvh, origin, direction);
+    if (std::isfinite(t)) heights[static_cast<size_t>(i)] = start_z - up_z * t + to_world.z;
+  }
+  return heights;
+}
+
+SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const LightField& light_field,
+                                         const std::vector<int>& view_indices, double offset) {
+  SurfacePlacement placement;
+  placement.origin = light_field.origin;
+  placement.offset = offset;
+  Vec3d sum(0.0);
+  int count = 0;
+  auto add = [&](size_t i) {
+    if (i >= light_field.views.size()) return;
+    const Vec3d c = light_field.views[i].cam_from_world.Center();
+    if (std::isfinite(c.x) && std::isfinite(c.y) && std::isfinite(c.z)) {
+      sum += c;
+      ++count;
+    }
+  };
+  if (view_indices.empty()) {
+    for (size_t i = 0; i < light_field.views.size(); ++i) add(i);
+  } else {
+    for (int i : view_indices) add(static_cast<size_t>(i));
+  }
+  if (count == 0) ThrowInvalid("focal_surface: no selected view has a finite centre to tell up from");
+  const double views_z = sum.z / count;
+  const double surface_z = surface.ReferencePoint(placement.origin).z;
+  placement.up = Vec3d(0.0, 0.0, views_z < surface_z ? -1.0 : 1.0);
+  placement.Check();
+  return placement;
+}
+
+}  // namespace aos

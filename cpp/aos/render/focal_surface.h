@@ -1,0 +1,130 @@
+#pragma once
+// Focal surfaces: where the virtual camera's rays are focused. One abstraction for every kind
+// the renderer takes (integral.h, focal_stack.h, merge.h): a plane, a triangle mesh (OBJ/PLY,
+// geometry/mesh.h), a height field (a DEM raster, geometry/heightfield.h) or a per-pixel depth
+// map of a given virtual camera.
+//
+// Contract
+// - Frames. A plane and a depth map are in the light field's LOCAL frame (as IntegralOptions'
+//   focal_plane). Meshes and height fields are in WORLD coordinates (world = LightField::origin +
+//   local, the frame their files are written in); SurfacePlacement::origin moves them into the
+//   local frame (WorldToLocal is the one place that conversion happens, so a CRS transform can
+//   be slotted in there).
+// - Up. The offset of a surface is measured along "up": +z or -z of the local frame, whichever
+//   points from the surface towards the mean centre of the selected views (the cameras are above
+//   the ground: geo-referenced light fields have z up, JKU/F0 poses have z DOWN, so up is -z
+//   there). The surface's reference point for this is: a plane's point, a mesh's or height
+//   field's vertex centroid, a depth map's mean focal point. If the views' mean centre lies
+//   exactly at the reference height, up is +z. ResolveSurfacePlacement computes it.
+// - An offset d moves the whole surface by d * up ("1.0" = one metre above the terrain).
+// - DepthFor: for every pixel of a pinhole virtual camera, z in the camera frame (metres) of the
+//   first point where its ray (from the camera centre through the pixel centre, pixel centres at
+//   +0.5) meets the surface in front of the camera; 0 where it misses (the renderer then gives
+//   the pixel count 0). Meshes and height fields are ray cast with Embree: the BVH is built once
+//   per surface (lazily, thread-safe) in float coordinates relative to the vertex centroid, and
+//   the hit distance is then recomputed in double precision on the hit triangle's plane, so a
+//   flat mesh gives its plane's depth to double rounding (the map is float32). A height field
+//   is cast as HeightfieldToMesh's triangles (cells with a nodata corner are holes: misses).
+//   A depth map gives itself back for its own camera (same intrinsics, size and pose) with offset
+//   0; otherwise it is cast as the mesh of its focal points (two triangles per 2 x 2 pixels with
+//   valid depths).
+// - HeightsAt: the world z where a vertical ray at world (x, y), coming down from the up side,
+//   first meets the (offset) surface; NaN where it misses. For the orthographic map.
+//
+// Throws std::invalid_argument naming the file or field for bad surfaces and placements.
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "aos/geometry/heightfield.h"
+#include "aos/geometry/mesh.h"
+#include "aos/geometry/pinhole.h"
+#include "aos/geometry/rigid.h"
+#include "aos/image/image.h"
+#include "aos/lightfield/lightfield.h"
+
+namespace aos {
+
+enum class FocalSurfaceKind { kPlane, kMesh, kHeightfield, kDepthMap };
+
+// "plane", "mesh", "heightfield", "depth_map".
+const char* FocalSurfaceKindName(FocalSurfaceKind kind);
+
+// Where a surface lies for one render: the light field's origin, the resolved up axis and the
+// offset along it.
+struct SurfacePlacement {
+  Vec3d origin{0.0};       // world position of the local frame's zero (LightField::origin)
+  Vec3d up{0.0, 0.0, 1.0};  // unit up direction in the local frame: (0, 0, 1) or (0, 0, -1)
+  double offset = 0.0;     // metres along up
+
+  // Throws std::invalid_argument naming the field for a non-finite origin or offset, or an up
+  // that is not +-z.
+  void Check() const;
+};
+
+// World -> local coordinates (world - origin). The one place meshes and height fields enter the
+// local frame.
+inline Vec3d WorldToLocal(const Vec3d& point_in_world, const Vec3d& origin) {
+  return point_in_world - origin;
+}
+
+class FocalSurface {
+ public:
+  // A plane in the local frame. Throws for a zero or non-finite normal or point.
+  static FocalSurface FromPlane(const Plane& plane);
+  // A mesh in world coordinates (Mesh::Check'ed; degenerate triangles dropped and counted).
+  static FocalSurface FromMesh(Mesh mesh, std::string source = "");
+  // A height field in world coordinates (Heightfield::Check'ed).
+  static FocalSurface FromHeightfield(Heightfield heightfield, std::string source = "");
+  // A depth map (float32, 1 channel, camera z in metres; not finite or <= 0 = no surface) of the
+  // virtual camera `camera` at `cam_from_world` (local frame).
+  static FocalSurface FromDepthMap(const Image& depth, const PinholeCamera& camera,
+                                   const Rigid3d& cam_from_world);
+  // A mesh (a file starting with "ply", or named .obj/.ply) or else any GDAL raster (a DEM).
+  static FocalSurface Read(const std::string& path);
+
+  FocalSurfaceKind kind() const;
+  // The parts of the kind (others are empty / default).
+  const Plane& plane() const;
+  const Mesh& mesh() const;                // the mesh (for a height field: its triangulation)
+  const Heightfield& heightfield() const;  // only for kHeightfield
+  const Image& depth() const;              // only for kDepthMap
+  const PinholeCamera& depth_camera() const;
+  const Rigid3d& depth_cam_from_world() const;
+  const std::string& source() const;  // the file it was read from, if any
+  // One line: "mesh terrain.obj (5837 vertices, 11424 triangles, 0 degenerate dropped)".
+  std::string Describe() const;
+
+  // Whether both share one surface (copies of one FocalSurface do; equal data read twice does not).
+  bool SameAs(const FocalSurface& other) const { return impl_ == other.impl_; }
+
+  // The reference point used to resolve up, in the local frame for `origin`.
+  Vec3d ReferencePoint(const Vec3d& origin) const;
+
+  // Depth map (float32, 1 channel, camera.width x camera.height) of the surface placed by
+  // `placement`, seen by `camera` at `cam_from_world` (local frame); 0 where a ray misses.
+  Image DepthFor(const PinholeCamera& camera, const Rigid3d& cam_from_world,
+                 const SurfacePlacement& placement) const;
+
+  // World z of the (offset) surface under each world (x, y), met by a vertical ray from the up
+  // side; NaN where it misses.
+  std::vector<double> HeightsAt(const std::vector<Vec2d>& xy_in_world,
+                                const SurfacePlacement& placement) const;
+
+  struct Impl;
+
+ private:
+  std::shared_ptr<const Impl> impl_;
+};
+
+// The placement of `surface` for a render of `light_field` with the views `view_indices` (empty =
+// all): up from the views' mean centre (see above), `offset` along it. Throws
+// std::invalid_argument if no selected view has a finite centre.
+SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const LightField& light_field,
+                                         const std::vector<int>& view_indices, double offset);
+
+// Depth (z in the camera frame, metres) at which each pixel's ray meets `plane`; 0 where the ray
+// meets it behind the camera or never (float32, 1 channel).
+Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane);
+
+}  // namespace aos

@@ -1,0 +1,446 @@
+// Focal surfaces beyond planes (render/focal_surface.h) and the mesh and height-field readers
+// they are made of (geometry/mesh.h, geometry/heightfield.h).
+#include "aos/render/focal_surface.h"
+
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <limits>
+
+#include <cpl_string.h>
+#include <gdal.h>
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/render/integral.h"
+#include "aos/render/surface_integral.h"
+#include "error_of.h"
+#include "render_test_util.h"
+#include "temp_folder.h"
+
+namespace aos {
+namespace {
+
+using ::testing::HasSubstr;
+using test_util::ErrorOf;
+using test_util::SameImage;
+
+class MeshFiles : public testing_util::TempFolderTest {
+ protected:
+  std::string Write(const std::string& name, const std::string& bytes) {
+    const std::string path = Path(name);
+    std::ofstream(path, std::ios::binary) << bytes;
+    return path;
+  }
+};
+
+// ---- Mesh ----
+
+TEST_F(MeshFiles, ObjReadsEveryFaceFormNegativeIndicesAndFansPolygons) {
+  const std::string path = Write("m.obj",
+                                 "# comment\nmtllib x.mtl\no thing\n"
+                                 "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0 1.0\n"
+                                 "vt 0 0\nvn 0 0 1\ns off\nusemtl m\n"
+                                 "f 1 2 3\r\n"
+                                 "f 1/1 3/1 4/1\n"
+                                 "f 1/1/1 2/1/1 4/1/1\n"
+                                 "f 1//1 2//1 3//1\n"
+                                 "f -4 -3 -2 -1\n");
+  const Mesh mesh = ReadMesh(path);
+  ASSERT_EQ(mesh.vertices.size(), 4u);
+  EXPECT_EQ(mesh.vertices[2], Vec3d(1, 1, 0));
+  ASSERT_EQ(mesh.triangles.size(), 6u);
+  EXPECT_EQ(mesh.triangles[0], (std::array<int, 3>{0, 1, 2}));
+  EXPECT_EQ(mesh.triangles[1], (std::array<int, 3>{0, 2, 3}));
+  EXPECT_EQ(mesh.triangles[2], (std::array<int, 3>{0, 1, 3}));
+  // The quad of negative indices is fanned from its first corner.
+  EXPECT_EQ(mesh.triangles[4], (std::array<int, 3>{0, 1, 2}));
+  EXPECT_EQ(mesh.triangles[5], (std::array<int, 3>{0, 2, 3}));
+  EXPECT_EQ(mesh.dropped_triangles, 0);
+}
+
+std::string PlyHeader(const std::string& format, const std::string& vertex_type, int vertices,
+                      int faces) {
+  return "ply\nformat " + format + " 1.0\ncomment made by a test\nelement vertex " +
+         std::to_string(vertices) + "\nproperty " + vertex_type + " x\nproperty " + vertex_type +
+         " y\nproperty " + vertex_type + " z\nproperty uchar red\nelement face " +
+         std::to_string(faces) + "\nproperty list uchar int vertex_indices\nend_header\n";
+}
+
+template <typename T>
+void Append(std::string& bytes, T value) {
+  bytes.append(reinterpret_cast<const char*>(&value), sizeof(T));
+}
+
+TEST_F(MeshFiles, PlyAsciiAndBinaryLittleEndianFloatAndDouble) {
+  const std::string ascii = Write("a.ply", PlyHeader("ascii", "float", 4, 1) +
+                                               "0 0 0 1\n2 0 0 1\n2 3 0.5 1\n0 3 0.5 1\n"
+                                               "4 0 1 2 3\n");
+  for (const std::string& type : {std::string("float"), std::string("double")}) {
+    std::string bytes = PlyHeader("binary_little_endian", type, 4, 1);
+    const double xyz[4][3] = {{0, 0, 0}, {2, 0, 0}, {2, 3, 0.5}, {0, 3, 0.5}};
+    for (const auto& v : xyz) {
+      for (double c : v) {
+        if (type == "float") Append(bytes, static_cast<float>(c)); else Append(bytes, c);
+      }
+      Append(bytes, static_cast<uint8_t>(7));
+    }
+    Append(bytes, static_cast<uint8_t>(4));
+    for (int32_t i : {0, 1, 2, 3}) Append(bytes, i);
+    const Mesh binary = ReadMesh(Write("b_" + type + ".ply", bytes));
+    const Mesh text = ReadMesh(ascii);
+    ASSERT_EQ(binary.vertices.size(), 4u);
+    EXPECT_EQ(binary.vertices, text.vertices);
+    EXPECT_EQ(binary.triangles, text.triangles);
+    EXPECT_EQ(binary.vertices[2], Vec3d(2, 3, 0.5));
+    ASSERT_EQ(binary.triangles.size(), 2u);
+    EXPECT_EQ(binary.triangles[1], (std::array<int, 3>{0, 2, 3}));
+  }
+}
+
+TEST_F(MeshFiles, DegenerateTrianglesAreDroppedAndCounted) {
+  // A repeated index, and three collinear vertices (zero area): 2 of 4 triangles dropped.
+  const Mesh mesh = ReadMesh(Write("d.obj",
+                                   "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 2 0 0\n"
+                                   "f 1 2 3\nf 1 1 3\nf 1 2 4\nf 2 3 4\n"));
+  EXPECT_EQ(mesh.triangles.size(), 2u);
+  EXPECT_EQ(mesh.dropped_triangles, 2);
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("all.obj", "v 0 0 0\nv 1 0 0\nf 1 2 2\n")); }),
+              HasSubstr("no triangles (all 1 were degenerate"));
+}
+
+TEST_F(MeshFiles, BadMeshesAreRefusedNamingFileLineAndField) {
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("nan.obj", "v 0 0 0\nv 1 nan 0\nv 0 1 0\nf 1 2 3\n")); }),
+              HasSubstr("nan.obj: line 2: v: y is not finite"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("inf.obj", "v 0 0 inf\n")); }),
+              HasSubstr("inf.obj: line 1: v: z is not finite"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("range.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 4\n")); }),
+              HasSubstr("range.obj: line 4: f: corner 3: vertex index 4 is out of range"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("neg.obj", "v 0 0 0\nf -1 -2 -3\n")); }),
+              HasSubstr("neg.obj: line 2: f: corner 2: vertex index -2 is out of range"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("two.obj", "v 0 0 0\nv 1 0 0\nf 1 2\n")); }),
+              HasSubstr("two.obj: line 3: f: a face needs at least 3 corners"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("empty.obj", "")); }),
+              HasSubstr("empty.obj: the mesh has no vertices"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("points.obj", "v 0 0 0\n")); }),
+              HasSubstr("points.obj: the mesh has no triangles"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("big.ply", PlyHeader("binary_big_endian", "float", 0, 0))); }),
+              HasSubstr("big.ply: header line 2: format: 'binary_big_endian' is not supported"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadMesh(Write("nan.ply", PlyHeader("ascii", "float", 3, 1) +
+                                              "0 0 0 1\n1 0 nan 1\n0 1 0 1\n3 0 1 2\n"));
+              }),
+              HasSubstr("nan.ply: element vertex 1: z is not finite"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadMesh(Write("range.ply", PlyHeader("ascii", "float", 3, 1) +
+                                                "0 0 0 1\n1 0 0 1\n0 1 0 1\n3 0 1 3\n"));
+              }),
+              HasSubstr("range.ply: element face 0: vertex_indices: index 3 is out of range"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadMesh(Write("short.ply", PlyHeader("ascii", "float", 3, 1) + "0 0 0 1\n1 0 0\n"));
+              }),
+              HasSubstr("short.ply: element vertex 1: red: the file ends early"));
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Path("missing.obj")); }), HasSubstr("missing.obj"));
+}
+
+// ---- Heightfield ----
+
+Heightfield TiltedField(int width, int height, double pixel) {
+  // z = 0.3 + 0.02 x - 0.01 y on a grid centred near the origin.
+  Heightfield field;
+  field.width = width;
+  field.height = height;
+  field.geotransform = {-0.5 * width * pixel, pixel, 0.0, 0.5 * height * pixel, 0.0, -pixel};
+  field.heights.resize(static_cast<size_t>(width) * height);
+  for (int j = 0; j < height; ++j) {
+    for (int i = 0; i < width; ++i) {
+      field.heights[static_cast<size_t>(j) * width + i] =
+          static_cast<float>(0.3 + 0.02 * field.CenterX(i) - 0.01 * field.CenterY(j));
+    }
+  }
+  return field;
+}
+
+class HeightfieldFiles : public MeshFiles {};
+
+TEST_F(HeightfieldFiles, WriteAndReadBackWithNodataAndWithoutCrs) {
+  Heightfield field = TiltedField(5, 4, 2.0);
+  field.heights[7] = std::numeric_limits<float>::quiet_NaN();
+  const std::string path = Path("dem.tif");
+  WriteHeightfield(path, field);
+  const Heightfield back = ReadHeightfield(path);
+  EXPECT_EQ(back.width, 5);
+  EXPECT_EQ(back.height, 4);
+  EXPECT_EQ(back.geotransform, field.geotransform);
+  EXPECT_EQ(back.crs_wkt, "");  // no CRS: allowed, taken as the light field's world frame
+  for (size_t i = 0; i < field.heights.size(); ++i) {
+    if (i == 7) {
+      EXPECT_TRUE(std::isnan(back.heights[i]));
+    } else {
+      EXPECT_EQ(back.heights[i], field.heights[i]) << i;
+    }
+  }
+  EXPECT_THAT(ErrorOf([&] { WriteHeightfield(path, field); }), HasSubstr("dem.tif: the file exists"));
+  WriteHeightfield(path, TiltedField(2, 2, 1.0), /*overwrite=*/true);
+  EXPECT_EQ(ReadHeightfield(path).width, 2);
+}
+
+TEST_F(HeightfieldFiles, BadRastersAreRefusedNamingFileAndField) {
+  Heightfield field = TiltedField(3, 3, 1.0);
+  field.geotransform[2] = 0.1;
+  EXPECT_THAT(ErrorOf([&] { WriteHeightfield(Path("rot.tif"), field); }),
+              HasSubstr("rot.tif: geotransform: rotated or sheared"));
+  EXPECT_FALSE(std::filesystem::exists(Path("rot.tif")));
+  // A rotated GeoTIFF written by GDAL itself.
+  GDALAllRegister();
+  const std::string rotated = Path("rotated.tif");
+  {
+    GDALDatasetH dataset = GDALCreate(GDALGetDriverByName("GTiff"), rotated.c_str(), 3, 3, 1,
+                                      GDT_Float32, nullptr);
+    double gt[6] = {0, 1, 0.2, 0, 0.1, -1};
+    GDALSetGeoTransform(dataset, gt);
+    GDALClose(dataset);
+  }
+  EXPECT_THAT(ErrorOf([&] { ReadHeightfield(rotated); }),
+              HasSubstr("rotated.tif: geotransform: rotated or sheared"));
+  // Absurd size: a sparse 20000 x 20000 GeoTIFF (4e8 pixels > 2^28) takes a few bytes on disk.
+  const std::string huge = Path("huge.tif");
+  {
+    char** options = nullptr;
+    options = CSLSetNameValue(options, "SPARSE_OK", "TRUE");
+    options = CSLSetNameValue(options, "TILED", "YES");
+    GDALDatasetH dataset = GDALCreate(GDALGetDriverByName("GTiff"), huge.c_str(), 20000, 20000,
+                                      1, GDT_Float32, options);
+    CSLDestroy(options);
+    double gt[6] = {0, 1, 0, 0, 0, -1};
+    GDALSetGeoTransform(dataset, gt);
+    GDALClose(dataset);
+  }
+  EXPECT_THAT(ErrorOf([&] { ReadHeightfield(huge); }),
+              HasSubstr("huge.tif: size: 20000 x 20000 pixels is not 1 .. 268435456"));
+  // No geotransform at all.
+  const std::string plain = Path("plain.tif");
+  {
+    GDALDatasetH dataset = GDALCreate(GDALGetDriverByName("GTiff"), plain.c_str(), 3, 3, 1,
+                                      GDT_Float32, nullptr);
+    GDALClose(dataset);
+  }
+  EXPECT_THAT(ErrorOf([&] { ReadHeightfield(plain); }),
+              HasSubstr("plain.tif: geotransform: the raster has none"));
+  // Every pixel nodata.
+  Heightfield empty = TiltedField(3, 3, 1.0);
+  for (float& h : empty.heights) h = std::numeric_limits<float>::quiet_NaN();
+  EXPECT_THAT(ErrorOf([&] { WriteHeightfield(Path("nodata.tif"), empty); }),
+              HasSubstr("nodata.tif: heights: every pixel is nodata"));
+  EXPECT_THAT(ErrorOf([&] { ReadHeightfield(Path("missing.tif")); }), HasSubstr("missing.tif"));
+  EXPECT_THAT(ErrorOf([&] { ReadHeightfield(Write("text.tif", "not a raster")); }),
+              HasSubstr("text.tif: height field: GDAL cannot read it"));
+}
+
+TEST(HeightfieldToMesh, TwoTrianglesPerCompleteCellAtPixelCentres) {
+  Heightfield field = TiltedField(4, 3, 1.0);
+  Mesh mesh = HeightfieldToMesh(field);
+  EXPECT_EQ(mesh.vertices.size(), 12u);
+  EXPECT_EQ(mesh.triangles.size(), 2u * 3 * 2);
+  EXPECT_EQ(mesh.vertices[0], Vec3d(-1.5, 1.0, field.heights[0]));
+  field.heights[5] = std::numeric_limits<float>::quiet_NaN();  // pixel (1, 1): 4 cells lose it
+  mesh = HeightfieldToMesh(field);
+  EXPECT_EQ(mesh.triangles.size(), 2u * (6 - 4));
+}
+
+// ---- Focal surfaces on a synthetic light field ----
+
+// 5 x 5 nadir views 3 m apart at 20 m over a smooth textured ground at z = 0.3.
+const LightField& Ground() {
+  static const LightField light_field = test_util::NadirLightField(
+      test_util::TexturedGround(0.3), PinholeCamera::FromFov(96, 96, 50.0),
+      test_util::GridCentres(5, 3.0, 20.0), PixelType::kU8);
+  return light_field;
+}
+
+IntegralOptions GroundOptions() {
+  IntegralOptions options;
+  options.cam_from_world = LookAt(Vec3d(0.7, -0.4, 20), Vec3d(0, 1, 0), Vec3d(0, 1, 0));
+  options.fov_deg = 60.0;
+  options.width = 40;
+  options.height = 30;
+  options.num_threads = 1;
+  return options;
+}
+
+// Two big triangles covering [-100, 100]^2 at z = height (world = local here).
+Mesh SquareMesh(double height) {
+  Mesh mesh;
+  mesh.vertices = {{-100, -100, height}, {100, -100, height}, {100, 100, height}, {-100, 100, height}};
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return mesh;
+}
+
+double MaxDifference(const Image& a, const Image& b) {
+  double worst = 0.0;
+  for (int y = 0; y < a.height(); ++y) {
+    for (int x = 0; x < a.width(); ++x) {
+      worst = std::max(worst, std::abs(double(a.At<float>(x, y)[0]) - b.At<float>(x, y)[0]));
+    }
+  }
+  return worst;
+}
+
+class SurfaceRender : public MeshFiles {};
+
+TEST_F(SurfaceRender, AHorizontalPlaneAsMeshObjPlyDemAndDepthMapRendersAsThePlane) {
+  // The reference is the homography render on z = 0.3. The other surfaces render per sample on
+  // their depth maps, which equal the plane's to float32 rounding (the mesh's hit distance is
+  // recomputed in double on the hit triangle). Per-sample and homography positions differ by
+  // ~1e-5 px (merge_test's PlainMeanOnAPlanesDepth...: the texture's slope is <= ~60 grey per
+  // view pixel), so values agree within 1e-3 grey and counts exactly.
+  const LightField& light_field = Ground();
+  IntegralOptions options = GroundOptions();
+  options.focal_plane = Plane::AtHeight(0.3);
+  const IntegralResult plane = RenderIntegral(light_field, options);
+  const PinholeCamera camera = VirtualCamera(light_field, options);
+  const Image plane_depth = PlaneDepth(camera, options.cam_from_world, options.focal_plane);
+
+  const std::string obj = Write("square.obj",
+                                "v -100 -100 0.3\nv 100 -100 0.3\nv 100 100 0.3\nv -100 100 0.3\n"
+                                "f 1 2 3 4\n");
+  const std::string ply = Write("square.ply", PlyHeader("ascii", "double", 4, 1) +
+                                                  "-100 -100 0.3 0\n100 -100 0.3 0\n"
+                                                  "100 100 0.3 0\n-100 100 0.3 0\n4 0 1 2 3\n");
+  Heightfield dem;
+  dem.width = dem.height = 2;
+  dem.geotransform = {-200.0, 200.0, 0.0, 200.0, 0.0, -200.0};  // centres at +-100
+  dem.heights.assign(4, 0.3f);
+  WriteHeightfield(Path("square.tif"), dem);
+
+  const std::vector<std::pair<std::string, FocalSurface>> surfaces = {
+      {"mesh", FocalSurface::FromMesh(SquareMesh(0.3))},
+      {"obj", FocalSurface::Read(obj)},
+      {"ply", FocalSurface::Read(ply)},
+      {"dem", FocalSurface::Read(Path("square.tif"))},
+      {"depth", FocalSurface::FromDepthMap(plane_depth, camera, options.cam_from_world)},
+      {"plane", FocalSurface::FromPlane(Plane::AtHeight(0.3))}};
+  EXPECT_EQ(surfaces[3].second.kind(), FocalSurfaceKind::kHeightfield);
+  for (const auto& [name, surface] : surfaces) {
+    SCOPED_TRACE(name);
+    const SurfacePlacement placement = ResolveSurfacePlacement(surface, light_field, {}, 0.0);
+    EXPECT_EQ(placement.up, Vec3d(0, 0, 1));
+    const Image depth = surface.DepthFor(camera, options.cam_from_world, placement);
+    double worst_relative = 0.0;
+    for (int y = 0; y < camera.height; ++y) {
+      for (int x = 0; x < camera.width; ++x) {
+        const double a = depth.At<float>(x, y)[0], b = plane_depth.At<float>(x, y)[0];
+        worst_relative = std::max(worst_relative, std::abs(a - b) / b);
+      }
+    }
+    EXPECT_LE(worst_relative, 1.2e-7);  // one float32 rounding (2^-23) of the depth
+    IntegralOptions surface_options = options;
+    surface_options.focal_plane = Plane::AtHeight(-50.0);  // ignored but for its normal
+    surface_options.focal_surface = std::make_shared<FocalSurface>(surface);
+    const IntegralResult result = RenderIntegral(light_field, surface_options);
+    EXPECT_TRUE(SameImage(result.count, plane.count));
+    EXPECT_LT(MaxDifference(result.image, plane.image), 1e-3);
+    EXPECT_EQ(result.uncovered_pixels, plane.uncovered_pixels);
+    EXPECT_EQ(result.samples, plane.samples);
+    EXPECT_GT(result.samples, 0);
+  }
+}
+
+TEST(SurfaceOffset, AMeshAtHeightHWithOffsetDIsThePlaneAtHPlusDUp) {
+  const LightField& light_field = Ground();
+  IntegralOptions options = GroundOptions();
+  options.focal_plane = Plane::AtHeight(0.3 + 0.45);
+  const IntegralResult plane = RenderIntegral(light_field, options);
+  IntegralOptions mesh_options = GroundOptions();
+  mesh_options.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromMesh(SquareMesh(0.3)));
+  mesh_options.surface_offset = 0.45;  // up is +z here: views at z = 20 above the mesh
+  const IntegralResult mesh = RenderIntegral(light_field, mesh_options);
+  EXPECT_TRUE(SameImage(mesh.count, plane.count));
+  EXPECT_LT(MaxDifference(mesh.image, plane.image), 1e-3);
+  // Without the offset it is another image (the focus moved 0.45 m).
+  mesh_options.surface_offset = 0.0;
+  EXPECT_GT(MaxDifference(RenderIntegral(light_field, mesh_options).image, plane.image), 1.0);
+  // A plane surface with an offset equals the moved focal_plane exactly (the same kernel).
+  IntegralOptions plane_surface = GroundOptions();
+  plane_surface.focal_surface =
+      std::make_shared<FocalSurface>(FocalSurface::FromPlane(Plane::AtHeight(0.3)));
+  plane_surface.surface_offset = 0.45;
+  EXPECT_TRUE(SameImage(RenderIntegral(light_field, plane_surface).image, plane.image));
+  // An offset needs a surface.
+  options.surface_offset = 1.0;
+  EXPECT_THAT(ErrorOf([&] { RenderIntegral(light_field, options); }),
+              HasSubstr("surface_offset: needs a focal_surface"));
+}
+
+TEST(SurfacePlacement, UpPointsFromTheSurfaceTowardsTheViewsAndOffsetsFollowIt) {
+  // Views above (z up) and below (z down, as JKU/F0 poses) a mesh at z = 5.
+  const FocalSurface surface = FocalSurface::FromMesh(SquareMesh(5.0));
+  LightField above, below;
+  above.views.push_back(MakeView("a", PinholeCamera::FromFov(8, 8, 50.0), NadirCamFromWorld(Vec3d(0, 0, 30)), Image(8, 8, 1, PixelType::kU8)));
+  below.views.push_back(MakeView("b", PinholeCamera::FromFov(8, 8, 50.0), NadirCamFromWorld(Vec3d(0, 0, -30)), Image(8, 8, 1, PixelType::kU8)));
+  const SurfacePlacement up = ResolveSurfacePlacement(surface, above, {}, 2.0);
+  const SurfacePlacement down = ResolveSurfacePlacement(surface, below, {}, 2.0);
+  EXPECT_EQ(up.up, Vec3d(0, 0, 1));
+  EXPECT_EQ(down.up, Vec3d(0, 0, -1));
+  const std::vector<double> z_up = surface.HeightsAt({{1.0, 2.0}, {500.0, 0.0}}, up);
+  const std::vector<double> z_down = surface.HeightsAt({{1.0, 2.0}}, down);
+  EXPECT_DOUBLE_EQ(z_up[0], 7.0);
+  EXPECT_TRUE(std::isnan(z_up[1]));  // outside the mesh: a miss
+  EXPECT_DOUBLE_EQ(z_down[0], 3.0);
+  // The light field's origin moves world meshes into the local frame.
+  above.origin = Vec3d(1000.0, 2000.0, 4.0);
+  const SurfacePlacement shifted = ResolveSurfacePlacement(surface, above, {}, 0.0);
+  const Image depth = surface.DepthFor(PinholeCamera::FromFov(8, 8, 50.0), NadirCamFromWorld(Vec3d(-1000, -2000, 30)), shifted);
+  EXPECT_FLOAT_EQ(depth.At<float>(3, 3)[0], 30.0f - (5.0f - 4.0f));
+}
+
+TEST(SurfaceHeights, AHeightFieldOfAPlaneGivesThePlaneBetweenItsPixels) {
+  // Linear interpolation over the triangles reproduces a plane exactly (up to the float32
+  // heights: ~1e-7 relative of ~1 m).
+  const Heightfield field = TiltedField(6, 5, 2.0);
+  const FocalSurface surface = FocalSurface::FromHeightfield(field);
+  SurfacePlacement placement;
+  const std::vector<Vec2d> points = {{0.1, 0.2}, {-3.9, 2.7}, {4.2, -2.9}, {-100.0, 0.0}};
+  const std::vector<double> z = surface.HeightsAt(points, placement);
+  for (size_t i = 0; i + 1 < points.size(); ++i) {
+    EXPECT_NEAR(z[i], 0.3 + 0.02 * points[i].x - 0.01 * points[i].y, 1e-6) << i;
+  }
+  EXPECT_TRUE(std::isnan(z.back()));
+}
+
+TEST(SurfaceMisses, PixelsWhoseRaysMissTheSurfaceGetCountZeroAndAreReported) {
+  // A 4 m x 4 m square and a DEM with a nodata hole: rays beyond the square, or through the
+  // hole's cells, miss and get count 0.
+  const LightField& light_field = Ground();
+  IntegralOptions options = GroundOptions();
+  Mesh small;
+  small.vertices = {{-2, -2, 0.3}, {2, -2, 0.3}, {2, 2, 0.3}, {-2, 2, 0.3}};
+  small.triangles = {{0, 1, 2}, {0, 2, 3}};
+  options.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromMesh(small));
+  const IntegralResult result = RenderIntegral(light_field, options);
+  const PinholeCamera camera = VirtualCamera(light_field, options);
+  const Image depth = options.focal_surface->DepthFor(
+      camera, options.cam_from_world, ResolveSurfacePlacement(*options.focal_surface, light_field, {}, 0.0));
+  int64_t misses = 0;
+  for (int y = 0; y < camera.height; ++y) {
+    for (int x = 0; x < camera.width; ++x) {
+      const bool miss = depth.At<float>(x, y)[0] == 0.0f;
+      misses += miss;
+      if (miss) EXPECT_EQ(result.count.At<uint32_t>(x, y)[0], 0u);
+    }
+  }
+  EXPECT_GT(misses, 0);
+  EXPECT_LT(misses, int64_t{camera.width} * camera.height);
+  EXPECT_EQ(result.uncovered_pixels, misses);
+
+  Heightfield dem = TiltedField(41, 41, 0.5);
+  for (float& h : dem.heights) h = 0.3f;
+  dem.heights[20 * 41 + 20] = std::numeric_limits<float>::quiet_NaN();  // the centre pixel
+  options.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromHeightfield(dem));
+  const IntegralResult holed = RenderIntegral(light_field, options);
+  EXPECT_GT(holed.uncovered_pixels, 0);
+  EXPECT_LT(holed.uncovered_pixels, misses);
+}
+
+}  // namespace
+}  // namespace aos
