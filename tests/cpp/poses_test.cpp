@@ -670,6 +670,14 @@ TEST_F(FakeMapper, SceneScaleIsCheckedAgainstTheFlightHeight) {
   PosesResult result = ImportColmapPoses(Path("models/0"), Path("frames"), options);
   ASSERT_TRUE(result.georeferenced);
   EXPECT_NEAR(result.median_depth, 20.0, 1e-6);
+  // The model's points come along in the local frame (what the ground estimate is made of).
+  const ColmapModel model = ReadColmapModel(Path("models/0"));
+  ASSERT_EQ(result.point_positions.size(), model.points.size());
+  ASSERT_EQ(result.point_positions.size(), result.points);
+  for (size_t i = 0; i < model.points.size(); ++i) {
+    const Vec3d expected = result.local_from_model * model.points[i].position;
+    EXPECT_LT(glm::length(result.point_positions[i] - expected), 1e-9);
+  }
   EXPECT_NEAR(result.scale_deviation, 0.0, 1e-6);
   EXPECT_FALSE(result.implausible);
   EXPECT_THAT(result.warnings, ::testing::Not(::testing::Contains(HasSubstr("scene scale"))));

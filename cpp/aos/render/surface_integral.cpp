@@ -14,9 +14,9 @@
 #include "aos/util/parallel.h"
 
 // How it works
-// Unlike a plane, a depth map gives no homography, so every (pixel, view) pair is projected on
-// its own: the focal point relative to the virtual centre, X = depth * D, goes into view i as
-// R_i X + R_i (C - C_i), all in double precision (UTM-sized centres cancel before any rounding).
+// Unlike a plane, focal points give no homography, so every (pixel, view) pair is projected on
+// its own: the focal point relative to a centre C (the lens centre, or the points' reference for
+// a cylinder aperture), X, goes into view i as R_i X + R_i (C - C_i), all in double precision (UTM-sized centres cancel before any rounding).
 // The admission tests are integral.h's, evaluated per sample. Rows are split among threads; each
 // keeps its own sample buffers for the robust mean.
 
@@ -80,6 +80,37 @@ void SurfaceIntegralOptions::Check() const {
   }
 }
 
+void PointIntegralOptions::Check(int view_count) const {
+  if (!(aperture_radius >= 0.0)) {
+    ThrowInvalid("aperture_radius: must be >= 0 metres or infinity (got " +
+                 FormatNumber(aperture_radius) + ")");
+  }
+  if (!(min_view_angle_deg >= 0.0 && min_view_angle_deg < 90.0)) {
+    ThrowInvalid("min_view_angle_deg: must be in [0, 90) degrees (got " +
+                 FormatNumber(min_view_angle_deg) + ")");
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(lens_center[i]) || !std::isfinite(lens_axis[i]) ||
+        !std::isfinite(surface_normal[i])) {
+      ThrowInvalid("lens_center/lens_axis/surface_normal: must be finite");
+    }
+  }
+  if (!(glm::length(lens_axis) > 0.0)) ThrowInvalid("lens_axis: must not be zero");
+  if (!(glm::length(surface_normal) > 0.0)) ThrowInvalid("surface_normal: must not be zero");
+  CheckThreadCount(num_threads);
+  if (view_count <= 0) ThrowInvalid("view selection is empty: the light field has no views");
+  std::vector<uint8_t> seen(static_cast<size_t>(view_count), 0);
+  for (int index : view_indices) {
+    if (index < 0 || index >= view_count) {
+      ThrowInvalid("view_indices: no view " + std::to_string(index) + " (the light field has " +
+                   std::to_string(view_count) + " views)");
+    }
+    if (seen[static_cast<size_t>(index)]++) {
+      ThrowInvalid("view_indices: view " + std::to_string(index) + " is listed twice");
+    }
+  }
+}
+
 SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
                                             const IntegralOptions& options, const Image& depth,
                                             const SurfaceIntegralOptions& surface,
@@ -98,10 +129,61 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
                  ")");
   }
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
-  const Vec3d center = cam_from_world.Center();
-  const Vec3d lens_axis = Row(cam_from_world.rotation, 2);
   const Mat3d world_from_pixel = glm::transpose(cam_from_world.rotation) * glm::inverse(camera.K());
-  const Vec3d normal = glm::normalize(options.focal_plane.normal);
+  FocalPoints points;
+  points.width = camera.width;
+  points.height = camera.height;
+  points.reference = cam_from_world.Center();
+  points.points.resize(static_cast<size_t>(camera.width) * static_cast<size_t>(camera.height));
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (int y = 0; y < camera.height; ++y) {
+    for (int x = 0; x < camera.width; ++x) {
+      const double z = depth.At<float>(x, y)[0];
+      points.points[static_cast<size_t>(y) * camera.width + x] =
+          (z > 0.0 && std::isfinite(z)) ? z * (world_from_pixel * Vec3d(x + 0.5, y + 0.5, 1.0))
+                                        : Vec3d(nan);
+    }
+  }
+  PointIntegralOptions at_points;
+  at_points.aperture = PointIntegralOptions::Aperture::kLensPlane;
+  at_points.aperture_radius = options.aperture_radius;
+  at_points.lens_center = points.reference;
+  at_points.lens_axis = Row(cam_from_world.rotation, 2);
+  at_points.surface_normal = options.focal_plane.normal;
+  at_points.min_view_angle_deg = options.min_view_angle_deg;
+  at_points.view_indices = options.view_indices;
+  at_points.num_threads = options.num_threads;
+  at_points.variance = options.variance;
+  SurfaceIntegralResult result =
+      RenderIntegralAtPoints(light_field, points, at_points, surface, progress);
+  result.integral.cam_from_world = cam_from_world;
+  return result;
+}
+
+SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
+                                             const FocalPoints& points,
+                                             const PointIntegralOptions& options,
+                                             const SurfaceIntegralOptions& surface,
+                                             ProgressSink* progress) {
+  options.Check(static_cast<int>(light_field.views.size()));
+  surface.Check();
+  if (points.width <= 0 || points.height <= 0 ||
+      points.points.size() != static_cast<size_t>(points.width) * static_cast<size_t>(points.height)) {
+    ThrowInvalid("points: must hold width x height points (got " +
+                 std::to_string(points.points.size()) + " for " + std::to_string(points.width) +
+                 "x" + std::to_string(points.height) + ")");
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(points.reference[i])) ThrowInvalid("points: reference must be finite");
+  }
+  struct Camera { int width, height; } camera{points.width, points.height};
+  // Everything below is relative to the lens centre (kLensPlane) or the reference (kCylinder),
+  // in double precision.
+  const bool cylinder = options.aperture == PointIntegralOptions::Aperture::kCylinder;
+  const Vec3d center = cylinder ? points.reference : options.lens_center;
+  const Vec3d shift = points.reference - center;  // point relative to `center` = p + shift
+  const Vec3d lens_axis = glm::normalize(options.lens_axis);
+  const Vec3d normal = glm::normalize(options.surface_normal);
   const double min_angle = DegToRad(options.min_view_angle_deg);
   const double sin2_min = std::sin(min_angle) * std::sin(min_angle);
   const bool nearest = options.aperture_radius == 0.0;
@@ -147,13 +229,12 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   IntegralResult& out = result.integral;
   out.image = Image(camera.width, camera.height, channels, PixelType::kF32);
   out.count = Image(camera.width, camera.height, 1, PixelType::kU32);
-  out.cam_from_world = cam_from_world;
   out.views_selected = static_cast<int>(views.size());
   if (surface.robust) result.inliers = Image(camera.width, camera.height, 1, PixelType::kU32);
   if (options.variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
 
   const int threads = ResolveThreadCount(options.num_threads);
-  ProgressStart(progress, "render on depth", camera.height);
+  ProgressStart(progress, "render on surface", camera.height);
   std::vector<uint8_t> view_used(views.size(), 0);
   int64_t fallback = 0;
   bool cancelled = false;
@@ -178,9 +259,9 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
         const int row = static_cast<int>(y);
         for (int x = 0; x < camera.width; ++x) {
           float* pixel = out.image.At<float>(x, row);
-          const double z = depth.At<float>(x, row)[0];
-          if (!(z > 0.0) || !std::isfinite(z)) continue;
-          const Vec3d focal = z * (world_from_pixel * Vec3d(x + 0.5, row + 0.5, 1.0));
+          const Vec3d& point = points.points[static_cast<size_t>(row) * camera.width + x];
+          if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
+          const Vec3d focal = point + shift;
           samples.clear();
           luminance.clear();
           double best = std::numeric_limits<double>::infinity();
@@ -203,7 +284,19 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
             const Vec3d to_view = view.b - focal;
             const double along = glm::dot(normal, to_view);
             if (along * along < sin2_min * glm::dot(to_view, to_view)) continue;
-            if (finite_aperture || nearest) {
+            if (cylinder && (finite_aperture || nearest)) {
+              // Distance of C_i from the line through X along the axis.
+              const Vec3d across = to_view - glm::dot(to_view, lens_axis) * lens_axis;
+              const double distance2 = glm::dot(across, across);
+              if (finite_aperture && distance2 > r2) continue;
+              if (nearest) {
+                if (!(distance2 < best)) continue;
+                best = distance2;
+                chosen = i;
+                samples.clear();
+                luminance.clear();
+              }
+            } else if (finite_aperture || nearest) {
               // The line X + s (C_i - X) meets the lens plane a . (P - C) = 0 at
               // P - C = ((a.b) X - (a.X) b) / ((a.b) - (a.X)), written as integral.cpp does:
               // exactly b for a view on the lens plane, so symmetric views tie exactly.

@@ -24,9 +24,14 @@
 //   (too few rays agree; counted in `fallback_pixels`). inliers(x, y) holds the number of
 //   samples averaged.
 //
+// - Everything above is RenderIntegralAtPoints on the focal points C + depth * ray (the one
+//   per-sample route; maps give it orthographic points).
+//
 // Throws std::invalid_argument naming the option or "depth" for bad input, aos::Cancelled if the
 // progress sink asks to stop.
 #include <cstdint>
+#include <limits>
+#include <vector>
 
 #include "aos/render/integral.h"
 
@@ -44,12 +49,62 @@ struct SurfaceIntegralOptions {
   void Check() const;
 };
 
+// The focal points of an output image, for renders whose pixels do not come from a plane: the
+// perspective depth path below, and orthographic maps. points[y * width + x] is where pixel
+// (x, y) focuses, in the light field's local frame relative to `reference` (both double, so
+// UTM-sized frames lose nothing); a non-finite point means the pixel meets no surface (count 0).
+struct FocalPoints {
+  int width = 0;
+  int height = 0;
+  Vec3d reference{0.0};
+  std::vector<Vec3d> points;
+};
+
+// How RenderIntegralAtPoints chooses the views at a focal point X: the rules of integral.h
+// (in front of the view, inside its image, not grazing against surface_normal), and an aperture.
+struct PointIntegralOptions {
+  enum class Aperture {
+    // A perspective virtual camera: the line from X through the view centre C_i must cross the
+    // lens plane (through lens_center, perpendicular to lens_axis) within aperture_radius of
+    // lens_center; aperture_radius 0 takes the single view crossing nearest to it (integral.h).
+    kLensPlane,
+    // An orthographic (map) camera: C_i must lie within aperture_radius of the line through X
+    // along lens_axis (a vertical cylinder around the point for a map looking straight down);
+    // aperture_radius 0 takes the single view nearest to that line.
+    kCylinder,
+  };
+  Aperture aperture = Aperture::kLensPlane;
+  // Metres; 0 = the single nearest view, infinity = every view.
+  double aperture_radius = std::numeric_limits<double>::infinity();
+  Vec3d lens_center{0.0};            // local frame (kLensPlane)
+  Vec3d lens_axis{0.0, 0.0, 1.0};    // unit: the virtual camera's optical axis, or the map's up
+  Vec3d surface_normal{0.0, 0.0, 1.0};  // what the grazing test measures against
+  double min_view_angle_deg = 1.0;   // as IntegralOptions
+  std::vector<int> view_indices;     // empty = all views
+  int num_threads = -1;
+  bool variance = false;             // as IntegralOptions
+
+  // Throws std::invalid_argument naming the field.
+  void Check(int view_count) const;
+};
+
 struct SurfaceIntegralResult {
   IntegralResult integral;     // image, count (samples), statistics as RenderIntegral's
   Image inliers;               // uint32: samples averaged per pixel (robust), else empty
   int64_t fallback_pixels = 0; // robust: pixels that kept the plain mean
 };
 
+// Averages the views at every focal point (plain or robust mean as above). The result's
+// cam_from_world is left as the identity; renders of a virtual camera set it.
+SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
+                                             const FocalPoints& points,
+                                             const PointIntegralOptions& options,
+                                             const SurfaceIntegralOptions& surface = {},
+                                             ProgressSink* progress = nullptr);
+
+// The depth path: the virtual camera of `options` (integral.h) and its depth map give the focal
+// points (relative to the camera centre), the lens plane is the camera's, and
+// options.focal_plane's normal is the grazing test's.
 SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
                                             const IntegralOptions& options, const Image& depth,
                                             const SurfaceIntegralOptions& surface = {},

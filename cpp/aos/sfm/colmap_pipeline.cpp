@@ -260,6 +260,8 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
       point.position = geo.local_from_model * point.position;
     }
   }
+  result->point_positions.reserve(model.points.size());
+  for (const ColmapPoint& point : model.points) result->point_positions.push_back(point.position);
   result->median_depth = MedianDepth(model, result->light_field);
   const double focal =
       result->light_field.views.empty() ? 0.0 : result->light_field.views[0].camera.fx;

@@ -103,6 +103,9 @@ struct PosesResult {
   std::vector<std::string> warnings;      // skipped frames, unregistered frames, other models
   int models = 0;                         // models COLMAP built (the largest is used)
   size_t points = 0;
+  // The model's 3-D points in the light field's local frame (after geo-referencing; the model's
+  // frame without it): what the ground estimate (sfm/ground.h) is made from.
+  std::vector<Vec3d> point_positions;
   size_t observations = 0;
   double mean_reprojection_error_px = 0.0;
   double median_depth = 0.0;              // of the points, along the optical axes (model units)
