@@ -73,6 +73,11 @@ const CommandEntry kCommands[] = {
      "Import a COLMAP sparse model (text or binary) as a light field; optionally geo-referenced "
      "by known positions",
      DefineImportColmap},
+    {"ground",
+     "Where is the ground: estimate it from reconstructed points (a robust plane and a coarse DEM "
+     "GeoTIFF by a lower-envelope fit, usable as --focal-surface), or report the flight's height "
+     "above a given terrain",
+     DefineGround},
     {"simulate",
      "Simulate a scene (docs/scenes.md): write its views, the light field (recorded poses) and "
      "the ground truth into a new folder",

@@ -3,7 +3,7 @@
 //   render_commands.cpp   integral, stack, merge, allinfocus
 //   sim_commands.cpp      simulate, demo
 //   lens_commands.cpp     calibrate, rectify, resolution
-//   sfm_commands.cpp      poses, import-colmap
+//   sfm_commands.cpp      poses, import-colmap, ground
 //   metrics_commands.cpp  metrics
 // The command table (name, help, Define) is in aos_render.cpp. A Define function declares the
 // command's flags on `command` and returns the function that runs it after parsing.
@@ -22,6 +22,7 @@ CommandRunner DefineRectify(CLI::App* command);
 CommandRunner DefineResolution(CLI::App* command);
 CommandRunner DefinePoses(CLI::App* command);
 CommandRunner DefineImportColmap(CLI::App* command);
+CommandRunner DefineGround(CLI::App* command);
 CommandRunner DefineMetrics(CLI::App* command);
 
 }  // namespace aos::cli

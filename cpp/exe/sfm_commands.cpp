@@ -1,10 +1,19 @@
-// Pose commands: poses (COLMAP from frames), import-colmap (an existing COLMAP model).
+// Pose commands: poses (COLMAP from frames), import-colmap (an existing COLMAP model), ground
+// (where the ground is, from the reconstructed points or a given terrain).
+#include <algorithm>
+#include <cmath>
 #include <memory>
+
+#include "aos/geometry/heightfield.h"
+#include "aos/geometry/mesh.h"
+#include "aos/render/focal_surface.h"
+#include "aos/sfm/ground.h"
 
 #include "aos/lightfield/formats.h"
 #include "aos/metrics/resolution.h"
 #include "aos/sfm/colmap_pipeline.h"
 #include "aos/util/file_util.h"
+#include "aos/util/math.h"
 #include "commands.h"
 #include "progress_bar.h"
 
@@ -15,8 +24,26 @@ struct PosesCommand {
   std::string frames_dir;  // poses: the frames; import-colmap: the frames folder COLMAP was given
   std::string model_dir;   // import-colmap: the COLMAP model folder
   std::string output;
+  std::string points_output;  // PLY of the reconstructed points (world coordinates), optional
   PosesOptions options;
 };
+
+// --points-output: the model's points in world coordinates (origin + local), for `ground`.
+void AddPointsOutputFlag(CLI::App* command, PosesCommand& c) {
+  command->add_option("--points-output", c.points_output,
+                      "Also write the reconstructed 3-D points as a PLY file (world coordinates: "
+                      "light-field origin + local), for `aos-render ground`");
+}
+
+void WritePoints(const PosesCommand& c, const PosesResult& result, Report& report) {
+  if (c.points_output.empty()) return;
+  std::vector<Vec3d> world;
+  world.reserve(result.point_positions.size());
+  for (const Vec3d& p : result.point_positions) world.push_back(result.light_field.origin + p);
+  WritePly(c.points_output, world, {}, Common().force);
+  report.Set("points_output", c.points_output);
+  report.Line("wrote %s: %zu points", c.points_output.c_str(), world.size());
+}
 
 // The geo-referencing flags, shared by poses and import-colmap.
 void AddPositionFlags(Flags& flags, PosesOptions& options) {
@@ -104,12 +131,18 @@ int RunPoses(PosesCommand& c, const Flags& flags) {
   CheckOutputPath(c.output, {c.frames_dir, c.options.camera_file, c.options.positions_file},
                   "output");
   RefuseExisting(c.output, "output");
+  if (!c.points_output.empty()) {
+    CheckOutputPath(c.points_output, {c.frames_dir, c.options.camera_file, c.options.positions_file, c.output},
+                    "--points-output");
+    RefuseExisting(c.points_output, "--points-output");
+  }
   const PosesResult result =
       flags.NamingFlags([&] { return EstimatePoses(c.frames_dir, c.options, &progress); });
   progress.Finish();
   WriteLightField(c.output, result.light_field);
   Report report("poses");
   ReportPoses(result, c.output, report);
+  WritePoints(c, result, report);
   report.Print();
   return 0;
 }
@@ -119,12 +152,17 @@ int RunImportColmap(PosesCommand& c, const Flags& flags) {
   const std::vector<std::string> inputs{c.model_dir, c.frames_dir, c.options.positions_file};
   CheckOutputPath(c.output, inputs, "output");
   RefuseExisting(c.output, "output");
+  if (!c.points_output.empty()) {
+    CheckOutputPath(c.points_output, inputs, "--points-output");
+    RefuseExisting(c.points_output, "--points-output");
+  }
   const PosesResult result =
       flags.NamingFlags([&] { return ImportColmapPoses(c.model_dir, c.frames_dir, c.options); });
   CheckOutputPath(c.output, inputs, "output");  // again: the model may have changed meanwhile
   WriteLightField(c.output, result.light_field);
   Report report("import-colmap");
   ReportPoses(result, c.output, report);
+  WritePoints(c, result, report);
   report.Print();
   return 0;
 }
@@ -161,6 +199,7 @@ CommandRunner DefinePoses(CLI::App* command) {
   flags.Field("colmap", options.colmap, "COLMAP executable");
   flags.Threads(options.num_threads);
   flags.Force();
+  AddPointsOutputFlag(command, *c);
   return [c, flags] { return RunPoses(*c, flags); };
 }
 
@@ -178,7 +217,139 @@ CommandRunner DefineImportColmap(CLI::App* command) {
                "Keep an implausible scene scale (with a warning)");
   flags.Threads();
   flags.Force();
+  AddPointsOutputFlag(command, *c);
   return [c, flags] { return RunImportColmap(*c, flags); };
+}
+
+// ---- ground ----
+
+namespace {
+
+struct GroundCommand {
+  std::string light_field_path;
+  std::string points_path;  // reconstructed points (PLY/OBJ, world coordinates)
+  std::string terrain_path; // or a given terrain (mesh or DEM): the flight's height above it
+  std::string output;       // DEM GeoTIFF of the estimate
+  GroundOptions options;
+};
+
+// Median, min and max of the views' heights above the ground (NaN heights skipped).
+void ReportHeights(const std::vector<double>& heights, Report& report) {
+  std::vector<double> valid;
+  for (double h : heights) {
+    if (std::isfinite(h)) valid.push_back(h);
+  }
+  report.Set("views_over_ground", valid.size());
+  if (valid.empty()) {
+    Warn("no view lies over the ground estimate: the flight's height above it is unknown");
+    return;
+  }
+  std::sort(valid.begin(), valid.end());
+  const double median = valid[valid.size() / 2];
+  Report& above = report.Nested("height_above_ground_m");
+  above.Set("min", valid.front());
+  above.Set("median", median);
+  above.Set("max", valid.back());
+  report.Line("the views fly %.2f m above the ground (median; %.2f .. %.2f m, %zu of %zu views)",
+              median, valid.front(), valid.back(), valid.size(), heights.size());
+}
+
+int RunGround(GroundCommand& c, const Flags& flags) {
+  if (c.points_path.empty() == c.terrain_path.empty()) {
+    ThrowUsage("give either --points (the reconstructed points: estimate the ground) or "
+               "--terrain (a known terrain: the flight's height above it)");
+  }
+  if (!c.terrain_path.empty() && !c.output.empty()) {
+    ThrowUsage("-o: the ground is estimated from --points only (--terrain is already a ground)");
+  }
+  if (!c.points_path.empty() && c.output.empty()) {
+    ThrowUsage("-o: give the DEM GeoTIFF to write the ground estimate to");
+  }
+  if (!c.output.empty()) {
+    CheckOutputPath(c.output, {c.light_field_path, c.points_path}, "output");
+    RefuseExisting(c.output, "output");
+  }
+  LoadOptions load;
+  load.load_images = false;
+  const LightField light_field = LoadLightField(c.light_field_path, load).light_field;
+  Report report("ground");
+  std::vector<Vec2d> centres;
+  std::vector<double> centre_z;
+  for (const View& view : light_field.views) {
+    const Vec3d centre = light_field.origin + view.cam_from_world.Center();
+    centres.emplace_back(centre.x, centre.y);
+    centre_z.push_back(centre.z);
+  }
+  FocalSurface ground_surface = FocalSurface::FromPlane(Plane::AtHeight(0.0));
+  if (!c.points_path.empty()) {
+    std::vector<Vec3d> points = ReadPoints(c.points_path);
+    for (Vec3d& p : points) p -= light_field.origin;
+    const int up_sign = GroundUpSign(points, light_field);
+    const GroundResult ground =
+        flags.NamingFlags([&] { return EstimateGround(points, up_sign, c.options); });
+    Heightfield dem = GroundHeightfield(ground, light_field.origin, light_field.crs);
+    WriteHeightfield(c.output, dem, Common().force);
+    report.Set("output", c.output);
+    report.Set("points", ground.points);
+    report.Set("up", up_sign > 0 ? "+z" : "-z");
+    report.Set("cells", static_cast<long long>(ground.width) * ground.height);
+    report.Set("measured_cells", ground.measured_cells);
+    report.Set("plane_rms_m", ground.plane_rms_m);
+    const Vec3d world_point = light_field.origin + ground.plane.point;
+    report.Set("plane_point", std::vector<double>{world_point.x, world_point.y, world_point.z});
+    report.Set("plane_normal", std::vector<double>{ground.plane.normal.x, ground.plane.normal.y,
+                                                   ground.plane.normal.z});
+    const double tilt_deg = RadToDeg(std::acos(std::min(1.0, std::abs(ground.plane.normal.z))));
+    report.Line("wrote %s: %d x %d cells of %.3g m, %d measured from %zu points (up is %s)",
+                c.output.c_str(), ground.width, ground.height, ground.cell_size_m,
+                ground.measured_cells, ground.points, up_sign > 0 ? "+z" : "-z");
+    report.Line("ground plane: through %.3f %.3f %.3f (world), tilted %.2f degrees, RMS %.3f m "
+                "over %d cells",
+                world_point.x, world_point.y, world_point.z, tilt_deg, ground.plane_rms_m,
+                ground.plane_cells);
+    ground_surface = FocalSurface::FromHeightfield(std::move(dem), c.output);
+  } else {
+    ground_surface = FocalSurface::Read(c.terrain_path);
+    report.Set("terrain", c.terrain_path);
+  }
+  const SurfacePlacement placement =
+      ResolveSurfacePlacement(ground_surface, light_field, {}, 0.0);
+  const std::vector<double> ground_z = ground_surface.HeightsAt(centres, placement);
+  std::vector<double> heights(ground_z.size());
+  for (size_t i = 0; i < heights.size(); ++i) {
+    heights[i] = placement.up.z * (centre_z[i] - ground_z[i]);
+  }
+  ReportHeights(heights, report);
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineGround(CLI::App* command) {
+  auto c = std::make_shared<GroundCommand>();
+  Flags flags(command);
+  command->add_option("lightfield", c->light_field_path, "Light-field file (aos JSON or JKU poses)")
+      ->required();
+  command->add_option("--points", c->points_path,
+                      "Reconstructed points (PLY/OBJ, world coordinates), e.g. from `poses "
+                      "--points-output`: estimate the ground from them");
+  command->add_option("--terrain", c->terrain_path,
+                      "A known terrain (mesh or DEM raster): report the flight's height above it");
+  command->add_option("-o,--output", c->output, "DEM GeoTIFF to write the estimate to");
+  GroundOptions& options = c->options;
+  flags.Field("cell_size_m", options.cell_size_m, "Cell size of the elevation model, metres");
+  flags.Field("quantile", options.quantile,
+              "Height quantile of a cell's points taken as its ground (0 = the lowest)");
+  flags.Field("min_points_per_cell", options.min_points_per_cell,
+              "Fewest points for a cell to be measured");
+  flags.Field("outlier_sigmas", options.outlier_sigmas,
+              "Cells this many robust sigmas above the ground plane are canopy candidates");
+  flags.Field("max_step_m", options.max_step_m,
+              "A candidate more than this far above the ground around it is canopy, metres");
+  flags.Threads();
+  flags.Force();
+  return [c, flags] { return RunGround(*c, flags); };
 }
 
 }  // namespace aos::cli

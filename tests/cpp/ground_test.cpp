@@ -2,6 +2,9 @@
 // sampled with noise, under trees whose crowns hide the ground completely in some cells.
 #include "aos/sfm/ground.h"
 
+#include "aos/geometry/mesh.h"
+#include "temp_folder.h"
+
 #include <cmath>
 #include <random>
 #include <stdexcept>
@@ -120,6 +123,44 @@ TEST(Ground, BadInputIsRefusedNamingTheField) {
   // Three points in one cell: one measured cell, not three.
   EXPECT_NE(message({}, {Vec3d(0.0), Vec3d(1.0), Vec3d(2.0)}).find("only 1 cells"), std::string::npos);
   EXPECT_THROW(EstimateGround(points, 0), std::invalid_argument);
+}
+
+TEST(Ground, TheElevationModelBecomesANorthUpHeightfieldInWorldCoordinates) {
+  const GroundResult ground = EstimateGround(ForestPoints(1.0), 1);
+  const Vec3d origin(500000.0, 5300000.0, 200.0);
+  const Heightfield dem = GroundHeightfield(ground, origin, "EPSG:32633");
+  ASSERT_EQ(dem.width, ground.width);
+  ASSERT_EQ(dem.height, ground.height);
+  EXPECT_EQ(dem.crs_wkt, "EPSG:32633");
+  EXPECT_LT(dem.geotransform[5], 0.0);  // north up
+  // Every raster pixel holds the model's z at its world centre, plus the origin.
+  for (int row = 0; row < dem.height; ++row) {
+    for (int column = 0; column < dem.width; ++column) {
+      const double x = dem.CenterX(column) - origin.x, y = dem.CenterY(row) - origin.y;
+      EXPECT_NEAR(dem.At(column, row), origin.z + ground.ZAt(x, y), 1e-3);
+    }
+  }
+  EXPECT_NO_THROW(dem.Check("dem"));
+}
+
+class GroundFiles : public testing_util::TempFolderTest {};
+
+TEST_F(GroundFiles, PointsRoundTripThroughPlyExactly) {
+  const std::vector<Vec3d> points = {{500000.125, 5300000.5, 201.25}, {-1e-9, 3.0, 1e6}};
+  WritePly(Path("points.ply"), points);
+  EXPECT_EQ(ReadPoints(Path("points.ply")), points);
+  EXPECT_THROW(WritePly(Path("points.ply"), points), std::invalid_argument);  // exists
+  WritePly(Path("points.ply"), points, {}, true);
+  // With triangles: a mesh ReadMesh reads back.
+  const std::vector<Vec3d> corners = {{0, 0, 1}, {1, 0, 1}, {0, 1, 1}};
+  WritePly(Path("mesh.ply"), corners, {{0, 1, 2}});
+  const Mesh mesh = ReadMesh(Path("mesh.ply"));
+  EXPECT_EQ(mesh.vertices, corners);
+  ASSERT_EQ(mesh.triangles.size(), 1u);
+  EXPECT_EQ(mesh.triangles[0], (std::array<int, 3>{0, 1, 2}));
+  // A point cloud is not a mesh, but ReadPoints takes any mesh's vertices.
+  EXPECT_THROW(ReadMesh(Path("points.ply")), std::invalid_argument);
+  EXPECT_EQ(ReadPoints(Path("mesh.ply")), corners);
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstring>
+#include <filesystem>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -430,13 +431,69 @@ void Mesh::Check(const std::string& where) const {
   }
 }
 
-Mesh ReadMesh(const std::string& path) {
+namespace {
+
+Mesh ParseMeshFile(const std::string& path) {
   const std::string bytes = ReadBytes(path);
   const bool is_ply = bytes.compare(0, 3, "ply") == 0;
   if (!is_ply && !EndsWith(path, ".obj") && EndsWith(path, ".ply")) {
     ThrowInvalid(path + ": mesh: a .ply file must start with 'ply'");
   }
-  Mesh mesh = is_ply ? ReadPly(path, bytes) : ReadObj(path, bytes);
+  return is_ply ? ReadPly(path, bytes) : ReadObj(path, bytes);
+}
+
+}  // namespace
+
+std::vector<Vec3d> ReadPoints(const std::string& path) {
+  Mesh mesh = ParseMeshFile(path);
+  if (mesh.vertices.empty()) ThrowInvalid(path + ": the file has no vertices (points)");
+  for (size_t i = 0; i < mesh.vertices.size(); ++i) {
+    const Vec3d& v = mesh.vertices[i];
+    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
+      ThrowInvalid(path + ": vertex " + std::to_string(i) + " is not finite");
+    }
+  }
+  return std::move(mesh.vertices);
+}
+
+void WritePly(const std::string& path, const std::vector<Vec3d>& vertices,
+              const std::vector<std::array<int, 3>>& triangles, bool overwrite) {
+  if (!overwrite && std::filesystem::exists(path)) {
+    ThrowInvalid(path + ": exists (not overwritten)");
+  }
+  std::string bytes = "ply\nformat binary_little_endian 1.0\ncomment written by aos\nelement vertex " +
+                      std::to_string(vertices.size()) +
+                      "\nproperty double x\nproperty double y\nproperty double z\n";
+  if (!triangles.empty()) {
+    bytes += "element face " + std::to_string(triangles.size()) +
+             "\nproperty list uchar int vertex_indices\n";
+  }
+  bytes += "end_header\n";
+  static_assert(sizeof(double) == 8 && sizeof(int) == 4, "PLY double/int sizes");
+  const size_t header = bytes.size();
+  bytes.resize(header + vertices.size() * 24 + triangles.size() * 13);
+  char* out = bytes.data() + header;
+  for (const Vec3d& v : vertices) {
+    const double xyz[3] = {v.x, v.y, v.z};
+    std::memcpy(out, xyz, 24);  // little-endian host (x86-64, ARM64 Linux)
+    out += 24;
+  }
+  for (const auto& t : triangles) {
+    *out++ = 3;
+    std::memcpy(out, t.data(), 12);
+    out += 12;
+  }
+  PendingFile file(path);
+  {
+    std::ofstream stream(file.TempPath(), std::ios::binary);
+    stream.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+    if (!stream.good()) ThrowInvalid(path + ": could not write");
+  }
+  file.Commit();
+}
+
+Mesh ReadMesh(const std::string& path) {
+  Mesh mesh = ParseMeshFile(path);
   DropDegenerateTriangles(mesh);
   mesh.Check(path);
   return mesh;

@@ -47,6 +47,17 @@ struct Mesh {
 // starts a PLY file), else the extension. See the contract above.
 Mesh ReadMesh(const std::string& path);
 
+// The vertices of an OBJ or PLY file, faces not required: a point cloud (e.g. the sparse points
+// `aos-render poses --points-output` writes). Throws as ReadMesh, for no vertex or a non-finite
+// one, but not for missing faces.
+std::vector<Vec3d> ReadPoints(const std::string& path);
+
+// Writes vertices (double x, y, z) and triangles (if any) as a binary little-endian PLY that
+// ReadMesh / ReadPoints read back exactly, under a temporary name renamed into place. Refuses an
+// existing file unless `overwrite`. Throws std::invalid_argument naming the file.
+void WritePly(const std::string& path, const std::vector<Vec3d>& vertices,
+              const std::vector<std::array<int, 3>>& triangles = {}, bool overwrite = false);
+
 // Removes degenerate triangles from `mesh`, adding their number to mesh.dropped_triangles.
 void DropDegenerateTriangles(Mesh& mesh);
 

@@ -292,4 +292,24 @@ GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
   return result;
 }
 
+Heightfield GroundHeightfield(const GroundResult& ground, const Vec3d& origin,
+                              const std::string& crs_wkt) {
+  Heightfield heightfield;
+  heightfield.width = ground.width;
+  heightfield.height = ground.height;
+  const double cell = ground.cell_size_m;
+  heightfield.geotransform = {origin.x + ground.min_x, cell, 0.0,
+                              origin.y + ground.min_y + ground.height * cell, 0.0, -cell};
+  heightfield.crs_wkt = crs_wkt;
+  heightfield.heights.resize(ground.z.size());
+  for (int row = 0; row < ground.height; ++row) {
+    const int grid_row = ground.height - 1 - row;
+    for (int column = 0; column < ground.width; ++column) {
+      heightfield.heights[static_cast<size_t>(row) * ground.width + column] = static_cast<float>(
+          origin.z + ground.z[static_cast<size_t>(grid_row) * ground.width + column]);
+    }
+  }
+  return heightfield;
+}
+
 }  // namespace aos

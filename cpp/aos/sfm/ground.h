@@ -36,6 +36,7 @@
 #include <string>
 #include <vector>
 
+#include "aos/geometry/heightfield.h"
 #include "aos/geometry/rigid.h"
 #include "aos/lightfield/lightfield.h"
 
@@ -80,5 +81,12 @@ int GroundUpSign(const std::vector<Vec3d>& points, const LightField& light_field
 
 GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
                             const GroundOptions& options = {});
+
+// The elevation model as a height field (a DEM GeoTIFF with WriteHeightfield): world coordinates
+// (origin + local), row 0 at the largest y (north up for a geo-referenced frame), world z as
+// heights (for a z-down frame these are the frame's z values, as its meshes hold them); every
+// cell valid. crs_wkt is stored as given (WKT, or a user string GDAL takes, e.g. "EPSG:32633").
+Heightfield GroundHeightfield(const GroundResult& ground, const Vec3d& origin,
+                              const std::string& crs_wkt = "");
 
 }  // namespace aos
