@@ -43,6 +43,7 @@ COMMANDS = [
     ("calibrate", "CalibrateOptions"),
     ("poses", "PosesOptions"),
     ("import-colmap", "PosesOptions"),
+    ("ground", "GroundOptions"),
     ("resolution", "ResolutionOptions"),
     ("metrics", "QualityOptions"),
 ]

@@ -2,6 +2,7 @@
 // importing COLMAP models, geo-referencing.
 #include "aos/sfm/colmap_model.h"
 #include "aos/sfm/colmap_pipeline.h"
+#include "aos/sfm/ground.h"
 #include "aos/util/error.h"
 #include "bindings.h"
 
@@ -61,6 +62,17 @@ void BindSfm(py::module_& m) {
       .def_readonly("warnings", &PosesResult::warnings, "Skipped frames, unregistered ones, ...")
       .def_readonly("models", &PosesResult::models, "Models COLMAP built (the largest is used).")
       .def_readonly("points", &PosesResult::points, "3-D points of the model.")
+      .def_property_readonly(
+          "point_positions",
+          [](const PosesResult& r) {
+            py::array_t<double> out({static_cast<py::ssize_t>(r.point_positions.size()), py::ssize_t{3}});
+            auto view = out.mutable_unchecked<2>();
+            for (size_t i = 0; i < r.point_positions.size(); ++i) {
+              for (int k = 0; k < 3; ++k) view(static_cast<py::ssize_t>(i), k) = r.point_positions[i][k];
+            }
+            return out;
+          },
+          "The model's 3-D points, (N, 3) float64, in the light field's local frame.")
       .def_readonly("observations", &PosesResult::observations, "Their observations.")
       .def_readonly("mean_reprojection_error_px", &PosesResult::mean_reprojection_error_px,
                     "COLMAP's mean reprojection error, pixels.")
@@ -122,6 +134,85 @@ void BindSfm(py::module_& m) {
       },
       "model_dir"_a, "images_dir"_a, "options"_a,
       "Imports a COLMAP sparse model, GIL released. Prefer aos.import_colmap.");
+  OptionsClass<GroundOptions>(
+      m, "GroundOptions",
+      "Options of estimate_ground (defaults from the C++ struct aos::GroundOptions).")
+      .Field("cell_size_m", &GroundOptions::cell_size_m, "Side of a DEM cell, metres, > 0.")
+      .Field("quantile", &GroundOptions::quantile,
+             "Height quantile of a cell's points taken as its ground, [0, 1).")
+      .Field("min_points_per_cell", &GroundOptions::min_points_per_cell,
+             "Fewest points for a cell to be measured, >= 1.")
+      .Field("outlier_sigmas", &GroundOptions::outlier_sigmas,
+             "Cells this many robust sigmas above the plane are canopy candidates, > 0.")
+      .Field("max_step_m", &GroundOptions::max_step_m,
+             "A candidate this far above the ground around it is canopy, metres, >= 0.")
+      .Finish()
+      .def("check", &GroundOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<GroundResult>(m, "GroundResult", "Where the ground is (sfm/ground.h).")
+      .def_readonly("up_sign", &GroundResult::up_sign, "+1: z up; -1: z down.")
+      .def_readonly("plane", &GroundResult::plane, "Robust ground plane (local frame), normal up.")
+      .def_readonly("plane_rms_m", &GroundResult::plane_rms_m, "RMS residual of its cells, m.")
+      .def_readonly("plane_cells", &GroundResult::plane_cells, "Cells the plane kept.")
+      .def_readonly("min_x", &GroundResult::min_x, "Local x of the grid's corner.")
+      .def_readonly("min_y", &GroundResult::min_y, "Local y of the grid's corner.")
+      .def_readonly("cell_size_m", &GroundResult::cell_size_m, "Cell side, metres.")
+      .def_readonly("measured_cells", &GroundResult::measured_cells, "Cells with their own value.")
+      .def_readonly("points", &GroundResult::points, "Points used.")
+      .def_property_readonly(
+          "z",
+          [](const GroundResult& r) {
+            py::array_t<float> out({static_cast<py::ssize_t>(r.height), static_cast<py::ssize_t>(r.width)});
+            std::copy(r.z.begin(), r.z.end(), out.mutable_data());
+            return out;
+          },
+          "Local z of the cell centres, (rows along y from min_y, columns along x), float32.")
+      .def("z_at", &GroundResult::ZAt, "x"_a, "y"_a, "Local z of the model at local (x, y).")
+      .def("heightfield", [](const GroundResult& r, const Vec3d& origin, const std::string& crs) {
+             return GroundHeightfield(r, origin, crs);
+           }, "origin"_a, "crs"_a = "",
+           "The model as a north-up Heightfield in world coordinates (origin + local).")
+      .def("__repr__", [](const GroundResult& r) {
+        return "GroundResult(" + std::to_string(r.width) + "x" + std::to_string(r.height) +
+               " cells of " + FormatNumber(r.cell_size_m) + " m, measured_cells=" +
+               std::to_string(r.measured_cells) + ", plane_rms_m=" + FormatNumber(r.plane_rms_m) +
+               ", up_sign=" + std::to_string(r.up_sign) + ")";
+      });
+
+  m.def(
+      "_estimate_ground",
+      [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points, int up_sign,
+         const GroundOptions& options) {
+        if (points.ndim() != 2 || points.shape(1) != 3) {
+          throw py::value_error("points: must be an (N, 3) array");
+        }
+        std::vector<Vec3d> list(static_cast<size_t>(points.shape(0)));
+        auto view = points.unchecked<2>();
+        for (size_t i = 0; i < list.size(); ++i) {
+          const auto k = static_cast<py::ssize_t>(i);
+          list[i] = Vec3d(view(k, 0), view(k, 1), view(k, 2));
+        }
+        py::gil_scoped_release release;
+        return EstimateGround(list, up_sign, options);
+      },
+      "points"_a, "up_sign"_a, "options"_a, "Prefer aos.estimate_ground.");
+  m.def(
+      "_ground_up_sign",
+      [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
+         const LightField& light_field) {
+        if (points.ndim() != 2 || points.shape(1) != 3) {
+          throw py::value_error("points: must be an (N, 3) array");
+        }
+        std::vector<Vec3d> list(static_cast<size_t>(points.shape(0)));
+        auto view = points.unchecked<2>();
+        for (size_t i = 0; i < list.size(); ++i) {
+          const auto k = static_cast<py::ssize_t>(i);
+          list[i] = Vec3d(view(k, 0), view(k, 1), view(k, 2));
+        }
+        return GroundUpSign(list, light_field);
+      },
+      "points"_a, "light_field"_a, "+1 if the cameras fly above the points' median z, else -1.");
+
   m.def(
       "read_positions",
       [](const std::string& path, const std::string& crs) {

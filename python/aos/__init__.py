@@ -49,6 +49,7 @@ from ._keywords import (
     IntegralKeywords,
     MergeKeywords,
     PosesKeywords,
+    GroundKeywords,
     QualityKeywords,
     RectifyKeywords,
     ResolutionKeywords,
@@ -60,6 +61,8 @@ if TYPE_CHECKING:
     from typing_extensions import Unpack
 from ._core import (
     PosesOptions,
+    GroundOptions,
+    GroundResult,
     PosesResult,
     PoseSource,
     read_positions,
@@ -130,6 +133,9 @@ __all__ = [
     "run_demo",
     "write_demo",
     "PosesOptions",
+    "GroundOptions",
+    "GroundResult",
+    "estimate_ground",
     "PosesResult",
     "PoseSource",
     "estimate_poses",
@@ -375,6 +381,7 @@ _CALIBRATE = _Router("calibrate", CalibrateOptions)
 _RECTIFY_LIGHT_FIELD = _Router("rectify_light_field", RectifyOptions)
 _ESTIMATE_POSES = _Router("estimate_poses", PosesOptions)
 _IMPORT_COLMAP = _Router("import_colmap", PosesOptions)
+_ESTIMATE_GROUND = _Router("estimate_ground", GroundOptions)
 
 
 def _surface_as_focal_surface(kwargs: dict[str, Any]) -> dict[str, Any]:
@@ -759,6 +766,24 @@ def estimate_poses(
     merged = _copy_options("estimate_poses", PosesOptions, options)
     _ESTIMATE_POSES.apply([merged], dict(kwargs))
     return _core._estimate_poses(os.fspath(frames_dir), merged, progress)
+
+
+def estimate_ground(
+    light_field: LightField,
+    points: Any,
+    options: Optional[GroundOptions] = None,
+    **kwargs: Unpack[GroundKeywords],
+) -> GroundResult:
+    """Where the ground is, from reconstructed points in the light field's LOCAL frame (e.g.
+    ``estimate_poses(...).point_positions``), as ``aos-render ground`` does: a robust plane and
+    a coarse elevation model by a lower-envelope fit (docs/terrain-and-maps.md). Up is the side
+    the light field's cameras fly on. ``kwargs`` are fields of :class:`GroundOptions`
+    (cell_size_m, quantile, ...). ``result.heightfield(light_field.origin, light_field.crs)`` is
+    the model as a DEM (``.write(path)``), usable as a focal surface.
+    """
+    merged = _copy_options("estimate_ground", GroundOptions, options)
+    _ESTIMATE_GROUND.apply([merged], dict(kwargs))
+    return _core._estimate_ground(points, _core._ground_up_sign(points, light_field), merged)
 
 
 def import_colmap(

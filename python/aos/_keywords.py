@@ -175,3 +175,13 @@ class PosesKeywords(TypedDict, total=False):
     flight_height_m: float
     max_scale_deviation: float
     allow_implausible: bool
+
+
+class GroundKeywords(TypedDict, total=False):
+    """Fields of GroundOptions (estimate_ground)."""
+
+    cell_size_m: float
+    quantile: float
+    min_points_per_cell: int
+    outlier_sigmas: float
+    max_step_m: float

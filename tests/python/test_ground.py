@@ -136,3 +136,23 @@ def test_poses_points_output_feeds_ground(flight: Path) -> None:
     body = data[data.index(b"end_header\n") + len(b"end_header\n"):]
     # Not geo-referenced: the model's frame is the light field's (origin 0), points unchanged.
     np.testing.assert_array_equal(np.frombuffer(body, "<f8").reshape(-1, 3), points)
+
+
+def test_estimate_ground_in_python_matches_the_cli(flight: Path) -> None:
+    """aos.estimate_ground on local points gives the DEM the CLI wrote, cell for cell."""
+    light_field = aos.load_lightfield(str(flight / "lf.json")).light_field
+    data = (flight / "points.ply").read_bytes()
+    body = data[data.index(b"end_header\n") + len(b"end_header\n"):]
+    points = np.frombuffer(body, "<f8").reshape(-1, 3) - np.array(ORIGIN)
+    result = aos.estimate_ground(light_field, points, cell_size_m=5.0)
+    assert result.up_sign == 1
+    assert result.plane.normal[2] > 0.99
+    dem = result.heightfield(light_field.origin, "EPSG:32633")
+    assert run("ground", flight / "lf.json", "--points", flight / "points.ply", "-o",
+               flight / "ground.tif").returncode == 0
+    with rasterio.open(flight / "ground.tif") as written:
+        np.testing.assert_array_equal(written.read(1), dem.heights)
+    with pytest.raises(ValueError, match="cell_size_m"):
+        aos.estimate_ground(light_field, points, cell_size_m=-1.0)
+    with pytest.raises(TypeError):
+        aos.estimate_ground(light_field, points, cell_size=5.0)  # type: ignore[call-arg]
