@@ -120,7 +120,7 @@ void BindFocalSurface(py::module_& m) {
              if (!py::isinstance<FocalSurface>(other)) return py::reinterpret_borrow<py::object>(Py_NotImplemented);
              return py::bool_(a.SameAs(other.cast<const FocalSurface&>()));
            },
-           "other"_a, "Identity of the shared surface (copies and options holding it compare equal).")
+           "other"_a, "Same kind and exactly equal data (a pickled copy equals its original).")
       .def("__hash__", [](const FocalSurface& s) { return std::hash<std::string>()(s.Describe()); })
       .def("__repr__", [](const FocalSurface& s) { return "FocalSurface(" + s.Describe() + ")"; });
   py::implicitly_convertible<Mesh, FocalSurface>();

@@ -187,6 +187,8 @@ def changed(value: Any) -> Any:
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if isinstance(value, aos.Rigid3d):
         return aos.look_at((1.0, 2.0, 30.0), (0.0, 0.0, 0.0))
+    if value is None:  # IntegralOptions.focal_surface
+        return aos.FocalSurface(aos.Mesh([[0, 0, 1], [1, 0, 1], [0, 1, 1]], [[0, 1, 2]]))
     raise AssertionError(f"no changed value for {value!r}")
 
 

@@ -19,7 +19,8 @@ from aos import _core
 
 INTEGRAL_FIELDS = (
     "cam_from_world", "pose_view", "fov_deg", "width", "height", "aperture_radius",
-    "focal_plane", "view_indices", "min_view_angle_deg", "num_threads", "variance",
+    "focal_plane", "focal_surface", "surface_offset", "view_indices", "min_view_angle_deg",
+    "num_threads", "variance",
 )
 SIMULATE_FIELDS = ("num_threads",)
 
@@ -35,6 +36,7 @@ def test_integral_options_defaults_match_the_header() -> None:
     assert options.aperture_radius == math.inf
     np.testing.assert_array_equal(options.focal_plane.point, [0, 0, 0])
     np.testing.assert_array_equal(options.focal_plane.normal, [0, 0, 1])
+    assert options.focal_surface is None and options.surface_offset == 0.0
     assert options.view_indices == []
     assert options.min_view_angle_deg == 1.0
     assert options.num_threads == -1

@@ -312,6 +312,49 @@ std::string FocalSurface::Describe() const {
   return text + ")";
 }
 
+bool FocalSurface::SameAs(const FocalSurface& other) const {
+  if (impl_ == other.impl_) return true;
+  const Impl& a = *impl_;
+  const Impl& b = *other.impl_;
+  if (a.kind != b.kind) return false;
+  switch (a.kind) {
+    case FocalSurfaceKind::kPlane:
+      return a.plane.point == b.plane.point && a.plane.normal == b.plane.normal;
+    case FocalSurfaceKind::kMesh:
+      return a.mesh.vertices == b.mesh.vertices && a.mesh.triangles == b.mesh.triangles;
+    case FocalSurfaceKind::kHeightfield: {
+      const Heightfield& f = a.heightfield;
+      const Heightfield& g = b.heightfield;
+      if (f.width != g.width || f.height != g.height || f.geotransform != g.geotransform ||
+          f.crs_wkt != g.crs_wkt) {
+        return false;
+      }
+      for (size_t i = 0; i < f.heights.size(); ++i) {
+        if (!(f.heights[i] == g.heights[i] || (std::isnan(f.heights[i]) && std::isnan(g.heights[i])))) return false;
+      }
+      return true;
+    }
+    case FocalSurfaceKind::kDepthMap: {
+      const PinholeCamera& c = a.depth_camera;
+      const PinholeCamera& d = b.depth_camera;
+      if (c.width != d.width || c.height != d.height || c.fx != d.fx || c.fy != d.fy ||
+          c.cx != d.cx || c.cy != d.cy ||
+          a.depth_cam_from_world.rotation != b.depth_cam_from_world.rotation ||
+          a.depth_cam_from_world.translation != b.depth_cam_from_world.translation) {
+        return false;
+      }
+      for (int y = 0; y < c.height; ++y) {
+        for (int x = 0; x < c.width; ++x) {
+          const float p = a.depth.At<float>(x, y)[0], q = b.depth.At<float>(x, y)[0];
+          if (!(p == q || (std::isnan(p) && std::isnan(q)))) return false;
+        }
+      }
+      return true;
+    }
+  }
+  return false;
+}
+
 Vec3d FocalSurface::ReferencePoint(const Vec3d& origin) const {
   const Impl& s = *impl_;
   if (s.kind == FocalSurfaceKind::kPlane) return s.plane.point;

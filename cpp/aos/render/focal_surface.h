@@ -95,8 +95,9 @@ class FocalSurface {
   // One line: "mesh terrain.obj (5837 vertices, 11424 triangles, 0 degenerate dropped)".
   std::string Describe() const;
 
-  // Whether both share one surface (copies of one FocalSurface do; equal data read twice does not).
-  bool SameAs(const FocalSurface& other) const { return impl_ == other.impl_; }
+  // Whether both describe the same surface: same kind and exactly equal data (plane, mesh
+  // vertices and triangles, height field, depth map with its camera and pose). Copies share one.
+  bool SameAs(const FocalSurface& other) const;
 
   // The reference point used to resolve up, in the local frame for `origin`.
   Vec3d ReferencePoint(const Vec3d& origin) const;
