@@ -389,8 +389,11 @@ struct Box {
 // True if the pinhole view admits no point of the box: one of its image bounds (each a linear
 // test in the point: Z > 0, U >= 0, ..., with (U, V, Z) = K (R X + offset)) fails at all eight
 // corners by more than a rounding margin.
-bool OutsideImage(const ViewSetup& view, const Box& box) {
+// Sets *inside when every image bound holds at all eight corners by more than the margin (then
+// at every point of the box).
+bool OutsideImage(const ViewSetup& view, const Box& box, bool* inside) {
   bool negative[5] = {true, true, true, true, true};
+  bool positive = true;
   const double size = std::abs(view.fx) + std::abs(view.fy) + std::abs(view.cx) +
                       std::abs(view.cy) + view.width + view.height + 1.0;
   for (int k = 0; k < 8; ++k) {
@@ -401,8 +404,12 @@ bool OutsideImage(const ViewSetup& view, const Box& box) {
     const double V = view.fy * in_cam.y + view.cy * in_cam.z;
     const double tests[5] = {in_cam.z, U, view.width * in_cam.z - U, V,
                              view.height * in_cam.z - V};
-    for (int t = 0; t < 5; ++t) negative[t] = negative[t] && tests[t] < -margin;
+    for (int t = 0; t < 5; ++t) {
+      negative[t] = negative[t] && tests[t] < -margin;
+      positive = positive && tests[t] > margin;
+    }
   }
+  *inside = positive;
   return negative[0] || negative[1] || negative[2] || negative[3] || negative[4];
 }
 
@@ -582,6 +589,7 @@ struct TileBuffers {
   std::vector<int32_t> chosen;
   std::vector<uint8_t> used;
   std::vector<int> views;           // the views the tile's culls leave
+  std::vector<uint8_t> inside;      // whether the tile lies inside the view's image
   std::vector<Footprint> footprints;
   std::vector<const char*> lines;  // the next view's cache lines to prefetch
 };
@@ -630,12 +638,15 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   const internal::PointTileArrays arrays{b.x.data(), b.y.data(), b.z.data(), b.valid.data(),
                                          padded};
   b.views.clear();
+  b.inside.clear();
   b.footprints.clear();
   for (size_t i = 0; i < s.views.size(); ++i) {
     const ViewSetup& view = s.views[i];
-    if (view.lens == nullptr && OutsideImage(view, box)) continue;
+    bool inside = false;
+    if (view.lens == nullptr && OutsideImage(view, box, &inside)) continue;
     if (OutsideAperture(s, view, box)) continue;
     b.views.push_back(static_cast<int>(i));
+    b.inside.push_back(inside);
     b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, box) : Footprint());
   }
   b.lines.resize(kMaxPrefetch);
@@ -657,6 +668,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
         glm::length(view.b) < kFloatRange) {
       internal::PointKernelArgs args = KernelArgs(s, view, extent, !NeverGrazing(s, view, box));
       args.variance = variance;
+      args.image_test = !b.inside[k];
       args.prefetch = b.lines.data();
       args.prefetch_count = prefetch_count;
       const ExactContext context{&s, &view, b.focal.data()};

@@ -21,10 +21,10 @@ namespace {
 // Folds one test into the certain-pass and certain-fail masks: pass where value > bound, fail
 // where value < -bound; lanes in between stay undecided (the caller's exact test decides).
 __attribute__((target("avx2,fma"), always_inline)) inline void Decide(__m256 value, __m256 bound,
+                                                                      __m256 negative_bound,
                                                                       __m256& pass, __m256& fail) {
   pass = _mm256_and_ps(pass, _mm256_cmp_ps(value, bound, _CMP_GT_OQ));
-  fail = _mm256_or_ps(fail, _mm256_cmp_ps(value, _mm256_sub_ps(_mm256_setzero_ps(), bound),
-                                          _CMP_LT_OQ));
+  fail = _mm256_or_ps(fail, _mm256_cmp_ps(value, negative_bound, _CMP_LT_OQ));
 }
 
 // One group of 8 lanes with at least one admitted, waiting for its samples.
@@ -92,8 +92,11 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
     for (int c = 0; c < 4; ++c) P[r][c] = _mm256_set1_ps(args.P[r][c]);
   }
   const __m256 width = _mm256_set1_ps(args.width), height = _mm256_set1_ps(args.height);
-  __m256 bound[5];
-  for (int k = 0; k < 5; ++k) bound[k] = _mm256_set1_ps(args.bound[k]);
+  __m256 bound[5], negative[5];
+  for (int k = 0; k < 5; ++k) {
+    bound[k] = _mm256_set1_ps(args.bound[k]);
+    negative[k] = _mm256_set1_ps(-args.bound[k]);
+  }
   const __m256 n0 = _mm256_set1_ps(args.normal[0]), n1 = _mm256_set1_ps(args.normal[1]),
                n2 = _mm256_set1_ps(args.normal[2]);
   const __m256 sin2 = _mm256_set1_ps(args.sin2), grazing_bound = _mm256_set1_ps(args.grazing_bound);
@@ -103,6 +106,8 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
                b2 = _mm256_set1_ps(args.b[2]);
   const __m256 lens_b = _mm256_set1_ps(args.lens_b), r2 = _mm256_set1_ps(args.r2);
   const __m256 aperture_bound = _mm256_set1_ps(args.aperture_bound);
+  const __m256 negative_aperture_bound = _mm256_set1_ps(-args.aperture_bound);
+  const __m256 negative_grazing_bound = _mm256_set1_ps(-args.grazing_bound);
   const __m256 denominator_bound = _mm256_set1_ps(args.denominator_bound);
   const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
   const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
@@ -135,26 +140,30 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
     const __m256 Z = _mm256_fmadd_ps(P[2][0], x, _mm256_fmadd_ps(P[2][1], y, _mm256_fmadd_ps(P[2][2], z, P[2][3])));
     __m256 pass = valid;
     __m256 fail = _mm256_xor_ps(valid, all);
-    Decide(Z, bound[0], pass, fail);
-    Decide(U, bound[1], pass, fail);
-    Decide(_mm256_fmsub_ps(width, Z, U), bound[2], pass, fail);
-    Decide(V, bound[3], pass, fail);
-    Decide(_mm256_fmsub_ps(height, Z, V), bound[4], pass, fail);
-    // Skip the rest when no lane is left undecided-or-passing (the common case at the edge of
-    // a view's footprint).
-    if (_mm256_movemask_ps(_mm256_andnot_ps(fail, all)) == 0) continue;
+    if (!args.image_test && _mm256_movemask_ps(valid) == 0) continue;
+    if (args.image_test) {
+      Decide(Z, bound[0], negative[0], pass, fail);
+      Decide(U, bound[1], negative[1], pass, fail);
+      Decide(_mm256_fmsub_ps(width, Z, U), bound[2], negative[2], pass, fail);
+      Decide(V, bound[3], negative[3], pass, fail);
+      Decide(_mm256_fmsub_ps(height, Z, V), bound[4], negative[4], pass, fail);
+      // Skip the rest when no lane is left undecided-or-passing (the common case at the edge
+      // of a view's footprint).
+      if (_mm256_movemask_ps(_mm256_andnot_ps(fail, all)) == 0) continue;
+    }
     if (args.grazing || args.aperture == 2) {
       const __m256 t0 = _mm256_sub_ps(b0, x), t1 = _mm256_sub_ps(b1, y), t2 = _mm256_sub_ps(b2, z);
       const __m256 t_t = _mm256_fmadd_ps(t0, t0, _mm256_fmadd_ps(t1, t1, _mm256_mul_ps(t2, t2)));
       if (args.grazing) {
         const __m256 along = _mm256_fmadd_ps(n0, t0, _mm256_fmadd_ps(n1, t1, _mm256_mul_ps(n2, t2)));
-        Decide(_mm256_fmsub_ps(along, along, _mm256_mul_ps(sin2, t_t)), grazing_bound, pass, fail);
+        Decide(_mm256_fmsub_ps(along, along, _mm256_mul_ps(sin2, t_t)), grazing_bound,
+               negative_grazing_bound, pass, fail);
       }
       if (args.aperture == 2) {
         const __m256 t_a = _mm256_fmadd_ps(a0, t0, _mm256_fmadd_ps(a1, t1, _mm256_mul_ps(a2, t2)));
         // |t - (t.a) a|^2 = |t|^2 - (t.a)^2 for a unit axis.
         const __m256 distance2 = _mm256_fnmadd_ps(t_a, t_a, t_t);
-        Decide(_mm256_sub_ps(r2, distance2), aperture_bound, pass, fail);
+        Decide(_mm256_sub_ps(r2, distance2), aperture_bound, negative_aperture_bound, pass, fail);
       }
     }
     if (args.aperture == 1) {
@@ -165,7 +174,7 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
       const __m256 m2 = _mm256_fnmadd_ps(a_x, b2, _mm256_mul_ps(lens_b, z));
       const __m256 m_m = _mm256_fmadd_ps(m0, m0, _mm256_fmadd_ps(m1, m1, _mm256_mul_ps(m2, m2)));
       Decide(_mm256_fmsub_ps(_mm256_mul_ps(r2, denominator), denominator, m_m), aperture_bound,
-             pass, fail);
+             negative_aperture_bound, pass, fail);
       pass = _mm256_and_ps(pass, _mm256_cmp_ps(_mm256_and_ps(denominator, abs_mask),
                                                denominator_bound, _CMP_GT_OQ));
     }
@@ -190,13 +199,14 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
     const __m256 sy = _mm256_min_ps(_mm256_max_ps(_mm256_fmsub_ps(V, inv_z, half), minus_one), y_max);
     const __m256i ix = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sx, one)), one_i);
     const __m256i iy = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sy, one)), one_i);
+    const __m256 fx = _mm256_cvtepi32_ps(ix), fy = _mm256_cvtepi32_ps(iy);
     Pending& p = pending[pending_size++];
     p.group = i;
     p.keep = keep_i;
-    p.ax = _mm256_sub_ps(sx, _mm256_cvtepi32_ps(ix));
-    p.ay = _mm256_sub_ps(sy, _mm256_cvtepi32_ps(iy));
-    p.offset = _mm256_add_epi32(_mm256_mullo_epi32(iy, stride),
-                                _mm256_mullo_epi32(ix, _mm256_set1_epi32(kValueSize)));
+    p.ax = _mm256_sub_ps(sx, fx);
+    p.ay = _mm256_sub_ps(sy, fy);
+    constexpr int kShift = kValueSize == 1 ? 0 : (kValueSize == 2 ? 1 : 2);
+    p.offset = _mm256_add_epi32(_mm256_mullo_epi32(iy, stride), _mm256_slli_epi32(ix, kShift));
     if (pending_size == kPending) {
       Flush<kType>(pending, pending_size, origin, stride_bytes, args.variance, sum, sum_squares,
                    count);

@@ -38,6 +38,8 @@ struct PointKernelArgs {
   float width, height;  // the view's image: admitted iff Z > 0, 0 <= U <= width Z, 0 <= V <= height Z
   // Float error bounds of Z, U, width Z - U, V, height Z - V.
   float bound[5];
+  // False when every point of the tile is known to be inside the image (the tests are skipped).
+  bool image_test = true;
   // Grazing: admitted iff (n . t)^2 >= sin2 |t|^2, t = b - p; skipped unless `grazing`.
   bool grazing = false;
   float normal[3], sin2, grazing_bound;
