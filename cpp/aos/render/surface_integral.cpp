@@ -473,19 +473,21 @@ bool NeverGrazing(const Setup& s, const ViewSetup& view, const Box& box) {
 struct Footprint {
   int x0 = 0, x1 = -1, y0 = 0, y1 = -1;
 };
-Footprint FootprintOf(const ViewSetup& view, const Box& box) {
+// From the points on the tile's outline (the prefetch only needs to be about right: a surface
+// bulging out of its outline's footprint costs cache misses, not results), 2 pixels of margin.
+Footprint FootprintOf(const ViewSetup& view, const std::vector<Vec3d>& outline) {
   Footprint f;
   double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
   double v_min = u_min, v_max = -u_min;
-  for (int k = 0; k < 8; ++k) {
-    const Vec3d in_cam = view.rotation * box.Corner(k) + view.offset;
+  for (const Vec3d& point : outline) {
+    const Vec3d in_cam = view.rotation * point + view.offset;
     if (!(in_cam.z > 0.0)) return f;
     const double u = view.fx * in_cam.x / in_cam.z + view.cx;
     const double v = view.fy * in_cam.y / in_cam.z + view.cy;
-    u_min = std::min(u_min, u);
-    u_max = std::max(u_max, u);
-    v_min = std::min(v_min, v);
-    v_max = std::max(v_max, v);
+    u_min = std::min(u_min, u - 2.0);
+    u_max = std::max(u_max, u + 2.0);
+    v_min = std::min(v_min, v - 2.0);
+    v_max = std::max(v_max, v + 2.0);
   }
   const Image& image = *view.image;
   // Tap indices ix = floor(u - 0.5) in [-1, width - 1] (and ix + 1), likewise rows.
@@ -595,6 +597,7 @@ struct TileBuffers {
   std::vector<uint8_t> inside;      // whether the tile lies inside the view's image
   std::vector<Footprint> footprints;
   std::vector<const char*> lines;  // the next view's cache lines to prefetch
+  std::vector<Vec3d> outline;      // points on the tile's border (footprints)
 };
 
 void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, int x0, int y0,
@@ -640,6 +643,20 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
                             (!s.finite_aperture || s.r2 < kFloatRange * kFloatRange);
   const internal::PointTileArrays arrays{b.x.data(), b.y.data(), b.z.data(), b.valid.data(),
                                          padded};
+  // The tile's outline: its valid points on the border, every 8 pixels, and the last ones.
+  b.outline.clear();
+  const int tile_height = y1 - y0;
+  for (int j = 0; j < size; ++j) {
+    const int tx = j % tile_width, ty = j / tile_width;
+    const bool on_border = tx == 0 || ty == 0 || tx == tile_width - 1 || ty == tile_height - 1;
+    const bool sampled = (tx % 8 == 0 && ty % 8 == 0) || tx == tile_width - 1 || ty == tile_height - 1;
+    if (on_border && sampled && b.valid[static_cast<size_t>(j)] != 0) {
+      b.outline.push_back(b.focal[static_cast<size_t>(j)]);
+    }
+  }
+  if (b.outline.empty()) {
+    for (int k = 0; k < 8; ++k) b.outline.push_back(box.Corner(k));
+  }
   b.views.clear();
   b.inside.clear();
   b.footprints.clear();
@@ -650,7 +667,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     if (OutsideAperture(s, view, box)) continue;
     b.views.push_back(static_cast<int>(i));
     b.inside.push_back(inside);
-    b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, box) : Footprint());
+    b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline) : Footprint());
   }
   b.lines.resize(kMaxPrefetch);
   if (!b.views.empty()) {
