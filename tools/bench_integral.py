@@ -11,7 +11,15 @@ textbook version, "tuned" uses OpenCV's fastest paths):
   - memory: peak resident memory of a fresh process that loads the light field and renders once,
     minus its resident memory before loading, against the decoded image bytes plus the output.
 
+Then a "surfaces" section (focal points instead of a plane, surface_integral.h): interleaved rounds
+of the plane render against render_integral_on_depth (a) on the plane z = 0's depth map
+(aos.plane_depth) and (c) on the F0 terrain mesh (dem/dem_lr.obj) rasterised into the virtual
+camera's depth map by the small numpy z-buffer below (precomputed once, not timed); median times,
+the median per-round ratio against the plane render, and samples per second. (b), the same
+through RenderIntegralAtPoints, is not measured: that entry has no Python binding.
+
 Usage: python3 tools/bench_integral.py [--data ../shared/data/jku-f0] [--repeats 7]
+                                       [--surfaces-only]
 Needs: pip install '.[bench]' (opencv-python-headless) for the baseline.
 """
 import argparse
@@ -87,6 +95,105 @@ def tuned_baseline(cv2, frames, homographies, size):
     return render
 
 
+def read_obj(path):
+    """Vertices (N, 3) and triangles (M, 3) of an OBJ mesh (polygons fanned into triangles)."""
+    vertices, faces = [], []
+    for line in Path(path).read_text().splitlines():
+        if line.startswith("v "):
+            vertices.append([float(v) for v in line.split()[1:4]])
+        elif line.startswith("f "):
+            corners = [int(item.split("/")[0]) for item in line.split()[1:]]
+            corners = [c - 1 if c > 0 else len(vertices) + c for c in corners]
+            faces.extend([corners[0], corners[k], corners[k + 1]] for k in range(1, len(corners) - 1))
+    return np.array(vertices), np.array(faces, dtype=np.int64)
+
+
+def mesh_depth(vertices, faces, cam_from_world_R, cam_from_world_t, width, height, fov_deg):
+    """Camera z (metres) at which each pixel centre's ray first meets the mesh, 0 where it misses:
+    a z-buffer rasteriser, which is ray casting of the pixel centres for triangles in front of the
+    camera (a pixel centre's ray meets a triangle iff the centre lies in the projected triangle;
+    1/z is affine in the image, so the hit's depth is 1 / the interpolated 1/z). Independent of
+    aos; triangles reaching behind the camera are skipped (none on F0)."""
+    f = 0.5 * width / np.tan(np.radians(fov_deg) / 2)
+    cam = vertices @ cam_from_world_R.T + cam_from_world_t
+    z = cam[:, 2]
+    px = f * cam[:, 0] / z + width / 2
+    py = f * cam[:, 1] / z + height / 2
+    inv_depth = np.zeros((height, width))  # largest 1/z = nearest hit
+    for a, b, c in faces:
+        if min(z[a], z[b], z[c]) <= 1e-6:
+            continue
+        x0 = max(int(np.floor(min(px[a], px[b], px[c]) - 0.5)), 0)
+        x1 = min(int(np.ceil(max(px[a], px[b], px[c]) - 0.5)), width - 1)
+        y0 = max(int(np.floor(min(py[a], py[b], py[c]) - 0.5)), 0)
+        y1 = min(int(np.ceil(max(py[a], py[b], py[c]) - 0.5)), height - 1)
+        if x0 > x1 or y0 > y1:
+            continue
+        gx, gy = np.meshgrid(np.arange(x0, x1 + 1) + 0.5, np.arange(y0, y1 + 1) + 0.5)
+        area = (px[b] - px[a]) * (py[c] - py[a]) - (px[c] - px[a]) * (py[b] - py[a])
+        if area == 0:
+            continue
+        wa = ((px[b] - gx) * (py[c] - gy) - (px[c] - gx) * (py[b] - gy)) / area
+        wb = ((px[c] - gx) * (py[a] - gy) - (px[a] - gx) * (py[c] - gy)) / area
+        wc = 1.0 - wa - wb
+        inside = (wa >= 0) & (wb >= 0) & (wc >= 0)
+        inv = wa / z[a] + wb / z[b] + wc / z[c]
+        block = inv_depth[y0:y1 + 1, x0:x1 + 1]
+        np.copyto(block, inv, where=inside & (inv > block))
+    return np.where(inv_depth > 0, 1.0 / np.maximum(inv_depth, 1e-300), 0.0).astype(np.float32)
+
+
+def bench_surfaces(args, light_field, options):
+    """The surfaces section: plane render vs the depth path, interleaved, one run."""
+    data = Path(args.data)
+    camera = aos.PinholeCamera.from_fov(512, 512, FOV_DEG)
+    pose = light_field.views[191].cam_from_world
+    plane = aos.plane_depth(camera, pose, aos.Plane.at_height(0.0))
+    renderers = {
+        "plane": lambda: aos.render_integral(light_field, options),
+        "depth(plane)": lambda: aos.render_integral_on_depth(light_field, plane, options),
+    }
+    obj = data / "dem" / "dem_lr.obj"
+    if obj.exists():
+        start = time.perf_counter()
+        vertices, faces = read_obj(obj)
+        R = np.array(pose.rotation)
+        t = np.array(pose.translation)
+        terrain = mesh_depth(vertices, faces, R, t, 512, 512, FOV_DEG)
+        print(f"surfaces: {obj.name} ({len(vertices)} vertices, {len(faces)} triangles) rasterised "
+              f"in {time.perf_counter() - start:.1f} s (not timed below); "
+              f"{int((terrain > 0).sum())} of {terrain.size} pixels hit, depth "
+              f"{terrain[terrain > 0].min():.1f}..{terrain.max():.1f} m")
+        renderers["depth(mesh)"] = lambda: aos.render_integral_on_depth(light_field, terrain, options)
+    else:
+        print(f"surfaces: no {obj}; the mesh row is skipped")
+    print("surfaces: (b) RenderIntegralAtPoints has no Python binding; not measured separately "
+          "(render_integral_on_depth is a thin wrapper of it)")
+    samples = {name: int(render().integral.samples if name != "plane" else render().samples)
+               for name, render in renderers.items()}
+    plane_image = renderers["plane"]().image
+    flat = renderers["depth(plane)"]().integral.image
+    print(f"surfaces: depth(plane) agrees with the plane render to "
+          f"{float(np.max(np.abs(flat - plane_image))):.2e} grey levels (max abs)")
+    times = {name: [] for name in renderers}
+    for _ in range(args.repeats):
+        for name, render in renderers.items():
+            start = time.perf_counter()
+            render()
+            times[name].append(time.perf_counter() - start)
+    for name, runs in times.items():
+        median = statistics.median(runs)
+        line = (f"{name + ':':14s} median {median * 1e3:7.1f} ms  "
+                f"{samples[name] / median / 1e6:5.0f} M samples/s ({samples[name]} samples)")
+        if name != "plane":
+            ratios = [b / a for a, b in zip(times["plane"], runs)]
+            line += (f"  {statistics.median(ratios):.2f}x the plane render (per-round ratios "
+                     f"{min(ratios):.2f}..{max(ratios):.2f})")
+        line += f"  (runs: {', '.join(f'{t * 1e3:.0f}' for t in runs)} ms)"
+        print(line)
+    print("target: the mesh render within 2x of the plane render (issue 15)")
+
+
 MEMORY_PROBE = r"""
 import json, sys
 def rss_kib(field):
@@ -109,6 +216,8 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "jku-f0"))
     parser.add_argument("--repeats", type=int, default=7)
+    parser.add_argument("--surfaces-only", action="store_true",
+                        help="measure only the surfaces section")
     args = parser.parse_args()
     poses_path = Path(args.data) / "poses" / "poses.json"
     if not poses_path.exists():
@@ -120,6 +229,9 @@ def main():
     light_field = loaded.light_field
     options = aos.IntegralOptions(pose_view=191, fov_deg=FOV_DEG, width=512, height=512,
                                   focal_plane=aos.Plane.at_height(0.0))
+    if args.surfaces_only:
+        bench_surfaces(args, light_field, options)
+        return 0
     result = aos.render_integral(light_field, options)
     samples = int(result.samples)
     renderers = {"aos": lambda: aos.render_integral(light_field, options)}
@@ -177,6 +289,7 @@ def main():
     print(f"memory:   {held / 2**20:.1f} MiB held at peak (VmHWM after load+render minus VmRSS "
           f"before load, fresh process) vs {memory['image_bytes'] / 2**20:.1f} MiB decoded frames + "
           f"{memory['output_bytes'] / 2**20:.1f} MiB output = {held / budget:.2f}x (target < 1.5x)")
+    bench_surfaces(args, light_field, options)
     return 0
 
 

@@ -9,6 +9,8 @@
 
 #include <omp.h>
 
+#include "aos/render/integral_kernels.h"
+#include "aos/render/surface_integral_kernels.h"
 #include "aos/util/error.h"
 #include "aos/util/math.h"
 #include "aos/util/parallel.h"
@@ -16,9 +18,25 @@
 // How it works
 // Unlike a plane, focal points give no homography, so every (pixel, view) pair is projected on
 // its own: the focal point relative to a centre C (the lens centre, or the points' reference for
-// a cylinder aperture), X, goes into view i as R_i X + R_i (C - C_i), all in double precision (UTM-sized centres cancel before any rounding).
-// The admission tests are integral.h's, evaluated per sample. Rows are split among threads; each
-// keeps its own sample buffers for the robust mean.
+// a cylinder aperture), X, goes into view i as R_i X + R_i (C - C_i), all in double precision
+// (UTM-sized centres cancel before any rounding). The admission tests are integral.h's,
+// evaluated per sample (AdmitSample).
+//
+// The plain mean goes tile by tile (64 x 64 pixels), views outer: a view's pixels near the
+// tile stay in cache and the tile's accumulators (double sums, uint32 counts) in L1/L2. Per
+// view and tile, the bounding box of the tile's focal points is tested first: a box entirely
+// outside one of the view's image bounds (each a linear test in the point), or entirely outside
+// the aperture (the crossing points of a box's corners bound those of the whole box: the
+// crossing is a projective map of the point), skips the view for the tile; on F0 a pixel sees
+// about 140 of the 382 views. Pinhole views of one channel then go through the AVX2 kernel
+// (surface_integral_avx2.cpp): points relative to C in float (tens of metres on real flights),
+// 8 at a time, each test with a bound on its float error; a lane within the bound is decided by
+// AdmitSample in double, so exactly the reference's samples are admitted, and only the sample
+// values carry float rounding (as the plane path's span kernels), accumulated in double. Views
+// with a lens model, nearest mode (aperture 0), other pixel types and far-away points take
+// AdmitSample and the double sampler per point, still tiled and culled (lens views are not
+// culled: their projection is not linear). The robust mean keeps the per-pixel loop
+// (internal::RenderIntegralAtPointsReference): it needs every sample of a pixel at once.
 
 namespace aos {
 namespace {
@@ -35,6 +53,7 @@ struct ViewSetup {
   double fx = 0, fy = 0, cx = 0, cy = 0, width = 0, height = 0;
   const LensCamera* lens = nullptr;  // set for views with a lens model (direct sampling)
   Sampler sample = nullptr;
+  internal::PointKernel kernel = nullptr;  // pinhole views with an AVX2 kernel
 };
 
 // Bilinear sample at continuous pixel coordinates (u, v), pixel centres at +0.5, clamped into
@@ -66,6 +85,735 @@ Sampler SamplerFor(const Image& image) {
     case PixelType::kU32: return &SampleTyped<uint32_t>;
     default: return &SampleTyped<float>;
   }
+}
+
+// What every route shares: the geometry of the admission tests and the selected views.
+struct Setup {
+  int width = 0, height = 0;
+  bool cylinder = false;
+  Vec3d center{0.0};
+  Vec3d shift{0.0};  // point relative to `center` = p + shift
+  Vec3d lens_axis{0.0, 0.0, 1.0};
+  Vec3d normal{0.0, 0.0, 1.0};
+  double sin2_min = 0.0;
+  bool nearest = false;
+  bool finite_aperture = false;
+  double r2 = 0.0;
+  int channels = 1;
+  double range = 255.0;
+  std::vector<ViewSetup> views;
+};
+
+Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
+                const PointIntegralOptions& options, const SurfaceIntegralOptions& surface) {
+  options.Check(static_cast<int>(light_field.views.size()));
+  surface.Check();
+  if (points.width <= 0 || points.height <= 0 ||
+      points.points.size() != static_cast<size_t>(points.width) * static_cast<size_t>(points.height)) {
+    ThrowInvalid("points: must hold width x height points (got " +
+                 std::to_string(points.points.size()) + " for " + std::to_string(points.width) +
+                 "x" + std::to_string(points.height) + ")");
+  }
+  for (int i = 0; i < 3; ++i) {
+    if (!std::isfinite(points.reference[i])) ThrowInvalid("points: reference must be finite");
+  }
+  Setup s;
+  s.width = points.width;
+  s.height = points.height;
+  // Everything below is relative to the lens centre (kLensPlane) or the reference (kCylinder),
+  // in double precision.
+  s.cylinder = options.aperture == PointIntegralOptions::Aperture::kCylinder;
+  s.center = s.cylinder ? points.reference : options.lens_center;
+  s.shift = points.reference - s.center;
+  s.lens_axis = glm::normalize(options.lens_axis);
+  s.normal = glm::normalize(options.surface_normal);
+  const double min_angle = DegToRad(options.min_view_angle_deg);
+  s.sin2_min = std::sin(min_angle) * std::sin(min_angle);
+  s.nearest = options.aperture_radius == 0.0;
+  s.finite_aperture = std::isfinite(options.aperture_radius) && !s.nearest;
+  s.r2 = options.aperture_radius * options.aperture_radius;
+
+  std::vector<int> selection = options.view_indices;
+  if (selection.empty()) {
+    selection.resize(light_field.views.size());
+    for (size_t i = 0; i < selection.size(); ++i) selection[i] = static_cast<int>(i);
+  }
+  std::sort(selection.begin(), selection.end());
+  s.channels = light_field.views[static_cast<size_t>(selection.front())].image.channels();
+  s.range =
+      PixelTypeFullRange(light_field.views[static_cast<size_t>(selection.front())].image.type());
+  for (int index : selection) {
+    const View& view = light_field.views[static_cast<size_t>(index)];
+    CheckView(view, "view " + std::to_string(index) + (view.name.empty() ? "" : " (" + view.name + ")"));
+    if (view.image.channels() != s.channels) {
+      ThrowInvalid("view " + std::to_string(index) + ": has " +
+                   std::to_string(view.image.channels()) +
+                   " channels but the first selected view has " + std::to_string(s.channels));
+    }
+    ViewSetup setup;
+    setup.image = &view.image;
+    setup.rotation = view.cam_from_world.rotation;
+    setup.b = view.cam_from_world.Center() - s.center;
+    setup.offset = setup.rotation * (-setup.b);
+    setup.lens_b = glm::dot(s.lens_axis, setup.b);
+    setup.fx = view.camera.fx;
+    setup.fy = view.camera.fy;
+    setup.cx = view.camera.cx;
+    setup.cy = view.camera.cy;
+    setup.width = view.camera.width;
+    setup.height = view.camera.height;
+    if (view.camera.model != LensModel::kPinhole) setup.lens = &view.camera;
+    setup.sample = SamplerFor(view.image);
+    if (setup.lens == nullptr) setup.kernel = internal::Avx2PointKernel(view.image);
+    s.views.push_back(setup);
+  }
+  return s;
+}
+
+// integral.h's admission of the focal point `focal` (relative to the centre) into `view`, in
+// double precision: its pixel (u, v), and the squared aperture distance where there is an
+// aperture test or nearest mode (else left alone). False if the sample is not admitted.
+inline bool AdmitSample(const Setup& s, const ViewSetup& view, const Vec3d& focal, double* u_out,
+                        double* v_out, double* distance2_out) {
+  const Vec3d in_cam = view.rotation * focal + view.offset;
+  double u, v;
+  if (view.lens != nullptr) {
+    Vec2d pixel;
+    if (!view.lens->Project(in_cam, &pixel)) return false;
+    u = pixel.x;
+    v = pixel.y;
+  } else {
+    if (!(in_cam.z > 0.0)) return false;
+    u = view.fx * in_cam.x / in_cam.z + view.cx;
+    v = view.fy * in_cam.y / in_cam.z + view.cy;
+  }
+  if (!(u >= 0.0 && u <= view.width && v >= 0.0 && v <= view.height)) return false;
+  const Vec3d to_view = view.b - focal;
+  const double along = glm::dot(s.normal, to_view);
+  if (along * along < s.sin2_min * glm::dot(to_view, to_view)) return false;
+  if (s.cylinder && (s.finite_aperture || s.nearest)) {
+    // Distance of C_i from the line through X along the axis.
+    const Vec3d across = to_view - glm::dot(to_view, s.lens_axis) * s.lens_axis;
+    const double distance2 = glm::dot(across, across);
+    if (s.finite_aperture && distance2 > s.r2) return false;
+    *distance2_out = distance2;
+  } else if (s.finite_aperture || s.nearest) {
+    // The line X + s (C_i - X) meets the lens plane a . (P - C) = 0 at
+    // P - C = ((a.b) X - (a.X) b) / ((a.b) - (a.X)), written as integral.cpp does:
+    // exactly b for a view on the lens plane, so symmetric views tie exactly.
+    const double a_x = glm::dot(s.lens_axis, focal);
+    const double denominator = view.lens_b - a_x;
+    if (denominator == 0.0) return false;
+    const Vec3d numerator = view.lens_b * focal - a_x * view.b;
+    const double distance2 = glm::dot(numerator, numerator) / (denominator * denominator);
+    if (s.finite_aperture && distance2 > s.r2) return false;
+    *distance2_out = distance2;
+  }
+  *u_out = u;
+  *v_out = v;
+  return true;
+}
+
+}  // namespace
+
+namespace internal {
+
+SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_field,
+                                                      const FocalPoints& points,
+                                                      const PointIntegralOptions& options,
+                                                      const SurfaceIntegralOptions& surface,
+                                                      ProgressSink* progress) {
+  const Setup s = MakeSetup(light_field, points, options, surface);
+  const std::vector<ViewSetup>& views = s.views;
+  const int channels = s.channels;
+  const bool nearest = s.nearest;
+  struct Camera { int width, height; } camera{s.width, s.height};
+
+  SurfaceIntegralResult result;
+  IntegralResult& out = result.integral;
+  out.image = Image(camera.width, camera.height, channels, PixelType::kF32);
+  out.count = Image(camera.width, camera.height, 1, PixelType::kU32);
+  out.views_selected = static_cast<int>(views.size());
+  if (surface.robust) result.inliers = Image(camera.width, camera.height, 1, PixelType::kU32);
+  if (options.variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
+
+  const int threads = ResolveThreadCount(options.num_threads);
+  ProgressStart(progress, "render on surface", camera.height);
+  std::vector<uint8_t> view_used(views.size(), 0);
+  int64_t fallback = 0;
+  bool cancelled = false;
+  std::exception_ptr error;
+#pragma omp parallel num_threads(threads) reduction(+ : fallback)
+  {
+    std::vector<uint8_t> used(views.size(), 0);
+    std::vector<double> samples, luminance, sorted;
+    std::vector<double> value(static_cast<size_t>(channels));
+#pragma omp for schedule(dynamic, 4)
+    for (int64_t y = 0; y < camera.height; ++y) {
+      bool stop;
+#pragma omp atomic read
+      stop = cancelled;
+      if (stop) continue;
+      try {
+        if (ProgressCancelled(progress)) {
+#pragma omp atomic write
+          cancelled = true;
+          continue;
+        }
+        const int row = static_cast<int>(y);
+        for (int x = 0; x < camera.width; ++x) {
+          float* pixel = out.image.At<float>(x, row);
+          const Vec3d& point = points.points[static_cast<size_t>(row) * camera.width + x];
+          if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
+          const Vec3d focal = point + s.shift;
+          samples.clear();
+          luminance.clear();
+          double best = std::numeric_limits<double>::infinity();
+          size_t chosen = views.size();  // nearest mode: the view kept so far
+          for (size_t i = 0; i < views.size(); ++i) {
+            const ViewSetup& view = views[i];
+            double u, v, distance2 = std::numeric_limits<double>::infinity();
+            if (!AdmitSample(s, view, focal, &u, &v, &distance2)) continue;
+            if (nearest) {
+              if (!(distance2 < best)) continue;
+              best = distance2;
+              chosen = i;
+              samples.clear();
+              luminance.clear();
+            }
+            view.sample(*view.image, u, v, value.data());
+            double mean = 0.0;
+            for (int c = 0; c < channels; ++c) {
+              samples.push_back(value[static_cast<size_t>(c)]);
+              mean += value[static_cast<size_t>(c)];
+            }
+            luminance.push_back(mean / channels);
+            if (!nearest) used[i] = 1;
+          }
+          if (chosen < views.size()) used[chosen] = 1;
+          const size_t n = luminance.size();
+          out.count.At<uint32_t>(x, row)[0] = static_cast<uint32_t>(n);
+          if (n == 0) continue;
+          // The inlier set: every sample, or those near the median of the luminance.
+          size_t kept = n;
+          double lower = -std::numeric_limits<double>::infinity();
+          double upper = std::numeric_limits<double>::infinity();
+          if (surface.robust && n >= 2) {
+            // The densest band [v, v + width] over the sorted luminances (two pointers).
+            sorted = luminance;
+            std::sort(sorted.begin(), sorted.end());
+            const double width = 2.0 * surface.agreement * s.range;
+            size_t best_begin = 0, best_size = 0;
+            for (size_t begin = 0, end = 0; begin < n; ++begin) {
+              while (end < n && sorted[end] <= sorted[begin] + width) ++end;
+              if (end - begin > best_size) {
+                best_size = end - begin;
+                best_begin = begin;
+              }
+            }
+            if (static_cast<double>(best_size) >= surface.min_inlier_fraction * static_cast<double>(n)) {
+              lower = sorted[best_begin];
+              upper = sorted[best_begin + best_size - 1];
+              kept = best_size;
+            } else {
+              ++fallback;
+            }
+          }
+          if (surface.robust) result.inliers.At<uint32_t>(x, row)[0] = static_cast<uint32_t>(kept);
+          if (options.variance && n >= 2 && !nearest) {
+            // Population variance of all the samples, mean over channels (integral.h).
+            double variance = 0.0;
+            for (int c = 0; c < channels; ++c) {
+              double sum = 0.0, squares = 0.0;
+              for (size_t k = 0; k < n; ++k) {
+                const double value = samples[k * channels + static_cast<size_t>(c)];
+                sum += value;
+                squares += value * value;
+              }
+              const double mean = sum / static_cast<double>(n);
+              variance += std::max(0.0, squares / static_cast<double>(n) - mean * mean);
+            }
+            out.variance.At<float>(x, row)[0] = static_cast<float>(variance / channels);
+          }
+          for (int c = 0; c < channels; ++c) {
+            double sum = 0.0;
+            for (size_t k = 0; k < n; ++k) {
+              if (luminance[k] >= lower && luminance[k] <= upper) {
+                sum += samples[k * channels + static_cast<size_t>(c)];
+              }
+            }
+            pixel[c] = static_cast<float>(sum / static_cast<double>(kept));
+          }
+        }
+        ProgressAdvance(progress, 1);
+      } catch (...) {
+#pragma omp critical(aos_surface_error)
+        if (!error) error = std::current_exception();
+#pragma omp atomic write
+        cancelled = true;
+      }
+    }
+#pragma omp critical(aos_surface_merge)
+    for (size_t i = 0; i < used.size(); ++i) view_used[i] |= used[i] != 0;
+  }
+  if (error) std::rethrow_exception(error);
+  if (cancelled) throw Cancelled();
+  result.fallback_pixels = fallback;
+  for (uint8_t u : view_used) out.views_used += u;
+  for (int y = 0; y < camera.height; ++y) {
+    const uint32_t* count = out.count.At<uint32_t>(0, y);
+    for (int x = 0; x < camera.width; ++x) {
+      out.samples += count[x];
+      out.uncovered_pixels += count[x] == 0;
+    }
+  }
+  return result;
+}
+
+}  // namespace internal
+
+namespace {
+
+// Output tiles of 64 x 64 pixels (on F0 faster than 32 x 32, 128 x 32, 256 x 16: the cull and
+// the share of a view's cache lines each tile reads balance there).
+constexpr int kTileWidth = 64;
+constexpr int kTileHeight = 64;
+constexpr double kFloatRoundoff = 5.9604644775390625e-08;  // 2^-24
+// Beyond this (metres) points and view centres are left to double precision.
+constexpr double kFloatRange = 1e6;
+
+struct Box {
+  Vec3d lo, hi;
+  Vec3d Corner(int k) const {
+    return Vec3d((k & 1) ? hi.x : lo.x, (k & 2) ? hi.y : lo.y, (k & 4) ? hi.z : lo.z);
+  }
+};
+
+// True if the pinhole view admits no point of the box: one of its image bounds (each a linear
+// test in the point: Z > 0, U >= 0, ..., with (U, V, Z) = K (R X + offset)) fails at all eight
+// corners by more than a rounding margin.
+// Sets *inside when every image bound holds at all eight corners by more than the margin (then
+// at every point of the box).
+bool OutsideImage(const ViewSetup& view, const Box& box, bool* inside) {
+  bool negative[5] = {true, true, true, true, true};
+  bool positive = true;
+  const double size = std::abs(view.fx) + std::abs(view.fy) + std::abs(view.cx) +
+                      std::abs(view.cy) + view.width + view.height + 1.0;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3d in_cam = view.rotation * box.Corner(k) + view.offset;
+    const double margin =
+        1e-9 * size * (std::abs(in_cam.x) + std::abs(in_cam.y) + std::abs(in_cam.z));
+    const double U = view.fx * in_cam.x + view.cx * in_cam.z;
+    const double V = view.fy * in_cam.y + view.cy * in_cam.z;
+    const double tests[5] = {in_cam.z, U, view.width * in_cam.z - U, V,
+                             view.height * in_cam.z - V};
+    for (int t = 0; t < 5; ++t) {
+      negative[t] = negative[t] && tests[t] < -margin;
+      positive = positive && tests[t] > margin;
+    }
+  }
+  *inside = positive;
+  return negative[0] || negative[1] || negative[2] || negative[3] || negative[4];
+}
+
+// True if a finite aperture admits no point of the box. The lens-plane crossing is a
+// projective map of the point (one sign of its denominator over the box), the cylinder's
+// offset a linear one: either way the images of the corners span those of the whole box, so
+// the box is out when the corners' images' bounding box lies further than the radius.
+bool OutsideAperture(const Setup& s, const ViewSetup& view, const Box& box) {
+  if (!s.finite_aperture) return false;
+  const double inf = std::numeric_limits<double>::infinity();
+  Vec3d lo(inf), hi(-inf);
+  int sign = 0;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3d corner = box.Corner(k);
+    Vec3d image;
+    if (s.cylinder) {
+      const Vec3d to_view = view.b - corner;
+      image = to_view - glm::dot(to_view, s.lens_axis) * s.lens_axis;
+    } else {
+      const double a_x = glm::dot(s.lens_axis, corner);
+      const double denominator = view.lens_b - a_x;
+      if (!(std::abs(denominator) > 1e-9 * (std::abs(view.lens_b) + std::abs(a_x)))) return false;
+      const int corner_sign = denominator > 0.0 ? 1 : -1;
+      if (sign != 0 && corner_sign != sign) return false;
+      sign = corner_sign;
+      image = (view.lens_b * corner - a_x * view.b) / denominator;
+    }
+    lo = glm::min(lo, image);
+    hi = glm::max(hi, image);
+  }
+  double distance2 = 0.0;
+  for (int i = 0; i < 3; ++i) {
+    const double gap = std::max({lo[i], -hi[i], 0.0});
+    distance2 += gap * gap;
+  }
+  return distance2 > s.r2 * (1.0 + 1e-6);
+}
+
+// True if no point of the box is seen at a grazing angle from the view: {X : |n.(C_i - X)| >=
+// sin(angle) |C_i - X|} is two convex cones, so all eight corners inside one (with a margin)
+// put the whole box inside it.
+bool NeverGrazing(const Setup& s, const ViewSetup& view, const Box& box) {
+  if (s.sin2_min == 0.0) return true;  // (n.t)^2 < 0 never holds
+  int sign = 0;
+  for (int k = 0; k < 8; ++k) {
+    const Vec3d to_view = view.b - box.Corner(k);
+    const double along = glm::dot(s.normal, to_view);
+    if (!(along * along > s.sin2_min * glm::dot(to_view, to_view) * (1.0 + 1e-6))) return false;
+    const int corner_sign = along > 0.0 ? 1 : -1;
+    if (sign != 0 && corner_sign != sign) return false;
+    sign = corner_sign;
+  }
+  return true;
+}
+
+// The rectangle of view pixels (tap indices, clamped into the bordered image) that the box's
+// points project into, from its corners; empty if a corner is not in front of the view.
+struct Footprint {
+  int x0 = 0, x1 = -1, y0 = 0, y1 = -1;
+};
+// From the points on the tile's outline (the prefetch only needs to be about right: a surface
+// bulging out of its outline's footprint costs cache misses, not results), 2 pixels of margin.
+Footprint FootprintOf(const ViewSetup& view, const std::vector<Vec3d>& outline) {
+  Footprint f;
+  double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
+  double v_min = u_min, v_max = -u_min;
+  for (const Vec3d& point : outline) {
+    const Vec3d in_cam = view.rotation * point + view.offset;
+    if (!(in_cam.z > 0.0)) return f;
+    const double u = view.fx * in_cam.x / in_cam.z + view.cx;
+    const double v = view.fy * in_cam.y / in_cam.z + view.cy;
+    u_min = std::min(u_min, u - 2.0);
+    u_max = std::max(u_max, u + 2.0);
+    v_min = std::min(v_min, v - 2.0);
+    v_max = std::max(v_max, v + 2.0);
+  }
+  const Image& image = *view.image;
+  // Tap indices ix = floor(u - 0.5) in [-1, width - 1] (and ix + 1), likewise rows.
+  f.x0 = static_cast<int>(std::clamp(u_min - 1.5, -1.0, image.width() - 1.0));
+  f.x1 = static_cast<int>(std::clamp(u_max + 0.5, -1.0, image.width() - 1.0));
+  f.y0 = static_cast<int>(std::clamp(v_min - 1.5, -1.0, image.height() - 1.0));
+  f.y1 = static_cast<int>(std::clamp(v_max + 0.5, -1.0, image.height() - 1.0));
+  return f;
+}
+
+// The addresses of the cache lines of a view's pixels that a tile will read (the kernel's
+// gathers stall on cache misses otherwise: a view's pixels are read once per tile), at most
+// kMaxPrefetch (the rest is left to the hardware).
+constexpr int kMaxPrefetch = 1024;
+int FootprintLines(const Image& image, const Footprint& f, const char** lines) {
+  if (f.x1 < f.x0 || f.y1 < f.y0) return 0;
+  const auto* base = static_cast<const char*>(image.RawAt(0, 0));
+  const ptrdiff_t pixel_bytes =
+      static_cast<ptrdiff_t>(PixelTypeSize(image.type())) * image.channels();
+  const ptrdiff_t row_bytes =
+      image.row_stride() * static_cast<ptrdiff_t>(PixelTypeSize(image.type()));
+  int count = 0;
+  for (int y = f.y0; y <= f.y1 + 1; ++y) {
+    const char* row = base + y * row_bytes;
+    // Whole cache lines from the first tap's to the last tap's (taps x0 .. x1 + 1).
+    const auto first = reinterpret_cast<uintptr_t>(row + f.x0 * pixel_bytes) & ~uintptr_t{63};
+    const auto last = reinterpret_cast<uintptr_t>(row + (f.x1 + 2) * pixel_bytes - 1);
+    for (uintptr_t line = first; line <= last; line += 64) {
+      if (count == kMaxPrefetch) return count;
+      lines[count++] = reinterpret_cast<const char*>(line);
+    }
+  }
+  return count;
+}
+
+struct ExactContext {
+  const Setup* setup;
+  const ViewSetup* view;
+  const Vec3d* focal;
+};
+
+bool ExactAdmitLane(const void* context, int index) {
+  const auto* c = static_cast<const ExactContext*>(context);
+  double u, v, distance2;
+  return AdmitSample(*c->setup, *c->view, c->focal[index], &u, &v, &distance2);
+}
+
+// The AVX2 kernel's description of `view` on a tile whose points (relative to the centre) lie
+// within |x| <= extent.x etc.: the projection in float and the bounds of each test's float error
+// (surface_integral_kernels.h; a few times the worst-case rounding of the float arithmetic).
+internal::PointKernelArgs KernelArgs(const Setup& s, const ViewSetup& view, const Vec3d& extent,
+                                     bool grazing) {
+  internal::PointKernelArgs args;
+  const Vec3d r0 = Row(view.rotation, 0), r1 = Row(view.rotation, 1), r2 = Row(view.rotation, 2);
+  const Vec3d rows[3] = {view.fx * r0 + view.cx * r2, view.fy * r1 + view.cy * r2, r2};
+  const double t[3] = {view.fx * view.offset.x + view.cx * view.offset.z,
+                       view.fy * view.offset.y + view.cy * view.offset.z, view.offset.z};
+  double magnitude[3];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 3; ++c) args.P[r][c] = static_cast<float>(rows[r][c]);
+    args.P[r][3] = static_cast<float>(t[r]);
+    magnitude[r] = glm::dot(glm::abs(rows[r]), extent) + std::abs(t[r]);
+  }
+  const double g = kFloatRoundoff;
+  args.width = static_cast<float>(view.width);
+  args.height = static_cast<float>(view.height);
+  args.bound[0] = static_cast<float>(16 * g * magnitude[2]);
+  args.bound[1] = static_cast<float>(16 * g * magnitude[0]);
+  args.bound[2] = static_cast<float>(32 * g * (view.width * magnitude[2] + magnitude[0]));
+  args.bound[3] = static_cast<float>(16 * g * magnitude[1]);
+  args.bound[4] = static_cast<float>(32 * g * (view.height * magnitude[2] + magnitude[1]));
+  const double P = glm::length(extent), B = glm::length(view.b);
+  const double D = P + B;
+  args.grazing = grazing;
+  for (int i = 0; i < 3; ++i) {
+    args.normal[i] = static_cast<float>(s.normal[i]);
+    args.axis[i] = static_cast<float>(s.lens_axis[i]);
+    args.b[i] = static_cast<float>(view.b[i]);
+  }
+  args.sin2 = static_cast<float>(s.sin2_min);
+  args.grazing_bound = static_cast<float>(64 * g * D * D);
+  args.lens_b = static_cast<float>(view.lens_b);
+  args.r2 = static_cast<float>(s.r2);
+  args.aperture = s.finite_aperture ? (s.cylinder ? 2 : 1) : 0;
+  if (s.cylinder) {
+    args.aperture_bound = static_cast<float>(64 * g * (D * D + s.r2));
+  } else {
+    const double numerator = std::abs(view.lens_b) * P + P * B;
+    const double denominator = std::abs(view.lens_b) + P;
+    args.aperture_bound =
+        static_cast<float>(128 * g * (numerator * numerator + s.r2 * denominator * denominator));
+    args.denominator_bound = static_cast<float>(16 * g * denominator);
+  }
+  return args;
+}
+
+// One thread's working memory for a tile.
+struct TileBuffers {
+  std::vector<float> x, y, z;
+  std::vector<int32_t> valid;
+  std::vector<Vec3d> focal;
+  std::vector<double> sum, sum_squares, best, value;
+  std::vector<uint32_t> count;
+  std::vector<int32_t> chosen;
+  std::vector<uint8_t> used;
+  std::vector<int> views;           // the views the tile's culls leave
+  std::vector<uint8_t> inside;      // whether the tile lies inside the view's image
+  std::vector<Footprint> footprints;
+  std::vector<const char*> lines;  // the next view's cache lines to prefetch
+  std::vector<Vec3d> outline;      // points on the tile's border (footprints)
+};
+
+void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, int x0, int y0,
+                     int x1, int y1, TileBuffers& b, IntegralResult& out) {
+  const int tile_width = x1 - x0;
+  const int size = tile_width * (y1 - y0);
+  const int padded = (size + 7) / 8 * 8;
+  const int channels = s.channels;
+  b.x.assign(static_cast<size_t>(padded), 0.0f);
+  b.y.assign(static_cast<size_t>(padded), 0.0f);
+  b.z.assign(static_cast<size_t>(padded), 0.0f);
+  b.valid.assign(static_cast<size_t>(padded), 0);
+  b.focal.resize(static_cast<size_t>(size));
+  const double inf = std::numeric_limits<double>::infinity();
+  Box box{Vec3d(inf), Vec3d(-inf)};
+  Vec3d extent(0.0);
+  bool any = false;
+  for (int j = 0; j < size; ++j) {
+    const Vec3d& point =
+        points.points[static_cast<size_t>(y0 + j / tile_width) * s.width + x0 + j % tile_width];
+    if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
+    const Vec3d focal = point + s.shift;
+    b.focal[static_cast<size_t>(j)] = focal;
+    b.x[static_cast<size_t>(j)] = static_cast<float>(focal.x);
+    b.y[static_cast<size_t>(j)] = static_cast<float>(focal.y);
+    b.z[static_cast<size_t>(j)] = static_cast<float>(focal.z);
+    b.valid[static_cast<size_t>(j)] = -1;
+    box.lo = glm::min(box.lo, focal);
+    box.hi = glm::max(box.hi, focal);
+    extent = glm::max(extent, glm::abs(focal));
+    any = true;
+  }
+  if (!any) return;  // the outputs stay 0
+  b.sum.assign(static_cast<size_t>(padded) * channels, 0.0);
+  if (variance) b.sum_squares.assign(static_cast<size_t>(padded) * channels, 0.0);
+  b.count.assign(static_cast<size_t>(padded), 0);
+  b.value.resize(static_cast<size_t>(channels));
+  if (s.nearest) {
+    b.best.assign(static_cast<size_t>(size), inf);
+    b.chosen.assign(static_cast<size_t>(size), -1);
+  }
+  const bool float_points = std::max({extent.x, extent.y, extent.z}) < kFloatRange &&
+                            (!s.finite_aperture || s.r2 < kFloatRange * kFloatRange);
+  const internal::PointTileArrays arrays{b.x.data(), b.y.data(), b.z.data(), b.valid.data(),
+                                         padded};
+  // The tile's outline: its valid points on the border, every 8 pixels, and the last ones.
+  b.outline.clear();
+  const int tile_height = y1 - y0;
+  for (int j = 0; j < size; ++j) {
+    const int tx = j % tile_width, ty = j / tile_width;
+    const bool on_border = tx == 0 || ty == 0 || tx == tile_width - 1 || ty == tile_height - 1;
+    const bool sampled = (tx % 8 == 0 && ty % 8 == 0) || tx == tile_width - 1 || ty == tile_height - 1;
+    if (on_border && sampled && b.valid[static_cast<size_t>(j)] != 0) {
+      b.outline.push_back(b.focal[static_cast<size_t>(j)]);
+    }
+  }
+  if (b.outline.empty()) {
+    for (int k = 0; k < 8; ++k) b.outline.push_back(box.Corner(k));
+  }
+  b.views.clear();
+  b.inside.clear();
+  b.footprints.clear();
+  for (size_t i = 0; i < s.views.size(); ++i) {
+    const ViewSetup& view = s.views[i];
+    bool inside = false;
+    if (view.lens == nullptr && OutsideImage(view, box, &inside)) continue;
+    if (OutsideAperture(s, view, box)) continue;
+    b.views.push_back(static_cast<int>(i));
+    b.inside.push_back(inside);
+    b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline) : Footprint());
+  }
+  b.lines.resize(kMaxPrefetch);
+  if (!b.views.empty()) {
+    const int count =
+        FootprintLines(*s.views[static_cast<size_t>(b.views[0])].image, b.footprints[0], b.lines.data());
+    for (int k = 0; k < count; ++k) __builtin_prefetch(b.lines[static_cast<size_t>(k)], 0, 3);
+  }
+  for (size_t k = 0; k < b.views.size(); ++k) {
+    const size_t i = static_cast<size_t>(b.views[k]);
+    const ViewSetup& view = s.views[i];
+    // The next view's lines, prefetched while this one runs.
+    const int prefetch_count =
+        k + 1 < b.views.size()
+            ? FootprintLines(*s.views[static_cast<size_t>(b.views[k + 1])].image,
+                             b.footprints[k + 1], b.lines.data())
+            : 0;
+    if (view.kernel != nullptr && float_points && !s.nearest &&
+        glm::length(view.b) < kFloatRange) {
+      internal::PointKernelArgs args = KernelArgs(s, view, extent, !NeverGrazing(s, view, box));
+      args.variance = variance;
+      args.image_test = !b.inside[k];
+      args.prefetch = b.lines.data();
+      args.prefetch_count = prefetch_count;
+      const ExactContext context{&s, &view, b.focal.data()};
+      args.exact = &ExactAdmitLane;
+      args.exact_context = &context;
+      if (view.kernel(*view.image, arrays, args, b.sum.data(), b.sum_squares.data(),
+                      b.count.data())) {
+        b.used[i] = 1;
+      }
+      continue;
+    }
+    // Exact per-point route: AdmitSample and the double sampler, in view order per pixel as
+    // the reference.
+    for (int line = 0; line < prefetch_count; ++line) {
+      __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
+    }
+    for (int j = 0; j < size; ++j) {
+      if (b.valid[static_cast<size_t>(j)] == 0) continue;
+      double u, v, distance2 = inf;
+      if (!AdmitSample(s, view, b.focal[static_cast<size_t>(j)], &u, &v, &distance2)) continue;
+      double* sum = b.sum.data() + static_cast<size_t>(j) * channels;
+      if (s.nearest) {
+        if (!(distance2 < b.best[static_cast<size_t>(j)])) continue;
+        b.best[static_cast<size_t>(j)] = distance2;
+        b.chosen[static_cast<size_t>(j)] = static_cast<int32_t>(i);
+        view.sample(*view.image, u, v, sum);
+        b.count[static_cast<size_t>(j)] = 1;
+        continue;
+      }
+      view.sample(*view.image, u, v, b.value.data());
+      for (int c = 0; c < channels; ++c) sum[c] += b.value[static_cast<size_t>(c)];
+      if (variance) {
+        double* squares = b.sum_squares.data() + static_cast<size_t>(j) * channels;
+        for (int c = 0; c < channels; ++c) {
+          squares[c] += b.value[static_cast<size_t>(c)] * b.value[static_cast<size_t>(c)];
+        }
+      }
+      ++b.count[static_cast<size_t>(j)];
+      b.used[i] = 1;
+    }
+  }
+  for (int j = 0; j < size; ++j) {
+    const int x = x0 + j % tile_width, y = y0 + j / tile_width;
+    if (s.nearest && b.chosen[static_cast<size_t>(j)] >= 0) {
+      b.used[static_cast<size_t>(b.chosen[static_cast<size_t>(j)])] = 1;
+    }
+    const uint32_t n = b.count[static_cast<size_t>(j)];
+    out.count.At<uint32_t>(x, y)[0] = n;
+    if (n == 0) continue;
+    const double* sum = b.sum.data() + static_cast<size_t>(j) * channels;
+    if (variance && n >= 2 && !s.nearest) {
+      // Population variance, mean over channels (integral.h), as the reference.
+      const double* squares = b.sum_squares.data() + static_cast<size_t>(j) * channels;
+      double total = 0.0;
+      for (int c = 0; c < channels; ++c) {
+        const double mean = sum[c] / static_cast<double>(n);
+        total += std::max(0.0, squares[c] / static_cast<double>(n) - mean * mean);
+      }
+      out.variance.At<float>(x, y)[0] = static_cast<float>(total / channels);
+    }
+    float* pixel = out.image.At<float>(x, y);
+    for (int c = 0; c < channels; ++c) pixel[c] = static_cast<float>(sum[c] / static_cast<double>(n));
+  }
+}
+
+// The plain mean, tile by tile (see the top of this file).
+SurfaceIntegralResult RenderTiled(const Setup& s, const FocalPoints& points,
+                                  const PointIntegralOptions& options, ProgressSink* progress) {
+  SurfaceIntegralResult result;
+  IntegralResult& out = result.integral;
+  out.image = Image(s.width, s.height, s.channels, PixelType::kF32);
+  out.count = Image(s.width, s.height, 1, PixelType::kU32);
+  out.views_selected = static_cast<int>(s.views.size());
+  if (options.variance) out.variance = Image(s.width, s.height, 1, PixelType::kF32);
+  const int tiles_x = (s.width + kTileWidth - 1) / kTileWidth;
+  const int tiles_y = (s.height + kTileHeight - 1) / kTileHeight;
+  const int64_t tiles = static_cast<int64_t>(tiles_x) * tiles_y;
+
+  const int threads = ResolveThreadCount(options.num_threads);
+  ProgressStart(progress, "render on surface", tiles);
+  std::vector<uint8_t> view_used(s.views.size(), 0);
+  bool cancelled = false;
+  std::exception_ptr error;
+#pragma omp parallel num_threads(threads)
+  {
+    TileBuffers buffers;
+    buffers.used.assign(s.views.size(), 0);
+#pragma omp for schedule(dynamic, 1)
+    for (int64_t t = 0; t < tiles; ++t) {
+      bool stop;
+#pragma omp atomic read
+      stop = cancelled;
+      if (stop) continue;
+      try {
+        if (ProgressCancelled(progress)) {
+#pragma omp atomic write
+          cancelled = true;
+          continue;
+        }
+        const int x0 = static_cast<int>(t % tiles_x) * kTileWidth;
+        const int y0 = static_cast<int>(t / tiles_x) * kTileHeight;
+        RenderPointTile(s, points, options.variance, x0, y0, std::min(s.width, x0 + kTileWidth),
+                        std::min(s.height, y0 + kTileHeight), buffers, out);
+        ProgressAdvance(progress, 1);
+      } catch (...) {
+#pragma omp critical(aos_surface_error)
+        if (!error) error = std::current_exception();
+#pragma omp atomic write
+        cancelled = true;
+      }
+    }
+#pragma omp critical(aos_surface_merge)
+    for (size_t i = 0; i < buffers.used.size(); ++i) view_used[i] |= buffers.used[i];
+  }
+  if (error) std::rethrow_exception(error);
+  if (cancelled) throw Cancelled();
+  for (uint8_t u : view_used) out.views_used += u;
+  for (int y = 0; y < s.height; ++y) {
+    const uint32_t* count = out.count.At<uint32_t>(0, y);
+    for (int x = 0; x < s.width; ++x) {
+      out.samples += count[x];
+      out.uncovered_pixels += count[x] == 0;
+    }
+  }
+  return result;
 }
 
 }  // namespace
@@ -160,248 +908,18 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   return result;
 }
 
+
 SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
                                              const FocalPoints& points,
                                              const PointIntegralOptions& options,
                                              const SurfaceIntegralOptions& surface,
                                              ProgressSink* progress) {
-  options.Check(static_cast<int>(light_field.views.size()));
-  surface.Check();
-  if (points.width <= 0 || points.height <= 0 ||
-      points.points.size() != static_cast<size_t>(points.width) * static_cast<size_t>(points.height)) {
-    ThrowInvalid("points: must hold width x height points (got " +
-                 std::to_string(points.points.size()) + " for " + std::to_string(points.width) +
-                 "x" + std::to_string(points.height) + ")");
+  if (surface.robust) {
+    return internal::RenderIntegralAtPointsReference(light_field, points, options, surface,
+                                                     progress);
   }
-  for (int i = 0; i < 3; ++i) {
-    if (!std::isfinite(points.reference[i])) ThrowInvalid("points: reference must be finite");
-  }
-  struct Camera { int width, height; } camera{points.width, points.height};
-  // Everything below is relative to the lens centre (kLensPlane) or the reference (kCylinder),
-  // in double precision.
-  const bool cylinder = options.aperture == PointIntegralOptions::Aperture::kCylinder;
-  const Vec3d center = cylinder ? points.reference : options.lens_center;
-  const Vec3d shift = points.reference - center;  // point relative to `center` = p + shift
-  const Vec3d lens_axis = glm::normalize(options.lens_axis);
-  const Vec3d normal = glm::normalize(options.surface_normal);
-  const double min_angle = DegToRad(options.min_view_angle_deg);
-  const double sin2_min = std::sin(min_angle) * std::sin(min_angle);
-  const bool nearest = options.aperture_radius == 0.0;
-  const bool finite_aperture = std::isfinite(options.aperture_radius) && !nearest;
-  const double r2 = options.aperture_radius * options.aperture_radius;
-
-  std::vector<int> selection = options.view_indices;
-  if (selection.empty()) {
-    selection.resize(light_field.views.size());
-    for (size_t i = 0; i < selection.size(); ++i) selection[i] = static_cast<int>(i);
-  }
-  std::sort(selection.begin(), selection.end());
-  std::vector<ViewSetup> views;
-  const int channels = light_field.views[static_cast<size_t>(selection.front())].image.channels();
-  const double range =
-      PixelTypeFullRange(light_field.views[static_cast<size_t>(selection.front())].image.type());
-  for (int index : selection) {
-    const View& view = light_field.views[static_cast<size_t>(index)];
-    CheckView(view, "view " + std::to_string(index) + (view.name.empty() ? "" : " (" + view.name + ")"));
-    if (view.image.channels() != channels) {
-      ThrowInvalid("view " + std::to_string(index) + ": has " +
-                   std::to_string(view.image.channels()) +
-                   " channels but the first selected view has " + std::to_string(channels));
-    }
-    ViewSetup setup;
-    setup.image = &view.image;
-    setup.rotation = view.cam_from_world.rotation;
-    setup.b = view.cam_from_world.Center() - center;
-    setup.offset = setup.rotation * (-setup.b);
-    setup.lens_b = glm::dot(lens_axis, setup.b);
-    setup.fx = view.camera.fx;
-    setup.fy = view.camera.fy;
-    setup.cx = view.camera.cx;
-    setup.cy = view.camera.cy;
-    setup.width = view.camera.width;
-    setup.height = view.camera.height;
-    if (view.camera.model != LensModel::kPinhole) setup.lens = &view.camera;
-    setup.sample = SamplerFor(view.image);
-    views.push_back(setup);
-  }
-
-  SurfaceIntegralResult result;
-  IntegralResult& out = result.integral;
-  out.image = Image(camera.width, camera.height, channels, PixelType::kF32);
-  out.count = Image(camera.width, camera.height, 1, PixelType::kU32);
-  out.views_selected = static_cast<int>(views.size());
-  if (surface.robust) result.inliers = Image(camera.width, camera.height, 1, PixelType::kU32);
-  if (options.variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
-
-  const int threads = ResolveThreadCount(options.num_threads);
-  ProgressStart(progress, "render on surface", camera.height);
-  std::vector<uint8_t> view_used(views.size(), 0);
-  int64_t fallback = 0;
-  bool cancelled = false;
-  std::exception_ptr error;
-#pragma omp parallel num_threads(threads) reduction(+ : fallback)
-  {
-    std::vector<uint8_t> used(views.size(), 0);
-    std::vector<double> samples, luminance, sorted;
-    std::vector<double> value(static_cast<size_t>(channels));
-#pragma omp for schedule(dynamic, 4)
-    for (int64_t y = 0; y < camera.height; ++y) {
-      bool stop;
-#pragma omp atomic read
-      stop = cancelled;
-      if (stop) continue;
-      try {
-        if (ProgressCancelled(progress)) {
-#pragma omp atomic write
-          cancelled = true;
-          continue;
-        }
-        const int row = static_cast<int>(y);
-        for (int x = 0; x < camera.width; ++x) {
-          float* pixel = out.image.At<float>(x, row);
-          const Vec3d& point = points.points[static_cast<size_t>(row) * camera.width + x];
-          if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
-          const Vec3d focal = point + shift;
-          samples.clear();
-          luminance.clear();
-          double best = std::numeric_limits<double>::infinity();
-          size_t chosen = views.size();  // nearest mode: the view kept so far
-          for (size_t i = 0; i < views.size(); ++i) {
-            const ViewSetup& view = views[i];
-            const Vec3d in_cam = view.rotation * focal + view.offset;
-            double u, v;
-            if (view.lens != nullptr) {
-              Vec2d pixel;
-              if (!view.lens->Project(in_cam, &pixel)) continue;
-              u = pixel.x;
-              v = pixel.y;
-            } else {
-              if (!(in_cam.z > 0.0)) continue;
-              u = view.fx * in_cam.x / in_cam.z + view.cx;
-              v = view.fy * in_cam.y / in_cam.z + view.cy;
-            }
-            if (!(u >= 0.0 && u <= view.width && v >= 0.0 && v <= view.height)) continue;
-            const Vec3d to_view = view.b - focal;
-            const double along = glm::dot(normal, to_view);
-            if (along * along < sin2_min * glm::dot(to_view, to_view)) continue;
-            if (cylinder && (finite_aperture || nearest)) {
-              // Distance of C_i from the line through X along the axis.
-              const Vec3d across = to_view - glm::dot(to_view, lens_axis) * lens_axis;
-              const double distance2 = glm::dot(across, across);
-              if (finite_aperture && distance2 > r2) continue;
-              if (nearest) {
-                if (!(distance2 < best)) continue;
-                best = distance2;
-                chosen = i;
-                samples.clear();
-                luminance.clear();
-              }
-            } else if (finite_aperture || nearest) {
-              // The line X + s (C_i - X) meets the lens plane a . (P - C) = 0 at
-              // P - C = ((a.b) X - (a.X) b) / ((a.b) - (a.X)), written as integral.cpp does:
-              // exactly b for a view on the lens plane, so symmetric views tie exactly.
-              const double a_x = glm::dot(lens_axis, focal);
-              const double denominator = view.lens_b - a_x;
-              if (denominator == 0.0) continue;
-              const Vec3d numerator = view.lens_b * focal - a_x * view.b;
-              const double distance2 =
-                  glm::dot(numerator, numerator) / (denominator * denominator);
-              if (finite_aperture && distance2 > r2) continue;
-              if (nearest) {
-                if (!(distance2 < best)) continue;
-                best = distance2;
-                chosen = i;
-                samples.clear();
-                luminance.clear();
-              }
-            }
-            view.sample(*view.image, u, v, value.data());
-            double mean = 0.0;
-            for (int c = 0; c < channels; ++c) {
-              samples.push_back(value[static_cast<size_t>(c)]);
-              mean += value[static_cast<size_t>(c)];
-            }
-            luminance.push_back(mean / channels);
-            if (!nearest) used[i] = 1;
-          }
-          if (chosen < views.size()) used[chosen] = 1;
-          const size_t n = luminance.size();
-          out.count.At<uint32_t>(x, row)[0] = static_cast<uint32_t>(n);
-          if (n == 0) continue;
-          // The inlier set: every sample, or those near the median of the luminance.
-          size_t kept = n;
-          double lower = -std::numeric_limits<double>::infinity();
-          double upper = std::numeric_limits<double>::infinity();
-          if (surface.robust && n >= 2) {
-            // The densest band [v, v + width] over the sorted luminances (two pointers).
-            sorted = luminance;
-            std::sort(sorted.begin(), sorted.end());
-            const double width = 2.0 * surface.agreement * range;
-            size_t best_begin = 0, best_size = 0;
-            for (size_t begin = 0, end = 0; begin < n; ++begin) {
-              while (end < n && sorted[end] <= sorted[begin] + width) ++end;
-              if (end - begin > best_size) {
-                best_size = end - begin;
-                best_begin = begin;
-              }
-            }
-            if (static_cast<double>(best_size) >= surface.min_inlier_fraction * static_cast<double>(n)) {
-              lower = sorted[best_begin];
-              upper = sorted[best_begin + best_size - 1];
-              kept = best_size;
-            } else {
-              ++fallback;
-            }
-          }
-          if (surface.robust) result.inliers.At<uint32_t>(x, row)[0] = static_cast<uint32_t>(kept);
-          if (options.variance && n >= 2 && !nearest) {
-            // Population variance of all the samples, mean over channels (integral.h).
-            double variance = 0.0;
-            for (int c = 0; c < channels; ++c) {
-              double sum = 0.0, squares = 0.0;
-              for (size_t k = 0; k < n; ++k) {
-                const double value = samples[k * channels + static_cast<size_t>(c)];
-                sum += value;
-                squares += value * value;
-              }
-              const double mean = sum / static_cast<double>(n);
-              variance += std::max(0.0, squares / static_cast<double>(n) - mean * mean);
-            }
-            out.variance.At<float>(x, row)[0] = static_cast<float>(variance / channels);
-          }
-          for (int c = 0; c < channels; ++c) {
-            double sum = 0.0;
-            for (size_t k = 0; k < n; ++k) {
-              if (luminance[k] >= lower && luminance[k] <= upper) {
-                sum += samples[k * channels + static_cast<size_t>(c)];
-              }
-            }
-            pixel[c] = static_cast<float>(sum / static_cast<double>(kept));
-          }
-        }
-        ProgressAdvance(progress, 1);
-      } catch (...) {
-#pragma omp critical(aos_surface_error)
-        if (!error) error = std::current_exception();
-#pragma omp atomic write
-        cancelled = true;
-      }
-    }
-#pragma omp critical(aos_surface_merge)
-    for (size_t i = 0; i < used.size(); ++i) view_used[i] |= used[i] != 0;
-  }
-  if (error) std::rethrow_exception(error);
-  if (cancelled) throw Cancelled();
-  result.fallback_pixels = fallback;
-  for (uint8_t u : view_used) out.views_used += u;
-  for (int y = 0; y < camera.height; ++y) {
-    const uint32_t* count = out.count.At<uint32_t>(0, y);
-    for (int x = 0; x < camera.width; ++x) {
-      out.samples += count[x];
-      out.uncovered_pixels += count[x] == 0;
-    }
-  }
-  return result;
+  const Setup s = MakeSetup(light_field, points, options, surface);
+  return RenderTiled(s, points, options, progress);
 }
 
 }  // namespace aos

@@ -1,0 +1,254 @@
+// AVX2 + FMA kernel of the per-sample renderer: one pinhole view at a tile of focal points,
+// 8 points per step (projection, admission tests as masks, bilinear gathers, double
+// accumulation). Compiled for the baseline CPU; the function carries target attributes and is
+// only handed out after a runtime check of the CPU (as integral_kernels_avx2.cpp).
+#include <cstdint>
+#include <limits>
+
+#include "aos/render/integral_kernels.h"
+#include "aos/render/surface_integral_kernels.h"
+
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__))
+#include <immintrin.h>
+#define AOS_HAVE_AVX2_POINT_KERNELS 1
+#endif
+
+namespace aos::internal {
+
+#ifdef AOS_HAVE_AVX2_POINT_KERNELS
+namespace {
+
+// Folds one test into the certain-pass and certain-fail masks: pass where value > bound, fail
+// where value < -bound; lanes in between stay undecided (the caller's exact test decides).
+__attribute__((target("avx2,fma"), always_inline)) inline void Decide(__m256 value, __m256 bound,
+                                                                      __m256 negative_bound,
+                                                                      __m256& pass, __m256& fail) {
+  pass = _mm256_and_ps(pass, _mm256_cmp_ps(value, bound, _CMP_GT_OQ));
+  fail = _mm256_or_ps(fail, _mm256_cmp_ps(value, negative_bound, _CMP_LT_OQ));
+}
+
+// One group of 8 lanes with at least one admitted, waiting for its samples.
+struct Pending {
+  __m256i keep, offset;
+  __m256 ax, ay;
+  int group;
+};
+
+// Samples the pending groups and adds them to the accumulators.
+template <PixelType kType>
+__attribute__((target("avx2,fma"), always_inline)) inline void Flush(
+    const Pending* pending, int size, const unsigned char* origin, int stride_bytes,
+    bool variance, double* sum, double* sum_squares, uint32_t* count) {
+  for (int k = 0; k < size; ++k) {
+    const Pending& p = pending[k];
+    __m256 p00, p01, p10, p11;
+    if constexpr (kType == PixelType::kF32) {
+      const auto* base = reinterpret_cast<const float*>(origin);
+      const auto* below = reinterpret_cast<const float*>(origin + stride_bytes);
+      p00 = _mm256_i32gather_ps(base, p.offset, 1);
+      p01 = _mm256_i32gather_ps(base + 1, p.offset, 1);
+      p10 = _mm256_i32gather_ps(below, p.offset, 1);
+      p11 = _mm256_i32gather_ps(below + 1, p.offset, 1);
+    } else {
+      constexpr int kBits = kType == PixelType::kU8 ? 8 : 16;
+      const __m256i top = _mm256_i32gather_epi32(reinterpret_cast<const int*>(origin), p.offset, 1);
+      const __m256i bottom = _mm256_i32gather_epi32(
+          reinterpret_cast<const int*>(origin + stride_bytes), p.offset, 1);
+      const __m256i mask = _mm256_set1_epi32((1 << kBits) - 1);
+      p00 = _mm256_cvtepi32_ps(_mm256_and_si256(top, mask));
+      p01 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(top, kBits), mask));
+      p10 = _mm256_cvtepi32_ps(_mm256_and_si256(bottom, mask));
+      p11 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(bottom, kBits), mask));
+    }
+    const __m256 upper = _mm256_fmadd_ps(p.ax, _mm256_sub_ps(p01, p00), p00);
+    const __m256 lower = _mm256_fmadd_ps(p.ax, _mm256_sub_ps(p11, p10), p10);
+    const __m256 value = _mm256_and_ps(_mm256_fmadd_ps(p.ay, _mm256_sub_ps(lower, upper), upper),
+                                       _mm256_castsi256_ps(p.keep));
+    const __m256d low = _mm256_cvtps_pd(_mm256_castps256_ps128(value));
+    const __m256d high = _mm256_cvtps_pd(_mm256_extractf128_ps(value, 1));
+    double* out = sum + p.group;
+    _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), low));
+    _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4), high));
+    if (variance) {
+      double* squares = sum_squares + p.group;
+      _mm256_storeu_pd(squares, _mm256_fmadd_pd(low, low, _mm256_loadu_pd(squares)));
+      _mm256_storeu_pd(squares + 4, _mm256_fmadd_pd(high, high, _mm256_loadu_pd(squares + 4)));
+    }
+    auto* counts = reinterpret_cast<__m256i*>(count + p.group);
+    _mm256_storeu_si256(counts, _mm256_sub_epi32(_mm256_loadu_si256(counts), p.keep));
+  }
+}
+
+template <PixelType kType>
+__attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
+                                                    const PointTileArrays& points,
+                                                    const PointKernelArgs& args, double* sum,
+                                                    double* sum_squares, uint32_t* count) {
+  constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
+  const auto* origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
+  const int stride_bytes = static_cast<int>(image.row_stride()) * kValueSize;
+  __m256 P[3][4];
+  for (int r = 0; r < 3; ++r) {
+    for (int c = 0; c < 4; ++c) P[r][c] = _mm256_set1_ps(args.P[r][c]);
+  }
+  const __m256 width = _mm256_set1_ps(args.width), height = _mm256_set1_ps(args.height);
+  __m256 bound[5], negative[5];
+  for (int k = 0; k < 5; ++k) {
+    bound[k] = _mm256_set1_ps(args.bound[k]);
+    negative[k] = _mm256_set1_ps(-args.bound[k]);
+  }
+  const __m256 n0 = _mm256_set1_ps(args.normal[0]), n1 = _mm256_set1_ps(args.normal[1]),
+               n2 = _mm256_set1_ps(args.normal[2]);
+  const __m256 sin2 = _mm256_set1_ps(args.sin2), grazing_bound = _mm256_set1_ps(args.grazing_bound);
+  const __m256 a0 = _mm256_set1_ps(args.axis[0]), a1 = _mm256_set1_ps(args.axis[1]),
+               a2 = _mm256_set1_ps(args.axis[2]);
+  const __m256 b0 = _mm256_set1_ps(args.b[0]), b1 = _mm256_set1_ps(args.b[1]),
+               b2 = _mm256_set1_ps(args.b[2]);
+  const __m256 lens_b = _mm256_set1_ps(args.lens_b), r2 = _mm256_set1_ps(args.r2);
+  const __m256 aperture_bound = _mm256_set1_ps(args.aperture_bound);
+  const __m256 negative_aperture_bound = _mm256_set1_ps(-args.aperture_bound);
+  const __m256 negative_grazing_bound = _mm256_set1_ps(-args.grazing_bound);
+  const __m256 denominator_bound = _mm256_set1_ps(args.denominator_bound);
+  const __m256 abs_mask = _mm256_castsi256_ps(_mm256_set1_epi32(0x7fffffff));
+  const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+  const __m256 one = _mm256_set1_ps(1.0f), half = _mm256_set1_ps(0.5f),
+               minus_one = _mm256_set1_ps(-1.0f);
+  const __m256 x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
+  const __m256 y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
+  const __m256i one_i = _mm256_set1_epi32(1);
+  const __m256i stride = _mm256_set1_epi32(stride_bytes);
+  bool any = false;
+  constexpr int kPending = 32;
+  Pending pending[kPending];
+  int pending_size = 0;
+  // The next view's pixels, spread over the groups (a burst would fill the miss queues).
+  const int groups = points.size / 8;
+  const int prefetch_per_group =
+      groups > 0 ? (args.prefetch_count + groups - 1) / groups : 0;
+  int prefetched = 0;
+  for (int i = 0; i < points.size; i += 8) {
+    for (int k = 0; k < prefetch_per_group && prefetched < args.prefetch_count; ++k) {
+      _mm_prefetch(args.prefetch[prefetched++], _MM_HINT_T0);
+    }
+    const __m256 x = _mm256_loadu_ps(points.x + i);
+    const __m256 y = _mm256_loadu_ps(points.y + i);
+    const __m256 z = _mm256_loadu_ps(points.z + i);
+    const __m256 valid = _mm256_castsi256_ps(
+        _mm256_loadu_si256(reinterpret_cast<const __m256i*>(points.valid + i)));
+    const __m256 U = _mm256_fmadd_ps(P[0][0], x, _mm256_fmadd_ps(P[0][1], y, _mm256_fmadd_ps(P[0][2], z, P[0][3])));
+    const __m256 V = _mm256_fmadd_ps(P[1][0], x, _mm256_fmadd_ps(P[1][1], y, _mm256_fmadd_ps(P[1][2], z, P[1][3])));
+    const __m256 Z = _mm256_fmadd_ps(P[2][0], x, _mm256_fmadd_ps(P[2][1], y, _mm256_fmadd_ps(P[2][2], z, P[2][3])));
+    __m256 pass = valid;
+    __m256 fail = _mm256_xor_ps(valid, all);
+    if (!args.image_test && _mm256_movemask_ps(valid) == 0) continue;
+    if (args.image_test) {
+      Decide(Z, bound[0], negative[0], pass, fail);
+      Decide(U, bound[1], negative[1], pass, fail);
+      Decide(_mm256_fmsub_ps(width, Z, U), bound[2], negative[2], pass, fail);
+      Decide(V, bound[3], negative[3], pass, fail);
+      Decide(_mm256_fmsub_ps(height, Z, V), bound[4], negative[4], pass, fail);
+      // Skip the rest when no lane is left undecided-or-passing (the common case at the edge
+      // of a view's footprint).
+      if (_mm256_movemask_ps(_mm256_andnot_ps(fail, all)) == 0) continue;
+    }
+    if (args.grazing || args.aperture == 2) {
+      const __m256 t0 = _mm256_sub_ps(b0, x), t1 = _mm256_sub_ps(b1, y), t2 = _mm256_sub_ps(b2, z);
+      const __m256 t_t = _mm256_fmadd_ps(t0, t0, _mm256_fmadd_ps(t1, t1, _mm256_mul_ps(t2, t2)));
+      if (args.grazing) {
+        const __m256 along = _mm256_fmadd_ps(n0, t0, _mm256_fmadd_ps(n1, t1, _mm256_mul_ps(n2, t2)));
+        Decide(_mm256_fmsub_ps(along, along, _mm256_mul_ps(sin2, t_t)), grazing_bound,
+               negative_grazing_bound, pass, fail);
+      }
+      if (args.aperture == 2) {
+        const __m256 t_a = _mm256_fmadd_ps(a0, t0, _mm256_fmadd_ps(a1, t1, _mm256_mul_ps(a2, t2)));
+        // |t - (t.a) a|^2 = |t|^2 - (t.a)^2 for a unit axis.
+        const __m256 distance2 = _mm256_fnmadd_ps(t_a, t_a, t_t);
+        Decide(_mm256_sub_ps(r2, distance2), aperture_bound, negative_aperture_bound, pass, fail);
+      }
+    }
+    if (args.aperture == 1) {
+      const __m256 a_x = _mm256_fmadd_ps(a0, x, _mm256_fmadd_ps(a1, y, _mm256_mul_ps(a2, z)));
+      const __m256 denominator = _mm256_sub_ps(lens_b, a_x);
+      const __m256 m0 = _mm256_fnmadd_ps(a_x, b0, _mm256_mul_ps(lens_b, x));
+      const __m256 m1 = _mm256_fnmadd_ps(a_x, b1, _mm256_mul_ps(lens_b, y));
+      const __m256 m2 = _mm256_fnmadd_ps(a_x, b2, _mm256_mul_ps(lens_b, z));
+      const __m256 m_m = _mm256_fmadd_ps(m0, m0, _mm256_fmadd_ps(m1, m1, _mm256_mul_ps(m2, m2)));
+      Decide(_mm256_fmsub_ps(_mm256_mul_ps(r2, denominator), denominator, m_m), aperture_bound,
+             negative_aperture_bound, pass, fail);
+      pass = _mm256_and_ps(pass, _mm256_cmp_ps(_mm256_and_ps(denominator, abs_mask),
+                                               denominator_bound, _CMP_GT_OQ));
+    }
+    int undecided = _mm256_movemask_ps(_mm256_andnot_ps(_mm256_or_ps(pass, fail), all));
+    int admitted = _mm256_movemask_ps(pass);
+    while (undecided != 0) {
+      const int lane = __builtin_ctz(static_cast<unsigned>(undecided));
+      undecided &= undecided - 1;
+      if (args.exact(args.exact_context, i + lane)) admitted |= 1 << lane;
+    }
+    if (admitted == 0) continue;
+    any = true;
+    // Positions and taps' offsets of the admitted lanes; the gathers run in a second pass, so
+    // that their latency overlaps across groups (no gather waits on the tests of its group).
+    const __m256i lanes = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+    const __m256i keep_i = _mm256_cmpeq_epi32(
+        _mm256_and_si256(_mm256_set1_epi32(admitted), lanes), lanes);
+    // Bilinear sample, clamped into the bordered image like the span kernels (max_ps returns
+    // its second operand, -1, for NaN).
+    const __m256 inv_z = _mm256_div_ps(one, Z);
+    const __m256 sx = _mm256_min_ps(_mm256_max_ps(_mm256_fmsub_ps(U, inv_z, half), minus_one), x_max);
+    const __m256 sy = _mm256_min_ps(_mm256_max_ps(_mm256_fmsub_ps(V, inv_z, half), minus_one), y_max);
+    const __m256i ix = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sx, one)), one_i);
+    const __m256i iy = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sy, one)), one_i);
+    const __m256 fx = _mm256_cvtepi32_ps(ix), fy = _mm256_cvtepi32_ps(iy);
+    Pending& p = pending[pending_size++];
+    p.group = i;
+    p.keep = keep_i;
+    p.ax = _mm256_sub_ps(sx, fx);
+    p.ay = _mm256_sub_ps(sy, fy);
+    constexpr int kShift = kValueSize == 1 ? 0 : (kValueSize == 2 ? 1 : 2);
+    p.offset = _mm256_add_epi32(_mm256_mullo_epi32(iy, stride), _mm256_slli_epi32(ix, kShift));
+    if (pending_size == kPending) {
+      Flush<kType>(pending, pending_size, origin, stride_bytes, args.variance, sum, sum_squares,
+                   count);
+      pending_size = 0;
+    }
+  }
+  Flush<kType>(pending, pending_size, origin, stride_bytes, args.variance, sum, sum_squares,
+               count);
+  return any;
+}
+
+bool CpuHasAvx2Fma() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma");
+  }();
+  return has;
+}
+
+}  // namespace
+
+PointKernel Avx2PointKernel(const Image& image) {
+  if (!SimdEnabled() || !CpuHasAvx2Fma() || image.channels() != 1 || image.border() < 1) {
+    return nullptr;
+  }
+  // Gather offsets are 32-bit byte offsets.
+  if (image.AllocatedBytes() >= static_cast<size_t>(std::numeric_limits<int32_t>::max() / 2)) {
+    return nullptr;
+  }
+  switch (image.type()) {
+    case PixelType::kU8: return &Avx2Points<PixelType::kU8>;
+    case PixelType::kU16: return &Avx2Points<PixelType::kU16>;
+    case PixelType::kF32: return &Avx2Points<PixelType::kF32>;
+    case PixelType::kU32: break;
+  }
+  return nullptr;
+}
+
+#else
+
+PointKernel Avx2PointKernel(const Image&) { return nullptr; }
+
+#endif
+
+}  // namespace aos::internal

@@ -1,0 +1,77 @@
+#pragma once
+// Internal to the per-sample renderer (surface_integral.cpp): the AVX2 kernel that samples one
+// pinhole view at a tile of focal points, and the exact scalar route kept as the reference. Not
+// part of the public API.
+//
+// The kernel works in float on points relative to the render's centre (tens of metres on real
+// flights): each admission test is a value whose sign decides (U >= 0 for u >= 0, ...), computed
+// in float together with a bound on its float error (stated by the caller per view and tile).
+// A lane whose value is within that bound of 0 is decided by the caller's exact double-precision
+// test (the reference's own arithmetic), so the kernel admits exactly the samples the reference
+// admits; only the sample values (bilinear in float, as the plane path's span kernels) differ,
+// by float rounding.
+#include <cstddef>
+#include <cstdint>
+
+#include "aos/image/image.h"
+#include "aos/render/surface_integral.h"
+
+namespace aos::internal {
+
+// Points of a tile, structure of arrays, relative to the render's centre; `valid` is all ones
+// (as an int32) for a point to render, 0 for a pixel without a focal point and for the padding
+// up to a multiple of 8 (such lanes hold 0, 0, 0).
+struct PointTileArrays {
+  const float* x;
+  const float* y;
+  const float* z;
+  const int32_t* valid;
+  int size;  // a multiple of 8
+};
+
+// Decides one lane exactly (double precision, the reference's arithmetic): true to admit.
+using ExactAdmit = bool (*)(const void* context, int index);
+
+struct PointKernelArgs {
+  // Homogeneous view pixel (U, V, Z) = P[r][0..2] . p + P[r][3]; u = U / Z, v = V / Z.
+  float P[3][4];
+  float width, height;  // the view's image: admitted iff Z > 0, 0 <= U <= width Z, 0 <= V <= height Z
+  // Float error bounds of Z, U, width Z - U, V, height Z - V.
+  float bound[5];
+  // False when every point of the tile is known to be inside the image (the tests are skipped).
+  bool image_test = true;
+  // Grazing: admitted iff (n . t)^2 >= sin2 |t|^2, t = b - p; skipped unless `grazing`.
+  bool grazing = false;
+  float normal[3], sin2, grazing_bound;
+  // Aperture: 0 none, 1 lens plane (|N|^2 <= r2 D^2 and D != 0, D = a.b - a.p,
+  // N = (a.b) p - (a.p) b), 2 cylinder (|t - (t.a) a|^2 <= r2).
+  int aperture = 0;
+  float axis[3], b[3], lens_b, r2, aperture_bound, denominator_bound;
+  bool variance = false;
+  // Addresses to prefetch while the kernel runs (the next view's pixels), spread over the groups.
+  const char* const* prefetch = nullptr;
+  int prefetch_count = 0;
+  ExactAdmit exact = nullptr;
+  const void* exact_context = nullptr;
+};
+
+// Adds the admitted lanes' bilinear samples into sum[i] (double), their squares into
+// sum_squares[i] when args.variance, and 1 into count[i]; returns whether any lane was admitted.
+// `image` is a 1-channel 8-bit, 16-bit or float view with a border >= 1.
+using PointKernel = bool (*)(const Image& image, const PointTileArrays& points,
+                             const PointKernelArgs& args, double* sum, double* sum_squares,
+                             uint32_t* count);
+
+// The AVX2 kernel for this view, or nullptr (no AVX2/FMA, SIMD disabled by SetSimdEnabled,
+// or a view type or channel count without one).
+PointKernel Avx2PointKernel(const Image& image);
+
+// The per-pixel scalar loop the fast route replaced (pixel-outer, view-inner, double precision):
+// the reference the tests compare against; also the route of the robust mean.
+SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_field,
+                                                      const FocalPoints& points,
+                                                      const PointIntegralOptions& options,
+                                                      const SurfaceIntegralOptions& surface,
+                                                      ProgressSink* progress);
+
+}  // namespace aos::internal

@@ -1,0 +1,347 @@
+// Tests of the per-sample renderer's fast route (surface_integral.cpp: tiles, views outer,
+// culls, the AVX2 kernel) against the per-pixel reference loop it replaced
+// (internal::RenderIntegralAtPointsReference), and of the cylinder aperture against analytic
+// truth.
+#include "aos/render/surface_integral.h"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <string>
+#include <vector>
+
+#include <gtest/gtest.h>
+
+#include "aos/render/integral_kernels.h"
+#include "aos/render/surface_integral_kernels.h"
+#include "render_test_util.h"
+
+namespace aos {
+namespace {
+
+using test_util::ConstantImage;
+
+// A random texture (every pixel independent: the steepest image there is for bilinear
+// interpolation, so the float positions' error shows fully), with its border filled.
+Image RandomImage(int width, int height, int channels, PixelType type, std::mt19937& rng) {
+  Image image(width, height, channels, type, 1);
+  std::uniform_real_distribution<float> value(0.0f, 255.0f);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      for (int c = 0; c < channels; ++c) {
+        const float v = value(rng);
+        switch (type) {
+          case PixelType::kU8: image.At<uint8_t>(x, y)[c] = static_cast<uint8_t>(v); break;
+          case PixelType::kU16: image.At<uint16_t>(x, y)[c] = static_cast<uint16_t>(v); break;
+          case PixelType::kU32: image.At<uint32_t>(x, y)[c] = static_cast<uint32_t>(v); break;
+          case PixelType::kF32: image.At<float>(x, y)[c] = v; break;
+        }
+      }
+    }
+  }
+  image.FillBorder();
+  return image;
+}
+
+// Views 18-26 m up at random positions within 14 m of the axis, each looking at a random
+// ground point within 8 m of the origin (tilted up to ~35 degrees), 40 x 32 pixels, 60 degrees:
+// each sees a 28 m wide patch, so the focal points below are partly outside most views.
+LightField RandomLightField(int views, int channels, PixelType type, std::mt19937& rng,
+                            const Vec3d& origin = Vec3d(0.0), bool lens = false) {
+  std::uniform_real_distribution<double> across(-14.0, 14.0), up(18.0, 26.0), target(-8.0, 8.0);
+  const PinholeCamera pinhole = PinholeCamera::FromFov(40, 32, 60.0);
+  LightField light_field;
+  for (int i = 0; i < views; ++i) {
+    const Vec3d eye = origin + Vec3d(across(rng), across(rng), up(rng));
+    const Vec3d look = origin + Vec3d(target(rng), target(rng), 0.0);
+    const Rigid3d pose = LookAt(eye, look);
+    const Image image = RandomImage(40, 32, channels, type, rng);
+    if (lens && i % 2 == 0) {
+      LensCamera camera = LensCamera::FromPinhole(pinhole);
+      camera.model = LensModel::kRadTan;
+      camera.distortion = {-0.05, 0.01, 0.001, -0.001, 0.0};
+      camera.Finalize("test");
+      light_field.views.push_back(MakeView("lens" + std::to_string(i), camera, pose, image));
+    } else {
+      light_field.views.push_back(MakeView("v" + std::to_string(i), pinhole, pose, image));
+    }
+  }
+  return light_field;
+}
+
+// Focal points of a bumpy surface (heights within +-3 m) over a 36 x 30 m patch, relative to
+// `reference`; a few pixels without a point; and, so that lanes land exactly on the float
+// tests' edges, points on the image borders of the views (their pixel (0, v), (w, v), (u, 0),
+// (u, h) back-projected) and on a cylinder of radius `radius` around view 0's vertical.
+FocalPoints RandomPoints(const LightField& light_field, int width, int height,
+                         const Vec3d& reference, double radius, std::mt19937& rng) {
+  FocalPoints points;
+  points.width = width;
+  points.height = height;
+  points.reference = reference;
+  points.points.resize(static_cast<size_t>(width) * height);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double phase = 6.0 * unit(rng);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      const double wx = -18.0 + 36.0 * (x + 0.5) / width, wy = -15.0 + 30.0 * (y + 0.5) / height;
+      const double wz = 3.0 * std::sin(0.3 * wx + phase) * std::cos(0.25 * wy);
+      points.points[static_cast<size_t>(y) * width + x] = Vec3d(wx, wy, wz);
+    }
+  }
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  for (int k = 0; k < width * height / 50; ++k) {
+    points.points[static_cast<size_t>(unit(rng) * width * height)] = Vec3d(nan, 0.0, 0.0);
+  }
+  // Border points: every 7th pixel gets one, of a random view, at a random depth.
+  for (size_t k = 0; k < points.points.size(); k += 7) {
+    const View& view = light_field.views[static_cast<size_t>(unit(rng) * light_field.views.size())];
+    const PinholeCamera camera = view.camera.Pinhole();
+    const double t = unit(rng);
+    Vec2d pixel;
+    switch (static_cast<int>(unit(rng) * 5)) {
+      case 0: pixel = Vec2d(0.0, t * camera.height); break;
+      case 1: pixel = Vec2d(camera.width, t * camera.height); break;
+      case 2: pixel = Vec2d(t * camera.width, 0.0); break;
+      case 3: pixel = Vec2d(t * camera.width, camera.height); break;
+      default: {
+        // On the cylinder of `radius` around view 0's centre's vertical.
+        const Vec3d c = light_field.views[0].cam_from_world.Center();
+        const double angle = 6.283185307179586 * t;
+        points.points[k] = Vec3d(c.x + radius * std::cos(angle), c.y + radius * std::sin(angle),
+                                 2.0 * unit(rng)) - reference;
+        continue;
+      }
+    }
+    const Vec3d ray((pixel.x - camera.cx) / camera.fx, (pixel.y - camera.cy) / camera.fy, 1.0);
+    const Vec3d world = view.cam_from_world.Center() +
+                        (10.0 + 15.0 * unit(rng)) * (glm::transpose(view.cam_from_world.rotation) * ray);
+    points.points[k] = world - reference;
+  }
+  return points;
+}
+
+// The fast route agrees with the reference: the same samples (counts, views used, samples,
+// uncovered pixels exactly), values to the float rounding of the kernel's positions.
+//
+// Tolerance: the kernel computes (U, V, Z) in float from points and a projection both rounded
+// to float; on these scenes (points within 30 m of the centre, f = 35 px, depths >= 5 m) that
+// moves a sample position by at most ~ 16 * 2^-24 * (f |X| + f |C_i - C|) / Z ~ 2e-4 px, and a
+// bilinear sample by at most 255 * 2 * 2e-4 ~ 0.1 grey levels on a texture of independent
+// pixels (the steepest possible), plus float interpolation (255 * 4 * 2^-24). The mean of the
+// samples inherits that bound. Variance = E[x^2] - mean^2 moves by at most 2 * 255 * 0.1.
+void ExpectSameRender(const SurfaceIntegralResult& fast, const SurfaceIntegralResult& reference,
+                      double value_tolerance, const std::string& what) {
+  const IntegralResult& a = fast.integral;
+  const IntegralResult& b = reference.integral;
+  ASSERT_EQ(a.image.width(), b.image.width()) << what;
+  ASSERT_EQ(a.image.channels(), b.image.channels()) << what;
+  EXPECT_EQ(a.samples, b.samples) << what;
+  EXPECT_EQ(a.views_used, b.views_used) << what;
+  EXPECT_EQ(a.views_selected, b.views_selected) << what;
+  EXPECT_EQ(a.uncovered_pixels, b.uncovered_pixels) << what;
+  int failures = 0;
+  for (int y = 0; y < a.image.height() && failures < 5; ++y) {
+    for (int x = 0; x < a.image.width() && failures < 5; ++x) {
+      const uint32_t count = *a.count.At<uint32_t>(x, y);
+      if (count != *b.count.At<uint32_t>(x, y)) {
+        ADD_FAILURE() << what << ": count at " << x << "," << y << ": " << count << " vs "
+                      << *b.count.At<uint32_t>(x, y);
+        ++failures;
+        continue;
+      }
+      for (int c = 0; c < a.image.channels(); ++c) {
+        const double difference = std::abs(a.image.At<float>(x, y)[c] - b.image.At<float>(x, y)[c]);
+        if (!(difference <= value_tolerance)) {
+          ADD_FAILURE() << what << ": value at " << x << "," << y << " channel " << c << ": "
+                        << a.image.At<float>(x, y)[c] << " vs " << b.image.At<float>(x, y)[c];
+          ++failures;
+        }
+      }
+      if (!a.variance.empty()) {
+        const double difference =
+            std::abs(a.variance.At<float>(x, y)[0] - b.variance.At<float>(x, y)[0]);
+        if (!(difference <= 2.0 * 255.0 * value_tolerance + 1e-3 * b.variance.At<float>(x, y)[0])) {
+          ADD_FAILURE() << what << ": variance at " << x << "," << y << ": "
+                        << a.variance.At<float>(x, y)[0] << " vs " << b.variance.At<float>(x, y)[0];
+          ++failures;
+        }
+      }
+    }
+  }
+}
+
+struct Case {
+  PointIntegralOptions::Aperture aperture;
+  double radius;
+  double min_angle_deg;
+};
+
+std::string Describe(const Case& c, PixelType type, int channels) {
+  return std::string(c.aperture == PointIntegralOptions::Aperture::kCylinder ? "cylinder"
+                                                                              : "lens plane") +
+         " r=" + std::to_string(c.radius) + " angle=" + std::to_string(c.min_angle_deg) +
+         " type=" + std::to_string(static_cast<int>(type)) + " channels=" + std::to_string(channels);
+}
+
+std::vector<Case> Cases() {
+  const double inf = std::numeric_limits<double>::infinity();
+  std::vector<Case> cases;
+  for (auto aperture : {PointIntegralOptions::Aperture::kLensPlane,
+                        PointIntegralOptions::Aperture::kCylinder}) {
+    for (double radius : {inf, 6.0, 0.0}) {
+      // 1 degree: the default; 50 degrees: the grazing test rejects views in most tiles.
+      for (double angle : {1.0, 50.0}) cases.push_back(Case{aperture, radius, angle});
+    }
+  }
+  return cases;
+}
+
+PointIntegralOptions OptionsFor(const Case& c, const Vec3d& reference) {
+  PointIntegralOptions options;
+  options.aperture = c.aperture;
+  options.aperture_radius = c.radius;
+  // A lens plane 22 m up, tilted a little; the cylinder's axis vertical.
+  options.lens_center = reference + Vec3d(0.5, -0.3, 22.0);
+  options.lens_axis = c.aperture == PointIntegralOptions::Aperture::kCylinder
+                          ? Vec3d(0.0, 0.0, 1.0)
+                          : glm::normalize(Vec3d(0.1, -0.05, -1.0));
+  options.surface_normal = glm::normalize(Vec3d(0.05, 0.02, 1.0));
+  options.min_view_angle_deg = c.min_angle_deg;
+  options.num_threads = 2;
+  return options;
+}
+
+TEST(RenderIntegralAtPoints, FastRouteAdmitsTheReferencesSamplesAndAgreesToFloatRounding) {
+  std::mt19937 rng(1234);
+  for (const auto& [type, channels] : std::vector<std::pair<PixelType, int>>{
+           {PixelType::kU8, 1}, {PixelType::kF32, 1}, {PixelType::kU16, 1}, {PixelType::kU8, 3}}) {
+    const LightField light_field = RandomLightField(24, channels, type, rng);
+    // 150 x 90 pixels: partial tiles at the right and bottom, rows not a multiple of 8.
+    const FocalPoints points = RandomPoints(light_field, 150, 90, Vec3d(0.0), 6.0, rng);
+    for (const Case& c : Cases()) {
+      PointIntegralOptions options = OptionsFor(c, Vec3d(0.0));
+      for (bool variance : {false, true}) {
+        options.variance = variance;
+        const SurfaceIntegralResult fast = RenderIntegralAtPoints(light_field, points, options);
+        const SurfaceIntegralResult reference =
+            internal::RenderIntegralAtPointsReference(light_field, points, options, {}, nullptr);
+        ASSERT_GT(reference.integral.samples, 0);
+        ExpectSameRender(fast, reference, 0.1,
+                         Describe(c, type, channels) + (variance ? " variance" : ""));
+      }
+    }
+  }
+}
+
+TEST(RenderIntegralAtPoints, ScalarTileRouteEqualsTheReferenceExactly) {
+  // Without SIMD every view takes the tiled route's double-precision path: the same samples
+  // added in the same (view) order per pixel, so the images are bit-identical.
+  std::mt19937 rng(99);
+  const LightField light_field = RandomLightField(16, 1, PixelType::kU8, rng);
+  const FocalPoints points = RandomPoints(light_field, 70, 67, Vec3d(0.0), 6.0, rng);
+  internal::SetSimdEnabled(false);
+  for (const Case& c : Cases()) {
+    PointIntegralOptions options = OptionsFor(c, Vec3d(0.0));
+    options.variance = true;
+    const SurfaceIntegralResult fast = RenderIntegralAtPoints(light_field, points, options);
+    const SurfaceIntegralResult reference =
+        internal::RenderIntegralAtPointsReference(light_field, points, options, {}, nullptr);
+    ExpectSameRender(fast, reference, 0.0, Describe(c, PixelType::kU8, 1) + " scalar");
+    EXPECT_TRUE(test_util::SameImage(fast.integral.image, reference.integral.image));
+  }
+  internal::SetSimdEnabled(true);
+}
+
+TEST(RenderIntegralAtPoints, LensViewsAndAFarReferenceAgreeWithTheReference) {
+  // Half the views through a radial-tangential lens (projected by LensCamera::Project, not
+  // culled), and the whole scene 500 km from the origin of its frame (points relative to a
+  // UTM-sized reference): admission still exact, values to float rounding.
+  std::mt19937 rng(7);
+  const Vec3d origin(512345.25, 5298765.5, 310.0);
+  const LightField light_field = RandomLightField(20, 1, PixelType::kU8, rng, origin, true);
+  const FocalPoints points = RandomPoints(light_field, 96, 80, origin, 6.0, rng);
+  for (const Case& c : Cases()) {
+    const PointIntegralOptions options = OptionsFor(c, origin);
+    const SurfaceIntegralResult fast = RenderIntegralAtPoints(light_field, points, options);
+    const SurfaceIntegralResult reference =
+        internal::RenderIntegralAtPointsReference(light_field, points, options, {}, nullptr);
+    ASSERT_GT(reference.integral.samples, 0);
+    ExpectSameRender(fast, reference, 0.1, Describe(c, PixelType::kU8, 1) + " lens, far");
+  }
+}
+
+TEST(RenderIntegralAtPoints, CylinderAdmitsAViewIffItsHorizontalDistanceIsAtMostTheRadius) {
+  // Views straight down at horizontal distances d = 1, 2, ..., 8 m from the focal point (and a
+  // second view at d = 5 m, the other side); each view's image is its own index + 1. A
+  // cylinder of radius r admits exactly the views with d <= r (d = r included), whatever the
+  // views' heights; radius 0 takes the nearest view (d = 1), ties to the lower index.
+  const PinholeCamera camera = PinholeCamera::FromFov(32, 32, 120.0);
+  LightField light_field;
+  std::vector<double> distances;
+  for (int k = 1; k <= 8; ++k) distances.push_back(k);
+  distances.push_back(5.0);
+  for (size_t i = 0; i < distances.size(); ++i) {
+    const double side = i + 1 == distances.size() ? -1.0 : 1.0;
+    const Vec3d centre(100.0 + side * distances[i], 200.0, 20.0 + static_cast<double>(i));
+    light_field.views.push_back(MakeView("v" + std::to_string(i), camera, NadirCamFromWorld(centre),
+                                         ConstantImage(32, 32, {static_cast<float>(i + 1)})));
+  }
+  FocalPoints points;
+  points.width = points.height = 1;
+  points.reference = Vec3d(100.0, 200.0, 3.0);
+  points.points = {Vec3d(0.0)};
+  PointIntegralOptions options;
+  options.aperture = PointIntegralOptions::Aperture::kCylinder;
+  options.min_view_angle_deg = 0.0;
+  for (double radius : {0.5, 1.0, 2.5, 5.0, 5.5, 7.999, 8.0, 100.0}) {
+    options.aperture_radius = radius;
+    double sum = 0.0;
+    uint32_t count = 0;
+    for (size_t i = 0; i < distances.size(); ++i) {
+      if (distances[i] <= radius) {
+        sum += static_cast<double>(i + 1);
+        ++count;
+      }
+    }
+    const SurfaceIntegralResult result = RenderIntegralAtPoints(light_field, points, options);
+    EXPECT_EQ(*result.integral.count.At<uint32_t>(0, 0), count) << "r = " << radius;
+    if (count > 0) {
+      EXPECT_FLOAT_EQ(*result.integral.image.At<float>(0, 0), static_cast<float>(sum / count))
+          << "r = " << radius;
+    }
+    EXPECT_EQ(result.integral.views_used, static_cast<int>(count)) << "r = " << radius;
+  }
+  options.aperture_radius = 0.0;
+  const SurfaceIntegralResult nearest = RenderIntegralAtPoints(light_field, points, options);
+  EXPECT_EQ(*nearest.integral.count.At<uint32_t>(0, 0), 1u);
+  EXPECT_EQ(*nearest.integral.image.At<float>(0, 0), 1.0f);
+  // Without the d = 1..4 views, the two at d = 5 tie: the lower index (4, value 5) wins.
+  options.view_indices = {4, 5, 6, 7, 8};
+  const SurfaceIntegralResult tie = RenderIntegralAtPoints(light_field, points, options);
+  EXPECT_EQ(*tie.integral.image.At<float>(0, 0), 5.0f);
+  EXPECT_EQ(tie.integral.views_used, 1);
+}
+
+TEST(RenderIntegralAtPoints, ViewsOutsideEveryTileAreNotUsedAndPixelsWithoutPointsAreUncovered) {
+  // A view looking away from the points contributes nothing (culled); NaN points count 0.
+  std::mt19937 rng(5);
+  LightField light_field = RandomLightField(6, 1, PixelType::kU8, rng);
+  FocalPoints points = RandomPoints(light_field, 20, 20, Vec3d(0.0), 6.0, rng);
+  light_field.views.push_back(MakeView("away", PinholeCamera::FromFov(40, 32, 60.0),
+                                       LookAt(Vec3d(0, 0, 20), Vec3d(0, 0, 40)),
+                                       ConstantImage(40, 32, {255.0f}, PixelType::kU8)));
+  for (int x = 0; x < 20; ++x) points.points[static_cast<size_t>(x)] = Vec3d(std::nan(""));
+  PointIntegralOptions options;
+  options.min_view_angle_deg = 0.0;
+  const SurfaceIntegralResult fast = RenderIntegralAtPoints(light_field, points, options);
+  const SurfaceIntegralResult reference =
+      internal::RenderIntegralAtPointsReference(light_field, points, options, {}, nullptr);
+  ExpectSameRender(fast, reference, 0.1, "culled view");
+  for (int x = 0; x < 20; ++x) EXPECT_EQ(*fast.integral.count.At<uint32_t>(x, 0), 0u);
+  EXPECT_LE(fast.integral.views_used, 6);
+}
+
+}  // namespace
+}  // namespace aos
