@@ -1,6 +1,7 @@
 // Rendering commands: integral, stack, merge, allinfocus.
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -46,6 +47,7 @@ struct RenderArgs {
   std::string look_at;
   std::string cam_from_world;
   std::string views;
+  std::string pose_view;  // an index or a view's name, resolved once the light field is loaded
 };
 
 void AddLoadFlags(const Flags& flags, LoadOptions& load) {
@@ -54,6 +56,7 @@ void AddLoadFlags(const Flags& flags, LoadOptions& load) {
                   "Horizontal field of view of the frames, degrees (JKU poses.json only)");
   loader.Optional("--images-dir", "images_dir", load.images_dir,
                   "Folder of the frames (JKU poses.json; default: ../images beside it)");
+  AddGreyFlag(loader, load.grey);
 }
 
 // `render` binds the IntegralOptions fields (nested for stack and allinfocus).
@@ -63,9 +66,11 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
                    "Light-field file: aos JSON, or a JKU-ICG/AOS poses.json")
       ->required();
   AddLoadFlags(render, args.load);
-  auto* pose_view = render.Optional("--pose-view", "pose_view", options.pose_view,
-                                    "Virtual camera = the pose of view K (0-based)");
-  pose_view->check(AtLeast(0));
+  render.Describe("pose_view", "--pose-view");
+  auto* pose_view = render.command()->add_option(
+      "--pose-view", args.pose_view,
+      "Virtual camera = the pose of view K (0-based index) or of the view named NAME (its frame "
+      "name, with or without the extension; case is ignored if nothing matches exactly)");
   render.Describe("cam_from_world", "--cam-from-world/--look-at");
   auto* look_at = render.command()->add_option(
       "--look-at", args.look_at,
@@ -95,6 +100,22 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   render.Threads(options.num_threads);
 }
 
+// --pose-view: digits are an index (checked against the light field by IntegralOptions::Check),
+// anything else a view's name (FindViewByName).
+int ResolvePoseView(const std::string& text, const LightField& light_field) {
+  const bool digits = std::all_of(text.begin(), text.end(),
+                                  [](unsigned char c) { return std::isdigit(c) != 0; });
+  if (digits) {
+    if (text.size() > 9) ThrowUsage("--pose-view: no view " + text);
+    return std::stoi(text);
+  }
+  if (text.size() > 1 && text[0] == '-' &&
+      std::all_of(text.begin() + 1, text.end(), [](unsigned char c) { return std::isdigit(c) != 0; })) {
+    ThrowUsage("--pose-view: a view index is >= 0 (got " + text + ")");
+  }
+  return AsUsage([&] { return FindViewByName(light_field, text, "--pose-view"); });
+}
+
 // Loads the light field and fills `options`' virtual camera (pose, views) from the command
 // line; the focal plane is left to the caller.
 LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
@@ -104,6 +125,7 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
+  if (!args.pose_view.empty()) options.pose_view = ResolvePoseView(args.pose_view, loaded.light_field);
   if (!args.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(args.look_at, "--look-at");
     if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");
