@@ -100,20 +100,41 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   render.Threads(options.num_threads);
 }
 
-// --pose-view: digits are an index (checked against the light field by IntegralOptions::Check),
-// anything else a view's name (FindViewByName).
+// --pose-view: a view's index or its name (FindViewByName). Digits are both an index and a
+// possible name (frames are often called 0042.png): the one that exists is taken; if the index
+// and a view so named are different views, it is refused as ambiguous.
 int ResolvePoseView(const std::string& text, const LightField& light_field) {
-  const bool digits = std::all_of(text.begin(), text.end(),
-                                  [](unsigned char c) { return std::isdigit(c) != 0; });
-  if (digits) {
-    if (text.size() > 9) ThrowUsage("--pose-view: no view " + text);
-    return std::stoi(text);
-  }
-  if (text.size() > 1 && text[0] == '-' &&
-      std::all_of(text.begin() + 1, text.end(), [](unsigned char c) { return std::isdigit(c) != 0; })) {
+  const auto all_digits = [](auto begin, auto end) {
+    return begin != end &&
+           std::all_of(begin, end, [](unsigned char c) { return std::isdigit(c) != 0; });
+  };
+  if (text.size() > 1 && text[0] == '-' && all_digits(text.begin() + 1, text.end())) {
     ThrowUsage("--pose-view: a view index is >= 0 (got " + text + ")");
   }
-  return AsUsage([&] { return FindViewByName(light_field, text, "--pose-view"); });
+  if (!all_digits(text.begin(), text.end())) {
+    return AsUsage([&] { return FindViewByName(light_field, text, "--pose-view"); });
+  }
+  const int view_count = static_cast<int>(light_field.views.size());
+  const int index = text.size() > 9 ? -1 : std::stoi(text);
+  const bool index_valid = index >= 0 && index < view_count;
+  int named = -1;
+  std::string name_error;
+  try {
+    named = FindViewByName(light_field, text, "--pose-view");
+  } catch (const std::invalid_argument& error) {
+    name_error = error.what();
+  }
+  if (named < 0) {
+    if (index_valid) return index;
+    ThrowUsage("--pose-view: no view " + text + " (the light field has " +
+               std::to_string(view_count) + " views), and " +
+               name_error.substr(std::string("--pose-view: ").size()));
+  }
+  if (!index_valid || named == index) return named;
+  ThrowUsage("--pose-view: " + text + " is ambiguous: view " + std::to_string(index) +
+             " by index, or view " + std::to_string(named) + " (" +
+             light_field.views[static_cast<size_t>(named)].name +
+             ") by name; give that name with its extension");
 }
 
 // Loads the light field and fills `options`' virtual camera (pose, views) from the command
