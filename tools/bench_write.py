@@ -68,7 +68,7 @@ def main() -> None:
                 frames.append(str(frame))
             camera = root / "camera.json"
             aos.write_camera_file(camera, aos.LensCamera(
-                "radtan", args.size, args.size, 0.9 * args.size, 0.9 * args.size,
+                aos.LensModel.radtan, args.size, args.size, 0.9 * args.size, 0.9 * args.size,
                 0.5 * args.size, 0.5 * args.size, [-0.05, 0.0, 0.0, 0.0, 0.0]))
             for threads in sorted({1, args.threads}):
                 start = time.perf_counter()

@@ -58,9 +58,13 @@ class LensCameraFields:
     def __init__(self) -> None:
         import aos
 
-        camera = aos.LensCamera.from_pinhole(aos.PinholeCamera())
-        for name in self._fields:
-            setattr(self, name, getattr(camera, name))
+        # A Python LensCamera is validated when made (no empty one): these are the C++ member
+        # initialisers of LensCamera (lens.h), which the CLI prints as defaults.
+        self.model = aos.LensModel.pinhole
+        self.width = self.height = 0
+        self.fx = self.fy = self.cx = self.cy = 0.0
+        self.distortion: list[float] = []
+        self.xi = self.skew = 0.0
 
 
 def options_of(class_name: str) -> Any:

@@ -566,6 +566,10 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
     const bool keep = integer_image && image.type() != PixelType::kU32 &&
                       PixelTypeSize(image.type()) <= sizeof(Code);
     const bool keep_counts = image.type() == PixelType::kU32;
+    if (keep && PixelTypeSize(image.type()) == sizeof(Code)) {
+      image.CopyTo(out, static_cast<ptrdiff_t>(width) * channels);  // same type: rows as they are
+      return;
+    }
     const double range_min = options.RangeMin();
     const double scale = max_code / (options.RangeMax() - range_min);
     for_each_value([&](size_t i, double value) {
