@@ -46,7 +46,33 @@ COMMANDS = [
     ("ground", "GroundOptions"),
     ("resolution", "ResolutionOptions"),
     ("metrics", "QualityOptions"),
+    ("camera", "LensCamera"),
 ]
+
+
+class LensCameraFields:
+    """The fields of a default aos.LensCamera that `aos-render camera` sets (the flags are bound
+    to LensCamera's own fields; max_radius and theta_max are derived by Finalize, not set)."""
+
+    _fields = ("model", "width", "height", "fx", "fy", "cx", "cy", "distortion", "xi", "skew")
+
+    def __init__(self) -> None:
+        import aos
+
+        # A Python LensCamera is validated when made (no empty one): these are the C++ member
+        # initialisers of LensCamera (lens.h), which the CLI prints as defaults.
+        self.model = aos.LensModel.pinhole
+        self.width = self.height = 0
+        self.fx = self.fy = self.cx = self.cy = 0.0
+        self.distortion: list[float] = []
+        self.xi = self.skew = 0.0
+
+
+def options_of(class_name: str) -> Any:
+    """A default instance of the struct a command fills."""
+    import aos
+
+    return LensCameraFields() if class_name == "LensCamera" else getattr(aos, class_name)()
 
 # Fields set on the command line in another way, or Python only: (command or "*", field) -> why.
 NOT_ON_THE_CLI = {
@@ -78,7 +104,8 @@ NOT_ON_THE_CLI = {
 # struct's default, so that a drifted default is seen.
 NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file", "focal_surface",
                       "positions_file", "positions_crs", "workspace",
-                      "pose_error_px", "pose_error_m"}  # exclusive flags; none = no pose error
+                      "pose_error_px", "pose_error_m",  # exclusive flags; none = no pose error
+                      "fy", "cx", "cy"}  # camera: fy = fx, cx/cy = the centre
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).
 UNITS = [("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
@@ -201,7 +228,7 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
     bindings = cli_bindings(aos_render)
     for command, class_name in COMMANDS:
         flags = cli_flags(aos_render, command)
-        fields = leaves(getattr(aos, class_name)())
+        fields = leaves(options_of(class_name))
         known = {path for path, _ in fields}
         for binding in bindings:
             field = binding["field"]

@@ -57,6 +57,10 @@ const CommandEntry kCommands[] = {
      "Calibrate a lens from checkerboard frames (OpenCV): write a camera file with the RMS "
      "reprojection error and the frames used; frames without the board are listed, not fatal",
      DefineCalibrate},
+    {"camera",
+     "Write a camera file (aos-camera JSON) for a known lens, without a checkerboard: model, size, "
+     "focal lengths, principal point and distortion, validated as readers will",
+     DefineCamera},
     {"rectify",
      "Resample raw frames taken through a lens model (a camera file) into perspective frames with "
      "a chosen field of view, size and orientation, in the input's bit depth",

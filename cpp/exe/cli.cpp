@@ -438,4 +438,11 @@ void CheckImageOutput(const ImageOutputOptions& out, const std::string& path) {
   AsUsage([&] { return ResolveSampleType(path, Image(1, 1, 1, PixelType::kF32), write); });
 }
 
+CLI::Option* AddGreyFlag(Flags& loader, bool& grey) {
+  return loader.Switch("grey", grey,
+                       "Integrate the frames as grey: RGB(A) frames become one-channel luminance "
+                       "at load, Rec. 601 weights 0.299 R + 0.587 G + 0.114 B (e.g. false-colour "
+                       "thermal frames)");
+}
+
 }  // namespace aos::cli

@@ -265,6 +265,10 @@ std::vector<int> ParseViewList(const std::string& text, int view_count);
 // are never replaced).
 void RefuseExisting(const std::string& path, const std::string& what);
 
+// --grey bound to LoadOptions::grey through `loader` (the binder At("load.")): the one spelling
+// on every command that loads a light field (frames become Rec. 601 luminance at load).
+CLI::Option* AddGreyFlag(Flags& loader, bool& grey);
+
 // Sample type and value range of written images (--sample-type, --range).
 struct ImageOutputOptions {
   std::string sample_type = "auto";  // auto, uint8, uint16, float32

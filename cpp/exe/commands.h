@@ -2,7 +2,7 @@
 // The commands of aos-render, one Define function each, grouped by area (one file per area):
 //   render_commands.cpp   integral, stack, merge, allinfocus
 //   sim_commands.cpp      simulate, demo
-//   lens_commands.cpp     calibrate, rectify, resolution
+//   lens_commands.cpp     calibrate, camera, rectify, resolution
 //   sfm_commands.cpp      poses, import-colmap, ground
 //   metrics_commands.cpp  metrics
 // The command table (name, help, Define) is in aos_render.cpp. A Define function declares the
@@ -18,6 +18,7 @@ CommandRunner DefineAllInFocus(CLI::App* command);
 CommandRunner DefineSimulate(CLI::App* command);
 CommandRunner DefineDemo(CLI::App* command);
 CommandRunner DefineCalibrate(CLI::App* command);
+CommandRunner DefineCamera(CLI::App* command);
 CommandRunner DefineRectify(CLI::App* command);
 CommandRunner DefineResolution(CLI::App* command);
 CommandRunner DefinePoses(CLI::App* command);

@@ -1,8 +1,9 @@
-// Lens commands: calibrate, rectify, resolution.
+// Lens commands: calibrate, camera, rectify, resolution.
 #include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
+#include <map>
 #include <memory>
 #include <set>
 
@@ -13,6 +14,7 @@
 #include "aos/metrics/resolution.h"
 #include "aos/render/rectify.h"
 #include "aos/util/file_util.h"
+#include "aos/util/parallel.h"
 #include "commands.h"
 #include "progress_bar.h"
 
@@ -105,6 +107,128 @@ CommandRunner DefineCalibrate(CLI::App* command) {
   return [c, flags] { return RunCalibrate(*c, flags); };
 }
 
+// ---- camera ----
+
+namespace {
+
+// Distortion coefficients by name, and where each model keeps them (lens.h).
+struct DistortionFlag {
+  const char* name;  // "k1" -> --k1
+  double value = 0.0;
+  bool given = false;
+};
+
+struct CameraCommand {
+  LensCamera camera;
+  std::array<DistortionFlag, 6> distortion{{{"k1"}, {"k2"}, {"p1"}, {"p2"}, {"k3"}, {"k4"}}};
+  bool cx_given = false, cy_given = false, fy_given = false;
+  std::string output;
+};
+
+// The index in LensCamera::distortion of coefficient `name` for `model`, or -1 if the model has
+// no such coefficient: radtan {k1, k2, p1, p2, k3}, fisheye {k1, k2, k3, k4}, omnidir {k1, k2, p1,
+// p2}, pinhole none.
+int DistortionIndex(LensModel model, const std::string& name) {
+  static const std::map<LensModel, std::vector<std::string>> kOrder = {
+      {LensModel::kPinhole, {}},
+      {LensModel::kRadTan, {"k1", "k2", "p1", "p2", "k3"}},
+      {LensModel::kFisheye, {"k1", "k2", "k3", "k4"}},
+      {LensModel::kOmnidir, {"k1", "k2", "p1", "p2"}}};
+  const std::vector<std::string>& order = kOrder.at(model);
+  const auto found = std::find(order.begin(), order.end(), name);
+  return found == order.end() ? -1 : static_cast<int>(found - order.begin());
+}
+
+int RunCamera(CameraCommand& c, const Flags& flags) {
+  LensCamera& camera = c.camera;
+  if (!c.fy_given) camera.fy = camera.fx;  // square pixels
+  if (!c.cx_given) camera.cx = 0.5 * camera.width;
+  if (!c.cy_given) camera.cy = 0.5 * camera.height;
+  for (const DistortionFlag& flag : c.distortion) {
+    if (!flag.given) continue;
+    const int index = DistortionIndex(camera.model, flag.name);
+    if (index < 0) {
+      std::string known;
+      for (const DistortionFlag& other : c.distortion) {
+        if (DistortionIndex(camera.model, other.name) >= 0) {
+          known += (known.empty() ? "--" : ", --") + std::string(other.name);
+        }
+      }
+      ThrowUsage(std::string("--") + flag.name + ": the " + LensModelName(camera.model) +
+                 " model has " + (known.empty() ? std::string("no distortion") : known));
+    }
+    camera.distortion[static_cast<size_t>(index)] = flag.value;
+  }
+  // Validate as every reader of the file will (LensCamera::Finalize): errors name the flag.
+  try {
+    LensCamera checked = camera;
+    checked.Finalize("camera");
+  } catch (const std::invalid_argument& error) {
+    std::string message = error.what();
+    if (message.rfind("camera: ", 0) == 0) message = message.substr(8);
+    flags.RethrowNamingFlags(std::invalid_argument(message));
+  }
+  RefuseExisting(c.output, "output");
+  WriteCameraFile(c.output, camera);
+  Report report("camera");
+  report.Set("output", c.output);
+  report.Set("model", LensModelName(camera.model));
+  report.Set("width", camera.width);
+  report.Set("height", camera.height);
+  report.Set("fx", camera.fx);
+  report.Set("fy", camera.fy);
+  report.Set("cx", camera.cx);
+  report.Set("cy", camera.cy);
+  report.Set("distortion", std::vector<double>(camera.distortion.begin(), camera.distortion.end()));
+  report.Line("wrote %s: %s camera %dx%d, fx %s, fy %s, cx %s, cy %s", c.output.c_str(),
+              LensModelName(camera.model), camera.width, camera.height,
+              FormatNumber(camera.fx).c_str(), FormatNumber(camera.fy).c_str(),
+              FormatNumber(camera.cx).c_str(), FormatNumber(camera.cy).c_str());
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineCamera(CLI::App* command) {
+  auto c = std::make_shared<CameraCommand>();
+  Flags flags(command);
+  LensCamera& camera = c->camera;
+  flags.Parsed("--model", "model", camera.model, ParseModelFlag, LensModelName(camera.model),
+               "pinhole, radtan, fisheye or omnidir (lens.h; docs/lens-models.md)");
+  flags.Field("width", camera.width, "Image width, pixels")->required();
+  flags.Field("height", camera.height, "Image height, pixels")->required();
+  flags.Field("fx", camera.fx, "Focal length, pixels")->required();
+  flags.Optional("--fy", "fy", camera.fy, "Focal length along y, pixels (default: fx)")
+      ->each([c](const std::string&) { c->fy_given = true; });
+  flags.Optional("--cx", "cx", camera.cx,
+                 "Principal point x, pixels, aos's convention: pixel centres at +0.5, so OpenCV's "
+                 "cx + 0.5 (default: width / 2)")
+      ->each([c](const std::string&) { c->cx_given = true; });
+  flags.Optional("--cy", "cy", camera.cy,
+                 "Principal point y, pixels, as --cx (OpenCV's cy + 0.5; default: height / 2)")
+      ->each([c](const std::string&) { c->cy_given = true; });
+  flags.Describe("distortion", "--k1/--k2/--p1/--p2/--k3/--k4", "0");
+  for (DistortionFlag& flag : c->distortion) {
+    DistortionFlag* target = &flag;
+    command
+        ->add_option_function<double>(
+            std::string("--") + flag.name,
+            [target](double value) {
+              target->value = value;
+              target->given = true;
+            },
+            std::string("Distortion coefficient ") + flag.name +
+                " (radtan k1 k2 p1 p2 k3; fisheye k1..k4; omnidir k1 k2 p1 p2; default 0)");
+  }
+  flags.Field("xi", camera.xi, "omnidir: Mei's xi (>= 0)");
+  flags.Field("skew", camera.skew, "omnidir: skew");
+  command->add_option("-o,--output", c->output, "Camera file to write (aos-camera JSON)")
+      ->required();
+  flags.Force();
+  return [c, flags] { return RunCamera(*c, flags); };
+}
+
 // ---- rectify ----
 
 namespace {
@@ -114,17 +238,36 @@ struct RectifyCommand {
   std::string light_field_path;
   std::vector<std::string> frames;
   RectifyOptions options;
+  LoadOptions load;  // --lightfield: --grey
   std::string output_dir;
 };
+
+// The library says "fill" (RectifyOptions::fill); the command line's spelling is --fill.
+std::string WithFillFlag(std::string message) {
+  const std::string library = "or fill to make";
+  if (const size_t at = message.find(library); at != std::string::npos) {
+    message.replace(at, library.size(), "or --fill to make");
+  }
+  return message;
+}
 
 // rectify --lightfield: every view with a lens model is rectified (one set of maps per distinct
 // lens) and re-posed; pinhole views are kept as they are.
 int RunRectifyLightField(const RectifyCommand& c, const Flags& flags, ProgressBar& progress) {
   PendingFolder folder(c.output_dir);
-  LoadResult loaded = LoadLightField(c.light_field_path, LoadOptions{}, &progress);
+  LoadResult loaded = LoadLightField(c.light_field_path, c.load, &progress);
   progress.Finish();
-  const RectifyLightFieldResult result =
-      flags.NamingFlags([&] { return RectifyLightField(loaded.light_field, c.options, &progress); });
+  for (const std::string& note : loaded.notes) Note(note);
+  RectifyLightFieldResult result;
+  try {
+    result = RectifyLightField(loaded.light_field, c.options, &progress);
+  } catch (const std::invalid_argument& error) {
+    flags.RethrowNamingFlags(std::invalid_argument(WithFillFlag(error.what())));
+  }
+  if (c.options.fill) {
+    Warn("--fill: pixels outside the lens's coverage are black in the rectified views, and a "
+         "render integrates them as black samples");
+  }
   const LightField& light_field = result.light_field;
   bool float_views = false;
   for (const View& view : light_field.views) {
@@ -163,7 +306,7 @@ int RunRectify(const RectifyCommand& c, const Flags& flags) {
     // may be what is wrong). Other errors name their flag.
     const std::string message = error.what();
     if (message.rfind("fov_deg: the lens does not cover", 0) == 0) {
-      throw UsageError(message + " (the lens of " + c.camera_path +
+      throw UsageError(WithFillFlag(message) + " (the lens of " + c.camera_path +
                        ") [option --rectified-fov-deg]");
     }
     flags.RethrowNamingFlags(error);
@@ -176,23 +319,24 @@ int RunRectify(const RectifyCommand& c, const Flags& flags) {
                    " (outputs keep the frames' names)");
     }
   }
+  // Frames in parallel (read, resample, write each): writing dominates (PNG compression), and
+  // the frames are independent. The first failing frame (in input order) is the error reported.
+  WriteImageOptions write;
+  write.description = "aos rectified frame (" + std::string(LensModelName(lens.model)) +
+                      " -> pinhole, " + FormatNumber(c.options.fov_deg) + " degrees" +
+                      (rectifier.uncovered > 0 ? ", black outside the lens's coverage" : "") + ")";
   ProgressStart(&progress, "rectify", static_cast<int64_t>(c.frames.size()));
-  for (const std::string& frame : c.frames) {
-    if (ProgressCancelled(&progress)) throw Cancelled();
+  ParallelFor(static_cast<int64_t>(c.frames.size()), -1, &progress, [&](int64_t i) {
+    const std::string& frame = c.frames[static_cast<size_t>(i)];
     const Image raw = ReadImage(frame);
     if (raw.width() != lens.width || raw.height() != lens.height) {
       ThrowInvalid(frame + ": is " + std::to_string(raw.width()) + "x" +
                    std::to_string(raw.height()) + " but the camera (" + c.camera_path + ") is " +
                    std::to_string(lens.width) + "x" + std::to_string(lens.height));
     }
-    const Image rectified = Rectify(rectifier, raw);
-    WriteImageOptions write;
-    write.description = "aos rectified frame (" + std::string(LensModelName(lens.model)) +
-                        " -> pinhole, " + FormatNumber(c.options.fov_deg) + " degrees)";
-    WriteImage((fs::path(folder.TempPath()) / fs::path(frame).filename()).string(), rectified,
-               write);
-    ProgressAdvance(&progress, 1);
-  }
+    WriteImage((fs::path(folder.TempPath()) / fs::path(frame).filename()).string(),
+               Rectify(rectifier, raw), write);
+  });
   progress.Finish();
   WriteCameraFile((fs::path(folder.TempPath()) / "camera.json").string(),
                   LensCamera::FromPinhole(rectifier.camera));
@@ -202,9 +346,13 @@ int RunRectify(const RectifyCommand& c, const Flags& flags) {
   report.Set("frames", c.frames.size());
   report.Set("width", rectifier.camera.width);
   report.Set("height", rectifier.camera.height);
-  report.Line("wrote %s: %zu rectified frames (%dx%d, %s degrees) and camera.json",
+  report.Set("filled_pixels", static_cast<long long>(rectifier.uncovered));
+  report.Line("wrote %s: %zu rectified frames (%dx%d, %s degrees%s) and camera.json",
               c.output_dir.c_str(), c.frames.size(), rectifier.camera.width,
-              rectifier.camera.height, FormatNumber(c.options.fov_deg).c_str());
+              rectifier.camera.height, FormatNumber(c.options.fov_deg).c_str(),
+              rectifier.uncovered > 0
+                  ? (", " + std::to_string(rectifier.uncovered) + " pixels black (--fill)").c_str()
+                  : "");
   report.Print();
   return 0;
 }
@@ -231,6 +379,11 @@ CommandRunner DefineRectify(CLI::App* command) {
   flags.Field("yaw_deg", options.yaw_deg, "Turn about the lens's y axis, degrees");
   flags.Field("pitch_deg", options.pitch_deg, "Turn about the lens's x axis, degrees");
   flags.Field("roll_deg", options.roll_deg, "Turn about the optical axis, degrees");
+  flags.Switch("fill", options.fill,
+               "Allow a rectified view wider than the lens covers: pixels outside its coverage "
+               "are black (without it such a view is refused)");
+  Flags loader = flags.At("load.");
+  AddGreyFlag(loader, c->load.grey)->needs(light_field);
   command->add_option("-o,--output-dir", c->output_dir,
                       "Output folder (must not exist or be empty): the frames under their own "
                       "names, and camera.json (the rectified pinhole camera)")

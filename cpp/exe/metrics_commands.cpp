@@ -75,6 +75,9 @@ CommandRunner DefineMetrics(CLI::App* command) {
               "SSIM window radius, pixels (--window-radius is its old name)");
   flags.Field("k1", options.k1, "SSIM constant k1");
   flags.Field("k2", options.k2, "SSIM constant k2");
+  flags.Switch("grey", options.grey,
+               "Compare luminances: RGB(A) images become Rec. 601 luminance (0.299 R + 0.587 G + "
+               "0.114 B) first, e.g. a grey render (--grey) against an RGB reference");
   flags.Threads();
   return [c, flags] { return RunMetrics(*c, flags); };
 }

@@ -1,6 +1,7 @@
 // Rendering commands: integral, stack, merge, allinfocus.
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -47,6 +48,7 @@ struct RenderArgs {
   std::string cam_from_world;
   std::string views;
   std::string focal_surface;  // --focal-surface FILE (mesh or DEM raster)
+  std::string pose_view;  // an index or a view's name, resolved once the light field is loaded
 };
 
 void AddLoadFlags(const Flags& flags, LoadOptions& load) {
@@ -55,6 +57,7 @@ void AddLoadFlags(const Flags& flags, LoadOptions& load) {
                   "Horizontal field of view of the frames, degrees (JKU poses.json only)");
   loader.Optional("--images-dir", "images_dir", load.images_dir,
                   "Folder of the frames (JKU poses.json; default: ../images beside it)");
+  AddGreyFlag(loader, load.grey);
 }
 
 // `render` binds the IntegralOptions fields (nested for stack and allinfocus).
@@ -64,9 +67,11 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
                    "Light-field file: aos JSON, or a JKU-ICG/AOS poses.json")
       ->required();
   AddLoadFlags(render, args.load);
-  auto* pose_view = render.Optional("--pose-view", "pose_view", options.pose_view,
-                                    "Virtual camera = the pose of view K (0-based)");
-  pose_view->check(AtLeast(0));
+  render.Describe("pose_view", "--pose-view");
+  auto* pose_view = render.command()->add_option(
+      "--pose-view", args.pose_view,
+      "Virtual camera = the pose of view K (0-based index) or of the view named NAME (its frame "
+      "name, with or without the extension; case is ignored if nothing matches exactly)");
   render.Describe("cam_from_world", "--cam-from-world/--look-at");
   auto* look_at = render.command()->add_option(
       "--look-at", args.look_at,
@@ -110,6 +115,43 @@ CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& o
   return surface;
 }
 
+// --pose-view: a view's index or its name (FindViewByName). Digits are both an index and a
+// possible name (frames are often called 0042.png): the one that exists is taken; if the index
+// and a view so named are different views, it is refused as ambiguous.
+int ResolvePoseView(const std::string& text, const LightField& light_field) {
+  const auto all_digits = [](auto begin, auto end) {
+    return begin != end &&
+           std::all_of(begin, end, [](unsigned char c) { return std::isdigit(c) != 0; });
+  };
+  if (text.size() > 1 && text[0] == '-' && all_digits(text.begin() + 1, text.end())) {
+    ThrowUsage("--pose-view: a view index is >= 0 (got " + text + ")");
+  }
+  if (!all_digits(text.begin(), text.end())) {
+    return AsUsage([&] { return FindViewByName(light_field, text, "--pose-view"); });
+  }
+  const int view_count = static_cast<int>(light_field.views.size());
+  const int index = text.size() > 9 ? -1 : std::stoi(text);
+  const bool index_valid = index >= 0 && index < view_count;
+  int named = -1;
+  std::string name_error;
+  try {
+    named = FindViewByName(light_field, text, "--pose-view");
+  } catch (const std::invalid_argument& error) {
+    name_error = error.what();
+  }
+  if (named < 0) {
+    if (index_valid) return index;
+    ThrowUsage("--pose-view: no view " + text + " (the light field has " +
+               std::to_string(view_count) + " views), and " +
+               name_error.substr(std::string("--pose-view: ").size()));
+  }
+  if (!index_valid || named == index) return named;
+  ThrowUsage("--pose-view: " + text + " is ambiguous: view " + std::to_string(index) +
+             " by index, or view " + std::to_string(named) + " (" +
+             light_field.views[static_cast<size_t>(named)].name +
+             ") by name; give that name with its extension");
+}
+
 // Loads the light field and fills `options`' virtual camera (pose, views) from the command
 // line; the focal plane is left to the caller.
 LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
@@ -127,6 +169,7 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
+  if (!args.pose_view.empty()) options.pose_view = ResolvePoseView(args.pose_view, loaded.light_field);
   if (!args.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(args.look_at, "--look-at");
     if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");

@@ -119,8 +119,9 @@ void BindImage(py::module_& m) {
       "write_image",
       [](const std::filesystem::path& path, const py::handle& array, const std::string& sample_type,
          std::optional<double> range_min, std::optional<double> range_max, std::string description,
-         const std::string& units) {
+         const std::string& units, int png_compression_level) {
         WriteImageOptions options;
+        options.png_compression_level = png_compression_level;
         options.sample_type = ParseSampleType(sample_type);
         options.units = ParsePixelTypeName(units, "units");
         if (range_min) options.range_min = *range_min;
@@ -134,13 +135,15 @@ void BindImage(py::module_& m) {
       "range_min"_a = py::none(), "range_max"_a = py::none(),
       "description"_a = defaults.description,
       "units"_a = std::string(PixelTypeName(defaults.units)),
+      "png_compression_level"_a = defaults.png_compression_level,
       "Writes an image (format from the extension). `array` (H, W) or (H, W, C) of dtype uint8, "
       "uint16, uint32 or float32 (float64 is converted to float32) is copied first. A float "
       "array's values are in the units of `units` ('uint8': 0..255, 'uint16': 0..65535, "
       "'float32': 0..1; aos renders keep their views' units); written to an integer format with "
       "sample_type 'auto' they take the depth of `units` (uint16 for 16-bit or float units) and "
       "[range_min, range_max] (default: the units' full range) maps to [0, max code]; the same "
-      "rule as aos-render. sample_type: 'auto', 'uint8', 'uint16', 'uint32', 'float32'. The file "
+      "rule as aos-render. sample_type: 'auto', 'uint8', 'uint16', 'uint32', 'float32'. "
+      "png_compression_level: zlib level 0..9 of PNG files (1: fast). The file "
       "appears atomically; raises ValueError on failure.");
 }
 

@@ -282,26 +282,41 @@ void BindLightField(py::module_& m) {
   m.def(
       "load_lightfield",
       [](const std::filesystem::path& path, double fov_deg, const std::filesystem::path& images_dir,
-         bool load_images, int num_threads, const py::object& progress) {
+         bool load_images, bool grey, int num_threads, const py::object& progress) {
         LoadOptions options;
         options.fov_deg = fov_deg;
         options.images_dir = images_dir.string();
         options.load_images = load_images;
+        options.grey = grey;
         options.num_threads = num_threads;
         return RunWithProgress(progress, [&](ProgressSink* sink) {
           return LoadLightField(path.string(), options, sink);
         });
       },
       "path"_a, "fov_deg"_a = load_defaults.fov_deg, "images_dir"_a = load_defaults.images_dir,
-      "load_images"_a = load_defaults.load_images, "num_threads"_a = load_defaults.num_threads,
+      "load_images"_a = load_defaults.load_images, "grey"_a = load_defaults.grey,
+      "num_threads"_a = load_defaults.num_threads,
       "progress"_a = py::none(),
       "Loads a light field (the aos JSON format, or a JKU-ICG/AOS poses.json), detecting the "
       "format from the content. fov_deg: horizontal field of view of the frames, degrees, "
       "required for poses.json (0 = not given). images_dir: folder of the frames of a "
-      "poses.json ('' = beside it). load_images: False loads poses and cameras only. "
+      "poses.json ('' = beside it). load_images: False loads poses and cameras only (the "
+      "frames need not exist; a poses.json reads one frame for its size). grey: frames become "
+      "one-channel luminance (Rec. 601: 0.299 R + 0.587 G + 0.114 B) at load. A frame missing "
+      "under its exact name is found under the one name differing only in case. "
       "num_threads: -1 = all cores. progress(stage, done, total) is called from the calling "
       "thread, throttled; if it raises, loading stops and the error propagates. Ctrl-C raises "
       "KeyboardInterrupt.");
+
+  m.def(
+      "find_view",
+      [](const LightField& light_field, const std::string& name) {
+        return FindViewByName(light_field, name, "find_view");
+      },
+      "light_field"_a, "name"_a,
+      "The index of the view named `name` (its name, file name or file name without the "
+      "extension; exact matches first, then ignoring case), e.g. for pose_view. Raises "
+      "ValueError when none or several match, listing close or matching names.");
 
   const WriteLightFieldOptions write_defaults;
   m.def(

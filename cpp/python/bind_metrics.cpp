@@ -24,6 +24,8 @@ void BindMetrics(py::module_& m) {
              "SSIM window radius, pixels (>= 1); the window is (2r + 1)^2.")
       .Field("k1", &QualityOptions::k1, "SSIM constant k1, (0, 1).")
       .Field("k2", &QualityOptions::k2, "SSIM constant k2, (0, 1).")
+      .Field("grey", &QualityOptions::grey,
+             "Compare luminances: 3- or 4-channel images become Rec. 601 luminance first.")
       .Finish()
       .def("check", &QualityOptions::Check, "Raises ValueError naming the offending field.");
 

@@ -525,6 +525,8 @@ void BindRectify(py::module_& m) {
       .Field("yaw_deg", &RectifyOptions::yaw_deg, "Turn about the lens's y axis, degrees.")
       .Field("pitch_deg", &RectifyOptions::pitch_deg, "Turn about the lens's x axis, degrees.")
       .Field("roll_deg", &RectifyOptions::roll_deg, "Turn about the optical axis, degrees.")
+      .Field("fill", &RectifyOptions::fill,
+             "Pixels the lens does not cover become 0 (black) instead of an error.")
       .Finish()
       .def("check", &RectifyOptions::Check, "Raises ValueError naming the field.");
 

@@ -196,6 +196,7 @@ def write_image(
     range_max: float | None = None,
     description: str = "",
     units: str = "uint8",
+    png_compression_level: int = 1,
 ) -> None:
     """Writes `array` (COPIED first; uint8, uint16, uint32, float32, float64 -> float32) to `path`
     atomically. A float array's values are in the units of `units` ('uint8' 0..255, 'uint16'
@@ -297,10 +298,14 @@ def load_lightfield(
     fov_deg: float = 0.0,
     images_dir: _PathLike = "",
     load_images: bool = True,
+    grey: bool = False,
     num_threads: int = -1,
     progress: _Progress = None,
 ) -> LoadResult:
     """Loads an aos JSON light field or a JKU poses.json (fields of aos::LoadOptions)."""
+
+def find_view(light_field: LightField, name: str) -> int:
+    """The index of the view named ``name`` (name, file name, or stem), e.g. for pose_view."""
 
 def write_lightfield(
     path: _PathLike,
@@ -493,6 +498,7 @@ class RectifyOptions:
         yaw_deg: float = ...,
         pitch_deg: float = ...,
         roll_deg: float = ...,
+        fill: bool = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     fov_deg: float
@@ -501,6 +507,7 @@ class RectifyOptions:
     yaw_deg: float
     pitch_deg: float
     roll_deg: float
+    fill: bool
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> RectifyOptions: ...
@@ -800,6 +807,7 @@ class QualityOptions:
         window_radius: int = ...,
         k1: float = ...,
         k2: float = ...,
+        grey: bool = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     data_range: float
@@ -807,6 +815,7 @@ class QualityOptions:
     window_radius: int
     k1: float
     k2: float
+    grey: bool
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> QualityOptions: ...

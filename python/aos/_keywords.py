@@ -123,6 +123,7 @@ class QualityKeywords(TypedDict, total=False):
     window_radius: int
     k1: float
     k2: float
+    grey: bool
 
 
 class ResolutionKeywords(TypedDict, total=False):
@@ -143,6 +144,7 @@ class RectifyKeywords(TypedDict, total=False):
     yaw_deg: float
     pitch_deg: float
     roll_deg: float
+    fill: bool
 
 
 class CalibrateKeywords(TypedDict, total=False):

@@ -322,6 +322,38 @@ TEST_F(JkuTest, LoadsStringAndNumberEntriesAndSubstitutesExtensions) {
   EXPECT_THAT(loaded.notes[0], HasSubstr("a.tiff -> a.png"));
 }
 
+TEST_F(JkuTest, FramesFoundIgnoringCaseAndPosesOnlyNeedsOneFrame) {
+  // a.PNG named as a.png (exact miss, case match); b.JPG named as b.jpg -> b.png.
+  fs::rename(dir_ / "images" / "a.png", dir_ / "images" / "a.PNG");
+  WritePoses({JkuEntry("a.png", JkuMatrix(true)), JkuEntry("b.JPG", JkuMatrix(false)),
+              JkuEntry("c.png", JkuMatrix(true))});
+  const LoadResult loaded = LoadLightField(Poses(), Jku(50.0));
+  ASSERT_EQ(loaded.light_field.views.size(), 3u);
+  EXPECT_EQ(fs::path(loaded.light_field.views[0].image_path).filename(), "a.PNG");
+  EXPECT_EQ(fs::path(loaded.light_field.views[1].image_path).filename(), "b.png");
+  ExpectSamePixels(loaded.light_field.views[0].image, MakePattern(8, 6, 1, PixelType::kU8, 0));
+  ASSERT_EQ(loaded.notes.size(), 2u);
+  EXPECT_THAT(loaded.notes[0], HasSubstr("a.png -> a.PNG"));
+  EXPECT_THAT(loaded.notes[1], HasSubstr("b.JPG -> b.png"));
+
+  // Poses only: missing frames are no error; the first one found sizes the camera.
+  WritePoses({JkuEntry("gone.png", JkuMatrix(true)), JkuEntry("c.png", JkuMatrix(false))});
+  LoadOptions poses_only = Jku(50.0);
+  poses_only.load_images = false;
+  const LoadResult partial = LoadLightField(Poses(), poses_only);
+  ASSERT_EQ(partial.light_field.views.size(), 2u);
+  EXPECT_EQ(partial.light_field.views[0].camera.width, 8);
+  EXPECT_TRUE(partial.light_field.views[0].image.empty());
+  EXPECT_THAT(partial.notes.back(), HasSubstr("1 of 2 frames not found"));
+  // ... but decoding demands every frame.
+  ExpectInvalid([&] { LoadLightField(Poses(), Jku(50.0)); },
+                {"poses.json: image 0 (gone.png): imagefile: frame not found"});
+  // No frame at all: the camera has no size.
+  WritePoses({JkuEntry("gone.png", JkuMatrix(true))});
+  ExpectInvalid([&] { LoadLightField(Poses(), poses_only); },
+                {"poses.json", "none of the 1 frames was found", "image size"});
+}
+
 TEST_F(JkuTest, FramesFolderOptionAndFallbackToPosesFolder) {
   // images_dir overrides ../images.
   fs::create_directories(dir_ / "other");
@@ -382,12 +414,12 @@ TEST_F(JkuTest, MissingFrameNamesEntry) {
 TEST_F(JkuTest, FrameOfAnotherSizeIsAnError) {
   WriteImage(Path("images/c.png"), MakePattern(8, 5, 1, PixelType::kU8, 2));
   WriteValidPoses();
-  for (bool load_images : {true, false}) {
-    LoadOptions options = Jku();
-    options.load_images = load_images;
-    ExpectInvalid([&] { LoadLightField(Poses(), options); },
-                  {"poses.json", "image 2 (c.png)", "8x5", "8x6"});
-  }
+  ExpectInvalid([&] { LoadLightField(Poses(), Jku()); },
+                {"poses.json", "image 2 (c.png)", "8x5", "8x6"});
+  // Poses only: only the first frame is opened (to size the camera); c.png is not.
+  LoadOptions poses_only = Jku();
+  poses_only.load_images = false;
+  EXPECT_EQ(LoadLightField(Poses(), poses_only).light_field.views[2].camera.height, 6);
 }
 
 TEST_F(JkuTest, NanInPoseIsAnError) {
@@ -487,6 +519,13 @@ class AosErrorsTest : public FormatsTest {
     fs::create_directories(dir_ / "views");
     WriteImage(Path("views/good.png"), MakePattern(8, 6, 1, PixelType::kU8, 0));
   }
+  // Expects the error when the frames are decoded, and a load of poses and cameras only (which
+  // opens no frame) to succeed.
+  void ExpectFrameError(std::initializer_list<std::string> parts) {
+    ExpectInvalid([&] { LoadLightField(Path("lf.json")); }, parts);
+    const LoadResult poses_only = LoadLightField(Path("lf.json"), HeadersOnly());
+    for (const View& view : poses_only.light_field.views) EXPECT_TRUE(view.image.empty());
+  }
   // Expects the error in both loading modes.
   void ExpectLoadError(std::initializer_list<std::string> parts) {
     for (bool load_images : {true, false}) {
@@ -516,13 +555,13 @@ TEST_F(AosErrorsTest, ValidFileLoads) {
 
 TEST_F(AosErrorsTest, MissingImageFile) {
   WriteText("lf.json", AosFile("views/missing.png"));
-  ExpectLoadError({"lf.json", "view 0 (views/missing.png)", "not found"});
+  ExpectFrameError({"lf.json", "view 0 (views/missing.png)", "not found"});
 }
 
 TEST_F(AosErrorsTest, UnreadableImage) {
   WriteText("views/garbage.png", "this is not a PNG file at all");
   WriteText("lf.json", AosFile("views/garbage.png"));
-  ExpectLoadError({"lf.json", "view 0 (views/garbage.png)", "cannot read image"});
+  ExpectFrameError({"lf.json", "view 0 (views/garbage.png)", "cannot read image"});
 }
 
 TEST_F(AosErrorsTest, FirstFailingFrameIsReportedWhateverTheScheduling) {
@@ -550,7 +589,7 @@ TEST_F(AosErrorsTest, FirstFailingFrameIsReportedWhateverTheScheduling) {
 TEST_F(AosErrorsTest, ImageSizeDisagreesWithCamera) {
   WriteImage(Path("views/small.png"), MakePattern(7, 6, 1, PixelType::kU8, 0));
   WriteText("lf.json", AosFile("views/small.png"));
-  ExpectLoadError({"lf.json", "view 0 (views/small.png)", "7x6", "camera says 8x6"});
+  ExpectFrameError({"lf.json", "view 0 (views/small.png)", "7x6", "camera says 8x6"});
 }
 
 TEST_F(AosErrorsTest, NanInPose) {
@@ -670,7 +709,69 @@ TEST_F(AosErrorsTest, ChannelCountsDiffer) {
   text.insert(text.size() - 2, ", " + view.substr(0, view.size() - 2));
   text.replace(text.rfind("views/good.png"), 14, "views/rgb.png");
   WriteText("lf.json", text);
-  ExpectLoadError({"lf.json", "view 1 (views/rgb.png)", "3 channels", "view 0 has 1"});
+  ExpectFrameError({"lf.json", "view 1 (views/rgb.png)", "3 channels", "view 0 has 1"});
+}
+
+TEST_F(AosErrorsTest, PosesOnlyOpensNoFrame) {
+  // The frame is absent: poses and cameras still load, the view keeps its path and no image.
+  WriteText("lf.json", AosFile("elsewhere/absent.png"));
+  const LoadResult loaded = LoadLightField(Path("lf.json"), HeadersOnly());
+  ASSERT_EQ(loaded.light_field.views.size(), 1u);
+  const View& view = loaded.light_field.views[0];
+  EXPECT_TRUE(view.image.empty());
+  EXPECT_EQ(view.name, "elsewhere/absent.png");
+  EXPECT_EQ(view.camera.fx, 9.0);
+  EXPECT_TRUE(loaded.notes.empty());
+}
+
+TEST_F(AosErrorsTest, FrameFoundUnderANameDifferingInCase) {
+  WriteImage(Path("views/Shot.JPG.png"), MakePattern(8, 6, 1, PixelType::kU8, 3));
+  WriteText("lf.json", AosFile("views/shot.jpg.png"));
+  const LoadResult loaded = LoadLightField(Path("lf.json"));
+  ASSERT_EQ(loaded.light_field.views.size(), 1u);
+  EXPECT_EQ(fs::path(loaded.light_field.views[0].image_path).filename(), "Shot.JPG.png");
+  EXPECT_EQ(loaded.light_field.views[0].name, "views/shot.jpg.png");
+  ExpectSamePixels(loaded.light_field.views[0].image, MakePattern(8, 6, 1, PixelType::kU8, 3));
+  ASSERT_EQ(loaded.notes.size(), 1u);
+  EXPECT_THAT(loaded.notes[0], HasSubstr("differs only in case"));
+  EXPECT_THAT(loaded.notes[0], HasSubstr("views/shot.jpg.png -> Shot.JPG.png"));
+  // Two candidates: an error naming both, in both loading modes.
+  WriteImage(Path("views/SHOT.jpg.png"), MakePattern(8, 6, 1, PixelType::kU8, 4));
+  ExpectLoadError({"lf.json: view 0 (views/shot.jpg.png): image", "2 files match it ignoring case",
+                   "SHOT.jpg.png", "Shot.JPG.png"});
+  // The exact name wins over its case variants.
+  WriteImage(Path("views/shot.jpg.png"), MakePattern(8, 6, 1, PixelType::kU8, 5));
+  const LoadResult exact = LoadLightField(Path("lf.json"));
+  EXPECT_TRUE(exact.notes.empty());
+  ExpectSamePixels(exact.light_field.views[0].image, MakePattern(8, 6, 1, PixelType::kU8, 5));
+}
+
+TEST_F(AosErrorsTest, GreyLoadsLuminance) {
+  const Image rgb = MakePattern(8, 6, 3, PixelType::kU8, 1);
+  WriteImage(Path("views/rgb.png"), rgb);
+  WriteText("lf.json", AosFile("views/rgb.png"));
+  LoadOptions options;
+  options.grey = true;
+  const Image grey = LoadLightField(Path("lf.json"), options).light_field.views[0].image;
+  ASSERT_EQ(grey.channels(), 1);
+  ASSERT_EQ(grey.type(), PixelType::kU8);
+  ASSERT_GE(grey.border(), 1);
+  for (int y = 0; y < 6; ++y) {
+    for (int x = 0; x < 8; ++x) {
+      const double expected = std::round(0.299 * rgb.Value(x, y, 0) + 0.587 * rgb.Value(x, y, 1) +
+                                         0.114 * rgb.Value(x, y, 2));
+      ASSERT_EQ(grey.Value(x, y), expected) << x << "," << y;
+    }
+  }
+  // Grey frames and RGB frames load into one light field as grey.
+  std::string text = AosFile("views/good.png");
+  const std::string view = text.substr(text.find("{\"image\""));
+  text.insert(text.size() - 2, ", " + view.substr(0, view.size() - 2));
+  text.replace(text.rfind("views/good.png"), 14, "views/rgb.png");
+  WriteText("lf.json", text);
+  const LightField mixed = LoadLightField(Path("lf.json"), options).light_field;
+  EXPECT_EQ(mixed.views[0].image.channels(), 1);
+  EXPECT_EQ(mixed.views[1].image.channels(), 1);
 }
 
 TEST_F(FormatsTest, UnknownFormat) {

@@ -121,6 +121,38 @@ INSTANTIATE_TEST_SUITE_P(AllTypes, ImageTypes,
                            return std::string(PixelTypeName(info.param));
                          });
 
+TEST(Image, LuminanceIsRec601InTheImagesType) {
+  // Pure red, green, blue and white give the weights themselves (and their sum, 1).
+  Image f(4, 1, 4, PixelType::kF32, 1);
+  const float colours[4][4] = {{1, 0, 0, 0.5f}, {0, 1, 0, 0.5f}, {0, 0, 1, 0.5f}, {1, 1, 1, 0}};
+  for (int x = 0; x < 4; ++x) {
+    for (int c = 0; c < 4; ++c) f.At<float>(x, 0)[c] = colours[x][c];
+  }
+  f.FillBorder();
+  const Image grey = LuminanceImage(f);
+  ASSERT_EQ(grey.channels(), 1);
+  ASSERT_EQ(grey.border(), 1);
+  EXPECT_FLOAT_EQ(grey.At<float>(0, 0)[0], 0.299f);
+  EXPECT_FLOAT_EQ(grey.At<float>(1, 0)[0], 0.587f);
+  EXPECT_FLOAT_EQ(grey.At<float>(2, 0)[0], 0.114f);
+  EXPECT_FLOAT_EQ(grey.At<float>(3, 0)[0], 1.0f);
+  EXPECT_FLOAT_EQ(grey.At<float>(-1, -1)[0], 0.299f);  // the border too
+  // 16-bit: rounded to nearest, white stays at the top of the range.
+  Image u16(2, 1, 3, PixelType::kU16);
+  for (int c = 0; c < 3; ++c) u16.At<uint16_t>(0, 0)[c] = 65535;
+  u16.At<uint16_t>(1, 0)[0] = 1000;  // 299.0 exactly
+  u16.At<uint16_t>(1, 0)[1] = 1;     // + 0.587
+  const Image grey16 = LuminanceImage(u16);
+  EXPECT_EQ(grey16.Value(0, 0), 65535.0);
+  EXPECT_EQ(grey16.Value(1, 0), 300.0);
+  // One or two channels: channel 0 as it is.
+  Image two(1, 1, 2, PixelType::kU8);
+  two.At<uint8_t>(0, 0)[0] = 17;
+  two.At<uint8_t>(0, 0)[1] = 200;
+  EXPECT_EQ(LuminanceImage(two).Value(0, 0), 17.0);
+  EXPECT_TRUE(LuminanceImage(Image()).empty());
+}
+
 TEST(Image, PixelTypeRangesAreOneHelper) {
   // The templated maximum is the full range of the runtime type, bit for bit, and the integer
   // type's largest value; float images hold [0, 1].

@@ -9,6 +9,7 @@ namespace aos {
 namespace {
 
 using ::testing::HasSubstr;
+using ::testing::Not;
 
 std::string MakeViewError(const Image& image, const PinholeCamera& camera, const Rigid3d& pose) {
   try {
@@ -56,6 +57,43 @@ TEST(LightField, ChannelCountsMustAgree) {
     EXPECT_THAT(error.what(), HasSubstr("lf.json: view 1 (rgb): image has 3 channels"));
   }
   EXPECT_EQ(light_field.ImageBytes(), 4u * 4u * 4u);
+}
+
+std::string FindViewError(const LightField& light_field, const std::string& name) {
+  try {
+    return "found view " + std::to_string(FindViewByName(light_field, name, "--pose-view"));
+  } catch (const std::invalid_argument& error) {
+    return error.what();
+  }
+}
+
+TEST(LightField, FindViewByNameTakesNamesStemsAndCase) {
+  LightField light_field;
+  for (const char* name : {"images/DJI_0041.JPG", "images/DJI_0042.JPG", "images/DJI_0042.png",
+                           "images/other.tif", "IMG_7.png"}) {
+    View view;
+    view.name = name;
+    light_field.views.push_back(view);
+  }
+  EXPECT_EQ(FindViewByName(light_field, "images/DJI_0041.JPG"), 0);  // the name
+  EXPECT_EQ(FindViewByName(light_field, "DJI_0041.JPG"), 0);         // the file name
+  EXPECT_EQ(FindViewByName(light_field, "DJI_0041"), 0);             // the stem
+  EXPECT_EQ(FindViewByName(light_field, "dji_0041.jpg"), 0);         // ignoring case
+  EXPECT_EQ(FindViewByName(light_field, "DJI_0042.png"), 2);         // exact file name
+  EXPECT_EQ(FindViewByName(light_field, "other"), 3);
+  EXPECT_EQ(FindViewByName(light_field, "img_7"), 4);
+  // Two views share the stem DJI_0042: ambiguous, both named with their indices.
+  const std::string ambiguous = FindViewError(light_field, "DJI_0042");
+  EXPECT_THAT(ambiguous, HasSubstr("--pose-view: \"DJI_0042\" is ambiguous: 2 views match"));
+  EXPECT_THAT(ambiguous, HasSubstr("images/DJI_0042.JPG (view 1)"));
+  EXPECT_THAT(ambiguous, HasSubstr("images/DJI_0042.png (view 2)"));
+  // Unknown: close names suggested.
+  const std::string unknown = FindViewError(light_field, "DJI_0043");
+  EXPECT_THAT(unknown, HasSubstr("--pose-view: no view named \"DJI_0043\" among the 5 views"));
+  EXPECT_THAT(unknown, HasSubstr("close: \"images/DJI_0041.JPG\""));
+  EXPECT_THAT(unknown, Not(HasSubstr("other.tif")));
+  EXPECT_THAT(FindViewError(light_field, "zzzzzzzzzzzz"), HasSubstr("names run from"));
+  EXPECT_THAT(FindViewError(light_field, ""), HasSubstr("empty view name"));
 }
 
 }  // namespace

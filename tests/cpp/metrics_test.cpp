@@ -139,5 +139,36 @@ TEST(Metrics, BadInputIsRefused) {
   EXPECT_THAT(error([&] { CompareImages(nan, nan); }), HasSubstr("NaN"));
 }
 
+TEST(Metrics, GreyComparesLuminancesAndTheErrorOffersIt) {
+  const Image rgb = Textured(3, 11);
+  Image grey(rgb.width(), rgb.height(), 1, rgb.type());
+  for (int y = 0; y < rgb.height(); ++y) {
+    for (int x = 0; x < rgb.width(); ++x) {
+      // Rec. 601 luma, computed here independently of LuminanceImage().
+      const double luma = 0.299 * rgb.Value(x, y, 0) + 0.587 * rgb.Value(x, y, 1) +
+                          0.114 * rgb.Value(x, y, 2);
+      if (rgb.type() == PixelType::kF32) {
+        *grey.At<float>(x, y) = static_cast<float>(luma);
+      } else {
+        *grey.At<uint8_t>(x, y) = static_cast<uint8_t>(std::lround(luma));
+      }
+    }
+  }
+  QualityOptions options;
+  std::string error;
+  try {
+    CompareImages(grey, rgb, nullptr, options);
+  } catch (const std::invalid_argument& e) {
+    error = e.what();
+  }
+  EXPECT_THAT(error, testing::HasSubstr("x1 but the reference is"));
+  EXPECT_THAT(error, testing::HasSubstr("set grey (QualityOptions::grey"));
+  options.grey = true;
+  const QualityResult r = CompareImages(grey, rgb, nullptr, options);
+  EXPECT_TRUE(std::isinf(r.psnr_db)) << r.mse;  // the luminance of the reference is the test
+  EXPECT_DOUBLE_EQ(r.ssim, 1.0);
+  EXPECT_THAT(r.note, testing::HasSubstr("Rec. 601"));
+}
+
 }  // namespace
 }  // namespace aos

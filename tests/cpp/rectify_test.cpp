@@ -117,6 +117,40 @@ TEST(Rectify, AViewTheLensDoesNotCoverIsAnError) {
   EXPECT_EQ(ErrorOf([&] { MakeRectifier(radtan, options); }), "no error");
   options.fov_deg = 180.0;
   EXPECT_THAT(ErrorOf([&] { MakeRectifier(radtan, options); }), HasSubstr("fov_deg: must be in"));
+  // The error offers the fill option.
+  options.fov_deg = 120.0;
+  EXPECT_THAT(ErrorOf([&] { MakeRectifier(radtan, options); }), HasSubstr("or fill to make"));
+
+  // fill: the same view, black where the lens does not reach, the lens's image elsewhere.
+  options.fill = true;
+  const Rectifier filled = MakeRectifier(radtan, options);
+  ASSERT_GT(filled.uncovered, 0);
+  ASSERT_LT(filled.uncovered, static_cast<int64_t>(640) * 480);
+  Image raw(640, 480, 3, PixelType::kU16);
+  for (int y = 0; y < 480; ++y) {
+    for (int x = 0; x < 640; ++x) {
+      for (int c = 0; c < 3; ++c) raw.At<uint16_t>(x, y)[c] = static_cast<uint16_t>(1000 + c);
+    }
+  }
+  const Image out = Rectify(filled, raw);
+  int64_t black = 0;
+  for (int y = 0; y < 480; ++y) {
+    for (int x = 0; x < 640; ++x) {
+      const bool is_black = out.Value(x, y, 0) == 0.0;
+      black += is_black;
+      for (int c = 0; c < 3; ++c) {
+        // A constant image resamples to itself wherever the lens covers the pixel.
+        ASSERT_EQ(out.Value(x, y, c), is_black ? 0.0 : 1000.0 + c) << x << "," << y;
+      }
+    }
+  }
+  EXPECT_EQ(black, filled.uncovered);
+  EXPECT_EQ(out.Value(320, 240, 0), 1000.0);  // the centre is covered
+  EXPECT_EQ(out.Value(0, 0, 0), 0.0);         // a corner at ~63 degrees off the axis is not
+  // A covered view with fill is the same as without it.
+  options.fov_deg = 50.0;
+  const Rectifier covered = MakeRectifier(radtan, options);
+  EXPECT_EQ(covered.uncovered, 0);
 }
 
 using CameraFile = testing_util::TempFolderTest;

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <type_traits>
 
 #include "aos/util/error.h"
 
@@ -122,6 +123,44 @@ Image Image::Clone() const {
   Image copy(width_, height_, channels_, type_, border_);
   std::memcpy(copy.data_.get(), data_.get(), bytes_);
   return copy;
+}
+
+namespace {
+
+template <typename T>
+void LuminanceRows(const Image& image, Image& grey) {
+  const int channels = image.channels();
+  for (int y = -image.border(); y < image.height() + image.border(); ++y) {
+    const T* in = image.At<T>(-image.border(), y);
+    T* out = grey.At<T>(-image.border(), y);
+    for (int x = 0; x < image.width() + 2 * image.border(); ++x, in += channels) {
+      if (channels < 3) {
+        out[x] = in[0];
+        continue;
+      }
+      const double y_value = kLumaR * in[0] + kLumaG * in[1] + kLumaB * in[2];
+      if constexpr (std::is_floating_point_v<T>) {
+        out[x] = static_cast<T>(y_value);
+      } else {
+        // The weights sum to 1, so the value stays within the type's range.
+        out[x] = static_cast<T>(std::min(std::round(y_value), PixelTypeMax<T>()));
+      }
+    }
+  }
+}
+
+}  // namespace
+
+Image LuminanceImage(const Image& image) {
+  if (image.empty()) return Image();
+  Image grey(image.width(), image.height(), 1, image.type(), image.border());
+  switch (image.type()) {
+    case PixelType::kU8: LuminanceRows<uint8_t>(image, grey); break;
+    case PixelType::kU16: LuminanceRows<uint16_t>(image, grey); break;
+    case PixelType::kU32: LuminanceRows<uint32_t>(image, grey); break;
+    case PixelType::kF32: LuminanceRows<float>(image, grey); break;
+  }
+  return grey;
 }
 
 std::optional<std::string> DescribeNonFinite(const Image& image) {

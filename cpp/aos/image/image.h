@@ -98,6 +98,17 @@ class Image {
   std::shared_ptr<unsigned char[]> data_;
 };
 
+// Luminance weights: ITU-R BT.601 (Rec. 601) luma, Y = 0.299 R + 0.587 G + 0.114 B. Chosen over
+// Rec. 709 because it is what OpenCV (cvtColor RGB2GRAY), Pillow (convert("L")) and scikit-image's
+// older rgb2gray use, so a grey reference made by those tools compares like for like; false-colour
+// thermal palettes are not colorimetric, so neither weighting is "truer" for them.
+constexpr double kLumaR = 0.299, kLumaG = 0.587, kLumaB = 0.114;
+
+// One-channel luminance of `image` in its own pixel type and with its border: 3 or 4 channels
+// (RGB, RGBA: alpha is dropped) -> kLumaR R + kLumaG G + kLumaB B (integers rounded to nearest);
+// 1 or 2 channels (grey, grey + alpha) -> channel 0. Integer and float images alike.
+Image LuminanceImage(const Image& image);
+
 // Describes the first non-finite value of a float image ("pixel (x, y) channel c is NaN"), or
 // nullopt when all are finite (always for integer images). Views are checked with it when made.
 std::optional<std::string> DescribeNonFinite(const Image& image);

@@ -494,6 +494,10 @@ void WriteImageOptions::Check() const {
   if (units == PixelType::kU32) {
     ThrowInvalid("units: must be uint8, uint16 or float32 (the views' sample types)");
   }
+  if (png_compression_level < 0 || png_compression_level > 9) {
+    ThrowInvalid("png_compression_level: must be 0..9 (got " +
+                 std::to_string(png_compression_level) + ")");
+  }
   if (!std::isfinite(RangeMin()) || !std::isfinite(RangeMax()) || !(RangeMax() > RangeMin())) {
     ThrowInvalid("range: range_max must be greater than range_min and both finite (got [" +
                  FormatNumber(RangeMin()) + ", " + FormatNumber(RangeMax()) + "])");
@@ -562,6 +566,10 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
     const bool keep = integer_image && image.type() != PixelType::kU32 &&
                       PixelTypeSize(image.type()) <= sizeof(Code);
     const bool keep_counts = image.type() == PixelType::kU32;
+    if (keep && PixelTypeSize(image.type()) == sizeof(Code)) {
+      image.CopyTo(out, static_cast<ptrdiff_t>(width) * channels);  // same type: rows as they are
+      return;
+    }
     const double range_min = options.RangeMin();
     const double scale = max_code / (options.RangeMax() - range_min);
     for_each_value([&](size_t i, double value) {
@@ -613,7 +621,10 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
   // PNG: the samples as given (OpenImageIO would divide the others by the last channel). Not
   // for TIFF, where the attribute tags the last channel as alpha and makes other programs
   // multiply by it on reading.
-  if (LowerExtension(path) == ".png") spec.attribute("oiio:UnassociatedAlpha", 1);
+  if (LowerExtension(path) == ".png") {
+    spec.attribute("oiio:UnassociatedAlpha", 1);
+    spec.attribute("png:compressionLevel", options.png_compression_level);
+  }
   if (!output->open(pending.TempPath(), spec) ||
       !output->write_image(file_type, buffer.data()) || !output->close()) {
     std::string reason = output->geterror();

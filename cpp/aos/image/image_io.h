@@ -64,6 +64,10 @@ struct WriteImageOptions {
   double range_max = std::nan("");
   // Free text stored in the file's ImageDescription (e.g. how it was normalised).
   std::string description;
+  // zlib compression level of PNG files, 0 (none) .. 9 (smallest). 1 by default: for typical
+  // 8-bit frames it writes several times faster than zlib's default 6 for files about 10-25%
+  // larger (docs/benchmarks.md, tools/bench_write.py). Other formats ignore it.
+  int png_compression_level = 1;
   void Check() const;
   // [range_min, range_max] with the defaults filled in.
   double RangeMin() const;

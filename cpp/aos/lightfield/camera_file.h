@@ -1,5 +1,8 @@
 #pragma once
-// Camera files: one lens camera as JSON (written by `aos-render calibrate`, read by `rectify`).
+// Camera files: one lens camera as JSON (written by `aos-render calibrate`, by `aos-render
+// camera` for a known lens without a checkerboard, and by aos.write_camera_file; read by
+// `rectify --camera`, `poses --camera-file` and aos.read_camera_file). The format, key by key:
+// docs/terrain-and-maps.md, "Known lenses without a checkerboard".
 //
 //   {"format": "aos-camera", "version": 1, "model": "radtan" | "pinhole" | "fisheye" | "omnidir",
 //    "width": 640, "height": 480, "fx": ..., "fy": ..., "cx": ..., "cy": ...,

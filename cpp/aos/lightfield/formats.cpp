@@ -116,6 +116,59 @@ bool IsFile(const std::string& path) {
   return fs::is_regular_file(path, error);
 }
 
+// Files of folders listed once, by lower-case name: the frame lookup's case-insensitive fallback
+// (a poses file naming a.jpg for the camera's A.JPG) without listing a folder per frame.
+class FolderIndex {
+ public:
+  // The files in `path`'s folder whose names equal `path`'s file name ignoring case (full paths,
+  // sorted); empty when the folder cannot be listed.
+  std::vector<std::string> MatchesIgnoringCase(const std::string& path) {
+    const fs::path file(path);
+    const std::string folder = file.parent_path().string();
+    auto listed = folders_.find(folder);
+    if (listed == folders_.end()) {
+      std::map<std::string, std::vector<std::string>> names;
+      std::error_code error;
+      for (fs::directory_iterator it(folder.empty() ? fs::path(".") : fs::path(folder), error), end;
+           !error && it != end; it.increment(error)) {
+        std::error_code type_error;
+        if (!it->is_regular_file(type_error)) continue;
+        const std::string name = it->path().filename().string();
+        names[Lower(name)].push_back(name);
+      }
+      for (auto& [unused, entries] : names) std::sort(entries.begin(), entries.end());
+      listed = folders_.emplace(folder, std::move(names)).first;
+    }
+    std::vector<std::string> matches;
+    auto found = listed->second.find(Lower(file.filename().string()));
+    if (found == listed->second.end()) return matches;
+    for (const std::string& name : found->second) {
+      matches.push_back(folder.empty() ? name : (fs::path(folder) / name).string());
+    }
+    return matches;
+  }
+
+ private:
+  std::map<std::string, std::map<std::string, std::vector<std::string>>> folders_;
+};
+
+// `path` itself if it is a file; else the one file whose name matches it ignoring case ("" if
+// none). Two or more such files are ambiguous: an error `label: field: ...` naming them.
+std::string FindFrameFile(const std::string& path, FolderIndex& index, const std::string& label,
+                          const std::string& field) {
+  if (IsFile(path)) return path;
+  const std::vector<std::string> matches = index.MatchesIgnoringCase(path);
+  if (matches.size() > 1) {
+    ThrowInvalid(Where(label, field + ": " + Quoted(fs::path(path).filename().string()) +
+                                  " is missing and " + std::to_string(matches.size()) +
+                                  " files match it ignoring case (" + Quoted(matches[0]) +
+                                  ", " + Quoted(matches[1]) +
+                                  (matches.size() > 2 ? ", ..." : "") +
+                                  "); rename one or name the frame exactly"));
+  }
+  return matches.empty() ? std::string() : matches[0];
+}
+
 std::string SizeText(int width, int height) {
   return std::to_string(width) + "x" + std::to_string(height);
 }
@@ -162,6 +215,7 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
       ImageFileInfo& info = data.infos[i];
       if (options.load_images) {
         Image image = ReadImage(frame.path, 1);  // refuses non-finite samples
+        if (options.grey) image = LuminanceImage(image);
         info.width = image.width();
         info.height = image.height();
         info.channels = image.channels();
@@ -174,6 +228,7 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
           ThrowInvalid(frame.path + ": image has " + std::to_string(info.channels) +
                        " channels; aos reads 1 to 4");
         }
+        if (options.grey) info.channels = 1;
       }
     } catch (const std::invalid_argument& error) {
       ThrowInvalid(Where(frame.label, error.what()));
@@ -297,6 +352,9 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
   }
   if (views_json.empty()) ThrowInvalid(path + ": views: the light field has no views");
   const std::string folder = ParentFolder(path);
+  FolderIndex folder_index;
+  int case_substitutions = 0;
+  std::string case_example;
   std::vector<Frame> frames;
   for (size_t i = 0; i < views_json.size(); ++i) {
     const json& entry = views_json[i];
@@ -308,6 +366,14 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     View view;
     view.name = image;
     view.image_path = ResolvePath(folder, image);
+    // A frame named a.jpg on disk as a.JPG (cameras write upper case, tools lower).
+    const std::string found = FindFrameFile(view.image_path, folder_index, label, "image");
+    if (!found.empty() && found != view.image_path) {
+      if (case_substitutions++ == 0) {
+        case_example = image + " -> " + fs::path(found).filename().string();
+      }
+      view.image_path = found;
+    }
     const std::string camera_id = StringFrom(Field(entry, "camera", label), label + ": camera");
     auto camera = cameras.find(camera_id);
     if (camera == cameras.end()) {
@@ -325,12 +391,18 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     light_field.views.push_back(std::move(view));
   }
 
+  if (case_substitutions > 0) {
+    result.notes.push_back(path + ": " + std::to_string(case_substitutions) + " frame" +
+                           (case_substitutions == 1 ? " was" : "s were") +
+                           " found under a name that differs only in case (e.g. " + case_example +
+                           ")");
+  }
+  // Poses and cameras only: the frames are not opened at all (they may be elsewhere or absent).
+  if (!options.load_images) return result;
   FrameData data = ReadFrames(frames, options, progress);
   CheckFrameInfos(frames, data.infos, light_field.views);
-  if (options.load_images) {
-    for (size_t i = 0; i < frames.size(); ++i) light_field.views[i].image = std::move(data.images[i]);
-    CheckLightField(light_field, path);
-  }
+  for (size_t i = 0; i < frames.size(); ++i) light_field.views[i].image = std::move(data.images[i]);
+  CheckLightField(light_field, path);
   return result;
 }
 
@@ -402,6 +474,9 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
   };
   std::map<std::pair<std::string, std::string>, Substitution> substitutions;
   std::vector<std::pair<std::string, std::string>> substitution_order;
+  FolderIndex folder_index;
+  int first_found = -1;     // the first view whose frame exists (sizes the camera)
+  int frames_missing = 0;   // without load_images only
 
   std::vector<Frame> frames;
   for (size_t i = 0; i < images.size(); ++i) {
@@ -415,26 +490,30 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
     view.name = imagefile;
     view.cam_from_world = ReadJkuPose(Field(entry, "M3x4", label), label + ": M3x4");
 
-    // The frame: its own name, then the same stem with another image extension.
+    // The frame: its own name (exactly, then ignoring case), then the same stem with another
+    // image extension (likewise).
     std::string frame_path = ResolvePath(folder, imagefile);
-    if (!IsFile(frame_path)) {
+    std::string found = FindFrameFile(frame_path, folder_index, label, "imagefile");
+    std::string tried;
+    if (found.empty()) {
       const fs::path named(frame_path);
       const std::string named_extension = Lower(named.extension().string());
-      std::string found;
-      std::string tried;
       for (const char* extension : kFrameExtensions) {
         if (named_extension == extension) continue;
-        const std::string candidate = fs::path(named).replace_extension(extension).string();
         tried += (tried.empty() ? "" : ", ") + std::string(extension);
-        if (IsFile(candidate)) {
-          found = candidate;
-          break;
-        }
+        found = FindFrameFile(fs::path(named).replace_extension(extension).string(), folder_index,
+                              label, "imagefile");
+        if (!found.empty()) break;
       }
-      if (found.empty()) {
+    }
+    if (found.empty()) {
+      if (options.load_images) {
         ThrowInvalid(label + ": imagefile: frame not found in " + Quoted(folder_text) +
-                     " (also tried the extensions " + tried + ")");
+                     " (also tried the name ignoring case and the extensions " + tried + ")");
       }
+      ++frames_missing;  // poses only: the view keeps the name it was given
+    } else if (found != frame_path) {
+      const fs::path named(frame_path);
       const auto key = std::make_pair(named.extension().string(),
                                       fs::path(found).extension().string());
       Substitution& substitution = substitutions[key];
@@ -444,6 +523,7 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
       }
       frame_path = found;
     }
+    if (first_found < 0 && !found.empty()) first_found = static_cast<int>(i);
     view.image_path = frame_path;
     frames.push_back(Frame{label, frame_path});
     light_field.views.push_back(std::move(view));
@@ -459,13 +539,33 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
                            ")");
   }
 
-  FrameData data = ReadFrames(frames, options, progress);
+  if (first_found < 0) {
+    // Without load_images (else the first missing frame was an error already).
+    ThrowInvalid(path + ": imagefile: none of the " + std::to_string(frames.size()) +
+                 " frames was found in " + Quoted(folder_text) +
+                 "; a JKU poses file has no image size, so even without loading images one "
+                 "frame is read to size the camera (give images_dir)");
+  }
+  if (frames_missing > 0) {
+    result.notes.push_back(path + ": " + std::to_string(frames_missing) + " of " +
+                           std::to_string(frames.size()) + " frames not found in " +
+                           folder_text + "; loaded without images, their views keep the names "
+                           "given");
+  }
+  FrameData data;
+  if (options.load_images) {
+    data = ReadFrames(frames, options, progress);
+  } else {
+    // Poses only: the first frame that exists sizes the one camera; no other frame is opened.
+    ReadFrames({frames[first_found]}, options, nullptr).infos.swap(data.infos);
+    data.infos.resize(frames.size(), data.infos[0]);
+  }
   // One camera for all frames, sized by the first frame.
   PinholeCamera camera;
   try {
     camera = PinholeCamera::FromFov(data.infos[0].width, data.infos[0].height, options.fov_deg);
   } catch (const std::invalid_argument& error) {
-    ThrowInvalid(Where(frames[0].label, error.what()));
+    ThrowInvalid(Where(frames[first_found].label, error.what()));
   }
   for (size_t i = 0; i < frames.size(); ++i) {
     const ImageFileInfo& info = data.infos[i];

@@ -29,6 +29,13 @@
 //   note says which file was used. The frames folder defaults to ../images beside the poses
 //   folder, then the poses file's own folder.
 //
+// Frame lookup (both formats): a frame whose file is missing under its exact name is found under
+// the one name that differs only in case (a.jpg -> a.JPG; a note says so); two such files are an
+// error naming both. With LoadOptions::load_images false, the aos format opens no frame at all
+// (poses and cameras only; a missing frame is no error), and a JKU poses file opens only the
+// first frame it finds, to size its one camera. Such views have no image: the renderer refuses
+// them naming the view ("view 3 (a.png): image: no pixels (image not loaded)").
+//
 // Errors name the file, the entry and the field: "poses.json: image 17 (B05.tiff): M3x4:
 // rotation is not orthonormal (max |R^T R - I| = 0.3)".
 #include <string>
@@ -45,8 +52,13 @@ struct LoadOptions {
   double fov_deg = 0.0;
   // Folder holding the frames of a JKU poses.json; empty = look beside the poses file (see above).
   std::string images_dir;
-  // Frames are decoded when true; false loads poses and cameras only (images stay empty).
+  // Frames are decoded when true; false loads poses and cameras only (images stay empty, and
+  // the frame files need not exist; see "Frame lookup" above).
   bool load_images = true;
+  // Frames become one-channel luminance at load (LuminanceImage in image.h: Rec. 601 weights
+  // 0.299 R + 0.587 G + 0.114 B, alpha dropped; grey frames unchanged), e.g. false-colour thermal
+  // frames integrated as grey. The pixel type is kept.
+  bool grey = false;
   // Worker threads for decoding frames; -1 = all cores.
   int num_threads = -1;
   void Check() const;

@@ -1,6 +1,10 @@
 #include "aos/lightfield/lightfield.h"
 
+#include <algorithm>
+#include <cctype>
 #include <cmath>
+#include <filesystem>
+#include <utility>
 
 #include "aos/util/error.h"
 
@@ -58,6 +62,97 @@ void CheckLightField(const LightField& light_field, const std::string& where) {
                    std::to_string(light_field.views[0].image.channels()));
     }
   }
+}
+
+namespace {
+
+std::string LowerText(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+// Edit distance (insertions, deletions, substitutions), for suggesting close names.
+size_t EditDistance(const std::string& a, const std::string& b) {
+  std::vector<size_t> row(b.size() + 1);
+  for (size_t j = 0; j <= b.size(); ++j) row[j] = j;
+  for (size_t i = 1; i <= a.size(); ++i) {
+    size_t diagonal = row[0];
+    row[0] = i;
+    for (size_t j = 1; j <= b.size(); ++j) {
+      const size_t above = row[j];
+      row[j] = std::min({row[j] + 1, row[j - 1] + 1, diagonal + (a[i - 1] == b[j - 1] ? 0 : 1)});
+      diagonal = above;
+    }
+  }
+  return row[b.size()];
+}
+
+std::string NameList(const std::vector<std::string>& names) {
+  std::string text;
+  for (const std::string& name : names) text += (text.empty() ? "\"" : ", \"") + name + "\"";
+  return text;
+}
+
+}  // namespace
+
+int FindViewByName(const LightField& light_field, const std::string& name,
+                   const std::string& where) {
+  namespace fs = std::filesystem;
+  if (name.empty()) ThrowInvalid(Where(where, "empty view name"));
+  // The spellings a view answers to: its name, its file name, and that file name's stem.
+  const auto spellings = [](const View& view) {
+    const fs::path path(view.name);
+    return std::vector<std::string>{view.name, path.filename().string(), path.stem().string()};
+  };
+  for (const bool ignore_case : {false, true}) {
+    const std::string wanted = ignore_case ? LowerText(name) : name;
+    std::vector<int> matches;
+    for (size_t i = 0; i < light_field.views.size(); ++i) {
+      for (const std::string& spelling : spellings(light_field.views[i])) {
+        if ((ignore_case ? LowerText(spelling) : spelling) == wanted) {
+          matches.push_back(static_cast<int>(i));
+          break;
+        }
+      }
+    }
+    if (matches.size() == 1) return matches[0];
+    if (matches.size() > 1) {
+      std::vector<std::string> names;
+      for (int index : matches) {
+        names.push_back(light_field.views[static_cast<size_t>(index)].name + " (view " +
+                        std::to_string(index) + ")");
+      }
+      ThrowInvalid(Where(where, "\"" + name + "\" is ambiguous: " +
+                                    std::to_string(matches.size()) + " views match (" +
+                                    NameList(names) + "); give the full name or the index"));
+    }
+  }
+  // Unknown: suggest the closest stems (ignoring case), at most five.
+  const std::string wanted = LowerText(fs::path(name).stem().string());
+  std::vector<std::pair<size_t, size_t>> ranked;  // (distance, view)
+  for (size_t i = 0; i < light_field.views.size(); ++i) {
+    const std::string stem = LowerText(fs::path(light_field.views[i].name).stem().string());
+    size_t distance = EditDistance(wanted, stem);
+    if (!wanted.empty() && stem.find(wanted) != std::string::npos) distance = std::min<size_t>(distance, 1);
+    ranked.emplace_back(distance, i);
+  }
+  std::stable_sort(ranked.begin(), ranked.end());
+  const size_t limit = std::max<size_t>(2, wanted.size() / 2);
+  std::vector<std::string> close;
+  for (const auto& [distance, index] : ranked) {
+    if (close.size() == 5 || distance > limit) break;
+    close.push_back(light_field.views[index].name);
+  }
+  std::string hint;
+  if (!close.empty()) {
+    hint = "; close: " + NameList(close);
+  } else if (!light_field.views.empty()) {
+    hint = "; names run from \"" + light_field.views.front().name + "\" to \"" +
+           light_field.views.back().name + "\"";
+  }
+  ThrowInvalid(Where(where, "no view named \"" + name + "\" among the " +
+                                std::to_string(light_field.views.size()) + " views" + hint));
 }
 
 View MakeView(std::string name, const LensCamera& camera, const Rigid3d& cam_from_world,

@@ -69,6 +69,13 @@ View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_
 // present with border >= 1). `where` prefixes the message, e.g. "lf.json: view 3 (a.png)".
 void CheckView(const View& view, const std::string& where);
 
+// The index of the view named `name`: its View::name or that name's file name, with or without
+// the extension ("DJI_0042", "DJI_0042.JPG", "images/DJI_0042.JPG"); exact matches first, then
+// ignoring case. Throws std::invalid_argument "<where>: ..." when no view or more than one
+// matches, listing the matching names or, for an unknown name, up to five close ones.
+int FindViewByName(const LightField& light_field, const std::string& name,
+                   const std::string& where = "view");
+
 // Checks every view and that all views share one channel count.
 void CheckLightField(const LightField& light_field, const std::string& where = "light field");
 

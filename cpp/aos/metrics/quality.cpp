@@ -1,5 +1,6 @@
 #include "aos/metrics/quality.h"
 
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
@@ -44,12 +45,33 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
                             const QualityOptions& options) {
   options.Check();
   if (test.empty() || reference.empty()) ThrowInvalid("compare: an image is empty");
+  if (options.grey) {
+    QualityOptions plain = options;
+    plain.grey = false;
+    const auto grey = [](const Image& image) {
+      return image.channels() >= 3 ? LuminanceImage(image) : image;
+    };
+    QualityResult result = CompareImages(grey(test), grey(reference), mask, plain);
+    if (test.channels() >= 3 || reference.channels() >= 3) {
+      const std::string converted = "compared as luminance (Rec. 601: 0.299 R + 0.587 G + 0.114 B)";
+      result.note = result.note.empty() ? converted : converted + "; " + result.note;
+    }
+    return result;
+  }
   if (test.width() != reference.width() || test.height() != reference.height() ||
       test.channels() != reference.channels()) {
+    const bool grey_against_colour = test.width() == reference.width() &&
+                                     test.height() == reference.height() &&
+                                     std::min(test.channels(), reference.channels()) <= 2 &&
+                                     std::max(test.channels(), reference.channels()) >= 3;
     ThrowInvalid("compare: the test image is " + std::to_string(test.width()) + "x" +
                  std::to_string(test.height()) + "x" + std::to_string(test.channels()) +
                  " but the reference is " + std::to_string(reference.width()) + "x" +
-                 std::to_string(reference.height()) + "x" + std::to_string(reference.channels()));
+                 std::to_string(reference.height()) + "x" + std::to_string(reference.channels()) +
+                 (grey_against_colour
+                      ? "; to compare luminances (Rec. 601) set grey (QualityOptions::grey: "
+                        "aos-render metrics --grey, compare_images(grey=True))"
+                      : ""));
   }
   if (mask != nullptr && (mask->width() != test.width() || mask->height() != test.height())) {
     ThrowInvalid("compare: the mask is " + std::to_string(mask->width()) + "x" +

@@ -21,7 +21,8 @@
 // type; when the float image's values all lie in [-1, 1] while the integer one's exceed 1 (a
 // normalised float image), the comparison is refused. QualityResult::note says what was done.
 //
-// Throws std::invalid_argument for images of different size or channel count, a mask of another
+// Throws std::invalid_argument for images of different size or channel count (a grey image
+// against a colour one: the message names QualityOptions::grey), a mask of another
 // size, no pixel to compare, non-finite values, or bad options.
 #include <cstdint>
 #include <string>
@@ -42,6 +43,10 @@ struct QualityOptions {
   // Stabilising constants of SSIM, (0, 1).
   double k1 = 0.01;
   double k2 = 0.03;
+  // Compare luminances: images with 3 or 4 channels become one-channel Rec. 601 luminance
+  // (LuminanceImage in image.h) before anything else, so a grey render (LoadOptions::grey) can be
+  // scored against an RGB reference. Without it, channel counts must match.
+  bool grey = false;
   void Check() const;
 };
 

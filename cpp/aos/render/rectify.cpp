@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
 #include <string>
 #include <utility>
 
@@ -70,20 +71,21 @@ Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options) {
       if (!inside) {
         ++uncovered;
         worst_angle = std::max(worst_angle, std::acos(glm::normalize(ray).z) * 180.0 / kPi);
-        pixel = Vec2d(-1.0, -1.0);
+        pixel = Vec2d(-4.0, -4.0);  // outside the image and its interpolation taps: 0 (fill)
       }
       const size_t i = static_cast<size_t>(y) * width + x;
       r.map_x[i] = static_cast<float>(pixel.x - 0.5);  // OpenCV: pixel centres at integers
       r.map_y[i] = static_cast<float>(pixel.y - 0.5);
     }
   }
-  if (uncovered > 0) {
+  if (uncovered > 0 && !options.fill) {
     ThrowInvalid("fov_deg: the lens does not cover the requested view: " +
                  std::to_string(uncovered) + " of " + std::to_string(r.map_x.size()) +
                  " rectified pixels fall outside the raw frame or the lens's valid field (rays up "
                  "to " + FormatNumber(worst_angle) + " degrees off the lens axis); use a smaller "
-                 "fov_deg or another orientation");
+                 "fov_deg or another orientation, or fill to make those pixels black");
   }
+  r.uncovered = uncovered;
   return r;
 }
 
@@ -97,6 +99,15 @@ Image Rectify(const Rectifier& r, const Image& raw) {
   cv::Mat target(out.height(), out.width(), type, out.RawAt(0, 0),
                  static_cast<size_t>(out.row_stride()) * PixelTypeSize(out.type()));
   cv::remap(source, target, map_x, map_y, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  if (r.uncovered == 0) return out;
+  // fill: pixels the lens does not cover (mapped to -4.5, see MakeRectifier) are black.
+  const size_t pixel_bytes = static_cast<size_t>(out.channels()) * PixelTypeSize(out.type());
+  for (int y = 0; y < out.height(); ++y) {
+    for (int x = 0; x < out.width(); ++x) {
+      const size_t i = static_cast<size_t>(y) * out.width() + x;
+      if (r.map_x[i] < -2.0f) std::memset(out.RawAt(x, y), 0, pixel_bytes);
+    }
+  }
   return out;
 }
 

@@ -9,7 +9,8 @@
 //   (yaw about the y axis, pitch about x, roll about the optical axis z; degrees).
 // - Every output pixel centre's ray must project into the raw frame inside its valid field and
 //   its image area [0, w] x [0, h]; else the requested view is not covered and it is an error
-//   naming the field of view (nothing is resampled outside the lens's image).
+//   naming the field of view and RectifyOptions::fill (nothing is resampled outside the lens's
+//   image). With fill, such pixels are 0 (black) instead, and Rectifier::uncovered counts them.
 // - Values: bilinear interpolation (cv::remap, replicated border), in the input's type and
 //   channels (8/16-bit rounded to nearest, float unchanged).
 //
@@ -33,6 +34,9 @@ struct RectifyOptions {
   double yaw_deg = 0.0;
   double pitch_deg = 0.0;
   double roll_deg = 0.0;
+  // Pixels the lens does not cover become 0 (black) instead of an error: explicitly requested
+  // (a rectified view wider than the lens, e.g. to keep a fisheye's corners in a wide frame).
+  bool fill = false;
 
   void Check() const;
 };
@@ -42,6 +46,7 @@ struct Rectifier {
   Mat3d lens_from_rectified{1.0};
   // Raw-frame sample positions per output pixel (pixel-index space, OpenCV's convention).
   std::vector<float> map_x, map_y;
+  int64_t uncovered = 0;  // output pixels outside the lens's coverage (0 unless options.fill)
 };
 
 // Builds the resampling maps once for a lens and options (reused for every frame).
