@@ -46,6 +46,7 @@ struct PoseSource {
 
 struct LightField {
   Vec3d origin{0.0};  // world position of the local frame's zero (double; e.g. UTM)
+  std::string crs;  // "EPSG:<code>" of the world coordinates (origin + local), or empty = not geo-referenced
   std::vector<View> views;
   std::optional<PoseSource> pose_source;  // set when the poses were estimated
 
