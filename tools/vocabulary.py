@@ -37,6 +37,7 @@ COMMANDS = [
     ("stack", "FocalStackOptions"),
     ("merge", "MergeOptions"),
     ("allinfocus", "AllInFocusOptions"),
+    ("map", "MapOptions"),
     ("simulate", "SimulateOptions"),
     ("demo", "DemoOptions"),
     ("rectify", "RectifyOptions"),
@@ -73,7 +74,8 @@ NOT_ON_THE_CLI = {
 # struct's default, so that a drifted default is seen.
 NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file",
                       "positions_file", "positions_crs", "workspace",
-                      "pose_error_px", "pose_error_m"}  # exclusive flags; none = no pose error
+                      "pose_error_px", "pose_error_m",  # exclusive flags; none = no pose error
+                      "extent"}  # the map's extent: none = the views' footprints
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).
 UNITS = [("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
@@ -88,6 +90,10 @@ def unit_of(command: str, field: str) -> str:
         return "fraction of the image's range"
     if name == "agreement":
         return "fraction of the image's range"
+    if name in ("pixel_size", "extent", "focal_height"):
+        return "metres"
+    if name == "tile_size":
+        return "pixels"
     for suffix, unit in UNITS:
         if name.endswith(suffix):
             return unit
