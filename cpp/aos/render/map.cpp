@@ -169,14 +169,24 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
   if (!(p > 0.0) || !std::isfinite(p)) {
     ThrowInvalid("extent: the footprints have no width (" + Num(extent_w) + " m)");
   }
-  if (!given) {
-    // Whole multiples of the pixel size, outwards: maps of one flight line up.
+  // Fewer than 2 pixels on a side is judged on the extent itself (widening it to whole pixels
+  // would turn a pixel as large as the flight into a 2 x 2 map).
+  const double raw_columns = std::ceil((hi[0] - lo[0]) / p * (1.0 - 1e-12));
+  const double raw_rows = std::ceil((hi[1] - lo[1]) / p * (1.0 - 1e-12));
+  const std::string size_field = options.pixel_size > 0.0 ? "pixel_size" : "width";
+  if (raw_columns < 2 || raw_rows < 2) {
+    ThrowInvalid(size_field + ": " + Num(p) + " m over the extent " + Num(hi[0] - lo[0]) + " x " +
+                 Num(hi[1] - lo[1]) + " m makes a map of " + Num(raw_columns) + " x " +
+                 Num(raw_rows) + " pixels; it needs at least 2 on each side");
+  }
+  if (!given && options.pixel_size > 0.0) {
+    // Whole multiples of the pixel size, outwards: maps of one flight line up. (With a pixel
+    // count the footprints' box is kept, so that the map has exactly that many columns.)
     lo[0] = std::floor(lo[0] / p) * p;
     lo[1] = std::floor(lo[1] / p) * p;
     hi[0] = std::ceil(hi[0] / p) * p;
     hi[1] = std::ceil(hi[1] / p) * p;
   }
-  const std::string size_field = options.pixel_size > 0.0 ? "pixel_size" : "width";
   const double columns = std::ceil((hi[0] - lo[0]) / p * (1.0 - 1e-12));
   const double rows = std::ceil((hi[1] - lo[1]) / p * (1.0 - 1e-12));
   if (!(columns * rows <= kMaxMapPixels) || columns > 1e7 || rows > 1e7) {
@@ -184,11 +194,6 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
                  Num(hi[1] - lo[1]) + " m makes " + Num(columns) + " x " + Num(rows) +
                  " pixels, more than " + Num(kMaxMapPixels) +
                  " (check the units of the pixel size and the extent)");
-  }
-  if (columns < 2 || rows < 2) {
-    ThrowInvalid(size_field + ": " + Num(p) + " m over the extent " + Num(hi[0] - lo[0]) + " x " +
-                 Num(hi[1] - lo[1]) + " m makes a map of " + Num(columns) + " x " + Num(rows) +
-                 " pixels; it needs at least 2 on each side");
   }
   grid.x_min = lo[0];
   grid.y_max = hi[1];

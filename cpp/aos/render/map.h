@@ -24,7 +24,8 @@
 //   infinity = every view, 0 = the single nearest view.
 // - Extent: options.extent (world XMIN YMIN XMAX YMAX), or by default the union of the selected
 //   views' footprints on the focal surface (their image borders cast onto it), widened outwards
-//   to whole multiples of the pixel size. The grid starts at (XMIN, YMAX) and holds
+//   to whole multiples of the pixel size when pixel_size is given (with a pixel count, width,
+//   the footprints' box is kept and the map is exactly `width` pixels wide). The grid starts at (XMIN, YMAX) and holds
 //   ceil(extent / pixel size) pixels per axis (the last column and row may reach past XMAX and
 //   below YMIN by less than a pixel). The pixel size is options.pixel_size, or the extent's
 //   width / options.width.
