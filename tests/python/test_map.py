@@ -197,9 +197,13 @@ def test_z_down_frames_map_in_their_own_x_y(flight: aos.LightField) -> None:
     col = int((TARGET[0] - x0) // p)
     row = int((y0 - (-TARGET[1])) // p)
     assert result.image[row, col] > 0.9 * 0.95 * 255
-    # A plain z-up render of the original has the same bright pixel at y = -2 instead.
+    # The original z-up frame has it at y = -2, and nothing bright at y = +2.
     up = aos.render_map(flight, pixel_size=0.1, focal_height=0.0)
     assert up.up_z == 1.0
+    ux0, up_p, _, uy0, _, _ = up.geotransform
+    ucol = int((ORIGIN[0] + TARGET[0] - ux0) // up_p)
+    assert up.image[int((uy0 - (ORIGIN[1] + TARGET[1])) // up_p), ucol] > 0.9 * 0.95 * 255
+    assert up.image[int((uy0 - (ORIGIN[1] - TARGET[1])) // up_p), ucol] < 0.2 * 255
 
 
 def snapshot(folder: Path) -> dict[str, bytes]:
