@@ -487,12 +487,9 @@ int RunMap(MapCommand& c, const Flags& flags) {
   write.force = Common().force;
   // Refuse a bad output before loading: an existing file without --force, a missing or
   // read-only folder.
+  CheckOutputPath(c.output, {c.light_field_path}, "output");
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
-  if (fs::absolute(c.output).lexically_normal() ==
-      fs::absolute(c.light_field_path).lexically_normal()) {
-    ThrowInvalid(c.output + ": output is the light field itself");
-  }
   c.load.num_threads = c.options.num_threads;
   const LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
@@ -503,6 +500,8 @@ int RunMap(MapCommand& c, const Flags& flags) {
     c.options.view_indices =
         ParseViewList(c.views, static_cast<int>(light_field.views.size()));
   }
+  // Never over an input: the light field or any frame (links resolved).
+  CheckOutputPath(c.output, InputsOf(c.light_field_path, light_field), "output");
   const MapGrid grid = flags.NamingFlags([&] { return ResolveMapGrid(light_field, c.options); });
   CheckMapCrs(light_field.crs, c.light_field_path);
   if (light_field.crs.empty()) {

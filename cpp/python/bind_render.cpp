@@ -7,6 +7,7 @@
 #include "aos/render/rectify.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/error.h"
+#include "aos/util/file_util.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -270,7 +271,12 @@ void BindMap(py::module_& m) {
           MapWriteOptions write;
           write.force = force;
           if (!path.empty()) {
-            // Refuse a bad output and CRS before rendering.
+            // Refuse a bad output (never over a frame) and CRS before rendering.
+            std::vector<std::string> inputs;
+            for (const View& view : light_field_copy.views) {
+              if (!view.image_path.empty()) inputs.push_back(view.image_path);
+            }
+            CheckOutputPath(path, inputs, "path");
             CheckMapOutputPath(path, write);
             CheckMapCrs(light_field_copy.crs, path);
           }

@@ -244,6 +244,14 @@ def test_cli_bad_outputs_write_nothing(flight_file: Path, tmp_path: Path) -> Non
         errors = [line for line in result.stderr.splitlines() if "error" in line]
         assert len(errors) == 1
     assert snapshot(out) == before
+    # Never over an input, --force or not: the light field or a frame (data loss otherwise).
+    frames = flight_file.parent / "views"
+    frame_before = (frames / "0003.png").read_bytes()
+    for target in (flight_file, frames / "0003.png"):
+        result = run("map", str(flight_file), "--pixel-size", "0.1", "-o", str(target), "--force")
+        assert result.returncode != 0 and "input" in result.stderr, result.stderr
+    assert (frames / "0003.png").read_bytes() == frame_before
+    assert sorted(p.name for p in frames.iterdir())[0] == "0000.png"
     # --force replaces it with a GeoTIFF.
     result = run("map", str(flight_file), "--pixel-size", "0.1", "-o", str(existing), "--force",
                  "-q")
@@ -253,7 +261,8 @@ def test_cli_bad_outputs_write_nothing(flight_file: Path, tmp_path: Path) -> Non
         assert src.count == 2
 
 
-def test_python_errors_name_the_field_or_file(flight: aos.LightField, tmp_path: Path) -> None:
+def test_python_errors_name_the_field_or_file(flight: aos.LightField, flight_file: Path,
+                                              tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="pixel_size"):
         aos.render_map(flight, pixel_size=-1.0)
     with pytest.raises(ValueError, match="extent"):
@@ -271,6 +280,13 @@ def test_python_errors_name_the_field_or_file(flight: aos.LightField, tmp_path: 
     with pytest.raises(ValueError, match="EPSG:999999"):
         aos.render_map(bad, pixel_size=0.1, path=tmp_path / "other.tif")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["map.tif"]
+    # Never over a frame of the light field, even with force.
+    loaded = aos.load_lightfield(str(flight_file)).light_field
+    frame = Path(loaded.views[0].image_path)
+    before = frame.read_bytes()
+    with pytest.raises(ValueError, match="input"):
+        aos.render_map(loaded, pixel_size=0.1, path=frame, force=True)
+    assert frame.read_bytes() == before
     # A pixel count instead of a size.
     by_width = aos.render_map(flight, width=100)
     assert by_width.width == 100
