@@ -37,6 +37,7 @@ COMMANDS = [
     ("stack", "FocalStackOptions"),
     ("merge", "MergeOptions"),
     ("allinfocus", "AllInFocusOptions"),
+    ("map", "MapOptions"),
     ("simulate", "SimulateOptions"),
     ("demo", "DemoOptions"),
     ("rectify", "RectifyOptions"),
@@ -105,7 +106,8 @@ NOT_ON_THE_CLI = {
 NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file", "focal_surface",
                       "positions_file", "positions_crs", "workspace",
                       "pose_error_px", "pose_error_m",  # exclusive flags; none = no pose error
-                      "fy", "cx", "cy"}  # camera: fy = fx, cx/cy = the centre
+                      "fy", "cx", "cy",  # camera: fy = fx, cx/cy = the centre
+                      "extent"}  # the map's extent: none = the views' footprints
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).
 UNITS = [("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
@@ -122,6 +124,10 @@ def unit_of(command: str, field: str) -> str:
         return "fraction of the image's range"
     if name == "agreement":
         return "fraction of the image's range"
+    if name in ("pixel_size", "extent", "focal_height"):
+        return "metres"
+    if name == "tile_size":
+        return "pixels"
     for suffix, unit in UNITS:
         if name.endswith(suffix):
             return unit

@@ -53,6 +53,10 @@ const CommandEntry kCommands[] = {
      "One call: render the slices one at a time and merge them (memory does not grow with "
      "--slices) into an all-in-focus image, a depth map and a confidence map",
      DefineAllInFocus},
+    {"map",
+     "Render an orthographic map (a virtual camera looking straight down) of a light field onto "
+     "a horizontal focal plane, written as a Cloud-Optimised GeoTIFF with a count band",
+     DefineMap},
     {"calibrate",
      "Calibrate a lens from checkerboard frames (OpenCV): write a camera file with the RMS "
      "reprojection error and the frames used; frames without the board are listed, not fatal",

@@ -13,6 +13,7 @@
 #include "aos/lightfield/formats.h"
 #include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
+#include "aos/render/map.h"
 #include "aos/render/merge.h"
 #include "aos/util/file_util.h"
 #include "commands.h"
@@ -533,6 +534,120 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   return [c, flags] { return RunAllInFocus(*c, flags); };
+}
+
+// ---- map ----
+
+namespace {
+
+struct MapCommand {
+  std::string light_field_path;
+  LoadOptions load;
+  MapOptions options;
+  std::string views;
+  std::string output;
+};
+
+std::string UpText(const MapGrid& grid) { return grid.up_z > 0 ? "+z" : "-z"; }
+
+int RunMap(MapCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
+  MapWriteOptions write;
+  write.force = Common().force;
+  // Refuse a bad output before loading: an existing file without --force, a missing or
+  // read-only folder.
+  CheckOutputPath(c.output, {c.light_field_path}, "output");
+  RefuseExisting(c.output, "output");
+  CheckMapOutputPath(c.output, write);
+  c.load.num_threads = c.options.num_threads;
+  const LoadResult loaded = flags.At("load.").NamingFlags(
+      [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
+  progress.Finish();
+  for (const std::string& note : loaded.notes) Note(note);
+  const LightField& light_field = loaded.light_field;
+  if (!c.views.empty()) {
+    c.options.view_indices =
+        ParseViewList(c.views, static_cast<int>(light_field.views.size()));
+  }
+  // Never over an input: the light field or any frame (links resolved).
+  CheckOutputPath(c.output, InputsOf(c.light_field_path, light_field), "output");
+  const MapGrid grid = flags.NamingFlags([&] { return ResolveMapGrid(light_field, c.options); });
+  CheckMapCrs(light_field.crs, c.light_field_path);
+  if (light_field.crs.empty()) {
+    Warn(c.light_field_path + ": the light field has no CRS, so the map has none: GIS tools "
+         "will place it in the frame's own coordinates (origin + local), not on the Earth");
+  }
+  if (!Common().quiet && !Common().json) {
+    std::fprintf(stderr, "map: %d x %d pixels of %s m, up %s, focal plane z = %s (local)\n",
+                 grid.width, grid.height, FormatNumber(grid.pixel_size).c_str(),
+                 UpText(grid).c_str(), FormatNumber(grid.focal_height).c_str());
+  }
+  const MapSummary summary = flags.NamingFlags(
+      [&] { return WriteMapGeoTiff(light_field, c.options, c.output, write, &progress); });
+  progress.Finish();
+  const int64_t pixels = static_cast<int64_t>(grid.width) * grid.height;
+  Report report("map");
+  report.Set("output", c.output);
+  report.Set("width", grid.width);
+  report.Set("height", grid.height);
+  report.Set("pixel_size", grid.pixel_size);
+  const std::array<double, 6> transform = grid.GeoTransform();
+  report.Set("geotransform", std::vector<double>(transform.begin(), transform.end()));
+  report.Set("crs", light_field.crs);
+  report.Set("up", UpText(grid));
+  report.Set("views_selected", summary.views_selected);
+  report.Set("samples", static_cast<long long>(summary.samples));
+  report.Set("uncovered_pixels", static_cast<long long>(summary.uncovered_pixels));
+  report.Set("tiles", summary.tiles);
+  report.Line("wrote %s: %d x %d pixels of %s m, x %s .. %s, y %s .. %s%s%s", c.output.c_str(),
+              grid.width, grid.height, FormatNumber(grid.pixel_size).c_str(),
+              FormatNumber(grid.x_min).c_str(),
+              FormatNumber(grid.x_min + grid.width * grid.pixel_size).c_str(),
+              FormatNumber(grid.y_max - grid.height * grid.pixel_size).c_str(),
+              FormatNumber(grid.y_max).c_str(), light_field.crs.empty() ? "" : ", ",
+              light_field.crs.c_str());
+  report.Line("%lld of %lld pixels seen by no view (nodata, count 0)",
+              static_cast<long long>(summary.uncovered_pixels), static_cast<long long>(pixels));
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineMap(CLI::App* command) {
+  auto c = std::make_shared<MapCommand>();
+  Flags flags(command);
+  command
+      ->add_option("lightfield", c->light_field_path,
+                   "Light-field file: aos JSON, or a JKU-ICG/AOS poses.json")
+      ->required();
+  AddLoadFlags(flags, c->load);
+  MapOptions& options = c->options;
+  flags.Field("pixel_size", options.pixel_size,
+              "Ground size of a map pixel, metres; 0 = the extent's width / --width");
+  flags.Field("width", options.width, "Map width in pixels, when --pixel-size is 0");
+  flags.Optional("--extent", "extent", options.extent,
+                 "World XMIN YMIN XMAX YMAX (origin + local, metres; default: the selected "
+                 "views' footprints on the focal plane)")
+      ->expected(4);
+  flags.Field("focal_height", options.focal_height,
+              "Horizontal focal plane z = H (local frame, metres)");
+  flags.Parsed("--aperture-radius", "aperture_radius", options.aperture_radius, ParseRadius,
+               RadiusText(options.aperture_radius),
+               "Horizontal distance from the focal point to a view centre, metres; 0 = the "
+               "nearest view, inf = every view");
+  flags.Describe("view_indices", "--views");
+  command->add_option("--views", c->views,
+                      "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
+                      "(default: all)");
+  flags.Field("min_view_angle_deg", options.min_view_angle_deg,
+              "Ignore rays meeting the focal plane at less than this angle, degrees");
+  flags.Field("tile_size", options.tile_size,
+              "Pixels on a side of a render tile (memory is bounded by one tile)");
+  flags.Threads(options.num_threads);
+  command->add_option("-o,--output", c->output, "GeoTIFF to write (Cloud-Optimised)")->required();
+  flags.Force();
+  return [c, flags] { return RunMap(*c, flags); };
 }
 
 }  // namespace aos::cli

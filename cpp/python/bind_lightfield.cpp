@@ -187,6 +187,9 @@ void BindLightField(py::module_& m) {
                     "PoseSource of estimated poses (estimate_poses, import_colmap), or None.")
       .def_readwrite("origin", &LightField::origin,
                      "World position of the local frame's zero (float64 copy; e.g. UTM).")
+      .def_readwrite("crs", &LightField::crs,
+                     "'EPSG:<code>' of the world coordinates (origin + local), or '' = not "
+                     "geo-referenced.")
       .def_property_readonly(
           "views", [](const LightField& light_field) { return light_field.views; },
           "The views, as a new list of read-only View objects (their pixels are not copied).")

@@ -3,10 +3,12 @@
 #include "aos/render/focal_stack.h"
 #include "aos/render/focal_surface.h"
 #include "aos/render/integral.h"
+#include "aos/render/map.h"
 #include "aos/render/merge.h"
 #include "aos/render/rectify.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/error.h"
+#include "aos/util/file_util.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -324,6 +326,98 @@ void BindSurfaceIntegral(py::module_& m) {
       "released. Prefer aos.render_integral_on_depth.");
 }
 
+void BindMap(py::module_& m) {
+  OptionsClass<MapOptions>(
+      m, "MapOptions",
+      "Options of render_map (an orthographic map looking straight down). Defaults from the C++ "
+      "struct aos::MapOptions.")
+      .Field("pixel_size", &MapOptions::pixel_size,
+             "Ground size of a pixel, metres (> 0); 0 = the extent's width / width.")
+      .Field("width", &MapOptions::width, "Map width in pixels when pixel_size is 0 (>= 2).")
+      .Field("extent", &MapOptions::extent,
+             "World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the selected views' "
+             "footprints on the focal plane.")
+      .Field("focal_height", &MapOptions::focal_height,
+             "Height of the horizontal focal plane z = focal_height, local frame, metres.")
+      .Field("aperture_radius", &MapOptions::aperture_radius,
+             "Horizontal distance from the focal point to a view centre, metres; 0 = the single "
+             "nearest view, inf = every view.")
+      .Field("view_indices", &MapOptions::view_indices, "Views to integrate; [] = all.")
+      .Field("min_view_angle_deg", &MapOptions::min_view_angle_deg,
+             "Minimum angle between a view's ray and the focal plane, degrees, [0, 90).")
+      .Field("tile_size", &MapOptions::tile_size, "Pixels on a side of a render tile, 16 .. 8192.")
+      .Field("num_threads", &MapOptions::num_threads, "Worker threads; -1 = all cores.")
+      .Finish()
+      .def("check", &MapOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
+
+  py::class_<MapResult>(m, "MapResult", "What render_map returns: the map and its grid.")
+      .def_property_readonly(
+          "image", [](const MapResult& map) { return ArrayFromImage(map.image); },
+          "float32 (H, W) or (H, W, C): mean of the view samples, 0 where count is 0; row 0 is "
+          "the largest y (north-up); shares memory with the result.")
+      .def_property_readonly(
+          "count", [](const MapResult& map) { return ArrayFromImage(map.count); },
+          "uint32 (H, W): view samples per pixel (0 = no view sees it); shared.")
+      .def_property_readonly(
+          "geotransform",
+          [](const MapResult& map) {
+            const std::array<double, 6> t = map.summary.grid.GeoTransform();
+            return py::make_tuple(t[0], t[1], t[2], t[3], t[4], t[5]);
+          },
+          "GDAL's (x_min, pixel_size, 0, y_max, 0, -pixel_size), world coordinates: pixel "
+          "(col, row) has its centre at x_min + (col + 0.5) p, y_max - (row + 0.5) p.")
+      .def_readonly("crs", &MapResult::crs, "The light field's CRS ('' = none).")
+      .def_property_readonly("width", [](const MapResult& map) { return map.summary.grid.width; })
+      .def_property_readonly("height", [](const MapResult& map) { return map.summary.grid.height; })
+      .def_property_readonly("pixel_size",
+                             [](const MapResult& map) { return map.summary.grid.pixel_size; },
+                             "Metres.")
+      .def_property_readonly("up_z", [](const MapResult& map) { return map.summary.grid.up_z; },
+                             "+1: up is +z; -1: up is -z (z-down frames).")
+      .def_property_readonly("samples",
+                             [](const MapResult& map) { return map.summary.samples; })
+      .def_property_readonly("uncovered_pixels",
+                             [](const MapResult& map) { return map.summary.uncovered_pixels; },
+                             "Pixels with count 0.")
+      .def_property_readonly("views_selected",
+                             [](const MapResult& map) { return map.summary.views_selected; })
+      .def_property_readonly("tiles", [](const MapResult& map) { return map.summary.tiles; })
+      .def("__repr__", [](const MapResult& map) {
+        const MapGrid& grid = map.summary.grid;
+        return "MapResult(" + std::to_string(grid.width) + "x" + std::to_string(grid.height) +
+               ", pixel_size=" + FormatNumber(grid.pixel_size) + ", crs='" + map.crs +
+               "', uncovered_pixels=" + std::to_string(map.summary.uncovered_pixels) + ")";
+      });
+
+  m.def(
+      "_render_map",
+      [](const LightField& light_field, const MapOptions& options, const std::string& path,
+         bool force, const py::object& progress) {
+        const LightField light_field_copy = light_field;
+        const MapOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          MapWriteOptions write;
+          write.force = force;
+          if (!path.empty()) {
+            // Refuse a bad output (never over a frame) and CRS before rendering.
+            std::vector<std::string> inputs;
+            for (const View& view : light_field_copy.views) {
+              if (!view.image_path.empty()) inputs.push_back(view.image_path);
+            }
+            CheckOutputPath(path, inputs, "path");
+            CheckMapOutputPath(path, write);
+            CheckMapCrs(light_field_copy.crs, path);
+          }
+          MapResult map = RenderMap(light_field_copy, options_copy, sink);
+          if (!path.empty()) WriteMapGeoTiff(map, path, write);
+          return map;
+        });
+      },
+      "light_field"_a, "options"_a, "path"_a, "force"_a, "progress"_a = py::none(),
+      "An orthographic map in memory, also written as a Cloud-Optimised GeoTIFF when `path` is "
+      "not empty. GIL released. Prefer aos.render_map.");
+}
+
 void BindFocalStack(py::module_& m) {
   OptionsClass<FocalStackOptions>(
       m, "FocalStackOptions",
@@ -583,6 +677,7 @@ void BindRender(py::module_& m) {
   BindIntegral(m);
   BindRectify(m);
   BindSurfaceIntegral(m);
+  BindMap(m);
   BindFocalStack(m);
   BindMerge(m);
 }

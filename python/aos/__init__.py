@@ -47,6 +47,7 @@ from ._keywords import (
     DemoKeywords,
     FocalStackKeywords,
     IntegralKeywords,
+    MapKeywords,
     MergeKeywords,
     PosesKeywords,
     GroundKeywords,
@@ -93,6 +94,8 @@ from ._core import (
     MergeResult,
     SurfaceIntegralOptions,
     SurfaceIntegralResult,
+    MapOptions,
+    MapResult,
     QualityOptions,
     QualityResult,
     IntegralOptions,
@@ -166,6 +169,9 @@ __all__ = [
     "MergeResult",
     "SurfaceIntegralOptions",
     "SurfaceIntegralResult",
+    "MapOptions",
+    "MapResult",
+    "render_map",
     "all_in_focus",
     "interpolate_plane",
     "merge_focal_stack",
@@ -375,6 +381,7 @@ _RENDER_INTEGRAL_ON_DEPTH = _Router(
     SurfaceIntegralOptions,
     exclude=[(name,) for name in _SURFACE_FIELDS],
 )
+_RENDER_MAP = _Router("render_map", MapOptions)
 _SIMULATE = _Router("simulate", SimulateOptions)
 _RUN_DEMO = _Router("run_demo", DemoOptions)
 _COMPARE_IMAGES = _Router("compare_images", QualityOptions)
@@ -626,6 +633,39 @@ def render_integral_on_depth(
     _RENDER_INTEGRAL_ON_DEPTH.apply([render, surf], dict(kwargs))
     _require_pose("render_integral_on_depth", render, dict(kwargs))
     return _core._render_integral_on_depth(light_field, render, depth, surf, progress)
+
+
+def render_map(
+    light_field: LightField,
+    options: Optional[MapOptions] = None,
+    *,
+    path: "Optional[str | os.PathLike[str]]" = None,
+    force: bool = False,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Unpack[MapKeywords],
+) -> MapResult:
+    """An orthographic map of ``light_field``: a virtual camera looking straight down onto the
+    horizontal focal plane z = ``focal_height`` (local frame), rendered in tiles (docs/terrain-and-maps.md).
+
+    ``kwargs`` are fields of :class:`MapOptions` (pixel_size or width, extent, focal_height,
+    aperture_radius, view_indices, min_view_angle_deg, tile_size, num_threads). Returns the map
+    in memory: ``image`` (float32, row 0 = largest y), ``count`` (uint32; 0 = no view sees the
+    pixel), ``geotransform`` (GDAL's, world coordinates = origin + local) and ``crs`` (the light
+    field's). With ``path`` the map is also written as a Cloud-Optimised GeoTIFF (bands: the
+    image with NaN = nodata where count is 0, then the count); an existing file is refused
+    unless ``force``. Raises ValueError naming the field or the file.
+
+    Example::
+
+        m = aos.render_map(lf, pixel_size=0.05, focal_height=0.0, path="map.tif")
+        x0, p, _, y0, _, _ = m.geotransform   # pixel (col, row) centre: x0 + (col + 0.5) p
+    """
+    merged = _copy_options("render_map", MapOptions, options)
+    _RENDER_MAP.apply([merged], dict(kwargs))
+    target = "" if path is None else os.fspath(path)
+    if path is not None and not target:
+        raise ValueError("render_map(): path: empty; give a file name or None")
+    return _core._render_map(light_field, merged, target, force, progress)
 
 
 def sampling_resolution(

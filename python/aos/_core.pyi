@@ -261,6 +261,8 @@ class LightField:
         """World position of the local frame's zero (float64 copy)."""
     @origin.setter
     def origin(self, value: _Vector) -> None: ...
+    crs: str
+    """'EPSG:<code>' of the world coordinates (origin + local), or '' = not geo-referenced."""
     @property
     def views(self) -> list[View]:
         """A new list of the views (pixels not copied)."""
@@ -642,6 +644,96 @@ def _render_integral_on_depth(
     surface: SurfaceIntegralOptions,
     progress: _Progress = None,
 ) -> SurfaceIntegralResult: ...
+
+class MapOptions:
+    """Options of render_map; fields and defaults of aos::MapOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        pixel_size: float = ...,
+        width: int = ...,
+        extent: Sequence[float] = ...,
+        focal_height: float = ...,
+        aperture_radius: float = ...,
+        view_indices: Sequence[int] = ...,
+        min_view_angle_deg: float = ...,
+        tile_size: int = ...,
+        num_threads: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    pixel_size: float
+    """Ground size of a pixel, metres (> 0); 0 = the extent's width / width."""
+    width: int
+    """Map width in pixels when pixel_size is 0 (>= 2)."""
+    @property
+    def extent(self) -> list[float]:
+        """World [XMIN, YMIN, XMAX, YMAX]; [] = the views' footprints on the focal plane."""
+    @extent.setter
+    def extent(self, value: Sequence[float]) -> None: ...
+    focal_height: float
+    """Horizontal focal plane z = focal_height, local frame, metres."""
+    aperture_radius: float
+    """Horizontal distance focal point - view centre, metres; 0 = nearest view, inf = all."""
+    @property
+    def view_indices(self) -> list[int]:
+        """Views to integrate; [] = all."""
+    @view_indices.setter
+    def view_indices(self, value: Sequence[int]) -> None: ...
+    min_view_angle_deg: float
+    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90)."""
+    tile_size: int
+    """Pixels on a side of a render tile, 16 .. 8192."""
+    num_threads: int
+    """Worker threads; -1 = all cores."""
+    def check(self, view_count: int) -> None:
+        """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
+    def __copy__(self) -> MapOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> MapOptions: ...
+    def __repr__(self) -> str: ...
+
+class MapResult:
+    """What render_map returns: the map and its grid."""
+
+    @property
+    def image(self) -> numpy.typing.NDArray[numpy.float32]:
+        """float32 (H, W) or (H, W, C), 0 where count is 0; row 0 = largest y; shared."""
+    @property
+    def count(self) -> numpy.typing.NDArray[numpy.uint32]:
+        """uint32 (H, W) view samples per pixel; shared."""
+    @property
+    def geotransform(self) -> tuple[float, float, float, float, float, float]:
+        """GDAL's (x_min, p, 0, y_max, 0, -p) in world coordinates."""
+    @property
+    def crs(self) -> str: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def pixel_size(self) -> float: ...
+    @property
+    def up_z(self) -> float:
+        """+1: up is +z; -1: up is -z."""
+    @property
+    def samples(self) -> int: ...
+    @property
+    def uncovered_pixels(self) -> int: ...
+    @property
+    def views_selected(self) -> int: ...
+    @property
+    def tiles(self) -> int: ...
+    def __repr__(self) -> str: ...
+
+def _render_map(
+    light_field: LightField,
+    options: MapOptions,
+    path: str,
+    force: bool,
+    progress: _Progress = None,
+) -> MapResult: ...
 
 class FocalStackOptions:
     """Options of render_focal_stack; fields and defaults of aos::FocalStackOptions."""

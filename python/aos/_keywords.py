@@ -68,6 +68,20 @@ class SurfaceIntegralKeywords(VirtualCameraKeywords, total=False):
     min_inlier_fraction: float
 
 
+class MapKeywords(TypedDict, total=False):
+    """Fields of MapOptions (render_map)."""
+
+    pixel_size: float
+    width: int
+    extent: Sequence[float]
+    focal_height: float
+    aperture_radius: float
+    view_indices: Sequence[int]
+    min_view_angle_deg: float
+    tile_size: int
+    num_threads: int
+
+
 class FocalStackKeywords(VirtualCameraKeywords, total=False):
     """Fields of FocalStackOptions and of its render options (render_focal_stack); the slices'
     planes come from first_plane and last_plane, so focal_plane is not one."""

@@ -362,6 +362,7 @@ ROUTED = [
     ("_MERGE_FOCAL_STACK", "MergeKeywords"),
     ("_ALL_IN_FOCUS", "AllInFocusKeywords"),
     ("_RENDER_INTEGRAL_ON_DEPTH", "SurfaceIntegralKeywords"),
+    ("_RENDER_MAP", "MapKeywords"),
     ("_SIMULATE", "SimulateKeywords"),
     ("_RUN_DEMO", "DemoKeywords"),
     ("_COMPARE_IMAGES", "QualityKeywords"),

@@ -1,0 +1,296 @@
+#include "aos/render/map.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <string>
+
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+std::string Num(double value) { return FormatNumber(value); }
+
+std::vector<int> Selection(const LightField& light_field, const std::vector<int>& indices) {
+  if (!indices.empty()) return indices;
+  std::vector<int> all(light_field.views.size());
+  for (size_t i = 0; i < all.size(); ++i) all[i] = static_cast<int>(i);
+  return all;
+}
+
+// Casts view `view`'s image border onto the plane z = height (local frame), growing the box
+// [lo, hi]; throws when a border ray does not meet the plane in front of the view (the footprint
+// is unbounded: the view sees the horizon).
+void GrowByFootprint(const View& view, int index, double height, double* lo, double* hi) {
+  const Mat3d world_from_cam = glm::transpose(view.cam_from_world.rotation);
+  const Vec3d center = view.cam_from_world.Center();
+  const int steps = 16;  // points per edge: lens distortion bends the edges
+  const double w = view.camera.width, h = view.camera.height;
+  int valid = 0;
+  for (int edge = 0; edge < 4; ++edge) {
+    for (int k = 0; k < steps; ++k) {
+      const double t = static_cast<double>(k) / steps;
+      Vec2d pixel;
+      switch (edge) {
+        case 0: pixel = Vec2d(t * w, 0.0); break;
+        case 1: pixel = Vec2d(w, t * h); break;
+        case 2: pixel = Vec2d(w - t * w, h); break;
+        default: pixel = Vec2d(0.0, h - t * h); break;
+      }
+      Vec3d ray;
+      if (!view.camera.Unproject(pixel, &ray)) continue;  // outside a fisheye's valid field
+      const Vec3d direction = world_from_cam * ray;
+      const double s = direction.z != 0.0 ? (height - center.z) / direction.z : -1.0;
+      if (!(s > 0.0) || !std::isfinite(s)) {
+        ThrowInvalid("extent: view " + std::to_string(index) +
+                     (view.name.empty() ? "" : " (" + view.name + ")") +
+                     " sees above the horizon of the focal plane, so its footprint is unbounded; "
+                     "give the extent");
+      }
+      const Vec3d point = center + s * direction;
+      lo[0] = std::min(lo[0], point.x);
+      lo[1] = std::min(lo[1], point.y);
+      hi[0] = std::max(hi[0], point.x);
+      hi[1] = std::max(hi[1], point.y);
+      ++valid;
+    }
+  }
+  if (valid == 0) {
+    ThrowInvalid("extent: view " + std::to_string(index) + " has no valid border ray");
+  }
+}
+
+// A progress sink for one tile: forwards advances and cancels to the map's sink, ignores the
+// tile's own stage.
+class TileProgress : public ProgressSink {
+ public:
+  explicit TileProgress(ProgressSink* outer) : outer_(outer) {}
+  void Start(const std::string&, int64_t) override {}
+  void Advance(int64_t units) override { ProgressAdvance(outer_, units); }
+  bool Cancelled() override { return ProgressCancelled(outer_); }
+
+ private:
+  ProgressSink* outer_;
+};
+
+}  // namespace
+
+void MapOptions::Check(int view_count) const {
+  if (!(pixel_size >= 0.0) || !std::isfinite(pixel_size)) {
+    ThrowInvalid("pixel_size: must be > 0 and finite, metres (got " + Num(pixel_size) + ")");
+  }
+  if (pixel_size == 0.0) {
+    if (width == 0) ThrowInvalid("pixel_size: must be > 0 (or give the width in pixels)");
+    if (width < 2) ThrowInvalid("width: must be >= 2 pixels (got " + std::to_string(width) + ")");
+  }
+  if (!extent.empty()) {
+    if (extent.size() != 4) {
+      ThrowInvalid("extent: expected 4 numbers XMIN YMIN XMAX YMAX (got " +
+                   std::to_string(extent.size()) + ")");
+    }
+    for (double v : extent) {
+      if (!std::isfinite(v)) ThrowInvalid("extent: values must be finite");
+    }
+    if (!(extent[2] > extent[0]) || !(extent[3] > extent[1])) {
+      ThrowInvalid("extent: XMAX must exceed XMIN and YMAX exceed YMIN (got " + Num(extent[0]) +
+                   " " + Num(extent[1]) + " " + Num(extent[2]) + " " + Num(extent[3]) + ")");
+    }
+  }
+  if (!std::isfinite(focal_height)) ThrowInvalid("focal_height: must be finite");
+  if (!(aperture_radius >= 0.0)) {
+    ThrowInvalid("aperture_radius: must be >= 0 (got " + Num(aperture_radius) + ")");
+  }
+  if (!(min_view_angle_deg >= 0.0 && min_view_angle_deg < 90.0)) {
+    ThrowInvalid("min_view_angle_deg: must be in [0, 90) (got " + Num(min_view_angle_deg) + ")");
+  }
+  if (tile_size < 16 || tile_size > 8192) {
+    ThrowInvalid("tile_size: must be in 16 .. 8192 (got " + std::to_string(tile_size) + ")");
+  }
+  if (num_threads == 0 || num_threads < -1) {
+    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1");
+  }
+  if (view_count <= 0) ThrowInvalid("light field: has no views");
+  for (int index : view_indices) {
+    if (index < 0 || index >= view_count) {
+      ThrowInvalid("view_indices: " + std::to_string(index) + " is not a view (the light field has " +
+                   std::to_string(view_count) + ")");
+    }
+  }
+}
+
+std::array<double, 6> MapGrid::GeoTransform() const {
+  return {x_min, pixel_size, 0.0, y_max, 0.0, -pixel_size};
+}
+
+MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options) {
+  const int view_count = static_cast<int>(light_field.views.size());
+  options.Check(view_count);
+  const std::vector<int> selection = Selection(light_field, options.view_indices);
+  MapGrid grid;
+  grid.origin = light_field.origin;
+  grid.focal_height = options.focal_height;
+
+  // Up: the z direction from the focal plane towards the views' mean centre.
+  double mean_z = 0.0;
+  for (int index : selection) {
+    mean_z += light_field.views[static_cast<size_t>(index)].cam_from_world.Center().z;
+  }
+  mean_z /= static_cast<double>(selection.size());
+  if (mean_z == options.focal_height) {
+    ThrowInvalid("focal_height: the views' mean centre lies on the focal plane (z = " +
+                 Num(mean_z) + "), so up is undefined");
+  }
+  grid.up_z = mean_z > options.focal_height ? 1.0 : -1.0;
+
+  // Extent in world x/y.
+  double lo[2], hi[2];
+  const bool given = !options.extent.empty();
+  if (given) {
+    lo[0] = options.extent[0];
+    lo[1] = options.extent[1];
+    hi[0] = options.extent[2];
+    hi[1] = options.extent[3];
+  } else {
+    lo[0] = lo[1] = std::numeric_limits<double>::infinity();
+    hi[0] = hi[1] = -std::numeric_limits<double>::infinity();
+    for (int index : selection) {
+      GrowByFootprint(light_field.views[static_cast<size_t>(index)], index, options.focal_height,
+                      lo, hi);
+    }
+    for (int i = 0; i < 2; ++i) {
+      lo[i] += light_field.origin[i];
+      hi[i] += light_field.origin[i];
+    }
+  }
+  const double extent_w = hi[0] - lo[0];
+  double p = options.pixel_size;
+  if (p == 0.0) p = extent_w / options.width;
+  if (!(p > 0.0) || !std::isfinite(p)) {
+    ThrowInvalid("extent: the footprints have no width (" + Num(extent_w) + " m)");
+  }
+  // Fewer than 2 pixels on a side is judged on the extent itself (widening it to whole pixels
+  // would turn a pixel as large as the flight into a 2 x 2 map).
+  const double raw_columns = std::ceil((hi[0] - lo[0]) / p * (1.0 - 1e-12));
+  const double raw_rows = std::ceil((hi[1] - lo[1]) / p * (1.0 - 1e-12));
+  const std::string size_field = options.pixel_size > 0.0 ? "pixel_size" : "width";
+  if (raw_columns < 2 || raw_rows < 2) {
+    ThrowInvalid(size_field + ": " + Num(p) + " m over the extent " + Num(hi[0] - lo[0]) + " x " +
+                 Num(hi[1] - lo[1]) + " m makes a map of " + Num(raw_columns) + " x " +
+                 Num(raw_rows) + " pixels; it needs at least 2 on each side");
+  }
+  if (!given && options.pixel_size > 0.0) {
+    // Whole multiples of the pixel size, outwards: maps of one flight line up. (With a pixel
+    // count the footprints' box is kept, so that the map has exactly that many columns.)
+    lo[0] = std::floor(lo[0] / p) * p;
+    lo[1] = std::floor(lo[1] / p) * p;
+    hi[0] = std::ceil(hi[0] / p) * p;
+    hi[1] = std::ceil(hi[1] / p) * p;
+  }
+  const double columns = std::ceil((hi[0] - lo[0]) / p * (1.0 - 1e-12));
+  const double rows = std::ceil((hi[1] - lo[1]) / p * (1.0 - 1e-12));
+  if (!(columns * rows <= kMaxMapPixels) || columns > 1e7 || rows > 1e7) {
+    ThrowInvalid(size_field + ": " + Num(p) + " m over the extent " + Num(hi[0] - lo[0]) + " x " +
+                 Num(hi[1] - lo[1]) + " m makes " + Num(columns) + " x " + Num(rows) +
+                 " pixels, more than " + Num(kMaxMapPixels) +
+                 " (check the units of the pixel size and the extent)");
+  }
+  grid.x_min = lo[0];
+  grid.y_max = hi[1];
+  grid.pixel_size = p;
+  grid.width = static_cast<int>(columns);
+  grid.height = static_cast<int>(rows);
+  return grid;
+}
+
+FocalPoints MapFocalPoints(const MapGrid& grid, int x0, int y0, int w, int h) {
+  FocalPoints points;
+  points.width = w;
+  points.height = h;
+  // One reference for every tile (the map's centre on the focal plane): a pixel's point then
+  // depends only on its column and row, so tiling changes no bit.
+  points.reference = Vec3d(grid.CenterX(grid.width / 2) - grid.origin.x,
+                           grid.CenterY(grid.height / 2) - grid.origin.y, grid.focal_height);
+  points.points.resize(static_cast<size_t>(w) * static_cast<size_t>(h));
+  for (int row = 0; row < h; ++row) {
+    const double y = grid.CenterY(y0 + row) - grid.origin.y - points.reference.y;
+    for (int col = 0; col < w; ++col) {
+      const double x = grid.CenterX(x0 + col) - grid.origin.x - points.reference.x;
+      // The plane z = focal_height: 0 relative to the reference.
+      points.points[static_cast<size_t>(row) * w + col] = Vec3d(x, y, 0.0);
+    }
+  }
+  return points;
+}
+
+PointIntegralOptions MapPointOptions(const MapGrid& grid, const MapOptions& options) {
+  PointIntegralOptions point;
+  point.aperture = PointIntegralOptions::Aperture::kCylinder;
+  point.aperture_radius = options.aperture_radius;
+  point.lens_axis = Vec3d(0.0, 0.0, grid.up_z);
+  point.surface_normal = Vec3d(0.0, 0.0, grid.up_z);
+  point.min_view_angle_deg = options.min_view_angle_deg;
+  point.view_indices = options.view_indices;
+  point.num_threads = options.num_threads;
+  return point;
+}
+
+MapSummary RenderMapTiles(const LightField& light_field, const MapOptions& options,
+                          const std::function<void(const MapTile&)>& consume,
+                          ProgressSink* progress) {
+  MapSummary summary;
+  summary.grid = ResolveMapGrid(light_field, options);
+  const MapGrid& grid = summary.grid;
+  const PointIntegralOptions point = MapPointOptions(grid, options);
+  const int tile = options.tile_size;
+  const int tiles_x = (grid.width + tile - 1) / tile;
+  const int tiles_y = (grid.height + tile - 1) / tile;
+  // A unit per tile row rendered (RenderIntegralAtPoints advances one per row).
+  ProgressStart(progress, "render map", static_cast<int64_t>(grid.height) * tiles_x);
+  TileProgress tile_progress(progress);
+  for (int ty = 0; ty < tiles_y; ++ty) {
+    for (int tx = 0; tx < tiles_x; ++tx) {
+      if (ProgressCancelled(progress)) throw Cancelled();
+      const int x0 = tx * tile, y0 = ty * tile;
+      const int w = std::min(tile, grid.width - x0), h = std::min(tile, grid.height - y0);
+      const FocalPoints points = MapFocalPoints(grid, x0, y0, w, h);
+      const SurfaceIntegralResult rendered =
+          RenderIntegralAtPoints(light_field, points, point, {}, &tile_progress);
+      summary.views_selected = rendered.integral.views_selected;
+      summary.samples += rendered.integral.samples;
+      summary.uncovered_pixels += rendered.integral.uncovered_pixels;
+      ++summary.tiles;
+      consume(MapTile{x0, y0, &rendered.integral});
+    }
+  }
+  return summary;
+}
+
+MapResult RenderMap(const LightField& light_field, const MapOptions& options,
+                    ProgressSink* progress) {
+  MapResult map;
+  map.crs = light_field.crs;
+  const MapGrid grid = ResolveMapGrid(light_field, options);
+  map.summary = RenderMapTiles(
+      light_field, options,
+      [&](const MapTile& tile) {
+        const Image& image = tile.result->image;
+        const Image& count = tile.result->count;
+        if (map.image.empty()) {
+          map.image = Image(grid.width, grid.height, image.channels(), PixelType::kF32);
+          map.count = Image(grid.width, grid.height, 1, PixelType::kU32);
+        }
+        const size_t image_row = static_cast<size_t>(image.width()) * image.channels() * sizeof(float);
+        const size_t count_row = static_cast<size_t>(count.width()) * sizeof(uint32_t);
+        for (int row = 0; row < image.height(); ++row) {
+          std::memcpy(map.image.At<float>(tile.x0, tile.y0 + row), image.At<float>(0, row),
+                      image_row);
+          std::memcpy(map.count.At<uint32_t>(tile.x0, tile.y0 + row),
+                      count.At<uint32_t>(0, row), count_row);
+        }
+      },
+      progress);
+  return map;
+}
+
+}  // namespace aos

@@ -1,0 +1,176 @@
+#pragma once
+// Maps: an orthographic virtual camera looking straight down, rendered tile by tile through the
+// one per-sample route (surface_integral.h, kCylinder aperture), and written as a Cloud-Optimised
+// GeoTIFF with GDAL.
+//
+// Contract
+// - Frames. World = light_field.origin + local (lightfield.h). The map's grid is in world x/y:
+//   a north-up raster, row 0 at the largest y, column 0 at the smallest x; pixel (col, row) covers
+//   [x_min + col * p, x_min + (col + 1) * p] x [y_max - (row + 1) * p, y_max - row * p] and its
+//   centre (col + 0.5, row + 0.5) is where its focal point lies. GeoTransform() is GDAL's:
+//   (x_min, p, 0, y_max, 0, -p).
+// - Up. The map looks along -up, where up is the +z or -z axis, whichever points from the focal
+//   surface towards the mean centre of the selected views (geo-referenced and simulated light
+//   fields have z up; JKU/F0 poses have z down, and there up is -z). The raster is always written
+//   in the frame's own x/y axes: for a z-down frame (x, y, z right-handed) the map therefore shows
+//   the ground as seen from below (mirrored against a photograph from above), which is what the
+//   frame's coordinates say; GIS tools place every pixel at its x/y correctly.
+// - Focal surface: for now the horizontal plane z = focal_height (local frame). Every pixel's
+//   focal point comes from one function, MapFocalPoints (where a height field will later give
+//   the height under each pixel centre).
+// - Views: a view contributes to a pixel's focal point X by integral.h's rules (in front, inside
+//   its image, not grazing: min_view_angle_deg against the horizontal) and the cylinder aperture:
+//   its centre lies within aperture_radius of the vertical line through X (horizontal distance);
+//   infinity = every view, 0 = the single nearest view.
+// - Extent: options.extent (world XMIN YMIN XMAX YMAX), or by default the union of the selected
+//   views' footprints on the focal surface (their image borders cast onto it), widened outwards
+//   to whole multiples of the pixel size when pixel_size is given (with a pixel count, width,
+//   the footprints' box is kept and the map is exactly `width` pixels wide). The grid starts at (XMIN, YMAX) and holds
+//   ceil(extent / pixel size) pixels per axis (the last column and row may reach past XMAX and
+//   below YMIN by less than a pixel). The pixel size is options.pixel_size, or the extent's
+//   width / options.width.
+// - Tiles: the map is rendered in tiles of tile_size x tile_size pixels; every pixel's arithmetic
+//   depends only on its column and row (the focal points are relative to the map's centre, one
+//   reference for all tiles), so the result does not depend on the tile size, bit for bit.
+//   Memory: one tile's points and image at a time, plus GDAL's block cache while writing.
+// - Output values: image is float32 with the views' channels (mean of the samples, in the
+//   views' units), count is uint32 (samples per pixel); pixels no view sees get count 0 and
+//   image 0 in memory, NaN (the nodata value) in the GeoTIFF.
+//
+// Throws std::invalid_argument naming the option (pixel_size, width, extent, focal_height, ...)
+// or the file for bad input, aos::Cancelled if the progress sink asks to stop.
+#include <array>
+#include <cstdint>
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+#include "aos/image/image.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/render/integral.h"
+#include "aos/render/surface_integral.h"
+#include "aos/util/progress.h"
+
+namespace aos {
+
+// The most pixels a map may have (width * height): more is refused as a mistake of units.
+constexpr double kMaxMapPixels = 1e9;
+
+struct MapOptions {
+  // Ground size of a pixel, metres (> 0); 0 = the extent's width / width.
+  double pixel_size = 0.0;
+  // Map width in pixels when pixel_size is 0 (>= 2); ignored otherwise.
+  int width = 0;
+  // World XMIN, YMIN, XMAX, YMAX (origin + local, metres); empty = the views' footprints.
+  std::vector<double> extent;
+  // Height of the horizontal focal plane z = focal_height, local frame, metres.
+  double focal_height = 0.0;
+  // Horizontal distance from the focal point to a view centre, metres; 0 = the single nearest
+  // view, infinity = every view.
+  double aperture_radius = std::numeric_limits<double>::infinity();
+  // Views to integrate (indices into the light field); empty = all views.
+  std::vector<int> view_indices;
+  // Minimum angle between a view's ray and the focal plane, degrees, [0, 90).
+  double min_view_angle_deg = 1.0;
+  // Pixels on a side of a render tile, 16 .. 8192.
+  int tile_size = 512;
+  // Worker threads; -1 = all cores.
+  int num_threads = -1;
+
+  // Throws std::invalid_argument naming the field. `view_count`: views in the light field.
+  void Check(int view_count) const;
+};
+
+// The resolved orthographic camera: the map's grid in world x/y and its focal surface.
+struct MapGrid {
+  double x_min = 0.0;       // world x of the left edge
+  double y_max = 0.0;       // world y of the top edge (row 0)
+  double pixel_size = 0.0;  // metres
+  int width = 0;
+  int height = 0;
+  Vec3d origin{0.0};        // the light field's origin (world of local zero)
+  double focal_height = 0.0;  // local z of the focal plane
+  double up_z = 1.0;        // +1: up is +z; -1: up is -z (z-down frames)
+
+  // GDAL's geotransform: (x_min, p, 0, y_max, 0, -p).
+  std::array<double, 6> GeoTransform() const;
+  // World x, y of the centre of pixel (col, row).
+  double CenterX(int64_t col) const { return x_min + (static_cast<double>(col) + 0.5) * pixel_size; }
+  double CenterY(int64_t row) const { return y_max - (static_cast<double>(row) + 0.5) * pixel_size; }
+};
+
+// Resolves the extent, pixel size, size and up direction; refuses more than kMaxMapPixels
+// pixels or fewer than 2 on a side (naming pixel_size or width, and extent).
+MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options);
+
+// THE focal points of the map pixels [x0, x0 + w) x [y0, y0 + h): each pixel centre's vertical
+// line meets the focal surface (today the plane z = focal_height), relative to the map's centre
+// (the reference of every tile).
+FocalPoints MapFocalPoints(const MapGrid& grid, int x0, int y0, int w, int h);
+
+// The options of RenderIntegralAtPoints for a map (kCylinder aperture, axis and normal up).
+PointIntegralOptions MapPointOptions(const MapGrid& grid, const MapOptions& options);
+
+struct MapSummary {
+  MapGrid grid;
+  int views_selected = 0;
+  int64_t samples = 0;           // sum of count
+  int64_t uncovered_pixels = 0;  // pixels with count 0
+  int tiles = 0;
+};
+
+// One rendered tile: pixels [x0, x0 + image.width()) x [y0, y0 + image.height()).
+struct MapTile {
+  int x0 = 0;
+  int y0 = 0;
+  const IntegralResult* result = nullptr;
+};
+
+// Renders the map tile by tile (rows of tiles top to bottom, left to right), handing each tile
+// to `consume` before rendering the next. Progress: one stage "render map", a unit per tile row.
+MapSummary RenderMapTiles(const LightField& light_field, const MapOptions& options,
+                          const std::function<void(const MapTile&)>& consume,
+                          ProgressSink* progress = nullptr);
+
+struct MapResult {
+  MapSummary summary;
+  Image image;  // float32, width x height x channels (0 where count is 0)
+  Image count;  // uint32, width x height
+  std::string crs;  // the light field's
+};
+
+// The whole map in memory.
+MapResult RenderMap(const LightField& light_field, const MapOptions& options,
+                    ProgressSink* progress = nullptr);
+
+struct MapWriteOptions {
+  // Replace an existing output file (refused otherwise).
+  bool force = false;
+  // GDAL's block cache while writing, MiB (set for the write, restored after), >= 16.
+  int gdal_cache_mb = 128;
+};
+
+// Writes a Cloud-Optimised GeoTIFF: bands 1..C the image (float32, NaN = nodata where count is
+// 0), band C+1 the count (float32, exact), DEFLATE-compressed, 256-pixel blocks, averaged
+// overviews down to one block; geotransform GeoTransform(), CRS `crs` (an "EPSG:<code>" or any
+// text OGRSpatialReference::SetFromUserInput reads; empty = none). The tiles go into a tiled
+// temporary GeoTIFF beside `path`, the COG is copied from it into a second temporary name and
+// renamed to `path`: a failure or cancel leaves no output and no temporary file.
+// Throws std::invalid_argument naming `path` (exists without force, folder missing or not
+// writable) or the CRS.
+MapSummary WriteMapGeoTiff(const LightField& light_field, const MapOptions& options,
+                           const std::string& path, const MapWriteOptions& write = {},
+                           ProgressSink* progress = nullptr);
+// The same for a map already in memory.
+void WriteMapGeoTiff(const MapResult& map, const std::string& path,
+                     const MapWriteOptions& write = {});
+
+// Checks an output path before any work: its folder exists and is writable, it is not a folder,
+// and it does not exist unless write.force. Throws std::invalid_argument naming the path.
+void CheckMapOutputPath(const std::string& path, const MapWriteOptions& write);
+
+// Checks that `crs` is empty or a CRS GDAL reads; throws std::invalid_argument naming `where`.
+void CheckMapCrs(const std::string& crs, const std::string& where);
+
+}  // namespace aos

@@ -1,0 +1,283 @@
+// Writing maps as Cloud-Optimised GeoTIFFs with GDAL (map.h). GDAL's headers stay in here.
+#include <unistd.h>
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <filesystem>
+#include <limits>
+#include <string>
+#include <system_error>
+#include <vector>
+
+#include <cpl_conv.h>
+#include <cpl_error.h>
+#include <cpl_string.h>
+#include <gdal_priv.h>
+#include <ogr_spatialref.h>
+
+#include "aos/render/map.h"
+#include "aos/util/error.h"
+
+namespace fs = std::filesystem;
+
+namespace aos {
+namespace {
+
+constexpr int kBlockSize = 256;  // COG blocks; overviews go down to one block
+
+// GDAL's messages go to us, not to stderr, while a writer lives; the last one names the cause.
+class QuietGdal {
+ public:
+  QuietGdal() {
+    CPLPushErrorHandler(CPLQuietErrorHandler);
+    CPLErrorReset();
+  }
+  ~QuietGdal() { CPLPopErrorHandler(); }
+  static std::string Last() {
+    const char* message = CPLGetLastErrorMsg();
+    return message != nullptr && *message != '\0' ? std::string(message) : "unknown GDAL error";
+  }
+};
+
+std::string WktOf(const std::string& crs, const std::string& where) {
+  if (crs.empty()) return "";
+  OGRSpatialReference srs;
+  QuietGdal quiet;
+  if (srs.SetFromUserInput(crs.c_str()) != OGRERR_NONE) {
+    ThrowInvalid(where + ": crs: '" + crs + "' is not a coordinate reference system GDAL knows (" +
+                 QuietGdal::Last() + ")");
+  }
+  char* wkt = nullptr;
+  srs.exportToWkt(&wkt);
+  std::string text = wkt != nullptr ? wkt : "";
+  CPLFree(wkt);
+  return text;
+}
+
+struct GdalProgressTarget {
+  ProgressSink* sink = nullptr;
+  int64_t done = 0;
+};
+
+int CPL_STDCALL GdalProgress(double complete, const char*, void* data) {
+  auto* target = static_cast<GdalProgressTarget*>(data);
+  const int64_t now = static_cast<int64_t>(std::lround(std::clamp(complete, 0.0, 1.0) * 100.0));
+  if (now > target->done) {
+    ProgressAdvance(target->sink, now - target->done);
+    target->done = now;
+  }
+  return ProgressCancelled(target->sink) ? FALSE : TRUE;
+}
+
+// The temporary tiled GeoTIFF, then the COG copy, then the rename; the destructor removes
+// whatever is left unless Commit() succeeded.
+class GeoTiffWriter {
+ public:
+  GeoTiffWriter(const MapGrid& grid, int channels, const std::string& crs, const std::string& path,
+                const MapWriteOptions& write)
+      : grid_(grid), channels_(channels), path_(path), write_(write) {
+    CheckMapOutputPath(path, write);
+    const std::string wkt = WktOf(crs, path);
+    GDALAllRegister();
+    old_cache_ = GDALGetCacheMax64();
+    GDALSetCacheMax64(static_cast<GIntBig>(write.gdal_cache_mb) * 1024 * 1024);
+    const fs::path target(path);
+    const fs::path folder = target.has_parent_path() ? target.parent_path() : fs::path(".");
+    const std::string stem = "." + target.filename().string() + "." + std::to_string(::getpid());
+    tiles_path_ = (folder / (stem + ".tiles.tif")).string();
+    part_path_ = (folder / (stem + ".part.tif")).string();
+    GDALDriver* gtiff = GetGDALDriverManager()->GetDriverByName("GTiff");
+    if (gtiff == nullptr) ThrowInvalid(path + ": GDAL has no GTiff driver");
+    char** options = nullptr;
+    options = CSLSetNameValue(options, "TILED", "YES");
+    options = CSLSetNameValue(options, "BLOCKXSIZE", std::to_string(kBlockSize).c_str());
+    options = CSLSetNameValue(options, "BLOCKYSIZE", std::to_string(kBlockSize).c_str());
+    options = CSLSetNameValue(options, "COMPRESS", "ZSTD");
+    options = CSLSetNameValue(options, "ZSTD_LEVEL", "1");
+    options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
+    options = CSLSetNameValue(options, "SPARSE_OK", "TRUE");
+    QuietGdal quiet;
+    dataset_ = gtiff->Create(tiles_path_.c_str(), grid.width, grid.height, channels + 1,
+                             GDT_Float32, options);
+    CSLDestroy(options);
+    if (dataset_ == nullptr) {
+      ThrowInvalid(path + ": cannot write a temporary GeoTIFF beside it (" + QuietGdal::Last() + ")");
+    }
+    std::array<double, 6> transform = grid.GeoTransform();
+    dataset_->SetGeoTransform(transform.data());
+    if (!wkt.empty()) dataset_->SetProjection(wkt.c_str());
+    const char* rgb[] = {"red", "green", "blue", "alpha"};
+    for (int band = 1; band <= channels + 1; ++band) {
+      GDALRasterBand* raster = dataset_->GetRasterBand(band);
+      raster->SetNoDataValue(std::numeric_limits<double>::quiet_NaN());
+      if (band == channels + 1) {
+        raster->SetDescription("count");
+      } else if (channels == 1) {
+        raster->SetDescription("value");
+      } else {
+        raster->SetDescription(channels <= 4 ? rgb[band - 1] : ("channel " + std::to_string(band)).c_str());
+      }
+    }
+    dataset_->SetMetadataItem("AOS_FOCAL_HEIGHT", FormatNumber(grid.focal_height).c_str());
+    dataset_->SetMetadataItem("AOS_UP", grid.up_z > 0 ? "+z" : "-z");
+  }
+
+  ~GeoTiffWriter() {
+    if (dataset_ != nullptr) GDALClose(dataset_);
+    std::error_code ignored;
+    fs::remove(tiles_path_, ignored);
+    if (!committed_) fs::remove(part_path_, ignored);
+    GDALSetCacheMax64(old_cache_);
+  }
+
+  // Pixels [x0, x0 + w) x [y0, y0 + h): `image` float32 (channels), `count` uint32.
+  void Write(int x0, int y0, const Image& image, const Image& count) {
+    const int w = image.width(), h = image.height();
+    const int bands = channels_ + 1;
+    buffer_.resize(static_cast<size_t>(w) * h * bands);
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (int row = 0; row < h; ++row) {
+      const float* pixel = image.At<float>(0, row);
+      const uint32_t* samples = count.At<uint32_t>(0, row);
+      float* out = buffer_.data() + static_cast<size_t>(row) * w * bands;
+      for (int col = 0; col < w; ++col) {
+        for (int c = 0; c < channels_; ++c) {
+          out[c] = samples[col] == 0 ? nan : pixel[c];
+        }
+        out[channels_] = static_cast<float>(samples[col]);
+        pixel += channels_;
+        out += bands;
+      }
+    }
+    QuietGdal quiet;
+    const GSpacing value = sizeof(float);
+    if (dataset_->RasterIO(GF_Write, x0, y0, w, h, buffer_.data(), w, h, GDT_Float32, bands,
+                           nullptr, value * bands, value * bands * w, value,
+                           nullptr) != CE_None) {
+      ThrowInvalid(path_ + ": writing the temporary GeoTIFF failed (" + QuietGdal::Last() + ")");
+    }
+  }
+
+  // The COG copy and the rename.
+  void Commit(ProgressSink* progress) {
+    buffer_.clear();
+    buffer_.shrink_to_fit();
+    QuietGdal quiet;
+    dataset_->FlushCache();
+    if (CPLGetLastErrorType() >= CE_Failure) {
+      ThrowInvalid(path_ + ": writing the temporary GeoTIFF failed (" + QuietGdal::Last() + ")");
+    }
+    GDALDriver* cog = GetGDALDriverManager()->GetDriverByName("COG");
+    if (cog == nullptr) ThrowInvalid(path_ + ": GDAL has no COG driver (GDAL >= 3.1 needed)");
+    char** options = nullptr;
+    options = CSLSetNameValue(options, "COMPRESS", "DEFLATE");
+    options = CSLSetNameValue(options, "PREDICTOR", "YES");
+    options = CSLSetNameValue(options, "BLOCKSIZE", std::to_string(kBlockSize).c_str());
+    options = CSLSetNameValue(options, "OVERVIEWS", "IGNORE_EXISTING");
+    options = CSLSetNameValue(options, "RESAMPLING", "AVERAGE");
+    options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
+    GdalProgressTarget target{progress, 0};
+    ProgressStart(progress, "write GeoTIFF", 100);
+    GDALDataset* copy =
+        cog->CreateCopy(part_path_.c_str(), dataset_, FALSE, options, GdalProgress, &target);
+    CSLDestroy(options);
+    const std::string error = QuietGdal::Last();
+    bool closed_ok = true;
+    if (copy != nullptr) {
+      CPLErrorReset();
+      GDALClose(copy);  // void before GDAL 3.7: its failure shows as the last error
+      closed_ok = CPLGetLastErrorType() < CE_Failure;
+    }
+    if (ProgressCancelled(progress)) throw Cancelled();
+    if (copy == nullptr || !closed_ok) {
+      ThrowInvalid(path_ + ": writing the Cloud-Optimised GeoTIFF failed (" + error + ")");
+    }
+    ProgressAdvance(progress, 100 - target.done);
+    GDALClose(dataset_);
+    dataset_ = nullptr;
+    if (!write_.force && fs::exists(fs::symlink_status(path_))) {
+      ThrowInvalid(path_ + ": exists (it appeared while the map was written); force replaces it");
+    }
+    std::error_code code;
+    fs::rename(part_path_, path_, code);
+    if (code) ThrowInvalid(path_ + ": cannot move the finished map into place (" + code.message() + ")");
+    committed_ = true;
+  }
+
+ private:
+  MapGrid grid_;
+  int channels_;
+  std::string path_;
+  MapWriteOptions write_;
+  std::string tiles_path_, part_path_;
+  GDALDataset* dataset_ = nullptr;
+  GIntBig old_cache_ = 0;
+  bool committed_ = false;
+  std::vector<float> buffer_;
+};
+
+}  // namespace
+
+void CheckMapCrs(const std::string& crs, const std::string& where) { WktOf(crs, where); }
+
+void CheckMapOutputPath(const std::string& path, const MapWriteOptions& write) {
+  if (path.empty()) ThrowInvalid("output: the map needs a file name");
+  if (write.gdal_cache_mb < 16) ThrowInvalid("gdal_cache_mb: must be >= 16");
+  const fs::path target(path);
+  const fs::path folder = target.has_parent_path() ? target.parent_path() : fs::path(".");
+  std::error_code code;
+  if (!fs::is_directory(folder, code)) {
+    ThrowInvalid(path + ": its folder " + folder.string() + " does not exist");
+  }
+  if (::access(folder.c_str(), W_OK) != 0) {
+    ThrowInvalid(path + ": its folder " + folder.string() + " is not writable");
+  }
+  const fs::file_status status = fs::symlink_status(target, code);
+  if (fs::exists(status)) {
+    if (fs::is_directory(status)) ThrowInvalid(path + ": is a folder");
+    if (!write.force) ThrowInvalid(path + ": exists; force replaces it");
+  }
+}
+
+MapSummary WriteMapGeoTiff(const LightField& light_field, const MapOptions& options,
+                           const std::string& path, const MapWriteOptions& write,
+                           ProgressSink* progress) {
+  const MapGrid grid = ResolveMapGrid(light_field, options);
+  CheckMapCrs(light_field.crs, path);
+  const int channels = light_field.views.front().image.channels();
+  GeoTiffWriter writer(grid, channels, light_field.crs, path, write);
+  MapSummary summary = RenderMapTiles(
+      light_field, options,
+      [&](const MapTile& tile) {
+        writer.Write(tile.x0, tile.y0, tile.result->image, tile.result->count);
+      },
+      progress);
+  writer.Commit(progress);
+  return summary;
+}
+
+void WriteMapGeoTiff(const MapResult& map, const std::string& path, const MapWriteOptions& write) {
+  const MapGrid& grid = map.summary.grid;
+  if (map.image.empty() || map.image.width() != grid.width || map.image.height() != grid.height ||
+      map.count.width() != grid.width || map.count.height() != grid.height) {
+    ThrowInvalid(path + ": the map's image and count do not match its grid");
+  }
+  GeoTiffWriter writer(grid, map.image.channels(), map.crs, path, write);
+  const int rows = kBlockSize * 4;
+  for (int y0 = 0; y0 < grid.height; y0 += rows) {
+    const int h = std::min(rows, grid.height - y0);
+    Image image(grid.width, h, map.image.channels(), PixelType::kF32);
+    Image count(grid.width, h, 1, PixelType::kU32);
+    for (int row = 0; row < h; ++row) {
+      std::copy_n(map.image.At<float>(0, y0 + row),
+                  static_cast<size_t>(grid.width) * map.image.channels(), image.At<float>(0, row));
+      std::copy_n(map.count.At<uint32_t>(0, y0 + row), static_cast<size_t>(grid.width),
+                  count.At<uint32_t>(0, row));
+    }
+    writer.Write(0, y0, image, count);
+  }
+  writer.Commit(nullptr);
+}
+
+}  // namespace aos

@@ -1,0 +1,270 @@
+// Tests of the orthographic map camera (map.h): its grid against hand-computed figures, its render
+// of a plane against the analytic texture and an independent projection of every view, tiling
+// bit for bit, and the GeoTIFF writer's refusals and cleanliness.
+#include "aos/render/map.h"
+
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/util/error.h"
+#include "plane_scene.h"
+#include "render_test_util.h"
+#include "temp_folder.h"
+
+namespace aos {
+namespace {
+
+using ::testing::HasSubstr;
+using test_util::GridCentres;
+using test_util::NadirLightField;
+using test_util::SameImage;
+
+// A linear texture on the ground z = 0: bilinear sampling of point samples reproduces it exactly
+// away from the views' outer half pixel.
+SyntheticScene LinearGround() {
+  SyntheticScene scene;
+  scene.layers.push_back(SceneLayer{Plane::AtHeight(0.0), [](const Vec3d& p, float* value) {
+    value[0] = static_cast<float>(100.0 + 3.0 * p.x + 2.0 * p.y);
+    return true;
+  }});
+  return scene;
+}
+
+// 3 x 3 float views 2 m apart at 20 m, 96 x 80 pixels, 50 degrees (about 0.19 m per view pixel).
+LightField GroundLightField() {
+  return NadirLightField(LinearGround(), PinholeCamera::FromFov(96, 80, 50.0),
+                         GridCentres(3, 2.0, 20.0), PixelType::kF32);
+}
+
+std::string ErrorOf(const std::function<void()>& run) {
+  try {
+    run();
+  } catch (const std::invalid_argument& error) {
+    return error.what();
+  }
+  return "";
+}
+
+TEST(MapGrid, ExtentPixelSizeAndGeoTransform) {
+  LightField light_field = GroundLightField();
+  light_field.origin = Vec3d(500000.0, 5300000.0, 300.0);
+  MapOptions options;
+  options.pixel_size = 0.5;
+  options.extent = {500000.0 - 10.0, 5300000.0 - 5.0, 500000.0 + 10.25, 5300000.0 + 5.0};
+  const MapGrid grid = ResolveMapGrid(light_field, options);
+  EXPECT_EQ(grid.width, 41);  // ceil(20.25 / 0.5): the last column reaches past XMAX
+  EXPECT_EQ(grid.height, 20);
+  const std::array<double, 6> transform = grid.GeoTransform();
+  EXPECT_EQ(transform[0], 499990.0);
+  EXPECT_EQ(transform[1], 0.5);
+  EXPECT_EQ(transform[2], 0.0);
+  EXPECT_EQ(transform[3], 5300005.0);
+  EXPECT_EQ(transform[4], 0.0);
+  EXPECT_EQ(transform[5], -0.5);
+  EXPECT_EQ(grid.up_z, 1.0);
+  // Pixel centres at +0.5, row 0 at the top (largest y).
+  EXPECT_DOUBLE_EQ(grid.CenterX(0), 499990.25);
+  EXPECT_DOUBLE_EQ(grid.CenterY(0), 5300004.75);
+  // The focal points: local frame, relative to the map's centre, on the plane.
+  const FocalPoints points = MapFocalPoints(grid, 0, 0, 2, 1);
+  EXPECT_DOUBLE_EQ(points.reference.x + points.points[0].x, -9.75);
+  EXPECT_DOUBLE_EQ(points.reference.y + points.points[0].y, 4.75);
+  EXPECT_DOUBLE_EQ(points.reference.z + points.points[0].z, 0.0);
+  EXPECT_DOUBLE_EQ(points.reference.x + points.points[1].x, -9.25);
+  // A pixel count instead of a size.
+  options.pixel_size = 0.0;
+  options.width = 81;
+  EXPECT_DOUBLE_EQ(ResolveMapGrid(light_field, options).pixel_size, 20.25 / 81);
+}
+
+TEST(MapGrid, DefaultExtentIsTheFootprintsWidenedToWholePixels) {
+  // One nadir view at (1, 2, 20) through a 96 x 80, 50-degree pinhole: its footprint on z = 0
+  // is 20 * tan(25 deg) to each side, 80/96 of that above and below.
+  const PinholeCamera camera = PinholeCamera::FromFov(96, 80, 50.0);
+  const LightField light_field =
+      NadirLightField(LinearGround(), camera, {Vec3d(1.0, 2.0, 20.0)}, PixelType::kF32);
+  MapOptions options;
+  options.pixel_size = 0.25;
+  const MapGrid grid = ResolveMapGrid(light_field, options);
+  const double half_x = 20.0 * 48.0 / camera.fx, half_y = 20.0 * 40.0 / camera.fy;
+  EXPECT_DOUBLE_EQ(grid.x_min, std::floor((1.0 - half_x) / 0.25) * 0.25);
+  EXPECT_DOUBLE_EQ(grid.y_max, std::ceil((2.0 + half_y) / 0.25) * 0.25);
+  EXPECT_EQ(grid.width, static_cast<int>(std::round(
+                            (std::ceil((1.0 + half_x) / 0.25) * 0.25 - grid.x_min) / 0.25)));
+  // The focal plane above the views: up is -z (as for a z-down frame).
+  options.focal_height = 40.0;
+  options.extent = {-5.0, -5.0, 5.0, 5.0};
+  EXPECT_EQ(ResolveMapGrid(light_field, options).up_z, -1.0);
+}
+
+TEST(MapGrid, RefusesBadSizesNamingTheField) {
+  const LightField light_field = GroundLightField();
+  MapOptions options;
+  options.extent = {-10.0, -10.0, 10.0, 10.0};
+  options.pixel_size = -1.0;
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("pixel_size:"));
+  options.pixel_size = 0.0;
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("pixel_size:"));
+  options.pixel_size = 1e-4;  // 2e5 x 2e5 pixels
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }),
+              HasSubstr("pixel_size: 0.0001 m over the extent 20 x 20 m makes 200000 x 200000"));
+  options.pixel_size = 50.0;  // one pixel
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }),
+              HasSubstr("pixel_size: 50 m over the extent 20 x 20 m makes a map of 1 x 1 pixels"));
+  options.pixel_size = 0.5;
+  options.extent = {10.0, -10.0, -10.0, 10.0};
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }),
+              HasSubstr("extent: XMAX must exceed XMIN"));
+  options.extent = {-10.0, -10.0, 10.0};
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("extent:"));
+  options.extent = {-10.0, -10.0, 10.0, 10.0};
+  options.focal_height = 20.0;  // the views' mean centre lies on the plane
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("focal_height:"));
+}
+
+// The views that see world point X (a nadir pinhole each): projected inside the image.
+int ViewsSeeing(const LightField& light_field, const Vec3d& point) {
+  int seen = 0;
+  for (const View& view : light_field.views) {
+    const Vec3d in_cam = view.cam_from_world.rotation * point + view.cam_from_world.translation;
+    const PinholeCamera camera = view.camera.Pinhole();
+    const double u = camera.fx * in_cam.x / in_cam.z + camera.cx;
+    const double v = camera.fy * in_cam.y / in_cam.z + camera.cy;
+    seen += in_cam.z > 0 && u >= 0 && u <= camera.width && v >= 0 && v <= camera.height;
+  }
+  return seen;
+}
+
+TEST(MapRender, PlaneComesBackAsItsTextureWithTheViewsThatSeeIt) {
+  const LightField light_field = GroundLightField();
+  MapOptions options;
+  options.pixel_size = 0.3;
+  options.extent = {-14.0, -12.0, 14.0, 12.0};  // wider than the footprints: some pixels unseen
+  const MapResult map = RenderMap(light_field, options);
+  const MapGrid& grid = map.summary.grid;
+  ASSERT_EQ(map.image.width(), grid.width);
+  int64_t checked = 0, uncovered = 0;
+  for (int row = 0; row < grid.height; ++row) {
+    for (int col = 0; col < grid.width; ++col) {
+      const Vec3d point(grid.CenterX(col), grid.CenterY(row), 0.0);
+      const int expected_count = ViewsSeeing(light_field, point);
+      ASSERT_EQ(*map.count.At<uint32_t>(col, row), static_cast<uint32_t>(expected_count))
+          << "pixel " << col << ", " << row;
+      if (expected_count == 0) {
+        EXPECT_EQ(*map.image.At<float>(col, row), 0.0f);
+        ++uncovered;
+        continue;
+      }
+      // Exact for a linear texture, but for taps in a view's outer half pixel (edges
+      // replicated): at most |gradient| * half a view pixel (sqrt(13) * 0.1 m = 0.37).
+      const double truth = 100.0 + 3.0 * point.x + 2.0 * point.y;
+      EXPECT_NEAR(*map.image.At<float>(col, row), truth, 0.37) << "pixel " << col << ", " << row;
+      ++checked;
+    }
+  }
+  EXPECT_GT(checked, 2000);
+  EXPECT_GT(uncovered, 100);
+  EXPECT_EQ(map.summary.uncovered_pixels, uncovered);
+}
+
+TEST(MapRender, ApertureKeepsOnlyViewsWithinTheHorizontalRadius) {
+  const LightField light_field = GroundLightField();  // centres 2 m apart around (0, 0)
+  MapOptions options;
+  options.pixel_size = 0.5;
+  options.extent = {-1.0, -1.0, 1.0, 1.0};
+  options.aperture_radius = 2.5;  // pixel centres within 0.75 m of the origin
+  const MapResult map = RenderMap(light_field, options);
+  for (int row = 0; row < map.summary.grid.height; ++row) {
+    for (int col = 0; col < map.summary.grid.width; ++col) {
+      const double x = map.summary.grid.CenterX(col), y = map.summary.grid.CenterY(row);
+      int expected = 0;
+      for (const View& view : light_field.views) {
+        const Vec3d c = view.cam_from_world.Center();
+        expected += std::hypot(c.x - x, c.y - y) <= 2.5;
+      }
+      EXPECT_EQ(*map.count.At<uint32_t>(col, row), static_cast<uint32_t>(expected));
+    }
+  }
+}
+
+TEST(MapRender, TilesChangeNoBit) {
+  LightField light_field = GroundLightField();
+  light_field.origin = Vec3d(600000.0, 5200000.0, 0.0);  // UTM-sized world coordinates
+  MapOptions options;
+  options.pixel_size = 0.17;
+  options.tile_size = 4096;
+  const MapResult whole = RenderMap(light_field, options);
+  options.tile_size = 16;  // many tiles, ragged at the right and bottom
+  const MapResult tiled = RenderMap(light_field, options);
+  EXPECT_GT(tiled.summary.tiles, 20);
+  EXPECT_EQ(whole.summary.tiles, 1);
+  EXPECT_TRUE(SameImage(whole.image, tiled.image));
+  EXPECT_TRUE(SameImage(whole.count, tiled.count));
+}
+
+class MapWrite : public testing_util::TempFolderTest {
+ protected:
+  std::vector<std::string> Files() const {
+    std::vector<std::string> names;
+    for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
+      names.push_back(entry.path().filename().string());
+    }
+    std::sort(names.begin(), names.end());
+    return names;
+  }
+};
+
+TEST_F(MapWrite, WritesOneFileAndRefusesWhatItShould) {
+  LightField light_field = GroundLightField();
+  light_field.crs = "EPSG:32633";
+  MapOptions options;
+  options.pixel_size = 0.08;
+  const std::string path = Path("map.tif");
+  const MapSummary summary = WriteMapGeoTiff(light_field, options, path);
+  EXPECT_EQ(Files(), std::vector<std::string>{"map.tif"});
+  EXPECT_GT(std::filesystem::file_size(path), 1000u);
+  EXPECT_GT(summary.grid.width, 256);  // larger than a block: overviews are made
+  // An existing output without force; with force it is replaced.
+  EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, path); }),
+              HasSubstr("map.tif: exists"));
+  WriteMapGeoTiff(light_field, options, path, MapWriteOptions{true});
+  EXPECT_EQ(Files(), std::vector<std::string>{"map.tif"});
+  // A missing folder, a folder as output, a CRS GDAL does not know: nothing written.
+  EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, Path("no/map.tif")); }),
+              HasSubstr("does not exist"));
+  EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, dir_.string()); }),
+              HasSubstr("is a folder"));
+  light_field.crs = "EPSG:999999";
+  EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, Path("other.tif")); }),
+              HasSubstr("crs: 'EPSG:999999'"));
+  EXPECT_EQ(Files(), std::vector<std::string>{"map.tif"});
+}
+
+// Stops after the first tile row.
+class StopAfterFirstRow : public ProgressSink {
+ public:
+  void Start(const std::string&, int64_t) override {}
+  void Advance(int64_t units) override { done_ += units; }
+  bool Cancelled() override { return done_ > 0; }
+
+ private:
+  std::atomic<int64_t> done_{0};
+};
+
+TEST_F(MapWrite, CancelLeavesNoFile) {
+  const LightField light_field = GroundLightField();
+  MapOptions options;
+  options.pixel_size = 0.1;
+  options.tile_size = 64;
+  options.num_threads = 1;
+  StopAfterFirstRow stop;
+  EXPECT_THROW(WriteMapGeoTiff(light_field, options, Path("map.tif"), {}, &stop), Cancelled);
+  EXPECT_TRUE(Files().empty());
+}
+
+}  // namespace
+}  // namespace aos

@@ -1,0 +1,292 @@
+"""Maps (aos-render map, aos.render_map): orthographic renders written as Cloud-Optimised GeoTIFFs,
+read back independently with rasterio. A simulated flight over a dark ground with one bright
+target at a known position checks that the geotransform places pixels where they are; the CRS,
+overviews, nodata/count band, tiling bit for bit, an independent numpy reference, the z-down rule
+and bad input that leaves nothing behind."""
+
+from __future__ import annotations
+
+import json
+import math
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import aos
+
+rasterio = pytest.importorskip("rasterio")
+
+EXE = shutil.which("aos-render")
+
+TARGET = (3.0, -2.0)  # local x, y of the bright 1 m x 1 m target's centre
+ORIGIN = (600000.0, 5200000.0, 0.0)  # UTM-sized world coordinates
+ALTITUDE = 20.0
+HALF_FOOTPRINT = ALTITUDE * math.tan(math.radians(30.0))  # 64 x 64 views, 60 degrees
+
+SCENE = {
+    "ground": {"texture": {"type": "constant", "color": 0.1}},
+    "targets": [{"center": list(TARGET), "size": [1.0, 1.0],
+                 "texture": {"type": "constant", "color": 0.95}}],
+    "camera": {"width": 64, "height": 64, "fov_deg": 60},
+    "sampling": {"altitude": ALTITUDE, "grid": 3, "aperture": {"diameter": 6}},
+    "truth": {"width": 8, "height": 8, "blocked_fraction": False},
+}
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    assert EXE is not None
+    return subprocess.run([EXE, *args], capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def flight() -> aos.LightField:
+    light_field = aos.simulate(SCENE).light_field
+    light_field.origin = ORIGIN
+    light_field.crs = "EPSG:32633"
+    return light_field
+
+
+@pytest.fixture(scope="module")
+def flight_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("sim") / "flight"
+    scene = folder.parent / "scene.json"
+    scene.write_text(json.dumps(SCENE))
+    result = run("simulate", str(scene), "-o", str(folder), "-q")
+    assert result.returncode == 0, result.stderr
+    return folder / "lightfield.json"
+
+
+def expected_count(light_field: aos.LightField, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Views whose (square, nadir) footprint on z = 0 holds each local point."""
+    count = np.zeros(x.shape, dtype=np.int64)
+    for view in light_field.views:
+        cx, cy, _ = view.cam_from_world.center
+        count += (np.abs(x - cx) <= HALF_FOOTPRINT) & (np.abs(y - cy) <= HALF_FOOTPRINT)
+    return count
+
+
+def test_a_simulated_flight_lands_where_the_geotransform_says(
+        flight: aos.LightField, tmp_path: Path) -> None:
+    path = tmp_path / "map.tif"
+    # Wider than the footprints, so that some pixels are seen by no view.
+    extent = [ORIGIN[0] - 20.0, ORIGIN[1] - 18.0, ORIGIN[0] + 20.0, ORIGIN[1] + 18.0]
+    result = aos.render_map(flight, pixel_size=0.1, extent=extent, path=path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["map.tif"]  # no temporary files
+    assert result.geotransform == (extent[0], 0.1, 0.0, extent[3], 0.0, -0.1)
+    assert (result.width, result.height) == (400, 360)
+    with rasterio.open(path) as src:
+        assert src.crs == rasterio.crs.CRS.from_epsg(32633)
+        assert src.count == 2 and src.descriptions == ("value", "count")
+        assert src.width == 400 and src.height == 360
+        assert src.transform.almost_equals(rasterio.Affine(0.1, 0.0, extent[0], 0.0, -0.1, extent[3]))
+        assert src.overviews(1) == [2] and src.overviews(2) == [2]  # down to one 256 block
+        assert src.tags(ns="IMAGE_STRUCTURE").get("LAYOUT") == "COG"
+        value = src.read(1)
+        count = src.read(2)
+        masked = src.read(1, masked=True)
+        # The target's centre, through rasterio's own inverse of the geotransform.
+        row, col = src.index(ORIGIN[0] + TARGET[0], ORIGIN[1] + TARGET[1])
+        x, y = src.xy(row, col)  # that pixel's centre
+    half = 0.05 + 1e-6  # half a pixel (the target centre lies on a pixel edge here)
+    assert abs(x - (ORIGIN[0] + TARGET[0])) <= half and abs(y - (ORIGIN[1] + TARGET[1])) <= half
+    assert value[row, col] > 0.9 * 0.95 * 255  # bright: the target is there
+    # The target's intensity-weighted centroid lies within half a pixel of its true centre.
+    excess = np.where(np.isfinite(value), value - 0.1 * 255, 0.0)
+    excess[excess < 0.2 * 0.85 * 255] = 0.0
+    rows, cols = np.nonzero(excess)
+    weights = excess[rows, cols]
+    centroid_x = extent[0] + (np.sum(weights * (cols + 0.5)) / weights.sum()) * 0.1
+    centroid_y = extent[3] - (np.sum(weights * (rows + 0.5)) / weights.sum()) * 0.1
+    assert abs(centroid_x - (ORIGIN[0] + TARGET[0])) < 0.05
+    assert abs(centroid_y - (ORIGIN[1] + TARGET[1])) < 0.05
+    # Count band: the views whose footprint holds the pixel centre (away from footprint edges);
+    # count 0 is nodata (NaN) in the value band, masked by rasterio.
+    cols_all, rows_all = np.meshgrid(np.arange(400), np.arange(360))
+    local_x = extent[0] - ORIGIN[0] + (cols_all + 0.5) * 0.1
+    local_y = extent[3] - ORIGIN[1] - (rows_all + 0.5) * 0.1
+    truth = expected_count(flight, local_x, local_y)
+    near_edge = np.zeros(truth.shape, dtype=bool)
+    for view in flight.views:
+        cx, cy, _ = view.cam_from_world.center
+        for distance in (np.abs(local_x - cx), np.abs(local_y - cy)):
+            near_edge |= np.abs(distance - HALF_FOOTPRINT) < 1e-6
+    assert not near_edge.any()
+    np.testing.assert_array_equal(count, truth.astype(np.float32))
+    assert (truth == 0).sum() > 1000 and result.uncovered_pixels == (truth == 0).sum()
+    assert np.isnan(value[truth == 0]).all() and np.isfinite(value[truth > 0]).all()
+    np.testing.assert_array_equal(masked.mask, truth == 0)
+    # The file holds what was returned.
+    np.testing.assert_array_equal(result.count, count.astype(np.uint32))
+    np.testing.assert_array_equal(result.image[truth > 0], value[truth > 0])
+    assert (result.image[truth == 0] == 0).all()
+
+
+def test_the_map_agrees_with_a_numpy_reference(flight: aos.LightField) -> None:
+    result = aos.render_map(flight, pixel_size=0.13, focal_height=0.0)
+    x0, p, _, y0, _, _ = result.geotransform
+    rng = np.random.default_rng(5)
+    rows = rng.integers(0, result.height, 300)
+    cols = rng.integers(0, result.width, 300)
+    views = [(v.cam_from_world, v.camera, v.image.astype(np.float64)) for v in flight.views]
+    checked = 0
+    for row, col in zip(rows, cols):
+        point = np.array([x0 + (col + 0.5) * p - ORIGIN[0], y0 - (row + 0.5) * p - ORIGIN[1], 0.0])
+        samples = []
+        for pose, camera, image in views:
+            in_cam = pose.rotation @ point + pose.translation
+            if in_cam[2] <= 0:
+                continue
+            u = camera.fx * in_cam[0] / in_cam[2] + camera.cx
+            v = camera.fy * in_cam[1] / in_cam[2] + camera.cy
+            if not (0 <= u <= camera.width and 0 <= v <= camera.height):
+                continue
+            # Bilinear at pixel centres +0.5, edges replicated.
+            sx, sy = u - 0.5, v - 0.5
+            ix, iy = math.floor(sx), math.floor(sy)
+            ax, ay = sx - ix, sy - iy
+            h, w = image.shape
+            def tap(i: int, j: int) -> float:
+                return image[min(max(j, 0), h - 1), min(max(i, 0), w - 1)]
+            top = tap(ix, iy) + ax * (tap(ix + 1, iy) - tap(ix, iy))
+            bottom = tap(ix, iy + 1) + ax * (tap(ix + 1, iy + 1) - tap(ix, iy + 1))
+            samples.append(top + ay * (bottom - top))
+        assert result.count[row, col] == len(samples)
+        if samples:
+            assert result.image[row, col] == pytest.approx(np.mean(samples), abs=1e-3)
+            checked += 1
+    assert checked > 250
+
+
+def test_cli_map_tiles_change_no_bit_and_report(flight_file: Path, tmp_path: Path) -> None:
+    whole, tiled = tmp_path / "whole.tif", tmp_path / "tiled.tif"
+    result = run("map", str(flight_file), "--pixel-size", "0.09", "--tile-size", "8192",
+                 "-o", str(whole), "--json")
+    assert result.returncode == 0, result.stderr
+    report = json.loads(result.stdout)
+    assert report["tiles"] == 1 and report["crs"] == ""
+    # No CRS in the light field: a warning, and a map without one.
+    assert "has no CRS" in result.stderr
+    result = run("map", str(flight_file), "--pixel-size", "0.09", "--tile-size", "40",
+                 "-o", str(tiled), "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["tiles"] > 50
+    with rasterio.open(whole) as a, rasterio.open(tiled) as b:
+        assert a.crs is None
+        assert a.transform == b.transform
+        # The default extent: the footprints (3 x 3 views 3 m apart), widened to whole pixels.
+        assert a.bounds.left <= -3.0 - HALF_FOOTPRINT < a.bounds.left + 0.09
+        assert a.bounds.top - 0.09 < 3.0 + HALF_FOOTPRINT <= a.bounds.top
+        assert np.array_equal(a.read(), b.read(), equal_nan=True)
+
+
+def test_z_down_frames_map_in_their_own_x_y(flight: aos.LightField) -> None:
+    # The same flight in a z-down frame (x, y, z) -> (x, -y, -z), as JKU/F0 poses are: up is
+    # -z, and the target at local (3, -2) is at (3, 2) in the new frame's x/y.
+    flip = np.diag([1.0, -1.0, -1.0])
+    down = aos.LightField()
+    for view in flight.views:
+        pose = view.cam_from_world
+        down.add_view(view.image, view.camera,
+                      aos.Rigid3d(pose.rotation @ flip, pose.translation), name=view.name)
+    result = aos.render_map(down, pixel_size=0.1, focal_height=0.0)
+    assert result.up_z == -1.0
+    x0, p, _, y0, _, _ = result.geotransform
+    col = int((TARGET[0] - x0) // p)
+    row = int((y0 - (-TARGET[1])) // p)
+    assert result.image[row, col] > 0.9 * 0.95 * 255
+    # The original z-up frame has it at y = -2, and nothing bright at y = +2.
+    up = aos.render_map(flight, pixel_size=0.1, focal_height=0.0)
+    assert up.up_z == 1.0
+    ux0, up_p, _, uy0, _, _ = up.geotransform
+    ucol = int((ORIGIN[0] + TARGET[0] - ux0) // up_p)
+    assert up.image[int((uy0 - (ORIGIN[1] + TARGET[1])) // up_p), ucol] > 0.9 * 0.95 * 255
+    assert up.image[int((uy0 - (ORIGIN[1] - TARGET[1])) // up_p), ucol] < 0.2 * 255
+
+
+def snapshot(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir()) if p.is_file()}
+
+
+@pytest.mark.parametrize("args, names", [
+    (["--pixel-size", "0"], "--pixel-size"),
+    (["--pixel-size", "-0.1"], "--pixel-size"),
+    (["--pixel-size", "0.1", "--extent", "10", "0", "-10", "5"], "--extent"),
+    (["--pixel-size", "1e-5"], "--pixel-size"),  # 3 x 10^12 pixels
+    (["--pixel-size", "500"], "--pixel-size"),  # one pixel
+])
+def test_cli_bad_sizes_write_nothing(flight_file: Path, tmp_path: Path, args: list[str],
+                                     names: str) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    result = run("map", str(flight_file), *args, "-o", str(out / "map.tif"))
+    assert result.returncode != 0
+    lines = [line for line in result.stderr.splitlines() if "error" in line]
+    assert len(lines) == 1 and names in lines[0], result.stderr
+    assert not any(out.iterdir())
+
+
+def test_cli_bad_outputs_write_nothing(flight_file: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    out.mkdir()
+    existing = out / "map.tif"
+    existing.write_bytes(b"keep me")
+    before = snapshot(out)
+    result = run("map", str(flight_file), "--pixel-size", "0.1", "-o", str(existing))
+    assert result.returncode != 0 and "map.tif" in result.stderr and "--force" in result.stderr
+    assert len(result.stderr.strip().splitlines()) == 1
+    assert snapshot(out) == before
+    for target in (out / "missing" / "map.tif", Path("/proc/aos_map_test.tif")):
+        result = run("map", str(flight_file), "--pixel-size", "0.1", "-o", str(target))
+        assert result.returncode != 0 and str(target) in result.stderr, result.stderr
+        errors = [line for line in result.stderr.splitlines() if "error" in line]
+        assert len(errors) == 1
+    assert snapshot(out) == before
+    # Never over an input, --force or not: the light field or a frame (data loss otherwise).
+    frames = flight_file.parent / "views"
+    frame_before = (frames / "0003.png").read_bytes()
+    for target in (flight_file, frames / "0003.png"):
+        result = run("map", str(flight_file), "--pixel-size", "0.1", "-o", str(target), "--force")
+        assert result.returncode != 0 and "input" in result.stderr, result.stderr
+    assert (frames / "0003.png").read_bytes() == frame_before
+    assert sorted(p.name for p in frames.iterdir())[0] == "0000.png"
+    # --force replaces it with a GeoTIFF.
+    result = run("map", str(flight_file), "--pixel-size", "0.1", "-o", str(existing), "--force",
+                 "-q")
+    assert result.returncode == 0, result.stderr
+    assert sorted(p.name for p in out.iterdir()) == ["map.tif"]
+    with rasterio.open(existing) as src:
+        assert src.count == 2
+
+
+def test_python_errors_name_the_field_or_file(flight: aos.LightField, flight_file: Path,
+                                              tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="pixel_size"):
+        aos.render_map(flight, pixel_size=-1.0)
+    with pytest.raises(ValueError, match="extent"):
+        aos.render_map(flight, pixel_size=0.1, extent=[1.0, 0.0, 0.0, 1.0])
+    with pytest.raises(TypeError, match="unexpected keyword argument .pixel_sise."):
+        aos.render_map(flight, pixel_sise=0.1)  # type: ignore[call-arg]
+    path = tmp_path / "map.tif"
+    path.write_bytes(b"x")
+    with pytest.raises(ValueError, match="map.tif: exists"):
+        aos.render_map(flight, pixel_size=0.1, path=path)
+    bad = aos.LightField()
+    for view in flight.views:
+        bad.add_view(view.image, view.camera, view.cam_from_world)
+    bad.crs = "EPSG:999999"
+    with pytest.raises(ValueError, match="EPSG:999999"):
+        aos.render_map(bad, pixel_size=0.1, path=tmp_path / "other.tif")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["map.tif"]
+    # Never over a frame of the light field, even with force.
+    loaded = aos.load_lightfield(str(flight_file)).light_field
+    frame = Path(loaded.views[0].image_path)
+    before = frame.read_bytes()
+    with pytest.raises(ValueError, match="input"):
+        aos.render_map(loaded, pixel_size=0.1, path=frame, force=True)
+    assert frame.read_bytes() == before
+    # A pixel count instead of a size.
+    by_width = aos.render_map(flight, width=100)
+    assert by_width.width == 100
