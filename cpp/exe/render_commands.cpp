@@ -544,6 +544,7 @@ struct MapCommand {
   std::string light_field_path;
   LoadOptions load;
   MapOptions options;
+  std::string focal_surface;  // --focal-surface FILE (mesh or DEM raster)
   std::string views;
   std::string output;
 };
@@ -560,6 +561,14 @@ int RunMap(MapCommand& c, const Flags& flags) {
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
   c.load.num_threads = c.options.num_threads;
+  // The surface first: a bad mesh or DEM fails before the frames are loaded.
+  if (!c.focal_surface.empty()) {
+    c.options.focal_surface =
+        std::make_shared<const FocalSurface>(FocalSurface::Read(c.focal_surface));
+    if (!Common().quiet && !Common().json) {
+      std::fprintf(stderr, "focal surface: %s\n", c.options.focal_surface->Describe().c_str());
+    }
+  }
   const LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
   progress.Finish();
@@ -578,9 +587,11 @@ int RunMap(MapCommand& c, const Flags& flags) {
          "will place it in the frame's own coordinates (origin + local), not on the Earth");
   }
   if (!Common().quiet && !Common().json) {
-    std::fprintf(stderr, "map: %d x %d pixels of %s m, up %s, focal plane z = %s (local)\n",
-                 grid.width, grid.height, FormatNumber(grid.pixel_size).c_str(),
-                 UpText(grid).c_str(), FormatNumber(grid.focal_height).c_str());
+    const std::string focus =
+        grid.surface ? "focal surface offset " + FormatNumber(grid.placement.offset) + " m"
+                     : "focal plane z = " + FormatNumber(grid.focal_height) + " (local)";
+    std::fprintf(stderr, "map: %d x %d pixels of %s m, up %s, %s\n", grid.width, grid.height,
+                 FormatNumber(grid.pixel_size).c_str(), UpText(grid).c_str(), focus.c_str());
   }
   const MapSummary summary = flags.NamingFlags(
       [&] { return WriteMapGeoTiff(light_field, c.options, c.output, write, &progress); });
@@ -631,7 +642,14 @@ CommandRunner DefineMap(CLI::App* command) {
                  "views' footprints on the focal plane)")
       ->expected(4);
   flags.Field("focal_height", options.focal_height,
-              "Horizontal focal plane z = H (local frame, metres)");
+              "Horizontal focal plane z = H (local frame, metres), without --focal-surface");
+  flags.Describe("focal_surface", "--focal-surface");
+  command->add_option("--focal-surface", c->focal_surface,
+                      "Focus on a terrain instead of the plane: an OBJ or PLY mesh, or a DEM "
+                      "raster GDAL reads, in world coordinates; pixels whose vertical line misses "
+                      "it are nodata");
+  flags.Field("surface_offset", options.surface_offset,
+              "Move the focal surface this far along up (towards the views), metres");
   flags.Parsed("--aperture-radius", "aperture_radius", options.aperture_radius, ParseRadius,
                RadiusText(options.aperture_radius),
                "Horizontal distance from the focal point to a view centre, metres; 0 = the "

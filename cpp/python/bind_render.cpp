@@ -338,7 +338,20 @@ void BindMap(py::module_& m) {
              "World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the selected views' "
              "footprints on the focal plane.")
       .Field("focal_height", &MapOptions::focal_height,
-             "Height of the horizontal focal plane z = focal_height, local frame, metres.")
+             "Height of the horizontal focal plane z = focal_height, local frame, metres (without "
+             "a focal_surface).")
+      .Property(
+          "focal_surface",
+          [](const MapOptions& o) -> py::object {
+            if (!o.focal_surface) return py::none();
+            return py::cast(*o.focal_surface);
+          },
+          [](MapOptions& o, const py::object& value) { o.focal_surface = SurfaceFromPython(value); },
+          "A terrain to focus on instead of the plane: FocalSurface, Mesh or Heightfield; None = "
+          "the plane z = focal_height.")
+      .Field("surface_offset", &MapOptions::surface_offset,
+             "Offset of focal_surface along up (towards the views), metres; must be 0 without a "
+             "focal_surface.")
       .Field("aperture_radius", &MapOptions::aperture_radius,
              "Horizontal distance from the focal point to a view centre, metres; 0 = the single "
              "nearest view, inf = every view.")

@@ -656,6 +656,8 @@ class MapOptions:
         width: int = ...,
         extent: Sequence[float] = ...,
         focal_height: float = ...,
+        focal_surface: _SurfaceLike | None = ...,
+        surface_offset: float = ...,
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
@@ -674,6 +676,13 @@ class MapOptions:
     def extent(self, value: Sequence[float]) -> None: ...
     focal_height: float
     """Horizontal focal plane z = focal_height, local frame, metres."""
+    @property
+    def focal_surface(self) -> Optional[FocalSurface]:
+        """A terrain to focus on instead of the plane; None = the plane."""
+    @focal_surface.setter
+    def focal_surface(self, value: _SurfaceLike | None) -> None: ...
+    surface_offset: float
+    """Offset of focal_surface along up (towards the views), metres; 0 without a surface."""
     aperture_radius: float
     """Horizontal distance focal point - view centre, metres; 0 = nearest view, inf = all."""
     @property

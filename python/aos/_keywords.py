@@ -75,6 +75,8 @@ class MapKeywords(TypedDict, total=False):
     width: int
     extent: Sequence[float]
     focal_height: float
+    focal_surface: Union[FocalSurface, Mesh, Heightfield, PlaneLike, None]
+    surface_offset: float
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float

@@ -290,3 +290,49 @@ def test_python_errors_name_the_field_or_file(flight: aos.LightField, flight_fil
     # A pixel count instead of a size.
     by_width = aos.render_map(flight, width=100)
     assert by_width.width == 100
+
+
+def test_a_map_on_a_dem_is_the_map_on_its_plane_and_holes_are_nodata(
+        flight: aos.LightField, flight_file: Path, tmp_path: Path) -> None:
+    """The focal surface of a map: a flat DEM at world z = ORIGIN z + h (with the offset making up
+    the rest) renders the map of the plane z = h to float rounding; a nodata hole in the DEM is
+    nodata (count 0) in the map; the CLI takes the DEM as --focal-surface."""
+    h, offset = 0.5, 0.25
+    x0, y0 = ORIGIN[0] - 20.0, ORIGIN[1] + 20.0  # DEM's top-left corner (world)
+    heights = np.full((40, 40), ORIGIN[2] + h - offset, np.float32)
+    heights[18:22, 30:34] = np.nan  # a hole: world x 10..14, y -2..2 around the local frame
+    dem = aos.Heightfield(heights, (x0, 1.0, 0.0, y0, 0.0, -1.0))
+    extent = [ORIGIN[0] - 9.0, ORIGIN[1] - 9.0, ORIGIN[0] + 15.0, ORIGIN[1] + 9.0]
+    plane = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_height=h)
+    on_dem = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=dem,
+                            surface_offset=offset)
+    assert on_dem.geotransform == plane.geotransform
+    # The DEM's triangles cover pixel centres from x0 + 0.5 to x0 + 39.5 (cell centres), except
+    # the cells touching the hole: world x in (x0 + 29.5, x0 + 34.5), y in (y0 - 22.5, y0 - 17.5).
+    rows, cols = np.mgrid[0:plane.count.shape[0], 0:plane.count.shape[1]]
+    gt = plane.geotransform
+    wx = gt[0] + (cols + 0.5) * gt[1]
+    wy = gt[3] + (rows + 0.5) * gt[5]
+    in_hole = (wx > x0 + 29.5) & (wx < x0 + 34.5) & (wy < y0 - 17.5) & (wy > y0 - 22.5)
+    assert in_hole.any()
+    assert np.all(on_dem.count[in_hole] == 0)
+    keep = ~in_hole
+    np.testing.assert_array_equal(on_dem.count[keep], plane.count[keep])
+    np.testing.assert_allclose(on_dem.image[keep], plane.image[keep], atol=1e-4)
+    # Without a surface an offset is refused, naming the field.
+    with pytest.raises(ValueError, match="surface_offset: needs a focal_surface"):
+        aos.render_map(flight, pixel_size=0.25, extent=extent, surface_offset=1.0)
+    # The CLI takes the DEM as --focal-surface. The simulated file keeps origin 0, so its DEM
+    # and extent are in the local frame.
+    local_dem = aos.Heightfield(np.full((40, 40), h - offset, np.float32),
+                                (-20.0, 1.0, 0.0, 20.0, 0.0, -1.0))
+    local_dem.write(str(tmp_path / "dem.tif"))
+    local_extent = [str(v - o) for v, o in zip(extent, [ORIGIN[0], ORIGIN[1]] * 2)]
+    result = run("map", str(flight_file), "--pixel-size", "0.25", "--extent", *local_extent,
+                 "--focal-surface", str(tmp_path / "dem.tif"), "--surface-offset", str(offset),
+                 "-o", str(tmp_path / "map.tif"), "-q")
+    assert result.returncode == 0, result.stderr
+    with rasterio.open(tmp_path / "map.tif") as written:
+        assert written.tags()["AOS_SURFACE_OFFSET"] == "0.25"
+        expected = np.where(plane.count > 0, plane.image, np.nan)  # nodata where no view sees
+        np.testing.assert_allclose(written.read(1), expected, atol=1e-4)

@@ -77,6 +77,11 @@ class TileProgress : public ProgressSink {
 }  // namespace
 
 void MapOptions::Check(int view_count) const {
+  if (!std::isfinite(surface_offset)) ThrowInvalid("surface_offset: must be finite metres");
+  if (surface_offset != 0.0 && !focal_surface) {
+    ThrowInvalid("surface_offset: needs a focal_surface (got " + Num(surface_offset) +
+                 " m without one; move a plane with focal_height)");
+  }
   if (!(pixel_size >= 0.0) || !std::isfinite(pixel_size)) {
     ThrowInvalid("pixel_size: must be > 0 and finite, metres (got " + Num(pixel_size) + ")");
   }
@@ -131,17 +136,30 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
   grid.origin = light_field.origin;
   grid.focal_height = options.focal_height;
 
-  // Up: the z direction from the focal plane towards the views' mean centre.
-  double mean_z = 0.0;
-  for (int index : selection) {
-    mean_z += light_field.views[static_cast<size_t>(index)].cam_from_world.Center().z;
+  // Up: the z direction from the focal plane (or surface) towards the views' mean centre.
+  double plane_z = options.focal_height;
+  if (options.focal_surface) {
+    grid.surface = options.focal_surface;
+    grid.placement = ResolveSurfacePlacement(*options.focal_surface, light_field,
+                                             options.view_indices, options.surface_offset);
+    grid.up_z = grid.placement.up.z;
+    // The default extent's plane and the points' reference height: through the surface's
+    // reference point, offset.
+    plane_z = options.focal_surface->ReferencePoint(light_field.origin).z +
+              grid.placement.offset * grid.up_z;
+    grid.focal_height = plane_z;
+  } else {
+    double mean_z = 0.0;
+    for (int index : selection) {
+      mean_z += light_field.views[static_cast<size_t>(index)].cam_from_world.Center().z;
+    }
+    mean_z /= static_cast<double>(selection.size());
+    if (mean_z == options.focal_height) {
+      ThrowInvalid("focal_height: the views' mean centre lies on the focal plane (z = " +
+                   Num(mean_z) + "), so up is undefined");
+    }
+    grid.up_z = mean_z > options.focal_height ? 1.0 : -1.0;
   }
-  mean_z /= static_cast<double>(selection.size());
-  if (mean_z == options.focal_height) {
-    ThrowInvalid("focal_height: the views' mean centre lies on the focal plane (z = " +
-                 Num(mean_z) + "), so up is undefined");
-  }
-  grid.up_z = mean_z > options.focal_height ? 1.0 : -1.0;
 
   // Extent in world x/y.
   double lo[2], hi[2];
@@ -155,8 +173,7 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
     lo[0] = lo[1] = std::numeric_limits<double>::infinity();
     hi[0] = hi[1] = -std::numeric_limits<double>::infinity();
     for (int index : selection) {
-      GrowByFootprint(light_field.views[static_cast<size_t>(index)], index, options.focal_height,
-                      lo, hi);
+      GrowByFootprint(light_field.views[static_cast<size_t>(index)], index, plane_z, lo, hi);
     }
     for (int i = 0; i < 2; ++i) {
       lo[i] += light_field.origin[i];
@@ -218,6 +235,19 @@ FocalPoints MapFocalPoints(const MapGrid& grid, int x0, int y0, int w, int h) {
       const double x = grid.CenterX(x0 + col) - grid.origin.x - points.reference.x;
       // The plane z = focal_height: 0 relative to the reference.
       points.points[static_cast<size_t>(row) * w + col] = Vec3d(x, y, 0.0);
+    }
+  }
+  if (grid.surface) {
+    // The surface's world z under each pixel centre (NaN where the vertical line misses it).
+    std::vector<Vec2d> xy(points.points.size());
+    for (int row = 0; row < h; ++row) {
+      for (int col = 0; col < w; ++col) {
+        xy[static_cast<size_t>(row) * w + col] = Vec2d(grid.CenterX(x0 + col), grid.CenterY(y0 + row));
+      }
+    }
+    const std::vector<double> z = grid.surface->HeightsAt(xy, grid.placement);
+    for (size_t i = 0; i < z.size(); ++i) {
+      points.points[i].z = z[i] - grid.origin.z - points.reference.z;  // NaN stays NaN
     }
   }
   return points;

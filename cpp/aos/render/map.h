@@ -15,9 +15,13 @@
 //   in the frame's own x/y axes: for a z-down frame (x, y, z right-handed) the map therefore shows
 //   the ground as seen from below (mirrored against a photograph from above), which is what the
 //   frame's coordinates say; GIS tools place every pixel at its x/y correctly.
-// - Focal surface: for now the horizontal plane z = focal_height (local frame). Every pixel's
-//   focal point comes from one function, MapFocalPoints (where a height field will later give
-//   the height under each pixel centre).
+// - Focal surface: the horizontal plane z = focal_height (local frame), or focal_surface (a mesh
+//   or DEM, focal_surface.h) moved by surface_offset along up: a pixel's focal point is where the
+//   vertical line through its centre, coming down from the up side, first meets the surface
+//   (FocalSurface::HeightsAt); pixels whose line misses it get count 0. Every pixel's focal point
+//   comes from one function, MapFocalPoints. With a surface, up is the surface's
+//   (ResolveSurfacePlacement) and the default extent is the footprints on the horizontal plane
+//   through the surface's reference point.
 // - Views: a view contributes to a pixel's focal point X by integral.h's rules (in front, inside
 //   its image, not grazing: min_view_angle_deg against the horizontal) and the cylinder aperture:
 //   its centre lies within aperture_radius of the vertical line through X (horizontal distance);
@@ -43,11 +47,13 @@
 #include <cstdint>
 #include <functional>
 #include <limits>
+#include <memory>
 #include <string>
 #include <vector>
 
 #include "aos/image/image.h"
 #include "aos/lightfield/lightfield.h"
+#include "aos/render/focal_surface.h"
 #include "aos/render/integral.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/progress.h"
@@ -64,8 +70,13 @@ struct MapOptions {
   int width = 0;
   // World XMIN, YMIN, XMAX, YMAX (origin + local, metres); empty = the views' footprints.
   std::vector<double> extent;
-  // Height of the horizontal focal plane z = focal_height, local frame, metres.
+  // Height of the horizontal focal plane z = focal_height, local frame, metres (without a
+  // focal_surface).
   double focal_height = 0.0;
+  // A terrain (mesh or DEM) to focus on instead of the plane; null = the plane.
+  std::shared_ptr<const FocalSurface> focal_surface;
+  // Metres along up by which focal_surface is moved (1.0 = one metre above the terrain).
+  double surface_offset = 0.0;
   // Horizontal distance from the focal point to a view centre, metres; 0 = the single nearest
   // view, infinity = every view.
   double aperture_radius = std::numeric_limits<double>::infinity();
@@ -92,6 +103,9 @@ struct MapGrid {
   Vec3d origin{0.0};        // the light field's origin (world of local zero)
   double focal_height = 0.0;  // local z of the focal plane
   double up_z = 1.0;        // +1: up is +z; -1: up is -z (z-down frames)
+  // The focal surface and its placement, when the map focuses on one (else the plane).
+  std::shared_ptr<const FocalSurface> surface;
+  SurfacePlacement placement;
 
   // GDAL's geotransform: (x_min, p, 0, y_max, 0, -p).
   std::array<double, 6> GeoTransform() const;

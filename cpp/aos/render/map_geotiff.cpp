@@ -119,7 +119,12 @@ class GeoTiffWriter {
         raster->SetDescription(channels <= 4 ? rgb[band - 1] : ("channel " + std::to_string(band)).c_str());
       }
     }
-    dataset_->SetMetadataItem("AOS_FOCAL_HEIGHT", FormatNumber(grid.focal_height).c_str());
+    if (grid.surface) {
+      dataset_->SetMetadataItem("AOS_FOCAL_SURFACE", grid.surface->Describe().c_str());
+      dataset_->SetMetadataItem("AOS_SURFACE_OFFSET", FormatNumber(grid.placement.offset).c_str());
+    } else {
+      dataset_->SetMetadataItem("AOS_FOCAL_HEIGHT", FormatNumber(grid.focal_height).c_str());
+    }
     dataset_->SetMetadataItem("AOS_UP", grid.up_z > 0 ? "+z" : "-z");
   }
 
