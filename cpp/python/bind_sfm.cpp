@@ -75,6 +75,8 @@ void BindSfm(py::module_& m) {
                     "Registered frames with a position.")
       .def_readonly("world_frame", &PosesResult::world_frame,
                     "What the light field's world frame is, e.g. 'UTM 31N (WGS84)'.")
+      .def_readonly("crs", &PosesResult::crs,
+                    "Its EPSG code ('EPSG:32631'), also light_field.crs; '' when it has none.")
       .def_property_readonly(
           "stage_seconds",
           [](const PosesResult& r) {

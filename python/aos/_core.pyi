@@ -261,6 +261,11 @@ class LightField:
     @origin.setter
     def origin(self, value: _Vector) -> None: ...
     @property
+    def crs(self) -> str:
+        """'EPSG:<code>' of the world coordinates (origin + local), or '' = not geo-referenced."""
+    @crs.setter
+    def crs(self, value: str) -> None: ...
+    @property
     def views(self) -> list[View]:
         """A new list of the views (pixels not copied)."""
     def __len__(self) -> int: ...
@@ -275,7 +280,7 @@ class LightField:
         """Appends a view; `image` is COPIED (uint8, uint16, float32; float64 -> float32).
         ValueError for another dtype, a bad camera, a size mismatch or an invalid pose."""
     def __eq__(self, other: object) -> bool:
-        """Exact equality of origin, pose_source and every view (fields and pixels)."""
+        """Exact equality of origin, crs, pose_source and every view (fields and pixels)."""
     def __copy__(self) -> LightField:
         """A copy sharing the (read-only) pixels."""
     def __deepcopy__(self, memo: dict[int, Any]) -> LightField: ...
@@ -1070,6 +1075,8 @@ class PosesResult:
     def georeference_frames(self) -> int: ...
     @property
     def world_frame(self) -> str: ...
+    @property
+    def crs(self) -> str: ...
     @property
     def stage_seconds(self) -> dict[str, float]: ...
     @property
