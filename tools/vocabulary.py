@@ -43,6 +43,7 @@ COMMANDS = [
     ("calibrate", "CalibrateOptions"),
     ("poses", "PosesOptions"),
     ("import-colmap", "PosesOptions"),
+    ("import-telemetry", "TelemetryOptions"),
     ("resolution", "ResolutionOptions"),
     ("metrics", "QualityOptions"),
 ]
@@ -72,7 +73,7 @@ NOT_ON_THE_CLI = {
 # something the help text states (no pose, all views, no file); every other flag must print the
 # struct's default, so that a drifted default is seen.
 NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file",
-                      "positions_file", "positions_crs", "workspace",
+                      "positions_file", "positions_crs", "workspace", "telemetry_file",
                       "pose_error_px", "pose_error_m"}  # exclusive flags; none = no pose error
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).

@@ -73,6 +73,10 @@ const CommandEntry kCommands[] = {
      "Import a COLMAP sparse model (text or binary) as a light field; optionally geo-referenced "
      "by known positions",
      DefineImportColmap},
+    {"import-telemetry",
+     "Pose frames from GPS and gimbal telemetry (a CSV log or the frames' EXIF/XMP tags), no "
+     "COLMAP: a geo-referenced light field in the flight's UTM zone",
+     DefineImportTelemetry},
     {"simulate",
      "Simulate a scene (docs/scenes.md): write its views, the light field (recorded poses) and "
      "the ground truth into a new folder",

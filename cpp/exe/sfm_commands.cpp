@@ -66,6 +66,7 @@ void ReportPoses(const PosesResult& result, const std::string& output, Report& r
   const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
   if (result.georeferenced) {
     report.Set("world_frame", result.world_frame);
+    report.Set("crs", result.light_field.crs);
     report.Set("georeference_rms_m", result.georeference_rms_m);
     report.Set("origin", std::vector<double>{result.light_field.origin.x,
                                              result.light_field.origin.y,

@@ -1096,4 +1096,59 @@ def _estimate_poses(
 ) -> PosesResult: ...
 
 def _import_colmap(model_dir: str, images_dir: str, options: PosesOptions) -> PosesResult: ...
+
+class TelemetryOptions:
+    """Options of import_telemetry; fields and defaults of aos::TelemetryOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        telemetry_file: str = ...,
+        camera_file: str = ...,
+        fov_deg: float = ...,
+        altitude: str = ...,
+        altitude_window: int = ...,
+        max_altitude_deviation_m: float = ...,
+        frame_interval_s: float = ...,
+        time_offset_s: float = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    telemetry_file: str
+    camera_file: str
+    fov_deg: float
+    altitude: str
+    altitude_window: int
+    max_altitude_deviation_m: float
+    frame_interval_s: float
+    time_offset_s: float
+    def check(self) -> None: ...
+
+class AltitudeOutlier:
+    """An altitude replaced by its running median."""
+
+    @property
+    def frame(self) -> str: ...
+    @property
+    def altitude_m(self) -> float: ...
+    @property
+    def median_m(self) -> float: ...
+
+class TelemetryResult:
+    """What import_telemetry made."""
+
+    @property
+    def light_field(self) -> LightField: ...
+    @property
+    def frames(self) -> list[str]: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def altitude_outliers(self) -> list[AltitudeOutlier]: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    @property
+    def max_convergence_deg(self) -> float: ...
+
+def _import_telemetry(frames_dir: str, options: TelemetryOptions) -> TelemetryResult: ...
 def read_positions(path: str, crs: str = "") -> dict[str, tuple[float, float, float]]: ...
