@@ -189,17 +189,33 @@ double InterpolateAngle(double a, double b, double t) {
 }
 
 // XMP: the raw packet of a file (plain text by the XMP specification, wherever the container
-// keeps it), searched in its first 16 MiB.
+// keeps it). JPEGs keep it in an APP1 segment near the start: the first MiB is searched first,
+// then the rest of the file (TIFFs may keep it anywhere), up to 256 MiB.
 std::string ReadXmpPacket(const std::string& path) {
   std::ifstream in(path, std::ios::binary);
   if (!in) ThrowInvalid(path + ": cannot open the frame");
-  std::string data(16u << 20, '\0');
-  in.read(&data[0], static_cast<std::streamsize>(data.size()));
-  data.resize(static_cast<size_t>(in.gcount()));
-  const size_t begin = data.find("<x:xmpmeta");
-  if (begin == std::string::npos) return "";
-  const size_t end = data.find("</x:xmpmeta>", begin);
-  return data.substr(begin, end == std::string::npos ? std::string::npos : end + 12 - begin);
+  std::error_code error;
+  const uintmax_t file_size = fs::file_size(path, error);
+  const size_t whole = error ? size_t{256} << 20
+                             : static_cast<size_t>(std::min<uintmax_t>(file_size, 256u << 20));
+  std::string data;
+  for (size_t limit : {std::min(whole, size_t{1} << 20), whole}) {
+    const size_t had = data.size();
+    if (limit <= had) break;
+    data.resize(limit);
+    in.read(&data[had], static_cast<std::streamsize>(limit - had));
+    data.resize(had + static_cast<size_t>(in.gcount()));
+    const size_t begin = data.find("<x:xmpmeta");
+    if (begin != std::string::npos) {
+      size_t end = data.find("</x:xmpmeta>", begin);
+      if (end == std::string::npos && in) {  // the packet runs past the first MiB
+        continue;
+      }
+      return data.substr(begin, end == std::string::npos ? std::string::npos : end + 12 - begin);
+    }
+    if (!in) break;  // the whole file was read
+  }
+  return "";
 }
 
 // An XMP property's text, as an attribute (name="value") or an element (<name>value</name>).
