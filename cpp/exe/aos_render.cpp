@@ -86,6 +86,10 @@ const CommandEntry kCommands[] = {
      "GeoTIFF by a lower-envelope fit, usable as --focal-surface), or report the flight's height "
      "above a given terrain",
      DefineGround},
+    {"import-telemetry",
+     "Pose frames from GPS and gimbal telemetry (a CSV log or the frames' EXIF/XMP tags), no "
+     "COLMAP: a geo-referenced light field in the flight's UTM zone",
+     DefineImportTelemetry},
     {"simulate",
      "Simulate a scene (docs/scenes.md): write its views, the light field (recorded poses) and "
      "the ground truth into a new folder",

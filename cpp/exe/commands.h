@@ -4,6 +4,7 @@
 //   sim_commands.cpp      simulate, demo
 //   lens_commands.cpp     calibrate, camera, rectify, resolution
 //   sfm_commands.cpp      poses, import-colmap, ground
+//   telemetry_commands.cpp  import-telemetry
 //   metrics_commands.cpp  metrics
 // The command table (name, help, Define) is in aos_render.cpp. A Define function declares the
 // command's flags on `command` and returns the function that runs it after parsing.
@@ -25,6 +26,7 @@ CommandRunner DefineResolution(CLI::App* command);
 CommandRunner DefinePoses(CLI::App* command);
 CommandRunner DefineImportColmap(CLI::App* command);
 CommandRunner DefineGround(CLI::App* command);
+CommandRunner DefineImportTelemetry(CLI::App* command);
 CommandRunner DefineMetrics(CLI::App* command);
 
 }  // namespace aos::cli

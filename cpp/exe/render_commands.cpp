@@ -170,6 +170,10 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
+  if (options.focal_surface) {
+    options.focal_surface = std::make_shared<const FocalSurface>(
+        InCrs(*options.focal_surface, loaded.light_field.crs));
+  }
   if (!args.pose_view.empty()) options.pose_view = ResolvePoseView(args.pose_view, loaded.light_field);
   if (!args.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(args.look_at, "--look-at");
@@ -574,6 +578,10 @@ int RunMap(MapCommand& c, const Flags& flags) {
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
   const LightField& light_field = loaded.light_field;
+  if (c.options.focal_surface) {
+    c.options.focal_surface =
+        std::make_shared<const FocalSurface>(InCrs(*c.options.focal_surface, light_field.crs));
+  }
   if (!c.views.empty()) {
     c.options.view_indices =
         ParseViewList(c.views, static_cast<int>(light_field.views.size()));

@@ -93,6 +93,7 @@ void ReportPoses(const PosesResult& result, const std::string& output, Report& r
   const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
   if (result.georeferenced) {
     report.Set("world_frame", result.world_frame);
+    report.Set("crs", result.light_field.crs);
     report.Set("georeference_rms_m", result.georeference_rms_m);
     report.Set("origin", std::vector<double>{result.light_field.origin.x,
                                              result.light_field.origin.y,
@@ -309,7 +310,7 @@ int RunGround(GroundCommand& c, const Flags& flags) {
                 ground.plane_cells);
     ground_surface = FocalSurface::FromHeightfield(std::move(dem), c.output);
   } else {
-    ground_surface = FocalSurface::Read(c.terrain_path);
+    ground_surface = InCrs(FocalSurface::Read(c.terrain_path), light_field.crs);
     report.Set("terrain", c.terrain_path);
   }
   const SurfacePlacement placement =

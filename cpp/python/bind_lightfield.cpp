@@ -3,6 +3,7 @@
 
 #include <pybind11/stl/filesystem.h>
 
+#include "aos/geometry/geodesy.h"
 #include "aos/lightfield/formats.h"
 #include "aos/lightfield/lightfield.h"
 #include "aos/util/error.h"
@@ -34,7 +35,7 @@ bool PoseSourcesEqual(const PoseSource& a, const PoseSource& b) {
 }
 
 bool LightFieldsEqual(const LightField& a, const LightField& b) {
-  if (a.origin != b.origin || a.views.size() != b.views.size()) return false;
+  if (a.origin != b.origin || a.crs != b.crs || a.views.size() != b.views.size()) return false;
   if (a.pose_source.has_value() != b.pose_source.has_value()) return false;
   if (a.pose_source && !PoseSourcesEqual(*a.pose_source, *b.pose_source)) return false;
   for (size_t i = 0; i < a.views.size(); ++i) {
@@ -187,9 +188,15 @@ void BindLightField(py::module_& m) {
                     "PoseSource of estimated poses (estimate_poses, import_colmap), or None.")
       .def_readwrite("origin", &LightField::origin,
                      "World position of the local frame's zero (float64 copy; e.g. UTM).")
-      .def_readwrite("crs", &LightField::crs,
-                     "'EPSG:<code>' of the world coordinates (origin + local), or '' = not "
-                     "geo-referenced.")
+      .def_property(
+          "crs", [](const LightField& light_field) { return light_field.crs; },
+          [](LightField& light_field, const std::string& crs) {
+            CheckLightFieldCrs(crs, "crs");
+            light_field.crs = crs;
+          },
+          "'EPSG:<code>' of the world coordinates (origin + local), or '' = not "
+          "geo-referenced. Setting it checks it with PROJ: a projected CRS in metres (ValueError "
+          "for an unknown code or a geographic CRS).")
       .def_property_readonly(
           "views", [](const LightField& light_field) { return light_field.views; },
           "The views, as a new list of read-only View objects (their pixels are not copied).")
@@ -219,7 +226,7 @@ void BindLightField(py::module_& m) {
           "another dtype, a bad camera, a camera that disagrees with the image size, or an "
           "invalid cam_from_world (non-finite, not orthonormal, a reflection).")
       .def("__eq__", EqualityMethod<LightField>(&LightFieldsEqual), "other"_a,
-           "Exact equality of origin, pose_source and every view (fields and pixels).")
+           "Exact equality of origin, crs, pose_source and every view (fields and pixels).")
       .def("__copy__", [](const LightField& light_field) { return LightField(light_field); },
            "A copy; the pixels are shared, which cannot be told apart from a deep copy since "
            "views are read-only.")
@@ -231,13 +238,15 @@ void BindLightField(py::module_& m) {
           [](const LightField& light_field) {
             py::list views;
             for (const View& view : light_field.views) views.append(py::cast(view));
-            return py::dict("origin"_a = light_field.origin, "views"_a = views,
-                            "pose_source"_a = light_field.pose_source);
+            return py::dict("origin"_a = light_field.origin, "crs"_a = light_field.crs,
+                            "views"_a = views, "pose_source"_a = light_field.pose_source);
           },
           [](const py::object& state) {
-            const py::dict v = StateDict(state, "LightField", {"origin", "views", "pose_source"});
+            const py::dict v =
+                StateDict(state, "LightField", {"origin", "crs", "views", "pose_source"});
             LightField light_field;
             light_field.origin = v["origin"].cast<Vec3d>();
+            light_field.crs = v["crs"].cast<std::string>();
             light_field.views = v["views"].cast<std::vector<View>>();
             light_field.pose_source = v["pose_source"].cast<std::optional<PoseSource>>();
             return light_field;
@@ -247,6 +256,7 @@ void BindLightField(py::module_& m) {
         return "LightField(views=" + std::to_string(light_field.views.size()) + ", origin=" +
                std::string(py::str(py::module_::import("numpy").attr("array2string")(
                    origin, "separator"_a = ", "))) +
+               (light_field.crs.empty() ? std::string() : ", crs='" + light_field.crs + "'") +
                ", image_bytes=" + std::to_string(light_field.ImageBytes()) + ")";
       });
 

@@ -42,6 +42,9 @@ void BindFocalSurface(py::module_& m) {
                            "surface towards the views' mean centre; an offset moves it along up.")
       .def(py::init([](const py::object& value) { return *SurfaceFromPython(value); }), "surface"_a,
            "From a Mesh, a Heightfield, a Plane or a number (horizontal plane).")
+      .def("in_crs", &InCrs, "crs"_a,
+           "The surface in another CRS ('EPSG:32633'): a DEM whose raster CRS differs is "
+           "transformed through PROJ (a mesh); anything else comes back as it is.")
       .def_static("read", &FocalSurface::Read, "path"_a,
                   "A mesh (OBJ/PLY) or else any GDAL raster (a DEM). Raises ValueError naming the file.")
       .def_static("from_depth_map",

@@ -3,6 +3,7 @@
 #include "aos/sfm/colmap_model.h"
 #include "aos/sfm/colmap_pipeline.h"
 #include "aos/sfm/ground.h"
+#include "aos/sfm/telemetry.h"
 #include "aos/util/error.h"
 #include "bindings.h"
 
@@ -87,6 +88,8 @@ void BindSfm(py::module_& m) {
                     "Registered frames with a position.")
       .def_readonly("world_frame", &PosesResult::world_frame,
                     "What the light field's world frame is, e.g. 'UTM 31N (WGS84)'.")
+      .def_readonly("crs", &PosesResult::crs,
+                    "Its EPSG code ('EPSG:32631'), also light_field.crs; '' when it has none.")
       .def_property_readonly(
           "stage_seconds",
           [](const PosesResult& r) {
@@ -225,6 +228,64 @@ void BindSfm(py::module_& m) {
       "path"_a, "crs"_a = "",
       "A positions CSV as {name: (x, y, z)} in metres: columns by their header names (name, x, "
       "y, z or name, lat, lon, alt; degrees projected to UTM with PROJ); `crs` states the CRS.");
+
+  OptionsClass<TelemetryOptions>(
+      m, "TelemetryOptions",
+      "Options of import_telemetry (defaults from the C++ struct aos::TelemetryOptions).")
+      .Field("telemetry_file", &TelemetryOptions::telemetry_file,
+             "CSV log frame|time,lat,lon,alt,yaw,pitch,roll; '' = the frames' EXIF GPS and DJI "
+             "XMP gimbal tags.")
+      .Field("camera_file", &TelemetryOptions::camera_file,
+             "Known camera (aos-camera file, any lens model); '' = a pinhole from fov_deg.")
+      .Field("fov_deg", &TelemetryOptions::fov_deg,
+             "Horizontal field of view of a pinhole camera, degrees, (0, 180); without "
+             "camera_file.")
+      .Field("altitude", &TelemetryOptions::altitude,
+             "EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), 'gps', "
+             "'relative'.")
+      .Field("altitude_window", &TelemetryOptions::altitude_window,
+             "Altitude outliers: running-median window in frames, odd >= 3; 0 = no rule.")
+      .Field("max_altitude_deviation_m", &TelemetryOptions::max_altitude_deviation_m,
+             "An altitude further than this from its running median is replaced by it, metres.")
+      .Field("frame_interval_s", &TelemetryOptions::frame_interval_s,
+             "With a time column: seconds between consecutive frames (name order).")
+      .Field("time_offset_s", &TelemetryOptions::time_offset_s,
+             "With a time column: the log time of the first frame, seconds.")
+      .Finish()
+      .def("check", &TelemetryOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<AltitudeOutlier>(m, "AltitudeOutlier", "An altitude replaced by its running median.")
+      .def_readonly("frame", &AltitudeOutlier::frame)
+      .def_readonly("altitude_m", &AltitudeOutlier::altitude_m, "As given, metres.")
+      .def_readonly("median_m", &AltitudeOutlier::median_m, "The median that replaced it.")
+      .def("__repr__", [](const AltitudeOutlier& o) {
+        return "AltitudeOutlier(frame='" + o.frame + "', altitude_m=" +
+               FormatNumber(o.altitude_m) + ", median_m=" + FormatNumber(o.median_m) + ")";
+      });
+
+  py::class_<TelemetryResult>(m, "TelemetryResult", "What import_telemetry made.")
+      .def_readonly("light_field", &TelemetryResult::light_field,
+                    "The posed frames (images not loaded), crs = the flight's UTM zone.")
+      .def_readonly("frames", &TelemetryResult::frames, "Frames in view order.")
+      .def_readonly("source", &TelemetryResult::source, "'csv' or 'exif'.")
+      .def_readonly("altitude_outliers", &TelemetryResult::altitude_outliers,
+                    "Altitudes replaced by their running median.")
+      .def_readonly("warnings", &TelemetryResult::warnings, "Frames left out, ...")
+      .def_readonly("max_convergence_deg", &TelemetryResult::max_convergence_deg,
+                    "Largest meridian convergence applied to a heading, degrees.")
+      .def("__repr__", [](const TelemetryResult& r) {
+        return "TelemetryResult(views=" + std::to_string(r.light_field.views.size()) +
+               ", source='" + r.source + "', crs='" + r.light_field.crs +
+               "', altitude_outliers=" + std::to_string(r.altitude_outliers.size()) + ")";
+      });
+
+  m.def(
+      "_import_telemetry",
+      [](const std::string& frames_dir, const TelemetryOptions& options) {
+        py::gil_scoped_release release;
+        return ImportTelemetry(frames_dir, options);
+      },
+      "frames_dir"_a, "options"_a, "Poses from telemetry, GIL released. Prefer aos.import_telemetry.");
 }
 
 }  // namespace aos::python

@@ -56,11 +56,15 @@ from ._keywords import (
     ResolutionKeywords,
     SimulateKeywords,
     SurfaceIntegralKeywords,
+    TelemetryKeywords,
 )
 
 if TYPE_CHECKING:
     from typing_extensions import Unpack
 from ._core import (
+    AltitudeOutlier,
+    TelemetryOptions,
+    TelemetryResult,
     PosesOptions,
     GroundOptions,
     GroundResult,
@@ -145,6 +149,10 @@ __all__ = [
     "estimate_poses",
     "import_colmap",
     "read_positions",
+    "AltitudeOutlier",
+    "TelemetryOptions",
+    "TelemetryResult",
+    "import_telemetry",
     "CalibrateOptions",
     "CalibrationResult",
     "calibrate",
@@ -402,6 +410,9 @@ def _surface_as_focal_surface(kwargs: dict[str, Any]) -> dict[str, Any]:
             raise TypeError("render_integral(): give the surface as focal_plane or focal_surface, not both")
         kwargs["focal_surface"] = kwargs.pop("focal_plane")
     return kwargs
+
+
+_IMPORT_TELEMETRY = _Router("import_telemetry", TelemetryOptions)
 
 
 def render_integral(
@@ -844,3 +855,29 @@ def import_colmap(
     merged = _copy_options("import_colmap", PosesOptions, options)
     _IMPORT_COLMAP.apply([merged], dict(kwargs))
     return _core._import_colmap(os.fspath(model_dir), os.fspath(images_dir), merged)
+
+
+def import_telemetry(
+    frames_dir: str | os.PathLike[str],
+    options: Optional[TelemetryOptions] = None,
+    **kwargs: Unpack[TelemetryKeywords],
+) -> TelemetryResult:
+    """Poses a folder of frames from GPS and gimbal telemetry, without COLMAP, as
+    ``aos-render import-telemetry`` does: a CSV log (``telemetry_file``: columns frame or time,
+    lat, lon, alt, yaw, pitch, roll; yaw = compass heading clockwise from true north, pitch -90 =
+    nadir, roll positive = the image's right side down) or the frames' EXIF GPS and DJI XMP
+    gimbal tags, plus a camera (``camera_file`` or ``fov_deg``). The light field is
+    geo-referenced: ``crs`` the flight's UTM zone (EPSG:326zz / 327zz), origin a round point
+    near the mean position. Altitude outliers are replaced by a running median and listed in
+    ``result.altitude_outliers`` (docs/terrain-and-maps.md). Raises ValueError naming the file,
+    line and field. Nothing is written: pass ``result.light_field`` to
+    :func:`write_lightfield`.
+
+    Example::
+
+        result = aos.import_telemetry("flight/", telemetry_file="log.csv", fov_deg=50)
+        aos.write_lightfield("flight.json", result.light_field)
+    """
+    merged = _copy_options("import_telemetry", TelemetryOptions, options)
+    _IMPORT_TELEMETRY.apply([merged], dict(kwargs))
+    return _core._import_telemetry(os.fspath(frames_dir), merged)

@@ -264,6 +264,11 @@ class LightField:
     crs: str
     """'EPSG:<code>' of the world coordinates (origin + local), or '' = not geo-referenced."""
     @property
+    def crs(self) -> str:
+        """'EPSG:<code>' of the world coordinates (origin + local), or '' = not geo-referenced."""
+    @crs.setter
+    def crs(self, value: str) -> None: ...
+    @property
     def views(self) -> list[View]:
         """A new list of the views (pixels not copied)."""
     def __len__(self) -> int: ...
@@ -278,7 +283,7 @@ class LightField:
         """Appends a view; `image` is COPIED (uint8, uint16, float32; float64 -> float32).
         ValueError for another dtype, a bad camera, a size mismatch or an invalid pose."""
     def __eq__(self, other: object) -> bool:
-        """Exact equality of origin, pose_source and every view (fields and pixels)."""
+        """Exact equality of origin, crs, pose_source and every view (fields and pixels)."""
     def __copy__(self) -> LightField:
         """A copy sharing the (read-only) pixels."""
     def __deepcopy__(self, memo: dict[int, Any]) -> LightField: ...
@@ -441,6 +446,8 @@ class FocalSurface:
     @property
     def source(self) -> str: ...
     def describe(self) -> str: ...
+    def in_crs(self, crs: str) -> FocalSurface:
+        """A DEM in another CRS transformed into `crs` through PROJ; else the surface itself."""
     def depth_for(
         self,
         light_field: LightField,
@@ -1323,6 +1330,8 @@ class PosesResult:
     @property
     def world_frame(self) -> str: ...
     @property
+    def crs(self) -> str: ...
+    @property
     def stage_seconds(self) -> dict[str, float]: ...
     @property
     def workspace(self) -> str: ...
@@ -1341,4 +1350,59 @@ def _estimate_poses(
 ) -> PosesResult: ...
 
 def _import_colmap(model_dir: str, images_dir: str, options: PosesOptions) -> PosesResult: ...
+
+class TelemetryOptions:
+    """Options of import_telemetry; fields and defaults of aos::TelemetryOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        telemetry_file: str = ...,
+        camera_file: str = ...,
+        fov_deg: float = ...,
+        altitude: str = ...,
+        altitude_window: int = ...,
+        max_altitude_deviation_m: float = ...,
+        frame_interval_s: float = ...,
+        time_offset_s: float = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    telemetry_file: str
+    camera_file: str
+    fov_deg: float
+    altitude: str
+    altitude_window: int
+    max_altitude_deviation_m: float
+    frame_interval_s: float
+    time_offset_s: float
+    def check(self) -> None: ...
+
+class AltitudeOutlier:
+    """An altitude replaced by its running median."""
+
+    @property
+    def frame(self) -> str: ...
+    @property
+    def altitude_m(self) -> float: ...
+    @property
+    def median_m(self) -> float: ...
+
+class TelemetryResult:
+    """What import_telemetry made."""
+
+    @property
+    def light_field(self) -> LightField: ...
+    @property
+    def frames(self) -> list[str]: ...
+    @property
+    def source(self) -> str: ...
+    @property
+    def altitude_outliers(self) -> list[AltitudeOutlier]: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    @property
+    def max_convergence_deg(self) -> float: ...
+
+def _import_telemetry(frames_dir: str, options: TelemetryOptions) -> TelemetryResult: ...
 def read_positions(path: str, crs: str = "") -> dict[str, tuple[float, float, float]]: ...

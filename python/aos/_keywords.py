@@ -172,6 +172,19 @@ class CalibrateKeywords(TypedDict, total=False):
     square_size_m: float
 
 
+class TelemetryKeywords(TypedDict, total=False):
+    """Fields of TelemetryOptions (import_telemetry)."""
+
+    telemetry_file: str
+    camera_file: str
+    fov_deg: float
+    altitude: str
+    altitude_window: int
+    max_altitude_deviation_m: float
+    frame_interval_s: float
+    time_offset_s: float
+
+
 class PosesKeywords(TypedDict, total=False):
     """Fields of PosesOptions (estimate_poses, import_colmap)."""
 

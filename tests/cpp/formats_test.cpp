@@ -668,12 +668,62 @@ TEST_F(AosErrorsTest, MisspelledKeysAreRefusedWithTheirKeyPath) {
   // The pose record as the writer writes it reads back.
   WriteText("lf.json", AosFile("views/good.png"));
   LightField light_field = LoadLightField(Path("lf.json")).light_field;
-  light_field.pose_source = PoseSource{"colmap", 0.4, 20.0, 0.01, true, 0.2, "UTM 33N", {"x.png"}};
+  light_field.pose_source =
+      PoseSource{"colmap", 0.4, 20.0, 0.01, true, 0.2, "the frame of gps.csv", {"x.png"}};
+  light_field.crs = "EPSG:32633";
   WriteLightField(Path("copy.json"), light_field);
   const LightField back = LoadLightField(Path("copy.json")).light_field;
   ASSERT_TRUE(back.pose_source.has_value());
-  EXPECT_EQ(back.pose_source->world_frame, "UTM 33N");
+  EXPECT_EQ(back.pose_source->world_frame, "the frame of gps.csv");
   EXPECT_EQ(back.pose_source->unregistered, std::vector<std::string>{"x.png"});
+  EXPECT_EQ(back.crs, "EPSG:32633");
+}
+
+TEST_F(AosErrorsTest, CrsIsAnEpsgCodeCheckedWithProj) {
+  const std::string good = AosFile("views/good.png");
+  const auto with = [&](const std::string& insert) {
+    std::string text = good;
+    text.replace(text.find("\"origin\""), 8, insert + ", \"origin\"");
+    return text;
+  };
+  WriteText("lf.json", with("\"crs\": \"EPSG:32633\""));
+  EXPECT_EQ(LoadLightField(Path("lf.json")).light_field.crs, "EPSG:32633");
+  const struct {
+    std::string text, error;
+  } cases[] = {
+      {with("\"crs\": \"EPSG:999999\""), "lf.json: crs: EPSG:999999 is not known to PROJ"},
+      {with("\"crs\": \"EPSG:4326\""), "lf.json: crs: EPSG:4326 (WGS 84) is geographic"},
+      {with("\"crs\": \"UTM 33N\""), "lf.json: crs: \"UTM 33N\" is not an EPSG code"},
+      {with("\"crs\": 32633"), "lf.json: crs: expected a string"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.error);
+    WriteText("lf.json", c.text);
+    ExpectLoadError({c.error});
+  }
+  // The writer refuses what the reader would.
+  WriteText("lf.json", good);
+  LightField light_field = LoadLightField(Path("lf.json")).light_field;
+  light_field.crs = "EPSG:4326";
+  ExpectInvalid([&] { WriteLightField(Path("out.json"), light_field); },
+                {"out.json: crs: EPSG:4326 (WGS 84) is geographic"});
+  EXPECT_FALSE(std::filesystem::exists(Path("out.json")));
+  // Files from before "crs": a UTM label in pose_source.world_frame becomes the crs (with a
+  // note); a free description stays a description.
+  WriteText("old.json", with("\"pose_source\": {\"method\": \"colmap\", \"georeferenced\": true, "
+                             "\"world_frame\": \"UTM 33N (WGS84)\"}"));
+  const LoadResult old = LoadLightField(Path("old.json"));
+  EXPECT_EQ(old.light_field.crs, "EPSG:32633");
+  EXPECT_EQ(old.light_field.pose_source->world_frame, "");
+  EXPECT_THAT(old.notes, testing::Contains(HasSubstr("read as crs EPSG:32633")));
+  WriteText("old.json", with("\"pose_source\": {\"method\": \"colmap\", "
+                             "\"world_frame\": \"UTM 19S (WGS84)\"}"));
+  EXPECT_EQ(LoadLightField(Path("old.json")).light_field.crs, "EPSG:32719");
+  WriteText("old.json", with("\"pose_source\": {\"method\": \"colmap\", "
+                             "\"world_frame\": \"the frame of gps.csv\"}"));
+  const LoadResult free = LoadLightField(Path("old.json"));
+  EXPECT_EQ(free.light_field.crs, "");
+  EXPECT_EQ(free.light_field.pose_source->world_frame, "the frame of gps.csv");
 }
 
 TEST_F(AosErrorsTest, LensCamerasLoadAndRoundTrip) {

@@ -22,6 +22,7 @@
 #include "aos/image/image_io.h"
 #include "aos/lightfield/formats.h"
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 #include "aos/util/file_util.h"
 #include "aos/util/process.h"
 #include "error_of.h"
@@ -118,6 +119,80 @@ TEST(Geodesy, UtmMatchesReferenceCoordinates) {
   EXPECT_THAT(ErrorOf([] { UtmFromWgs84(std::nan(""), 0.0); }), HasSubstr("must be finite"));
 }
 
+TEST(Geodesy, TransformPointsMatchesReferenceFiguresAndRelatesDatums) {
+  // WGS84 longitude/latitude (visualisation order: longitude first) to UTM 31N: the Eiffel Tower's
+  // reference figures to the millimetre, through the general transform.
+  const std::vector<Vec3d> paris =
+      TransformPoints({Vec3d(2.2945, 48.8582, 35.0)}, "EPSG:4326", "EPSG:32631", "test");
+  ASSERT_EQ(paris.size(), 1u);
+  EXPECT_NEAR(paris[0].x, 448251.795, 1e-3);
+  EXPECT_NEAR(paris[0].y, 5411932.678, 1e-3);
+  EXPECT_NEAR(paris[0].z, 35.0, 1e-9);  // 2-D CRSs: heights pass through
+  // And back, to 1e-9 degrees (0.1 mm).
+  const std::vector<Vec3d> back = TransformPoints(paris, "EPSG:32631", "EPSG:4326", "test");
+  EXPECT_NEAR(back[0].x, 2.2945, 1e-9);
+  EXPECT_NEAR(back[0].y, 48.8582, 1e-9);
+  // ETRS89 / UTM 33N and WGS84 / UTM 33N: the same projection on datums that differ by well
+  // under a metre (PROJ relates them by a null or ballpark transformation here): < 1 m apart, and
+  // the round trip closes to a micrometre.
+  const std::vector<Vec3d> etrs = {Vec3d(500000.0, 5300000.0, 400.0), Vec3d(432101.5, 5350123.25, 0.0)};
+  const std::vector<Vec3d> wgs = TransformPoints(etrs, "EPSG:25833", "EPSG:32633", "dem.tif");
+  const std::vector<Vec3d> again = TransformPoints(wgs, "EPSG:32633", "EPSG:25833", "dem.tif");
+  for (size_t i = 0; i < etrs.size(); ++i) {
+    EXPECT_LT(std::hypot(wgs[i].x - etrs[i].x, wgs[i].y - etrs[i].y), 1.0);
+    EXPECT_NEAR(again[i].x, etrs[i].x, 1e-6);
+    EXPECT_NEAR(again[i].y, etrs[i].y, 1e-6);
+  }
+  // A CRS PROJ does not know, or cannot relate, is an error naming `where`.
+  EXPECT_THAT(ErrorOf([] { TransformPoints({Vec3d(0.0)}, "EPSG:999999", "EPSG:32633", "dem.tif"); }),
+              HasSubstr("dem.tif: CRS 'EPSG:999999' is not known to PROJ"));
+  EXPECT_THAT(ErrorOf([] { TransformPoints({Vec3d(0.0)}, "EPSG:32633", "no such crs", "dem.tif"); }),
+              HasSubstr("dem.tif: CRS 'no such crs' is not known to PROJ"));
+  // A Mars CRS and an Earth one have no transformation between them.
+  EXPECT_THAT(ErrorOf([] {
+                TransformPoints({Vec3d(0.0)}, "IAU_2015:49900", "EPSG:4326", "mars.tif");
+              }),
+              HasSubstr("mars.tif"));
+  EXPECT_THAT(ErrorOf([] {
+                TransformPoints({Vec3d(std::nan(""), 0.0, 0.0)}, "EPSG:4326", "EPSG:32633", "f");
+              }),
+              HasSubstr("f: point 0 is not finite"));
+}
+
+TEST(Geodesy, LightFieldCrsMustBeAMetricEpsgCode) {
+  EXPECT_NO_THROW(CheckLightFieldCrs("", "lf.json: crs"));
+  EXPECT_NO_THROW(CheckLightFieldCrs("EPSG:32633", "lf.json: crs"));
+  EXPECT_NO_THROW(CheckLightFieldCrs("EPSG:25833", "lf.json: crs"));
+  EXPECT_THAT(ErrorOf([] { CheckLightFieldCrs("EPSG:4326", "lf.json: crs"); }),
+              HasSubstr("lf.json: crs: EPSG:4326 (WGS 84) is geographic (degrees)"));
+  EXPECT_THAT(ErrorOf([] { CheckLightFieldCrs("EPSG:999999", "lf.json: crs"); }),
+              HasSubstr("lf.json: crs: EPSG:999999 is not known to PROJ"));
+  EXPECT_THAT(ErrorOf([] { CheckLightFieldCrs("UTM 33N", "lf.json: crs"); }),
+              HasSubstr("lf.json: crs: \"UTM 33N\" is not an EPSG code"));
+  EXPECT_THAT(ErrorOf([] { CheckLightFieldCrs("EPSG:2263", "lf.json: crs"); }),  // US feet
+              HasSubstr("has axes in"));
+  EXPECT_THAT(ErrorOf([] { CheckLightFieldCrs("EPSG:4978", "lf.json: crs"); }),  // geocentric
+              HasSubstr("is not a projected CRS"));
+  // EPSG codes: a CRS's own, or identified by PROJ from its name.
+  EXPECT_EQ(EpsgOfCrs("EPSG:25833", "f"), "EPSG:25833");
+  EXPECT_EQ(UtmEpsg(33, true), "EPSG:32633");
+  EXPECT_EQ(UtmEpsg(19, false), "EPSG:32719");
+  EXPECT_EQ(MetricFromCrs({Vec3d(14.3, 48.3, 0.0)}, "EPSG:4326", "f").crs, "EPSG:32633");
+  EXPECT_EQ(MetricFromCrs({Vec3d(500000.0, 5300000.0, 0.0)}, "EPSG:25833", "f").crs, "EPSG:25833");
+}
+
+TEST(Geodesy, GridBearingOfNorthIsTheMeridianConvergence) {
+  // On a zone's central meridian grid north is true north.
+  EXPECT_NEAR(GridBearingOfNorth(48.0, 15.0, "EPSG:32633", "t"), 0.0, 1e-9);
+  // East of it (northern hemisphere) true north lies west of grid north by the convergence
+  // gamma = atan(tan(dlon) sin(lat)) (spherical; the ellipsoid changes it by < 0.001 degrees
+  // here).
+  const double lat = 48.0 * kPi / 180.0, dlon = 2.9 * kPi / 180.0;
+  const double gamma = std::atan(std::tan(dlon) * std::sin(lat));
+  EXPECT_NEAR(GridBearingOfNorth(48.0, 17.9, "EPSG:32633", "t"), -gamma, 0.001 * kPi / 180.0);
+  EXPECT_NEAR(GridBearingOfNorth(48.0, 12.1, "EPSG:32633", "t"), gamma, 0.001 * kPi / 180.0);
+}
+
 class ExifFrames : public testing_util::TempFolderTest {
  protected:
   // A small JPEG with GPS tags as a drone writes them (degrees, minutes, seconds + refs).
@@ -174,13 +249,14 @@ TEST_F(PoseSourceFiles, RoundTripAndWrongTypesAreNamed) {
   source.pose_error = 0.02;
   source.georeferenced = true;
   source.georeference_rms_m = 0.01;
-  source.world_frame = "UTM 33N (WGS84)";
+  source.world_frame = "the frame of gps.csv";  // metres in a frame without an EPSG code
   source.unregistered = {"x.png"};
   light_field.pose_source = source;
   WriteLightField(Path("lf.json"), light_field);
   const LightField back = LoadLightField(Path("lf.json")).light_field;
   ASSERT_TRUE(back.pose_source.has_value());
-  EXPECT_EQ(back.pose_source->world_frame, "UTM 33N (WGS84)");
+  EXPECT_EQ(back.pose_source->world_frame, "the frame of gps.csv");
+  EXPECT_EQ(back.crs, "");
   EXPECT_EQ(back.pose_source->unregistered, std::vector<std::string>{"x.png"});
   EXPECT_EQ(back.pose_source->pose_error, 0.02);
   EXPECT_TRUE(back.pose_source->georeferenced);
@@ -254,13 +330,49 @@ TEST_F(PositionsFiles, ColumnsAreReadByNameAndDegreesProjectedWithProj) {
   EXPECT_THAT(ErrorOf([&] {
                 ReadPositionsFile(Write("deg.csv", "a.png,48.3,14.3,350\nb.png,48.3001,14.3,351\n"));
               }),
-              HasSubstr("deg.csv: x, y look like degrees"));
+              HasSubstr("deg.csv: line 1: x, y look like degrees"));
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("f.csv", "name,lat,lon,speed\na,1,2,3\n")); }),
               HasSubstr("f.csv: line 1: column 4 \"speed\" is not one of"));
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(path, "EPSG:999999"); }),
               HasSubstr("'EPSG:999999' is not known to PROJ"));
   EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("feet.csv", "a.png,1,2,3\n"), "EPSG:2263"); }),
               HasSubstr("aos needs metres"));
+  // The EPSG code of the metric frame: the UTM zone degrees were projected to, or the stated
+  // projected CRS; none for metres in an unstated frame.
+  EXPECT_EQ(file.crs, "EPSG:32633");
+  EXPECT_EQ(utm.crs, "EPSG:25833");
+  EXPECT_EQ(stated.crs, "EPSG:32633");
+  EXPECT_EQ(ReadPositionsFile(Write("m.csv", "a.png,500000,5300000,1\n")).crs, "");
+}
+
+TEST_F(PositionsFiles, PositionsCrsContradictingTheValuesIsNamed) {
+  // A geographic CRS with values out of degree range (UTM metres given as EPSG:4326): the file,
+  // line and field.
+  EXPECT_THAT(ErrorOf([&] {
+                ReadPositionsFile(Write("utm.csv", "name,x,y,z\na.png,14.3,48.3,1\n"
+                                                   "b.png,500000,5300000,1\n"),
+                                  "EPSG:4326");
+              }),
+              HasSubstr("utm.csv: line 3: x: 500000 is not a longitude in [-180, 180] degrees, "
+                        "as positions_crs EPSG:4326 is geographic"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadPositionsFile(Write("lat.csv", "name,lat,lon,alt\na.png,95,14.3,1\n"));
+              }),
+              HasSubstr("lat.csv: line 2: lat: 95 is not a latitude in [-90, 90]"));
+  // Degrees given where a projected CRS expects metres.
+  EXPECT_THAT(ErrorOf([&] {
+                ReadPositionsFile(Write("deg.csv", "a.png,14.3,48.3,350\nb.png,14.3001,48.3,351\n"),
+                                  "EPSG:32633");
+              }),
+              HasSubstr("deg.csv: line 1: x, y look like degrees (all 2 positions within 0.1 of "
+                        "(14.3, 48.3)) but positions_crs EPSG:32633 is in metres"));
+  // lat/lon columns (degrees) with a projected CRS contradict each other.
+  EXPECT_THAT(ErrorOf([&] {
+                ReadPositionsFile(Write("mix.csv", "name,lat,lon,alt\na.png,48.3,14.3,1\n"),
+                                  "EPSG:32633");
+              }),
+              HasSubstr("mix.csv: the header names lat, lon columns (degrees) but positions_crs "
+                        "EPSG:32633 is not geographic"));
 }
 
 TEST_F(PositionsFiles, MalformedLinesAreNamed) {
@@ -754,6 +866,21 @@ TEST_F(FakeMapper, TheLargestOfSeveralModelsIsUsed) {
   EXPECT_TRUE(imported.georeferenced);
   EXPECT_EQ(imported.unregistered, (std::vector<std::string>{"f0.png", "f1.png"}));
   EXPECT_NEAR(imported.light_field.origin.x, 500002.0, 1e-6);
+  // Metres in an unstated frame: no EPSG code, the frame described in the pose record.
+  EXPECT_EQ(imported.light_field.crs, "");
+  EXPECT_EQ(imported.light_field.pose_source->world_frame, "the frame of " + Path("gps.csv"));
+  // With the CRS stated, the light field records it (and the pose record no longer describes
+  // the frame); without positions there is none.
+  options.positions_crs = "EPSG:25833";
+  const PosesResult stated = ImportColmapPoses(Path("models/1"), Path("frames"), options);
+  EXPECT_EQ(stated.light_field.crs, "EPSG:25833");
+  EXPECT_EQ(stated.light_field.pose_source->world_frame, "");
+  WriteLightField(Path("lf.json"), stated.light_field);
+  EXPECT_EQ(LoadLightField(Path("lf.json"), {0.0, "", false}).light_field.crs, "EPSG:25833");
+  options.positions_file.clear();
+  options.positions_crs.clear();
+  options.min_registered_fraction = 0.5;
+  EXPECT_EQ(ImportColmapPoses(Path("models/1"), Path("frames"), options).light_field.crs, "");
 }
 
 TEST_F(FakeMapper, FloatFramesAndUnmatchedPositionsAreRefusedBeforeColmapRuns) {

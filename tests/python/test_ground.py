@@ -45,6 +45,7 @@ def flight(tmp_path: Path) -> Path:
     light_field = build_lightfield(views_per_side=5, spacing=8.0, altitude=ALTITUDE, width=32,
                                    height=24)
     light_field.origin = ORIGIN
+    light_field.crs = "EPSG:32633"
     aos.write_lightfield(tmp_path / "lf.json", light_field)
     rng = np.random.default_rng(5)
     x = rng.uniform(-40, 40, 15000)
@@ -66,6 +67,7 @@ def test_ground_dem_lands_where_its_geotransform_says(flight: Path) -> None:
     with rasterio.open(flight / "ground.tif") as dem:
         heights = dem.read(1)
         assert dem.transform.e < 0  # north up
+        assert dem.crs.to_epsg() == 32633  # the light field's
         rows, cols = np.mgrid[0:dem.height, 0:dem.width]
         xs, ys = rasterio.transform.xy(dem.transform, rows.ravel(), cols.ravel())
     local_x = np.asarray(xs) - ORIGIN[0]

@@ -276,8 +276,8 @@ def test_python_errors_name_the_field_or_file(flight: aos.LightField, flight_fil
     bad = aos.LightField()
     for view in flight.views:
         bad.add_view(view.image, view.camera, view.cam_from_world)
-    bad.crs = "EPSG:999999"
-    with pytest.raises(ValueError, match="EPSG:999999"):
+    with pytest.raises(ValueError, match="EPSG:999999"):  # refused as soon as it is set
+        bad.crs = "EPSG:999999"
         aos.render_map(bad, pixel_size=0.1, path=tmp_path / "other.tif")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["map.tif"]
     # Never over a frame of the light field, even with force.
@@ -336,3 +336,29 @@ def test_a_map_on_a_dem_is_the_map_on_its_plane_and_holes_are_nodata(
         assert written.tags()["AOS_SURFACE_OFFSET"] == "0.25"
         expected = np.where(plane.count > 0, plane.image, np.nan)  # nodata where no view sees
         np.testing.assert_allclose(written.read(1), expected, atol=1e-4)
+
+
+def test_a_dem_in_another_crs_is_refused_or_transformed(flight: aos.LightField,
+                                                        tmp_path: Path) -> None:
+    """A flat DEM written in ETRS89 / UTM 33N (EPSG:25833) under a light field in WGS84 / UTM 33N
+    (EPSG:32633): the two differ by well under a metre, so reading one as the other would look
+    plausible. The core refuses it, naming both; in_crs transforms it through PROJ (what the
+    CLI does itself), and the map then equals the plane's."""
+    h = 0.5
+    heights = np.full((60, 60), ORIGIN[2] + h, np.float32)
+    dem = aos.Heightfield(heights, (ORIGIN[0] - 30.0, 1.0, 0.0, ORIGIN[1] + 30.0, 0.0, -1.0),
+                          "EPSG:25833")
+    dem.write(str(tmp_path / "dem.tif"))
+    surface = aos.FocalSurface.read(str(tmp_path / "dem.tif"))
+    extent = [ORIGIN[0] - 9.0, ORIGIN[1] - 9.0, ORIGIN[0] + 9.0, ORIGIN[1] + 9.0]
+    with pytest.raises(ValueError, match="is in EPSG:25833 but the light field in EPSG:32633"):
+        aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=surface)
+    moved = surface.in_crs("EPSG:32633")
+    assert "EPSG:25833 -> EPSG:32633" in moved.describe()
+    assert moved.kind == "mesh"
+    plane = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_height=h)
+    on_dem = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=moved)
+    np.testing.assert_array_equal(on_dem.count, plane.count)
+    np.testing.assert_allclose(on_dem.image, plane.image, atol=1e-3)
+    # The same surface in its own CRS comes back unchanged.
+    assert surface.in_crs("EPSG:25833") == surface

@@ -67,11 +67,129 @@ int StandardZone(double longitude_deg) {
   return std::min(60, static_cast<int>(std::floor(lon / 6.0)) + 1);
 }
 
-std::string UtmCrs(int zone, bool north) {
-  return "EPSG:" + std::to_string((north ? 32600 : 32700) + zone);
+std::string UtmCrs(int zone, bool north) { return UtmEpsg(zone, north); }
+
+// "EPSG:<code>" of a CRS object, from its own identifier or PROJ's identification (an
+// equivalent EPSG entry with 100% confidence); "" when there is none.
+std::string EpsgOf(Context& ctx, PJ* crs) {
+  for (int i = 0;; ++i) {
+    const char* authority = proj_get_id_auth_name(crs, i);
+    if (authority == nullptr) break;
+    const char* code = proj_get_id_code(crs, i);
+    if (std::string(authority) == "EPSG" && code != nullptr) return std::string("EPSG:") + code;
+  }
+  int* confidence = nullptr;
+  PJ_OBJ_LIST* candidates = proj_identify(ctx.context, crs, "EPSG", nullptr, &confidence);
+  std::string result;
+  if (candidates != nullptr) {
+    const int count = proj_list_get_count(candidates);
+    for (int i = 0; i < count && result.empty(); ++i) {
+      if (confidence[i] < 100) continue;
+      Pj candidate(proj_list_get(ctx.context, candidates, i));
+      const char* code = candidate ? proj_get_id_code(candidate.get(), 0) : nullptr;
+      if (code != nullptr) result = std::string("EPSG:") + code;
+    }
+    proj_int_list_destroy(confidence);
+    proj_list_destroy(candidates);
+  }
+  return result;
+}
+
+// Whether every axis of the coordinate system of `crs` (a projected CRS) is in metres; *unit
+// gets the first other unit's name.
+bool AxesInMetres(Context& ctx, PJ* crs, std::string* unit) {
+  Pj system(proj_crs_get_coordinate_system(ctx.context, crs));
+  const int axes = system ? proj_cs_get_axis_count(ctx.context, system.get()) : 0;
+  for (int i = 0; i < axes; ++i) {
+    double factor = 0.0;
+    const char* name = nullptr;
+    proj_cs_get_axis_info(ctx.context, system.get(), i, nullptr, nullptr, nullptr, &factor,
+                          &name, nullptr, nullptr);
+    if (factor != 1.0) {
+      *unit = name != nullptr ? name : "?";
+      return false;
+    }
+  }
+  return axes > 0;
 }
 
 }  // namespace
+
+std::string UtmEpsg(int zone, bool north) {
+  if (zone < 1 || zone > 60) ThrowInvalid("UTM zone must be 1..60, got " + std::to_string(zone));
+  return "EPSG:" + std::to_string((north ? 32600 : 32700) + zone);
+}
+
+std::vector<Vec3d> TransformPoints(const std::vector<Vec3d>& points, const std::string& from_crs,
+                                   const std::string& to_crs, const std::string& where) {
+  Context ctx;
+  CreateCrs(ctx, from_crs, where);  // each CRS named on its own when unknown
+  CreateCrs(ctx, to_crs, where);
+  const Pj transform = CreateTransform(ctx, from_crs, to_crs, where);
+  std::vector<Vec3d> result;
+  result.reserve(points.size());
+  for (size_t i = 0; i < points.size(); ++i) {
+    const Vec3d& p = points[i];
+    if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
+      ThrowInvalid(where + ": point " + std::to_string(i) + " is not finite");
+    }
+    result.push_back(Transform(ctx, transform.get(), p,
+                               where + ": point " + std::to_string(i) + " from " + from_crs +
+                                   " to " + to_crs));
+  }
+  return result;
+}
+
+std::string EpsgOfCrs(const std::string& crs, const std::string& where) {
+  Context ctx;
+  const Pj pj = CreateCrs(ctx, crs, where);
+  return EpsgOf(ctx, pj.get());
+}
+
+void CheckLightFieldCrs(const std::string& crs, const std::string& where) {
+  if (crs.empty()) return;
+  const std::string prefix = "EPSG:";
+  const bool digits = crs.size() > prefix.size() && crs.compare(0, prefix.size(), prefix) == 0 &&
+                      crs.find_first_not_of("0123456789", prefix.size()) == std::string::npos;
+  if (!digits) {
+    ThrowInvalid(where + ": \"" + crs + "\" is not an EPSG code (expected \"EPSG:<code>\", e.g. "
+                 "\"EPSG:32633\" for UTM 33N)");
+  }
+  Context ctx;
+  Pj pj(proj_create(ctx.context, crs.c_str()));
+  if (!pj) ThrowInvalid(where + ": " + crs + " is not known to PROJ (" + ctx.LastError() + ")");
+  PJ_TYPE type = proj_get_type(pj.get());
+  const char* raw_name = proj_get_name(pj.get());
+  const std::string name = crs + " (" + (raw_name != nullptr ? raw_name : "?") + ")";
+  Pj horizontal;
+  if (type == PJ_TYPE_COMPOUND_CRS) {
+    horizontal.reset(proj_crs_get_sub_crs(ctx.context, pj.get(), 0));
+    if (horizontal) type = proj_get_type(horizontal.get());
+  }
+  PJ* planar = horizontal ? horizontal.get() : pj.get();
+  if (type == PJ_TYPE_GEOGRAPHIC_2D_CRS || type == PJ_TYPE_GEOGRAPHIC_3D_CRS) {
+    ThrowInvalid(where + ": " + name + " is geographic (degrees); a light field's local frame is "
+                 "metric: give a projected CRS in metres (e.g. the UTM zone's EPSG:326zz)");
+  }
+  if (type != PJ_TYPE_PROJECTED_CRS) {
+    ThrowInvalid(where + ": " + name + " is not a projected CRS; a light field's world frame is "
+                 "easting, northing, height in metres");
+  }
+  std::string unit;
+  if (!AxesInMetres(ctx, planar, &unit)) {
+    ThrowInvalid(where + ": " + name + " has axes in " + unit + "; a light field's world frame "
+                 "is in metres");
+  }
+}
+
+double GridBearingOfNorth(double latitude_deg, double longitude_deg, const std::string& crs,
+                          const std::string& where) {
+  const double step_deg = 1e-5;
+  const std::vector<Vec3d> grid = TransformPoints(
+      {Vec3d(longitude_deg, latitude_deg, 0.0), Vec3d(longitude_deg, latitude_deg + step_deg, 0.0)},
+      "EPSG:4326", crs, where);
+  return std::atan2(grid[1].x - grid[0].x, grid[1].y - grid[0].y);
+}
 
 UtmCoordinate UtmFromWgs84(double latitude_deg, double longitude_deg, int zone,
                            const std::string& where) {
@@ -134,6 +252,7 @@ MetricPoints MetricFromCrs(const std::vector<Vec3d>& points_in_crs, const std::s
     }
     result.frame = "UTM " + std::to_string(zone) + (north ? "N" : "S") + " (" + crs_name + ")";
     result.from_degrees = true;
+    result.crs = UtmCrs(zone, north);
     return result;
   }
   if (type != PJ_TYPE_PROJECTED_CRS) {
@@ -141,20 +260,14 @@ MetricPoints MetricFromCrs(const std::vector<Vec3d>& points_in_crs, const std::s
                                            "(metres); give positions in one of those");
   }
   // A projected CRS: its axes must be in metres.
-  Pj system(proj_crs_get_coordinate_system(ctx.context, source.get()));
-  const int axes = system ? proj_cs_get_axis_count(ctx.context, system.get()) : 0;
-  for (int i = 0; i < axes; ++i) {
-    double factor = 0.0;
-    const char* unit = nullptr;
-    proj_cs_get_axis_info(ctx.context, system.get(), i, nullptr, nullptr, nullptr, &factor,
-                          &unit, nullptr, nullptr);
-    if (factor != 1.0) {
-      ThrowInvalid(where + ": " + crs_name + " has axes in " + (unit ? unit : "?") +
-                   "; aos needs metres (give a metric CRS or convert)");
-    }
+  std::string unit;
+  if (!AxesInMetres(ctx, source.get(), &unit)) {
+    ThrowInvalid(where + ": " + crs_name + " has axes in " + unit +
+                 "; aos needs metres (give a metric CRS or convert)");
   }
   result.points = points_in_crs;
   result.frame = crs_name;
+  result.crs = EpsgOf(ctx, source.get());
   return result;
 }
 

@@ -13,10 +13,20 @@
 // - MetricFromCrs takes points in a CRS given as PROJ understands it ("EPSG:4326", "EPSG:25833",
 //   a WKT or PROJ string). A geographic CRS (degrees) is projected to the UTM zone of the points'
 //   mean longitude; a projected CRS in metres is kept as it is; other units are refused. Points are
-//   (x, y, z) in the CRS's "visualisation" order: longitude/easting first.
+//   (x, y, z) in the CRS's "visualisation" order: longitude/easting first. The result names the
+//   metric frame's EPSG code when it has one (MetricPoints::crs, e.g. "EPSG:32633").
+// - TransformPoints moves points between any two CRSs PROJ can relate (a DEM raster's CRS into a
+//   light field's, positions into UTM, ...), in double precision, visualisation order on both
+//   sides (longitude/easting first, whatever the CRS's official axis order). Heights pass
+//   through unchanged unless both CRSs have a vertical component PROJ can relate.
+// - A light field's CRS (LightField::crs) is "EPSG:<code>" of a projected CRS with metre axes
+//   (or a compound CRS whose horizontal part is one): its local frame is metric, x east-ish,
+//   y north-ish, z up. CheckLightFieldCrs refuses anything else, geographic CRSs (degrees)
+//   included.
 //
 // Throws std::invalid_argument for a latitude outside [-80, 84] degrees (UTM's range), a
-// non-finite value, a zone outside 0..60, or a CRS PROJ does not know, naming `where`.
+// non-finite value, a zone outside 0..60, or a CRS PROJ does not know or cannot transform,
+// naming `where`.
 #include <string>
 #include <vector>
 
@@ -38,6 +48,7 @@ struct MetricPoints {
   std::vector<Vec3d> points;  // metres (easting, northing, height)
   std::string frame;          // e.g. "UTM 33N (WGS84)" or the projected CRS's name
   bool from_degrees = false;  // the input CRS was geographic
+  std::string crs;            // "EPSG:<code>" of the metric frame; empty when it has no code
 };
 
 MetricPoints MetricFromCrs(const std::vector<Vec3d>& points_in_crs, const std::string& crs,
@@ -45,5 +56,32 @@ MetricPoints MetricFromCrs(const std::vector<Vec3d>& points_in_crs, const std::s
 
 // Whether PROJ takes `crs` as a geographic (degrees) CRS; throws for an unknown CRS.
 bool IsGeographicCrs(const std::string& crs, const std::string& where);
+
+// "EPSG:326zz" (north) or "EPSG:327zz" (south) for WGS84 / UTM zone zz (1..60).
+std::string UtmEpsg(int zone, bool north);
+
+// Points (x, y, z) in `from_crs` to `to_crs` (any CRS PROJ understands: "EPSG:25833", WKT,
+// PROJ strings), longitude/easting first on both sides, double precision. Throws
+// std::invalid_argument naming `where` for an unknown CRS, a pair PROJ cannot relate, a
+// non-finite input or a point PROJ cannot transform (outside the projection's domain).
+std::vector<Vec3d> TransformPoints(const std::vector<Vec3d>& points, const std::string& from_crs,
+                                   const std::string& to_crs, const std::string& where);
+
+// The "EPSG:<code>" that identifies `crs` (given as PROJ understands it), or "" when PROJ knows
+// no EPSG code for it. Throws for a CRS PROJ does not know, naming `where`.
+std::string EpsgOfCrs(const std::string& crs, const std::string& where);
+
+// Checks a light field's CRS (see the contract above): "" (not geo-referenced) or
+// "EPSG:<code>" of a metric projected CRS. Throws std::invalid_argument "<where>: ..." naming
+// the code and why it is refused (unknown to PROJ, geographic, not metric, not an EPSG code).
+void CheckLightFieldCrs(const std::string& crs, const std::string& where);
+
+// The grid bearing of true north at a WGS84 point in a projected CRS: radians, clockwise from
+// the grid's +y (northing) axis; minus the meridian convergence (negative east of a UTM zone's
+// central meridian in the northern hemisphere). A direction at compass heading h (clockwise
+// from true north) has grid bearing h + GridBearingOfNorth. Computed through PROJ from the
+// point and one 1e-5 degrees further north (exact to ~1e-9 rad).
+double GridBearingOfNorth(double latitude_deg, double longitude_deg, const std::string& crs,
+                          const std::string& where);
 
 }  // namespace aos

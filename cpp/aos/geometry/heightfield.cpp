@@ -9,6 +9,7 @@
 #include <cpl_conv.h>
 #include <cpl_error.h>
 #include <cpl_string.h>
+#include <ogr_srs_api.h>
 
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
@@ -152,9 +153,16 @@ void WriteHeightfield(const std::string& path, const Heightfield& heightfield, b
     double gt[6];
     for (int i = 0; i < 6; ++i) gt[i] = heightfield.geotransform[static_cast<size_t>(i)];
     GDALSetGeoTransform(closer.dataset, gt);
-    if (!heightfield.crs_wkt.empty() &&
-        GDALSetProjection(closer.dataset, heightfield.crs_wkt.c_str()) != CE_None) {
-      ThrowInvalid(path + ": crs_wkt: GDAL refuses the CRS" + GdalMessage());
+    if (!heightfield.crs_wkt.empty()) {
+      // WKT, or any CRS string GDAL understands ("EPSG:32633"), stored as WKT.
+      OGRSpatialReferenceH srs = OSRNewSpatialReference(nullptr);
+      char* wkt = nullptr;
+      const bool parsed = OSRSetFromUserInput(srs, heightfield.crs_wkt.c_str()) == OGRERR_NONE &&
+                          OSRExportToWkt(srs, &wkt) == OGRERR_NONE;
+      const bool set = parsed && GDALSetProjection(closer.dataset, wkt) == CE_None;
+      CPLFree(wkt);
+      OSRDestroySpatialReference(srs);
+      if (!set) ThrowInvalid(path + ": crs_wkt: GDAL refuses the CRS '" + heightfield.crs_wkt + "'" + GdalMessage());
     }
     GDALRasterBandH band = GDALGetRasterBand(closer.dataset, 1);
     GDALSetRasterNoDataValue(band, std::numeric_limits<double>::quiet_NaN());

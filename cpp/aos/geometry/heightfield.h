@@ -35,7 +35,9 @@ struct Heightfield {
   // GDAL geotransform: x = gt[0] + col gt[1] + row gt[2], y = gt[3] + col gt[4] + row gt[5]
   // for continuous pixel coordinates (col, row); gt[2] = gt[4] = 0 here.
   std::array<double, 6> geotransform{0.0, 1.0, 0.0, 0.0, 0.0, -1.0};
-  std::string crs_wkt;         // the raster's CRS as WKT; empty when it has none
+  // The raster's CRS as WKT (read), or WKT or any string GDAL's SetFromUserInput takes, such as
+  // "EPSG:32633" (written); empty when it has none.
+  std::string crs_wkt;
   std::vector<float> heights;  // row-major, width x height, metres; NaN = nodata
 
   float At(int column, int row) const {

@@ -16,6 +16,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "aos/geometry/geodesy.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/json_codec.h"
 #include "aos/util/error.h"
@@ -307,14 +308,37 @@ PoseSource ReadPoseSourceJson(const json& value, const JsonPath& at) {
 }
 
 nlohmann::ordered_json PoseSourceToJson(const PoseSource& p) {
-  return {{"method", p.method},
-          {"mean_reprojection_error_px", p.mean_reprojection_error_px},
-          {"median_depth", p.median_depth},
-          {"pose_error", p.pose_error},
-          {"georeferenced", p.georeferenced},
-          {"georeference_rms_m", p.georeference_rms_m},
-          {"world_frame", p.world_frame},
-          {"unregistered", p.unregistered}};
+  nlohmann::ordered_json value = {{"method", p.method},
+                                  {"mean_reprojection_error_px", p.mean_reprojection_error_px},
+                                  {"median_depth", p.median_depth},
+                                  {"pose_error", p.pose_error},
+                                  {"georeferenced", p.georeferenced},
+                                  {"georeference_rms_m", p.georeference_rms_m}};
+  // Only a frame without an EPSG code is described here; "crs" says the others.
+  if (!p.world_frame.empty()) value["world_frame"] = p.world_frame;
+  value["unregistered"] = p.unregistered;
+  return value;
+}
+
+// The EPSG code an older file's pose_source.world_frame label names, or "": aos wrote
+// "UTM 33N (WGS84)" (WGS84 / UTM, whatever the positions' own datum, since they were projected
+// to EPSG:326zz/327zz) or a projected CRS's name ("ETRS89 / UTM zone 33N"), which PROJ
+// identifies.
+std::string CrsFromWorldFrameLabel(const std::string& label) {
+  int zone = 0;
+  char hemisphere = 0;
+  if (std::sscanf(label.c_str(), "UTM %d%c", &zone, &hemisphere) == 2 && zone >= 1 &&
+      zone <= 60 && (hemisphere == 'N' || hemisphere == 'S')) {
+    return UtmEpsg(zone, hemisphere == 'N');
+  }
+  try {
+    const std::string epsg = EpsgOfCrs(label, "world_frame");
+    if (epsg.empty()) return "";
+    CheckLightFieldCrs(epsg, "world_frame");
+    return epsg;
+  } catch (const std::invalid_argument&) {
+    return "";  // a free description ("the frame of gps.csv"): kept as it is
+  }
 }
 
 LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions& options,
@@ -325,15 +349,33 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
                  Describe(version) + " (written by a newer aos?)");
   }
   const JsonPath top(path);
-  RequireKnownKeys(root, {"format", "version", "origin", "pose_source", "cameras", "views"}, top);
+  RequireKnownKeys(root,
+                   {"format", "version", "origin", "crs", "pose_source", "cameras", "views"}, top);
   LoadResult result;
   result.format = "aos";
   LightField& light_field = result.light_field;
   if (auto it = root.find("origin"); it != root.end()) {
     light_field.origin = ReadVec3Json(*it, top / "origin");
   }
+  if (auto it = root.find("crs"); it != root.end()) {
+    if (!it->is_string()) {
+      ThrowInvalid(path + ": crs: expected a string \"EPSG:<code>\", got " + Describe(*it));
+    }
+    light_field.crs = it->get<std::string>();
+    CheckLightFieldCrs(light_field.crs, path + ": crs");
+  }
   if (auto it = root.find("pose_source"); it != root.end()) {
     light_field.pose_source = ReadPoseSourceJson(*it, top / "pose_source");
+    // Files written before "crs" named UTM frames in pose_source.world_frame only.
+    PoseSource& source = *light_field.pose_source;
+    if (light_field.crs.empty() && !source.world_frame.empty()) {
+      light_field.crs = CrsFromWorldFrameLabel(source.world_frame);
+      if (!light_field.crs.empty()) {
+        result.notes.push_back(path + ": pose_source.world_frame \"" + source.world_frame +
+                               "\" read as crs " + light_field.crs);
+        source.world_frame.clear();
+      }
+    }
   }
 
   const json& cameras_json = Field(root, "cameras", path);
@@ -717,6 +759,7 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   for (int i = 0; i < 3; ++i) {
     if (!std::isfinite(light_field.origin[i])) ThrowInvalid(path + ": origin is not finite");
   }
+  CheckLightFieldCrs(light_field.crs, path + ": crs");
   if (light_field.views.empty()) ThrowInvalid(path + ": the light field has no views");
   std::vector<std::string> inputs;
   const View* first_with_image = nullptr;
@@ -784,6 +827,7 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   root["format"] = kAosFormatName;
   root["version"] = kAosFormatVersion;
   root["origin"] = Vec3ToJson(light_field.origin);
+  if (!light_field.crs.empty()) root["crs"] = light_field.crs;
   if (light_field.pose_source) root["pose_source"] = PoseSourceToJson(*light_field.pose_source);
   std::vector<const View*> cameras;  // the first view of each distinct camera
   nlohmann::ordered_json cameras_json = nlohmann::ordered_json::object();

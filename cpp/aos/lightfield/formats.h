@@ -5,6 +5,7 @@
 //   {
 //     "format": "aos-lightfield", "version": 1,
 //     "origin": [x, y, z],                 // world position of the local zero, double (e.g. UTM)
+//     "crs": "EPSG:32633",                 // optional: CRS of origin + local (LightField::crs)
 //     "cameras": {"cam0": {"model": "pinhole", "width": 512, "height": 512,
 //                          "fx": 535.7, "fy": 535.7, "cx": 256, "cy": 256}},
 //     "views": [{"image": "views/0000.png",  // relative to the JSON file's folder, or absolute
@@ -15,6 +16,11 @@
 //   Optional "pose_source" (PoseSource in lightfield.h) says where estimated poses came from:
 //   {"method": "colmap", "mean_reprojection_error_px", "median_depth", "pose_error",
 //    "georeferenced", "georeference_rms_m", "world_frame", "unregistered": [frame names]}.
+//   "crs" must be "EPSG:<code>" of a projected CRS in metres that PROJ knows (geodesy.h,
+//   CheckLightFieldCrs); anything else is refused naming the file and "crs". "world_frame" only
+//   describes a frame without an EPSG code ("the frame of gps.csv"); files written before "crs"
+//   existed carried "UTM 33N (WGS84)" there: without a "crs", such a label (or a projected CRS's
+//   name PROJ identifies) is read as crs "EPSG:32633" (a note says so) and world_frame emptied.
 //   Poses map the local frame (world - origin) to OpenCV camera axes, metres. Cameras, poses,
 //   the origin and the pose record are read and written by the shared codec (json_codec.h: the
 //   same camera fields as a camera file, "fov_deg" for a pinhole, lens models with

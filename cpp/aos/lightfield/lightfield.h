@@ -40,7 +40,11 @@ struct PoseSource {
   double pose_error = 0.0;                // e = error_px * median_depth / fx, light-field units
   bool georeferenced = false;             // units are metres (else the method's arbitrary scale)
   double georeference_rms_m = 0.0;        // centre residuals of the geo-referencing
-  std::string world_frame;                // what origin and world are in, e.g. "UTM 31N (WGS84)"
+  // A description of the world frame when it has no EPSG code (e.g. "the frame of gps.csv":
+  // metres in a frame the positions file did not name); empty when LightField::crs says it.
+  // Superseded by LightField::crs: files written before it carried "UTM 33N (WGS84)" here,
+  // which the reader turns into crs = "EPSG:32633".
+  std::string world_frame;
   std::vector<std::string> unregistered;  // frames that got no pose
 };
 

@@ -10,6 +10,7 @@
 #include <embree3/rtcore.h>
 #include <omp.h>
 
+#include "aos/geometry/geodesy.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 
@@ -448,8 +449,40 @@ std::vector<double> FocalSurface::HeightsAt(const std::vector<Vec2d>& xy_in_worl
   return heights;
 }
 
+namespace {
+
+// "EPSG:<code>" of a height field's CRS, or its WKT when it has no EPSG code; "" without one.
+std::string HeightfieldCrs(const FocalSurface& surface) {
+  if (surface.kind() != FocalSurfaceKind::kHeightfield) return "";
+  const std::string& wkt = surface.heightfield().crs_wkt;
+  if (wkt.empty()) return "";
+  const std::string epsg = EpsgOfCrs(wkt, surface.source().empty() ? "focal surface" : surface.source());
+  return epsg.empty() ? wkt : epsg;
+}
+
+}  // namespace
+
+FocalSurface InCrs(const FocalSurface& surface, const std::string& crs) {
+  const std::string from = HeightfieldCrs(surface);
+  if (from.empty() || crs.empty() || from == crs) return surface;
+  const std::string where = surface.source().empty() ? "focal surface" : surface.source();
+  Mesh mesh = HeightfieldToMesh(surface.heightfield(), where);
+  mesh.vertices = TransformPoints(mesh.vertices, surface.heightfield().crs_wkt, crs, where);
+  return FocalSurface::FromMesh(std::move(mesh), where + " (" + from + " -> " + crs + ")");
+}
+
 SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const LightField& light_field,
                                          const std::vector<int>& view_indices, double offset) {
+  // A DEM in another CRS than the light field's would be read as if it were in the light
+  // field's: refuse (InCrs transforms it; the CLI does so itself).
+  const std::string dem_crs = HeightfieldCrs(surface);
+  if (!dem_crs.empty() && !light_field.crs.empty() && dem_crs != light_field.crs) {
+    ThrowInvalid("focal_surface: " + surface.source() + " is in " +
+                 (dem_crs.size() > 40 ? std::string("another CRS") : dem_crs) +
+                 " but the light field in " + light_field.crs +
+                 ": transform it first (FocalSurface::InCrs / focal_surface.in_crs(...); the CLI "
+                 "does this itself)");
+  }
   SurfacePlacement placement;
   placement.origin = light_field.origin;
   placement.offset = offset;

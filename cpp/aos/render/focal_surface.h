@@ -124,6 +124,15 @@ class FocalSurface {
 SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const LightField& light_field,
                                          const std::vector<int>& view_indices, double offset);
 
+// CRSs. A height field carries its raster's CRS; a light field its `crs`. When both are set and
+// differ, ResolveSurfacePlacement refuses the surface (its coordinates would be read in the
+// wrong frame), and InCrs gives the surface transformed into `crs` through PROJ (every vertex of
+// its triangulation: a mesh in the light field's CRS, named "<source> (EPSG:a -> EPSG:b)").
+// Without a CRS on either side the coordinates are taken as they are. InCrs returns the surface
+// itself when there is nothing to transform. Throws std::invalid_argument naming the file for a
+// CRS PROJ cannot transform.
+FocalSurface InCrs(const FocalSurface& surface, const std::string& crs);
+
 // Depth (z in the camera frame, metres) at which each pixel's ray meets `plane`; 0 where the ray
 // meets it behind the camera or never (float32, 1 channel).
 Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane);

@@ -275,9 +275,11 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
   source.pose_error = result->pose_error;
   source.georeferenced = result->georeferenced;
   source.georeference_rms_m = result->georeference_rms_m;
-  source.world_frame = result->world_frame;
+  // The frame is said once: by its EPSG code when it has one, else described.
+  source.world_frame = result->crs.empty() ? result->world_frame : "";
   source.unregistered = result->unregistered;
   result->light_field.pose_source = source;
+  result->light_field.crs = result->georeferenced ? result->crs : "";
 }
 
 // Whether `ratio` (recovered / expected) lies within 1 / (1 + deviation) .. 1 + deviation: the
@@ -480,6 +482,7 @@ PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs)
   std::vector<NamedPosition> positions;
   std::set<std::string> seen;
   std::optional<PositionColumns> columns;
+  std::vector<int> lines;  // the line of each position
   std::string line;
   int number = 0;
   bool header = false;
@@ -540,29 +543,50 @@ PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs)
     if (p.name.empty()) ThrowInvalid(where + ": name: is empty");
     if (!seen.insert(p.name).second) ThrowInvalid(where + ": name: \"" + p.name + "\" is repeated");
     positions.push_back(p);
+    lines.push_back(number);
   }
   if (positions.empty()) ThrowInvalid(path + ": no positions (expected lines name, x, y, z)");
 
   PositionsFile result;
   result.positions = positions;
-  const bool degrees = columns->degrees || (!crs.empty() && IsGeographicCrs(crs, path));
+  const bool geographic = !crs.empty() && IsGeographicCrs(crs, path + ": positions_crs");
+  if (columns->degrees && !crs.empty() && !geographic) {
+    ThrowInvalid(path + ": the header names lat, lon columns (degrees) but positions_crs " + crs +
+                 " is not geographic (degrees): name the columns x, y, z or give a geographic "
+                 "CRS (e.g. EPSG:4326)");
+  }
+  const bool degrees = columns->degrees || geographic;
+  const auto where_line = [&](size_t i) {
+    return path + ": line " + std::to_string(lines[i]);
+  };
   if (degrees) {
-    // Degrees in the file's column order (lon, lat) are projected through PROJ to UTM.
+    // Degrees in the file's column order (lon, lat) are projected through PROJ to UTM: first
+    // each value is checked to be an angle in range, naming its line.
+    const char* longitude_name = columns->degrees ? "lon" : "x";
+    const char* latitude_name = columns->degrees ? "lat" : "y";
+    const std::string as = crs.empty() ? std::string("degrees (lat, lon columns)")
+                                       : "degrees, as positions_crs " + crs + " is geographic";
+    for (size_t i = 0; i < positions.size(); ++i) {
+      const Vec3d& p = positions[i].position;
+      if (!(std::abs(p.x) <= 180.0)) {
+        ThrowInvalid(where_line(i) + ": " + longitude_name + ": " + FormatNumber(p.x) +
+                     " is not a longitude in [-180, 180] " + as);
+      }
+      if (!(std::abs(p.y) <= 90.0)) {
+        ThrowInvalid(where_line(i) + ": " + latitude_name + ": " + FormatNumber(p.y) +
+                     " is not a latitude in [-90, 90] " + as);
+      }
+    }
     std::vector<Vec3d> points;
     for (const NamedPosition& p : positions) points.push_back(p.position);
     const MetricPoints metric = MetricFromCrs(points, crs.empty() ? "EPSG:4326" : crs, path);
     for (size_t i = 0; i < positions.size(); ++i) result.positions[i].position = metric.points[i];
     result.world_frame = metric.frame;
+    result.crs = metric.crs;
     return result;
   }
-  if (!crs.empty()) {
-    std::vector<Vec3d> points;
-    for (const NamedPosition& p : positions) points.push_back(p.position);
-    result.world_frame = MetricFromCrs(points, crs, path).frame;  // checks it is metric
-    return result;
-  }
-  // Metres in an unstated frame. Refuse what are evidently degrees read as metres (a whole
-  // flight inside a square of 0.1 x 0.1 "metres" with longitude- and latitude-like values).
+  // Metres. Refuse what are evidently degrees read as metres (a whole flight inside a square of
+  // 0.1 x 0.1 "metres" with longitude- and latitude-like values), in a stated metric CRS too.
   double min_x = positions[0].position.x, max_x = min_x;
   double min_y = positions[0].position.y, max_y = min_y;
   for (const NamedPosition& p : positions) {
@@ -576,10 +600,21 @@ PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs)
                             std::abs(min_x) <= 180.0 && std::abs(min_y) <= 180.0 &&
                             std::abs(max_x) <= 180.0 && std::abs(max_y) <= 180.0;
   if (like_degrees) {
-    ThrowInvalid(path + ": x, y look like degrees (all within 0.1 of (" + FormatNumber(min_x) +
-                 ", " + FormatNumber(min_y) +
-                 ")): name the columns lat, lon, alt in a header line, or give the CRS "
+    ThrowInvalid(where_line(0) + ": x, y look like degrees (all " +
+                 std::to_string(positions.size()) + " positions within 0.1 of (" +
+                 FormatNumber(min_x) + ", " + FormatNumber(min_y) + "))" +
+                 (crs.empty() ? std::string()
+                              : " but positions_crs " + crs + " is in metres") +
+                 ": name the columns lat, lon, alt in a header line, or give a geographic CRS "
                  "(positions_crs, e.g. EPSG:4326), or give metres");
+  }
+  if (!crs.empty()) {
+    std::vector<Vec3d> points;
+    for (const NamedPosition& p : positions) points.push_back(p.position);
+    const MetricPoints metric = MetricFromCrs(points, crs, path);  // checks it is metric
+    result.world_frame = metric.frame;
+    result.crs = metric.crs;
+    return result;
   }
   result.world_frame = "the frame of " + path;
   return result;
@@ -628,7 +663,7 @@ std::vector<NamedPosition> MatchPositionsToFrames(const std::vector<NamedPositio
 std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
                                              const std::vector<std::string>& frames,
                                              std::vector<std::string>* skipped,
-                                             std::string* zone_label) {
+                                             std::string* zone_label, std::string* crs) {
   std::vector<NamedPosition> positions;
   int zone = 0;
   bool north = true;
@@ -645,6 +680,7 @@ std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
       zone = utm.zone;
       north = utm.north;
       *zone_label = "UTM " + std::to_string(utm.zone) + (utm.north ? "N" : "S") + " (WGS84)";
+      if (crs != nullptr) *crs = UtmEpsg(utm.zone, utm.north);
     }
     // One hemisphere's false northing for the whole flight (one that crosses the equator).
     if (utm.north != north) utm.northing += north ? -10000000.0 : 10000000.0;
@@ -791,12 +827,14 @@ std::vector<NamedPosition> FramePositions(const std::string& frames_dir,
   std::vector<NamedPosition> positions;
   if (!options.positions_file.empty()) {
     result->world_frame = file.world_frame;
+    result->crs = file.crs;
     positions = MatchPositionsToFrames(file.positions, result->frames, options.positions_file,
                                        &result->warnings);
   }
   if (options.exif_positions) {
     std::vector<std::string> untagged;
-    positions = PositionsFromExif(frames_dir, result->frames, &untagged, &result->world_frame);
+    positions = PositionsFromExif(frames_dir, result->frames, &untagged, &result->world_frame,
+                                  &result->crs);
     if (!untagged.empty()) {
       result->warnings.push_back(std::to_string(untagged.size()) +
                                  " frame(s) without an EXIF GPS latitude, longitude and altitude: " +
@@ -1031,12 +1069,14 @@ PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& f
   if (!options.positions_file.empty()) {
     PositionsFile file = ReadPositionsFile(options.positions_file, options.positions_crs);
     result.world_frame = file.world_frame;
+    result.crs = file.crs;
     positions = MatchPositionsToFrames(file.positions, result.frames, options.positions_file,
                                        &result.warnings);
   }
   if (options.exif_positions) {
     std::vector<std::string> untagged;
-    positions = PositionsFromExif(frames_dir, result.frames, &untagged, &result.world_frame);
+    positions = PositionsFromExif(frames_dir, result.frames, &untagged, &result.world_frame,
+                                  &result.crs);
     if (positions.size() < 3) {
       ThrowInvalid(frames_dir + ": only " + std::to_string(positions.size()) +
                    " frames carry EXIF GPS positions; geo-referencing needs at least 3");

@@ -115,6 +115,7 @@ struct PosesResult {
   double georeference_rms_m = 0.0;        // RMS of centre residuals after it
   int georeference_frames = 0;            // registered frames with a position
   std::string world_frame;                // "UTM 31N (WGS84)", "the frame of gps.csv", or ""
+  std::string crs;                        // "EPSG:32631": the light field's crs, or "" (none)
   // Self-calibration's check: the focal length the fov_deg prior gives (0 without a prior or
   // with a known camera), the recovered one's deviation from it (recovered / prior - 1; NaN when
   // unchecked), and whether it exceeded max_focal_deviation (accepted with allow_implausible).
@@ -157,10 +158,15 @@ struct NamedPosition {
 // geographic `crs`) are projected through PROJ to the UTM zone of their mean longitude; `crs`
 // ("EPSG:25833", ...; empty = not stated) names the CRS of the coordinates. Metres in an unstated
 // frame that evidently are degrees (the whole flight within 0.1 x 0.1 of a longitude/latitude-
-// like point) are refused. world_frame says which frame the positions are in.
+// like point) are refused, with a stated projected `crs` too. A geographic `crs` (or lat/lon
+// columns) with a value outside [-180, 180] (longitude) or [-90, 90] (latitude), and lat/lon
+// columns with a stated projected `crs`, are refused naming the file, line and field.
+// world_frame says which frame the positions are in; crs is its EPSG code ("EPSG:326zz" after
+// projecting degrees to UTM, the stated CRS's code for metres), "" for an unstated metric frame.
 struct PositionsFile {
   std::vector<NamedPosition> positions;
   std::string world_frame;
+  std::string crs;
 };
 PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs = "");
 
@@ -173,12 +179,12 @@ std::vector<NamedPosition> MatchPositionsToFrames(const std::vector<NamedPositio
                                                   std::vector<std::string>* warnings);
 
 // Positions from the EXIF GPS tags of `frames` (relative to frames_dir), in UTM (zone of the
-// first tagged frame; *zone_label gets e.g. "UTM 31N (WGS84)"). Frames without a full fix are
-// reported in *skipped.
+// first tagged frame; *zone_label gets e.g. "UTM 31N (WGS84)", *crs its EPSG code when given).
+// Frames without a full fix are reported in *skipped.
 std::vector<NamedPosition> PositionsFromExif(const std::string& frames_dir,
                                              const std::vector<std::string>& frames,
                                              std::vector<std::string>* skipped,
-                                             std::string* zone_label);
+                                             std::string* zone_label, std::string* crs = nullptr);
 
 // Maps a light field of COLMAP's frame onto the positions of its views (views[i] is frame
 // names[i]; a position names a frame, or its file name): sets origin to the positions' mean and

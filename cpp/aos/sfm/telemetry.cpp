@@ -1,0 +1,540 @@
+#include "aos/sfm/telemetry.h"
+
+#include <algorithm>
+#include <cctype>
+#include <cmath>
+#include <cstdint>
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <optional>
+#include <set>
+#include <sstream>
+
+#include "aos/geometry/geodesy.h"
+#include "aos/geometry/pinhole.h"
+#include "aos/image/image_io.h"
+#include "aos/lightfield/camera_file.h"
+#include "aos/sfm/colmap_model.h"
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
+#include "aos/util/math.h"
+
+namespace fs = std::filesystem;
+
+namespace aos {
+namespace {
+
+constexpr double kDeg = kPi / 180.0;
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+std::string Trim(const std::string& text) {
+  const size_t a = text.find_first_not_of(" \t"), b = text.find_last_not_of(" \t");
+  return a == std::string::npos ? "" : text.substr(a, b - a + 1);
+}
+
+// The number in `text` (all of it), finite; else an error "<where>: <field>: ...".
+double ParseValue(const std::string& text, const std::string& where, const std::string& field) {
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size()) {
+    ThrowInvalid(where + ": " + field + ": \"" + text + "\" is not a number");
+  }
+  if (!std::isfinite(value)) ThrowInvalid(where + ": " + field + ": " + text + " is not finite");
+  return value;
+}
+
+// Range checks shared by the CSV and the tags: `where` names the line or the frame.
+void CheckSample(const TelemetrySample& s, const std::string& where,
+                 const char* const names[6]) {
+  const auto check = [&](double value, double low, double high, const char* name,
+                         const char* what) {
+    if (value < low || value > high) {
+      ThrowInvalid(where + ": " + name + ": " + FormatNumber(value) + " is outside " + what);
+    }
+  };
+  check(s.latitude_deg, -90.0, 90.0, names[0], "[-90, 90] degrees");
+  check(s.latitude_deg, -80.0, 84.0, names[0], "UTM's range [-80, 84] degrees");
+  check(s.longitude_deg, -180.0, 180.0, names[1], "[-180, 180] degrees");
+  check(s.yaw_deg, -360.0, 360.0, names[3], "[-360, 360] degrees");
+  check(s.pitch_deg, -180.0, 180.0, names[4], "[-180, 180] degrees");
+  check(s.roll_deg, -180.0, 180.0, names[5], "[-180, 180] degrees");
+}
+
+const char* const kCsvNames[6] = {"lat", "lon", "alt", "yaw", "pitch", "roll"};
+const char* const kTagNames[6] = {"GPSLatitude",
+                                  "GPSLongitude",
+                                  "altitude",
+                                  "drone-dji:GimbalYawDegree",
+                                  "drone-dji:GimbalPitchDegree",
+                                  "drone-dji:GimbalRollDegree"};
+
+struct CsvRow {
+  int line = 0;
+  std::string frame;  // frame column
+  double time = 0.0;  // time column
+  TelemetrySample sample;
+};
+
+struct CsvLog {
+  bool by_time = false;
+  std::vector<CsvRow> rows;
+};
+
+CsvLog ReadTelemetryCsv(const std::string& path) {
+  CheckRegularFile(path, "telemetry file");
+  std::istringstream in(ReadTextFile(path));
+  // Column index per field: key, lat, lon, alt, yaw, pitch, roll.
+  std::map<std::string, std::string> aliases = {
+      {"frame", "frame"},      {"name", "frame"},      {"image", "frame"},
+      {"file", "frame"},       {"time", "time"},       {"lat", "lat"},
+      {"latitude", "lat"},     {"lon", "lon"},         {"lng", "lon"},
+      {"longitude", "lon"},    {"alt", "alt"},         {"altitude", "alt"},
+      {"yaw", "yaw"},          {"heading", "yaw"},     {"pitch", "pitch"},
+      {"roll", "roll"}};
+  std::map<std::string, int> column;
+  CsvLog log;
+  std::set<std::string> seen;
+  std::string line;
+  int number = 0;
+  bool header = false;
+  size_t columns = 0;
+  while (std::getline(in, line)) {
+    ++number;
+    const std::string where = path + ": line " + std::to_string(number);
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (!IsValidUtf8(line)) ThrowInvalid(where + ": not valid UTF-8 text");
+    const size_t first = line.find_first_not_of(" \t");
+    if (first == std::string::npos || line[first] == '#') continue;
+    std::vector<std::string> fields;
+    std::string field;
+    std::istringstream split(line);
+    while (std::getline(split, field, ',')) fields.push_back(Trim(field));
+    if (!line.empty() && line.back() == ',') fields.push_back("");
+    if (!header) {
+      header = true;
+      columns = fields.size();
+      for (size_t i = 0; i < fields.size(); ++i) {
+        const auto alias = aliases.find(Lower(fields[i]));
+        if (alias == aliases.end()) {
+          ThrowInvalid(where + ": column " + std::to_string(i + 1) + " \"" + fields[i] +
+                       "\" is not one of frame (name, image, file), time, lat, lon, alt, yaw, "
+                       "pitch, roll");
+        }
+        if (!column.emplace(alias->second, static_cast<int>(i)).second) {
+          ThrowInvalid(where + ": column \"" + alias->second + "\" is given twice");
+        }
+      }
+      const bool frame = column.count("frame") != 0, time = column.count("time") != 0;
+      if (frame == time) {
+        ThrowInvalid(where + ": the header needs a frame column (frame names) or a time column "
+                             "(seconds), " + (frame ? "not both" : "and has neither"));
+      }
+      log.by_time = time;
+      for (const char* name : kCsvNames) {
+        if (column.count(name) == 0) {
+          ThrowInvalid(where + ": the header has no " + name + " column (needed: " +
+                       (time ? "time" : "frame") + ", lat, lon, alt, yaw, pitch, roll)");
+        }
+      }
+      continue;
+    }
+    if (fields.size() != columns) {
+      ThrowInvalid(where + ": expected " + std::to_string(columns) +
+                   " comma-separated fields (as the header), got " +
+                   std::to_string(fields.size()));
+    }
+    CsvRow row;
+    row.line = number;
+    if (log.by_time) {
+      row.time = ParseValue(fields[column["time"]], where, "time");
+    } else {
+      row.frame = fields[column["frame"]];
+      if (row.frame.empty()) ThrowInvalid(where + ": frame: is empty");
+      if (!seen.insert(row.frame).second) {
+        ThrowInvalid(where + ": frame: \"" + row.frame + "\" is repeated");
+      }
+    }
+    double* values[6] = {&row.sample.latitude_deg, &row.sample.longitude_deg,
+                         &row.sample.altitude_m,   &row.sample.yaw_deg,
+                         &row.sample.pitch_deg,    &row.sample.roll_deg};
+    for (int k = 0; k < 6; ++k) {
+      *values[k] = ParseValue(fields[column[kCsvNames[k]]], where, kCsvNames[k]);
+    }
+    CheckSample(row.sample, where, kCsvNames);
+    if (log.by_time && !log.rows.empty() && !(row.time > log.rows.back().time)) {
+      ThrowInvalid(where + ": time: " + FormatNumber(row.time) +
+                   " does not increase (the line before has " +
+                   FormatNumber(log.rows.back().time) + ")");
+    }
+    log.rows.push_back(row);
+  }
+  if (!header) ThrowInvalid(path + ": no header line (frame|time, lat, lon, alt, yaw, pitch, roll)");
+  if (log.rows.empty()) ThrowInvalid(path + ": no telemetry rows after the header");
+  return log;
+}
+
+// The angle a + t (b - a) along the shorter arc, degrees.
+double InterpolateAngle(double a, double b, double t) {
+  double d = std::fmod(b - a, 360.0);
+  if (d > 180.0) d -= 360.0;
+  if (d < -180.0) d += 360.0;
+  return a + t * d;
+}
+
+// XMP: the raw packet of a file (plain text by the XMP specification, wherever the container
+// keeps it). JPEGs keep it in an APP1 segment near the start: the first MiB is searched first,
+// then the rest of the file (TIFFs may keep it anywhere), up to 256 MiB.
+std::string ReadXmpPacket(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) ThrowInvalid(path + ": cannot open the frame");
+  std::error_code error;
+  const uintmax_t file_size = fs::file_size(path, error);
+  const size_t whole = error ? size_t{256} << 20
+                             : static_cast<size_t>(std::min<uintmax_t>(file_size, 256u << 20));
+  std::string data;
+  for (size_t limit : {std::min(whole, size_t{1} << 20), whole}) {
+    const size_t had = data.size();
+    if (limit <= had) break;
+    data.resize(limit);
+    in.read(&data[had], static_cast<std::streamsize>(limit - had));
+    data.resize(had + static_cast<size_t>(in.gcount()));
+    const size_t begin = data.find("<x:xmpmeta");
+    if (begin != std::string::npos) {
+      size_t end = data.find("</x:xmpmeta>", begin);
+      if (end == std::string::npos && in) {  // the packet runs past the first MiB
+        continue;
+      }
+      return data.substr(begin, end == std::string::npos ? std::string::npos : end + 12 - begin);
+    }
+    if (!in) break;  // the whole file was read
+  }
+  return "";
+}
+
+// An XMP property's text, as an attribute (name="value") or an element (<name>value</name>).
+std::optional<std::string> XmpProperty(const std::string& packet, const std::string& name) {
+  for (size_t at = packet.find(name); at != std::string::npos; at = packet.find(name, at + 1)) {
+    const size_t after = at + name.size();
+    if (at > 0 && packet[at - 1] == '<' && after < packet.size() && packet[after] == '>') {
+      const size_t close = packet.find('<', after + 1);
+      if (close == std::string::npos) return std::nullopt;
+      return Trim(packet.substr(after + 1, close - after - 1));
+    }
+    size_t p = after;
+    while (p < packet.size() && std::isspace(static_cast<unsigned char>(packet[p]))) ++p;
+    if (p < packet.size() && packet[p] == '=') {
+      ++p;
+      while (p < packet.size() && std::isspace(static_cast<unsigned char>(packet[p]))) ++p;
+      if (p >= packet.size() || (packet[p] != '"' && packet[p] != '\'')) continue;
+      const char quote = packet[p];
+      const size_t close = packet.find(quote, p + 1);
+      if (close == std::string::npos) return std::nullopt;
+      return Trim(packet.substr(p + 1, close - p - 1));
+    }
+  }
+  return std::nullopt;
+}
+
+TelemetrySample SampleFromTags(const std::string& path, const std::string& altitude_mode) {
+  const std::optional<GpsTag> gps = ReadGpsTag(path);
+  if (!gps) ThrowInvalid(path + ": no EXIF GPSLatitude/GPSLongitude tags");
+  const std::string packet = ReadXmpPacket(path);
+  const auto xmp = [&](const char* name, bool required) -> std::optional<double> {
+    const std::optional<std::string> text = XmpProperty(packet, name);
+    if (!text) {
+      if (required) {
+        ThrowInvalid(path + ": no XMP " + name +
+                     (packet.empty() ? " (the frame has no XMP packet)" : ""));
+      }
+      return std::nullopt;
+    }
+    std::string value = *text;
+    if (!value.empty() && value[0] == '+') value.erase(0, 1);  // DJI writes "+12.30"
+    return ParseValue(value, path, std::string("XMP ") + name);
+  };
+  TelemetrySample s;
+  s.latitude_deg = gps->latitude_deg;
+  s.longitude_deg = gps->longitude_deg;
+  s.yaw_deg = *xmp("drone-dji:GimbalYawDegree", true);
+  s.pitch_deg = *xmp("drone-dji:GimbalPitchDegree", true);
+  s.roll_deg = *xmp("drone-dji:GimbalRollDegree", true);
+  const std::optional<double> relative =
+      xmp("drone-dji:RelativeAltitude", altitude_mode == "relative");
+  if (altitude_mode == "relative" || (altitude_mode == "auto" && relative)) {
+    s.altitude_m = *relative;
+  } else {
+    if (!std::isfinite(gps->altitude_m)) {
+      ThrowInvalid(path + ": no EXIF GPSAltitude" +
+                   (altitude_mode == "auto" ? " (and no XMP drone-dji:RelativeAltitude)" : ""));
+    }
+    s.altitude_m = gps->altitude_m;
+  }
+  CheckSample(s, path, kTagNames);
+  return s;
+}
+
+}  // namespace
+
+void TelemetryOptions::Check() const {
+  if (camera_file.empty() && !(fov_deg > 0.0 && fov_deg < 180.0)) {
+    ThrowInvalid("fov_deg: a camera is needed: give camera_file, or fov_deg in (0, 180) (got " +
+                 FormatNumber(fov_deg) + ")");
+  }
+  if (!camera_file.empty() && fov_deg != 0.0) {
+    ThrowInvalid("fov_deg: give camera_file or fov_deg, not both (the camera file has its "
+                 "intrinsics)");
+  }
+  if (altitude != "auto" && altitude != "gps" && altitude != "relative") {
+    ThrowInvalid("altitude: \"" + altitude + "\" is not one of auto, gps, relative");
+  }
+  if (altitude != "auto" && !telemetry_file.empty()) {
+    ThrowInvalid("altitude: picks an EXIF/XMP altitude; a telemetry file has its alt column");
+  }
+  if (altitude_window != 0 && (altitude_window < 3 || altitude_window % 2 == 0)) {
+    ThrowInvalid("altitude_window: must be odd and >= 3, or 0 = no outlier rule (got " +
+                 std::to_string(altitude_window) + ")");
+  }
+  if (!(max_altitude_deviation_m > 0.0) || !std::isfinite(max_altitude_deviation_m)) {
+    ThrowInvalid("max_altitude_deviation_m: must be > 0 metres (got " +
+                 FormatNumber(max_altitude_deviation_m) + ")");
+  }
+  if (!(frame_interval_s >= 0.0) || !std::isfinite(frame_interval_s)) {
+    ThrowInvalid("frame_interval_s: must be >= 0 seconds (0 = no time column)");
+  }
+  if (!std::isfinite(time_offset_s)) ThrowInvalid("time_offset_s: must be finite");
+}
+
+Mat3d WorldFromCameraRotation(double yaw_deg, double pitch_deg, double roll_deg,
+                              double grid_bearing_of_north_rad) {
+  const double yaw = yaw_deg * kDeg + grid_bearing_of_north_rad;  // clockwise from grid +y
+  const double pitch = pitch_deg * kDeg, roll = roll_deg * kDeg;
+  const double sy = std::sin(yaw), cy = std::cos(yaw);
+  const double sp = std::sin(pitch), cp = std::cos(pitch);
+  const double sr = std::sin(roll), cr = std::cos(roll);
+  // Without roll: forward at the heading, tilted up by the pitch; right horizontal; down the
+  // image's down direction. Roll turns right and down about forward (right side down > 0).
+  const Vec3d forward(sy * cp, cy * cp, sp);
+  const Vec3d right(cy, -sy, 0.0);
+  const Vec3d down(sy * sp, cy * sp, -cp);
+  const Vec3d x = cr * right + sr * down;
+  const Vec3d y = -sr * right + cr * down;
+  Mat3d world_from_cam;
+  world_from_cam[0] = x;  // GLM: columns
+  world_from_cam[1] = y;
+  world_from_cam[2] = forward;
+  return world_from_cam;
+}
+
+std::vector<std::pair<size_t, double>> ReplaceAltitudeOutliers(std::vector<double>* altitudes,
+                                                               int window, double max_deviation_m) {
+  std::vector<std::pair<size_t, double>> replaced;
+  if (window <= 0 || altitudes->empty()) return replaced;
+  const std::vector<double> given = *altitudes;  // medians of the given values, not the fixed
+  const int64_t n = static_cast<int64_t>(given.size());
+  const int64_t half = window / 2;
+  for (int64_t i = 0; i < n; ++i) {
+    // The window centred on i, shifted (not shrunk) at the ends while the flight is long enough.
+    int64_t begin = i - half, end = i + half + 1;
+    if (begin < 0) {
+      end = std::min(n, end - begin);
+      begin = 0;
+    }
+    if (end > n) {
+      begin = std::max<int64_t>(0, begin - (end - n));
+      end = n;
+    }
+    std::vector<double> values(given.begin() + begin, given.begin() + end);
+    std::sort(values.begin(), values.end());
+    const size_t m = values.size();
+    const double median = m % 2 == 1 ? values[m / 2] : 0.5 * (values[m / 2 - 1] + values[m / 2]);
+    if (std::abs(given[i] - median) > max_deviation_m) {
+      (*altitudes)[i] = median;
+      replaced.push_back({static_cast<size_t>(i), median});
+    }
+  }
+  return replaced;
+}
+
+TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options) {
+  options.Check();
+  TelemetryResult result;
+  result.source = options.telemetry_file.empty() ? "exif" : "csv";
+  const std::vector<std::string> all_frames = ListFrameFiles(frames_dir);
+  if (all_frames.empty()) ThrowInvalid(frames_dir + ": no frames (png, jpg, tif, exr) found");
+
+  // Telemetry per frame, in name order.
+  std::vector<std::string> frames;
+  std::vector<TelemetrySample> samples;
+  if (!options.telemetry_file.empty()) {
+    const std::string& path = options.telemetry_file;
+    const CsvLog log = ReadTelemetryCsv(path);
+    if (log.by_time) {
+      if (options.frame_interval_s <= 0.0) {
+        ThrowInvalid(path + ": a time column needs frame_interval_s (seconds between frames)");
+      }
+      for (size_t i = 0; i < all_frames.size(); ++i) {
+        const double t = options.time_offset_s + static_cast<double>(i) * options.frame_interval_s;
+        if (t < log.rows.front().time || t > log.rows.back().time) {
+          ThrowInvalid(path + ": frame " + all_frames[i] + " at time " + FormatNumber(t) +
+                       " s lies outside the log's times [" + FormatNumber(log.rows.front().time) +
+                       ", " + FormatNumber(log.rows.back().time) +
+                       "] (frame_interval_s, time_offset_s)");
+        }
+        size_t k = 0;
+        while (k + 1 < log.rows.size() && log.rows[k + 1].time < t) ++k;
+        const CsvRow& a = log.rows[k];
+        const CsvRow& b = log.rows[std::min(k + 1, log.rows.size() - 1)];
+        const double f = b.time > a.time ? (t - a.time) / (b.time - a.time) : 0.0;
+        const auto lerp = [f](double u, double v) { return u + f * (v - u); };
+        TelemetrySample s;
+        s.latitude_deg = lerp(a.sample.latitude_deg, b.sample.latitude_deg);
+        s.longitude_deg = lerp(a.sample.longitude_deg, b.sample.longitude_deg);
+        s.altitude_m = lerp(a.sample.altitude_m, b.sample.altitude_m);
+        s.yaw_deg = InterpolateAngle(a.sample.yaw_deg, b.sample.yaw_deg, f);
+        s.pitch_deg = lerp(a.sample.pitch_deg, b.sample.pitch_deg);
+        s.roll_deg = InterpolateAngle(a.sample.roll_deg, b.sample.roll_deg, f);
+        frames.push_back(all_frames[i]);
+        samples.push_back(s);
+      }
+    } else {
+      // Names: a frame's relative path, or its file name when unique.
+      std::map<std::string, std::string> by_file_name;  // "" when ambiguous
+      const std::set<std::string> exact(all_frames.begin(), all_frames.end());
+      for (const std::string& frame : all_frames) {
+        auto [it, inserted] = by_file_name.emplace(fs::path(frame).filename().string(), frame);
+        if (!inserted) it->second.clear();
+      }
+      std::map<std::string, TelemetrySample> by_frame;
+      for (const CsvRow& row : log.rows) {
+        std::string frame;
+        if (exact.count(row.frame) != 0) {
+          frame = row.frame;
+        } else if (auto it = by_file_name.find(row.frame);
+                   it != by_file_name.end() && !it->second.empty()) {
+          frame = it->second;
+        }
+        if (frame.empty()) {
+          ThrowInvalid(path + ": line " + std::to_string(row.line) + ": frame: \"" + row.frame +
+                       "\" names no frame in " + frames_dir);
+        }
+        if (!by_frame.emplace(frame, row.sample).second) {
+          ThrowInvalid(path + ": line " + std::to_string(row.line) + ": frame: \"" + row.frame +
+                       "\" names frame " + frame + " a second time");
+        }
+      }
+      std::vector<std::string> missing;
+      for (const std::string& frame : all_frames) {
+        const auto it = by_frame.find(frame);
+        if (it == by_frame.end()) {
+          missing.push_back(frame);
+          continue;
+        }
+        frames.push_back(frame);
+        samples.push_back(it->second);
+      }
+      if (!missing.empty()) {
+        std::string list;
+        for (size_t i = 0; i < missing.size() && i < 5; ++i) list += (i ? ", " : "") + missing[i];
+        if (missing.size() > 5) list += ", ...";
+        result.warnings.push_back(std::to_string(missing.size()) + " frame(s) have no row in " +
+                                  path + " and are left out: " + list);
+      }
+    }
+  } else {
+    for (const std::string& frame : all_frames) {
+      frames.push_back(frame);
+      samples.push_back(SampleFromTags((fs::path(frames_dir) / frame).string(), options.altitude));
+    }
+  }
+
+  // The camera, and every frame's size against it (headers only).
+  LensCamera camera;
+  const std::string first_path = (fs::path(frames_dir) / frames.front()).string();
+  if (!options.camera_file.empty()) {
+    camera = ReadCameraFile(options.camera_file);
+    camera.Finalize(options.camera_file);
+  } else {
+    const ImageFileInfo info = ReadImageInfo(first_path);
+    camera = LensCamera::FromPinhole(PinholeCamera::FromFov(info.width, info.height,
+                                                            options.fov_deg));
+  }
+  for (const std::string& frame : frames) {
+    const std::string path = (fs::path(frames_dir) / frame).string();
+    const ImageFileInfo info = ReadImageInfo(path);
+    if (info.width != camera.width || info.height != camera.height) {
+      ThrowInvalid(path + ": the frame is " + std::to_string(info.width) + "x" +
+                   std::to_string(info.height) + " but the camera is " +
+                   std::to_string(camera.width) + "x" + std::to_string(camera.height) +
+                   (options.camera_file.empty() ? " (from the first frame)"
+                                                : " (" + options.camera_file + ")"));
+    }
+  }
+
+  // Altitude outliers, in view order.
+  std::vector<double> altitudes;
+  for (const TelemetrySample& s : samples) altitudes.push_back(s.altitude_m);
+  for (const auto& [index, median] : ReplaceAltitudeOutliers(
+           &altitudes, options.altitude_window, options.max_altitude_deviation_m)) {
+    result.altitude_outliers.push_back({frames[index], samples[index].altitude_m, median});
+  }
+
+  // One UTM zone for the flight (its mean longitude and latitude), through PROJ; the meridian
+  // convergence from each position and one 1e-5 degrees north of it.
+  double mean_longitude = 0.0, mean_latitude = 0.0;
+  for (const TelemetrySample& s : samples) {
+    mean_longitude += s.longitude_deg;
+    mean_latitude += s.latitude_deg;
+  }
+  mean_longitude /= static_cast<double>(samples.size());
+  mean_latitude /= static_cast<double>(samples.size());
+  const UtmCoordinate zone = UtmFromWgs84(mean_latitude, mean_longitude, 0, "telemetry");
+  const std::string crs = UtmEpsg(zone.zone, zone.north);
+  std::vector<Vec3d> geographic;
+  for (size_t i = 0; i < samples.size(); ++i) {
+    geographic.push_back(Vec3d(samples[i].longitude_deg, samples[i].latitude_deg, altitudes[i]));
+  }
+  for (const TelemetrySample& s : samples) {
+    geographic.push_back(Vec3d(s.longitude_deg, s.latitude_deg + 1e-5, 0.0));
+  }
+  const std::string where = options.telemetry_file.empty() ? frames_dir : options.telemetry_file;
+  const std::vector<Vec3d> grid = TransformPoints(geographic, "EPSG:4326", crs, where);
+  const size_t n = samples.size();
+  Vec3d mean(0.0);
+  for (size_t i = 0; i < n; ++i) mean += grid[i];
+  mean /= static_cast<double>(n);
+  LightField& light_field = result.light_field;
+  light_field.crs = crs;
+  light_field.origin = Vec3d(std::round(mean.x / 100.0) * 100.0, std::round(mean.y / 100.0) * 100.0,
+                             0.0);
+  for (size_t i = 0; i < n; ++i) {
+    const Vec3d north = grid[n + i] - grid[i];
+    const double bearing_of_north = std::atan2(north.x, north.y);
+    result.max_convergence_deg =
+        std::max(result.max_convergence_deg, std::abs(bearing_of_north) / kDeg);
+    const Mat3d world_from_cam = WorldFromCameraRotation(samples[i].yaw_deg, samples[i].pitch_deg,
+                                                         samples[i].roll_deg, bearing_of_north);
+    View view;
+    view.name = frames[i];
+    view.image_path = (fs::path(frames_dir) / frames[i]).string();
+    view.camera = camera;
+    view.cam_from_world.rotation = glm::transpose(world_from_cam);
+    const Vec3d centre = grid[i] - light_field.origin;
+    view.cam_from_world.translation = -(view.cam_from_world.rotation * centre);
+    light_field.views.push_back(std::move(view));
+  }
+  PoseSource source;
+  source.method = "telemetry";
+  source.georeferenced = true;
+  light_field.pose_source = source;
+  result.frames = frames;
+  return result;
+}
+
+}  // namespace aos

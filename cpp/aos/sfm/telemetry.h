@@ -1,0 +1,124 @@
+#pragma once
+// Poses from telemetry, without structure from motion: each frame placed from its GPS latitude,
+// longitude and altitude and oriented from its gimbal's yaw, pitch and roll, as flight logs and
+// drones' EXIF/XMP tags give them. Instant, and works where COLMAP fails (thermal frames over
+// uniform ground, straight-line flights); as good as the telemetry (GPS metres, compass degrees).
+//
+// Inputs
+// - Frames: every image file under frames_dir (ListFrameFiles: .png .jpg .jpeg .tif .tiff .exr,
+//   any case, sorted by name = view order). All must have the camera's size.
+// - Telemetry, one of:
+//   (a) a CSV file (telemetry_file) with a header line naming its columns (any order, case-
+//       insensitive; '#' comment lines and blank lines allowed; extra columns refused):
+//         frame (or name, image, file) | time,  lat, lon, alt, yaw, pitch, roll
+//       frame: a frame's path relative to frames_dir, or its file name (when unique); every
+//       named frame must exist. time: seconds; frame i (name order) is at
+//       time_offset_s + i * frame_interval_s, and its telemetry is interpolated linearly between
+//       the two rows around it (yaw along the shorter arc); times must increase and cover every
+//       frame. lat, lon: WGS84 degrees. alt: metres (whatever datum the log uses; it becomes
+//       the world z as given). Angles in degrees:
+//         yaw   = compass heading of the camera's forward direction (for a nadir camera: of the
+//                 image's up direction), clockwise from true north: 0 north, 90 east;
+//         pitch = gimbal pitch: 0 = looking at the horizon, -90 = straight down (nadir);
+//         roll  = rotation about the viewing direction, positive = the image's right side down.
+//       (DJI's GimbalYawDegree / GimbalPitchDegree / GimbalRollDegree mean exactly these.)
+//   (b) the frames' own tags (telemetry_file empty): EXIF GPS (GPSLatitude, GPSLongitude,
+//       GPSAltitude, read through OpenImageIO) and the XMP packet DJI drones write
+//       (drone-dji:GimbalYawDegree, GimbalPitchDegree, GimbalRollDegree, RelativeAltitude),
+//       read from the raw packet (OpenImageIO decodes only the XMP tags it knows, not DJI's
+//       namespace). `altitude` picks GPSAltitude ("gps"), RelativeAltitude ("relative": above
+//       the take-off point), or the latter when present ("auto").
+// - Camera: a camera file (camera_file, camera_file.h; any lens model) or a pinhole with the
+//   horizontal field of view fov_deg, principal point at the image centre.
+//
+// Output: a geo-referenced light field (images not loaded; image_path = the frames):
+// - crs = the WGS84 / UTM zone of the flight's mean longitude ("EPSG:326zz" north, "EPSG:327zz"
+//   south; one zone for the whole flight); positions projected with PROJ;
+// - origin = the mean position rounded to 100 m in easting and northing, z = 0, so local z is
+//   the altitude as given;
+// - world axes: x easting, y northing, z up. The heading is turned from true north to grid
+//   north by the meridian convergence at each frame (GridBearingOfNorth, up to ~3 degrees at a
+//   zone's edge), so that a nadir camera with yaw 0 has its image 'up' pointing at true north;
+//   with yaw 0, pitch -90, roll 0 on a zone's central meridian the pose is NadirCamFromWorld.
+// - Altitude outliers (barometer or GPS jumps): in view order, each altitude is compared with the
+//   median of the given altitudes in a window of altitude_window frames centred on it (shifted
+//   to stay inside the flight at its ends; the whole flight when shorter); one further than max_altitude_deviation_m from it
+//   is replaced by that median and listed in TelemetryResult::altitude_outliers (frame, given
+//   altitude, median), never silently. The rule holds while fewer than half of a window's
+//   frames are outliers.
+//
+// Throws std::invalid_argument naming the file, line and field (a missing or repeated column, a
+// non-numeric or non-finite value, latitude outside [-80, 84] (UTM's range) or longitude outside
+// [-180, 180], an angle outside [-360, 360], pitch outside [-180, 180], a repeated or unknown
+// frame name, decreasing times, a frame outside the log's times), or the frame and tag for
+// EXIF/XMP (a frame without GPS or gimbal tags), or the option. Nothing is written by this
+// module.
+#include <string>
+#include <vector>
+
+#include "aos/lightfield/lightfield.h"
+
+namespace aos {
+
+struct TelemetryOptions {
+  // CSV of frame|time, lat, lon, alt, yaw, pitch, roll (see above); empty = the frames' own
+  // EXIF GPS and DJI XMP tags.
+  std::string telemetry_file;
+  // Known camera (aos-camera file, any lens model); empty = a pinhole from fov_deg.
+  std::string camera_file;
+  // Horizontal field of view of a pinhole camera, degrees, (0, 180); used (and required) when
+  // camera_file is empty; 0 = not given.
+  double fov_deg = 0.0;
+  // EXIF altitude: "auto" (XMP RelativeAltitude when present, else GPSAltitude), "gps" or
+  // "relative". Not used with a telemetry file.
+  std::string altitude = "auto";
+  // Altitude outliers: running-median window in frames, odd, >= 3; 0 = no outlier rule.
+  int altitude_window = 9;
+  // An altitude further than this from its running median is an outlier, metres, > 0.
+  double max_altitude_deviation_m = 5.0;
+  // A time column: seconds between consecutive frames (name order), > 0 (required then).
+  double frame_interval_s = 0.0;
+  // A time column: the log time of the first frame, seconds.
+  double time_offset_s = 0.0;
+  void Check() const;
+};
+
+struct AltitudeOutlier {
+  std::string frame;
+  double altitude_m = 0.0;  // as given
+  double median_m = 0.0;    // the running median that replaced it
+};
+
+struct TelemetryResult {
+  LightField light_field;                  // images not loaded; image_path = the frame files
+  std::vector<std::string> frames;         // view order, relative to frames_dir
+  std::string source;                      // "csv" or "exif"
+  std::vector<AltitudeOutlier> altitude_outliers;
+  std::vector<std::string> warnings;       // frames without telemetry (left out), ...
+  double max_convergence_deg = 0.0;        // largest |meridian convergence| applied, degrees
+};
+
+TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options);
+
+// One frame's telemetry as read (degrees, metres). Exposed for tests.
+struct TelemetrySample {
+  double latitude_deg = 0.0;
+  double longitude_deg = 0.0;
+  double altitude_m = 0.0;
+  double yaw_deg = 0.0;
+  double pitch_deg = 0.0;
+  double roll_deg = 0.0;
+};
+
+// The camera orientation of the convention above in a local east-north-up frame whose north is
+// `grid_bearing_of_north_rad` clockwise from +y: world_from_cam rotation (columns: the camera's
+// x right, y down, z forward in the world).
+Mat3d WorldFromCameraRotation(double yaw_deg, double pitch_deg, double roll_deg,
+                              double grid_bearing_of_north_rad = 0.0);
+
+// The running-median rule above: altitudes replaced in place; returns the indices replaced and
+// their medians.
+std::vector<std::pair<size_t, double>> ReplaceAltitudeOutliers(std::vector<double>* altitudes,
+                                                               int window, double max_deviation_m);
+
+}  // namespace aos

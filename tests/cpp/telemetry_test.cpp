@@ -1,0 +1,368 @@
+// Poses from telemetry (sfm/telemetry.h) against an analytic flight: positions in UTM to the
+// millimetre, orientations to 0.01 degrees, the heading convention (a nadir camera with yaw 0
+// has its image 'up' at true north), the altitude-outlier rule, bad input, EXIF/XMP tags.
+#include "aos/sfm/telemetry.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <string>
+#include <vector>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/geometry/geodesy.h"
+#include "aos/image/image_io.h"
+#include "aos/lightfield/formats.h"
+#include "aos/util/math.h"
+#include "error_of.h"
+#include "gps_frame.h"
+#include "temp_folder.h"
+
+namespace aos {
+namespace {
+
+using ::testing::HasSubstr;
+using test_util::ErrorOf;
+
+constexpr double kDeg = kPi / 180.0;
+
+// The angle of the rotation between two cam_from_world rotations, degrees.
+double AngleBetweenDeg(const Mat3d& a, const Mat3d& b) {
+  const Mat3d d = a * glm::transpose(b);
+  const double c = std::clamp((d[0][0] + d[1][1] + d[2][2] - 1.0) / 2.0, -1.0, 1.0);
+  return std::acos(c) / kDeg;
+}
+
+// A true pose in UTM 33N, the grid's own axes: heading as a grid bearing (clockwise from +y),
+// pitch and roll as the telemetry convention states them.
+struct TruePose {
+  Vec3d position;  // easting, northing, altitude
+  double grid_heading_deg, pitch_deg, roll_deg;
+};
+
+// cam_from_world of a true pose, built from LookAt (image up = world up, or for a nadir view the
+// heading's direction) and then the roll about the viewing axis (right side down > 0).
+Mat3d TrueCamFromWorld(const TruePose& p) {
+  const double h = p.grid_heading_deg * kDeg, t = p.pitch_deg * kDeg, r = p.roll_deg * kDeg;
+  const Vec3d forward(std::sin(h) * std::cos(t), std::cos(h) * std::cos(t), std::sin(t));
+  const Vec3d up = std::abs(p.pitch_deg + 90.0) < 1e-9 ? Vec3d(std::sin(h), std::cos(h), 0.0)
+                                                        : Vec3d(0.0, 0.0, 1.0);
+  const Mat3d level = LookAt(Vec3d(0.0), forward, up).rotation;
+  const Vec3d x = Row(level, 0), y = Row(level, 1), z = Row(level, 2);
+  return MatFromRows(std::cos(r) * x + std::sin(r) * y, -std::sin(r) * x + std::cos(r) * y, z);
+}
+
+class Telemetry : public testing_util::TempFolderTest {
+ protected:
+  void SetUp() override {
+    TempFolderTest::SetUp();
+    std::filesystem::create_directories(dir_ / "frames");
+  }
+  void Frame(const std::string& name) {
+    Image image(8, 6, 1, PixelType::kU8);
+    WriteImage(Path("frames/" + name), image);
+  }
+  std::string Write(const std::string& name, const std::string& text) {
+    std::ofstream(Path(name)) << text;
+    return Path(name);
+  }
+  // A 3 x 4 grid flight 45 km east of zone 33's central meridian (meridian convergence about
+  // 0.45 degrees, well above the tolerance), 20 m apart, altitudes 100..111 m, varied angles.
+  std::vector<TruePose> Flight() {
+    std::vector<TruePose> poses;
+    const double headings[] = {0.0, 30.0, 95.0, 180.0, 270.0, -45.0};
+    const double pitches[] = {-90.0, -60.0, -85.0, -90.0};
+    const double rolls[] = {0.0, 2.0, -3.0};
+    for (int i = 0; i < 12; ++i) {
+      poses.push_back({Vec3d(545000.0 + 20.0 * (i % 3), 5318000.0 + 20.0 * (i / 3), 100.0 + i),
+                       headings[i % 6], pitches[i % 4], rolls[i % 3]});
+    }
+    return poses;
+  }
+  // The telemetry a logger would write for `poses`: WGS84 degrees, heading from true north.
+  std::string FlightCsv(const std::vector<TruePose>& poses) {
+    std::string csv = "# synthetic flight\nframe,lat,lon,alt,yaw,pitch,roll\n";
+    for (size_t i = 0; i < poses.size(); ++i) {
+      const Vec3d geo =
+          TransformPoints({poses[i].position}, "EPSG:32633", "EPSG:4326", "truth")[0];
+      // grid bearing = true heading + (grid bearing of true north).
+      const double yaw = poses[i].grid_heading_deg -
+                         GridBearingOfNorth(geo.y, geo.x, "EPSG:32633", "truth") / kDeg;
+      char line[256];
+      std::snprintf(line, sizeof(line), "f%02zu.png,%.10f,%.10f,%.4f,%.8f,%.8f,%.8f\n", i, geo.y,
+                    geo.x, geo.z, yaw, poses[i].pitch_deg, poses[i].roll_deg);
+      csv += line;
+      Frame("f" + std::string(i < 10 ? "0" : "") + std::to_string(i) + ".png");
+    }
+    return csv;
+  }
+};
+
+TEST_F(Telemetry, CsvFlightMatchesTheTruth) {
+  const std::vector<TruePose> truth = Flight();
+  TelemetryOptions options;
+  options.telemetry_file = Write("log.csv", FlightCsv(truth));
+  options.fov_deg = 60.0;
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  const LightField& lf = result.light_field;
+  EXPECT_EQ(lf.crs, "EPSG:32633");
+  EXPECT_EQ(result.source, "csv");
+  EXPECT_TRUE(result.altitude_outliers.empty());
+  ASSERT_EQ(lf.views.size(), truth.size());
+  // The origin: a round point (100 m) near the mean position, z = 0 (local z = altitude).
+  EXPECT_EQ(lf.origin, Vec3d(545000.0, 5318000.0, 0.0));
+  EXPECT_GT(result.max_convergence_deg, 0.4);
+  for (size_t i = 0; i < truth.size(); ++i) {
+    SCOPED_TRACE(lf.views[i].name);
+    const Vec3d centre = lf.views[i].cam_from_world.Center() + lf.origin;
+    // Millimetres: the CSV's 1e-10 degrees are 0.01 mm; PROJ is exact to well below that.
+    EXPECT_NEAR(centre.x, truth[i].position.x, 1e-3);
+    EXPECT_NEAR(centre.y, truth[i].position.y, 1e-3);
+    EXPECT_NEAR(centre.z, truth[i].position.z, 1e-3);
+    EXPECT_LT(AngleBetweenDeg(lf.views[i].cam_from_world.rotation, TrueCamFromWorld(truth[i])),
+              0.01);
+    EXPECT_EQ(lf.views[i].camera.width, 8);
+  }
+  // Written and read back: the CRS and the poses survive.
+  WriteLightField(Path("lf.json"), lf);
+  LoadOptions load;
+  load.load_images = false;
+  const LightField back = LoadLightField(Path("lf.json"), load).light_field;
+  EXPECT_EQ(back.crs, "EPSG:32633");
+  EXPECT_EQ(back.pose_source->method, "telemetry");
+  EXPECT_NEAR(back.views[5].cam_from_world.Center().x, lf.views[5].cam_from_world.Center().x,
+              1e-9);
+}
+
+TEST_F(Telemetry, ANadirCameraWithYawZeroHasItsImageUpAtTrueNorth) {
+  // Far from the central meridian (17.9 E in zone 33: convergence about 2.2 degrees), image up
+  // (-camera y in world) must point at a point due north, as PROJ maps it.
+  const double lat = 48.0, lon = 17.9;
+  const UtmCoordinate here = UtmFromWgs84(lat, lon, 33);
+  const UtmCoordinate north = UtmFromWgs84(lat + 0.001, lon, 33);
+  const double bearing_of_north = std::atan2(north.easting - here.easting,
+                                             north.northing - here.northing);
+  const Mat3d world_from_cam = WorldFromCameraRotation(0.0, -90.0, 0.0, bearing_of_north);
+  const Vec3d up = -world_from_cam[1];  // column 1: camera y (image down) in the world
+  EXPECT_NEAR(std::atan2(up.x, up.y) / kDeg, bearing_of_north / kDeg, 0.01);
+  EXPECT_LT(std::abs(bearing_of_north) / kDeg, 2.3);
+  EXPECT_GT(std::abs(bearing_of_north) / kDeg, 2.0);
+  EXPECT_NEAR(world_from_cam[2].z, -1.0, 1e-12);  // looking straight down
+  // Without convergence, yaw 0 nadir is NadirCamFromWorld (image top towards +y) exactly, and
+  // yaw 90 puts image up at east.
+  EXPECT_LT(AngleBetweenDeg(glm::transpose(WorldFromCameraRotation(0.0, -90.0, 0.0)),
+                            NadirCamFromWorld(Vec3d(0.0)).rotation),
+            1e-9);
+  const Vec3d east_up = -WorldFromCameraRotation(90.0, -90.0, 0.0)[1];
+  EXPECT_NEAR(east_up.x, 1.0, 1e-12);
+  // Pitch 0, yaw 90: looking east at the horizon, image up = world up.
+  const Mat3d level = WorldFromCameraRotation(90.0, 0.0, 0.0);
+  EXPECT_NEAR(level[2].x, 1.0, 1e-12);
+  EXPECT_NEAR(-level[1].z, 1.0, 1e-12);
+  // Positive roll turns the camera's right side down, so the scene turns the other way in the
+  // image: a point level and to the camera's right (south, for a camera looking east) comes out
+  // above the image centre (camera y, image down, < 0), by the roll angle.
+  const Mat3d rolled = glm::transpose(WorldFromCameraRotation(90.0, 0.0, 5.0));
+  const Vec3d in_camera = rolled * Vec3d(0.0, -10.0, 0.0);
+  EXPECT_GT(in_camera.x, 0.0);  // to the right
+  EXPECT_NEAR(std::atan2(-in_camera.y, in_camera.x) / kDeg, 5.0, 1e-9);  // above
+}
+
+TEST(TelemetryAltitude, OutliersAreReplacedByTheRunningMedianAndListed) {
+  // A steady climb of 0.5 m per frame with a barometer spike (+30 m at frame 3) and a drop
+  // (-20 m at frame 10); a climb is no outlier.
+  std::vector<double> altitudes;
+  for (int i = 0; i < 15; ++i) altitudes.push_back(100.0 + 0.5 * i);
+  altitudes[3] += 30.0;
+  altitudes[10] -= 20.0;
+  std::vector<double> fixed = altitudes;
+  const auto replaced = ReplaceAltitudeOutliers(&fixed, 5, 5.0);
+  ASSERT_EQ(replaced.size(), 2u);
+  EXPECT_EQ(replaced[0].first, 3u);
+  EXPECT_EQ(replaced[1].first, 10u);
+  // The median of frames 1..5 (100.5, 101, 131.5, 102, 102.5) is 102; of 8..12, 104.5.
+  EXPECT_DOUBLE_EQ(replaced[0].second, 102.0);
+  EXPECT_DOUBLE_EQ(fixed[3], 102.0);
+  EXPECT_DOUBLE_EQ(replaced[1].second, 104.5);
+  for (int i : {0, 1, 2, 4, 9, 11, 14}) EXPECT_EQ(fixed[i], altitudes[i]);
+  // At the ends the window is shifted inside the flight: a spike at frame 0 is found too.
+  std::vector<double> start = {150.0, 100.0, 100.0, 100.0, 100.0, 100.0};
+  EXPECT_EQ(ReplaceAltitudeOutliers(&start, 5, 5.0).size(), 1u);
+  EXPECT_EQ(start[0], 100.0);
+  // Window 0: no rule.
+  std::vector<double> off = altitudes;
+  EXPECT_TRUE(ReplaceAltitudeOutliers(&off, 0, 5.0).empty());
+  EXPECT_EQ(off, altitudes);
+}
+
+TEST_F(Telemetry, AltitudeOutliersInALogAreReportedPerFrame) {
+  std::vector<TruePose> truth = Flight();
+  for (TruePose& p : truth) p.position.z = 100.0;  // level flight
+  std::string csv = FlightCsv(truth);
+  // Frame f07 logged 40 m too high.
+  const size_t at = csv.find("f07.png");
+  const size_t alt = csv.find(",100.0000,", at);
+  csv.replace(alt, 10, ",140.0000,");
+  TelemetryOptions options;
+  options.telemetry_file = Write("log.csv", csv);
+  options.fov_deg = 60.0;
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  ASSERT_EQ(result.altitude_outliers.size(), 1u);
+  EXPECT_EQ(result.altitude_outliers[0].frame, "f07.png");
+  EXPECT_NEAR(result.altitude_outliers[0].altitude_m, 140.0, 1e-9);
+  EXPECT_NEAR(result.altitude_outliers[0].median_m, 100.0, 1e-9);
+  EXPECT_NEAR(result.light_field.views[7].cam_from_world.Center().z, 100.0, 1e-6);
+  // A deviation within the threshold is kept as given.
+  options.max_altitude_deviation_m = 50.0;
+  EXPECT_TRUE(ImportTelemetry(Path("frames"), options).altitude_outliers.empty());
+}
+
+TEST_F(Telemetry, ATimeColumnIsInterpolatedAtTheFrameTimes) {
+  Frame("a.png");
+  Frame("b.png");
+  Frame("c.png");
+  // Rows at 0, 1, 2 s; frames every 0.5 s from t = 0.5: a at 0.5, b at 1.0, c at 1.5. The yaw
+  // goes 350 -> 10 along the short arc (through 0, not 180).
+  TelemetryOptions options;
+  options.telemetry_file = Write("log.csv",
+                                 "time,lat,lon,alt,yaw,pitch,roll\n"
+                                 "0,48.0,15.0,100,350,-90,0\n"
+                                 "1,48.001,15.0,110,10,-90,0\n"
+                                 "2,48.002,15.0,120,30,-90,0\n");
+  options.fov_deg = 60.0;
+  options.frame_interval_s = 0.5;
+  options.time_offset_s = 0.5;
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  ASSERT_EQ(result.light_field.views.size(), 3u);
+  const LightField& lf = result.light_field;
+  EXPECT_NEAR(lf.views[0].cam_from_world.Center().z, 105.0, 1e-9);
+  EXPECT_NEAR(lf.views[2].cam_from_world.Center().z, 115.0, 1e-9);
+  const Vec3d mid = TransformPoints({Vec3d(15.0, 48.0005, 0.0)}, "EPSG:4326", "EPSG:32633", "t")[0];
+  EXPECT_NEAR(lf.views[0].cam_from_world.Center().y + lf.origin.y, mid.y, 1e-3);
+  // On the central meridian: a's yaw 0 is NadirCamFromWorld.
+  EXPECT_LT(AngleBetweenDeg(lf.views[0].cam_from_world.rotation,
+                            NadirCamFromWorld(Vec3d(0.0)).rotation),
+            1e-6);
+  // Frames beyond the log, and a time column without the interval, are refused.
+  options.time_offset_s = 1.5;
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("log.csv: frame c.png at time 2.5 s lies outside the log's times [0, 2]"));
+  options.frame_interval_s = 0.0;
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("log.csv: a time column needs frame_interval_s"));
+}
+
+TEST_F(Telemetry, BadInputIsOneErrorNamingFileLineAndField) {
+  Frame("a.png");
+  Frame("b.png");
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  const auto error = [&](const std::string& csv) {
+    options.telemetry_file = Write("t.csv", csv);
+    return ErrorOf([&] { ImportTelemetry(Path("frames"), options); });
+  };
+  const std::string header = "frame,lat,lon,alt,yaw,pitch,roll\n";
+  EXPECT_THAT(error("frame,lat,lon,alt,yaw,pitch\na.png,48,15,100,0,-90\n"),
+              HasSubstr("t.csv: line 1: the header has no roll column"));
+  EXPECT_THAT(error("frame,lat,lon,alt,yaw,pitch,roll,speed\n"),
+              HasSubstr("t.csv: line 1: column 8 \"speed\" is not one of"));
+  EXPECT_THAT(error("lat,lon,alt,yaw,pitch,roll\n"),
+              HasSubstr("t.csv: line 1: the header needs a frame column"));
+  EXPECT_THAT(error(header + "a.png,48,15,100,0,-90,0\nb.png,abc,15,100,0,-90,0\n"),
+              HasSubstr("t.csv: line 3: lat: \"abc\" is not a number"));
+  EXPECT_THAT(error(header + "a.png,95,15,100,0,-90,0\n"),
+              HasSubstr("t.csv: line 2: lat: 95 is outside [-90, 90] degrees"));
+  EXPECT_THAT(error(header + "a.png,48,200,100,0,-90,0\n"),
+              HasSubstr("t.csv: line 2: lon: 200 is outside [-180, 180] degrees"));
+  EXPECT_THAT(error(header + "a.png,48,15,100,0,-90,nan\n"),
+              HasSubstr("t.csv: line 2: roll: nan is not finite"));
+  EXPECT_THAT(error(header + "a.png,48,15,100,0,-90,0\nnope.png,48,15,100,0,-90,0\n"),
+              HasSubstr("t.csv: line 3: frame: \"nope.png\" names no frame in"));
+  EXPECT_THAT(error(header + "a.png,48,15,100,0,-90,0\na.png,48,15,100,0,-90,0\n"),
+              HasSubstr("t.csv: line 3: frame: \"a.png\" is repeated"));
+  EXPECT_THAT(error(header + "a.png,48,15,100,0,-90\n"),
+              HasSubstr("t.csv: line 2: expected 7 comma-separated fields"));
+  EXPECT_THAT(error("# only a comment\n"), HasSubstr("t.csv: no header line"));
+  // A frame without a row is left out, with a warning naming it.
+  options.telemetry_file = Write("t.csv", header + "a.png,48,15,100,0,-90,0\n");
+  const TelemetryResult partial = ImportTelemetry(Path("frames"), options);
+  EXPECT_EQ(partial.light_field.views.size(), 1u);
+  EXPECT_THAT(partial.warnings, ::testing::Contains(HasSubstr("1 frame(s) have no row in")));
+  // Options name their field.
+  options.fov_deg = 0.0;
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("fov_deg: a camera is needed"));
+  options.fov_deg = 60.0;
+  options.altitude_window = 4;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("altitude_window: must be odd"));
+}
+
+// Inserts an XMP packet (an APP1 segment) after a JPEG's start-of-image marker.
+void InjectXmp(const std::string& path, const std::string& packet) {
+  std::ifstream in(path, std::ios::binary);
+  std::string data((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  in.close();
+  const std::string id = std::string("http://ns.adobe.com/xap/1.0/") + '\0';
+  const size_t length = 2 + id.size() + packet.size();
+  std::string segment = "\xFF\xE1";
+  segment += static_cast<char>(length >> 8);
+  segment += static_cast<char>(length & 0xFF);
+  segment += id + packet;
+  data.insert(2, segment);
+  std::ofstream(path, std::ios::binary) << data;
+}
+
+std::string DjiXmp(double yaw, double pitch, double roll, double relative_altitude) {
+  char text[1024];
+  std::snprintf(text, sizeof(text),
+                "<?xpacket begin=\"\" id=\"W5M0MpCehiHzreSzNTczkc9d\"?>"
+                "<x:xmpmeta xmlns:x=\"adobe:ns:meta/\"><rdf:RDF "
+                "xmlns:rdf=\"http://www.w3.org/1999/02/22-rdf-syntax-ns#\">"
+                "<rdf:Description rdf:about=\"\" xmlns:drone-dji=\"http://www.dji.com/drone-dji/1.0/\" "
+                "drone-dji:RelativeAltitude=\"%+.2f\" drone-dji:GimbalRollDegree=\"%+.2f\" "
+                "drone-dji:GimbalYawDegree=\"%+.2f\">"
+                "<drone-dji:GimbalPitchDegree>%+.2f</drone-dji:GimbalPitchDegree>"
+                "</rdf:Description></rdf:RDF></x:xmpmeta><?xpacket end=\"w\"?>",
+                relative_altitude, roll, yaw, pitch);
+  return text;
+}
+
+TEST_F(Telemetry, ExifGpsAndDjiXmpTagsArePosesToo) {
+  // Three JPEGs on the central meridian of zone 33, 0.0002 degrees (22 m) apart, with GPS
+  // altitudes 350 m above the ellipsoid and XMP relative altitudes 30..32 m.
+  for (int i = 0; i < 3; ++i) {
+    const std::string path = Path("frames/d" + std::to_string(i) + ".jpg");
+    ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(path, 16, 12, 48.0 + 0.0002 * i, 15.0, 350.0));
+    InjectXmp(path, DjiXmp(i == 1 ? 90.0 : 0.0, -90.0, 0.0, 30.0 + i));
+  }
+  TelemetryOptions options;
+  options.fov_deg = 70.0;
+  TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  EXPECT_EQ(result.source, "exif");
+  EXPECT_EQ(result.light_field.crs, "EPSG:32633");
+  ASSERT_EQ(result.light_field.views.size(), 3u);
+  const LightField& lf = result.light_field;
+  // EXIF stores the seconds as float rationals here: within 1e-6 degrees (0.1 m).
+  const Vec3d truth = TransformPoints({Vec3d(15.0, 48.0002, 0.0)}, "EPSG:4326", "EPSG:32633", "t")[0];
+  EXPECT_NEAR(lf.views[1].cam_from_world.Center().x + lf.origin.x, truth.x, 0.1);
+  EXPECT_NEAR(lf.views[1].cam_from_world.Center().y + lf.origin.y, truth.y, 0.1);
+  EXPECT_NEAR(lf.views[1].cam_from_world.Center().z, 31.0, 1e-9);  // auto: relative altitude
+  // d1 has yaw 90: image up at east; d0 yaw 0: image up at north (central meridian).
+  EXPECT_NEAR(-Row(lf.views[1].cam_from_world.rotation, 1).x, 1.0, 1e-9);
+  EXPECT_NEAR(-Row(lf.views[0].cam_from_world.rotation, 1).y, 1.0, 1e-9);
+  options.altitude = "gps";
+  result = ImportTelemetry(Path("frames"), options);
+  EXPECT_NEAR(result.light_field.views[1].cam_from_world.Center().z, 350.0, 1e-3);
+  // A frame without the gimbal tags: an error naming it and the tag.
+  ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(Path("frames/e.jpg"), 16, 12, 48.0, 15.0, 350.0));
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("e.jpg: no XMP drone-dji:GimbalYawDegree (the frame has no XMP packet)"));
+}
+
+}  // namespace
+}  // namespace aos
