@@ -884,6 +884,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   points.reference = cam_from_world.Center();
   points.points.resize(static_cast<size_t>(camera.width) * static_cast<size_t>(camera.height));
   const double nan = std::numeric_limits<double>::quiet_NaN();
+#pragma omp parallel for schedule(static) num_threads(ResolveThreadCount(options.num_threads))
   for (int y = 0; y < camera.height; ++y) {
     for (int x = 0; x < camera.width; ++x) {
       const double z = depth.At<float>(x, y)[0];
