@@ -11,6 +11,25 @@ namespace aos::python {
 
 using namespace pybind11::literals;
 
+namespace {
+
+// An (N, 3) array as points; ValueError for another shape.
+std::vector<Vec3d> PointsFromArray(
+    const py::array_t<double, py::array::c_style | py::array::forcecast>& points) {
+  if (points.ndim() != 2 || points.shape(1) != 3) {
+    throw py::value_error("points: must be an (N, 3) array");
+  }
+  std::vector<Vec3d> list(static_cast<size_t>(points.shape(0)));
+  auto view = points.unchecked<2>();
+  for (size_t i = 0; i < list.size(); ++i) {
+    const auto k = static_cast<py::ssize_t>(i);
+    list[i] = Vec3d(view(k, 0), view(k, 1), view(k, 2));
+  }
+  return list;
+}
+
+}  // namespace
+
 void BindSfm(py::module_& m) {
   OptionsClass<PosesOptions>(
       m, "PosesOptions",
@@ -186,15 +205,7 @@ void BindSfm(py::module_& m) {
       "_estimate_ground",
       [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points, int up_sign,
          const GroundOptions& options) {
-        if (points.ndim() != 2 || points.shape(1) != 3) {
-          throw py::value_error("points: must be an (N, 3) array");
-        }
-        std::vector<Vec3d> list(static_cast<size_t>(points.shape(0)));
-        auto view = points.unchecked<2>();
-        for (size_t i = 0; i < list.size(); ++i) {
-          const auto k = static_cast<py::ssize_t>(i);
-          list[i] = Vec3d(view(k, 0), view(k, 1), view(k, 2));
-        }
+        const std::vector<Vec3d> list = PointsFromArray(points);
         py::gil_scoped_release release;
         return EstimateGround(list, up_sign, options);
       },
@@ -203,15 +214,7 @@ void BindSfm(py::module_& m) {
       "_ground_up_sign",
       [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points,
          const LightField& light_field) {
-        if (points.ndim() != 2 || points.shape(1) != 3) {
-          throw py::value_error("points: must be an (N, 3) array");
-        }
-        std::vector<Vec3d> list(static_cast<size_t>(points.shape(0)));
-        auto view = points.unchecked<2>();
-        for (size_t i = 0; i < list.size(); ++i) {
-          const auto k = static_cast<py::ssize_t>(i);
-          list[i] = Vec3d(view(k, 0), view(k, 1), view(k, 2));
-        }
+        const std::vector<Vec3d> list = PointsFromArray(points);
         return GroundUpSign(list, light_field);
       },
       "points"_a, "light_field"_a, "+1 if the cameras fly above the points' median z, else -1.");

@@ -444,6 +444,15 @@ Mesh ParseMeshFile(const std::string& path) {
 
 }  // namespace
 
+bool IsMeshFile(const std::string& path) {
+  std::ifstream file(path, std::ios::binary);
+  if (!file) ThrowInvalid(path + ": cannot open the file");
+  char bytes[3] = {0, 0, 0};
+  file.read(bytes, 3);
+  return std::string(bytes, static_cast<size_t>(file.gcount())) == "ply" ||
+         EndsWith(path, ".obj") || EndsWith(path, ".ply");
+}
+
 std::vector<Vec3d> ReadPoints(const std::string& path) {
   Mesh mesh = ParseMeshFile(path);
   if (mesh.vertices.empty()) ThrowInvalid(path + ": the file has no vertices (points)");

@@ -58,6 +58,10 @@ std::vector<Vec3d> ReadPoints(const std::string& path);
 void WritePly(const std::string& path, const std::vector<Vec3d>& vertices,
               const std::vector<std::array<int, 3>>& triangles = {}, bool overwrite = false);
 
+// Whether `path` names a mesh file ReadMesh reads: its first bytes are "ply", or its name ends
+// in .obj or .ply (any case). Throws std::invalid_argument naming the file if it cannot be opened.
+bool IsMeshFile(const std::string& path);
+
 // Removes degenerate triangles from `mesh`, adding their number to mesh.dropped_triangles.
 void DropDegenerateTriangles(Mesh& mesh);
 

@@ -145,15 +145,6 @@ std::shared_ptr<FocalSurface::Impl> NewImpl(FocalSurfaceKind kind) {
 const Heightfield kEmptyHeightfield{};
 const Image kEmptyImage{};
 
-bool EndsWithNoCase(const std::string& text, const std::string& suffix) {
-  if (text.size() < suffix.size()) return false;
-  for (size_t i = 0; i < suffix.size(); ++i) {
-    if (std::tolower(static_cast<unsigned char>(text[text.size() - suffix.size() + i])) != suffix[i]) {
-      return false;
-    }
-  }
-  return true;
-}
 
 }  // namespace
 
@@ -263,18 +254,7 @@ FocalSurface FocalSurface::FromDepthMap(const Image& depth, const PinholeCamera&
 
 FocalSurface FocalSurface::Read(const std::string& path) {
   CheckRegularFile(path, "focal surface");
-  std::string head;
-  {
-    std::FILE* file = std::fopen(path.c_str(), "rb");
-    if (file == nullptr) ThrowInvalid(path + ": focal surface: cannot open the file");
-    char bytes[3] = {0, 0, 0};
-    const size_t n = std::fread(bytes, 1, 3, file);
-    std::fclose(file);
-    head.assign(bytes, n);
-  }
-  if (head == "ply" || EndsWithNoCase(path, ".obj") || EndsWithNoCase(path, ".ply")) {
-    return FromMesh(ReadMesh(path), path);
-  }
+  if (IsMeshFile(path)) return FromMesh(ReadMesh(path), path);
   return FromHeightfield(ReadHeightfield(path), path);
 }
 
