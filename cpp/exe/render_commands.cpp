@@ -116,6 +116,24 @@ CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& o
   return surface;
 }
 
+// --focal-surface FILE: the mesh or DEM (null when no file is given), read before the frames so
+// that a bad file fails first; described on stderr.
+std::shared_ptr<const FocalSurface> ReadFocalSurface(const std::string& path) {
+  if (path.empty()) return nullptr;
+  auto surface = std::make_shared<const FocalSurface>(FocalSurface::Read(path));
+  if (!Common().quiet && !Common().json) {
+    std::fprintf(stderr, "focal surface: %s\n", surface->Describe().c_str());
+  }
+  return surface;
+}
+
+// The surface in the light field's CRS (a DEM in another CRS transformed through PROJ).
+std::shared_ptr<const FocalSurface> InLightFieldCrs(std::shared_ptr<const FocalSurface> surface,
+                                                    const LightField& light_field) {
+  if (!surface) return surface;
+  return std::make_shared<const FocalSurface>(InCrs(*surface, light_field.crs));
+}
+
 // --pose-view: a view's index or its name (FindViewByName). Digits are both an index and a
 // possible name (frames are often called 0042.png): the one that exists is taken; if the index
 // and a view so named are different views, it is refused as ambiguous.
@@ -159,21 +177,12 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
                                 ProgressBar& progress) {
   args.load.num_threads = options.num_threads;
   // The surface first: a bad mesh or DEM fails before the frames are loaded.
-  if (!args.focal_surface.empty()) {
-    options.focal_surface =
-        std::make_shared<const FocalSurface>(FocalSurface::Read(args.focal_surface));
-    if (!Common().quiet && !Common().json) {
-      std::fprintf(stderr, "focal surface: %s\n", options.focal_surface->Describe().c_str());
-    }
-  }
+  options.focal_surface = ReadFocalSurface(args.focal_surface);
   LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
-  if (options.focal_surface) {
-    options.focal_surface = std::make_shared<const FocalSurface>(
-        InCrs(*options.focal_surface, loaded.light_field.crs));
-  }
+  options.focal_surface = InLightFieldCrs(options.focal_surface, loaded.light_field);
   if (!args.pose_view.empty()) options.pose_view = ResolvePoseView(args.pose_view, loaded.light_field);
   if (!args.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(args.look_at, "--look-at");
@@ -566,22 +575,13 @@ int RunMap(MapCommand& c, const Flags& flags) {
   CheckMapOutputPath(c.output, write);
   c.load.num_threads = c.options.num_threads;
   // The surface first: a bad mesh or DEM fails before the frames are loaded.
-  if (!c.focal_surface.empty()) {
-    c.options.focal_surface =
-        std::make_shared<const FocalSurface>(FocalSurface::Read(c.focal_surface));
-    if (!Common().quiet && !Common().json) {
-      std::fprintf(stderr, "focal surface: %s\n", c.options.focal_surface->Describe().c_str());
-    }
-  }
+  c.options.focal_surface = ReadFocalSurface(c.focal_surface);
   const LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
   const LightField& light_field = loaded.light_field;
-  if (c.options.focal_surface) {
-    c.options.focal_surface =
-        std::make_shared<const FocalSurface>(InCrs(*c.options.focal_surface, light_field.crs));
-  }
+  c.options.focal_surface = InLightFieldCrs(c.options.focal_surface, light_field);
   if (!c.views.empty()) {
     c.options.view_indices =
         ParseViewList(c.views, static_cast<int>(light_field.views.size()));
