@@ -288,6 +288,12 @@ int RunGround(GroundCommand& c, const Flags& flags) {
     const int up_sign = GroundUpSign(points, light_field);
     const GroundResult ground =
         flags.NamingFlags([&] { return EstimateGround(points, up_sign, c.options); });
+    if (up_sign < 0) {
+      Warn(c.output + ": the light field's z axis points down (the cameras fly at smaller z than "
+           "the ground), so the DEM holds the frame's z values, which grow downwards: not "
+           "elevations. It is right as a --focal-surface for this light field; GIS tools will "
+           "read its heights upside down");
+    }
     Heightfield dem = GroundHeightfield(ground, light_field.origin, light_field.crs);
     WriteHeightfield(c.output, dem, Common().force);
     report.Set("output", c.output);

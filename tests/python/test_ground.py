@@ -158,3 +158,25 @@ def test_estimate_ground_in_python_matches_the_cli(flight: Path) -> None:
         aos.estimate_ground(light_field, points, cell_size_m=-1.0)
     with pytest.raises(TypeError):
         aos.estimate_ground(light_field, points, cell_size=5.0)  # type: ignore[call-arg]
+
+
+def test_a_z_down_frame_is_said_loudly(tmp_path: Path) -> None:
+    """JKU-style frames have z down: the DEM then holds z values growing downwards, right as a
+    focal surface but not elevations, and the CLI says so."""
+    light_field = build_lightfield(views_per_side=3, spacing=8.0, altitude=-30.0, width=32,
+                                   height=24)
+    aos.write_lightfield(tmp_path / "lf.json", light_field)
+    rng = np.random.default_rng(2)
+    x, y = rng.uniform(-30, 30, 4000), rng.uniform(-30, 30, 4000)
+    write_ply(tmp_path / "points.ply", np.stack([x, y, -terrain_z(x, y)], 1))
+    result = run("ground", tmp_path / "lf.json", "--points", tmp_path / "points.ply", "-o",
+                 tmp_path / "ground.tif", "--json")
+    assert result.returncode == 0, result.stderr
+    assert json.loads(result.stdout)["up"] == "-z"
+    assert "z axis points down" in result.stderr and "not elevations" in result.stderr
+    # The views fly 30 m above the local zero: 30 - terrain under them above the ground, as
+    # in a z-up frame.
+    centres = np.array([[i * 8.0 - 8, j * 8.0 - 8] for j in range(3) for i in range(3)])
+    expected = 30.0 - terrain_z(centres[:, 0], centres[:, 1])
+    report = json.loads(result.stdout)
+    assert report["height_above_ground_m"]["median"] == pytest.approx(np.median(expected), abs=0.35)
