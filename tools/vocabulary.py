@@ -80,10 +80,8 @@ def options_of(class_name: str) -> Any:
 NOT_ON_THE_CLI = {
     ("stack", "render.focal_plane"): "the slices' planes replace it",
     ("allinfocus", "stack.render.focal_plane"): "the slices' planes replace it",
-    ("stack", "render.focal_surface"): "terrain-following stacks are not implemented yet",
-    ("stack", "render.surface_offset"): "terrain-following stacks are not implemented yet",
-    ("allinfocus", "stack.render.focal_surface"): "terrain-following stacks are not implemented yet",
-    ("allinfocus", "stack.render.surface_offset"): "terrain-following stacks are not implemented yet",
+    ("stack", "render.surface_offset"): "a stack's slices lie at --first-offset..--last-offset",
+    ("allinfocus", "stack.render.surface_offset"): "a stack's slices lie at --first-offset..--last-offset",
     ("integral", "variance"): "Python only (render_integral(variance=True))",
     ("allinfocus", "stack.render.variance"): "set by --method robust",
     ("merge", "robust.robust"): "set by --method robust",

@@ -102,11 +102,16 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   render.Threads(options.num_threads);
 }
 
+// --focal-surface (IntegralOptions::focal_surface).
+CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, const char* help) {
+  render.Describe("focal_surface", "--focal-surface");
+  return render.command()->add_option("--focal-surface", args.focal_surface, help);
+}
+
 // --focal-surface and --surface-offset (IntegralOptions::focal_surface, surface_offset).
 CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
-  render.Describe("focal_surface", "--focal-surface");
-  CLI::Option* surface = render.command()->add_option(
-      "--focal-surface", args.focal_surface,
+  CLI::Option* surface = AddFocalSurfaceFlag(
+      render, args,
       "Focus on a terrain instead of a plane: an OBJ or PLY mesh, or a DEM raster GDAL reads "
       "(GeoTIFF...), in world coordinates (light field origin + local); pixels whose rays miss "
       "it are uncovered");
@@ -302,15 +307,31 @@ CommandRunner DefineIntegral(CLI::App* command) {
 
 namespace {
 
-void AddStackFlags(Flags& stack, FocalStackOptions& options) {
-  stack.Parsed("--first-plane", "first_plane", options.first_plane,
-               [](const std::string& text) { return ParsePlane(text, "--first-plane"); },
-               PlaneText(options.first_plane),
-               "Boundary plane of slice 0: a height H (horizontal plane z = H) or "
-               "PX,PY,PZ,NX,NY,NZ");
-  stack.Parsed("--last-plane", "last_plane", options.last_plane,
-               [](const std::string& text) { return ParsePlane(text, "--last-plane"); },
-               PlaneText(options.last_plane), "Boundary plane of the last slice, as --first-plane");
+// The slices: planes, or (with --focal-surface) a terrain-following stack's offsets.
+void AddStackFlags(Flags& stack, Flags& render, RenderArgs& args, FocalStackOptions& options) {
+  CLI::Option* first = stack.Parsed(
+      "--first-plane", "first_plane", options.first_plane,
+      [](const std::string& text) { return ParsePlane(text, "--first-plane"); },
+      PlaneText(options.first_plane),
+      "Boundary plane of slice 0: a height H (horizontal plane z = H) or PX,PY,PZ,NX,NY,NZ");
+  CLI::Option* last = stack.Parsed(
+      "--last-plane", "last_plane", options.last_plane,
+      [](const std::string& text) { return ParsePlane(text, "--last-plane"); },
+      PlaneText(options.last_plane), "Boundary plane of the last slice, as --first-plane");
+  CLI::Option* surface = AddFocalSurfaceFlag(
+      render, args,
+      "A terrain-following stack: every slice lies on this surface (an OBJ or PLY mesh, or a "
+      "DEM raster GDAL reads, in world coordinates) moved along up by --first-offset .. "
+      "--last-offset; instead of --first-plane/--last-plane");
+  CLI::Option* first_offset = stack.Field(
+      "first_offset", options.first_offset,
+      "With --focal-surface: offset of slice 0 along up (towards the views), metres");
+  CLI::Option* last_offset = stack.Field(
+      "last_offset", options.last_offset,
+      "With --focal-surface: offset of the last slice along up, metres");
+  surface->excludes(first)->excludes(last);
+  first_offset->needs(surface);
+  last_offset->needs(surface);
   stack.Field("slices", options.slices, "Number of slices (1..100000)");
 }
 
@@ -431,7 +452,7 @@ CommandRunner DefineStack(CLI::App* command) {
   AddRenderFlags(render, c->args, c->options.render);
   render.Switch("variance", c->options.render.variance,
                 "Also write the per-pixel variance of the view samples (for --method robust)");
-  AddStackFlags(flags, c->options);
+  AddStackFlags(flags, render, c->args, c->options);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   return [c, flags] { return RunStack(*c, flags); };
@@ -541,7 +562,7 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
   AddRenderFlags(render, c->args, c->options.stack.render);
   flags.Describe("merge.num_threads", "--threads", DefaultText(c->options.merge.num_threads));
   Flags stack = flags.Nested("stack.");
-  AddStackFlags(stack, c->options.stack);
+  AddStackFlags(stack, render, c->args, c->options.stack);
   Flags merge = flags.Nested("merge.");
   AddMergeFlags(merge, c->options.merge);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")

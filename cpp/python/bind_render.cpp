@@ -445,6 +445,11 @@ void BindFocalStack(py::module_& m) {
              "Boundary plane of slice 0 (local frame).")
       .Field("last_plane", &FocalStackOptions::last_plane,
              "Boundary plane of slice N-1 (local frame).")
+      .Field("first_offset", &FocalStackOptions::first_offset,
+             "Terrain-following stacks (render.focal_surface set): offset of slice 0 along up, "
+             "metres.")
+      .Field("last_offset", &FocalStackOptions::last_offset,
+             "Terrain-following stacks: offset of slice N-1 along up, metres.")
       .Field("slices", &FocalStackOptions::slices, "Number of slices, 1 .. 100000.")
       .Finish()
       .def("check", &FocalStackOptions::Check, "view_count"_a,
@@ -456,7 +461,22 @@ void BindFocalStack(py::module_& m) {
       .def_readonly("cam_from_world", &FocalStack::cam_from_world, "Its pose (local frame).")
       .def_readonly("render", &FocalStack::render,
                     "How the slices were rendered (pose resolved, pose_view -1).")
-      .def_readonly("planes", &FocalStack::planes, "The slice planes (a copy).")
+      .def_property_readonly(
+          "planes", [](const FocalStack& stack) { return stack.focus.planes; },
+          "The slice planes (a copy); empty for a terrain-following stack.")
+      .def_property_readonly(
+          "offsets", [](const FocalStack& stack) { return stack.focus.offsets; },
+          "Terrain-following stacks: each slice's offset along up, metres (else empty).")
+      .def_property_readonly(
+          "surface",
+          [](const FocalStack& stack) -> py::object {
+            if (!stack.focus.surface) return py::none();
+            return py::cast(*stack.focus.surface);
+          },
+          "Terrain-following stacks: the FocalSurface the slices follow (else None).")
+      .def_property_readonly(
+          "up", [](const FocalStack& stack) { return stack.focus.placement.up; },
+          "Terrain-following stacks: the up axis the offsets are measured along.")
       .def_property_readonly(
           "images",
           [](const FocalStack& stack) {

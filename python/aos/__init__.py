@@ -369,19 +369,19 @@ def _require_pose(function: str, render: IntegralOptions, kwargs: dict[str, Any]
 
 
 _RENDER_INTEGRAL = _Router("render_integral", IntegralOptions)
-# Stacks and merges focus on planes only (terrain-following stacks are not implemented yet).
+# A stack's slices replace the focal plane; a terrain-following stack takes focal_surface and
+# first_offset/last_offset (its slices' offsets replace surface_offset).
 _SURFACE_FIELDS = ("focal_surface", "surface_offset")
 _RENDER_FOCAL_STACK = _Router(
     "render_focal_stack",
     FocalStackOptions,
-    exclude=[("render", "focal_plane")] + [("render", name) for name in _SURFACE_FIELDS],
+    exclude=[("render", "focal_plane"), ("render", "surface_offset")],
 )
 _MERGE_FOCAL_STACK = _Router("merge_focal_stack", MergeOptions)
 _ALL_IN_FOCUS = _Router(
     "all_in_focus",
     AllInFocusOptions,
-    exclude=[("stack", "render", "focal_plane")]
-    + [("stack", "render", name) for name in _SURFACE_FIELDS],
+    exclude=[("stack", "render", "focal_plane"), ("stack", "render", "surface_offset")],
 )
 _RENDER_INTEGRAL_ON_DEPTH = _Router(
     "render_integral_on_depth",

@@ -761,6 +761,8 @@ class FocalStackOptions:
         render: IntegralOptions = ...,
         first_plane: _PlaneLike = ...,
         last_plane: _PlaneLike = ...,
+        first_offset: float = ...,
+        last_offset: float = ...,
         slices: int = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
@@ -776,6 +778,10 @@ class FocalStackOptions:
         """Boundary plane of slice N-1."""
     @last_plane.setter
     def last_plane(self, value: _PlaneLike) -> None: ...
+    first_offset: float
+    """Terrain-following stacks: offset of slice 0 along up, metres."""
+    last_offset: float
+    """Terrain-following stacks: offset of slice N-1 along up, metres."""
     slices: int
     """Number of slices, 1 .. 100000."""
     def check(self, view_count: int) -> None:
@@ -794,6 +800,12 @@ class FocalStack:
     def render(self) -> IntegralOptions: ...
     @property
     def planes(self) -> list[Plane]: ...
+    @property
+    def offsets(self) -> list[float]: ...
+    @property
+    def surface(self) -> Optional[FocalSurface]: ...
+    @property
+    def up(self) -> _Float64Array: ...
     @property
     def images(self) -> numpy.typing.NDArray[numpy.float32]:
         """float32 (N, H, W) or (N, H, W, C), slice index first; a new array (COPY) per access."""

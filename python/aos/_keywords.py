@@ -86,11 +86,15 @@ class MapKeywords(TypedDict, total=False):
 
 class FocalStackKeywords(VirtualCameraKeywords, total=False):
     """Fields of FocalStackOptions and of its render options (render_focal_stack); the slices'
-    planes come from first_plane and last_plane, so focal_plane is not one."""
+    planes come from first_plane and last_plane, so focal_plane is not one. With
+    ``focal_surface`` the stack follows that surface from first_offset to last_offset."""
 
     render: IntegralOptions
     first_plane: PlaneLike
     last_plane: PlaneLike
+    focal_surface: Union[FocalSurface, Mesh, Heightfield, PlaneLike, None]
+    first_offset: float
+    last_offset: float
     slices: int
 
 

@@ -21,7 +21,9 @@
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/lightfield/formats.h"
+#include "aos/render/merge.h"
 #include "aos/util/error.h"
+#include "error_of.h"
 #include "render_test_util.h"
 #include "temp_folder.h"
 
@@ -290,8 +292,8 @@ TEST(FocalStack, EverySliceIsRenderIntegralOnItsPlaneBitForBit) {
     EXPECT_EQ(stack.camera.cx, camera.cx);
     for (int i = 0; i < 5; ++i) {
       const size_t k = static_cast<size_t>(i);
-      EXPECT_EQ(stack.planes[k].point, planes[k].point) << i;
-      EXPECT_EQ(stack.planes[k].normal, planes[k].normal) << i;
+      EXPECT_EQ(stack.focus.planes[k].point, planes[k].point) << i;
+      EXPECT_EQ(stack.focus.planes[k].normal, planes[k].normal) << i;
       IntegralOptions single = options.render;
       single.focal_plane = planes[k];
       const IntegralResult reference = RenderIntegral(light_field, single);
@@ -337,10 +339,8 @@ TEST(FocalStack, SlicesAreHandedOverInOrderWithProgressPerSlice) {
   CountingSink sink;
   RenderFocalStackSlices(
       light_field, options,
-      [&](int index, const Plane& plane, IntegralResult& slice) {
+      [&](int index, IntegralResult& slice) {
         order.push_back(index);
-        EXPECT_EQ(plane.point, planes[static_cast<size_t>(index)].point) << index;
-        EXPECT_EQ(plane.normal, planes[static_cast<size_t>(index)].normal) << index;
         EXPECT_EQ(slice.image.width(), 24);
         EXPECT_FALSE(slice.variance.empty());
         // The sink may take the slice's pixels.
@@ -349,6 +349,13 @@ TEST(FocalStack, SlicesAreHandedOverInOrderWithProgressPerSlice) {
       },
       &sink);
   EXPECT_EQ(order, (std::vector<int>{0, 1, 2, 3, 4, 5, 6}));
+  // Where the slices lie.
+  const SliceFocus focus = ResolveSliceFocus(light_field, options);
+  ASSERT_EQ(focus.size(), 7);
+  for (size_t i = 0; i < planes.size(); ++i) {
+    EXPECT_EQ(focus.planes[i].point, planes[i].point) << i;
+    EXPECT_EQ(focus.planes[i].normal, planes[i].normal) << i;
+  }
   EXPECT_EQ(sink.stage, "focal stack");
   EXPECT_EQ(sink.total, 7);
   EXPECT_EQ(sink.done.load(), 7);
@@ -357,7 +364,7 @@ TEST(FocalStack, SlicesAreHandedOverInOrderWithProgressPerSlice) {
   cancelling.cancel_after = 3;
   int handed = 0;
   EXPECT_THROW(RenderFocalStackSlices(
-                   light_field, options, [&](int, const Plane&, IntegralResult&) { ++handed; },
+                   light_field, options, [&](int, IntegralResult&) { ++handed; },
                    &cancelling),
                Cancelled);
   EXPECT_EQ(handed, 3);
@@ -430,10 +437,10 @@ TEST_F(FocalStackFiles, RoundTripKeepsEverything) {
     SCOPED_TRACE(variance ? "with variance, infinite aperture" : "no variance, aperture 6.5");
     ASSERT_EQ(read.size(), stack.size());
     ASSERT_EQ(read.variances.size(), stack.variances.size());
-    for (size_t i = 0; i < stack.planes.size(); ++i) {
+    for (size_t i = 0; i < stack.focus.planes.size(); ++i) {
       // Doubles go through JSON as shortest round-trip text: exact.
-      EXPECT_EQ(read.planes[i].point, stack.planes[i].point) << i;
-      EXPECT_EQ(read.planes[i].normal, stack.planes[i].normal) << i;
+      EXPECT_EQ(read.focus.planes[i].point, stack.focus.planes[i].point) << i;
+      EXPECT_EQ(read.focus.planes[i].normal, stack.focus.planes[i].normal) << i;
       // float32 TIFF and uint32 counts are lossless.
       EXPECT_TRUE(SameImage(read.images[i], stack.images[i])) << i;
       EXPECT_TRUE(SameImage(read.counts[i], stack.counts[i])) << i;
@@ -682,6 +689,190 @@ TEST_F(FocalStackFiles, ACameraWrittenByOneFormatReadsInEveryOther) {
                            std::function<LensCamera(const nlohmann::json&)>(in_light_field)}) {
     EXPECT_TRUE(read(fisheye_by_fov).SameParameters(wide));
   }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Terrain-following stacks (render.focal_surface: one surface at N offsets along up)
+
+// A flat square mesh (world coordinates) at z = height, 200 m wide.
+Mesh FlatMesh(double height) {
+  Mesh mesh;
+  mesh.vertices = {{-100, -100, height}, {100, -100, height}, {100, 100, height}, {-100, 100, height}};
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+  return mesh;
+}
+
+double MaxAbsDifference(const Image& a, const Image& b) {
+  double worst = 0.0;
+  for (int y = 0; y < a.height(); ++y) {
+    for (int x = 0; x < a.width() * a.channels(); ++x) {
+      worst = std::max(worst, std::abs(double(a.At<float>(0, y)[x]) - b.At<float>(0, y)[x]));
+    }
+  }
+  return worst;
+}
+
+FocalStackOptions TerrainStackOptions(double mesh_height) {
+  FocalStackOptions options = SmallStackOptions();
+  options.render.focal_surface = std::make_shared<const FocalSurface>(FocalSurface::FromMesh(FlatMesh(mesh_height)));
+  options.first_offset = -0.3;
+  options.last_offset = 1.2;
+  options.slices = 4;
+  return options;
+}
+
+TEST(TerrainFollowingStack, OffsetsAreEvenlySpacedRoundAndEndExactly) {
+  EXPECT_EQ(StackOffsets(-1.0, 20.0, 8),
+            (std::vector<double>{-1.0, 2.0, 5.0, 8.0, 11.0, 14.0, 17.0, 20.0}));
+  EXPECT_EQ(StackOffsets(-0.3, 1.2, 4).back(), 1.2);
+  EXPECT_EQ(StackOffsets(2.0, 4.0, 1), (std::vector<double>{3.0}));  // one slice: midway
+  EXPECT_EQ(StackOffsets(5.0, 5.0, 3), (std::vector<double>{5.0, 5.0, 5.0}));
+}
+
+TEST(TerrainFollowingStack, AFlatMeshStackIsThePlaneStackAtTheMeshHeightPlusTheOffsets) {
+  // Views at z = 20 look down on a mesh at z = 0.3, so up is +z: offsets -0.3, 0.2, 0.7, 1.2 put
+  // the slices on z = 0, 0.5, 1, 1.5, the horizontal plane stack from 0 to 1.5. The mesh path
+  // (Embree cast, per-sample kernel) and the plane path (homography kernel) agree to float
+  // rounding of the sample positions: 1e-3 grey on 8-bit texture (as focal_surface_test).
+  const LightField light_field = GroundLightField();
+  FocalStackOptions terrain = TerrainStackOptions(0.3);
+  terrain.render.variance = false;
+  FocalStackOptions planes = SmallStackOptions();
+  planes.render.variance = false;
+  planes.first_plane = Plane::AtHeight(0.0);
+  planes.last_plane = Plane::AtHeight(1.5);
+  planes.slices = 4;
+  const FocalStack on_mesh = RenderFocalStack(light_field, terrain);
+  const FocalStack on_planes = RenderFocalStack(light_field, planes);
+  ASSERT_EQ(on_mesh.size(), 4);
+  EXPECT_TRUE(on_mesh.focus.planes.empty());
+  ASSERT_TRUE(on_mesh.focus.surface);
+  EXPECT_EQ(on_mesh.focus.placement.up, Vec3d(0, 0, 1));
+  EXPECT_EQ(on_mesh.focus.offsets, StackOffsets(-0.3, 1.2, 4));
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_TRUE(SameImage(on_mesh.counts[i], on_planes.counts[i])) << i;
+    EXPECT_LT(MaxAbsDifference(on_mesh.images[i], on_planes.images[i]), 1e-3) << i;
+  }
+  // The slices differ (the comparison is not vacuous), and a wrong sign of up would pair slice
+  // 0 with z = 0.6 instead of 0: it fails.
+  EXPECT_GT(MaxAbsDifference(on_mesh.images[0], on_mesh.images[3]), 1.0);
+  planes.first_plane = Plane::AtHeight(0.6);
+  planes.last_plane = Plane::AtHeight(-0.9);
+  EXPECT_GT(MaxAbsDifference(on_mesh.images[0], RenderFocalStack(light_field, planes).images[0]), 1.0);
+}
+
+TEST(TerrainFollowingStack, FractionalSlicesLieOnTheSurfaceAtTheInterpolatedOffset) {
+  // DepthOfSlices of a flat mesh at z = 0.3 (offsets -0.3 .. 1.2, 4 slices, 0.5 m apart): a
+  // pixel at fractional slice z lies on z_world = 0.3 - 0.3 + 0.5 z; its depth is PlaneDepth of
+  // that plane, to one float32 rounding (relative 2^-23 of the depth, about 1.2e-7).
+  const LightField light_field = GroundLightField();
+  const FocalStackOptions options = TerrainStackOptions(0.3);
+  const SliceFocus focus = ResolveSliceFocus(light_field, options);
+  const PinholeCamera camera = VirtualCamera(light_field, options.render);
+  const Rigid3d pose = options.render.cam_from_world;
+  const std::vector<float> fractions = {0.0f, 0.25f, 1.0f, 1.5f, 2.75f, 3.0f, -1.0f};
+  std::vector<float> slice(static_cast<size_t>(camera.width) * camera.height);
+  for (size_t i = 0; i < slice.size(); ++i) slice[i] = fractions[i % fractions.size()];
+  const Image depth = focus.DepthOfSlices(camera, pose, slice, 2);
+  double worst = 0.0;
+  for (int y = 0; y < camera.height; ++y) {
+    for (int x = 0; x < camera.width; ++x) {
+      const float z = slice[static_cast<size_t>(y) * camera.width + x];
+      const float got = depth.At<float>(x, y)[0];
+      if (z < 0.0f) {
+        EXPECT_EQ(got, 0.0f);  // no slice: no depth
+        continue;
+      }
+      const Image plane = PlaneDepth(camera, pose, Plane::AtHeight(0.5 * z));
+      const double expected = plane.At<float>(x, y)[0];
+      worst = std::max(worst, std::abs(got - expected) / expected);
+    }
+  }
+  EXPECT_LE(worst, 2.5e-7);  // two float32 roundings: ours and PlaneDepth's
+  // The grazing test of a re-integration measures against the horizontal (normal up).
+  EXPECT_EQ(focus.GrazingPlane().normal, Vec3d(0, 0, 1));
+  // A per-pixel offset map of the wrong size or with NaN is refused, naming it.
+  EXPECT_THAT(test_util::ErrorOf([&] {
+                focus.surface->DepthForOffsets(camera, pose, focus.placement, {0.0});
+              }),
+              HasSubstr("offsets: 1 entries for 24 x 20 pixels"));
+  std::vector<double> bad(slice.size(), 0.0);
+  bad[7] = std::nan("");
+  EXPECT_THAT(test_util::ErrorOf([&] {
+                focus.surface->DepthForOffsets(camera, pose, focus.placement, bad);
+              }),
+              HasSubstr("offsets: entry 7 is not finite"));
+}
+
+TEST(TerrainFollowingStack, BadOptionsAreNamed) {
+  const LightField light_field = GroundLightField();
+  FocalStackOptions options = TerrainStackOptions(0.3);
+  options.render.surface_offset = 1.0;
+  EXPECT_THAT(test_util::ErrorOf([&] { RenderFocalStack(light_field, options); }),
+              HasSubstr("render.surface_offset: must be 0 in a stack"));
+  options = TerrainStackOptions(0.3);
+  options.last_offset = std::numeric_limits<double>::infinity();
+  EXPECT_THAT(test_util::ErrorOf([&] { RenderFocalStack(light_field, options); }),
+              HasSubstr("last_offset: must be finite"));
+  options = TerrainStackOptions(0.3);
+  options.first_offset = std::nan("");
+  EXPECT_THAT(test_util::ErrorOf([&] { RenderFocalStack(light_field, options); }),
+              HasSubstr("first_offset: must be finite"));
+  // With a surface the planes are not used: a zero-normal plane is no error.
+  options = TerrainStackOptions(0.3);
+  options.first_plane = Plane{Vec3d(0.0), Vec3d(0.0)};
+  EXPECT_EQ(test_util::ErrorOf([&] { options.Check(9); }), "no error");
+}
+
+TEST_F(FocalStackFiles, ATerrainFollowingStackRoundTripsWithItsSurface) {
+  // A mesh stack (the surface stored as surface.ply) and a DEM stack (surface.tif, with its CRS):
+  // offsets, placement and every slice come back; merging the read stack equals merging the
+  // stack in memory (the depths come from the stored surface).
+  Heightfield field;
+  field.width = 40;
+  field.height = 40;
+  field.geotransform = {-20.0, 1.0, 0.0, 20.0, 0.0, -1.0};
+  field.heights.assign(1600, 0.3f);
+  field.crs_wkt = "EPSG:32633";
+  const std::vector<std::pair<std::string, FocalSurface>> surfaces = {
+      {"mesh", FocalSurface::FromMesh(FlatMesh(0.3))},
+      {"dem", FocalSurface::FromHeightfield(field)}};
+  for (const auto& [name, surface] : surfaces) {
+    SCOPED_TRACE(name);
+    FocalStackOptions options = TerrainStackOptions(0.3);
+    options.render.focal_surface = std::make_shared<const FocalSurface>(surface);
+    const FocalStack stack = RenderFocalStack(GroundLightField(), options);
+    const std::string folder = Path("terrain_" + name);
+    WriteFocalStack(folder, stack);
+    EXPECT_TRUE(fs::exists(folder + (name == "dem" ? "/surface.tif" : "/surface.ply")));
+    const FocalStack read = ReadFocalStack(folder);
+    ASSERT_EQ(read.size(), 4);
+    EXPECT_EQ(read.focus.offsets, stack.focus.offsets);
+    EXPECT_EQ(read.focus.placement.up, stack.focus.placement.up);
+    EXPECT_EQ(read.focus.placement.origin, stack.focus.placement.origin);
+    ASSERT_TRUE(read.focus.surface);
+    EXPECT_EQ(read.focus.surface->kind(),
+              name == "dem" ? FocalSurfaceKind::kHeightfield : FocalSurfaceKind::kMesh);
+    for (size_t i = 0; i < 4; ++i) EXPECT_TRUE(SameImage(read.images[i], stack.images[i])) << i;
+    MergeOptions merge;
+    merge.num_threads = 1;
+    const MergeResult in_memory = MergeFocalStack(stack, merge);
+    const MergeResult from_disk = MergeFocalStack(read, merge);
+    EXPECT_TRUE(SameImage(in_memory.depth, from_disk.depth));
+    EXPECT_TRUE(SameImage(in_memory.image, from_disk.image));
+  }
+  // Mixed-up files are refused, naming the field.
+  const std::string folder = Path("terrain_mesh");
+  EditJson(folder, [](nlohmann::json& j) { j["slices"][1]["plane"] = j["slices"][1]["offset"]; });
+  EXPECT_THAT(ErrorReading(folder), HasSubstr("/slices/1/plane: a terrain-following stack's slice has an offset"));
+  EditJson(folder, [](nlohmann::json& j) {
+    j["slices"][1].erase("plane");
+    j.erase("surface");
+  });
+  EXPECT_THAT(ErrorReading(folder), HasSubstr("/slices/0/offset: a slice with an offset needs"));
+  fs::remove(folder + "/surface.ply");
+  EditJson(folder, [](nlohmann::json& j) { j["surface"] = {{"file", "surface.ply"}, {"kind", "mesh"}, {"origin", {0, 0, 0}}, {"up", {0, 0, 1}}}; });
+  EXPECT_THAT(ErrorReading(folder), HasSubstr("surface.ply"));
 }
 
 // ---------------------------------------------------------------------------------------------

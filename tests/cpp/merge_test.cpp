@@ -94,9 +94,9 @@ FocalStack HandStack(const std::vector<Image>& images, std::vector<Image> counts
   stack.render.width = stack.camera.width;
   stack.render.height = stack.camera.height;
   stack.render.fov_deg = 40.0;
-  stack.planes = StackPlanes(Plane::AtHeight(0.0), Plane::AtHeight(std::max(n - 1, 1)), n,
+  stack.focus.planes = StackPlanes(Plane::AtHeight(0.0), Plane::AtHeight(std::max(n - 1, 1)), n,
                              stack.cam_from_world.Center());
-  if (n == 1) stack.planes = {Plane::AtHeight(0.0)};
+  if (n == 1) stack.focus.planes = {Plane::AtHeight(0.0)};
   stack.images = images;
   if (counts.empty()) {
     for (int k = 0; k < n; ++k) counts.push_back(ConstantImage(images[0].width(), images[0].height(), {1}, PixelType::kU32));
@@ -651,6 +651,40 @@ TEST(RenderAllInFocus, RecoversTheDepthOfTexturedGround) {
       for (int x = 8; x < 16; ++x) {
         EXPECT_NEAR(*result.depth.At<float>(x, y), 20.0, tolerance) << x << "," << y;
       }
+    }
+  }
+}
+
+TEST(RenderAllInFocus, ATerrainFollowingStackFindsTheGroundOffTheGivenSurface) {
+  // The ground lies at z = 0 but the "DEM" given is a flat mesh 0.6 m too low (z = -0.6): the
+  // terrain-following stack from 2 m below to 2 m above it (21 slices, 0.2 m apart) must find
+  // the ground at offset +0.6 (slice 13) and depth 20 m, within the tolerances of the plane case
+  // above (sobel one slice, the others half a slice). A wrong up sign would put it at z = -1.2.
+  const int size = 24;
+  Mesh low;
+  low.vertices = {{-100, -100, -0.6}, {100, -100, -0.6}, {100, 100, -0.6}, {-100, 100, -0.6}};
+  low.triangles = {{0, 1, 2}, {0, 2, 3}};
+  for (MergeMethod method : kAllMethods) {
+    SCOPED_TRACE(MergeMethodName(method));
+    AllInFocusOptions options = GroundStackOptions(method, size, 21);
+    options.stack.render.focal_surface = std::make_shared<const FocalSurface>(FocalSurface::FromMesh(low));
+    options.stack.first_offset = -2.0;
+    options.stack.last_offset = 2.0;
+    const MergeResult result = RenderAllInFocus(SimulatedGround(), options);
+    ASSERT_TRUE(WellFormed(result, size, size));
+    EXPECT_EQ(result.uncovered_pixels, 0);
+    const double tolerance = (method == MergeMethod::kSobel ? 0.2 : 0.1) + 1e-5;
+    for (int y = 8; y < 16; ++y) {
+      for (int x = 8; x < 16; ++x) {
+        EXPECT_NEAR(*result.depth.At<float>(x, y), 20.0, tolerance) << x << "," << y;
+        EXPECT_NEAR(*result.slice.At<float>(x, y), 13.0, tolerance / 0.2) << x << "," << y;
+      }
+    }
+    // Merging the stored stack gives the pipeline's depth (the same focus values and surface).
+    if (method != MergeMethod::kRobust) {
+      const FocalStack stack = RenderFocalStack(SimulatedGround(), options.stack);
+      const MergeResult merged = MergeFocalStack(stack, options.merge);
+      EXPECT_TRUE(SameImage(merged.depth, result.depth));
     }
   }
 }

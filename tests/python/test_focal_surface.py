@@ -265,3 +265,82 @@ def test_f0_on_dem_lr_covers_every_pixel_and_matches_a_numpy_ray_caster():
     # one count and not the other, hence the allowance of a few pixels.
     assert same_views.mean() > 0.98
     assert difference.max() < 0.02
+
+
+# ---- Terrain-following focal stacks (a surface at N offsets along up) ----
+
+def test_terrain_following_stack_and_all_in_focus_from_python(tmp_path):
+    # The ground is z = 0.3; the "DEM" given is 0.5 m too low (z = -0.2). Offsets 0 .. 1 in 11
+    # slices (0.1 m apart): the merge must find offset 0.5 (slice 5) and the stack's slices are
+    # the plane stack at z = -0.2 .. 0.8 (counts equal, values within 1e-3 grey as above).
+    light_field = _textured_lightfield()
+    (tmp_path / "low.obj").write_text(SQUARE_OBJ.format(h=-0.2))
+    low = aos.Mesh.read(str(tmp_path / "low.obj"))
+    stack = aos.render_focal_stack(light_field, focal_surface=low, first_offset=0.0, last_offset=1.0,
+                                   slices=11, **CAMERA)
+    assert len(stack) == 11 and stack.planes == [] and stack.surface is not None
+    assert stack.offsets[0] == 0.0 and stack.offsets[-1] == 1.0 and list(stack.up) == [0, 0, 1]
+    planes = aos.render_focal_stack(light_field, first_plane=-0.2, last_plane=0.8, slices=11, **CAMERA)
+    assert np.array_equal(stack.counts, planes.counts)
+    assert np.max(np.abs(stack.images.astype(np.float64) - planes.images)) < 1e-3
+    result = aos.all_in_focus(light_field, focal_surface=low, first_offset=0.0, last_offset=1.0,
+                              slices=11, **CAMERA)
+    inner = result.slice[8:22, 10:30]
+    assert np.all(np.abs(inner - 5.0) <= 0.5), inner  # half a slice, as the plane-stack tests
+    # The merged depth lies on the ground z = 0.3 (camera z of the plane), within half a slice.
+    camera = aos.virtual_camera(light_field, aos.IntegralOptions(**CAMERA))
+    ground = aos.plane_depth(camera, CAMERA["cam_from_world"], aos.Plane.at_height(0.3))
+    assert np.max(np.abs(result.depth[8:22, 10:30] - ground[8:22, 10:30])) < 0.06
+    # Round trip through a folder keeps the surface, and merging it gives the pipeline's depth.
+    aos.write_focal_stack(str(tmp_path / "stack"), stack)
+    read = aos.read_focal_stack(str(tmp_path / "stack"))
+    assert read.offsets == stack.offsets and read.surface is not None
+    assert np.array_equal(aos.merge_focal_stack(read).depth, aos.merge_focal_stack(stack).depth)
+    # surface_offset is not a stack option (the offsets replace it).
+    with pytest.raises(TypeError, match="surface_offset"):
+        aos.render_focal_stack(light_field, focal_surface=low, surface_offset=1.0, **CAMERA)
+
+
+def test_cli_terrain_following_stack_merge_and_allinfocus(tmp_path):
+    light_field = _textured_lightfield()
+    aos.write_lightfield(str(tmp_path / "lf.json"), light_field)
+    (tmp_path / "low.obj").write_text(SQUARE_OBJ.format(h=-0.2))
+    camera = ["--look-at=0.7,-0.4,20,0,1,0,0,1,0", "--fov-deg", "60", "--width", "40", "--height", "30"]
+    terrain = ["--focal-surface", str(tmp_path / "low.obj"), "--first-offset", "0", "--last-offset", "1",
+               "--slices", "11"]
+    run = subprocess.run([_aos_render(), "stack", str(tmp_path / "lf.json"), *camera, *terrain,
+                          "-o", str(tmp_path / "stack")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    meta = json.loads((tmp_path / "stack" / "stack.json").read_text())
+    assert meta["surface"]["file"] == "surface.ply" and meta["surface"]["up"] == [0.0, 0.0, 1.0]
+    assert [s["offset"] for s in meta["slices"]][::5] == [0.0, 0.5, 1.0]
+    run = subprocess.run([_aos_render(), "merge", str(tmp_path / "stack"), "-o", str(tmp_path / "merged")],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    run = subprocess.run([_aos_render(), "allinfocus", str(tmp_path / "lf.json"), *camera, *terrain,
+                          "-o", str(tmp_path / "aif")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    merged = aos.read_image(str(tmp_path / "merged" / "depth.tif"))
+    pipeline = aos.read_image(str(tmp_path / "aif" / "depth.tif"))
+    assert np.array_equal(merged, pipeline)
+    slice_map = aos.read_image(str(tmp_path / "aif" / "slice.tif"))
+    assert np.all(np.abs(slice_map[8:22, 10:30] - 5.0) <= 0.5)
+    # Planes and a surface together, or offsets without a surface: one clear error, nothing written.
+    for extra, words in ((["--focal-surface", str(tmp_path / "low.obj"), "--first-plane", "0"], "--first-plane"),
+                         (["--first-offset", "1"], "--first-offset")):
+        out = tmp_path / f"bad{len(words)}"
+        run = subprocess.run([_aos_render(), "stack", str(tmp_path / "lf.json"), *camera, *extra, "-o", str(out)],
+                             capture_output=True, text=True)
+        assert run.returncode != 0 and words in run.stderr, run.stderr
+        assert not out.exists()
+
+
+def test_gdal_leaves_no_libtiff_noise_on_later_tiff_writes(tmp_path, capfd):
+    # Once GDAL's GTiff driver has run, libtiff reported OpenImageIO's TIFF writes through GDAL:
+    # "ERROR 1: TIFFSetField: ... Unknown tag 306" on complete files. RegisterGdal filters them.
+    aos.write_image(str(tmp_path / "before.tif"), np.zeros((4, 4), np.float32))
+    aos.Heightfield(np.zeros((2, 2), np.float32), (0, 2, 0, 2, 0, -2)).write(str(tmp_path / "dem.tif"))
+    aos.write_image(str(tmp_path / "after.tif"), np.ones((4, 4), np.float32))
+    captured = capfd.readouterr()
+    assert "ERROR" not in captured.err and "TIFF" not in captured.err, captured.err
+    assert np.array_equal(aos.read_image(str(tmp_path / "after.tif")), np.ones((4, 4), np.float32))

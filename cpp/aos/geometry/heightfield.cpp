@@ -1,6 +1,7 @@
 #include "aos/geometry/heightfield.h"
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <limits>
 #include <mutex>
@@ -19,10 +20,23 @@ namespace fs = std::filesystem;
 namespace aos {
 namespace {
 
-void RegisterGdalOnce() {
-  static std::once_flag once;
-  std::call_once(once, [] { GDALAllRegister(); });
+// libtiff's messages name the libtiff function that raised them ("TIFFSetField: ...").
+void CPL_STDCALL FilterLibtiffMessages(CPLErr level, CPLErrorNum number, const char* message) {
+  if (message != nullptr && std::strncmp(message, "TIFF", 4) == 0) return;
+  CPLDefaultErrorHandler(level, number, message);
 }
+
+}  // namespace
+
+void RegisterGdal() {
+  static std::once_flag once;
+  std::call_once(once, [] {
+    GDALAllRegister();
+    CPLSetErrorHandler(FilterLibtiffMessages);
+  });
+}
+
+namespace {
 
 std::string GdalMessage() {
   const char* message = CPLGetLastErrorMsg();
@@ -83,7 +97,7 @@ void Heightfield::Check(const std::string& where) const {
 
 Heightfield ReadHeightfield(const std::string& path) {
   CheckRegularFile(path, "height field");
-  RegisterGdalOnce();
+  RegisterGdal();
   QuietGdal quiet;
   CPLErrorReset();
   DatasetCloser closer;
@@ -134,7 +148,7 @@ void WriteHeightfield(const std::string& path, const Heightfield& heightfield, b
     ThrowInvalid(path + ": the file exists (not overwritten)");
   }
   CheckOutputPath(path, {}, "height field");
-  RegisterGdalOnce();
+  RegisterGdal();
   QuietGdal quiet;
   PendingFile pending(path);
   {

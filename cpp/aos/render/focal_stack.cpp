@@ -49,11 +49,20 @@ std::string SliceName(const char* prefix, int index) {
 void FocalStackOptions::Check(int view_count) const {
   render.Check(view_count);
   if (render.focal_surface) {
-    ThrowInvalid("render.focal_surface: focal stacks on a surface (terrain-following slices) are "
-                 "not supported yet; the slices are planes (first_plane .. last_plane)");
+    if (!std::isfinite(first_offset)) {
+      ThrowInvalid("first_offset: must be finite metres (got " + FormatNumber(first_offset) + ")");
+    }
+    if (!std::isfinite(last_offset)) {
+      ThrowInvalid("last_offset: must be finite metres (got " + FormatNumber(last_offset) + ")");
+    }
+    if (render.surface_offset != 0.0) {
+      ThrowInvalid("render.surface_offset: must be 0 in a stack (its slices lie at first_offset.."
+                   "last_offset along up; got " + FormatNumber(render.surface_offset) + ")");
+    }
+  } else {
+    UnitNormal(first_plane, "first_plane");
+    UnitNormal(last_plane, "last_plane");
   }
-  UnitNormal(first_plane, "first_plane");
-  UnitNormal(last_plane, "last_plane");
   if (slices < 1 || slices > kMaxSlices) {
     ThrowInvalid("slices: must be 1.." + std::to_string(kMaxSlices) + " (got " +
                  std::to_string(slices) + ")");
@@ -87,21 +96,130 @@ std::vector<Plane> StackPlanes(const Plane& first, const Plane& last, int slices
   return planes;
 }
 
+std::vector<double> StackOffsets(double first_offset, double last_offset, int slices) {
+  if (slices < 1) ThrowInvalid("slices: must be >= 1 (got " + std::to_string(slices) + ")");
+  std::vector<double> offsets;
+  offsets.reserve(static_cast<size_t>(slices));
+  for (int i = 0; i < slices; ++i) {
+    // first + (last - first) i / (N - 1), multiplied before dividing so that round offsets
+    // stay round; the last is exactly last_offset.
+    offsets.push_back(slices == 1 ? 0.5 * (first_offset + last_offset)
+                      : i == slices - 1
+                          ? last_offset
+                          : first_offset + (last_offset - first_offset) * i / (slices - 1));
+  }
+  return offsets;
+}
+
+int SliceFocus::size() const {
+  return static_cast<int>(surface ? offsets.size() : planes.size());
+}
+
+Plane SliceFocus::GrazingPlane() const {
+  if (surface) return Plane{Vec3d(0.0), placement.up};
+  if (planes.empty()) ThrowInvalid("focal stack: no slices");
+  return planes.front();
+}
+
+Image SliceFocus::DepthOfSlices(const PinholeCamera& camera, const Rigid3d& cam_from_world,
+                                const std::vector<float>& slice, int threads) const {
+  const int last = size() - 1;
+  if (last < 0) ThrowInvalid("focal stack: no slices");
+  const size_t pixels = static_cast<size_t>(camera.width) * static_cast<size_t>(camera.height);
+  if (slice.size() != pixels) ThrowInvalid("slice: one fractional index per pixel expected");
+  if (surface) {
+    // The offset is linear in the slice index, so a fractional slice's surface is the surface at
+    // the interpolated offset: cast every pixel at its own offset.
+    std::vector<double> pixel_offsets(pixels, 0.0);
+    for (size_t i = 0; i < pixels; ++i) {
+      const float z = slice[i];
+      if (z < 0.0f) continue;
+      const int i0 = std::min(static_cast<int>(z), last);
+      const double fraction = z - i0;
+      pixel_offsets[i] = i0 == last || fraction == 0.0
+                             ? offsets[static_cast<size_t>(i0)]
+                             : (1.0 - fraction) * offsets[static_cast<size_t>(i0)] +
+                                   fraction * offsets[static_cast<size_t>(i0 + 1)];
+    }
+    Image depth = surface->DepthForOffsets(camera, cam_from_world, placement, pixel_offsets);
+    for (int y = 0; y < camera.height; ++y) {
+      float* row = depth.At<float>(0, y);
+      for (int x = 0; x < camera.width; ++x) {
+        if (slice[static_cast<size_t>(y) * camera.width + x] < 0.0f) row[x] = 0.0f;
+      }
+    }
+    return depth;
+  }
+  Image depth(camera.width, camera.height, 1, PixelType::kF32);
+  const Vec3d center = cam_from_world.Center();
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int64_t yy = 0; yy < camera.height; ++yy) {
+    const int y = static_cast<int>(yy);
+    float* row = depth.At<float>(0, y);
+    for (int x = 0; x < camera.width; ++x) {
+      const float z = slice[static_cast<size_t>(y) * camera.width + x];
+      if (z < 0.0f) {
+        row[x] = 0.0f;
+        continue;
+      }
+      const int i0 = std::min(static_cast<int>(z), last);
+      const double fraction = z - i0;
+      const Plane plane = i0 == last || fraction == 0.0
+                              ? planes[static_cast<size_t>(i0)]
+                              : InterpolatePlane(planes[static_cast<size_t>(i0)],
+                                                 planes[static_cast<size_t>(i0 + 1)], fraction, center);
+      const Vec3d normal = glm::normalize(plane.normal);
+      const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+      const double f = glm::dot(normal, direction);
+      const double t = f != 0.0 ? glm::dot(normal, plane.point - center) / f : 0.0;
+      row[x] = t > 0.0 && std::isfinite(t) ? static_cast<float>(t) : 0.0f;
+    }
+  }
+  return depth;
+}
+
+SliceFocus ResolveSliceFocus(const LightField& light_field, const FocalStackOptions& options) {
+  options.Check(static_cast<int>(light_field.views.size()));
+  SliceFocus focus;
+  if (options.render.focal_surface) {
+    focus.surface = options.render.focal_surface;
+    focus.placement = ResolveSurfacePlacement(*focus.surface, light_field,
+                                              options.render.view_indices, 0.0);
+    focus.offsets = StackOffsets(options.first_offset, options.last_offset, options.slices);
+  } else {
+    const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options.render);
+    focus.planes = StackPlanes(options.first_plane, options.last_plane, options.slices,
+                               cam_from_world.Center());
+  }
+  return focus;
+}
+
 void FocalStack::Check(const std::string& where) const {
-  const size_t n = planes.size();
+  const size_t n = static_cast<size_t>(focus.size());
   if (n == 0) ThrowInvalid(where + ": the stack has no slices");
   if (images.size() != n || counts.size() != n || (!variances.empty() && variances.size() != n)) {
-    ThrowInvalid(where + ": planes, images, counts and variances differ in number");
+    ThrowInvalid(where + ": slices, images, counts and variances differ in number");
+  }
+  if (focus.surface) {
+    if (!focus.planes.empty()) ThrowInvalid(where + ": a terrain-following stack has no planes");
+    focus.placement.Check();
   }
   for (size_t i = 0; i < n; ++i) {
     const std::string slice = where + ": slice " + std::to_string(i);
-    const Plane& plane = planes[i];
-    for (int k = 0; k < 3; ++k) {
-      if (!std::isfinite(plane.point[k]) || !std::isfinite(plane.normal[k])) {
-        ThrowInvalid(slice + ": plane: point and normal must be finite");
+    if (focus.surface) {
+      if (!std::isfinite(focus.offsets[i])) ThrowInvalid(slice + ": offset: must be finite");
+    } else {
+      const Plane& plane = focus.planes[i];
+      for (int k = 0; k < 3; ++k) {
+        if (!std::isfinite(plane.point[k]) || !std::isfinite(plane.normal[k])) {
+          ThrowInvalid(slice + ": plane: point and normal must be finite");
+        }
+      }
+      if (!(glm::length(plane.normal) > 0.0)) {
+        ThrowInvalid(slice + ": plane: normal must not be zero");
       }
     }
-    if (!(glm::length(plane.normal) > 0.0)) ThrowInvalid(slice + ": plane: normal must not be zero");
     const Image& image = images[i];
     if (image.width() != camera.width || image.height() != camera.height ||
         image.type() != PixelType::kF32) {
@@ -144,22 +262,23 @@ void FocalStack::Check(const std::string& where) const {
 
 void RenderFocalStackSlices(const LightField& light_field, const FocalStackOptions& options,
                             const SliceSink& on_slice, ProgressSink* progress) {
-  options.Check(static_cast<int>(light_field.views.size()));
-  const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options.render);
-  const std::vector<Plane> planes =
-      StackPlanes(options.first_plane, options.last_plane, options.slices, cam_from_world.Center());
+  const SliceFocus focus = ResolveSliceFocus(light_field, options);
   ProgressStart(progress, "focal stack", options.slices);
   IntegralOptions render = options.render;
   for (int i = 0; i < options.slices; ++i) {
     if (ProgressCancelled(progress)) throw Cancelled();
-    render.focal_plane = planes[static_cast<size_t>(i)];
+    if (focus.surface) {
+      render.surface_offset = focus.offsets[static_cast<size_t>(i)];
+    } else {
+      render.focal_plane = focus.planes[static_cast<size_t>(i)];
+    }
     IntegralResult slice;
     try {
       slice = RenderIntegral(light_field, render);
     } catch (const std::invalid_argument& error) {
       ThrowInvalid("slice " + std::to_string(i) + ": " + error.what());
     }
-    on_slice(i, planes[static_cast<size_t>(i)], slice);
+    on_slice(i, slice);
     ProgressAdvance(progress, 1);
   }
 }
@@ -184,11 +303,11 @@ FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptio
   }
   // The resolved virtual camera (fov and size may come from the pose view).
   stack.render = WithResolvedCamera(light_field, options.render);
+  stack.focus = ResolveSliceFocus(light_field, options);
   RenderFocalStackSlices(
       light_field, options,
-      [&](int, const Plane& plane, IntegralResult& slice) {
+      [&](int, IntegralResult& slice) {
         stack.cam_from_world = slice.cam_from_world;
-        stack.planes.push_back(plane);
         stack.images.push_back(std::move(slice.image));
         stack.counts.push_back(std::move(slice.count));
         if (options.render.variance) stack.variances.push_back(std::move(slice.variance));
@@ -239,6 +358,33 @@ void WriteStackPreviews(const fs::path& folder, const FocalStack& stack) {
              ContactSheet(count_tiles, kColumns, kTileWidth), write);
 }
 
+// A terrain-following stack's surface, written into the stack folder `dir` in world
+// coordinates (a DEM as surface.tif with its CRS, a mesh or a depth map's focal points as
+// surface.ply), and its "surface" entry of stack.json.
+ojson WriteStackSurface(const fs::path& dir, const SliceFocus& focus) {
+  const FocalSurface& surface = *focus.surface;
+  ojson j;
+  if (surface.kind() == FocalSurfaceKind::kHeightfield) {
+    j["file"] = "surface.tif";
+    WriteHeightfield((dir / "surface.tif").string(), surface.heightfield());
+  } else if (surface.kind() == FocalSurfaceKind::kPlane) {
+    j["plane"] = PlaneToJson(surface.plane());
+  } else {
+    j["file"] = "surface.ply";
+    std::vector<Vec3d> vertices = surface.mesh().vertices;
+    if (surface.kind() == FocalSurfaceKind::kDepthMap) {
+      // A depth map's focal points are in the local frame: into world coordinates.
+      for (Vec3d& vertex : vertices) vertex += focus.placement.origin;
+    }
+    WritePly((dir / "surface.ply").string(), vertices, surface.mesh().triangles);
+  }
+  j["kind"] = FocalSurfaceKindName(surface.kind());
+  if (!surface.source().empty()) j["source"] = surface.source();
+  j["origin"] = Vec3ToJson(focus.placement.origin);
+  j["up"] = Vec3ToJson(focus.placement.up);
+  return j;
+}
+
 }  // namespace
 
 void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
@@ -256,12 +402,17 @@ void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
                                                                       : ojson("inf")},
                  {"min_view_angle_deg", r.min_view_angle_deg},
                  {"view_indices", r.view_indices}};
+  if (stack.focus.surface) j["surface"] = WriteStackSurface(temp, stack.focus);
   ojson slices = ojson::array();
   for (int i = 0; i < stack.size(); ++i) {
-    const Plane& plane = stack.planes[static_cast<size_t>(i)];
-    ojson slice = {{"plane", PlaneToJson(plane)},
-                   {"image", SliceName("slice", i)},
-                   {"count", SliceName("count", i)}};
+    ojson slice;
+    if (stack.focus.surface) {
+      slice["offset"] = stack.focus.offsets[static_cast<size_t>(i)];
+    } else {
+      slice["plane"] = PlaneToJson(stack.focus.planes[static_cast<size_t>(i)]);
+    }
+    slice["image"] = SliceName("slice", i);
+    slice["count"] = SliceName("count", i);
     WriteImage((temp / SliceName("slice", i)).string(), stack.images[static_cast<size_t>(i)]);
     WriteImage((temp / SliceName("count", i)).string(), stack.counts[static_cast<size_t>(i)]);
     if (!stack.variances.empty()) {
@@ -311,7 +462,9 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
   if (!j.is_object() || !j.contains("format") || j["format"] != "aos-focal-stack") {
     ThrowInvalid(Where(file, "format: must be \"aos-focal-stack\""));
   }
-  RequireKnownKeys(j, {"format", "version", "camera", "cam_from_world", "render", "slices"}, top);
+  RequireKnownKeys(j, {"format", "version", "camera", "cam_from_world", "render", "surface",
+                       "slices"},
+                   top);
   if (ReadJsonNumber(RequireMember(j, "version", top), top / "version") != 1) {
     (top / "version").Fail("must be 1");
   }
@@ -350,6 +503,29 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
   } else {
     stack.render.fov_deg = stack.camera.FovXDeg();
   }
+  if (j.contains("surface")) {
+    // A terrain-following stack: its surface file in the folder, its placement.
+    const json& surface = j["surface"];
+    const JsonPath at = top / "surface";
+    if (!surface.is_object()) at.Fail("must be an object");
+    RequireKnownKeys(surface, {"file", "plane", "kind", "source", "origin", "up"}, at);
+    if (surface.contains("plane")) {
+      stack.focus.surface = std::make_shared<const FocalSurface>(
+          FocalSurface::FromPlane(ReadPlaneJson(surface["plane"], at / "plane")));
+    } else {
+      const json& name = RequireMember(surface, "file", at);
+      if (!name.is_string()) (at / "file").Fail("must be a string, got " + DescribeJson(name));
+      const std::string path = (base / name.get<std::string>()).string();
+      stack.focus.surface = std::make_shared<const FocalSurface>(FocalSurface::Read(path));
+    }
+    stack.focus.placement.origin = ReadVec3Json(RequireMember(surface, "origin", at), at / "origin");
+    stack.focus.placement.up = ReadVec3Json(RequireMember(surface, "up", at), at / "up");
+    try {
+      stack.focus.placement.Check();
+    } catch (const std::invalid_argument& error) {
+      at.Fail(error.what());
+    }
+  }
   const json& slices = RequireMember(j, "slices", top);
   if (!slices.is_array() || slices.empty()) (top / "slices").Fail("must be a non-empty array");
   bool has_variance = true;
@@ -358,8 +534,15 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
   for (size_t i = 0; i < slices.size(); ++i) {
     const JsonPath at = top / "slices" / i;
     const json& slice = slices[i];
-    RequireKnownKeys(slice, {"plane", "image", "count", "variance"}, at);
-    stack.planes.push_back(ReadPlaneJson(RequireMember(slice, "plane", at), at / "plane"));
+    RequireKnownKeys(slice, {"plane", "offset", "image", "count", "variance"}, at);
+    if (stack.focus.surface) {
+      if (slice.contains("plane")) (at / "plane").Fail("a terrain-following stack's slice has an offset, not a plane");
+      stack.focus.offsets.push_back(
+          ReadJsonNumber(RequireMember(slice, "offset", at), at / "offset"));
+    } else {
+      if (slice.contains("offset")) (at / "offset").Fail("a slice with an offset needs the stack's \"surface\"");
+      stack.focus.planes.push_back(ReadPlaneJson(RequireMember(slice, "plane", at), at / "plane"));
+    }
     // Each file is checked as it is read, so that errors name it (FocalStack::Check then finds
     // nothing more to say about sizes and types).
     std::string path;

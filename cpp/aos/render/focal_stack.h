@@ -9,6 +9,14 @@
 //   n = normalize((1 - s) n0 + s n1), h = (1 - s) h0 + s h1, s = i / (N - 1) (s = 1/2 when
 //   N = 1), and is stored as the plane through C + h n with normal n. Parallel boundary planes
 //   give equally spaced parallel slices; identical ones give N identical slices.
+// - Terrain-following stacks. With render.focal_surface set (a mesh, DEM, depth map or plane:
+//   focal_surface.h), slice i lies on that surface moved along up by
+//   o_i = first_offset + (last_offset - first_offset) i / (N - 1) (the midway offset when
+//   N = 1; the last is last_offset exactly): the same surface N times,
+//   N offsets, each slice rendered as RenderIntegral renders a surface (rays that miss it give
+//   count 0). first_plane/last_plane are then ignored; render.surface_offset must be 0 (the
+//   offsets replace it). The surface is placed once for the whole stack
+//   (ResolveSurfacePlacement: the views' up, the light field's origin).
 // - Each slice is RenderIntegral's result with FocalStackOptions::render (focal_plane replaced),
 //   so every rule of integral.h holds per slice (count 0 where no view sees a pixel).
 // - A stack on disk is a folder: stack.json (camera, pose, planes, file names) and per slice
@@ -18,10 +26,14 @@
 //   file and names them in its errors; FocalStack::Check refuses non-finite pixels and negative
 //   variances. stack.json's camera (a pinhole), cam_from_world and slice planes use the shared
 //   JSON codec (lightfield/json_codec.h): the camera reads as any aos camera does, and unknown
-//   keys are refused at every level ("stack.json: /camera/fxx: unknown key").
+//   keys are refused at every level ("stack.json: /camera/fxx: unknown key"). A terrain-following
+//   stack stores its surface in the folder (surface.ply: a mesh or a depth map's focal points, in
+//   world coordinates; surface.tif: a DEM, with its CRS), its placement under "surface"
+//   ({"file", "kind", "origin", "up"}) and one "offset" per slice instead of a "plane".
 //
 // Throws std::invalid_argument naming the option, file or field; aos::Cancelled on request.
 #include <functional>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -39,6 +51,11 @@ struct FocalStackOptions {
   // N = 1, the one slice lies midway).
   Plane first_plane = Plane::AtHeight(0.0);
   Plane last_plane = Plane::AtHeight(10.0);
+  // Terrain-following stacks (render.focal_surface set): the offsets along up of slice 0 and
+  // of the last slice, metres. The defaults span 2 m below the surface (a DEM that is a little
+  // high) to 30 m above it (the top of a tall forest canopy); 100 slices are then 0.32 m apart.
+  double first_offset = -2.0;
+  double last_offset = 30.0;
   // Number of slices, 1 .. 100000.
   int slices = 100;
 
@@ -56,18 +73,45 @@ std::vector<Plane> StackPlanes(const Plane& first, const Plane& last, int slices
 
 // PlaneDepth (the depth map of a plane) lives in focal_surface.h.
 
+// The N offsets of a terrain-following stack (see the contract above).
+std::vector<double> StackOffsets(double first_offset, double last_offset, int slices);
+
+// Where a stack's slices lie: N planes, or one surface placed once and moved by N offsets.
+struct SliceFocus {
+  std::vector<Plane> planes;                    // plane stacks: one per slice
+  std::shared_ptr<const FocalSurface> surface;  // terrain-following stacks (planes empty)
+  SurfacePlacement placement;                   // the surface's origin and up (offset 0)
+  std::vector<double> offsets;                  // terrain-following: one per slice, metres
+
+  int size() const;
+  // Depth (camera z, metres, float32) of every pixel of `camera` at `cam_from_world` on the
+  // focus of its fractional slice index `slice[y * width + x]` (< 0: none, depth 0): for planes
+  // the interpolated plane (InterpolatePlane about the camera centre), for a surface the
+  // surface at the linearly interpolated offset (FocalSurface::DepthForOffsets, exact). 0 where
+  // the ray misses or meets it behind the camera.
+  Image DepthOfSlices(const PinholeCamera& camera, const Rigid3d& cam_from_world,
+                      const std::vector<float>& slice, int threads) const;
+  // The focal plane whose normal the grazing-angle test uses when re-integrating on a depth
+  // map: slice 0's plane, or the horizontal plane (normal up) for a surface.
+  Plane GrazingPlane() const;
+};
+
+// The slices of `options` for `light_field`: StackPlanes about the virtual camera centre, or the
+// surface placed for the selected views with StackOffsets. Throws as FocalStackOptions::Check.
+SliceFocus ResolveSliceFocus(const LightField& light_field, const FocalStackOptions& options);
+
 struct FocalStack {
   PinholeCamera camera;        // the virtual camera
   Rigid3d cam_from_world;      // its pose (local frame)
   // How the slices were rendered (pose resolved into cam_from_world, pose_view -1): what a
   // robust merge re-integrates with. Stored in stack.json except num_threads.
   IntegralOptions render;
-  std::vector<Plane> planes;   // one per slice
+  SliceFocus focus;            // where the slices lie (planes, or a surface and offsets)
   std::vector<Image> images;   // float32, the views' channels
   std::vector<Image> counts;   // uint32
   std::vector<Image> variances;  // float32, empty unless rendered with variance
 
-  int size() const { return static_cast<int>(planes.size()); }
+  int size() const { return focus.size(); }
   // Throws std::invalid_argument if the parts disagree in count or size, if an image or a
   // variance holds a non-finite value, or if an image holds one beyond kMaxStackMagnitude.
   void Check(const std::string& where) const;
@@ -89,7 +133,8 @@ FocalStack RenderFocalStack(const LightField& light_field, const FocalStackOptio
 
 // Renders the slices one at a time, in order, handing each to `on_slice` (which may move from
 // the result): memory holds one slice whatever N is. Progress counts slices.
-using SliceSink = std::function<void(int index, const Plane& plane, IntegralResult& slice)>;
+// (Where each slice lies: ResolveSliceFocus.)
+using SliceSink = std::function<void(int index, IntegralResult& slice)>;
 void RenderFocalStackSlices(const LightField& light_field, const FocalStackOptions& options,
                             const SliceSink& on_slice, ProgressSink* progress = nullptr);
 

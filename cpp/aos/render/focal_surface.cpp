@@ -397,6 +397,61 @@ Image FocalSurface::DepthFor(const PinholeCamera& camera, const Rigid3d& cam_fro
   return depth;
 }
 
+Image FocalSurface::DepthForOffsets(const PinholeCamera& camera, const Rigid3d& cam_from_world,
+                                    const SurfacePlacement& placement,
+                                    const std::vector<double>& offsets) const {
+  placement.Check();
+  camera.Check("virtual camera");
+  const size_t pixels = static_cast<size_t>(camera.width) * static_cast<size_t>(camera.height);
+  if (offsets.size() != pixels) {
+    ThrowInvalid("offsets: " + std::to_string(offsets.size()) + " entries for " +
+                 std::to_string(camera.width) + " x " + std::to_string(camera.height) + " pixels");
+  }
+  for (size_t i = 0; i < pixels; ++i) {
+    if (!std::isfinite(offsets[i])) {
+      ThrowInvalid("offsets: entry " + std::to_string(i) + " is not finite");
+    }
+  }
+  const Impl& s = *impl_;
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  Image depth(camera.width, camera.height, 1, PixelType::kF32);
+  if (s.kind == FocalSurfaceKind::kPlane) {
+    const Vec3d normal = glm::normalize(s.plane.normal);
+    const Vec3d point = s.plane.point + placement.offset * placement.up;
+    const double h0 = glm::dot(normal, point - cam_from_world.Center());
+    const double up_along_normal = glm::dot(normal, placement.up);
+#pragma omp parallel for schedule(static)
+    for (int64_t y = 0; y < camera.height; ++y) {
+      float* row = depth.At<float>(0, static_cast<int>(y));
+      for (int x = 0; x < camera.width; ++x) {
+        const Vec3d direction =
+            world_from_cam * camera.Unproject(Vec2d(x + 0.5, static_cast<double>(y) + 0.5));
+        const double f = glm::dot(normal, direction);
+        const double h =
+            h0 + offsets[static_cast<size_t>(y) * camera.width + x] * up_along_normal;
+        const double t = f != 0.0 ? h / f : 0.0;
+        row[x] = t > 0.0 && std::isfinite(t) ? static_cast<float>(t) : 0.0f;
+      }
+    }
+    return depth;
+  }
+  RTCScene bvh = s.Scene();
+  const Vec3d origin = cam_from_world.Center() - s.ToLocal(placement);
+#pragma omp parallel for schedule(dynamic, 8)
+  for (int64_t y = 0; y < camera.height; ++y) {
+    float* row = depth.At<float>(0, static_cast<int>(y));
+    for (int x = 0; x < camera.width; ++x) {
+      const Vec3d direction =
+          world_from_cam * camera.Unproject(Vec2d(x + 0.5, static_cast<double>(y) + 0.5));
+      // Moving the surface by o along up = moving the ray's origin by -o.
+      const double o = offsets[static_cast<size_t>(y) * camera.width + x];
+      const double t = s.Cast(bvh, origin - o * placement.up, direction);
+      row[x] = std::isfinite(t) && t > 0.0 ? static_cast<float>(t) : 0.0f;
+    }
+  }
+  return depth;
+}
+
 std::vector<double> FocalSurface::HeightsAt(const std::vector<Vec2d>& xy_in_world,
                                             const SurfacePlacement& placement) const {
   placement.Check();

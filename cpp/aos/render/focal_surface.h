@@ -107,6 +107,15 @@ class FocalSurface {
   Image DepthFor(const PinholeCamera& camera, const Rigid3d& cam_from_world,
                  const SurfacePlacement& placement) const;
 
+  // As DepthFor, but every pixel's ray meets the surface moved by its own offset: pixel (x, y)
+  // focuses on the surface placed at placement.offset + offsets[y * width + x] along up (a
+  // terrain-following stack's fractional slices, merge.h). Exact: the ray is cast from the
+  // camera centre moved by minus that offset along up onto the unmoved surface. `offsets` has
+  // camera.width * camera.height finite entries (else std::invalid_argument naming `offsets`).
+  Image DepthForOffsets(const PinholeCamera& camera, const Rigid3d& cam_from_world,
+                        const SurfacePlacement& placement,
+                        const std::vector<double>& offsets) const;
+
   // World z of the (offset) surface under each world (x, y), met by a vertical ray from the up
   // side; NaN where it misses.
   std::vector<double> HeightsAt(const std::vector<Vec2d>& xy_in_world,

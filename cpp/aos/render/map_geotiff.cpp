@@ -16,6 +16,7 @@
 #include <gdal_priv.h>
 #include <ogr_spatialref.h>
 
+#include "aos/geometry/heightfield.h"
 #include "aos/render/map.h"
 #include "aos/util/error.h"
 
@@ -79,7 +80,7 @@ class GeoTiffWriter {
       : grid_(grid), channels_(channels), path_(path), write_(write) {
     CheckMapOutputPath(path, write);
     const std::string wkt = WktOf(crs, path);
-    GDALAllRegister();
+    RegisterGdal();
     old_cache_ = GDALGetCacheMax64();
     GDALSetCacheMax64(static_cast<GIntBig>(write.gdal_cache_mb) * 1024 * 1024);
     const fs::path target(path);

@@ -303,36 +303,6 @@ void SmoothSlices(const MergeOptions& options, const Image& guide_image,
   }
 }
 
-// Depth of every pixel on the plane of its fractional slice.
-Image DepthOfSlices(const PinholeCamera& camera, const Rigid3d& cam_from_world,
-                    const std::vector<Plane>& planes, const std::vector<float>& slice, int threads) {
-  Image depth(camera.width, camera.height, 1, PixelType::kF32);
-  const Vec3d center = cam_from_world.Center();
-  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
-  const int last = static_cast<int>(planes.size()) - 1;
-#pragma omp parallel for num_threads(threads) schedule(static)
-  for (int64_t yy = 0; yy < camera.height; ++yy) {
-    const int y = static_cast<int>(yy);
-    float* row = depth.At<float>(0, y);
-    for (int x = 0; x < camera.width; ++x) {
-      const float z = slice[static_cast<size_t>(y) * camera.width + x];
-      if (z < 0.0f) continue;
-      const int i0 = std::min(static_cast<int>(z), last);
-      const double fraction = z - i0;
-      const Plane plane = i0 == last || fraction == 0.0
-                              ? planes[static_cast<size_t>(i0)]
-                              : InterpolatePlane(planes[static_cast<size_t>(i0)],
-                                                 planes[static_cast<size_t>(i0 + 1)], fraction, center);
-      const Vec3d normal = glm::normalize(plane.normal);
-      const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
-      const double f = glm::dot(normal, direction);
-      const double t = f != 0.0 ? glm::dot(normal, plane.point - center) / f : 0.0;
-      row[x] = t > 0.0 && std::isfinite(t) ? static_cast<float>(t) : 0.0f;
-    }
-  }
-  return depth;
-}
-
 Image ToImage(const std::vector<float>& values, int w, int h) {
   Image image(w, h, 1, PixelType::kF32);
   for (int y = 0; y < h; ++y) {
@@ -371,24 +341,26 @@ Folded Refine(const FocusAccumulator& accumulator, const MergeOptions& options, 
 }
 
 MergeResult Assemble(const Folded& folded, const PinholeCamera& camera,
-                     const Rigid3d& cam_from_world, const std::vector<Plane>& planes, int threads) {
+                     const Rigid3d& cam_from_world, const SliceFocus& focus, int threads) {
   MergeResult result;
   result.slice = ToImage(folded.slice, camera.width, camera.height);
   result.confidence = ToImage(folded.confidence, camera.width, camera.height);
-  result.depth = DepthOfSlices(camera, cam_from_world, planes, folded.slice, threads);
+  result.depth = focus.DepthOfSlices(camera, cam_from_world, folded.slice, threads);
   result.uncovered_pixels = folded.uncovered;
   return result;
 }
 
 // Re-integrates on the merged depth (plain or robust mean).
-// The grazing test measures against the first slice's plane.
+// The grazing test measures against the first slice's plane (for a surface: the horizontal).
 void Reintegrate(const LightField& light_field, const IntegralOptions& render,
-                 const Plane& first_plane, const MergeOptions& options, const Image& guide,
+                 const SliceFocus& focus, const MergeOptions& options, const Image& guide,
                  MergeResult* result, ProgressSink* progress) {
   SurfaceIntegralOptions surface = options.robust;
   surface.robust = options.method == MergeMethod::kRobust;
   IntegralOptions on_depth = render;
-  on_depth.focal_plane = first_plane;
+  on_depth.focal_plane = focus.GrazingPlane();
+  on_depth.focal_surface.reset();
+  on_depth.surface_offset = 0.0;
   on_depth.variance = false;
   on_depth.num_threads = options.num_threads;
   SurfaceIntegralResult integral =
@@ -473,7 +445,7 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
     ProgressAdvance(progress, 1);
   }
   const Folded folded = Refine(accumulator, options, threads);
-  MergeResult result = Assemble(folded, stack.camera, stack.cam_from_world, stack.planes, threads);
+  MergeResult result = Assemble(folded, stack.camera, stack.cam_from_world, stack.focus, threads);
   if (options.method == MergeMethod::kSobel) {
     result.image = accumulator.guide().Clone();
   } else if (options.method == MergeMethod::kImproved) {
@@ -510,7 +482,7 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
   result.seconds_merge = timer.Seconds();
   if (options.method == MergeMethod::kRobust) {
     const Timer render_timer;
-    Reintegrate(*light_field, stack.render, stack.planes.front(), options, accumulator.guide(),
+    Reintegrate(*light_field, stack.render, stack.focus, options, accumulator.guide(),
                 &result, progress);
     result.seconds_render = render_timer.Seconds();
   }
@@ -538,18 +510,17 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
         "one slice and the merge state, estimated");
   }
   std::unique_ptr<FocusAccumulator> accumulator;
-  std::vector<Plane> planes;
+  const SliceFocus focus = ResolveSliceFocus(light_field, run.stack);
   double seconds_merge = 0.0;
   const Timer timer;
   RenderFocalStackSlices(
       light_field, run.stack,
-      [&](int index, const Plane& plane, IntegralResult& slice) {
+      [&](int index, IntegralResult& slice) {
         const Timer merge_timer;
         if (!accumulator) {
           accumulator = std::make_unique<FocusAccumulator>(camera, slice.image.channels(),
                                                            run.stack.slices);
         }
-        planes.push_back(plane);
         const std::vector<float> focus =
             FocusValues(run.merge.method, slice.image, slice.count,
                         run.stack.render.variance ? &slice.variance : nullptr,
@@ -561,7 +532,7 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   const double seconds_stack = timer.Seconds() - seconds_merge;
   const Timer refine_timer;
   const Folded folded = Refine(*accumulator, run.merge, threads);
-  MergeResult result = Assemble(folded, camera, cam_from_world, planes, threads);
+  MergeResult result = Assemble(folded, camera, cam_from_world, focus, threads);
   seconds_merge += refine_timer.Seconds();
   if (run.merge.method == MergeMethod::kSobel) {
     result.image = accumulator->guide().Clone();
@@ -569,7 +540,7 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   } else {
     const Timer render_timer;
     const IntegralOptions render = WithResolvedCamera(light_field, run.stack.render);
-    Reintegrate(light_field, render, planes.front(), run.merge, accumulator->guide(), &result,
+    Reintegrate(light_field, render, focus, run.merge, accumulator->guide(), &result,
                 progress);
     result.seconds_render = seconds_stack + render_timer.Seconds();
   }

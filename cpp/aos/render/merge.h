@@ -28,7 +28,9 @@
 //   slice covers with at least two views is treated the same way (and counted as uncovered).
 // - depth is z in the virtual camera frame, metres, on the (interpolated) plane of the pixel's
 //   fractional slice (0 where that plane is met behind the camera or not at all); slice is that
-//   fractional index in [0, N-1].
+//   fractional index in [0, N-1]. For a terrain-following stack (focal_stack.h) the slice's
+//   focus is the surface at the interpolated offset (SliceFocus::DepthOfSlices), and the
+//   re-integration measures grazing angles against the horizontal.
 // - The streaming pipeline and the merge of a stored stack fold the same focus values, so their
 //   depth, slice and confidence maps are identical when the stack was rendered as the pipeline
 //   renders it (variance on for robust, off otherwise: the variance pass uses the scalar
