@@ -103,6 +103,7 @@ NOT_ON_THE_CLI = {
 # something the help text states (no pose, all views, no file); every other flag must print the
 # struct's default, so that a drifted default is seen.
 NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file", "focal_surface",
+                      "ground_plane",  # --ground FILE: none = first_plane/last_plane
                       "positions_file", "positions_crs", "workspace", "telemetry_file",
                       "pose_error_px", "pose_error_m",  # exclusive flags; none = no pose error
                       "fy", "cx", "cy",  # camera: fy = fx, cx/cy = the centre

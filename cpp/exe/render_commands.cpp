@@ -15,6 +15,7 @@
 #include "aos/render/integral.h"
 #include "aos/render/map.h"
 #include "aos/render/merge.h"
+#include "aos/sfm/ground.h"
 #include "aos/util/file_util.h"
 #include "commands.h"
 #include "progress_bar.h"
@@ -307,8 +308,53 @@ CommandRunner DefineIntegral(CLI::App* command) {
 
 namespace {
 
-// The slices: planes, or (with --focal-surface) a terrain-following stack's offsets.
-void AddStackFlags(Flags& stack, Flags& render, RenderArgs& args, FocalStackOptions& options) {
+// --ground FILE and the offset flags, checked once the command line is parsed.
+struct StackFlags {
+  std::string ground;  // --ground FILE: points or a mesh to estimate the ground plane from
+  CLI::Option* surface = nullptr;
+  CLI::Option* ground_flag = nullptr;
+  CLI::Option* offsets[2] = {nullptr, nullptr};
+
+  void Check() const {
+    for (const CLI::Option* offset : offsets) {
+      if (offset->count() > 0 && surface->count() == 0 && ground_flag->count() == 0) {
+        ThrowUsage(offset->get_name() + ": needs --focal-surface (a terrain-following stack) or "
+                   "--ground (planes around the ground)");
+      }
+    }
+  }
+};
+
+// --ground FILE: the robust ground plane of the points (or mesh vertices) in FILE, world
+// coordinates (EstimateGround, as `aos-render ground`), into options.ground_plane.
+void ResolveGround(const std::string& path, const LightField& light_field,
+                   FocalStackOptions& options) {
+  if (path.empty()) return;
+  std::vector<Vec3d> points = ReadPoints(path);
+  for (Vec3d& point : points) point = WorldToLocal(point, light_field.origin);
+  GroundResult ground;
+  try {
+    ground = EstimateGround(points, GroundUpSign(points, light_field));
+  } catch (const std::invalid_argument& error) {
+    ThrowInvalid("--ground: " + path + ": " + error.what());
+  }
+  options.ground_plane = ground.plane;
+  if (!Common().quiet && !Common().json) {
+    const Vec3d p = light_field.origin + ground.plane.point;
+    std::fprintf(stderr,
+                 "ground: plane through %.3f %.3f %.3f (world), normal %.4f %.4f %.4f, RMS %.3f m "
+                 "over %d cells of %zu points; slices %s .. %s m along up from it\n",
+                 p.x, p.y, p.z, ground.plane.normal.x, ground.plane.normal.y,
+                 ground.plane.normal.z, ground.plane_rms_m, ground.plane_cells, ground.points,
+                 FormatNumber(options.first_offset).c_str(),
+                 FormatNumber(options.last_offset).c_str());
+  }
+}
+
+// The slices: planes, or (with --focal-surface) a terrain-following stack's offsets, or (with
+// --ground) planes parallel to an estimated ground.
+StackFlags AddStackFlags(Flags& stack, Flags& render, RenderArgs& args,
+                         FocalStackOptions& options, std::string& ground) {
   CLI::Option* first = stack.Parsed(
       "--first-plane", "first_plane", options.first_plane,
       [](const std::string& text) { return ParsePlane(text, "--first-plane"); },
@@ -323,16 +369,28 @@ void AddStackFlags(Flags& stack, Flags& render, RenderArgs& args, FocalStackOpti
       "A terrain-following stack: every slice lies on this surface (an OBJ or PLY mesh, or a "
       "DEM raster GDAL reads, in world coordinates) moved along up by --first-offset .. "
       "--last-offset; instead of --first-plane/--last-plane");
+  stack.Describe("ground_plane", "--ground");
+  CLI::Option* ground_flag = stack.command()->add_option(
+      "--ground", ground,
+      "Planes parallel to the ground estimated from this file, from --first-offset to "
+      "--last-offset along up: reconstructed points (poses --points-output) or a mesh, PLY/OBJ in "
+      "world coordinates (the robust plane of `aos-render ground`); for a DEM use "
+      "--focal-surface");
   CLI::Option* first_offset = stack.Field(
       "first_offset", options.first_offset,
-      "With --focal-surface: offset of slice 0 along up (towards the views), metres");
+      "With --focal-surface or --ground: offset of slice 0 along up (towards the views), metres");
   CLI::Option* last_offset = stack.Field(
       "last_offset", options.last_offset,
-      "With --focal-surface: offset of the last slice along up, metres");
-  surface->excludes(first)->excludes(last);
-  first_offset->needs(surface);
-  last_offset->needs(surface);
+      "With --focal-surface or --ground: offset of the last slice along up, metres");
+  surface->excludes(first)->excludes(last)->excludes(ground_flag);
+  ground_flag->excludes(first)->excludes(last);
   stack.Field("slices", options.slices, "Number of slices (1..100000)");
+  StackFlags flags;
+  flags.surface = surface;
+  flags.ground_flag = ground_flag;
+  flags.offsets[0] = first_offset;
+  flags.offsets[1] = last_offset;
+  return flags;
 }
 
 void AddMergeFlags(Flags& merge, MergeOptions& options) {
@@ -419,13 +477,17 @@ void WriteMergeResult(const std::string& output_dir, const MergeResult& result,
 struct StackCommand {
   RenderArgs args;
   FocalStackOptions options;
+  std::string ground;
+  StackFlags stack_flags;
   std::string output_dir;
 };
 
 int RunStack(StackCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
+  c.stack_flags.Check();
   CheckOutputFolder(c.output_dir);  // before any work
   const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.render, flags, progress);
+  ResolveGround(c.ground, loaded.light_field, c.options);
   const FocalStack stack =
       flags.NamingFlags([&] { return RenderFocalStack(loaded.light_field, c.options, &progress); });
   progress.Finish();
@@ -452,7 +514,7 @@ CommandRunner DefineStack(CLI::App* command) {
   AddRenderFlags(render, c->args, c->options.render);
   render.Switch("variance", c->options.render.variance,
                 "Also write the per-pixel variance of the view samples (for --method robust)");
-  AddStackFlags(flags, render, c->args, c->options);
+  c->stack_flags = AddStackFlags(flags, render, c->args, c->options, c->ground);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   return [c, flags] { return RunStack(*c, flags); };
@@ -529,13 +591,17 @@ namespace {
 struct AllInFocusCommand {
   RenderArgs args;
   AllInFocusOptions options;
+  std::string ground;
+  StackFlags stack_flags;
   std::string output_dir;
 };
 
 int RunAllInFocus(AllInFocusCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
+  c.stack_flags.Check();
   CheckOutputFolder(c.output_dir);  // before any work
   const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.stack.render, flags, progress);
+  ResolveGround(c.ground, loaded.light_field, c.options.stack);
   // --threads sets every stage's thread count.
   c.options.merge.num_threads = c.options.stack.render.num_threads;
   const MergeResult result =
@@ -562,7 +628,7 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
   AddRenderFlags(render, c->args, c->options.stack.render);
   flags.Describe("merge.num_threads", "--threads", DefaultText(c->options.merge.num_threads));
   Flags stack = flags.Nested("stack.");
-  AddStackFlags(stack, render, c->args, c->options.stack);
+  c->stack_flags = AddStackFlags(stack, render, c->args, c->options.stack, c->ground);
   Flags merge = flags.Nested("merge.");
   AddMergeFlags(merge, c->options.merge);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")

@@ -445,11 +445,28 @@ void BindFocalStack(py::module_& m) {
              "Boundary plane of slice 0 (local frame).")
       .Field("last_plane", &FocalStackOptions::last_plane,
              "Boundary plane of slice N-1 (local frame).")
+      .Property(
+          "ground_plane",
+          [](const FocalStackOptions& o) -> py::object {
+            if (!o.ground_plane) return py::none();
+            return py::cast(*o.ground_plane);
+          },
+          [](FocalStackOptions& o, const py::object& value) {
+            if (value.is_none()) {
+              o.ground_plane.reset();
+            } else {
+              o.ground_plane = value.cast<Plane>();
+            }
+          },
+          "A ground plane (e.g. estimate_ground(...).plane): the slices then lie parallel to it "
+          "at first_offset .. last_offset along its normal turned towards the views; None = "
+          "first_plane/last_plane.")
       .Field("first_offset", &FocalStackOptions::first_offset,
-             "Terrain-following stacks (render.focal_surface set): offset of slice 0 along up, "
-             "metres.")
+             "Terrain-following stacks (render.focal_surface set) and stacks around ground_plane: "
+             "offset of slice 0 along up, metres.")
       .Field("last_offset", &FocalStackOptions::last_offset,
-             "Terrain-following stacks: offset of slice N-1 along up, metres.")
+             "Terrain-following stacks and stacks around ground_plane: offset of slice N-1 along "
+             "up, metres.")
       .Field("slices", &FocalStackOptions::slices, "Number of slices, 1 .. 100000.")
       .Finish()
       .def("check", &FocalStackOptions::Check, "view_count"_a,

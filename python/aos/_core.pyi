@@ -761,6 +761,7 @@ class FocalStackOptions:
         render: IntegralOptions = ...,
         first_plane: _PlaneLike = ...,
         last_plane: _PlaneLike = ...,
+        ground_plane: Optional[_PlaneLike] = ...,
         first_offset: float = ...,
         last_offset: float = ...,
         slices: int = ...,
@@ -778,6 +779,11 @@ class FocalStackOptions:
         """Boundary plane of slice N-1."""
     @last_plane.setter
     def last_plane(self, value: _PlaneLike) -> None: ...
+    @property
+    def ground_plane(self) -> Optional[Plane]:
+        """A ground plane the slices lie parallel to (None = first_plane/last_plane)."""
+    @ground_plane.setter
+    def ground_plane(self, value: Optional[_PlaneLike]) -> None: ...
     first_offset: float
     """Terrain-following stacks: offset of slice 0 along up, metres."""
     last_offset: float

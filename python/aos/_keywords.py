@@ -11,7 +11,7 @@ an enum by its name.
 
 from __future__ import annotations
 
-from typing import Literal, Sequence, TypedDict, Union
+from typing import Literal, Optional, Sequence, TypedDict, Union
 
 from ._core import (
     FocalSurface,
@@ -93,6 +93,7 @@ class FocalStackKeywords(VirtualCameraKeywords, total=False):
     first_plane: PlaneLike
     last_plane: PlaneLike
     focal_surface: Union[FocalSurface, Mesh, Heightfield, PlaneLike, None]
+    ground_plane: Optional[PlaneLike]
     first_offset: float
     last_offset: float
     slices: int

@@ -824,6 +824,40 @@ TEST(TerrainFollowingStack, BadOptionsAreNamed) {
   EXPECT_EQ(test_util::ErrorOf([&] { options.Check(9); }), "no error");
 }
 
+TEST(StackAroundTheGround, PlanesParallelToTheGroundAtTheOffsetsTowardsTheViews) {
+  // A ground plane z = 0.3 given with a DOWNWARD normal: turned towards the views (z = 20), the
+  // offsets -0.3 .. 1.2 give the horizontal planes z = 0 .. 1.5: the plane stack between them.
+  const LightField light_field = GroundLightField();
+  FocalStackOptions around = SmallStackOptions();
+  around.ground_plane = Plane{Vec3d(2.0, -1.0, 0.3), Vec3d(0, 0, -3)};
+  around.first_offset = -0.3;
+  around.last_offset = 1.2;
+  around.slices = 4;
+  around.first_plane = Plane{Vec3d(0.0), Vec3d(0.0)};  // ignored with a ground plane
+  FocalStackOptions planes = SmallStackOptions();
+  planes.first_plane = Plane::AtHeight(0.0);
+  planes.last_plane = Plane::AtHeight(1.5);
+  planes.slices = 4;
+  const SliceFocus focus = ResolveSliceFocus(light_field, around);
+  const SliceFocus expected = ResolveSliceFocus(light_field, planes);
+  ASSERT_EQ(focus.size(), 4);
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_TRUE(SamePlane(focus.planes[i], expected.planes[i], 1e-12)) << i;
+  }
+  const FocalStack stack = RenderFocalStack(light_field, around);
+  const FocalStack reference = RenderFocalStack(light_field, planes);
+  for (size_t i = 0; i < 4; ++i) {
+    EXPECT_TRUE(SameImage(stack.counts[i], reference.counts[i])) << i;
+    EXPECT_LT(MaxAbsDifference(stack.images[i], reference.images[i]), 1e-3) << i;
+  }
+  // A ground plane and a surface together, or a bad ground plane, are refused by name.
+  around.render.focal_surface = std::make_shared<const FocalSurface>(FocalSurface::FromMesh(FlatMesh(0.3)));
+  EXPECT_THAT(test_util::ErrorOf([&] { around.Check(9); }), HasSubstr("ground_plane: give either"));
+  around.render.focal_surface.reset();
+  around.ground_plane = Plane{Vec3d(0.0), Vec3d(0.0)};
+  EXPECT_THAT(test_util::ErrorOf([&] { around.Check(9); }), HasSubstr("ground_plane"));
+}
+
 TEST_F(FocalStackFiles, ATerrainFollowingStackRoundTripsWithItsSurface) {
   // A mesh stack (the surface stored as surface.ply) and a DEM stack (surface.tif, with its CRS):
   // offsets, placement and every slice come back; merging the read stack equals merging the

@@ -344,3 +344,42 @@ def test_gdal_leaves_no_libtiff_noise_on_later_tiff_writes(tmp_path, capfd):
     captured = capfd.readouterr()
     assert "ERROR" not in captured.err and "TIFF" not in captured.err, captured.err
     assert np.array_equal(aos.read_image(str(tmp_path / "after.tif")), np.ones((4, 4), np.float32))
+
+
+def test_cli_stack_around_the_ground_estimated_from_points(tmp_path):
+    # Points on the ground z = 0.3 under a "canopy" of points 3-6 m above it (as COLMAP's points
+    # of a forest): the robust ground plane is z = 0.3, and --first-offset -0.5 --last-offset 0.5
+    # put the slices on z = -0.2 .. 0.8 (stack.json's planes).
+    light_field = _textured_lightfield()
+    aos.write_lightfield(str(tmp_path / "lf.json"), light_field)
+    rng = np.random.default_rng(3)
+    ground = np.column_stack([rng.uniform(-12, 12, 400), rng.uniform(-12, 12, 400), np.full(400, 0.3)])
+    canopy = np.column_stack([rng.uniform(-12, 12, 300), rng.uniform(-12, 12, 300), rng.uniform(3.3, 6.3, 300)])
+    points = np.vstack([ground, canopy])
+    header = ("ply\nformat ascii 1.0\nelement vertex %d\nproperty double x\nproperty double y\n"
+              "property double z\nend_header\n" % len(points))
+    (tmp_path / "points.ply").write_text(header + "\n".join(" ".join(repr(float(v)) for v in p) for p in points) + "\n")
+    camera = ["--look-at=0.7,-0.4,20,0,1,0,0,1,0", "--fov-deg", "60", "--width", "40", "--height", "30"]
+    run = subprocess.run([_aos_render(), "stack", str(tmp_path / "lf.json"), *camera, "--ground",
+                          str(tmp_path / "points.ply"), "--first-offset", "-0.5", "--last-offset", "0.5",
+                          "--slices", "3", "-o", str(tmp_path / "stack")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "ground: plane through" in run.stderr
+    meta = json.loads((tmp_path / "stack" / "stack.json").read_text())
+    heights = [s["plane"]["point"][2] for s in meta["slices"]]
+    normals = [s["plane"]["normal"] for s in meta["slices"]]
+    assert np.allclose(heights, [-0.2, 0.3, 0.8], atol=1e-9), heights
+    assert np.allclose(normals, [[0, 0, 1]] * 3, atol=1e-9), normals
+    # The same from Python: estimate_ground's plane as ground_plane.
+    stack = aos.render_focal_stack(light_field, ground_plane=aos.Plane.at_height(0.3), first_offset=-0.5,
+                                   last_offset=0.5, slices=3, **CAMERA)
+    assert np.allclose([p.point[2] for p in stack.planes], [-0.2, 0.3, 0.8])
+    # --ground with planes, or a file with too few points: one error, nothing written.
+    (tmp_path / "few.ply").write_text(header.replace("vertex %d" % len(points), "vertex 2") + "0 0 0\n1 1 0\n")
+    for extra, words in ((["--ground", str(tmp_path / "points.ply"), "--first-plane", "0"], "--first-plane"),
+                         (["--ground", str(tmp_path / "few.ply")], "few.ply")):
+        out = tmp_path / f"bad{len(words)}"
+        run = subprocess.run([_aos_render(), "stack", str(tmp_path / "lf.json"), *camera, *extra, "-o", str(out)],
+                             capture_output=True, text=True)
+        assert run.returncode != 0 and words in run.stderr, run.stderr
+        assert not out.exists()

@@ -48,18 +48,25 @@ std::string SliceName(const char* prefix, int index) {
 
 void FocalStackOptions::Check(int view_count) const {
   render.Check(view_count);
-  if (render.focal_surface) {
+  if (ground_plane && render.focal_surface) {
+    ThrowInvalid("ground_plane: give either render.focal_surface (a terrain-following stack) or "
+                 "ground_plane (planes parallel to the ground), not both");
+  }
+  if (ground_plane) UnitNormal(*ground_plane, "ground_plane");
+  if (render.focal_surface || ground_plane) {
     if (!std::isfinite(first_offset)) {
       ThrowInvalid("first_offset: must be finite metres (got " + FormatNumber(first_offset) + ")");
     }
     if (!std::isfinite(last_offset)) {
       ThrowInvalid("last_offset: must be finite metres (got " + FormatNumber(last_offset) + ")");
     }
+  }
+  if (render.focal_surface) {
     if (render.surface_offset != 0.0) {
       ThrowInvalid("render.surface_offset: must be 0 in a stack (its slices lie at first_offset.."
                    "last_offset along up; got " + FormatNumber(render.surface_offset) + ")");
     }
-  } else {
+  } else if (!ground_plane) {
     UnitNormal(first_plane, "first_plane");
     UnitNormal(last_plane, "last_plane");
   }
@@ -188,9 +195,32 @@ SliceFocus ResolveSliceFocus(const LightField& light_field, const FocalStackOpti
                                               options.render.view_indices, 0.0);
     focus.offsets = StackOffsets(options.first_offset, options.last_offset, options.slices);
   } else {
+    Plane first = options.first_plane, last = options.last_plane;
+    if (options.ground_plane) {
+      // The ground's normal turned towards the views, the planes moved along it.
+      const Vec3d point = options.ground_plane->point;
+      Vec3d normal = glm::normalize(options.ground_plane->normal);
+      Vec3d centres(0.0);
+      int count = 0;
+      for (size_t i = 0; i < light_field.views.size(); ++i) {
+        const std::vector<int>& selected = options.render.view_indices;
+        if (!selected.empty() &&
+            std::find(selected.begin(), selected.end(), static_cast<int>(i)) == selected.end()) {
+          continue;
+        }
+        const Vec3d centre = light_field.views[i].cam_from_world.Center();
+        if (!std::isfinite(centre.x) || !std::isfinite(centre.y) || !std::isfinite(centre.z)) continue;
+        centres += centre;
+        ++count;
+      }
+      if (count > 0 && glm::dot(normal, centres / static_cast<double>(count) - point) < 0.0) {
+        normal = -normal;
+      }
+      first = Plane{point + options.first_offset * normal, normal};
+      last = Plane{point + options.last_offset * normal, normal};
+    }
     const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options.render);
-    focus.planes = StackPlanes(options.first_plane, options.last_plane, options.slices,
-                               cam_from_world.Center());
+    focus.planes = StackPlanes(first, last, options.slices, cam_from_world.Center());
   }
   return focus;
 }

@@ -17,6 +17,11 @@
 //   count 0). first_plane/last_plane are then ignored; render.surface_offset must be 0 (the
 //   offsets replace it). The surface is placed once for the whole stack
 //   (ResolveSurfacePlacement: the views' up, the light field's origin).
+// - Stacks around the ground. With ground_plane set (and no focal_surface), the boundary planes
+//   are ground_plane moved first_offset and last_offset along its normal turned towards the
+//   views (the mean centre of the selected views); first_plane/last_plane are then ignored. The
+//   ground plane comes from an estimate (sfm/ground.h: EstimateGround's robust plane through
+//   COLMAP's points; `aos-render stack --ground points.ply`).
 // - Each slice is RenderIntegral's result with FocalStackOptions::render (focal_plane replaced),
 //   so every rule of integral.h holds per slice (count 0 where no view sees a pixel).
 // - A stack on disk is a folder: stack.json (camera, pose, planes, file names) and per slice
@@ -51,8 +56,11 @@ struct FocalStackOptions {
   // N = 1, the one slice lies midway).
   Plane first_plane = Plane::AtHeight(0.0);
   Plane last_plane = Plane::AtHeight(10.0);
-  // Terrain-following stacks (render.focal_surface set): the offsets along up of slice 0 and
-  // of the last slice, metres. The defaults span 2 m below the surface (a DEM that is a little
+  // A ground plane (local frame) for a plane stack around it (see the contract): the slices
+  // then lie parallel to it at first_offset .. last_offset. Unset = first_plane/last_plane.
+  std::optional<Plane> ground_plane;
+  // Terrain-following stacks (render.focal_surface set) and stacks around ground_plane: the
+  // offsets along up of slice 0 and of the last slice, metres. The defaults span 2 m below the surface (a DEM that is a little
   // high) to 30 m above it (the top of a tall forest canopy); 100 slices are then 0.32 m apart.
   double first_offset = -2.0;
   double last_offset = 30.0;
