@@ -93,6 +93,7 @@ class Viewer:
         self._error: Optional[BaseException] = None
         self._runner: Optional[web.AppRunner] = None
         self.port = port
+        self.bound_address = ""  # the address the socket listens on, once started
         self._thread = threading.Thread(target=self._serve, name="aos-viewer", daemon=True)
         self._thread.start()
         self._ready.wait()
@@ -106,12 +107,13 @@ class Viewer:
 
         async def start() -> None:
             self._runner = web.AppRunner(self.server.app(), handle_signals=False,
-                                         access_log=None)
+                                         access_log=None, shutdown_timeout=1.0)
             await self._runner.setup()
-            site = web.TCPSite(self._runner, self.host, self.port, shutdown_timeout=1.0)
+            site = web.TCPSite(self._runner, self.host, self.port)
             await site.start()
             sockets = site._server.sockets if site._server else []  # type: ignore[union-attr]
             if sockets:
+                self.bound_address = sockets[0].getsockname()[0]
                 self.port = sockets[0].getsockname()[1]
 
         try:

@@ -129,5 +129,14 @@ def main(argv: list[str]) -> int:
     return 0
 
 
+def run(argv: list[str]) -> int:
+    """main(), with Ctrl-C while loading answered like the other commands (exit 130)."""
+    try:
+        return main(argv)
+    except KeyboardInterrupt:
+        sys.stderr.write("aos-render view: interrupted\n")
+        return 130
+
+
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(run(sys.argv[1:]))
