@@ -299,9 +299,12 @@ $("reset").addEventListener("click", () => { applyDefaults(); onChange(); });
 function applyDefaults() {
   const d = info.defaults;
   const z = info.centres.reduce((s, c) => s + c[2], 0) / info.centres.length;
-  const spread = Math.abs(z - d.focal_height);
-  const lo = Math.min(z, d.focal_height) - 0.25 * spread - 2;
-  const hi = Math.max(z, d.focal_height) + 0.25 * spread + 2;
+  // From just under the cameras (mean height z) to twice the starting focus's distance from
+  // them, away from the cameras (the ground lies somewhere in there).
+  const reach = 2 * Math.max(Math.abs(z - d.focal_height), 5);
+  const away = d.focal_height >= z ? 1 : -1;
+  const lo = Math.min(z + away * 0.5, z + away * reach);
+  const hi = Math.max(z + away * 0.5, z + away * reach);
   Object.assign($("focal_height"), { min: lo.toFixed(2), max: hi.toFixed(2) });
   const xs = info.centres.map((c) => c[0]), ys = info.centres.map((c) => c[1]);
   const extent = Math.max(Math.max(...xs) - Math.min(...xs), Math.max(...ys) - Math.min(...ys), 1);
