@@ -891,7 +891,7 @@ def view(light_field: "LightField | str | os.PathLike[str]", **kwargs: Any) -> A
     with IntegralOptions' names (focal_height, focal_surface, surface_offset, aperture_radius,
     pose_view, cam_from_world, fov_deg, width, height, view_indices, min_view_angle_deg,
     num_threads) and host, port, open_browser; see :func:`aos.viewer.view` and docs/viewer.md.
-    Needs aiohttp (``pip install 'aos[view]'``).
+    Needs aiohttp (a dependency of aos; ``pip install aiohttp`` if it was removed).
 
     Example::
 

@@ -27,7 +27,7 @@ import pytest
 
 import aos
 
-aiohttp = pytest.importorskip("aiohttp", reason="the viewer needs aiohttp (pip install 'aos[view]')")
+aiohttp = pytest.importorskip("aiohttp", reason="the viewer needs aiohttp (pip install aiohttp)")
 
 from conftest import build_lightfield  # noqa: E402
 
@@ -517,4 +517,4 @@ def test_missing_aiohttp_says_how_to_install(tmp_path: Path) -> None:
             "    print(error)\n")
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             timeout=60, env=cli_env())
-    assert "pip install 'aos[view]'" in result.stdout, result.stderr
+    assert "pip install 'aiohttp>=3.9'" in result.stdout, result.stderr

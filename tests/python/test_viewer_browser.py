@@ -29,7 +29,7 @@ import pytest
 
 import aos
 
-pytest.importorskip("aiohttp", reason="the viewer needs aiohttp (pip install 'aos[view]')")
+pytest.importorskip("aiohttp", reason="the viewer needs aiohttp (pip install aiohttp)")
 webdriver = pytest.importorskip("selenium.webdriver",
                                 reason="selenium is not installed (pip install 'aos[test]')")
 from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402

@@ -7,7 +7,7 @@ offset above a terrain), aperture, the views in use, the virtual camera (a recor
 pan, zoom, or the orthographic map) and the display (gain, offset, colour map). See
 docs/viewer.md for the page, the security model and measured speeds.
 
-Needs aiohttp (``pip install 'aos[view]'``; tools/setup_debian.sh installs it).
+Needs aiohttp, a dependency of the aos package (installed with it).
 
 Example (also in a notebook; the server runs in a background thread)::
 
@@ -33,8 +33,8 @@ from .session import BadParameter, Params, Session
 __all__ = ["Viewer", "view", "BadParameter", "Params", "Session", "MISSING_AIOHTTP"]
 
 MISSING_AIOHTTP = (
-    "the viewer needs aiohttp: pip install 'aos[view]' (or pip install aiohttp); "
-    "tools/setup_debian.sh installs it")
+    "the viewer needs aiohttp, a dependency of aos that is missing here: pip install "
+    "'aiohttp>=3.9' (into the Python that aos is installed in)")
 
 
 def _require_aiohttp() -> None:
