@@ -424,12 +424,18 @@ class Session:
                 low, high = 0.0, 1.0
             if not high > low:
                 high = low + 1.0
-        scaled = (data.astype(np.float32) - low) * (params.gain / (high - low)) + params.offset
-        levels = np.clip(scaled * 255.0 + 0.5, 0.0, 255.0).astype(np.uint8)
+        # level = ((v - low) * gain / (high - low) + offset) * 255 + 0.5, in place, in float32.
+        scale = 255.0 * params.gain / (high - low)
+        bias = 255.0 * params.offset + 0.5 - low * scale
+        used = data[:, :, :3] if data.shape[2] >= 3 else data[:, :, :1]
+        scaled = np.multiply(used, np.float32(scale), dtype=np.float32)
+        scaled += np.float32(bias)
+        np.clip(scaled, 0.0, 255.0, out=scaled)
+        levels = scaled.astype(np.uint8)
         height, width = count.shape
         rgba = np.empty((height, width, 4), dtype=np.uint8)
         if levels.shape[2] >= 3:
-            rgba[:, :, :3] = levels[:, :, :3]
+            rgba[:, :, :3] = levels
         else:
             rgba[:, :, :3] = _LUTS[params.colormap][levels[:, :, 0]]
         rgba[:, :, 3] = 255

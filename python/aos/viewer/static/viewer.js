@@ -307,7 +307,9 @@ function applyDefaults() {
   const hi = Math.max(z + away * 0.5, z + away * reach);
   Object.assign($("focal_height"), { min: lo.toFixed(2), max: hi.toFixed(2) });
   const xs = info.centres.map((c) => c[0]), ys = info.centres.map((c) => c[1]);
-  const extent = Math.max(Math.max(...xs) - Math.min(...xs), Math.max(...ys) - Math.min(...ys), 1);
+  // Whole metres, so that 0 is a step of the pan sliders (a range input snaps to min + k step).
+  const extent = Math.ceil(Math.max(Math.max(...xs) - Math.min(...xs),
+                                    Math.max(...ys) - Math.min(...ys), 1));
   Object.assign($("aperture_radius"), { max: (extent * 0.75).toFixed(1) });
   for (const id of ["pan_x", "pan_y"]) Object.assign($(id), { min: -extent, max: extent });
   $("view_first").max = info.view_count - 1;
