@@ -12,8 +12,9 @@ Security model (docs/viewer.md):
   server goes on. Request bodies are limited to ``MAX_BODY_BYTES`` (413 beyond), WebSocket
   messages to the same.
 * Renders are bounded: one render worker thread (``render_workers``) runs them one at a time;
-  each WebSocket keeps only its newest request (a newer one supersedes the pending one and
-  cancels the running one at its next progress check; stale results are dropped), and at most
+  each WebSocket keeps only its newest request (a newer one supersedes the pending one, and
+  cancels a running full-size render at its next progress check, at most 0.1 s apart; a running
+  preview finishes, so that images keep coming while the user drags), and at most
   ``MAX_QUEUED_HTTP`` one-shot HTTP renders wait (503 beyond).
 
 Endpoints: ``/`` (the page), ``/static/<asset>``, ``/api/info``, ``/api/render`` (GET query or
@@ -325,8 +326,13 @@ class _Stream:
                 self.pending = None
                 generation = self.generation
 
+                # A newer request replaces the pending one; it cancels a running FULL render
+                # (the input moved on), never a running preview: cancelling those on every
+                # input event would starve the page of images while the user drags.
+                cancellable = not params.preview
+
                 def progress(_stage: str, _done: int, _total: int) -> None:
-                    if self.generation != generation or self.closed:
+                    if self.closed or (cancellable and self.generation != generation):
                         raise Superseded()
 
                 try:
