@@ -518,3 +518,149 @@ def test_missing_aiohttp_says_how_to_install(tmp_path: Path) -> None:
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                             timeout=60, env=cli_env())
     assert "pip install 'aiohttp>=3.9'" in result.stdout, result.stderr
+
+
+# ---- the virtual camera, tilted planes, maps and surfaces, against geometry ----
+
+def pick(handle: Viewer, **params: Any) -> dict[str, Any]:
+    query = urllib.parse.urlencode({**params, "token": handle.token})
+    status, body = get(f"{base(handle)}/api/pick?{query}")
+    assert status == 200, body
+    return json.loads(body)
+
+
+@pytest.mark.parametrize("orbit, tilt", [(90.0, 0.0), (0.0, 30.0), (-135.0, 20.0)])
+def test_orbit_and_tilt_turn_about_the_point_under_the_camera(viewer: Viewer, orbit: float,
+                                                              tilt: float) -> None:
+    """The pivot is where the base camera's axis meets z = H: it stays at the image centre, at
+    the same distance, whatever the orbit and tilt."""
+    answer = pick(viewer, u=16.0, v=12.0, focal_height=1.0, orbit_deg=orbit, tilt_deg=tilt)
+    np.testing.assert_allclose(answer["world"], [0.0, 0.0, 1.0], atol=1e-9)
+    camera, cam_from_world = viewer.session.camera(viewer.session.parse(
+        {"focal_height": 1.0, "orbit_deg": orbit, "tilt_deg": tilt}))
+    centre = np.asarray(cam_from_world.center)
+    assert np.linalg.norm(centre - [0.0, 0.0, 1.0]) == pytest.approx(ALTITUDE - 1.0, abs=1e-9)
+    # Tilt leans the camera off the vertical by exactly that angle.
+    axis = np.asarray(cam_from_world.rotation).T @ [0.0, 0.0, 1.0]
+    assert math.degrees(math.acos(-axis[2])) == pytest.approx(abs(tilt), abs=1e-9)
+
+
+def test_pan_moves_the_camera_and_a_tilted_plane_passes_under_it(viewer: Viewer) -> None:
+    answer = pick(viewer, u=16.0, v=12.0, focal_height=0.5, pan_x=1.5, pan_y=-0.5)
+    np.testing.assert_allclose(answer["world"], [1.5, -0.5, 0.5], atol=1e-9)
+    # A plane tilted 30 degrees about y through (0, 0, 0.5): z = 0.5 - tan(30) x.
+    answer = pick(viewer, u=24.5, v=12.0, focal_height=0.5, tilt_x_deg=30.0)
+    x, y, z = answer["world"]
+    assert z == pytest.approx(0.5 - math.tan(math.radians(30.0)) * x, abs=1e-9)
+    assert x > 0.5 and y == pytest.approx(0.0, abs=1e-9)
+
+
+def test_map_mode_picks_through_the_geotransform(viewer: Viewer) -> None:
+    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&mode=map&width=40"
+                       "&focal_height=0.5")
+    header, _ = decode_frame(body)
+    x0, p, _, y0, _, _ = header["geotransform"]
+    answer = pick(viewer, mode="map", width=40, focal_height=0.5, u=10.5, v=3.5)
+    np.testing.assert_allclose(answer["world"], [x0 + 10.5 * p, y0 - 3.5 * p, 0.5], atol=1e-9)
+
+
+def test_focus_on_a_surface_with_an_offset() -> None:
+    """A flat terrain at z = -1 (a plane given as the focal surface): 'surface' with offset 1.5
+    focuses at z = 0.5, and renders the same as the plane z = 0.5."""
+    handle = aos.view(textured_lightfield(), pose_view=4, focal_surface=aos.Plane(-1.0),
+                      surface_offset=1.5, open_browser=False, num_threads=1)
+    try:
+        assert json.loads(get(f"{base(handle)}/api/info?token={handle.token}")[1])[
+            "surface"] == "plane"
+        answer = pick(handle, u=20.5, v=7.5, surface="true", surface_offset=1.5)
+        world, depth = expected_world(20.5, 7.5, 0.5)
+        np.testing.assert_allclose(answer["world"], world, atol=1e-6)
+        assert answer["depth"] == pytest.approx(depth, abs=1e-6)
+        _, on_surface = decode_frame(get(f"{base(handle)}/api/render?token={handle.token}"
+                                         "&surface=true&surface_offset=1.5")[1])
+        _, on_plane = decode_frame(get(f"{base(handle)}/api/render?token={handle.token}"
+                                       "&surface=false&focal_height=0.5")[1])
+        assert np.abs(on_surface.astype(int) - on_plane.astype(int)).max() <= 1
+    finally:
+        handle.stop()
+
+
+def test_display_range_gain_and_colour_maps(viewer: Viewer) -> None:
+    session = viewer.session
+    image = np.array([[0.0, 127.0], [200.0, 255.0]], dtype=np.float32)
+    count = np.ones((2, 2), dtype=np.uint32)
+    grey = session.display(image, count, session.parse({}))
+    np.testing.assert_array_equal(grey[:, :, 0], [[0, 127], [200, 255]])
+    assert (grey[:, :, 0] == grey[:, :, 2]).all() and (grey[:, :, 3] == 255).all()
+    brighter = session.display(image, count, session.parse({"gain": 2.0, "offset": 0.1}))
+    np.testing.assert_array_equal(brighter[:, :, 0], [[26, 255], [255, 255]])
+    auto = session.display(image, count, session.parse({"range": "auto"}))
+    assert auto[0, 0, 0] == 0 and auto[1, 1, 0] == 255  # 1st..99th percentile stretched
+    iron = session.display(image, count, session.parse({"colormap": "iron"}))
+    turbo = session.display(image, count, session.parse({"colormap": "turbo"}))
+    assert not (iron[:, :, 0] == iron[:, :, 2]).all() and not np.array_equal(iron, turbo)
+    assert tuple(iron[0, 0, :3]) == (0, 0, 0) and tuple(iron[1, 1, :3]) == (255, 255, 255)
+
+
+def test_all_in_focus_with_progress_and_cancel() -> None:
+    handle = aos.view(textured_lightfield(), pose_view=4, open_browser=False, num_threads=1)
+    try:
+        message = {"type": "allinfocus", "id": 7, "params": {}, "first_height": -2.0,
+                   "last_height": 2.0, "slices": 4}
+
+        async def run(cancel: bool) -> list[Any]:
+            received: list[Any] = []
+            async with aiohttp.ClientSession() as client:
+                async with client.ws_connect(f"{base(handle)}/ws?token={handle.token}") as ws:
+                    await ws.send_str(json.dumps(message))
+                    if cancel:
+                        await ws.send_str(json.dumps({"type": "cancel"}))
+                    while True:
+                        reply = await ws.receive(timeout=60)
+                        if reply.type == aiohttp.WSMsgType.BINARY:
+                            received.append(decode_frame(reply.data)[0])
+                            return received
+                        received.append(json.loads(reply.data))
+                        if received[-1]["type"] in ("cancelled", "error"):
+                            return received
+
+        done = asyncio.run(run(cancel=False))
+        assert done[-1]["allinfocus"] is True and done[-1]["id"] == 7
+        assert done[-1]["width"] == 32
+        assert any(m.get("type") == "progress" for m in done[:-1])
+        # Cancelled at the first progress check: "cancelled", or (if it was done before the
+        # cancel arrived) the frame; never an error.
+        cancelled = asyncio.run(run(cancel=True))
+        assert cancelled[-1].get("type") in ("cancelled", "frame"), cancelled[-1]
+        bad = {**message, "slices": 1}
+        message = bad
+        refused = asyncio.run(run(cancel=False))
+        assert refused[-1]["type"] == "error" and "slices" in refused[-1]["message"]
+    finally:
+        handle.stop()
+
+
+JKU_FIRST30 = ROOT.parent / "shared" / "data" / "jku-f0" / "poses" / "poses_first30.json"
+
+
+@pytest.mark.skipif(EXE is None or not JKU_FIRST30.exists(),
+                    reason="aos-render or the F0 data (../shared/data/jku-f0) is missing")
+def test_cli_views_jku_poses() -> None:
+    process = subprocess.Popen([EXE, "view", str(JKU_FIRST30), "--frames-fov-deg",
+                                "50.815436217896945", "--no-browser", "--json", "--width", "64",
+                                "--height", "64", "--focal-height", "21"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env=cli_env())
+    try:
+        report = json.loads(process.stdout.readline())
+        assert report["views"] == 30
+        status, body = get(report["url"].replace("/?token=", "/api/render?token="))
+        header, image = decode_frame(body)
+        assert status == 200 and (header["width"], header["height"]) == (64, 64)
+        assert header["views_used"] > 0 and image[:, :, 0].std() > 0
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=30) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
