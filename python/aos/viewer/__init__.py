@@ -120,6 +120,10 @@ class Viewer:
             self._loop.run_until_complete(start())
         except BaseException as error:  # noqa: BLE001 - handed to the constructor
             self._error = OSError(f"view(): cannot listen on {self.host}:{self.port}: {error}")
+            if self._runner is not None:
+                self._loop.run_until_complete(self._runner.cleanup())
+            self.server.close()
+            self._loop.close()
             self._ready.set()
             return
         self._ready.set()

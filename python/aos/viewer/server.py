@@ -312,7 +312,13 @@ class _Stream:
                 self.busy = True
                 asyncio.ensure_future(self._drain())
         elif kind == "allinfocus":
-            await self._all_in_focus(request_id, message)
+            # A task: this loop must go on reading (a "cancel" is the next message).
+            if self.job_cancel is not None:
+                await self.error(request_id, "an all-in-focus is already running; cancel it "
+                                 "first")
+                return
+            self.job_cancel = threading.Event()
+            asyncio.ensure_future(self._all_in_focus(request_id, message, self.job_cancel))
         elif kind == "cancel":
             if self.job_cancel is not None:
                 self.job_cancel.set()
@@ -356,9 +362,18 @@ class _Stream:
         finally:
             self.busy = False
 
-    async def _all_in_focus(self, request_id: Any, message: dict[str, Any]) -> None:
+    async def _all_in_focus(self, request_id: Any, message: dict[str, Any],
+                            cancel: threading.Event) -> None:
         """A focal stack of the current view merged into an all-in-focus image, with progress
-        messages; a "cancel" message stops it."""
+        messages; a "cancel" message (or closing the page) stops it. It runs on the render
+        worker: renders wait for it."""
+        try:
+            await self._run_all_in_focus(request_id, message, cancel)
+        finally:
+            self.job_cancel = None
+
+    async def _run_all_in_focus(self, request_id: Any, message: dict[str, Any],
+                                cancel: threading.Event) -> None:
         import aos
 
         session = self.viewer.session
@@ -376,8 +391,6 @@ class _Stream:
         except (BadParameter, TypeError, ValueError) as error:
             await self.error(request_id, str(error))
             return
-        cancel = threading.Event()
-        self.job_cancel = cancel
         loop = asyncio.get_running_loop()
         last_sent = [0.0]
 
@@ -412,8 +425,6 @@ class _Stream:
         except (ValueError, BadParameter) as error:
             await self.error(request_id, str(error))
             return
-        finally:
-            self.job_cancel = None
         if not self.socket.closed:
             await self.socket.send_bytes(encode_frame(frame, {"type": "frame", "id": request_id,
                                                               "allinfocus": True}))

@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 import os
 import tempfile
-import threading
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
 
@@ -256,7 +255,6 @@ class Session:
         # The up axis: the cameras lie above the ground. Where the cameras sit at smaller z than
         # the default focal plane (JKU frames, z down), up is -z.
         self.up_z = -1.0 if self.mean_centre[2] < self.defaults.focal_height else 1.0
-        self._lock = threading.Lock()
 
     # ---- parameters ----
 
