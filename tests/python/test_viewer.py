@@ -10,6 +10,7 @@ import asyncio
 import http.client
 import json
 import math
+import shlex
 import os
 import shutil
 import signal
@@ -497,8 +498,21 @@ def test_cli_serves_until_ctrl_c(lightfield_file: Path) -> None:
         info = json.loads(body)
         assert status == 200 and info["view_count"] == 9
         assert info["defaults"]["pose_view"] == 4 and info["defaults"]["focal_height"] == 1.5
-        status, body = get(report["url"].replace("/?token=", "/api/render?token="))
+        status, body = get(report["url"].replace("/?token=", "/api/render?token=")
+                           + "&orbit_deg=20&aperture_radius=2.5")
         assert status == 200 and decode_frame(body)[0]["width"] == 32
+        shown = decode_frame(body)[1]
+        # The copied command renders what the page shows.
+        status, body = get(report["url"].replace("/?token=", "/api/command?token=")
+                           + "&orbit_deg=20&aperture_radius=2.5")
+        command = json.loads(body)["cli"]
+        assert command.startswith(f"aos-render integral {lightfield_file} ")
+        output = lightfield_file.parent / "from_command.png"
+        arguments = shlex.split(command)[1:]
+        arguments[arguments.index("-o") + 1] = str(output)
+        subprocess.run([EXE, *arguments, "-q", "--force"], check=True, timeout=60, env=cli_env())
+        written = aos.read_image(str(output))
+        assert np.abs(written.astype(int) - shown[:, :, 0].astype(int)).max() <= 1
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=30) == 0
         assert "Traceback" not in process.stderr.read()

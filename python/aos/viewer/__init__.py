@@ -206,9 +206,11 @@ def view(light_field: Any, *, focal_height: float = 0.0,
         raise TypeError(f"view(): light_field must be an aos.LightField or a path, not "
                         f"{type(light_field).__name__}")
     surface = None
+    surface_path = ""
     if focal_surface is not None:
         if isinstance(focal_surface, (str, os.PathLike)):
-            surface = aos.FocalSurface.read(os.fspath(focal_surface))
+            surface_path = os.fspath(focal_surface)
+            surface = aos.FocalSurface.read(surface_path)
         else:
             surface = aos.FocalSurface(focal_surface)
         surface = surface.in_crs(light_field.crs) if light_field.crs else surface
@@ -220,7 +222,8 @@ def view(light_field: Any, *, focal_height: float = 0.0,
         defaults["pose_view"] = pose_view
     if cam_from_world is not None and not isinstance(cam_from_world, aos.Rigid3d):
         raise TypeError("view(): cam_from_world must be an aos.Rigid3d")
-    session = Session(light_field, source=source, focal_surface=surface, defaults=defaults,
+    session = Session(light_field, source=source, surface_path=surface_path,
+                      focal_surface=surface, defaults=defaults,
                       cam_from_world=cam_from_world, view_indices=view_indices,
                       min_view_angle_deg=min_view_angle_deg, num_threads=num_threads)
     warning = remote_warning(host)

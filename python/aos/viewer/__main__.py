@@ -82,6 +82,10 @@ def main(argv: list[str]) -> int:
         if spec.get("views"):
             views = parse_view_list(spec["views"], len(light_field))
         session = Session(light_field, source=spec["light_field"], focal_surface=surface,
+                          load_options={"fov_deg": float(load.get("fov_deg", 0.0)),
+                                        "images_dir": load.get("images_dir", ""),
+                                        "grey": bool(load.get("grey", False))},
+                          surface_path=spec.get("focal_surface", ""),
                           defaults=defaults, cam_from_world=cam_from_world, view_indices=views,
                           min_view_angle_deg=float(spec.get("min_view_angle_deg", 1.0)),
                           num_threads=int(spec.get("num_threads", -1)))

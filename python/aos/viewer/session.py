@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import os
+import shlex
 import tempfile
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional
@@ -221,6 +222,7 @@ class Session:
     """
 
     def __init__(self, light_field: aos.LightField, *, source: str = "",
+                 load_options: Optional[dict[str, Any]] = None, surface_path: str = "",
                  focal_surface: Optional[aos.FocalSurface] = None,
                  defaults: Optional[dict[str, Any]] = None,
                  cam_from_world: Optional[aos.Rigid3d] = None,
@@ -230,6 +232,10 @@ class Session:
             raise ValueError("view(): the light field has no views")
         self.light_field = light_field
         self.source = source
+        # How `source` was loaded (load_lightfield's fov_deg, images_dir, grey) and the focal
+        # surface's file, for the equivalent command.
+        self.load_options = {k: v for k, v in (load_options or {}).items() if v}
+        self.surface_path = surface_path
         self.focal_surface = focal_surface
         self.num_threads = num_threads
         self.min_view_angle_deg = min_view_angle_deg
@@ -552,28 +558,40 @@ class Session:
     def command(self, params: Params) -> dict[str, str]:
         """The equivalent `aos-render` command line and Python snippet (full size)."""
         params = Params(**{**params.__dict__, "preview": False})
-        source = self.source or "LIGHTFIELD"
+        source = shlex.quote(self.source) if self.source else "LIGHTFIELD"
+        flags = {"fov_deg": "--frames-fov-deg", "images_dir": "--images-dir", "grey": "--grey"}
+        for name, value in self.load_options.items():
+            source += f" {flags[name]}" + ("" if value is True else
+                                           f" {shlex.quote(str(value))}")
+        surface = shlex.quote(self.surface_path) if self.surface_path else "SURFACE"
+        # The Python snippet loads the light field and the surface the same way.
+        prelude = ""
+        if self.source:
+            arguments = "".join(f", {name}={value!r}" for name, value in self.load_options.items())
+            prelude = f"lf = aos.load_lightfield({self.source!r}{arguments}).light_field\n"
+        if params.surface and self.surface_path:
+            prelude += f"surface = aos.FocalSurface.read({self.surface_path!r})\n"
         radius = "inf" if math.isinf(params.aperture_radius) else f"{params.aperture_radius:g}"
         views = self.views_of(params)
         view_text = _ranges_text(views)
         py_radius = 'float("inf")' if math.isinf(params.aperture_radius) else radius
         if params.mode == "map":
             width = self.map_options(params).width
-            focus = (f"--focal-surface SURFACE --surface-offset {params.surface_offset:g}"
-                     if params.surface else f"--focal-height {params.focal_height:g}")
+            focus = (f"--focal-surface {surface} --surface-offset {params.surface_offset:.9g}"
+                     if params.surface else f"--focal-height {params.focal_height:.9g}")
             cli = (f"aos-render map {source} {focus} --width {width} --aperture-radius {radius}"
                    + (f" --views {view_text}" if views else "") + " -o map.tif")
             py_focus = ("focal_surface=surface, surface_offset="
                         f"{params.surface_offset!r}" if params.surface
                         else f"focal_height={params.focal_height!r}")
-            python = (f"result = aos.render_map(lf, width={width}, {py_focus}, aperture_radius="
+            python = prelude + (f"result = aos.render_map(lf, width={width}, {py_focus}, aperture_radius="
                       f"{py_radius}"
                       + (f", view_indices={views!r}" if views else "") + ")")
             return {"cli": cli, "python": python}
         camera, cam_from_world = self.camera(params)
         matrix = ",".join(f"{v + 0.0:.9g}" for v in np.asarray(cam_from_world.matrix3x4).ravel())
         if params.surface:
-            focus = f"--focal-surface SURFACE --surface-offset {params.surface_offset:g}"
+            focus = f"--focal-surface {surface} --surface-offset {params.surface_offset:.9g}"
             py_focus = f"focal_surface=surface, surface_offset={params.surface_offset!r}"
         elif params.tilt_x_deg or params.tilt_y_deg:
             plane = self.focal_plane(params)
@@ -582,13 +600,13 @@ class Session:
             py_focus = (f"focal_plane=aos.Plane({tuple(float(v) for v in plane.point)}, "
                         f"{tuple(float(v) for v in plane.normal)})")
         else:
-            focus = f"--focal-height {params.focal_height:g}"
+            focus = f"--focal-height {params.focal_height:.9g}"
             py_focus = f"focal_plane={params.focal_height!r}"
         cli = (f"aos-render integral {source} --cam-from-world {matrix} --fov-deg "
                f"{camera.fov_x_deg():.9g} --width {camera.width} --height {camera.height} "
                f"{focus} --aperture-radius {radius}"
                + (f" --views {view_text}" if views else "") + " -o render.png")
-        python = (f"result = aos.render_integral(lf, cam_from_world=aos.Rigid3d.from_matrix3x4("
+        python = prelude + (f"result = aos.render_integral(lf, cam_from_world=aos.Rigid3d.from_matrix3x4("
                   f"[{matrix}]), fov_deg={camera.fov_x_deg():.9g}, width={camera.width}, "
                   f"height={camera.height}, {py_focus}, aperture_radius="
                   f"{py_radius}"
