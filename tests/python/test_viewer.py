@@ -686,3 +686,20 @@ def test_a_port_in_use_is_a_clear_error(viewer: Viewer) -> None:
         aos.view(textured_lightfield(), port=viewer.port, open_browser=False)
     with pytest.raises(ValueError, match="port: must be"):
         aos.view(textured_lightfield(), port=70000, open_browser=False)
+
+
+def test_a_fixed_view_subset_and_the_time_window_combine() -> None:
+    handle = aos.view(textured_lightfield(), pose_view=4, view_indices=[0, 1, 2, 6],
+                      open_browser=False, num_threads=1)
+    try:
+        for query, selected in (("", 4), ("&view_first=1&view_last=7", 3),
+                                ("&view_first=2&view_last=3", 1)):
+            status, body = get(f"{base(handle)}/api/render?token={handle.token}{query}")
+            assert status == 200 and decode_frame(body)[0]["views_selected"] == selected, query
+        status, body = get(f"{base(handle)}/api/render?token={handle.token}"
+                           "&view_first=3&view_last=6")
+        assert status == 400 and b"no view of --views in that range" in body
+        status, body = get(f"{base(handle)}/api/command?token={handle.token}&view_last=7")
+        assert "--views 0:3,6" in json.loads(body)["cli"]
+    finally:
+        handle.stop()

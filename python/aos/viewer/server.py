@@ -379,8 +379,8 @@ class _Stream:
         session = self.viewer.session
         try:
             params = session.parse(message.get("params", {}))
-            first = float(message.get("first_height"))
-            last = float(message.get("last_height"))
+            first = float(message.get("first_height", "nan"))
+            last = float(message.get("last_height", "nan"))
             slices = int(message.get("slices", 20))
             if not (math.isfinite(first) and math.isfinite(last) and first != last):
                 raise BadParameter("first_height, last_height: two different finite heights")

@@ -362,7 +362,7 @@ class Session:
     def views_of(self, params: Params) -> list[int]:
         if params.view_first == 0 and params.view_last == self.view_count:
             return list(self.view_indices or [])
-        chosen = range(params.view_first, params.view_last)
+        chosen = list(range(params.view_first, params.view_last))
         if self.view_indices is not None:
             allowed = set(self.view_indices)
             chosen = [index for index in chosen if index in allowed]
@@ -486,6 +486,7 @@ class Session:
             x0, p, _, y0, _, _ = result.geotransform
             world_xy = np.array([x0 + u * p, y0 - v * p])
             if params.surface:
+                assert self.focal_surface is not None  # parse() refuses surface without one
                 z = float(self.focal_surface.heights_at(self.light_field, world_xy[None, :],
                                                         params.surface_offset)[0])
             else:
@@ -501,6 +502,7 @@ class Session:
             rotation = cam_from_world.rotation
             centre = cam_from_world.center
             if params.surface:
+                assert self.focal_surface is not None  # parse() refuses surface without one
                 depth_map = self.focal_surface.depth_for(
                     self.light_field, camera, cam_from_world, params.surface_offset,
                     self.views_of(params))
@@ -636,20 +638,14 @@ class Session:
 
 
 def _ranges_text(indices: list[int]) -> str:
-    """[0, 1, 2, 5] -> '0:3,5'."""
-    parts = []
-    start = previous = None
+    """[0, 1, 2, 5] -> '0:3,5' (sorted unique indices)."""
+    runs: list[list[int]] = []
     for index in indices:
-        if start is None:
-            start = previous = index
-        elif index == previous + 1:
-            previous = index
+        if runs and index == runs[-1][1]:
+            runs[-1][1] = index + 1
         else:
-            parts.append(f"{start}:{previous + 1}" if previous > start else f"{start}")
-            start = previous = index
-    if start is not None:
-        parts.append(f"{start}:{previous + 1}" if previous > start else f"{start}")
-    return ",".join(parts)
+            runs.append([index, index + 1])
+    return ",".join(f"{a}:{b}" if b - a > 1 else f"{a}" for a, b in runs)
 
 
 def lon_lat(crs: str, x: float, y: float) -> Optional[list[float]]:
