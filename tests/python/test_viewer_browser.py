@@ -232,3 +232,21 @@ def test_the_page_drives_every_control_without_errors(
     stats = driver.execute_script("return window.aosStats;")
     assert not stats["errors"], stats["errors"]
     assert frame["width"] > 0
+
+
+def test_buttons_copy_the_command_and_compute_all_in_focus(
+        driver: Any, viewer: Any, evidence: Callable) -> None:
+    open_page(driver, viewer)
+    driver.find_element(By.ID, "copy_cli").click()
+    wait_for(driver, "return document.getElementById('command').value.length > 0;")
+    command = driver.find_element(By.ID, "command").get_attribute("value")
+    assert command.startswith("aos-render integral ") and "--cam-from-world" in command
+    driver.find_element(By.ID, "copy_python").click()
+    wait_for(driver, "return document.getElementById('command').value.startsWith('result');")
+    driver.execute_script("document.getElementById('slices').value = 4;")
+    driver.find_element(By.ID, "allinfocus").click()
+    wait_for(driver, "return document.getElementById('status').textContent === "
+             "'all-in-focus done';")
+    evidence("all_in_focus")
+    assert driver.execute_script("return document.getElementById('progress').value") > 0
+    assert not driver.execute_script("return window.aosStats.errors;")

@@ -279,7 +279,7 @@ function finishJob(text) {
   $("status").textContent = text;
 }
 $("allinfocus").addEventListener("click", () => {
-  const h = Number($("focal_height").value);
+  // The stack spans the focus slider's range (from under the cameras to beyond the ground).
   const lo = Number($("focal_height").min), hi = Number($("focal_height").max);
   jobRunning = true;
   $("cancel").disabled = false;
@@ -288,7 +288,7 @@ $("allinfocus").addEventListener("click", () => {
   const id = nextId++;
   stats.inputTimes[id] = performance.now();
   const params = currentParams();
-  socket.send(JSON.stringify({ type: "allinfocus", id, params, first_height: lo + (h - lo) * 0,
+  socket.send(JSON.stringify({ type: "allinfocus", id, params, first_height: lo,
     last_height: hi, slices: Number($("slices").value) }));
 });
 $("cancel").addEventListener("click", () => socket.send(JSON.stringify({ type: "cancel" })));
