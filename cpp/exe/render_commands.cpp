@@ -707,7 +707,8 @@ struct ViewCommand {
   bool browser = false;
 };
 
-// Whether `python` runs and finds the aos package (without importing it: a few milliseconds).
+// Whether `python` runs and finds the aos package with its viewer, without importing aos (which
+// would load the core): tens of milliseconds.
 bool PythonFindsAos(const std::string& python) {
   if (python.empty()) return false;
   const pid_t pid = fork();
@@ -719,8 +720,9 @@ bool PythonFindsAos(const std::string& python) {
       dup2(null, 2);
     }
     execlp(python.c_str(), python.c_str(), "-c",
-           "import importlib.util, sys; sys.exit(0 if importlib.util.find_spec('aos.viewer') "
-           "else 1)",
+           "import importlib.util, os, sys; s = importlib.util.find_spec('aos'); "
+           "sys.exit(0 if s and any(os.path.isfile(os.path.join(p, 'viewer', '__main__.py')) "
+           "for p in s.submodule_search_locations or []) else 1)",
            static_cast<char*>(nullptr));
     _exit(127);
   }

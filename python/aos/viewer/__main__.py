@@ -74,7 +74,11 @@ def main(argv: list[str]) -> int:
             if pose_view.isdigit() and int(pose_view) < count:
                 defaults["pose_view"] = int(pose_view)
             else:
-                defaults["pose_view"] = aos.find_view(light_field, pose_view)
+                try:
+                    defaults["pose_view"] = aos.find_view(light_field, pose_view)
+                except ValueError as error:
+                    raise ValueError(f"--pose-view: no view {pose_view} (the light field has "
+                                     f"{count} views); by name: {error}") from None
         cam_from_world = None
         if spec.get("cam_from_world"):
             cam_from_world = aos.Rigid3d.from_matrix3x4(spec["cam_from_world"])
