@@ -126,7 +126,9 @@ def bench_drag(viewer: Any, seconds: float, sweep: float) -> dict[str, Any]:
         return {"drag_seconds": span_s, "input_events": drag["inputs"],
                 "input_events_per_s": drag["inputs"] / span_s,
                 "updates": len(during), "updates_per_s": len(during) / span_s,
-                "preview_size": [during[0]["width"], during[0]["height"]] if during else None,
+                "preview_sizes": {f"{w}x{h}": sum(1 for f in during
+                                                   if (f["width"], f["height"]) == (w, h))
+                                  for w, h in {(f["width"], f["height"]) for f in during}},
                 "latency_ms_p50": percentile(latencies, 50),
                 "latency_ms_p95": percentile(latencies, 95),
                 "preview_render_ms_p50": percentile([f["render_ms"] for f in during], 50),
@@ -170,8 +172,8 @@ async def load(viewer: Any, clients: int, seconds: float) -> dict[str, Any]:
                     latencies.append(1000.0 * (time.perf_counter() - start))
                     try:
                         header = check(message.data)
-                        size = 256 if preview else 512
-                        if header["id"] != k or header["width"] != size:
+                        sizes = (256, 128) if preview else (512,)
+                        if header["id"] != k or header["width"] not in sizes:
                             raise ValueError(header)
                         counts["frames"] += 1
                     except (ValueError, KeyError):
@@ -245,7 +247,7 @@ def main() -> int:
             if "skipped" not in drag:
                 print(f"drag in headless Chromium: {drag['updates_per_s']:.1f} updates/s "
                       f"({drag['input_events_per_s']:.0f} input events/s, previews "
-                      f"{drag['preview_size']}), input-to-display p50 "
+                      f"{drag['preview_sizes']}), input-to-display p50 "
                       f"{drag['latency_ms_p50']:.0f} ms, p95 {drag['latency_ms_p95']:.0f} ms",
                       flush=True)
             else:

@@ -20,7 +20,10 @@ Parameters (all optional; JSON numbers/strings/booleans, or query-string text):
 * Display (not the render): ``range`` (``views``: the frames' type range, 0..255 for 8-bit;
   ``auto``: 1st..99th percentile of the covered pixels), ``gain`` (multiplies the normalised
   value about ``offset``), ``colormap`` (``grey``, ``turbo``, ``iron``; single-channel data).
-* ``preview``: render half the width and height (a quarter of the pixels).
+* ``preview``: render half the width and height (a quarter of the pixels), or a quarter of each
+  (a sixteenth of the pixels) while previews take longer than ``PREVIEW_BUDGET_MS`` (a slow or
+  busy machine): the preview divisor adapts after every preview (``Session.preview_divisor``),
+  back to 2 once a quarter-size preview takes under an eighth of the budget.
 """
 
 from __future__ import annotations
@@ -41,6 +44,9 @@ MAX_SIZE = 2048  # pixels on a side of a full render
 MIN_SIZE = 8
 MAX_TILT_DEG = 80.0
 MAX_ABS_COORDINATE = 1.0e7  # metres (UTM northings are < 1e7)
+# A preview should render in this time (about 15 updates per second with the page's overhead);
+# slower previews switch to a quarter of the width and height.
+PREVIEW_BUDGET_MS = 50.0
 
 
 class BadParameter(ValueError):
@@ -227,11 +233,15 @@ class Session:
                  defaults: Optional[dict[str, Any]] = None,
                  cam_from_world: Optional[aos.Rigid3d] = None,
                  view_indices: Optional[list[int]] = None,
-                 min_view_angle_deg: float = 1.0, num_threads: int = -1) -> None:
+                 min_view_angle_deg: float = 1.0, num_threads: int = -1,
+                 adaptive_preview: bool = True) -> None:
         if len(light_field) == 0:
             raise ValueError("view(): the light field has no views")
         self.light_field = light_field
         self.source = source
+        # Previews divide the width and height by this (2, or 4 while previews are slow).
+        self.preview_divisor = 2
+        self.adaptive_preview = adaptive_preview
         # How `source` was loaded (load_lightfield's fov_deg, images_dir, grey) and the focal
         # surface's file, for the equivalent command.
         self.load_options = {k: v for k, v in (load_options or {}).items() if v}
@@ -356,7 +366,9 @@ class Session:
         height = params.height or pose_camera.height
         fov = params.fov_deg or pose_camera.fov_x_deg()
         if params.preview:
-            width, height = max(MIN_SIZE // 2, width // 2), max(MIN_SIZE // 2, height // 2)
+            divisor = self.preview_divisor
+            width, height = max(MIN_SIZE // 2, width // divisor), max(MIN_SIZE // 2,
+                                                                       height // divisor)
         return aos.PinholeCamera.from_fov(width, height, fov), cam_from_world
 
     def views_of(self, params: Params) -> list[int]:
@@ -387,7 +399,7 @@ class Session:
     def map_options(self, params: Params) -> aos.MapOptions:
         width = params.width or self.cameras[params.pose_view].width
         if params.preview:
-            width = max(MIN_SIZE // 2, width // 2)
+            width = max(MIN_SIZE // 2, width // self.preview_divisor)
         options = aos.MapOptions(width=width, aperture_radius=params.aperture_radius,
                                  view_indices=self.views_of(params),
                                  min_view_angle_deg=self.min_view_angle_deg,
@@ -452,6 +464,12 @@ class Session:
         start = time.perf_counter()
         result = self.render_raw(params, progress)
         rendered = time.perf_counter()
+        if params.preview and self.adaptive_preview:
+            milliseconds = 1000.0 * (rendered - start)
+            if self.preview_divisor == 2 and milliseconds > PREVIEW_BUDGET_MS:
+                self.preview_divisor = 4
+            elif self.preview_divisor == 4 and milliseconds < PREVIEW_BUDGET_MS / 8:
+                self.preview_divisor = 2
         rgba = self.display(result.image, result.count, params)
         height, width = rgba.shape[:2]
         info: dict[str, Any] = {
