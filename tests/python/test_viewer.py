@@ -722,3 +722,30 @@ def test_a_fixed_view_subset_and_the_time_window_combine() -> None:
         assert "--views 0:3,6" in json.loads(body)["cli"]
     finally:
         handle.stop()
+
+
+def test_a_focal_stack_is_offered_as_a_zip(viewer: Viewer) -> None:
+    import io
+    import zipfile
+
+    async def run() -> dict[str, Any]:
+        async with aiohttp.ClientSession() as client:
+            async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}") as ws:
+                await ws.send_str(json.dumps({"type": "stack", "id": 3, "params": {},
+                                              "first_height": -1.0, "last_height": 1.0,
+                                              "slices": 3}))
+                while True:
+                    reply = json.loads((await ws.receive(timeout=60)).data)
+                    if reply["type"] != "progress":
+                        return reply
+
+    reply = asyncio.run(run())
+    assert reply["type"] == "download" and reply["url"].startswith("/api/download/"), reply
+    status, _ = get(base(viewer) + reply["url"])
+    assert status == 403  # the token, as everywhere
+    status, body = get(f"{base(viewer)}{reply['url']}?token={viewer.token}")
+    assert status == 200 and len(body) == reply["bytes"]
+    names = zipfile.ZipFile(io.BytesIO(body)).namelist()
+    assert "stack/stack.json" in names and len([n for n in names if "slice_" in n]) == 3
+    status, _ = get(f"{base(viewer)}/api/download/nothing?token={viewer.token}")
+    assert status == 404

@@ -234,7 +234,7 @@ def test_the_page_drives_every_control_without_errors(
     assert frame["width"] > 0
 
 
-def test_buttons_copy_the_command_and_compute_all_in_focus(
+def test_buttons_copy_the_command_and_compute_all_in_focus_and_a_stack(
         driver: Any, viewer: Any, evidence: Callable) -> None:
     open_page(driver, viewer)
     driver.find_element(By.ID, "copy_cli").click()
@@ -249,4 +249,8 @@ def test_buttons_copy_the_command_and_compute_all_in_focus(
              "'all-in-focus done';")
     evidence("all_in_focus")
     assert driver.execute_script("return document.getElementById('progress').value") > 0
+    driver.find_element(By.ID, "stack").click()
+    wait_for(driver, "return document.getElementById('status').textContent.startsWith("
+             "'focal stack ready');")
+    assert driver.execute_script("return window.aosLastDownload.url").startswith("/api/download/")
     assert not driver.execute_script("return window.aosStats.errors;")

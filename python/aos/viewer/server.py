@@ -19,7 +19,8 @@ Security model (docs/viewer.md):
 
 Endpoints: ``/`` (the page), ``/static/<asset>``, ``/api/info``, ``/api/render`` (GET query or
 POST JSON: one frame, the WebSocket's binary format), ``/api/pick``, ``/api/export``,
-``/api/command``, ``/ws`` (JSON requests in, binary frames and JSON messages out).
+``/api/command``, ``/api/download/<key>`` (a focal stack the page asked for), ``/ws`` (JSON
+requests in, binary frames and JSON messages out).
 
 Binary frame: uint32 little-endian length N of a UTF-8 JSON header (id, width, height, timings,
 statistics), the header, then width * height * 4 bytes of RGBA.
@@ -30,11 +31,16 @@ from __future__ import annotations
 import asyncio
 import concurrent.futures
 import hmac
+import io
 import json
 import math
+import os
+import secrets
 import struct
+import tempfile
 import threading
 import time
+import zipfile
 from importlib import resources
 from typing import Any, Optional
 
@@ -44,6 +50,7 @@ from .session import BadParameter, Frame, Params, Session, Superseded
 
 MAX_BODY_BYTES = 64 * 1024
 MAX_QUEUED_HTTP = 64
+MAX_DOWNLOADS = 2  # focal stacks kept for download
 TOKEN_HEADER = "X-AOS-Token"
 
 # The whole set of files the server can send: request name -> (package file, content type).
@@ -95,6 +102,15 @@ class Viewer:
         self.queued_http = 0
         self.stats = {"renders": 0, "superseded": 0, "dropped": 0, "errors": 0}
         self.sockets: set[web.WebSocketResponse] = set()
+        # Focal stacks waiting to be downloaded: random key -> zip bytes (the newest few only).
+        self.downloads: dict[str, bytes] = {}
+
+    def offer_download(self, data: bytes) -> str:
+        key = secrets.token_urlsafe(16)
+        self.downloads[key] = data
+        while len(self.downloads) > MAX_DOWNLOADS:
+            self.downloads.pop(next(iter(self.downloads)))
+        return key
 
     def authorised(self, request: web.Request) -> bool:
         given = request.query.get("token") or request.headers.get(TOKEN_HEADER) or ""
@@ -129,6 +145,7 @@ class Viewer:
         app.router.add_get("/api/pick", self.pick)
         app.router.add_get("/api/export", self.export)
         app.router.add_get("/api/command", self.command)
+        app.router.add_get("/api/download/{key}", self.download)
         app.router.add_get("/ws", self.websocket)
         app.on_shutdown.append(self._close_sockets)
         return app
@@ -217,6 +234,15 @@ class Viewer:
             return _bad(str(error))
         response = web.Response(body=body, content_type=content_type)
         response.headers["Content-Disposition"] = f'attachment; filename="{name}"'
+        return response
+
+    async def download(self, request: web.Request) -> web.Response:
+        # A key the server made (a dict lookup, never a path).
+        data = self.downloads.get(request.match_info["key"])
+        if data is None:
+            return _bad("not found (a focal stack is kept for the newest few requests)", 404)
+        response = web.Response(body=data, content_type="application/zip")
+        response.headers["Content-Disposition"] = 'attachment; filename="aos-focal-stack.zip"'
         return response
 
     async def command(self, request: web.Request) -> web.Response:
@@ -311,14 +337,15 @@ class _Stream:
             if not self.busy:
                 self.busy = True
                 asyncio.ensure_future(self._drain())
-        elif kind == "allinfocus":
+        elif kind in ("allinfocus", "stack"):
             # A task: this loop must go on reading (a "cancel" is the next message).
             if self.job_cancel is not None:
                 await self.error(request_id, "an all-in-focus is already running; cancel it "
                                  "first")
                 return
             self.job_cancel = threading.Event()
-            asyncio.ensure_future(self._all_in_focus(request_id, message, self.job_cancel))
+            asyncio.ensure_future(self._all_in_focus(request_id, message, self.job_cancel,
+                                                     stack=kind == "stack"))
         elif kind == "cancel":
             if self.job_cancel is not None:
                 self.job_cancel.set()
@@ -363,17 +390,18 @@ class _Stream:
             self.busy = False
 
     async def _all_in_focus(self, request_id: Any, message: dict[str, Any],
-                            cancel: threading.Event) -> None:
-        """A focal stack of the current view merged into an all-in-focus image, with progress
-        messages; a "cancel" message (or closing the page) stops it. It runs on the render
-        worker: renders wait for it."""
+                            cancel: threading.Event, stack: bool = False) -> None:
+        """A focal stack of the current view merged into an all-in-focus image (a frame), or
+        (``stack``) the stack itself as a zip of its folder (write_focal_stack) offered for
+        download, with progress messages; a "cancel" message (or closing the page) stops it.
+        It runs on the render worker: renders wait for it."""
         try:
-            await self._run_all_in_focus(request_id, message, cancel)
+            await self._run_all_in_focus(request_id, message, cancel, stack)
         finally:
             self.job_cancel = None
 
     async def _run_all_in_focus(self, request_id: Any, message: dict[str, Any],
-                                cancel: threading.Event) -> None:
+                                cancel: threading.Event, stack: bool) -> None:
         import aos
 
         session = self.viewer.session
@@ -403,6 +431,37 @@ class _Stream:
                 asyncio.run_coroutine_threadsafe(self.send_json(
                     {"type": "progress", "id": request_id, "stage": stage, "done": done,
                      "total": total}), loop)
+
+        def work_stack() -> bytes:
+            options = session.integral_options(params)
+            focal_stack = aos.render_focal_stack(
+                session.light_field, first_plane=first, last_plane=last, slices=slices,
+                cam_from_world=options.cam_from_world, fov_deg=options.fov_deg,
+                width=options.width, height=options.height,
+                aperture_radius=options.aperture_radius, view_indices=options.view_indices,
+                num_threads=session.num_threads, progress=progress)
+            with tempfile.TemporaryDirectory(prefix="aos-viewer-") as folder:
+                target = os.path.join(folder, "stack")
+                aos.write_focal_stack(target, focal_stack)
+                buffer = io.BytesIO()
+                with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zip:
+                    for name in sorted(os.listdir(target)):
+                        zip.write(os.path.join(target, name), f"stack/{name}")
+                return buffer.getvalue()
+
+        if stack:
+            try:
+                data = await self.viewer.run(work_stack)
+            except Superseded:
+                await self.send_json({"type": "cancelled", "id": request_id})
+                return
+            except (ValueError, BadParameter) as error:
+                await self.error(request_id, str(error))
+                return
+            key = self.viewer.offer_download(data)
+            await self.send_json({"type": "download", "id": request_id,
+                                  "url": f"/api/download/{key}", "bytes": len(data)})
+            return
 
         def work() -> Frame:
             options = session.integral_options(params)

@@ -142,6 +142,15 @@ function handleMessage(message) {
     $("status").textContent = `${message.stage}: ${message.done}/${message.total}`;
   } else if (message.type === "cancelled") {
     finishJob("cancelled");
+  } else if (message.type === "download") {
+    const link = document.createElement("a");
+    link.href = `${message.url}?token=${encodeURIComponent(token)}`;
+    link.download = "aos-focal-stack.zip";
+    document.body.appendChild(link);
+    link.click();
+    link.remove();
+    window.aosLastDownload = message;
+    finishJob(`focal stack ready (${(message.bytes / 1048576).toFixed(1)} MiB zip)`);
   }
 }
 
@@ -276,21 +285,25 @@ function finishJob(text) {
   jobRunning = false;
   $("cancel").disabled = true;
   $("allinfocus").disabled = false;
+  $("stack").disabled = false;
   $("status").textContent = text;
 }
-$("allinfocus").addEventListener("click", () => {
+function startJob(type) {
   // The stack spans the focus slider's range (from under the cameras to beyond the ground).
   const lo = Number($("focal_height").min), hi = Number($("focal_height").max);
   jobRunning = true;
   $("cancel").disabled = false;
   $("allinfocus").disabled = true;
+  $("stack").disabled = true;
   $("progress").value = 0;
   const id = nextId++;
   stats.inputTimes[id] = performance.now();
   const params = currentParams();
-  socket.send(JSON.stringify({ type: "allinfocus", id, params, first_height: lo,
+  socket.send(JSON.stringify({ type, id, params, first_height: lo,
     last_height: hi, slices: Number($("slices").value) }));
-});
+}
+$("allinfocus").addEventListener("click", () => startJob("allinfocus"));
+$("stack").addEventListener("click", () => startJob("stack"));
 $("cancel").addEventListener("click", () => socket.send(JSON.stringify({ type: "cancel" })));
 $("reset").addEventListener("click", () => { applyDefaults(); onChange(); });
 
