@@ -297,7 +297,8 @@ def test_map_mode_export_and_command(viewer: Viewer, tmp_path: Path) -> None:
     status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&mode=map&width=40")
     header, image = decode_frame(body)
     assert status == 200 and header["width"] == 40 and len(header["geotransform"]) == 6
-    for kind, magic in (("png", b"\x89PNG"), ("tiff", b"II*\x00"), ("geotiff", b"II")):
+    for kind, magic in (("png", b"\x89PNG"), ("tiff", b"II*\x00"), ("exr", b"\x76\x2f\x31\x01"),
+                        ("geotiff", b"II")):
         query = f"token={viewer.token}&format={kind}" + ("&mode=map" if kind == "geotiff" else "")
         status, body = get(f"{base(viewer)}/api/export?{query}")
         assert status == 200 and body.startswith(magic), kind
