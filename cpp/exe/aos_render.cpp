@@ -57,6 +57,10 @@ const CommandEntry kCommands[] = {
      "Render an orthographic map (a virtual camera looking straight down) of a light field onto "
      "a horizontal focal plane, written as a Cloud-Optimised GeoTIFF with a count band",
      DefineMap},
+    {"view",
+     "Interactive viewer in the browser: load the frames once, serve a local page (127.0.0.1, "
+     "a per-session token) that re-renders while you drag focus, aperture, views and camera",
+     DefineView},
     {"calibrate",
      "Calibrate a lens from checkerboard frames (OpenCV): write a camera file with the RMS "
      "reprojection error and the frames used; frames without the board are listed, not fatal",

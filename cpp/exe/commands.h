@@ -1,6 +1,7 @@
 #pragma once
 // The commands of aos-render, one Define function each, grouped by area (one file per area):
-//   render_commands.cpp   integral, stack, merge, allinfocus, map
+//   render_commands.cpp   integral, stack, merge, allinfocus, map, view (hands over to the
+//                         Python viewer, python/aos/viewer)
 //   sim_commands.cpp      simulate, demo
 //   lens_commands.cpp     calibrate, camera, rectify, resolution
 //   sfm_commands.cpp      poses, import-colmap, ground
@@ -17,6 +18,7 @@ CommandRunner DefineStack(CLI::App* command);
 CommandRunner DefineMerge(CLI::App* command);
 CommandRunner DefineAllInFocus(CLI::App* command);
 CommandRunner DefineMap(CLI::App* command);
+CommandRunner DefineView(CLI::App* command);
 CommandRunner DefineSimulate(CLI::App* command);
 CommandRunner DefineDemo(CLI::App* command);
 CommandRunner DefineCalibrate(CLI::App* command);

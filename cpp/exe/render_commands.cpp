@@ -1,4 +1,4 @@
-// Rendering commands: integral, stack, merge, allinfocus.
+// Rendering commands: integral, stack, merge, allinfocus, map, and view (the browser viewer).
 #include <algorithm>
 #include <array>
 #include <cctype>
@@ -7,6 +7,16 @@
 #include <limits>
 #include <memory>
 #include <optional>
+
+#include <fcntl.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdlib>
+#include <cstring>
+
+#include <nlohmann/json.hpp>
 
 #include "aos/image/image_io.h"
 #include "aos/image/preview.h"
@@ -761,6 +771,208 @@ CommandRunner DefineMap(CLI::App* command) {
   command->add_option("-o,--output", c->output, "GeoTIFF to write (Cloud-Optimised)")->required();
   flags.Force();
   return [c, flags] { return RunMap(*c, flags); };
+}
+
+// ---- view ----
+//
+// `aos-render view` checks its command line here (the same flags as integral, bound to the same
+// IntegralOptions fields, plus --host/--port/--no-browser), then hands over to the Python viewer
+// (python/aos/viewer: an aiohttp server) by exec'ing `PYTHON -m aos.viewer --spec JSON`, the
+// flags' values as one JSON object. The interpreter is the first of: $AOS_PYTHON; python3 beside
+// this executable's real path (pip installs aos-render into the interpreter's scripts folder);
+// the interpreter the build was configured with (AOS_PYTHON_EXECUTABLE); python3 on PATH; the
+// first one that finds the aos package is used.
+
+namespace {
+
+struct ViewCommand {
+  RenderArgs args;
+  IntegralOptions options;
+  std::string host = "127.0.0.1";
+  int port = 0;
+  bool no_browser = false;
+  bool browser = false;
+};
+
+// Whether `python` runs and finds the aos package with its viewer, without importing aos (which
+// would load the core): tens of milliseconds.
+bool PythonFindsAos(const std::string& python) {
+  if (python.empty()) return false;
+  const pid_t pid = fork();
+  if (pid < 0) return false;
+  if (pid == 0) {
+    const int null = open("/dev/null", O_WRONLY);
+    if (null >= 0) {
+      dup2(null, 1);
+      dup2(null, 2);
+    }
+    execlp(python.c_str(), python.c_str(), "-c",
+           "import importlib.util, os, sys; s = importlib.util.find_spec('aos'); "
+           "sys.exit(0 if s and any(os.path.isfile(os.path.join(p, 'viewer', '__main__.py')) "
+           "for p in s.submodule_search_locations or []) else 1)",
+           static_cast<char*>(nullptr));
+    _exit(127);
+  }
+  int status = 0;
+  if (waitpid(pid, &status, 0) < 0) return false;
+  return WIFEXITED(status) && WEXITSTATUS(status) == 0;
+}
+
+std::vector<std::string> PythonCandidates() {
+  std::vector<std::string> candidates;
+  if (const char* chosen = std::getenv("AOS_PYTHON"); chosen != nullptr && *chosen != '\0') {
+    candidates.emplace_back(chosen);
+    return candidates;  // an explicit choice is the only one tried
+  }
+  std::error_code error;
+  const fs::path self = fs::canonical("/proc/self/exe", error);
+  if (!error) {
+    for (const char* name : {"python3", "python"}) {
+      const fs::path beside = self.parent_path() / name;
+      if (fs::exists(beside, error)) candidates.push_back(beside.string());
+    }
+  }
+#ifdef AOS_PYTHON_EXECUTABLE
+  candidates.emplace_back(AOS_PYTHON_EXECUTABLE);
+#endif
+  candidates.emplace_back("python3");
+  return candidates;
+}
+
+int RunView(ViewCommand& c, const Flags& flags) {
+  (void)flags;
+  if (!fs::exists(c.args.light_field_path)) {
+    ThrowInvalid(c.args.light_field_path + ": no such light-field file");
+  }
+  if (!c.args.focal_surface.empty() && !fs::exists(c.args.focal_surface)) {
+    throw UsageError("--focal-surface: " + c.args.focal_surface + ": no such file");
+  }
+  if (c.no_browser && c.browser) ThrowUsage("--browser and --no-browser exclude each other");
+  nlohmann::ordered_json spec;
+  spec["light_field"] = c.args.light_field_path;
+  spec["load"] = {{"fov_deg", c.args.load.fov_deg},
+                  {"images_dir", c.args.load.images_dir},
+                  {"grey", c.args.load.grey}};
+  spec["pose_view"] = c.args.pose_view;
+  if (!c.args.pose_view.empty() && c.args.pose_view[0] == '-') {
+    ThrowUsage("--pose-view: a view index is >= 0 (got " + c.args.pose_view + ")");
+  }
+  std::optional<Rigid3d> cam_from_world;
+  if (!c.args.look_at.empty()) {
+    const std::vector<double> v = ParseNumbers(c.args.look_at, "--look-at");
+    if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");
+    const Vec3d eye(v[0], v[1], v[2]), target(v[3], v[4], v[5]);
+    cam_from_world = AsUsage([&] {
+      return v.size() == 9 ? LookAt(eye, target, Vec3d(v[6], v[7], v[8])) : LookAt(eye, target);
+    });
+  } else if (!c.args.cam_from_world.empty()) {
+    const std::vector<double> v = ParseNumbers(c.args.cam_from_world, "--cam-from-world", 12);
+    std::array<double, 12> m{};
+    std::copy(v.begin(), v.end(), m.begin());
+    cam_from_world = Rigid3d::FromMatrix3x4(m);
+  }
+  if (cam_from_world) {
+    const std::array<double, 12> m = cam_from_world->ToMatrix3x4();
+    spec["cam_from_world"] = std::vector<double>(m.begin(), m.end());
+  } else {
+    spec["cam_from_world"] = nullptr;
+  }
+  // The virtual camera's and the focus's ranges, as integral checks them (view counts aside).
+  const IntegralOptions& o = c.options;
+  if (!(o.fov_deg >= 0.0 && o.fov_deg < 180.0)) {
+    ThrowUsage("--fov-deg: must be 0 (the pose view's) or in (0, 180), got " +
+               FormatNumber(o.fov_deg));
+  }
+  for (const auto& [flag, size] : {std::pair{"--width", o.width}, {"--height", o.height}}) {
+    if (size != 0 && (size < 8 || size > 2048)) {
+      ThrowUsage(std::string(flag) + ": must be 0 (the pose view's) or 8..2048 pixels in the "
+                 "viewer, got " + std::to_string(size));
+    }
+  }
+  if (!(o.min_view_angle_deg >= 0.0 && o.min_view_angle_deg < 90.0)) {
+    ThrowUsage("--min-view-angle-deg: must be in [0, 90), got " +
+               FormatNumber(o.min_view_angle_deg));
+  }
+  if (o.focal_plane.normal != Vec3d(0.0, 0.0, 1.0) || !std::isfinite(o.focal_plane.point.z)) {
+    ThrowUsage("--focal-height: must be a finite height");
+  }
+  spec["fov_deg"] = o.fov_deg;
+  spec["width"] = o.width;
+  spec["height"] = o.height;
+  if (std::isinf(o.aperture_radius)) {
+    spec["aperture_radius"] = "inf";
+  } else {
+    spec["aperture_radius"] = o.aperture_radius;
+  }
+  spec["views"] = c.args.views;
+  spec["min_view_angle_deg"] = o.min_view_angle_deg;
+  spec["num_threads"] = o.num_threads;
+  spec["focal_height"] = o.focal_plane.point.z;
+  spec["focal_surface"] = c.args.focal_surface;
+  spec["surface_offset"] = o.surface_offset;
+  spec["host"] = c.host;
+  spec["port"] = c.port;
+  if (c.no_browser) {
+    spec["open_browser"] = false;
+  } else if (c.browser) {
+    spec["open_browser"] = true;
+  } else {
+    spec["open_browser"] = nullptr;
+  }
+  spec["quiet"] = Common().quiet;
+  spec["json"] = Common().json;
+  const std::string text = spec.dump();
+
+  std::string python;
+  const std::vector<std::string> candidates = PythonCandidates();
+  for (const std::string& candidate : candidates) {
+    if (PythonFindsAos(candidate)) {
+      python = candidate;
+      break;
+    }
+  }
+  if (python.empty()) {
+    std::string tried;
+    for (const std::string& candidate : candidates) tried += (tried.empty() ? "" : ", ") + candidate;
+    ThrowInvalid("view: no Python interpreter with the aos package found (tried " + tried +
+                 "); set AOS_PYTHON to the python3 that aos was installed into");
+  }
+  std::fflush(stdout);
+  std::fflush(stderr);
+  execlp(python.c_str(), python.c_str(), "-m", "aos.viewer", "--spec", text.c_str(),
+         static_cast<char*>(nullptr));
+  ThrowInvalid("view: cannot run " + python + ": " + std::strerror(errno));
+}
+
+}  // namespace
+
+CommandRunner DefineView(CLI::App* command) {
+  auto c = std::make_shared<ViewCommand>();
+  Flags flags(command);
+  AddRenderFlags(flags, c->args, c->options);
+  CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
+  flags.Describe("focal_plane", "--focal-height");
+  auto* height = flags.Parsed(
+      "--focal-height", "focal_plane", c->options.focal_plane,
+      [](const std::string& text) {
+        return Plane::AtHeight(ParseNumberText(text, "--focal-height"));
+      },
+      PlaneText(c->options.focal_plane),
+      "Starting focus: the horizontal focal plane z = H (local frame, metres); the page moves "
+      "it");
+  (void)height;
+  (void)surface;
+  command->add_option("--host", c->host,
+                      "Address to listen on; anything but a loopback address makes the viewer "
+                      "reachable from other machines (a warning says so)")
+      ->default_str(c->host);
+  command->add_option("--port", c->port, "TCP port; 0 = any free port")
+      ->check(CLI::Range(0, 65535))
+      ->default_str("0");
+  command->add_flag("--no-browser", c->no_browser,
+                    "Do not open a browser (default: open one where a desktop session exists)");
+  command->add_flag("--browser", c->browser, "Open a browser even without a desktop session");
+  return [c, flags] { return RunView(*c, flags); };
 }
 
 }  // namespace aos::cli

@@ -220,6 +220,7 @@ __all__ = [
     "write_image",
     "write_lightfield",
     "write_simulation",
+    "view",
 ]
 
 # Keyword routing: every wrapper below takes its options as an Options object and/or as keywords,
@@ -881,3 +882,23 @@ def import_telemetry(
     merged = _copy_options("import_telemetry", TelemetryOptions, options)
     _IMPORT_TELEMETRY.apply([merged], dict(kwargs))
     return _core._import_telemetry(os.fspath(frames_dir), merged)
+
+
+def view(light_field: "LightField | str | os.PathLike[str]", **kwargs: Any) -> Any:
+    """Starts the interactive browser viewer on ``light_field`` (a LightField or a path) and
+    returns its handle at once: ``.url`` (with the session token), ``.stop()``. Works in a
+    notebook (the server runs in a background thread). Keywords: the starting focus and camera
+    with IntegralOptions' names (focal_height, focal_surface, surface_offset, aperture_radius,
+    pose_view, cam_from_world, fov_deg, width, height, view_indices, min_view_angle_deg,
+    num_threads) and host, port, open_browser; see :func:`aos.viewer.view` and docs/viewer.md.
+    Needs aiohttp (a dependency of aos; ``pip install aiohttp`` if it was removed).
+
+    Example::
+
+        viewer = aos.view(lf, focal_height=21.0)
+        print(viewer.url)
+        viewer.stop()
+    """
+    from .viewer import view as _view
+
+    return _view(light_field, **kwargs)

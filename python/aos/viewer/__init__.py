@@ -1,0 +1,237 @@
+"""aos.viewer: an interactive integral-image viewer in the browser (``aos-render view``,
+``aos.view``).
+
+A local aiohttp server holds one light field in memory (frames loaded once) and renders it with
+the C++ renderer (GIL released) as the page's sliders move: focus (plane height and tilt, or the
+offset above a terrain), aperture, the views in use, the virtual camera (a recorded view, orbit,
+pan, zoom, or the orthographic map) and the display (gain, offset, colour map). See
+docs/viewer.md for the page, the security model and measured speeds.
+
+Needs aiohttp, a dependency of the aos package (installed with it).
+
+Example (also in a notebook; the server runs in a background thread)::
+
+    viewer = aos.view(light_field, focal_height=21.0)
+    print(viewer.url)      # http://127.0.0.1:PORT/?token=...
+    viewer.stop()
+"""
+
+from __future__ import annotations
+
+import asyncio
+import ipaddress
+import os
+import secrets
+import sys
+import threading
+import warnings
+import webbrowser
+from typing import Any, Optional
+
+from .session import BadParameter, Params, Session
+
+__all__ = ["Viewer", "view", "BadParameter", "Params", "Session", "MISSING_AIOHTTP"]
+
+MISSING_AIOHTTP = (
+    "the viewer needs aiohttp, a dependency of aos that is missing here: pip install "
+    "'aiohttp>=3.9' (into the Python that aos is installed in)")
+
+
+def _require_aiohttp() -> None:
+    try:
+        import aiohttp  # noqa: F401
+    except ImportError:
+        raise ImportError(MISSING_AIOHTTP) from None
+
+
+def is_loopback(host: str) -> bool:
+    if host == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False
+
+
+def remote_warning(host: str) -> Optional[str]:
+    if is_loopback(host):
+        return None
+    return (f"the viewer listens on {host}, not only on this machine: anyone who can reach it "
+            "and has the URL (its token) can see the light field")
+
+
+def can_open_browser() -> bool:
+    """Whether a browser can be shown: a desktop session (X11/Wayland), macOS or Windows."""
+    if sys.platform in ("darwin", "win32"):
+        return True
+    return bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
+class Viewer:
+    """A running viewer: ``url`` (with its token), ``stop()``; a context manager.
+
+    The server runs its own event loop in a background thread, so the caller (a script or a
+    notebook) is not blocked. In a notebook the handle shows as a link.
+    """
+
+    def __init__(self, session: Session, *, host: str = "127.0.0.1", port: int = 0,
+                 token: Optional[str] = None, render_workers: int = 1) -> None:
+        _require_aiohttp()
+        from aiohttp import web
+
+        from .server import Viewer as _Server
+
+        if not 0 <= port <= 65535:
+            raise ValueError(f"port: must be 0 (any free port) .. 65535, got {port}")
+        self.session = session
+        self.host = host
+        self.token = token or secrets.token_urlsafe(24)
+        self.server = _Server(session, self.token, render_workers)
+        self._loop = asyncio.new_event_loop()
+        self._ready = threading.Event()
+        self._stopped = threading.Event()
+        self._error: Optional[BaseException] = None
+        self._runner: Optional[web.AppRunner] = None
+        self.port = port
+        self.bound_address = ""  # the address the socket listens on, once started
+        self._thread = threading.Thread(target=self._serve, name="aos-viewer", daemon=True)
+        self._thread.start()
+        self._ready.wait()
+        if self._error is not None:
+            raise self._error
+
+    def _serve(self) -> None:
+        from aiohttp import web
+
+        asyncio.set_event_loop(self._loop)
+
+        async def start() -> None:
+            self._runner = web.AppRunner(self.server.app(), handle_signals=False,
+                                         access_log=None, shutdown_timeout=1.0)
+            await self._runner.setup()
+            site = web.TCPSite(self._runner, self.host, self.port)
+            await site.start()
+            sockets = site._server.sockets if site._server else []  # type: ignore[union-attr,attr-defined]
+            if sockets:
+                self.bound_address = sockets[0].getsockname()[0]
+                self.port = sockets[0].getsockname()[1]
+
+        try:
+            self._loop.run_until_complete(start())
+        except BaseException as error:  # noqa: BLE001 - handed to the constructor
+            self._error = OSError(f"view(): cannot listen on {self.host}:{self.port}: {error}")
+            if self._runner is not None:
+                self._loop.run_until_complete(self._runner.cleanup())
+            self.server.close()
+            self._loop.close()
+            self._ready.set()
+            return
+        self._ready.set()
+        self._loop.run_forever()
+        try:
+            if self._runner is not None:
+                self._loop.run_until_complete(self._runner.cleanup())
+        finally:
+            self.server.close()
+            self._loop.close()
+            self._stopped.set()
+
+    @property
+    def url(self) -> str:
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        if self.host in ("0.0.0.0", "::"):
+            host = "127.0.0.1"
+        return f"http://{host}:{self.port}/?token={self.token}"
+
+    @property
+    def running(self) -> bool:
+        return self._thread.is_alive()
+
+    def stop(self, timeout: float = 10.0) -> None:
+        """Stops the server (open pages lose their connection) and waits for it."""
+        if self._thread.is_alive():
+            self._loop.call_soon_threadsafe(self._loop.stop)
+            self._thread.join(timeout)
+
+    def wait(self) -> None:
+        """Blocks until the server stops (Ctrl-C stops it)."""
+        try:
+            while self._thread.is_alive():
+                self._thread.join(0.5)
+        except KeyboardInterrupt:
+            self.stop()
+
+    def __enter__(self) -> "Viewer":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+    def __repr__(self) -> str:
+        state = "running" if self.running else "stopped"
+        return f"<aos.Viewer {state} at {self.url}>"
+
+    def _repr_html_(self) -> str:
+        return (f'<a href="{self.url}" target="_blank">aos viewer</a> '
+                f"({'running' if self.running else 'stopped'}; {self.session.view_count} views)")
+
+
+def view(light_field: Any, *, focal_height: float = 0.0,
+         focal_surface: Any = None, surface_offset: float = 0.0,
+         aperture_radius: float = float("inf"), pose_view: Optional[int] = None,
+         cam_from_world: Any = None, fov_deg: float = 0.0, width: int = 0, height: int = 0,
+         view_indices: Optional[list[int]] = None, min_view_angle_deg: float = 1.0,
+         num_threads: int = -1, host: str = "127.0.0.1", port: int = 0,
+         open_browser: Optional[bool] = None, render_workers: int = 1,
+         source: str = "") -> Viewer:
+    """Starts the viewer on ``light_field`` (an aos.LightField, or a path that
+    aos.load_lightfield reads) and returns its handle at once (``.url``, ``.stop()``).
+
+    The keywords are the starting values of the page's controls, with the names and meaning of
+    :class:`aos.IntegralOptions`' fields: ``focal_height`` (the plane z = H), ``focal_surface``
+    (a path, Mesh, Heightfield or FocalSurface; then the page can focus ``surface_offset`` metres
+    above it), ``aperture_radius``, ``pose_view`` (default: the middle view), ``cam_from_world``
+    (a fixed pose instead of the views'), ``fov_deg``, ``width``, ``height``, ``view_indices``,
+    ``min_view_angle_deg``, ``num_threads``. ``host`` other than a loopback address makes it
+    reachable from other machines (a warning says so). ``open_browser``: None = where a desktop
+    session exists.
+    """
+    import aos
+
+    _require_aiohttp()
+    if isinstance(light_field, (str, os.PathLike)):
+        source = source or os.fspath(light_field)
+        light_field = aos.load_lightfield(os.fspath(light_field)).light_field
+    if not isinstance(light_field, aos.LightField):
+        raise TypeError(f"view(): light_field must be an aos.LightField or a path, not "
+                        f"{type(light_field).__name__}")
+    surface = None
+    surface_path = ""
+    if focal_surface is not None:
+        if isinstance(focal_surface, (str, os.PathLike)):
+            surface_path = os.fspath(focal_surface)
+            surface = aos.FocalSurface.read(surface_path)
+        else:
+            surface = aos.FocalSurface(focal_surface)
+        surface = surface.in_crs(light_field.crs) if light_field.crs else surface
+    defaults: dict[str, Any] = {"focal_height": focal_height, "surface_offset": surface_offset,
+                                "aperture_radius": aperture_radius, "fov_deg": fov_deg,
+                                "width": width, "height": height,
+                                "surface": surface is not None}
+    if pose_view is not None:
+        defaults["pose_view"] = pose_view
+    if cam_from_world is not None and not isinstance(cam_from_world, aos.Rigid3d):
+        raise TypeError("view(): cam_from_world must be an aos.Rigid3d")
+    session = Session(light_field, source=source, surface_path=surface_path,
+                      focal_surface=surface, defaults=defaults,
+                      cam_from_world=cam_from_world, view_indices=view_indices,
+                      min_view_angle_deg=min_view_angle_deg, num_threads=num_threads)
+    warning = remote_warning(host)
+    if warning:
+        warnings.warn(warning, stacklevel=2)
+    viewer = Viewer(session, host=host, port=port, render_workers=render_workers)
+    if open_browser is None:
+        open_browser = can_open_browser()
+    if open_browser:
+        webbrowser.open(viewer.url)
+    return viewer

@@ -1,0 +1,150 @@
+"""``python -m aos.viewer --spec JSON``: what ``aos-render view`` runs once it has checked its
+command line (the native CLI parses the flags; this takes the values as one JSON object, so the
+flags are declared once, in C++). Prints the URL, serves until Ctrl-C (or SIGTERM), then stops
+cleanly and exits 0. Errors: one line on stderr, exit 1 (bad input) or 2 (bad spec).
+
+Spec keys: light_field (path), load {fov_deg, images_dir, grey}, pose_view (index or name, ""
+= none), cam_from_world (12 numbers or null), fov_deg, width, height, aperture_radius (number
+or "inf"), views ("" = all), min_view_angle_deg, num_threads, focal_height, focal_surface (path,
+"" = none), surface_offset, host, port, open_browser (true/false/null), quiet, json.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import signal
+import sys
+import threading
+from typing import Any
+
+
+def _fail(message: str, code: int = 1) -> int:
+    sys.stderr.write(f"aos-render view: error: {message}\n")
+    return code
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 2 or argv[0] != "--spec":
+        return _fail("usage: python -m aos.viewer --spec JSON (run `aos-render view`)", 2)
+    try:
+        spec: dict[str, Any] = json.loads(argv[1])
+    except ValueError as error:
+        return _fail(f"--spec: not JSON ({error})", 2)
+    try:
+        import aiohttp  # noqa: F401
+    except ImportError:
+        from . import MISSING_AIOHTTP
+
+        return _fail(MISSING_AIOHTTP)
+    import aos
+
+    from . import Session, Viewer, remote_warning, can_open_browser
+    from .session import BadParameter, parse_view_list
+
+    quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
+    try:
+        load = spec.get("load", {})
+        loaded = aos.load_lightfield(spec["light_field"], fov_deg=float(load.get("fov_deg", 0.0)),
+                                     images_dir=load.get("images_dir", ""),
+                                     grey=bool(load.get("grey", False)),
+                                     num_threads=int(spec.get("num_threads", -1)))
+        for note in loaded.notes:
+            sys.stderr.write(f"note: {note}\n")
+        light_field = loaded.light_field
+        surface = None
+        if spec.get("focal_surface"):
+            surface = aos.FocalSurface.read(spec["focal_surface"])
+            if light_field.crs:
+                surface = surface.in_crs(light_field.crs)
+            if not quiet:
+                sys.stderr.write(f"focal surface: {surface!r}\n")
+        defaults: dict[str, Any] = {
+            "surface": surface is not None,
+            "surface_offset": float(spec.get("surface_offset", 0.0)),
+            "focal_height": float(spec.get("focal_height", 0.0)),
+            "fov_deg": float(spec.get("fov_deg", 0.0)),
+            "width": int(spec.get("width", 0)), "height": int(spec.get("height", 0)),
+        }
+        radius = spec.get("aperture_radius", "inf")
+        defaults["aperture_radius"] = radius if isinstance(radius, str) else float(radius)
+        pose_view = str(spec.get("pose_view", ""))
+        if pose_view:
+            count = len(light_field)
+            if pose_view.isdigit() and int(pose_view) < count:
+                defaults["pose_view"] = int(pose_view)
+            else:
+                try:
+                    defaults["pose_view"] = aos.find_view(light_field, pose_view)
+                except ValueError as error:
+                    raise ValueError(f"--pose-view: no view {pose_view} (the light field has "
+                                     f"{count} views); by name: {error}") from None
+        cam_from_world = None
+        if spec.get("cam_from_world"):
+            cam_from_world = aos.Rigid3d.from_matrix3x4(spec["cam_from_world"])
+        views = None
+        if spec.get("views"):
+            views = parse_view_list(spec["views"], len(light_field))
+        session = Session(light_field, source=spec["light_field"], focal_surface=surface,
+                          load_options={"fov_deg": float(load.get("fov_deg", 0.0)),
+                                        "images_dir": load.get("images_dir", ""),
+                                        "grey": bool(load.get("grey", False))},
+                          surface_path=spec.get("focal_surface", ""),
+                          defaults=defaults, cam_from_world=cam_from_world, view_indices=views,
+                          min_view_angle_deg=float(spec.get("min_view_angle_deg", 1.0)),
+                          num_threads=int(spec.get("num_threads", -1)))
+        host = str(spec.get("host", "127.0.0.1"))
+        warning = remote_warning(host)
+        if warning:
+            sys.stderr.write(f"warning: {warning}\n")
+        viewer = Viewer(session, host=host, port=int(spec.get("port", 0)))
+    except BadParameter as error:
+        return _fail(str(error))
+    except (ValueError, OSError) as error:
+        return _fail(str(error).splitlines()[0] if str(error) else type(error).__name__)
+    except KeyError as error:
+        return _fail(f"--spec: missing {error}", 2)
+
+    if spec.get("json"):
+        print(json.dumps({"url": viewer.url, "host": viewer.host, "port": viewer.port,
+                          "views": session.view_count}), flush=True)
+    else:
+        print(f"aos viewer: {session.view_count} views of {spec['light_field']} at\n"
+              f"  {viewer.url}\n(Ctrl-C stops it)", flush=True)
+    open_browser = spec.get("open_browser")
+    if open_browser is None:
+        open_browser = can_open_browser()
+    if open_browser:
+        import webbrowser
+
+        webbrowser.open(viewer.url)
+
+    stop = threading.Event()
+
+    def on_signal(_signum: int, _frame: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, on_signal)
+    while not stop.wait(0.5):
+        if not viewer.running:
+            return _fail("the server stopped unexpectedly")
+    viewer.stop()
+    if not quiet:
+        sys.stderr.write("aos viewer: stopped\n")
+    return 0
+
+
+def run(argv: list[str]) -> int:
+    """main(), with Ctrl-C while loading answered like the other commands (exit 130)."""
+    try:
+        return main(argv)
+    except KeyboardInterrupt:
+        sys.stderr.write("aos-render view: interrupted\n")
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(run(sys.argv[1:]))

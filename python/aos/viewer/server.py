@@ -1,0 +1,495 @@
+"""The viewer's HTTP and WebSocket server (aiohttp).
+
+Security model (docs/viewer.md):
+
+* It binds 127.0.0.1 unless another host is given explicitly (the caller warns).
+* Every request, the WebSocket included, must carry the session's random token (``?token=`` or
+  the ``X-AOS-Token`` header), compared in constant time: 403 without it. A WebSocket whose
+  ``Origin`` is not this server is refused too.
+* It serves only its own page and assets, from a fixed in-package whitelist read into memory
+  at start (``ASSETS``): no path from a request ever reaches the file system.
+* Parameters are validated (session.Params): a bad one answers 400 with the message, and the
+  server goes on. Request bodies are limited to ``MAX_BODY_BYTES`` (413 beyond), WebSocket
+  messages to the same.
+* Renders are bounded: one render worker thread (``render_workers``) runs them one at a time;
+  each WebSocket keeps only its newest request (a newer one supersedes the pending one, and
+  cancels a running full-size render at its next progress check, at most 0.1 s apart; a running
+  preview finishes, so that images keep coming while the user drags), and at most
+  ``MAX_QUEUED_HTTP`` one-shot HTTP renders wait (503 beyond).
+
+Endpoints: ``/`` (the page), ``/static/<asset>``, ``/api/info``, ``/api/render`` (GET query or
+POST JSON: one frame, the WebSocket's binary format), ``/api/pick``, ``/api/export``,
+``/api/command``, ``/api/download/<key>`` (a focal stack the page asked for), ``/ws`` (JSON
+requests in, binary frames and JSON messages out).
+
+Binary frame: uint32 little-endian length N of a UTF-8 JSON header (id, width, height, timings,
+statistics), the header, then width * height * 4 bytes of RGBA.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import concurrent.futures
+import hmac
+import io
+import json
+import math
+import os
+import secrets
+import struct
+import tempfile
+import threading
+import time
+import zipfile
+from importlib import resources
+from typing import Any, Optional
+
+from aiohttp import WSMsgType, web
+
+from .session import BadParameter, Frame, Params, Session, Superseded
+
+MAX_BODY_BYTES = 64 * 1024
+MAX_QUEUED_HTTP = 64
+MAX_DOWNLOADS = 2  # focal stacks kept for download
+TOKEN_HEADER = "X-AOS-Token"
+
+# The whole set of files the server can send: request name -> (package file, content type).
+ASSET_FILES = {
+    "index.html": ("index.html", "text/html; charset=utf-8"),
+    "viewer.js": ("viewer.js", "text/javascript; charset=utf-8"),
+    "viewer.css": ("viewer.css", "text/css; charset=utf-8"),
+}
+
+
+def load_assets() -> dict[str, tuple[bytes, str]]:
+    folder = resources.files("aos.viewer") / "static"
+    return {name: ((folder / file).read_bytes(), kind)
+            for name, (file, kind) in ASSET_FILES.items()}
+
+
+def encode_frame(frame: Frame, header: dict[str, Any]) -> bytes:
+    text = json.dumps({**frame.info, **header}).encode()
+    return struct.pack("<I", len(text)) + text + frame.rgba
+
+
+def _security_headers(response: web.StreamResponse) -> None:
+    response.headers["Cache-Control"] = "no-store"
+    response.headers["X-Content-Type-Options"] = "nosniff"
+    response.headers["Referrer-Policy"] = "no-referrer"
+    response.headers["X-Frame-Options"] = "SAMEORIGIN"
+    response.headers["Content-Security-Policy"] = (
+        "default-src 'self'; img-src 'self' data: blob:; connect-src 'self' ws: ; "
+        "style-src 'self'; script-src 'self'; frame-ancestors 'self'")
+
+
+def _bad(message: str, status: int = 400) -> web.Response:
+    response = web.json_response({"error": message}, status=status)
+    _security_headers(response)
+    return response
+
+
+class Viewer:
+    """The server's state: the session, the token, the render worker."""
+
+    def __init__(self, session: Session, token: str, render_workers: int = 1) -> None:
+        if render_workers < 1:
+            raise ValueError(f"render_workers: must be >= 1, got {render_workers}")
+        self.session = session
+        self.token = token
+        self.assets = load_assets()
+        self.executor = concurrent.futures.ThreadPoolExecutor(
+            max_workers=render_workers, thread_name_prefix="aos-render")
+        self.queued_http = 0
+        self.stats = {"renders": 0, "superseded": 0, "dropped": 0, "errors": 0}
+        self.sockets: set[web.WebSocketResponse] = set()
+        # Focal stacks waiting to be downloaded: random key -> zip bytes (the newest few only).
+        self.downloads: dict[str, bytes] = {}
+
+    def offer_download(self, data: bytes) -> str:
+        key = secrets.token_urlsafe(16)
+        self.downloads[key] = data
+        while len(self.downloads) > MAX_DOWNLOADS:
+            self.downloads.pop(next(iter(self.downloads)))
+        return key
+
+    def authorised(self, request: web.Request) -> bool:
+        given = request.query.get("token") or request.headers.get(TOKEN_HEADER) or ""
+        return hmac.compare_digest(given.encode(), self.token.encode())
+
+    async def run(self, function: Any, *args: Any) -> Any:
+        loop = asyncio.get_running_loop()
+        return await loop.run_in_executor(self.executor, function, *args)
+
+    # ---- the app ----
+
+    def app(self) -> web.Application:
+        @web.middleware
+        async def guard(request: web.Request, handler: Any) -> web.StreamResponse:
+            if not self.authorised(request):
+                return _bad("forbidden: this viewer needs its session token (the URL it "
+                            "printed)", 403)
+            try:
+                response = await handler(request)
+            except web.HTTPException as error:
+                if error.status >= 400:
+                    return _bad(error.reason or "error", error.status)
+                raise
+            _security_headers(response)
+            return response
+
+        app = web.Application(middlewares=[guard], client_max_size=MAX_BODY_BYTES)
+        app.router.add_get("/", self.page)
+        app.router.add_get("/static/{name}", self.asset)
+        app.router.add_get("/api/info", self.info)
+        app.router.add_route("*", "/api/render", self.render_once)
+        app.router.add_get("/api/pick", self.pick)
+        app.router.add_get("/api/export", self.export)
+        app.router.add_get("/api/command", self.command)
+        app.router.add_get("/api/download/{key}", self.download)
+        app.router.add_get("/ws", self.websocket)
+        app.on_shutdown.append(self._close_sockets)
+        return app
+
+    async def _close_sockets(self, _app: web.Application) -> None:
+        for socket in list(self.sockets):
+            await socket.close()
+
+    def close(self) -> None:
+        self.executor.shutdown(wait=True, cancel_futures=True)
+
+    # ---- static ----
+
+    async def page(self, request: web.Request) -> web.Response:
+        body, kind = self.assets["index.html"]
+        # The assets' URLs carry the token too (it is URL-safe base64: no escaping needed).
+        body = body.replace(b"{{TOKEN}}", self.token.encode())
+        return web.Response(body=body, content_type=kind.split(";")[0], charset="utf-8")
+
+    async def asset(self, request: web.Request) -> web.Response:
+        # A name from the whitelist, never a path: anything else (../, %2e%2e, index.html?x)
+        # is simply not a key of the dict.
+        found = self.assets.get(request.match_info["name"])
+        if found is None or request.match_info["name"] == "index.html":
+            return _bad("not found", 404)
+        body, kind = found
+        return web.Response(body=body, content_type=kind.split(";")[0], charset="utf-8")
+
+    # ---- requests ----
+
+    async def _params(self, request: web.Request) -> dict[str, Any]:
+        raw: dict[str, Any] = {}
+        if request.method == "POST":
+            try:
+                body = await request.json()
+            except web.HTTPRequestEntityTooLarge:
+                raise
+            except (ValueError, UnicodeDecodeError):
+                raise BadParameter("body: not JSON") from None
+            if not isinstance(body, dict):
+                raise BadParameter("body: expected a JSON object of parameters")
+            raw.update(body)
+        elif request.method != "GET":
+            raise web.HTTPMethodNotAllowed(request.method, ["GET", "POST"])
+        raw.update({key: value for key, value in request.query.items()
+                    if key not in ("token", "u", "v", "format")})
+        return raw
+
+    async def info(self, request: web.Request) -> web.Response:
+        return web.json_response(self.session.info())
+
+    async def render_once(self, request: web.Request) -> web.Response:
+        try:
+            params = self.session.parse(await self._params(request))
+        except BadParameter as error:
+            return _bad(str(error))
+        if self.queued_http >= MAX_QUEUED_HTTP:
+            return _bad("busy: too many renders waiting; try again", 503)
+        self.queued_http += 1
+        try:
+            frame = await self.run(self.session.render, params)
+        except BadParameter as error:
+            return _bad(str(error))
+        finally:
+            self.queued_http -= 1
+        self.stats["renders"] += 1
+        return web.Response(body=encode_frame(frame, {"id": None}),
+                            content_type="application/octet-stream")
+
+    async def pick(self, request: web.Request) -> web.Response:
+        try:
+            params = self.session.parse(await self._params(request))
+            u = _finite(request.query.get("u"), "u")
+            v = _finite(request.query.get("v"), "v")
+            answer = await self.run(self.session.pick, params, u, v)
+        except BadParameter as error:
+            return _bad(str(error))
+        return web.json_response(answer)
+
+    async def export(self, request: web.Request) -> web.Response:
+        try:
+            params = self.session.parse(await self._params(request))
+            kind = request.query.get("format", "png")
+            body, content_type, name = await self.run(self.session.export, params, kind)
+        except BadParameter as error:
+            return _bad(str(error))
+        response = web.Response(body=body, content_type=content_type)
+        response.headers["Content-Disposition"] = f'attachment; filename="{name}"'
+        return response
+
+    async def download(self, request: web.Request) -> web.Response:
+        # A key the server made (a dict lookup, never a path).
+        data = self.downloads.get(request.match_info["key"])
+        if data is None:
+            return _bad("not found (a focal stack is kept for the newest few requests)", 404)
+        response = web.Response(body=data, content_type="application/zip")
+        response.headers["Content-Disposition"] = 'attachment; filename="aos-focal-stack.zip"'
+        return response
+
+    async def command(self, request: web.Request) -> web.Response:
+        try:
+            params = self.session.parse(await self._params(request))
+            answer = self.session.command(params)
+        except BadParameter as error:
+            return _bad(str(error))
+        return web.json_response(answer)
+
+    # ---- the WebSocket: the image stream ----
+
+    async def websocket(self, request: web.Request) -> web.StreamResponse:
+        origin = request.headers.get("Origin")
+        if origin is not None and origin not in (f"http://{request.host}",
+                                                 f"https://{request.host}"):
+            return _bad("forbidden: cross-origin WebSocket", 403)
+        socket = web.WebSocketResponse(max_msg_size=MAX_BODY_BYTES, heartbeat=30.0)
+        await socket.prepare(request)
+        self.sockets.add(socket)
+        stream = _Stream(self, socket)
+        try:
+            async for message in socket:
+                if message.type != WSMsgType.TEXT:
+                    if message.type == WSMsgType.ERROR:
+                        break
+                    await stream.error(None, "messages must be JSON text")
+                    continue
+                await stream.receive(message.data)
+        finally:
+            stream.close()
+            self.sockets.discard(socket)
+        return socket
+
+
+def _finite(value: Optional[str], name: str) -> float:
+    try:
+        number = float(value) if value is not None else math.nan
+    except ValueError:
+        number = math.nan
+    if not math.isfinite(number):
+        raise BadParameter(f"{name}: expected a finite pixel coordinate, got {value!r}")
+    return number
+
+
+class _Stream:
+    """One page's WebSocket: only its newest render request is kept (latest wins)."""
+
+    def __init__(self, viewer: Viewer, socket: web.WebSocketResponse) -> None:
+        self.viewer = viewer
+        self.socket = socket
+        self.pending: Optional[tuple[Any, Params]] = None
+        self.generation = 0  # bumped by every request; a render checks it to cancel itself
+        self.busy = False
+        self.job_cancel: Optional[threading.Event] = None
+        self.closed = False
+
+    async def send_json(self, message: dict[str, Any]) -> None:
+        if not self.socket.closed:
+            await self.socket.send_str(json.dumps(message))
+
+    async def error(self, request_id: Any, message: str) -> None:
+        self.viewer.stats["errors"] += 1
+        await self.send_json({"type": "error", "id": request_id, "message": message})
+
+    async def receive(self, text: str) -> None:
+        try:
+            message = json.loads(text)
+        except ValueError:
+            await self.error(None, "not JSON")
+            return
+        if not isinstance(message, dict):
+            await self.error(None, "expected a JSON object")
+            return
+        kind = message.get("type", "render")
+        request_id = message.get("id")
+        if not isinstance(request_id, (int, float, str, type(None))):
+            request_id = None
+        if kind == "render":
+            raw = message.get("params", {})
+            try:
+                if not isinstance(raw, dict):
+                    raise BadParameter("params: expected a JSON object")
+                params = self.viewer.session.parse(raw)
+            except BadParameter as error:
+                await self.error(request_id, str(error))
+                return
+            if self.pending is not None:
+                self.viewer.stats["dropped"] += 1
+            self.pending = (request_id, params)
+            self.generation += 1
+            if not self.busy:
+                self.busy = True
+                asyncio.ensure_future(self._drain())
+        elif kind in ("allinfocus", "stack"):
+            # A task: this loop must go on reading (a "cancel" is the next message).
+            if self.job_cancel is not None:
+                await self.error(request_id, "an all-in-focus is already running; cancel it "
+                                 "first")
+                return
+            self.job_cancel = threading.Event()
+            asyncio.ensure_future(self._all_in_focus(request_id, message, self.job_cancel,
+                                                     stack=kind == "stack"))
+        elif kind == "cancel":
+            if self.job_cancel is not None:
+                self.job_cancel.set()
+        else:
+            await self.error(request_id, f"type: unknown message type {str(kind)[:20]!r}")
+
+    async def _drain(self) -> None:
+        try:
+            while self.pending is not None and not self.closed:
+                request_id, params = self.pending
+                self.pending = None
+                generation = self.generation
+
+                # A newer request replaces the pending one; it cancels a running FULL render
+                # (the input moved on), never a running preview: cancelling those on every
+                # input event would starve the page of images while the user drags.
+                cancellable = not params.preview
+
+                def progress(_stage: str, _done: int, _total: int) -> None:
+                    if self.closed or (cancellable and self.generation != generation):
+                        raise Superseded()
+
+                try:
+                    frame = await self.viewer.run(self.viewer.session.render, params, progress)
+                except Superseded:
+                    self.viewer.stats["superseded"] += 1
+                    continue
+                except BadParameter as error:
+                    await self.error(request_id, str(error))
+                    continue
+                except RuntimeError as error:  # the executor shut down
+                    if self.closed:
+                        return
+                    raise error
+                self.viewer.stats["renders"] += 1
+                if self.socket.closed:
+                    return
+                await self.socket.send_bytes(encode_frame(frame, {
+                    "type": "frame", "id": request_id,
+                    "stale": self.generation != generation}))
+        finally:
+            self.busy = False
+
+    async def _all_in_focus(self, request_id: Any, message: dict[str, Any],
+                            cancel: threading.Event, stack: bool = False) -> None:
+        """A focal stack of the current view merged into an all-in-focus image (a frame), or
+        (``stack``) the stack itself as a zip of its folder (write_focal_stack) offered for
+        download, with progress messages; a "cancel" message (or closing the page) stops it.
+        It runs on the render worker: renders wait for it."""
+        try:
+            await self._run_all_in_focus(request_id, message, cancel, stack)
+        finally:
+            self.job_cancel = None
+
+    async def _run_all_in_focus(self, request_id: Any, message: dict[str, Any],
+                                cancel: threading.Event, stack: bool) -> None:
+        import aos
+
+        session = self.viewer.session
+        try:
+            params = session.parse(message.get("params", {}))
+            first = float(message.get("first_height", "nan"))
+            last = float(message.get("last_height", "nan"))
+            slices = int(message.get("slices", 20))
+            if not (math.isfinite(first) and math.isfinite(last) and first != last):
+                raise BadParameter("first_height, last_height: two different finite heights")
+            if not 2 <= slices <= 200:
+                raise BadParameter(f"slices: must be 2..200, got {slices}")
+            if params.mode != "perspective":
+                raise BadParameter("mode: all-in-focus needs the perspective view")
+        except (BadParameter, TypeError, ValueError) as error:
+            await self.error(request_id, str(error))
+            return
+        loop = asyncio.get_running_loop()
+        last_sent = [0.0]
+
+        def progress(stage: str, done: int, total: int) -> None:
+            if cancel.is_set() or self.closed:
+                raise Superseded()
+            now = time.monotonic()
+            if now - last_sent[0] > 0.1 or done == total:
+                last_sent[0] = now
+                asyncio.run_coroutine_threadsafe(self.send_json(
+                    {"type": "progress", "id": request_id, "stage": stage, "done": done,
+                     "total": total}), loop)
+
+        def work_stack() -> bytes:
+            options = session.integral_options(params)
+            focal_stack = aos.render_focal_stack(
+                session.light_field, first_plane=first, last_plane=last, slices=slices,
+                cam_from_world=options.cam_from_world, fov_deg=options.fov_deg,
+                width=options.width, height=options.height,
+                aperture_radius=options.aperture_radius, view_indices=options.view_indices,
+                num_threads=session.num_threads, progress=progress)
+            with tempfile.TemporaryDirectory(prefix="aos-viewer-") as folder:
+                target = os.path.join(folder, "stack")
+                aos.write_focal_stack(target, focal_stack)
+                buffer = io.BytesIO()
+                with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zip:
+                    for name in sorted(os.listdir(target)):
+                        zip.write(os.path.join(target, name), f"stack/{name}")
+                return buffer.getvalue()
+
+        if stack:
+            try:
+                data = await self.viewer.run(work_stack)
+            except Superseded:
+                await self.send_json({"type": "cancelled", "id": request_id})
+                return
+            except (ValueError, BadParameter) as error:
+                await self.error(request_id, str(error))
+                return
+            key = self.viewer.offer_download(data)
+            await self.send_json({"type": "download", "id": request_id,
+                                  "url": f"/api/download/{key}", "bytes": len(data)})
+            return
+
+        def work() -> Frame:
+            options = session.integral_options(params)
+            result = aos.all_in_focus(
+                session.light_field, first_plane=first, last_plane=last, slices=slices,
+                cam_from_world=options.cam_from_world, fov_deg=options.fov_deg,
+                width=options.width, height=options.height,
+                aperture_radius=options.aperture_radius, view_indices=options.view_indices,
+                num_threads=session.num_threads, progress=progress)
+            count = (result.slice >= 0).astype("uint32")
+            rgba = session.display(result.image, count, params)
+            return Frame(rgba.tobytes(), rgba.shape[1], rgba.shape[0],
+                         {"width": rgba.shape[1], "height": rgba.shape[0], "mode": "allinfocus"})
+
+        try:
+            frame = await self.viewer.run(work)
+        except Superseded:
+            await self.send_json({"type": "cancelled", "id": request_id})
+            return
+        except (ValueError, BadParameter) as error:
+            await self.error(request_id, str(error))
+            return
+        if not self.socket.closed:
+            await self.socket.send_bytes(encode_frame(frame, {"type": "frame", "id": request_id,
+                                                              "allinfocus": True}))
+
+    def close(self) -> None:
+        self.closed = True
+        self.generation += 1
+        if self.job_cancel is not None:
+            self.job_cancel.set()

@@ -1,0 +1,688 @@
+"""The viewer's model: one light field loaded once, the parameters a page may send (validated),
+and what a render request turns into (aos.render_integral / aos.render_map, GIL released).
+
+Nothing here knows about HTTP; server.py maps BadParameter to 400 and the results to bytes.
+
+Parameters (all optional; JSON numbers/strings/booleans, or query-string text):
+
+* ``mode``: ``perspective`` (a pinhole virtual camera) or ``map`` (aos.render_map: orthographic,
+  looking straight down, north-up in the frame's own x/y).
+* Focus: ``focal_height`` (the plane z = H, local frame, metres), ``tilt_x_deg`` /
+  ``tilt_y_deg`` (the plane's normal tilted about the y / x axis, degrees, |tilt| <= 80, about
+  the point (pivot x, pivot y, H) under the base camera), or ``surface`` = true to focus on the
+  session's focal surface (a mesh or DEM given at start) moved by ``surface_offset`` metres up.
+* ``aperture_radius`` (metres, >= 0, or "inf"), ``view_first`` / ``view_last`` (the half-open
+  range of view indices to integrate: a time window of the flight).
+* Virtual camera: ``pose_view`` (the base pose: a recorded view), then ``orbit_deg`` (about the
+  vertical axis through the point where the base camera's axis meets the focal plane),
+  ``tilt_deg`` (about the camera's x axis through that point), ``pan_x`` / ``pan_y`` / ``pan_z``
+  (metres, world axes), ``fov_deg`` (zoom; 0 = the pose view's), ``width`` / ``height``.
+* Display (not the render): ``range`` (``views``: the frames' type range, 0..255 for 8-bit;
+  ``auto``: 1st..99th percentile of the covered pixels), ``gain`` (multiplies the normalised
+  value about ``offset``), ``colormap`` (``grey``, ``turbo``, ``iron``; single-channel data).
+* ``preview``: render half the width and height (a quarter of the pixels), or a quarter of each
+  (a sixteenth of the pixels) while previews take longer than ``PREVIEW_BUDGET_MS`` (a slow or
+  busy machine): the preview divisor adapts after every preview (``Session.preview_divisor``),
+  back to 2 once a quarter-size preview takes under an eighth of the budget.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import shlex
+import tempfile
+from dataclasses import dataclass, field
+from typing import Any, Callable, Optional
+
+import numpy as np
+
+import aos
+
+# Limits that keep one request from asking for unbounded work.
+MAX_SIZE = 2048  # pixels on a side of a full render
+MIN_SIZE = 8
+MAX_TILT_DEG = 80.0
+MAX_ABS_COORDINATE = 1.0e7  # metres (UTM northings are < 1e7)
+# A preview should render in this time (about 15 updates per second with the page's overhead);
+# slower previews switch to a quarter of the width and height.
+PREVIEW_BUDGET_MS = 50.0
+
+
+class BadParameter(ValueError):
+    """A request parameter out of range or malformed (the server answers 400 with the text)."""
+
+
+class Superseded(Exception):
+    """Raised from a render's progress callback when a newer request replaced it."""
+
+
+COLORMAPS = ("grey", "turbo", "iron")
+MODES = ("perspective", "map")
+RANGES = ("views", "auto")
+
+
+def _turbo_lut() -> np.ndarray:
+    # Google's polynomial approximation of the Turbo colour map (Mikhailov 2019), 256 entries.
+    t = np.linspace(0.0, 1.0, 256)
+    r = 0.13572138 + t * (4.61539260 + t * (-42.66032258 + t * (132.13108234 + t * (
+        -152.94239396 + t * 59.28637943))))
+    g = 0.09140261 + t * (2.19418839 + t * (4.84296658 + t * (-14.18503333 + t * (
+        4.27729857 + t * 2.82956604))))
+    b = 0.10667330 + t * (12.64194608 + t * (-60.58204836 + t * (110.36276771 + t * (
+        -89.90310912 + t * 27.34824973))))
+    return np.clip(np.stack([r, g, b], axis=1) * 255.0 + 0.5, 0, 255).astype(np.uint8)
+
+
+def _iron_lut() -> np.ndarray:
+    # A thermal "iron" palette: black, blue-violet, red, orange, yellow, white.
+    stops = np.array([0.0, 0.2, 0.45, 0.7, 0.9, 1.0])
+    colours = np.array([[0, 0, 0], [70, 0, 140], [200, 20, 60], [240, 120, 0], [255, 220, 40],
+                        [255, 255, 255]], dtype=float)
+    t = np.linspace(0.0, 1.0, 256)
+    lut = np.stack([np.interp(t, stops, colours[:, c]) for c in range(3)], axis=1)
+    return np.clip(lut + 0.5, 0, 255).astype(np.uint8)
+
+
+_LUTS = {
+    "grey": np.repeat(np.arange(256, dtype=np.uint8)[:, None], 3, axis=1),
+    "turbo": _turbo_lut(),
+    "iron": _iron_lut(),
+}
+
+
+@dataclass
+class Params:
+    """One validated request."""
+
+    mode: str = "perspective"
+    focal_height: float = 0.0
+    tilt_x_deg: float = 0.0
+    tilt_y_deg: float = 0.0
+    surface: bool = False
+    surface_offset: float = 0.0
+    aperture_radius: float = math.inf
+    view_first: int = 0
+    view_last: int = 0  # exclusive; set to the view count by the session
+    pose_view: int = 0
+    orbit_deg: float = 0.0
+    tilt_deg: float = 0.0
+    pan_x: float = 0.0
+    pan_y: float = 0.0
+    pan_z: float = 0.0
+    fov_deg: float = 0.0
+    width: int = 0
+    height: int = 0
+    range: str = "views"
+    gain: float = 1.0
+    offset: float = 0.0
+    colormap: str = "grey"
+    preview: bool = False
+
+    def as_dict(self) -> dict[str, Any]:
+        values = dict(self.__dict__)
+        if math.isinf(values["aperture_radius"]):
+            values["aperture_radius"] = "inf"
+        return values
+
+
+_FLOAT_FIELDS = {
+    # name: (lowest, highest) inclusive
+    "focal_height": (-MAX_ABS_COORDINATE, MAX_ABS_COORDINATE),
+    "tilt_x_deg": (-MAX_TILT_DEG, MAX_TILT_DEG),
+    "tilt_y_deg": (-MAX_TILT_DEG, MAX_TILT_DEG),
+    "surface_offset": (-1.0e4, 1.0e4),
+    "orbit_deg": (-360.0, 360.0),
+    "tilt_deg": (-89.0, 89.0),
+    "pan_x": (-1.0e5, 1.0e5),
+    "pan_y": (-1.0e5, 1.0e5),
+    "pan_z": (-1.0e5, 1.0e5),
+    "fov_deg": (0.0, 179.0),
+    "gain": (0.01, 100.0),
+    "offset": (-10.0, 10.0),
+}
+_INT_FIELDS = ("view_first", "view_last", "pose_view", "width", "height")
+_BOOL_FIELDS = ("surface", "preview")
+_CHOICE_FIELDS = {"mode": MODES, "range": RANGES, "colormap": COLORMAPS}
+
+
+def _as_float(name: str, value: Any) -> float:
+    if isinstance(value, bool):
+        raise BadParameter(f"{name}: expected a number, got {value!r}")
+    try:
+        number = float(value)
+    except (TypeError, ValueError):
+        raise BadParameter(f"{name}: expected a number, got {str(value)[:40]!r}") from None
+    return number
+
+
+def _as_int(name: str, value: Any) -> int:
+    number = _as_float(name, value)
+    if not math.isfinite(number) or number != int(number):
+        raise BadParameter(f"{name}: expected a whole number, got {str(value)[:40]!r}")
+    return int(number)
+
+
+def _as_bool(name: str, value: Any) -> bool:
+    if isinstance(value, bool):
+        return value
+    if value in (0, 1):
+        return bool(value)
+    text = str(value).lower()
+    if text in ("true", "1", "yes", "on"):
+        return True
+    if text in ("false", "0", "no", "off", ""):
+        return False
+    raise BadParameter(f"{name}: expected true or false, got {str(value)[:40]!r}")
+
+
+def parse_view_list(text: str, view_count: int) -> list[int]:
+    """'0:10,15,20:30' (indices and half-open ranges) -> sorted unique indices in [0, count)."""
+    indices: set[int] = set()
+    for part in text.split(","):
+        part = part.strip()
+        try:
+            if ":" in part:
+                first_text, last_text = part.split(":", 1)
+                first, last = int(first_text), int(last_text)
+                if not 0 <= first < last <= view_count:
+                    raise ValueError
+                indices.update(range(first, last))
+            else:
+                index = int(part)
+                if not 0 <= index < view_count:
+                    raise ValueError
+                indices.add(index)
+        except ValueError:
+            raise BadParameter(f"views: {part!r} is not an index or range A:B within "
+                               f"0..{view_count}") from None
+    return sorted(indices)
+
+
+@dataclass
+class Frame:
+    """A rendered, display-mapped image and what the page shows beside it."""
+
+    rgba: bytes
+    width: int
+    height: int
+    info: dict[str, Any] = field(default_factory=dict)
+
+
+def _rotation_z(angle: float) -> np.ndarray:
+    c, s = math.cos(angle), math.sin(angle)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def _rotation_about(axis: np.ndarray, angle: float) -> np.ndarray:
+    axis = axis / np.linalg.norm(axis)
+    k = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + math.sin(angle) * k + (1.0 - math.cos(angle)) * (k @ k)
+
+
+class Session:
+    """A light field loaded once, with an optional focal surface, rendered on request.
+
+    ``render`` and ``pick`` may be called from any thread; the C++ renderer releases the GIL.
+    ``num_threads`` is passed to every render (-1 = all cores).
+    """
+
+    def __init__(self, light_field: aos.LightField, *, source: str = "",
+                 load_options: Optional[dict[str, Any]] = None, surface_path: str = "",
+                 focal_surface: Optional[aos.FocalSurface] = None,
+                 defaults: Optional[dict[str, Any]] = None,
+                 cam_from_world: Optional[aos.Rigid3d] = None,
+                 view_indices: Optional[list[int]] = None,
+                 min_view_angle_deg: float = 1.0, num_threads: int = -1,
+                 adaptive_preview: bool = True) -> None:
+        if len(light_field) == 0:
+            raise ValueError("view(): the light field has no views")
+        self.light_field = light_field
+        self.source = source
+        # Previews divide the width and height by this (2, or 4 while previews are slow).
+        self.preview_divisor = 2
+        self.adaptive_preview = adaptive_preview
+        # How `source` was loaded (load_lightfield's fov_deg, images_dir, grey) and the focal
+        # surface's file, for the equivalent command.
+        self.load_options = {k: v for k, v in (load_options or {}).items() if v}
+        self.surface_path = surface_path
+        self.focal_surface = focal_surface
+        self.num_threads = num_threads
+        self.min_view_angle_deg = min_view_angle_deg
+        self.view_indices = view_indices  # a fixed subset from --views (None = all)
+        # A pose given as such (--look-at, --cam-from-world) replaces the views' as the base.
+        self.fixed_cam_from_world = cam_from_world
+        views = light_field.views
+        self.view_count = len(views)
+        self.view_names = [view.name for view in views]
+        self.cam_from_world = [view.cam_from_world for view in views]
+        self.centres = np.array([pose.center for pose in self.cam_from_world])
+        self.cameras = [view.camera.pinhole() for view in views]
+        first = views[0].image
+        self.channels = 1 if first is None or first.ndim == 2 else int(first.shape[2])
+        self.dtype = "float32" if first is None else str(first.dtype)
+        self.type_range = {"uint8": (0.0, 255.0), "uint16": (0.0, 65535.0)}.get(self.dtype)
+        # Mean view centre and the up axis (+z or -z, towards the cameras from the ground).
+        self.mean_centre = self.centres.mean(axis=0)
+        # Without a pose the viewer starts at the middle view (the CLI's integral needs one).
+        self.defaults = Params(view_last=self.view_count, pose_view=self.view_count // 2)
+        if defaults:
+            self.defaults = self.parse(defaults)
+        # The up axis: the cameras lie above the ground. Where the cameras sit at smaller z than
+        # the default focal plane (JKU frames, z down), up is -z.
+        self.up_z = -1.0 if self.mean_centre[2] < self.defaults.focal_height else 1.0
+
+    # ---- parameters ----
+
+    def parse(self, raw: dict[str, Any], base: Optional[Params] = None) -> Params:
+        """Validated Params from a dict of raw values (unknown keys refused)."""
+        params = Params(**(base or self.defaults).__dict__)
+        known = set(Params().__dict__)
+        for name, value in raw.items():
+            if name not in known:
+                raise BadParameter(f"{str(name)[:40]}: unknown parameter (known: "
+                                   f"{', '.join(sorted(known))})")
+            if name == "aperture_radius":
+                if isinstance(value, str) and value.strip().lower() in ("inf", "infinity"):
+                    number = math.inf
+                else:
+                    number = _as_float(name, value)
+                if not (number >= 0.0):  # also NaN
+                    raise BadParameter(f"aperture_radius: must be >= 0 metres or 'inf', got "
+                                       f"{str(value)[:40]!r}")
+                params.aperture_radius = number
+            elif name in _FLOAT_FIELDS:
+                number = _as_float(name, value)
+                low, high = _FLOAT_FIELDS[name]
+                if not (math.isfinite(number) and low <= number <= high):
+                    raise BadParameter(f"{name}: must be a finite number in [{low:g}, {high:g}], "
+                                       f"got {str(value)[:40]!r}")
+                setattr(params, name, number)
+            elif name in _INT_FIELDS:
+                setattr(params, name, _as_int(name, value))
+            elif name in _BOOL_FIELDS:
+                setattr(params, name, _as_bool(name, value))
+            elif name in _CHOICE_FIELDS:
+                if value not in _CHOICE_FIELDS[name]:
+                    raise BadParameter(f"{name}: must be one of {', '.join(_CHOICE_FIELDS[name])},"
+                                       f" got {str(value)[:40]!r}")
+                setattr(params, name, value)
+        count = self.view_count
+        if not 0 <= params.pose_view < count:
+            raise BadParameter(f"pose_view: no view {params.pose_view} (the light field has "
+                               f"{count} views)")
+        if not 0 <= params.view_first < params.view_last <= count:
+            raise BadParameter(f"view_first, view_last: need 0 <= first < last <= {count}, got "
+                               f"{params.view_first}, {params.view_last}")
+        for name in ("width", "height"):
+            size = getattr(params, name)
+            if size != 0 and not MIN_SIZE <= size <= MAX_SIZE:
+                raise BadParameter(f"{name}: must be 0 (the pose view's) or {MIN_SIZE}.."
+                                   f"{MAX_SIZE} pixels, got {size}")
+        if params.surface and self.focal_surface is None:
+            raise BadParameter("surface: this viewer was started without a focal surface "
+                               "(--focal-surface)")
+        return params
+
+    # ---- the virtual camera ----
+
+    def base_pose(self, params: Params) -> aos.Rigid3d:
+        if self.fixed_cam_from_world is not None:
+            return self.fixed_cam_from_world
+        return self.cam_from_world[params.pose_view]
+
+    def focal_plane(self, params: Params) -> aos.Plane:
+        """The focal plane z = H tilted about the point under the base camera."""
+        centre = self.base_pose(params).center
+        tx, ty = math.radians(params.tilt_x_deg), math.radians(params.tilt_y_deg)
+        normal = np.array([math.tan(tx), math.tan(ty), 1.0])
+        return aos.Plane((float(centre[0]), float(centre[1]), params.focal_height),
+                         tuple(normal / np.linalg.norm(normal)))
+
+    def camera(self, params: Params) -> tuple[aos.PinholeCamera, aos.Rigid3d]:
+        """The virtual camera (intrinsics at full or preview size) and its cam_from_world."""
+        base = self.base_pose(params)
+        rotation = base.rotation  # cam_from_world
+        centre = base.center
+        if params.orbit_deg or params.tilt_deg:
+            # Pivot: where the base camera's axis meets the horizontal plane z = H (or a point
+            # 30 m ahead when it runs parallel to it).
+            axis = rotation.T @ np.array([0.0, 0.0, 1.0])
+            distance = 30.0
+            if abs(axis[2]) > 1e-6:
+                t = (params.focal_height - centre[2]) / axis[2]
+                if t > 0:
+                    distance = t
+            pivot = centre + distance * axis
+            turn = (_rotation_z(math.radians(params.orbit_deg))
+                    @ _rotation_about(rotation.T @ np.array([1.0, 0.0, 0.0]),
+                                      math.radians(params.tilt_deg)))
+            centre = pivot + turn @ (centre - pivot)
+            rotation = rotation @ turn.T
+        centre = centre + np.array([params.pan_x, params.pan_y, params.pan_z])
+        cam_from_world = aos.Rigid3d(rotation, -rotation @ centre)
+        pose_camera = self.cameras[params.pose_view]
+        width = params.width or pose_camera.width
+        height = params.height or pose_camera.height
+        fov = params.fov_deg or pose_camera.fov_x_deg()
+        if params.preview:
+            divisor = self.preview_divisor
+            width, height = max(MIN_SIZE // 2, width // divisor), max(MIN_SIZE // 2,
+                                                                       height // divisor)
+        return aos.PinholeCamera.from_fov(width, height, fov), cam_from_world
+
+    def views_of(self, params: Params) -> list[int]:
+        if params.view_first == 0 and params.view_last == self.view_count:
+            return list(self.view_indices or [])
+        chosen = list(range(params.view_first, params.view_last))
+        if self.view_indices is not None:
+            allowed = set(self.view_indices)
+            chosen = [index for index in chosen if index in allowed]
+            if not chosen:
+                raise BadParameter("view_first, view_last: no view of --views in that range")
+        return list(chosen)
+
+    def integral_options(self, params: Params) -> aos.IntegralOptions:
+        camera, cam_from_world = self.camera(params)
+        options = aos.IntegralOptions(
+            cam_from_world=cam_from_world, fov_deg=camera.fov_x_deg(), width=camera.width,
+            height=camera.height, aperture_radius=params.aperture_radius,
+            view_indices=self.views_of(params), min_view_angle_deg=self.min_view_angle_deg,
+            num_threads=self.num_threads)
+        if params.surface:
+            options.focal_surface = self.focal_surface
+            options.surface_offset = params.surface_offset
+        else:
+            options.focal_plane = self.focal_plane(params)
+        return options
+
+    def map_options(self, params: Params) -> aos.MapOptions:
+        width = params.width or self.cameras[params.pose_view].width
+        if params.preview:
+            width = max(MIN_SIZE // 2, width // self.preview_divisor)
+        options = aos.MapOptions(width=width, aperture_radius=params.aperture_radius,
+                                 view_indices=self.views_of(params),
+                                 min_view_angle_deg=self.min_view_angle_deg,
+                                 num_threads=self.num_threads)
+        if params.surface:
+            options.focal_surface = self.focal_surface
+            options.surface_offset = params.surface_offset
+        else:
+            options.focal_height = params.focal_height
+        return options
+
+    # ---- rendering ----
+
+    def render_raw(self, params: Params,
+                   progress: Optional[Callable[[str, int, int], object]] = None) -> Any:
+        """The float image, count and grid/camera of one request (C++, GIL released)."""
+        try:
+            if params.mode == "map":
+                return aos._core._render_map(self.light_field, self.map_options(params), "",
+                                             False, progress)
+            return aos._core.render_integral(self.light_field, self.integral_options(params),
+                                             progress)
+        except ValueError as error:
+            # An option the C++ Check() refused (e.g. a plane behind the camera): the request's.
+            raise BadParameter(str(error)) from None
+
+    def display(self, image: np.ndarray, count: np.ndarray, params: Params) -> np.ndarray:
+        """The image as RGBA uint8 for the page: range, gain, offset, colour map."""
+        data = image if image.ndim == 3 else image[:, :, None]
+        covered = count > 0
+        if params.range == "views" and self.type_range is not None:
+            low, high = self.type_range
+        else:
+            values = data[covered]
+            if values.size:
+                low, high = (float(v) for v in np.percentile(values, [1.0, 99.0]))
+            else:
+                low, high = 0.0, 1.0
+            if not high > low:
+                high = low + 1.0
+        # level = ((v - low) * gain / (high - low) + offset) * 255 + 0.5, in place, in float32.
+        scale = 255.0 * params.gain / (high - low)
+        bias = 255.0 * params.offset + 0.5 - low * scale
+        used = data[:, :, :3] if data.shape[2] >= 3 else data[:, :, :1]
+        scaled = np.multiply(used, np.float32(scale), dtype=np.float32)
+        scaled += np.float32(bias)
+        np.clip(scaled, 0.0, 255.0, out=scaled)
+        levels = scaled.astype(np.uint8)
+        height, width = count.shape
+        rgba = np.empty((height, width, 4), dtype=np.uint8)
+        if levels.shape[2] >= 3:
+            rgba[:, :, :3] = levels
+        else:
+            rgba[:, :, :3] = _LUTS[params.colormap][levels[:, :, 0]]
+        rgba[:, :, 3] = 255
+        return rgba
+
+    def render(self, params: Params,
+               progress: Optional[Callable[[str, int, int], object]] = None) -> Frame:
+        import time
+
+        start = time.perf_counter()
+        result = self.render_raw(params, progress)
+        rendered = time.perf_counter()
+        if params.preview and self.adaptive_preview:
+            milliseconds = 1000.0 * (rendered - start)
+            if self.preview_divisor == 2 and milliseconds > PREVIEW_BUDGET_MS:
+                self.preview_divisor = 4
+            elif self.preview_divisor == 4 and milliseconds < PREVIEW_BUDGET_MS / 8:
+                self.preview_divisor = 2
+        rgba = self.display(result.image, result.count, params)
+        height, width = rgba.shape[:2]
+        info: dict[str, Any] = {
+            "width": width, "height": height, "mode": params.mode, "preview": params.preview,
+            "render_ms": round(1000.0 * (rendered - start), 2),
+            "display_ms": round(1000.0 * (time.perf_counter() - rendered), 2),
+            "uncovered_pixels": int((result.count == 0).sum()),
+        }
+        if params.mode == "map":
+            info["geotransform"] = list(result.geotransform)
+        else:
+            info["views_used"] = result.views_used
+            info["views_selected"] = result.views_selected
+        return Frame(rgba.tobytes(), width, height, info)
+
+    # ---- picking a pixel ----
+
+    def pick(self, params: Params, u: float, v: float) -> dict[str, Any]:
+        """World coordinate, depth and view count at continuous pixel (u, v) of the full-size
+        render of ``params`` (pixel centres at +0.5)."""
+        params = Params(**{**params.__dict__, "preview": False})
+        result = self.render_raw(params)
+        height, width = result.count.shape
+        if not (0.0 <= u < width and 0.0 <= v < height):
+            raise BadParameter(f"u, v: ({u:g}, {v:g}) lies outside the {width}x{height} image")
+        column, row = int(u), int(v)
+        count = int(result.count[row, column])
+        value = np.atleast_1d(result.image[row, column]).astype(float).tolist()
+        origin = np.asarray(self.light_field.origin, dtype=float)
+        answer: dict[str, Any] = {"u": u, "v": v, "count": count, "value": value}
+        if params.mode == "map":
+            x0, p, _, y0, _, _ = result.geotransform
+            world_xy = np.array([x0 + u * p, y0 - v * p])
+            if params.surface:
+                assert self.focal_surface is not None  # parse() refuses surface without one
+                z = float(self.focal_surface.heights_at(self.light_field, world_xy[None, :],
+                                                        params.surface_offset)[0])
+            else:
+                z = params.focal_height + float(origin[2])
+            if not math.isfinite(z):
+                answer["world"] = None
+                return answer
+            point_world = np.array([world_xy[0], world_xy[1], z])
+            answer["depth"] = None
+        else:
+            camera, cam_from_world = self.camera(params)
+            direction_cam = np.asarray(camera.unproject((u, v)), dtype=float)
+            rotation = cam_from_world.rotation
+            centre = cam_from_world.center
+            if params.surface:
+                assert self.focal_surface is not None  # parse() refuses surface without one
+                depth_map = self.focal_surface.depth_for(
+                    self.light_field, camera, cam_from_world, params.surface_offset,
+                    self.views_of(params))
+                depth = float(np.asarray(depth_map)[row, column])
+                # The depth map holds the pixel centre's depth; the clicked point's ray uses it.
+            else:
+                plane = self.focal_plane(params)
+                normal = np.asarray(plane.normal, dtype=float)
+                along = normal @ (rotation.T @ direction_cam)
+                depth = float(normal @ (np.asarray(plane.point) - centre) / along) if abs(
+                    along) > 1e-12 else 0.0
+            if not depth > 0.0:
+                answer["world"] = None
+                answer["depth"] = None
+                return answer
+            point_local = centre + rotation.T @ (direction_cam * depth)
+            point_world = origin + point_local
+            answer["depth"] = depth
+        answer["world"] = [float(c) for c in point_world]
+        answer["local"] = [float(c) for c in point_world - origin]
+        crs = self.light_field.crs
+        if crs:
+            answer["crs"] = crs
+            answer["lonlat"] = lon_lat(crs, point_world[0], point_world[1])
+        return answer
+
+    # ---- export and the equivalent command ----
+
+    def export(self, params: Params, kind: str) -> tuple[bytes, str, str]:
+        """The full-size render as a file: (bytes, content type, file name)."""
+        params = Params(**{**params.__dict__, "preview": False})
+        with tempfile.TemporaryDirectory(prefix="aos-viewer-") as folder:
+            if kind == "geotiff":
+                if params.mode != "map":
+                    raise BadParameter("format: geotiff needs the map view (mode=map)")
+                path = os.path.join(folder, "map.tif")
+                options = self.map_options(params)
+                try:
+                    aos._core._render_map(self.light_field, options, path, False, None)
+                except ValueError as error:
+                    raise BadParameter(str(error)) from None
+                return open(path, "rb").read(), "image/tiff", "aos-map.tif"
+            result = self.render_raw(params)
+            if kind == "png":
+                path = os.path.join(folder, "render.png")
+                aos.write_image(path, self.display(result.image, result.count, params)[:, :, :3])
+                return open(path, "rb").read(), "image/png", "aos-render.png"
+            if kind in ("tiff", "exr"):
+                path = os.path.join(folder, "render." + ("tif" if kind == "tiff" else "exr"))
+                aos.write_image(path, result.image, sample_type="float32")
+                return (open(path, "rb").read(), "image/tiff" if kind == "tiff" else
+                        "image/x-exr", os.path.basename(path).replace("render", "aos-render"))
+        raise BadParameter(f"format: must be png, tiff, exr or geotiff, got {kind[:20]!r}")
+
+    def command(self, params: Params) -> dict[str, str]:
+        """The equivalent `aos-render` command line and Python snippet (full size)."""
+        params = Params(**{**params.__dict__, "preview": False})
+        source = shlex.quote(self.source) if self.source else "LIGHTFIELD"
+        flags = {"fov_deg": "--frames-fov-deg", "images_dir": "--images-dir", "grey": "--grey"}
+        for name, value in self.load_options.items():
+            source += f" {flags[name]}" + ("" if value is True else
+                                           f" {shlex.quote(str(value))}")
+        surface = shlex.quote(self.surface_path) if self.surface_path else "SURFACE"
+        # The Python snippet loads the light field and the surface the same way.
+        prelude = ""
+        if self.source:
+            arguments = "".join(f", {name}={value!r}" for name, value in self.load_options.items())
+            prelude = f"lf = aos.load_lightfield({self.source!r}{arguments}).light_field\n"
+        if params.surface and self.surface_path:
+            prelude += f"surface = aos.FocalSurface.read({self.surface_path!r})\n"
+        radius = "inf" if math.isinf(params.aperture_radius) else f"{params.aperture_radius:g}"
+        views = self.views_of(params)
+        view_text = _ranges_text(views)
+        py_radius = 'float("inf")' if math.isinf(params.aperture_radius) else radius
+        if params.mode == "map":
+            width = self.map_options(params).width
+            focus = (f"--focal-surface {surface} --surface-offset {params.surface_offset:.9g}"
+                     if params.surface else f"--focal-height {params.focal_height:.9g}")
+            cli = (f"aos-render map {source} {focus} --width {width} --aperture-radius {radius}"
+                   + (f" --views {view_text}" if views else "") + " -o map.tif")
+            py_focus = ("focal_surface=surface, surface_offset="
+                        f"{params.surface_offset!r}" if params.surface
+                        else f"focal_height={params.focal_height!r}")
+            python = prelude + (f"result = aos.render_map(lf, width={width}, {py_focus}, aperture_radius="
+                      f"{py_radius}"
+                      + (f", view_indices={views!r}" if views else "") + ")")
+            return {"cli": cli, "python": python}
+        camera, cam_from_world = self.camera(params)
+        matrix = ",".join(f"{v + 0.0:.9g}" for v in np.asarray(cam_from_world.matrix3x4).ravel())
+        if params.surface:
+            focus = f"--focal-surface {surface} --surface-offset {params.surface_offset:.9g}"
+            py_focus = f"focal_surface=surface, surface_offset={params.surface_offset!r}"
+        elif params.tilt_x_deg or params.tilt_y_deg:
+            plane = self.focal_plane(params)
+            numbers = list(np.asarray(plane.point)) + list(np.asarray(plane.normal))
+            focus = "--focal-plane " + ",".join(f"{v:.9g}" for v in numbers)
+            py_focus = (f"focal_plane=aos.Plane({tuple(float(v) for v in plane.point)}, "
+                        f"{tuple(float(v) for v in plane.normal)})")
+        else:
+            focus = f"--focal-height {params.focal_height:.9g}"
+            py_focus = f"focal_plane={params.focal_height!r}"
+        cli = (f"aos-render integral {source} --cam-from-world {matrix} --fov-deg "
+               f"{camera.fov_x_deg():.9g} --width {camera.width} --height {camera.height} "
+               f"{focus} --aperture-radius {radius}"
+               + (f" --views {view_text}" if views else "") + " -o render.png")
+        python = prelude + (f"result = aos.render_integral(lf, cam_from_world=aos.Rigid3d.from_matrix3x4("
+                  f"[{matrix}]), fov_deg={camera.fov_x_deg():.9g}, width={camera.width}, "
+                  f"height={camera.height}, {py_focus}, aperture_radius="
+                  f"{py_radius}"
+                  + (f", view_indices={views!r}" if views else "") + ")")
+        return {"cli": cli, "python": python}
+
+    # ---- what the page needs to draw itself ----
+
+    def info(self) -> dict[str, Any]:
+        lf = self.light_field
+        return {
+            "source": self.source,
+            "view_count": self.view_count,
+            "view_names": self.view_names,
+            "view_fov_deg": [camera.fov_x_deg() for camera in self.cameras],
+            "centres": [[float(c) for c in centre] for centre in self.centres],
+            "origin": [float(c) for c in np.asarray(lf.origin)],
+            "crs": lf.crs,
+            "channels": self.channels,
+            "dtype": self.dtype,
+            "up_z": self.up_z,
+            "surface": None if self.focal_surface is None else self.focal_surface.kind,
+            "fixed_pose": self.fixed_cam_from_world is not None,
+            "defaults": self.defaults.as_dict(),
+            "colormaps": list(COLORMAPS),
+        }
+
+
+def _ranges_text(indices: list[int]) -> str:
+    """[0, 1, 2, 5] -> '0:3,5' (sorted unique indices)."""
+    runs: list[list[int]] = []
+    for index in indices:
+        if runs and index == runs[-1][1]:
+            runs[-1][1] = index + 1
+        else:
+            runs.append([index, index + 1])
+    return ",".join(f"{a}:{b}" if b - a > 1 else f"{a}" for a, b in runs)
+
+
+def lon_lat(crs: str, x: float, y: float) -> Optional[list[float]]:
+    """Longitude and latitude (WGS 84) of a point in ``crs``, or None when no transformer is
+    installed (rasterio or pyproj)."""
+    try:
+        from pyproj import Transformer  # type: ignore[import-not-found]
+
+        transformer = Transformer.from_crs(crs, "EPSG:4326", always_xy=True)
+        lon, lat = transformer.transform(x, y)
+        return [float(lon), float(lat)]
+    except ImportError:
+        pass
+    try:
+        from rasterio.warp import transform  # type: ignore[import-not-found]
+
+        lons, lats = transform(crs, "EPSG:4326", [x], [y])
+        return [float(lons[0]), float(lats[0])]
+    except ImportError:
+        return None
+    except Exception:  # an unknown CRS: no latitude/longitude rather than a failed pick
+        return None

@@ -1,0 +1,752 @@
+"""The viewer's server (aos.view / aos-render view) over real HTTP and WebSockets on 127.0.0.1:
+the token, the asset whitelist against path traversal, parameter validation (400, and the
+server goes on), body limits, picking against the geometry, latest-request-wins, the CLI hand-over
+and Ctrl-C, and a short load test (20 clients; tools/bench_viewer.py --load runs the 60 s one).
+Every request goes to 127.0.0.1 only; counts and durations are bounded."""
+
+from __future__ import annotations
+
+import asyncio
+import http.client
+import json
+import math
+import shlex
+import os
+import shutil
+import signal
+import struct
+import subprocess
+import sys
+import time
+import urllib.error
+import urllib.request
+from pathlib import Path
+from typing import Any, Iterator, Optional
+
+import numpy as np
+import pytest
+
+import aos
+
+aiohttp = pytest.importorskip("aiohttp", reason="the viewer needs aiohttp (pip install aiohttp)")
+
+from conftest import build_lightfield  # noqa: E402
+
+from aos.viewer import Viewer  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+EXE = shutil.which("aos-render")
+ALTITUDE = 10.0
+
+
+def textured_lightfield() -> aos.LightField:
+    """3 x 3 nadir views at 10 m over a 2 m grid, 32 x 24 pixels, a gradient image each."""
+    light_field = aos.LightField()
+    camera = aos.PinholeCamera.from_fov(32, 24, 60.0)
+    gradient = (np.arange(32 * 24, dtype=np.float64).reshape(24, 32) % 251).astype(np.uint8)
+    for j in range(3):
+        for i in range(3):
+            pose = aos.look_at((2.0 * i - 2.0, 2.0 * j - 2.0, ALTITUDE),
+                               (2.0 * i - 2.0, 2.0 * j - 2.0, 0.0), up=(0.0, 1.0, 0.0))
+            light_field.add_view(gradient, camera, pose, name=f"v{j * 3 + i}")
+    return light_field
+
+
+@pytest.fixture(scope="module")
+def viewer() -> Iterator[Viewer]:
+    handle = aos.view(textured_lightfield(), focal_height=0.0, pose_view=4, open_browser=False,
+                      num_threads=1)
+    yield handle
+    handle.stop()
+
+
+def base(viewer: Viewer) -> str:
+    return f"http://127.0.0.1:{viewer.port}"
+
+
+def get(url: str, headers: Optional[dict[str, str]] = None,
+        data: Optional[bytes] = None) -> tuple[int, bytes]:
+    request = urllib.request.Request(url, headers=headers or {}, data=data)
+    try:
+        with urllib.request.urlopen(request, timeout=30) as response:
+            return response.status, response.read()
+    except urllib.error.HTTPError as error:
+        return error.code, error.read()
+
+
+def raw_get(viewer: Viewer, path: str) -> tuple[int, bytes]:
+    """A GET of exactly `path` (no client-side normalisation of dots or escapes)."""
+    connection = http.client.HTTPConnection("127.0.0.1", viewer.port, timeout=30)
+    try:
+        connection.putrequest("GET", path, skip_accept_encoding=True)
+        connection.endheaders()
+        response = connection.getresponse()
+        return response.status, response.read()
+    finally:
+        connection.close()
+
+
+def decode_frame(body: bytes) -> tuple[dict[str, Any], np.ndarray]:
+    length = struct.unpack("<I", body[:4])[0]
+    header = json.loads(body[4:4 + length])
+    pixels = np.frombuffer(body[4 + length:], dtype=np.uint8)
+    assert pixels.size == header["width"] * header["height"] * 4, "frame size"
+    return header, pixels.reshape(header["height"], header["width"], 4)
+
+
+def test_binds_loopback_with_a_random_token(viewer: Viewer) -> None:
+    assert viewer.bound_address == "127.0.0.1"
+    assert viewer.url.startswith(f"http://127.0.0.1:{viewer.port}/?token=")
+    assert len(viewer.token) >= 32
+    other = aos.view(textured_lightfield(), open_browser=False)
+    try:
+        assert other.token != viewer.token
+    finally:
+        other.stop()
+    assert not other.running
+
+
+def test_another_address_only_explicitly_and_with_a_warning() -> None:
+    with pytest.warns(UserWarning, match="not only on this machine"):
+        handle = aos.view(textured_lightfield(), host="0.0.0.0", open_browser=False)
+    handle.stop()
+
+
+@pytest.mark.parametrize("path", ["/", "/api/info", "/api/render", "/static/viewer.js",
+                                  "/api/pick?u=1&v=1", "/api/export", "/api/command", "/nothing",
+                                  "/ws"])
+def test_every_request_needs_the_token(viewer: Viewer, path: str) -> None:
+    separator = "&" if "?" in path else "?"
+    for url in (base(viewer) + path, base(viewer) + path + separator + "token=wrong",
+                base(viewer) + path + separator + "token=" + viewer.token[:-1]):
+        status, body = get(url)
+        assert status == 403, url
+        assert b"token" in body
+    status, _ = get(base(viewer) + path, headers={"X-AOS-Token": "nope"})
+    assert status == 403
+
+
+def test_the_page_and_its_assets_carry_the_token(viewer: Viewer) -> None:
+    status, page = get(viewer.url)
+    assert status == 200 and b"<canvas" in page
+    assert f"static/viewer.js?token={viewer.token}".encode() in page
+    for name in ("viewer.js", "viewer.css"):
+        status, body = get(f"{base(viewer)}/static/{name}?token={viewer.token}")
+        assert status == 200 and len(body) > 100, name
+    # The header works as well as the query.
+    status, _ = get(base(viewer) + "/api/info", headers={"X-AOS-Token": viewer.token})
+    assert status == 200
+    # Nothing is fetched from elsewhere: no absolute URLs in the page or its assets.
+    for name in ("index.html", "viewer.js", "viewer.css"):
+        text = (Path(aos.viewer.__file__).parent / "static" / name).read_text()
+        assert "http://" not in text and "https://" not in text and "//cdn" not in text, name
+
+
+TRAVERSALS = [
+    "/static/../../etc/passwd",
+    "/static/..%2f..%2f..%2fetc%2fpasswd",
+    "/static/%2e%2e/%2e%2e/%2e%2e/etc/passwd",
+    "/static/%2e%2e%2f%2e%2e%2f%2e%2e%2fetc%2fpasswd",
+    "/static/%252e%252e%252fetc%252fpasswd",
+    "/static/..%5c..%5c..%5cetc%5cpasswd",
+    "/static/....//....//etc/passwd",
+    "/static/viewer.js/../../../../etc/passwd",
+    "/static//etc/passwd",
+    "/static/%2fetc%2fpasswd",
+    "//etc/passwd",
+    "/../../../../etc/passwd",
+    "/static/__init__.py",
+    "/static/session.py",
+    "/static/../session.py",
+    "/static/..%2fsession.py",
+    "/static/index.html%00.js",
+    "/static/.",
+    "/static/..",
+]
+
+
+@pytest.mark.parametrize("path", TRAVERSALS)
+def test_path_traversal_finds_nothing(viewer: Viewer, path: str) -> None:
+    separator = "&" if "?" in path else "?"
+    status, body = raw_get(viewer, path + separator + "token=" + viewer.token)
+    assert status in (400, 403, 404), (path, status)
+    assert b"root:" not in body and b"import" not in body, path
+
+
+BAD = [
+    ({"focal_height": "abc"}, "focal_height: expected a number"),
+    ({"focal_height": "nan"}, "focal_height: must be a finite number"),
+    ({"focal_height": "inf"}, "focal_height: must be a finite number"),
+    ({"aperture_radius": "-1"}, "aperture_radius: must be >= 0"),
+    ({"view_first": "5", "view_last": "2"}, "view_first, view_last"),
+    ({"view_last": "10"}, "view_first, view_last"),
+    ({"pose_view": "9"}, "pose_view: no view 9"),
+    ({"pose_view": "1.5"}, "pose_view: expected a whole number"),
+    ({"width": "99999"}, "width: must be 0"),
+    ({"fov_deg": "180"}, "fov_deg: must be a finite number in"),
+    ({"tilt_x_deg": "89"}, "tilt_x_deg"),
+    ({"mode": "panorama"}, "mode: must be one of"),
+    ({"colormap": "rainbow"}, "colormap: must be one of"),
+    ({"surface": "true"}, "surface: this viewer was started without a focal surface"),
+    ({"preview": "maybe"}, "preview: expected true or false"),
+    ({"zoom": "2"}, "zoom: unknown parameter"),
+    # A valid-looking request the renderer refuses: a focal plane through the camera centre.
+    ({"focal_height": "10"}, "focal"),
+]
+
+
+@pytest.mark.parametrize("params, message", BAD)
+def test_bad_parameters_answer_400_and_the_server_goes_on(viewer: Viewer, params: dict[str, str],
+                                                          message: str) -> None:
+    query = urllib.parse.urlencode({**params, "token": viewer.token})
+    status, body = get(f"{base(viewer)}/api/render?{query}")
+    assert status == 400, body
+    assert message in json.loads(body)["error"]
+    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&focal_height=1")
+    assert status == 200
+    header, image = decode_frame(body)
+    assert (header["width"], header["height"]) == (32, 24) and image[:, :, 3].min() == 255
+
+
+def test_bodies_are_size_limited(viewer: Viewer) -> None:
+    url = f"{base(viewer)}/api/render?token={viewer.token}"
+    status, body = get(url, headers={"Content-Type": "application/json"},
+                       data=json.dumps({"focal_height": 1.0}).encode())
+    assert status == 200 and decode_frame(body)[0]["width"] == 32
+    status, body = get(url, headers={"Content-Type": "application/json"},
+                       data=b"{" + b" " * (1 << 20) + b"}")
+    assert status == 413
+    status, body = get(url, headers={"Content-Type": "application/json"}, data=b"[1, 2]")
+    assert status == 400 and b"JSON object" in body
+    status, _ = get(f"{base(viewer)}/api/info?token={viewer.token}")
+    assert status == 200
+
+
+def test_preview_is_a_quarter_of_the_pixels_or_less_when_slow(
+        viewer: Viewer, monkeypatch: pytest.MonkeyPatch) -> None:
+    divisor = viewer.session.preview_divisor  # 2 unless this machine took 50 ms for 16 x 12
+    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&preview=true")
+    header, _ = decode_frame(body)
+    assert status == 200 and (header["width"], header["height"]) == (32 // divisor,
+                                                                     24 // divisor)
+    assert header["preview"] is True
+    # Previews slower than the budget switch to a sixteenth of the pixels, and back when fast.
+    from aos.viewer import session as session_module
+
+    monkeypatch.setattr(session_module, "PREVIEW_BUDGET_MS", -1.0)
+    viewer.session.render(viewer.session.parse({"preview": True}))
+    assert viewer.session.preview_divisor == 4
+    frame = viewer.session.render(viewer.session.parse({"preview": True}))
+    assert (frame.width, frame.height) == (8, 6)
+    monkeypatch.setattr(session_module, "PREVIEW_BUDGET_MS", 1e9)
+    viewer.session.render(viewer.session.parse({"preview": True}))
+    assert viewer.session.preview_divisor == 2
+    full = viewer.session.render(viewer.session.parse({}))
+    assert (full.width, full.height) == (32, 24)
+
+
+def expected_world(u: float, v: float, height: float) -> tuple[np.ndarray, float]:
+    """The point where the ray through pixel (u, v) of view 4 (at (0, 0, 10), looking down)
+    meets the plane z = height, and its depth."""
+    camera = aos.PinholeCamera.from_fov(32, 24, 60.0)
+    pose = aos.look_at((0.0, 0.0, ALTITUDE), (0.0, 0.0, 0.0), up=(0.0, 1.0, 0.0))
+    direction = pose.rotation.T @ np.asarray(camera.unproject((u, v)))
+    depth = (ALTITUDE - height) / 1.0  # the camera looks straight down: z_cam = altitude - z
+    return np.array([0.0, 0.0, ALTITUDE]) + direction * depth, depth
+
+
+@pytest.mark.parametrize("u, v, height", [(16.0, 12.0, 0.0), (3.25, 20.5, 2.0),
+                                          (30.0, 1.0, -3.0)])
+def test_pick_gives_the_world_point_on_the_focal_plane(viewer: Viewer, u: float, v: float,
+                                                       height: float) -> None:
+    status, body = get(f"{base(viewer)}/api/pick?token={viewer.token}&u={u}&v={v}"
+                       f"&focal_height={height}")
+    assert status == 200, body
+    answer = json.loads(body)
+    world, depth = expected_world(u, v, height)
+    np.testing.assert_allclose(answer["world"], world, atol=1e-9)
+    assert answer["depth"] == pytest.approx(depth, abs=1e-9)
+    assert answer["world"][2] == pytest.approx(height, abs=1e-9)
+    # The count is the render's: every view sees the centre of a low plane.
+    result = aos.render_integral(viewer.session.light_field, pose_view=4, focal_plane=height,
+                                 num_threads=1)
+    assert answer["count"] == int(result.count[int(v), int(u)])
+    status, body = get(f"{base(viewer)}/api/pick?token={viewer.token}&u=40&v=1")
+    assert status == 400 and b"outside" in body
+
+
+def test_a_geo_referenced_light_field_reports_world_and_crs() -> None:
+    light_field = textured_lightfield()
+    light_field.origin = (500000.0, 5400000.0, 300.0)
+    light_field.crs = "EPSG:32633"
+    handle = aos.view(light_field, pose_view=4, open_browser=False, num_threads=1)
+    try:
+        status, body = get(f"{base(handle)}/api/pick?token={handle.token}&u=16&v=12")
+        answer = json.loads(body)
+        assert status == 200 and answer["crs"] == "EPSG:32633"
+        np.testing.assert_allclose(answer["world"], [500000.0, 5400000.0, 300.0], atol=1e-6)
+        if answer.get("lonlat") is not None:  # needs rasterio or pyproj
+            # UTM 33N, easting 500000 is the central meridian, 15 degrees east.
+            assert answer["lonlat"][0] == pytest.approx(15.0, abs=1e-6)
+            assert 48.0 < answer["lonlat"][1] < 49.0
+    finally:
+        handle.stop()
+
+
+def test_map_mode_export_and_command(viewer: Viewer, tmp_path: Path) -> None:
+    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&mode=map&width=40")
+    header, image = decode_frame(body)
+    assert status == 200 and header["width"] == 40 and len(header["geotransform"]) == 6
+    for kind, magic in (("png", b"\x89PNG"), ("tiff", b"II*\x00"), ("exr", b"\x76\x2f\x31\x01"),
+                        ("geotiff", b"II")):
+        query = f"token={viewer.token}&format={kind}" + ("&mode=map" if kind == "geotiff" else "")
+        status, body = get(f"{base(viewer)}/api/export?{query}")
+        assert status == 200 and body.startswith(magic), kind
+    status, body = get(f"{base(viewer)}/api/export?token={viewer.token}&format=geotiff")
+    assert status == 400 and b"map view" in body
+    status, body = get(f"{base(viewer)}/api/command?token={viewer.token}&focal_height=1.5"
+                       "&aperture_radius=3")
+    command = json.loads(body)
+    assert status == 200 and command["cli"].startswith("aos-render integral ")
+    assert "--focal-height 1.5" in command["cli"] and "--aperture-radius 3" in command["cli"]
+    # The command renders what the viewer shows: run the Python snippet.
+    snippet = command["python"]
+    namespace = {"aos": aos, "lf": viewer.session.light_field}
+    exec(snippet, namespace)
+    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&focal_height=1.5"
+                       "&aperture_radius=3")
+    _, shown = decode_frame(body)
+    expected = np.clip(namespace["result"].image + 0.5, 0, 255).astype(np.uint8)
+    np.testing.assert_array_equal(shown[:, :, 0], expected)
+
+
+async def _ws_session(viewer: Viewer, messages: list[dict[str, Any]], expect: int,
+                      timeout: float = 30.0) -> list[Any]:
+    received: list[Any] = []
+    async with aiohttp.ClientSession() as client:
+        async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}") as socket:
+            for message in messages:
+                await socket.send_str(json.dumps(message))
+            deadline = time.monotonic() + timeout
+            while len(received) < expect and time.monotonic() < deadline:
+                message = await socket.receive(timeout=deadline - time.monotonic())
+                if message.type == aiohttp.WSMsgType.BINARY:
+                    received.append(decode_frame(message.data)[0])
+                elif message.type == aiohttp.WSMsgType.TEXT:
+                    received.append(json.loads(message.data))
+                else:
+                    break
+    return received
+
+
+def test_websocket_needs_the_token_and_this_origin(viewer: Viewer) -> None:
+    async def attempt(url: str, headers: dict[str, str]) -> int:
+        async with aiohttp.ClientSession() as client:
+            try:
+                async with client.ws_connect(url, headers=headers):
+                    return 101
+            except aiohttp.WSServerHandshakeError as error:
+                return error.status
+
+    assert asyncio.run(attempt(f"{base(viewer)}/ws", {})) == 403
+    assert asyncio.run(attempt(f"{base(viewer)}/ws?token=x", {})) == 403
+    assert asyncio.run(attempt(f"{base(viewer)}/ws?token={viewer.token}",
+                               {"Origin": "http://evil.example"})) == 403
+    assert asyncio.run(attempt(f"{base(viewer)}/ws?token={viewer.token}",
+                               {"Origin": base(viewer)})) == 101
+
+
+def test_websocket_errors_then_frames_and_the_newest_request_wins(viewer: Viewer) -> None:
+    messages = [{"type": "render", "id": 1, "params": {"focal_height": "x"}},
+                {"type": "what", "id": 2}]
+    messages += [{"type": "render", "id": 10 + k, "params": {"focal_height": 0.1 * k}}
+                 for k in range(12)]
+    received = asyncio.run(_ws_session(viewer, messages, expect=3))
+    errors = [m for m in received if m.get("type") == "error"]
+    assert [e["id"] for e in errors[:2]] == [1, 2]
+    assert "focal_height" in errors[0]["message"]
+    # Let the burst settle, then ask once more: frames come in order, the last one is the newest.
+    received = asyncio.run(_ws_session(viewer, messages[2:], expect=1))
+    frames = [m for m in received if m.get("type") == "frame"]
+    assert frames and frames[0]["id"] >= 10
+    ids = [f["id"] for f in frames]
+    assert ids == sorted(ids)
+
+
+def test_newer_requests_supersede_pending_ones() -> None:
+    """A burst of 30 requests on one socket renders far fewer than 30 frames, ending with the
+    newest (on a 384 x 384 render the single worker is busy while the burst arrives)."""
+    handle = aos.view(textured_lightfield(), pose_view=4, width=384, height=288,
+                      open_browser=False, num_threads=1)
+    try:
+        async def burst() -> list[dict[str, Any]]:
+            frames: list[dict[str, Any]] = []
+            async with aiohttp.ClientSession() as client:
+                async with client.ws_connect(f"{base(handle)}/ws?token={handle.token}") as ws:
+                    for k in range(30):
+                        await ws.send_str(json.dumps({"type": "render", "id": k,
+                                                      "params": {"focal_height": 0.01 * k}}))
+                    while not frames or frames[-1]["id"] != 29:
+                        message = await ws.receive(timeout=60)
+                        assert message.type == aiohttp.WSMsgType.BINARY, message
+                        frames.append(decode_frame(message.data)[0])
+            return frames
+
+        frames = asyncio.run(burst())
+        assert frames[-1]["id"] == 29
+        assert len(frames) < 30
+        stats = handle.server.stats
+        assert stats["dropped"] + stats["superseded"] >= 30 - len(frames)
+    finally:
+        handle.stop()
+
+
+def rss_bytes() -> int:
+    with open("/proc/self/status") as status:
+        for line in status:
+            if line.startswith("VmRSS:"):
+                return int(line.split()[1]) * 1024
+    return 0
+
+
+async def load(viewer: Viewer, clients: int, seconds: float) -> dict[str, Any]:
+    """`clients` pages, each sending a render over its WebSocket and waiting for the frame, plus
+    one-shot HTTP renders, for `seconds`. Returns counts of frames, errors and bad responses."""
+    counts = {"frames": 0, "http": 0, "errors": 0, "malformed": 0}
+    deadline = time.monotonic() + seconds
+
+    async def page(index: int) -> None:
+        async with aiohttp.ClientSession() as client:
+            async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}") as socket:
+                k = 0
+                while time.monotonic() < deadline:
+                    k += 1
+                    params = {"focal_height": (index + k) % 7 * 0.5, "preview": k % 2 == 0,
+                              "aperture_radius": 1 + k % 3}
+                    await socket.send_str(json.dumps({"type": "render", "id": k,
+                                                      "params": params}))
+                    message = await socket.receive(timeout=60)
+                    if message.type != aiohttp.WSMsgType.BINARY:
+                        counts["errors"] += 1
+                        continue
+                    try:
+                        header, image = decode_frame(message.data)
+                        # Previews: a quarter of the pixels, or a sixteenth while slow.
+                        expected = [(16, 12), (8, 6)] if params["preview"] else [(32, 24)]
+                        if header["id"] != k or (header["width"], header["height"]) not in \
+                                expected:
+                            raise ValueError(header)
+                        counts["frames"] += 1
+                    except (ValueError, AssertionError, KeyError):
+                        counts["malformed"] += 1
+                    if k % 5 == 0:
+                        async with client.get(f"{base(viewer)}/api/render",
+                                              params={"token": viewer.token,
+                                                      "focal_height": str(k % 3)}) as response:
+                            body = await response.read()
+                            if response.status != 200:
+                                counts["errors"] += 1
+                            else:
+                                decode_frame(body)
+                                counts["http"] += 1
+
+    await asyncio.gather(*(page(index) for index in range(clients)))
+    return counts
+
+
+def test_load_20_clients_no_errors_memory_flat(viewer: Viewer) -> None:
+    asyncio.run(load(viewer, 20, 1.5))  # warm up: allocator pools, caches
+    before = rss_bytes()
+    counts = asyncio.run(load(viewer, 20, 5.0))
+    after = rss_bytes()
+    assert counts["errors"] == 0 and counts["malformed"] == 0, counts
+    assert counts["frames"] >= 20 and counts["http"] >= 1, counts
+    # Flat: growth well under what leaking the frames would cost (tens of MB for these counts).
+    assert after - before < 40 * 2**20, (before, after, counts)
+
+
+# ---- the CLI ----
+
+def cli_env() -> dict[str, str]:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(aos.__file__).parent.parent),
+                                         env.get("PYTHONPATH", "")])
+    return env
+
+
+@pytest.fixture(scope="module")
+def lightfield_file(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("viewer_lf")
+    aos.write_lightfield(str(folder / "lf.json"), textured_lightfield())
+    return folder / "lf.json"
+
+
+@pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH")
+def test_cli_refuses_bad_command_lines(lightfield_file: Path) -> None:
+    run = lambda *args, **kw: subprocess.run([EXE, "view", *args], capture_output=True,  # noqa
+                                             text=True, timeout=60, env=kw.get("env", cli_env()))
+    result = run("missing.json")
+    assert result.returncode == 1 and "missing.json: no such light-field file" in result.stderr
+    result = run(str(lightfield_file), "--port", "70000")
+    assert result.returncode == 2 and "--port" in result.stderr
+    result = run(str(lightfield_file), "--fov-deg", "200")
+    assert result.returncode == 2 and "--fov-deg" in result.stderr
+    result = run(str(lightfield_file), "--focal-surface", "nothing.obj")
+    assert result.returncode == 2 and "nothing.obj" in result.stderr
+    env = cli_env()
+    env["AOS_PYTHON"] = "/nonexistent/python3"
+    result = run(str(lightfield_file), env=env)
+    assert result.returncode == 1 and "no Python interpreter with the aos package" in result.stderr
+    assert "AOS_PYTHON" in result.stderr
+    # Bad values the Python side finds (after loading): one line, exit 1, no server left.
+    result = run(str(lightfield_file), "--pose-view", "42", "--no-browser")
+    assert result.returncode == 1 and "--pose-view: no view 42" in result.stderr
+    assert "Traceback" not in result.stderr
+
+
+@pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH")
+def test_cli_serves_until_ctrl_c(lightfield_file: Path) -> None:
+    process = subprocess.Popen([EXE, "view", str(lightfield_file), "--no-browser", "--json",
+                                "--pose-view", "4", "--focal-height", "1.5"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env=cli_env())
+    try:
+        line = process.stdout.readline()
+        report = json.loads(line)
+        assert report["url"].startswith("http://127.0.0.1:") and report["views"] == 9
+        status, body = get(report["url"].replace("/?token=", "/api/info?token="))
+        info = json.loads(body)
+        assert status == 200 and info["view_count"] == 9
+        assert info["defaults"]["pose_view"] == 4 and info["defaults"]["focal_height"] == 1.5
+        status, body = get(report["url"].replace("/?token=", "/api/render?token=")
+                           + "&orbit_deg=20&aperture_radius=2.5")
+        assert status == 200 and decode_frame(body)[0]["width"] == 32
+        shown = decode_frame(body)[1]
+        # The copied command renders what the page shows.
+        status, body = get(report["url"].replace("/?token=", "/api/command?token=")
+                           + "&orbit_deg=20&aperture_radius=2.5")
+        command = json.loads(body)["cli"]
+        assert command.startswith(f"aos-render integral {lightfield_file} ")
+        output = lightfield_file.parent / "from_command.png"
+        arguments = shlex.split(command)[1:]
+        arguments[arguments.index("-o") + 1] = str(output)
+        subprocess.run([EXE, *arguments, "-q", "--force"], check=True, timeout=60, env=cli_env())
+        written = aos.read_image(str(output))
+        assert np.abs(written.astype(int) - shown[:, :, 0].astype(int)).max() <= 1
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
+        assert "Traceback" not in process.stderr.read()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def test_missing_aiohttp_says_how_to_install(tmp_path: Path) -> None:
+    code = ("import sys; sys.modules['aiohttp'] = None\n"
+            "import aos\n"
+            "try:\n"
+            "    aos.view(aos.LightField())\n"
+            "except ImportError as error:\n"
+            "    print(error)\n")
+    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                            timeout=60, env=cli_env())
+    assert "pip install 'aiohttp>=3.9'" in result.stdout, result.stderr
+
+
+# ---- the virtual camera, tilted planes, maps and surfaces, against geometry ----
+
+def pick(handle: Viewer, **params: Any) -> dict[str, Any]:
+    query = urllib.parse.urlencode({**params, "token": handle.token})
+    status, body = get(f"{base(handle)}/api/pick?{query}")
+    assert status == 200, body
+    return json.loads(body)
+
+
+@pytest.mark.parametrize("orbit, tilt", [(90.0, 0.0), (0.0, 30.0), (-135.0, 20.0)])
+def test_orbit_and_tilt_turn_about_the_point_under_the_camera(viewer: Viewer, orbit: float,
+                                                              tilt: float) -> None:
+    """The pivot is where the base camera's axis meets z = H: it stays at the image centre, at
+    the same distance, whatever the orbit and tilt."""
+    answer = pick(viewer, u=16.0, v=12.0, focal_height=1.0, orbit_deg=orbit, tilt_deg=tilt)
+    np.testing.assert_allclose(answer["world"], [0.0, 0.0, 1.0], atol=1e-9)
+    camera, cam_from_world = viewer.session.camera(viewer.session.parse(
+        {"focal_height": 1.0, "orbit_deg": orbit, "tilt_deg": tilt}))
+    centre = np.asarray(cam_from_world.center)
+    assert np.linalg.norm(centre - [0.0, 0.0, 1.0]) == pytest.approx(ALTITUDE - 1.0, abs=1e-9)
+    # Tilt leans the camera off the vertical by exactly that angle.
+    axis = np.asarray(cam_from_world.rotation).T @ [0.0, 0.0, 1.0]
+    assert math.degrees(math.acos(-axis[2])) == pytest.approx(abs(tilt), abs=1e-9)
+
+
+def test_pan_moves_the_camera_and_a_tilted_plane_passes_under_it(viewer: Viewer) -> None:
+    answer = pick(viewer, u=16.0, v=12.0, focal_height=0.5, pan_x=1.5, pan_y=-0.5)
+    np.testing.assert_allclose(answer["world"], [1.5, -0.5, 0.5], atol=1e-9)
+    # A plane tilted 30 degrees about y through (0, 0, 0.5): z = 0.5 - tan(30) x.
+    answer = pick(viewer, u=24.5, v=12.0, focal_height=0.5, tilt_x_deg=30.0)
+    x, y, z = answer["world"]
+    assert z == pytest.approx(0.5 - math.tan(math.radians(30.0)) * x, abs=1e-9)
+    assert x > 0.5 and y == pytest.approx(0.0, abs=1e-9)
+
+
+def test_map_mode_picks_through_the_geotransform(viewer: Viewer) -> None:
+    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&mode=map&width=40"
+                       "&focal_height=0.5")
+    header, _ = decode_frame(body)
+    x0, p, _, y0, _, _ = header["geotransform"]
+    answer = pick(viewer, mode="map", width=40, focal_height=0.5, u=10.5, v=3.5)
+    np.testing.assert_allclose(answer["world"], [x0 + 10.5 * p, y0 - 3.5 * p, 0.5], atol=1e-9)
+
+
+def test_focus_on_a_surface_with_an_offset() -> None:
+    """A flat terrain at z = -1 (a plane given as the focal surface): 'surface' with offset 1.5
+    focuses at z = 0.5, and renders the same as the plane z = 0.5."""
+    handle = aos.view(textured_lightfield(), pose_view=4, focal_surface=aos.Plane(-1.0),
+                      surface_offset=1.5, open_browser=False, num_threads=1)
+    try:
+        assert json.loads(get(f"{base(handle)}/api/info?token={handle.token}")[1])[
+            "surface"] == "plane"
+        answer = pick(handle, u=20.5, v=7.5, surface="true", surface_offset=1.5)
+        world, depth = expected_world(20.5, 7.5, 0.5)
+        np.testing.assert_allclose(answer["world"], world, atol=1e-6)
+        assert answer["depth"] == pytest.approx(depth, abs=1e-6)
+        _, on_surface = decode_frame(get(f"{base(handle)}/api/render?token={handle.token}"
+                                         "&surface=true&surface_offset=1.5")[1])
+        _, on_plane = decode_frame(get(f"{base(handle)}/api/render?token={handle.token}"
+                                       "&surface=false&focal_height=0.5")[1])
+        assert np.abs(on_surface.astype(int) - on_plane.astype(int)).max() <= 1
+    finally:
+        handle.stop()
+
+
+def test_display_range_gain_and_colour_maps(viewer: Viewer) -> None:
+    session = viewer.session
+    image = np.array([[0.0, 127.0], [200.0, 255.0]], dtype=np.float32)
+    count = np.ones((2, 2), dtype=np.uint32)
+    grey = session.display(image, count, session.parse({}))
+    np.testing.assert_array_equal(grey[:, :, 0], [[0, 127], [200, 255]])
+    assert (grey[:, :, 0] == grey[:, :, 2]).all() and (grey[:, :, 3] == 255).all()
+    brighter = session.display(image, count, session.parse({"gain": 2.0, "offset": 0.1}))
+    np.testing.assert_array_equal(brighter[:, :, 0], [[26, 255], [255, 255]])
+    auto = session.display(image, count, session.parse({"range": "auto"}))
+    assert auto[0, 0, 0] == 0 and auto[1, 1, 0] == 255  # 1st..99th percentile stretched
+    iron = session.display(image, count, session.parse({"colormap": "iron"}))
+    turbo = session.display(image, count, session.parse({"colormap": "turbo"}))
+    assert not (iron[:, :, 0] == iron[:, :, 2]).all() and not np.array_equal(iron, turbo)
+    assert tuple(iron[0, 0, :3]) == (0, 0, 0) and tuple(iron[1, 1, :3]) == (255, 255, 255)
+
+
+def test_all_in_focus_with_progress_and_cancel() -> None:
+    handle = aos.view(textured_lightfield(), pose_view=4, open_browser=False, num_threads=1)
+    try:
+        message = {"type": "allinfocus", "id": 7, "params": {}, "first_height": -2.0,
+                   "last_height": 2.0, "slices": 4}
+
+        async def run(cancel: bool) -> list[Any]:
+            received: list[Any] = []
+            async with aiohttp.ClientSession() as client:
+                async with client.ws_connect(f"{base(handle)}/ws?token={handle.token}") as ws:
+                    await ws.send_str(json.dumps(message))
+                    if cancel:
+                        await ws.send_str(json.dumps({"type": "cancel"}))
+                    while True:
+                        reply = await ws.receive(timeout=60)
+                        if reply.type == aiohttp.WSMsgType.BINARY:
+                            received.append(decode_frame(reply.data)[0])
+                            return received
+                        received.append(json.loads(reply.data))
+                        if received[-1]["type"] in ("cancelled", "error"):
+                            return received
+
+        done = asyncio.run(run(cancel=False))
+        assert done[-1]["allinfocus"] is True and done[-1]["id"] == 7
+        assert done[-1]["width"] == 32
+        assert any(m.get("type") == "progress" for m in done[:-1])
+        # A long one (200 slices of 384 x 288, seconds) is cancelled at its next progress
+        # check, while the socket goes on reading messages.
+        message = {**message, "slices": 200, "params": {"width": 384, "height": 288}}
+        cancelled = asyncio.run(run(cancel=True))
+        assert cancelled[-1].get("type") == "cancelled", cancelled[-1]
+        bad = {**message, "slices": 1}
+        message = bad
+        refused = asyncio.run(run(cancel=False))
+        assert refused[-1]["type"] == "error" and "slices" in refused[-1]["message"]
+    finally:
+        handle.stop()
+
+
+JKU_FIRST30 = ROOT.parent / "shared" / "data" / "jku-f0" / "poses" / "poses_first30.json"
+
+
+@pytest.mark.skipif(EXE is None or not JKU_FIRST30.exists(),
+                    reason="aos-render or the F0 data (../shared/data/jku-f0) is missing")
+def test_cli_views_jku_poses() -> None:
+    process = subprocess.Popen([EXE, "view", str(JKU_FIRST30), "--frames-fov-deg",
+                                "50.815436217896945", "--no-browser", "--json", "--width", "64",
+                                "--height", "64", "--focal-height", "21"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env=cli_env())
+    try:
+        report = json.loads(process.stdout.readline())
+        assert report["views"] == 30
+        status, body = get(report["url"].replace("/?token=", "/api/render?token="))
+        header, image = decode_frame(body)
+        assert status == 200 and (header["width"], header["height"]) == (64, 64)
+        assert header["views_used"] > 0 and image[:, :, 0].std() > 0
+        process.send_signal(signal.SIGTERM)
+        assert process.wait(timeout=30) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def test_a_port_in_use_is_a_clear_error(viewer: Viewer) -> None:
+    with pytest.raises(OSError, match=f"cannot listen on 127.0.0.1:{viewer.port}"):
+        aos.view(textured_lightfield(), port=viewer.port, open_browser=False)
+    with pytest.raises(ValueError, match="port: must be"):
+        aos.view(textured_lightfield(), port=70000, open_browser=False)
+
+
+def test_a_fixed_view_subset_and_the_time_window_combine() -> None:
+    handle = aos.view(textured_lightfield(), pose_view=4, view_indices=[0, 1, 2, 6],
+                      open_browser=False, num_threads=1)
+    try:
+        for query, selected in (("", 4), ("&view_first=1&view_last=7", 3),
+                                ("&view_first=2&view_last=3", 1)):
+            status, body = get(f"{base(handle)}/api/render?token={handle.token}{query}")
+            assert status == 200 and decode_frame(body)[0]["views_selected"] == selected, query
+        status, body = get(f"{base(handle)}/api/render?token={handle.token}"
+                           "&view_first=3&view_last=6")
+        assert status == 400 and b"no view of --views in that range" in body
+        status, body = get(f"{base(handle)}/api/command?token={handle.token}&view_last=7")
+        assert "--views 0:3,6" in json.loads(body)["cli"]
+    finally:
+        handle.stop()
+
+
+def test_a_focal_stack_is_offered_as_a_zip(viewer: Viewer) -> None:
+    import io
+    import zipfile
+
+    async def run() -> dict[str, Any]:
+        async with aiohttp.ClientSession() as client:
+            async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}") as ws:
+                await ws.send_str(json.dumps({"type": "stack", "id": 3, "params": {},
+                                              "first_height": -1.0, "last_height": 1.0,
+                                              "slices": 3}))
+                while True:
+                    reply = json.loads((await ws.receive(timeout=60)).data)
+                    if reply["type"] != "progress":
+                        return reply
+
+    reply = asyncio.run(run())
+    assert reply["type"] == "download" and reply["url"].startswith("/api/download/"), reply
+    status, _ = get(base(viewer) + reply["url"])
+    assert status == 403  # the token, as everywhere
+    status, body = get(f"{base(viewer)}{reply['url']}?token={viewer.token}")
+    assert status == 200 and len(body) == reply["bytes"]
+    names = zipfile.ZipFile(io.BytesIO(body)).namelist()
+    assert "stack/stack.json" in names and len([n for n in names if "slice_" in n]) == 3
+    status, _ = get(f"{base(viewer)}/api/download/nothing?token={viewer.token}")
+    assert status == 404
