@@ -34,49 +34,80 @@ struct Pending {
   int group;
 };
 
-// Samples the pending groups and adds them to the accumulators.
+// The taps of one pending group as gathered (the long-latency half of a sample).
+struct Taps {
+  __m256i top, bottom;        // 8/16-bit views: both horizontal taps of a row in one 32-bit word
+  __m256 p00, p01, p10, p11;  // float views
+};
+
+template <PixelType kType>
+__attribute__((target("avx2,fma"), always_inline)) inline Taps Gather(const Pending& p,
+                                                                      const unsigned char* origin,
+                                                                      int stride_bytes) {
+  Taps t;
+  if constexpr (kType == PixelType::kF32) {
+    const auto* base = reinterpret_cast<const float*>(origin);
+    const auto* below = reinterpret_cast<const float*>(origin + stride_bytes);
+    t.p00 = _mm256_i32gather_ps(base, p.offset, 1);
+    t.p01 = _mm256_i32gather_ps(base + 1, p.offset, 1);
+    t.p10 = _mm256_i32gather_ps(below, p.offset, 1);
+    t.p11 = _mm256_i32gather_ps(below + 1, p.offset, 1);
+  } else {
+    t.top = _mm256_i32gather_epi32(reinterpret_cast<const int*>(origin), p.offset, 1);
+    t.bottom = _mm256_i32gather_epi32(reinterpret_cast<const int*>(origin + stride_bytes),
+                                      p.offset, 1);
+  }
+  return t;
+}
+
+// Interpolates one group's taps and adds the samples to the accumulators.
+template <PixelType kType>
+__attribute__((target("avx2,fma"), always_inline)) inline void Accumulate(
+    const Pending& p, const Taps& t, bool variance, double* sum, double* sum_squares,
+    uint32_t* count) {
+  __m256 p00, p01, p10, p11;
+  if constexpr (kType == PixelType::kF32) {
+    p00 = t.p00, p01 = t.p01, p10 = t.p10, p11 = t.p11;
+  } else {
+    constexpr int kBits = kType == PixelType::kU8 ? 8 : 16;
+    const __m256i mask = _mm256_set1_epi32((1 << kBits) - 1);
+    p00 = _mm256_cvtepi32_ps(_mm256_and_si256(t.top, mask));
+    p01 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(t.top, kBits), mask));
+    p10 = _mm256_cvtepi32_ps(_mm256_and_si256(t.bottom, mask));
+    p11 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(t.bottom, kBits), mask));
+  }
+  const __m256 upper = _mm256_fmadd_ps(p.ax, _mm256_sub_ps(p01, p00), p00);
+  const __m256 lower = _mm256_fmadd_ps(p.ax, _mm256_sub_ps(p11, p10), p10);
+  const __m256 value = _mm256_and_ps(_mm256_fmadd_ps(p.ay, _mm256_sub_ps(lower, upper), upper),
+                                     _mm256_castsi256_ps(p.keep));
+  const __m256d low = _mm256_cvtps_pd(_mm256_castps256_ps128(value));
+  const __m256d high = _mm256_cvtps_pd(_mm256_extractf128_ps(value, 1));
+  double* out = sum + p.group;
+  _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), low));
+  _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4), high));
+  if (variance) {
+    double* squares = sum_squares + p.group;
+    _mm256_storeu_pd(squares, _mm256_fmadd_pd(low, low, _mm256_loadu_pd(squares)));
+    _mm256_storeu_pd(squares + 4, _mm256_fmadd_pd(high, high, _mm256_loadu_pd(squares + 4)));
+  }
+  auto* counts = reinterpret_cast<__m256i*>(count + p.group);
+  _mm256_storeu_si256(counts, _mm256_sub_epi32(_mm256_loadu_si256(counts), p.keep));
+}
+
+// Samples the pending groups and adds them to the accumulators, software-pipelined: the next
+// group's gathers are issued before the current group is interpolated (as the span kernels).
 template <PixelType kType>
 __attribute__((target("avx2,fma"), always_inline)) inline void Flush(
     const Pending* pending, int size, const unsigned char* origin, int stride_bytes,
     bool variance, double* sum, double* sum_squares, uint32_t* count) {
-  for (int k = 0; k < size; ++k) {
-    const Pending& p = pending[k];
-    __m256 p00, p01, p10, p11;
-    if constexpr (kType == PixelType::kF32) {
-      const auto* base = reinterpret_cast<const float*>(origin);
-      const auto* below = reinterpret_cast<const float*>(origin + stride_bytes);
-      p00 = _mm256_i32gather_ps(base, p.offset, 1);
-      p01 = _mm256_i32gather_ps(base + 1, p.offset, 1);
-      p10 = _mm256_i32gather_ps(below, p.offset, 1);
-      p11 = _mm256_i32gather_ps(below + 1, p.offset, 1);
-    } else {
-      constexpr int kBits = kType == PixelType::kU8 ? 8 : 16;
-      const __m256i top = _mm256_i32gather_epi32(reinterpret_cast<const int*>(origin), p.offset, 1);
-      const __m256i bottom = _mm256_i32gather_epi32(
-          reinterpret_cast<const int*>(origin + stride_bytes), p.offset, 1);
-      const __m256i mask = _mm256_set1_epi32((1 << kBits) - 1);
-      p00 = _mm256_cvtepi32_ps(_mm256_and_si256(top, mask));
-      p01 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(top, kBits), mask));
-      p10 = _mm256_cvtepi32_ps(_mm256_and_si256(bottom, mask));
-      p11 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(bottom, kBits), mask));
-    }
-    const __m256 upper = _mm256_fmadd_ps(p.ax, _mm256_sub_ps(p01, p00), p00);
-    const __m256 lower = _mm256_fmadd_ps(p.ax, _mm256_sub_ps(p11, p10), p10);
-    const __m256 value = _mm256_and_ps(_mm256_fmadd_ps(p.ay, _mm256_sub_ps(lower, upper), upper),
-                                       _mm256_castsi256_ps(p.keep));
-    const __m256d low = _mm256_cvtps_pd(_mm256_castps256_ps128(value));
-    const __m256d high = _mm256_cvtps_pd(_mm256_extractf128_ps(value, 1));
-    double* out = sum + p.group;
-    _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), low));
-    _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4), high));
-    if (variance) {
-      double* squares = sum_squares + p.group;
-      _mm256_storeu_pd(squares, _mm256_fmadd_pd(low, low, _mm256_loadu_pd(squares)));
-      _mm256_storeu_pd(squares + 4, _mm256_fmadd_pd(high, high, _mm256_loadu_pd(squares + 4)));
-    }
-    auto* counts = reinterpret_cast<__m256i*>(count + p.group);
-    _mm256_storeu_si256(counts, _mm256_sub_epi32(_mm256_loadu_si256(counts), p.keep));
+  if (size == 0) return;
+  Taps current = Gather<kType>(pending[0], origin, stride_bytes);
+  for (int k = 0; k + 1 < size; ++k) {
+    const Taps next = Gather<kType>(pending[k + 1], origin, stride_bytes);
+    Accumulate<kType>(pending[k], current, variance, sum, sum_squares, count);
+    current = next;
   }
+  Accumulate<kType>(pending[size - 1], current, variance, sum, sum_squares, count);
 }
 
 template <PixelType kType>
