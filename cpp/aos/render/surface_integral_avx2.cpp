@@ -148,6 +148,7 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
   const __m256 y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
   const __m256i one_i = _mm256_set1_epi32(1);
   const __m256i stride = _mm256_set1_epi32(stride_bytes);
+  const int image_tests = args.image_tests;
   bool any = false;
   constexpr int kPending = 32;
   Pending pending[kPending];
@@ -171,13 +172,13 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
     const __m256 Z = _mm256_fmadd_ps(P[2][0], x, _mm256_fmadd_ps(P[2][1], y, _mm256_fmadd_ps(P[2][2], z, P[2][3])));
     __m256 pass = valid;
     __m256 fail = _mm256_xor_ps(valid, all);
-    if (!args.image_test && _mm256_movemask_ps(valid) == 0) continue;
-    if (args.image_test) {
-      Decide(Z, bound[0], negative[0], pass, fail);
-      Decide(U, bound[1], negative[1], pass, fail);
-      Decide(_mm256_fmsub_ps(width, Z, U), bound[2], negative[2], pass, fail);
-      Decide(V, bound[3], negative[3], pass, fail);
-      Decide(_mm256_fmsub_ps(height, Z, V), bound[4], negative[4], pass, fail);
+    if (image_tests == 0 && _mm256_movemask_ps(valid) == 0) continue;
+    if (image_tests != 0) {
+      if (image_tests & 1) Decide(Z, bound[0], negative[0], pass, fail);
+      if (image_tests & 2) Decide(U, bound[1], negative[1], pass, fail);
+      if (image_tests & 4) Decide(_mm256_fmsub_ps(width, Z, U), bound[2], negative[2], pass, fail);
+      if (image_tests & 8) Decide(V, bound[3], negative[3], pass, fail);
+      if (image_tests & 16) Decide(_mm256_fmsub_ps(height, Z, V), bound[4], negative[4], pass, fail);
       // Skip the rest when no lane is left undecided-or-passing (the common case at the edge
       // of a view's footprint).
       if (_mm256_movemask_ps(_mm256_andnot_ps(fail, all)) == 0) continue;
