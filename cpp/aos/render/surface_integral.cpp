@@ -646,13 +646,14 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
                             (!s.finite_aperture || s.r2 < kFloatRange * kFloatRange);
   const internal::PointTileArrays arrays{b.x.data(), b.y.data(), b.z.data(), b.valid.data(),
                                          padded};
-  // The tile's outline: its valid points on the border, every 8 pixels, and the last ones.
+  // The tile's outline: its valid points on the border, every 16 pixels, and the last ones
+  // (about 16 points; each is projected into every view the culls leave).
   b.outline.clear();
   const int tile_height = y1 - y0;
   for (int j = 0; j < size; ++j) {
     const int tx = j % tile_width, ty = j / tile_width;
     const bool on_border = tx == 0 || ty == 0 || tx == tile_width - 1 || ty == tile_height - 1;
-    const bool sampled = (tx % 8 == 0 && ty % 8 == 0) || tx == tile_width - 1 || ty == tile_height - 1;
+    const bool sampled = (tx % 16 == 0 || tx == tile_width - 1) && (ty % 16 == 0 || ty == tile_height - 1);
     if (on_border && sampled && b.valid[static_cast<size_t>(j)] != 0) {
       b.outline.push_back(b.focal[static_cast<size_t>(j)]);
     }
