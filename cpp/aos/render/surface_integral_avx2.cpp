@@ -3,6 +3,7 @@
 // accumulation). Compiled for the baseline CPU; the function carries target attributes and is
 // only handed out after a runtime check of the CPU (as integral_kernels_avx2.cpp).
 #include <cstdint>
+#include <cstring>
 #include <limits>
 
 #include "aos/render/integral_kernels.h"
@@ -53,9 +54,21 @@ __attribute__((target("avx2,fma"), always_inline)) inline Taps Gather(const Pend
     t.p10 = _mm256_i32gather_ps(below, p.offset, 1);
     t.p11 = _mm256_i32gather_ps(below + 1, p.offset, 1);
   } else {
-    t.top = _mm256_i32gather_epi32(reinterpret_cast<const int*>(origin), p.offset, 1);
-    t.bottom = _mm256_i32gather_epi32(reinterpret_cast<const int*>(origin + stride_bytes),
-                                      p.offset, 1);
+    // Both horizontal taps of a row in one 32-bit word, read with scalar loads: on Zen 3 16
+    // scalar loads cost fewer cycles than two 8-lane vpgatherdd (about 13 cycles each), about
+    // 5 % of the F0 mesh render.
+    alignas(32) int32_t offsets[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(offsets), p.offset);
+    const auto word = [&](int k, int row) {
+      int32_t value;
+      std::memcpy(&value, origin + row + offsets[k], sizeof(int32_t));
+      return value;
+    };
+    t.top = _mm256_setr_epi32(word(0, 0), word(1, 0), word(2, 0), word(3, 0), word(4, 0),
+                              word(5, 0), word(6, 0), word(7, 0));
+    t.bottom = _mm256_setr_epi32(word(0, stride_bytes), word(1, stride_bytes), word(2, stride_bytes),
+                                 word(3, stride_bytes), word(4, stride_bytes), word(5, stride_bytes),
+                                 word(6, stride_bytes), word(7, stride_bytes));
   }
   return t;
 }
