@@ -28,7 +28,8 @@
 // outside one of the view's image bounds (each a linear test in the point), or entirely outside
 // the aperture (the crossing points of a box's corners bound those of the whole box: the
 // crossing is a projective map of the point), skips the view for the tile; on F0 a pixel sees
-// about 140 of the 382 views. Pinhole views of one channel then go through the AVX2 kernel
+// about 140 of the 382 views. The image bounds the box satisfies at all eight corners are not
+// tested in the kernel (most (view, tile) pairs lie across one edge of the view's image). Pinhole views of one channel then go through the AVX2 kernel
 // (surface_integral_avx2.cpp): points relative to C in float (tens of metres on real flights),
 // 8 at a time, each test with a bound on its float error; a lane within the bound is decided by
 // AdmitSample in double, so exactly the reference's samples are admitted, and only the sample

@@ -1,5 +1,5 @@
 // AVX2 + FMA kernel of the per-sample renderer: one pinhole view at a tile of focal points,
-// 8 points per step (projection, admission tests as masks, bilinear gathers, double
+// 8 points per step (projection, admission tests as masks, bilinear taps, double
 // accumulation). Compiled for the baseline CPU; the function carries target attributes and is
 // only handed out after a runtime check of the CPU (as integral_kernels_avx2.cpp).
 #include <cstdint>
@@ -108,7 +108,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Accumulate(
 }
 
 // Samples the pending groups and adds them to the accumulators, software-pipelined: the next
-// group's gathers are issued before the current group is interpolated (as the span kernels).
+// group's taps are fetched before the current group is interpolated (as the span kernels).
 template <PixelType kType>
 __attribute__((target("avx2,fma"), always_inline)) inline void Flush(
     const Pending* pending, int size, const unsigned char* origin, int stride_bytes,
@@ -232,8 +232,8 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
     }
     if (admitted == 0) continue;
     any = true;
-    // Positions and taps' offsets of the admitted lanes; the gathers run in a second pass, so
-    // that their latency overlaps across groups (no gather waits on the tests of its group).
+    // Positions and taps' offsets of the admitted lanes; the taps are read in a second pass, so
+    // that their latency overlaps across groups (no load waits on the tests of its group).
     const __m256i lanes = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
     const __m256i keep_i = _mm256_cmpeq_epi32(
         _mm256_and_si256(_mm256_set1_epi32(admitted), lanes), lanes);
