@@ -28,7 +28,8 @@
 // outside one of the view's image bounds (each a linear test in the point), or entirely outside
 // the aperture (the crossing points of a box's corners bound those of the whole box: the
 // crossing is a projective map of the point), skips the view for the tile; on F0 a pixel sees
-// about 140 of the 382 views. Pinhole views of one channel then go through the AVX2 kernel
+// about 140 of the 382 views. The image bounds the box satisfies at all eight corners are not
+// tested in the kernel (most (view, tile) pairs lie across one edge of the view's image). Pinhole views of one channel then go through the AVX2 kernel
 // (surface_integral_avx2.cpp): points relative to C in float (tens of metres on real flights),
 // 8 at a time, each test with a bound on its float error; a lane within the bound is decided by
 // AdmitSample in double, so exactly the reference's samples are admitted, and only the sample
@@ -392,11 +393,13 @@ struct Box {
 // True if the pinhole view admits no point of the box: one of its image bounds (each a linear
 // test in the point: Z > 0, U >= 0, ..., with (U, V, Z) = K (R X + offset)) fails at all eight
 // corners by more than a rounding margin.
-// Sets *inside when every image bound holds at all eight corners by more than the margin (then
-// at every point of the box).
-bool OutsideImage(const ViewSetup& view, const Box& box, bool* inside) {
+// Sets bit t of *tests (t: 0 Z > 0, 1 U >= 0, 2 width Z - U >= 0, 3 V >= 0, 4 height Z - V >= 0)
+// unless that bound holds at all eight corners by more than the margin (then at every point of
+// the box, so the kernel need not test it): on F0 most (view, tile) pairs lie across one edge
+// of the view's image, and one bound of five is tested.
+bool OutsideImage(const ViewSetup& view, const Box& box, int* tests) {
   bool negative[5] = {true, true, true, true, true};
-  bool positive = true;
+  bool positive[5] = {true, true, true, true, true};
   const double size = std::abs(view.fx) + std::abs(view.fy) + std::abs(view.cx) +
                       std::abs(view.cy) + view.width + view.height + 1.0;
   for (int k = 0; k < 8; ++k) {
@@ -409,10 +412,11 @@ bool OutsideImage(const ViewSetup& view, const Box& box, bool* inside) {
                              view.height * in_cam.z - V};
     for (int t = 0; t < 5; ++t) {
       negative[t] = negative[t] && tests[t] < -margin;
-      positive = positive && tests[t] > margin;
+      positive[t] = positive[t] && tests[t] > margin;
     }
   }
-  *inside = positive;
+  *tests = 0;
+  for (int t = 0; t < 5; ++t) *tests |= positive[t] ? 0 : 1 << t;
   return negative[0] || negative[1] || negative[2] || negative[3] || negative[4];
 }
 
@@ -594,7 +598,7 @@ struct TileBuffers {
   std::vector<int32_t> chosen;
   std::vector<uint8_t> used;
   std::vector<int> views;           // the views the tile's culls leave
-  std::vector<uint8_t> inside;      // whether the tile lies inside the view's image
+  std::vector<uint8_t> image_tests;  // the image bounds the tile's points may fail (OutsideImage)
   std::vector<Footprint> footprints;
   std::vector<const char*> lines;  // the next view's cache lines to prefetch
   std::vector<Vec3d> outline;      // points on the tile's border (footprints)
@@ -643,13 +647,14 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
                             (!s.finite_aperture || s.r2 < kFloatRange * kFloatRange);
   const internal::PointTileArrays arrays{b.x.data(), b.y.data(), b.z.data(), b.valid.data(),
                                          padded};
-  // The tile's outline: its valid points on the border, every 8 pixels, and the last ones.
+  // The tile's outline: its valid points on the border, every 16 pixels, and the last ones
+  // (about 16 points; each is projected into every view the culls leave).
   b.outline.clear();
   const int tile_height = y1 - y0;
   for (int j = 0; j < size; ++j) {
     const int tx = j % tile_width, ty = j / tile_width;
     const bool on_border = tx == 0 || ty == 0 || tx == tile_width - 1 || ty == tile_height - 1;
-    const bool sampled = (tx % 8 == 0 && ty % 8 == 0) || tx == tile_width - 1 || ty == tile_height - 1;
+    const bool sampled = (tx % 16 == 0 || tx == tile_width - 1) && (ty % 16 == 0 || ty == tile_height - 1);
     if (on_border && sampled && b.valid[static_cast<size_t>(j)] != 0) {
       b.outline.push_back(b.focal[static_cast<size_t>(j)]);
     }
@@ -658,15 +663,15 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     for (int k = 0; k < 8; ++k) b.outline.push_back(box.Corner(k));
   }
   b.views.clear();
-  b.inside.clear();
+  b.image_tests.clear();
   b.footprints.clear();
   for (size_t i = 0; i < s.views.size(); ++i) {
     const ViewSetup& view = s.views[i];
-    bool inside = false;
-    if (view.lens == nullptr && OutsideImage(view, box, &inside)) continue;
+    int image_tests = 0x1f;
+    if (view.lens == nullptr && OutsideImage(view, box, &image_tests)) continue;
     if (OutsideAperture(s, view, box)) continue;
     b.views.push_back(static_cast<int>(i));
-    b.inside.push_back(inside);
+    b.image_tests.push_back(static_cast<uint8_t>(image_tests));
     b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline) : Footprint());
   }
   b.lines.resize(kMaxPrefetch);
@@ -688,7 +693,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
         glm::length(view.b) < kFloatRange) {
       internal::PointKernelArgs args = KernelArgs(s, view, extent, !NeverGrazing(s, view, box));
       args.variance = variance;
-      args.image_test = !b.inside[k];
+      args.image_tests = b.image_tests[k];
       args.prefetch = b.lines.data();
       args.prefetch_count = prefetch_count;
       const ExactContext context{&s, &view, b.focal.data()};

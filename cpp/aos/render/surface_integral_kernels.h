@@ -38,8 +38,9 @@ struct PointKernelArgs {
   float width, height;  // the view's image: admitted iff Z > 0, 0 <= U <= width Z, 0 <= V <= height Z
   // Float error bounds of Z, U, width Z - U, V, height Z - V.
   float bound[5];
-  // False when every point of the tile is known to be inside the image (the tests are skipped).
-  bool image_test = true;
+  // The image bounds to test, bit t for bound[t] (Z, U, width Z - U, V, height Z - V); a bound
+  // known to hold at every point of the tile is left out (0: the tile lies inside the image).
+  int image_tests = 0x1f;
   // Grazing: admitted iff (n . t)^2 >= sin2 |t|^2, t = b - p; skipped unless `grazing`.
   bool grazing = false;
   float normal[3], sin2, grazing_bound;
