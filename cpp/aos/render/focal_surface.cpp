@@ -133,20 +133,20 @@ struct FocalSurface::Impl {
     return std::isfinite(t) && t > 0.0 ? t : static_cast<double>(embree_t);
   }
 
-  // Cast(bvh, origin, directions[k]) for k < count <= 8 (one origin, coherent directions: the
-  // rays of neighbouring pixels) as one Embree packet; the same triangles and distances as
-  // casting them one by one (Embree's packet and single-ray traversals run the same robust
-  // ray-triangle test per ray), written to t[k].
-  void CastPacket(RTCScene bvh, const Vec3d& origin, const Vec3d* directions, int count,
+  // Cast(bvh, origins[k], directions[k]) for k < count <= 8 (coherent rays: those of
+  // neighbouring pixels) as one Embree packet; the same triangles and distances as casting them
+  // one by one (Embree's packet and single-ray traversals run the same robust ray-triangle test
+  // per ray), written to t[k].
+  void CastPacket(RTCScene bvh, const Vec3d* origins, const Vec3d* directions, int count,
                   double* t) const {
     RTCIntersectContext context;
     rtcInitIntersectContext(&context);
     context.flags = RTC_INTERSECT_CONTEXT_FLAG_COHERENT;
     RTCRayHit8 rays;
     alignas(32) int valid[8];
-    const Vec3d o = origin - centroid;
     for (int k = 0; k < 8; ++k) {
       const Vec3d& d = directions[k < count ? k : 0];
+      const Vec3d o = origins[k < count ? k : 0] - centroid;
       valid[k] = k < count ? -1 : 0;
       rays.ray.org_x[k] = static_cast<float>(o.x);
       rays.ray.org_y[k] = static_cast<float>(o.y);
@@ -167,8 +167,41 @@ struct FocalSurface::Impl {
     for (int k = 0; k < count; ++k) {
       t[k] = rays.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID
                  ? std::numeric_limits<double>::quiet_NaN()
-                 : HitDistance(rays.hit.primID[k], rays.ray.tfar[k], origin, directions[k]);
+                 : HitDistance(rays.hit.primID[k], rays.ray.tfar[k], origins[k], directions[k]);
     }
+  }
+
+  // The depth map of `camera` at `cam_from_world`: each pixel's ray from `origin` (mesh frame),
+  // moved by -offsets[pixel] * up when `offsets` is given, cast in packets of 8 neighbouring
+  // pixels of a row (coherent rays: Embree traverses them together); 0 where it misses.
+  Image CastDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Vec3d& origin,
+                  const Vec3d& up, const std::vector<double>* offsets) const {
+    RTCScene bvh = Scene();
+    const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+    Image depth(camera.width, camera.height, 1, PixelType::kF32);
+#pragma omp parallel for schedule(dynamic, 8)
+    for (int64_t y = 0; y < camera.height; ++y) {
+      float* row = depth.At<float>(0, static_cast<int>(y));
+      for (int x0 = 0; x0 < camera.width; x0 += 8) {
+        const int count = std::min(8, camera.width - x0);
+        Vec3d origins[8];
+        Vec3d directions[8];
+        double t[8];
+        for (int k = 0; k < count; ++k) {
+          directions[k] = world_from_cam *
+                          camera.Unproject(Vec2d(x0 + k + 0.5, static_cast<double>(y) + 0.5));
+          // Moving the surface by o along up = moving the ray's origin by -o.
+          origins[k] = offsets == nullptr
+                           ? origin
+                           : origin - (*offsets)[static_cast<size_t>(y) * camera.width + x0 + k] * up;
+        }
+        CastPacket(bvh, origins, directions, count, t);
+        for (int k = 0; k < count; ++k) {
+          row[x0 + k] = std::isfinite(t[k]) && t[k] > 0.0 ? static_cast<float>(t[k]) : 0.0f;
+        }
+      }
+    }
+    return depth;
   }
 
   // The mesh frame's origin in the local frame, and the shift of the placement: a point p of the
@@ -424,30 +457,9 @@ Image FocalSurface::DepthFor(const PinholeCamera& camera, const Rigid3d& cam_fro
       cam_from_world.translation == s.depth_cam_from_world.translation) {
     return s.depth.Clone();
   }
-  RTCScene bvh = s.Scene();
   // Ray origin in the mesh frame: the local camera centre minus the mesh frame's local position.
-  const Vec3d origin = cam_from_world.Center() - s.ToLocal(placement);
-  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
-  Image depth(camera.width, camera.height, 1, PixelType::kF32);
-  // Packets of 8 neighbouring pixels of a row (coherent rays: Embree traverses them together).
-#pragma omp parallel for schedule(dynamic, 8)
-  for (int64_t y = 0; y < camera.height; ++y) {
-    float* row = depth.At<float>(0, static_cast<int>(y));
-    for (int x0 = 0; x0 < camera.width; x0 += 8) {
-      const int count = std::min(8, camera.width - x0);
-      Vec3d directions[8];
-      double t[8];
-      for (int k = 0; k < count; ++k) {
-        directions[k] = world_from_cam *
-                        camera.Unproject(Vec2d(x0 + k + 0.5, static_cast<double>(y) + 0.5));
-      }
-      s.CastPacket(bvh, origin, directions, count, t);
-      for (int k = 0; k < count; ++k) {
-        row[x0 + k] = std::isfinite(t[k]) && t[k] > 0.0 ? static_cast<float>(t[k]) : 0.0f;
-      }
-    }
-  }
-  return depth;
+  return s.CastDepth(camera, cam_from_world, cam_from_world.Center() - s.ToLocal(placement),
+                     placement.up, nullptr);
 }
 
 Image FocalSurface::DepthForOffsets(const PinholeCamera& camera, const Rigid3d& cam_from_world,
@@ -466,9 +478,9 @@ Image FocalSurface::DepthForOffsets(const PinholeCamera& camera, const Rigid3d& 
     }
   }
   const Impl& s = *impl_;
-  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
-  Image depth(camera.width, camera.height, 1, PixelType::kF32);
   if (s.kind == FocalSurfaceKind::kPlane) {
+    const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+    Image depth(camera.width, camera.height, 1, PixelType::kF32);
     const Vec3d normal = glm::normalize(s.plane.normal);
     const Vec3d point = s.plane.point + placement.offset * placement.up;
     const double h0 = glm::dot(normal, point - cam_from_world.Center());
@@ -488,21 +500,8 @@ Image FocalSurface::DepthForOffsets(const PinholeCamera& camera, const Rigid3d& 
     }
     return depth;
   }
-  RTCScene bvh = s.Scene();
-  const Vec3d origin = cam_from_world.Center() - s.ToLocal(placement);
-#pragma omp parallel for schedule(dynamic, 8)
-  for (int64_t y = 0; y < camera.height; ++y) {
-    float* row = depth.At<float>(0, static_cast<int>(y));
-    for (int x = 0; x < camera.width; ++x) {
-      const Vec3d direction =
-          world_from_cam * camera.Unproject(Vec2d(x + 0.5, static_cast<double>(y) + 0.5));
-      // Moving the surface by o along up = moving the ray's origin by -o.
-      const double o = offsets[static_cast<size_t>(y) * camera.width + x];
-      const double t = s.Cast(bvh, origin - o * placement.up, direction);
-      row[x] = std::isfinite(t) && t > 0.0 ? static_cast<float>(t) : 0.0f;
-    }
-  }
-  return depth;
+  return s.CastDepth(camera, cam_from_world, cam_from_world.Center() - s.ToLocal(placement),
+                     placement.up, &offsets);
 }
 
 std::vector<double> FocalSurface::HeightsAt(const std::vector<Vec2d>& xy_in_world,
