@@ -126,6 +126,7 @@ from ._core import (
     write_image,
     write_lightfield,
     write_simulation,
+    ground_heightfield,
     interpolate_plane,
     plane_depth,
     read_focal_stack,
@@ -220,6 +221,7 @@ __all__ = [
     "write_image",
     "write_lightfield",
     "write_simulation",
+    "ground_heightfield",
 ]
 
 # Keyword routing: every wrapper below takes its options as an Options object and/or as keywords,

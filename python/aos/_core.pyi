@@ -1092,6 +1092,10 @@ def _simulate(
     scene: Scene, options: SimulateOptions, progress: _Progress = None
 ) -> SimulationResult: ...
 def write_simulation(result: SimulationResult, scene: Scene, output_dir: str) -> None: ...
+def ground_heightfield(
+    scene: Scene, extent: Sequence[float] = (0.0, 0.0, 0.0, 0.0)
+) -> Heightfield:
+    """The scene's ground as a DEM on the simulator's grid (all-zero extent = ground.extent)."""
 
 class DemoOptions:
     """Options of run_demo; fields and defaults of aos::DemoOptions."""
