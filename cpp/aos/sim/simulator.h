@@ -114,7 +114,7 @@ void WriteSimulation(const SimulationResult& result, const Scene& scene,
 
 // The scene's ground as a DEM raster (geometry/heightfield.h), in the simulator's world frame
 // (the light field's local frame: origin 0, no CRS): the vertices of the grid the simulator traces
-// a height-field ground on are the raster's pixel centres, each holding GroundSpec::HeightAt there
+// a height-field ground on are the raster's pixel centres (to double rounding of x, y), each holding GroundSpec::HeightAt there
 // (float32). `extent` [xmin, ymin, xmax, ymax] (metres; all zero = ground.extent) is cut into
 // ceil(extent / ground.cell_size) cells per axis as the simulator cuts ground.extent, so for a
 // height-field ground (steps) with that extent HeightfieldToMesh of the result is the simulated
