@@ -24,7 +24,7 @@ namespace {
 // A forest on terraced, sloping ground: 7 x 7 grey 8-bit views of 192 x 192 pixels (60 degrees)
 // from 30 m over a 16 m aperture, trees at 100 per hectare (28 trees, their crowns 8-14 m up), a noise-textured ground. The ground
 // (z up, metres): a slope of 1/16 along y; a 2 m step up at x = -3, a 2.5 m step up at x = 3 and
-// a 1.5 m step down across the diagonal x + y = 1/16: 6.5 m of relief under the truth camera.
+// a 1.5 m step down across the diagonal x + y = 1/16: heights from -1.3 to 4.3 m.
 // On the 1/8 m grid over [-16, 16]^2 every vertex height is a multiple of 1/128 (exact in
 // float32), and the diagonal step makes two lines of cells non-planar, so the diagonal a cell is
 // split along matters (the DEM's and the simulator's must agree).
@@ -237,8 +237,9 @@ TEST(TerrainOracle, RenderOnTheTrueDemEqualsTheOracleAndBeatsEveryPlane) {
   };
   const double dem_psnr = psnr(dem_render);
   // The best single horizontal plane: every height from the lowest to the highest ground, 0.1 m
-  // apart (the ground under the camera spans 6.5 m; a plane 0.1 m off moves the extreme views'
-  // samples 0.1 m x 11 m / 27 m = 0.04 m, a fifth of a view pixel: finer gives nothing).
+  // apart (71 planes from z = -2 to 5 m; the ground spans -1.3 .. 4.3 m; a plane 0.1 m off
+  // moves the extreme views' samples 0.1 m x 11 m / 27 m = 0.04 m, a fifth of a view pixel:
+  // finer gives nothing).
   double best_plane_psnr = -std::numeric_limits<double>::infinity(), best_height = 0.0;
   for (double z = std::floor(*lowest); z <= std::ceil(*highest) + 1e-9; z += 0.1) {
     IntegralOptions on_plane = options;
