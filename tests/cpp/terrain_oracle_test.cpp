@@ -22,9 +22,10 @@ namespace aos {
 namespace {
 
 // A forest on terraced, sloping ground: 7 x 7 grey 8-bit views of 192 x 192 pixels (60 degrees)
-// from 30 m over a 16 m aperture, trees at 100 per hectare (28 trees, their crowns 8-14 m up), a noise-textured ground. The ground
-// (z up, metres): a slope of 1/16 along y; a 2 m step up at x = -3, a 2.5 m step up at x = 3 and
-// a 1.5 m step down across the diagonal x + y = 1/16: heights from -1.3 to 4.3 m.
+// from 30 m over a 16 m aperture, trees at 100 per hectare (23 trees over 48 x 48 m, 8-14 m
+// tall), a noise-textured ground. The ground (z up, metres): a slope of 1/16 along y; a 2 m step
+// up at x = -3, a 2.5 m step up at x = 3 and a 1.5 m step down across the diagonal
+// x + y = 1/16: heights from -1.3 to 4.3 m.
 // On the 1/8 m grid over [-16, 16]^2 every vertex height is a multiple of 1/128 (exact in
 // float32), and the diagonal step makes two lines of cells non-planar, so the diagonal a cell is
 // split along matters (the DEM's and the simulator's must agree).
