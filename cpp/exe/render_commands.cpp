@@ -711,6 +711,7 @@ int RunMap(MapCommand& c, const Flags& flags) {
   report.Set("geotransform", std::vector<double>(transform.begin(), transform.end()));
   report.Set("crs", light_field.crs);
   report.Set("up", UpText(grid));
+  report.Set("views_used", summary.views_used);
   report.Set("views_selected", summary.views_selected);
   report.Set("samples", static_cast<long long>(summary.samples));
   report.Set("uncovered_pixels", static_cast<long long>(summary.uncovered_pixels));
@@ -722,7 +723,9 @@ int RunMap(MapCommand& c, const Flags& flags) {
               FormatNumber(grid.y_max - grid.height * grid.pixel_size).c_str(),
               FormatNumber(grid.y_max).c_str(), light_field.crs.empty() ? "" : ", ",
               light_field.crs.c_str());
-  report.Line("%lld of %lld pixels seen by no view (nodata, count 0)",
+  report.Line("integrated %d of %d selected views: %lld samples, %lld of %lld pixels seen by no "
+              "view (nodata, count 0)",
+              summary.views_used, summary.views_selected, static_cast<long long>(summary.samples),
               static_cast<long long>(summary.uncovered_pixels), static_cast<long long>(pixels));
   report.Print();
   return 0;

@@ -329,6 +329,16 @@ void BindSurfaceIntegral(py::module_& m) {
       "released. Prefer aos.render_integral_on_depth.");
 }
 
+// A map's image or count, or ValueError when render_map streamed the map to its file only.
+const Image& KeptMapArray(const MapResult& map, const Image& array, const char* name) {
+  if (map.image.empty()) {
+    throw py::value_error(std::string("MapResult.") + name +
+                          ": the map was streamed to its file and not kept in memory; pass "
+                          "arrays=True to render_map to keep it (memory grows with the map)");
+  }
+  return array;
+}
+
 void BindMap(py::module_& m) {
   OptionsClass<MapOptions>(
       m, "MapOptions",
@@ -368,12 +378,16 @@ void BindMap(py::module_& m) {
 
   py::class_<MapResult>(m, "MapResult", "What render_map returns: the map and its grid.")
       .def_property_readonly(
-          "image", [](const MapResult& map) { return ArrayFromImage(map.image); },
+          "image", [](const MapResult& map) { return ArrayFromImage(KeptMapArray(map, map.image, "image")); },
           "float32 (H, W) or (H, W, C): mean of the view samples, 0 where count is 0; row 0 is "
-          "the largest y (north-up); shares memory with the result.")
+          "the largest y (north-up); shares memory with the result. ValueError when the map was "
+          "only streamed to its file (render_map(path=...) without arrays=True).")
       .def_property_readonly(
-          "count", [](const MapResult& map) { return ArrayFromImage(map.count); },
-          "uint32 (H, W): view samples per pixel (0 = no view sees it); shared.")
+          "count", [](const MapResult& map) { return ArrayFromImage(KeptMapArray(map, map.count, "count")); },
+          "uint32 (H, W): view samples per pixel (0 = no view sees it); shared. ValueError when "
+          "the map was only streamed to its file.")
+      .def_property_readonly("has_arrays", [](const MapResult& map) { return !map.image.empty(); },
+                             "Whether image and count are held in memory.")
       .def_property_readonly(
           "geotransform",
           [](const MapResult& map) {
@@ -397,6 +411,8 @@ void BindMap(py::module_& m) {
                              "Pixels with count 0.")
       .def_property_readonly("views_selected",
                              [](const MapResult& map) { return map.summary.views_selected; })
+      .def_property_readonly("views_used", [](const MapResult& map) { return map.summary.views_used; },
+                             "Selected views that contributed to at least one pixel.")
       .def_property_readonly("tiles", [](const MapResult& map) { return map.summary.tiles; })
       .def("__repr__", [](const MapResult& map) {
         const MapGrid& grid = map.summary.grid;
@@ -408,7 +424,7 @@ void BindMap(py::module_& m) {
   m.def(
       "_render_map",
       [](const LightField& light_field, const MapOptions& options, const std::string& path,
-         bool force, const py::object& progress) {
+         bool force, bool arrays, const py::object& progress) {
         const LightField light_field_copy = light_field;
         const MapOptions options_copy = options;
         return RunWithProgress(progress, [&](ProgressSink* sink) {
@@ -424,14 +440,23 @@ void BindMap(py::module_& m) {
             CheckMapOutputPath(path, write);
             CheckMapCrs(light_field_copy.crs, path);
           }
+          if (!path.empty() && !arrays) {
+            // Streamed tile by tile into the file (memory independent of the map's size, as the
+            // CLI); only the summary is kept.
+            MapResult map;
+            map.crs = light_field_copy.crs;
+            map.summary = WriteMapGeoTiff(light_field_copy, options_copy, path, write, sink);
+            return map;
+          }
           MapResult map = RenderMap(light_field_copy, options_copy, sink);
           if (!path.empty()) WriteMapGeoTiff(map, path, write);
           return map;
         });
       },
-      "light_field"_a, "options"_a, "path"_a, "force"_a, "progress"_a = py::none(),
-      "An orthographic map in memory, also written as a Cloud-Optimised GeoTIFF when `path` is "
-      "not empty. GIL released. Prefer aos.render_map.");
+      "light_field"_a, "options"_a, "path"_a, "force"_a, "arrays"_a, "progress"_a = py::none(),
+      "An orthographic map: with `path` written as a Cloud-Optimised GeoTIFF, streamed tile by "
+      "tile unless `arrays` (then also kept in memory); without `path` in memory (`arrays` must "
+      "then be true). GIL released. Prefer aos.render_map.");
 }
 
 void BindFocalStack(py::module_& m) {

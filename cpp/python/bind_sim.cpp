@@ -139,6 +139,16 @@ void BindSim(py::module_& m) {
       },
       "result"_a, "scene"_a, "output_dir"_a,
       "Writes a simulation into a new (or empty) folder, atomically (see simulator.h).");
+  m.def(
+      "ground_heightfield",
+      [](const Scene& scene, const std::array<double, 4>& extent) {
+        return GroundHeightfield(scene, extent);
+      },
+      "scene"_a, "extent"_a = std::array<double, 4>{0.0, 0.0, 0.0, 0.0},
+      "The scene's ground as a DEM (Heightfield; local frame, no CRS) whose pixel centres are "
+      "the vertices of the grid the simulator traces it on: extent [xmin, ymin, xmax, ymax] "
+      "(all zero = ground.extent) cut into ceil(extent / ground.cell_size) cells per axis "
+      "(see simulator.h). Raises ValueError when both extents are zero.");
 }
 
 }  // namespace aos::python

@@ -126,6 +126,7 @@ from ._core import (
     write_image,
     write_lightfield,
     write_simulation,
+    ground_heightfield,
     interpolate_plane,
     plane_depth,
     read_focal_stack,
@@ -221,6 +222,7 @@ __all__ = [
     "write_lightfield",
     "write_simulation",
     "view",
+    "ground_heightfield",
 ]
 
 # Keyword routing: every wrapper below takes its options as an Options object and/or as keywords,
@@ -653,6 +655,7 @@ def render_map(
     *,
     path: "Optional[str | os.PathLike[str]]" = None,
     force: bool = False,
+    arrays: Optional[bool] = None,
     progress: Optional[Callable[[str, int, int], object]] = None,
     **kwargs: Unpack[MapKeywords],
 ) -> MapResult:
@@ -660,24 +663,35 @@ def render_map(
     horizontal focal plane z = ``focal_height`` (local frame), rendered in tiles (docs/terrain-and-maps.md).
 
     ``kwargs`` are fields of :class:`MapOptions` (pixel_size or width, extent, focal_height,
-    aperture_radius, view_indices, min_view_angle_deg, tile_size, num_threads). Returns the map
-    in memory: ``image`` (float32, row 0 = largest y), ``count`` (uint32; 0 = no view sees the
-    pixel), ``geotransform`` (GDAL's, world coordinates = origin + local) and ``crs`` (the light
-    field's). With ``path`` the map is also written as a Cloud-Optimised GeoTIFF (bands: the
-    image with NaN = nodata where count is 0, then the count); an existing file is refused
-    unless ``force``. Raises ValueError naming the field or the file.
+    aperture_radius, view_indices, min_view_angle_deg, tile_size, num_threads, focal_surface,
+    surface_offset). Returns a :class:`MapResult`: ``geotransform`` (GDAL's, world coordinates =
+    origin + local), ``crs`` (the light field's), the summary (``views_used``, ``samples``,
+    ``uncovered_pixels``, ...) and, when held in memory, ``image`` (float32, row 0 = largest y)
+    and ``count`` (uint32; 0 = no view sees the pixel).
+
+    Without ``path`` the map is held in memory (about 4 (C + 1) bytes per pixel). With ``path``
+    it is written as a Cloud-Optimised GeoTIFF (bands: the image with NaN = nodata where count
+    is 0, then the count; an existing file is refused unless ``force``) and, by default, streamed
+    tile by tile as the CLI does, so memory does not grow with the map: the result then has no
+    arrays (``has_arrays`` is False; ``image`` raises). ``arrays=True`` keeps them as well.
+    Raises ValueError naming the field or the file.
 
     Example::
 
-        m = aos.render_map(lf, pixel_size=0.05, focal_height=0.0, path="map.tif")
+        m = aos.render_map(lf, pixel_size=0.05, focal_height=0.0, path="map.tif")   # streamed
         x0, p, _, y0, _, _ = m.geotransform   # pixel (col, row) centre: x0 + (col + 0.5) p
+        m = aos.render_map(lf, pixel_size=0.05)                          # in memory: m.image
     """
     merged = _copy_options("render_map", MapOptions, options)
     _RENDER_MAP.apply([merged], dict(kwargs))
     target = "" if path is None else os.fspath(path)
     if path is not None and not target:
         raise ValueError("render_map(): path: empty; give a file name or None")
-    return _core._render_map(light_field, merged, target, force, progress)
+    if arrays is None:
+        arrays = path is None
+    if not arrays and path is None:
+        raise ValueError("render_map(): arrays=False without a path keeps nothing; give a path")
+    return _core._render_map(light_field, merged, target, force, bool(arrays), progress)
 
 
 def sampling_resolution(

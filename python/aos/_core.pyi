@@ -715,10 +715,15 @@ class MapResult:
 
     @property
     def image(self) -> numpy.typing.NDArray[numpy.float32]:
-        """float32 (H, W) or (H, W, C), 0 where count is 0; row 0 = largest y; shared."""
+        """float32 (H, W) or (H, W, C), 0 where count is 0; row 0 = largest y; shared.
+
+        ValueError when the map was only streamed to its file (see has_arrays)."""
     @property
     def count(self) -> numpy.typing.NDArray[numpy.uint32]:
-        """uint32 (H, W) view samples per pixel; shared."""
+        """uint32 (H, W) view samples per pixel; shared. ValueError when only streamed."""
+    @property
+    def has_arrays(self) -> bool:
+        """Whether image and count are held in memory (render_map without path, or arrays=True)."""
     @property
     def geotransform(self) -> tuple[float, float, float, float, float, float]:
         """GDAL's (x_min, p, 0, y_max, 0, -p) in world coordinates."""
@@ -740,6 +745,9 @@ class MapResult:
     @property
     def views_selected(self) -> int: ...
     @property
+    def views_used(self) -> int:
+        """Selected views that contributed to at least one pixel."""
+    @property
     def tiles(self) -> int: ...
     def __repr__(self) -> str: ...
 
@@ -748,6 +756,7 @@ def _render_map(
     options: MapOptions,
     path: str,
     force: bool,
+    arrays: bool,
     progress: _Progress = None,
 ) -> MapResult: ...
 
@@ -1110,6 +1119,10 @@ def _simulate(
     scene: Scene, options: SimulateOptions, progress: _Progress = None
 ) -> SimulationResult: ...
 def write_simulation(result: SimulationResult, scene: Scene, output_dir: str) -> None: ...
+def ground_heightfield(
+    scene: Scene, extent: Sequence[float] = (0.0, 0.0, 0.0, 0.0)
+) -> Heightfield:
+    """The scene's ground as a DEM on the simulator's grid (all-zero extent = ground.extent)."""
 
 class DemoOptions:
     """Options of run_demo; fields and defaults of aos::DemoOptions."""

@@ -191,6 +191,28 @@ TEST(MapRender, ApertureKeepsOnlyViewsWithinTheHorizontalRadius) {
   }
 }
 
+TEST(MapRender, ViewsUsedAreTheViewsThatContributeAnywhereUnitedOverTiles) {
+  const LightField light_field = GroundLightField();  // centres 2 m apart around (0, 0)
+  MapOptions options;
+  options.pixel_size = 0.05;
+  options.extent = {-2.4, -0.4, 0.4, 0.4};  // 56 x 16 pixels along the row of views y = 0
+  options.aperture_radius = 0.0;  // each pixel takes the view nearest to its vertical line:
+                                  // view 3 at (-2, 0) for x < -1, view 4 at (0, 0) beyond
+  options.tile_size = 16;         // 4 tiles: 1 + 1 + 2 + 1 views, 2 over the map
+  const MapResult map = RenderMap(light_field, options);
+  EXPECT_EQ(map.summary.tiles, 4);
+  EXPECT_EQ(map.summary.views_selected, 9);
+  EXPECT_EQ(map.summary.views_used, 2);
+  EXPECT_EQ(*map.count.At<uint32_t>(0, 0), 1u);
+  options.view_indices = {4, 5, 8};  // of these only view 4 is nearest anywhere
+  const MapResult some = RenderMap(light_field, options);
+  EXPECT_EQ(some.summary.views_selected, 3);
+  EXPECT_EQ(some.summary.views_used, 1);
+  options.view_indices.clear();
+  options.aperture_radius = std::numeric_limits<double>::infinity();
+  EXPECT_EQ(RenderMap(light_field, options).summary.views_used, 9);
+}
+
 TEST(MapRender, TilesChangeNoBit) {
   LightField light_field = GroundLightField();
   light_field.origin = Vec3d(600000.0, 5200000.0, 0.0);  // UTM-sized world coordinates

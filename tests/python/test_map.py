@@ -73,7 +73,7 @@ def test_a_simulated_flight_lands_where_the_geotransform_says(
     path = tmp_path / "map.tif"
     # Wider than the footprints, so that some pixels are seen by no view.
     extent = [ORIGIN[0] - 20.0, ORIGIN[1] - 18.0, ORIGIN[0] + 20.0, ORIGIN[1] + 18.0]
-    result = aos.render_map(flight, pixel_size=0.1, extent=extent, path=path)
+    result = aos.render_map(flight, pixel_size=0.1, extent=extent, path=path, arrays=True)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["map.tif"]  # no temporary files
     assert result.geotransform == (extent[0], 0.1, 0.0, extent[3], 0.0, -0.1)
     assert (result.width, result.height) == (400, 360)
@@ -167,6 +167,8 @@ def test_cli_map_tiles_change_no_bit_and_report(flight_file: Path, tmp_path: Pat
     assert result.returncode == 0, result.stderr
     report = json.loads(result.stdout)
     assert report["tiles"] == 1 and report["crs"] == ""
+    # Every view sees part of the footprints' union.
+    assert report["views_used"] == report["views_selected"] == 9
     # No CRS in the light field: a warning, and a map without one.
     assert "has no CRS" in result.stderr
     result = run("map", str(flight_file), "--pixel-size", "0.09", "--tile-size", "40",
@@ -180,6 +182,38 @@ def test_cli_map_tiles_change_no_bit_and_report(flight_file: Path, tmp_path: Pat
         assert a.bounds.left <= -3.0 - HALF_FOOTPRINT < a.bounds.left + 0.09
         assert a.bounds.top - 0.09 < 3.0 + HALF_FOOTPRINT <= a.bounds.top
         assert np.array_equal(a.read(), b.read(), equal_nan=True)
+
+
+def test_a_map_with_a_path_is_streamed_unless_its_arrays_are_asked_for(
+        flight: aos.LightField, tmp_path: Path) -> None:
+    options = dict(pixel_size=0.1, tile_size=32, extent=[ORIGIN[0] + 1.0, ORIGIN[1] - 4.0,
+                                                       ORIGIN[0] + 6.0, ORIGIN[1] + 0.5])
+    streamed = aos.render_map(flight, path=tmp_path / "streamed.tif", **options)
+    kept = aos.render_map(flight, path=tmp_path / "kept.tif", arrays=True, **options)
+    in_memory = aos.render_map(flight, **options)
+    assert not streamed.has_arrays and kept.has_arrays and in_memory.has_arrays
+    with pytest.raises(ValueError, match="arrays=True"):
+        streamed.image
+    with pytest.raises(ValueError, match="arrays=True"):
+        streamed.count
+    for name in ("geotransform", "width", "height", "crs", "samples", "uncovered_pixels",
+                 "views_selected", "views_used", "tiles"):
+        assert getattr(streamed, name) == getattr(kept, name) == getattr(in_memory, name), name
+    assert streamed.tiles == 4
+    np.testing.assert_array_equal(kept.image, in_memory.image)
+    with rasterio.open(tmp_path / "streamed.tif") as a, rasterio.open(tmp_path / "kept.tif") as b:
+        assert np.array_equal(a.read(), b.read(), equal_nan=True)
+        np.testing.assert_array_equal(a.read(2), in_memory.count.astype(np.float32))
+    # Views used: the views 3 m apart have footprints 23 m wide, so all 9 see the extent; with
+    # aperture 0 each pixel takes the view nearest to its vertical line, here only the one
+    # centred at local (3, -3).
+    assert streamed.views_selected == 9 and streamed.views_used == 9
+    nearest = aos.render_map(flight, pixel_size=0.1, aperture_radius=0.0,
+                             extent=[ORIGIN[0] + 2.0, ORIGIN[1] - 3.5, ORIGIN[0] + 3.5,
+                                     ORIGIN[1] - 2.0])
+    assert nearest.views_used == 1 and nearest.views_selected == 9
+    with pytest.raises(ValueError, match="give a path"):
+        aos.render_map(flight, arrays=False, **options)
 
 
 def test_z_down_frames_map_in_their_own_x_y(flight: aos.LightField) -> None:

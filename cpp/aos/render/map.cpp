@@ -278,6 +278,7 @@ MapSummary RenderMapTiles(const LightField& light_field, const MapOptions& optio
   // A unit per tile row rendered (RenderIntegralAtPoints advances one per row).
   ProgressStart(progress, "render map", static_cast<int64_t>(grid.height) * tiles_x);
   TileProgress tile_progress(progress);
+  std::vector<uint8_t> used(light_field.views.size(), 0);  // by light-field index, over all tiles
   for (int ty = 0; ty < tiles_y; ++ty) {
     for (int tx = 0; tx < tiles_x; ++tx) {
       if (ProgressCancelled(progress)) throw Cancelled();
@@ -287,12 +288,14 @@ MapSummary RenderMapTiles(const LightField& light_field, const MapOptions& optio
       const SurfaceIntegralResult rendered =
           RenderIntegralAtPoints(light_field, points, point, {}, &tile_progress);
       summary.views_selected = rendered.integral.views_selected;
+      for (int index : rendered.used_view_indices) used[static_cast<size_t>(index)] = 1;
       summary.samples += rendered.integral.samples;
       summary.uncovered_pixels += rendered.integral.uncovered_pixels;
       ++summary.tiles;
       consume(MapTile{x0, y0, &rendered.integral});
     }
   }
+  for (uint8_t u : used) summary.views_used += u;
   return summary;
 }
 

@@ -129,6 +129,7 @@ PointIntegralOptions MapPointOptions(const MapGrid& grid, const MapOptions& opti
 struct MapSummary {
   MapGrid grid;
   int views_selected = 0;
+  int views_used = 0;            // selected views that contributed to at least one pixel
   int64_t samples = 0;           // sum of count
   int64_t uncovered_pixels = 0;  // pixels with count 0
   int tiles = 0;

@@ -103,6 +103,7 @@ struct Setup {
   int channels = 1;
   double range = 255.0;
   std::vector<ViewSetup> views;
+  std::vector<int> view_indices;  // views[i] is light-field view view_indices[i] (ascending)
 };
 
 Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
@@ -140,6 +141,7 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
     for (size_t i = 0; i < selection.size(); ++i) selection[i] = static_cast<int>(i);
   }
   std::sort(selection.begin(), selection.end());
+  s.view_indices = selection;
   s.channels = light_field.views[static_cast<size_t>(selection.front())].image.channels();
   s.range =
       PixelTypeFullRange(light_field.views[static_cast<size_t>(selection.front())].image.type());
@@ -360,7 +362,10 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
   if (error) std::rethrow_exception(error);
   if (cancelled) throw Cancelled();
   result.fallback_pixels = fallback;
-  for (uint8_t u : view_used) out.views_used += u;
+  for (size_t i = 0; i < view_used.size(); ++i) {
+    if (view_used[i]) result.used_view_indices.push_back(s.view_indices[i]);
+  }
+  out.views_used = static_cast<int>(result.used_view_indices.size());
   for (int y = 0; y < camera.height; ++y) {
     const uint32_t* count = out.count.At<uint32_t>(0, y);
     for (int x = 0; x < camera.width; ++x) {
@@ -810,7 +815,10 @@ SurfaceIntegralResult RenderTiled(const Setup& s, const FocalPoints& points,
   }
   if (error) std::rethrow_exception(error);
   if (cancelled) throw Cancelled();
-  for (uint8_t u : view_used) out.views_used += u;
+  for (size_t i = 0; i < view_used.size(); ++i) {
+    if (view_used[i]) result.used_view_indices.push_back(s.view_indices[i]);
+  }
+  out.views_used = static_cast<int>(result.used_view_indices.size());
   for (int y = 0; y < s.height; ++y) {
     const uint32_t* count = out.count.At<uint32_t>(0, y);
     for (int x = 0; x < s.width; ++x) {

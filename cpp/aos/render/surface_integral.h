@@ -92,6 +92,9 @@ struct SurfaceIntegralResult {
   IntegralResult integral;     // image, count (samples), statistics as RenderIntegral's
   Image inliers;               // uint32: samples averaged per pixel (robust), else empty
   int64_t fallback_pixels = 0; // robust: pixels that kept the plain mean
+  // Light-field indices of the views that contributed to at least one pixel, ascending
+  // (integral.views_used of them); what a tiled render (map.h) unites over its tiles.
+  std::vector<int> used_view_indices;
 };
 
 // Averages the views at every focal point (plain or robust mean as above). The result's

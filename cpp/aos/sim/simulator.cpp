@@ -137,6 +137,23 @@ struct SceneDeleter {
 using DevicePtr = std::unique_ptr<RTCDeviceTy, DeviceDeleter>;
 using ScenePtr = std::unique_ptr<RTCSceneTy, SceneDeleter>;
 
+// Cells per axis of the grid a height-field ground is traced on over `extent`: ceil(extent /
+// cell_size), at least 1. GroundHeightfield uses the same grid. Throws beyond 4096 per axis.
+std::pair<int, int> GroundGridCells(const GroundSpec& g, const std::array<double, 4>& extent,
+                                    const std::string& source) {
+  const double nx_real = std::ceil((extent[2] - extent[0]) / g.cell_size);
+  const double ny_real = std::ceil((extent[3] - extent[1]) / g.cell_size);
+  constexpr double kMaxCells = 4096;
+  if (nx_real > kMaxCells || ny_real > kMaxCells) {
+    ThrowInvalid(Where(source, "ground.cell_size: " + FormatNumber(g.cell_size) + " m over a " +
+                                   FormatNumber(extent[2] - extent[0]) + " x " +
+                                   FormatNumber(extent[3] - extent[1]) +
+                                   " m extent needs more than 4096 x 4096 cells; use a larger "
+                                   "cell_size or a smaller ground.extent"));
+  }
+  return {std::max(1, static_cast<int>(nx_real)), std::max(1, static_cast<int>(ny_real))};
+}
+
 void CheckEmbree(RTCDevice device, const char* what) {
   const RTCError error = rtcGetDeviceError(device);
   if (error == RTC_ERROR_NONE) return;
@@ -579,18 +596,7 @@ class World {
     const GroundSpec& g = scene_.ground;
     std::array<double, 4> extent = g.extent;
     if (extent == std::array<double, 4>{0, 0, 0, 0}) extent = footprint;
-    const double nx_real = std::ceil((extent[2] - extent[0]) / g.cell_size);
-    const double ny_real = std::ceil((extent[3] - extent[1]) / g.cell_size);
-    constexpr double kMaxCells = 4096;
-    if (nx_real > kMaxCells || ny_real > kMaxCells) {
-      ThrowInvalid(Where(scene_.source,
-                         "ground.cell_size: " + FormatNumber(g.cell_size) + " m over a " +
-                             FormatNumber(extent[2] - extent[0]) + " x " +
-                             FormatNumber(extent[3] - extent[1]) +
-                             " m extent needs more than 4096 x 4096 cells; use a larger "
-                             "cell_size or a smaller ground.extent"));
-    }
-    const int nx = std::max(1, static_cast<int>(nx_real)), ny = std::max(1, static_cast<int>(ny_real));
+    const auto [nx, ny] = GroundGridCells(g, extent, scene_.source);
     RTCDevice device = device_.get();
     ground_.reset(rtcNewScene(device));
     rtcSetSceneFlags(ground_.get(), RTC_SCENE_FLAG_ROBUST);
@@ -1102,6 +1108,45 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options,
   // 5. Ground truth.
   RenderTruth(scene, world, cameras, threads, progress, result);
   return result;
+}
+
+Heightfield GroundHeightfield(const Scene& scene, const std::array<double, 4>& extent_in) {
+  const GroundSpec& g = scene.ground;
+  std::array<double, 4> extent = extent_in;
+  if (extent == std::array<double, 4>{0, 0, 0, 0}) extent = g.extent;
+  if (extent == std::array<double, 4>{0, 0, 0, 0}) {
+    ThrowInvalid(Where(scene.source,
+                       "ground.extent: all zero (the simulator then takes the views' footprint, "
+                       "which GroundHeightfield does not know); give an extent"));
+  }
+  for (double v : extent) {
+    if (!std::isfinite(v)) ThrowInvalid(Where(scene.source, "extent: not finite"));
+  }
+  if (!(extent[2] > extent[0]) || !(extent[3] > extent[1])) {
+    ThrowInvalid(Where(scene.source, "extent: [" + FormatNumber(extent[0]) + ", " +
+                                         FormatNumber(extent[1]) + ", " + FormatNumber(extent[2]) +
+                                         ", " + FormatNumber(extent[3]) +
+                                         "] is empty (want xmin < xmax, ymin < ymax)"));
+  }
+  const auto [nx, ny] = GroundGridCells(g, extent, scene.source);
+  // The grid's vertices (BuildGround's x, y) are the raster's pixel centres: column i at
+  // x_i = xmin + i dx, row r at y_(ny - r) (row 0 = the largest y, north-up).
+  const double dx = (extent[2] - extent[0]) / nx, dy = (extent[3] - extent[1]) / ny;
+  Heightfield dem;
+  dem.width = nx + 1;
+  dem.height = ny + 1;
+  dem.geotransform = {extent[0] - 0.5 * dx, dx, 0.0, extent[3] + 0.5 * dy, 0.0, -dy};
+  dem.heights.resize(static_cast<size_t>(dem.width) * dem.height);
+  for (int row = 0; row < dem.height; ++row) {
+    const int j = ny - row;
+    const double y = extent[1] + j * dy;
+    for (int i = 0; i < dem.width; ++i) {
+      const double x = extent[0] + i * dx;
+      dem.heights[static_cast<size_t>(row) * dem.width + i] = static_cast<float>(g.HeightAt(x, y));
+    }
+  }
+  dem.Check(scene.source + ": ground");
+  return dem;
 }
 
 }  // namespace aos

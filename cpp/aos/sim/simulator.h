@@ -36,10 +36,12 @@
 // Throws std::invalid_argument for a scene that fails Scene::Check() or needs more memory than
 // stated limits (height fields up to 4096 x 4096 cells), aos::Cancelled if the progress sink asks
 // to stop.
+#include <array>
 #include <cstdint>
 #include <string>
 #include <vector>
 
+#include "aos/geometry/heightfield.h"
 #include "aos/geometry/pinhole.h"
 #include "aos/image/image.h"
 #include "aos/lightfield/lightfield.h"
@@ -109,6 +111,22 @@ SimulationResult Simulate(const Scene& scene, const SimulateOptions& options = {
 //   plane, stats), scene.json (the scene as simulated, every field written out).
 void WriteSimulation(const SimulationResult& result, const Scene& scene,
                      const std::string& output_dir);
+
+// The scene's ground as a DEM raster (geometry/heightfield.h), in the simulator's world frame
+// (the light field's local frame: origin 0, no CRS): the vertices of the grid the simulator traces
+// a height-field ground on are the raster's pixel centres (to double rounding of x, y), each holding GroundSpec::HeightAt there
+// (float32). `extent` [xmin, ymin, xmax, ymax] (metres; all zero = ground.extent) is cut into
+// ceil(extent / ground.cell_size) cells per axis as the simulator cuts ground.extent, so for a
+// height-field ground (steps) with that extent HeightfieldToMesh of the result is the simulated
+// ground itself, triangle for triangle (both split a cell along the same diagonal: the raster's
+// (i, j)-(i + 1, j + 1), Embree's grid quad v1-v3), and a render focused on it (FocalSurface)
+// focuses on the ground the views saw. For a plane ground it is that plane over the extent.
+// Nothing is written: WriteHeightfield writes it as a GeoTIFF.
+// Throws std::invalid_argument "<source>: ..." when both extents are all zero (the simulator then
+// uses the views' footprint, not known here), for an empty or non-finite extent, or more than
+// 4096 x 4096 cells.
+Heightfield GroundHeightfield(const Scene& scene,
+                              const std::array<double, 4>& extent = {0.0, 0.0, 0.0, 0.0});
 
 // The stats and the truth camera as a JSON object (what truth/truth.json holds): truth_camera and
 // truth_cam_from_world in the shared shapes of lightfield/json_codec.h, truth_fov_deg beside.
