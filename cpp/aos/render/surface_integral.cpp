@@ -10,6 +10,7 @@
 #include <omp.h>
 
 #include "aos/render/integral_kernels.h"
+#include "aos/render/masked_mean.h"
 #include "aos/render/surface_integral_kernels.h"
 #include "aos/util/error.h"
 #include "aos/util/math.h"
@@ -916,11 +917,20 @@ SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
                                              const SurfaceIntegralOptions& surface,
                                              ProgressSink* progress) {
   if (surface.robust) {
+    if (light_field.masked) {
+      ThrowInvalid("robust: the robust mean does not take a masked light field (LoadOptions::mask "
+                   "or mask_dir); use the plain mean");
+    }
     return internal::RenderIntegralAtPointsReference(light_field, points, options, surface,
                                                      progress);
   }
   const Setup s = MakeSetup(light_field, points, options, surface);
-  return RenderTiled(s, points, options, progress);
+  SurfaceIntegralResult result = RenderTiled(s, points, options, progress);
+  // A masked light field's mean over valid samples (masked_mean.h), for every route here.
+  if (light_field.masked) {
+    internal::DivideByMaskWeight(result.integral, PixelTypeFullRange(s.views.front().image->type()));
+  }
+  return result;
 }
 
 }  // namespace aos
