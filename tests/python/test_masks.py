@@ -209,7 +209,7 @@ def test_every_render_route_gives_the_masked_mean(tmp_path: Path) -> None:
     assert np.all(nearest.image[~covered] == 0)
 
 
-def test_map_and_robust(tmp_path: Path) -> None:
+def test_map(tmp_path: Path) -> None:
     path, _ = write_scene(tmp_path, 1, per_view=False)
     lf = aos.load_lightfield(path, mask=path.parent / "mask.png").light_field
     plain_lf = aos.load_lightfield(path).light_field
@@ -220,12 +220,32 @@ def test_map_and_robust(tmp_path: Path) -> None:
     # The painted letterbox (255) pulls the unmasked map up; the masked one never sees it.
     assert plain_map.image[covered].max() > masked_map.image[covered].max() - 1
     assert np.abs(plain_map.image - masked_map.image)[covered].max() > 20
-    with pytest.raises(ValueError, match="robust.*masked"):
-        aos.render_integral_on_depth(lf, np.full((32, 40), 35.0, np.float32), robust=True,
-                                     **{k: v for k, v in RENDER.items() if k != "focal_plane"})
-    with pytest.raises(ValueError, match="robust.*masked"):
-        aos.all_in_focus(lf, method="robust", first_plane=0.0, last_plane=1.0, slices=2,
-                         **{k: v for k, v in RENDER.items() if k != "focal_plane"})
+
+
+def test_robust_mean_divides_per_sample(tmp_path: Path) -> None:
+    """The robust mean (merge --method robust) leaves out samples of weight 0 and divides the
+    others by their weight: with a band wide enough for every sample it is the masked mean."""
+    path, clean = write_scene(tmp_path, 1, per_view=False)
+    lf = aos.load_lightfield(path, mask=path.parent / "mask.png").light_field
+    camera = aos.virtual_camera(lf, aos.IntegralOptions(pose_view=4, fov_deg=50.0, width=40,
+                                                       height=32))
+    centre = lf.views[4].cam_from_world.center
+    R = lf.views[4].cam_from_world.rotation
+    ys, xs = np.mgrid[0:camera.height, 0:camera.width] + 0.5
+    rays = np.stack([xs, ys, np.ones_like(xs)], -1) @ np.linalg.inv(camera.K).T @ R
+    depth = (-centre[2] / rays[..., 2]).astype(np.float32)
+    robust = aos.render_integral_on_depth(lf, depth, robust=True, agreement=1.0,
+                                          variance=True, **RENDER)
+    truth = reference(clean, lambda i: letterbox_mask(), RENDER)
+    ok = truth["clean"]
+    assert robust.integral.image.shape == (32, 40)
+    np.testing.assert_allclose(robust.integral.image[ok], truth["image"][ok], atol=0.01)
+    np.testing.assert_array_equal(robust.integral.count[ok], truth["count"][ok])
+    np.testing.assert_allclose(robust.integral.variance[ok], truth["variance"][ok], atol=0.01)
+    # The whole pipeline runs on a masked light field and returns the frames' channels.
+    merged = aos.all_in_focus(lf, method="robust", first_plane=0.0, last_plane=1.0, slices=2,
+                              **{k: v for k, v in RENDER.items() if k != "focal_plane"})
+    assert merged.image.shape == (32, 40)
 
 
 # --- Bad input --------------------------------------------------------------------------------

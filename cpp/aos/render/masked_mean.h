@@ -2,9 +2,10 @@
 // Internal to the renderer: the one place where a render of a masked light field (lightfield.h:
 // each view's last channel is a mask weight w = m * full range, the others premultiplied by m,
 // m in {0, 1}) becomes the mean over valid samples. Every render route ends here
-// (RenderIntegral's homography path in integral.cpp, RenderIntegralAtPoints in
+// (RenderIntegral's homography path in integral.cpp, RenderIntegralAtPoints' plain mean in
 // surface_integral.cpp, which the depth, mesh, DEM and map paths take), so stacks, merges, maps
-// and Python see the masked mean and never the weight channel. Not part of the public API.
+// and Python see the masked mean and never the weight channel. The robust mean alone divides
+// per sample (it keeps each sample apart: surface_integral.h). Not part of the public API.
 //
 // Per pixel, from the renderer's plain means over the n admitted samples (a_c = mean of v_c m,
 // c < C, and a_C = mean of w) and its variance V over all C + 1 channels:

@@ -441,12 +441,6 @@ void AllInFocusOptions::Check(int view_count) const {
   }
 }
 
-// The robust mean re-integrates every sample of a pixel on its own (surface_integral.h) and
-// does not take mask weights.
-constexpr const char* kRobustMasked =
-    "method robust: the light field is masked (LoadOptions::mask or mask_dir) and the robust "
-    "re-integration does not take masks; use method sobel or improved";
-
 MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options,
                             const LightField* light_field, ProgressSink* progress) {
   options.Check();
@@ -462,9 +456,6 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
     if (light_field == nullptr) {
       ThrowInvalid("method robust: needs the light field the stack was rendered from (the rays "
                    "are re-integrated)");
-    }
-    if (light_field->masked) {
-      ThrowInvalid(kRobustMasked);
     }
   }
   const int threads = ResolveThreadCount(options.num_threads);
@@ -529,9 +520,6 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
 MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOptions& options,
                              ProgressSink* progress) {
   options.Check(static_cast<int>(light_field.views.size()));
-  if (options.merge.method == MergeMethod::kRobust && light_field.masked) {
-    ThrowInvalid(kRobustMasked);  // before the stack is rendered
-  }
   AllInFocusOptions run = options;
   run.stack.render.variance = options.merge.method == MergeMethod::kRobust;
   const int threads = ResolveThreadCount(options.merge.num_threads);
