@@ -347,3 +347,13 @@ def test_cli_mask_and_mask_dir(tmp_path: Path) -> None:
     result = run("map", path, "--pixel-size", "0.5", "--mask", path.parent / "mask.png", "-o",
                  tmp_path / "map.tif")
     assert result.returncode == 0, result.stderr
+
+
+def test_rectified_light_field_stays_masked(tmp_path: Path) -> None:
+    """rectify resamples the premultiplied frames and their weights alike: still masked."""
+    path, _ = write_scene(tmp_path, 1, per_view=False)
+    lf = aos.load_lightfield(path, mask=path.parent / "mask.png").light_field
+    rectified = aos.rectify_light_field(lf).light_field
+    assert rectified.masked
+    np.testing.assert_array_equal(aos.render_integral(rectified, **RENDER).image,
+                                  aos.render_integral(lf, **RENDER).image)
