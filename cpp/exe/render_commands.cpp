@@ -70,6 +70,15 @@ void AddLoadFlags(const Flags& flags, LoadOptions& load) {
   loader.Optional("--images-dir", "images_dir", load.images_dir,
                   "Folder of the frames (JKU poses.json; default: ../images beside it)");
   AddGreyFlag(loader, load.grey);
+  auto* mask = loader.Optional(
+      "--mask", "mask", load.mask,
+      "Mask image for every frame, the frames' size: zero pixels (a letterbox, a burnt-in logo) "
+      "are left out of every average, non-zero ones are valid");
+  auto* mask_dir = loader.Optional(
+      "--mask-dir", "mask_dir", load.mask_dir,
+      "Folder with one mask per frame, named like the frame (any image extension, case "
+      "ignored); a frame without one is an error");
+  mask->excludes(mask_dir);
 }
 
 // `render` binds the IntegralOptions fields (nested for stack and allinfocus).

@@ -35,7 +35,10 @@ bool PoseSourcesEqual(const PoseSource& a, const PoseSource& b) {
 }
 
 bool LightFieldsEqual(const LightField& a, const LightField& b) {
-  if (a.origin != b.origin || a.crs != b.crs || a.views.size() != b.views.size()) return false;
+  if (a.origin != b.origin || a.crs != b.crs || a.masked != b.masked ||
+      a.views.size() != b.views.size()) {
+    return false;
+  }
   if (a.pose_source.has_value() != b.pose_source.has_value()) return false;
   if (a.pose_source && !PoseSourcesEqual(*a.pose_source, *b.pose_source)) return false;
   for (size_t i = 0; i < a.views.size(); ++i) {
@@ -197,6 +200,10 @@ void BindLightField(py::module_& m) {
           "'EPSG:<code>' of the world coordinates (origin + local), or '' = not "
           "geo-referenced. Setting it checks it with PROJ: a projected CRS in metres (ValueError "
           "for an unknown code or a geographic CRS).")
+      .def_readonly("masked", &LightField::masked,
+                    "True when loaded with a mask (load_lightfield(mask=...) or mask_dir): each "
+                    "view's last channel is the mask weight (0 or the full range) and the others "
+                    "are premultiplied by it; renders divide by it and return the other channels.")
       .def_property_readonly(
           "views", [](const LightField& light_field) { return light_field.views; },
           "The views, as a new list of read-only View objects (their pixels are not copied).")
@@ -239,16 +246,18 @@ void BindLightField(py::module_& m) {
             py::list views;
             for (const View& view : light_field.views) views.append(py::cast(view));
             return py::dict("origin"_a = light_field.origin, "crs"_a = light_field.crs,
-                            "views"_a = views, "pose_source"_a = light_field.pose_source);
+                            "views"_a = views, "pose_source"_a = light_field.pose_source,
+                            "masked"_a = light_field.masked);
           },
           [](const py::object& state) {
             const py::dict v =
-                StateDict(state, "LightField", {"origin", "crs", "views", "pose_source"});
+                StateDict(state, "LightField", {"origin", "crs", "views", "pose_source", "masked"});
             LightField light_field;
             light_field.origin = v["origin"].cast<Vec3d>();
             light_field.crs = v["crs"].cast<std::string>();
             light_field.views = v["views"].cast<std::vector<View>>();
             light_field.pose_source = v["pose_source"].cast<std::optional<PoseSource>>();
+            light_field.masked = v["masked"].cast<bool>();
             return light_field;
           }))
       .def("__repr__", [](const LightField& light_field) {
@@ -257,7 +266,7 @@ void BindLightField(py::module_& m) {
                std::string(py::str(py::module_::import("numpy").attr("array2string")(
                    origin, "separator"_a = ", "))) +
                (light_field.crs.empty() ? std::string() : ", crs='" + light_field.crs + "'") +
-               ", image_bytes=" + std::to_string(light_field.ImageBytes()) + ")";
+               (light_field.masked ? ", masked=True" : "") + ", image_bytes=" + std::to_string(light_field.ImageBytes()) + ")";
       });
 
   py::class_<LoadResult>(m, "LoadResult", "What load_lightfield returns.")
@@ -295,12 +304,15 @@ void BindLightField(py::module_& m) {
   m.def(
       "load_lightfield",
       [](const std::filesystem::path& path, double fov_deg, const std::filesystem::path& images_dir,
-         bool load_images, bool grey, int num_threads, const py::object& progress) {
+         bool load_images, bool grey, const std::filesystem::path& mask,
+         const std::filesystem::path& mask_dir, int num_threads, const py::object& progress) {
         LoadOptions options;
         options.fov_deg = fov_deg;
         options.images_dir = images_dir.string();
         options.load_images = load_images;
         options.grey = grey;
+        options.mask = mask.string();
+        options.mask_dir = mask_dir.string();
         options.num_threads = num_threads;
         return RunWithProgress(progress, [&](ProgressSink* sink) {
           return LoadLightField(path.string(), options, sink);
@@ -308,6 +320,7 @@ void BindLightField(py::module_& m) {
       },
       "path"_a, "fov_deg"_a = load_defaults.fov_deg, "images_dir"_a = load_defaults.images_dir,
       "load_images"_a = load_defaults.load_images, "grey"_a = load_defaults.grey,
+      "mask"_a = load_defaults.mask, "mask_dir"_a = load_defaults.mask_dir,
       "num_threads"_a = load_defaults.num_threads,
       "progress"_a = py::none(),
       "Loads a light field (the aos JSON format, or a JKU-ICG/AOS poses.json), detecting the "
@@ -315,7 +328,11 @@ void BindLightField(py::module_& m) {
       "required for poses.json (0 = not given). images_dir: folder of the frames of a "
       "poses.json ('' = beside it). load_images: False loads poses and cameras only (the "
       "frames need not exist; a poses.json reads one frame for its size). grey: frames become "
-      "one-channel luminance (Rec. 601: 0.299 R + 0.587 G + 0.114 B) at load. A frame missing "
+      "one-channel luminance (Rec. 601: 0.299 R + 0.587 G + 0.114 B) at load. mask: one mask "
+      "image for every frame (zero = left out of every average, non-zero = valid); mask_dir: "
+      "a folder with one mask per frame, named like the frame (any image extension, case "
+      "ignored); the frames then carry a premultiplied weight channel (LightField.masked) and "
+      "renders return the mean over valid samples. A frame missing "
       "under its exact name is found under the one name differing only in case. "
       "num_threads: -1 = all cores. progress(stage, done, total) is called from the calling "
       "thread, throttled; if it raises, loading stops and the error propagates. Ctrl-C raises "

@@ -269,6 +269,9 @@ class LightField:
     @crs.setter
     def crs(self, value: str) -> None: ...
     @property
+    def masked(self) -> bool:
+        """True when loaded with a mask: each view's last channel is the mask weight."""
+    @property
     def views(self) -> list[View]:
         """A new list of the views (pixels not copied)."""
     def __len__(self) -> int: ...
@@ -306,6 +309,8 @@ def load_lightfield(
     images_dir: _PathLike = "",
     load_images: bool = True,
     grey: bool = False,
+    mask: _PathLike = "",
+    mask_dir: _PathLike = "",
     num_threads: int = -1,
     progress: _Progress = None,
 ) -> LoadResult:

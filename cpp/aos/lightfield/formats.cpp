@@ -19,6 +19,7 @@
 #include "aos/geometry/geodesy.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/json_codec.h"
+#include "aos/lightfield/mask.h"
 #include "aos/util/error.h"
 #include "aos/util/parallel.h"
 #include "aos/util/file_util.h"
@@ -183,15 +184,75 @@ struct Frame {
 struct FrameData {
   std::vector<Image> images;          // when decoding
   std::vector<ImageFileInfo> infos;   // always
+  std::vector<int64_t> valid_pixels;  // masked: valid pixels of each frame's mask
 };
+
+// The masks of the frames (LoadOptions::mask or mask_dir), resolved before decoding.
+struct FrameMasks {
+  bool enabled = false;
+  Image shared;                     // mask: the valid pixels of the one mask
+  std::string shared_path;
+  std::vector<std::string> paths;   // mask_dir: each frame's mask file
+};
+
+// The frames' masks: the one mask read once, or each frame's file found in mask_dir by the
+// frame's file name without its extension (any image extension, case ignored).
+FrameMasks ResolveMasks(const std::vector<Frame>& frames, const LoadOptions& options) {
+  FrameMasks masks;
+  if (!options.mask.empty()) {
+    masks.enabled = true;
+    masks.shared_path = options.mask;
+    masks.shared = ReadMask(options.mask);
+    return masks;
+  }
+  if (options.mask_dir.empty()) return masks;
+  masks.enabled = true;
+  std::error_code error;
+  if (!fs::is_directory(options.mask_dir, error)) {
+    ThrowInvalid("mask_dir: folder " + Quoted(options.mask_dir) + " does not exist");
+  }
+  // Image files of the folder by lower-case stem.
+  std::map<std::string, std::vector<std::string>> by_stem;
+  for (fs::directory_iterator it(options.mask_dir, error), end; !error && it != end;
+       it.increment(error)) {
+    std::error_code type_error;
+    if (!it->is_regular_file(type_error)) continue;
+    const std::string extension = Lower(it->path().extension().string());
+    if (std::find(kFrameExtensions.begin(), kFrameExtensions.end(), extension) ==
+        kFrameExtensions.end()) {
+      continue;
+    }
+    by_stem[Lower(it->path().stem().string())].push_back(it->path().string());
+  }
+  for (const Frame& frame : frames) {
+    const std::string stem = fs::path(frame.path).stem().string();
+    auto found = by_stem.find(Lower(stem));
+    if (found == by_stem.end()) {
+      ThrowInvalid(Where(frame.label, "mask_dir: no mask for this frame in " +
+                                          Quoted(options.mask_dir) + " (looked for " + stem +
+                                          ".png, .tif, .tiff, .jpg, .jpeg or .exr, case ignored)"));
+    }
+    std::vector<std::string>& candidates = found->second;
+    if (candidates.size() > 1) {
+      std::sort(candidates.begin(), candidates.end());
+      ThrowInvalid(Where(frame.label, "mask_dir: " + std::to_string(candidates.size()) +
+                                          " masks match this frame (" + Quoted(candidates[0]) +
+                                          ", " + Quoted(candidates[1]) +
+                                          "); keep one per frame"));
+    }
+    masks.paths.push_back(candidates[0]);
+  }
+  return masks;
+}
 
 // Decodes (load_images) or probes the frames in parallel.
 FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& options,
-                     ProgressSink* progress) {
+                     ProgressSink* progress, const FrameMasks& masks = {}) {
   const int64_t n = static_cast<int64_t>(frames.size());
   FrameData data;
   data.infos.resize(frames.size());
   if (options.load_images) data.images.resize(frames.size());
+  if (masks.enabled) data.valid_pixels.resize(frames.size(), 0);
   if (options.load_images && n > 0) {
     // Refuse a light field the machine cannot hold before decoding any of it (estimated from the
     // first frame's header; every frame's own header is checked again as it is decoded).
@@ -204,7 +265,8 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
     CheckMemoryBudget(
         SaturatingProduct({static_cast<uint64_t>(n), static_cast<uint64_t>(first.width) + 2,
                            static_cast<uint64_t>(first.height) + 2,
-                           static_cast<uint64_t>(first.channels), PixelTypeSize(first.type)}),
+                           static_cast<uint64_t>(first.channels) + (masks.enabled ? 1 : 0),
+                           PixelTypeSize(first.type)}),
         frames[0].label + ": light field of " + std::to_string(n) + " frames of " +
             SizeText(first.width, first.height),
         "the decoded frames, estimated from the first frame's header");
@@ -217,6 +279,12 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
       if (options.load_images) {
         Image image = ReadImage(frame.path, 1);  // refuses non-finite samples
         if (options.grey) image = LuminanceImage(image);
+        if (masks.enabled) {
+          const bool shared = masks.paths.empty();
+          const Image valid = shared ? masks.shared : ReadMask(masks.paths[i]);
+          image = ApplyMask(image, valid, shared ? masks.shared_path : masks.paths[i], "");
+          data.valid_pixels[i] = CountValid(valid);
+        }
         info.width = image.width();
         info.height = image.height();
         info.channels = image.channels();
@@ -236,6 +304,41 @@ FrameData ReadFrames(const std::vector<Frame>& frames, const LoadOptions& option
     }
   });
   return data;
+}
+
+// Marks the light field masked and notes what the masks leave (an all-zero mask is no error:
+// its frame contributes nothing).
+void NoteMasks(const std::vector<Frame>& frames, const FrameData& data, const FrameMasks& masks,
+               const LoadOptions& options, LightField& light_field,
+               std::vector<std::string>& notes) {
+  if (!masks.enabled) return;
+  light_field.masked = true;
+  int64_t least = -1, most = 0;
+  size_t empty = 0, first_empty = 0;
+  for (size_t i = 0; i < frames.size(); ++i) {
+    const int64_t valid = data.valid_pixels[i];
+    least = least < 0 ? valid : std::min(least, valid);
+    most = std::max(most, valid);
+    if (valid == 0 && empty++ == 0) first_empty = i;
+  }
+  const double pixels = static_cast<double>(data.infos[0].width) * data.infos[0].height;
+  const auto percent = [&](int64_t valid) { return FormatNumber(std::round(1000.0 * valid / pixels) / 10.0) + "%"; };
+  if (masks.paths.empty()) {
+    notes.push_back("mask " + options.mask + ": " + percent(most) + " of each frame is valid" +
+                    (most == 0 ? " (all zero: every view contributes nothing, every pixel of a "
+                                 "render is uncovered)"
+                               : ""));
+    return;
+  }
+  notes.push_back("mask_dir " + options.mask_dir + ": " + std::to_string(frames.size()) +
+                  " masks, " + percent(least) + " to " + percent(most) + " of a frame valid");
+  if (empty > 0) {
+    notes.push_back(Where(frames[first_empty].label,
+                          "mask " + masks.paths[first_empty] + " is all zero: the view "
+                          "contributes nothing" +
+                          (empty > 1 ? " (" + std::to_string(empty) + " views have such masks)"
+                                     : std::string())));
+  }
 }
 
 
@@ -441,9 +544,11 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
   }
   // Poses and cameras only: the frames are not opened at all (they may be elsewhere or absent).
   if (!options.load_images) return result;
-  FrameData data = ReadFrames(frames, options, progress);
+  const FrameMasks masks = ResolveMasks(frames, options);
+  FrameData data = ReadFrames(frames, options, progress, masks);
   CheckFrameInfos(frames, data.infos, light_field.views);
   for (size_t i = 0; i < frames.size(); ++i) light_field.views[i].image = std::move(data.images[i]);
+  NoteMasks(frames, data, masks, options, light_field, result.notes);
   CheckLightField(light_field, path);
   return result;
 }
@@ -595,8 +700,10 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
                            "given");
   }
   FrameData data;
+  FrameMasks masks;
   if (options.load_images) {
-    data = ReadFrames(frames, options, progress);
+    masks = ResolveMasks(frames, options);
+    data = ReadFrames(frames, options, progress, masks);
   } else {
     // Poses only: the first frame that exists sizes the one camera; no other frame is opened.
     ReadFrames({frames[first_found]}, options, nullptr).infos.swap(data.infos);
@@ -622,6 +729,7 @@ LoadResult LoadJku(const std::string& path, const json& root, const LoadOptions&
   CheckFrameInfos(frames, data.infos, light_field.views);
   if (options.load_images) {
     for (size_t i = 0; i < frames.size(); ++i) light_field.views[i].image = std::move(data.images[i]);
+    NoteMasks(frames, data, masks, options, light_field, result.notes);
     CheckLightField(light_field, path);
   }
   return result;
@@ -668,6 +776,9 @@ void LoadOptions::Check() const {
   if (!(num_threads == -1 || num_threads >= 1)) {
     ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " +
                  std::to_string(num_threads) + ")");
+  }
+  if (!mask.empty() && !mask_dir.empty()) {
+    ThrowInvalid("mask/mask_dir: give one mask for all frames or a folder of masks, not both");
   }
 }
 

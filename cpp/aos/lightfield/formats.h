@@ -42,6 +42,11 @@
 // first frame it finds, to size its one camera. Such views have no image: the renderer refuses
 // them naming the view ("view 3 (a.png): image: no pixels (image not loaded)").
 //
+// Masks (LoadOptions::mask, mask_dir) apply to decoded frames only: without load_images they
+// are not opened. A mask with no valid pixel is no error (the frame contributes nothing) but a
+// note says so. The mask is not stored by WriteLightField (the written file names the frames;
+// load it with the mask again).
+//
 // Errors name the file, the entry and the field: "poses.json: image 17 (B05.tiff): M3x4:
 // rotation is not orthonormal (max |R^T R - I| = 0.3)".
 #include <string>
@@ -65,6 +70,15 @@ struct LoadOptions {
   // 0.299 R + 0.587 G + 0.114 B, alpha dropped; grey frames unchanged), e.g. false-colour thermal
   // frames integrated as grey. The pixel type is kept.
   bool grey = false;
+  // One mask image for every frame (mask.h): non-zero pixels are valid, zero ones (a letterbox,
+  // a burnt-in logo) are left out of every average; the mask must be the frames' size. Frames
+  // (after grey) of C <= 3 channels become C + 1 (a premultiplied weight channel) and the light
+  // field is masked (lightfield.h). Empty = no mask. Not with mask_dir.
+  std::string mask;
+  // A folder with one mask per frame, found by the frame's file name without its extension
+  // (a.JPG -> a.png, any image extension, case ignored); a frame without one is an error
+  // naming it. Empty = none. Not with mask.
+  std::string mask_dir;
   // Worker threads for decoding frames; -1 = all cores.
   int num_threads = -1;
   void Check() const;

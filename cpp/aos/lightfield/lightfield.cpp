@@ -61,6 +61,10 @@ void CheckLightField(const LightField& light_field, const std::string& where) {
                    std::to_string(view.image.channels()) + " channels but view 0 has " +
                    std::to_string(light_field.views[0].image.channels()));
     }
+    if (light_field.masked && view.image.channels() < 2) {
+      ThrowInvalid(ViewLabel(where, i, view) + ": masked: the light field is masked but the "
+                   "image has no weight channel (1 channel)");
+    }
   }
 }
 

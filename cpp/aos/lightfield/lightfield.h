@@ -53,6 +53,11 @@ struct LightField {
   std::string crs;  // "EPSG:<code>" of the world coordinates (origin + local), or empty = not geo-referenced
   std::vector<View> views;
   std::optional<PoseSource> pose_source;  // set when the poses were estimated
+  // The views' last channel is a mask weight and the others are premultiplied by it (loaded
+  // with LoadOptions::mask or mask_dir, formats.h): a frame of C channels holds
+  // (v_1 m, ..., v_C m, m * full range) with m 1 on valid pixels, 0 on masked ones. The
+  // renderer (integral.h) divides by the weight and returns C channels.
+  bool masked = false;
 
   // Total bytes of the decoded frames (width * height * channels * value size, summed).
   size_t ImageBytes() const;
@@ -80,7 +85,7 @@ void CheckView(const View& view, const std::string& where);
 int FindViewByName(const LightField& light_field, const std::string& name,
                    const std::string& where = "view");
 
-// Checks every view and that all views share one channel count.
+// Checks every view and that all views share one channel count (at least 2 when masked).
 void CheckLightField(const LightField& light_field, const std::string& where = "light field");
 
 }  // namespace aos

@@ -11,6 +11,7 @@
 
 #include "aos/render/focal_surface.h"
 #include "aos/render/integral_kernels.h"
+#include "aos/render/masked_mean.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/error.h"
 #include "aos/util/math.h"
@@ -691,6 +692,9 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
       result_.samples += count[x];
       result_.uncovered_pixels += count[x] == 0;
     }
+  }
+  if (light_field_.masked) {
+    internal::DivideByMaskWeight(result_, PixelTypeFullRange(views_.front().image->type()));
   }
   return std::move(result_);
 }

@@ -17,7 +17,7 @@ struct RowLine {
 // Adds samples for columns [xa, xb) into sum[(x - x0) * channels + c]. The caller guarantees
 // W > 0 and 0 <= U/W <= width, 0 <= V/W <= height on the whole span, and that `sum` has
 // kSpanPadding writable values past the span's end (SIMD kernels add +0.0 there).
-constexpr int kSpanPadding = 8;
+constexpr int kSpanPadding = 16;  // 8 lanes x 2 channels (the 2-channel 8-bit kernel)
 using SpanKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
                             double* sum);
 
@@ -31,7 +31,8 @@ SquaresKernel ScalarSquaresKernel(const Image& image);
 // The scalar kernel for the view's pixel type and channel count (nullptr for uint32 views).
 SpanKernel ScalarSpanKernel(const Image& image);
 // The AVX2 kernel, or nullptr when the CPU lacks AVX2/FMA, SIMD is disabled, or the view's type
-// or channel count has none (1-channel 8-bit, 16-bit and float views have one).
+// or channel count has none (1-channel 8-bit, 16-bit and float views have one, and 2-channel
+// 8-bit views: masked grey frames).
 SpanKernel Avx2SpanKernel(const Image& image);
 
 // SIMD kernels are on by default; tests and benchmarks turn them off to compare with the scalar

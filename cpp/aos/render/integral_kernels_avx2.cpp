@@ -1,4 +1,5 @@
-// AVX2 + FMA span kernels for 1-channel views: 8 output pixels per step. For 8- and 16-bit
+// AVX2 + FMA span kernels for 1-channel views (and 2-channel 8-bit ones: masked grey frames):
+// 8 output pixels per step. For 8- and 16-bit
 // views one 32-bit gather fetches both horizontal taps of a row (p00 and p01 are adjacent), so a
 // bilinear sample costs two gathers; float views need four. The functions carry target
 // attributes, so this file is compiled for the baseline CPU and the kernels are only handed out
@@ -135,6 +136,77 @@ __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowL
   Finish<kType>(current, out + i, keep);
 }
 
+// 8-bit views of 2 channels (masked grey frames: value x mask, weight; lightfield/mask.h): one
+// 32-bit gather per row fetches both channels of both horizontal taps
+// [p00 c0, p00 c1, p01 c0, p01 c1], so a sample of both channels costs two gathers, as the
+// 1-channel kernel's. The sums are interleaved per pixel (c0, c1), as the scalar kernel's.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 Bilinear(__m256 ax, __m256 ay,
+                                                                          __m256 p00, __m256 p01,
+                                                                          __m256 p10, __m256 p11) {
+  const __m256 upper = _mm256_fmadd_ps(ax, _mm256_sub_ps(p01, p00), p00);
+  const __m256 lower = _mm256_fmadd_ps(ax, _mm256_sub_ps(p11, p10), p10);
+  return _mm256_fmadd_ps(ay, _mm256_sub_ps(lower, upper), upper);
+}
+
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 Byte(__m256i word, int shift) {
+  return _mm256_cvtepi32_ps(
+      _mm256_and_si256(_mm256_srli_epi32(word, shift), _mm256_set1_epi32(0xff)));
+}
+
+// Adds 4 pixels' (c0, c1) from the 128-bit halves `v0`, `v1` to out[0..7].
+__attribute__((target("avx2,fma"), always_inline)) inline void AddInterleaved(__m128 v0, __m128 v1,
+                                                                              double* out) {
+  const __m256d d0 = _mm256_cvtps_pd(v0), d1 = _mm256_cvtps_pd(v1);
+  const __m256d low = _mm256_unpacklo_pd(d0, d1);   // p0c0 p0c1 p2c0 p2c1
+  const __m256d high = _mm256_unpackhi_pd(d0, d1);  // p1c0 p1c1 p3c0 p3c1
+  _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), _mm256_permute2f128_pd(low, high, 0x20)));
+  _mm256_storeu_pd(out + 4,
+                   _mm256_add_pd(_mm256_loadu_pd(out + 4), _mm256_permute2f128_pd(low, high, 0x31)));
+}
+
+__attribute__((target("avx2,fma"), always_inline)) inline void FinishTwoChannels(const Fetched& f,
+                                                                                 double* out,
+                                                                                 __m256 keep) {
+  const __m256 v0 = _mm256_and_ps(
+      Bilinear(f.ax, f.ay, Byte(f.top, 0), Byte(f.top, 16), Byte(f.bottom, 0), Byte(f.bottom, 16)),
+      keep);
+  const __m256 v1 = _mm256_and_ps(
+      Bilinear(f.ax, f.ay, Byte(f.top, 8), Byte(f.top, 24), Byte(f.bottom, 8), Byte(f.bottom, 24)),
+      keep);
+  AddInterleaved(_mm256_castps256_ps128(v0), _mm256_castps256_ps128(v1), out);
+  AddInterleaved(_mm256_extractf128_ps(v0, 1), _mm256_extractf128_ps(v1, 1), out + 8);
+}
+
+__attribute__((target("avx2,fma"))) void Avx2SpanU8TwoChannels(const Image& image,
+                                                               const RowLine& line, int xa, int xb,
+                                                               int x0, double* sum) {
+  SpanSetup c;
+  c.origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
+  c.stride_bytes = static_cast<int>(image.row_stride());
+  c.ua = _mm256_set1_ps(static_cast<float>(line.u0 + line.du * xa));
+  c.va = _mm256_set1_ps(static_cast<float>(line.v0 + line.dv * xa));
+  c.wa = _mm256_set1_ps(static_cast<float>(line.w0 + line.dw * xa));
+  c.du = _mm256_set1_ps(static_cast<float>(line.du));
+  c.dv = _mm256_set1_ps(static_cast<float>(line.dv));
+  c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
+  c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
+  c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
+  double* out = sum + 2 * (xa - x0);
+  const int n = xb - xa;
+  const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
+  // A pixel is 2 bytes: Fetch's byte offsets for kU16 (2 bytes a value) are this layout's.
+  Fetched current = Fetch<PixelType::kU16>(c, 0);
+  int i = 0;
+  for (; i + 8 < n; i += 8) {
+    const Fetched next = Fetch<PixelType::kU16>(c, i + 8);
+    FinishTwoChannels(current, out + 2 * i, all);
+    current = next;
+  }
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 keep = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n - i), lane));
+  FinishTwoChannels(current, out + 2 * i, keep);
+}
+
 bool CpuHasAvx2Fma() {
   static const bool has = [] {
     __builtin_cpu_init();
@@ -146,12 +218,15 @@ bool CpuHasAvx2Fma() {
 }  // namespace
 
 SpanKernel Avx2SpanKernel(const Image& image) {
-  if (!SimdEnabled() || !CpuHasAvx2Fma() || image.channels() != 1 || image.border() < 1) {
+  if (!SimdEnabled() || !CpuHasAvx2Fma() || image.channels() > 2 || image.border() < 1) {
     return nullptr;
   }
   // Gather offsets are 32-bit byte offsets.
   if (image.AllocatedBytes() >= static_cast<size_t>(std::numeric_limits<int32_t>::max() / 2)) {
     return nullptr;
+  }
+  if (image.channels() == 2) {
+    return image.type() == PixelType::kU8 ? &Avx2SpanU8TwoChannels : nullptr;
   }
   switch (image.type()) {
     case PixelType::kU8: return &Avx2Span<PixelType::kU8>;

@@ -118,6 +118,8 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
   RectifyLightFieldResult result;
   result.light_field.origin = light_field.origin;
   result.light_field.pose_source = light_field.pose_source;
+  // Resampled premultiplied values and weights stay premultiplied (lightfield/mask.h).
+  result.light_field.masked = light_field.masked;
   std::vector<std::pair<LensCamera, Rectifier>> rectifiers;  // one per distinct lens
   ProgressStart(progress, "rectify", static_cast<int64_t>(light_field.views.size()));
   for (const View& view : light_field.views) {

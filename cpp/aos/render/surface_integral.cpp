@@ -10,6 +10,7 @@
 #include <omp.h>
 
 #include "aos/render/integral_kernels.h"
+#include "aos/render/masked_mean.h"
 #include "aos/render/surface_integral_kernels.h"
 #include "aos/util/error.h"
 #include "aos/util/math.h"
@@ -228,7 +229,16 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
                                                       ProgressSink* progress) {
   const Setup s = MakeSetup(light_field, points, options, surface);
   const std::vector<ViewSetup>& views = s.views;
-  const int channels = s.channels;
+  // A masked light field (lightfield.h): each sample's last channel is its mask weight times
+  // the full range; a sample of weight 0 is left out, the others are divided by their weight
+  // (surface_integral.h), so the output has one channel less.
+  const bool masked = light_field.masked;
+  if (masked && s.channels < 2) {
+    ThrowInvalid("masked light field: the views have 1 channel; a masked view has its values "
+                 "and a weight channel");
+  }
+  const int sampled_channels = s.channels;
+  const int channels = s.channels - (masked ? 1 : 0);
   const bool nearest = s.nearest;
   struct Camera { int width, height; } camera{s.width, s.height};
 
@@ -250,7 +260,7 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
   {
     std::vector<uint8_t> used(views.size(), 0);
     std::vector<double> samples, luminance, sorted;
-    std::vector<double> value(static_cast<size_t>(channels));
+    std::vector<double> value(static_cast<size_t>(sampled_channels));
 #pragma omp for schedule(dynamic, 4)
     for (int64_t y = 0; y < camera.height; ++y) {
       bool stop;
@@ -285,10 +295,16 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
               luminance.clear();
             }
             view.sample(*view.image, u, v, value.data());
+            double weight = 1.0;
+            if (masked) {
+              // Nearest mode keeps the nearest view even where it is masked (uncovered then).
+              weight = value[static_cast<size_t>(channels)] / s.range;
+              if (!(weight > 0.0)) continue;
+            }
             double mean = 0.0;
             for (int c = 0; c < channels; ++c) {
-              samples.push_back(value[static_cast<size_t>(c)]);
-              mean += value[static_cast<size_t>(c)];
+              samples.push_back(value[static_cast<size_t>(c)] / weight);
+              mean += samples.back();
             }
             luminance.push_back(mean / channels);
             if (!nearest) used[i] = 1;
@@ -929,11 +945,17 @@ SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
                                              const SurfaceIntegralOptions& surface,
                                              ProgressSink* progress) {
   if (surface.robust) {
+    // Masked light fields are divided per sample there (surface_integral.h).
     return internal::RenderIntegralAtPointsReference(light_field, points, options, surface,
                                                      progress);
   }
   const Setup s = MakeSetup(light_field, points, options, surface);
-  return RenderTiled(s, points, options, progress);
+  SurfaceIntegralResult result = RenderTiled(s, points, options, progress);
+  // A masked light field's mean over valid samples (masked_mean.h), for every route here.
+  if (light_field.masked) {
+    internal::DivideByMaskWeight(result.integral, PixelTypeFullRange(s.views.front().image->type()));
+  }
+  return result;
 }
 
 }  // namespace aos

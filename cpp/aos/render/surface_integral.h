@@ -23,6 +23,11 @@
 //   are at least min_inlier_fraction of the samples, the pixel is their mean, else the plain mean
 //   (too few rays agree; counted in `fallback_pixels`). inliers(x, y) holds the number of
 //   samples averaged.
+// - Masked light fields (lightfield.h, LoadOptions::mask): the plain mean divides by the mask
+//   weight once at the end (masked_mean.h). The robust mean divides per sample instead: a sample
+//   whose bilinear mask weight is 0 is left out, the others become (v m) / m, the weighted mean
+//   of their valid taps; count is then the number of samples kept (views with weight > 0 at
+//   the point), and the band, inliers and variance are over those samples.
 //
 // - Everything above is RenderIntegralAtPoints on the focal points C + depth * ray (the one
 //   per-sample route; maps give it orthographic points).
