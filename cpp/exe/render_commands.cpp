@@ -122,6 +122,16 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   render.Threads(options.num_threads);
 }
 
+// --focal-height H: focal_plane as the horizontal plane z = H.
+CLI::Option* AddFocalHeightFlag(Flags& flags, Plane& focal_plane, const char* help) {
+  return flags.Parsed(
+      "--focal-height", "focal_plane", focal_plane,
+      [](const std::string& text) {
+        return Plane::AtHeight(ParseNumberText(text, "--focal-height"));
+      },
+      PlaneText(focal_plane), help);
+}
+
 // --focal-surface (IntegralOptions::focal_surface).
 CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, const char* help) {
   render.Describe("focal_surface", "--focal-surface");
@@ -294,12 +304,8 @@ CommandRunner DefineIntegral(CLI::App* command) {
   AddRenderFlags(flags, c->args, c->options);
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
   flags.Describe("focal_plane", "--focal-height/--focal-plane/--focal-distance");
-  auto* height = flags.Parsed(
-      "--focal-height", "focal_plane", c->options.focal_plane,
-      [](const std::string& text) {
-        return Plane::AtHeight(ParseNumberText(text, "--focal-height"));
-      },
-      PlaneText(c->options.focal_plane), "Horizontal focal plane z = H (local frame, metres)");
+  CLI::Option* height = AddFocalHeightFlag(flags, c->options.focal_plane,
+                                           "Horizontal focal plane z = H (local frame, metres)");
   auto* plane = flags.Parsed(
       "--focal-plane", "focal_plane", c->options.focal_plane,
       [](const std::string& text) {
@@ -964,15 +970,9 @@ CommandRunner DefineView(CLI::App* command) {
   AddRenderFlags(flags, c->args, c->options);
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
   flags.Describe("focal_plane", "--focal-height");
-  auto* height = flags.Parsed(
-      "--focal-height", "focal_plane", c->options.focal_plane,
-      [](const std::string& text) {
-        return Plane::AtHeight(ParseNumberText(text, "--focal-height"));
-      },
-      PlaneText(c->options.focal_plane),
-      "Starting focus: the horizontal focal plane z = H (local frame, metres); the page moves "
-      "it");
-  (void)height;
+  AddFocalHeightFlag(flags, c->options.focal_plane,
+                     "Starting focus: the horizontal focal plane z = H (local frame, metres); the "
+                     "page moves it");
   (void)surface;
   command->add_option("--host", c->host,
                       "Address to listen on; anything but a loopback address makes the viewer "

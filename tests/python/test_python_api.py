@@ -165,12 +165,12 @@ def test_all_options_structs_are_covered() -> None:
         "RectifyOptions", "CalibrateOptions", "PosesOptions"}
 
 
-def changed(value: Any) -> Any:
+def changed(value: Any, field: str = "") -> Any:
     """A value of the same type that differs from `value` (nested options: every field)."""
     if hasattr(type(value), "_fields"):
         result = copy.copy(value)
         for name in type(value)._fields:
-            setattr(result, name, changed(getattr(value, name)))
+            setattr(result, name, changed(getattr(value, name), name))
         return result
     members = getattr(type(value), "__members__", None)
     if members is not None:
@@ -187,6 +187,8 @@ def changed(value: Any) -> Any:
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if isinstance(value, aos.Rigid3d):
         return aos.look_at((1.0, 2.0, 30.0), (0.0, 0.0, 0.0))
+    if value is None and field == "ground_plane":  # FocalStackOptions.ground_plane
+        return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if value is None:  # IntegralOptions.focal_surface
         return aos.FocalSurface(aos.Mesh([[0, 0, 1], [1, 0, 1], [0, 1, 1]], [[0, 1, 2]]))
     raise AssertionError(f"no changed value for {value!r}")
@@ -204,7 +206,7 @@ def test_options_pickle_copy_and_compare(name: str) -> None:
     for field in cls._fields:
         # == looks at every field: change one and they differ.
         one = copy.copy(default)
-        setattr(one, field, changed(getattr(default, field)))
+        setattr(one, field, changed(getattr(default, field), field))
         assert one != default, f"{name}.{field} is not compared"
     every = changed(default)
     assert every != default

@@ -675,6 +675,35 @@ def test_all_in_focus_with_progress_and_cancel() -> None:
         handle.stop()
 
 
+def test_all_in_focus_on_the_surface_is_terrain_following() -> None:
+    """With focus on the surface, first/last are offsets: a flat terrain at z = -1 and offsets
+    0.5 .. 2.5 give the all-in-focus image of the planes z = -0.5 .. 1.5."""
+    light_field = textured_lightfield()
+    handle = aos.view(light_field, pose_view=4, focal_surface=aos.Plane(-1.0), open_browser=False,
+                      num_threads=1)
+    try:
+        async def run(message: dict[str, Any]) -> Any:
+            async with aiohttp.ClientSession() as client:
+                async with client.ws_connect(f"{base(handle)}/ws?token={handle.token}") as ws:
+                    await ws.send_str(json.dumps(message))
+                    while True:
+                        reply = await ws.receive(timeout=60)
+                        if reply.type == aiohttp.WSMsgType.BINARY:
+                            return decode_frame(reply.data)
+                        if json.loads(reply.data)["type"] in ("cancelled", "error"):
+                            raise AssertionError(reply.data)
+
+        common = {"type": "allinfocus", "id": 3, "first_height": 0.5, "last_height": 2.5, "slices": 5}
+        _, on_surface = asyncio.run(run({**common, "params": {"surface": "true"}}))
+        _, on_planes = asyncio.run(run({**common, "params": {}, "first_height": -0.5,
+                                        "last_height": 1.5}))
+        _, wrong = asyncio.run(run({**common, "params": {}}))  # planes 0.5 .. 2.5: elsewhere
+        assert np.abs(on_surface.astype(int) - on_planes.astype(int)).max() <= 1
+        assert np.abs(on_surface.astype(int) - wrong.astype(int)).max() > 1
+    finally:
+        handle.stop()
+
+
 JKU_FIRST30 = ROOT.parent / "shared" / "data" / "jku-f0" / "poses" / "poses_first30.json"
 
 

@@ -432,14 +432,24 @@ class _Stream:
                     {"type": "progress", "id": request_id, "stage": stage, "done": done,
                      "total": total}), loop)
 
-        def work_stack() -> bytes:
+        def stack_keywords() -> dict[str, Any]:
+            # The current view's camera and views; the slices span the focus slider's range:
+            # heights of planes, or (focus on the surface) offsets of a terrain-following stack.
             options = session.integral_options(params)
-            focal_stack = aos.render_focal_stack(
-                session.light_field, first_plane=first, last_plane=last, slices=slices,
-                cam_from_world=options.cam_from_world, fov_deg=options.fov_deg,
+            keywords: dict[str, Any] = dict(
+                slices=slices, cam_from_world=options.cam_from_world, fov_deg=options.fov_deg,
                 width=options.width, height=options.height,
                 aperture_radius=options.aperture_radius, view_indices=options.view_indices,
                 num_threads=session.num_threads, progress=progress)
+            if params.surface:
+                keywords.update(focal_surface=session.focal_surface, first_offset=first,
+                                last_offset=last)
+            else:
+                keywords.update(first_plane=first, last_plane=last)
+            return keywords
+
+        def work_stack() -> bytes:
+            focal_stack = aos.render_focal_stack(session.light_field, **stack_keywords())
             with tempfile.TemporaryDirectory(prefix="aos-viewer-") as folder:
                 target = os.path.join(folder, "stack")
                 aos.write_focal_stack(target, focal_stack)
@@ -464,13 +474,7 @@ class _Stream:
             return
 
         def work() -> Frame:
-            options = session.integral_options(params)
-            result = aos.all_in_focus(
-                session.light_field, first_plane=first, last_plane=last, slices=slices,
-                cam_from_world=options.cam_from_world, fov_deg=options.fov_deg,
-                width=options.width, height=options.height,
-                aperture_radius=options.aperture_radius, view_indices=options.view_indices,
-                num_threads=session.num_threads, progress=progress)
+            result = aos.all_in_focus(session.light_field, **stack_keywords())
             count = (result.slice >= 0).astype("uint32")
             rgba = session.display(result.image, count, params)
             return Frame(rgba.tobytes(), rgba.shape[1], rgba.shape[0],

@@ -289,8 +289,10 @@ function finishJob(text) {
   $("status").textContent = text;
 }
 function startJob(type) {
-  // The stack spans the focus slider's range (from under the cameras to beyond the ground).
-  const lo = Number($("focal_height").min), hi = Number($("focal_height").max);
+  // The stack spans the focus slider's range: heights (from under the cameras to beyond the
+  // ground), or with focus on the surface its offsets (a terrain-following stack).
+  const focus = $("surface").checked ? $("surface_offset") : $("focal_height");
+  const lo = Number(focus.min), hi = Number(focus.max);
   jobRunning = true;
   $("cancel").disabled = false;
   $("allinfocus").disabled = true;
