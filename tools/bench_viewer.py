@@ -59,13 +59,13 @@ def rss_bytes(pid: int | None = None) -> int:
     return 0
 
 
-def bench_renders(session: Any, count: int) -> dict[str, Any]:
+def bench_renders(session: Any, count: int, focal_height: float = F0_GROUND) -> dict[str, Any]:
     from aos.viewer.session import Params
 
     render_ms, total_ms = [], []
     session.render(session.parse({}))  # warm-up
     for k in range(count):
-        params = session.parse({"focal_height": F0_GROUND + 0.01 * (k % 10)})
+        params = session.parse({"focal_height": focal_height + 0.01 * (k % 10)})
         start = time.perf_counter()
         frame = session.render(params)
         total_ms.append(1000.0 * (time.perf_counter() - start))
@@ -214,6 +214,10 @@ def main() -> int:
     parser.add_argument("--renders", type=int, default=30)
     parser.add_argument("--drag-seconds", type=float, default=10.0)
     parser.add_argument("--sweep", type=float, default=8.0, help="metres about z = 21")
+    parser.add_argument("--render-heights", type=float, nargs="+", default=[F0_GROUND],
+                        help="focal heights of the full-render measurement: 21 = F0's ground "
+                             "(57.7 M samples), 0 = the plane in mid air of bench_integral.py's "
+                             "reference render (36.0 M samples)")
     parser.add_argument("--no-browser", action="store_true", help="skip the drag benchmark")
     parser.add_argument("--load", action="store_true", help="run the load test too")
     parser.add_argument("--clients", type=int, default=20)
@@ -237,11 +241,13 @@ def main() -> int:
                       width=512, height=512, num_threads=args.threads, open_browser=False,
                       source=str(poses))
     try:
-        report["render"] = bench_renders(viewer.session, args.renders)
-        print(f"server render, full 512x512 (F0, 382 views): p50 "
-              f"{report['render']['render_ms_p50']:.1f} ms, p95 "
-              f"{report['render']['render_ms_p95']:.1f} ms (with display mapping p50 "
-              f"{report['render']['render_and_display_ms_p50']:.1f} ms)", flush=True)
+        for height in args.render_heights:
+            key = "render" if height == F0_GROUND else f"render_z{height:g}"
+            report[key] = bench_renders(viewer.session, args.renders, height)
+            print(f"server render, full 512x512 (F0, 382 views, plane z = {height:g}): p50 "
+                  f"{report[key]['render_ms_p50']:.1f} ms, p95 "
+                  f"{report[key]['render_ms_p95']:.1f} ms (with display mapping p50 "
+                  f"{report[key]['render_and_display_ms_p50']:.1f} ms)", flush=True)
         if not args.no_browser:
             report["drag"] = drag = bench_drag(viewer, args.drag_seconds, args.sweep)
             if "skipped" not in drag:
