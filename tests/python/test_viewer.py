@@ -695,9 +695,10 @@ def test_all_in_focus_on_the_surface_is_terrain_following() -> None:
 
         common = {"type": "allinfocus", "id": 3, "first_height": 0.5, "last_height": 2.5, "slices": 5}
         _, on_surface = asyncio.run(run({**common, "params": {"surface": "true"}}))
-        _, on_planes = asyncio.run(run({**common, "params": {}, "first_height": -0.5,
+        planes = {"surface": "false"}  # the session starts on its surface
+        _, on_planes = asyncio.run(run({**common, "params": planes, "first_height": -0.5,
                                         "last_height": 1.5}))
-        _, wrong = asyncio.run(run({**common, "params": {}}))  # planes 0.5 .. 2.5: elsewhere
+        _, wrong = asyncio.run(run({**common, "params": planes}))  # planes 0.5 .. 2.5: elsewhere
         assert np.abs(on_surface.astype(int) - on_planes.astype(int)).max() <= 1
         assert np.abs(on_surface.astype(int) - wrong.astype(int)).max() > 1
     finally:

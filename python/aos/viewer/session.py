@@ -419,7 +419,7 @@ class Session:
         try:
             if params.mode == "map":
                 return aos._core._render_map(self.light_field, self.map_options(params), "",
-                                             False, progress)
+                                             False, True, progress)
             return aos._core.render_integral(self.light_field, self.integral_options(params),
                                              progress)
         except ValueError as error:
@@ -559,7 +559,7 @@ class Session:
                 path = os.path.join(folder, "map.tif")
                 options = self.map_options(params)
                 try:
-                    aos._core._render_map(self.light_field, options, path, False, None)
+                    aos._core._render_map(self.light_field, options, path, False, False, None)
                 except ValueError as error:
                     raise BadParameter(str(error)) from None
                 return open(path, "rb").read(), "image/tiff", "aos-map.tif"
