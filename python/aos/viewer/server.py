@@ -459,14 +459,19 @@ class _Stream:
                         zip.write(os.path.join(target, name), f"stack/{name}")
                 return buffer.getvalue()
 
-        if stack:
+        async def run_job(work: Any) -> Any:
+            # The job on the render worker; None when it was cancelled or refused (said so).
             try:
-                data = await self.viewer.run(work_stack)
+                return await self.viewer.run(work)
             except Superseded:
                 await self.send_json({"type": "cancelled", "id": request_id})
-                return
             except (ValueError, BadParameter) as error:
                 await self.error(request_id, str(error))
+            return None
+
+        if stack:
+            data = await run_job(work_stack)
+            if data is None:
                 return
             key = self.viewer.offer_download(data)
             await self.send_json({"type": "download", "id": request_id,
@@ -480,13 +485,8 @@ class _Stream:
             return Frame(rgba.tobytes(), rgba.shape[1], rgba.shape[0],
                          {"width": rgba.shape[1], "height": rgba.shape[0], "mode": "allinfocus"})
 
-        try:
-            frame = await self.viewer.run(work)
-        except Superseded:
-            await self.send_json({"type": "cancelled", "id": request_id})
-            return
-        except (ValueError, BadParameter) as error:
-            await self.error(request_id, str(error))
+        frame = await run_job(work)
+        if frame is None:
             return
         if not self.socket.closed:
             await self.socket.send_bytes(encode_frame(frame, {"type": "frame", "id": request_id,

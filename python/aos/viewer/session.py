@@ -678,7 +678,8 @@ def lon_lat(crs: str, x: float, y: float) -> Optional[list[float]]:
     except ImportError:
         pass
     try:
-        from rasterio.warp import transform  # type: ignore[import-not-found]
+        # rasterio has no type stubs (import-untyped), or is absent (import-not-found).
+        from rasterio.warp import transform  # type: ignore
 
         lons, lats = transform(crs, "EPSG:4326", [x], [y])
         return [float(lons[0]), float(lats[0])]
