@@ -870,7 +870,9 @@ int RunView(ViewCommand& c, const Flags& flags) {
   spec["light_field"] = c.args.light_field_path;
   spec["load"] = {{"fov_deg", c.args.load.fov_deg},
                   {"images_dir", c.args.load.images_dir},
-                  {"grey", c.args.load.grey}};
+                  {"grey", c.args.load.grey},
+                  {"mask", c.args.load.mask},
+                  {"mask_dir", c.args.load.mask_dir}};
   spec["pose_view"] = c.args.pose_view;
   if (!c.args.pose_view.empty() && c.args.pose_view[0] == '-') {
     ThrowUsage("--pose-view: a view index is >= 0 (got " + c.args.pose_view + ")");

@@ -357,3 +357,17 @@ def test_rectified_light_field_stays_masked(tmp_path: Path) -> None:
     assert rectified.masked
     np.testing.assert_array_equal(aos.render_integral(rectified, **RENDER).image,
                                   aos.render_integral(lf, **RENDER).image)
+
+
+def test_a_masked_light_field_is_not_written(tmp_path: Path) -> None:
+    """Its frames carry premultiplied values and a weight channel: writing them (or the unmasked
+    files its views name) would lose the mask silently. Refused, naming the file; nothing
+    written (a rectified masked light field included)."""
+    path, _ = write_scene(tmp_path, 1, per_view=False)
+    lf = aos.load_lightfield(path, mask=path.parent / "mask.png").light_field
+    rectified = aos.rectify_light_field(lf).light_field
+    for light_field in (lf, rectified):
+        target = tmp_path / "out" / "lightfield.json"
+        with pytest.raises(ValueError, match="the light field is masked"):
+            aos.write_lightfield(str(target), light_field)
+        assert not target.exists()

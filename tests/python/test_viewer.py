@@ -675,6 +675,43 @@ def test_all_in_focus_with_progress_and_cancel() -> None:
         handle.stop()
 
 
+def test_bad_job_messages_are_answered_with_an_error() -> None:
+    """Malformed all-in-focus/stack messages (params not an object, a slice count that is no
+    integer, a stack too large for memory) get an error reply: the page never waits forever,
+    and the socket keeps working."""
+    handle = aos.view(textured_lightfield(), pose_view=4, open_browser=False, num_threads=1)
+    try:
+        async def run() -> list[Any]:
+            answers = []
+            async with aiohttp.ClientSession() as client:
+                async with client.ws_connect(f"{base(handle)}/ws?token={handle.token}") as ws:
+                    common = {"id": 1, "first_height": -1.0, "last_height": 1.0}
+                    for message in ({"type": "stack", "params": [], "slices": 4, **common},
+                                    {"type": "allinfocus", "params": {}, "slices": 1e999, **common},
+                                    {"type": "allinfocus", "params": {}, "slices": 4.5, **common},
+                                    {"type": "stack", "params": {"width": 2048, "height": 2048},
+                                     "slices": 200, **common}):
+                        await ws.send_str(json.dumps(message))
+                        answers.append(json.loads((await ws.receive(timeout=30)).data))
+                    await ws.send_str(json.dumps({"type": "allinfocus", "params": {}, "slices": 3,
+                                                  **common}))
+                    while True:  # progress messages, then the frame
+                        reply = await ws.receive(timeout=60)
+                        if reply.type == aiohttp.WSMsgType.BINARY:
+                            answers.append(decode_frame(reply.data)[0])
+                            return answers
+        answers = asyncio.run(run())
+        assert [a["type"] for a in answers[:4]] == ["error"] * 4, answers
+        assert "params" in answers[0]["message"] and "slices" in answers[1]["message"]
+        assert "slices" in answers[2]["message"] and "MiB" in answers[3]["message"]
+        assert answers[4]["allinfocus"] is True
+    finally:
+        handle.stop()
+    from aos.viewer import Session, Viewer
+    with pytest.raises(ValueError, match="token: at least 16"):
+        Viewer(Session(textured_lightfield()), token="short")
+
+
 def test_all_in_focus_on_the_surface_is_terrain_following() -> None:
     """With focus on the surface, first/last are offsets: a flat terrain at z = -1 and offsets
     0.5 .. 2.5 give the all-in-focus image of the planes z = -0.5 .. 1.5."""
@@ -703,6 +740,38 @@ def test_all_in_focus_on_the_surface_is_terrain_following() -> None:
         assert np.abs(on_surface.astype(int) - wrong.astype(int)).max() > 1
     finally:
         handle.stop()
+
+
+@pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH")
+def test_cli_view_takes_the_mask(lightfield_file: Path) -> None:
+    """view --mask loads the light field masked (integral's flag, same meaning), the page renders
+    the masked mean, and the copied command carries --mask."""
+    valid = np.ones((24, 32), np.uint8) * 255
+    valid[:, :8] = 0  # a letterbox on the left of every frame
+    mask = lightfield_file.parent / "mask.png"
+    aos.write_image(str(mask), valid)
+    process = subprocess.Popen([EXE, "view", str(lightfield_file), "--no-browser", "--json",
+                                "--pose-view", "4", "--mask", str(mask)],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env=cli_env())
+    try:
+        report = json.loads(process.stdout.readline())
+        info = json.loads(get(report["url"].replace("/?token=", "/api/info?token="))[1])
+        assert info["masked"] is True and info["channels"] == 1
+        command = json.loads(get(report["url"].replace("/?token=", "/api/command?token="))[1])
+        assert f"--mask {mask}" in command["cli"] and "mask=" in command["python"]
+        header, shown = decode_frame(get(report["url"].replace("/?token=", "/api/render?token="))[1])
+        masked = aos.load_lightfield(str(lightfield_file), mask=str(mask)).light_field
+        options = dict(pose_view=4, focal_plane=0.0)
+        expected = aos.render_integral(masked, **options)
+        plain = aos.render_integral(aos.load_lightfield(str(lightfield_file)).light_field, **options)
+        assert np.abs(expected.image - plain.image).max() > 5  # the mask matters here
+        assert np.array_equal(header["views_used"], expected.views_used)
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
 
 
 JKU_FIRST30 = ROOT.parent / "shared" / "data" / "jku-f0" / "poses" / "poses_first30.json"

@@ -20,9 +20,17 @@ namespace fs = std::filesystem;
 namespace aos {
 namespace {
 
-// libtiff's messages name the libtiff function that raised them ("TIFFSetField: ...").
+// The two libtiff messages OpenImageIO's TIFF writes raise through GDAL's handler once GDAL's
+// GTiff driver has run ("TIFFSetField:<file>: Unknown tag 306" for the DateTime tag, then
+// "TIFFWriteDirectorySec:Out of memory"), on files that are complete. Only these are dropped:
+// every other message, libtiff's included, still reaches GDAL's default handler.
 void CPL_STDCALL FilterLibtiffMessages(CPLErr level, CPLErrorNum number, const char* message) {
-  if (message != nullptr && std::strncmp(message, "TIFF", 4) == 0) return;
+  if (message != nullptr &&
+      ((std::strncmp(message, "TIFFSetField:", 13) == 0 &&
+        std::strstr(message, ": Unknown tag 306") != nullptr) ||
+       std::strcmp(message, "TIFFWriteDirectorySec:Out of memory") == 0)) {
+    return;
+  }
   CPLDefaultErrorHandler(level, number, message);
 }
 

@@ -57,8 +57,9 @@ struct Heightfield {
 // keeps libtiff's diagnostics about TIFF files GDAL is not handling off stderr: once GDAL's GTiff
 // driver has run, libtiff reports through GDAL for every library in the process, and OpenImageIO's
 // TIFF writes (image_io.h) then printed harmless "ERROR 1: TIFFSetField: ... Unknown tag 306" /
-// "TIFFWriteDirectorySec: Out of memory" lines although the files were complete. GDAL messages
-// that do not come from libtiff still reach GDAL's default handler.
+// "TIFFWriteDirectorySec: Out of memory" lines although the files were complete. Those two
+// messages only are dropped; every other GDAL or libtiff message still reaches GDAL's default
+// handler.
 void RegisterGdal();
 
 // Reads band 1 of a GDAL raster. See the contract above.

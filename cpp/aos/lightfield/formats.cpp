@@ -857,6 +857,14 @@ LoadResult LoadFromJson(const std::string& path, const json& root, const LoadOpt
 void WriteLightField(const std::string& path, const LightField& light_field,
                      const WriteLightFieldOptions& options) {
   // Options and light field first: nothing is written unless everything can be.
+  if (light_field.masked) {
+    // Its frames hold premultiplied values and a weight channel (lightfield/mask.h); the aos
+    // JSON has no place for that, and the frames its views name are the unmasked files.
+    ThrowInvalid(path + ": the light field is masked (loaded with a mask: its frames carry a "
+                 "weight channel): writing it would store premultiplied frames, or drop the "
+                 "mask, silently. Write the light field loaded without the mask, and give the "
+                 "mask again when loading it (--mask/--mask-dir)");
+  }
   const std::string& extension = options.image_extension;
   if (extension.size() < 2 || extension[0] != '.' ||
       extension.find_first_of("/\\") != std::string::npos) {

@@ -44,8 +44,9 @@
 //
 // Masks (LoadOptions::mask, mask_dir) apply to decoded frames only: without load_images they
 // are not opened. A mask with no valid pixel is no error (the frame contributes nothing) but a
-// note says so. The mask is not stored by WriteLightField (the written file names the frames;
-// load it with the mask again).
+// note says so. WriteLightField refuses a masked light field (its frames hold premultiplied
+// values and a weight channel, which the aos JSON cannot describe): write the light field loaded
+// without the mask and give the mask again when loading it.
 //
 // Errors name the file, the entry and the field: "poses.json: image 17 (B05.tiff): M3x4:
 // rotation is not orthonormal (max |R^T R - I| = 0.3)".

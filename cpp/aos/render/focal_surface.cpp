@@ -134,9 +134,11 @@ struct FocalSurface::Impl {
   }
 
   // Cast(bvh, origins[k], directions[k]) for k < count <= 8 (coherent rays: those of
-  // neighbouring pixels) as one Embree packet; the same triangles and distances as casting them
-  // one by one (Embree's packet and single-ray traversals run the same robust ray-triangle test
-  // per ray), written to t[k].
+  // neighbouring pixels) as one Embree packet, written to t[k]. Embree does not promise that a
+  // packet finds the same triangle as a single ray; it may differ only within float rounding of
+  // a shared edge, and the distance is recomputed in double on the hit triangle's plane, so the
+  // depth agrees to float rounding (focal_surface_test: PacketCast... against a brute-force
+  // double-precision cast; on F0 the depth map was bit-identical to single rays).
   void CastPacket(RTCScene bvh, const Vec3d* origins, const Vec3d* directions, int count,
                   double* t) const {
     RTCIntersectContext context;

@@ -109,8 +109,9 @@ class FocalSurface {
 
   // As DepthFor, but every pixel's ray meets the surface moved by its own offset: pixel (x, y)
   // focuses on the surface placed at placement.offset + offsets[y * width + x] along up (a
-  // terrain-following stack's fractional slices, merge.h). Exact: the ray is cast from the
-  // camera centre moved by minus that offset along up onto the unmoved surface. `offsets` has
+  // terrain-following stack's fractional slices, merge.h). The ray is cast from the camera
+  // centre moved by minus that offset along up onto the unmoved surface: geometrically exact,
+  // the hit found in float and its distance recomputed in double, as DepthFor. `offsets` has
   // camera.width * camera.height finite entries (else std::invalid_argument naming `offsets`).
   Image DepthForOffsets(const PinholeCamera& camera, const Rigid3d& cam_from_world,
                         const SurfacePlacement& placement,

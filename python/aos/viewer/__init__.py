@@ -85,6 +85,10 @@ class Viewer:
             raise ValueError(f"port: must be 0 (any free port) .. 65535, got {port}")
         self.session = session
         self.host = host
+        if token and (len(token) < 16 or
+                      not all(c.isascii() and (c.isalnum() or c in "-_") for c in token)):
+            raise ValueError("token: at least 16 URL-safe characters (A-Z, a-z, 0-9, -, _); "
+                             "leave it out for a random one")
         self.token = token or secrets.token_urlsafe(24)
         self.server = _Server(session, self.token, render_workers)
         self._loop = asyncio.new_event_loop()

@@ -45,9 +45,11 @@ def main(argv: list[str]) -> int:
     quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
     try:
         load = spec.get("load", {})
-        loaded = aos.load_lightfield(spec["light_field"], fov_deg=float(load.get("fov_deg", 0.0)),
-                                     images_dir=load.get("images_dir", ""),
-                                     grey=bool(load.get("grey", False)),
+        load_options = {"fov_deg": float(load.get("fov_deg", 0.0)),
+                        "images_dir": load.get("images_dir", ""),
+                        "grey": bool(load.get("grey", False)),
+                        "mask": load.get("mask", ""), "mask_dir": load.get("mask_dir", "")}
+        loaded = aos.load_lightfield(spec["light_field"], **load_options,
                                      num_threads=int(spec.get("num_threads", -1)))
         for note in loaded.notes:
             sys.stderr.write(f"note: {note}\n")
@@ -86,9 +88,7 @@ def main(argv: list[str]) -> int:
         if spec.get("views"):
             views = parse_view_list(spec["views"], len(light_field))
         session = Session(light_field, source=spec["light_field"], focal_surface=surface,
-                          load_options={"fov_deg": float(load.get("fov_deg", 0.0)),
-                                        "images_dir": load.get("images_dir", ""),
-                                        "grey": bool(load.get("grey", False))},
+                          load_options=load_options,
                           surface_path=spec.get("focal_surface", ""),
                           defaults=defaults, cam_from_world=cam_from_world, view_indices=views,
                           min_view_angle_deg=float(spec.get("min_view_angle_deg", 1.0)),

@@ -51,6 +51,7 @@ from .session import BadParameter, Frame, Params, Session, Superseded
 MAX_BODY_BYTES = 64 * 1024
 MAX_QUEUED_HTTP = 64
 MAX_DOWNLOADS = 2  # focal stacks kept for download
+MAX_STACK_BYTES = 1 << 30  # one focal-stack request's slices in memory (the zip comes on top)
 TOKEN_HEADER = "X-AOS-Token"
 
 # The whole set of files the server can send: request name -> (package file, content type).
@@ -78,7 +79,7 @@ def _security_headers(response: web.StreamResponse) -> None:
     response.headers["Referrer-Policy"] = "no-referrer"
     response.headers["X-Frame-Options"] = "SAMEORIGIN"
     response.headers["Content-Security-Policy"] = (
-        "default-src 'self'; img-src 'self' data: blob:; connect-src 'self' ws: ; "
+        "default-src 'self'; img-src 'self' data: blob:; connect-src 'self'; "
         "style-src 'self'; script-src 'self'; frame-ancestors 'self'")
 
 
@@ -406,17 +407,34 @@ class _Stream:
 
         session = self.viewer.session
         try:
-            params = session.parse(message.get("params", {}))
+            raw = message.get("params", {})
+            if not isinstance(raw, dict):
+                raise BadParameter("params: must be an object of parameters")
+            params = session.parse(raw)
             first = float(message.get("first_height", "nan"))
             last = float(message.get("last_height", "nan"))
-            slices = int(message.get("slices", 20))
+            slices_value = message.get("slices", 20)
+            if not isinstance(slices_value, int) or isinstance(slices_value, bool):
+                raise BadParameter(f"slices: must be an integer, got {str(slices_value)[:20]!r}")
+            slices = slices_value
             if not (math.isfinite(first) and math.isfinite(last) and first != last):
                 raise BadParameter("first_height, last_height: two different finite heights")
             if not 2 <= slices <= 200:
                 raise BadParameter(f"slices: must be 2..200, got {slices}")
             if params.mode != "perspective":
                 raise BadParameter("mode: all-in-focus needs the perspective view")
-        except (BadParameter, TypeError, ValueError) as error:
+            if stack:
+                # render_focal_stack keeps every slice (float32 channels + uint32 count), and the
+                # zip is built in memory: bound what one request may ask for.
+                camera, _ = session.camera(params)
+                slice_bytes = camera.width * camera.height * (4 * session.channels + 4)
+                if slices * slice_bytes > MAX_STACK_BYTES:
+                    raise BadParameter(
+                        f"slices: {slices} slices of {camera.width} x {camera.height} need "
+                        f"{slices * slice_bytes / 2**20:.0f} MiB, more than the viewer's "
+                        f"{MAX_STACK_BYTES // 2**20} MiB for a focal stack; use fewer slices or "
+                        "a smaller image, or `aos-render stack`")
+        except (BadParameter, TypeError, ValueError, OverflowError) as error:
             await self.error(request_id, str(error))
             return
         loop = asyncio.get_running_loop()
@@ -460,13 +478,16 @@ class _Stream:
                 return buffer.getvalue()
 
         async def run_job(work: Any) -> Any:
-            # The job on the render worker; None when it was cancelled or refused (said so).
+            # The job on the render worker; None when it was cancelled or failed (the page is
+            # told either way: it must never wait for an answer that does not come).
             try:
                 return await self.viewer.run(work)
             except Superseded:
                 await self.send_json({"type": "cancelled", "id": request_id})
             except (ValueError, BadParameter) as error:
                 await self.error(request_id, str(error))
+            except Exception as error:  # noqa: BLE001 - a render or the zip failed (disk, memory)
+                await self.error(request_id, f"{type(error).__name__}: {error}")
             return None
 
         if stack:

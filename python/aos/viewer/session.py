@@ -242,8 +242,8 @@ class Session:
         # Previews divide the width and height by this (2, or 4 while previews are slow).
         self.preview_divisor = 2
         self.adaptive_preview = adaptive_preview
-        # How `source` was loaded (load_lightfield's fov_deg, images_dir, grey) and the focal
-        # surface's file, for the equivalent command.
+        # How `source` was loaded (load_lightfield's fov_deg, images_dir, grey, mask, mask_dir)
+        # and the focal surface's file, for the equivalent command.
         self.load_options = {k: v for k, v in (load_options or {}).items() if v}
         self.surface_path = surface_path
         self.focal_surface = focal_surface
@@ -260,6 +260,8 @@ class Session:
         self.cameras = [view.camera.pinhole() for view in views]
         first = views[0].image
         self.channels = 1 if first is None or first.ndim == 2 else int(first.shape[2])
+        if light_field.masked:
+            self.channels -= 1  # the frames' weight channel (masks) is divided out by renders
         self.dtype = "float32" if first is None else str(first.dtype)
         self.type_range = {"uint8": (0.0, 255.0), "uint16": (0.0, 65535.0)}.get(self.dtype)
         # Mean view centre and the up axis (+z or -z, towards the cameras from the ground).
@@ -579,7 +581,8 @@ class Session:
         """The equivalent `aos-render` command line and Python snippet (full size)."""
         params = Params(**{**params.__dict__, "preview": False})
         source = shlex.quote(self.source) if self.source else "LIGHTFIELD"
-        flags = {"fov_deg": "--frames-fov-deg", "images_dir": "--images-dir", "grey": "--grey"}
+        flags = {"fov_deg": "--frames-fov-deg", "images_dir": "--images-dir", "grey": "--grey",
+                 "mask": "--mask", "mask_dir": "--mask-dir"}
         for name, value in self.load_options.items():
             source += f" {flags[name]}" + ("" if value is True else
                                            f" {shlex.quote(str(value))}")
@@ -645,6 +648,7 @@ class Session:
             "centres": [[float(c) for c in centre] for centre in self.centres],
             "origin": [float(c) for c in np.asarray(lf.origin)],
             "crs": lf.crs,
+            "masked": lf.masked,
             "channels": self.channels,
             "dtype": self.dtype,
             "up_z": self.up_z,
