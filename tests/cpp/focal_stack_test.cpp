@@ -804,6 +804,22 @@ TEST(TerrainFollowingStack, FractionalSlicesLieOnTheSurfaceAtTheInterpolatedOffs
               HasSubstr("offsets: entry 7 is not finite"));
 }
 
+TEST(TerrainFollowingStack, OneAndTwoThreadsGiveTheSameDepths) {
+  // The casts take the caller's thread count (merge/allinfocus num_threads); rows are
+  // independent, so the depth maps are the same bytes for any count.
+  const LightField light_field = GroundLightField();
+  const FocalStackOptions options = TerrainStackOptions(0.3);
+  const SliceFocus focus = ResolveSliceFocus(light_field, options);
+  const PinholeCamera camera = VirtualCamera(light_field, options.render);
+  std::vector<float> slice(static_cast<size_t>(camera.width) * camera.height);
+  for (size_t i = 0; i < slice.size(); ++i) slice[i] = static_cast<float>(i % 7) * 0.5f - 0.5f;
+  const Rigid3d pose = options.render.cam_from_world;
+  EXPECT_TRUE(SameImage(focus.DepthOfSlices(camera, pose, slice, 1),
+                        focus.DepthOfSlices(camera, pose, slice, 2)));
+  EXPECT_TRUE(SameImage(focus.surface->DepthFor(camera, pose, focus.placement, 1),
+                        focus.surface->DepthFor(camera, pose, focus.placement, 2)));
+}
+
 TEST(TerrainFollowingStack, BadOptionsAreNamed) {
   const LightField light_field = GroundLightField();
   FocalStackOptions options = TerrainStackOptions(0.3);

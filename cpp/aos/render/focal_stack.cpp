@@ -148,7 +148,8 @@ Image SliceFocus::DepthOfSlices(const PinholeCamera& camera, const Rigid3d& cam_
                              : (1.0 - fraction) * offsets[static_cast<size_t>(i0)] +
                                    fraction * offsets[static_cast<size_t>(i0 + 1)];
     }
-    Image depth = surface->DepthForOffsets(camera, cam_from_world, placement, pixel_offsets);
+    Image depth =
+        surface->DepthForOffsets(camera, cam_from_world, placement, pixel_offsets, threads);
     for (int y = 0; y < camera.height; ++y) {
       float* row = depth.At<float>(0, y);
       for (int x = 0; x < camera.width; ++x) {

@@ -13,6 +13,7 @@
 #include "aos/geometry/geodesy.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 
@@ -177,11 +178,12 @@ struct FocalSurface::Impl {
   // moved by -offsets[pixel] * up when `offsets` is given, cast in packets of 8 neighbouring
   // pixels of a row (coherent rays: Embree traverses them together); 0 where it misses.
   Image CastDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Vec3d& origin,
-                  const Vec3d& up, const std::vector<double>* offsets) const {
+                  const Vec3d& up, const std::vector<double>* offsets, int num_threads) const {
     RTCScene bvh = Scene();
     const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
     Image depth(camera.width, camera.height, 1, PixelType::kF32);
-#pragma omp parallel for schedule(dynamic, 8)
+    const int threads = ResolveThreadCount(num_threads);
+#pragma omp parallel for num_threads(threads) schedule(dynamic, 8)
     for (int64_t y = 0; y < camera.height; ++y) {
       float* row = depth.At<float>(0, static_cast<int>(y));
       for (int x0 = 0; x0 < camera.width; x0 += 8) {
@@ -442,7 +444,7 @@ Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, con
 }
 
 Image FocalSurface::DepthFor(const PinholeCamera& camera, const Rigid3d& cam_from_world,
-                             const SurfacePlacement& placement) const {
+                             const SurfacePlacement& placement, int num_threads) const {
   placement.Check();
   camera.Check("virtual camera");
   const Impl& s = *impl_;
@@ -461,12 +463,12 @@ Image FocalSurface::DepthFor(const PinholeCamera& camera, const Rigid3d& cam_fro
   }
   // Ray origin in the mesh frame: the local camera centre minus the mesh frame's local position.
   return s.CastDepth(camera, cam_from_world, cam_from_world.Center() - s.ToLocal(placement),
-                     placement.up, nullptr);
+                     placement.up, nullptr, num_threads);
 }
 
 Image FocalSurface::DepthForOffsets(const PinholeCamera& camera, const Rigid3d& cam_from_world,
                                     const SurfacePlacement& placement,
-                                    const std::vector<double>& offsets) const {
+                                    const std::vector<double>& offsets, int num_threads) const {
   placement.Check();
   camera.Check("virtual camera");
   const size_t pixels = static_cast<size_t>(camera.width) * static_cast<size_t>(camera.height);
@@ -487,7 +489,8 @@ Image FocalSurface::DepthForOffsets(const PinholeCamera& camera, const Rigid3d& 
     const Vec3d point = s.plane.point + placement.offset * placement.up;
     const double h0 = glm::dot(normal, point - cam_from_world.Center());
     const double up_along_normal = glm::dot(normal, placement.up);
-#pragma omp parallel for schedule(static)
+    const int threads = ResolveThreadCount(num_threads);
+#pragma omp parallel for num_threads(threads) schedule(static)
     for (int64_t y = 0; y < camera.height; ++y) {
       float* row = depth.At<float>(0, static_cast<int>(y));
       for (int x = 0; x < camera.width; ++x) {
@@ -503,7 +506,7 @@ Image FocalSurface::DepthForOffsets(const PinholeCamera& camera, const Rigid3d& 
     return depth;
   }
   return s.CastDepth(camera, cam_from_world, cam_from_world.Center() - s.ToLocal(placement),
-                     placement.up, &offsets);
+                     placement.up, &offsets, num_threads);
 }
 
 std::vector<double> FocalSurface::HeightsAt(const std::vector<Vec2d>& xy_in_world,

@@ -104,8 +104,9 @@ class FocalSurface {
 
   // Depth map (float32, 1 channel, camera.width x camera.height) of the surface placed by
   // `placement`, seen by `camera` at `cam_from_world` (local frame); 0 where a ray misses.
+  // num_threads: worker threads of the ray cast, -1 = all cores.
   Image DepthFor(const PinholeCamera& camera, const Rigid3d& cam_from_world,
-                 const SurfacePlacement& placement) const;
+                 const SurfacePlacement& placement, int num_threads = -1) const;
 
   // As DepthFor, but every pixel's ray meets the surface moved by its own offset: pixel (x, y)
   // focuses on the surface placed at placement.offset + offsets[y * width + x] along up (a
@@ -114,8 +115,8 @@ class FocalSurface {
   // the hit found in float and its distance recomputed in double, as DepthFor. `offsets` has
   // camera.width * camera.height finite entries (else std::invalid_argument naming `offsets`).
   Image DepthForOffsets(const PinholeCamera& camera, const Rigid3d& cam_from_world,
-                        const SurfacePlacement& placement,
-                        const std::vector<double>& offsets) const;
+                        const SurfacePlacement& placement, const std::vector<double>& offsets,
+                        int num_threads = -1) const;
 
   // World z of the (offset) surface under each world (x, y), met by a vertical ray from the up
   // side; NaN where it misses.

@@ -829,7 +829,7 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
   const SurfacePlacement placement = ResolveSurfacePlacement(
       surface, light_field, options.view_indices, options.surface_offset);
-  const Image depth = surface.DepthFor(camera, cam_from_world, placement);
+  const Image depth = surface.DepthFor(camera, cam_from_world, placement, options.num_threads);
   IntegralOptions depth_options = options;
   if (is_plane) {
     depth_options.focal_plane = surface.plane();
