@@ -278,6 +278,18 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
   const IntegralResult result =
       flags.NamingFlags([&] { return RenderIntegral(light_field, c.options, &progress); });
   progress.Finish();
+  const long long pixels = static_cast<long long>(result.image.width()) * result.image.height();
+  if (!c.args.focal_surface.empty() && result.uncovered_pixels == pixels) {
+    // Nothing written: an all-empty image is no render of the terrain.
+    ThrowInvalid(c.args.focal_surface + ": no pixel is covered: the surface does not cover the "
+                 "virtual camera's view (or no view sees it); check its extent and CRS");
+  }
+  if (!c.args.focal_surface.empty() && result.uncovered_pixels > 0) {
+    Warn(c.args.focal_surface + ": " +
+         FormatNumber(100.0 * static_cast<double>(result.uncovered_pixels) / pixels) +
+         "% of the pixels are uncovered (count 0): their rays miss the surface (beyond its "
+         "extent, nodata holes) or no view sees them");
+  }
   if (!Common().quiet && !Common().json) {
     std::fprintf(stderr,
                  "integrated %d of %d selected views: %lld samples, %lld of %lld pixels "

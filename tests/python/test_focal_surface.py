@@ -383,3 +383,31 @@ def test_cli_stack_around_the_ground_estimated_from_points(tmp_path):
                              capture_output=True, text=True)
         assert run.returncode != 0 and words in run.stderr, run.stderr
         assert not out.exists()
+
+
+def test_cli_a_surface_that_covers_part_or_none_of_the_view_is_said_loudly(tmp_path):
+    # A square DEM-like mesh 4 m wide under part of the view: count-0 pixels and a warning with
+    # the fraction; a mesh far away: an error naming the file, nothing written.
+    light_field = _textured_lightfield()
+    aos.write_lightfield(str(tmp_path / "lf.json"), light_field)
+    small = "v -2 -2 0.3\nv 2 -2 0.3\nv 2 2 0.3\nv -2 2 0.3\nf 1 2 3 4\n"
+    far = "v 500 500 0.3\nv 504 500 0.3\nv 504 504 0.3\nv 500 504 0.3\nf 1 2 3 4\n"
+    (tmp_path / "small.obj").write_text(small)
+    (tmp_path / "far.obj").write_text(far)
+    common = [_aos_render(), "integral", str(tmp_path / "lf.json"), "--look-at=0.7,-0.4,20,0,1,0,0,1,0",
+              "--fov-deg", "60", "--width", "40", "--height", "30"]
+    run = subprocess.run(common + ["--focal-surface", str(tmp_path / "small.obj"), "-o",
+                                   str(tmp_path / "small.tif")], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    count = aos.render_integral(light_field, focal_surface=aos.Mesh.read(str(tmp_path / "small.obj")),
+                                **CAMERA).count
+    fraction = 100.0 * np.count_nonzero(count == 0) / count.size
+    assert 0 < fraction < 100
+    import re
+    said = re.search(r"small\.obj: ([0-9.]+)% of the pixels are uncovered", run.stderr)
+    assert said and abs(float(said.group(1)) - fraction) < 1e-3, (fraction, run.stderr)
+    out = tmp_path / "far.tif"
+    run = subprocess.run(common + ["--focal-surface", str(tmp_path / "far.obj"), "-o", str(out)],
+                         capture_output=True, text=True)
+    assert run.returncode != 0 and "far.obj: no pixel is covered" in run.stderr, run.stderr
+    assert not out.exists()
