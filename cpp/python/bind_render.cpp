@@ -3,6 +3,7 @@
 #include "aos/render/focal_stack.h"
 #include "aos/render/focal_surface.h"
 #include "aos/render/integral.h"
+#include "aos/render/integral_kernels.h"
 #include "aos/render/map.h"
 #include "aos/render/merge.h"
 #include "aos/render/rectify.h"
@@ -230,6 +231,16 @@ void BindIntegral(py::module_& m) {
       "propagates. Ctrl-C raises KeyboardInterrupt. Raises ValueError for bad options. Prefer "
       "aos.render_integral, which also takes the options as keywords.");
 
+  // Private, for benchmarks: the baselines they time in the same run (integral_kernels.h).
+  m.def(
+      "_set_simd_kernels",
+      [](bool enabled, bool variance) {
+        internal::SetSimdEnabled(enabled);
+        internal::SetSimdVarianceEnabled(variance);
+      },
+      "enabled"_a = true, "variance"_a = true,
+      "Benchmarks only, not thread-safe: turn the renderer's SIMD kernels off (enabled=False) "
+      "or only its SIMD variance kernel (variance=False), to time the scalar baseline.");
   m.def("virtual_camera", &VirtualCamera, "light_field"_a, "options"_a,
         "The virtual camera's intrinsics for `options` (square pixels, centred principal point): "
         "fov_deg, width and height where given (non-zero), else view pose_view's, else 50 "

@@ -576,6 +576,134 @@ TEST(Integral, SimdKernelsWriteOnlyTheirSpanAndThePadding) {
   }
 }
 
+// The AVX2 kernels' arithmetic, lane by lane, in scalar code: the same re-basing, FMAs
+// (std::fmaf rounds once, as the instructions do), clamps and truncations. The SIMD kernels must
+// equal it bit for bit, whichever way they fetch the taps (8-bit views: row loads and shuffles,
+// or gathers when a group spans more than 15 columns or more than two rows).
+struct FmaModelSample {
+  double value;
+  double square;
+};
+FmaModelSample FmaModel(const Image& image, const internal::RowLine& line, int xa, int i) {
+  const float ua = static_cast<float>(line.u0 + line.du * xa);
+  const float va = static_cast<float>(line.v0 + line.dv * xa);
+  const float wa = static_cast<float>(line.w0 + line.dw * xa);
+  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
+              dw = static_cast<float>(line.dw);
+  const float fi = static_cast<float>(i);
+  const float inv_w = 1.0f / std::fmaf(dw, fi, wa);
+  const auto clamp = [](float s, float max) {
+    s = s > -1.0f ? s : -1.0f;  // NaN -> -1
+    return s < max ? s : max;
+  };
+  const float sx = clamp(std::fmaf(std::fmaf(du, fi, ua), inv_w, -0.5f), image.width() - 0.5f);
+  const float sy = clamp(std::fmaf(std::fmaf(dv, fi, va), inv_w, -0.5f), image.height() - 0.5f);
+  const int ix = static_cast<int>(sx + 1.0f) - 1, iy = static_cast<int>(sy + 1.0f) - 1;
+  const float ax = sx - static_cast<float>(ix), ay = sy - static_cast<float>(iy);
+  const auto p = [&](int dx, int dy) { return static_cast<float>(image.Value(ix + dx, iy + dy, 0)); };
+  const float upper = std::fmaf(ax, p(1, 0) - p(0, 0), p(0, 0));
+  const float lower = std::fmaf(ax, p(1, 1) - p(0, 1), p(0, 1));
+  const double value = std::fmaf(ay, lower - upper, upper);
+  return {value, value * value};
+}
+
+TEST(Integral, SimdKernelsEqualTheirFmaModelBitForBitOnEveryTapPath) {
+  const internal::RowLine lines[] = {
+      {0.5, 0.93, 2.2, 0.05, 1.0, 1e-4},    // row loads, groups crossing a row (three rows)
+      {63.0, -0.9, 1.5, 0.02, 1.0, 0.0},    // right to left
+      {0.5, 2.2, 3.0, 0.01, 1.0, 0.0},      // 2.2 columns a sample: 8 span > 15 columns: gathers
+      {5.0, 0.3, 0.5, 0.45, 1.0, 0.0},      // 0.45 rows a sample: > 2 rows a group: gathers
+      {2.0, 1.0, 1.0, 0.1, 1.0, 0.012},     // perspective (W varies along the row)
+      {60.0, 0.2, 23.4, 0.01, 1.0, 0.0},    // along the bottom-right edge: clamped positions
+      {-4.0, 1.0, -3.0, 0.0, 1.0, 0.0},     // left of and above the image: clamped to -1
+  };
+  for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
+    Image image(64, 24, 1, type, 1);
+    for (int y = 0; y < 24; ++y) {
+      for (int x = 0; x < 64; ++x) {
+        const int value = (x * 37 + y * 101 + x * y * 7) % 251;
+        if (type == PixelType::kU8) *image.At<uint8_t>(x, y) = static_cast<uint8_t>(value);
+        if (type == PixelType::kU16) *image.At<uint16_t>(x, y) = static_cast<uint16_t>(value * 257);
+        if (type == PixelType::kF32) *image.At<float>(x, y) = static_cast<float>(value) * 0.37f;
+      }
+    }
+    image.FillBorder();
+    const internal::SpanKernel simd = internal::Avx2SpanKernel(image);
+    const internal::SquaresKernel simd_squares = internal::Avx2SquaresKernel(image);
+    if (simd == nullptr || simd_squares == nullptr) GTEST_SKIP() << "no AVX2/FMA on this CPU";
+    for (const internal::RowLine& line : lines) {
+      for (int n : {1, 7, 8, 9, 16, 17, 30}) {
+        const int xa = 3, xb = xa + n;
+        std::vector<double> sum(xb + internal::kSpanPadding, 0.0), sum2 = sum, squares = sum;
+        simd(image, line, xa, xb, 0, sum.data());
+        simd_squares(image, line, xa, xb, 0, sum2.data(), squares.data());
+        for (int i = 0; i < n; ++i) {
+          const FmaModelSample expected = FmaModel(image, line, xa, i);
+          ASSERT_EQ(sum[xa + i], expected.value) << PixelTypeName(type) << " line " << line.u0
+                                                 << " n=" << n << " i=" << i;
+          ASSERT_EQ(sum2[xa + i], expected.value);
+          ASSERT_EQ(squares[xa + i], expected.square);
+        }
+        for (int x = xb; x < xb + internal::kSpanPadding; ++x) {
+          ASSERT_EQ(sum[x], 0.0);
+          ASSERT_EQ(squares[x], 0.0);
+        }
+      }
+    }
+  }
+}
+
+TEST(Integral, VarianceSimdKernelAgreesWithTheScalarVariance) {
+  // The variance pass with the AVX2 kernel against the scalar one on a whole render: equal counts
+  // and variances within what the samples' float rounding allows. Samples differ by at most
+  // delta = 0.01 grey levels (SimdAndScalarKernelsAgree), so a population variance E[v^2] - E[v]^2
+  // of values in [0, range] moves by at most 2 range delta + delta^2.
+  const LightField u8 = SimulatedLightField(5, 64, 64);
+  for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
+    LightField light_field = u8;
+    const double scale = type == PixelType::kU8 ? 1.0 : (type == PixelType::kU16 ? 257.0 : 1.0 / 255.0);
+    for (View& view : light_field.views) {
+      Image converted(view.image.width(), view.image.height(), 1, type, 1);
+      for (int y = 0; y < converted.height(); ++y) {
+        for (int x = 0; x < converted.width(); ++x) {
+          const double value = view.image.Value(x, y) * scale;
+          if (type == PixelType::kU16) *converted.At<uint16_t>(x, y) = static_cast<uint16_t>(value);
+          if (type == PixelType::kF32) *converted.At<float>(x, y) = static_cast<float>(value);
+          if (type == PixelType::kU8) *converted.At<uint8_t>(x, y) = static_cast<uint8_t>(value);
+        }
+      }
+      converted.FillBorder();
+      view.image = converted;
+    }
+    if (internal::Avx2SquaresKernel(light_field.views[0].image) == nullptr) {
+      GTEST_SKIP() << "no AVX2/FMA on this CPU";
+    }
+    IntegralOptions options;
+    options.cam_from_world = LookAt(Vec3d(1, 2, 35), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
+    options.width = 75;  // not a multiple of 8
+    options.height = 41;
+    options.fov_deg = 40.0;
+    options.variance = true;
+    internal::SetSimdVarianceEnabled(false);
+    const IntegralResult scalar = RenderIntegral(light_field, options);
+    internal::SetSimdVarianceEnabled(true);
+    const IntegralResult simd = RenderIntegral(light_field, options);
+    const double range = 255.0 * scale, delta = 0.01 * scale;
+    double max_difference = 0.0, max_variance = 0.0;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        ASSERT_EQ(*scalar.count.At<uint32_t>(x, y), *simd.count.At<uint32_t>(x, y));
+        max_variance = std::max<double>(max_variance, *scalar.variance.At<float>(x, y));
+        max_difference = std::max<double>(
+            max_difference,
+            std::abs(double(*scalar.variance.At<float>(x, y)) - *simd.variance.At<float>(x, y)));
+      }
+    }
+    EXPECT_GT(max_variance, 1e-3 * range * range) << PixelTypeName(type);  // not a flat scene
+    EXPECT_LE(max_difference, 2.0 * range * delta + delta * delta) << PixelTypeName(type);
+  }
+}
+
 TEST(Integral, GrazingViewsAndPointsBehindAViewContributeNothing) {
   const PinholeCamera camera = PinholeCamera::FromFov(32, 32, 60.0);
   auto constant_image = [](float value) { return ConstantImage(32, 32, value); };

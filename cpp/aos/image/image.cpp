@@ -9,18 +9,8 @@
 
 namespace aos {
 namespace {
-constexpr size_t kSlackBytes = 16;
+constexpr size_t kSlackBytes = 32;
 }  // namespace
-
-size_t PixelTypeSize(PixelType type) {
-  switch (type) {
-    case PixelType::kU8: return 1;
-    case PixelType::kU16: return 2;
-    case PixelType::kU32: return 4;
-    case PixelType::kF32: return 4;
-  }
-  return 0;
-}
 
 double PixelTypeFullRange(PixelType type) {
   switch (type) {
@@ -61,7 +51,8 @@ Image::Image(int width, int height, int channels, PixelType type, int border)
   if (border < 0) ThrowInvalid("image: border must be >= 0");
   row_stride_ = static_cast<ptrdiff_t>(width + 2 * border) * channels;
   bytes_ = static_cast<size_t>(row_stride_) * (height + 2 * border) * PixelTypeSize(type);
-  // A few bytes of slack past the end: SIMD gathers read 4 bytes at a tap's address.
+  // Slack past the end: SIMD gathers read 4 bytes at a tap's address, and the 8-bit integral
+  // kernel 16 bytes from a tap (integral_kernels_avx2.cpp: FetchU8FromRows).
   data_.reset(new unsigned char[bytes_ + kSlackBytes]());
 }
 

@@ -17,8 +17,16 @@ namespace aos {
 
 enum class PixelType { kU8, kU16, kU32, kF32 };
 
-// Bytes per channel value.
-size_t PixelTypeSize(PixelType type);
+// Bytes per channel value (inline: pixel addressing in the renderers' inner loops uses it).
+inline size_t PixelTypeSize(PixelType type) {
+  switch (type) {
+    case PixelType::kU8: return 1;
+    case PixelType::kU16: return 2;
+    case PixelType::kU32: return 4;
+    case PixelType::kF32: return 4;
+  }
+  return 0;
+}
 // "uint8", "uint16", "uint32", "float32" (also the numpy dtype name).
 const char* PixelTypeName(PixelType type);
 // The inverse of PixelTypeName; throws std::invalid_argument "<where>: ..." for other names.

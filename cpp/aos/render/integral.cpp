@@ -216,8 +216,9 @@ RowLine MakeRowLine(const Mat3d& H, int y) {
 }
 
 // Asks the memory system for the view pixels a later row's span will read, so their cache misses
-// overlap with the current row's work instead of stalling its gathers: the sampled points of a
-// row lie on a segment in the view; touch it every 16 view pixels, in both tap rows.
+// overlap with the current row's work instead of stalling its loads: the sampled points of a row
+// lie on a segment in the view; touch it once per cache line it crosses (and at least once per
+// view row), in both tap rows.
 void PrefetchSpan(const Image& image, const RowLine& line, int xa, int xb) {
   const double wa = line.w0 + line.dw * xa, wb = line.w0 + line.dw * (xb - 1);
   if (!(wa > 0.0 && wb > 0.0)) return;
@@ -228,13 +229,14 @@ void PrefetchSpan(const Image& image, const RowLine& line, int xa, int xb) {
   const double ya_s = std::clamp((line.v0 + line.dv * xa) / wa - 0.5, -1.0, y_max);
   const double xb_s = std::clamp((line.u0 + line.du * (xb - 1)) / wb - 0.5, -1.0, x_max);
   const double yb_s = std::clamp((line.v0 + line.dv * (xb - 1)) / wb - 0.5, -1.0, y_max);
-  const double length = std::abs(xb_s - xa_s) + std::abs(yb_s - ya_s);
+  const ptrdiff_t value_bytes = static_cast<ptrdiff_t>(PixelTypeSize(image.type()));
+  const ptrdiff_t pixel_bytes = value_bytes * image.channels();
+  const ptrdiff_t row_bytes = image.row_stride() * value_bytes;
+  const double length = std::max(std::abs(xb_s - xa_s) * pixel_bytes / 64.0, std::abs(yb_s - ya_s));
   if (!std::isfinite(length)) return;
-  const int steps = std::min(64, static_cast<int>(length / 16.0) + 1);
+  const int steps = std::min(64, static_cast<int>(length) + 1);
   const double step_x = (xb_s - xa_s) / steps, step_y = (yb_s - ya_s) / steps;
   const auto* base = static_cast<const char*>(image.RawAt(0, 0));
-  const ptrdiff_t pixel_bytes = static_cast<ptrdiff_t>(PixelTypeSize(image.type())) * image.channels();
-  const ptrdiff_t row_bytes = image.row_stride() * static_cast<ptrdiff_t>(PixelTypeSize(image.type()));
   double x = xa_s, y = ya_s;
   for (int k = 0; k <= steps; ++k, x += step_x, y += step_y) {
     // x, y >= -1 (up to rounding of the steps), so truncating s + 1 gives floor(s) + 1.
@@ -486,7 +488,7 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
     }
     const SpanKernel kernel = internal::SelectSpanKernel(image);
     const internal::SquaresKernel squares_kernel =
-        options_.variance ? internal::ScalarSquaresKernel(image) : nullptr;
+        options_.variance ? internal::SelectSquaresKernel(image) : nullptr;
     const bool on_lens_plane = on_lens_plane_of(view);
     if (finite_aperture && on_lens_plane && glm::dot(view.b, view.b) > r2) continue;
     bool grazing_test = sin2_min_angle_ > 0.0;

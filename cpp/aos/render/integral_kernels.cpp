@@ -6,6 +6,7 @@ namespace aos::internal {
 namespace {
 
 bool g_simd_enabled = true;
+bool g_simd_variance_enabled = true;
 
 // s clamped to [-1, max]; NaN gives -1.
 inline float ClampSample(float s, float max) {
@@ -115,5 +116,7 @@ SquaresKernel ScalarSquaresKernel(const Image& image) {
 
 void SetSimdEnabled(bool enabled) { g_simd_enabled = enabled; }
 bool SimdEnabled() { return g_simd_enabled; }
+void SetSimdVarianceEnabled(bool enabled) { g_simd_variance_enabled = enabled; }
+bool SimdVarianceEnabled() { return g_simd_variance_enabled; }
 
 }  // namespace aos::internal

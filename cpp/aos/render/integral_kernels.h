@@ -2,7 +2,8 @@
 // Internal to the integral renderer: the inner loops that sample one view along a span of an
 // output row and add the samples to double accumulators. The scalar kernels are the reference;
 // AVX2 kernels (8 samples at a time, gathers) are used when the CPU has AVX2 and FMA and give
-// the same values up to float rounding. Not part of the public API.
+// the same values up to float rounding (8-bit views: bit-identical samples, whether the taps come
+// from row loads or gathers). Not part of the public API.
 #include <cstddef>
 
 #include "aos/image/image.h"
@@ -22,11 +23,15 @@ using SpanKernel = void (*)(const Image& image, const RowLine& line, int xa, int
                             double* sum);
 
 // A span kernel that also adds the sum over channels of the squared samples into
-// sum_squares[x - x0] (the renderer's variance pass); scalar, the same samples as the scalar
-// span kernel.
+// sum_squares[x - x0] (the renderer's variance pass), from the same samples as it adds to `sum`.
+// The squares are rounded as the scalar kernel rounds them (double product, then double sum);
+// the SIMD samples themselves differ from the scalar ones by float rounding, as for SpanKernel.
 using SquaresKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
                                double* sum, double* sum_squares);
 SquaresKernel ScalarSquaresKernel(const Image& image);
+// The AVX2 variance kernel for 1-channel 8-bit, 16-bit and float views; nullptr otherwise (as
+// Avx2SpanKernel).
+SquaresKernel Avx2SquaresKernel(const Image& image);
 
 // The scalar kernel for the view's pixel type and channel count (nullptr for uint32 views).
 SpanKernel ScalarSpanKernel(const Image& image);
@@ -36,14 +41,23 @@ SpanKernel ScalarSpanKernel(const Image& image);
 SpanKernel Avx2SpanKernel(const Image& image);
 
 // SIMD kernels are on by default; tests and benchmarks turn them off to compare with the scalar
-// reference. Not thread-safe: set it before rendering.
+// reference. SetSimdVarianceEnabled(false) turns off only the SIMD variance kernel (the variance
+// pass then runs the scalar kernel, as before it had a SIMD one: tools/bench_merge.py's baseline).
+// Not thread-safe: set them before rendering.
 void SetSimdEnabled(bool enabled);
 bool SimdEnabled();
+void SetSimdVarianceEnabled(bool enabled);
+bool SimdVarianceEnabled();
 
 // The kernel the renderer uses: AVX2 when available, else scalar.
 inline SpanKernel SelectSpanKernel(const Image& image) {
   SpanKernel kernel = SimdEnabled() ? Avx2SpanKernel(image) : nullptr;
   return kernel != nullptr ? kernel : ScalarSpanKernel(image);
+}
+
+inline SquaresKernel SelectSquaresKernel(const Image& image) {
+  SquaresKernel kernel = SimdEnabled() && SimdVarianceEnabled() ? Avx2SquaresKernel(image) : nullptr;
+  return kernel != nullptr ? kernel : ScalarSquaresKernel(image);
 }
 
 }  // namespace aos::internal

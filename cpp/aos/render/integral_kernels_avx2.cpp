@@ -27,23 +27,26 @@ struct SpanSetup {
   int stride_bytes;
 };
 
-// The first half of a group of 8 samples: positions, weights, and the taps' raw values as
-// gathered (the long-latency part).
+// Where the 8 samples of a group fall in the view: the top-left tap and the weights.
+struct Positions {
+  __m256 ax, ay;
+  __m256i ix, iy;
+};
+
+// A group's weights and its taps' raw values (the long-latency part).
 struct Fetched {
   __m256 ax, ay;
   __m256i top, bottom;        // 8/16-bit views: both horizontal taps of a row in one 32-bit word
   __m256 p00, p01, p10, p11;  // float views
 };
 
-template <PixelType kType>
-__attribute__((target("avx2,fma"), always_inline)) inline Fetched Fetch(const SpanSetup& c, int i) {
-  constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
+// The sample positions of columns xa + fi (fi: 8 consecutive column offsets, as floats).
+__attribute__((target("avx2,fma"), always_inline)) inline Positions Locate(const SpanSetup& c,
+                                                                           __m256 fi) {
   const __m256 one = _mm256_set1_ps(1.0f);
-  const __m256 fi = _mm256_add_ps(_mm256_set1_ps(static_cast<float>(i)),
-                                  _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7));
   const __m256 inv_w = _mm256_div_ps(one, _mm256_fmadd_ps(c.dw, fi, c.wa));
   // Clamped to [-1, size - 0.5] as in the scalar kernel (max_ps returns its second operand,
-  // -1, for NaN), so no rounding can send a gather outside the bordered image.
+  // -1, for NaN), so no rounding can send a load outside the bordered image.
   const __m256 half = _mm256_set1_ps(0.5f), minus_one = _mm256_set1_ps(-1.0f);
   const __m256 sx = _mm256_min_ps(
       _mm256_max_ps(_mm256_fmsub_ps(_mm256_fmadd_ps(c.du, fi, c.ua), inv_w, half), minus_one),
@@ -53,13 +56,74 @@ __attribute__((target("avx2,fma"), always_inline)) inline Fetched Fetch(const Sp
       c.y_max);
   // sx, sy >= -1, so truncating s + 1 gives floor(s) + 1.
   const __m256i one_i = _mm256_set1_epi32(1);
-  const __m256i ix = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sx, one)), one_i);
-  const __m256i iy = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sy, one)), one_i);
+  Positions p;
+  p.ix = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sx, one)), one_i);
+  p.iy = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sy, one)), one_i);
+  p.ax = _mm256_sub_ps(sx, _mm256_cvtepi32_ps(p.ix));
+  p.ay = _mm256_sub_ps(sy, _mm256_cvtepi32_ps(p.iy));
+  return p;
+}
+
+// The 16 bytes at `p`, in both 128-bit halves, shuffled by `control`.
+__attribute__((target("avx2,fma"), always_inline)) inline __m256i ShuffleRow(const unsigned char* p,
+                                                                             __m256i control) {
+  return _mm256_shuffle_epi8(
+      _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))), control);
+}
+
+// 8-bit views: the taps of 8 consecutive samples usually lie in a short stretch of two or three
+// view rows (along an output row the view position moves monotonically, about one view pixel per
+// output pixel; on F0 every group does). Then 16-byte row loads and byte shuffles replace the two
+// gathers, which issue 8 loads each and were the kernel's bottleneck. The words built are the
+// gathers' words in their low 16 bits ([p00, p01] and [p10, p11]); the upper bytes are zero
+// instead of the next pixels', which Finish masks off, so the samples are the same. Returns false
+// (the caller gathers) when the group spans more than 15 columns or more than two rows.
+// Memory: reads 16 bytes from the leftmost tap in rows iy_min .. iy_min + 2, within the bordered
+// image or its slack (image.cpp: kSlackBytes): positions are clamped to x <= width - 0.5 and
+// y <= height - 0.5, so iy_min + 2 <= height (the border row) and the leftmost tap <= width - 1.
+__attribute__((target("avx2,fma"), always_inline)) inline bool FetchU8FromRows(const SpanSetup& c,
+                                                                               const Positions& p,
+                                                                               Fetched& f) {
+  // Positions are monotonic along the span, so the extremes are the first and last lanes.
+  const __m128i ix_high = _mm256_extracti128_si256(p.ix, 1);
+  const __m128i iy_high = _mm256_extracti128_si256(p.iy, 1);
+  const int ix_first = _mm256_cvtsi256_si32(p.ix), ix_last = _mm_extract_epi32(ix_high, 3);
+  const int iy_first = _mm256_cvtsi256_si32(p.iy), iy_last = _mm_extract_epi32(iy_high, 3);
+  const int x_min = ix_first < ix_last ? ix_first : ix_last;
+  const int x_span = ix_first < ix_last ? ix_last - ix_first : ix_first - ix_last;
+  const int y_min = iy_first < iy_last ? iy_first : iy_last;
+  const int y_span = iy_first < iy_last ? iy_last - iy_first : iy_first - iy_last;
+  if (x_span > 14 || y_span > 1) return false;
+  const unsigned char* row = c.origin + static_cast<ptrdiff_t>(y_min) * c.stride_bytes + x_min;
+  // Per lane, bytes [d, d + 1, zero, zero] with d = ix - x_min (vpshufb zeroes for 0x80).
+  const __m256i d = _mm256_sub_epi32(p.ix, _mm256_set1_epi32(x_min));
+  const __m256i control = _mm256_add_epi32(_mm256_add_epi32(d, _mm256_slli_epi32(d, 8)),
+                                           _mm256_set1_epi32(static_cast<int>(0x80800100u)));
+  // Always three rows and a blend (lanes in row y_min + 1 take the lower pair): on F0 about one
+  // group in six spans two rows, and the branch it would take costs more than the third load.
+  const __m256i row0 = ShuffleRow(row, control);
+  const __m256i row1 = ShuffleRow(row + c.stride_bytes, control);
+  const __m256i row2 = ShuffleRow(row + 2 * static_cast<ptrdiff_t>(c.stride_bytes), control);
+  const __m256i lower = _mm256_cmpgt_epi32(p.iy, _mm256_set1_epi32(y_min));  // lanes at y_min + 1
+  f.top = _mm256_blendv_epi8(row0, row1, lower);
+  f.bottom = _mm256_blendv_epi8(row1, row2, lower);
+  return true;
+}
+
+// The taps of a group: row loads (8-bit views, when they fit) or gathers.
+template <PixelType kType>
+__attribute__((target("avx2,fma"), always_inline)) inline Fetched Fetch(const SpanSetup& c,
+                                                                        const Positions& p) {
+  constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
   Fetched f;
-  f.ax = _mm256_sub_ps(sx, _mm256_cvtepi32_ps(ix));
-  f.ay = _mm256_sub_ps(sy, _mm256_cvtepi32_ps(iy));
-  const __m256i offset = _mm256_add_epi32(_mm256_mullo_epi32(iy, _mm256_set1_epi32(c.stride_bytes)),
-                                          _mm256_mullo_epi32(ix, _mm256_set1_epi32(kValueSize)));
+  f.ax = p.ax;
+  f.ay = p.ay;
+  if constexpr (kType == PixelType::kU8) {
+    if (FetchU8FromRows(c, p, f)) return f;
+  }
+  const __m256i offset =
+      _mm256_add_epi32(_mm256_mullo_epi32(p.iy, _mm256_set1_epi32(c.stride_bytes)),
+                       _mm256_mullo_epi32(p.ix, _mm256_set1_epi32(kValueSize)));
   if constexpr (kType == PixelType::kF32) {
     const auto* base = reinterpret_cast<const float*>(c.origin);
     const auto* below = reinterpret_cast<const float*>(c.origin + c.stride_bytes);
@@ -75,10 +139,28 @@ __attribute__((target("avx2,fma"), always_inline)) inline Fetched Fetch(const Sp
   return f;
 }
 
+// Adds the 8 float values to out[0..7] in double; with `squares`, their squares (in double, as
+// the scalar kernel: one rounding for the product, one for the sum) to squares[0..7].
+__attribute__((target("avx2,fma"), always_inline)) inline void Accumulate(__m256 value, double* out,
+                                                                          double* squares) {
+  const __m256d low = _mm256_cvtps_pd(_mm256_castps256_ps128(value));
+  const __m256d high = _mm256_cvtps_pd(_mm256_extractf128_ps(value, 1));
+  _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out), low));
+  _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4), high));
+  if (squares != nullptr) {
+    // A separate multiply and add, rounded as the scalar kernel rounds: the empty asm keeps the
+    // compiler from contracting them into an FMA.
+    __m256d low2 = _mm256_mul_pd(low, low), high2 = _mm256_mul_pd(high, high);
+    asm("" : "+x"(low2), "+x"(high2));
+    _mm256_storeu_pd(squares, _mm256_add_pd(_mm256_loadu_pd(squares), low2));
+    _mm256_storeu_pd(squares + 4, _mm256_add_pd(_mm256_loadu_pd(squares + 4), high2));
+  }
+}
+
 // The second half: unpack the taps, interpolate, add to the double accumulators.
 template <PixelType kType>
 __attribute__((target("avx2,fma"), always_inline)) inline void Finish(const Fetched& f,
-                                                                      double* out,
+                                                                      double* out, double* squares,
                                                                       __m256 keep) {
   __m256 p00, p01, p10, p11;
   if constexpr (kType == PixelType::kF32) {
@@ -95,15 +177,19 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Finish(const Fetc
   const __m256 lower = _mm256_fmadd_ps(f.ax, _mm256_sub_ps(p11, p10), p10);
   // `keep` zeroes the lanes past the end of the span (adding +0.0 changes nothing).
   const __m256 value = _mm256_and_ps(_mm256_fmadd_ps(f.ay, _mm256_sub_ps(lower, upper), upper), keep);
-  _mm256_storeu_pd(out, _mm256_add_pd(_mm256_loadu_pd(out),
-                                      _mm256_cvtps_pd(_mm256_castps256_ps128(value))));
-  _mm256_storeu_pd(out + 4, _mm256_add_pd(_mm256_loadu_pd(out + 4),
-                                          _mm256_cvtps_pd(_mm256_extractf128_ps(value, 1))));
+  Accumulate(value, out, squares);
 }
 
-template <PixelType kType>
-__attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowLine& line,
-                                                  int xa, int xb, int x0, double* sum) {
+// One span of a 1-channel view; with kSquares also the squared samples (the variance pass).
+// Software-pipelined in three stages: while group g is interpolated and added, the taps of group
+// g + 1 are loaded and the positions of group g + 2 computed, so the loads' latency (and that of
+// the division before them) overlaps useful work. Groups past the span's end are clamped into
+// the image, so their loads stay in bounds; the last group's extra lanes add zero to the
+// accumulators' padding (see the caller).
+template <PixelType kType, bool kSquares>
+__attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const RowLine& line,
+                                                      int xa, int xb, int x0, double* sum,
+                                                      double* sum_squares) {
   constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
   SpanSetup c;
   c.origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
@@ -118,22 +204,40 @@ __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowL
   c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
   c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
   double* out = sum + (xa - x0);
+  double* squares = kSquares ? sum_squares + (xa - x0) : nullptr;
   const int n = xb - xa;
   const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
-  // Software-pipelined: the gathers of the next group are issued before the current group is
-  // interpolated, so their latency overlaps useful work (about 15% faster on Zen 3). The last
-  // group may extend past the span: its positions are clamped into the image, so its gathers
-  // stay in bounds, and its extra lanes add zero to the accumulators' padding (see caller).
-  Fetched current = Fetch<kType>(c, 0);
+  // Column offsets as floats; adding 8 is exact (integers below 2^24).
+  const __m256 eight = _mm256_set1_ps(8.0f);
+  __m256 fi = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+  Fetched current = Fetch<kType>(c, Locate(c, fi));
+  fi = _mm256_add_ps(fi, eight);
+  Positions ahead = Locate(c, fi);
   int i = 0;
   for (; i + 8 < n; i += 8) {
-    const Fetched next = Fetch<kType>(c, i + 8);
-    Finish<kType>(current, out + i, all);
+    fi = _mm256_add_ps(fi, eight);
+    const Positions after = Locate(c, fi);
+    const Fetched next = Fetch<kType>(c, ahead);
+    Finish<kType>(current, out + i, kSquares ? squares + i : nullptr, all);
     current = next;
+    ahead = after;
   }
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256 keep = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n - i), lane));
-  Finish<kType>(current, out + i, keep);
+  Finish<kType>(current, out + i, kSquares ? squares + i : nullptr, keep);
+}
+
+template <PixelType kType>
+__attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowLine& line,
+                                                  int xa, int xb, int x0, double* sum) {
+  Avx2SpanImpl<kType, false>(image, line, xa, xb, x0, sum, nullptr);
+}
+
+template <PixelType kType>
+__attribute__((target("avx2,fma"))) void Avx2SpanSquares(const Image& image, const RowLine& line,
+                                                         int xa, int xb, int x0, double* sum,
+                                                         double* sum_squares) {
+  Avx2SpanImpl<kType, true>(image, line, xa, xb, x0, sum, sum_squares);
 }
 
 // 8-bit views of 2 channels (masked grey frames: value x mask, weight; lightfield/mask.h): one
@@ -195,10 +299,13 @@ __attribute__((target("avx2,fma"))) void Avx2SpanU8TwoChannels(const Image& imag
   const int n = xb - xa;
   const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
   // A pixel is 2 bytes: Fetch's byte offsets for kU16 (2 bytes a value) are this layout's.
-  Fetched current = Fetch<PixelType::kU16>(c, 0);
+  const __m256 eight = _mm256_set1_ps(8.0f);
+  __m256 fi = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+  Fetched current = Fetch<PixelType::kU16>(c, Locate(c, fi));
   int i = 0;
   for (; i + 8 < n; i += 8) {
-    const Fetched next = Fetch<PixelType::kU16>(c, i + 8);
+    fi = _mm256_add_ps(fi, eight);
+    const Fetched next = Fetch<PixelType::kU16>(c, Locate(c, fi));
     FinishTwoChannels(current, out + 2 * i, all);
     current = next;
   }
@@ -215,16 +322,27 @@ bool CpuHasAvx2Fma() {
   return has;
 }
 
+// Whether the AVX2 kernels can sample `image` (gather offsets are 32-bit byte offsets).
+bool Avx2Usable(const Image& image) {
+  return SimdEnabled() && CpuHasAvx2Fma() && image.border() >= 1 &&
+         image.AllocatedBytes() < static_cast<size_t>(std::numeric_limits<int32_t>::max() / 2);
+}
+
 }  // namespace
 
+SquaresKernel Avx2SquaresKernel(const Image& image) {
+  if (!Avx2Usable(image) || image.channels() != 1) return nullptr;
+  switch (image.type()) {
+    case PixelType::kU8: return &Avx2SpanSquares<PixelType::kU8>;
+    case PixelType::kU16: return &Avx2SpanSquares<PixelType::kU16>;
+    case PixelType::kF32: return &Avx2SpanSquares<PixelType::kF32>;
+    case PixelType::kU32: break;
+  }
+  return nullptr;
+}
+
 SpanKernel Avx2SpanKernel(const Image& image) {
-  if (!SimdEnabled() || !CpuHasAvx2Fma() || image.channels() > 2 || image.border() < 1) {
-    return nullptr;
-  }
-  // Gather offsets are 32-bit byte offsets.
-  if (image.AllocatedBytes() >= static_cast<size_t>(std::numeric_limits<int32_t>::max() / 2)) {
-    return nullptr;
-  }
+  if (!Avx2Usable(image) || image.channels() > 2) return nullptr;
   if (image.channels() == 2) {
     return image.type() == PixelType::kU8 ? &Avx2SpanU8TwoChannels : nullptr;
   }
@@ -240,6 +358,7 @@ SpanKernel Avx2SpanKernel(const Image& image) {
 #else
 
 SpanKernel Avx2SpanKernel(const Image&) { return nullptr; }
+SquaresKernel Avx2SquaresKernel(const Image&) { return nullptr; }
 
 #endif
 
