@@ -96,6 +96,11 @@ struct IntegralOptions {
   // Also return the per-pixel variance of the view samples (the samples then go through the
   // scalar kernel, which also sums their squares: a few times slower than the AVX2 one).
   bool variance = false;
+  // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
+  // the exact lens projection is replaced by local homographies (surface_integral.h,
+  // PointIntegralOptions::lens_tolerance_px, which this fills); 0 = project every sample exactly.
+  // Validated where it is used (the per-sample path), ignored for pinhole views.
+  double lens_tolerance_px = 0.02;
 
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
   // in the light field (for pose_view and view_indices).

@@ -54,6 +54,9 @@ struct ViewSetup {
   double lens_b = 0.0;      // a . b
   double fx = 0, fy = 0, cx = 0, cy = 0, width = 0, height = 0;
   const LensCamera* lens = nullptr;  // set for views with a lens model (direct sampling)
+  // Lens views: the largest angle from the view's optical axis within which every ray
+  // projects (LensValidAngle), radians.
+  double valid_angle = 0.0;
   Sampler sample = nullptr;
   internal::PointKernel kernel = nullptr;  // pinhole views with an AVX2 kernel
 };
@@ -89,6 +92,32 @@ Sampler SamplerFor(const Image& image) {
   }
 }
 
+// The largest angle from the optical axis within which every ray of `lens` projects
+// (LensCamera::Project succeeds), radians: theta_max for a fisheye; for the radial-tangential
+// part of radtan and omnidir lenses also the angle whose undistorted radius is max_radius.
+double LensValidAngle(const LensCamera& lens) {
+  switch (lens.model) {
+    case LensModel::kPinhole: return 0.5 * kPi;
+    case LensModel::kFisheye: return lens.theta_max;
+    case LensModel::kRadTan:
+      return std::isfinite(lens.max_radius) ? std::atan(lens.max_radius) : 0.5 * kPi;
+    case LensModel::kOmnidir: {
+      // The undistorted radius sin(t) / (cos(t) + xi) increases with t below theta_max (its
+      // derivative is (1 + xi cos t) / (cos t + xi)^2 > 0 there): bisection.
+      if (!std::isfinite(lens.max_radius)) return lens.theta_max;
+      const auto radius = [&](double t) { return std::sin(t) / (std::cos(t) + lens.xi); };
+      if (radius(lens.theta_max * (1.0 - 1e-12)) <= lens.max_radius) return lens.theta_max;
+      double lo = 0.0, hi = lens.theta_max;
+      for (int i = 0; i < 100; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (radius(mid) <= lens.max_radius ? lo : hi) = mid;
+      }
+      return lo;
+    }
+  }
+  return 0.0;
+}
+
 // What every route shares: the geometry of the admission tests and the selected views.
 struct Setup {
   int width = 0, height = 0;
@@ -103,6 +132,7 @@ struct Setup {
   double r2 = 0.0;
   int channels = 1;
   double range = 255.0;
+  double lens_tolerance = 0.0;  // PointIntegralOptions::lens_tolerance_px
   std::vector<ViewSetup> views;
   std::vector<int> view_indices;  // views[i] is light-field view view_indices[i] (ascending)
 };
@@ -135,6 +165,7 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
   s.nearest = options.aperture_radius == 0.0;
   s.finite_aperture = std::isfinite(options.aperture_radius) && !s.nearest;
   s.r2 = options.aperture_radius * options.aperture_radius;
+  s.lens_tolerance = options.lens_tolerance_px;
 
   std::vector<int> selection = options.view_indices;
   if (selection.empty()) {
@@ -166,9 +197,12 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
     setup.cy = view.camera.cy;
     setup.width = view.camera.width;
     setup.height = view.camera.height;
-    if (view.camera.model != LensModel::kPinhole) setup.lens = &view.camera;
+    if (view.camera.model != LensModel::kPinhole) {
+      setup.lens = &view.camera;
+      setup.valid_angle = LensValidAngle(view.camera);
+    }
     setup.sample = SamplerFor(view.image);
-    if (setup.lens == nullptr) setup.kernel = internal::Avx2PointKernel(view.image);
+    setup.kernel = internal::Avx2PointKernel(view.image);
     s.views.push_back(setup);
   }
   return s;
@@ -563,13 +597,10 @@ bool ExactAdmitLane(const void* context, int index) {
 // The AVX2 kernel's description of `view` on a tile whose points (relative to the centre) lie
 // within |x| <= extent.x etc.: the projection in float and the bounds of each test's float error
 // (surface_integral_kernels.h; a few times the worst-case rounding of the float arithmetic).
-internal::PointKernelArgs KernelArgs(const Setup& s, const ViewSetup& view, const Vec3d& extent,
-                                     bool grazing) {
+// The projection is (U, V, Z) = rows[r] . p + t[r] for a point p relative to the centre.
+internal::PointKernelArgs KernelArgsFor(const Setup& s, const ViewSetup& view, const Vec3d rows[3],
+                                        const double t[3], const Vec3d& extent, bool grazing) {
   internal::PointKernelArgs args;
-  const Vec3d r0 = Row(view.rotation, 0), r1 = Row(view.rotation, 1), r2 = Row(view.rotation, 2);
-  const Vec3d rows[3] = {view.fx * r0 + view.cx * r2, view.fy * r1 + view.cy * r2, r2};
-  const double t[3] = {view.fx * view.offset.x + view.cx * view.offset.z,
-                       view.fy * view.offset.y + view.cy * view.offset.z, view.offset.z};
   double magnitude[3];
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) args.P[r][c] = static_cast<float>(rows[r][c]);
@@ -609,6 +640,16 @@ internal::PointKernelArgs KernelArgs(const Setup& s, const ViewSetup& view, cons
   return args;
 }
 
+// A pinhole view's projection K (R p + offset).
+internal::PointKernelArgs KernelArgs(const Setup& s, const ViewSetup& view, const Vec3d& extent,
+                                     bool grazing) {
+  const Vec3d r0 = Row(view.rotation, 0), r1 = Row(view.rotation, 1), r2 = Row(view.rotation, 2);
+  const Vec3d rows[3] = {view.fx * r0 + view.cx * r2, view.fy * r1 + view.cy * r2, r2};
+  const double t[3] = {view.fx * view.offset.x + view.cx * view.offset.z,
+                       view.fy * view.offset.y + view.cy * view.offset.z, view.offset.z};
+  return KernelArgsFor(s, view, rows, t, extent, grazing);
+}
+
 // One thread's working memory for a tile.
 struct TileBuffers {
   std::vector<float> x, y, z;
@@ -623,13 +664,207 @@ struct TileBuffers {
   std::vector<Footprint> footprints;
   std::vector<const char*> lines;  // the next view's cache lines to prefetch
   std::vector<Vec3d> outline;      // points on the tile's border (footprints)
+  // The lens route: exact projections at quad nodes, valid while node_stamp[j] == generation
+  // (one generation per view), and each quad's departure from bilinear (-1 = not computed).
+  struct LensNode {
+    Vec3d in_cam;
+    Vec2d pixel;
+    bool valid;
+  };
+  std::vector<uint32_t> node_stamp;
+  std::vector<LensNode> nodes;
+  uint32_t generation = 0;
+  std::vector<double> deviation;
+};
+
+// Quads of the lens route: 64 (the tile), 32, 16 and 8 pixels on a side; ids per level.
+constexpr int kLensQuadLevels = 4;
+constexpr int kLensQuadOffset[kLensQuadLevels] = {0, 1, 5, 21};
+constexpr int kLensQuadCount = 85;
+static_assert(kTileWidth == 64 && kTileHeight == 64, "the lens route's quads tile 64 x 64");
+
+// Lens views on a tile, quad by quad (see the top of this file): a quad whose local homography
+// is within the tolerance goes through the AVX2 kernel, others are split, down to 8 x 8 pixels,
+// below which `exact` (AdmitSample and the double sampler) takes each point.
+template <typename Exact>
+struct LensRoute {
+  const Setup& s;
+  const ViewSetup& view;
+  TileBuffers& b;
+  int stride, tile_width, tile_height;
+  const Vec3d& extent;
+  bool variance, grazing;
+  const Exact& exact;
+  bool any = false;
+
+  const TileBuffers::LensNode& Node(int tx, int ty) {
+    const size_t j = static_cast<size_t>(ty) * stride + tx;
+    TileBuffers::LensNode& node = b.nodes[j];
+    if (b.node_stamp[j] == b.generation) return node;
+    b.node_stamp[j] = b.generation;
+    node.valid = false;
+    if (b.valid[j] == 0) return node;
+    node.in_cam = view.rotation * b.focal[j] + view.offset;
+    node.valid = view.lens->Project(node.in_cam, &node.pixel);
+    return node;
+  }
+
+  // The largest distance (metres) of a quad's focal points from the bilinear interpolation of
+  // those at its corner nodes; infinity if a corner has none. The same for every view.
+  double Deviation(int id, int qx, int qy, int xl, int yl, int x_end, int y_end) {
+    double& memo = b.deviation[static_cast<size_t>(id)];
+    if (memo >= 0.0) return memo;
+    const auto at = [&](int tx, int ty) { return static_cast<size_t>(ty) * stride + tx; };
+    for (size_t j : {at(qx, qy), at(xl, qy), at(qx, yl), at(xl, yl)}) {
+      if (b.valid[j] == 0) return memo = std::numeric_limits<double>::infinity();
+    }
+    const Vec3d& p00 = b.focal[at(qx, qy)];
+    const Vec3d& p10 = b.focal[at(xl, qy)];
+    const Vec3d& p01 = b.focal[at(qx, yl)];
+    const Vec3d& p11 = b.focal[at(xl, yl)];
+    double worst = 0.0;
+    for (int ty = qy; ty < y_end; ++ty) {
+      const double fy = static_cast<double>(ty - qy) / (yl - qy);
+      const Vec3d left = p00 + fy * (p01 - p00), right = p10 + fy * (p11 - p10);
+      for (int tx = qx; tx < x_end; ++tx) {
+        const size_t j = at(tx, ty);
+        if (b.valid[j] == 0) continue;
+        const double fx = static_cast<double>(tx - qx) / (xl - qx);
+        const Vec3d error = b.focal[j] - (left + fx * (right - left));
+        worst = std::max(worst, glm::dot(error, error));
+      }
+    }
+    return memo = std::sqrt(worst);
+  }
+
+  // The quad's local homography into `rows`, `t` (KernelArgsFor) if it is within the tolerance.
+  bool Fit(int id, int qx, int qy, int xl, int yl, int x_end, int y_end, Vec3d rows[3],
+           double t[3], double* fit_error) {
+    *fit_error = std::numeric_limits<double>::infinity();
+    const int xs[3] = {qx, (qx + xl) / 2, xl}, ys[3] = {qy, (qy + yl) / 2, yl};
+    const TileBuffers::LensNode* node[9];
+    for (int k = 0; k < 9; ++k) {
+      node[k] = &Node(xs[k % 3], ys[k / 3]);
+      if (!node[k]->valid) return false;
+    }
+    // Tangent-plane coordinates q around the centre node's ray c: q = (e1 . X, e2 . X) / (c . X).
+    const Vec3d c = glm::normalize(node[4]->in_cam);
+    const Vec3d helper = std::abs(c.x) < 0.9 ? Vec3d(1.0, 0.0, 0.0) : Vec3d(0.0, 1.0, 0.0);
+    const Vec3d e1 = glm::normalize(glm::cross(helper, c));
+    const Vec3d e2 = glm::cross(c, e1);
+    Vec2d q[9];
+    // The cosines of the largest angles from c (the spread) and from the optical axis.
+    double cos_spread = 1.0, cos_angle = 1.0, distance = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 9; ++k) {
+      const Vec3d& p = node[k]->in_cam;
+      const double length = glm::length(p), w = glm::dot(c, p);
+      // Within 30 degrees of c, so that dq / d(angle) <= 1 / cos^2 <= 4/3.
+      if (!(w > 0.8660254037844386 * length)) return false;
+      q[k] = Vec2d(glm::dot(e1, p) / w, glm::dot(e2, p) / w);
+      cos_spread = std::min(cos_spread, w / length);
+      cos_angle = std::min(cos_angle, p.z / length);
+      distance = std::min(distance, length);
+    }
+    const double spread = std::acos(std::min(1.0, cos_spread));
+    const double angle = std::acos(std::max(-1.0, cos_angle));
+    // Affine pixel = A (q, 1), least squares through the four corners.
+    Mat3d normal(0.0);
+    Vec3d bu(0.0), bv(0.0);
+    for (int k : {0, 2, 6, 8}) {
+      const Vec3d h(q[k].x, q[k].y, 1.0);
+      normal += glm::outerProduct(h, h);
+      bu += node[k]->pixel.x * h;
+      bv += node[k]->pixel.y * h;
+    }
+    if (!(std::abs(glm::determinant(normal)) > 1e-300)) return false;
+    const Mat3d inverse = glm::inverse(normal);
+    const Vec3d a = inverse * bu, c_v = inverse * bv;
+    // Its error at the nine nodes (corners, edge midpoints, centre) against the exact projection.
+    double error2 = 0.0;
+    for (int k = 0; k < 9; ++k) {
+      const Vec3d h(q[k].x, q[k].y, 1.0);
+      const double du = glm::dot(a, h) - node[k]->pixel.x, dv = glm::dot(c_v, h) - node[k]->pixel.y;
+      error2 = std::max(error2, du * du + dv * dv);
+    }
+    const double error = std::sqrt(error2);
+    *fit_error = error;
+    if (!(error <= s.lens_tolerance)) return false;
+    // Points off the bilinear sheet through the corners (a relief, a step in the surface) see
+    // their rays turn by at most deviation / (distance - deviation); the fit and the lens each
+    // move by at most their gradient (pixels per unit q, times 4/3 per radian) times that.
+    const double deviation = Deviation(id, qx, qy, xl, yl, x_end, y_end);
+    if (!(deviation < 0.5 * distance)) return false;
+    const double turn = deviation / (distance - deviation);
+    const double gradient = std::sqrt(a.x * a.x + a.y * a.y + c_v.x * c_v.x + c_v.y * c_v.y);
+    if (!(error + 3.0 * gradient * turn <= s.lens_tolerance)) return false;
+    // Every ray of the quad within the lens's valid field, with a margin of half the spread.
+    if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    // (U, V, W) = [A; 0 0 1] (e1, e2, c)^T (R p + offset): u = U / W = A (q, 1).
+    const Vec3d h_rows[3] = {a, c_v, Vec3d(0.0, 0.0, 1.0)};
+    const Mat3d cam_from_world_t = glm::transpose(view.rotation);
+    for (int r = 0; r < 3; ++r) {
+      const Vec3d in_cam_row = h_rows[r].x * e1 + h_rows[r].y * e2 + h_rows[r].z * c;
+      rows[r] = cam_from_world_t * in_cam_row;
+      t[r] = glm::dot(in_cam_row, view.offset);
+    }
+    return true;
+  }
+
+  // `parent_error`: the parent quad's fit error at its nodes (infinity if unknown). A smooth
+  // map's fit error scales with the square of the quad's side: a quad whose predicted error
+  // (a quarter of its parent's) is above twice the tolerance is split without a fit.
+  void Quad(int level, int qx, int qy, double parent_error) {
+    const int side = kTileWidth >> level;
+    if (qx >= tile_width || qy >= tile_height) return;
+    const int x_end = std::min(qx + side, tile_width), y_end = std::min(qy + side, tile_height);
+    // The fit's nodes: the quad's first pixels and the next quad's (clamped into the tile), so
+    // that a quad's children share its nodes.
+    const int xl = std::min(qx + side, tile_width - 1), yl = std::min(qy + side, tile_height - 1);
+    const int id = kLensQuadOffset[level] + (qy / side) * (kTileWidth / side) + qx / side;
+    Vec3d rows[3];
+    double t[3];
+    double error = std::numeric_limits<double>::infinity();
+    const bool hopeless = std::isfinite(parent_error) && 0.25 * parent_error > 2.0 * s.lens_tolerance &&
+                          level + 1 < kLensQuadLevels;
+    if (hopeless) error = 0.25 * parent_error;
+    if (!hopeless && xl - qx >= 2 && yl - qy >= 2 &&
+        Fit(id, qx, qy, xl, yl, x_end, y_end, rows, t, &error)) {
+      internal::PointKernelArgs args = KernelArgsFor(s, view, rows, t, extent, grazing);
+      args.variance = variance;
+      const int origin = qy * stride + qx;
+      internal::PointTileArrays arrays{b.x.data() + origin, b.y.data() + origin,
+                                       b.z.data() + origin, b.valid.data() + origin, 0};
+      arrays.rows = y_end - qy;
+      arrays.row_length = (x_end - qx + 7) / 8 * 8;
+      arrays.row_stride = stride;
+      const ExactContext context{&s, &view, b.focal.data() + origin};
+      args.exact = &ExactAdmitLane;
+      args.exact_context = &context;
+      if (view.kernel(*view.image, arrays, args, b.sum.data() + origin,
+                      variance ? b.sum_squares.data() + origin : nullptr, b.count.data() + origin)) {
+        any = true;
+      }
+      return;
+    }
+    if (level + 1 < kLensQuadLevels) {
+      const int half = side / 2;
+      for (int k = 0; k < 4; ++k) Quad(level + 1, qx + (k % 2) * half, qy + (k / 2) * half, error);
+      return;
+    }
+    for (int ty = qy; ty < y_end; ++ty) {
+      for (int tx = qx; tx < x_end; ++tx) exact(ty * stride + tx);
+    }
+  }
 };
 
 void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, int x0, int y0,
                      int x1, int y1, TileBuffers& b, IntegralResult& out) {
   const int tile_width = x1 - x0;
-  const int size = tile_width * (y1 - y0);
-  const int padded = (size + 7) / 8 * 8;
+  // Rows padded to a multiple of 8 points (the padding lanes invalid), so that every rectangle
+  // of the tile starting at a multiple of 8 is whole groups of the kernel (the lens route).
+  const int stride = (tile_width + 7) / 8 * 8;
+  const int size = stride * (y1 - y0);
+  const int padded = size;
   const int channels = s.channels;
   b.x.assign(static_cast<size_t>(padded), 0.0f);
   b.y.assign(static_cast<size_t>(padded), 0.0f);
@@ -641,8 +876,9 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   Vec3d extent(0.0);
   bool any = false;
   for (int j = 0; j < size; ++j) {
+    if (j % stride >= tile_width) continue;  // padding
     const Vec3d& point =
-        points.points[static_cast<size_t>(y0 + j / tile_width) * s.width + x0 + j % tile_width];
+        points.points[static_cast<size_t>(y0 + j / stride) * s.width + x0 + j % stride];
     if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
     const Vec3d focal = point + s.shift;
     b.focal[static_cast<size_t>(j)] = focal;
@@ -660,6 +896,12 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   if (variance) b.sum_squares.assign(static_cast<size_t>(padded) * channels, 0.0);
   b.count.assign(static_cast<size_t>(padded), 0);
   b.value.resize(static_cast<size_t>(channels));
+  if (s.lens_tolerance > 0.0) {
+    b.node_stamp.assign(static_cast<size_t>(size), 0);
+    b.nodes.resize(static_cast<size_t>(size));
+    b.generation = 0;
+    b.deviation.assign(kLensQuadCount, -1.0);
+  }
   if (s.nearest) {
     b.best.assign(static_cast<size_t>(size), inf);
     b.chosen.assign(static_cast<size_t>(size), -1);
@@ -673,7 +915,8 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   b.outline.clear();
   const int tile_height = y1 - y0;
   for (int j = 0; j < size; ++j) {
-    const int tx = j % tile_width, ty = j / tile_width;
+    const int tx = j % stride, ty = j / stride;
+    if (tx >= tile_width) continue;
     const bool on_border = tx == 0 || ty == 0 || tx == tile_width - 1 || ty == tile_height - 1;
     const bool sampled = (tx % 16 == 0 || tx == tile_width - 1) && (ty % 16 == 0 || ty == tile_height - 1);
     if (on_border && sampled && b.valid[static_cast<size_t>(j)] != 0) {
@@ -710,7 +953,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
             ? FootprintLines(*s.views[static_cast<size_t>(b.views[k + 1])].image,
                              b.footprints[k + 1], b.lines.data())
             : 0;
-    if (view.kernel != nullptr && float_points && !s.nearest &&
+    if (view.lens == nullptr && view.kernel != nullptr && float_points && !s.nearest &&
         glm::length(view.b) < kFloatRange) {
       internal::PointKernelArgs args = KernelArgs(s, view, extent, !NeverGrazing(s, view, box));
       args.variance = variance;
@@ -731,18 +974,18 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     for (int line = 0; line < prefetch_count; ++line) {
       __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
     }
-    for (int j = 0; j < size; ++j) {
-      if (b.valid[static_cast<size_t>(j)] == 0) continue;
+    const auto exact = [&](int j) {
+      if (b.valid[static_cast<size_t>(j)] == 0) return;
       double u, v, distance2 = inf;
-      if (!AdmitSample(s, view, b.focal[static_cast<size_t>(j)], &u, &v, &distance2)) continue;
+      if (!AdmitSample(s, view, b.focal[static_cast<size_t>(j)], &u, &v, &distance2)) return;
       double* sum = b.sum.data() + static_cast<size_t>(j) * channels;
       if (s.nearest) {
-        if (!(distance2 < b.best[static_cast<size_t>(j)])) continue;
+        if (!(distance2 < b.best[static_cast<size_t>(j)])) return;
         b.best[static_cast<size_t>(j)] = distance2;
         b.chosen[static_cast<size_t>(j)] = static_cast<int32_t>(i);
         view.sample(*view.image, u, v, sum);
         b.count[static_cast<size_t>(j)] = 1;
-        continue;
+        return;
       }
       view.sample(*view.image, u, v, b.value.data());
       for (int c = 0; c < channels; ++c) sum[c] += b.value[static_cast<size_t>(c)];
@@ -754,10 +997,22 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
       }
       ++b.count[static_cast<size_t>(j)];
       b.used[i] = 1;
+    };
+    if (view.lens != nullptr && view.kernel != nullptr && float_points && !s.nearest &&
+        s.lens_tolerance > 0.0 && glm::length(view.b) < kFloatRange) {
+      // Lens views: local homographies per quad, within the tolerance of the exact projection.
+      ++b.generation;
+      LensRoute<decltype(exact)> route{s, view, b, stride, tile_width, tile_height, extent,
+                                       variance, !NeverGrazing(s, view, box), exact};
+      route.Quad(0, 0, 0, std::numeric_limits<double>::infinity());
+      if (route.any) b.used[i] = 1;
+      continue;
     }
+    for (int j = 0; j < size; ++j) exact(j);
   }
   for (int j = 0; j < size; ++j) {
-    const int x = x0 + j % tile_width, y = y0 + j / tile_width;
+    if (j % stride >= tile_width) continue;
+    const int x = x0 + j % stride, y = y0 + j / stride;
     if (s.nearest && b.chosen[static_cast<size_t>(j)] >= 0) {
       b.used[static_cast<size_t>(b.chosen[static_cast<size_t>(j)])] = 1;
     }
@@ -874,6 +1129,10 @@ void PointIntegralOptions::Check(int view_count) const {
   }
   if (!(glm::length(lens_axis) > 0.0)) ThrowInvalid("lens_axis: must not be zero");
   if (!(glm::length(surface_normal) > 0.0)) ThrowInvalid("surface_normal: must not be zero");
+  if (!(lens_tolerance_px >= 0.0 && lens_tolerance_px <= 1.0)) {
+    ThrowInvalid("lens_tolerance_px: must be in [0, 1] view pixels (got " +
+                 FormatNumber(lens_tolerance_px) + ")");
+  }
   CheckThreadCount(num_threads);
   if (view_count <= 0) ThrowInvalid("view selection is empty: the light field has no views");
   std::vector<uint8_t> seen(static_cast<size_t>(view_count), 0);
@@ -932,6 +1191,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   at_points.view_indices = options.view_indices;
   at_points.num_threads = options.num_threads;
   at_points.variance = options.variance;
+  at_points.lens_tolerance_px = options.lens_tolerance_px;
   SurfaceIntegralResult result =
       RenderIntegralAtPoints(light_field, points, at_points, surface, progress);
   result.integral.cam_from_world = cam_from_world;
