@@ -557,6 +557,28 @@ Footprint FootprintOf(const ViewSetup& view, const std::vector<Vec3d>& outline) 
   return f;
 }
 
+// The same for a lens view: the outline's points through the lens (exactly); empty if one does
+// not project.
+Footprint LensFootprintOf(const ViewSetup& view, const std::vector<Vec3d>& outline) {
+  Footprint f;
+  double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
+  double v_min = u_min, v_max = -u_min;
+  for (const Vec3d& point : outline) {
+    Vec2d pixel;
+    if (!view.lens->Project(view.rotation * point + view.offset, &pixel)) return f;
+    u_min = std::min(u_min, pixel.x - 2.0);
+    u_max = std::max(u_max, pixel.x + 2.0);
+    v_min = std::min(v_min, pixel.y - 2.0);
+    v_max = std::max(v_max, pixel.y + 2.0);
+  }
+  const Image& image = *view.image;
+  f.x0 = static_cast<int>(std::clamp(u_min - 1.5, -1.0, image.width() - 1.0));
+  f.x1 = static_cast<int>(std::clamp(u_max + 0.5, -1.0, image.width() - 1.0));
+  f.y0 = static_cast<int>(std::clamp(v_min - 1.5, -1.0, image.height() - 1.0));
+  f.y1 = static_cast<int>(std::clamp(v_max + 0.5, -1.0, image.height() - 1.0));
+  return f;
+}
+
 // The addresses of the cache lines of a view's pixels that a tile will read (the kernel's
 // gathers stall on cache misses otherwise: a view's pixels are read once per tile), at most
 // kMaxPrefetch (the rest is left to the hardware).
@@ -695,6 +717,11 @@ struct LensRoute {
   const Vec3d& extent;
   bool variance, grazing;
   const Exact& exact;
+  // The next view's cache lines, handed out to the kernel calls a slice at a time.
+  const char* const* prefetch;
+  int prefetch_count;
+  int prefetch_slice;
+  int prefetched = 0;
   bool any = false;
 
   const TileBuffers::LensNode& Node(int tx, int ty) {
@@ -739,7 +766,7 @@ struct LensRoute {
 
   // The quad's local homography into `rows`, `t` (KernelArgsFor) if it is within the tolerance.
   bool Fit(int id, int qx, int qy, int xl, int yl, int x_end, int y_end, Vec3d rows[3],
-           double t[3], double* fit_error) {
+           double t[3], double* fit_error, int* image_tests) {
     *fit_error = std::numeric_limits<double>::infinity();
     const int xs[3] = {qx, (qx + xl) / 2, xl}, ys[3] = {qy, (qy + yl) / 2, yl};
     const TileBuffers::LensNode* node[9];
@@ -799,6 +826,23 @@ struct LensRoute {
     if (!(error + 3.0 * gradient * turn <= s.lens_tolerance)) return false;
     // Every ray of the quad within the lens's valid field, with a margin of half the spread.
     if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    // The image bounds the kernel must test (PointKernelArgs::image_tests): W = c . X > 0 holds
+    // within 30 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
+    // quad's points too (their fitted pixels lie within the tolerance of the nodes' hull).
+    *image_tests = 0;
+    double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
+    double v_min = u_min, v_max = -u_min;
+    for (int k = 0; k < 9; ++k) {
+      u_min = std::min(u_min, node[k]->pixel.x);
+      u_max = std::max(u_max, node[k]->pixel.x);
+      v_min = std::min(v_min, node[k]->pixel.y);
+      v_max = std::max(v_max, node[k]->pixel.y);
+    }
+    constexpr double kMargin = 2.0;
+    if (!(u_min >= kMargin)) *image_tests |= 2;
+    if (!(u_max <= view.width - kMargin)) *image_tests |= 4;
+    if (!(v_min >= kMargin)) *image_tests |= 8;
+    if (!(v_max <= view.height - kMargin)) *image_tests |= 16;
     // (U, V, W) = [A; 0 0 1] (e1, e2, c)^T (R p + offset): u = U / W = A (q, 1).
     const Vec3d h_rows[3] = {a, c_v, Vec3d(0.0, 0.0, 1.0)};
     const Mat3d cam_from_world_t = glm::transpose(view.rotation);
@@ -824,13 +868,15 @@ struct LensRoute {
     Vec3d rows[3];
     double t[3];
     double error = std::numeric_limits<double>::infinity();
+    int image_tests = 0x1f;
     const bool hopeless = std::isfinite(parent_error) && 0.25 * parent_error > 2.0 * s.lens_tolerance &&
                           level + 1 < kLensQuadLevels;
     if (hopeless) error = 0.25 * parent_error;
     if (!hopeless && xl - qx >= 2 && yl - qy >= 2 &&
-        Fit(id, qx, qy, xl, yl, x_end, y_end, rows, t, &error)) {
+        Fit(id, qx, qy, xl, yl, x_end, y_end, rows, t, &error, &image_tests)) {
       internal::PointKernelArgs args = KernelArgsFor(s, view, rows, t, extent, grazing);
       args.variance = variance;
+      args.image_tests = image_tests;
       const int origin = qy * stride + qx;
       internal::PointTileArrays arrays{b.x.data() + origin, b.y.data() + origin,
                                        b.z.data() + origin, b.valid.data() + origin, 0};
@@ -840,6 +886,9 @@ struct LensRoute {
       const ExactContext context{&s, &view, b.focal.data() + origin};
       args.exact = &ExactAdmitLane;
       args.exact_context = &context;
+      args.prefetch = prefetch + prefetched;
+      args.prefetch_count = std::min(prefetch_slice, prefetch_count - prefetched);
+      prefetched += args.prefetch_count;
       if (view.kernel(*view.image, arrays, args, b.sum.data() + origin,
                       variance ? b.sum_squares.data() + origin : nullptr, b.count.data() + origin)) {
         any = true;
@@ -936,7 +985,8 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     if (OutsideAperture(s, view, box)) continue;
     b.views.push_back(static_cast<int>(i));
     b.image_tests.push_back(static_cast<uint8_t>(image_tests));
-    b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline) : Footprint());
+    b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline)
+                                                : LensFootprintOf(view, b.outline));
   }
   b.lines.resize(kMaxPrefetch);
   if (!b.views.empty()) {
@@ -971,9 +1021,6 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     }
     // Exact per-point route: AdmitSample and the double sampler, in view order per pixel as
     // the reference.
-    for (int line = 0; line < prefetch_count; ++line) {
-      __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
-    }
     const auto exact = [&](int j) {
       if (b.valid[static_cast<size_t>(j)] == 0) return;
       double u, v, distance2 = inf;
@@ -1002,11 +1049,20 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
         s.lens_tolerance > 0.0 && glm::length(view.b) < kFloatRange) {
       // Lens views: local homographies per quad, within the tolerance of the exact projection.
       ++b.generation;
+      // The next view's lines go out with the quads' kernel calls (about 16 of them at the
+      // default tolerance), the rest at the end.
       LensRoute<decltype(exact)> route{s, view, b, stride, tile_width, tile_height, extent,
-                                       variance, !NeverGrazing(s, view, box), exact};
+                                       variance, !NeverGrazing(s, view, box), exact,
+                                       b.lines.data(), prefetch_count, (prefetch_count + 15) / 16};
       route.Quad(0, 0, 0, std::numeric_limits<double>::infinity());
+      for (int line = route.prefetched; line < prefetch_count; ++line) {
+        __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
+      }
       if (route.any) b.used[i] = 1;
       continue;
+    }
+    for (int line = 0; line < prefetch_count; ++line) {
+      __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
     }
     for (int j = 0; j < size; ++j) exact(j);
   }
