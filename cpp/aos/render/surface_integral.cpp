@@ -34,10 +34,16 @@
 // (surface_integral_avx2.cpp): points relative to C in float (tens of metres on real flights),
 // 8 at a time, each test with a bound on its float error; a lane within the bound is decided by
 // AdmitSample in double, so exactly the reference's samples are admitted, and only the sample
-// values carry float rounding (as the plane path's span kernels), accumulated in double. Views
-// with a lens model, nearest mode (aperture 0), other pixel types and far-away points take
-// AdmitSample and the double sampler per point, still tiled and culled (lens views are not
-// culled: their projection is not linear). The robust mean keeps the per-pixel loop
+// values carry float rounding (as the plane path's span kernels), accumulated in double.
+// Views with a lens model (LensRoute) take the same kernel quad by quad: per quad of the tile
+// (64, split down to 8 pixels) a homography fitted to the lens projection in the tangent plane of
+// the quad's centre ray, accepted when it is within lens_tolerance_px of the exact projection at
+// the quad's 3 x 3 nodes (plus a first-order bound for the surface's departure from the bilinear
+// sheet through the corners) and every ray keeps inside the lens's valid field; the exact
+// projections of the nodes are cached per view and tile, so children reuse their parent's.
+// Nearest mode (aperture 0), other pixel types, far-away points and lens quads that fail at
+// 8 x 8 take AdmitSample and the double sampler per point, still tiled and culled (lens views
+// are not culled: their projection is not linear). The robust mean keeps the per-pixel loop
 // (internal::RenderIntegralAtPointsReference): it needs every sample of a pixel at once.
 
 namespace aos {
