@@ -780,26 +780,35 @@ struct LensRoute {
       node[k] = &Node(xs[k % 3], ys[k / 3]);
       if (!node[k]->valid) return false;
     }
-    // Tangent-plane coordinates q around the centre node's ray c: q = (e1 . X, e2 . X) / (c . X).
-    const Vec3d c = glm::normalize(node[4]->in_cam);
+    // Tangent-plane coordinates q around a ray c: q = (e1 . X, e2 . X) / (c . X). For a
+    // radial-tangential lens the view's own pinhole coordinates (c its optical axis: the lens
+    // map is then its distortion, close to affine, and the fit a homography of the view); for
+    // wide lenses the centre node's ray (their map is far from projective off the axis).
+    const Vec3d centre = glm::normalize(node[4]->in_cam);
+    const bool perspective = view.lens->model == LensModel::kRadTan;
+    const Vec3d c = perspective ? Vec3d(0.0, 0.0, 1.0) : centre;
     const Vec3d helper = std::abs(c.x) < 0.9 ? Vec3d(1.0, 0.0, 0.0) : Vec3d(0.0, 1.0, 0.0);
-    const Vec3d e1 = glm::normalize(glm::cross(helper, c));
+    const Vec3d e1 = perspective ? Vec3d(1.0, 0.0, 0.0) : glm::normalize(glm::cross(helper, c));
     const Vec3d e2 = glm::cross(c, e1);
     Vec2d q[9];
-    // The cosines of the largest angles from c (the spread) and from the optical axis.
-    double cos_spread = 1.0, cos_angle = 1.0, distance = std::numeric_limits<double>::infinity();
+    // The cosines of the largest angles from c, from the centre node's ray (the quad's angular
+    // radius) and from the optical axis.
+    double cos_c = 1.0, cos_spread = 1.0, cos_angle = 1.0;
+    double distance = std::numeric_limits<double>::infinity();
     for (int k = 0; k < 9; ++k) {
       const Vec3d& p = node[k]->in_cam;
       const double length = glm::length(p), w = glm::dot(c, p);
-      // Within 30 degrees of c, so that dq / d(angle) <= 1 / cos^2 <= 4/3.
-      if (!(w > 0.8660254037844386 * length)) return false;
+      // Within 60 degrees of c, so that dq / d(angle) <= 1 / cos^2 <= 4.
+      if (!(w > 0.5 * length)) return false;
       q[k] = Vec2d(glm::dot(e1, p) / w, glm::dot(e2, p) / w);
-      cos_spread = std::min(cos_spread, w / length);
+      cos_c = std::min(cos_c, w / length);
+      cos_spread = std::min(cos_spread, glm::dot(centre, p) / length);
       cos_angle = std::min(cos_angle, p.z / length);
       distance = std::min(distance, length);
     }
-    const double spread = std::acos(std::min(1.0, cos_spread));
+    const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
     const double angle = std::acos(std::max(-1.0, cos_angle));
+    const double q_per_radian = 1.0 / (cos_c * cos_c);
     // Affine pixel = A (q, 1), least squares through the four corners.
     Mat3d normal(0.0);
     Vec3d bu(0.0), bv(0.0);
@@ -824,16 +833,17 @@ struct LensRoute {
     if (!(error <= s.lens_tolerance)) return false;
     // Points off the bilinear sheet through the corners (a relief, a step in the surface) see
     // their rays turn by at most deviation / (distance - deviation); the fit and the lens each
-    // move by at most their gradient (pixels per unit q, times 4/3 per radian) times that.
+    // move by at most about their gradient (pixels per unit q, times q_per_radian) times that
+    // (2.25 rather than 2 for the lens's gradient, which is the fit's only up to its error).
     const double deviation = Deviation(id, qx, qy, xl, yl, x_end, y_end);
     if (!(deviation < 0.5 * distance)) return false;
     const double turn = deviation / (distance - deviation);
     const double gradient = std::sqrt(a.x * a.x + a.y * a.y + c_v.x * c_v.x + c_v.y * c_v.y);
-    if (!(error + 3.0 * gradient * turn <= s.lens_tolerance)) return false;
+    if (!(error + 2.25 * q_per_radian * gradient * turn <= s.lens_tolerance)) return false;
     // Every ray of the quad within the lens's valid field, with a margin of half the spread.
     if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
     // The image bounds the kernel must test (PointKernelArgs::image_tests): W = c . X > 0 holds
-    // within 30 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
+    // within 60 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
     // quad's points too (their fitted pixels lie within the tolerance of the nodes' hull).
     *image_tests = 0;
     double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
