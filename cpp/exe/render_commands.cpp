@@ -119,6 +119,9 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
                                "(default: all)");
   render.Field("min_view_angle_deg", options.min_view_angle_deg,
                "Ignore rays meeting the focal plane at less than this angle, degrees");
+  render.Field("lens_tolerance_px", options.lens_tolerance_px,
+               "Views with a lens model: largest sample-position error, view pixels, of the "
+               "local homographies that replace the exact projection; 0 = exact");
   render.Threads(options.num_threads);
 }
 

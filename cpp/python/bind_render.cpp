@@ -178,6 +178,10 @@ void BindIntegral(py::module_& m) {
       .Field("variance", &IntegralOptions::variance,
              "Also return the per-pixel variance of the view samples (the samples then go through "
              "the scalar kernel, which also sums their squares: a few times slower).")
+      .Field("lens_tolerance_px", &IntegralOptions::lens_tolerance_px,
+             "Views with a lens model: the largest error of a sample position, view pixels, "
+             "[0, 1], where the exact lens projection is replaced by local homographies; 0 = "
+             "project every sample exactly.")
       .Finish()
       .def("check", &IntegralOptions::Check, "view_count"_a,
            "Raises ValueError naming the offending field. `view_count` is the number of views in "

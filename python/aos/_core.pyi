@@ -347,6 +347,7 @@ class IntegralOptions:
         min_view_angle_deg: float = ...,
         num_threads: int = ...,
         variance: bool = ...,
+        lens_tolerance_px: float = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     cam_from_world: Rigid3d
@@ -386,6 +387,9 @@ class IntegralOptions:
     """Worker threads; -1 = all cores."""
     variance: bool
     """Also return the per-pixel variance of the view samples (scalar kernel: a few times slower)."""
+    lens_tolerance_px: float
+    """Views with a lens model: largest sample-position error, view pixels, [0, 1], of the local
+    homographies that replace the exact projection; 0 = exact."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
     def __eq__(self, other: object) -> bool: ...

@@ -46,6 +46,7 @@ class VirtualCameraKeywords(TypedDict, total=False):
     min_view_angle_deg: float
     num_threads: int
     variance: bool
+    lens_tolerance_px: float
 
 
 class IntegralKeywords(VirtualCameraKeywords, total=False):

@@ -8,6 +8,7 @@
 #include <cmath>
 #include <limits>
 #include <random>
+#include <stdexcept>
 #include <string>
 #include <vector>
 
@@ -341,6 +342,137 @@ TEST(RenderIntegralAtPoints, ViewsOutsideEveryTileAreNotUsedAndPixelsWithoutPoin
   ExpectSameRender(fast, reference, 0.1, "culled view");
   for (int x = 0; x < 20; ++x) EXPECT_EQ(*fast.integral.count.At<uint32_t>(x, 0), 0u);
   EXPECT_LE(fast.integral.views_used, 6);
+}
+
+// A smooth texture (sums of sines): its largest step between neighbouring pixels bounds how much
+// a bilinear sample moves when its position moves (Lipschitz), so the lens route's sample error
+// can be bounded tightly from its position tolerance.
+Image SmoothImage(int width, int height, double phase) {
+  Image image(width, height, 1, PixelType::kF32, 1);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      image.At<float>(x, y)[0] = static_cast<float>(
+          128.0 + 60.0 * std::sin(0.35 * x + 0.2 * y + phase) + 40.0 * std::cos(0.27 * y - 0.1 * x));
+    }
+  }
+  image.FillBorder();
+  return image;
+}
+
+// Gx + Gy, the largest steps between horizontal and between vertical neighbours: a bilinear
+// sample moves by at most |du| Gx + |dv| Gy <= |(du, dv)| (Gx + Gy).
+double LargestSteps(const Image& image) {
+  double gx = 0.0, gy = 0.0;
+  for (int y = 0; y + 1 < image.height(); ++y) {
+    for (int x = 0; x + 1 < image.width(); ++x) {
+      const float v = image.At<float>(x, y)[0];
+      gx = std::max(gx, static_cast<double>(std::abs(image.At<float>(x + 1, y)[0] - v)));
+      gy = std::max(gy, static_cast<double>(std::abs(image.At<float>(x, y + 1)[0] - v)));
+    }
+  }
+  return gx + gy;
+}
+
+// 3 x 3 views 16 m up, 6 m apart, through `lens`: eight look straight down, the centre one looks
+// sideways (towards +x, 10 degrees below the horizon), so that half of the ground lies behind
+// it and the edge of its valid field (or image) crosses the output's tiles.
+LightField LensLightField(const LensCamera& lens) {
+  LightField light_field;
+  for (int i = 0; i < 9; ++i) {
+    const Vec3d eye(6.0 * (i % 3 - 1), 6.0 * (i / 3 - 1), 16.0);
+    const Rigid3d pose = i == 4 ? LookAt(eye, eye + Vec3d(1.0, 0.0, -0.176), Vec3d(0.0, 0.0, 1.0))
+                                : NadirCamFromWorld(eye);
+    light_field.views.push_back(
+        MakeView("lens" + std::to_string(i), lens, pose, SmoothImage(lens.width, lens.height, i)));
+  }
+  return light_field;
+}
+
+TEST(RenderIntegral, LensViewsThroughLocalHomographiesAgreeWithTheExactProjection) {
+  // Fisheye (180 degrees, and its valid field ending inside the frame by a folding distortion),
+  // omnidirectional (200 degrees: rays up to 100 degrees off the axis, behind the camera) and
+  // radial-tangential lenses; a virtual camera 30 m up with a 110-degree field over the ground
+  // plane (partial tiles at the right and bottom): the fast route (default tolerance) against
+  // lens_tolerance_px = 0 (every sample through LensCamera::Project). A sample position within
+  // tolerance t of the exact one changes a bilinear sample by at most t (Gx + Gy) (the largest
+  // neighbour steps); the tolerance is checked at each quad's nodes, not everywhere, so the
+  // bound allows twice that, plus float rounding (the kernel samples in float).
+  struct LensCase {
+    const char* name;
+    LensCamera lens;
+  };
+  const std::vector<LensCase> cases = {
+      {"fisheye 180", LensFromFov(LensModel::kFisheye, 160, 120, 180.0, {0.01, -0.002, 0, 0, 0},
+                                  0.0, "test")},
+      // k1 = -0.3 folds at 60 degrees: the image circle ends inside the frame's corners and,
+      // seen from 16 m, on a circle of 27.7 m radius on the ground, inside the output.
+      {"fisheye folding", LensFromFov(LensModel::kFisheye, 64, 64, 110.0,
+                                      {-0.3, 0.0, 0, 0, 0}, 0.0, "test")},
+      {"omnidir 200", LensFromFov(LensModel::kOmnidir, 160, 120, 200.0, {-0.05, 0.01, 0, 0, 0},
+                                  1.2, "test")},
+      {"radtan 100", LensFromFov(LensModel::kRadTan, 160, 120, 100.0,
+                                 {-0.05, 0.01, 0.001, -0.001, 0.0}, 0.0, "test")},
+  };
+  for (const LensCase& c : cases) {
+    SCOPED_TRACE(c.name);
+    const LightField light_field = LensLightField(c.lens);
+    IntegralOptions options;
+    options.cam_from_world = NadirCamFromWorld(Vec3d(0.3, -0.2, 30.0));
+    options.fov_deg = 110.0;
+    options.width = 200;
+    options.height = 150;
+    options.lens_tolerance_px = 0.0;
+    const IntegralResult exact = RenderIntegral(light_field, options);
+    options.lens_tolerance_px = 0.02;
+    const IntegralResult fast = RenderIntegral(light_field, options);
+    ASSERT_GT(exact.samples, 0);
+    double steps = 0.0;
+    for (const View& view : light_field.views) steps = std::max(steps, LargestSteps(view.image));
+    const double bound = 2.0 * options.lens_tolerance_px * steps + 1e-3;
+    int64_t count_mismatches = 0, compared = 0;
+    double largest = 0.0;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
+        if (n != exact.count.At<uint32_t>(x, y)[0]) {
+          ++count_mismatches;
+          continue;
+        }
+        if (n == 0) continue;
+        ++compared;
+        largest = std::max(largest, static_cast<double>(std::abs(fast.image.At<float>(x, y)[0] -
+                                                                 exact.image.At<float>(x, y)[0])));
+      }
+    }
+    EXPECT_LE(largest, bound) << "largest difference against the exact projection";
+    // The route was taken: the values are not the exact route's (they differ by more than the
+    // float rounding of the kernel).
+    EXPECT_GT(largest, 1e-3);
+    // Admission is decided on the fitted position: counts may differ only where a sample lies
+    // within the tolerance of a view's image edge.
+    EXPECT_LE(count_mismatches, compared / 500) << count_mismatches << " of " << compared;
+    EXPECT_EQ(fast.views_used, exact.views_used);
+  }
+}
+
+TEST(RenderIntegral, LensToleranceIsValidated) {
+  const LensCamera lens =
+      LensFromFov(LensModel::kFisheye, 64, 48, 180.0, {0, 0, 0, 0, 0}, 0.0, "test");
+  const LightField light_field = LensLightField(lens);
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 30.0));
+  options.fov_deg = 60.0;
+  options.width = options.height = 32;
+  for (double bad : {-0.01, 1.5, std::numeric_limits<double>::quiet_NaN()}) {
+    options.lens_tolerance_px = bad;
+    try {
+      RenderIntegral(light_field, options);
+      ADD_FAILURE() << "lens_tolerance_px " << bad << " was accepted";
+    } catch (const std::invalid_argument& error) {
+      EXPECT_NE(std::string(error.what()).find("lens_tolerance_px"), std::string::npos)
+          << error.what();
+    }
+  }
 }
 
 }  // namespace

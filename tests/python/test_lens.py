@@ -126,6 +126,49 @@ def test_simulated_fisheye_light_field_renders_directly_and_after_rectify(tmp_pa
     assert direct_psnr > two_step_psnr
 
 
+def test_lens_tolerance_from_python_and_the_cli(tmp_path) -> None:
+    # Direct sampling through local homographies (lens_tolerance_px, default 0.02 view pixels)
+    # against the exact projection of every sample (0), on simulated fisheye and omnidirectional
+    # frames: the sample positions differ by at most about the tolerance, so a bilinear sample
+    # by at most the tolerance times the frame's largest neighbour steps (Gx + Gy); twice that
+    # is allowed (the tolerance is checked at the quads' nodes), plus float rounding.
+    for name, lens in (("fisheye", {"lens": "fisheye", "fov_deg": 180, "distortion": [0.01]}),
+                       ("omnidir", {"lens": "omnidir", "fov_deg": 200, "xi": 1.2,
+                                    "distortion": [-0.05, 0.01]})):
+        scene = {"seed": 3, "ground": {"texture": {"type": "noise", "square": 1.0}},
+                 "camera": {"width": 256, "height": 256, "bit_depth": 32, **lens},
+                 "sampling": {"grid": 3, "aperture": {"diameter": 8.0}},
+                 "truth": {"fov_deg": 60.0, "width": 160, "height": 160}}
+        simulation = aos.simulate(scene, tmp_path / name)
+        raw, truth = simulation.light_field, simulation.truth
+        options = dict(cam_from_world=truth.cam_from_world, fov_deg=truth.camera.fov_x_deg(),
+                       width=160, height=160)
+        assert aos.IntegralOptions().lens_tolerance_px == 0.02
+        fast = aos.render_integral(raw, **options)
+        exact = aos.render_integral(raw, **options, lens_tolerance_px=0.0)
+        np.testing.assert_array_equal(fast.count, exact.count)
+        steps = max(float(np.abs(np.diff(v.image, axis=1)).max() + np.abs(np.diff(v.image, axis=0)).max())
+                    for v in raw.views)
+        difference = float(np.abs(fast.image - exact.image).max())
+        assert 0.0 < difference <= 2 * 0.02 * steps + 1e-5, (name, difference, steps)
+        ones = np.ones((160, 160), np.uint8)
+        psnr = [aos.compare_images(r.image, truth.ground, ones, data_range=1.0).psnr_db
+                for r in (fast, exact)]
+        assert abs(psnr[0] - psnr[1]) < 0.05, (name, psnr)
+        with pytest.raises(ValueError, match="lens_tolerance_px"):
+            aos.render_integral(raw, **options, lens_tolerance_px=1.5)
+    # The CLI's flag sets the same field: 0 renders, 1.5 is refused naming it.
+    lightfield = str(tmp_path / "omnidir" / "lightfield.json")
+    common = ["aos-render", "integral", lightfield, "--pose-view", "4", "--fov-deg", "60",
+              "--width", "32", "--height", "32", "-q"]
+    done = subprocess.run(common + ["--lens-tolerance-px", "0", "-o", str(tmp_path / "exact.tif")],
+                          capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    done = subprocess.run(common + ["--lens-tolerance-px", "1.5", "-o", str(tmp_path / "bad.tif")],
+                          capture_output=True, text=True)
+    assert done.returncode != 0 and "lens_tolerance_px" in done.stderr, done.stderr
+
+
 def test_cli_resolution_of_wide_lenses_is_sane() -> None:
     """A fisheye's field of view goes through its own radial map (180 degrees was refused with
     a pinhole message) and the back-projected sample size leaves out the pixels near the horizon

@@ -33,8 +33,10 @@
 // - Views with a lens model (View::lens, lens.h) are sampled through it directly: each pixel's
 //   focal point is projected through the lens model into the raw frame (one resampling; no
 //   rectified copy). Such renders take surface_integral.h's per-sample path on the plane's depth
-//   map, with the same admission rules and results up to float rounding, but slower than the
-//   homography path pinhole views take.
+//   map, with the same admission rules; the lens projection is replaced by local homographies
+//   within lens_tolerance_px view pixels (0: every sample projected exactly, results then equal
+//   up to float rounding), at about twice the time of the homography path pinhole views take
+//   (docs/lens-models.md).
 //
 // - With a focal_surface (focal_surface.h) that is not a plane, or with views that have a lens
 //   model, the render takes surface_integral.h's path on the surface's depth map
@@ -96,6 +98,11 @@ struct IntegralOptions {
   // Also return the per-pixel variance of the view samples (the samples then go through the
   // scalar kernel, which also sums their squares: a few times slower than the AVX2 one).
   bool variance = false;
+  // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
+  // the exact lens projection is replaced by local homographies (surface_integral.h,
+  // PointIntegralOptions::lens_tolerance_px, which this fills); 0 = project every sample exactly.
+  // Validated where it is used (the per-sample path), ignored for pinhole views.
+  double lens_tolerance_px = 0.02;
 
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
   // in the light field (for pose_view and view_indices).

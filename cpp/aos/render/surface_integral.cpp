@@ -34,10 +34,16 @@
 // (surface_integral_avx2.cpp): points relative to C in float (tens of metres on real flights),
 // 8 at a time, each test with a bound on its float error; a lane within the bound is decided by
 // AdmitSample in double, so exactly the reference's samples are admitted, and only the sample
-// values carry float rounding (as the plane path's span kernels), accumulated in double. Views
-// with a lens model, nearest mode (aperture 0), other pixel types and far-away points take
-// AdmitSample and the double sampler per point, still tiled and culled (lens views are not
-// culled: their projection is not linear). The robust mean keeps the per-pixel loop
+// values carry float rounding (as the plane path's span kernels), accumulated in double.
+// Views with a lens model (LensRoute) take the same kernel quad by quad: per quad of the tile
+// (64, split down to 8 pixels) a homography fitted to the lens projection in the tangent plane of
+// the quad's centre ray (radtan: of the view's optical axis), accepted when it is within lens_tolerance_px of the exact projection at
+// the quad's 3 x 3 nodes (plus a first-order bound for the surface's departure from the bilinear
+// sheet through the corners) and every ray keeps inside the lens's valid field; the exact
+// projections of the nodes are cached per view and tile, so children reuse their parent's.
+// Nearest mode (aperture 0), other pixel types, far-away points and lens quads that fail at
+// 8 x 8 take AdmitSample and the double sampler per point, still tiled and culled (lens views
+// are not culled: their projection is not linear). The robust mean keeps the per-pixel loop
 // (internal::RenderIntegralAtPointsReference): it needs every sample of a pixel at once.
 
 namespace aos {
@@ -54,6 +60,9 @@ struct ViewSetup {
   double lens_b = 0.0;      // a . b
   double fx = 0, fy = 0, cx = 0, cy = 0, width = 0, height = 0;
   const LensCamera* lens = nullptr;  // set for views with a lens model (direct sampling)
+  // Lens views: the largest angle from the view's optical axis within which every ray
+  // projects (LensValidAngle), radians.
+  double valid_angle = 0.0;
   Sampler sample = nullptr;
   internal::PointKernel kernel = nullptr;  // pinhole views with an AVX2 kernel
 };
@@ -89,6 +98,32 @@ Sampler SamplerFor(const Image& image) {
   }
 }
 
+// The largest angle from the optical axis within which every ray of `lens` projects
+// (LensCamera::Project succeeds), radians: theta_max for a fisheye; for the radial-tangential
+// part of radtan and omnidir lenses also the angle whose undistorted radius is max_radius.
+double LensValidAngle(const LensCamera& lens) {
+  switch (lens.model) {
+    case LensModel::kPinhole: return 0.5 * kPi;
+    case LensModel::kFisheye: return lens.theta_max;
+    case LensModel::kRadTan:
+      return std::isfinite(lens.max_radius) ? std::atan(lens.max_radius) : 0.5 * kPi;
+    case LensModel::kOmnidir: {
+      // The undistorted radius sin(t) / (cos(t) + xi) increases with t below theta_max (its
+      // derivative is (1 + xi cos t) / (cos t + xi)^2 > 0 there): bisection.
+      if (!std::isfinite(lens.max_radius)) return lens.theta_max;
+      const auto radius = [&](double t) { return std::sin(t) / (std::cos(t) + lens.xi); };
+      if (radius(lens.theta_max * (1.0 - 1e-12)) <= lens.max_radius) return lens.theta_max;
+      double lo = 0.0, hi = lens.theta_max;
+      for (int i = 0; i < 100; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (radius(mid) <= lens.max_radius ? lo : hi) = mid;
+      }
+      return lo;
+    }
+  }
+  return 0.0;
+}
+
 // What every route shares: the geometry of the admission tests and the selected views.
 struct Setup {
   int width = 0, height = 0;
@@ -103,6 +138,7 @@ struct Setup {
   double r2 = 0.0;
   int channels = 1;
   double range = 255.0;
+  double lens_tolerance = 0.0;  // PointIntegralOptions::lens_tolerance_px
   std::vector<ViewSetup> views;
   std::vector<int> view_indices;  // views[i] is light-field view view_indices[i] (ascending)
 };
@@ -135,6 +171,7 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
   s.nearest = options.aperture_radius == 0.0;
   s.finite_aperture = std::isfinite(options.aperture_radius) && !s.nearest;
   s.r2 = options.aperture_radius * options.aperture_radius;
+  s.lens_tolerance = options.lens_tolerance_px;
 
   std::vector<int> selection = options.view_indices;
   if (selection.empty()) {
@@ -166,9 +203,12 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
     setup.cy = view.camera.cy;
     setup.width = view.camera.width;
     setup.height = view.camera.height;
-    if (view.camera.model != LensModel::kPinhole) setup.lens = &view.camera;
+    if (view.camera.model != LensModel::kPinhole) {
+      setup.lens = &view.camera;
+      setup.valid_angle = LensValidAngle(view.camera);
+    }
     setup.sample = SamplerFor(view.image);
-    if (setup.lens == nullptr) setup.kernel = internal::Avx2PointKernel(view.image);
+    setup.kernel = internal::Avx2PointKernel(view.image);
     s.views.push_back(setup);
   }
   return s;
@@ -523,6 +563,28 @@ Footprint FootprintOf(const ViewSetup& view, const std::vector<Vec3d>& outline) 
   return f;
 }
 
+// The same for a lens view: the outline's points through the lens (exactly); empty if one does
+// not project.
+Footprint LensFootprintOf(const ViewSetup& view, const std::vector<Vec3d>& outline) {
+  Footprint f;
+  double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
+  double v_min = u_min, v_max = -u_min;
+  for (const Vec3d& point : outline) {
+    Vec2d pixel;
+    if (!view.lens->Project(view.rotation * point + view.offset, &pixel)) return f;
+    u_min = std::min(u_min, pixel.x - 2.0);
+    u_max = std::max(u_max, pixel.x + 2.0);
+    v_min = std::min(v_min, pixel.y - 2.0);
+    v_max = std::max(v_max, pixel.y + 2.0);
+  }
+  const Image& image = *view.image;
+  f.x0 = static_cast<int>(std::clamp(u_min - 1.5, -1.0, image.width() - 1.0));
+  f.x1 = static_cast<int>(std::clamp(u_max + 0.5, -1.0, image.width() - 1.0));
+  f.y0 = static_cast<int>(std::clamp(v_min - 1.5, -1.0, image.height() - 1.0));
+  f.y1 = static_cast<int>(std::clamp(v_max + 0.5, -1.0, image.height() - 1.0));
+  return f;
+}
+
 // The addresses of the cache lines of a view's pixels that a tile will read (the kernel's
 // gathers stall on cache misses otherwise: a view's pixels are read once per tile), at most
 // kMaxPrefetch (the rest is left to the hardware).
@@ -563,13 +625,10 @@ bool ExactAdmitLane(const void* context, int index) {
 // The AVX2 kernel's description of `view` on a tile whose points (relative to the centre) lie
 // within |x| <= extent.x etc.: the projection in float and the bounds of each test's float error
 // (surface_integral_kernels.h; a few times the worst-case rounding of the float arithmetic).
-internal::PointKernelArgs KernelArgs(const Setup& s, const ViewSetup& view, const Vec3d& extent,
-                                     bool grazing) {
+// The projection is (U, V, Z) = rows[r] . p + t[r] for a point p relative to the centre.
+internal::PointKernelArgs KernelArgsFor(const Setup& s, const ViewSetup& view, const Vec3d rows[3],
+                                        const double t[3], const Vec3d& extent, bool grazing) {
   internal::PointKernelArgs args;
-  const Vec3d r0 = Row(view.rotation, 0), r1 = Row(view.rotation, 1), r2 = Row(view.rotation, 2);
-  const Vec3d rows[3] = {view.fx * r0 + view.cx * r2, view.fy * r1 + view.cy * r2, r2};
-  const double t[3] = {view.fx * view.offset.x + view.cx * view.offset.z,
-                       view.fy * view.offset.y + view.cy * view.offset.z, view.offset.z};
   double magnitude[3];
   for (int r = 0; r < 3; ++r) {
     for (int c = 0; c < 3; ++c) args.P[r][c] = static_cast<float>(rows[r][c]);
@@ -609,6 +668,16 @@ internal::PointKernelArgs KernelArgs(const Setup& s, const ViewSetup& view, cons
   return args;
 }
 
+// A pinhole view's projection K (R p + offset).
+internal::PointKernelArgs KernelArgs(const Setup& s, const ViewSetup& view, const Vec3d& extent,
+                                     bool grazing) {
+  const Vec3d r0 = Row(view.rotation, 0), r1 = Row(view.rotation, 1), r2 = Row(view.rotation, 2);
+  const Vec3d rows[3] = {view.fx * r0 + view.cx * r2, view.fy * r1 + view.cy * r2, r2};
+  const double t[3] = {view.fx * view.offset.x + view.cx * view.offset.z,
+                       view.fy * view.offset.y + view.cy * view.offset.z, view.offset.z};
+  return KernelArgsFor(s, view, rows, t, extent, grazing);
+}
+
 // One thread's working memory for a tile.
 struct TileBuffers {
   std::vector<float> x, y, z;
@@ -623,13 +692,244 @@ struct TileBuffers {
   std::vector<Footprint> footprints;
   std::vector<const char*> lines;  // the next view's cache lines to prefetch
   std::vector<Vec3d> outline;      // points on the tile's border (footprints)
+  // The lens route: exact projections at quad nodes, valid while node_stamp[j] == generation
+  // (one generation per view), and each quad's departure from bilinear (-1 = not computed).
+  struct LensNode {
+    Vec3d in_cam;
+    Vec2d pixel;
+    bool valid;
+  };
+  std::vector<uint32_t> node_stamp;
+  std::vector<LensNode> nodes;
+  uint32_t generation = 0;
+  std::vector<double> deviation;
+};
+
+// Quads of the lens route: 64 (the tile), 32, 16 and 8 pixels on a side; ids per level.
+constexpr int kLensQuadLevels = 4;
+constexpr int kLensQuadOffset[kLensQuadLevels] = {0, 1, 5, 21};
+constexpr int kLensQuadCount = 85;
+static_assert(kTileWidth == 64 && kTileHeight == 64, "the lens route's quads tile 64 x 64");
+
+// Lens views on a tile, quad by quad (see the top of this file): a quad whose local homography
+// is within the tolerance goes through the AVX2 kernel, others are split, down to 8 x 8 pixels,
+// below which `exact` (AdmitSample and the double sampler) takes each point.
+template <typename Exact>
+struct LensRoute {
+  const Setup& s;
+  const ViewSetup& view;
+  TileBuffers& b;
+  int stride, tile_width, tile_height;
+  const Vec3d& extent;
+  bool variance, grazing;
+  const Exact& exact;
+  // The next view's cache lines, handed out to the kernel calls a slice at a time.
+  const char* const* prefetch;
+  int prefetch_count;
+  int prefetch_slice;
+  int prefetched = 0;
+  bool any = false;
+
+  const TileBuffers::LensNode& Node(int tx, int ty) {
+    const size_t j = static_cast<size_t>(ty) * stride + tx;
+    TileBuffers::LensNode& node = b.nodes[j];
+    if (b.node_stamp[j] == b.generation) return node;
+    b.node_stamp[j] = b.generation;
+    node.valid = false;
+    if (b.valid[j] == 0) return node;
+    node.in_cam = view.rotation * b.focal[j] + view.offset;
+    node.valid = view.lens->Project(node.in_cam, &node.pixel);
+    return node;
+  }
+
+  // The largest distance (metres) of a quad's focal points from the bilinear interpolation of
+  // those at its corner nodes; infinity if a corner has none. The same for every view.
+  double Deviation(int id, int qx, int qy, int xl, int yl, int x_end, int y_end) {
+    double& memo = b.deviation[static_cast<size_t>(id)];
+    if (memo >= 0.0) return memo;
+    const auto at = [&](int tx, int ty) { return static_cast<size_t>(ty) * stride + tx; };
+    for (size_t j : {at(qx, qy), at(xl, qy), at(qx, yl), at(xl, yl)}) {
+      if (b.valid[j] == 0) return memo = std::numeric_limits<double>::infinity();
+    }
+    const Vec3d& p00 = b.focal[at(qx, qy)];
+    const Vec3d& p10 = b.focal[at(xl, qy)];
+    const Vec3d& p01 = b.focal[at(qx, yl)];
+    const Vec3d& p11 = b.focal[at(xl, yl)];
+    double worst = 0.0;
+    for (int ty = qy; ty < y_end; ++ty) {
+      const double fy = static_cast<double>(ty - qy) / (yl - qy);
+      const Vec3d left = p00 + fy * (p01 - p00), right = p10 + fy * (p11 - p10);
+      for (int tx = qx; tx < x_end; ++tx) {
+        const size_t j = at(tx, ty);
+        if (b.valid[j] == 0) continue;
+        const double fx = static_cast<double>(tx - qx) / (xl - qx);
+        const Vec3d error = b.focal[j] - (left + fx * (right - left));
+        worst = std::max(worst, glm::dot(error, error));
+      }
+    }
+    return memo = std::sqrt(worst);
+  }
+
+  // The quad's local homography into `rows`, `t` (KernelArgsFor) if it is within the tolerance.
+  bool Fit(int id, int qx, int qy, int xl, int yl, int x_end, int y_end, Vec3d rows[3],
+           double t[3], double* fit_error, int* image_tests) {
+    *fit_error = std::numeric_limits<double>::infinity();
+    const int xs[3] = {qx, (qx + xl) / 2, xl}, ys[3] = {qy, (qy + yl) / 2, yl};
+    const TileBuffers::LensNode* node[9];
+    for (int k = 0; k < 9; ++k) {
+      node[k] = &Node(xs[k % 3], ys[k / 3]);
+      if (!node[k]->valid) return false;
+    }
+    // Tangent-plane coordinates q around a ray c: q = (e1 . X, e2 . X) / (c . X). For a
+    // radial-tangential lens the view's own pinhole coordinates (c its optical axis: the lens
+    // map is then its distortion, close to affine, and the fit a homography of the view); for
+    // wide lenses the centre node's ray (their map is far from projective off the axis).
+    const Vec3d centre = glm::normalize(node[4]->in_cam);
+    const bool perspective = view.lens->model == LensModel::kRadTan;
+    const Vec3d c = perspective ? Vec3d(0.0, 0.0, 1.0) : centre;
+    const Vec3d helper = std::abs(c.x) < 0.9 ? Vec3d(1.0, 0.0, 0.0) : Vec3d(0.0, 1.0, 0.0);
+    const Vec3d e1 = perspective ? Vec3d(1.0, 0.0, 0.0) : glm::normalize(glm::cross(helper, c));
+    const Vec3d e2 = glm::cross(c, e1);
+    Vec2d q[9];
+    // The cosines of the largest angles from c, from the centre node's ray (the quad's angular
+    // radius) and from the optical axis.
+    double cos_c = 1.0, cos_spread = 1.0, cos_angle = 1.0;
+    double distance = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < 9; ++k) {
+      const Vec3d& p = node[k]->in_cam;
+      const double length = glm::length(p), w = glm::dot(c, p);
+      // Within 60 degrees of c, so that dq / d(angle) <= 1 / cos^2 <= 4.
+      if (!(w > 0.5 * length)) return false;
+      q[k] = Vec2d(glm::dot(e1, p) / w, glm::dot(e2, p) / w);
+      cos_c = std::min(cos_c, w / length);
+      cos_spread = std::min(cos_spread, glm::dot(centre, p) / length);
+      cos_angle = std::min(cos_angle, p.z / length);
+      distance = std::min(distance, length);
+    }
+    const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
+    const double angle = std::acos(std::max(-1.0, cos_angle));
+    const double q_per_radian = 1.0 / (cos_c * cos_c);
+    // Affine pixel = A (q, 1), least squares through the four corners.
+    Mat3d normal(0.0);
+    Vec3d bu(0.0), bv(0.0);
+    for (int k : {0, 2, 6, 8}) {
+      const Vec3d h(q[k].x, q[k].y, 1.0);
+      normal += glm::outerProduct(h, h);
+      bu += node[k]->pixel.x * h;
+      bv += node[k]->pixel.y * h;
+    }
+    if (!(std::abs(glm::determinant(normal)) > 1e-300)) return false;
+    const Mat3d inverse = glm::inverse(normal);
+    const Vec3d a = inverse * bu, c_v = inverse * bv;
+    // Its error at the nine nodes (corners, edge midpoints, centre) against the exact projection.
+    double error2 = 0.0;
+    for (int k = 0; k < 9; ++k) {
+      const Vec3d h(q[k].x, q[k].y, 1.0);
+      const double du = glm::dot(a, h) - node[k]->pixel.x, dv = glm::dot(c_v, h) - node[k]->pixel.y;
+      error2 = std::max(error2, du * du + dv * dv);
+    }
+    const double error = std::sqrt(error2);
+    *fit_error = error;
+    if (!(error <= s.lens_tolerance)) return false;
+    // Points off the bilinear sheet through the corners (a relief, a step in the surface) see
+    // their rays turn by at most deviation / (distance - deviation); the fit and the lens each
+    // move by at most about their gradient (pixels per unit q, times q_per_radian) times that
+    // (2.25 rather than 2 for the lens's gradient, which is the fit's only up to its error).
+    const double deviation = Deviation(id, qx, qy, xl, yl, x_end, y_end);
+    if (!(deviation < 0.5 * distance)) return false;
+    const double turn = deviation / (distance - deviation);
+    const double gradient = std::sqrt(a.x * a.x + a.y * a.y + c_v.x * c_v.x + c_v.y * c_v.y);
+    if (!(error + 2.25 * q_per_radian * gradient * turn <= s.lens_tolerance)) return false;
+    // Every ray of the quad within the lens's valid field, with a margin of half the spread.
+    if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    // The image bounds the kernel must test (PointKernelArgs::image_tests): W = c . X > 0 holds
+    // within 60 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
+    // quad's points too (their fitted pixels lie within the tolerance of the nodes' hull).
+    *image_tests = 0;
+    double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
+    double v_min = u_min, v_max = -u_min;
+    for (int k = 0; k < 9; ++k) {
+      u_min = std::min(u_min, node[k]->pixel.x);
+      u_max = std::max(u_max, node[k]->pixel.x);
+      v_min = std::min(v_min, node[k]->pixel.y);
+      v_max = std::max(v_max, node[k]->pixel.y);
+    }
+    constexpr double kMargin = 2.0;
+    if (!(u_min >= kMargin)) *image_tests |= 2;
+    if (!(u_max <= view.width - kMargin)) *image_tests |= 4;
+    if (!(v_min >= kMargin)) *image_tests |= 8;
+    if (!(v_max <= view.height - kMargin)) *image_tests |= 16;
+    // (U, V, W) = [A; 0 0 1] (e1, e2, c)^T (R p + offset): u = U / W = A (q, 1).
+    const Vec3d h_rows[3] = {a, c_v, Vec3d(0.0, 0.0, 1.0)};
+    const Mat3d cam_from_world_t = glm::transpose(view.rotation);
+    for (int r = 0; r < 3; ++r) {
+      const Vec3d in_cam_row = h_rows[r].x * e1 + h_rows[r].y * e2 + h_rows[r].z * c;
+      rows[r] = cam_from_world_t * in_cam_row;
+      t[r] = glm::dot(in_cam_row, view.offset);
+    }
+    return true;
+  }
+
+  // `parent_error`: the parent quad's fit error at its nodes (infinity if unknown). A smooth
+  // map's fit error scales with the square of the quad's side: a quad whose predicted error
+  // (a quarter of its parent's) is above twice the tolerance is split without a fit.
+  void Quad(int level, int qx, int qy, double parent_error) {
+    const int side = kTileWidth >> level;
+    if (qx >= tile_width || qy >= tile_height) return;
+    const int x_end = std::min(qx + side, tile_width), y_end = std::min(qy + side, tile_height);
+    // The fit's nodes: the quad's first pixels and the next quad's (clamped into the tile), so
+    // that a quad's children share its nodes.
+    const int xl = std::min(qx + side, tile_width - 1), yl = std::min(qy + side, tile_height - 1);
+    const int id = kLensQuadOffset[level] + (qy / side) * (kTileWidth / side) + qx / side;
+    Vec3d rows[3];
+    double t[3];
+    double error = std::numeric_limits<double>::infinity();
+    int image_tests = 0x1f;
+    const bool hopeless = std::isfinite(parent_error) && 0.25 * parent_error > 2.0 * s.lens_tolerance &&
+                          level + 1 < kLensQuadLevels;
+    if (hopeless) error = 0.25 * parent_error;
+    if (!hopeless && xl - qx >= 2 && yl - qy >= 2 &&
+        Fit(id, qx, qy, xl, yl, x_end, y_end, rows, t, &error, &image_tests)) {
+      internal::PointKernelArgs args = KernelArgsFor(s, view, rows, t, extent, grazing);
+      args.variance = variance;
+      args.image_tests = image_tests;
+      const int origin = qy * stride + qx;
+      internal::PointTileArrays arrays{b.x.data() + origin, b.y.data() + origin,
+                                       b.z.data() + origin, b.valid.data() + origin, 0};
+      arrays.rows = y_end - qy;
+      arrays.row_length = (x_end - qx + 7) / 8 * 8;
+      arrays.row_stride = stride;
+      const ExactContext context{&s, &view, b.focal.data() + origin};
+      args.exact = &ExactAdmitLane;
+      args.exact_context = &context;
+      args.prefetch = prefetch + prefetched;
+      args.prefetch_count = std::min(prefetch_slice, prefetch_count - prefetched);
+      prefetched += args.prefetch_count;
+      if (view.kernel(*view.image, arrays, args, b.sum.data() + origin,
+                      variance ? b.sum_squares.data() + origin : nullptr, b.count.data() + origin)) {
+        any = true;
+      }
+      return;
+    }
+    if (level + 1 < kLensQuadLevels) {
+      const int half = side / 2;
+      for (int k = 0; k < 4; ++k) Quad(level + 1, qx + (k % 2) * half, qy + (k / 2) * half, error);
+      return;
+    }
+    for (int ty = qy; ty < y_end; ++ty) {
+      for (int tx = qx; tx < x_end; ++tx) exact(ty * stride + tx);
+    }
+  }
 };
 
 void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, int x0, int y0,
                      int x1, int y1, TileBuffers& b, IntegralResult& out) {
   const int tile_width = x1 - x0;
-  const int size = tile_width * (y1 - y0);
-  const int padded = (size + 7) / 8 * 8;
+  // Rows padded to a multiple of 8 points (the padding lanes invalid), so that every rectangle
+  // of the tile starting at a multiple of 8 is whole groups of the kernel (the lens route).
+  const int stride = (tile_width + 7) / 8 * 8;
+  const int size = stride * (y1 - y0);
+  const int padded = size;
   const int channels = s.channels;
   b.x.assign(static_cast<size_t>(padded), 0.0f);
   b.y.assign(static_cast<size_t>(padded), 0.0f);
@@ -641,8 +941,9 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   Vec3d extent(0.0);
   bool any = false;
   for (int j = 0; j < size; ++j) {
+    if (j % stride >= tile_width) continue;  // padding
     const Vec3d& point =
-        points.points[static_cast<size_t>(y0 + j / tile_width) * s.width + x0 + j % tile_width];
+        points.points[static_cast<size_t>(y0 + j / stride) * s.width + x0 + j % stride];
     if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
     const Vec3d focal = point + s.shift;
     b.focal[static_cast<size_t>(j)] = focal;
@@ -660,6 +961,12 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   if (variance) b.sum_squares.assign(static_cast<size_t>(padded) * channels, 0.0);
   b.count.assign(static_cast<size_t>(padded), 0);
   b.value.resize(static_cast<size_t>(channels));
+  if (s.lens_tolerance > 0.0) {
+    b.node_stamp.assign(static_cast<size_t>(size), 0);
+    b.nodes.resize(static_cast<size_t>(size));
+    b.generation = 0;
+    b.deviation.assign(kLensQuadCount, -1.0);
+  }
   if (s.nearest) {
     b.best.assign(static_cast<size_t>(size), inf);
     b.chosen.assign(static_cast<size_t>(size), -1);
@@ -673,7 +980,8 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   b.outline.clear();
   const int tile_height = y1 - y0;
   for (int j = 0; j < size; ++j) {
-    const int tx = j % tile_width, ty = j / tile_width;
+    const int tx = j % stride, ty = j / stride;
+    if (tx >= tile_width) continue;
     const bool on_border = tx == 0 || ty == 0 || tx == tile_width - 1 || ty == tile_height - 1;
     const bool sampled = (tx % 16 == 0 || tx == tile_width - 1) && (ty % 16 == 0 || ty == tile_height - 1);
     if (on_border && sampled && b.valid[static_cast<size_t>(j)] != 0) {
@@ -693,7 +1001,8 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     if (OutsideAperture(s, view, box)) continue;
     b.views.push_back(static_cast<int>(i));
     b.image_tests.push_back(static_cast<uint8_t>(image_tests));
-    b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline) : Footprint());
+    b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline)
+                                                : LensFootprintOf(view, b.outline));
   }
   b.lines.resize(kMaxPrefetch);
   if (!b.views.empty()) {
@@ -710,7 +1019,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
             ? FootprintLines(*s.views[static_cast<size_t>(b.views[k + 1])].image,
                              b.footprints[k + 1], b.lines.data())
             : 0;
-    if (view.kernel != nullptr && float_points && !s.nearest &&
+    if (view.lens == nullptr && view.kernel != nullptr && float_points && !s.nearest &&
         glm::length(view.b) < kFloatRange) {
       internal::PointKernelArgs args = KernelArgs(s, view, extent, !NeverGrazing(s, view, box));
       args.variance = variance;
@@ -728,21 +1037,18 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     }
     // Exact per-point route: AdmitSample and the double sampler, in view order per pixel as
     // the reference.
-    for (int line = 0; line < prefetch_count; ++line) {
-      __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
-    }
-    for (int j = 0; j < size; ++j) {
-      if (b.valid[static_cast<size_t>(j)] == 0) continue;
+    const auto exact = [&](int j) {
+      if (b.valid[static_cast<size_t>(j)] == 0) return;
       double u, v, distance2 = inf;
-      if (!AdmitSample(s, view, b.focal[static_cast<size_t>(j)], &u, &v, &distance2)) continue;
+      if (!AdmitSample(s, view, b.focal[static_cast<size_t>(j)], &u, &v, &distance2)) return;
       double* sum = b.sum.data() + static_cast<size_t>(j) * channels;
       if (s.nearest) {
-        if (!(distance2 < b.best[static_cast<size_t>(j)])) continue;
+        if (!(distance2 < b.best[static_cast<size_t>(j)])) return;
         b.best[static_cast<size_t>(j)] = distance2;
         b.chosen[static_cast<size_t>(j)] = static_cast<int32_t>(i);
         view.sample(*view.image, u, v, sum);
         b.count[static_cast<size_t>(j)] = 1;
-        continue;
+        return;
       }
       view.sample(*view.image, u, v, b.value.data());
       for (int c = 0; c < channels; ++c) sum[c] += b.value[static_cast<size_t>(c)];
@@ -754,10 +1060,31 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
       }
       ++b.count[static_cast<size_t>(j)];
       b.used[i] = 1;
+    };
+    if (view.lens != nullptr && view.kernel != nullptr && float_points && !s.nearest &&
+        s.lens_tolerance > 0.0 && glm::length(view.b) < kFloatRange) {
+      // Lens views: local homographies per quad, within the tolerance of the exact projection.
+      ++b.generation;
+      // The next view's lines go out with the quads' kernel calls (about 16 of them at the
+      // default tolerance), the rest at the end.
+      LensRoute<decltype(exact)> route{s, view, b, stride, tile_width, tile_height, extent,
+                                       variance, !NeverGrazing(s, view, box), exact,
+                                       b.lines.data(), prefetch_count, (prefetch_count + 15) / 16};
+      route.Quad(0, 0, 0, std::numeric_limits<double>::infinity());
+      for (int line = route.prefetched; line < prefetch_count; ++line) {
+        __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
+      }
+      if (route.any) b.used[i] = 1;
+      continue;
     }
+    for (int line = 0; line < prefetch_count; ++line) {
+      __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
+    }
+    for (int j = 0; j < size; ++j) exact(j);
   }
   for (int j = 0; j < size; ++j) {
-    const int x = x0 + j % tile_width, y = y0 + j / tile_width;
+    if (j % stride >= tile_width) continue;
+    const int x = x0 + j % stride, y = y0 + j / stride;
     if (s.nearest && b.chosen[static_cast<size_t>(j)] >= 0) {
       b.used[static_cast<size_t>(b.chosen[static_cast<size_t>(j)])] = 1;
     }
@@ -874,6 +1201,10 @@ void PointIntegralOptions::Check(int view_count) const {
   }
   if (!(glm::length(lens_axis) > 0.0)) ThrowInvalid("lens_axis: must not be zero");
   if (!(glm::length(surface_normal) > 0.0)) ThrowInvalid("surface_normal: must not be zero");
+  if (!(lens_tolerance_px >= 0.0 && lens_tolerance_px <= 1.0)) {
+    ThrowInvalid("lens_tolerance_px: must be in [0, 1] view pixels (got " +
+                 FormatNumber(lens_tolerance_px) + ")");
+  }
   CheckThreadCount(num_threads);
   if (view_count <= 0) ThrowInvalid("view selection is empty: the light field has no views");
   std::vector<uint8_t> seen(static_cast<size_t>(view_count), 0);
@@ -932,6 +1263,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   at_points.view_indices = options.view_indices;
   at_points.num_threads = options.num_threads;
   at_points.variance = options.variance;
+  at_points.lens_tolerance_px = options.lens_tolerance_px;
   SurfaceIntegralResult result =
       RenderIntegralAtPoints(light_field, points, at_points, surface, progress);
   result.integral.cam_from_world = cam_from_world;

@@ -29,6 +29,24 @@
 //   of their valid taps; count is then the number of samples kept (views with weight > 0 at
 //   the point), and the band, inliers and variance are over those samples.
 //
+// - Lens views (View::camera with a lens model) are sampled through the lens: exactly (each
+//   focal point through LensCamera::Project) where lens_tolerance_px is 0, else quad by quad of
+//   the output (64 x 64 pixels, split down to 8 x 8): the quad's nodes (corners, edge midpoints,
+//   centre) are projected exactly, a homography is fitted to the corners (affine in the tangent
+//   plane of the centre ray; for radtan lenses in the view's own pinhole coordinates), and the
+//   quad is sampled through it (the pinhole kernel) when
+//   its error at the nodes, plus a first-order bound for the focal points' departure from the
+//   bilinear sheet through the corner points (steps and relief of the surface), is within
+//   lens_tolerance_px and every ray of the quad keeps inside the lens's valid field (with a
+//   margin of the quad's angular spread); quads that fail are split, and 8 x 8 quads that fail
+//   are projected exactly. The sample positions then differ from the exact ones by at most about
+//   lens_tolerance_px (a bound checked at the nodes, not everywhere: a smooth map's error between
+//   them is assumed to be of their order), so a sample differs by at most about
+//   lens_tolerance_px times the view's largest intensity step between neighbouring pixels;
+//   admission near the image edge is decided on the fitted position (the exact one within a
+//   float rounding margin). Not in nearest mode (aperture 0) or for views without an AVX2 kernel
+//   (several channels, masks): those project every sample exactly.
+//
 // - Everything above is RenderIntegralAtPoints on the focal points C + depth * ray (the one
 //   per-sample route; maps give it orthographic points).
 //
@@ -88,6 +106,11 @@ struct PointIntegralOptions {
   std::vector<int> view_indices;     // empty = all views
   int num_threads = -1;
   bool variance = false;             // as IntegralOptions
+  // Views with a lens model (lens.h): the largest error, in view pixels, allowed where the exact
+  // lens projection is replaced by a local homography (per quad of 64 down to 8 output pixels,
+  // checked at its corners, edge midpoints and centre; see "Lens views" above), [0, 1];
+  // 0 = project every sample exactly.
+  double lens_tolerance_px = 0.02;
 
   // Throws std::invalid_argument naming the field.
   void Check(int view_count) const;

@@ -167,11 +167,15 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
   Pending pending[kPending];
   int pending_size = 0;
   // The next view's pixels, spread over the groups (a burst would fill the miss queues).
-  const int groups = points.size / 8;
+  const int groups_per_row = points.rows > 0 ? points.row_length / 8 : points.size / 8;
+  const int groups = points.rows > 0 ? groups_per_row * points.rows : groups_per_row;
   const int prefetch_per_group =
       groups > 0 ? (args.prefetch_count + groups - 1) / groups : 0;
   int prefetched = 0;
-  for (int i = 0; i < points.size; i += 8) {
+  for (int group = 0; group < groups; ++group) {
+    const int i = points.rows > 0
+                      ? (group / groups_per_row) * points.row_stride + (group % groups_per_row) * 8
+                      : group * 8;
     for (int k = 0; k < prefetch_per_group && prefetched < args.prefetch_count; ++k) {
       _mm_prefetch(args.prefetch[prefetched++], _MM_HINT_T0);
     }

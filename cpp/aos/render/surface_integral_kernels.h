@@ -21,12 +21,18 @@ namespace aos::internal {
 // Points of a tile, structure of arrays, relative to the render's centre; `valid` is all ones
 // (as an int32) for a point to render, 0 for a pixel without a focal point and for the padding
 // up to a multiple of 8 (such lanes hold 0, 0, 0).
+// The points may also be a rectangle of a larger tile: `rows` rows of `row_length` points (a
+// multiple of 8), `row_stride` apart (index of point (r, k) = r * row_stride + k, for the arrays,
+// the accumulators and the exact test alike); rows = 0 means one run of `size` points.
 struct PointTileArrays {
   const float* x;
   const float* y;
   const float* z;
   const int32_t* valid;
-  int size;  // a multiple of 8
+  int size;  // a multiple of 8 (rows = 0)
+  int rows = 0;
+  int row_length = 0;
+  int row_stride = 0;
 };
 
 // Decides one lane exactly (double precision, the reference's arithmetic): true to admit.
