@@ -917,6 +917,16 @@ TEST_F(IntegralBadInput, FieldOfView) {
   }
 }
 
+TEST_F(IntegralBadInput, LensTolerance) {
+  // Checked for every render, pinhole planes too (where it changes nothing), so a bad value is
+  // refused before any frame is sampled.
+  for (double bad : {-0.1, 1.5, std::nan("")}) {
+    IntegralOptions o = options;
+    o.lens_tolerance_px = bad;
+    EXPECT_THAT(ErrorOf(o), HasSubstr("lens_tolerance_px"));
+  }
+}
+
 TEST_F(IntegralBadInput, FocalPlaneBehindOrParallelToTheRays) {
   IntegralOptions bad = options;
   bad.focal_plane = Plane::AtHeight(50.0);  // above a camera at 35 m that looks down

@@ -750,6 +750,10 @@ void IntegralOptions::Check(int view_count) const {
     ThrowInvalid("width/height: must be 1..65536 pixels, or 0 for the pose view's (got " +
                  std::to_string(width) + "x" + std::to_string(height) + ")");
   }
+  if (!(lens_tolerance_px >= 0.0 && lens_tolerance_px <= 1.0)) {
+    ThrowInvalid("lens_tolerance_px: must be in [0, 1] view pixels (got " +
+                 FormatNumber(lens_tolerance_px) + ")");
+  }
   if (!(aperture_radius >= 0.0)) {
     ThrowInvalid("aperture_radius: must be >= 0 metres or infinity (got " +
                  FormatNumber(aperture_radius) + ")");
