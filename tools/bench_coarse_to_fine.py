@@ -14,6 +14,7 @@ full-resolution slice pixels rendered, and:
 
 Usage: python3 tools/bench_coarse_to_fine.py [--repeats 1] [--factor 4] [--size 256]
                                              [--seeds 1] [--data ../shared/data/jku-f0]
+                                             [--skip-f0] [--skip-scenes]
 """
 
 from __future__ import annotations
@@ -72,6 +73,7 @@ def main() -> int:
     parser.add_argument("--slices", type=int, default=100)
     parser.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "jku-f0"))
     parser.add_argument("--skip-f0", action="store_true")
+    parser.add_argument("--skip-scenes", action="store_true")
     args = parser.parse_args()
     f = args.factor
     print(f"coarse_to_fine={f} against the full {args.slices}-slice stack; times are medians of "
@@ -79,7 +81,7 @@ def main() -> int:
     print("| scene | method | full wall s | c2f wall s | wall ratio | full CPU s | c2f CPU s | "
           "CPU ratio | rendered | PSNR full dB | PSNR c2f dB | banding full | banding c2f |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
-    for occluders in ("voxels", "trees"):
+    for occluders in () if args.skip_scenes else ("voxels", "trees"):
         for seed in range(1, args.seeds + 1):
             simulation = aos.simulate(merge_study.study_scene(seed, args.size, occluders))
             truth, light_field = simulation.truth, simulation.light_field

@@ -660,7 +660,7 @@ void BindMerge(py::module_& m) {
       .Field("merge", &AllInFocusOptions::merge, "The merge (MergeOptions).")
       .Field("coarse_to_fine", &AllInFocusOptions::coarse_to_fine,
              "0 = off; a factor 2..16: a coarse stack (1/factor the size, every factor-th "
-             "slice) chooses each 32 x 32 tile's slices, only those render at full resolution.")
+             "slice) chooses each factor x factor block's slices, only those render at full resolution.")
       .Finish()
       .def("check", &AllInFocusOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
 
