@@ -465,17 +465,18 @@ std::vector<int> CoarseSliceIndices(int slices, int factor) {
   return indices;
 }
 
-// Renders slice `slices[k]`'s pixels `pixels[k]` (indices y * width + x of `camera`) for every
+// Renders slice `slices[k]`'s pixels `pixels(k)` (indices y * width + x of `camera`) for every
 // k in one call per kPackedPoints points, handing each slice to `on_slice(k, packed, first)`:
 // its pixels are packed row-major at positions first, first + 1, ... of the result
 // (kPackedWidth wide). Slices are handed over in order. Rays that miss a slice's plane or
 // surface give count 0.
 using PackedSink =
     std::function<void(size_t k, const SurfaceIntegralResult& packed, size_t first)>;
+using PixelLists = std::function<const std::vector<int32_t>&(size_t k)>;
 void RenderPackedSlices(const LightField& light_field, const IntegralOptions& resolved,
                         const PinholeCamera& camera, const Rigid3d& cam_from_world,
                         const SliceFocus& focus, const std::vector<int>& slices,
-                        const std::vector<std::vector<int32_t>>& pixels, bool variance,
+                        const PixelLists& pixels, bool variance,
                         int threads, const PackedSink& on_slice, ProgressSink* progress) {
   const Vec3d centre = cam_from_world.Center();
   const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
@@ -488,9 +489,9 @@ void RenderPackedSlices(const LightField& light_field, const IntegralOptions& re
     const Vec3d normal = focus.surface ? focus.GrazingPlane().normal
                                        : focus.planes[static_cast<size_t>(slices[k0])].normal;
     size_t k1 = k0, total = 0;
-    while (k1 < n && (k1 == k0 || total + pixels[k1].size() <= kPackedPoints) &&
+    while (k1 < n && (k1 == k0 || total + pixels(k1).size() <= kPackedPoints) &&
            (focus.surface || focus.planes[static_cast<size_t>(slices[k1])].normal == normal)) {
-      total += pixels[k1].size();
+      total += pixels(k1).size();
       ++k1;
     }
     FocalPoints points;
@@ -501,8 +502,8 @@ void RenderPackedSlices(const LightField& light_field, const IntegralOptions& re
                          Vec3d(std::numeric_limits<double>::quiet_NaN()));
     std::vector<size_t> first(k1 - k0 + 1, 0);
     for (size_t k = k0; k < k1; ++k) {
-      first[k - k0 + 1] = first[k - k0] + pixels[k].size();
-      const std::vector<int32_t>& list = pixels[k];
+      const std::vector<int32_t>& list = pixels(k);
+      first[k - k0 + 1] = first[k - k0] + list.size();
       Vec3d* out = points.points.data() + first[k - k0];
       if (focus.surface) {
         slice_of.assign(static_cast<size_t>(camera.width) * camera.height, -1.0f);
@@ -588,8 +589,8 @@ struct CoarseChoice {
   int blocks_x = 0, blocks_y = 0;
   // The coarse stack's confidence (over all its slices) of every block, 0 where uncovered.
   std::vector<float> confidence;
-  // takes[block * slices + i]: the block's focus values come from full slice i.
-  std::vector<uint8_t> takes;
+  // Block b takes the full slices first[b] .. last[b] (its focus values come from those).
+  std::vector<int32_t> first, last;
 };
 
 // Renders the coarse stack (every factor-th slice) and chooses every block's slices: the full
@@ -616,12 +617,12 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
   const int coarse_radius = std::max(1, (run.merge.window_radius + factor - 1) / factor);
   const bool variance = run.merge.method == MergeMethod::kRobust;
   const std::vector<int32_t> every = MortonOrder(coarse_camera.width, coarse_camera.height);
-  const std::vector<std::vector<int32_t>> pixels(indices.size(), every);
   ProgressStart(progress, "coarse stack", coarse_slices);
   FocusAccumulator accumulator(coarse_camera, light_field.views.front().image.channels(),
                                coarse_slices);
   RenderPackedSlices(
-      light_field, coarse, coarse_camera, cam_from_world, focus, indices, pixels, variance,
+      light_field, coarse, coarse_camera, cam_from_world, focus, indices,
+      [&](size_t) -> const std::vector<int32_t>& { return every; }, variance,
       threads,
       [&](size_t k, const SurfaceIntegralResult& packed, size_t first) {
         const UnpackedSlice slice = Unpack(packed, first, every, coarse_camera, variance);
@@ -639,14 +640,13 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
   choice.blocks_x = coarse_camera.width;
   choice.blocks_y = coarse_camera.height;
   const size_t blocks = static_cast<size_t>(choice.blocks_x) * choice.blocks_y;
-  choice.takes.assign(blocks * slices, 0);
+  choice.first.resize(blocks);
+  choice.last.resize(blocks);
   for (size_t block = 0; block < blocks; ++block) {
     const int b = best[block];
-    const int lo = b < 0 ? 0 : indices[static_cast<size_t>(std::max(0, b - 1))];
-    const int hi =
+    choice.first[block] = b < 0 ? 0 : indices[static_cast<size_t>(std::max(0, b - 1))];
+    choice.last[block] =
         b < 0 ? slices - 1 : indices[static_cast<size_t>(std::min(coarse_slices - 1, b + 1))];
-    std::fill(choice.takes.begin() + static_cast<ptrdiff_t>(block * slices + lo),
-              choice.takes.begin() + static_cast<ptrdiff_t>(block * slices + hi + 1), uint8_t{1});
   }
   return choice;
 }
@@ -701,9 +701,8 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
   for (const int32_t block : MortonOrder(choice.blocks_x, choice.blocks_y)) {
     {
       const int bx = block % choice.blocks_x, by = block / choice.blocks_x;
-      const uint8_t* takes = choice.takes.data() + static_cast<size_t>(block) * slices;
-      for (int i = 0; i < slices; ++i) {
-        if (!takes[i]) continue;
+      for (int i = choice.first[static_cast<size_t>(block)];
+           i <= choice.last[static_cast<size_t>(block)]; ++i) {
         std::vector<int32_t>& list = lists[static_cast<size_t>(i)];
         for (int y = by * factor; y < std::min(h, (by + 1) * factor); ++y) {
           for (int x = bx * factor; x < std::min(w, (bx + 1) * factor); ++x) {
@@ -726,7 +725,8 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
   ProgressStart(progress, "focal stack", slices);
   Timer render_timer;
   RenderPackedSlices(
-      light_field, resolved, camera, cam_from_world, focus, indices, lists, variance, threads,
+      light_field, resolved, camera, cam_from_world, focus, indices,
+      [&](size_t k) -> const std::vector<int32_t>& { return lists[k]; }, variance, threads,
       [&](size_t k, const SurfaceIntegralResult& packed, size_t first) {
         if (k == 0 || first == 0) *seconds_render += render_timer.Seconds();
         const Timer fold_timer;
