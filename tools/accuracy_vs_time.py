@@ -506,6 +506,9 @@ def knob_bit_depth(run: Run) -> Knob:
                 rows)
 
 
+COARSE_TO_FINE = 4  # the factor the merge table tries (AllInFocusOptions.coarse_to_fine)
+
+
 def knob_merge(run: Run) -> Knob:
     c = run.config
     scene = merge_scene(c, run.seed)
@@ -519,27 +522,34 @@ def knob_merge(run: Run) -> Knob:
     rows: list[Row] = []
     renders: list[tuple[Row, np.ndarray, np.ndarray, Optional[np.ndarray]]] = []
     first, last = aos.Plane.at_height(MERGE_FIRST), aos.Plane.at_height(MERGE_LAST)
-    for slices in c.slices:
-        for method in ("sobel", "improved", "robust"):
-            splits: list[tuple[float, float]] = []
+    # Coarse-to-fine (AllInFocusOptions.coarse_to_fine, factor 4) where it has slices to skip.
+    settings = [(slices, method, 0) for slices in c.slices
+                for method in ("sobel", "improved", "robust")]
+    settings += [(slices, method, COARSE_TO_FINE) for slices in c.slices if slices >= 32
+                 for method in ("improved", "robust")]
+    for slices, method, coarse_to_fine in settings:
+        splits: list[tuple[float, float]] = []
 
-            def call() -> aos.MergeResult:
-                result = aos.all_in_focus(lf, method=method, first_plane=first,
-                                          last_plane=last, slices=slices, **camera)
-                splits.append((result.seconds_render, result.seconds_merge))
-                return result
+        def call() -> aos.MergeResult:
+            result = aos.all_in_focus(lf, method=method, first_plane=first,
+                                      last_plane=last, slices=slices,
+                                      coarse_to_fine=coarse_to_fine, **camera)
+            splits.append((result.seconds_render, result.seconds_merge))
+            return result
 
-            seconds, merged = run.timed(call)
-            row = Row("merge", method, f"{method} {slices}", seconds,
-                      {"method": method, "slices": str(slices),
-                       "render (ms)": ms(statistics.median(r for r, _ in splits)),
-                       "merge (ms)": ms(statistics.median(m for _, m in splits))},
-                      front="all-in-focus")
-            depth = np.asarray(merged.depth, np.float32)
-            rows.append(row)
-            renders.append((row, np.asarray(merged.image, np.float32) / 255.0,
-                            np.asarray(merged.slice) >= 0, depth))
-            run.log(f"merge: {method}, {slices} slices: {ms(seconds)} ms")
+        seconds, merged = run.timed(call)
+        name = method if not coarse_to_fine else f"{method}, coarse_to_fine {coarse_to_fine}"
+        label = f"{method} {slices}" + (f" c2f{coarse_to_fine}" if coarse_to_fine else "")
+        row = Row("merge", name, label, seconds,
+                  {"method": name, "slices": str(slices),
+                   "render (ms)": ms(statistics.median(r for r, _ in splits)),
+                   "merge (ms)": ms(statistics.median(m for _, m in splits))},
+                  front="all-in-focus")
+        depth = np.asarray(merged.depth, np.float32)
+        rows.append(row)
+        renders.append((row, np.asarray(merged.image, np.float32) / 255.0,
+                        np.asarray(merged.slice) >= 0, depth))
+        run.log(f"merge: {name}, {slices} slices: {ms(seconds)} ms")
     mid = 0.5 * (MERGE_FIRST + MERGE_LAST)
     plane = aos.IntegralOptions(focal_plane=aos.Plane.at_height(mid), **camera)
     seconds, single = run.timed(lambda: aos.render_integral(lf, plane))

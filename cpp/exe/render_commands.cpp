@@ -671,6 +671,10 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
   c->stack_flags = AddStackFlags(stack, render, c->args, c->options.stack, c->ground);
   Flags merge = flags.Nested("merge.");
   AddMergeFlags(merge, c->options.merge);
+  flags.Field("coarse_to_fine", c->options.coarse_to_fine,
+              "0 = off; a factor 2..16: a coarse stack (1/factor the size, every factor-th "
+              "slice) chooses each factor x factor block's slices and only those render at full "
+              "resolution (4: docs/accuracy-vs-time.md)");
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   return [c, flags] { return RunAllInFocus(*c, flags); };

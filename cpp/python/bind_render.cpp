@@ -659,6 +659,9 @@ void BindMerge(py::module_& m) {
                     "Time of focus measures, refinement, smoothing and image assembly, s.")
       .def_readonly("seconds_render", &MergeResult::seconds_render,
                     "Time of rendering (slices, re-integration), s.")
+      .def_readonly("rendered_fraction", &MergeResult::rendered_fraction,
+                    "all_in_focus: full-resolution slice pixels rendered, fraction of the full "
+                    "stack's (1 without coarse_to_fine).")
       .def("__repr__", [](const MergeResult& r) {
         return "MergeResult(" + SizeText(r.image) +
                ", uncovered_pixels=" + std::to_string(r.uncovered_pixels) +
@@ -670,6 +673,9 @@ void BindMerge(py::module_& m) {
   OptionsClass<AllInFocusOptions>(m, "AllInFocusOptions", "Options of all_in_focus.")
       .Field("stack", &AllInFocusOptions::stack, "The slices (FocalStackOptions).")
       .Field("merge", &AllInFocusOptions::merge, "The merge (MergeOptions).")
+      .Field("coarse_to_fine", &AllInFocusOptions::coarse_to_fine,
+             "0 = off; a factor 2..16: a coarse stack (1/factor the size, every factor-th "
+             "slice) chooses each factor x factor block's slices, only those render at full resolution.")
       .Finish()
       .def("check", &AllInFocusOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
 

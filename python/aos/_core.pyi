@@ -913,16 +913,25 @@ class MergeResult:
     def seconds_merge(self) -> float: ...
     @property
     def seconds_render(self) -> float: ...
+    @property
+    def rendered_fraction(self) -> float: ...
     def __repr__(self) -> str: ...
 
 class AllInFocusOptions:
     """Options of all_in_focus."""
 
     _fields: ClassVar[tuple[str, ...]]
-    def __init__(self, *, stack: FocalStackOptions = ..., merge: MergeOptions = ...) -> None:
+    def __init__(
+        self,
+        *,
+        stack: FocalStackOptions = ...,
+        merge: MergeOptions = ...,
+        coarse_to_fine: int = ...,
+    ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     stack: FocalStackOptions
     merge: MergeOptions
+    coarse_to_fine: int
     def check(self, view_count: int) -> None:
         """ValueError naming the field."""
     def __eq__(self, other: object) -> bool: ...

@@ -121,6 +121,7 @@ class AllInFocusKeywords(FocalStackKeywords, MergeKeywords, total=False):
 
     stack: FocalStackOptions
     merge: MergeOptions
+    coarse_to_fine: int
 
 
 class DemoKeywords(TypedDict, total=False):

@@ -537,6 +537,12 @@ TEST(AllInFocusOptions, CheckNamesTheField) {
   options.merge.edge_sigma = -1.0;
   EXPECT_THAT(ErrorOf([&] { RenderAllInFocus(light_field, options); }), HasSubstr("edge_sigma"));
   options.merge.edge_sigma = 0.1;
+  for (const int factor : {1, -1, 17}) {
+    options.coarse_to_fine = factor;
+    EXPECT_THAT(ErrorOf([&] { RenderAllInFocus(light_field, options); }),
+                HasSubstr("coarse_to_fine"));
+  }
+  options.coarse_to_fine = 0;
   EXPECT_EQ(ErrorOf([&] { RenderAllInFocus(light_field, options); }), "no error");
 }
 
@@ -651,6 +657,83 @@ TEST(RenderAllInFocus, RecoversTheDepthOfTexturedGround) {
       for (int x = 8; x < 16; ++x) {
         EXPECT_NEAR(*result.depth.At<float>(x, y), 20.0, tolerance) << x << "," << y;
       }
+    }
+  }
+}
+
+TEST(RenderAllInFocus, CoarseToFineEqualsTheFullStackWhereTheFocusIsInRange) {
+  // Flat ground at slice 20 of 41 (0.1 m apart): a block whose coarse maximum is coarse slice 5
+  // (full slice 20) takes the full slices 16..24. On the pixels whose full-stack peak lies in
+  // 17..23 (peak and both parabola neighbours taken) the fold without smoothing must give the
+  // full stack's slice: equal up to the float rounding between the plane render and the point
+  // render (a relative 1e-6 on the focus values moves a parabola vertex by far less than 1e-3
+  // slice). Those are most pixels for improved and robust (their focus window sees texture);
+  // sobel's 3 x 3 gradient is 0 inside the checker squares (near-ties decide its peaks), so it
+  // is only run. With smoothing the confidence is the coarse stack's, so the depth
+  // may move a little: within 0.05 slice (5 mm), and the image within 1 grey level on average.
+  const int size = 32;
+  for (MergeMethod method : kAllMethods) {
+    SCOPED_TRACE(MergeMethodName(method));
+    for (const double sigma : {0.0, 3.0}) {
+      SCOPED_TRACE(sigma);
+      AllInFocusOptions options = GroundStackOptions(method, size, 41);
+      options.merge.smoothing_sigma = sigma;
+      const MergeResult full = RenderAllInFocus(SimulatedGround(), options);
+      options.coarse_to_fine = 4;
+      const MergeResult fine = RenderAllInFocus(SimulatedGround(), options);
+      ASSERT_TRUE(WellFormed(fine, size, size));
+      EXPECT_EQ(full.rendered_fraction, 1.0);
+      // 9 of 41 slices a pixel.
+      EXPECT_NEAR(fine.rendered_fraction, 9.0 / 41.0, 1e-9);
+      EXPECT_EQ(fine.uncovered_pixels, full.uncovered_pixels);
+      const double slice_tolerance = sigma == 0.0 ? 1e-3 : 0.05;
+      double image_difference = 0.0;
+      int in_range = 0;
+      for (int y = 0; y < size; ++y) {
+        for (int x = 0; x < size; ++x) {
+          image_difference += std::abs(*fine.image.At<float>(x, y) - *full.image.At<float>(x, y));
+          const float peak = *full.slice.At<float>(x, y);
+          if (method == MergeMethod::kSobel || !(peak >= 16.5f && peak <= 23.5f)) continue;
+          ++in_range;
+          ASSERT_NEAR(*fine.slice.At<float>(x, y), *full.slice.At<float>(x, y), slice_tolerance)
+              << x << "," << y;
+          ASSERT_NEAR(*fine.depth.At<float>(x, y), *full.depth.At<float>(x, y),
+                      0.1 * slice_tolerance + 1e-5)
+              << x << "," << y;
+        }
+      }
+      if (method != MergeMethod::kSobel) {
+        EXPECT_GT(in_range, size * size * 9 / 10);
+        EXPECT_LT(image_difference / (size * size), sigma == 0.0 ? 0.05 : 1.0);
+      }
+      // Thread-count independence.
+      options.merge.num_threads = options.stack.render.num_threads = 2;
+      const MergeResult two = RenderAllInFocus(SimulatedGround(), options);
+      for (int y = 0; y < size; ++y) {
+        for (int x = 0; x < size; ++x) {
+          ASSERT_EQ(*two.slice.At<float>(x, y), *fine.slice.At<float>(x, y)) << x << "," << y;
+          ASSERT_EQ(*two.image.At<float>(x, y), *fine.image.At<float>(x, y)) << x << "," << y;
+        }
+      }
+    }
+  }
+}
+
+TEST(RenderAllInFocus, CoarseToFineSkipsSlicesFarFromTheFocus) {
+  // 101 slices from z = -2 to 2 m (0.04 m apart) over flat ground at z = 0 (slice 50): with
+  // factor 4 the coarse maximum is at full slice 48 or 52 (coarse slice 12 or 13) or between, so
+  // a block renders at most the 9 full slices around it and never the slices 0..40 or 60..100;
+  // the merged depth lies near the ground (20 m) as the full stack's does.
+  const int size = 32;
+  AllInFocusOptions options = GroundStackOptions(MergeMethod::kImproved, size, 101);
+  options.coarse_to_fine = 4;
+  const MergeResult fine = RenderAllInFocus(SimulatedGround(), options);
+  EXPECT_LE(fine.rendered_fraction, 9.0 / 101.0 + 1e-9);
+  for (int y = 8; y < 24; ++y) {
+    for (int x = 8; x < 24; ++x) {
+      EXPECT_GT(*fine.slice.At<float>(x, y), 40.0f) << x << "," << y;
+      EXPECT_LT(*fine.slice.At<float>(x, y), 60.0f) << x << "," << y;
+      EXPECT_NEAR(*fine.depth.At<float>(x, y), 20.0, 0.1) << x << "," << y;
     }
   }
 }

@@ -108,6 +108,24 @@ def test_keyword_arguments_are_routed_and_checked(simulation: aos.SimulationResu
         aos.merge_focal_stack(stack, method="robust", light_field=simulation.light_field)
 
 
+def test_coarse_to_fine_keyword_and_flag(simulation: aos.SimulationResult) -> None:
+    # The knob is one field (AllInFocusOptions.coarse_to_fine), reached by the keyword and by
+    # aos-render allinfocus --coarse-to-fine; the full stack renders every pixel of every slice,
+    # coarse-to-fine at most 2 x 4 + 1 = 9 of the 24 slices a pixel.
+    planes = dict(first_plane=aos.Plane.at_height(-1.5), last_plane=aos.Plane.at_height(2.5),
+                  slices=24, **camera(simulation))
+    full = aos.all_in_focus(simulation.light_field, **planes)
+    fine = aos.all_in_focus(simulation.light_field, coarse_to_fine=4, **planes)
+    assert full.rendered_fraction == 1.0
+    assert 0.0 < fine.rendered_fraction <= 9 / 24
+    assert fine.image.shape == full.image.shape and np.isfinite(fine.depth).all()
+    assert aos.AllInFocusOptions().coarse_to_fine == 0
+    with pytest.raises(ValueError, match="coarse_to_fine"):
+        aos.all_in_focus(simulation.light_field, coarse_to_fine=1, **planes)
+    help_text = aos_render("allinfocus", "--help").stdout
+    assert "--coarse-to-fine" in help_text
+
+
 MEMORY_PROBE = r"""
 import json, os, sys, threading, time
 import numpy as np

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstring>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <utility>
@@ -10,6 +12,7 @@
 #include <omp.h>
 
 #include "aos/util/error.h"
+#include "aos/util/math.h"
 #include "aos/util/memory.h"
 #include "aos/util/parallel.h"
 #include "aos/util/timer.h"
@@ -159,7 +162,8 @@ class FocusAccumulator {
   FocusAccumulator(const PinholeCamera& camera, int channels, int slices)
       : w_(camera.width), h_(camera.height), slices_(slices),
         best_(Size(), kNone), before_(Size(), kNone), after_(Size(), kNone),
-        last_(Size(), kNone), best_index_(Size(), -1), covered_slices_(Size(), 0),
+        last_(Size(), kNone), last_index_(Size(), -1), best_index_(Size(), -1),
+        covered_slices_(Size(), 0),
         sum_(Size(), 0.0), guide_(camera.width, camera.height, channels, PixelType::kF32) {}
 
   void Add(int index, const Image& image, const std::vector<float>& focus) {
@@ -177,13 +181,43 @@ class FocusAccumulator {
           if (best_index_[i] < 0 || f > best_[i]) {
             best_[i] = f;
             best_index_[i] = index;
-            before_[i] = index > 0 ? last_[i] : kNone;
+            before_[i] = index > 0 && last_index_[i] == index - 1 ? last_[i] : kNone;
             after_[i] = kNone;
             for (int c = 0; c < channels; ++c) guide[x * channels + c] = in[x * channels + c];
           }
         }
         last_[i] = f;
+        last_index_[i] = index;
       }
+    }
+  }
+
+  // Add for a slice that has focus values only on `pixels` (indices y * width + x; `focus` is
+  // read there only): the other pixels are folded as if their value were kNone (no value, and
+  // no neighbour for the parabola), without visiting them.
+  void AddAt(int index, const Image& image, const std::vector<int32_t>& pixels,
+             const std::vector<float>& focus) {
+    const int channels = image.channels();
+    for (const int32_t p : pixels) {
+      const size_t i = static_cast<size_t>(p);
+      const int x = static_cast<int>(p % w_), y = static_cast<int>(p / w_);
+      const float f = focus[i];
+      if (best_index_[i] == index - 1 && index > 0) after_[i] = f;
+      if (f != kNone) {
+        sum_[i] += f;
+        ++covered_slices_[i];
+        if (best_index_[i] < 0 || f > best_[i]) {
+          best_[i] = f;
+          best_index_[i] = index;
+          before_[i] = index > 0 && last_index_[i] == index - 1 ? last_[i] : kNone;
+          after_[i] = kNone;
+          const float* in = image.At<float>(x, y);
+          float* guide = guide_.At<float>(x, y);
+          for (int c = 0; c < channels; ++c) guide[c] = in[c];
+        }
+      }
+      last_[i] = f;
+      last_index_[i] = index;
     }
   }
 
@@ -215,12 +249,15 @@ class FocusAccumulator {
   }
 
   const Image& guide() const { return guide_; }
+  // The best slice of every pixel so far (-1: none).
+  const std::vector<int32_t>& best_index() const { return best_index_; }
 
  private:
   size_t Size() const { return static_cast<size_t>(w_) * h_; }
 
   int w_, h_, slices_;
   std::vector<float> best_, before_, after_, last_;
+  std::vector<int32_t> last_index_;  // the slice last_ came from (-1: none yet)
   std::vector<int32_t> best_index_, covered_slices_;
   std::vector<double> sum_;
   Image guide_;  // the sharpest slice's pixels (sobel's image, the smoothing guide)
@@ -332,10 +369,17 @@ struct Folded {
   int64_t uncovered = 0;
 };
 
-Folded Refine(const FocusAccumulator& accumulator, const MergeOptions& options, int threads) {
+// `confidence` (coarse-to-fine), when given, replaces the accumulator's on covered pixels.
+Folded Refine(const FocusAccumulator& accumulator, const MergeOptions& options, int threads,
+              const std::vector<float>* confidence = nullptr) {
   Folded folded;
   const bool refine = options.method != MergeMethod::kSobel;
   folded.uncovered = accumulator.Finish(refine, &folded.slice, &folded.confidence);
+  if (confidence != nullptr) {
+    for (size_t i = 0; i < folded.slice.size(); ++i) {
+      if (folded.slice[i] >= 0.0f) folded.confidence[i] = (*confidence)[i];
+    }
+  }
   if (refine) SmoothSlices(options, accumulator.guide(), folded.confidence, &folded.slice, threads);
   return folded;
 }
@@ -368,6 +412,400 @@ void Reintegrate(const LightField& light_field, const IntegralOptions& render,
   result->image = std::move(integral.integral.image);
   FillUncovered(integral.integral.count, guide, &result->image);
   result->fallback_pixels = integral.fallback_pixels;
+}
+
+// ---- coarse-to-fine (AllInFocusOptions::coarse_to_fine) ----
+//
+// The coarse stack has 1/factor the width and height; its pixel (cx, cy) lies over the block
+// of output pixels [cx factor, (cx + 1) factor) x [cy factor, ...) (the coarse camera has the
+// field of view of the rounded-up size and square pixels, so blocks and coarse pixels coincide
+// up to under a coarse pixel). Blocks are the unit whose slices the coarse pass chooses.
+//
+// Both passes render their (slice, pixel) pairs as packed focal points, many slices in one
+// RenderIntegralAtPoints call (the depth path's rules: equal to the plane render up to float
+// rounding): a render call has a fixed cost per view that small or sparse slices would pay
+// once each otherwise.
+
+// Points packed per render call, at most (bounds the memory whatever the number of slices).
+constexpr size_t kPackedPoints = size_t{1} << 21;
+constexpr int kPackedWidth = 64;
+
+// The cells of a width x height grid (y * width + x) in Morton (Z) order: consecutive cells stay
+// near each other, so a tile of packed points covers a compact patch of the ground (the
+// renderer culls views per tile by the tile's bounding box).
+std::vector<int32_t> MortonOrder(int width, int height) {
+  const auto spread = [](uint32_t v) {
+    uint64_t x = v;
+    x = (x | (x << 16)) & 0x0000FFFF0000FFFFull;
+    x = (x | (x << 8)) & 0x00FF00FF00FF00FFull;
+    x = (x | (x << 4)) & 0x0F0F0F0F0F0F0F0Full;
+    x = (x | (x << 2)) & 0x3333333333333333ull;
+    x = (x | (x << 1)) & 0x5555555555555555ull;
+    return x;
+  };
+  std::vector<std::pair<uint64_t, int32_t>> keyed;
+  keyed.reserve(static_cast<size_t>(width) * height);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      keyed.emplace_back(spread(static_cast<uint32_t>(x)) | (spread(static_cast<uint32_t>(y)) << 1),
+                         y * width + x);
+    }
+  }
+  std::sort(keyed.begin(), keyed.end());
+  std::vector<int32_t> order(keyed.size());
+  for (size_t k = 0; k < keyed.size(); ++k) order[k] = keyed[k].second;
+  return order;
+}
+
+// The coarse stack's slice indices (into the full stack): every factor-th slice and the last.
+std::vector<int> CoarseSliceIndices(int slices, int factor) {
+  std::vector<int> indices;
+  for (int i = 0; i < slices; i += factor) indices.push_back(i);
+  if (indices.back() != slices - 1) indices.push_back(slices - 1);
+  return indices;
+}
+
+// Renders slice `slices[k]`'s pixels `pixels(k)` (indices y * width + x of `camera`) for every
+// k in one call per kPackedPoints points, handing each slice to `on_slice(k, packed, first)`:
+// its pixels are packed row-major at positions first, first + 1, ... of the result
+// (kPackedWidth wide). Slices are handed over in order. Rays that miss a slice's plane or
+// surface give count 0.
+using PackedSink =
+    std::function<void(size_t k, const SurfaceIntegralResult& packed, size_t first)>;
+using PixelLists = std::function<const std::vector<int32_t>&(size_t k)>;
+void RenderPackedSlices(const LightField& light_field, const IntegralOptions& resolved,
+                        const PinholeCamera& camera, const Rigid3d& cam_from_world,
+                        const SliceFocus& focus, const std::vector<int>& slices,
+                        const PixelLists& pixels, bool variance,
+                        int threads, const PackedSink& on_slice, ProgressSink* progress) {
+  const Vec3d centre = cam_from_world.Center();
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  const size_t n = slices.size();
+  std::vector<float> slice_of;  // surfaces: DepthOfSlices' per-pixel slice
+  size_t k0 = 0;
+  while (k0 < n) {
+    if (ProgressCancelled(progress)) throw Cancelled();
+    // A chunk: consecutive slices with one grazing normal, up to kPackedPoints points.
+    const Vec3d normal = focus.surface ? focus.GrazingPlane().normal
+                                       : focus.planes[static_cast<size_t>(slices[k0])].normal;
+    size_t k1 = k0, total = 0;
+    while (k1 < n && (k1 == k0 || total + pixels(k1).size() <= kPackedPoints) &&
+           (focus.surface || focus.planes[static_cast<size_t>(slices[k1])].normal == normal)) {
+      total += pixels(k1).size();
+      ++k1;
+    }
+    FocalPoints points;
+    points.width = kPackedWidth;
+    points.height = static_cast<int>(std::max<size_t>(1, (total + kPackedWidth - 1) / kPackedWidth));
+    points.reference = centre;
+    points.points.assign(static_cast<size_t>(points.width) * points.height,
+                         Vec3d(std::numeric_limits<double>::quiet_NaN()));
+    std::vector<size_t> first(k1 - k0 + 1, 0);
+    for (size_t k = k0; k < k1; ++k) {
+      const std::vector<int32_t>& list = pixels(k);
+      first[k - k0 + 1] = first[k - k0] + list.size();
+      Vec3d* out = points.points.data() + first[k - k0];
+      if (focus.surface) {
+        slice_of.assign(static_cast<size_t>(camera.width) * camera.height, -1.0f);
+        for (const int32_t p : list) slice_of[static_cast<size_t>(p)] = static_cast<float>(slices[k]);
+        const Image depth = focus.DepthOfSlices(camera, cam_from_world, slice_of, threads);
+        for (size_t j = 0; j < list.size(); ++j) {
+          const int x = list[j] % camera.width, y = list[j] / camera.width;
+          const double z = depth.At<float>(x, y)[0];
+          if (z > 0.0 && std::isfinite(z)) {
+            out[j] = z * (world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5)));
+          }
+        }
+        continue;
+      }
+      // A plane: where each pixel's ray meets it (DepthOfSlices' arithmetic, kept in double).
+      const Plane& plane = focus.planes[static_cast<size_t>(slices[k])];
+      const Vec3d unit = glm::normalize(plane.normal);
+      const double height = glm::dot(unit, plane.point - centre);
+      const int64_t count = static_cast<int64_t>(list.size());
+#pragma omp parallel for num_threads(threads) schedule(static)
+      for (int64_t j = 0; j < count; ++j) {
+        const int x = list[static_cast<size_t>(j)] % camera.width;
+        const int y = list[static_cast<size_t>(j)] / camera.width;
+        const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+        const double f = glm::dot(unit, direction);
+        const double t = f != 0.0 ? height / f : 0.0;
+        if (t > 0.0 && std::isfinite(t)) out[j] = t * direction;
+      }
+    }
+    PointIntegralOptions at_points;
+    at_points.aperture = PointIntegralOptions::Aperture::kLensPlane;
+    at_points.aperture_radius = resolved.aperture_radius;
+    at_points.lens_center = centre;
+    at_points.lens_axis = Row(cam_from_world.rotation, 2);
+    at_points.surface_normal = normal;
+    at_points.min_view_angle_deg = resolved.min_view_angle_deg;
+    at_points.view_indices = resolved.view_indices;
+    at_points.num_threads = resolved.num_threads;
+    at_points.variance = variance;
+    SurfaceIntegralResult packed;
+    try {
+      packed = RenderIntegralAtPoints(light_field, points, at_points);
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid("slice " + std::to_string(slices[k0]) + ": " + error.what());
+    }
+    for (size_t k = k0; k < k1; ++k) on_slice(k, packed, first[k - k0]);
+    k0 = k1;
+  }
+}
+
+// A packed slice unpacked into an image of `camera`'s size: count 0 (and image 0) on the pixels
+// not rendered.
+struct UnpackedSlice {
+  Image image, count, variance;
+};
+UnpackedSlice Unpack(const SurfaceIntegralResult& packed, size_t first,
+                     const std::vector<int32_t>& pixels, const PinholeCamera& camera,
+                     bool variance) {
+  const IntegralResult& in = packed.integral;
+  const int channels = in.image.channels();
+  UnpackedSlice out;
+  out.image = Image(camera.width, camera.height, channels, PixelType::kF32);
+  out.count = Image(camera.width, camera.height, 1, PixelType::kU32);
+  if (variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
+  for (int y = 0; y < camera.height; ++y) {
+    std::fill(out.image.At<float>(0, y), out.image.At<float>(0, y) + camera.width * channels, 0.0f);
+    std::fill(out.count.At<uint32_t>(0, y), out.count.At<uint32_t>(0, y) + camera.width, 0u);
+    if (variance) std::fill(out.variance.At<float>(0, y), out.variance.At<float>(0, y) + camera.width, 0.0f);
+  }
+  for (size_t j = 0; j < pixels.size(); ++j) {
+    const int x = pixels[j] % camera.width, y = pixels[j] / camera.width;
+    const int px = static_cast<int>((first + j) % kPackedWidth);
+    const int py = static_cast<int>((first + j) / kPackedWidth);
+    std::copy(in.image.At<float>(px, py), in.image.At<float>(px, py) + channels,
+              out.image.At<float>(x, y));
+    out.count.At<uint32_t>(x, y)[0] = in.count.At<uint32_t>(px, py)[0];
+    if (variance) out.variance.At<float>(x, y)[0] = in.variance.At<float>(px, py)[0];
+  }
+  return out;
+}
+
+struct CoarseChoice {
+  int blocks_x = 0, blocks_y = 0;
+  // The coarse stack's confidence (over all its slices) of every block, 0 where uncovered.
+  std::vector<float> confidence;
+  // Block b takes the full slices first[b] .. last[b] (its focus values come from those).
+  std::vector<int32_t> first, last;
+};
+
+// Renders the coarse stack (every factor-th slice) and chooses every block's slices: the full
+// slices from the coarse slice before its coarse pixel's focus maximum to the one after it (a
+// focus curve sampled every factor-th slice has its peak within one sample of the sampled
+// maximum). A coarse pixel that no coarse slice covers gives its block every slice (the coarse
+// pass knows nothing there).
+CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions& run,
+                          const IntegralOptions& resolved, const PinholeCamera& camera,
+                          const Rigid3d& cam_from_world, const SliceFocus& focus, int threads,
+                          ProgressSink* progress) {
+  const int factor = run.coarse_to_fine, slices = run.stack.slices;
+  IntegralOptions coarse = resolved;
+  coarse.width = std::max(1, (camera.width + factor - 1) / factor);
+  coarse.height = std::max(1, (camera.height + factor - 1) / factor);
+  // The field of view widened to the rounded-up size: a coarse pixel stays factor output pixels
+  // wide (the coarse image reaches under factor - 1 pixels past the output's edges, centred).
+  coarse.fov_deg = 2.0 * std::atan(std::tan(0.5 * resolved.fov_deg * kPi / 180.0) *
+                                   coarse.width * factor / camera.width) * 180.0 / kPi;
+  const PinholeCamera coarse_camera = VirtualCamera(light_field, coarse);
+  const std::vector<int> indices = CoarseSliceIndices(slices, factor);
+  const int coarse_slices = static_cast<int>(indices.size());
+  // The focus window covers about the same ground as the full-resolution one.
+  const int coarse_radius = std::max(1, (run.merge.window_radius + factor - 1) / factor);
+  const bool variance = run.merge.method == MergeMethod::kRobust;
+  const std::vector<int32_t> every = MortonOrder(coarse_camera.width, coarse_camera.height);
+  ProgressStart(progress, "coarse stack", coarse_slices);
+  FocusAccumulator accumulator(coarse_camera, light_field.views.front().image.channels(),
+                               coarse_slices);
+  RenderPackedSlices(
+      light_field, coarse, coarse_camera, cam_from_world, focus, indices,
+      [&](size_t) -> const std::vector<int32_t>& { return every; }, variance,
+      threads,
+      [&](size_t k, const SurfaceIntegralResult& packed, size_t first) {
+        const UnpackedSlice slice = Unpack(packed, first, every, coarse_camera, variance);
+        const std::vector<float> values =
+            FocusValues(run.merge.method, slice.image, slice.count,
+                        variance ? &slice.variance : nullptr, coarse_radius, threads);
+        accumulator.Add(static_cast<int>(k), slice.image, values);
+        ProgressAdvance(progress, 1);
+      },
+      progress);
+  const std::vector<int32_t>& best = accumulator.best_index();
+  CoarseChoice choice;
+  std::vector<float> coarse_slice;
+  accumulator.Finish(false, &coarse_slice, &choice.confidence);
+  choice.blocks_x = coarse_camera.width;
+  choice.blocks_y = coarse_camera.height;
+  const size_t blocks = static_cast<size_t>(choice.blocks_x) * choice.blocks_y;
+  choice.first.resize(blocks);
+  choice.last.resize(blocks);
+  for (size_t block = 0; block < blocks; ++block) {
+    const int b = best[block];
+    choice.first[block] = b < 0 ? 0 : indices[static_cast<size_t>(std::max(0, b - 1))];
+    choice.last[block] =
+        b < 0 ? slices - 1 : indices[static_cast<size_t>(std::min(coarse_slices - 1, b + 1))];
+  }
+  return choice;
+}
+
+// Direct window mean of `value` at (x, y) over the valid pixels of the (2r+1)^2 window, in
+// WindowMean's order (each row's sum, then the rows'), so it equals WindowMean's value bit for
+// bit; kNone if the centre is not valid.
+float WindowMeanAt(const std::vector<double>& value, const std::vector<uint8_t>& valid, int w,
+                   int h, int r, int x, int y) {
+  const size_t centre = static_cast<size_t>(y) * w + x;
+  if (!valid[centre]) return kNone;
+  double sum = 0.0;
+  int64_t number = 0;
+  for (int qy = std::max(0, y - r); qy <= std::min(h - 1, y + r); ++qy) {
+    const size_t row = static_cast<size_t>(qy) * w;
+    double row_sum = 0.0;
+    int32_t row_number = 0;
+    for (int qx = std::max(0, x - r); qx <= std::min(w - 1, x + r); ++qx) {
+      if (!valid[row + qx]) continue;
+      row_sum += value[row + qx];
+      ++row_number;
+    }
+    sum += row_sum;
+    number += row_number;
+  }
+  return static_cast<float>(sum / static_cast<double>(number));
+}
+
+// The fine pass of RenderAllInFocus with coarse_to_fine: slice i is rendered at full resolution
+// only on the blocks that take it; its focus values (FocusValues' arithmetic, pixel by pixel,
+// the pixels not rendered counting as uncovered) enter the fold there; elsewhere the slice has
+// no focus value, as a slice that does not cover a pixel. Returns the fraction of the full
+// stack's pixels rendered.
+double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& run,
+                        const IntegralOptions& resolved, const PinholeCamera& camera,
+                        const Rigid3d& cam_from_world, const SliceFocus& focus,
+                        const CoarseChoice& choice, int threads,
+                        std::unique_ptr<FocusAccumulator>* accumulator, double* seconds_merge,
+                        double* seconds_render, ProgressSink* progress) {
+  const int w = camera.width, h = camera.height, slices = run.stack.slices;
+  const int factor = run.coarse_to_fine, r = run.merge.window_radius;
+  const MergeMethod method = run.merge.method;
+  const size_t pixels = static_cast<size_t>(w) * h;
+  const int channels = light_field.views.front().image.channels();
+  const bool variance = method == MergeMethod::kRobust;
+  *accumulator = std::make_unique<FocusAccumulator>(camera, channels, slices);
+  const Timer list_timer;
+  // Every slice's pixels, block by block in Morton order (packed points stay near each other).
+  std::vector<int> indices(static_cast<size_t>(slices));
+  std::vector<std::vector<int32_t>> lists(static_cast<size_t>(slices));
+  int64_t rendered = 0;
+  for (const int32_t block : MortonOrder(choice.blocks_x, choice.blocks_y)) {
+    {
+      const int bx = block % choice.blocks_x, by = block / choice.blocks_x;
+      for (int i = choice.first[static_cast<size_t>(block)];
+           i <= choice.last[static_cast<size_t>(block)]; ++i) {
+        std::vector<int32_t>& list = lists[static_cast<size_t>(i)];
+        for (int y = by * factor; y < std::min(h, (by + 1) * factor); ++y) {
+          for (int x = bx * factor; x < std::min(w, (bx + 1) * factor); ++x) {
+            list.push_back(y * w + x);
+          }
+        }
+      }
+    }
+  }
+  for (int i = 0; i < slices; ++i) {
+    indices[static_cast<size_t>(i)] = i;
+    rendered += static_cast<int64_t>(lists[static_cast<size_t>(i)].size());
+  }
+  std::vector<float> luminance(pixels, 0.0f);
+  std::vector<double> energy(pixels, 0.0), spread(pixels, 0.0);
+  std::vector<uint8_t> covered(pixels, 0), agreeing(pixels, 0);
+  std::vector<float> values(pixels, kNone);
+  Image image(w, h, channels, PixelType::kF32);
+  *seconds_merge += list_timer.Seconds();
+  ProgressStart(progress, "focal stack", slices);
+  Timer render_timer;
+  RenderPackedSlices(
+      light_field, resolved, camera, cam_from_world, focus, indices,
+      [&](size_t k) -> const std::vector<int32_t>& { return lists[k]; }, variance, threads,
+      [&](size_t k, const SurfaceIntegralResult& packed, size_t first) {
+        if (k == 0 || first == 0) *seconds_render += render_timer.Seconds();
+        const Timer fold_timer;
+        const int i = static_cast<int>(k);
+        const std::vector<int32_t>& list = lists[k];
+        if (list.empty()) {
+          ProgressAdvance(progress, 1);
+          *seconds_merge += fold_timer.Seconds();
+          return;
+        }
+        const IntegralResult& in = packed.integral;
+        for (size_t j = 0; j < list.size(); ++j) {
+          const size_t p = static_cast<size_t>(list[j]);
+          const int px = static_cast<int>((first + j) % kPackedWidth);
+          const int py = static_cast<int>((first + j) / kPackedWidth);
+          const uint32_t n = in.count.At<uint32_t>(px, py)[0];
+          const float* sample = in.image.At<float>(px, py);
+          float* out = image.At<float>(static_cast<int>(p % w), static_cast<int>(p / w));
+          float sum = 0.0f;
+          for (int c = 0; c < channels; ++c) {
+            out[c] = sample[c];
+            sum += sample[c];
+          }
+          covered[p] = n > 0;
+          agreeing[p] = n >= 2;
+          luminance[p] = sum / static_cast<float>(channels);
+          if (variance) spread[p] = in.variance.At<float>(px, py)[0];
+        }
+        const int64_t count = static_cast<int64_t>(list.size());
+        // Sobel energy (FocusValues' arithmetic; pixels not rendered are uncovered).
+#pragma omp parallel for num_threads(threads) schedule(static)
+        for (int64_t j = 0; j < count; ++j) {
+          const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
+          const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
+          if (!covered[p]) continue;
+          const float own = luminance[p];
+          auto tap = [&](int dx, int dy) {
+            const int qx = std::clamp(x + dx, 0, w - 1), qy = std::clamp(y + dy, 0, h - 1);
+            const size_t q = static_cast<size_t>(qy) * w + qx;
+            return covered[q] ? static_cast<double>(luminance[q]) : static_cast<double>(own);
+          };
+          const double gx = (tap(1, -1) + 2.0 * tap(1, 0) + tap(1, 1)) -
+                            (tap(-1, -1) + 2.0 * tap(-1, 0) + tap(-1, 1));
+          const double gy = (tap(-1, 1) + 2.0 * tap(0, 1) + tap(1, 1)) -
+                            (tap(-1, -1) + 2.0 * tap(0, -1) + tap(1, -1));
+          energy[p] = gx * gx + gy * gy;
+        }
+#pragma omp parallel for num_threads(threads) schedule(static)
+        for (int64_t j = 0; j < count; ++j) {
+          const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
+          const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
+          if (!covered[p]) continue;
+          if (method == MergeMethod::kSobel) {
+            values[p] = static_cast<float>(std::sqrt(energy[p]));
+            continue;
+          }
+          const float sharp = WindowMeanAt(energy, covered, w, h, r, x, y);
+          if (method == MergeMethod::kImproved) {
+            values[p] = sharp;
+            continue;
+          }
+          const float disagreement = WindowMeanAt(spread, agreeing, w, h, r, x, y);
+          if (disagreement == kNone) continue;
+          const double e = sharp;
+          values[p] = static_cast<float>(e / (static_cast<double>(disagreement) + 1e-12 * (1.0 + e)));
+        }
+        (*accumulator)->AddAt(i, image, list, values);
+        // Back to the empty state for the next slice (only the pixels this one touched).
+        for (const int32_t p : list) {
+          covered[static_cast<size_t>(p)] = 0;
+          agreeing[static_cast<size_t>(p)] = 0;
+          values[static_cast<size_t>(p)] = kNone;
+        }
+        ProgressAdvance(progress, 1);
+        *seconds_merge += fold_timer.Seconds();
+        render_timer = Timer();
+      },
+      progress);
+  return static_cast<double>(rendered) / (static_cast<double>(pixels) * slices);
 }
 
 }  // namespace
@@ -407,6 +845,10 @@ void MergeOptions::Check() const {
 void AllInFocusOptions::Check(int view_count) const {
   stack.Check(view_count);
   merge.Check();
+  if (coarse_to_fine != 0 && (coarse_to_fine < 2 || coarse_to_fine > 16)) {
+    ThrowInvalid("coarse_to_fine: must be 0 (off: every slice at full resolution) or a factor "
+                 "2..16 (got " + std::to_string(coarse_to_fine) + ")");
+  }
   if (merge.method == MergeMethod::kRobust && stack.render.aperture_radius == 0.0) {
     ThrowInvalid("aperture_radius: 0 (one view a pixel) leaves method robust no variance to "
                  "work with; use a wider aperture");
@@ -513,6 +955,29 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   const SliceFocus focus = ResolveSliceFocus(light_field, run.stack);
   double seconds_merge = 0.0;
   const Timer timer;
+  double rendered_fraction = 1.0;
+  double seconds_fine_render = -1.0;  // coarse-to-fine: its own render timer
+  std::vector<float> coarse_confidence;  // coarse-to-fine: per output pixel
+  if (run.coarse_to_fine > 0) {
+    const IntegralOptions resolved = WithResolvedCamera(light_field, run.stack.render);
+    const CoarseChoice choice = ChooseSlices(light_field, run, resolved, camera,
+                                             cam_from_world, focus, threads, progress);
+    seconds_fine_render = timer.Seconds();  // the coarse stack counts as rendering
+    // The fine fold sees only the slices near each pixel's focus, so its own confidence (best
+    // against the mean of the curve) would compare the peak with its shoulders; the coarse
+    // stack's curve spans every slice, and the confidence is a ratio within one curve.
+    coarse_confidence.resize(static_cast<size_t>(camera.width) * camera.height);
+    for (int y = 0; y < camera.height; ++y) {
+      for (int x = 0; x < camera.width; ++x) {
+        coarse_confidence[static_cast<size_t>(y) * camera.width + x] =
+            choice.confidence[static_cast<size_t>(y / run.coarse_to_fine) * choice.blocks_x +
+                              x / run.coarse_to_fine];
+      }
+    }
+    rendered_fraction = FoldCoarseToFine(light_field, run, resolved, camera, cam_from_world,
+                                         focus, choice, threads, &accumulator, &seconds_merge,
+                                         &seconds_fine_render, progress);
+  } else {
   RenderFocalStackSlices(
       light_field, run.stack,
       [&](int index, IntegralResult& slice) {
@@ -529,9 +994,12 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
         seconds_merge += merge_timer.Seconds();
       },
       progress);
-  const double seconds_stack = timer.Seconds() - seconds_merge;
+  }
+  const double seconds_stack =
+      seconds_fine_render >= 0.0 ? seconds_fine_render : timer.Seconds() - seconds_merge;
   const Timer refine_timer;
-  const Folded folded = Refine(*accumulator, run.merge, threads);
+  const Folded folded = Refine(*accumulator, run.merge, threads,
+                               coarse_confidence.empty() ? nullptr : &coarse_confidence);
   MergeResult result = Assemble(folded, camera, cam_from_world, focus, threads);
   seconds_merge += refine_timer.Seconds();
   if (run.merge.method == MergeMethod::kSobel) {
@@ -545,6 +1013,7 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
     result.seconds_render = seconds_stack + render_timer.Seconds();
   }
   result.seconds_merge = seconds_merge;
+  result.rendered_fraction = rendered_fraction;
   return result;
 }
 

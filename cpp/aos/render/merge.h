@@ -40,6 +40,26 @@
 // - Deterministic: the result depends neither on the thread count nor on the order of
 //   floating-point work across threads; no NaN or infinity reaches an output.
 //
+// Coarse-to-fine (RenderAllInFocus with AllInFocusOptions::coarse_to_fine = factor f >= 2)
+// - A coarse stack: the virtual camera at 1/f the width and height (rounded up; the field of
+//   view widened to match, so a coarse pixel is an f x f block of output pixels), on every f-th
+//   slice and the last, merged with the same focus cue (window radius ceil(r / f), at least 1).
+// - Each block takes the full slices from the coarse slice before its coarse focus maximum to
+//   the one after it (at most 2f + 1 slices; every slice where no coarse slice covers it). Full
+//   slice i is rendered at full resolution only on the blocks that take it, through the depth
+//   path (RenderIntegralAtPoints on the plane's or surface's points, many slices per call: the
+//   plane render's rules, results equal up to float rounding), and its focus values, computed
+//   as for a full slice with the pixels not rendered counting as uncovered, enter the fold only
+//   there; elsewhere the slice has no focus value.
+// - So where a pixel's full-stack peak and its two neighbours lie in its block's slices, and the
+//   blocks within window_radius + 1 pixels take them too, the fold (best slice, parabola) equals
+//   the full stack's up to that rounding. The confidence is the coarse stack's (over every
+//   slice; the fine fold sees only the slices near the peak), so the smoothed depth and the
+//   image differ slightly from the full stack's everywhere (tests: merge_test
+//   CoarseToFine*; figures: docs/accuracy-vs-time.md, tools/bench_coarse_to_fine.py).
+// - MergeResult::rendered_fraction says which fraction of the full stack's pixels was
+//   rendered; seconds_render counts the coarse stack, the fine slices and the re-integration.
+//
 // Throws std::invalid_argument naming the option or the missing input; aos::Cancelled.
 #include <string>
 
@@ -83,6 +103,9 @@ struct MergeResult {
   int64_t fallback_pixels = 0;   // robust: pixels that kept the plain mean
   double seconds_merge = 0.0;    // focus measures, refinement, smoothing, image
   double seconds_render = 0.0;   // rendering (slices and re-integration)
+  // RenderAllInFocus: the full-resolution slice pixels rendered, as a fraction of the full
+  // stack's (1 without coarse_to_fine; the coarse stack not counted).
+  double rendered_fraction = 1.0;
 };
 
 // Merges a stack held in memory. The robust method needs the stack's variances and the light
@@ -94,7 +117,13 @@ MergeResult MergeFocalStack(const FocalStack& stack, const MergeOptions& options
 struct AllInFocusOptions {
   FocalStackOptions stack;  // stack.render.variance is set by the method (robust needs it)
   MergeOptions merge;
-  // Also refuses robust with aperture_radius 0 (one view a pixel has no variance).
+  // Coarse-to-fine (see the contract above): 0 = off, every slice rendered at full resolution;
+  // a factor 2..16 = a coarse stack of 1/factor the width and height on every factor-th slice
+  // chooses each factor x factor block's slices, and only those are rendered at full
+  // resolution (4: docs/accuracy-vs-time.md).
+  int coarse_to_fine = 0;
+  // Also refuses robust with aperture_radius 0 (one view a pixel has no variance), and a
+  // coarse_to_fine outside 0 and 2..16.
   void Check(int view_count) const;
 };
 
