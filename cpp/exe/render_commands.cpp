@@ -372,10 +372,11 @@ struct StackFlags {
 
 // --ground FILE: the robust ground plane of the points (or mesh vertices) in FILE, world
 // coordinates (EstimateGround, as `aos-render ground`), into options.ground_plane.
-void ResolveGround(const std::string& path, const LightField& light_field,
-                   FocalStackOptions& options) {
+// The points are read before the light field is loaded (a bad file fails before the frames are
+// decoded) and given here.
+void ResolveGround(const std::string& path, std::vector<Vec3d> points,
+                   const LightField& light_field, FocalStackOptions& options) {
   if (path.empty()) return;
-  std::vector<Vec3d> points = ReadPoints(path);
   for (Vec3d& point : points) point = WorldToLocal(point, light_field.origin);
   GroundResult ground;
   try {
@@ -531,9 +532,11 @@ int RunStack(StackCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   c.stack_flags.Check();
   CheckOutputFolder(c.output_dir);  // before any work
+  std::vector<Vec3d> ground_points;
+  if (!c.ground.empty()) ground_points = ReadPoints(c.ground);
   const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.render, flags, progress,
                                                  [&](int views) { c.options.Check(views); });
-  ResolveGround(c.ground, loaded.light_field, c.options);
+  ResolveGround(c.ground, std::move(ground_points), loaded.light_field, c.options);
   const FocalStack stack =
       flags.NamingFlags([&] { return RenderFocalStack(loaded.light_field, c.options, &progress); });
   progress.Finish();
@@ -653,9 +656,11 @@ int RunAllInFocus(AllInFocusCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   c.stack_flags.Check();
   CheckOutputFolder(c.output_dir);  // before any work
+  std::vector<Vec3d> ground_points;
+  if (!c.ground.empty()) ground_points = ReadPoints(c.ground);
   const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.stack.render, flags, progress,
                                                  [&](int views) { c.options.Check(views); });
-  ResolveGround(c.ground, loaded.light_field, c.options.stack);
+  ResolveGround(c.ground, std::move(ground_points), loaded.light_field, c.options.stack);
   // --threads sets every stage's thread count.
   c.options.merge.num_threads = c.options.stack.render.num_threads;
   const MergeResult result =

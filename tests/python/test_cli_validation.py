@@ -58,6 +58,8 @@ CASES = {
     "integral threads": (["integral", "--pose-view", "0", "--threads", "-3"], "--threads"),
     "stack aperture": (["stack", "--pose-view", "0", "--aperture-radius", "-1"], "--aperture-radius"),
     "stack slices": (["stack", "--pose-view", "0", "--slices", "0"], "--slices"),
+    "stack ground file": (["stack", "--pose-view", "0", "--ground", "/nonexistent/ground.ply"],
+                          "/nonexistent/ground.ply"),
     "allinfocus aperture": (["allinfocus", "--pose-view", "0", "--aperture-radius", "-1"], "--aperture-radius"),
     "allinfocus robust pinhole": (["allinfocus", "--pose-view", "0", "--aperture-radius", "0",
                                    "--method", "robust"], "--aperture-radius"),
