@@ -52,6 +52,7 @@ int RunCalibrate(CalibrateCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   CheckOutputPath(c.output, c.frames, "output");
   RefuseExisting(c.output, "output");
+  flags.NamingFlags([&] { c.options.Check(); });  // before the frames are read
   std::vector<Image> frames;
   for (const std::string& frame : c.frames) frames.push_back(ReadImage(frame));
   const CalibrationResult result =

@@ -90,3 +90,16 @@ def test_merge_checks_flags_before_reading_the_stack(tmp_path: Path) -> None:
     result = run("merge", str(tmp_path / "no-stack"), "--window-radius", "99", "-o", str(tmp_path / "out"))
     assert result.returncode != 0
     assert "--window-radius" in result.stderr and "no-stack" not in result.stderr, result.stderr
+
+
+def test_metrics_and_calibrate_check_flags_before_reading_images(tmp_path: Path) -> None:
+    """The images named here do not exist: a bad flag must be what is reported."""
+    junk = tmp_path / "junk.png"
+    junk.write_bytes(b"not an image")
+    result = run("metrics", str(junk), str(junk), "--ssim-window-radius", "0")
+    assert result.returncode != 0
+    assert "--ssim-window-radius" in result.stderr and "junk.png" not in result.stderr, result.stderr
+    result = run("calibrate", str(junk), "--square-size-m", "-1", "-o", str(tmp_path / "camera.json"))
+    assert result.returncode != 0
+    assert "--square-size-m" in result.stderr and "junk.png" not in result.stderr, result.stderr
+    assert not (tmp_path / "camera.json").exists()
