@@ -82,6 +82,8 @@ def run(args: argparse.Namespace, work: Path, simulation, preset: str) -> dict:
                "--frames-fov-deg", str(FOV), "--preset", preset]
     if preset == "default":
         command += ["--sequential-overlap", str(args.overlap)]
+    else:
+        command += args.extra_flags.split()
     print("$ " + " ".join(command), flush=True)
     # Wall time, and the CPU time of aos-render and COLMAP (user + system, all threads): on a
     # machine shared with other work the wall time swings with the load, the CPU time far less.
@@ -162,6 +164,9 @@ def main() -> int:
     parser.add_argument("--overlap", type=int, default=5)
     parser.add_argument("--presets", default="default,quick",
                         help="comma-separated presets, run in turn on the same frames; the first is the baseline")
+    parser.add_argument("--extra-flags", default="",
+                        help="more `aos-render poses` flags for the presets other than default, e.g. "
+                             "'--max-num-features 512' (exploring; not written into the docs)")
     parser.add_argument("--write-docs", action="store_true")
     args = parser.parse_args()
     if shutil.which("colmap") is None:
@@ -181,7 +186,9 @@ def main() -> int:
                         f"| {r['cpu_s']:.0f} s | {base['cpu_s'] / r['cpu_s']:.2f}x "
                         f"| {np.median(r['centre_cm']):.2f} cm | {r['psnr']:.1f} dB |\n")
     print(summary)
-    if args.write_docs:
+    if args.write_docs and args.extra_flags:
+        print("--write-docs: not with --extra-flags (the docs describe the presets as they are)", file=sys.stderr)
+    elif args.write_docs:
         path = Path(__file__).resolve().parent.parent / "docs" / "poses.md"
         text = path.read_text()
         marker = "\nHow the pieces fit:"
