@@ -92,6 +92,8 @@ NOT_ON_THE_CLI = {
     ("import-colmap", "workspace"): "import-colmap runs no COLMAP",
     ("import-colmap", "matcher"): "import-colmap runs no COLMAP",
     ("import-colmap", "sequential_overlap"): "import-colmap runs no COLMAP",
+    ("import-colmap", "spatial_neighbors"): "import-colmap runs no COLMAP",
+    ("import-colmap", "preset"): "import-colmap runs no COLMAP",
     ("import-colmap", "camera_file"): "the model holds the cameras",
     ("import-colmap", "camera_model"): "the model holds the cameras",
     ("import-colmap", "fov_deg"): "the model holds the cameras",

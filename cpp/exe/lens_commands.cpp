@@ -52,6 +52,7 @@ int RunCalibrate(CalibrateCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   CheckOutputPath(c.output, c.frames, "output");
   RefuseExisting(c.output, "output");
+  flags.NamingFlags([&] { c.options.Check(); });  // before the frames are read
   std::vector<Image> frames;
   for (const std::string& frame : c.frames) frames.push_back(ReadImage(frame));
   const CalibrationResult result =
@@ -255,6 +256,12 @@ std::string WithFillFlag(std::string message) {
 // lens) and re-posed; pinhole views are kept as they are.
 int RunRectifyLightField(const RectifyCommand& c, const Flags& flags, ProgressBar& progress) {
   PendingFolder folder(c.output_dir);
+  // The flags before any frame is decoded.
+  try {
+    c.options.Check();
+  } catch (const std::invalid_argument& error) {
+    flags.RethrowNamingFlags(std::invalid_argument(WithFillFlag(error.what())));
+  }
   LoadResult loaded = LoadLightField(c.light_field_path, c.load, &progress);
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);

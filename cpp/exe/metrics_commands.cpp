@@ -18,6 +18,7 @@ struct MetricsCommand {
 };
 
 int RunMetrics(const MetricsCommand& c, const Flags& flags) {
+  flags.NamingFlags([&] { c.options.Check(); });  // before the images are read
   const Image test = ReadImage(c.test_path);
   const Image reference = ReadImage(c.reference_path);
   std::optional<Image> mask;

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <functional>
 #include <limits>
 #include <memory>
 #include <optional>
@@ -210,18 +211,16 @@ int ResolvePoseView(const std::string& text, const LightField& light_field) {
 }
 
 // Loads the light field and fills `options`' virtual camera (pose, views) from the command
-// line; the focal plane is left to the caller.
+// line; the focal plane is left to the caller. Everything that needs no light field is checked
+// first, so that a bad flag is refused before a frame is decoded (F0's 382 frames take about
+// 0.5-1 s to decode; a bad --aperture-radius used to be refused only after that): the focal
+// surface file, the virtual camera given by numbers, the loader's options, and `check` (the
+// command's Options::Check on one placeholder view; the views and the pose view are checked
+// again against the loaded light field).
 LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
-                                ProgressBar& progress) {
+                                ProgressBar& progress, const std::function<void(int)>& check) {
   args.load.num_threads = options.num_threads;
-  // The surface first: a bad mesh or DEM fails before the frames are loaded.
   options.focal_surface = ReadFocalSurface(args.focal_surface);
-  LoadResult loaded = flags.At("load.").NamingFlags(
-      [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
-  progress.Finish();
-  for (const std::string& note : loaded.notes) Note(note);
-  options.focal_surface = InLightFieldCrs(options.focal_surface, loaded.light_field);
-  if (!args.pose_view.empty()) options.pose_view = ResolvePoseView(args.pose_view, loaded.light_field);
   if (!args.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(args.look_at, "--look-at");
     if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");
@@ -234,9 +233,17 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
     std::array<double, 12> m{};
     std::copy(v.begin(), v.end(), m.begin());
     options.cam_from_world = Rigid3d::FromMatrix3x4(m);
-  } else if (options.pose_view < 0) {
+  } else if (args.pose_view.empty() && options.pose_view < 0) {
     ThrowUsage("no virtual camera pose: give --pose-view, --look-at or --cam-from-world");
   }
+  flags.At("load.").NamingFlags([&] { args.load.Check(); });
+  flags.NamingFlags([&] { check(1); });
+  LoadResult loaded = flags.At("load.").NamingFlags(
+      [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
+  progress.Finish();
+  for (const std::string& note : loaded.notes) Note(note);
+  options.focal_surface = InLightFieldCrs(options.focal_surface, loaded.light_field);
+  if (!args.pose_view.empty()) options.pose_view = ResolvePoseView(args.pose_view, loaded.light_field);
   if (!args.views.empty()) {
     options.view_indices =
         ParseViewList(args.views, static_cast<int>(loaded.light_field.views.size()));
@@ -266,7 +273,8 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
   // Refuse bad outputs (an input, a missing folder, a format that cannot hold the samples)
   // before spending time on loading; the frames are checked again once known.
   CheckRenderOutput(c.out, {c.args.light_field_path});
-  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options, flags, progress);
+  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options, flags, progress,
+                                                 [&](int views) { c.options.Check(views); });
   const LightField& light_field = loaded.light_field;
   if (c.focal_distance != 0.0) {
     const Rigid3d cam_from_world = flags.NamingFlags(
@@ -367,10 +375,11 @@ struct StackFlags {
 
 // --ground FILE: the robust ground plane of the points (or mesh vertices) in FILE, world
 // coordinates (EstimateGround, as `aos-render ground`), into options.ground_plane.
-void ResolveGround(const std::string& path, const LightField& light_field,
-                   FocalStackOptions& options) {
+// The points are read before the light field is loaded (a bad file fails before the frames are
+// decoded) and given here.
+void ResolveGround(const std::string& path, std::vector<Vec3d> points,
+                   const LightField& light_field, FocalStackOptions& options) {
   if (path.empty()) return;
-  std::vector<Vec3d> points = ReadPoints(path);
   for (Vec3d& point : points) point = WorldToLocal(point, light_field.origin);
   GroundResult ground;
   try {
@@ -526,8 +535,11 @@ int RunStack(StackCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   c.stack_flags.Check();
   CheckOutputFolder(c.output_dir);  // before any work
-  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.render, flags, progress);
-  ResolveGround(c.ground, loaded.light_field, c.options);
+  std::vector<Vec3d> ground_points;
+  if (!c.ground.empty()) ground_points = ReadPoints(c.ground);
+  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.render, flags, progress,
+                                                 [&](int views) { c.options.Check(views); });
+  ResolveGround(c.ground, std::move(ground_points), loaded.light_field, c.options);
   const FocalStack stack =
       flags.NamingFlags([&] { return RenderFocalStack(loaded.light_field, c.options, &progress); });
   progress.Finish();
@@ -575,10 +587,17 @@ struct MergeCommand {
 int RunMerge(MergeCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   CheckOutputFolder(c.output_dir);  // before any work
+  // The flags before the stack's slices or the light field's frames are read.
+  c.load.num_threads = c.options.num_threads;
+  flags.NamingFlags([&] { c.options.Check(); });
+  flags.At("load.").NamingFlags([&] { c.load.Check(); });
+  if (c.light_field_path.empty() && c.options.method == MergeMethod::kRobust) {
+    ThrowUsage("--method robust: give --lightfield, the light field the stack was rendered "
+               "from (its rays are re-integrated)");
+  }
   const FocalStack stack = ReadFocalStack(c.stack_dir);
   std::optional<LoadResult> loaded;
   if (!c.light_field_path.empty()) {
-    c.load.num_threads = c.options.num_threads;
     loaded = flags.At("load.").NamingFlags(
         [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
     progress.Finish();
@@ -640,8 +659,11 @@ int RunAllInFocus(AllInFocusCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   c.stack_flags.Check();
   CheckOutputFolder(c.output_dir);  // before any work
-  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.stack.render, flags, progress);
-  ResolveGround(c.ground, loaded.light_field, c.options.stack);
+  std::vector<Vec3d> ground_points;
+  if (!c.ground.empty()) ground_points = ReadPoints(c.ground);
+  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.stack.render, flags, progress,
+                                                 [&](int views) { c.options.Check(views); });
+  ResolveGround(c.ground, std::move(ground_points), loaded.light_field, c.options.stack);
   // --threads sets every stage's thread count.
   c.options.merge.num_threads = c.options.stack.render.num_threads;
   const MergeResult result =
@@ -705,8 +727,11 @@ int RunMap(MapCommand& c, const Flags& flags) {
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
   c.load.num_threads = c.options.num_threads;
-  // The surface first: a bad mesh or DEM fails before the frames are loaded.
+  // The surface and the flags first: a bad mesh, DEM or flag fails before the frames are loaded
+  // (the views are checked again against the light field).
   c.options.focal_surface = ReadFocalSurface(c.focal_surface);
+  flags.At("load.").NamingFlags([&] { c.load.Check(); });
+  flags.NamingFlags([&] { c.options.Check(1); });
   const LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
   progress.Finish();
@@ -877,7 +902,6 @@ std::vector<std::string> PythonCandidates() {
 }
 
 int RunView(ViewCommand& c, const Flags& flags) {
-  (void)flags;
   if (!fs::exists(c.args.light_field_path)) {
     ThrowInvalid(c.args.light_field_path + ": no such light-field file");
   }
@@ -935,6 +959,10 @@ int RunView(ViewCommand& c, const Flags& flags) {
   if (o.focal_plane.normal != Vec3d(0.0, 0.0, 1.0) || !std::isfinite(o.focal_plane.point.z)) {
     ThrowUsage("--focal-height: must be a finite height");
   }
+  // The rest as integral checks it (one placeholder view; the viewer checks the views), before
+  // the viewer loads the frames.
+  flags.NamingFlags([&] { o.Check(1); });
+  flags.At("load.").NamingFlags([&] { c.args.load.Check(); });
   spec["fov_deg"] = o.fov_deg;
   spec["width"] = o.width;
   spec["height"] = o.height;

@@ -142,6 +142,16 @@ int RunPoses(PosesCommand& c, const Flags& flags) {
   progress.Finish();
   WriteLightField(c.output, result.light_field);
   Report report("poses");
+  // What the preset made of the COLMAP settings (the same call EstimatePoses makes).
+  const PosesOptions used = WithPreset(c.options);
+  report.Set("preset", used.preset);
+  const std::string pairs =
+      used.matcher == "spatial"      ? std::to_string(used.spatial_neighbors) + " neighbours"
+      : used.matcher == "sequential" ? "overlap " + std::to_string(used.sequential_overlap)
+                                     : "all pairs";
+  report.Line("preset %s: %s matching (%s), features on frames of <= %d px, <= %d a frame",
+              used.preset.c_str(), used.matcher.c_str(), pairs.c_str(), used.max_image_size,
+              used.max_num_features);
   ReportPoses(result, c.output, report);
   WritePoints(c, result, report);
   report.Print();
@@ -181,6 +191,12 @@ CommandRunner DefinePoses(CLI::App* command) {
   flags.Field("matcher", options.matcher, "sequential, spatial or exhaustive");
   flags.Field("sequential_overlap", options.sequential_overlap,
               "Sequential matching: successors each frame is matched with");
+  flags.Field("spatial_neighbors", options.spatial_neighbors,
+              "Spatial matching: nearest frames (by position) each frame is matched with");
+  flags.Field("preset", options.preset,
+              "default or quick: quick sets --max-image-size 640, --max-num-features 1024, "
+              "--sequential-overlap 3, --spatial-neighbors 8 and, with positions, --matcher "
+              "spatial, each where left at its default (docs/poses.md)");
   flags.Optional("--camera-file", "camera_file", options.camera_file,
                  "Known camera (aos-camera file from `calibrate`); default: self-calibration");
   flags.Field("camera_model", options.camera_model, "COLMAP model to self-calibrate");

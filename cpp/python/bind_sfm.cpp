@@ -40,6 +40,8 @@ void BindSfm(py::module_& m) {
       .Field("matcher", &PosesOptions::matcher, "'sequential', 'spatial' or 'exhaustive'.")
       .Field("sequential_overlap", &PosesOptions::sequential_overlap,
              "Sequential matching: successors each frame is matched with.")
+      .Field("spatial_neighbors", &PosesOptions::spatial_neighbors,
+             "Spatial matching: nearest frames (by position) each frame is matched with.")
       .Field("camera_file", &PosesOptions::camera_file,
              "Known camera (aos-camera file); '' = self-calibration of camera_model.")
       .Field("camera_model", &PosesOptions::camera_model, "COLMAP model to self-calibrate.")
@@ -70,6 +72,10 @@ void BindSfm(py::module_& m) {
       .Field("allow_implausible", &PosesOptions::allow_implausible,
              "Keep implausible self-calibrated intrinsics or scene scale with a warning instead "
              "of refusing.")
+      .Field("preset", &PosesOptions::preset,
+             "'default' or 'quick': quick sets max_image_size 640, max_num_features 1024, "
+             "sequential_overlap 3, spatial_neighbors 8 and, with positions, matcher 'spatial', "
+             "each where left at its default (docs/poses.md).")
       .Finish()
       .def("check", &PosesOptions::Check, "Raises ValueError naming the field.");
 

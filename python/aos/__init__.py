@@ -819,7 +819,9 @@ def estimate_poses(
     ``aos-render poses`` does; the frames are never modified.
 
     ``kwargs`` are fields of :class:`PosesOptions` (matcher, sequential_overlap, camera_file,
-    camera_model, fov_deg, positions_file, workspace, ...). Progress stages: features,
+    camera_model, fov_deg, positions_file, workspace, preset, ...); ``preset="quick"`` trades
+    some accuracy for speed (smaller frames, fewer features, fewer pairs; docs/poses.md).
+    Progress stages: features,
     matching, mapping, import. Raises ValueError for bad options, COLMAP missing or failing, or
     too few frames registered; unregistered frames are listed in ``result.unregistered``.
     Implausible results (a self-calibrated focal length off the ``fov_deg`` prior, a median

@@ -1249,6 +1249,7 @@ class PosesOptions:
         workspace: str = ...,
         matcher: str = ...,
         sequential_overlap: int = ...,
+        spatial_neighbors: int = ...,
         camera_file: str = ...,
         camera_model: str = ...,
         fov_deg: float = ...,
@@ -1263,12 +1264,14 @@ class PosesOptions:
         flight_height_m: float = ...,
         max_scale_deviation: float = ...,
         allow_implausible: bool = ...,
+        preset: str = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     colmap: str
     workspace: str
     matcher: str
     sequential_overlap: int
+    spatial_neighbors: int
     camera_file: str
     camera_model: str
     fov_deg: float
@@ -1283,6 +1286,7 @@ class PosesOptions:
     flight_height_m: float
     max_scale_deviation: float
     allow_implausible: bool
+    preset: str
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> PosesOptions: ...

@@ -199,6 +199,7 @@ class PosesKeywords(TypedDict, total=False):
     workspace: str
     matcher: str
     sequential_overlap: int
+    spatial_neighbors: int
     camera_file: str
     camera_model: str
     fov_deg: float
@@ -213,6 +214,7 @@ class PosesKeywords(TypedDict, total=False):
     flight_height_m: float
     max_scale_deviation: float
     allow_implausible: bool
+    preset: str
 
 
 class GroundKeywords(TypedDict, total=False):

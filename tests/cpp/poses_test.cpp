@@ -901,6 +901,53 @@ TEST_F(FakeMapper, FloatFramesAndUnmatchedPositionsAreRefusedBeforeColmapRuns) {
   EXPECT_FALSE(std::filesystem::exists(Path("ws")));  // nothing was started
 }
 
+TEST(PosesPreset, QuickSetsTheFieldsLeftAtTheirDefaults) {
+  PosesOptions options;
+  EXPECT_EQ(WithPreset(options).max_image_size, 1600);  // "default" changes nothing
+  options.preset = "fast";
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("preset: \"fast\" is not one of default, quick"));
+  options = PosesOptions();
+  options.spatial_neighbors = 0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("spatial_neighbors: must be >= 1"));
+  options = PosesOptions();
+  options.preset = "quick";
+  PosesOptions quick = WithPreset(options);
+  EXPECT_EQ(quick.max_image_size, 640);
+  EXPECT_EQ(quick.max_num_features, 1024);
+  EXPECT_EQ(quick.sequential_overlap, 3);
+  EXPECT_EQ(quick.spatial_neighbors, 8);
+  EXPECT_EQ(quick.matcher, "sequential");  // no positions: spatial matching cannot run
+  options.positions_file = "gps.csv";
+  EXPECT_EQ(WithPreset(options).matcher, "spatial");
+  // A field given another value keeps it.
+  options.max_num_features = 4096;
+  options.matcher = "exhaustive";
+  quick = WithPreset(options);
+  EXPECT_EQ(quick.max_num_features, 4096);
+  EXPECT_EQ(quick.matcher, "exhaustive");
+  EXPECT_EQ(quick.max_image_size, 640);
+}
+
+TEST_F(PosesPipeline, QuickPresetReachesColmap) {
+  WriteFrame("frames/a.png", 32, 24);
+  WriteFrame("frames/b.png", 32, 24);
+  // A stand-in COLMAP that records its command lines and "succeeds" without writing anything.
+  const std::string colmap = Path("recording_colmap.sh");
+  std::ofstream(colmap) << "#!/bin/sh\necho \"$@\" >> " << Path("colmap_args.txt") << "\nexit 0\n";
+  std::filesystem::permissions(colmap, std::filesystem::perms::owner_all);
+  PosesOptions options;
+  options.colmap = colmap;
+  options.preset = "quick";
+  EXPECT_THAT(ErrorOf([&] { EstimatePoses(Path("frames"), options); }),
+              HasSubstr("COLMAP registered no frames"));
+  std::ifstream in(Path("colmap_args.txt"));
+  const std::string args((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_image_size 640"));
+  EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_num_features 1024"));
+  EXPECT_THAT(args, HasSubstr("sequential_matcher"));
+  EXPECT_THAT(args, HasSubstr("--SequentialMatching.overlap 3"));
+}
+
 TEST_F(PosesPipeline, ColmapBuildingNoModelIsAnError) {
   WriteFrame("frames/a.png", 32, 24);
   WriteFrame("frames/b.png", 32, 24);

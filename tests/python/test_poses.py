@@ -223,6 +223,22 @@ def test_spatial_and_exhaustive_matching_with_real_colmap(flight, tmp_path) -> N
     assert {"features", "matching", "mapping", "import"} <= set(stages)
 
 
+def test_quick_preset_with_real_colmap(flight, tmp_path) -> None:
+    # preset="quick" with positions matches spatially (the warning about frames without a
+    # position prior comes from spatial matching only) and still registers the flight.
+    frames = flight["root"] / "sim" / "views"
+    gps = str(flight["root"] / "gps.csv")
+    quick = aos.estimate_poses(frames, preset="quick", positions_file=gps,
+                               camera_file=str(flight["root"] / "camera.json"))
+    assert len(quick.registered) == 16 and quick.georeference_rms_m < 0.05
+    assert any("spatial matching cannot match" in w for w in quick.warnings)
+    with pytest.raises(ValueError, match="preset"):
+        aos.estimate_poses(frames, preset="fast")
+    done = subprocess.run(["aos-render", "poses", str(frames), "-o", str(tmp_path / "q.json"),
+                           "--preset", "slow"], capture_output=True, text=True)
+    assert done.returncode == 2 and "--preset" in done.stderr
+
+
 def test_scene_scale_is_checked_against_the_flight_height(flight, tmp_path) -> None:
     # The flight's kept COLMAP model (known camera, so its scale is right: median depth about
     # 20 m) imported with a stated flight height.

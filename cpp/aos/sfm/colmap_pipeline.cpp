@@ -396,6 +396,10 @@ void PosesOptions::Check() const {
     ThrowInvalid("matcher: spatial matching needs positions (positions_file or exif_positions)");
   }
   if (sequential_overlap < 1) ThrowInvalid("sequential_overlap: must be >= 1");
+  if (spatial_neighbors < 1) ThrowInvalid("spatial_neighbors: must be >= 1");
+  if (preset != "default" && preset != "quick") {
+    ThrowInvalid("preset: \"" + preset + "\" is not one of default, quick");
+  }
   static const std::set<std::string> kModels = {
       "SIMPLE_PINHOLE", "PINHOLE",        "SIMPLE_RADIAL",         "RADIAL",
       "OPENCV",         "OPENCV_FISHEYE", "SIMPLE_RADIAL_FISHEYE", "RADIAL_FISHEYE"};
@@ -418,6 +422,26 @@ void PosesOptions::Check() const {
     ThrowInvalid("min_registered_fraction: must be in (0, 1]");
   }
   CheckThreadCount(num_threads);
+}
+
+PosesOptions WithPreset(const PosesOptions& options) {
+  options.Check();
+  PosesOptions effective = options;
+  if (options.preset == "default") return effective;
+  // "quick": each field still at its default takes the quick value (header). On the 100-frame,
+  // 1152 x 864 flight of tools/bench_poses.py: features on 640-pixel frames (a third of the
+  // pixels), half the features (matching a pair costs about a quarter), and with positions each
+  // frame matched with its 8 nearest (the 3 x 3 block around it on a grid flight) instead of 7
+  // sequential successors that miss the neighbouring rows.
+  const PosesOptions defaults;
+  if (options.max_image_size == defaults.max_image_size) effective.max_image_size = 640;
+  if (options.max_num_features == defaults.max_num_features) effective.max_num_features = 1024;
+  if (options.sequential_overlap == defaults.sequential_overlap) effective.sequential_overlap = 3;
+  if (options.spatial_neighbors == defaults.spatial_neighbors) effective.spatial_neighbors = 8;
+  const bool positions = !options.positions_file.empty() || options.exif_positions;
+  if (options.matcher == defaults.matcher && positions) effective.matcher = "spatial";
+  effective.Check();
+  return effective;
 }
 
 namespace {
@@ -911,7 +935,8 @@ void MatchFeatures(const ColmapRun& run, const PosesOptions& options,
     match.insert(match.end(), {"--SequentialMatching.overlap",
                                std::to_string(options.sequential_overlap)});
   } else if (options.matcher == "spatial") {
-    match.insert(match.end(), {"--SpatialMatching.is_gps", "0"});
+    match.insert(match.end(), {"--SpatialMatching.is_gps", "0", "--SpatialMatching.max_num_neighbors",
+                               std::to_string(options.spatial_neighbors)});
   } else {
     // Exhaustive matching goes in blocks of 50 frames: "Matching block [i/B, j/B]".
     const int64_t blocks = (total + 49) / 50;
@@ -989,9 +1014,9 @@ ColmapModel ReadLargestModel(const fs::path& sparse, const std::string& frames_d
 
 }  // namespace
 
-PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& options,
+PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& given_options,
                           ProgressSink* progress) {
-  options.Check();
+  const PosesOptions options = WithPreset(given_options);
   if (frames_dir.empty() || !fs::is_directory(frames_dir)) {
     ThrowInvalid(frames_dir + ": not a folder of frames");
   }

@@ -9,11 +9,13 @@
 //   kept, or a temporary folder that is removed afterwards.
 // - COLMAP runs with --SiftExtraction.use_gpu 0 and --SiftMatching.use_gpu 0 (it aborts without a
 //   display otherwise), one camera shared by all frames, and:
+//   * options.preset "quick" first sets smaller frames, fewer features and fewer pairs
+//     (WithPreset; docs/poses.md gives its time and accuracy against "default");
 //   * matcher "sequential" (frames in name order, like a flight's video order; each matched with
 //     its sequential_overlap successors, and, COLMAP's default quadratic overlap, with the
-//     successors 2, 4, 8, ... apart up to that count), "spatial" (pairs by position: needs
-//     positions, which are written into the database as priors), or "exhaustive" (all pairs; small
-//     sets);
+//     successors 2, 4, 8, ... apart up to that count), "spatial" (each frame with its
+//     spatial_neighbors nearest by position: needs positions, which are written into the
+//     database as priors), or "exhaustive" (all pairs; small sets);
 //   * camera: a known camera (options.camera_file, an aos-camera file from `aos-render calibrate`;
 //     its intrinsics are fixed during mapping) or self-calibration of options.camera_model,
 //     started from fov_deg when given. Self-calibration is ill-posed for nadir views of nearly
@@ -63,6 +65,7 @@ struct PosesOptions {
   std::string workspace;                // kept COLMAP workspace; empty = temporary, removed
   std::string matcher = "sequential";   // "sequential", "spatial" or "exhaustive"
   int sequential_overlap = 5;           // sequential: successors each frame is matched with, >= 1
+  int spatial_neighbors = 50;           // spatial: nearest frames each frame is matched with, >= 1
   // Known camera: an aos-camera file (pinhole, radtan or fisheye; omnidir frames must be
   // rectified first). Empty = self-calibration of camera_model.
   std::string camera_file;
@@ -92,8 +95,19 @@ struct PosesOptions {
   double max_scale_deviation = 0.15;
   // Accept implausible intrinsics or scene scale with a warning instead of refusing them.
   bool allow_implausible = false;
+  // Speed against accuracy of the COLMAP stages: "default" (the fields as they are) or "quick":
+  // each of these fields still at its default takes the quick value (a field set to another
+  // value wins): max_image_size 640, max_num_features 1024, sequential_overlap 3,
+  // spatial_neighbors 8, and matcher "spatial" when positions are given (positions_file or
+  // exif_positions). docs/poses.md measures both presets on the 100-frame flight of
+  // tools/bench_poses.py.
+  std::string preset = "default";
   void Check() const;
 };
+
+// The options EstimatePoses runs with: `options` with its preset applied (see
+// PosesOptions::preset); "default" returns them unchanged. Throws like Check().
+PosesOptions WithPreset(const PosesOptions& options);
 
 struct PosesResult {
   LightField light_field;                 // images not loaded; image_path = the frame files
