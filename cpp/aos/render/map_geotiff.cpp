@@ -140,6 +140,16 @@ class GeoTiffWriter {
   // Pixels [x0, x0 + w) x [y0, y0 + h): `image` float32 (channels), `count` uint32.
   void Write(int x0, int y0, const Image& image, const Image& count) {
     const int w = image.width(), h = image.height();
+    if (image.type() != PixelType::kF32 || image.channels() != channels_ ||
+        count.type() != PixelType::kU32 || count.channels() != 1 || count.width() != w ||
+        count.height() != h || x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > grid_.width ||
+        y0 + h > grid_.height) {
+      ThrowInvalid(path_ + ": window " + std::to_string(x0) + "," + std::to_string(y0) + " " +
+                   std::to_string(w) + "x" + std::to_string(h) + ": expected a float32 image of " +
+                   std::to_string(channels_) + " channels and a uint32 count of its size, inside the " +
+                   std::to_string(grid_.width) + "x" + std::to_string(grid_.height) + " map");
+    }
+    if (dataset_ == nullptr) ThrowInvalid(path_ + ": the map was already committed");
     const int bands = channels_ + 1;
     buffer_.resize(static_cast<size_t>(w) * h * bands);
     const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -167,6 +177,7 @@ class GeoTiffWriter {
 
   // The COG copy and the rename.
   void Commit(ProgressSink* progress) {
+    if (dataset_ == nullptr) ThrowInvalid(path_ + ": the map was already committed");
     buffer_.clear();
     buffer_.shrink_to_fit();
     QuietGdal quiet;
@@ -224,6 +235,25 @@ class GeoTiffWriter {
 };
 
 }  // namespace
+
+class MapGeoTiffWriter::Impl : public GeoTiffWriter {
+ public:
+  using GeoTiffWriter::GeoTiffWriter;
+};
+
+MapGeoTiffWriter::MapGeoTiffWriter(const MapGrid& grid, int channels, const std::string& crs,
+                                   const std::string& path, const MapWriteOptions& write) {
+  if (channels < 1) ThrowInvalid(path + ": channels: must be >= 1 (got " + std::to_string(channels) + ")");
+  impl_ = std::make_unique<Impl>(grid, channels, crs, path, write);
+}
+
+MapGeoTiffWriter::~MapGeoTiffWriter() = default;
+
+void MapGeoTiffWriter::Write(int x0, int y0, const Image& image, const Image& count) {
+  impl_->Write(x0, y0, image, count);
+}
+
+void MapGeoTiffWriter::Commit(ProgressSink* progress) { impl_->Commit(progress); }
 
 void CheckMapCrs(const std::string& crs, const std::string& where) { WktOf(crs, where); }
 
