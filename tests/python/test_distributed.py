@@ -162,5 +162,8 @@ def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
     # Checked before any cluster starts: an existing output, a bad worker count.
     again = run("-o", str(tmp_path / "dask.tif"), "--workers", "2")
     assert again.returncode != 0 and "exists" in again.stderr
-    bad = run("-o", str(tmp_path / "x.tif"), "--workers", "0", "--scheduler", "tcp://127.0.0.1:1")
-    assert bad.returncode != 0 and not (tmp_path / "x.tif").exists()
+    for flags in (["--workers", "-1"], ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
+                  ["--workers", "2", "--cache-mb", "-1"]):
+        bad = run("-o", str(tmp_path / "x.tif"), *flags)
+        assert bad.returncode == 2, bad.stderr
+        assert flags[-2] in bad.stderr and not (tmp_path / "x.tif").exists()

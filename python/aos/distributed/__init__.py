@@ -249,7 +249,8 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     try:
         if path is not None:
             writer = _core._MapGeoTiffWriter(poses, options, channels, os.fspath(path), force)
-        image = count = None
+        image: Optional[np.ndarray] = None
+        count: Optional[np.ndarray] = None
         if arrays:
             shape = (grid["height"], grid["width"]) + ((channels,) if channels > 1 else ())
             image = np.zeros(shape, np.float32)
@@ -281,7 +282,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             h, w = out["count"].shape
             if writer is not None:
                 writer.write(x0, y0, out["image"], out["count"])
-            if arrays:
+            if image is not None and count is not None:
                 image[y0:y0 + h, x0:x0 + w] = out["image"]
                 count[y0:y0 + h, x0:x0 + w] = out["count"]
             used.update(out["used_view_indices"])
