@@ -111,6 +111,7 @@ def main() -> int:
                 peaks = sorted(client.run(peak_rss_bytes).values())
                 client.cluster.close()
             run = {"workers": workers, "seconds": round(seconds, 2),
+                   "seconds_cog_write": round(result.seconds_write, 2),
                    "frames_per_s": round(len(poses) / seconds, 2),
                    "map_mp_per_s": round(megapixels / seconds, 3),
                    "tiles": result.tiles, "frame_reads": result.frames_read,

@@ -12,6 +12,7 @@ import os
 import shutil
 import signal
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -167,3 +168,22 @@ def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
         bad = run("-o", str(tmp_path / "x.tif"), *flags)
         assert bad.returncode == 2, bad.stderr
         assert flags[-2] in bad.stderr and not (tmp_path / "x.tif").exists()
+
+
+def test_a_study_on_dask_prints_the_same_table(tmp_path: Path) -> None:
+    """tools/appendix_b.py --workers 2 runs its cases as Dask tasks (the script's own functions
+    travel by value) and finds the same PSNR and SSIM as in one process."""
+    tool = Path(__file__).resolve().parents[2] / "tools" / "appendix_b.py"
+    env = dict(os.environ)
+
+    def table(*flags: str) -> list[str]:
+        result = subprocess.run([sys.executable, str(tool), "--size", "48", "--voxel-grid", "12",
+                                 "--max-grid", "3", "--no-write", *flags], capture_output=True,
+                                text=True, timeout=600, env=env, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr[-2000:]
+        rows = [line.split("] ", 1)[1].split(" (simulate")[0]
+                for line in result.stdout.splitlines() if line.startswith("[")]
+        assert len(rows) == 9
+        return sorted(rows)
+
+    assert table("--workers", "2") == table()

@@ -167,9 +167,9 @@ struct MapWriteOptions {
 };
 
 // Writes a Cloud-Optimised GeoTIFF: bands 1..C the image (float32, NaN = nodata where count is
-// 0), band C+1 the count (float32, exact), DEFLATE-compressed, 256-pixel blocks, averaged
-// overviews down to one block; geotransform GeoTransform(), CRS `crs` (an "EPSG:<code>" or any
-// text OGRSpatialReference::SetFromUserInput reads; empty = none). The tiles go into a tiled
+// 0), band C+1 the count (float32, exact), DEFLATE-compressed (on every core), 256-pixel
+// blocks, averaged overviews down to one block; geotransform GeoTransform(), CRS `crs` (an
+// "EPSG:<code>" or any text OGRSpatialReference::SetFromUserInput reads; empty = none). The tiles go into a tiled
 // temporary GeoTIFF beside `path`, the COG is copied from it into a second temporary name and
 // renamed to `path`: a failure or cancel leaves no output and no temporary file.
 // Throws std::invalid_argument naming `path` (exists without force, folder missing or not

@@ -194,6 +194,9 @@ class GeoTiffWriter {
     options = CSLSetNameValue(options, "OVERVIEWS", "IGNORE_EXISTING");
     options = CSLSetNameValue(options, "RESAMPLING", "AVERAGE");
     options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
+    // Compress the blocks on every core: the copy is the serial end of every map (and of a
+    // distributed one, whose workers are idle by then); the pixels do not depend on it.
+    options = CSLSetNameValue(options, "NUM_THREADS", "ALL_CPUS");
     GdalProgressTarget target{progress, 0};
     ProgressStart(progress, "write GeoTIFF", 100);
     GDALDataset* copy =
@@ -213,6 +216,8 @@ class GeoTiffWriter {
     ProgressAdvance(progress, 100 - target.done);
     GDALClose(dataset_);
     dataset_ = nullptr;
+    std::error_code removed;
+    fs::remove(tiles_path_, removed);  // now, not at destruction: the writer may live on
     if (!write_.force && fs::exists(fs::symlink_status(path_))) {
       ThrowInvalid(path_ + ": exists (it appeared while the map was written); force replaces it");
     }

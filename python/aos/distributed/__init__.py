@@ -39,7 +39,7 @@ import numpy as np
 
 from .. import _core
 
-__all__ = ["DistributedMapResult", "render_map", "local_client", "DEFAULT_CACHE_BYTES"]
+__all__ = ["DistributedMapResult", "render_map", "run_cases", "local_client", "DEFAULT_CACHE_BYTES"]
 
 # Per-worker frame cache budget: decoded frames held between tasks, bytes. A task's own frames
 # are always held, so a worker's frames peak at max(budget, one tile's frames).
@@ -65,7 +65,8 @@ class DistributedMapResult:
     uncovered_pixels: int = 0
     tiles: int = 0
     frames_read: int = 0  # frame decodes summed over the tasks (cache misses)
-    seconds: float = 0.0
+    seconds: float = 0.0  # the whole call
+    seconds_write: float = 0.0  # of which the COG copy and rename at the end (serial)
     _image: Optional[np.ndarray] = field(default=None, repr=False)
     _count: Optional[np.ndarray] = field(default=None, repr=False)
 
@@ -295,7 +296,9 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
                 progress("render map", done, len(windows))
         result.views_used = len(used)
         if writer is not None:
+            write_started = time.perf_counter()
             writer.commit(progress)
+            result.seconds_write = time.perf_counter() - write_started
         result._image, result._count = image, count
         result.seconds = time.perf_counter() - started
         return result
@@ -306,6 +309,49 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         raise
     finally:
         writer = None
+        if owned is not None:
+            cluster = getattr(owned, "cluster", None)
+            owned.close()
+            if cluster is not None and scheduler is None:
+                cluster.close()
+
+
+# ---- studies ----------------------------------------------------------------------------------
+
+
+def run_cases(function: Callable[[Any], Any], cases: Sequence[Any], *, client: Any = None,
+              scheduler: Optional[str] = None, workers: Optional[int] = None,
+              progress: Optional[Callable[[int, Any], object]] = None) -> list:
+    """``[function(case) for case in cases]``, each call a Dask task (a study's cases:
+    tools/appendix_b.py --workers N). The cluster is chosen as in render_map: ``client``, else
+    ``scheduler``, else a local cluster of ``workers`` processes (closed at the end).
+    ``function`` and the cases must pickle (cloudpickle takes a script's own functions by
+    value). ``progress(index, result)`` is called on the client as each case finishes, in
+    completion order; the list is in the cases' order. The first failing case's exception is
+    raised and the other tasks are cancelled."""
+    from dask.distributed import Client, as_completed
+
+    owned = None
+    if client is None:
+        client = owned = Client(scheduler) if scheduler else local_client(workers or 1)
+    futures: list = []
+    try:
+        token = uuid.uuid4().hex
+        futures = [client.submit(function, case, pure=False, key=f"aos-case-{i}-{token}")
+                   for i, case in enumerate(cases)]
+        index = {future.key: i for i, future in enumerate(futures)}
+        results: list = [None] * len(cases)
+        for future in as_completed(futures):
+            i = index[future.key]
+            results[i] = future.result()
+            if progress is not None:
+                progress(i, results[i])
+        return results
+    except BaseException:
+        for future in futures:
+            future.cancel()
+        raise
+    finally:
         if owned is not None:
             cluster = getattr(owned, "cluster", None)
             owned.close()
