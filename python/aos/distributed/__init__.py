@@ -178,7 +178,13 @@ def local_client(workers: int, **cluster_kwargs: Any) -> Any:
     settings = dict(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
                     dashboard_address="127.0.0.1:0")
     settings.update(cluster_kwargs)
-    cluster = LocalCluster(**settings)
+    # Frames (about a megabyte each) come and go: with glibc's default, its mmap threshold rises
+    # after the first free and later frames stay in the heap, whose high-water mark then grows
+    # with the frames read. A fixed threshold gives each frame its own mapping, returned on free.
+    import dask
+
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 262144}):
+        cluster = LocalCluster(**settings)
     return Client(cluster)
 
 
@@ -262,11 +268,27 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         windows = [(x0, y0, min(tile, grid["width"] - x0), min(tile, grid["height"] - y0))
                    for y0 in range(0, grid["height"], tile)
                    for x0 in range(0, grid["width"], tile)]
-        futures = [client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
-                                 x0, y0, w, h, selection[0], pure=False,
-                                 key=f"aos-map-tile-{x0}-{y0}-{token}")
-                   for (x0, y0, w, h) in windows]
         from dask.distributed import as_completed
+
+        # A bounded number of tiles in flight: finished tiles wait on their worker until the
+        # client has written them, so an unbounded queue would hold the whole map there.
+        pending = iter(windows)
+        in_flight = max(4, 2 * sum(client.nthreads().values()))
+
+        def submit_next() -> Any:
+            window = next(pending, None)
+            if window is None:
+                return None
+            x0, y0, w, h = window
+            future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
+                                   x0, y0, w, h, selection[0], pure=False,
+                                   key=f"aos-map-tile-{x0}-{y0}-{token}")
+            futures.append(future)
+            return future
+
+        for _ in range(in_flight):
+            submit_next()
+        completed = as_completed(list(futures))
 
         result = DistributedMapResult(width=grid["width"], height=grid["height"],
                                       pixel_size=grid["pixel_size"], up_z=grid["up_z"],
@@ -276,9 +298,12 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         done = 0
         if progress is not None:
             progress("render map", 0, len(windows))
-        for future in as_completed(futures):
+        for future in completed:
             out = future.result()  # re-raises the task's error (a frame's ValueError)
             future.release()
+            following = submit_next()
+            if following is not None:
+                completed.add(following)
             x0, y0 = out["x0"], out["y0"]
             h, w = out["count"].shape
             if writer is not None:
