@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import resource
 import sys
 import tempfile
@@ -101,11 +102,11 @@ def main() -> int:
           f"{grid['width'] * grid['height'] * args.pixel_size**2 / 1e4:.2f} ha)", file=sys.stderr)
     runs = []
     with tempfile.TemporaryDirectory() as scratch:
-        for workers in [int(w) for w in args.workers.split(",")]:
+        for index, workers in enumerate(int(w) for w in args.workers.split(",")):
             with distributed.local_client(workers) as client:
                 started = time.perf_counter()
                 result = distributed.render_map(
-                    poses, options, path=Path(scratch) / f"map-{workers}.tif", client=client,
+                    poses, options, path=Path(scratch) / f"map-{index}.tif", client=client,
                     cache_bytes=int(args.cache_mb * 2**20))
                 seconds = time.perf_counter() - started
                 peaks = sorted(client.run(peak_rss_bytes).values())
@@ -125,6 +126,7 @@ def main() -> int:
               "map_size": [grid["width"], grid["height"]], "map_mp": round(megapixels, 2),
               "pixel_size": args.pixel_size, "tile_size": args.tile_size,
               "cache_mb": args.cache_mb, "runs": runs}
+    report["load_average"] = os.getloadavg()
     print(json.dumps(report, indent=1))
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))

@@ -122,6 +122,9 @@ def main(argv: list[str]) -> int:
     except KeyError as error:
         bar.finish()
         return _fail(f"--spec: missing {error}", 2)
+    except KeyboardInterrupt:
+        bar.finish()
+        return _fail("interrupted; nothing written", 130)
 
     x0, p, _, y0, _, _ = result.geotransform
     pixels = result.width * result.height
