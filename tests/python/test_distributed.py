@@ -187,3 +187,19 @@ def test_a_study_on_dask_prints_the_same_table(tmp_path: Path) -> None:
         return sorted(rows)
 
     assert table("--workers", "2") == table()
+
+
+def test_a_map_on_a_sloped_dem_is_bit_for_bit_too(survey: Path, tmp_path: Path, client) -> None:
+    """A terrain (a DEM sloping 1 m over 10 m, with a nodata hole): the window's focal points
+    span heights, and the frame selection must still keep every frame that sees them."""
+    lf = aos.load_lightfield(survey).light_field
+    ys, xs = np.mgrid[0:30, 0:30].astype(np.float32)
+    heights = (0.1 * xs - 1.5).astype(np.float32)
+    heights[12:15, 3:6] = np.nan
+    dem = aos.Heightfield(heights, (-15.0, 1.0, 0.0, 15.0, 0.0, -1.0))
+    options = dict(pixel_size=PIXEL, focal_surface=dem, surface_offset=0.2, tile_size=TILE)
+    reference = aos.render_map(lf, **options)
+    assert reference.uncovered_pixels > 0
+    result = aos.render_map(lf, client=client, path=tmp_path / "dem.tif", arrays=True, **options)
+    assert np.array_equal(result.image, reference.image)
+    assert np.array_equal(result.count, reference.count)
