@@ -286,7 +286,10 @@ MapSummary WriteMapGeoTiff(const LightField& light_field, const MapOptions& opti
                            ProgressSink* progress) {
   const MapGrid grid = ResolveMapGrid(light_field, options);
   CheckMapCrs(light_field.crs, path);
-  const int channels = light_field.views.front().image.channels();
+  // The render's channels: a masked light field's frames carry a weight channel that the render
+  // divides out (lightfield.h).
+  const int channels =
+      light_field.views.front().image.channels() - (light_field.masked ? 1 : 0);
   GeoTiffWriter writer(grid, channels, light_field.crs, path, write);
   MapSummary summary = RenderMapTiles(
       light_field, options,
