@@ -32,6 +32,7 @@ from __future__ import annotations
 import argparse
 import copy
 import datetime
+import functools
 import json
 import math
 import os
@@ -996,6 +997,11 @@ def write_page(knobs: dict[str, Knob], args: argparse.Namespace, config: Config,
     return written
 
 
+def run_knob(run: Run, name: str) -> Knob:
+    """One knob's study: a Dask task with --workers/--scheduler."""
+    return KNOB_FUNCTIONS[name](run)
+
+
 def main(argv: Optional[list[str]] = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true",
@@ -1006,6 +1012,12 @@ def main(argv: Optional[list[str]] = None) -> int:
                         help=f"comma-separated subset of {','.join(KNOBS)}")
     parser.add_argument("--seed", type=int, default=1, help="scene seed (1)")
     parser.add_argument("--threads", type=int, default=-1, help="worker threads (-1: all cores)")
+    parser.add_argument("--workers", type=int, default=0,
+                        help="run the knobs as Dask tasks on a local cluster of N processes "
+                             "(aos.distributed.run_cases): the same quality columns, but each "
+                             "knob's times then include the other tasks' load")
+    parser.add_argument("--scheduler", default="",
+                        help="run the knobs as Dask tasks on the cluster of this scheduler")
     parser.add_argument("--write-docs", action="store_true",
                         help="write the page and the plots into --docs-dir")
     parser.add_argument("--docs-dir", default=str(ROOT / "docs"),
@@ -1016,6 +1028,8 @@ def main(argv: Optional[list[str]] = None) -> int:
         args.repeats = 1 if args.quick else 3
     if args.repeats < 1:
         parser.error("--repeats must be at least 1")
+    if args.workers < 0 or (args.workers and args.scheduler):
+        parser.error("--workers N (>= 1) and --scheduler ADDRESS exclude each other")
     names = [n.strip() for n in args.knobs.split(",") if n.strip()]
     unknown = [n for n in names if n not in KNOBS]
     if unknown:
@@ -1028,8 +1042,16 @@ def main(argv: Optional[list[str]] = None) -> int:
     run.log(f"aos {aos.__version__}, {machine()}; {args.repeats} repeats; knobs: "
             f"{', '.join(names)}")
     knobs: dict[str, Knob] = {}
+    computed: dict[str, Knob] = {}
+    if args.workers or args.scheduler:
+        from aos.distributed import run_cases
+
+        results = run_cases(functools.partial(run_knob, run), names,
+                            workers=args.workers or None, scheduler=args.scheduler or None,
+                            progress=lambda i, _: run.log(f"{names[i]}: computed on Dask"))
+        computed = dict(zip(names, results))
     for name in names:
-        knob = KNOB_FUNCTIONS[name](run)
+        knob = computed[name] if name in computed else KNOB_FUNCTIONS[name](run)
         mark_pareto(knob.rows)
         knobs[name] = knob
         for row in knob.rows:

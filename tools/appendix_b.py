@@ -27,6 +27,7 @@ Writes docs/appendix-b.md (table) and docs/appendix-b.png (plot) unless --no-wri
 from __future__ import annotations
 
 import argparse
+import functools
 import math
 import pathlib
 import sys
@@ -226,17 +227,35 @@ def main(argv: Optional[list[str]] = None) -> int:
     parser.add_argument("--max-grid", type=int, default=27, help="largest N of N x N views (27)")
     parser.add_argument("--seed", type=int, default=1)
     parser.add_argument("--no-write", action="store_true", help="print only")
+    parser.add_argument("--workers", type=int, default=0,
+                        help="run the cases as Dask tasks on a local cluster of N processes "
+                             "(aos.distributed.run_cases; the same table)")
+    parser.add_argument("--scheduler", default="",
+                        help="run the cases as Dask tasks on the cluster of this scheduler")
     args = parser.parse_args(argv)
+    if args.workers < 0 or (args.workers and args.scheduler):
+        parser.error("--workers N (>= 1) and --scheduler ADDRESS exclude each other")
     if not args.no_write:
         import matplotlib  # noqa: F401  (fail now, not after the study)
     grids = tuple(g for g in (3, 9, 27) if g <= args.max_grid)
     cases = figure_a3_cases() + figure_a4_cases(grids)
     start = time.perf_counter()
-    for i, case in enumerate(cases):
-        evaluate(case, args.size, args.voxel_grid, args.seed)
+    def report(i: int, case: Case) -> None:
         print(f"[{i + 1}/{len(cases)}] {case.figure} {case.label}: PSNR {case.psnr_db:.2f} dB, "
               f"SSIM {case.ssim:.3f} (simulate {case.seconds_simulate:.1f} s, "
               f"{case.rays_per_second / 1e6:.1f} M rays/s)", flush=True)
+
+    if args.workers or args.scheduler:
+        from aos.distributed import run_cases
+
+        cases = run_cases(functools.partial(evaluate, size=args.size, voxel_grid=args.voxel_grid,
+                                            seed=args.seed),
+                          cases, workers=args.workers or None, scheduler=args.scheduler or None,
+                          progress=report)
+    else:
+        for i, case in enumerate(cases):
+            evaluate(case, args.size, args.voxel_grid, args.seed)
+            report(i, case)
     seconds = time.perf_counter() - start
     if not args.no_write:
         docs = pathlib.Path(__file__).resolve().parent.parent / "docs"

@@ -713,7 +713,12 @@ struct MapCommand {
   std::string focal_surface;  // --focal-surface FILE (mesh or DEM raster)
   std::string views;
   std::string output;
+  int workers = 0;            // --workers N: a LocalCluster of N processes (0 = this process)
+  std::string scheduler;      // --scheduler ADDRESS: an existing Dask cluster
+  double cache_mb = 1024.0;   // --cache-mb: each worker's frame cache, MiB
 };
+
+int RunMapDistributed(MapCommand& c);
 
 std::string UpText(const MapGrid& grid) { return grid.up_z > 0 ? "+z" : "-z"; }
 
@@ -726,6 +731,7 @@ int RunMap(MapCommand& c, const Flags& flags) {
   CheckOutputPath(c.output, {c.light_field_path}, "output");
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
+  if (c.workers != 0 || !c.scheduler.empty()) return RunMapDistributed(c);
   c.load.num_threads = c.options.num_threads;
   // The surface and the flags first: a bad mesh, DEM or flag fails before the frames are loaded
   // (the views are checked again against the light field).
@@ -831,6 +837,20 @@ CommandRunner DefineMap(CLI::App* command) {
               "Pixels on a side of a render tile (memory is bounded by one tile)");
   flags.Threads(options.num_threads);
   command->add_option("-o,--output", c->output, "GeoTIFF to write (Cloud-Optimised)")->required();
+  command->add_option("--workers", c->workers,
+                      "Render the tiles as Dask tasks on a local cluster of N worker processes "
+                      "(python -m aos.distributed; each reads only the frames its tiles need); "
+                      "0 = in this process")
+      ->default_str("0");
+  command->add_option("--scheduler", c->scheduler,
+                      "Render the tiles as Dask tasks on the cluster of this scheduler address "
+                      "(e.g. tcp://10.0.0.5:8786); its workers must read the frames under the "
+                      "same paths")
+      ->default_str("");
+  command->add_option("--cache-mb", c->cache_mb,
+                      "With --workers/--scheduler: decoded frames each worker keeps between "
+                      "tasks, MiB (a task's own frames are always held)")
+      ->default_str("1024");
   flags.Force();
   return [c, flags] { return RunMap(*c, flags); };
 }
@@ -856,9 +876,9 @@ struct ViewCommand {
   bool browser = false;
 };
 
-// Whether `python` runs and finds the aos package with its viewer, without importing aos (which
-// would load the core): tens of milliseconds.
-bool PythonFindsAos(const std::string& python) {
+// Whether `python` runs and finds the aos package with `module` (a sub-package folder holding
+// __main__.py), without importing aos (which would load the core): tens of milliseconds.
+bool PythonFindsAos(const std::string& python, const std::string& module) {
   if (python.empty()) return false;
   const pid_t pid = fork();
   if (pid < 0) return false;
@@ -868,11 +888,11 @@ bool PythonFindsAos(const std::string& python) {
       dup2(null, 1);
       dup2(null, 2);
     }
-    execlp(python.c_str(), python.c_str(), "-c",
-           "import importlib.util, os, sys; s = importlib.util.find_spec('aos'); "
-           "sys.exit(0 if s and any(os.path.isfile(os.path.join(p, 'viewer', '__main__.py')) "
-           "for p in s.submodule_search_locations or []) else 1)",
-           static_cast<char*>(nullptr));
+    const std::string check =
+        "import importlib.util, os, sys; s = importlib.util.find_spec('aos'); "
+        "sys.exit(0 if s and any(os.path.isfile(os.path.join(p, '" + module + "', '__main__.py')) "
+        "for p in s.submodule_search_locations or []) else 1)";
+    execlp(python.c_str(), python.c_str(), "-c", check.c_str(), static_cast<char*>(nullptr));
     _exit(127);
   }
   int status = 0;
@@ -899,6 +919,32 @@ std::vector<std::string> PythonCandidates() {
 #endif
   candidates.emplace_back("python3");
   return candidates;
+}
+
+// Replaces this process by `PYTHON -m aos.<module> --spec TEXT` (the first interpreter of
+// PythonCandidates() that finds the aos package with that module); throws if none does.
+[[noreturn]] void ExecPythonModule(const std::string& command, const std::string& module,
+                                   const std::string& text) {
+  std::string python;
+  const std::vector<std::string> candidates = PythonCandidates();
+  for (const std::string& candidate : candidates) {
+    if (PythonFindsAos(candidate, module)) {
+      python = candidate;
+      break;
+    }
+  }
+  if (python.empty()) {
+    std::string tried;
+    for (const std::string& candidate : candidates) tried += (tried.empty() ? "" : ", ") + candidate;
+    ThrowInvalid(command + ": no Python interpreter with the aos package found (tried " + tried +
+                 "); set AOS_PYTHON to the python3 that aos was installed into");
+  }
+  std::fflush(stdout);
+  std::fflush(stderr);
+  const std::string name = "aos." + module;
+  execlp(python.c_str(), python.c_str(), "-m", name.c_str(), "--spec", text.c_str(),
+         static_cast<char*>(nullptr));
+  ThrowInvalid(command + ": cannot run " + python + ": " + std::strerror(errno));
 }
 
 int RunView(ViewCommand& c, const Flags& flags) {
@@ -990,25 +1036,56 @@ int RunView(ViewCommand& c, const Flags& flags) {
   spec["json"] = Common().json;
   const std::string text = spec.dump();
 
-  std::string python;
-  const std::vector<std::string> candidates = PythonCandidates();
-  for (const std::string& candidate : candidates) {
-    if (PythonFindsAos(candidate)) {
-      python = candidate;
-      break;
-    }
+  ExecPythonModule("view", "viewer", text);
+}
+
+// `aos-render map --workers N / --scheduler ADDRESS`: the command line is checked here (the
+// output before anything else, in RunMap), then handed over to `python -m aos.distributed
+// --spec JSON` (python/aos/distributed), which renders the tiles as Dask tasks.
+int RunMapDistributed(MapCommand& c) {
+  if (c.workers < 0) ThrowUsage("--workers: must be >= 1 (got " + std::to_string(c.workers) + ")");
+  if (c.workers > 0 && !c.scheduler.empty()) {
+    ThrowUsage("--workers and --scheduler exclude each other (the cluster of --scheduler has its "
+               "own workers)");
   }
-  if (python.empty()) {
-    std::string tried;
-    for (const std::string& candidate : candidates) tried += (tried.empty() ? "" : ", ") + candidate;
-    ThrowInvalid("view: no Python interpreter with the aos package found (tried " + tried +
-                 "); set AOS_PYTHON to the python3 that aos was installed into");
+  if (!(c.cache_mb >= 0.0) || !std::isfinite(c.cache_mb)) {
+    ThrowUsage("--cache-mb: must be >= 0 MiB (got " + FormatNumber(c.cache_mb) + ")");
   }
-  std::fflush(stdout);
-  std::fflush(stderr);
-  execlp(python.c_str(), python.c_str(), "-m", "aos.viewer", "--spec", text.c_str(),
-         static_cast<char*>(nullptr));
-  ThrowInvalid("view: cannot run " + python + ": " + std::strerror(errno));
+  if (!fs::exists(c.light_field_path)) ThrowInvalid(c.light_field_path + ": no such light-field file");
+  if (!c.focal_surface.empty() && !fs::exists(c.focal_surface)) {
+    throw UsageError("--focal-surface: " + c.focal_surface + ": no such file");
+  }
+  c.options.focal_surface = ReadFocalSurface(c.focal_surface);  // a bad file fails here
+  c.options.Check(std::numeric_limits<int>::max());  // the view count is known after loading
+  nlohmann::ordered_json spec;
+  spec["light_field"] = c.light_field_path;
+  spec["load"] = {{"fov_deg", c.load.fov_deg},   {"images_dir", c.load.images_dir},
+                  {"grey", c.load.grey},         {"mask", c.load.mask},
+                  {"mask_dir", c.load.mask_dir}};
+  const MapOptions& o = c.options;
+  spec["pixel_size"] = o.pixel_size;
+  spec["width"] = o.width;
+  spec["extent"] = o.extent;
+  spec["focal_height"] = o.focal_height;
+  spec["focal_surface"] = c.focal_surface;
+  spec["surface_offset"] = o.surface_offset;
+  if (std::isinf(o.aperture_radius)) {
+    spec["aperture_radius"] = "inf";
+  } else {
+    spec["aperture_radius"] = o.aperture_radius;
+  }
+  spec["views"] = c.views;
+  spec["min_view_angle_deg"] = o.min_view_angle_deg;
+  spec["tile_size"] = o.tile_size;
+  spec["num_threads"] = o.num_threads;
+  spec["output"] = c.output;
+  spec["force"] = Common().force;
+  spec["workers"] = c.workers;
+  spec["scheduler"] = c.scheduler;
+  spec["cache_mb"] = c.cache_mb;
+  spec["quiet"] = Common().quiet;
+  spec["json"] = Common().json;
+  ExecPythonModule("map", "distributed", spec.dump());
 }
 
 }  // namespace

@@ -300,6 +300,31 @@ void BindLightField(py::module_& m) {
                ", notes=" + std::to_string(result.notes.size()) + ")";
       });
 
+  m.def(
+      "_load_view_images",
+      [](LightField& light_field, const std::vector<int>& indices, bool grey,
+         const std::filesystem::path& mask, const std::filesystem::path& mask_dir,
+         int num_threads) {
+        LoadOptions options;
+        options.grey = grey;
+        options.mask = mask.string();
+        options.mask_dir = mask_dir.string();
+        options.num_threads = num_threads;
+        py::gil_scoped_release release;
+        LoadViewImages(light_field, indices, options);
+      },
+      "light_field"_a, "indices"_a, "grey"_a = false, "mask"_a = "", "mask_dir"_a = "",
+      "num_threads"_a = 1,
+      "Decodes the frames of views `indices` in place from their image_path, as load_lightfield "
+      "does with grey/mask/mask_dir (formats.h LoadViewImages). Used by aos.distributed.");
+  m.def(
+      "_drop_view_images",
+      [](LightField& light_field, const std::vector<int>& indices) {
+        DropViewImages(light_field, indices);
+      },
+      "light_field"_a, "indices"_a,
+      "Drops the decoded images of views `indices` in place (poses stay). Used by aos.distributed.");
+
   const LoadOptions load_defaults;
   m.def(
       "load_lightfield",

@@ -474,6 +474,93 @@ void BindMap(py::module_& m) {
       "then be true). GIL released. Prefer aos.render_map.");
 }
 
+// The pieces of a map rendered window by window in other processes (aos.distributed): each
+// call resolves the grid again from the poses (ResolveMapGrid reads poses and cameras only).
+void BindMapWindows(py::module_& m) {
+  m.def(
+      "_map_grid",
+      [](const LightField& light_field, const MapOptions& options) {
+        MapGrid grid;
+        {
+          py::gil_scoped_release release;
+          grid = ResolveMapGrid(light_field, options);
+        }
+        const std::array<double, 6> t = grid.GeoTransform();
+        py::dict out;
+        out["width"] = grid.width;
+        out["height"] = grid.height;
+        out["pixel_size"] = grid.pixel_size;
+        out["up_z"] = grid.up_z;
+        out["geotransform"] = py::make_tuple(t[0], t[1], t[2], t[3], t[4], t[5]);
+        return out;
+      },
+      "light_field"_a, "options"_a,
+      "The map's grid (ResolveMapGrid): width, height, pixel_size, up_z, geotransform.");
+  m.def(
+      "_map_window_views",
+      [](const LightField& light_field, const MapOptions& options, int x0, int y0, int w, int h) {
+        py::gil_scoped_release release;
+        const MapGrid grid = ResolveMapGrid(light_field, options);
+        return MapWindowViews(light_field, grid, options, x0, y0, w, h);
+      },
+      "light_field"_a, "options"_a, "x0"_a, "y0"_a, "w"_a, "h"_a,
+      "The views that may contribute to map pixels [x0, x0 + w) x [y0, y0 + h) (map.h "
+      "MapWindowViews; poses only).");
+  m.def(
+      "_render_map_window",
+      [](const LightField& light_field, const MapOptions& options, int x0, int y0, int w, int h,
+         const std::vector<int>& views) {
+        SurfaceIntegralResult result;
+        {
+          py::gil_scoped_release release;
+          const MapGrid grid = ResolveMapGrid(light_field, options);
+          result = RenderMapWindow(light_field, grid, options, x0, y0, w, h, views);
+        }
+        py::dict out;
+        out["image"] = ArrayFromImage(result.integral.image);
+        out["count"] = ArrayFromImage(result.integral.count);
+        out["used_view_indices"] = result.used_view_indices;
+        out["samples"] = result.integral.samples;
+        out["uncovered_pixels"] = result.integral.uncovered_pixels;
+        return out;
+      },
+      "light_field"_a, "options"_a, "x0"_a, "y0"_a, "w"_a, "h"_a, "views"_a,
+      "Map pixels [x0, x0 + w) x [y0, y0 + h) from views `views` only (map.h RenderMapWindow): "
+      "a dict with image (float32 (h, w, C) or (h, w)), count (uint32), used_view_indices, "
+      "samples, uncovered_pixels. GIL released.");
+  py::class_<MapGeoTiffWriter>(m, "_MapGeoTiffWriter",
+                               "Writes a map window by window (map.h MapGeoTiffWriter).")
+      .def(py::init([](const LightField& light_field, const MapOptions& options, int channels,
+                       const std::string& path, bool force) {
+             MapWriteOptions write;
+             write.force = force;
+             py::gil_scoped_release release;
+             const MapGrid grid = ResolveMapGrid(light_field, options);
+             CheckMapCrs(light_field.crs, path);
+             return std::make_unique<MapGeoTiffWriter>(grid, channels, light_field.crs, path, write);
+           }),
+           "light_field"_a, "options"_a, "channels"_a, "path"_a, "force"_a = false)
+      .def(
+          "write",
+          [](MapGeoTiffWriter& writer, int x0, int y0, const py::array& image,
+             const py::array& count) {
+            const Image image_in = ImageFromArray(image, 0, "image");
+            const Image count_in = ImageFromArray(count, 0, "count");
+            py::gil_scoped_release release;
+            writer.Write(x0, y0, image_in, count_in);
+          },
+          "x0"_a, "y0"_a, "image"_a, "count"_a)
+      .def(
+          "commit",
+          [](MapGeoTiffWriter& writer, const py::object& progress) {
+            RunWithProgress(progress, [&](ProgressSink* sink) {
+              writer.Commit(sink);
+              return 0;
+            });
+          },
+          "progress"_a = py::none());
+}
+
 void BindFocalStack(py::module_& m) {
   OptionsClass<FocalStackOptions>(
       m, "FocalStackOptions",
@@ -777,6 +864,7 @@ void BindRender(py::module_& m) {
   BindRectify(m);
   BindSurfaceIntegral(m);
   BindMap(m);
+  BindMapWindows(m);
   BindFocalStack(m);
   BindMerge(m);
 }

@@ -657,6 +657,8 @@ def render_map(
     force: bool = False,
     arrays: Optional[bool] = None,
     progress: Optional[Callable[[str, int, int], object]] = None,
+    client: Any = None,
+    load: Optional[dict[str, Any]] = None,
     **kwargs: Unpack[MapKeywords],
 ) -> MapResult:
     """An orthographic map of ``light_field``: a virtual camera looking straight down onto the
@@ -681,6 +683,11 @@ def render_map(
         m = aos.render_map(lf, pixel_size=0.05, focal_height=0.0, path="map.tif")   # streamed
         x0, p, _, y0, _, _ = m.geotransform   # pixel (col, row) centre: x0 + (col + 0.5) p
         m = aos.render_map(lf, pixel_size=0.05)                          # in memory: m.image
+
+    With ``client`` (a ``dask.distributed.Client``) the map's tiles are rendered as Dask tasks
+    that read only the frames they need from their files (``load``: grey, mask, mask_dir as
+    load_lightfield), bit for bit the same map (aos.distributed, docs/distributed.md); the
+    result is then an ``aos.distributed.DistributedMapResult`` with the same attributes.
     """
     merged = _copy_options("render_map", MapOptions, options)
     _RENDER_MAP.apply([merged], dict(kwargs))
@@ -691,6 +698,14 @@ def render_map(
         arrays = path is None
     if not arrays and path is None:
         raise ValueError("render_map(): arrays=False without a path keeps nothing; give a path")
+    if client is not None:
+        from . import distributed
+
+        return distributed.render_map(light_field, merged, path=target or None, client=client,
+                                      load=load, force=force, arrays=bool(arrays),
+                                      progress=progress)  # type: ignore[return-value]
+    if load is not None:
+        raise ValueError("render_map(): load: only with client (the light field holds its frames)")
     return _core._render_map(light_field, merged, target, force, bool(arrays), progress)
 
 

@@ -303,6 +303,15 @@ class LoadResult:
     def __eq__(self, other: object) -> bool: ...
     def __repr__(self) -> str: ...
 
+def _load_view_images(
+    light_field: LightField,
+    indices: Sequence[int],
+    grey: bool = False,
+    mask: _PathLike = "",
+    mask_dir: _PathLike = "",
+    num_threads: int = 1,
+) -> None: ...
+def _drop_view_images(light_field: LightField, indices: Sequence[int]) -> None: ...
 def load_lightfield(
     path: _PathLike,
     fov_deg: float = 0.0,
@@ -769,6 +778,42 @@ def _render_map(
     arrays: bool,
     progress: _Progress = None,
 ) -> MapResult: ...
+
+# Maps window by window in other processes (aos.distributed; map.h MapWindowViews,
+# RenderMapWindow, MapGeoTiffWriter). Private: use aos.render_map(..., client=...).
+def _map_grid(light_field: LightField, options: MapOptions) -> dict[str, Any]: ...
+def _map_window_views(
+    light_field: LightField, options: MapOptions, x0: int, y0: int, w: int, h: int
+) -> list[int]: ...
+def _render_map_window(
+    light_field: LightField,
+    options: MapOptions,
+    x0: int,
+    y0: int,
+    w: int,
+    h: int,
+    views: Sequence[int],
+) -> dict[str, Any]: ...
+
+class _MapGeoTiffWriter:
+    """Writes a map window by window (map.h MapGeoTiffWriter)."""
+
+    def __init__(
+        self,
+        light_field: LightField,
+        options: MapOptions,
+        channels: int,
+        path: str,
+        force: bool = False,
+    ) -> None: ...
+    def write(
+        self,
+        x0: int,
+        y0: int,
+        image: numpy.typing.ArrayLike,
+        count: numpy.typing.ArrayLike,
+    ) -> None: ...
+    def commit(self, progress: _Progress = None) -> None: ...
 
 class FocalStackOptions:
     """Options of render_focal_stack; fields and defaults of aos::FocalStackOptions."""

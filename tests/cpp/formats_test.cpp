@@ -175,6 +175,33 @@ TEST_F(FormatsTest, RoundTripUint16) { RoundTrip(dir_, PixelType::kU16, 1, ".png
 TEST_F(FormatsTest, RoundTripFloatTiff) { RoundTrip(dir_, PixelType::kF32, 1, ".tif"); }
 TEST_F(FormatsTest, RoundTripFloatExr) { RoundTrip(dir_, PixelType::kF32, 2, ".exr"); }
 
+// Frames decoded one by one into a poses-only light field are the loader's frames; dropping
+// them keeps the poses; a frame that became unreadable is named with its file.
+TEST_F(FormatsTest, LoadViewImagesDecodesOnlyTheGivenViews) {
+  const LightField original = MakeLightField(PixelType::kU8, 3);
+  const std::string path = Path("lf.json");
+  WriteLightField(path, original);
+  const LightField full = LoadLightField(path).light_field;
+  LightField poses = LoadLightField(path, HeadersOnly()).light_field;
+  LoadViewImages(poses, {2, 0});
+  ExpectSamePixels(poses.views[0].image, full.views[0].image);
+  ExpectSamePixels(poses.views[2].image, full.views[2].image);
+  EXPECT_TRUE(poses.views[1].image.empty());
+  EXPECT_EQ(poses.views[2].image.border(), full.views[2].image.border());
+  DropViewImages(poses, {0});
+  EXPECT_TRUE(poses.views[0].image.empty());
+  EXPECT_FALSE(poses.views[2].image.empty());
+  ExpectInvalid([&] { LoadViewImages(poses, {3}); }, {"indices: 3 is not a view"});
+  // Grey frames, as the loader makes them.
+  LoadOptions grey;
+  grey.grey = true;
+  LoadViewImages(poses, {2}, grey);
+  EXPECT_EQ(poses.views[2].image.channels(), 1);
+  ExpectSamePixels(poses.views[2].image, LoadLightField(path, grey).light_field.views[2].image);
+  std::ofstream(poses.views[1].image_path, std::ios::binary) << "not an image";
+  ExpectInvalid([&] { LoadViewImages(poses, {1}); }, {"view 1 (", "0001.png"});
+}
+
 TEST_F(FormatsTest, WriteSharesIdenticalCamerasOnly) {
   WriteLightField(Path("lf.json"), MakeLightField(PixelType::kU8, 1));
   const std::string text = ReadTextFile(Path("lf.json"));

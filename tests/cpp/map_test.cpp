@@ -4,6 +4,7 @@
 #include "aos/render/map.h"
 
 #include <cmath>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 
@@ -228,6 +229,47 @@ TEST(MapRender, TilesChangeNoBit) {
   EXPECT_TRUE(SameImage(whole.count, tiled.count));
 }
 
+// Windows rendered from only the views MapWindowViews keeps are RenderMap's pixels, bit for bit
+// (what the distributed maps rely on), and the selection does leave views out: 3 x 3 views 8 m
+// apart at 10 m, each seeing about 9.3 x 7.8 m, so most windows meet few of them.
+TEST(MapWindow, WindowsFromTheirOwnViewsChangeNoBit) {
+  LightField light_field = NadirLightField(LinearGround(), PinholeCamera::FromFov(96, 80, 50.0),
+                                           GridCentres(3, 8.0, 10.0), PixelType::kF32);
+  light_field.origin = Vec3d(600000.0, 5200000.0, 0.0);
+  MapOptions options;
+  options.pixel_size = 0.2;
+  options.tile_size = 16;
+  const MapResult whole = RenderMap(light_field, options);
+  const MapGrid grid = ResolveMapGrid(light_field, options);
+  int windows = 0, fewer = 0;
+  for (int y0 = 0; y0 < grid.height; y0 += 23) {
+    for (int x0 = 0; x0 < grid.width; x0 += 19) {
+      const int w = std::min(19, grid.width - x0), h = std::min(23, grid.height - y0);
+      const std::vector<int> views = MapWindowViews(light_field, grid, options, x0, y0, w, h);
+      ASSERT_FALSE(views.empty());  // the default extent is the footprints: every window is seen
+      ++windows;
+      fewer += views.size() < light_field.views.size();
+      const SurfaceIntegralResult window =
+          RenderMapWindow(light_field, grid, options, x0, y0, w, h, views);
+      for (int y = 0; y < h; ++y) {
+        for (int x = 0; x < w; ++x) {
+          ASSERT_EQ(window.integral.count.At<uint32_t>(x, y)[0],
+                    whole.count.At<uint32_t>(x0 + x, y0 + y)[0]);
+          // Bit for bit, NaN-free: compare the float bits.
+          ASSERT_EQ(std::memcmp(window.integral.image.At<float>(x, y),
+                                whole.image.At<float>(x0 + x, y0 + y), sizeof(float)), 0)
+              << "window " << x0 << "," << y0 << " pixel " << x << "," << y;
+        }
+      }
+    }
+  }
+  EXPECT_GT(fewer, windows / 2);
+  EXPECT_THAT(ErrorOf([&] { MapWindowViews(light_field, grid, options, grid.width - 2, 0, 3, 3); }),
+              HasSubstr("window: "));
+  EXPECT_THAT(ErrorOf([&] { RenderMapWindow(light_field, grid, options, 0, 0, 4, 4, {}); }),
+              HasSubstr("views: empty"));
+}
+
 class MapWrite : public testing_util::TempFolderTest {
  protected:
   std::vector<std::string> Files() const {
@@ -264,6 +306,28 @@ TEST_F(MapWrite, WritesOneFileAndRefusesWhatItShould) {
   EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, Path("other.tif")); }),
               HasSubstr("crs: 'EPSG:999999'"));
   EXPECT_EQ(Files(), std::vector<std::string>{"map.tif"});
+}
+
+TEST_F(MapWrite, WindowWriterLeavesNothingWithoutCommit) {
+  const LightField light_field = GroundLightField();
+  MapOptions options;
+  options.pixel_size = 0.1;
+  const MapGrid grid = ResolveMapGrid(light_field, options);
+  Image image(8, 8, 1, PixelType::kF32);
+  Image count(8, 8, 1, PixelType::kU32);
+  {
+    MapGeoTiffWriter writer(grid, 1, "", Path("map.tif"));
+    writer.Write(0, 0, image, count);
+    EXPECT_THAT(ErrorOf([&] { writer.Write(grid.width - 4, 0, image, count); }),
+                HasSubstr("map.tif: window"));
+    EXPECT_THAT(ErrorOf([&] { writer.Write(0, 0, count, count); }), HasSubstr("float32 image"));
+  }  // destroyed without Commit()
+  EXPECT_TRUE(Files().empty());
+  MapGeoTiffWriter writer(grid, 1, "", Path("map.tif"));
+  writer.Write(8, 8, image, count);
+  writer.Commit();
+  EXPECT_EQ(Files(), std::vector<std::string>{"map.tif"});
+  EXPECT_THAT(ErrorOf([&] { writer.Commit(); }), HasSubstr("already committed"));
 }
 
 // Stops after the first tile row.

@@ -347,6 +347,13 @@ def test_cli_mask_and_mask_dir(tmp_path: Path) -> None:
     result = run("map", path, "--pixel-size", "0.5", "--mask", path.parent / "mask.png", "-o",
                  tmp_path / "map.tif")
     assert result.returncode == 0, result.stderr
+    # The map has the render's channels (the weight channel divided out) and the count.
+    rasterio = pytest.importorskip("rasterio")
+    with rasterio.open(tmp_path / "map.tif") as dataset:
+        assert dataset.descriptions[-1] == "count"
+        loaded = aos.load_lightfield(path, mask=path.parent / "mask.png").light_field
+        expected = aos.render_map(loaded, pixel_size=0.5)
+        assert dataset.count == (1 if expected.image.ndim == 2 else expected.image.shape[2]) + 1
 
 
 def test_rectified_light_field_stays_masked(tmp_path: Path) -> None:

@@ -826,6 +826,49 @@ LoadResult LoadFromJson(const std::string& path, const json& root, const LoadOpt
                         ProgressSink* progress);
 }  // namespace
 
+namespace {
+
+void CheckViewIndices(const LightField& light_field, const std::vector<int>& indices) {
+  for (int index : indices) {
+    if (index < 0 || static_cast<size_t>(index) >= light_field.views.size()) {
+      ThrowInvalid("indices: " + std::to_string(index) + " is not a view (the light field has " +
+                   std::to_string(light_field.views.size()) + ")");
+    }
+  }
+}
+
+}  // namespace
+
+void LoadViewImages(LightField& light_field, const std::vector<int>& indices,
+                    const LoadOptions& options) {
+  options.Check();
+  CheckViewIndices(light_field, indices);
+  if (indices.empty()) return;
+  std::vector<Frame> frames;
+  std::vector<View> views;  // the cameras CheckFrameInfos compares with
+  for (int index : indices) {
+    const View& view = light_field.views[static_cast<size_t>(index)];
+    const std::string label = "view " + std::to_string(index) + " (" + view.image_path + ")";
+    if (view.image_path.empty()) ThrowInvalid(label + ": image_path: the view has no frame file");
+    frames.push_back(Frame{label, view.image_path});
+    views.push_back(view);
+  }
+  LoadOptions decode = options;
+  decode.load_images = true;
+  const FrameMasks masks = ResolveMasks(frames, decode);
+  FrameData data = ReadFrames(frames, decode, nullptr, masks);
+  CheckFrameInfos(frames, data.infos, views);
+  for (size_t i = 0; i < indices.size(); ++i) {
+    light_field.views[static_cast<size_t>(indices[i])].image = std::move(data.images[i]);
+  }
+  if (masks.enabled) light_field.masked = true;
+}
+
+void DropViewImages(LightField& light_field, const std::vector<int>& indices) {
+  CheckViewIndices(light_field, indices);
+  for (int index : indices) light_field.views[static_cast<size_t>(index)].image = Image();
+}
+
 LoadResult LoadLightField(const std::string& path, const LoadOptions& options,
                           ProgressSink* progress) {
   options.Check();

@@ -95,6 +95,20 @@ struct LoadResult {
 LoadResult LoadLightField(const std::string& path, const LoadOptions& options = {},
                           ProgressSink* progress = nullptr);
 
+// Decodes the frames of views `indices` of a light field loaded without images (or with some),
+// from their image_path, as LoadLightField does with `options` (grey, mask, mask_dir,
+// num_threads; the other fields are ignored), and stores them in those views; the light field
+// becomes masked when a mask is given. Views with an image are decoded again. What a process
+// that renders part of a large light field uses to hold only the frames it needs
+// (python/aos/distributed.py). Throws std::invalid_argument naming the view and its file (an
+// unreadable or missing frame, a size that disagrees with the camera, channels that differ
+// between the frames decoded together), or "indices" for an index that is no view.
+void LoadViewImages(LightField& light_field, const std::vector<int>& indices,
+                    const LoadOptions& options = {});
+
+// Drops the decoded images of views `indices` (their poses, cameras and image_path stay).
+void DropViewImages(LightField& light_field, const std::vector<int>& indices);
+
 struct WriteLightFieldOptions {
   // Folder (relative to the JSON file's folder) where view images are written when they have no
   // image_path; views with an image_path are referenced, not rewritten.

@@ -326,4 +326,137 @@ MapResult RenderMap(const LightField& light_field, const MapOptions& options,
   return map;
 }
 
+namespace {
+
+void CheckWindow(const MapGrid& grid, int x0, int y0, int w, int h) {
+  if (x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || static_cast<int64_t>(x0) + w > grid.width ||
+      static_cast<int64_t>(y0) + h > grid.height) {
+    ThrowInvalid("window: pixels " + std::to_string(x0) + "," + std::to_string(y0) + " " +
+                 std::to_string(w) + "x" + std::to_string(h) + " are not inside the " +
+                 std::to_string(grid.width) + "x" + std::to_string(grid.height) + " map");
+  }
+}
+
+// The box, in normalised camera coordinates (x/z, y/z), that holds every point a lens model
+// projects into its image: the image border (64 points per edge) cast back through the lens,
+// widened by 2 % of its size. False when a border ray does not point forward (a fisheye wider
+// than 180 degrees): no such box, the view is kept.
+bool LensImageBox(const LensCamera& camera, double* lo, double* hi) {
+  const int steps = 64;
+  const double w = camera.width, h = camera.height;
+  lo[0] = lo[1] = std::numeric_limits<double>::infinity();
+  hi[0] = hi[1] = -std::numeric_limits<double>::infinity();
+  for (int edge = 0; edge < 4; ++edge) {
+    for (int k = 0; k < steps; ++k) {
+      const double t = static_cast<double>(k) / steps;
+      Vec2d pixel;
+      switch (edge) {
+        case 0: pixel = Vec2d(t * w, 0.0); break;
+        case 1: pixel = Vec2d(w, t * h); break;
+        case 2: pixel = Vec2d(w - t * w, h); break;
+        default: pixel = Vec2d(0.0, h - t * h); break;
+      }
+      Vec3d ray;
+      if (!camera.Unproject(pixel, &ray)) return false;
+      if (!(ray.z > 1e-6)) return false;
+      const double nx = ray.x / ray.z, ny = ray.y / ray.z;
+      lo[0] = std::min(lo[0], nx);
+      lo[1] = std::min(lo[1], ny);
+      hi[0] = std::max(hi[0], nx);
+      hi[1] = std::max(hi[1], ny);
+    }
+  }
+  const double margin_x = 0.02 * (hi[0] - lo[0]), margin_y = 0.02 * (hi[1] - lo[1]);
+  lo[0] -= margin_x;
+  hi[0] += margin_x;
+  lo[1] -= margin_y;
+  hi[1] += margin_y;
+  return std::isfinite(lo[0]) && std::isfinite(hi[0]) && std::isfinite(lo[1]) && std::isfinite(hi[1]);
+}
+
+}  // namespace
+
+std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& grid,
+                                const MapOptions& options, int x0, int y0, int w, int h) {
+  options.Check(static_cast<int>(light_field.views.size()));
+  CheckWindow(grid, x0, y0, w, h);
+  std::vector<int> selection = Selection(light_field, options.view_indices);
+  std::sort(selection.begin(), selection.end());
+  const FocalPoints points = MapFocalPoints(grid, x0, y0, w, h);
+  // The box of the window's finite focal points, local frame.
+  Vec3d lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
+  for (const Vec3d& point : points.points) {
+    if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
+    lo = glm::min(lo, point);
+    hi = glm::max(hi, point);
+  }
+  std::vector<int> views;
+  if (!(lo.x <= hi.x)) return views;  // no pixel meets the focal surface
+  lo += points.reference;
+  hi += points.reference;
+  for (int index : selection) {
+    const View& view = light_field.views[static_cast<size_t>(index)];
+    const LensCamera& camera = view.camera;
+    double box_lo[2], box_hi[2];  // normalised coordinates that reach the image
+    const bool pinhole = camera.model == LensModel::kPinhole;
+    if (pinhole) {
+      // Pixel u in [-1, width + 1] <=> x/z in [(-1 - cx) / fx, (width + 1 - cx) / fx].
+      box_lo[0] = (-1.0 - camera.cx) / camera.fx;
+      box_hi[0] = (camera.width + 1.0 - camera.cx) / camera.fx;
+      box_lo[1] = (-1.0 - camera.cy) / camera.fy;
+      box_hi[1] = (camera.height + 1.0 - camera.cy) / camera.fy;
+    } else if (!LensImageBox(camera, box_lo, box_hi)) {
+      views.push_back(index);
+      continue;
+    }
+    // The window's box projects inside the hull of its corners' projections (all in front).
+    double n_lo[2] = {std::numeric_limits<double>::infinity(), std::numeric_limits<double>::infinity()};
+    double n_hi[2] = {-n_lo[0], -n_lo[1]};
+    bool keep = false;
+    for (int corner = 0; corner < 8 && !keep; ++corner) {
+      const Vec3d point((corner & 1) ? hi.x : lo.x, (corner & 2) ? hi.y : lo.y,
+                        (corner & 4) ? hi.z : lo.z);
+      const Vec3d in_cam = view.cam_from_world * point;
+      if (!(in_cam.z > 1e-9)) {
+        keep = true;  // a corner behind the view: no bound, keep it
+        break;
+      }
+      const double nx = in_cam.x / in_cam.z, ny = in_cam.y / in_cam.z;
+      n_lo[0] = std::min(n_lo[0], nx);
+      n_hi[0] = std::max(n_hi[0], nx);
+      n_lo[1] = std::min(n_lo[1], ny);
+      n_hi[1] = std::max(n_hi[1], ny);
+    }
+    if (!keep) {
+      keep = n_hi[0] >= box_lo[0] && n_lo[0] <= box_hi[0] && n_hi[1] >= box_lo[1] &&
+             n_lo[1] <= box_hi[1];
+    }
+    if (keep) views.push_back(index);
+  }
+  return views;
+}
+
+SurfaceIntegralResult RenderMapWindow(const LightField& light_field, const MapGrid& grid,
+                                      const MapOptions& options, int x0, int y0, int w, int h,
+                                      const std::vector<int>& views, ProgressSink* progress) {
+  options.Check(static_cast<int>(light_field.views.size()));
+  CheckWindow(grid, x0, y0, w, h);
+  if (views.empty()) {
+    ThrowInvalid("views: empty; a window needs at least one view (any selected view renders an "
+                 "empty window right)");
+  }
+  if (!options.view_indices.empty()) {
+    for (int index : views) {
+      if (std::find(options.view_indices.begin(), options.view_indices.end(), index) ==
+          options.view_indices.end()) {
+        ThrowInvalid("views: view " + std::to_string(index) + " is not in view_indices");
+      }
+    }
+  }
+  PointIntegralOptions point = MapPointOptions(grid, options);
+  point.view_indices = views;
+  const FocalPoints points = MapFocalPoints(grid, x0, y0, w, h);
+  return RenderIntegralAtPoints(light_field, points, point, {}, progress);
+}
+
 }  // namespace aos

@@ -167,9 +167,9 @@ struct MapWriteOptions {
 };
 
 // Writes a Cloud-Optimised GeoTIFF: bands 1..C the image (float32, NaN = nodata where count is
-// 0), band C+1 the count (float32, exact), DEFLATE-compressed, 256-pixel blocks, averaged
-// overviews down to one block; geotransform GeoTransform(), CRS `crs` (an "EPSG:<code>" or any
-// text OGRSpatialReference::SetFromUserInput reads; empty = none). The tiles go into a tiled
+// 0), band C+1 the count (float32, exact), DEFLATE-compressed (on every core), 256-pixel
+// blocks, averaged overviews down to one block; geotransform GeoTransform(), CRS `crs` (an
+// "EPSG:<code>" or any text OGRSpatialReference::SetFromUserInput reads; empty = none). The tiles go into a tiled
 // temporary GeoTIFF beside `path`, the COG is copied from it into a second temporary name and
 // renamed to `path`: a failure or cancel leaves no output and no temporary file.
 // Throws std::invalid_argument naming `path` (exists without force, folder missing or not
@@ -180,6 +180,53 @@ MapSummary WriteMapGeoTiff(const LightField& light_field, const MapOptions& opti
 // The same for a map already in memory.
 void WriteMapGeoTiff(const MapResult& map, const std::string& path,
                      const MapWriteOptions& write = {});
+
+// Windows of a map, for renders split across processes or machines (python/aos/distributed.py,
+// docs/distributed.md): every process resolves the same grid from the same poses
+// (ResolveMapGrid reads poses and cameras only), renders windows from the few frames that meet
+// them, and one writer assembles the file.
+
+// The selected views (light-field indices, ascending) that may contribute to map pixels
+// [x0, x0 + w) x [y0, y0 + h): a view is left out only when the box of the window's focal points
+// lies wholly in front of it and projects (through the pinhole, or for a lens model into the
+// box of its image border cast back through the lens, widened by 2 %) outside its image widened
+// by one pixel, so that it admits none of them (integral.h's inside-the-image rule). Reads poses
+// and cameras only; the views need no images. Throws std::invalid_argument naming "window" for a
+// window outside the grid.
+std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& grid,
+                                const MapOptions& options, int x0, int y0, int w, int h);
+
+// Map pixels [x0, x0 + w) x [y0, y0 + h) of `grid` (ResolveMapGrid of this light field's poses
+// and `options`), integrated over views `views` only (light-field indices within the options'
+// selection; they must hold their images, the others need not). When `views` holds
+// MapWindowViews(...) of the window, every pixel is bit for bit RenderMap's: the views left out
+// admit no sample there, and each pixel sums its samples in view order whatever the window.
+// Throws std::invalid_argument naming "window" or "views".
+SurfaceIntegralResult RenderMapWindow(const LightField& light_field, const MapGrid& grid,
+                                      const MapOptions& options, int x0, int y0, int w, int h,
+                                      const std::vector<int>& views,
+                                      ProgressSink* progress = nullptr);
+
+// Writes a map window by window into the GeoTIFF of WriteMapGeoTiff (same bands, blocks,
+// overviews and temporary names): windows may come in any order; Commit() makes the COG and
+// renames it to `path`. Destroying the writer without a successful Commit() leaves no output
+// and no temporary file. Throws std::invalid_argument naming `path`.
+class MapGeoTiffWriter {
+ public:
+  MapGeoTiffWriter(const MapGrid& grid, int channels, const std::string& crs,
+                   const std::string& path, const MapWriteOptions& write = {});
+  ~MapGeoTiffWriter();
+  MapGeoTiffWriter(const MapGeoTiffWriter&) = delete;
+  MapGeoTiffWriter& operator=(const MapGeoTiffWriter&) = delete;
+  // Pixels [x0, x0 + image.width()) x [y0, y0 + image.height()): image float32 with `channels`
+  // channels, count uint32 of the same size.
+  void Write(int x0, int y0, const Image& image, const Image& count);
+  void Commit(ProgressSink* progress = nullptr);
+
+ private:
+  class Impl;
+  std::unique_ptr<Impl> impl_;
+};
 
 // Checks an output path before any work: its folder exists and is writable, it is not a folder,
 // and it does not exist unless write.force. Throws std::invalid_argument naming the path.

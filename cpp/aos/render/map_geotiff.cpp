@@ -140,6 +140,16 @@ class GeoTiffWriter {
   // Pixels [x0, x0 + w) x [y0, y0 + h): `image` float32 (channels), `count` uint32.
   void Write(int x0, int y0, const Image& image, const Image& count) {
     const int w = image.width(), h = image.height();
+    if (image.type() != PixelType::kF32 || image.channels() != channels_ ||
+        count.type() != PixelType::kU32 || count.channels() != 1 || count.width() != w ||
+        count.height() != h || x0 < 0 || y0 < 0 || w <= 0 || h <= 0 || x0 + w > grid_.width ||
+        y0 + h > grid_.height) {
+      ThrowInvalid(path_ + ": window " + std::to_string(x0) + "," + std::to_string(y0) + " " +
+                   std::to_string(w) + "x" + std::to_string(h) + ": expected a float32 image of " +
+                   std::to_string(channels_) + " channels and a uint32 count of its size, inside the " +
+                   std::to_string(grid_.width) + "x" + std::to_string(grid_.height) + " map");
+    }
+    if (dataset_ == nullptr) ThrowInvalid(path_ + ": the map was already committed");
     const int bands = channels_ + 1;
     buffer_.resize(static_cast<size_t>(w) * h * bands);
     const float nan = std::numeric_limits<float>::quiet_NaN();
@@ -167,6 +177,7 @@ class GeoTiffWriter {
 
   // The COG copy and the rename.
   void Commit(ProgressSink* progress) {
+    if (dataset_ == nullptr) ThrowInvalid(path_ + ": the map was already committed");
     buffer_.clear();
     buffer_.shrink_to_fit();
     QuietGdal quiet;
@@ -183,6 +194,9 @@ class GeoTiffWriter {
     options = CSLSetNameValue(options, "OVERVIEWS", "IGNORE_EXISTING");
     options = CSLSetNameValue(options, "RESAMPLING", "AVERAGE");
     options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
+    // Compress the blocks on every core: the copy is the serial end of every map (and of a
+    // distributed one, whose workers are idle by then); the pixels do not depend on it.
+    options = CSLSetNameValue(options, "NUM_THREADS", "ALL_CPUS");
     GdalProgressTarget target{progress, 0};
     ProgressStart(progress, "write GeoTIFF", 100);
     GDALDataset* copy =
@@ -202,6 +216,8 @@ class GeoTiffWriter {
     ProgressAdvance(progress, 100 - target.done);
     GDALClose(dataset_);
     dataset_ = nullptr;
+    std::error_code removed;
+    fs::remove(tiles_path_, removed);  // now, not at destruction: the writer may live on
     if (!write_.force && fs::exists(fs::symlink_status(path_))) {
       ThrowInvalid(path_ + ": exists (it appeared while the map was written); force replaces it");
     }
@@ -224,6 +240,25 @@ class GeoTiffWriter {
 };
 
 }  // namespace
+
+class MapGeoTiffWriter::Impl : public GeoTiffWriter {
+ public:
+  using GeoTiffWriter::GeoTiffWriter;
+};
+
+MapGeoTiffWriter::MapGeoTiffWriter(const MapGrid& grid, int channels, const std::string& crs,
+                                   const std::string& path, const MapWriteOptions& write) {
+  if (channels < 1) ThrowInvalid(path + ": channels: must be >= 1 (got " + std::to_string(channels) + ")");
+  impl_ = std::make_unique<Impl>(grid, channels, crs, path, write);
+}
+
+MapGeoTiffWriter::~MapGeoTiffWriter() = default;
+
+void MapGeoTiffWriter::Write(int x0, int y0, const Image& image, const Image& count) {
+  impl_->Write(x0, y0, image, count);
+}
+
+void MapGeoTiffWriter::Commit(ProgressSink* progress) { impl_->Commit(progress); }
 
 void CheckMapCrs(const std::string& crs, const std::string& where) { WktOf(crs, where); }
 
@@ -251,7 +286,10 @@ MapSummary WriteMapGeoTiff(const LightField& light_field, const MapOptions& opti
                            ProgressSink* progress) {
   const MapGrid grid = ResolveMapGrid(light_field, options);
   CheckMapCrs(light_field.crs, path);
-  const int channels = light_field.views.front().image.channels();
+  // The render's channels: a masked light field's frames carry a weight channel that the render
+  // divides out (lightfield.h).
+  const int channels =
+      light_field.views.front().image.channels() - (light_field.masked ? 1 : 0);
   GeoTiffWriter writer(grid, channels, light_field.crs, path, write);
   MapSummary summary = RenderMapTiles(
       light_field, options,

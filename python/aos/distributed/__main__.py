@@ -1,0 +1,153 @@
+"""``python -m aos.distributed --spec JSON``: what ``aos-render map --workers N`` (or
+``--scheduler ADDRESS``) runs once it has checked its command line and the output path. The
+flags' values come as one JSON object (the flags are declared once, in C++): light_field, load
+{fov_deg, images_dir, grey, mask, mask_dir}, pixel_size, width, extent, focal_height,
+focal_surface (path, "" = none), surface_offset, aperture_radius (number or "inf"), views ("" =
+all), min_view_angle_deg, tile_size, num_threads, output, force, workers, scheduler, cache_mb,
+quiet, json. Draws a progress bar on stderr (plain lines when stderr is not a terminal), prints
+the report (a JSON object with --json), exits 0; errors: one line on stderr, exit 1 (bad input)
+or 2 (bad spec)."""
+
+from __future__ import annotations
+
+import json
+import math
+import sys
+import time
+from typing import Any
+
+
+def _fail(message: str, code: int = 1) -> int:
+    sys.stderr.write(f"aos-render map: error: {message}\n")
+    return code
+
+
+class _Bar:
+    """A progress bar on stderr: redrawn in place on a terminal, else a line per 10 %."""
+
+    def __init__(self, quiet: bool):
+        self.quiet = quiet
+        self.tty = sys.stderr.isatty()
+        self.stage = ""
+        self.last = -1
+        self.started = time.monotonic()
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if self.quiet or total <= 0:
+            return
+        if stage != self.stage:
+            self.finish()
+            self.stage, self.last, self.started = stage, -1, time.monotonic()
+        percent = int(100 * done / total)
+        if self.tty:
+            if percent == self.last:
+                return
+            filled = percent * 30 // 100
+            sys.stderr.write(f"\r{stage:14s} [{'#' * filled}{'.' * (30 - filled)}] "
+                             f"{percent:3d}% {done}/{total} {time.monotonic() - self.started:.0f} s")
+        elif percent // 10 != self.last // 10 or done == total:
+            sys.stderr.write(f"{stage}: {percent}% ({done}/{total})\n")
+        self.last = percent
+        sys.stderr.flush()
+
+    def finish(self) -> None:
+        if self.tty and self.stage and not self.quiet:
+            sys.stderr.write("\n")
+        self.stage = ""
+
+
+def main(argv: list[str]) -> int:
+    if len(argv) != 2 or argv[0] != "--spec":
+        return _fail("usage: python -m aos.distributed --spec JSON (run `aos-render map "
+                     "--workers N`)", 2)
+    try:
+        spec: dict[str, Any] = json.loads(argv[1])
+    except ValueError as error:
+        return _fail(f"--spec: not JSON ({error})", 2)
+    try:
+        import dask.distributed  # noqa: F401
+    except ImportError:
+        return _fail("--workers/--scheduler need Dask: pip install dask distributed")
+    import aos
+    from aos import distributed
+    from aos.viewer.session import BadParameter, parse_view_list
+
+    quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
+    bar = _Bar(quiet)
+    try:
+        load = spec.get("load", {})
+        loaded = aos.load_lightfield(spec["light_field"], fov_deg=float(load.get("fov_deg", 0.0)),
+                                     images_dir=load.get("images_dir", ""), load_images=False)
+        for note in loaded.notes:
+            sys.stderr.write(f"note: {note}\n")
+        light_field = loaded.light_field
+        options = aos.MapOptions()
+        for name in ("pixel_size", "focal_height", "surface_offset", "min_view_angle_deg"):
+            setattr(options, name, float(spec.get(name, getattr(options, name))))
+        for name in ("width", "tile_size", "num_threads"):
+            setattr(options, name, int(spec.get(name, getattr(options, name))))
+        options.extent = [float(v) for v in spec.get("extent", [])]
+        radius = spec.get("aperture_radius", "inf")
+        options.aperture_radius = math.inf if radius == "inf" else float(radius)
+        if spec.get("views"):
+            options.view_indices = parse_view_list(spec["views"], len(light_field))
+        if spec.get("focal_surface"):
+            surface = aos.FocalSurface.read(spec["focal_surface"])
+            if light_field.crs:
+                surface = surface.in_crs(light_field.crs)
+            options.focal_surface = surface
+        if not light_field.crs:
+            sys.stderr.write(f"warning: {spec['light_field']}: the light field has no CRS, so the "
+                             "map has none: GIS tools will place it in the frame's own "
+                             "coordinates (origin + local), not on the Earth\n")
+        frame_load = {key: load[key] for key in ("grey", "mask", "mask_dir") if load.get(key)}
+        workers = int(spec.get("workers", 0))
+        scheduler = str(spec.get("scheduler", ""))
+        if not quiet:
+            where = f"the cluster at {scheduler}" if scheduler else \
+                f"a local cluster of {workers} worker processes"
+            sys.stderr.write(f"map: {len(light_field)} frames, tiles of {options.tile_size} "
+                             f"pixels as Dask tasks on {where}\n")
+        result = distributed.render_map(
+            light_field, options, path=spec["output"], scheduler=scheduler or None,
+            workers=workers or None, load=frame_load, force=bool(spec.get("force", False)),
+            cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)), progress=bar)
+        bar.finish()
+    except BadParameter as error:
+        bar.finish()
+        return _fail(str(error))
+    except (ValueError, OSError) as error:
+        bar.finish()
+        return _fail(str(error).splitlines()[0] if str(error) else type(error).__name__)
+    except KeyError as error:
+        bar.finish()
+        return _fail(f"--spec: missing {error}", 2)
+    except KeyboardInterrupt:
+        bar.finish()
+        return _fail("interrupted; nothing written", 130)
+
+    x0, p, _, y0, _, _ = result.geotransform
+    pixels = result.width * result.height
+    report = {"command": "map", "output": spec["output"], "width": result.width,
+              "height": result.height, "pixel_size": result.pixel_size,
+              "geotransform": list(result.geotransform), "crs": result.crs,
+              "up": "+z" if result.up_z > 0 else "-z", "views_used": result.views_used,
+              "views_selected": result.views_selected, "samples": result.samples,
+              "uncovered_pixels": result.uncovered_pixels, "tiles": result.tiles,
+              "workers": workers, "scheduler": scheduler, "frames_read": result.frames_read,
+              "seconds": round(result.seconds, 3)}
+    if spec.get("json"):
+        print(json.dumps(report), flush=True)
+    else:
+        crs = f", {result.crs}" if result.crs else ""
+        print(f"wrote {spec['output']}: {result.width} x {result.height} pixels of {p:g} m, "
+              f"x {x0:g} .. {x0 + result.width * p:g}, y {y0 - result.height * p:g} .. {y0:g}{crs}")
+        print(f"integrated {result.views_used} of {result.views_selected} selected views: "
+              f"{result.samples} samples, {result.uncovered_pixels} of {pixels} pixels seen by "
+              f"no view (nodata, count 0); {result.tiles} tiles, {result.frames_read} frame "
+              f"reads, {result.seconds:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))

@@ -1,0 +1,205 @@
+"""Maps on Dask (aos.distributed, aos-render map --workers): a small simulated survey whose
+frames are read from disk by the workers. The map must be bit for bit the single-process map
+(image, count and the GeoTIFF's bands), whatever the tiling and the frame cache; a worker killed
+mid-run changes nothing; an unreadable frame stops the run naming the file, with nothing at the
+output path. Clusters are LocalClusters of worker processes bound to 127.0.0.1."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import aos
+
+distributed = pytest.importorskip("distributed")
+rasterio = pytest.importorskip("rasterio")
+
+from aos.distributed import local_client  # noqa: E402
+
+EXE = shutil.which("aos-render")
+
+# 4 x 4 views 5 m up over a 15 m square, each seeing about 5.8 m: most frames meet only a part
+# of the map, so the per-tile frame selection matters. Noise texture: every bit of every pixel
+# carries information.
+SCENE = {
+    "ground": {"texture": {"type": "noise", "square": 0.5, "seed": 3}},
+    "camera": {"width": 48, "height": 40, "fov_deg": 60},
+    "sampling": {"altitude": 5.0, "grid": 4, "aperture": {"diameter": 15}},
+    "truth": {"width": 8, "height": 8, "blocked_fraction": False},
+}
+PIXEL = 0.1
+TILE = 32  # the map is about 210 x 210 pixels: 49 tiles
+
+
+@pytest.fixture(scope="module")
+def survey(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    folder = tmp_path_factory.mktemp("survey") / "flight"
+    aos.simulate(SCENE, folder)
+    return folder / "lightfield.json"
+
+
+@pytest.fixture(scope="module")
+def client():
+    with local_client(2) as c:
+        yield c
+        c.cluster.close()
+
+
+def read_bands(path: Path) -> np.ndarray:
+    with rasterio.open(path) as dataset:
+        return dataset.read()
+
+
+def test_a_window_from_its_own_frames_is_the_window_from_all(survey: Path) -> None:
+    lf = aos.load_lightfield(survey).light_field
+    options = aos.MapOptions(pixel_size=PIXEL, tile_size=TILE, num_threads=1)
+    grid = aos._core._map_grid(lf, options)
+    full = aos.render_map(lf, options)
+    assert grid["width"] == full.width and grid["height"] == full.height
+    fewer = 0
+    for x0, y0 in [(0, 0), (grid["width"] - 20, 0), (60, 70), (0, grid["height"] - 17)]:
+        w, h = min(37, grid["width"] - x0), min(29, grid["height"] - y0)
+        views = aos._core._map_window_views(lf, options, x0, y0, w, h)
+        fewer += len(views) < len(lf)
+        # Every view outside the selection admits no sample in the window.
+        everything = aos._core._render_map_window(lf, options, x0, y0, w, h, list(range(len(lf))))
+        mine = aos._core._render_map_window(lf, options, x0, y0, w, h, views or [0])
+        for out in (everything, mine):
+            assert np.array_equal(out["image"], full.image[y0:y0 + h, x0:x0 + w])
+            assert np.array_equal(out["count"], full.count[y0:y0 + h, x0:x0 + w])
+        assert set(everything["used_view_indices"]) <= set(views)
+    assert fewer >= 3  # the selection does leave frames out
+
+
+def test_the_dask_map_is_bit_for_bit_the_single_process_map(survey: Path, tmp_path: Path,
+                                                            client) -> None:
+    loaded = aos.load_lightfield(survey).light_field
+    single = tmp_path / "single.tif"
+    reference = aos.render_map(loaded, pixel_size=PIXEL, path=single, arrays=True)
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    out = tmp_path / "dask.tif"
+    # A cache of two frames: frames are dropped and read again, which must change nothing.
+    frame_bytes = loaded.image_bytes() // len(loaded)
+    result = aos.distributed.render_map(poses, aos.MapOptions(pixel_size=PIXEL, tile_size=TILE),
+                                        path=out, client=client, arrays=True,
+                                        cache_bytes=2 * frame_bytes)
+    assert np.array_equal(result.image, reference.image)
+    assert np.array_equal(result.count, reference.count)
+    assert np.array_equal(read_bands(out), read_bands(single), equal_nan=True)
+    assert result.geotransform == reference.geotransform
+    assert (result.samples, result.uncovered_pixels, result.views_used, result.views_selected) == (
+        reference.samples, reference.uncovered_pixels, reference.views_used,
+        reference.views_selected)
+    assert result.tiles == 49
+    # Each tile read only the frames meeting it: far fewer than every frame for every tile.
+    assert result.frames_read < result.tiles * len(poses) / 2
+    # aos.render_map(client=...) is the same route.
+    again = aos.render_map(loaded, pixel_size=PIXEL, tile_size=64, client=client)
+    assert np.array_equal(again.image, reference.image)
+    assert not list(tmp_path.glob(".*"))  # no temporary files left
+
+
+def test_a_worker_killed_mid_run_changes_nothing(survey: Path, tmp_path: Path) -> None:
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    options = aos.MapOptions(pixel_size=PIXEL, tile_size=16)  # 169 tiles
+    reference = aos.render_map(aos.load_lightfield(survey).light_field, options)
+    killed: list[int] = []
+    with local_client(2) as c:
+        pids = list(c.run(os.getpid).values())
+
+        def progress(stage: str, done: int, total: int) -> None:
+            if stage == "render map" and done == 10 and not killed:
+                os.kill(pids[0], signal.SIGKILL)
+                killed.append(pids[0])
+
+        result = aos.distributed.render_map(poses, options, path=tmp_path / "m.tif", client=c,
+                                            arrays=True, progress=progress)
+        c.cluster.close()
+    assert killed
+    assert result.tiles == math.ceil(result.width / 16) * math.ceil(result.height / 16)
+    assert np.array_equal(result.image, reference.image)
+    assert np.array_equal(result.count, reference.count)
+
+
+def test_an_unreadable_frame_names_the_file_and_writes_nothing(survey: Path, tmp_path: Path,
+                                                               client) -> None:
+    folder = tmp_path / "flight"
+    shutil.copytree(survey.parent, folder)
+    poses = aos.load_lightfield(folder / "lightfield.json", load_images=False).light_field
+    broken = poses.views[9].image_path
+    # The run starts, then a frame becomes unreadable (view 0 is read first, on the client).
+    Path(broken).write_bytes(b"not an image")
+    out = tmp_path / "out" / "map.tif"
+    out.parent.mkdir()
+    with pytest.raises(ValueError, match=Path(broken).name):
+        aos.distributed.render_map(poses, aos.MapOptions(pixel_size=PIXEL, tile_size=TILE),
+                                   path=out, client=client)
+    assert list(out.parent.iterdir()) == []
+
+
+@pytest.mark.skipif(EXE is None, reason="aos-render not on PATH")
+def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
+    def run(*args: str) -> subprocess.CompletedProcess:
+        return subprocess.run([EXE, "map", str(survey), "--pixel-size", str(PIXEL), "--tile-size",
+                               str(TILE), *args], capture_output=True, text=True, timeout=300)
+
+    single = run("-o", str(tmp_path / "single.tif"), "-q")
+    assert single.returncode == 0, single.stderr
+    spread = run("-o", str(tmp_path / "dask.tif"), "--workers", "2", "--json")
+    assert spread.returncode == 0, spread.stderr
+    report = json.loads(spread.stdout)
+    assert report["tiles"] == 49 and report["workers"] == 2
+    assert np.array_equal(read_bands(tmp_path / "dask.tif"), read_bands(tmp_path / "single.tif"),
+                          equal_nan=True)
+    # Checked before any cluster starts: an existing output, a bad worker count.
+    again = run("-o", str(tmp_path / "dask.tif"), "--workers", "2")
+    assert again.returncode != 0 and "exists" in again.stderr
+    for flags in (["--workers", "-1"], ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
+                  ["--workers", "2", "--cache-mb", "-1"]):
+        bad = run("-o", str(tmp_path / "x.tif"), *flags)
+        assert bad.returncode == 2, bad.stderr
+        assert flags[-2] in bad.stderr and not (tmp_path / "x.tif").exists()
+
+
+def test_a_study_on_dask_prints_the_same_table(tmp_path: Path) -> None:
+    """tools/appendix_b.py --workers 2 runs its cases as Dask tasks (the script's own functions
+    travel by value) and finds the same PSNR and SSIM as in one process."""
+    tool = Path(__file__).resolve().parents[2] / "tools" / "appendix_b.py"
+    env = dict(os.environ)
+
+    def table(*flags: str) -> list[str]:
+        result = subprocess.run([sys.executable, str(tool), "--size", "48", "--voxel-grid", "12",
+                                 "--max-grid", "3", "--no-write", *flags], capture_output=True,
+                                text=True, timeout=600, env=env, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr[-2000:]
+        rows = [line.split("] ", 1)[1].split(" (simulate")[0]
+                for line in result.stdout.splitlines() if line.startswith("[")]
+        assert len(rows) == 9
+        return sorted(rows)
+
+    assert table("--workers", "2") == table()
+
+
+def test_a_map_on_a_sloped_dem_is_bit_for_bit_too(survey: Path, tmp_path: Path, client) -> None:
+    """A terrain (a DEM sloping 1 m over 10 m, with a nodata hole): the window's focal points
+    span heights, and the frame selection must still keep every frame that sees them."""
+    lf = aos.load_lightfield(survey).light_field
+    ys, xs = np.mgrid[0:30, 0:30].astype(np.float32)
+    heights = (0.1 * xs - 1.5).astype(np.float32)
+    heights[12:15, 3:6] = np.nan
+    dem = aos.Heightfield(heights, (-15.0, 1.0, 0.0, 15.0, 0.0, -1.0))
+    options = dict(pixel_size=PIXEL, focal_surface=dem, surface_offset=0.2, tile_size=TILE)
+    reference = aos.render_map(lf, **options)
+    assert reference.uncovered_pixels > 0
+    result = aos.render_map(lf, client=client, path=tmp_path / "dem.tif", arrays=True, **options)
+    assert np.array_equal(result.image, reference.image)
+    assert np.array_equal(result.count, reference.count)

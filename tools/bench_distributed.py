@@ -1,0 +1,137 @@
+#!/usr/bin/env python3
+"""Benchmark of distributed maps (aos.distributed, docs/distributed.md): a simulated survey is
+generated once into a folder by the simulator (frames as PNG files, read from disk like real
+data), then mapped on LocalClusters of 1, 2, ... worker processes (one thread each). Reports per
+run: seconds, frames/s (frames of the survey / seconds), map megapixels/s, frame reads (cache
+misses summed over the tasks) and the peak resident memory of each worker process (the
+getrusage high-water mark of a fresh cluster), and the speed-up against the first worker count.
+
+    python3 tools/bench_distributed.py --frames 2000 --frame-width 1152 --area-ha 5 \\
+        --pixel-size 0.05 --workers 1,2 --folder /tmp/survey-2000
+    python3 tools/bench_distributed.py --frames 100 --frame-width 256 --area-ha 0.25 \\
+        --pixel-size 0.05 --workers 1,2            # a quick run
+
+The survey: a square grid of ceil(sqrt(frames)) x ceil(sqrt(frames)) nadir views over a square
+of area-ha hectares, 4:3 frames of frame-width pixels with a 60 degree horizontal field of view,
+flown at the altitude where a frame's footprint is `overlap` grid spacings wide (each ground
+point then lies in about overlap^2 frames), over a noise-textured ground. A folder already
+holding the same survey (same scene.json) is reused.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import resource
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import aos
+from aos import distributed
+
+
+def scene_for(args: argparse.Namespace) -> dict:
+    grid = math.ceil(math.sqrt(args.frames))
+    side = math.sqrt(args.area_ha * 10000.0)
+    spacing = side / max(grid - 1, 1)
+    footprint = args.overlap * spacing
+    altitude = footprint / (2.0 * math.tan(math.radians(30.0)))
+    height = args.frame_width * 3 // 4
+    return {
+        "ground": {"texture": {"type": "noise", "square": 0.5, "seed": 7}},
+        "camera": {"width": args.frame_width, "height": height, "fov_deg": 60},
+        "sampling": {"altitude": altitude, "grid": grid,
+                     "aperture": {"shape": "square", "diameter": side}},
+        "truth": {"width": 8, "height": 8, "blocked_fraction": False},
+    }
+
+
+def survey(args: argparse.Namespace) -> Path:
+    folder = Path(args.folder) if args.folder else Path(tempfile.gettempdir()) / (
+        f"aos-survey-{args.frames}-{args.frame_width}-{args.area_ha:g}ha")
+    scene = scene_for(args)
+    stamp = folder / "bench_scene.json"
+    if stamp.exists() and json.loads(stamp.read_text()) == scene and \
+            (folder / "lightfield.json").exists():
+        print(f"survey: reusing {folder}", file=sys.stderr)
+        return folder / "lightfield.json"
+    if folder.exists() and any(folder.iterdir()):
+        sys.exit(f"{folder}: exists and holds another survey; remove it or give --folder")
+    started = time.perf_counter()
+    aos.simulate(scene, folder)
+    stamp.write_text(json.dumps(scene))
+    print(f"survey: simulated {scene['sampling']['grid'] ** 2} frames into {folder} in "
+          f"{time.perf_counter() - started:.0f} s", file=sys.stderr)
+    return folder / "lightfield.json"
+
+
+def peak_rss_bytes() -> int:
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: KiB
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--frames", type=int, default=100, help="views (rounded up to a square)")
+    parser.add_argument("--frame-width", type=int, default=256, help="pixels; height = 3/4")
+    parser.add_argument("--area-ha", type=float, default=0.25, help="flown square, hectares")
+    parser.add_argument("--overlap", type=float, default=3.0,
+                        help="a frame's footprint in grid spacings")
+    parser.add_argument("--pixel-size", type=float, default=0.05, help="map pixel, metres")
+    parser.add_argument("--tile-size", type=int, default=512, help="map tile, pixels")
+    parser.add_argument("--workers", default="1,2", help="worker counts to run, e.g. 1,2")
+    parser.add_argument("--cache-mb", type=float, default=256.0,
+                        help="frame cache per worker, MiB")
+    parser.add_argument("--folder", default="", help="where the survey is (generated once)")
+    parser.add_argument("--json", default="", help="also write the results here")
+    args = parser.parse_args()
+
+    path = survey(args)
+    poses = aos.load_lightfield(path, load_images=False).light_field
+    frame = poses.views[0]
+    frame_bytes = frame.camera.width * frame.camera.height * 3
+    options = aos.MapOptions(pixel_size=args.pixel_size, tile_size=args.tile_size)
+    grid = aos._core._map_grid(poses, options)
+    megapixels = grid["width"] * grid["height"] / 1e6
+    print(f"survey: {len(poses)} frames of {frame.camera.width} x {frame.camera.height} "
+          f"({len(poses) * frame_bytes / 2**30:.2f} GiB decoded); map {grid['width']} x "
+          f"{grid['height']} pixels of {args.pixel_size} m ({megapixels:.1f} MP, "
+          f"{grid['width'] * grid['height'] * args.pixel_size**2 / 1e4:.2f} ha)", file=sys.stderr)
+    runs = []
+    with tempfile.TemporaryDirectory() as scratch:
+        for index, workers in enumerate(int(w) for w in args.workers.split(",")):
+            with distributed.local_client(workers) as client:
+                started = time.perf_counter()
+                result = distributed.render_map(
+                    poses, options, path=Path(scratch) / f"map-{index}.tif", client=client,
+                    cache_bytes=int(args.cache_mb * 2**20))
+                seconds = time.perf_counter() - started
+                peaks = sorted(client.run(peak_rss_bytes).values())
+                client.cluster.close()
+            run = {"workers": workers, "seconds": round(seconds, 2),
+                   "seconds_cog_write": round(result.seconds_write, 2),
+                   "frames_per_s": round(len(poses) / seconds, 2),
+                   "map_mp_per_s": round(megapixels / seconds, 3),
+                   "tiles": result.tiles, "frame_reads": result.frames_read,
+                   "peak_worker_rss_mib": [round(p / 2**20) for p in peaks]}
+            runs.append(run)
+            print(json.dumps(run), file=sys.stderr)
+    base = runs[0]["seconds"]
+    for run in runs:
+        run["speedup"] = round(base / run["seconds"], 2)
+    report = {"frames": len(poses), "frame_size": [frame.camera.width, frame.camera.height],
+              "map_size": [grid["width"], grid["height"]], "map_mp": round(megapixels, 2),
+              "pixel_size": args.pixel_size, "tile_size": args.tile_size,
+              "cache_mb": args.cache_mb, "runs": runs}
+    report["load_average"] = os.getloadavg()
+    print(json.dumps(report, indent=1))
+    if args.json:
+        Path(args.json).write_text(json.dumps(report, indent=1))
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
