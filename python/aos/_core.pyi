@@ -1035,6 +1035,145 @@ class ResolutionResult:
 
 def _sampling_resolution(camera: LensCamera, options: ResolutionOptions) -> ResolutionResult: ...
 
+class FlightPlanOptions:
+    """Options of plan_flight; fields and defaults of aos::FlightPlanOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        shape: str = ...,
+        coordinates: str = ...,
+        crs: str = ...,
+        center: tuple[float, float] = ...,
+        radius_m: float = ...,
+        sector_start_deg: float = ...,
+        sector_angle_deg: float = ...,
+        width_m: float = ...,
+        length_m: float = ...,
+        vertices: list[tuple[float, float]] = ...,
+        pattern: str = ...,
+        spacing_m: float = ...,
+        along_spacing_m: float = ...,
+        outer_scale: float = ...,
+        heading_deg: float = ...,
+        min_shots_per_line: int = ...,
+        altitude_m: float = ...,
+        altitude_mode: str = ...,
+        dem: str = ...,
+        ground_height_m: float = ...,
+        terrain_up: str = ...,
+        min_clearance_m: float = ...,
+        ground_speed_mps: float = ...,
+        hover_s: float = ...,
+        battery_min: float = ...,
+        image_width: int = ...,
+        image_height: int = ...,
+        fov_deg: float = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    shape: str
+    coordinates: str
+    crs: str
+    center: tuple[float, float]
+    radius_m: float
+    sector_start_deg: float
+    sector_angle_deg: float
+    width_m: float
+    length_m: float
+    vertices: list[tuple[float, float]]
+    pattern: str
+    spacing_m: float
+    along_spacing_m: float
+    outer_scale: float
+    heading_deg: float
+    min_shots_per_line: int
+    altitude_m: float
+    altitude_mode: str
+    dem: str
+    ground_height_m: float
+    terrain_up: str
+    min_clearance_m: float
+    ground_speed_mps: float
+    hover_s: float
+    battery_min: float
+    image_width: int
+    image_height: int
+    fov_deg: float
+    def check(self) -> None: ...
+    def __eq__(self, other: object) -> bool: ...
+    def __copy__(self) -> FlightPlanOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> FlightPlanOptions: ...
+    def __repr__(self) -> str: ...
+
+class Waypoint:
+    @property
+    def x(self) -> float: ...
+    @property
+    def y(self) -> float: ...
+    @property
+    def z(self) -> float: ...
+    @property
+    def ground_z(self) -> float: ...
+    @property
+    def agl_m(self) -> float: ...
+    @property
+    def latitude_deg(self) -> float: ...
+    @property
+    def longitude_deg(self) -> float: ...
+    @property
+    def line(self) -> int: ...
+    def __repr__(self) -> str: ...
+
+class FlightPlanResult:
+    @property
+    def waypoints(self) -> list[Waypoint]: ...
+    @property
+    def crs(self) -> str: ...
+    @property
+    def outline(self) -> list[tuple[float, float]]: ...
+    @property
+    def growth_center(self) -> tuple[float, float]: ...
+    @property
+    def aperture_radius_m(self) -> float: ...
+    @property
+    def aperture_area_m2(self) -> float: ...
+    @property
+    def images(self) -> int: ...
+    @property
+    def lines(self) -> int: ...
+    @property
+    def length_m(self) -> float: ...
+    @property
+    def flight_time_s(self) -> float: ...
+    @property
+    def frames_per_minute(self) -> float: ...
+    @property
+    def battery_fraction(self) -> float: ...
+    @property
+    def min_step_m(self) -> float: ...
+    @property
+    def max_step_m(self) -> float: ...
+    @property
+    def eq2_samples_per_m2(self) -> float: ...
+    @property
+    def eq2_sample_size_m(self) -> float: ...
+    @property
+    def min_agl_m(self) -> float: ...
+    @property
+    def max_agl_m(self) -> float: ...
+    @property
+    def warnings(self) -> list[str]: ...
+    def __repr__(self) -> str: ...
+
+def _plan_flight(options: FlightPlanOptions) -> FlightPlanResult: ...
+def flight_plan_csv(result: FlightPlanResult) -> str: ...
+def flight_plan_geojson(result: FlightPlanResult) -> str: ...
+def flight_plan_kml(result: FlightPlanResult) -> str: ...
+def flight_plan_map(
+    options: FlightPlanOptions, result: FlightPlanResult, size_px: int = 800
+) -> numpy.typing.NDArray[numpy.uint8]: ...
+
 def _compare_images(
     test: numpy.typing.ArrayLike,
     reference: numpy.typing.ArrayLike,
