@@ -11,8 +11,11 @@
 
 #include "aos/image/image_io.h"
 #include "aos/plan/flight_plan.h"
+#include "aos/plan/preview.h"
+#include "aos/sim/scene.h"
 #include "aos/util/file_util.h"
 #include "commands.h"
+#include "progress_bar.h"
 
 namespace aos::cli {
 namespace {
@@ -20,6 +23,7 @@ namespace {
 struct PlanCommand {
   FlightPlanOptions options;
   std::string csv, geojson, kml, png;
+  std::string simulate, preview_png;  // --simulate SCENE, --preview-png PATH
   int png_size = 800;
 };
 
@@ -51,8 +55,18 @@ int RunPlan(const PlanCommand& c, const Flags& flags) {
                                    std::pair{c.kml, "--kml"}, std::pair{c.png, "--png"}}) {
     if (!path.empty()) RefuseExisting(path, what);
   }
+  if (!c.preview_png.empty()) RefuseExisting(c.preview_png, "--preview-png");
   if (c.png_size < 64) ThrowUsage("--png-size: must be >= 64 pixels");
+  if (!c.preview_png.empty() && c.simulate.empty()) ThrowUsage("--preview-png needs --simulate SCENE");
+  std::unique_ptr<Scene> scene;
+  if (!c.simulate.empty()) scene = std::make_unique<Scene>(LoadScene(c.simulate));
   const FlightPlanResult r = flags.NamingFlags([&] { return PlanFlight(c.options); });
+  PlanPreviewResult preview;
+  if (scene) {
+    ProgressBar progress(Common().quiet);
+    preview = PreviewFlightPlan(r, *scene, -1, &progress);
+    progress.Finish();
+  }
   // Everything that can refuse runs before the first file is written.
   const std::string geojson = c.geojson.empty() ? "" : FlightPlanGeoJson(r);
   const std::string kml = c.kml.empty() ? "" : FlightPlanKml(r);
@@ -62,6 +76,12 @@ int RunPlan(const PlanCommand& c, const Flags& flags) {
   if (!c.geojson.empty()) WriteTextFileAtomic(c.geojson, geojson);
   if (!c.kml.empty()) WriteTextFileAtomic(c.kml, kml);
   if (!c.png.empty()) WriteImage(c.png, map);
+  if (!c.preview_png.empty()) {
+    WriteImageOptions write;
+    write.units = preview.truth.type();
+    write.description = "aos plan preview: integral image on the ground";
+    WriteImage(c.preview_png, preview.integral, write);
+  }
   for (const std::string& warning : r.warnings) Warn(warning);
 
   Report report("plan");
@@ -89,10 +109,28 @@ int RunPlan(const PlanCommand& c, const Flags& flags) {
                 "ground; Eq. 2: %.1f samples/m^2 (%.2f cm)",
                 r.aperture_area_m2, r.aperture_radius_m, r.min_step_m, r.max_step_m, r.min_agl_m,
                 r.max_agl_m, r.eq2_samples_per_m2, 100.0 * r.eq2_sample_size_m);
+  if (scene) {
+    Report& p = report.Nested("preview");
+    p.Set("scene", c.simulate);
+    p.Set("views", static_cast<long long>(preview.views));
+    p.Set("visible_fraction", preview.visible_fraction);
+    p.Set("psnr_db", preview.psnr_db);
+    p.Set("ssim", preview.ssim);
+    p.Set("single_view_psnr_db", preview.single_view_psnr_db);
+    if (preview.has_target) p.Set("contrast_to_noise", preview.contrast_to_noise);
+    report.Result("preview over %s: %.1f%% of the rays reach the ground; integral on the ground "
+                  "PSNR %.2f dB, SSIM %.3f (one view: %.2f dB)%s",
+                  c.simulate.c_str(), 100.0 * preview.visible_fraction, preview.psnr_db,
+                  preview.ssim, preview.single_view_psnr_db,
+                  preview.has_target
+                      ? (", target contrast-to-noise " + FormatNumber(std::round(preview.contrast_to_noise * 100) / 100)).c_str()
+                      : "");
+  }
   for (const auto& [path, what] : {std::pair{c.csv, "waypoints (CSV)"},
                                    std::pair{c.geojson, "waypoints (GeoJSON, WGS84)"},
                                    std::pair{c.kml, "waypoints (KML, WGS84)"},
-                                   std::pair{c.png, "map"}}) {
+                                   std::pair{c.png, "map"},
+                                   std::pair{c.preview_png, "preview (integral image)"}}) {
     if (!path.empty()) report.Line("wrote %s: %s", path.c_str(), what);
   }
   report.Print();
@@ -167,6 +205,11 @@ CommandRunner DefinePlan(CLI::App* command) {
                       "bar");
   command->add_option("--png-size", c->png_size, "Longer side of the map, pixels")
       ->capture_default_str();
+  command->add_option("--simulate", c->simulate,
+                      "Preview: fly the plan in the simulator over this scene (docs/scenes.md, "
+                      "e.g. scenes/forest.json) and report what it reveals");
+  command->add_option("--preview-png", c->preview_png,
+                      "Write the preview's integral image on the ground (needs --simulate)");
   flags.Force();
   return [c, flags] { return RunPlan(*c, flags); };
 }
