@@ -4,6 +4,7 @@
 #include <sstream>
 
 #include "aos/plan/flight_plan.h"
+#include "aos/plan/preview.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -118,6 +119,40 @@ void BindPlan(py::module_& m) {
       "options"_a, "result"_a, "size_px"_a = 800,
       "A map of the plan (uint8 RGB array, H x W x 3, sharing the image's memory): the DEM's "
       "hillshade or a blank map, outline, path, shots and a scale bar.");
+
+  py::class_<PlanPreviewResult>(m, "PlanPreviewResult",
+                                "What a plan reveals in the simulator (plan/preview.h).")
+      .def_readonly("views", &PlanPreviewResult::views)
+      .def_readonly("visible_fraction", &PlanPreviewResult::visible_fraction,
+                    "Share of the views' rays that reach the ground; -1 without a blocked map.")
+      .def_readonly("psnr_db", &PlanPreviewResult::psnr_db)
+      .def_readonly("ssim", &PlanPreviewResult::ssim)
+      .def_readonly("single_view_psnr_db", &PlanPreviewResult::single_view_psnr_db)
+      .def_readonly("has_target", &PlanPreviewResult::has_target)
+      .def_readonly("contrast_to_noise", &PlanPreviewResult::contrast_to_noise)
+      .def_property_readonly(
+          "integral", [](const PlanPreviewResult& r) { return ArrayFromImage(r.integral); },
+          "float32 integral image on the ground (views' units), sharing memory.")
+      .def_property_readonly(
+          "truth", [](const PlanPreviewResult& r) { return ArrayFromImage(r.truth); },
+          "The occluder-free ground truth (views' type), sharing memory.")
+      .def_readonly("seconds", &PlanPreviewResult::seconds)
+      .def("__repr__", [](const PlanPreviewResult& r) {
+        return "PlanPreviewResult(views=" + std::to_string(r.views) +
+               ", visible_fraction=" + FormatNumber(r.visible_fraction) +
+               ", psnr_db=" + FormatNumber(r.psnr_db) + ", ssim=" + FormatNumber(r.ssim) + ")";
+      });
+  m.def(
+      "_preview_flight_plan",
+      [](const R& plan, const Scene& scene, int num_threads, const py::object& progress) {
+        const FlightPlanResult plan_copy = plan;
+        const Scene scene_copy = scene;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return PreviewFlightPlan(plan_copy, scene_copy, num_threads, sink);
+        });
+      },
+      "plan"_a, "scene"_a, "num_threads"_a = -1, "progress"_a = py::none(),
+      "Use aos.preview_flight_plan.");
 }
 
 }  // namespace aos::python

@@ -90,6 +90,7 @@ from ._core import (
     flight_plan_geojson,
     flight_plan_kml,
     flight_plan_map,
+    PlanPreviewResult,
     DemoOptions,
     DemoRender,
     DemoResult,
@@ -184,6 +185,8 @@ __all__ = [
     "flight_plan_geojson",
     "flight_plan_kml",
     "flight_plan_map",
+    "PlanPreviewResult",
+    "preview_flight_plan",
     "AllInFocusOptions",
     "FocalStack",
     "FocalSurface",
@@ -785,6 +788,20 @@ def plan_flight(
     if png is not None:
         write_image(os.fspath(png), image)
     return result
+
+
+def preview_flight_plan(
+    plan: FlightPlanResult,
+    scene: "Scene | dict[str, Any] | str | os.PathLike[str]",
+    *,
+    num_threads: int = -1,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+) -> PlanPreviewResult:
+    """Flies ``plan`` in the simulator over ``scene`` (a Scene, a dict in the scene-file schema or
+    a path; docs/scenes.md) and reports what it reveals: the share of rays that reach the ground,
+    PSNR/SSIM of the integral image on the ground against the occluder-free truth
+    (``aos-render plan --simulate``; cpp/aos/plan/preview.h)."""
+    return _core._preview_flight_plan(plan, _scene_of("preview_flight_plan", scene), num_threads, progress)
 
 
 def rectify_light_field(

@@ -125,3 +125,44 @@ def test_follows_f0_dem():
     for w in plan.waypoints:
         assert w.z == pytest.approx(w.ground_z - 20.0)
     assert max(w.ground_z for w in plan.waypoints) - min(w.ground_z for w in plan.waypoints) > 1.0
+
+
+# A small forest (64 x 64 views, a 48 x 48 truth) for the preview.
+SMALL_FOREST = {
+    "seed": 3,
+    "ground": {"texture": {"type": "noise", "square": 0.5}},
+    "targets": [{"center": [0.0, 0.0], "size": [1.8, 0.6]}],
+    "occluders": {"trees": {"area": [-25, -25, 25, 25], "per_hectare": 300, "height": [8, 12],
+                            "crown_radius": [1.5, 2.5], "leaves_per_tree": 300}},
+    "camera": {"width": 64, "height": 64, "fov_deg": 50},
+    "truth": {"width": 48, "height": 48, "fov_deg": 20},
+}
+
+
+def test_preview_on_a_small_forest():
+    plan = aos.plan_flight(radius_m=6.0, spacing_m=2.0, along_spacing_m=2.0)
+    preview = aos.preview_flight_plan(plan, SMALL_FOREST)
+    assert preview.views == plan.images
+    assert 0.0 < preview.visible_fraction < 1.0
+    assert preview.integral.shape[:2] == (48, 48)
+    # The integral sees through the canopy better than one photo does.
+    assert preview.psnr_db > preview.single_view_psnr_db
+    # A wider aperture (the same spacing) reveals more of the ground: the occluders blur over
+    # more views (the visible fraction is a property of the forest, not of the plan's size).
+    wide = aos.preview_flight_plan(aos.plan_flight(radius_m=12.0, spacing_m=3.0, along_spacing_m=3.0),
+                                   SMALL_FOREST)
+    assert wide.psnr_db > preview.psnr_db
+
+
+@needs_cli
+def test_cli_preview(tmp_path: Path):
+    scene = tmp_path / "forest.json"
+    scene.write_text(json.dumps(SMALL_FOREST))
+    out = run("plan", "--radius-m", "6", "--spacing-m", "2", "--along-spacing-m", "2", "--json",
+              "--simulate", str(scene), "--preview-png", str(tmp_path / "preview.png"))
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)
+    python = aos.preview_flight_plan(aos.plan_flight(radius_m=6.0, spacing_m=2.0, along_spacing_m=2.0),
+                                     SMALL_FOREST)
+    assert report["preview"]["psnr_db"] == pytest.approx(python.psnr_db, rel=1e-9)
+    assert (tmp_path / "preview.png").exists()
