@@ -7,6 +7,7 @@ import math
 import re
 import shutil
 import subprocess
+import sys
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
@@ -166,3 +167,20 @@ def test_cli_preview(tmp_path: Path):
                                      SMALL_FOREST)
     assert report["preview"]["psnr_db"] == pytest.approx(python.psnr_db, rel=1e-9)
     assert (tmp_path / "preview.png").exists()
+
+
+def test_study_tool_picks_the_cheapest_plan_reaching_the_target(tmp_path: Path):
+    import importlib.util
+
+    spec = importlib.util.spec_from_file_location(
+        "plan_study", Path(__file__).resolve().parents[2] / "tools" / "plan_study.py")
+    study = importlib.util.module_from_spec(spec)
+    sys.modules["plan_study"] = study  # dataclasses look their module up
+    spec.loader.exec_module(study)
+    rows = study.run([8.0, 16.0], [4.0], [20.0], per_hectare=300)
+    assert [r.images for r in rows] == [aos.plan_flight(radius_m=d / 2, spacing_m=4.0, along_spacing_m=4.0,
+                                                        min_shots_per_line=1).images for d in (8.0, 16.0)]
+    best = study.cheapest(rows, min(r.psnr_db for r in rows))
+    assert best is min(rows, key=lambda r: r.flight_min)
+    assert study.cheapest(rows, 1000.0) is None
+    ElementTree.fromstring(study.svg(rows, best, 18.0, "test"))  # well-formed SVG
