@@ -727,8 +727,9 @@ Image FlightPlanMap(const FlightPlanOptions& options, const FlightPlanResult& re
     const double light[3] = {-0.5, 0.5, std::sqrt(0.5)};
     for (int j = 1; j + 1 < height; ++j) {
       for (int i = 1; i + 1 < width; ++i) {
-        const double dzdx = (heights.at<double>(j, i + 1) - heights.at<double>(j, i - 1)) * scale / 2;
-        const double dzdy = (heights.at<double>(j - 1, i) - heights.at<double>(j + 1, i)) * scale / 2;
+        // Slopes exaggerated 3 times, so that gentle forest terrain shows.
+        const double dzdx = (heights.at<double>(j, i + 1) - heights.at<double>(j, i - 1)) * scale * 1.5;
+        const double dzdy = (heights.at<double>(j - 1, i) - heights.at<double>(j + 1, i)) * scale * 1.5;
         if (!std::isfinite(dzdx) || !std::isfinite(dzdy)) continue;
         const double norm = std::sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
         const double shade =
@@ -772,7 +773,8 @@ Image FlightPlanMap(const FlightPlanOptions& options, const FlightPlanResult& re
   cv::putText(canvas, label, cv::Point(x0, y0 - 8), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   // North arrow.
   cv::arrowedLine(canvas, cv::Point(width - 20, 40), cv::Point(width - 20, 12), cv::Scalar(0, 0, 0), 2, cv::LINE_AA, 0, 0.3);
-  cv::putText(canvas, "N", cv::Point(width - 26, 56), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  // North in a CRS; in a local frame the arrow is +y (not known to be north).
+  cv::putText(canvas, result.crs.empty() ? "+y" : "N", cv::Point(width - 26, 56), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
   cv::cvtColor(canvas, canvas, cv::COLOR_BGR2RGB);
   Image image(width, height, 3, PixelType::kU8);
   image.CopyFrom(canvas.data, static_cast<ptrdiff_t>(canvas.step1()));

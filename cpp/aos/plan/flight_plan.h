@@ -176,8 +176,8 @@ std::string FlightPlanGeoJson(const FlightPlanResult& result);
 std::string FlightPlanKml(const FlightPlanResult& result);
 
 // A picture of the plan, 8-bit RGB, north up: the DEM's hillshade (options.dem) or a blank map,
-// the outline, the path, the shots, the growth centre and a scale bar. `size_px` is the longer
-// side (>= 64).
+// the outline, the path, the shots, the growth centre, a scale bar and an arrow to north (+y,
+// labelled so, in a local frame). `size_px` is the longer side (>= 64).
 Image FlightPlanMap(const FlightPlanOptions& options, const FlightPlanResult& result,
                     int size_px = 800);
 
