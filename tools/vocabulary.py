@@ -50,6 +50,7 @@ COMMANDS = [
     ("resolution", "ResolutionOptions"),
     ("metrics", "QualityOptions"),
     ("camera", "LensCamera"),
+    ("plan", "FlightPlanOptions"),
 ]
 
 
@@ -111,10 +112,12 @@ NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_fil
                       "positions_file", "positions_crs", "workspace", "telemetry_file",
                       "pose_error_px", "pose_error_m",  # exclusive flags; none = no pose error
                       "fy", "cx", "cy",  # camera: fy = fx, cx/cy = the centre
-                      "extent"}  # the map's extent: none = the views' footprints
+                      "extent",  # the map's extent: none = the views' footprints
+                      "vertices",  # plan: none = a circle, sector or rectangle
+                      "crs", "dem"}  # plan: none = a local frame, flat ground
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).
-UNITS = [("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
+UNITS = [("_mps", "m/s"), ("_min", "minutes"), ("_s", "seconds"), ("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
          ("width", "pixels"), ("height", "pixels"), ("sigma", "pixels"), ("fraction", "0..1")]
 
 

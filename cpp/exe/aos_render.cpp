@@ -107,6 +107,11 @@ const CommandEntry kCommands[] = {
      "Compare an image with a reference: MSE, PSNR, SSIM and colour (quaternion) SSIM "
      "(definitions in docs/metrics.md)",
      DefineMetrics},
+    {"plan",
+     "Plan a flight: the waypoints of a synthetic aperture (circle, sector, rectangle, polygon, "
+     "line; scan lines, grid or rings, spacing growing outwards), its length, time and Eq. 2 "
+     "resolution, exported as CSV, GeoJSON and KML (WGS84) and drawn as a map",
+     DefinePlan},
     {"flags", "List every flag bound to an Options field, with its default (JSON)", DefineFlags},
 };
 

@@ -7,6 +7,7 @@
 //   sfm_commands.cpp      poses, import-colmap, ground
 //   telemetry_commands.cpp  import-telemetry
 //   metrics_commands.cpp  metrics
+//   plan_commands.cpp     plan
 // The command table (name, help, Define) is in aos_render.cpp. A Define function declares the
 // command's flags on `command` and returns the function that runs it after parsing.
 #include "cli.h"
@@ -30,5 +31,6 @@ CommandRunner DefineImportColmap(CLI::App* command);
 CommandRunner DefineGround(CLI::App* command);
 CommandRunner DefineImportTelemetry(CLI::App* command);
 CommandRunner DefineMetrics(CLI::App* command);
+CommandRunner DefinePlan(CLI::App* command);
 
 }  // namespace aos::cli

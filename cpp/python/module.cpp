@@ -191,6 +191,7 @@ PYBIND11_MODULE(_core, m) {
   BindCalib(m);
   BindSfm(m);
   BindDemo(m);
+  BindPlan(m);
 
   m.def(
       "_progress_selftest",

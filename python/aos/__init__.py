@@ -54,6 +54,7 @@ from ._keywords import (
     QualityKeywords,
     RectifyKeywords,
     ResolutionKeywords,
+    FlightPlanKeywords,
     SimulateKeywords,
     SurfaceIntegralKeywords,
     TelemetryKeywords,
@@ -82,6 +83,14 @@ from ._core import (
     LensModel,
     ResolutionOptions,
     ResolutionResult,
+    FlightPlanOptions,
+    FlightPlanResult,
+    Waypoint,
+    flight_plan_csv,
+    flight_plan_geojson,
+    flight_plan_kml,
+    flight_plan_map,
+    PlanPreviewResult,
     DemoOptions,
     DemoRender,
     DemoResult,
@@ -168,6 +177,16 @@ __all__ = [
     "ResolutionOptions",
     "ResolutionResult",
     "sampling_resolution",
+    "FlightPlanOptions",
+    "FlightPlanResult",
+    "Waypoint",
+    "plan_flight",
+    "flight_plan_csv",
+    "flight_plan_geojson",
+    "flight_plan_kml",
+    "flight_plan_map",
+    "PlanPreviewResult",
+    "preview_flight_plan",
     "AllInFocusOptions",
     "FocalStack",
     "FocalSurface",
@@ -397,6 +416,7 @@ _SIMULATE = _Router("simulate", SimulateOptions)
 _RUN_DEMO = _Router("run_demo", DemoOptions)
 _COMPARE_IMAGES = _Router("compare_images", QualityOptions)
 _SAMPLING_RESOLUTION = _Router("sampling_resolution", ResolutionOptions)
+_PLAN_FLIGHT = _Router("plan_flight", FlightPlanOptions)
 _CALIBRATE = _Router("calibrate", CalibrateOptions)
 _RECTIFY_LIGHT_FIELD = _Router("rectify_light_field", RectifyOptions)
 _ESTIMATE_POSES = _Router("estimate_poses", PosesOptions)
@@ -729,6 +749,74 @@ def sampling_resolution(
     merged = _copy_options("sampling_resolution", ResolutionOptions, options)
     _SAMPLING_RESOLUTION.apply([merged], dict(kwargs))
     return _core._sampling_resolution(camera, merged)
+
+
+def plan_flight(
+    options: Optional[FlightPlanOptions] = None,
+    *,
+    csv: "Optional[str | os.PathLike[str]]" = None,
+    geojson: "Optional[str | os.PathLike[str]]" = None,
+    kml: "Optional[str | os.PathLike[str]]" = None,
+    png: "Optional[str | os.PathLike[str]]" = None,
+    png_size: int = 800,
+    force: bool = False,
+    **kwargs: Unpack[FlightPlanKeywords],
+) -> FlightPlanResult:
+    """Plans a flight over a synthetic aperture: the waypoints, the number of images, the flight's
+    length and time, frames per minute and the Eq. 2 sampling resolution (docs/flight-planning.md;
+    ``aos-render plan`` is its twin).
+
+    ``kwargs`` are fields of :class:`FlightPlanOptions` (shape, center, radius_m, pattern,
+    spacing_m, along_spacing_m, outer_scale, altitude_m, dem, ...). ``csv``, ``geojson``, ``kml``
+    and ``png`` name files to write, each refused if it exists unless ``force``; they are written
+    only when the plan is accepted (a bad option or a plan over the battery writes nothing).
+
+    Example (the paper's experiment 1: 231 images)::
+
+        plan = aos.plan_flight(shape="circle", radius_m=15.0, spacing_m=3.0, along_spacing_m=1.0,
+                               altitude_m=20.0)
+    """
+    merged = _copy_options("plan_flight", FlightPlanOptions, options)
+    _PLAN_FLIGHT.apply([merged], dict(kwargs))
+    outputs = {"csv": csv, "geojson": geojson, "kml": kml, "png": png}
+    for name, path in outputs.items():
+        if path is None:
+            continue
+        if os.path.isdir(path):
+            raise ValueError(f"{os.fspath(path)}: {name} is a folder; give a file name")
+        if os.path.lexists(path) and not force:
+            raise ValueError(f"{os.fspath(path)}: {name} exists; give force=True to replace it (nothing was written)")
+    result = _core._plan_flight(merged)
+    texts = {}
+    if csv is not None:
+        texts[csv] = flight_plan_csv(result)
+    if geojson is not None:
+        texts[geojson] = flight_plan_geojson(result)
+    if kml is not None:
+        texts[kml] = flight_plan_kml(result)
+    image = flight_plan_map(merged, result, png_size) if png is not None else None
+    for path, text in texts.items():
+        temporary = os.fspath(path) + ".partial"
+        with open(temporary, "w", encoding="utf-8") as stream:
+            stream.write(text)
+        os.replace(temporary, path)
+    if png is not None:
+        write_image(os.fspath(png), image)
+    return result
+
+
+def preview_flight_plan(
+    plan: FlightPlanResult,
+    scene: "Scene | dict[str, Any] | str | os.PathLike[str]",
+    *,
+    num_threads: int = -1,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+) -> PlanPreviewResult:
+    """Flies ``plan`` in the simulator over ``scene`` (a Scene, a dict in the scene-file schema or
+    a path; docs/scenes.md) and reports what it reveals: the share of rays that reach the ground,
+    PSNR/SSIM of the integral image on the ground against the occluder-free truth
+    (``aos-render plan --simulate``; cpp/aos/plan/preview.h)."""
+    return _core._preview_flight_plan(plan, _scene_of("preview_flight_plan", scene), num_threads, progress)
 
 
 def rectify_light_field(

@@ -158,6 +158,39 @@ class ResolutionKeywords(TypedDict, total=False):
     max_off_axis_deg: float
 
 
+class FlightPlanKeywords(TypedDict, total=False):
+    """Fields of FlightPlanOptions (plan_flight)."""
+
+    shape: Literal["circle", "sector", "rectangle", "polygon", "line"]
+    coordinates: Literal["world", "latlon"]
+    crs: str
+    center: Sequence[float]
+    radius_m: float
+    sector_start_deg: float
+    sector_angle_deg: float
+    width_m: float
+    length_m: float
+    vertices: Sequence[Sequence[float]]
+    pattern: Literal["scan", "grid", "circles"]
+    spacing_m: float
+    along_spacing_m: float
+    outer_scale: float
+    heading_deg: float
+    min_shots_per_line: int
+    altitude_m: float
+    altitude_mode: Literal["terrain", "constant"]
+    dem: str
+    ground_height_m: float
+    terrain_up: Literal["+z", "-z"]
+    min_clearance_m: float
+    ground_speed_mps: float
+    hover_s: float
+    battery_min: float
+    image_width: int
+    image_height: int
+    fov_deg: float
+
+
 class RectifyKeywords(TypedDict, total=False):
     """Fields of RectifyOptions (rectify_light_field)."""
 

@@ -181,6 +181,8 @@ def changed(value: Any, field: str = "") -> Any:
         return 1.5 if isinstance(value, float) and np.isinf(value) else type(value)(value + 3)
     if isinstance(value, str):
         return value + "x"
+    if isinstance(value, list) and field == "vertices":  # FlightPlanOptions: (x, y) pairs
+        return [[2.0, 5.0], [3.0, 6.0]]
     if isinstance(value, list):
         return [2, 5]
     if isinstance(value, aos.Plane):

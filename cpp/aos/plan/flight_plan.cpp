@@ -1,0 +1,784 @@
+// Flight planning (flight_plan.h): shapes, patterns, terrain, time, exports and the map.
+#include "aos/plan/flight_plan.h"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+#include <memory>
+#include <ostream>
+#include <sstream>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "aos/geometry/geodesy.h"
+#include "aos/geometry/heightfield.h"
+#include "aos/geometry/mesh.h"
+#include "aos/geometry/pinhole.h"
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+constexpr double kPi = 3.14159265358979323846;
+constexpr double kInsideTolerance = 1e-6;  // metres: boundaries count as inside
+using Point2 = std::array<double, 2>;
+
+std::string Num(double value) { return FormatNumber(value); }
+
+void CheckFinite(double value, const char* field) {
+  if (!std::isfinite(value)) ThrowInvalid(std::string(field) + ": must be finite (got " + Num(value) + ")");
+}
+void CheckPositive(double value, const char* field) {
+  if (!(std::isfinite(value) && value > 0.0)) {
+    ThrowInvalid(std::string(field) + ": must be a finite number > 0 (got " + Num(value) + ")");
+  }
+}
+
+// Direction of compass bearing `deg` (clockwise from +y) as (x, y).
+Point2 Bearing(double deg) {
+  const double a = deg * kPi / 180.0;
+  return {std::sin(a), std::cos(a)};
+}
+
+double Cross(const Point2& o, const Point2& a, const Point2& b) {
+  return (a[0] - o[0]) * (b[1] - o[1]) - (a[1] - o[1]) * (b[0] - o[0]);
+}
+
+// Whether segments ab and cd intersect (proper or touching).
+bool SegmentsIntersect(const Point2& a, const Point2& b, const Point2& c, const Point2& d) {
+  const double d1 = Cross(c, d, a), d2 = Cross(c, d, b), d3 = Cross(a, b, c), d4 = Cross(a, b, d);
+  if (((d1 > 0 && d2 < 0) || (d1 < 0 && d2 > 0)) && ((d3 > 0 && d4 < 0) || (d3 < 0 && d4 > 0))) {
+    return true;
+  }
+  auto on = [](const Point2& p, const Point2& q, const Point2& r, double cr) {
+    return cr == 0.0 && std::min(p[0], q[0]) <= r[0] && r[0] <= std::max(p[0], q[0]) &&
+           std::min(p[1], q[1]) <= r[1] && r[1] <= std::max(p[1], q[1]);
+  };
+  return on(c, d, a, d1) || on(c, d, b, d2) || on(a, b, c, d3) || on(a, b, d, d4);
+}
+
+double DistanceToSegment(const Point2& p, const Point2& a, const Point2& b) {
+  const double dx = b[0] - a[0], dy = b[1] - a[1];
+  const double len2 = dx * dx + dy * dy;
+  double t = len2 > 0 ? ((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2 : 0.0;
+  t = std::clamp(t, 0.0, 1.0);
+  return std::hypot(p[0] - a[0] - t * dx, p[1] - a[1] - t * dy);
+}
+
+// The aperture in the world frame.
+struct Shape {
+  std::string kind;
+  Point2 center{0, 0};
+  double radius = 0, start_deg = 0, angle_deg = 360;
+  std::vector<Point2> polygon;  // rectangle and polygon corners; line points
+
+  bool Inside(const Point2& p) const {
+    if (kind == "circle" || kind == "sector") {
+      const double dx = p[0] - center[0], dy = p[1] - center[1];
+      const double r = std::hypot(dx, dy);
+      if (r > radius + kInsideTolerance) return false;
+      if (kind == "circle" || angle_deg >= 360.0 || r <= kInsideTolerance) return true;
+      double bearing = std::atan2(dx, dy) * 180.0 / kPi - start_deg;
+      bearing = std::fmod(std::fmod(bearing, 360.0) + 360.0, 360.0);
+      // Within the wedge, or within the tolerance of one of its edges.
+      if (bearing <= angle_deg) return true;
+      const double off = std::min(bearing - angle_deg, 360.0 - bearing) * kPi / 180.0;
+      return off < kPi / 2 && r * std::sin(off) <= kInsideTolerance;
+    }
+    // Even-odd rule, boundary within the tolerance inside.
+    bool inside = false;
+    const size_t n = polygon.size();
+    for (size_t i = 0, j = n - 1; i < n; j = i++) {
+      const Point2& a = polygon[i];
+      const Point2& b = polygon[j];
+      if (DistanceToSegment(p, a, b) <= kInsideTolerance) return true;
+      if ((a[1] > p[1]) != (b[1] > p[1]) &&
+          p[0] < (b[0] - a[0]) * (p[1] - a[1]) / (b[1] - a[1]) + a[0]) {
+        inside = !inside;
+      }
+    }
+    return inside;
+  }
+
+  std::vector<Point2> Outline() const {
+    if (kind == "circle" || kind == "sector") {
+      std::vector<Point2> out;
+      const bool full = kind == "circle" || angle_deg >= 360.0;
+      const int n = std::max(8, static_cast<int>(std::ceil((full ? 360.0 : angle_deg) / 0.5)));
+      if (!full) out.push_back(center);
+      for (int i = 0; i <= n - (full ? 1 : 0); ++i) {
+        const Point2 d = Bearing(start_deg + (full ? 360.0 : angle_deg) * i / n);
+        out.push_back({center[0] + radius * d[0], center[1] + radius * d[1]});
+      }
+      return out;
+    }
+    return polygon;
+  }
+};
+
+double PolygonArea(const std::vector<Point2>& polygon) {
+  double twice = 0.0;
+  for (size_t i = 0, j = polygon.size() - 1; i < polygon.size(); j = i++) {
+    twice += polygon[j][0] * polygon[i][1] - polygon[i][0] * polygon[j][1];
+  }
+  return std::abs(twice) / 2.0;
+}
+
+// Positions 0, +-s(0), ... stepped outwards with s(|p|) until beyond `limit`, sorted.
+template <class Spacing>
+std::vector<double> Steps(double limit, Spacing spacing) {
+  std::vector<double> out{0.0};
+  for (double p = 0.0;;) {
+    p += spacing(p);
+    if (p > limit + kInsideTolerance) break;
+    out.push_back(p);
+    out.push_back(-p);
+  }
+  std::sort(out.begin(), out.end());
+  return out;
+}
+
+// Terrain heights under (x, y): the DEM's triangles in a bucket grid over their xy bounds.
+class Terrain {
+ public:
+  Terrain(Mesh mesh, double up) : mesh_(std::move(mesh)), up_(up) {
+    min_x_ = min_y_ = std::numeric_limits<double>::infinity();
+    double max_x = -min_x_, max_y = -min_y_;
+    for (const Vec3d& v : mesh_.vertices) {
+      min_x_ = std::min(min_x_, v.x), min_y_ = std::min(min_y_, v.y);
+      max_x = std::max(max_x, v.x), max_y = std::max(max_y, v.y);
+    }
+    side_ = std::max(1, static_cast<int>(std::sqrt(static_cast<double>(mesh_.triangles.size()))));
+    cell_x_ = std::max((max_x - min_x_) / side_, 1e-9);
+    cell_y_ = std::max((max_y - min_y_) / side_, 1e-9);
+    buckets_.resize(static_cast<size_t>(side_) * side_);
+    for (size_t t = 0; t < mesh_.triangles.size(); ++t) {
+      double lo_x = 1e300, lo_y = 1e300, hi_x = -1e300, hi_y = -1e300;
+      for (int corner : mesh_.triangles[t]) {
+        const Vec3d& v = mesh_.vertices[static_cast<size_t>(corner)];
+        lo_x = std::min(lo_x, v.x), lo_y = std::min(lo_y, v.y);
+        hi_x = std::max(hi_x, v.x), hi_y = std::max(hi_y, v.y);
+      }
+      for (int j = Cell(lo_y, min_y_, cell_y_); j <= Cell(hi_y, min_y_, cell_y_); ++j) {
+        for (int i = Cell(lo_x, min_x_, cell_x_); i <= Cell(hi_x, min_x_, cell_x_); ++i) {
+          buckets_[static_cast<size_t>(j) * side_ + i].push_back(static_cast<int>(t));
+        }
+      }
+    }
+  }
+
+  // World z of the terrain under (x, y) (the highest along `up` where surfaces overlap); NaN
+  // outside the DEM.
+  double HeightAt(double x, double y) const {
+    double best = std::numeric_limits<double>::quiet_NaN();
+    if (x < min_x_ - 1e-9 || y < min_y_ - 1e-9) return best;
+    const int i = Cell(x, min_x_, cell_x_), j = Cell(y, min_y_, cell_y_);
+    if (x > min_x_ + cell_x_ * side_ + 1e-9 || y > min_y_ + cell_y_ * side_ + 1e-9) return best;
+    for (int t : buckets_[static_cast<size_t>(j) * side_ + i]) {
+      const auto& tri = mesh_.triangles[static_cast<size_t>(t)];
+      const Vec3d& a = mesh_.vertices[static_cast<size_t>(tri[0])];
+      const Vec3d& b = mesh_.vertices[static_cast<size_t>(tri[1])];
+      const Vec3d& c = mesh_.vertices[static_cast<size_t>(tri[2])];
+      const double det = (b.y - c.y) * (a.x - c.x) + (c.x - b.x) * (a.y - c.y);
+      if (det == 0.0) continue;
+      const double l1 = ((b.y - c.y) * (x - c.x) + (c.x - b.x) * (y - c.y)) / det;
+      const double l2 = ((c.y - a.y) * (x - c.x) + (a.x - c.x) * (y - c.y)) / det;
+      const double l3 = 1.0 - l1 - l2;
+      const double eps = -1e-9;
+      if (l1 < eps || l2 < eps || l3 < eps) continue;
+      const double z = l1 * a.z + l2 * b.z + l3 * c.z;
+      if (std::isnan(best) || (z - best) * up_ > 0) best = z;
+    }
+    return best;
+  }
+
+ private:
+  int Cell(double value, double origin, double size) const {
+    return std::clamp(static_cast<int>(std::floor((value - origin) / size)), 0, side_ - 1);
+  }
+  Mesh mesh_;
+  double up_;
+  double min_x_, min_y_, cell_x_, cell_y_;
+  int side_ = 1;
+  std::vector<std::vector<int>> buckets_;
+};
+
+Terrain ReadTerrain(const FlightPlanOptions& options) {
+  const double up = options.terrain_up == "-z" ? -1.0 : 1.0;
+  if (IsMeshFile(options.dem)) return Terrain(ReadMesh(options.dem), up);
+  return Terrain(HeightfieldToMesh(ReadHeightfield(options.dem), options.dem), up);
+}
+
+bool LooksLikeDegrees(const Point2& p) { return std::abs(p[0]) <= 90.0 && std::abs(p[1]) <= 180.0; }
+
+// The shape in the world frame (latlon projected to UTM); sets `crs`.
+Shape BuildShape(const FlightPlanOptions& o, std::string& crs) {
+  Shape shape;
+  shape.kind = o.shape;
+  crs = o.crs;
+  Point2 center = o.center;
+  std::vector<Point2> vertices = o.vertices;
+  if (o.coordinates == "latlon") {
+    auto check = [](const Point2& p, const std::string& field) {
+      if (!(std::abs(p[0]) <= 90.0 && std::abs(p[1]) <= 180.0)) {
+        ThrowInvalid(field + ": (" + Num(p[0]) + ", " + Num(p[1]) +
+                     ") is not a (latitude, longitude) in degrees; metres given as degrees? "
+                     "(coordinates = world takes metres)");
+      }
+    };
+    const bool uses_center = o.shape == "circle" || o.shape == "sector" || o.shape == "rectangle";
+    Point2 reference = center;
+    if (uses_center) {
+      check(center, "center");
+    } else {
+      reference = {0, 0};
+      for (size_t i = 0; i < vertices.size(); ++i) {
+        check(vertices[i], "vertices[" + std::to_string(i) + "]");
+        reference[0] += vertices[i][0] / vertices.size();
+        reference[1] += vertices[i][1] / vertices.size();
+      }
+    }
+    const UtmCoordinate zone = UtmFromWgs84(reference[0], reference[1], 0, "center");
+    auto project = [&](const Point2& p, const std::string& field) -> Point2 {
+      const UtmCoordinate utm = UtmFromWgs84(p[0], p[1], zone.zone, field);
+      return {utm.easting, utm.northing};
+    };
+    crs = UtmEpsg(zone.zone, zone.north);
+    if (uses_center) center = project(center, "center");
+    for (size_t i = 0; i < vertices.size(); ++i) {
+      vertices[i] = project(vertices[i], "vertices[" + std::to_string(i) + "]");
+    }
+  } else if (!crs.empty()) {
+    if (IsGeographicCrs(crs, "crs")) {
+      ThrowInvalid("crs: " + crs + " is geographic (degrees); give a projected CRS in metres, or "
+                   "coordinates = latlon");
+    }
+    // Degrees given as metres: every coordinate within latitude/longitude range in a projected
+    // CRS (a UTM easting is at least 160 km; a point within 180 m of a projection's origin is
+    // not what a user of a projected CRS means).
+    const bool uses_center = o.shape == "circle" || o.shape == "sector" || o.shape == "rectangle";
+    bool all_small = uses_center ? LooksLikeDegrees(center) : !vertices.empty();
+    for (const Point2& v : vertices) all_small = all_small && (uses_center || LooksLikeDegrees(v));
+    if (all_small) {
+      const Point2 p = uses_center ? center : vertices[0];
+      ThrowInvalid(std::string(uses_center ? "center" : "vertices") + ": (" + Num(p[0]) + ", " +
+                   Num(p[1]) + ") look like degrees given as metres of " + crs +
+                   "; use coordinates = latlon");
+    }
+  }
+  if (o.shape == "circle" || o.shape == "sector") {
+    shape.center = center;
+    shape.radius = o.radius_m;
+    if (o.shape == "sector") {
+      shape.start_deg = o.sector_start_deg;
+      shape.angle_deg = o.sector_angle_deg;
+    }
+  } else if (o.shape == "rectangle") {
+    shape.center = center;
+    const Point2 d = Bearing(o.heading_deg), n = Bearing(o.heading_deg + 90.0);
+    const double hl = o.length_m / 2, hw = o.width_m / 2;
+    for (const auto& [a, b] : {std::pair{-1, -1}, std::pair{1, -1}, std::pair{1, 1}, std::pair{-1, 1}}) {
+      shape.polygon.push_back({center[0] + a * hl * d[0] + b * hw * n[0],
+                               center[1] + a * hl * d[1] + b * hw * n[1]});
+    }
+  } else {
+    shape.polygon = vertices;
+    if (o.shape == "polygon") {
+      // Closed implicitly: a repeated last vertex is dropped.
+      if (shape.polygon.size() > 1 && shape.polygon.front() == shape.polygon.back()) {
+        shape.polygon.pop_back();
+      }
+      if (shape.polygon.size() < 3) {
+        ThrowInvalid("vertices: a polygon needs at least 3 distinct vertices (got " +
+                     std::to_string(shape.polygon.size()) + ")");
+      }
+      const size_t n = shape.polygon.size();
+      for (size_t i = 0; i < n; ++i) {
+        if (shape.polygon[i] == shape.polygon[(i + 1) % n]) {
+          ThrowInvalid("vertices: vertices " + std::to_string(i) + " and " +
+                       std::to_string((i + 1) % n) + " are the same point");
+        }
+        for (size_t j = i + 1; j < n; ++j) {
+          if (j == i + 1 || (i == 0 && j == n - 1)) continue;  // neighbours share a corner
+          if (SegmentsIntersect(shape.polygon[i], shape.polygon[(i + 1) % n], shape.polygon[j],
+                                shape.polygon[(j + 1) % n])) {
+            ThrowInvalid("vertices: the polygon intersects itself (edge " + std::to_string(i) +
+                         "-" + std::to_string((i + 1) % n) + " crosses edge " +
+                         std::to_string(j) + "-" + std::to_string((j + 1) % n) + ")");
+          }
+        }
+      }
+      if (PolygonArea(shape.polygon) <= 1e-9) ThrowInvalid("vertices: the polygon has no area");
+      Point2 mean{0, 0};
+      for (const Point2& v : shape.polygon) {
+        mean[0] += v[0] / n;
+        mean[1] += v[1] / n;
+      }
+      shape.center = mean;
+    } else {  // line
+      if (shape.polygon.size() < 2) {
+        ThrowInvalid("vertices: a line needs at least 2 points (got " +
+                     std::to_string(shape.polygon.size()) + ")");
+      }
+      shape.center = shape.polygon.front();
+    }
+  }
+  return shape;
+}
+
+struct Shot {
+  Point2 p;
+  int line;
+};
+
+std::vector<Shot> LinePattern(const Shape& shape, double along) {
+  std::vector<Shot> shots;
+  double carried = 0.0;  // distance since the last shot
+  shots.push_back({shape.polygon.front(), 0});
+  for (size_t i = 0; i + 1 < shape.polygon.size(); ++i) {
+    const Point2 a = shape.polygon[i], b = shape.polygon[i + 1];
+    const double len = std::hypot(b[0] - a[0], b[1] - a[1]);
+    double t = along - carried;
+    while (t <= len + kInsideTolerance) {
+      shots.push_back({{a[0] + (b[0] - a[0]) * t / len, a[1] + (b[1] - a[1]) * t / len}, 0});
+      t += along;
+    }
+    carried = len - (t - along);
+  }
+  if (carried > kInsideTolerance) shots.push_back({shape.polygon.back(), 0});
+  return shots;
+}
+
+}  // namespace
+
+void FlightPlanOptions::Check() const {
+  const char* shapes[] = {"circle", "sector", "rectangle", "polygon", "line"};
+  if (std::find(std::begin(shapes), std::end(shapes), shape) == std::end(shapes)) {
+    ThrowInvalid("shape: '" + shape + "' is not one of circle, sector, rectangle, polygon, line");
+  }
+  if (coordinates != "world" && coordinates != "latlon") {
+    ThrowInvalid("coordinates: '" + coordinates + "' is not world or latlon");
+  }
+  if (pattern != "scan" && pattern != "grid" && pattern != "circles") {
+    ThrowInvalid("pattern: '" + pattern + "' is not one of scan, grid, circles");
+  }
+  if (altitude_mode != "terrain" && altitude_mode != "constant") {
+    ThrowInvalid("altitude_mode: '" + altitude_mode + "' is not terrain or constant");
+  }
+  if (terrain_up != "+z" && terrain_up != "-z") {
+    ThrowInvalid("terrain_up: '" + terrain_up + "' is not +z or -z");
+  }
+  CheckFinite(center[0], "center");
+  CheckFinite(center[1], "center");
+  for (size_t i = 0; i < vertices.size(); ++i) {
+    if (!std::isfinite(vertices[i][0]) || !std::isfinite(vertices[i][1])) {
+      ThrowInvalid("vertices[" + std::to_string(i) + "]: must be finite");
+    }
+  }
+  if (shape == "circle" || shape == "sector") CheckPositive(radius_m, "radius_m");
+  if (shape == "sector") {
+    CheckFinite(sector_start_deg, "sector_start_deg");
+    if (!(sector_angle_deg > 0.0 && sector_angle_deg <= 360.0)) {
+      ThrowInvalid("sector_angle_deg: must be in (0, 360] degrees (got " + Num(sector_angle_deg) + ")");
+    }
+  }
+  if (shape == "rectangle") {
+    CheckPositive(width_m, "width_m");
+    CheckPositive(length_m, "length_m");
+  }
+  if ((shape == "polygon" || shape == "line") == vertices.empty()) {
+    ThrowInvalid(std::string("vertices: ") + (vertices.empty() ? "a " + shape + " needs vertices"
+                                                                : "only a polygon or line takes vertices"));
+  }
+  CheckPositive(spacing_m, "spacing_m");
+  if (!(std::isfinite(along_spacing_m) && along_spacing_m >= 0.0)) {
+    ThrowInvalid("along_spacing_m: must be > 0, or 0 for spacing_m (got " + Num(along_spacing_m) + ")");
+  }
+  if (!(std::isfinite(outer_scale) && outer_scale >= 1.0)) {
+    ThrowInvalid("outer_scale: must be a finite number >= 1 (got " + Num(outer_scale) + ")");
+  }
+  CheckFinite(heading_deg, "heading_deg");
+  if (min_shots_per_line < 1) ThrowInvalid("min_shots_per_line: must be >= 1");
+  CheckPositive(altitude_m, "altitude_m");
+  CheckFinite(ground_height_m, "ground_height_m");
+  if (!(std::isfinite(min_clearance_m) && min_clearance_m >= 0.0)) {
+    ThrowInvalid("min_clearance_m: must be a finite number >= 0 (got " + Num(min_clearance_m) + ")");
+  }
+  CheckPositive(ground_speed_mps, "ground_speed_mps");
+  if (!(std::isfinite(hover_s) && hover_s >= 0.0)) {
+    ThrowInvalid("hover_s: must be a finite number >= 0 (got " + Num(hover_s) + ")");
+  }
+  if (!(battery_min > 0.0)) ThrowInvalid("battery_min: must be > 0 minutes, or inf (got " + Num(battery_min) + ")");
+  if (image_width < 1 || image_height < 1) ThrowInvalid("image_width: image size must be >= 1 pixel");
+  if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
+    ThrowInvalid("fov_deg: must be in (0, 180) degrees (got " + Num(fov_deg) + ")");
+  }
+}
+
+FlightPlanResult PlanFlight(const FlightPlanOptions& options) {
+  options.Check();
+  FlightPlanResult result;
+  const Shape shape = BuildShape(options, result.crs);
+  result.outline = shape.Outline();
+  result.growth_center = shape.center;
+  double radius = 0.0;
+  if (shape.kind == "circle" || shape.kind == "sector") {
+    radius = shape.radius;
+    result.aperture_area_m2 = kPi * shape.radius * shape.radius * shape.angle_deg / 360.0;
+  } else {
+    for (const Point2& v : shape.polygon) {
+      radius = std::max(radius, std::hypot(v[0] - shape.center[0], v[1] - shape.center[1]));
+    }
+    if (shape.kind != "line") result.aperture_area_m2 = PolygonArea(shape.polygon);
+  }
+  result.aperture_radius_m = radius;
+
+  const double across0 = options.spacing_m;
+  const double along0 =
+      options.pattern == "grid" || options.along_spacing_m == 0.0 ? across0 : options.along_spacing_m;
+  auto grow = [&](double s0) {
+    return [s0, radius, scale = options.outer_scale](double r) {
+      return s0 * (1.0 + (scale - 1.0) * std::min(std::abs(r) / std::max(radius, 1e-12), 1.0));
+    };
+  };
+  std::vector<Shot> shots;
+  if (shape.kind == "line") {
+    shots = LinePattern(shape, along0);
+    result.lines = 1;
+  } else if (options.pattern == "circles") {
+    const auto across = grow(across0), along = grow(along0);
+    int ring = 0;
+    for (double r = 0.0; r <= radius + kInsideTolerance; r += across(r)) {
+      std::vector<Point2> kept;
+      if (r == 0.0) {
+        if (shape.Inside(shape.center)) kept.push_back(shape.center);
+      } else {
+        const int n = std::max(1, static_cast<int>(std::lround(2 * kPi * r / along(r))));
+        std::vector<Point2> ring_points(static_cast<size_t>(n));
+        std::vector<char> inside(static_cast<size_t>(n));
+        int first = -1;
+        for (int j = 0; j < n; ++j) {
+          const Point2 d = Bearing(360.0 * j / n);
+          ring_points[j] = {shape.center[0] + r * d[0], shape.center[1] + r * d[1]};
+          inside[j] = shape.Inside(ring_points[j]);
+        }
+        // Start after a gap so that an arc crossing bearing 0 stays in one piece.
+        for (int j = 0; j < n && first < 0; ++j) {
+          if (inside[j] && !inside[(j + n - 1) % n]) first = j;
+        }
+        if (first < 0) first = 0;
+        for (int k = 0; k < n; ++k) {
+          const int j = (first + k) % n;
+          if (inside[j]) kept.push_back(ring_points[j]);
+        }
+      }
+      if (kept.empty()) continue;
+      if (ring % 2 == 1) std::reverse(kept.begin(), kept.end());
+      for (const Point2& p : kept) shots.push_back({p, ring});
+      ++ring;
+    }
+    result.lines = ring;
+  } else {  // scan, grid
+    const auto across = grow(across0), along = grow(along0);
+    const Point2 d = Bearing(options.heading_deg), n = Bearing(options.heading_deg + 90.0);
+    int flown = 0;
+    for (double v : Steps(radius, across)) {
+      std::vector<double> us{0.0};
+      for (double u = 0.0;;) {
+        u += along(std::hypot(u, v));
+        if (u > radius + kInsideTolerance) break;
+        us.push_back(u);
+        us.push_back(-u);
+      }
+      std::sort(us.begin(), us.end());
+      std::vector<Point2> kept;
+      for (double u : us) {
+        const Point2 p{shape.center[0] + u * d[0] + v * n[0], shape.center[1] + u * d[1] + v * n[1]};
+        if (shape.Inside(p)) kept.push_back(p);
+      }
+      if (static_cast<int>(kept.size()) < options.min_shots_per_line) continue;
+      if (flown % 2 == 1) std::reverse(kept.begin(), kept.end());
+      for (const Point2& p : kept) shots.push_back({p, flown});
+      ++flown;
+    }
+    result.lines = flown;
+  }
+  if (shots.empty()) {
+    ThrowInvalid("spacing_m: no shot lies inside the " + shape.kind + " (spacing " + Num(across0) +
+                 " m, along " + Num(along0) + " m)");
+  }
+  if (shape.kind != "line" && across0 > 2.0 * radius) {
+    result.warnings.push_back("spacing_m (" + Num(across0) + " m) exceeds the aperture's width (" +
+                              Num(2.0 * radius) + " m): one line or ring only");
+  }
+
+  // Heights.
+  const double up = options.terrain_up == "-z" ? -1.0 : 1.0;
+  std::unique_ptr<Terrain> terrain;
+  if (!options.dem.empty()) terrain = std::make_unique<Terrain>(ReadTerrain(options));
+  auto ground_at = [&](const Point2& p, const std::string& what) {
+    if (!terrain) return options.ground_height_m;
+    const double z = terrain->HeightAt(p[0], p[1]);
+    if (std::isnan(z)) {
+      ThrowInvalid(options.dem + ": " + what + " at (" + Num(p[0]) + ", " + Num(p[1]) +
+                   ") is outside the DEM (is the plan in the DEM's frame?)");
+    }
+    return z;
+  };
+  double constant_z = 0.0;
+  if (options.altitude_mode == "constant") {
+    constant_z = ground_at(shape.center, "the growth centre") + up * options.altitude_m;
+  }
+  result.min_agl_m = std::numeric_limits<double>::infinity();
+  result.max_agl_m = -result.min_agl_m;
+  double ground_lo = result.min_agl_m, ground_hi = result.max_agl_m;
+  for (size_t i = 0; i < shots.size(); ++i) {
+    Waypoint w;
+    w.x = shots[i].p[0];
+    w.y = shots[i].p[1];
+    w.line = shots[i].line;
+    w.ground_z = ground_at(shots[i].p, "shot " + std::to_string(i));
+    w.z = options.altitude_mode == "constant" ? constant_z : w.ground_z + up * options.altitude_m;
+    w.agl_m = up * (w.z - w.ground_z);
+    if (options.altitude_mode == "constant" && w.agl_m < options.min_clearance_m) {
+      ThrowInvalid("altitude_m: shot " + std::to_string(i) + " at (" + Num(w.x) + ", " + Num(w.y) +
+                   ") would be " + Num(w.agl_m) + " m above the terrain (" +
+                   (w.agl_m < 0 ? "below it" : "under min_clearance_m " + Num(options.min_clearance_m) + " m") +
+                   "); fly higher or use altitude_mode = terrain");
+    }
+    result.min_agl_m = std::min(result.min_agl_m, w.agl_m);
+    result.max_agl_m = std::max(result.max_agl_m, w.agl_m);
+    ground_lo = std::min(ground_lo, w.ground_z);
+    ground_hi = std::max(ground_hi, w.ground_z);
+    result.waypoints.push_back(w);
+  }
+  if (terrain && options.altitude_mode == "terrain" && ground_hi - ground_lo > 0.5) {
+    result.warnings.push_back("terrain-following: the altitude changes by " +
+                              Num(std::round((ground_hi - ground_lo) * 10) / 10) +
+                              " m over the plan");
+  }
+
+  // WGS84.
+  if (!result.crs.empty()) {
+    std::vector<Vec3d> points;
+    for (const Waypoint& w : result.waypoints) points.push_back({w.x, w.y, 0.0});
+    const std::vector<Vec3d> lonlat = TransformPoints(points, result.crs, "EPSG:4326", "crs");
+    for (size_t i = 0; i < lonlat.size(); ++i) {
+      result.waypoints[i].longitude_deg = lonlat[i].x;
+      result.waypoints[i].latitude_deg = lonlat[i].y;
+    }
+  } else {
+    for (Waypoint& w : result.waypoints) {
+      w.latitude_deg = w.longitude_deg = std::numeric_limits<double>::quiet_NaN();
+    }
+  }
+
+  // Length and time.
+  result.images = static_cast<int64_t>(result.waypoints.size());
+  result.min_step_m = std::numeric_limits<double>::infinity();
+  result.max_step_m = 0.0;
+  for (size_t i = 1; i < result.waypoints.size(); ++i) {
+    const Waypoint& a = result.waypoints[i - 1];
+    const Waypoint& b = result.waypoints[i];
+    const double step = std::sqrt((b.x - a.x) * (b.x - a.x) + (b.y - a.y) * (b.y - a.y) +
+                                  (b.z - a.z) * (b.z - a.z));
+    result.length_m += step;
+    result.min_step_m = std::min(result.min_step_m, step);
+    result.max_step_m = std::max(result.max_step_m, step);
+  }
+  if (result.waypoints.size() < 2) result.min_step_m = 0.0;
+  result.flight_time_s =
+      result.length_m / options.ground_speed_mps + static_cast<double>(result.images) * options.hover_s;
+  result.frames_per_minute =
+      result.flight_time_s > 0 ? static_cast<double>(result.images) * 60.0 / result.flight_time_s : 0.0;
+  if (std::isfinite(options.battery_min)) {
+    result.battery_fraction = result.flight_time_s / (60.0 * options.battery_min);
+    if (result.battery_fraction > 1.0) {
+      ThrowInvalid("battery_min: the plan takes " + Num(std::round(result.flight_time_s / 6.0) / 10.0) +
+                   " min (" + std::to_string(result.images) + " images, " +
+                   Num(std::round(result.length_m)) + " m), over the battery budget of " +
+                   Num(options.battery_min) + " min; widen the spacing or split the aperture");
+    }
+    if (result.battery_fraction > 0.9) {
+      result.warnings.push_back("the plan takes " +
+                                Num(std::round(result.battery_fraction * 100.0)) +
+                                "% of the battery budget");
+    }
+  }
+
+  // Eq. 2 at the planned height above the ground: n / A = fx fy / d^2 (metrics/resolution.h; its
+  // SamplingResolution also back-projects every pixel, which a plan does not need).
+  const PinholeCamera camera =
+      PinholeCamera::FromFov(options.image_width, options.image_height, options.fov_deg);
+  result.eq2_samples_per_m2 = camera.fx * camera.fy / (options.altitude_m * options.altitude_m);
+  result.eq2_sample_size_m = 1.0 / std::sqrt(result.eq2_samples_per_m2);
+  return result;
+}
+
+std::ostream& operator<<(std::ostream& stream, const FlightPlanResult& r) {
+  return stream << "FlightPlanResult(images=" << r.images << ", lines=" << r.lines
+                << ", length_m=" << r.length_m << ", flight_time_s=" << r.flight_time_s
+                << ", frames_per_minute=" << r.frames_per_minute << ")";
+}
+
+namespace {
+void RequireCrs(const FlightPlanResult& result, const char* what) {
+  if (result.crs.empty()) {
+    ThrowInvalid(std::string(what) +
+                 ": the plan is in a local frame (no crs): give crs (a projected CRS) or "
+                 "coordinates = latlon for WGS84 waypoints");
+  }
+}
+std::string Fixed(double value, int decimals) {
+  if (!std::isfinite(value)) return "";
+  char buffer[64];
+  std::snprintf(buffer, sizeof buffer, "%.*f", decimals, value);
+  return buffer;
+}
+}  // namespace
+
+std::string FlightPlanCsv(const FlightPlanResult& result) {
+  std::string out = "index,latitude,longitude,altitude_agl_m,x_m,y_m,z_m,ground_z_m,line\n";
+  for (size_t i = 0; i < result.waypoints.size(); ++i) {
+    const Waypoint& w = result.waypoints[i];
+    out += std::to_string(i) + "," + Fixed(w.latitude_deg, 10) + "," + Fixed(w.longitude_deg, 10) +
+           "," + Fixed(w.agl_m, 3) + "," + Fixed(w.x, 4) + "," + Fixed(w.y, 4) + "," +
+           Fixed(w.z, 4) + "," + Fixed(w.ground_z, 4) + "," + std::to_string(w.line) + "\n";
+  }
+  return out;
+}
+
+std::string FlightPlanGeoJson(const FlightPlanResult& result) {
+  RequireCrs(result, "geojson");
+  nlohmann::ordered_json path = nlohmann::ordered_json::array();
+  nlohmann::ordered_json features = nlohmann::ordered_json::array();
+  for (const Waypoint& w : result.waypoints) path.push_back({w.longitude_deg, w.latitude_deg, w.agl_m});
+  features.push_back({{"type", "Feature"},
+                      {"properties", {{"name", "path"}, {"images", result.images},
+                                      {"length_m", result.length_m},
+                                      {"flight_time_s", result.flight_time_s}}},
+                      {"geometry", {{"type", "LineString"}, {"coordinates", path}}}});
+  for (size_t i = 0; i < result.waypoints.size(); ++i) {
+    const Waypoint& w = result.waypoints[i];
+    features.push_back(
+        {{"type", "Feature"},
+         {"properties", {{"index", i}, {"altitude_agl_m", w.agl_m}, {"line", w.line}}},
+         {"geometry",
+          {{"type", "Point"}, {"coordinates", {w.longitude_deg, w.latitude_deg, w.agl_m}}}}});
+  }
+  nlohmann::ordered_json doc = {{"type", "FeatureCollection"}, {"features", features}};
+  return doc.dump(1) + "\n";
+}
+
+std::string FlightPlanKml(const FlightPlanResult& result) {
+  RequireCrs(result, "kml");
+  std::string out =
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+      "<kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n<name>aos flight plan</name>\n"
+      "<Placemark>\n<name>path</name>\n<LineString>\n<altitudeMode>relativeToGround</altitudeMode>\n"
+      "<coordinates>\n";
+  for (const Waypoint& w : result.waypoints) {
+    out += Fixed(w.longitude_deg, 10) + "," + Fixed(w.latitude_deg, 10) + "," + Fixed(w.agl_m, 3) + "\n";
+  }
+  out += "</coordinates>\n</LineString>\n</Placemark>\n";
+  for (size_t i = 0; i < result.waypoints.size(); ++i) {
+    const Waypoint& w = result.waypoints[i];
+    out += "<Placemark>\n<name>" + std::to_string(i) +
+           "</name>\n<Point>\n<altitudeMode>relativeToGround</altitudeMode>\n<coordinates>" +
+           Fixed(w.longitude_deg, 10) + "," + Fixed(w.latitude_deg, 10) + "," + Fixed(w.agl_m, 3) +
+           "</coordinates>\n</Point>\n</Placemark>\n";
+  }
+  out += "</Document>\n</kml>\n";
+  return out;
+}
+
+Image FlightPlanMap(const FlightPlanOptions& options, const FlightPlanResult& result, int size_px) {
+  if (size_px < 64) ThrowInvalid("size_px: must be >= 64 (got " + std::to_string(size_px) + ")");
+  double lo_x = 1e300, lo_y = 1e300, hi_x = -1e300, hi_y = -1e300;
+  auto extend = [&](double x, double y) {
+    lo_x = std::min(lo_x, x), hi_x = std::max(hi_x, x), lo_y = std::min(lo_y, y), hi_y = std::max(hi_y, y);
+  };
+  for (const auto& p : result.outline) extend(p[0], p[1]);
+  for (const Waypoint& w : result.waypoints) extend(w.x, w.y);
+  const double span = std::max({hi_x - lo_x, hi_y - lo_y, 1.0});
+  const double margin = 0.12 * span;
+  lo_x -= margin, lo_y -= margin, hi_x += margin, hi_y += margin;
+  const double scale = size_px / std::max(hi_x - lo_x, hi_y - lo_y);  // pixels per metre
+  const int width = std::max(64, static_cast<int>(std::ceil((hi_x - lo_x) * scale)));
+  const int height = std::max(64, static_cast<int>(std::ceil((hi_y - lo_y) * scale)));
+  // Pixel centres at +0.5: pixel (i, j) shows world (lo_x + (i + 0.5) / scale, hi_y - (j + 0.5) / scale).
+  auto to_px = [&](double x, double y) {
+    return cv::Point2d((x - lo_x) * scale - 0.5, (hi_y - y) * scale - 0.5);
+  };
+  cv::Mat canvas(height, width, CV_8UC3, cv::Scalar(245, 245, 240));
+  if (!options.dem.empty()) {
+    const double up = options.terrain_up == "-z" ? -1.0 : 1.0;
+    const Terrain terrain = ReadTerrain(options);
+    cv::Mat heights(height, width, CV_64F);
+    for (int j = 0; j < height; ++j) {
+      for (int i = 0; i < width; ++i) {
+        heights.at<double>(j, i) =
+            up * terrain.HeightAt(lo_x + (i + 0.5) / scale, hi_y - (j + 0.5) / scale);
+      }
+    }
+    // Hillshade: light from the north-west, 45 degrees up.
+    const double light[3] = {-0.5, 0.5, std::sqrt(0.5)};
+    for (int j = 1; j + 1 < height; ++j) {
+      for (int i = 1; i + 1 < width; ++i) {
+        // Slopes exaggerated 3 times, so that gentle forest terrain shows.
+        const double dzdx = (heights.at<double>(j, i + 1) - heights.at<double>(j, i - 1)) * scale * 1.5;
+        const double dzdy = (heights.at<double>(j - 1, i) - heights.at<double>(j + 1, i)) * scale * 1.5;
+        if (!std::isfinite(dzdx) || !std::isfinite(dzdy)) continue;
+        const double norm = std::sqrt(dzdx * dzdx + dzdy * dzdy + 1.0);
+        const double shade =
+            std::max(0.0, (-dzdx * light[0] - dzdy * light[1] + light[2]) / norm);
+        const auto grey = static_cast<unsigned char>(std::clamp(60.0 + 180.0 * shade, 0.0, 255.0));
+        canvas.at<cv::Vec3b>(j, i) = cv::Vec3b(grey, grey, grey);
+      }
+    }
+  }
+  const int shift = 4;
+  auto fixed = [&](double x, double y) {
+    const cv::Point2d p = to_px(x, y);
+    return cv::Point(static_cast<int>(std::lround((p.x + 0.5) * (1 << shift))),
+                     static_cast<int>(std::lround((p.y + 0.5) * (1 << shift))));
+  };
+  std::vector<cv::Point> outline;
+  for (const auto& p : result.outline) outline.push_back(fixed(p[0], p[1]));
+  // OpenCV draws BGR; the image is written as RGB below.
+  cv::polylines(canvas, outline, options.shape != "line", cv::Scalar(200, 90, 20), 2, cv::LINE_AA, shift);
+  std::vector<cv::Point> path;
+  for (const Waypoint& w : result.waypoints) path.push_back(fixed(w.x, w.y));
+  cv::polylines(canvas, path, false, cv::Scalar(40, 40, 220), 1, cv::LINE_AA, shift);
+  const int dot = std::clamp(static_cast<int>(0.25 * scale), 1, 4);
+  for (const cv::Point& p : path) cv::circle(canvas, p, dot << shift, cv::Scalar(20, 20, 150), cv::FILLED, cv::LINE_AA, shift);
+  const cv::Point c = fixed(result.growth_center[0], result.growth_center[1]);
+  cv::drawMarker(canvas, cv::Point(c.x >> shift, c.y >> shift), cv::Scalar(0, 120, 0), cv::MARKER_CROSS, 12, 2);
+  // Scale bar: 1, 2 or 5 x 10^k metres, about a quarter of the width.
+  const double target = (width / scale) / 4.0;
+  const double power = std::pow(10.0, std::floor(std::log10(target)));
+  double bar = power;
+  for (double f : {2.0, 5.0, 10.0}) {
+    if (f * power <= target) bar = f * power;
+  }
+  const int bar_px = static_cast<int>(std::lround(bar * scale));
+  const int x0 = 12, y0 = height - 14;
+  cv::rectangle(canvas, cv::Point(x0 - 4, y0 - 22), cv::Point(x0 + bar_px + 4, y0 + 8),
+                cv::Scalar(255, 255, 255), cv::FILLED);
+  cv::rectangle(canvas, cv::Point(x0, y0 - 3), cv::Point(x0 + bar_px, y0 + 3), cv::Scalar(0, 0, 0), cv::FILLED);
+  char label[32];
+  std::snprintf(label, sizeof label, "%g m", bar);
+  cv::putText(canvas, label, cv::Point(x0, y0 - 8), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  // North arrow.
+  cv::arrowedLine(canvas, cv::Point(width - 20, 40), cv::Point(width - 20, 12), cv::Scalar(0, 0, 0), 2, cv::LINE_AA, 0, 0.3);
+  // North in a CRS; in a local frame the arrow is +y (not known to be north).
+  cv::putText(canvas, result.crs.empty() ? "+y" : "N", cv::Point(width - 26, 56), cv::FONT_HERSHEY_SIMPLEX, 0.45, cv::Scalar(0, 0, 0), 1, cv::LINE_AA);
+  cv::cvtColor(canvas, canvas, cv::COLOR_BGR2RGB);
+  Image image(width, height, 3, PixelType::kU8);
+  image.CopyFrom(canvas.data, static_cast<ptrdiff_t>(canvas.step1()));
+  return image;
+}
+
+}  // namespace aos

@@ -1,0 +1,158 @@
+// Bindings of plan/flight_plan.h: FlightPlanOptions (the struct `aos-render plan` fills, so names
+// and defaults match the CLI), the result, the exports as text and the map as a numpy array.
+#include <cmath>
+#include <sstream>
+
+#include "aos/plan/flight_plan.h"
+#include "aos/plan/preview.h"
+#include "bindings.h"
+
+namespace aos::python {
+
+using namespace pybind11::literals;
+
+void BindPlan(py::module_& m) {
+  using O = FlightPlanOptions;
+  OptionsClass<O>(m, "FlightPlanOptions",
+                  "Options of plan_flight (defaults from the C++ struct aos::FlightPlanOptions; "
+                  "docs/flight-planning.md).")
+      .Field("shape", &O::shape, "circle, sector, rectangle, polygon or line.")
+      .Field("coordinates", &O::coordinates,
+             "world (x, y metres) or latlon (latitude, longitude degrees, WGS84).")
+      .Field("crs", &O::crs, "CRS of world coordinates (projected, metres); '' = local frame.")
+      .Field("center", &O::center, "Centre of a circle, sector or rectangle: (x, y) or (lat, lon).")
+      .Field("radius_m", &O::radius_m, "Radius of a circle or sector, metres (> 0).")
+      .Field("sector_start_deg", &O::sector_start_deg, "Sector: bearing of its first edge, degrees.")
+      .Field("sector_angle_deg", &O::sector_angle_deg, "Sector: its angle, degrees in (0, 360].")
+      .Field("width_m", &O::width_m, "Rectangle: size across the heading, metres.")
+      .Field("length_m", &O::length_m, "Rectangle: size along the heading, metres.")
+      .Field("vertices", &O::vertices, "Polygon corners or line points, (x, y) or (lat, lon).")
+      .Field("pattern", &O::pattern, "scan, grid or circles.")
+      .Field("spacing_m", &O::spacing_m, "Distance between lines or rings at the centre, metres.")
+      .Field("along_spacing_m", &O::along_spacing_m,
+             "Distance between shots along a line or ring at the centre, metres; 0 = spacing_m.")
+      .Field("outer_scale", &O::outer_scale, "Spacing at the edge over spacing at the centre (>= 1).")
+      .Field("heading_deg", &O::heading_deg, "Compass direction of the scan lines, degrees.")
+      .Field("min_shots_per_line", &O::min_shots_per_line,
+             "Scan lines with fewer shots inside the shape are not flown (>= 1).")
+      .Field("altitude_m", &O::altitude_m, "Height above the ground, metres (> 0).")
+      .Field("altitude_mode", &O::altitude_mode, "terrain or constant.")
+      .Field("dem", &O::dem, "Terrain mesh (OBJ, PLY) or raster path; '' = flat ground.")
+      .Field("ground_height_m", &O::ground_height_m, "Flat ground's z without a DEM, metres.")
+      .Field("terrain_up", &O::terrain_up, "+z or -z (z down, JKU's F0).")
+      .Field("min_clearance_m", &O::min_clearance_m,
+             "Least height above the terrain of a constant-altitude shot, metres.")
+      .Field("ground_speed_mps", &O::ground_speed_mps, "Ground speed, m/s (> 0).")
+      .Field("hover_s", &O::hover_s, "Time at each shot, seconds (>= 0).")
+      .Field("battery_min", &O::battery_min, "Flight time one battery allows, minutes (inf: none).")
+      .Field("image_width", &O::image_width, "Camera for Eq. 2: width, pixels.")
+      .Field("image_height", &O::image_height, "Camera for Eq. 2: height, pixels.")
+      .Field("fov_deg", &O::fov_deg, "Camera for Eq. 2: horizontal field of view, degrees.")
+      .Finish()
+      .def("check", &O::Check, "Raises ValueError naming the field.");
+
+  py::class_<Waypoint>(m, "Waypoint", "One shot of a flight plan (world frame and WGS84).")
+      .def_readonly("x", &Waypoint::x)
+      .def_readonly("y", &Waypoint::y)
+      .def_readonly("z", &Waypoint::z)
+      .def_readonly("ground_z", &Waypoint::ground_z)
+      .def_readonly("agl_m", &Waypoint::agl_m)
+      .def_readonly("latitude_deg", &Waypoint::latitude_deg, "NaN without a CRS.")
+      .def_readonly("longitude_deg", &Waypoint::longitude_deg, "NaN without a CRS.")
+      .def_readonly("line", &Waypoint::line)
+      .def("__repr__", [](const Waypoint& w) {
+        return "Waypoint(x=" + FormatNumber(w.x) + ", y=" + FormatNumber(w.y) + ", z=" +
+               FormatNumber(w.z) + ", line=" + std::to_string(w.line) + ")";
+      });
+
+  using R = FlightPlanResult;
+  py::class_<R>(m, "FlightPlanResult", "Result of plan_flight (docs/flight-planning.md).")
+      .def_readonly("waypoints", &R::waypoints, "The shots in flight order (a copied list).")
+      .def_readonly("crs", &R::crs)
+      .def_readonly("outline", &R::outline)
+      .def_readonly("growth_center", &R::growth_center)
+      .def_readonly("aperture_radius_m", &R::aperture_radius_m)
+      .def_readonly("aperture_area_m2", &R::aperture_area_m2)
+      .def_readonly("images", &R::images)
+      .def_readonly("lines", &R::lines)
+      .def_readonly("length_m", &R::length_m)
+      .def_readonly("flight_time_s", &R::flight_time_s)
+      .def_readonly("frames_per_minute", &R::frames_per_minute)
+      .def_readonly("battery_fraction", &R::battery_fraction)
+      .def_readonly("min_step_m", &R::min_step_m)
+      .def_readonly("max_step_m", &R::max_step_m)
+      .def_readonly("eq2_samples_per_m2", &R::eq2_samples_per_m2)
+      .def_readonly("eq2_sample_size_m", &R::eq2_sample_size_m)
+      .def_readonly("min_agl_m", &R::min_agl_m)
+      .def_readonly("max_agl_m", &R::max_agl_m)
+      .def_readonly("warnings", &R::warnings)
+      .def("__repr__", [](const R& r) {
+        std::ostringstream out;
+        out << r;
+        return out.str();
+      });
+
+  m.def(
+      "_plan_flight",
+      [](const O& options) {
+        py::gil_scoped_release release;
+        return PlanFlight(options);
+      },
+      "options"_a, "Use aos.plan_flight.");
+  m.def("flight_plan_csv", &FlightPlanCsv, "result"_a,
+        "The waypoints as CSV text: index,latitude,longitude,altitude_agl_m,x_m,y_m,z_m,"
+        "ground_z_m,line.");
+  m.def("flight_plan_geojson", &FlightPlanGeoJson, "result"_a,
+        "The path and waypoints as GeoJSON text (WGS84); ValueError without a CRS.");
+  m.def("flight_plan_kml", &FlightPlanKml, "result"_a,
+        "The path and waypoints as KML text (WGS84); ValueError without a CRS.");
+  m.def(
+      "flight_plan_map",
+      [](const O& options, const R& result, int size_px) {
+        Image image;
+        {
+          py::gil_scoped_release release;
+          image = FlightPlanMap(options, result, size_px);
+        }
+        return ArrayFromImage(image);
+      },
+      "options"_a, "result"_a, "size_px"_a = 800,
+      "A map of the plan (uint8 RGB array, H x W x 3, sharing the image's memory): the DEM's "
+      "hillshade or a blank map, outline, path, shots and a scale bar.");
+
+  py::class_<PlanPreviewResult>(m, "PlanPreviewResult",
+                                "What a plan reveals in the simulator (plan/preview.h).")
+      .def_readonly("views", &PlanPreviewResult::views)
+      .def_readonly("visible_fraction", &PlanPreviewResult::visible_fraction,
+                    "Share of the views' rays that reach the ground; -1 without a blocked map.")
+      .def_readonly("psnr_db", &PlanPreviewResult::psnr_db)
+      .def_readonly("ssim", &PlanPreviewResult::ssim)
+      .def_readonly("single_view_psnr_db", &PlanPreviewResult::single_view_psnr_db)
+      .def_readonly("has_target", &PlanPreviewResult::has_target)
+      .def_readonly("contrast_to_noise", &PlanPreviewResult::contrast_to_noise)
+      .def_property_readonly(
+          "integral", [](const PlanPreviewResult& r) { return ArrayFromImage(r.integral); },
+          "float32 integral image on the ground (views' units), sharing memory.")
+      .def_property_readonly(
+          "truth", [](const PlanPreviewResult& r) { return ArrayFromImage(r.truth); },
+          "The occluder-free ground truth (views' type), sharing memory.")
+      .def_readonly("seconds", &PlanPreviewResult::seconds)
+      .def("__repr__", [](const PlanPreviewResult& r) {
+        return "PlanPreviewResult(views=" + std::to_string(r.views) +
+               ", visible_fraction=" + FormatNumber(r.visible_fraction) +
+               ", psnr_db=" + FormatNumber(r.psnr_db) + ", ssim=" + FormatNumber(r.ssim) + ")";
+      });
+  m.def(
+      "_preview_flight_plan",
+      [](const R& plan, const Scene& scene, int num_threads, const py::object& progress) {
+        const FlightPlanResult plan_copy = plan;
+        const Scene scene_copy = scene;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return PreviewFlightPlan(plan_copy, scene_copy, num_threads, sink);
+        });
+      },
+      "plan"_a, "scene"_a, "num_threads"_a = -1, "progress"_a = py::none(),
+      "Use aos.preview_flight_plan.");
+}
+
+}  // namespace aos::python
