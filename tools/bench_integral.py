@@ -11,6 +11,9 @@ textbook version, "tuned" uses OpenCV's fastest paths):
   - memory: peak resident memory of a fresh process that loads the light field and renders once,
     minus its resident memory before loading, against the decoded image bytes plus the output.
 
+A "kernels" section first: the 8-bit kernel with row loads against the same kernel with gathers
+only (the kernel before row loads), interleaved, on z = 0 and z = 21, all cores and one thread.
+
 Then a "surfaces" section (focal points instead of a plane, surface_integral.h): interleaved rounds
 of two plane renders, the plane z = 0 (the reference plane of the F0 figures, about 27 m below
 the cameras, in mid air above the ground) and the ground plane, i.e. the horizontal plane at the
@@ -25,7 +28,7 @@ number of samples; against z = 0 the mesh takes 1.6x the samples). (b), the same
 RenderIntegralAtPoints, is not measured: that entry has no Python binding.
 
 Usage: python3 tools/bench_integral.py [--data ../shared/data/jku-f0] [--repeats 7]
-                                       [--surfaces-only]
+                                       [--surfaces-only | --kernels-only]
 Needs: pip install '.[bench]' (opencv-python-headless) for the baseline.
 """
 import argparse
@@ -252,12 +255,52 @@ print(json.dumps({'before_kib': before, 'peak_kib': peak, 'image_bytes': lf.imag
 """
 
 
+def bench_kernels(args, light_field, options):
+    """The 8-bit kernel with row loads (now) against gathers only (the kernel before, through
+    aos._core._set_simd_kernels(row_loads=False)), interleaved rounds on the plane z = 0 and on
+    z = 21 (the ground under view 191), all cores and one thread. The samples are the same (the
+    images are compared); the target is >= 1.0 G samples/s with all cores."""
+    import numpy as np
+    for height in (0.0, 21.0):
+        for threads in (-1, 1):
+            o = copy.copy(options)
+            o.focal_plane = aos.Plane.at_height(height)
+            o.num_threads = threads
+            images = {}
+            times = {"row loads": [], "gathers": []}
+            for row_loads in (True, False):  # warm-up, and the images to compare
+                aos._core._set_simd_kernels(row_loads=row_loads)
+                images[row_loads] = aos.render_integral(light_field, o)
+            for _ in range(args.repeats * 2):
+                for name in times:
+                    aos._core._set_simd_kernels(row_loads=name == "row loads")
+                    start = time.perf_counter()
+                    aos.render_integral(light_field, o)
+                    times[name].append(time.perf_counter() - start)
+            aos._core._set_simd_kernels()
+            samples = int(images[True].samples)
+            same = bool(np.array_equal(images[True].image, images[False].image))
+            ratios = [b / a for a, b in zip(times["row loads"], times["gathers"])]
+            label = "all cores" if threads == -1 else "1 thread"
+            line = (f"kernels z={height:4.1f} {label:9s}: row loads median "
+                    f"{statistics.median(times['row loads']) * 1e3:6.1f} ms "
+                    f"({samples / statistics.median(times['row loads']) / 1e9:.3f} G samples/s), "
+                    f"gathers {statistics.median(times['gathers']) * 1e3:6.1f} ms "
+                    f"({samples / statistics.median(times['gathers']) / 1e9:.3f} G samples/s): "
+                    f"{statistics.median(ratios):.2f}x (per-round {min(ratios):.2f}..{max(ratios):.2f}); "
+                    f"images {'identical' if same else 'DIFFER'}")
+            print(line, flush=True)
+    print("target (issue 17): >= 1.0 G samples/s on F0 with all cores")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "jku-f0"))
     parser.add_argument("--repeats", type=int, default=7)
     parser.add_argument("--surfaces-only", action="store_true",
                         help="measure only the surfaces section")
+    parser.add_argument("--kernels-only", action="store_true",
+                        help="measure only the kernels section (row loads against gathers)")
     args = parser.parse_args()
     poses_path = Path(args.data) / "poses" / "poses.json"
     if not poses_path.exists():
@@ -271,6 +314,9 @@ def main():
                                   focal_plane=aos.Plane.at_height(0.0))
     if args.surfaces_only:
         bench_surfaces(args, light_field, options)
+        return 0
+    bench_kernels(args, light_field, options)
+    if args.kernels_only:
         return 0
     result = aos.render_integral(light_field, options)
     samples = int(result.samples)

@@ -238,13 +238,15 @@ void BindIntegral(py::module_& m) {
   // Private, for benchmarks: the baselines they time in the same run (integral_kernels.h).
   m.def(
       "_set_simd_kernels",
-      [](bool enabled, bool variance) {
+      [](bool enabled, bool variance, bool row_loads) {
         internal::SetSimdEnabled(enabled);
         internal::SetSimdVarianceEnabled(variance);
+        internal::SetSimdRowLoadsEnabled(row_loads);
       },
-      "enabled"_a = true, "variance"_a = true,
-      "Benchmarks only, not thread-safe: turn the renderer's SIMD kernels off (enabled=False) "
-      "or only its SIMD variance kernel (variance=False), to time the scalar baseline.");
+      "enabled"_a = true, "variance"_a = true, "row_loads"_a = true,
+      "Benchmarks only, not thread-safe: turn the renderer's SIMD kernels off (enabled=False), "
+      "only its SIMD variance kernel (variance=False), or the 8-bit kernel's row loads "
+      "(row_loads=False: gathers, as before), to time the baselines.");
   m.def("virtual_camera", &VirtualCamera, "light_field"_a, "options"_a,
         "The virtual camera's intrinsics for `options` (square pixels, centred principal point): "
         "fov_deg, width and height where given (non-zero), else view pose_view's, else 50 "

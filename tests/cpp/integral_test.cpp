@@ -628,20 +628,28 @@ TEST(Integral, SimdKernelsEqualTheirFmaModelBitForBitOnEveryTapPath) {
       }
     }
     image.FillBorder();
+    // The 8-bit kernel with row loads, and with gathers only (the benchmarks' baseline).
+    internal::SetSimdRowLoadsEnabled(false);
+    const internal::SpanKernel gathers = internal::Avx2SpanKernel(image);
+    internal::SetSimdRowLoadsEnabled(true);
     const internal::SpanKernel simd = internal::Avx2SpanKernel(image);
     const internal::SquaresKernel simd_squares = internal::Avx2SquaresKernel(image);
     if (simd == nullptr || simd_squares == nullptr) GTEST_SKIP() << "no AVX2/FMA on this CPU";
+    EXPECT_EQ(type == PixelType::kU8, gathers != simd);
     for (const internal::RowLine& line : lines) {
       for (int n : {1, 7, 8, 9, 16, 17, 30}) {
         const int xa = 3, xb = xa + n;
-        std::vector<double> sum(xb + internal::kSpanPadding, 0.0), sum2 = sum, squares = sum;
+        std::vector<double> sum(xb + internal::kSpanPadding, 0.0), sum2 = sum, squares = sum,
+                                                                  gathered = sum;
         simd(image, line, xa, xb, 0, sum.data());
+        gathers(image, line, xa, xb, 0, gathered.data());
         simd_squares(image, line, xa, xb, 0, sum2.data(), squares.data());
         for (int i = 0; i < n; ++i) {
           const FmaModelSample expected = FmaModel(image, line, xa, i);
           ASSERT_EQ(sum[xa + i], expected.value) << PixelTypeName(type) << " line " << line.u0
                                                  << " n=" << n << " i=" << i;
           ASSERT_EQ(sum2[xa + i], expected.value);
+          ASSERT_EQ(gathered[xa + i], expected.value);
           ASSERT_EQ(squares[xa + i], expected.square);
         }
         for (int x = xb; x < xb + internal::kSpanPadding; ++x) {

@@ -7,6 +7,7 @@ namespace {
 
 bool g_simd_enabled = true;
 bool g_simd_variance_enabled = true;
+bool g_simd_row_loads_enabled = true;
 
 // s clamped to [-1, max]; NaN gives -1.
 inline float ClampSample(float s, float max) {
@@ -118,5 +119,7 @@ void SetSimdEnabled(bool enabled) { g_simd_enabled = enabled; }
 bool SimdEnabled() { return g_simd_enabled; }
 void SetSimdVarianceEnabled(bool enabled) { g_simd_variance_enabled = enabled; }
 bool SimdVarianceEnabled() { return g_simd_variance_enabled; }
+void SetSimdRowLoadsEnabled(bool enabled) { g_simd_row_loads_enabled = enabled; }
+bool SimdRowLoadsEnabled() { return g_simd_row_loads_enabled; }
 
 }  // namespace aos::internal

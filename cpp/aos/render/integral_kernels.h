@@ -48,6 +48,10 @@ void SetSimdEnabled(bool enabled);
 bool SimdEnabled();
 void SetSimdVarianceEnabled(bool enabled);
 bool SimdVarianceEnabled();
+// Off: the 8-bit AVX2 span kernel fetches every tap with gathers, as before it had row loads
+// (tools/bench_integral.py's baseline; the samples are the same).
+void SetSimdRowLoadsEnabled(bool enabled);
+bool SimdRowLoadsEnabled();
 
 // The kernel the renderer uses: AVX2 when available, else scalar.
 inline SpanKernel SelectSpanKernel(const Image& image) {

@@ -111,14 +111,14 @@ __attribute__((target("avx2,fma"), always_inline)) inline bool FetchU8FromRows(c
 }
 
 // The taps of a group: row loads (8-bit views, when they fit) or gathers.
-template <PixelType kType>
+template <PixelType kType, bool kRowLoads = true>
 __attribute__((target("avx2,fma"), always_inline)) inline Fetched Fetch(const SpanSetup& c,
                                                                         const Positions& p) {
   constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
   Fetched f;
   f.ax = p.ax;
   f.ay = p.ay;
-  if constexpr (kType == PixelType::kU8) {
+  if constexpr (kType == PixelType::kU8 && kRowLoads) {
     if (FetchU8FromRows(c, p, f)) return f;
   }
   const __m256i offset =
@@ -186,7 +186,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Finish(const Fetc
 // the division before them) overlaps useful work. Groups past the span's end are clamped into
 // the image, so their loads stay in bounds; the last group's extra lanes add zero to the
 // accumulators' padding (see the caller).
-template <PixelType kType, bool kSquares>
+template <PixelType kType, bool kSquares, bool kRowLoads = true>
 __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const RowLine& line,
                                                       int xa, int xb, int x0, double* sum,
                                                       double* sum_squares) {
@@ -210,14 +210,14 @@ __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const 
   // Column offsets as floats; adding 8 is exact (integers below 2^24).
   const __m256 eight = _mm256_set1_ps(8.0f);
   __m256 fi = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
-  Fetched current = Fetch<kType>(c, Locate(c, fi));
+  Fetched current = Fetch<kType, kRowLoads>(c, Locate(c, fi));
   fi = _mm256_add_ps(fi, eight);
   Positions ahead = Locate(c, fi);
   int i = 0;
   for (; i + 8 < n; i += 8) {
     fi = _mm256_add_ps(fi, eight);
     const Positions after = Locate(c, fi);
-    const Fetched next = Fetch<kType>(c, ahead);
+    const Fetched next = Fetch<kType, kRowLoads>(c, ahead);
     Finish<kType>(current, out + i, kSquares ? squares + i : nullptr, all);
     current = next;
     ahead = after;
@@ -231,6 +231,12 @@ template <PixelType kType>
 __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowLine& line,
                                                   int xa, int xb, int x0, double* sum) {
   Avx2SpanImpl<kType, false>(image, line, xa, xb, x0, sum, nullptr);
+}
+
+// 8-bit views with gathers only (no row loads): the kernel before row loads, for benchmarks.
+__attribute__((target("avx2,fma"))) void Avx2SpanU8Gathers(const Image& image, const RowLine& line,
+                                                           int xa, int xb, int x0, double* sum) {
+  Avx2SpanImpl<PixelType::kU8, false, false>(image, line, xa, xb, x0, sum, nullptr);
 }
 
 template <PixelType kType>
@@ -347,7 +353,7 @@ SpanKernel Avx2SpanKernel(const Image& image) {
     return image.type() == PixelType::kU8 ? &Avx2SpanU8TwoChannels : nullptr;
   }
   switch (image.type()) {
-    case PixelType::kU8: return &Avx2Span<PixelType::kU8>;
+    case PixelType::kU8: return SimdRowLoadsEnabled() ? &Avx2Span<PixelType::kU8> : &Avx2SpanU8Gathers;
     case PixelType::kU16: return &Avx2Span<PixelType::kU16>;
     case PixelType::kF32: return &Avx2Span<PixelType::kF32>;
     case PixelType::kU32: break;
