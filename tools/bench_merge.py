@@ -118,7 +118,10 @@ def robust_against_scalar_variance(light_field, repeats: int) -> None:
     # The slice map holds refined (fractional) positions: count the pixels that moved by more
     # than half a slice, i.e. that chose another slice, not a rounding of the same one.
     slice_moved = float(np.mean(np.abs(simd.slice - scalar.slice) > 0.5))
-    slice_jitter = float(np.max(np.abs(simd.slice - scalar.slice)[np.abs(simd.slice - scalar.slice) <= 0.5], initial=0.0))
+    moved = np.abs(simd.slice.astype(np.float64) - scalar.slice)
+    slice_jitter = float(np.max(moved[moved <= 0.5], initial=0.0))
+    moved_1e3 = float(np.mean(moved > 1e-3))
+    image_over_1 = float(np.mean(np.abs(simd.image.astype(np.float64) - scalar.image) > 1.0))
     peak = float(scalar.image.max())
     mse = float(np.mean(difference ** 2))
     psnr = float("inf") if mse == 0 else 10 * np.log10(peak ** 2 / mse)
@@ -129,7 +132,9 @@ def robust_against_scalar_variance(light_field, repeats: int) -> None:
     print(f"  render {simd.seconds_render:.2f} s + merge {simd.seconds_merge:.2f} s (AVX2) against "
           f"{scalar.seconds_render:.2f} s + {scalar.seconds_merge:.2f} s (scalar)")
     print(f"  outputs: {slice_moved:.2e} of the pixels chose another slice (refined position moved "
-          f"> 0.5; the others by <= {slice_jitter:.2g} slices); image max abs "
+          f"> 0.5; the others by <= {slice_jitter:.2g} slices, {moved_1e3:.2e} of them by more "
+          f"than 1e-3); {image_over_1:.2e} of the pixels differ by more than 1 grey level; "
+          f"image max abs "
           f"difference {difference.max():.4g}, mean {difference.mean():.3g} grey levels; PSNR of "
           f"one against the other {psnr:.1f} dB (peak {peak:.1f})", flush=True)
 
