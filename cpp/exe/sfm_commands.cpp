@@ -194,7 +194,7 @@ CommandRunner DefinePoses(CLI::App* command) {
   flags.Field("spatial_neighbors", options.spatial_neighbors,
               "Spatial matching: nearest frames (by position) each frame is matched with");
   flags.Field("preset", options.preset,
-              "default or quick: quick sets --max-image-size 640, --max-num-features 1024, "
+              "default or quick: quick sets --max-image-size 480, --max-num-features 512, "
               "--sequential-overlap 3, --spatial-neighbors 8 and, with positions, --matcher "
               "spatial, each where left at its default (docs/poses.md)");
   flags.Optional("--camera-file", "camera_file", options.camera_file,

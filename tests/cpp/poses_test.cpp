@@ -912,8 +912,8 @@ TEST(PosesPreset, QuickSetsTheFieldsLeftAtTheirDefaults) {
   options = PosesOptions();
   options.preset = "quick";
   PosesOptions quick = WithPreset(options);
-  EXPECT_EQ(quick.max_image_size, 640);
-  EXPECT_EQ(quick.max_num_features, 1024);
+  EXPECT_EQ(quick.max_image_size, 480);
+  EXPECT_EQ(quick.max_num_features, 512);
   EXPECT_EQ(quick.sequential_overlap, 3);
   EXPECT_EQ(quick.spatial_neighbors, 8);
   EXPECT_EQ(quick.matcher, "sequential");  // no positions: spatial matching cannot run
@@ -925,7 +925,7 @@ TEST(PosesPreset, QuickSetsTheFieldsLeftAtTheirDefaults) {
   quick = WithPreset(options);
   EXPECT_EQ(quick.max_num_features, 4096);
   EXPECT_EQ(quick.matcher, "exhaustive");
-  EXPECT_EQ(quick.max_image_size, 640);
+  EXPECT_EQ(quick.max_image_size, 480);
 }
 
 TEST_F(PosesPipeline, QuickPresetReachesColmap) {
@@ -942,8 +942,8 @@ TEST_F(PosesPipeline, QuickPresetReachesColmap) {
               HasSubstr("COLMAP registered no frames"));
   std::ifstream in(Path("colmap_args.txt"));
   const std::string args((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_image_size 640"));
-  EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_num_features 1024"));
+  EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_image_size 480"));
+  EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_num_features 512"));
   EXPECT_THAT(args, HasSubstr("sequential_matcher"));
   EXPECT_THAT(args, HasSubstr("--SequentialMatching.overlap 3"));
 }

@@ -429,13 +429,13 @@ PosesOptions WithPreset(const PosesOptions& options) {
   PosesOptions effective = options;
   if (options.preset == "default") return effective;
   // "quick": each field still at its default takes the quick value (header). On the 100-frame,
-  // 1152 x 864 flight of tools/bench_poses.py: features on 640-pixel frames (a third of the
-  // pixels), half the features (matching a pair costs about a quarter), and with positions each
+  // 1152 x 864 flight of tools/bench_poses.py: features on 480-pixel frames (a sixth of the
+  // pixels), a quarter of the features (matching a pair costs about a sixteenth), and with positions each
   // frame matched with its 8 nearest (the 3 x 3 block around it on a grid flight) instead of 7
   // sequential successors that miss the neighbouring rows.
   const PosesOptions defaults;
-  if (options.max_image_size == defaults.max_image_size) effective.max_image_size = 640;
-  if (options.max_num_features == defaults.max_num_features) effective.max_num_features = 1024;
+  if (options.max_image_size == defaults.max_image_size) effective.max_image_size = 480;
+  if (options.max_num_features == defaults.max_num_features) effective.max_num_features = 512;
   if (options.sequential_overlap == defaults.sequential_overlap) effective.sequential_overlap = 3;
   if (options.spatial_neighbors == defaults.spatial_neighbors) effective.spatial_neighbors = 8;
   const bool positions = !options.positions_file.empty() || options.exif_positions;

@@ -97,7 +97,7 @@ struct PosesOptions {
   bool allow_implausible = false;
   // Speed against accuracy of the COLMAP stages: "default" (the fields as they are) or "quick":
   // each of these fields still at its default takes the quick value (a field set to another
-  // value wins): max_image_size 640, max_num_features 1024, sequential_overlap 3,
+  // value wins): max_image_size 480, max_num_features 512, sequential_overlap 3,
   // spatial_neighbors 8, and matcher "spatial" when positions are given (positions_file or
   // exif_positions). docs/poses.md measures both presets on the 100-frame flight of
   // tools/bench_poses.py.
