@@ -205,7 +205,7 @@ A simulated flight with known poses: a lawnmower path of {args.rows} rows x {arg
 true FOV, and the true centres (shifted to UTM-sized coordinates) as the positions CSV that
 geo-references the model. `--preset default` matched sequentially (overlap {args.overlap}) with
 up to 2048 features a frame on the full 1152-pixel frames; `--preset quick` (`preset="quick"` in
-Python) extracts up to 1024 features on frames downscaled to 640 pixels and, having positions,
+Python) extracts up to 512 features on frames downscaled to 480 pixels and, having positions,
 matches each frame with its 8 nearest by position (spatial matching) instead of sequentially.
 
 {summary}
@@ -215,8 +215,8 @@ its default takes the quick value; a field given another value keeps it (`--pres
 
 | field (flag) | default | quick |
 |---|---|---|
-| `max_image_size` (`--max-image-size`) | 1600 | 640 |
-| `max_num_features` (`--max-num-features`) | 2048 | 1024 |
+| `max_image_size` (`--max-image-size`) | 1600 | 480 |
+| `max_num_features` (`--max-num-features`) | 2048 | 512 |
 | `sequential_overlap` (`--sequential-overlap`) | 5 | 3 |
 | `spatial_neighbors` (`--spatial-neighbors`) | 50 | 8 |
 | `matcher` (`--matcher`), with positions | sequential | spatial |

@@ -44,6 +44,31 @@ LightField SimulatedLightField(int per_side, int width, int height) {
   return Simulate(scene).light_field;
 }
 
+// The factor from 8-bit grey levels to `type`'s values: 1 (uint8), 257 (uint16), 1/255 (float).
+double ValueScale(PixelType type) {
+  return type == PixelType::kU8 ? 1.0 : (type == PixelType::kU16 ? 257.0 : 1.0 / 255.0);
+}
+
+// The 8-bit light field with its frames converted to `type` (values times ValueScale).
+LightField ConvertedLightField(const LightField& u8, PixelType type) {
+  LightField light_field = u8;
+  const double scale = ValueScale(type);
+  for (View& view : light_field.views) {
+    Image converted(view.image.width(), view.image.height(), 1, type, 1);
+    for (int y = 0; y < converted.height(); ++y) {
+      for (int x = 0; x < converted.width(); ++x) {
+        const double value = view.image.Value(x, y) * scale;
+        if (type == PixelType::kU16) *converted.At<uint16_t>(x, y) = static_cast<uint16_t>(value);
+        if (type == PixelType::kF32) *converted.At<float>(x, y) = static_cast<float>(value);
+        if (type == PixelType::kU8) *converted.At<uint8_t>(x, y) = static_cast<uint8_t>(value);
+      }
+    }
+    converted.FillBorder();
+    view.image = converted;
+  }
+  return light_field;
+}
+
 // A float image of one value everywhere (views whose value names them).
 Image ConstantImage(int width, int height, float value) {
   Image image(width, height, 1, PixelType::kF32);
@@ -668,21 +693,8 @@ TEST(Integral, VarianceSimdKernelAgreesWithTheScalarVariance) {
   // of values in [0, range] moves by at most 2 range delta + delta^2.
   const LightField u8 = SimulatedLightField(5, 64, 64);
   for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
-    LightField light_field = u8;
-    const double scale = type == PixelType::kU8 ? 1.0 : (type == PixelType::kU16 ? 257.0 : 1.0 / 255.0);
-    for (View& view : light_field.views) {
-      Image converted(view.image.width(), view.image.height(), 1, type, 1);
-      for (int y = 0; y < converted.height(); ++y) {
-        for (int x = 0; x < converted.width(); ++x) {
-          const double value = view.image.Value(x, y) * scale;
-          if (type == PixelType::kU16) *converted.At<uint16_t>(x, y) = static_cast<uint16_t>(value);
-          if (type == PixelType::kF32) *converted.At<float>(x, y) = static_cast<float>(value);
-          if (type == PixelType::kU8) *converted.At<uint8_t>(x, y) = static_cast<uint8_t>(value);
-        }
-      }
-      converted.FillBorder();
-      view.image = converted;
-    }
+    const double scale = ValueScale(type);
+    LightField light_field = ConvertedLightField(u8, type);
     if (internal::Avx2SquaresKernel(light_field.views[0].image) == nullptr) {
       GTEST_SKIP() << "no AVX2/FMA on this CPU";
     }
@@ -856,21 +868,8 @@ TEST(Integral, SimdAndScalarKernelsAgree) {
   // levels per sample for 8-bit data with steps of up to 255 between neighbours.
   const LightField u8 = SimulatedLightField(4, 80, 60);
   for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
-    LightField light_field = u8;
-    const double scale = type == PixelType::kU8 ? 1.0 : (type == PixelType::kU16 ? 257.0 : 1.0 / 255.0);
-    for (View& view : light_field.views) {
-      Image converted(view.image.width(), view.image.height(), 1, type, 1);
-      for (int y = 0; y < converted.height(); ++y) {
-        for (int x = 0; x < converted.width(); ++x) {
-          const double value = view.image.Value(x, y) * scale;
-          if (type == PixelType::kU16) *converted.At<uint16_t>(x, y) = static_cast<uint16_t>(value);
-          if (type == PixelType::kF32) *converted.At<float>(x, y) = static_cast<float>(value);
-          if (type == PixelType::kU8) *converted.At<uint8_t>(x, y) = static_cast<uint8_t>(value);
-        }
-      }
-      converted.FillBorder();
-      view.image = converted;
-    }
+    const double scale = ValueScale(type);
+    LightField light_field = ConvertedLightField(u8, type);
     IntegralOptions options;
     options.cam_from_world = LookAt(Vec3d(1, 2, 35), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
     options.width = 203;  // not a multiple of 8: exercises the masked last group
