@@ -205,7 +205,8 @@ A simulated flight with known poses: a lawnmower path of {args.rows} rows x {arg
 true FOV, and the true centres (shifted to UTM-sized coordinates) as the positions CSV that
 geo-references the model. `--preset default` matched sequentially (overlap {args.overlap}) with
 up to 2048 features a frame on the full 1152-pixel frames; `--preset quick` (`preset="quick"` in
-Python) extracts up to 512 features on frames downscaled to 480 pixels and, having positions,
+Python) extracts up to 512 features on frames downscaled to 480 pixels, without SIFT's 2x
+upsampled first octave, and, having positions,
 matches each frame with its 8 nearest by position (spatial matching) instead of sequentially.
 
 {summary}
@@ -217,6 +218,7 @@ its default takes the quick value; a field given another value keeps it (`--pres
 |---|---|---|
 | `max_image_size` (`--max-image-size`) | 1600 | 480 |
 | `max_num_features` (`--max-num-features`) | 2048 | 512 |
+| `sift_first_octave` (`--sift-first-octave`) | -1 | 0 |
 | `sequential_overlap` (`--sequential-overlap`) | 5 | 3 |
 | `spatial_neighbors` (`--spatial-neighbors`) | 50 | 8 |
 | `matcher` (`--matcher`), with positions | sequential | spatial |

@@ -100,6 +100,7 @@ NOT_ON_THE_CLI = {
     ("import-colmap", "fov_deg"): "the model holds the cameras",
     ("import-colmap", "max_image_size"): "import-colmap runs no COLMAP",
     ("import-colmap", "max_num_features"): "import-colmap runs no COLMAP",
+    ("import-colmap", "sift_first_octave"): "import-colmap runs no COLMAP",
     ("import-colmap", "max_focal_deviation"): "the model's intrinsics are kept as they are",
     ("import-colmap", "num_threads"): "import-colmap decodes frames on all cores",
 }

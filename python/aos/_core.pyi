@@ -1468,6 +1468,7 @@ class PosesOptions:
         exif_positions: bool = ...,
         max_image_size: int = ...,
         max_num_features: int = ...,
+        sift_first_octave: int = ...,
         min_registered_fraction: float = ...,
         num_threads: int = ...,
         max_focal_deviation: float = ...,
@@ -1490,6 +1491,7 @@ class PosesOptions:
     exif_positions: bool
     max_image_size: int
     max_num_features: int
+    sift_first_octave: int
     min_registered_fraction: float
     num_threads: int
     max_focal_deviation: float

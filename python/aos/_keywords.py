@@ -241,6 +241,7 @@ class PosesKeywords(TypedDict, total=False):
     exif_positions: bool
     max_image_size: int
     max_num_features: int
+    sift_first_octave: int
     min_registered_fraction: float
     num_threads: int
     max_focal_deviation: float

@@ -907,6 +907,9 @@ TEST(PosesPreset, QuickSetsTheFieldsLeftAtTheirDefaults) {
   options.preset = "fast";
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("preset: \"fast\" is not one of default, quick"));
   options = PosesOptions();
+  options.sift_first_octave = 1;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("sift_first_octave: must be -1"));
+  options = PosesOptions();
   options.spatial_neighbors = 0;
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("spatial_neighbors: must be >= 1"));
   options = PosesOptions();
@@ -914,6 +917,7 @@ TEST(PosesPreset, QuickSetsTheFieldsLeftAtTheirDefaults) {
   PosesOptions quick = WithPreset(options);
   EXPECT_EQ(quick.max_image_size, 480);
   EXPECT_EQ(quick.max_num_features, 512);
+  EXPECT_EQ(quick.sift_first_octave, 0);
   EXPECT_EQ(quick.sequential_overlap, 3);
   EXPECT_EQ(quick.spatial_neighbors, 8);
   EXPECT_EQ(quick.matcher, "sequential");  // no positions: spatial matching cannot run
@@ -944,6 +948,7 @@ TEST_F(PosesPipeline, QuickPresetReachesColmap) {
   const std::string args((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
   EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_image_size 480"));
   EXPECT_THAT(args, HasSubstr("--SiftExtraction.max_num_features 512"));
+  EXPECT_THAT(args, HasSubstr("--SiftExtraction.first_octave 0"));
   EXPECT_THAT(args, HasSubstr("sequential_matcher"));
   EXPECT_THAT(args, HasSubstr("--SequentialMatching.overlap 3"));
 }

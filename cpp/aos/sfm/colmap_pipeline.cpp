@@ -418,6 +418,10 @@ void PosesOptions::Check() const {
   }
   if (max_image_size < 100) ThrowInvalid("max_image_size: must be >= 100");
   if (max_num_features < 100) ThrowInvalid("max_num_features: must be >= 100");
+  if (sift_first_octave != -1 && sift_first_octave != 0) {
+    ThrowInvalid("sift_first_octave: must be -1 (upsampled frames, COLMAP's default) or 0 (got " +
+                 std::to_string(sift_first_octave) + ")");
+  }
   if (!(min_registered_fraction > 0.0 && min_registered_fraction <= 1.0)) {
     ThrowInvalid("min_registered_fraction: must be in (0, 1]");
   }
@@ -430,12 +434,14 @@ PosesOptions WithPreset(const PosesOptions& options) {
   if (options.preset == "default") return effective;
   // "quick": each field still at its default takes the quick value (header). On the 100-frame,
   // 1152 x 864 flight of tools/bench_poses.py: features on 480-pixel frames (a sixth of the
-  // pixels), a quarter of the features (matching a pair costs about a sixteenth), and with positions each
+  // pixels), detected without SIFT's 2x upsampled first octave, a quarter of the features
+  // (matching a pair costs about a sixteenth), and with positions each
   // frame matched with its 8 nearest (the 3 x 3 block around it on a grid flight) instead of 7
   // sequential successors that miss the neighbouring rows.
   const PosesOptions defaults;
   if (options.max_image_size == defaults.max_image_size) effective.max_image_size = 480;
   if (options.max_num_features == defaults.max_num_features) effective.max_num_features = 512;
+  if (options.sift_first_octave == defaults.sift_first_octave) effective.sift_first_octave = 0;
   if (options.sequential_overlap == defaults.sequential_overlap) effective.sequential_overlap = 3;
   if (options.spatial_neighbors == defaults.spatial_neighbors) effective.spatial_neighbors = 8;
   const bool positions = !options.positions_file.empty() || options.exif_positions;
@@ -889,7 +895,8 @@ void ExtractFeatures(const ColmapRun& run, const PosesOptions& options,
       frames_dir, "--image_list_path", run.list.string(), "--ImageReader.single_camera", "1",
       "--SiftExtraction.use_gpu", "0", "--SiftExtraction.num_threads", threads,
       "--SiftExtraction.max_image_size", std::to_string(options.max_image_size),
-      "--SiftExtraction.max_num_features", std::to_string(options.max_num_features)};
+      "--SiftExtraction.max_num_features", std::to_string(options.max_num_features),
+      "--SiftExtraction.first_octave", std::to_string(options.sift_first_octave)};
   if (known_colmap_camera != nullptr) {
     const auto& [model, params] = *known_colmap_camera;
     extract.insert(extract.end(), {"--ImageReader.camera_model", model,

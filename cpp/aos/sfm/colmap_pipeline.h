@@ -78,6 +78,9 @@ struct PosesOptions {
   bool exif_positions = false;          // positions from the frames' EXIF GPS (UTM); not both
   int max_image_size = 1600;            // SIFT on frames downscaled to this longest side, >= 100
   int max_num_features = 2048;          // per frame, >= 100 (matching cost grows with its square)
+  // SIFT's first octave: -1 (COLMAP's default) detects on the frame upsampled 2x (finer
+  // features, about 4x the extraction time), 0 on the frame itself; -1 or 0.
+  int sift_first_octave = -1;
   double min_registered_fraction = 0.5; // (0, 1]
   int num_threads = -1;                 // COLMAP's threads; -1 = all cores
   // Self-calibration is checked against the fov_deg prior: a focal length further than this
@@ -97,7 +100,7 @@ struct PosesOptions {
   bool allow_implausible = false;
   // Speed against accuracy of the COLMAP stages: "default" (the fields as they are) or "quick":
   // each of these fields still at its default takes the quick value (a field set to another
-  // value wins): max_image_size 480, max_num_features 512, sequential_overlap 3,
+  // value wins): max_image_size 480, max_num_features 512, sift_first_octave 0, sequential_overlap 3,
   // spatial_neighbors 8, and matcher "spatial" when positions are given (positions_file or
   // exif_positions). docs/poses.md measures both presets on the 100-frame flight of
   // tools/bench_poses.py.
