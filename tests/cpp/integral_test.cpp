@@ -584,7 +584,8 @@ TEST(Integral, SimdKernelsWriteOnlyTheirSpanAndThePadding) {
     }
     image.FillBorder();
     const internal::SpanKernel simd = internal::Avx2SpanKernel(image);
-    if (simd == nullptr) GTEST_SKIP() << "no AVX2/FMA on this CPU";
+    const internal::SquaresKernel simd_squares = internal::Avx2SquaresKernel(image);
+    if (simd == nullptr || simd_squares == nullptr) GTEST_SKIP() << "no AVX2/FMA on this CPU";
     const internal::SpanKernel scalar = internal::ScalarSpanKernel(image);
     // A slightly rotated, scaled row through the image (stays inside [0, 24] x [0, 6]).
     const internal::RowLine line{0.5, 0.93, 2.2, 0.05, 1.0, 1e-4};
@@ -597,6 +598,15 @@ TEST(Integral, SimdKernelsWriteOnlyTheirSpanAndThePadding) {
       for (int x = 0; x < xa; ++x) ASSERT_EQ(got[x], 7.0) << "before the span, n=" << n;
       for (int x = xa; x < xb; ++x) ASSERT_NEAR(got[x], expected[x], 1e-3 * (1 + std::abs(expected[x])));
       for (int x = xb; x < width + internal::kSpanPadding; ++x) ASSERT_EQ(got[x], 7.0) << "padding";
+      // The variance kernel: the same for its sums and its squares.
+      std::vector<double> sums(width + internal::kSpanPadding, 7.0), squares = sums;
+      simd_squares(image, line, xa, xb, 0, sums.data(), squares.data());
+      for (int x = 0; x < xa; ++x) ASSERT_EQ(squares[x], 7.0) << "before the span, n=" << n;
+      for (int x = xa; x < xb; ++x) ASSERT_EQ(sums[x], got[x]);
+      for (int x = xb; x < width + internal::kSpanPadding; ++x) {
+        ASSERT_EQ(sums[x], 7.0);
+        ASSERT_EQ(squares[x], 7.0) << "padding";
+      }
     }
   }
 }
@@ -641,6 +651,8 @@ TEST(Integral, SimdKernelsEqualTheirFmaModelBitForBitOnEveryTapPath) {
       {2.0, 1.0, 1.0, 0.1, 1.0, 0.012},     // perspective (W varies along the row)
       {60.0, 0.2, 23.4, 0.01, 1.0, 0.0},    // along the bottom-right edge: clamped positions
       {-4.0, 1.0, -3.0, 0.0, 1.0, 0.0},     // left of and above the image: clamped to -1
+      {0.5, 2.0, 3.0, 0.0, 1.0, 0.0},       // 8 lanes 14 columns apart: the widest row load
+      {0.0, 1.0, 0.0, 0.0, 0.0, 0.0},       // W = 0: NaN (0 x inf) and infinite positions, clamped
   };
   for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
     Image image(64, 24, 1, type, 1);
@@ -664,22 +676,26 @@ TEST(Integral, SimdKernelsEqualTheirFmaModelBitForBitOnEveryTapPath) {
     for (const internal::RowLine& line : lines) {
       for (int n : {1, 7, 8, 9, 16, 17, 30}) {
         const int xa = 3, xb = xa + n;
-        std::vector<double> sum(xb + internal::kSpanPadding, 0.0), sum2 = sum, squares = sum,
-                                                                  gathered = sum;
+        // Accumulators start at 1/3, so a product contracted into an FMA with the old value
+        // (one rounding instead of two) would show.
+        std::vector<double> sum(xb + internal::kSpanPadding, 1.0 / 3.0), sum2 = sum,
+                                                                       squares = sum,
+                                                                       gathered = sum;
         simd(image, line, xa, xb, 0, sum.data());
         gathers(image, line, xa, xb, 0, gathered.data());
         simd_squares(image, line, xa, xb, 0, sum2.data(), squares.data());
         for (int i = 0; i < n; ++i) {
           const FmaModelSample expected = FmaModel(image, line, xa, i);
-          ASSERT_EQ(sum[xa + i], expected.value) << PixelTypeName(type) << " line " << line.u0
-                                                 << " n=" << n << " i=" << i;
-          ASSERT_EQ(sum2[xa + i], expected.value);
-          ASSERT_EQ(gathered[xa + i], expected.value);
-          ASSERT_EQ(squares[xa + i], expected.square);
+          const double value = 1.0 / 3.0 + expected.value;
+          ASSERT_EQ(sum[xa + i], value) << PixelTypeName(type) << " line " << line.u0
+                                        << " n=" << n << " i=" << i;
+          ASSERT_EQ(sum2[xa + i], value);
+          ASSERT_EQ(gathered[xa + i], value);
+          ASSERT_EQ(squares[xa + i], 1.0 / 3.0 + expected.square);
         }
         for (int x = xb; x < xb + internal::kSpanPadding; ++x) {
-          ASSERT_EQ(sum[x], 0.0);
-          ASSERT_EQ(squares[x], 0.0);
+          ASSERT_EQ(sum[x], 1.0 / 3.0);
+          ASSERT_EQ(squares[x], 1.0 / 3.0);
         }
       }
     }

@@ -232,8 +232,9 @@ void PrefetchSpan(const Image& image, const RowLine& line, int xa, int xb) {
   const ptrdiff_t value_bytes = static_cast<ptrdiff_t>(PixelTypeSize(image.type()));
   const ptrdiff_t pixel_bytes = value_bytes * image.channels();
   const ptrdiff_t row_bytes = image.row_stride() * value_bytes;
-  const double length = std::max(std::abs(xb_s - xa_s) * pixel_bytes / 64.0, std::abs(yb_s - ya_s));
-  if (!std::isfinite(length)) return;
+  const double dx = std::abs(xb_s - xa_s), dy = std::abs(yb_s - ya_s);
+  if (!(std::isfinite(dx) && std::isfinite(dy))) return;
+  const double length = std::max(dx * pixel_bytes / 64.0, dy);
   const int steps = std::min(64, static_cast<int>(length) + 1);
   const double step_x = (xb_s - xa_s) / steps, step_y = (yb_s - ya_s) / steps;
   const auto* base = static_cast<const char*>(image.RawAt(0, 0));
@@ -418,7 +419,9 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
   const size_t row_values = static_cast<size_t>(tile_width) * channels_;
   buffers.sum.assign(row_values * rows + internal::kSpanPadding, 0.0);
   buffers.count_diff.assign(static_cast<size_t>(tile_width + 1) * rows, 0);
-  if (options_.variance) buffers.sum_squares.assign(static_cast<size_t>(tile_width) * rows, 0.0);
+  if (options_.variance) {
+    buffers.sum_squares.assign(static_cast<size_t>(tile_width) * rows + internal::kSpanPadding, 0.0);
+  }
   if (mode_ == Mode::kNearest) {
     buffers.best.assign(static_cast<size_t>(tile_width) * rows,
                         std::numeric_limits<double>::infinity());

@@ -1,13 +1,14 @@
 #include "aos/render/integral_kernels.h"
 
+#include <atomic>
 #include <cstdint>
 
 namespace aos::internal {
 namespace {
 
-bool g_simd_enabled = true;
-bool g_simd_variance_enabled = true;
-bool g_simd_row_loads_enabled = true;
+std::atomic<bool> g_simd_enabled{true};
+std::atomic<bool> g_simd_variance_enabled{true};
+std::atomic<bool> g_simd_row_loads_enabled{true};
 
 // s clamped to [-1, max]; NaN gives -1.
 inline float ClampSample(float s, float max) {
@@ -115,11 +116,15 @@ SquaresKernel ScalarSquaresKernel(const Image& image) {
   return nullptr;
 }
 
-void SetSimdEnabled(bool enabled) { g_simd_enabled = enabled; }
-bool SimdEnabled() { return g_simd_enabled; }
-void SetSimdVarianceEnabled(bool enabled) { g_simd_variance_enabled = enabled; }
-bool SimdVarianceEnabled() { return g_simd_variance_enabled; }
-void SetSimdRowLoadsEnabled(bool enabled) { g_simd_row_loads_enabled = enabled; }
-bool SimdRowLoadsEnabled() { return g_simd_row_loads_enabled; }
+void SetSimdEnabled(bool enabled) { g_simd_enabled.store(enabled, std::memory_order_relaxed); }
+bool SimdEnabled() { return g_simd_enabled.load(std::memory_order_relaxed); }
+void SetSimdVarianceEnabled(bool enabled) {
+  g_simd_variance_enabled.store(enabled, std::memory_order_relaxed);
+}
+bool SimdVarianceEnabled() { return g_simd_variance_enabled.load(std::memory_order_relaxed); }
+void SetSimdRowLoadsEnabled(bool enabled) {
+  g_simd_row_loads_enabled.store(enabled, std::memory_order_relaxed);
+}
+bool SimdRowLoadsEnabled() { return g_simd_row_loads_enabled.load(std::memory_order_relaxed); }
 
 }  // namespace aos::internal

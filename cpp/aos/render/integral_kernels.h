@@ -23,7 +23,8 @@ using SpanKernel = void (*)(const Image& image, const RowLine& line, int xa, int
                             double* sum);
 
 // A span kernel that also adds the sum over channels of the squared samples into
-// sum_squares[x - x0] (the renderer's variance pass), from the same samples as it adds to `sum`.
+// sum_squares[x - x0] (the renderer's variance pass), from the same samples as it adds to `sum`;
+// `sum_squares` too needs kSpanPadding writable values past the span's end.
 // The squares are rounded as the scalar kernel rounds them (double product, then double sum);
 // the SIMD samples themselves differ from the scalar ones by float rounding, as for SpanKernel.
 using SquaresKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
@@ -48,8 +49,10 @@ void SetSimdEnabled(bool enabled);
 bool SimdEnabled();
 void SetSimdVarianceEnabled(bool enabled);
 bool SimdVarianceEnabled();
-// Off: the 8-bit AVX2 span kernel fetches every tap with gathers, as before it had row loads
-// (tools/bench_integral.py's baseline; the samples are the same).
+// Off: the 8-bit AVX2 kernels (span and variance) fetch every tap with gathers, as before they had
+// row loads (tools/bench_integral.py's baseline; the samples are the same). The switches are
+// atomic, so flipping one during a render is no data race, but which kernel each view of that
+// render gets is then unspecified.
 void SetSimdRowLoadsEnabled(bool enabled);
 bool SimdRowLoadsEnabled();
 

@@ -25,6 +25,7 @@ struct SpanSetup {
   __m256 x_max, y_max;
   const unsigned char* origin;
   int stride_bytes;
+  int height;  // of the view, pixels
 };
 
 // Where the 8 samples of a group fall in the view: the top-left tap and the weights.
@@ -71,40 +72,47 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256i ShuffleRow(con
       _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))), control);
 }
 
-// 8-bit views: the taps of 8 consecutive samples usually lie in a short stretch of two or three
-// view rows (along an output row the view position moves monotonically, about one view pixel per
-// output pixel; on F0 every group does). Then 16-byte row loads and byte shuffles replace the two
-// gathers, which issue 8 loads each and were the kernel's bottleneck. The words built are the
-// gathers' words in their low 16 bits ([p00, p01] and [p10, p11]); the upper bytes are zero
-// instead of the next pixels', which Finish masks off, so the samples are the same. Returns false
-// (the caller gathers) when the group spans more than 15 columns or more than two rows.
-// Memory: reads 16 bytes from the leftmost tap in rows iy_min .. iy_min + 2, within the bordered
-// image or its slack (image.cpp: kSlackBytes): positions are clamped to x <= width - 0.5 and
-// y <= height - 0.5, so iy_min + 2 <= height (the border row) and the leftmost tap <= width - 1.
+// 8-bit views: the taps of 8 consecutive samples usually lie in a short stretch of two view rows
+// (along an output row the view position moves by about one view pixel per output pixel; on F0
+// every group does). Then 16-byte row loads and byte shuffles replace the two gathers, which
+// issue 8 loads each and were the kernel's bottleneck. The words built are the gathers' words in
+// their low 16 bits ([p00, p01] and [p10, p11]); the upper bytes are zero instead of the next
+// pixels', which Finish masks off, so the samples are the same. The base is the smaller of the
+// first and last lanes' taps (the exact positions are monotonic along the span); since rounding
+// can break that by a pixel, every lane is checked: each tap must lie within 15 columns right of
+// the base column and in its row or the next. Returns false (the caller gathers) otherwise.
+// Memory: reads 16 bytes from the base column (>= -1, <= width - 1, as positions are clamped to
+// [-1, width - 0.5]) in rows y_min .. y_min + 2, the third only where y_min + 2 <= height (the
+// bottom border row); so at most 14 bytes past the last border row, in the slack (image.cpp:
+// kSlackBytes).
 __attribute__((target("avx2,fma"), always_inline)) inline bool FetchU8FromRows(const SpanSetup& c,
                                                                                const Positions& p,
                                                                                Fetched& f) {
-  // Positions are monotonic along the span, so the extremes are the first and last lanes.
   const __m128i ix_high = _mm256_extracti128_si256(p.ix, 1);
   const __m128i iy_high = _mm256_extracti128_si256(p.iy, 1);
   const int ix_first = _mm256_cvtsi256_si32(p.ix), ix_last = _mm_extract_epi32(ix_high, 3);
   const int iy_first = _mm256_cvtsi256_si32(p.iy), iy_last = _mm_extract_epi32(iy_high, 3);
   const int x_min = ix_first < ix_last ? ix_first : ix_last;
-  const int x_span = ix_first < ix_last ? ix_last - ix_first : ix_first - ix_last;
   const int y_min = iy_first < iy_last ? iy_first : iy_last;
-  const int y_span = iy_first < iy_last ? iy_last - iy_first : iy_first - iy_last;
-  if (x_span > 14 || y_span > 1) return false;
-  const unsigned char* row = c.origin + static_cast<ptrdiff_t>(y_min) * c.stride_bytes + x_min;
-  // Per lane, bytes [d, d + 1, zero, zero] with d = ix - x_min (vpshufb zeroes for 0x80).
+  // Every lane: 0 <= ix - x_min <= 14 and 0 <= iy - y_min <= 1 (unsigned: negatives fail).
   const __m256i d = _mm256_sub_epi32(p.ix, _mm256_set1_epi32(x_min));
+  const __m256i e = _mm256_sub_epi32(p.iy, _mm256_set1_epi32(y_min));
+  const __m256i d_max = _mm256_set1_epi32(14), e_max = _mm256_set1_epi32(1);
+  const __m256i fits = _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_max_epu32(d, d_max), d_max),
+                                        _mm256_cmpeq_epi32(_mm256_max_epu32(e, e_max), e_max));
+  if (_mm256_movemask_epi8(fits) != -1) return false;
+  const unsigned char* row = c.origin + static_cast<ptrdiff_t>(y_min) * c.stride_bytes + x_min;
+  // Per lane, bytes [d, d + 1, zero, zero] (vpshufb zeroes for 0x80).
   const __m256i control = _mm256_add_epi32(_mm256_add_epi32(d, _mm256_slli_epi32(d, 8)),
                                            _mm256_set1_epi32(static_cast<int>(0x80800100u)));
   // Always three rows and a blend (lanes in row y_min + 1 take the lower pair): on F0 about one
   // group in six spans two rows, and the branch it would take costs more than the third load.
+  // At the bottom (y_min = height - 1) no lane is in row y_min + 1 and the third is not read.
+  const ptrdiff_t third = y_min + 2 <= c.height ? 2 : 1;
   const __m256i row0 = ShuffleRow(row, control);
   const __m256i row1 = ShuffleRow(row + c.stride_bytes, control);
-  const __m256i row2 = ShuffleRow(row + 2 * static_cast<ptrdiff_t>(c.stride_bytes), control);
-  const __m256i lower = _mm256_cmpgt_epi32(p.iy, _mm256_set1_epi32(y_min));  // lanes at y_min + 1
+  const __m256i row2 = ShuffleRow(row + third * c.stride_bytes, control);
+  const __m256i lower = _mm256_cmpeq_epi32(e, e_max);  // lanes in row y_min + 1
   f.top = _mm256_blendv_epi8(row0, row1, lower);
   f.bottom = _mm256_blendv_epi8(row1, row2, lower);
   return true;
@@ -203,6 +211,7 @@ __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const 
   c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
   c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
   c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
+  c.height = image.height();
   double* out = sum + (xa - x0);
   double* squares = kSquares ? sum_squares + (xa - x0) : nullptr;
   const int n = xb - xa;
@@ -237,6 +246,13 @@ __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowL
 __attribute__((target("avx2,fma"))) void Avx2SpanU8Gathers(const Image& image, const RowLine& line,
                                                            int xa, int xb, int x0, double* sum) {
   Avx2SpanImpl<PixelType::kU8, false, false>(image, line, xa, xb, x0, sum, nullptr);
+}
+
+__attribute__((target("avx2,fma"))) void Avx2SpanSquaresU8Gathers(const Image& image,
+                                                                  const RowLine& line, int xa,
+                                                                  int xb, int x0, double* sum,
+                                                                  double* sum_squares) {
+  Avx2SpanImpl<PixelType::kU8, true, false>(image, line, xa, xb, x0, sum, sum_squares);
 }
 
 template <PixelType kType>
@@ -301,6 +317,7 @@ __attribute__((target("avx2,fma"))) void Avx2SpanU8TwoChannels(const Image& imag
   c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
   c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
   c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
+  c.height = image.height();
   double* out = sum + 2 * (xa - x0);
   const int n = xb - xa;
   const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
@@ -339,7 +356,8 @@ bool Avx2Usable(const Image& image) {
 SquaresKernel Avx2SquaresKernel(const Image& image) {
   if (!Avx2Usable(image) || image.channels() != 1) return nullptr;
   switch (image.type()) {
-    case PixelType::kU8: return &Avx2SpanSquares<PixelType::kU8>;
+    case PixelType::kU8:
+      return SimdRowLoadsEnabled() ? &Avx2SpanSquares<PixelType::kU8> : &Avx2SpanSquaresU8Gathers;
     case PixelType::kU16: return &Avx2SpanSquares<PixelType::kU16>;
     case PixelType::kF32: return &Avx2SpanSquares<PixelType::kF32>;
     case PixelType::kU32: break;
