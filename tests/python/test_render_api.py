@@ -20,7 +20,7 @@ from aos import _core
 INTEGRAL_FIELDS = (
     "cam_from_world", "pose_view", "fov_deg", "width", "height", "aperture_radius",
     "focal_plane", "focal_surface", "surface_offset", "view_indices", "min_view_angle_deg",
-    "num_threads", "variance",
+    "num_threads", "variance", "lens_tolerance_px",
 )
 SIMULATE_FIELDS = ("num_threads",)
 
@@ -41,6 +41,7 @@ def test_integral_options_defaults_match_the_header() -> None:
     assert options.min_view_angle_deg == 1.0
     assert options.num_threads == -1
     assert options.variance is False
+    assert options.lens_tolerance_px == 0.02
     text = repr(options)
     assert text.startswith("IntegralOptions(")
     for name in INTEGRAL_FIELDS:

@@ -95,13 +95,13 @@ struct IntegralOptions {
   double min_view_angle_deg = 1.0;
   // Worker threads; -1 = all cores.
   int num_threads = -1;
-  // Also return the per-pixel variance of the view samples (the samples then go through the
-  // scalar kernel, which also sums their squares: a few times slower than the AVX2 one).
+  // Also return the per-pixel variance of the view samples (the kernels then also sum their
+  // squares: AVX2 for 1-channel views, else scalar).
   bool variance = false;
   // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
   // the exact lens projection is replaced by local homographies (surface_integral.h,
   // PointIntegralOptions::lens_tolerance_px, which this fills); 0 = project every sample exactly.
-  // Validated where it is used (the per-sample path), ignored for pinhole views.
+  // Check() refuses values outside [0, 1] for every render; pinhole views ignore it.
   double lens_tolerance_px = 0.02;
 
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
