@@ -19,6 +19,17 @@ std::vector<int> Selection(const LightField& light_field, const std::vector<int>
   return all;
 }
 
+// A point on the border of a w x h image, going round it: edge 0 top, 1 right, 2 bottom, 3 left,
+// t in [0, 1) along the edge.
+Vec2d BorderPixel(int edge, double t, double w, double h) {
+  switch (edge) {
+    case 0: return Vec2d(t * w, 0.0);
+    case 1: return Vec2d(w, t * h);
+    case 2: return Vec2d(w - t * w, h);
+    default: return Vec2d(0.0, h - t * h);
+  }
+}
+
 // Casts view `view`'s image border onto the plane z = height (local frame), growing the box
 // [lo, hi]; throws when a border ray does not meet the plane in front of the view (the footprint
 // is unbounded: the view sees the horizon).
@@ -31,13 +42,7 @@ void GrowByFootprint(const View& view, int index, double height, double* lo, dou
   for (int edge = 0; edge < 4; ++edge) {
     for (int k = 0; k < steps; ++k) {
       const double t = static_cast<double>(k) / steps;
-      Vec2d pixel;
-      switch (edge) {
-        case 0: pixel = Vec2d(t * w, 0.0); break;
-        case 1: pixel = Vec2d(w, t * h); break;
-        case 2: pixel = Vec2d(w - t * w, h); break;
-        default: pixel = Vec2d(0.0, h - t * h); break;
-      }
+      const Vec2d pixel = BorderPixel(edge, t, w, h);
       Vec3d ray;
       if (!view.camera.Unproject(pixel, &ray)) continue;  // outside a fisheye's valid field
       const Vec3d direction = world_from_cam * ray;
@@ -349,13 +354,7 @@ bool LensImageBox(const LensCamera& camera, double* lo, double* hi) {
   for (int edge = 0; edge < 4; ++edge) {
     for (int k = 0; k < steps; ++k) {
       const double t = static_cast<double>(k) / steps;
-      Vec2d pixel;
-      switch (edge) {
-        case 0: pixel = Vec2d(t * w, 0.0); break;
-        case 1: pixel = Vec2d(w, t * h); break;
-        case 2: pixel = Vec2d(w - t * w, h); break;
-        default: pixel = Vec2d(0.0, h - t * h); break;
-      }
+      const Vec2d pixel = BorderPixel(edge, t, w, h);
       Vec3d ray;
       if (!camera.Unproject(pixel, &ray)) return false;
       if (!(ray.z > 1e-6)) return false;

@@ -44,6 +44,23 @@ std::vector<float> Luminance(const Image& image) {
   return out;
 }
 
+// Squared Sobel gradient of `luminance` at covered pixel (x, y) of a w x h image; taps off the
+// image are clamped to its edge, uncovered taps take the centre's value (no edge at a hole).
+double SobelEnergyAt(const std::vector<float>& luminance, const std::vector<uint8_t>& covered,
+                     int w, int h, int x, int y) {
+  const float own = luminance[static_cast<size_t>(y) * w + x];
+  auto tap = [&](int dx, int dy) {
+    const int qx = std::clamp(x + dx, 0, w - 1), qy = std::clamp(y + dy, 0, h - 1);
+    const size_t q = static_cast<size_t>(qy) * w + qx;
+    return covered[q] ? static_cast<double>(luminance[q]) : static_cast<double>(own);
+  };
+  const double gx = (tap(1, -1) + 2.0 * tap(1, 0) + tap(1, 1)) -
+                    (tap(-1, -1) + 2.0 * tap(-1, 0) + tap(-1, 1));
+  const double gy = (tap(-1, 1) + 2.0 * tap(0, 1) + tap(1, 1)) -
+                    (tap(-1, -1) + 2.0 * tap(0, -1) + tap(1, -1));
+  return gx * gx + gy * gy;
+}
+
 // Box mean of `value` over the (2r+1)^2 window, over the pixels where `valid` is set; centres
 // that are not valid get kNone. Each window is summed directly (a row pass, then a column pass
 // of 2r+1 terms each), not from a summed-area table: a table's four-corner differences leave
@@ -106,17 +123,7 @@ std::vector<float> FocusValues(MergeMethod method, const Image& image, const Ima
     for (int x = 0; x < w; ++x) {
       const size_t centre = static_cast<size_t>(y) * w + x;
       if (!covered[centre]) continue;
-      const float own = luminance[centre];
-      auto tap = [&](int dx, int dy) {
-        const int qx = std::clamp(x + dx, 0, w - 1), qy = std::clamp(y + dy, 0, h - 1);
-        const size_t q = static_cast<size_t>(qy) * w + qx;
-        return covered[q] ? static_cast<double>(luminance[q]) : static_cast<double>(own);
-      };
-      const double gx = (tap(1, -1) + 2.0 * tap(1, 0) + tap(1, 1)) -
-                        (tap(-1, -1) + 2.0 * tap(-1, 0) + tap(-1, 1));
-      const double gy = (tap(-1, 1) + 2.0 * tap(0, 1) + tap(1, 1)) -
-                        (tap(-1, -1) + 2.0 * tap(0, -1) + tap(1, -1));
-      energy[centre] = gx * gx + gy * gy;
+      energy[centre] = SobelEnergyAt(luminance, covered, w, h, x, y);
     }
   }
   if (method == MergeMethod::kSobel) {
@@ -762,17 +769,7 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
           const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
           const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
           if (!covered[p]) continue;
-          const float own = luminance[p];
-          auto tap = [&](int dx, int dy) {
-            const int qx = std::clamp(x + dx, 0, w - 1), qy = std::clamp(y + dy, 0, h - 1);
-            const size_t q = static_cast<size_t>(qy) * w + qx;
-            return covered[q] ? static_cast<double>(luminance[q]) : static_cast<double>(own);
-          };
-          const double gx = (tap(1, -1) + 2.0 * tap(1, 0) + tap(1, 1)) -
-                            (tap(-1, -1) + 2.0 * tap(-1, 0) + tap(-1, 1));
-          const double gy = (tap(-1, 1) + 2.0 * tap(0, 1) + tap(1, 1)) -
-                            (tap(-1, -1) + 2.0 * tap(0, -1) + tap(1, -1));
-          energy[p] = gx * gx + gy * gy;
+          energy[p] = SobelEnergyAt(luminance, covered, w, h, x, y);
         }
 #pragma omp parallel for num_threads(threads) schedule(static)
         for (int64_t j = 0; j < count; ++j) {
