@@ -92,7 +92,10 @@ def main() -> int:
     path = survey(args)
     poses = aos.load_lightfield(path, load_images=False).light_field
     frame = poses.views[0]
-    frame_bytes = frame.camera.width * frame.camera.height * 3
+    probe = aos.load_lightfield(path, load_images=False).light_field
+    aos._core._load_view_images(probe, [0], num_threads=1)
+    frame_bytes = probe.image_bytes()  # one decoded frame (grey or colour, its bit depth)
+    del probe
     options = aos.MapOptions(pixel_size=args.pixel_size, tile_size=args.tile_size)
     grid = aos._core._map_grid(poses, options)
     megapixels = grid["width"] * grid["height"] / 1e6

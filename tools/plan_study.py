@@ -13,6 +13,7 @@ Pareto front (no other plan is both faster and better) and the cheapest plan rea
     python3 tools/plan_study.py                          # the default sweep, table on stdout
     python3 tools/plan_study.py --per-hectare 600 --target-psnr 18
     python3 tools/plan_study.py --write-docs             # docs/plan-study.svg and .md
+    python3 tools/plan_study.py --workers 2              # the plans as Dask tasks, same table
 
 The forest: `--per-hectare` trees 8-12 m tall (crowns 1.5-2.5 m, 300 leaves each) on 50 x 50 m
 of noise-textured ground, a 1.8 x 0.6 m target at the origin; views of 64 x 64 pixels (50
@@ -24,6 +25,7 @@ not absolute quality predictions for a real camera. Deterministic (seeded scene)
 from __future__ import annotations
 
 import argparse
+import functools
 import itertools
 import pathlib
 import sys
@@ -63,17 +65,30 @@ class Row:
     pareto: bool = False
 
 
+def evaluate(case: tuple[float, float, float], per_hectare: int) -> Row:
+    """One plan: planned, flown in the simulator over the forest, scored (a Dask task with
+    --workers)."""
+    diameter, spacing, altitude = case
+    plan = aos.plan_flight(shape="circle", radius_m=diameter / 2, spacing_m=spacing,
+                           along_spacing_m=spacing, altitude_m=altitude,
+                           battery_min=float("inf"), min_shots_per_line=1)
+    preview = aos.preview_flight_plan(plan, forest(per_hectare))
+    return Row(diameter, spacing, altitude, plan.images, plan.flight_time_s / 60.0,
+               preview.psnr_db, preview.ssim, preview.visible_fraction)
+
+
 def run(diameters: list[float], spacings: list[float], altitudes: list[float],
-        per_hectare: int) -> list[Row]:
-    scene = forest(per_hectare)
-    rows = []
-    for diameter, spacing, altitude in itertools.product(diameters, spacings, altitudes):
-        plan = aos.plan_flight(shape="circle", radius_m=diameter / 2, spacing_m=spacing,
-                               along_spacing_m=spacing, altitude_m=altitude,
-                               battery_min=float("inf"), min_shots_per_line=1)
-        preview = aos.preview_flight_plan(plan, scene)
-        rows.append(Row(diameter, spacing, altitude, plan.images, plan.flight_time_s / 60.0,
-                        preview.psnr_db, preview.ssim, preview.visible_fraction))
+        per_hectare: int, workers: int = 0, scheduler: str = "") -> list[Row]:
+    """Every plan of the sweep, in one process or, with ``workers`` or ``scheduler``, as Dask
+    tasks (aos.distributed.run_cases: the same rows in the same order)."""
+    cases = list(itertools.product(diameters, spacings, altitudes))
+    if workers or scheduler:
+        from aos.distributed import run_cases
+
+        rows = run_cases(functools.partial(evaluate, per_hectare=per_hectare), cases,
+                         workers=workers or None, scheduler=scheduler or None)
+    else:
+        rows = [evaluate(case, per_hectare) for case in cases]
     for row in rows:
         row.pareto = not any(o.flight_min <= row.flight_min and o.psnr_db > row.psnr_db
                              or o.flight_min < row.flight_min and o.psnr_db >= row.psnr_db
@@ -207,11 +222,18 @@ def main(argv: Optional[list[str]] = None) -> int:
     parser.add_argument("--target-psnr", type=float, default=19.5, help="quality to reach, dB")
     parser.add_argument("--write-docs", action="store_true",
                         help="write docs/plan-study.svg and docs/plan-study.md")
+    parser.add_argument("--workers", type=int, default=0,
+                        help="run the plans as Dask tasks on a local cluster of N processes "
+                             "(aos.distributed.run_cases; the same table)")
+    parser.add_argument("--scheduler", default="",
+                        help="run the plans as Dask tasks on the cluster of this scheduler")
     args = parser.parse_args(argv)
+    if args.workers < 0 or (args.workers and args.scheduler):
+        parser.error("--workers N (>= 1) and --scheduler ADDRESS exclude each other")
     numbers = lambda text: [float(v) for v in text.split(",")]  # noqa: E731
     start = time.perf_counter()
     rows = run(numbers(args.diameters), numbers(args.spacings), numbers(args.altitudes),
-               args.per_hectare)
+               args.per_hectare, args.workers, args.scheduler)
     best = cheapest(rows, args.target_psnr)
     seconds = time.perf_counter() - start
     text = table(rows, best)

@@ -716,6 +716,7 @@ struct MapCommand {
   int workers = 0;            // --workers N: a LocalCluster of N processes (0 = this process)
   std::string scheduler;      // --scheduler ADDRESS: an existing Dask cluster
   double cache_mb = 1024.0;   // --cache-mb: each worker's frame cache, MiB
+  bool dashboard = false;     // --dashboard: the local cluster serves Dask's dashboard
 };
 
 int RunMapDistributed(MapCommand& c);
@@ -731,7 +732,7 @@ int RunMap(MapCommand& c, const Flags& flags) {
   CheckOutputPath(c.output, {c.light_field_path}, "output");
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
-  if (c.workers != 0 || !c.scheduler.empty()) return RunMapDistributed(c);
+  if (c.workers != 0 || !c.scheduler.empty() || c.dashboard) return RunMapDistributed(c);
   c.load.num_threads = c.options.num_threads;
   // The surface and the flags first: a bad mesh, DEM or flag fails before the frames are loaded
   // (the views are checked again against the light field).
@@ -851,6 +852,10 @@ CommandRunner DefineMap(CLI::App* command) {
                       "With --workers/--scheduler: decoded frames each worker keeps between "
                       "tasks, MiB (a task's own frames are always held)")
       ->default_str("1024");
+  command->add_flag("--dashboard", c->dashboard,
+                    "With --workers: the local cluster also serves Dask's dashboard (progress, "
+                    "tasks, memory; needs bokeh) on 127.0.0.1, its address printed; read-only "
+                    "pages without a token");
   flags.Force();
   return [c, flags] { return RunMap(*c, flags); };
 }
@@ -1051,6 +1056,10 @@ int RunMapDistributed(MapCommand& c) {
   if (!(c.cache_mb >= 0.0) || !std::isfinite(c.cache_mb)) {
     ThrowUsage("--cache-mb: must be >= 0 MiB (got " + FormatNumber(c.cache_mb) + ")");
   }
+  if (c.dashboard && c.workers == 0) {
+    ThrowUsage("--dashboard: needs --workers N (a cluster of --scheduler serves its own "
+               "dashboard, whose address is printed)");
+  }
   if (!fs::exists(c.light_field_path)) ThrowInvalid(c.light_field_path + ": no such light-field file");
   if (!c.focal_surface.empty() && !fs::exists(c.focal_surface)) {
     throw UsageError("--focal-surface: " + c.focal_surface + ": no such file");
@@ -1083,6 +1092,7 @@ int RunMapDistributed(MapCommand& c) {
   spec["workers"] = c.workers;
   spec["scheduler"] = c.scheduler;
   spec["cache_mb"] = c.cache_mb;
+  spec["dashboard"] = c.dashboard;
   spec["quiet"] = Common().quiet;
   spec["json"] = Common().json;
   ExecPythonModule("map", "distributed", spec.dump());

@@ -164,10 +164,11 @@ def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
     again = run("-o", str(tmp_path / "dask.tif"), "--workers", "2")
     assert again.returncode != 0 and "exists" in again.stderr
     for flags in (["--workers", "-1"], ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
-                  ["--workers", "2", "--cache-mb", "-1"]):
+                  ["--workers", "2", "--cache-mb", "-1"], ["--dashboard"]):
         bad = run("-o", str(tmp_path / "x.tif"), *flags)
         assert bad.returncode == 2, bad.stderr
-        assert flags[-2] in bad.stderr and not (tmp_path / "x.tif").exists()
+        assert (flags[-2] if len(flags) > 1 else flags[0]) in bad.stderr
+        assert not (tmp_path / "x.tif").exists()
 
 
 def test_a_study_on_dask_prints_the_same_table(tmp_path: Path) -> None:
@@ -203,3 +204,85 @@ def test_a_map_on_a_sloped_dem_is_bit_for_bit_too(survey: Path, tmp_path: Path, 
     result = aos.render_map(lf, client=client, path=tmp_path / "dem.tif", arrays=True, **options)
     assert np.array_equal(result.image, reference.image)
     assert np.array_equal(result.count, reference.count)
+
+
+@pytest.mark.parametrize("columns,rows,groups", [(7, 7, 2), (9, 4, 3), (1, 5, 2), (5, 1, 4),
+                                                 (3, 3, 9), (2, 2, 5)])
+def test_tiles_go_to_workers_in_compact_balanced_groups(columns: int, rows: int,
+                                                       groups: int) -> None:
+    """The placement of tiles on workers (a preference; the pixels do not depend on it): every
+    tile exactly once, group sizes within one of each other, and consecutive tiles of a group
+    side by side (boustrophedon), so that a worker's tiles share their frames."""
+    tile = 10
+    width = columns * tile - 3  # the last column is narrower
+    windows = [(x, y, min(tile, width - x), tile) for y in range(0, rows * tile, tile)
+               for x in range(0, width, tile)]
+    split = aos.distributed._tile_groups(windows, width, tile, groups)
+    assert len(split) == min(groups, len(windows))
+    assert sorted(w for group in split for w in group) == sorted(windows)
+    sizes = [len(group) for group in split]
+    assert max(sizes) - min(sizes) <= 1 and min(sizes) >= 1
+    for group in split:
+        for (xa, ya, *_), (xb, yb, *_) in zip(group, group[1:]):
+            assert abs(xa - xb) + abs(ya - yb) == tile  # neighbours
+
+
+def test_the_plan_study_on_dask_prints_the_same_table(tmp_path: Path) -> None:
+    """tools/plan_study.py --workers 2: the plans as Dask tasks, the same table row for row."""
+    tool = Path(__file__).resolve().parents[2] / "tools" / "plan_study.py"
+
+    def table(*flags: str) -> list[str]:
+        result = subprocess.run([sys.executable, str(tool), "--diameters", "8,12", "--spacings",
+                                 "4", "--altitudes", "20", *flags], capture_output=True,
+                                text=True, timeout=600, cwd=tmp_path)
+        assert result.returncode == 0, result.stderr[-2000:]
+        rows = [line for line in result.stdout.splitlines() if line.startswith("| ")]
+        assert len(rows) == 3  # the header and two plans
+        return rows
+
+    assert table("--workers", "2") == table()
+
+
+def test_the_local_cluster_admits_only_its_own_client(survey: Path) -> None:
+    """local_client's cluster talks TLS with credentials made for the session: a client without
+    them is refused (no other program on the machine can run code on the workers); without
+    dashboard=True its HTTP server (127.0.0.1) answers only the health check."""
+    import urllib.error
+    import urllib.request
+
+    from dask.distributed import Client
+
+    with local_client(1) as c:
+        address = c.scheduler.address
+        assert address.startswith("tls://127.0.0.1:")
+        with pytest.raises(Exception):
+            Client(address, timeout=5)
+        assert c.submit(sum, [1, 2]).result(timeout=60) == 3
+        base = c.dashboard_link.rsplit("/", 1)[0]
+        assert base.startswith("http://127.0.0.1:")
+        with urllib.request.urlopen(base + "/health", timeout=30) as page:
+            assert page.status == 200
+        for route in ("/status", "/info/main/workers.html", "/json/counts.json"):
+            with pytest.raises(urllib.error.HTTPError, match="404"):
+                urllib.request.urlopen(base + route, timeout=30)
+        c.cluster.close()
+
+
+def test_the_dashboard_shows_the_map_tasks_on_loopback(survey: Path, tmp_path: Path) -> None:
+    """--dashboard: Dask's dashboard on 127.0.0.1 (bokeh), whose task stream lists the tiles."""
+    pytest.importorskip("bokeh")
+    import urllib.request
+
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    with local_client(1, dashboard=True) as c:
+        link = c.dashboard_link
+        assert link.startswith("http://127.0.0.1:")
+        aos.distributed.render_map(poses, aos.MapOptions(pixel_size=PIXEL, tile_size=64),
+                                   path=None, client=c, arrays=True)
+        base = link.rsplit("/", 1)[0]
+        with urllib.request.urlopen(base + "/status", timeout=30) as page:
+            assert page.status == 200 and b"Dask" in page.read()
+        # The dashboard's progress bars group the tasks by key prefix: the tiles are one bar.
+        prefixes = c.run_on_scheduler(lambda dask_scheduler: list(dask_scheduler.task_prefixes))
+        assert "aos-map-tile" in prefixes
+        c.cluster.close()

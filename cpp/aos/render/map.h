@@ -167,7 +167,8 @@ struct MapWriteOptions {
 };
 
 // Writes a Cloud-Optimised GeoTIFF: bands 1..C the image (float32, NaN = nodata where count is
-// 0), band C+1 the count (float32, exact), DEFLATE-compressed (on every core), 256-pixel
+// 0), band C+1 the count (float32, exact), DEFLATE-compressed (level 1, floating-point
+// predictor, on every core), 256-pixel
 // blocks, averaged overviews down to one block; geotransform GeoTransform(), CRS `crs` (an
 // "EPSG:<code>" or any text OGRSpatialReference::SetFromUserInput reads; empty = none). The tiles go into a tiled
 // temporary GeoTIFF beside `path`, the COG is copied from it into a second temporary name and

@@ -189,6 +189,9 @@ class GeoTiffWriter {
     if (cog == nullptr) ThrowInvalid(path_ + ": GDAL has no COG driver (GDAL >= 3.1 needed)");
     char** options = nullptr;
     options = CSLSetNameValue(options, "COMPRESS", "DEFLATE");
+    // Level 1: on survey maps (float32 averages, whose low mantissa bits are noise) level 6, the
+    // default, spends 1.6x the CPU for files 1 % smaller (docs/distributed.md).
+    options = CSLSetNameValue(options, "LEVEL", "1");
     options = CSLSetNameValue(options, "PREDICTOR", "YES");
     options = CSLSetNameValue(options, "BLOCKSIZE", std::to_string(kBlockSize).c_str());
     options = CSLSetNameValue(options, "OVERVIEWS", "IGNORE_EXISTING");

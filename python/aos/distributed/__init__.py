@@ -165,27 +165,50 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
 # ---- client side ------------------------------------------------------------------------------
 
 
-def local_client(workers: int, **cluster_kwargs: Any) -> Any:
+def _tile_groups(windows: Sequence[tuple], width: int, tile: int, groups: int) -> list:
+    """``windows`` (row-major, ``tile`` pixels on a side, over a map ``width`` pixels wide) in
+    ``groups`` compact groups of nearly equal size: the tiles in boustrophedon order (left to
+    right, then right to left on the next row, so that consecutive tiles are neighbours) cut
+    into consecutive runs, bands of whole rows where the rows divide evenly."""
+    columns = max(1, -(-width // tile))
+    rows = [list(windows[i:i + columns]) for i in range(0, len(windows), columns)]
+    order = [w for r, row in enumerate(rows) for w in (row if r % 2 == 0 else row[::-1])]
+    groups = max(1, min(groups, len(order)))
+    bounds = [round(i * len(order) / groups) for i in range(groups + 1)]
+    return [order[bounds[i]:bounds[i + 1]] for i in range(groups)]
+
+
+def local_client(workers: int, *, dashboard: bool = False, **cluster_kwargs: Any) -> Any:
     """A Client of a new LocalCluster: ``workers`` processes of one thread each, bound to
-    127.0.0.1 (the dashboard, when bokeh is installed, on a free port of 127.0.0.1:
-    ``client.dashboard_link``). Close it
+    127.0.0.1. The cluster talks TLS with credentials made for this session only
+    (``security=True``: Dask's temporary self-signed certificates, held in memory), so no other
+    program on this machine can submit work to it. ``dashboard``: also serve Dask's dashboard
+    (progress, tasks, memory; needs bokeh) on a free port of 127.0.0.1 at
+    ``client.dashboard_link`` - read-only pages, but without a token: anyone on this machine
+    can look at it while the run lasts. Close the client and its cluster
     (``client.close(); client.cluster.close()``) or use it as a context manager."""
     from dask.distributed import Client, LocalCluster
 
     if workers < 1:
         raise ValueError(f"workers: must be >= 1 (got {workers})")
-    # The scheduler's HTTP server (the dashboard, with bokeh installed) on a free local port.
+    # Dask's scheduler and workers always run an HTTP server (on 127.0.0.1 here, a free port);
+    # without the dashboard it answers only its health check.
     settings = dict(n_workers=workers, threads_per_worker=1, processes=True, host="127.0.0.1",
-                    dashboard_address="127.0.0.1:0")
+                    dashboard_address="127.0.0.1:0", security=True,
+                    scheduler_kwargs={"dashboard": dashboard})
     settings.update(cluster_kwargs)
+    config: dict = {"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 262144}
+    if not dashboard:
+        config["distributed.scheduler.http.routes"] = ["distributed.http.health"]
+        config["distributed.worker.http.routes"] = ["distributed.http.health"]
     # Frames (about a megabyte each) come and go: with glibc's default, its mmap threshold rises
     # after the first free and later frames stay in the heap, whose high-water mark then grows
     # with the frames read. A fixed threshold gives each frame its own mapping, returned on free.
     import dask
 
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 262144}):
+    with dask.config.set(config):
         cluster = LocalCluster(**settings)
-    return Client(cluster)
+    return Client(cluster, security=cluster.security)
 
 
 def _poses_only(light_field: Any, load: dict) -> Any:
@@ -270,24 +293,43 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
                    for x0 in range(0, grid["width"], tile)]
         from dask.distributed import as_completed
 
-        # A bounded number of tiles in flight: finished tiles wait on their worker until the
-        # client has written them, so an unbounded queue would hold the whole map there.
-        pending = iter(windows)
-        in_flight = max(4, 2 * sum(client.nthreads().values()))
+        # Tiles go to workers in compact groups (see _tile_groups): neighbouring tiles share
+        # most of their frames, so a worker that renders a band of the map decodes each of its
+        # frames about once, where tiles dealt out in turn would have every worker decode nearly
+        # every frame. The placement is a preference (allow_other_workers): a worker that dies
+        # or falls behind leaves its tiles to the others, and a worker whose group is done takes
+        # tiles from the far end of the largest group left.
+        addresses = sorted(client.scheduler_info().get("workers", {})) or [None]
+        queues = [collections.deque(group)
+                  for group in _tile_groups(windows, grid["width"], tile, len(addresses))]
+        # A bounded number of tiles in flight, two per worker (one rendering, one queued):
+        # finished tiles wait on their worker until the client has written them, so an
+        # unbounded queue would hold the whole map there.
+        group_of: dict = {}
 
-        def submit_next() -> Any:
-            window = next(pending, None)
-            if window is None:
-                return None
+        def submit_next(group: int) -> Any:
+            queue = queues[group]
+            if queue:
+                window = queue.popleft()
+            else:
+                donor = max(range(len(queues)), key=lambda i: len(queues[i]))
+                if not queues[donor]:
+                    return None
+                window = queues[donor].pop()
             x0, y0, w, h = window
+            address = addresses[group]
             future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
                                    x0, y0, w, h, selection[0], pure=False,
-                                   key=f"aos-map-tile-{x0}-{y0}-{token}")
+                                   key=f"aos-map-tile-{x0}-{y0}-{token}",
+                                   workers=None if address is None else [address],
+                                   allow_other_workers=True)
             futures.append(future)
+            group_of[future.key] = group
             return future
 
-        for _ in range(in_flight):
-            submit_next()
+        for _ in range(2):
+            for group in range(len(queues)):
+                submit_next(group)
         completed = as_completed(list(futures))
 
         result = DistributedMapResult(width=grid["width"], height=grid["height"],
@@ -301,7 +343,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         for future in completed:
             out = future.result()  # re-raises the task's error (a frame's ValueError)
             future.release()
-            following = submit_next()
+            following = submit_next(group_of.pop(future.key))
             if following is not None:
                 completed.add(following)
             x0, y0 = out["x0"], out["y0"]

@@ -4,7 +4,7 @@ flags' values come as one JSON object (the flags are declared once, in C++): lig
 {fov_deg, images_dir, grey, mask, mask_dir}, pixel_size, width, extent, focal_height,
 focal_surface (path, "" = none), surface_offset, aperture_radius (number or "inf"), views ("" =
 all), min_view_angle_deg, tile_size, num_threads, output, force, workers, scheduler, cache_mb,
-quiet, json. Draws a progress bar on stderr (plain lines when stderr is not a terminal), prints
+dashboard, quiet, json. Draws a progress bar on stderr (plain lines when stderr is not a terminal), prints
 the report (a JSON object with --json), exits 0; errors: one line on stderr, exit 1 (bad input)
 or 2 (bad spec)."""
 
@@ -56,6 +56,15 @@ class _Bar:
         self.stage = ""
 
 
+def _has_dashboard(client: Any) -> bool:
+    """Whether the scheduler serves its dashboard (a local cluster made without one, or bokeh
+    missing on the scheduler's machine, leaves it out)."""
+    try:
+        return "dashboard" in client.scheduler_info().get("services", {})
+    except Exception:  # an old scheduler without the services entry
+        return False
+
+
 def main(argv: list[str]) -> int:
     if len(argv) != 2 or argv[0] != "--spec":
         return _fail("usage: python -m aos.distributed --spec JSON (run `aos-render map "
@@ -103,15 +112,31 @@ def main(argv: list[str]) -> int:
         frame_load = {key: load[key] for key in ("grey", "mask", "mask_dir") if load.get(key)}
         workers = int(spec.get("workers", 0))
         scheduler = str(spec.get("scheduler", ""))
-        if not quiet:
-            where = f"the cluster at {scheduler}" if scheduler else \
-                f"a local cluster of {workers} worker processes"
-            sys.stderr.write(f"map: {len(light_field)} frames, tiles of {options.tile_size} "
-                             f"pixels as Dask tasks on {where}\n")
-        result = distributed.render_map(
-            light_field, options, path=spec["output"], scheduler=scheduler or None,
-            workers=workers or None, load=frame_load, force=bool(spec.get("force", False)),
-            cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)), progress=bar)
+        if scheduler:
+            from dask.distributed import Client
+
+            client = Client(scheduler, timeout=30)
+        else:
+            client = distributed.local_client(workers, dashboard=bool(spec.get("dashboard")))
+        try:
+            if not quiet:
+                where = f"the cluster at {scheduler}" if scheduler else \
+                    f"a local cluster of {workers} worker processes"
+                sys.stderr.write(f"map: {len(light_field)} frames, tiles of {options.tile_size} "
+                                 f"pixels as Dask tasks on {where}\n")
+                if scheduler or spec.get("dashboard"):
+                    link = client.dashboard_link if _has_dashboard(client) else ""
+                    sys.stderr.write(f"map: Dask dashboard at {link}\n" if link else
+                                     "map: no Dask dashboard (pip install bokeh)\n")
+            result = distributed.render_map(
+                light_field, options, path=spec["output"], client=client, load=frame_load,
+                force=bool(spec.get("force", False)),
+                cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)), progress=bar)
+        finally:
+            cluster = getattr(client, "cluster", None)
+            client.close()
+            if cluster is not None and not scheduler:
+                cluster.close()
         bar.finish()
     except BadParameter as error:
         bar.finish()
