@@ -4,7 +4,9 @@ generated once into a folder by the simulator (frames as PNG files, read from di
 data), then mapped on LocalClusters of 1, 2, ... worker processes (one thread each). Reports per
 run: seconds, frames/s (frames of the survey / seconds), map megapixels/s, frame reads (cache
 misses summed over the tasks) and the peak resident memory of each worker process (the
-getrusage high-water mark of a fresh cluster), and the speed-up against the first worker count.
+getrusage high-water mark of a fresh cluster), the tasks' summed time reading frames and
+rendering, and the speed-up against the first worker count's run of the same round (--repeats
+rounds, interleaved).
 
     python3 tools/bench_distributed.py --frames 2000 --frame-width 1152 --area-ha 5 \\
         --pixel-size 0.05 --workers 1,2 --folder /tmp/survey-2000
@@ -25,6 +27,7 @@ import json
 import math
 import os
 import resource
+import statistics
 import sys
 import tempfile
 import time
@@ -83,8 +86,11 @@ def main() -> int:
     parser.add_argument("--pixel-size", type=float, default=0.05, help="map pixel, metres")
     parser.add_argument("--tile-size", type=int, default=512, help="map tile, pixels")
     parser.add_argument("--workers", default="1,2", help="worker counts to run, e.g. 1,2")
-    parser.add_argument("--cache-mb", type=float, default=256.0,
+    parser.add_argument("--cache-mb", type=float,
+                        default=distributed.DEFAULT_CACHE_BYTES / 2**20,
                         help="frame cache per worker, MiB")
+    parser.add_argument("--repeats", type=int, default=1,
+                        help="rounds of every worker count, interleaved")
     parser.add_argument("--folder", default="", help="where the survey is (generated once)")
     parser.add_argument("--json", default="", help="also write the results here")
     args = parser.parse_args()
@@ -104,31 +110,50 @@ def main() -> int:
           f"{grid['height']} pixels of {args.pixel_size} m ({megapixels:.1f} MP, "
           f"{grid['width'] * grid['height'] * args.pixel_size**2 / 1e4:.2f} ha)", file=sys.stderr)
     runs = []
+    counts = [int(w) for w in args.workers.split(",")]
     with tempfile.TemporaryDirectory() as scratch:
-        for index, workers in enumerate(int(w) for w in args.workers.split(",")):
-            with distributed.local_client(workers) as client:
-                started = time.perf_counter()
-                result = distributed.render_map(
-                    poses, options, path=Path(scratch) / f"map-{index}.tif", client=client,
-                    cache_bytes=int(args.cache_mb * 2**20))
-                seconds = time.perf_counter() - started
-                peaks = sorted(client.run(peak_rss_bytes).values())
-                client.cluster.close()
-            run = {"workers": workers, "seconds": round(seconds, 2),
-                   "seconds_cog_write": round(result.seconds_write, 2),
-                   "frames_per_s": round(len(poses) / seconds, 2),
-                   "map_mp_per_s": round(megapixels / seconds, 3),
-                   "tiles": result.tiles, "frame_reads": result.frames_read,
-                   "peak_worker_rss_mib": [round(p / 2**20) for p in peaks]}
-            runs.append(run)
-            print(json.dumps(run), file=sys.stderr)
-    base = runs[0]["seconds"]
+        # Rounds of every worker count, interleaved (1, 2, 1, 2, ...): the machine's load
+        # drifts, and hits both alike.
+        for round_index in range(args.repeats):
+            for workers in counts:
+                with distributed.local_client(workers) as client:
+                    started = time.perf_counter()
+                    result = distributed.render_map(
+                        poses, options, path=Path(scratch) / f"map-{len(runs)}.tif",
+                        client=client, cache_bytes=int(args.cache_mb * 2**20))
+                    seconds = time.perf_counter() - started
+                    peaks = sorted(client.run(peak_rss_bytes).values())
+                    client.cluster.close()
+                run = {"round": round_index, "workers": workers, "seconds": round(seconds, 2),
+                       "seconds_cog_write": round(result.seconds_write, 2),
+                       "task_seconds_decode": round(result.seconds_decode, 2),
+                       "task_seconds_render": round(result.seconds_render, 2),
+                       "frames_per_s": round(len(poses) / seconds, 2),
+                       "map_mp_per_s": round(megapixels / seconds, 3),
+                       "tiles": result.tiles, "frame_reads": result.frames_read,
+                       "peak_worker_rss_mib": [round(p / 2**20) for p in peaks]}
+                runs.append(run)
+                print(json.dumps(run), file=sys.stderr)
+    # Speed-up of each run against the first worker count's run of the same round.
     for run in runs:
-        run["speedup"] = round(base / run["seconds"], 2)
+        base = next(r for r in runs if r["round"] == run["round"] and r["workers"] == counts[0])
+        run["speedup"] = round(base["seconds"] / run["seconds"], 2)
+    summary = {}
+    for workers in counts:
+        mine = [r for r in runs if r["workers"] == workers]
+        summary[workers] = {
+            "median_seconds": statistics.median(r["seconds"] for r in mine),
+            "median_speedup": statistics.median(r["speedup"] for r in mine),
+            "peak_worker_rss_mib": max(max(r["peak_worker_rss_mib"]) for r in mine)}
+        print(f"{workers} worker(s): median {summary[workers]['median_seconds']:.1f} s, "
+              f"speed-up {summary[workers]['median_speedup']:.2f}x (rounds: "
+              f"{', '.join(str(r['speedup']) for r in mine)}), peak worker memory "
+              f"{summary[workers]['peak_worker_rss_mib']} MiB", file=sys.stderr)
     report = {"frames": len(poses), "frame_size": [frame.camera.width, frame.camera.height],
               "map_size": [grid["width"], grid["height"]], "map_mp": round(megapixels, 2),
               "pixel_size": args.pixel_size, "tile_size": args.tile_size,
-              "cache_mb": args.cache_mb, "runs": runs}
+              "cache_mb": args.cache_mb, "frame_mib": round(frame_bytes / 2**20, 3),
+              "runs": runs, "summary": summary}
     report["load_average"] = os.getloadavg()
     print(json.dumps(report, indent=1))
     if args.json:

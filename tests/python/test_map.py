@@ -396,3 +396,62 @@ def test_a_dem_in_another_crs_is_refused_or_transformed(flight: aos.LightField,
     np.testing.assert_allclose(on_dem.image, plane.image, atol=1e-3)
     # The same surface in its own CRS comes back unchanged.
     assert surface.in_crs("EPSG:25833") == surface
+
+
+def block_means(image: np.ndarray, count: np.ndarray, f: int) -> tuple[np.ndarray, np.ndarray]:
+    """The overview of factor f by its definition: over each f x f block of the map (partial at
+    the right and bottom edges), the mean of the values of the pixels with samples (NaN where
+    none) and the mean count of all its pixels, in float64."""
+    h, w = count.shape
+    oh, ow = -(-h // f), -(-w // f)
+    pad = ((0, oh * f - h), (0, ow * f - w))
+    valid = np.pad(count > 0, pad)
+    pixels = np.pad(np.ones_like(count, bool), pad)
+    values = np.pad(np.where(count > 0, image, 0.0).astype(np.float64), pad)
+    counts = np.pad(count.astype(np.float64), pad)
+
+    def blocks(a: np.ndarray) -> np.ndarray:
+        return a.reshape(oh, f, ow, f).sum(axis=(1, 3))
+
+    n = blocks(valid.astype(np.float64))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mean = np.where(n > 0, blocks(values) / n, np.nan)
+    return mean, blocks(counts) / blocks(pixels.astype(np.float64))
+
+
+def test_the_cog_overviews_are_the_block_means_of_the_map(tmp_path: Path) -> None:
+    """The writer fills the overviews window by window (tiles aligned to the largest factor):
+    each level is the block mean of the map itself (values over pixels with samples, NaN where
+    none; the count over all pixels), as GDAL's AVERAGE defines it. Unaligned tiles fall back to
+    GDAL's own overviews, with the same levels."""
+    scene = dict(SCENE, ground={"texture": {"type": "noise", "square": 0.3, "seed": 5}})
+    lf = aos.simulate(scene).light_field
+    options = dict(pixel_size=0.03, extent=[-16.0, -15.0, 14.0, 13.0])  # 1000 x 934 pixels
+    aligned = aos.render_map(lf, path=tmp_path / "a.tif", arrays=True, tile_size=64, **options)
+    assert aligned.uncovered_pixels > 0  # the corners: nodata must stay out of the means
+    with rasterio.open(tmp_path / "a.tif") as dataset:
+        factors = dataset.overviews(1)
+        assert factors == [2, 4]  # halving until a level fits in one 256-pixel block
+        for level, f in enumerate(factors):
+            with rasterio.open(tmp_path / "a.tif", overview_level=level) as overview:
+                value, count = overview.read(1), overview.read(2)
+            mean, mean_count = block_means(aligned.image, aligned.count, f)
+            assert value.shape == mean.shape
+            assert np.array_equal(np.isnan(value), np.isnan(mean))
+            # float32 output of a float64 mean: within half an ulp-ish of the value.
+            np.testing.assert_allclose(value[~np.isnan(value)], mean[~np.isnan(mean)], rtol=2e-7,
+                                       atol=1e-6)
+            np.testing.assert_allclose(count, mean_count, rtol=2e-7)
+    unaligned = aos.render_map(lf, path=tmp_path / "u.tif", tile_size=50, **options)
+    assert unaligned.tiles > aligned.tiles
+    with rasterio.open(tmp_path / "u.tif") as dataset, rasterio.open(tmp_path / "a.tif") as a:
+        assert np.array_equal(dataset.read(), a.read(), equal_nan=True)
+        assert dataset.overviews(1) == [2, 4]
+        with rasterio.open(tmp_path / "u.tif", overview_level=0) as overview:
+            gdal_value = overview.read(1)
+        mean, _ = block_means(aligned.image, aligned.count, 2)
+        inner = (slice(1, min(gdal_value.shape[0], mean.shape[0]) - 1),
+                 slice(1, min(gdal_value.shape[1], mean.shape[1]) - 1))
+        both = ~np.isnan(gdal_value[inner]) & ~np.isnan(mean[inner])
+        np.testing.assert_allclose(gdal_value[inner][both], mean[inner][both], rtol=1e-5,
+                                   atol=1e-4)

@@ -127,6 +127,21 @@ class GeoTiffWriter {
       dataset_->SetMetadataItem("AOS_FOCAL_HEIGHT", FormatNumber(grid.focal_height).c_str());
     }
     dataset_->SetMetadataItem("AOS_UP", grid.up_z > 0 ? "+z" : "-z");
+    // The overview levels the COG gets: halving until a level fits in one block, as GDAL's COG
+    // driver chooses them. They are allocated here (empty, sparse) and filled window by window
+    // in Write(), so that the end of the map (Commit) only compresses: the averages are made
+    // while the tiles come in, on the worker cores' time, not after the last one.
+    for (int f = 2, w = grid.width, h = grid.height; w > kBlockSize || h > kBlockSize; f *= 2) {
+      factors_.push_back(f);
+      w = (grid.width + f - 1) / f;
+      h = (grid.height + f - 1) / f;
+    }
+    if (!factors_.empty() &&
+        dataset_->BuildOverviews("NONE", static_cast<int>(factors_.size()), factors_.data(), 0,
+                                 nullptr, nullptr, nullptr, nullptr) != CE_None) {
+      ThrowInvalid(path + ": cannot add overviews to the temporary GeoTIFF (" + QuietGdal::Last() +
+                   ")");
+    }
   }
 
   ~GeoTiffWriter() {
@@ -173,6 +188,20 @@ class GeoTiffWriter {
                            nullptr) != CE_None) {
       ThrowInvalid(path_ + ": writing the temporary GeoTIFF failed (" + QuietGdal::Last() + ")");
     }
+    if (overviews_filled_ && !factors_.empty()) {
+      // A window covers whole pixels of every overview level when it starts on a multiple of
+      // the largest factor and ends on one or at the map's edge (tiles of 512 pixels do, up to
+      // factor 512); otherwise GDAL makes the overviews at the end, from the whole map.
+      const int f = factors_.back();
+      const bool aligned = x0 % f == 0 && y0 % f == 0 &&
+                           ((x0 + w) % f == 0 || x0 + w == grid_.width) &&
+                           ((y0 + h) % f == 0 || y0 + h == grid_.height);
+      if (aligned) {
+        WriteOverviews(x0, y0, w, h);
+      } else {
+        overviews_filled_ = false;
+      }
+    }
   }
 
   // The COG copy and the rename.
@@ -194,7 +223,8 @@ class GeoTiffWriter {
     options = CSLSetNameValue(options, "LEVEL", "1");
     options = CSLSetNameValue(options, "PREDICTOR", "YES");
     options = CSLSetNameValue(options, "BLOCKSIZE", std::to_string(kBlockSize).c_str());
-    options = CSLSetNameValue(options, "OVERVIEWS", "IGNORE_EXISTING");
+    options = CSLSetNameValue(options, "OVERVIEWS",
+                              overviews_filled_ ? "FORCE_USE_EXISTING" : "IGNORE_EXISTING");
     options = CSLSetNameValue(options, "RESAMPLING", "AVERAGE");
     options = CSLSetNameValue(options, "BIGTIFF", "IF_SAFER");
     // Compress the blocks on every core: the copy is the serial end of every map (and of a
@@ -240,6 +270,68 @@ class GeoTiffWriter {
   GIntBig old_cache_ = 0;
   bool committed_ = false;
   std::vector<float> buffer_;
+  std::vector<int> factors_;      // overview levels: 2, 4, 8, ...
+  bool overviews_filled_ = true;  // every window so far filled its overview pixels
+  // Per overview pixel of the current window: sums of the valid samples' values (channels),
+  // the number of valid base pixels, the sum of the counts and the number of base pixels.
+  std::vector<double> sums_, next_sums_;
+  std::vector<float> level_;
+
+  // The overview pixels of window [x0, x0 + w) x [y0, y0 + h) (buffer_ holds its bands,
+  // pixel-interleaved: channels then count), at every level: the mean of the values over the
+  // base pixels with a count > 0 (NaN where none), and the mean count over all base pixels,
+  // as GDAL's AVERAGE resampling with the NaN nodata; each level from the exact sums of the
+  // base pixels it covers (not a mean of means), a partial block at the map's edge over the
+  // pixels it has.
+  void WriteOverviews(int x0, int y0, int w, int h) {
+    const int bands = channels_ + 1;
+    const int stride = channels_ + 3;  // sums..., valid, count sum, pixels
+    // Level 0 as sums: one entry per base pixel.
+    int lw = w, lh = h;
+    sums_.assign(static_cast<size_t>(lw) * lh * stride, 0.0);
+    for (size_t i = 0; i < static_cast<size_t>(lw) * lh; ++i) {
+      const float* in = buffer_.data() + i * bands;
+      double* out = sums_.data() + i * stride;
+      const bool valid = in[channels_] > 0.0f;
+      for (int c = 0; c < channels_; ++c) out[c] = valid ? in[c] : 0.0;
+      out[channels_] = valid ? 1.0 : 0.0;
+      out[channels_ + 1] = in[channels_];
+      out[channels_ + 2] = 1.0;
+    }
+    const float nan = std::numeric_limits<float>::quiet_NaN();
+    for (size_t level = 0; level < factors_.size(); ++level) {
+      const int nw = (lw + 1) / 2, nh = (lh + 1) / 2;
+      next_sums_.assign(static_cast<size_t>(nw) * nh * stride, 0.0);
+      for (int y = 0; y < lh; ++y) {
+        for (int x = 0; x < lw; ++x) {
+          const double* in = sums_.data() + (static_cast<size_t>(y) * lw + x) * stride;
+          double* out = next_sums_.data() + (static_cast<size_t>(y / 2) * nw + x / 2) * stride;
+          for (int k = 0; k < stride; ++k) out[k] += in[k];
+        }
+      }
+      std::swap(sums_, next_sums_);
+      lw = nw;
+      lh = nh;
+      level_.resize(static_cast<size_t>(lw) * lh);
+      const int f = factors_[level];
+      for (int band = 0; band < bands; ++band) {
+        for (size_t i = 0; i < level_.size(); ++i) {
+          const double* in = sums_.data() + i * stride;
+          level_[i] = band < channels_
+                          ? (in[channels_] > 0.0 ? static_cast<float>(in[band] / in[channels_]) : nan)
+                          : static_cast<float>(in[channels_ + 1] / in[channels_ + 2]);
+        }
+        GDALRasterBand* overview =
+            dataset_->GetRasterBand(band + 1)->GetOverview(static_cast<int>(level));
+        if (overview == nullptr ||
+            overview->RasterIO(GF_Write, x0 / f, y0 / f, lw, lh, level_.data(), lw, lh,
+                               GDT_Float32, 0, 0, nullptr) != CE_None) {
+          ThrowInvalid(path_ + ": writing the temporary GeoTIFF's overview " + std::to_string(f) +
+                       " failed (" + QuietGdal::Last() + ")");
+        }
+      }
+    }
+  }
 };
 
 }  // namespace

@@ -65,6 +65,8 @@ class DistributedMapResult:
     uncovered_pixels: int = 0
     tiles: int = 0
     frames_read: int = 0  # frame decodes summed over the tasks (cache misses)
+    seconds_decode: float = 0.0  # the tasks' time reading frames (cache misses), summed
+    seconds_render: float = 0.0  # the tasks' time rendering their windows, summed
     seconds: float = 0.0  # the whole call
     seconds_write: float = 0.0  # of which the COG copy and rename at the end (serial)
     _image: Optional[np.ndarray] = field(default=None, repr=False)
@@ -155,8 +157,12 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
             # held already if there is one.
             views = [next(iter(cache.order), first_view)]
         decoded_before = cache.decoded
+        started = time.perf_counter()
         cache.hold(views)
+        decoded = time.perf_counter()
         out = _core._render_map_window(cache.light_field, options, x0, y0, w, h, views)
+        out["seconds_decode"] = decoded - started
+        out["seconds_render"] = time.perf_counter() - decoded
         out["x0"], out["y0"] = x0, y0
         out["frames_read"] = cache.decoded - decoded_before
         return out
@@ -357,6 +363,8 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             result.samples += int(out["samples"])
             result.uncovered_pixels += int(out["uncovered_pixels"])
             result.frames_read += int(out["frames_read"])
+            result.seconds_decode += float(out["seconds_decode"])
+            result.seconds_render += float(out["seconds_render"])
             result.tiles += 1
             done += 1
             if progress is not None:
