@@ -210,6 +210,15 @@ int ResolvePoseView(const std::string& text, const LightField& light_field) {
              ") by name; give that name with its extension");
 }
 
+// The light field's poses and cameras without its frames (LoadOptions::load_images false):
+// what flags naming views are checked against before the frames are decoded.
+LightField PosesOnly(const std::string& light_field_path, LoadOptions load, const Flags& flags) {
+  load.load_images = false;
+  return flags.At("load.").NamingFlags(
+      [&] { return LoadLightField(light_field_path, load, nullptr); }).light_field;
+}
+
+
 // Loads the light field and fills `options`' virtual camera (pose, views) from the command
 // line; the focal plane is left to the caller. Everything that needs no light field is checked
 // first, so that a bad flag is refused before a frame is decoded (F0's 382 frames take about
@@ -238,6 +247,12 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
   }
   flags.At("load.").NamingFlags([&] { args.load.Check(); });
   flags.NamingFlags([&] { check(1); });
+  if (!args.views.empty() || !args.pose_view.empty()) {
+    // The flags that name views, against the poses alone (no frame decoded yet).
+    const LightField poses = PosesOnly(args.light_field_path, args.load, flags);
+    if (!args.pose_view.empty()) ResolvePoseView(args.pose_view, poses);
+    if (!args.views.empty()) ParseViewList(args.views, static_cast<int>(poses.views.size()));
+  }
   LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
@@ -739,6 +754,10 @@ int RunMap(MapCommand& c, const Flags& flags) {
   c.options.focal_surface = ReadFocalSurface(c.focal_surface);
   flags.At("load.").NamingFlags([&] { c.load.Check(); });
   flags.NamingFlags([&] { c.options.Check(1); });
+  if (!c.views.empty()) {  // against the poses alone, before any frame is decoded
+    ParseViewList(c.views,
+                  static_cast<int>(PosesOnly(c.light_field_path, c.load, flags).views.size()));
+  }
   const LoadResult loaded = flags.At("load.").NamingFlags(
       [&] { return LoadLightField(c.light_field_path, c.load, &progress); });
   progress.Finish();

@@ -66,6 +66,12 @@ CASES = {
     "map aperture": (["map", "--width", "64", "--aperture-radius", "-1"], "--aperture-radius"),
     "view aperture": (["view", "--pose-view", "0", "--aperture-radius", "-1", "--no-browser"],
                       "--aperture-radius"),
+    # Flags naming views: checked against the poses alone (4 views), before any frame.
+    "integral views range": (["integral", "--pose-view", "0", "--views", "0-9"], "--views"),
+    "integral pose view range": (["integral", "--pose-view", "7"], "--pose-view: no view 7"),
+    "stack views range": (["stack", "--pose-view", "0", "--views", "5"], "--views"),
+    "allinfocus views range": (["allinfocus", "--pose-view", "0", "--views", "2,4"], "--views"),
+    "map views range": (["map", "--width", "64", "--views", "0-4"], "--views"),
 }
 
 
@@ -81,7 +87,9 @@ def test_bad_flag_is_refused_before_loading(case: str, undecodable: Path, tmp_pa
     errors = [line for line in result.stderr.splitlines() if line.startswith("aos-render: error:")]
     assert len(errors) == 1, result.stderr
     assert flag in errors[0], errors[0]
-    assert "views/" not in errors[0] and "cannot read image" not in errors[0], errors[0]
+    assert "cannot read image" not in errors[0], errors[0]
+    # (--pose-view's message lists the view names, which are frame paths.)
+    assert "views/" not in errors[0] or "--pose-view" in flag, errors[0]
     assert not any(tmp_path.iterdir())  # nothing written
 
 
