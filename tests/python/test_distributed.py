@@ -286,3 +286,32 @@ def test_the_dashboard_shows_the_map_tasks_on_loopback(survey: Path, tmp_path: P
         prefixes = c.run_on_scheduler(lambda dask_scheduler: list(dask_scheduler.task_prefixes))
         assert "aos-map-tile" in prefixes
         c.cluster.close()
+
+
+@pytest.mark.parametrize("lens", [
+    {"lens": "radtan", "fov_deg": 90.0, "distortion": [-0.05, 0.01, 0.001, -0.001, 0.0]},
+    {"lens": "fisheye", "fov_deg": 100.0, "distortion": [0.01, -0.002]},
+])
+def test_lens_frames_are_selected_without_losing_a_sample(lens: dict, tmp_path: Path,
+                                                          client) -> None:
+    """Frames through a lens model: the per-tile selection casts the image border back through
+    the lens; the map must still be bit for bit the single-process map, and the selection must
+    still leave frames out. (A fisheye whose image corners look back past 90 degrees, e.g. 150
+    degrees across the width, is never left out: its border has no bounded box.)"""
+    scene = dict(SCENE, camera=dict(SCENE["camera"], **lens),
+                 sampling=dict(SCENE["sampling"], altitude=3.0))
+    folder = tmp_path / "flight"
+    aos.simulate(scene, folder)
+    lf = aos.load_lightfield(folder / "lightfield.json").light_field
+    options = dict(pixel_size=PIXEL, tile_size=TILE, extent=[-9.0, -9.0, 9.0, 9.0])
+    reference = aos.render_map(lf, **options)
+    poses = aos.load_lightfield(folder / "lightfield.json", load_images=False).light_field
+    result = aos.render_map(poses, client=client, path=None, arrays=True, **options)
+    assert np.array_equal(result.image, reference.image)
+    assert np.array_equal(result.count, reference.count)
+    map_options = aos.MapOptions(**options)
+    selected = [len(aos._core._map_window_views(poses, map_options, x0, y0,
+                                                 min(TILE, result.width - x0),
+                                                 min(TILE, result.height - y0)))
+                for y0 in range(0, result.height, TILE) for x0 in range(0, result.width, TILE)]
+    assert sum(selected) < 0.75 * len(selected) * len(poses), selected
