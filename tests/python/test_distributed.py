@@ -251,12 +251,14 @@ def test_the_local_cluster_admits_only_its_own_client(survey: Path) -> None:
     import urllib.request
 
     from dask.distributed import Client
+    from distributed.security import Security
 
     with local_client(1) as c:
         address = c.scheduler.address
         assert address.startswith("tls://127.0.0.1:")
+        # A TLS client with credentials of its own (another certificate authority): refused.
         with pytest.raises(Exception):
-            Client(address, timeout=5)
+            Client(address, security=Security.temporary(), timeout=5)
         assert c.submit(sum, [1, 2]).result(timeout=60) == 3
         base = c.dashboard_link.rsplit("/", 1)[0]
         assert base.startswith("http://127.0.0.1:")
@@ -315,3 +317,21 @@ def test_lens_frames_are_selected_without_losing_a_sample(lens: dict, tmp_path: 
                                                  min(TILE, result.height - y0)))
                 for y0 in range(0, result.height, TILE) for x0 in range(0, result.width, TILE)]
     assert sum(selected) < 0.75 * len(selected) * len(poses), selected
+
+
+def test_the_dask_map_has_the_single_process_overviews(survey: Path, tmp_path: Path,
+                                                       client) -> None:
+    """The overviews the writer fills as windows arrive (in any order) equal the single-process
+    file's, bit for bit."""
+    options = dict(pixel_size=0.035, tile_size=64)  # about 600 pixels: overviews 2 and 4
+    lf = aos.load_lightfield(survey).light_field
+    aos.render_map(lf, path=tmp_path / "single.tif", **options)
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    aos.render_map(poses, client=client, path=tmp_path / "dask.tif", **options)
+    with rasterio.open(tmp_path / "single.tif") as a, rasterio.open(tmp_path / "dask.tif") as b:
+        assert a.overviews(1) == b.overviews(1) == [2, 4]
+        assert np.array_equal(a.read(), b.read(), equal_nan=True)
+    for level in range(2):
+        with rasterio.open(tmp_path / "single.tif", overview_level=level) as a, \
+                rasterio.open(tmp_path / "dask.tif", overview_level=level) as b:
+            assert np.array_equal(a.read(), b.read(), equal_nan=True)

@@ -419,39 +419,86 @@ def block_means(image: np.ndarray, count: np.ndarray, f: int) -> tuple[np.ndarra
     return mean, blocks(counts) / blocks(pixels.astype(np.float64))
 
 
-def test_the_cog_overviews_are_the_block_means_of_the_map(tmp_path: Path) -> None:
+def overview_bands(path: Path) -> list[np.ndarray]:
+    with rasterio.open(path) as dataset:
+        levels = len(dataset.overviews(1))
+    out = []
+    for level in range(levels):
+        with rasterio.open(path, overview_level=level) as overview:
+            out.append(overview.read())
+    return out
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_the_cog_overviews_are_the_block_means_of_the_map(tmp_path: Path, channels: int) -> None:
     """The writer fills the overviews window by window (tiles aligned to the largest factor):
     each level is the block mean of the map itself (values over pixels with samples, NaN where
     none; the count over all pixels), as GDAL's AVERAGE defines it. Unaligned tiles fall back to
     GDAL's own overviews, with the same levels."""
-    scene = dict(SCENE, ground={"texture": {"type": "noise", "square": 0.3, "seed": 5}})
+    scene = dict(SCENE, ground={"texture": {"type": "noise", "square": 0.3, "seed": 5}},
+                 camera=dict(SCENE["camera"], channels=channels))
     lf = aos.simulate(scene).light_field
     options = dict(pixel_size=0.03, extent=[-16.0, -15.0, 14.0, 13.0])  # 1000 x 934 pixels
     aligned = aos.render_map(lf, path=tmp_path / "a.tif", arrays=True, tile_size=64, **options)
     assert aligned.uncovered_pixels > 0  # the corners: nodata must stay out of the means
+    image = aligned.image if channels > 1 else aligned.image[..., None]
     with rasterio.open(tmp_path / "a.tif") as dataset:
         factors = dataset.overviews(1)
-        assert factors == [2, 4]  # halving until a level fits in one 256-pixel block
-        for level, f in enumerate(factors):
-            with rasterio.open(tmp_path / "a.tif", overview_level=level) as overview:
-                value, count = overview.read(1), overview.read(2)
-            mean, mean_count = block_means(aligned.image, aligned.count, f)
-            assert value.shape == mean.shape
-            assert np.array_equal(np.isnan(value), np.isnan(mean))
-            # float32 output of a float64 mean: within half an ulp-ish of the value.
-            np.testing.assert_allclose(value[~np.isnan(value)], mean[~np.isnan(mean)], rtol=2e-7,
-                                       atol=1e-6)
-            np.testing.assert_allclose(count, mean_count, rtol=2e-7)
+    assert factors == [2, 4]  # halving (rounded down) until a level fits in one 256-pixel block
+    for f, bands in zip(factors, overview_bands(tmp_path / "a.tif")):
+        assert bands.shape[0] == channels + 1
+        for c in range(channels + 1):
+            mean, mean_count = block_means(image[..., min(c, channels - 1)], aligned.count, f)
+            if c == channels:
+                np.testing.assert_allclose(bands[c], mean_count, rtol=2e-7)
+                continue
+            assert bands[c].shape == mean.shape
+            assert np.array_equal(np.isnan(bands[c]), np.isnan(mean))
+            # float32 output of a float64 mean: within rounding of the value.
+            np.testing.assert_allclose(bands[c][~np.isnan(mean)], mean[~np.isnan(mean)],
+                                       rtol=2e-7, atol=1e-6)
     unaligned = aos.render_map(lf, path=tmp_path / "u.tif", tile_size=50, **options)
     assert unaligned.tiles > aligned.tiles
     with rasterio.open(tmp_path / "u.tif") as dataset, rasterio.open(tmp_path / "a.tif") as a:
         assert np.array_equal(dataset.read(), a.read(), equal_nan=True)
         assert dataset.overviews(1) == [2, 4]
-        with rasterio.open(tmp_path / "u.tif", overview_level=0) as overview:
-            gdal_value = overview.read(1)
-        mean, _ = block_means(aligned.image, aligned.count, 2)
-        inner = (slice(1, min(gdal_value.shape[0], mean.shape[0]) - 1),
-                 slice(1, min(gdal_value.shape[1], mean.shape[1]) - 1))
-        both = ~np.isnan(gdal_value[inner]) & ~np.isnan(mean[inner])
-        np.testing.assert_allclose(gdal_value[inner][both], mean[inner][both], rtol=1e-5,
-                                   atol=1e-4)
+    gdal_value = overview_bands(tmp_path / "u.tif")[0][0]
+    mean, _ = block_means(image[..., 0], aligned.count, 2)
+    inner = (slice(1, min(gdal_value.shape[0], mean.shape[0]) - 1),
+             slice(1, min(gdal_value.shape[1], mean.shape[1]) - 1))
+    both = ~np.isnan(gdal_value[inner]) & ~np.isnan(mean[inner])
+    np.testing.assert_allclose(gdal_value[inner][both], mean[inner][both], rtol=1e-5, atol=1e-4)
+
+
+def test_overview_levels_and_a_fill_that_falls_back(flight: aos.LightField, tmp_path: Path) -> None:
+    """Levels as GDAL's COG driver counts them (513 pixels wide: one level, 256 after halving
+    rounded down); a writer whose first windows filled the overviews and whose later one did not
+    align gives GDAL's overviews over the whole map, not a mix of both."""
+    options = aos.MapOptions(pixel_size=0.05, tile_size=512,
+                             extent=[ORIGIN[0] - 12.0, ORIGIN[1] - 10.0, ORIGIN[0] + 13.64,
+                                     ORIGIN[1] + 10.0])
+    single = aos.render_map(flight, options, path=tmp_path / "w513.tif", arrays=True)
+    assert (single.width, single.height) == (513, 400)
+    with rasterio.open(tmp_path / "w513.tif") as dataset:
+        assert dataset.overviews(1) == [2]
+    writer = aos._core._MapGeoTiffWriter(flight, options, 1, str(tmp_path / "mixed.tif"), False)
+    image = single.image.astype(np.float32)
+    count = single.count
+    writer.write(0, 0, image[:256, :256], count[:256, :256])      # aligned: fills level 1
+    writer.write(256, 0, image[:256, 256:], count[:256, 256:])    # aligned (ends at the edge)
+    writer.write(0, 256, image[256:301], count[256:301])          # ends mid-block: unaligned
+    writer.write(0, 301, image[301:], count[301:])
+    writer.commit(None)
+    # The reference: GDAL's overviews from the start (the first window already unaligned).
+    gdal = aos._core._MapGeoTiffWriter(flight, options, 1, str(tmp_path / "gdal.tif"), False)
+    gdal.write(0, 0, image[:301], count[:301])
+    gdal.write(0, 301, image[301:], count[301:])
+    gdal.commit(None)
+    with rasterio.open(tmp_path / "mixed.tif") as a, rasterio.open(tmp_path / "w513.tif") as b:
+        assert np.array_equal(a.read(), b.read(), equal_nan=True)
+    mixed = overview_bands(tmp_path / "mixed.tif")[0]
+    assert np.array_equal(mixed, overview_bands(tmp_path / "gdal.tif")[0], equal_nan=True)
+    # ... which differ from the exact block means the filled overviews hold (GDAL's 513 -> 256
+    # pixels are not 2 x 2 blocks), so the test tells the two apart.
+    assert not np.array_equal(mixed[:, :200, :200], overview_bands(tmp_path / "w513.tif")[0][:, :200, :200],
+                              equal_nan=True)

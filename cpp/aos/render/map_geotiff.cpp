@@ -127,20 +127,27 @@ class GeoTiffWriter {
       dataset_->SetMetadataItem("AOS_FOCAL_HEIGHT", FormatNumber(grid.focal_height).c_str());
     }
     dataset_->SetMetadataItem("AOS_UP", grid.up_z > 0 ? "+z" : "-z");
-    // The overview levels the COG gets: halving until a level fits in one block, as GDAL's COG
-    // driver chooses them. They are allocated here (empty, sparse) and filled window by window
-    // in Write(), so that the end of the map (Commit) only compresses: the averages are made
-    // while the tiles come in, on the worker cores' time, not after the last one.
+    // The overview levels the COG gets: as GDAL's COG driver counts them (halving, rounded
+    // down, until a level fits in one block), each ceil(size / factor) pixels as GTiff's own
+    // overviews (gdaladdo) are, its last row and column over the base pixels left. They are
+    // allocated here (empty, sparse) and filled window by window in Write(), so that the end of
+    // the map (Commit) only compresses: the averages are made while the tiles come in, on the
+    // worker cores' time, not after the last one.
     for (int f = 2, w = grid.width, h = grid.height; w > kBlockSize || h > kBlockSize; f *= 2) {
       factors_.push_back(f);
-      w = (grid.width + f - 1) / f;
-      h = (grid.height + f - 1) / f;
+      w /= 2;
+      h /= 2;
     }
     if (!factors_.empty() &&
         dataset_->BuildOverviews("NONE", static_cast<int>(factors_.size()), factors_.data(), 0,
-                                 nullptr, nullptr, nullptr, nullptr) != CE_None) {
-      ThrowInvalid(path + ": cannot add overviews to the temporary GeoTIFF (" + QuietGdal::Last() +
-                   ")");
+                                 nullptr, nullptr, nullptr) != CE_None) {
+      const std::string error = QuietGdal::Last();
+      GDALClose(dataset_);  // the destructor does not run for a constructor that throws
+      dataset_ = nullptr;
+      std::error_code ignored;
+      fs::remove(tiles_path_, ignored);
+      GDALSetCacheMax64(old_cache_);
+      ThrowInvalid(path + ": cannot add overviews to the temporary GeoTIFF (" + error + ")");
     }
   }
 
@@ -286,32 +293,38 @@ class GeoTiffWriter {
   void WriteOverviews(int x0, int y0, int w, int h) {
     const int bands = channels_ + 1;
     const int stride = channels_ + 3;  // sums..., valid, count sum, pixels
-    // Level 0 as sums: one entry per base pixel.
-    int lw = w, lh = h;
-    sums_.assign(static_cast<size_t>(lw) * lh * stride, 0.0);
-    for (size_t i = 0; i < static_cast<size_t>(lw) * lh; ++i) {
-      const float* in = buffer_.data() + i * bands;
-      double* out = sums_.data() + i * stride;
-      const bool valid = in[channels_] > 0.0f;
-      for (int c = 0; c < channels_; ++c) out[c] = valid ? in[c] : 0.0;
-      out[channels_] = valid ? 1.0 : 0.0;
-      out[channels_ + 1] = in[channels_];
-      out[channels_ + 2] = 1.0;
-    }
     const float nan = std::numeric_limits<float>::quiet_NaN();
-    for (size_t level = 0; level < factors_.size(); ++level) {
-      const int nw = (lw + 1) / 2, nh = (lh + 1) / 2;
-      next_sums_.assign(static_cast<size_t>(nw) * nh * stride, 0.0);
-      for (int y = 0; y < lh; ++y) {
-        for (int x = 0; x < lw; ++x) {
-          const double* in = sums_.data() + (static_cast<size_t>(y) * lw + x) * stride;
-          double* out = next_sums_.data() + (static_cast<size_t>(y / 2) * nw + x / 2) * stride;
-          for (int k = 0; k < stride; ++k) out[k] += in[k];
+    // Level 1 straight from the base pixels (buffer_), later levels from the sums of the one
+    // before: (C + 3) doubles per pixel of level 1, a quarter of the window.
+    int lw = (w + 1) / 2, lh = (h + 1) / 2;
+    sums_.assign(static_cast<size_t>(lw) * lh * stride, 0.0);
+    for (int y = 0; y < h; ++y) {
+      const float* in = buffer_.data() + static_cast<size_t>(y) * w * bands;
+      for (int x = 0; x < w; ++x, in += bands) {
+        double* out = sums_.data() + (static_cast<size_t>(y / 2) * lw + x / 2) * stride;
+        if (in[channels_] > 0.0f) {
+          for (int c = 0; c < channels_; ++c) out[c] += in[c];
+          out[channels_] += 1.0;
         }
+        out[channels_ + 1] += in[channels_];
+        out[channels_ + 2] += 1.0;
       }
-      std::swap(sums_, next_sums_);
-      lw = nw;
-      lh = nh;
+    }
+    for (size_t level = 0; level < factors_.size(); ++level) {
+      if (level > 0) {
+        const int nw = (lw + 1) / 2, nh = (lh + 1) / 2;
+        next_sums_.assign(static_cast<size_t>(nw) * nh * stride, 0.0);
+        for (int y = 0; y < lh; ++y) {
+          for (int x = 0; x < lw; ++x) {
+            const double* in = sums_.data() + (static_cast<size_t>(y) * lw + x) * stride;
+            double* out = next_sums_.data() + (static_cast<size_t>(y / 2) * nw + x / 2) * stride;
+            for (int k = 0; k < stride; ++k) out[k] += in[k];
+          }
+        }
+        std::swap(sums_, next_sums_);
+        lw = nw;
+        lh = nh;
+      }
       level_.resize(static_cast<size_t>(lw) * lh);
       const int f = factors_[level];
       for (int band = 0; band < bands; ++band) {
@@ -403,18 +416,24 @@ void WriteMapGeoTiff(const MapResult& map, const std::string& path, const MapWri
     ThrowInvalid(path + ": the map's image and count do not match its grid");
   }
   GeoTiffWriter writer(grid, map.image.channels(), map.crs, path, write);
-  const int rows = kBlockSize * 4;
-  for (int y0 = 0; y0 < grid.height; y0 += rows) {
-    const int h = std::min(rows, grid.height - y0);
-    Image image(grid.width, h, map.image.channels(), PixelType::kF32);
-    Image count(grid.width, h, 1, PixelType::kU32);
-    for (int row = 0; row < h; ++row) {
-      std::copy_n(map.image.At<float>(0, y0 + row),
-                  static_cast<size_t>(grid.width) * map.image.channels(), image.At<float>(0, row));
-      std::copy_n(map.count.At<uint32_t>(0, y0 + row), static_cast<size_t>(grid.width),
-                  count.At<uint32_t>(0, row));
+  // Windows of 1024 x 1024 pixels (aligned with overview factors up to 1024; the writer's
+  // buffers stay a few tens of MiB whatever the map's width).
+  const int side = kBlockSize * 4;
+  const int channels = map.image.channels();
+  for (int y0 = 0; y0 < grid.height; y0 += side) {
+    const int h = std::min(side, grid.height - y0);
+    for (int x0 = 0; x0 < grid.width; x0 += side) {
+      const int w = std::min(side, grid.width - x0);
+      Image image(w, h, channels, PixelType::kF32);
+      Image count(w, h, 1, PixelType::kU32);
+      for (int row = 0; row < h; ++row) {
+        std::copy_n(map.image.At<float>(x0, y0 + row), static_cast<size_t>(w) * channels,
+                    image.At<float>(0, row));
+        std::copy_n(map.count.At<uint32_t>(x0, y0 + row), static_cast<size_t>(w),
+                    count.At<uint32_t>(0, row));
+      }
+      writer.Write(x0, y0, image, count);
     }
-    writer.Write(0, y0, image, count);
   }
   writer.Commit(nullptr);
 }

@@ -39,7 +39,7 @@ import numpy as np
 
 from .. import _core
 
-__all__ = ["DistributedMapResult", "render_map", "run_cases", "local_client", "DEFAULT_CACHE_BYTES"]
+__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client", "DEFAULT_CACHE_BYTES"]
 
 # Per-worker frame cache budget: decoded frames held between tasks, bytes. A task's own frames
 # are always held, so a worker's frames peak at max(budget, one tile's frames).
@@ -233,6 +233,43 @@ def _poses_only(light_field: Any, load: dict) -> Any:
     return poses
 
 
+def prepare_map(light_field: Any, options: Any, load: Optional[dict] = None) -> tuple:
+    """What render_map checks before it starts or uses a cluster: the load keys, the poses (every
+    view with a frame file), the grid, the selection and the output's channels (one frame
+    decoded here, which also checks the load options and that frame). Returns (options with
+    num_threads resolved, poses, grid, selection, channels); raises ValueError naming the field
+    or the file. The CLI calls it before it starts a local cluster."""
+    load = dict(load or {})
+    unknown = set(load) - set(_LOAD_KEYS)
+    if unknown:
+        raise TypeError(f"render_map(): load: unknown keys {sorted(unknown)} (known: "
+                        f"{', '.join(_LOAD_KEYS)})")
+    options = copy.copy(options)
+    if options.num_threads == -1:
+        options.num_threads = 1
+    poses = _poses_only(light_field, load)
+    grid = _core._map_grid(poses, options)
+    selection = sorted(options.view_indices) or list(range(len(poses)))
+    probe = copy.copy(poses)
+    _core._load_view_images(probe, [selection[0]], num_threads=1, **load)
+    first = probe.views[selection[0]].image
+    channels = 1 if first.ndim == 2 else first.shape[2]
+    if probe.masked:
+        channels -= 1
+    return options, poses, grid, selection, channels
+
+
+def _worker_addresses(client: Any, timeout_s: float = 120.0) -> list:
+    """The addresses of the cluster's workers, once at least one has joined (all of them:
+    client.nthreads(), not scheduler_info(), which some Dask versions cut at 5)."""
+    try:
+        client.wait_for_workers(1, timeout=timeout_s)
+    except Exception as error:  # TimeoutError (dask's or asyncio's)
+        raise ValueError(f"render_map(): no Dask worker joined the cluster within {timeout_s:g} s "
+                         f"({error})") from error
+    return sorted(client.nthreads())
+
+
 def render_map(light_field: Any, options: Any, *, path: Optional[str], client: Any = None,
                scheduler: Optional[str] = None, workers: Optional[int] = None,
                load: Optional[dict] = None, force: bool = False, arrays: bool = False,
@@ -248,29 +285,11 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     field or the file; nothing is written at ``path`` on any error."""
     started = time.perf_counter()
     load = dict(load or {})
-    unknown = set(load) - set(_LOAD_KEYS)
-    if unknown:
-        raise TypeError(f"render_map(): load: unknown keys {sorted(unknown)} (known: "
-                        f"{', '.join(_LOAD_KEYS)})")
     if cache_bytes < 0:
         raise ValueError(f"render_map(): cache_bytes: must be >= 0 (got {cache_bytes})")
     if path is None and not arrays:
         raise ValueError("render_map(): arrays=False without a path keeps nothing; give a path")
-    options = copy.copy(options)
-    if options.num_threads == -1:
-        options.num_threads = 1
-    poses = _poses_only(light_field, load)
-    grid = _core._map_grid(poses, options)
-    selection = sorted(options.view_indices) or list(range(len(poses)))
-    # The output's channels, from one frame decoded here (this also checks the load options
-    # and the first frame before any task runs).
-    probe = copy.copy(poses)
-    _core._load_view_images(probe, [selection[0]], num_threads=1, **load)
-    first = probe.views[selection[0]].image
-    channels = 1 if first.ndim == 2 else first.shape[2]
-    if probe.masked:
-        channels -= 1
-    del probe, first
+    options, poses, grid, selection, channels = prepare_map(light_field, options, load)
 
     owned = None
     if client is None:
@@ -305,7 +324,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         # every frame. The placement is a preference (allow_other_workers): a worker that dies
         # or falls behind leaves its tiles to the others, and a worker whose group is done takes
         # tiles from the far end of the largest group left.
-        addresses = sorted(client.scheduler_info().get("workers", {})) or [None]
+        addresses = _worker_addresses(client)
         queues = [collections.deque(group)
                   for group in _tile_groups(windows, grid["width"], tile, len(addresses))]
         # A bounded number of tiles in flight, two per worker (one rendering, one queued):
@@ -323,12 +342,10 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
                     return None
                 window = queues[donor].pop()
             x0, y0, w, h = window
-            address = addresses[group]
             future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
                                    x0, y0, w, h, selection[0], pure=False,
                                    key=f"aos-map-tile-{x0}-{y0}-{token}",
-                                   workers=None if address is None else [address],
-                                   allow_other_workers=True)
+                                   workers=[addresses[group]], allow_other_workers=True)
             futures.append(future)
             group_of[future.key] = group
             return future

@@ -56,13 +56,18 @@ class _Bar:
         self.stage = ""
 
 
-def _has_dashboard(client: Any) -> bool:
-    """Whether the scheduler serves its dashboard (a local cluster made without one, or bokeh
-    missing on the scheduler's machine, leaves it out)."""
+def _dashboard_link(client: Any, local: bool) -> str:
+    """The dashboard's address: a local cluster serves it only with bokeh installed here (without
+    it Dask serves a page asking for bokeh); a remote scheduler's is its own."""
+    if local:
+        try:
+            import bokeh  # noqa: F401
+        except ImportError:
+            return ""
     try:
-        return "dashboard" in client.scheduler_info().get("services", {})
-    except Exception:  # an old scheduler without the services entry
-        return False
+        return str(client.dashboard_link or "")
+    except Exception:  # a scheduler without an HTTP server
+        return ""
 
 
 def main(argv: list[str]) -> int:
@@ -112,11 +117,19 @@ def main(argv: list[str]) -> int:
         frame_load = {key: load[key] for key in ("grey", "mask", "mask_dir") if load.get(key)}
         workers = int(spec.get("workers", 0))
         scheduler = str(spec.get("scheduler", ""))
+        # The inputs first (the poses, the grid, one frame decoded): a bad one fails before
+        # worker processes are started.
+        distributed.prepare_map(light_field, options, frame_load)
         if scheduler:
             from dask.distributed import Client
 
             client = Client(scheduler, timeout=30)
         else:
+            try:
+                import cryptography  # noqa: F401  (the local cluster's TLS credentials)
+            except ImportError:
+                return _fail("--workers needs the cryptography package for the local cluster's "
+                             "session credentials: pip install 'aos[dask]'")
             client = distributed.local_client(workers, dashboard=bool(spec.get("dashboard")))
         try:
             if not quiet:
@@ -125,7 +138,7 @@ def main(argv: list[str]) -> int:
                 sys.stderr.write(f"map: {len(light_field)} frames, tiles of {options.tile_size} "
                                  f"pixels as Dask tasks on {where}\n")
                 if scheduler or spec.get("dashboard"):
-                    link = client.dashboard_link if _has_dashboard(client) else ""
+                    link = _dashboard_link(client, local=not scheduler)
                     sys.stderr.write(f"map: Dask dashboard at {link}\n" if link else
                                      "map: no Dask dashboard (pip install bokeh)\n")
             result = distributed.render_map(
