@@ -43,8 +43,10 @@
 // projections of the nodes are cached per view and tile, so children reuse their parent's.
 // Nearest mode (aperture 0), other pixel types, far-away points and lens quads that fail at
 // 8 x 8 take AdmitSample and the double sampler per point, still tiled and culled (lens views
-// are not culled: their projection is not linear). The robust mean keeps the per-pixel loop
-// (internal::RenderIntegralAtPointsReference): it needs every sample of a pixel at once.
+// are not culled: their projection is not linear). The robust mean needs every sample of a
+// pixel at once: it gathers them tile by tile, views outer (RenderSampleListsTiled), with the
+// reference's double-precision admission and sampler, so it equals the per-pixel reference
+// loop (internal::RenderIntegralAtPointsReference) bit for bit; nearest mode keeps that loop.
 
 namespace aos {
 namespace {
