@@ -281,13 +281,45 @@ inline bool AddSample(const Setup& s, const ViewSetup& view, double u, double v,
   return true;
 }
 
+// True if no band [v, v + width] holds `needed` or more of `values` (then the robust mean falls
+// back, whatever the sort would find), from a histogram: bins of width / kBandBins from the
+// smallest value; a band's values lie in kBandBins + 1 consecutive bins, give or take one bin
+// at either end for rounding, so the largest sum over kBandBins + 3 consecutive bins bounds
+// every band's count from above. False (undecided: sort) where that bound reaches `needed`,
+// or where the values span more than kMaxBandBins bins.
+constexpr int kBandBins = 8;
+constexpr int kMaxBandBins = 4096;
+inline bool NoBandHolds(const std::vector<double>& values, double width, double needed,
+                        std::vector<int32_t>& histogram) {
+  const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
+  const double bin = width / kBandBins;
+  if (!(bin > 0.0) || !(*hi - *lo < bin * (kMaxBandBins - 1))) return false;
+  const double scale = 1.0 / bin;
+  const int bins = static_cast<int>((*hi - *lo) * scale) + 1;
+  histogram.assign(static_cast<size_t>(bins + kBandBins + 3), 0);
+  for (const double value : values) {
+    ++histogram[static_cast<size_t>(std::min(bins - 1, static_cast<int>((value - *lo) * scale)))];
+  }
+  int32_t window = 0;
+  for (int i = 0; i < kBandBins + 3; ++i) window += histogram[static_cast<size_t>(i)];
+  int32_t most = window;
+  for (int i = kBandBins + 3; i < bins + kBandBins + 3; ++i) {
+    window += histogram[static_cast<size_t>(i)] - histogram[static_cast<size_t>(i - kBandBins - 3)];
+    most = std::max(most, window);
+  }
+  return static_cast<double>(most) < needed;
+}
+
 // Output pixel (x, y) from its samples (in view order, `channels` values each) and their
 // luminances: count, the robust mean's band and inliers, the variance, the (inlier) mean.
-// Returns true where the robust mean fell back to the plain mean.
+// Returns true where the robust mean fell back to the plain mean. With a `histogram` (scratch)
+// a pixel that NoBandHolds decides falls back without the sort (the same outputs); without one
+// (the reference) every pixel is sorted.
 inline bool FinishPixel(const Setup& s, const SurfaceIntegralOptions& surface, bool variance,
                         int channels, const std::vector<double>& samples,
-                        const std::vector<double>& luminance, std::vector<double>& sorted, int x,
-                        int y, SurfaceIntegralResult& result) {
+                        const std::vector<double>& luminance, std::vector<double>& sorted,
+                        std::vector<int32_t>* histogram, int x, int y,
+                        SurfaceIntegralResult& result) {
   IntegralResult& out = result.integral;
   const size_t n = luminance.size();
   out.count.At<uint32_t>(x, y)[0] = static_cast<uint32_t>(n);
@@ -297,7 +329,11 @@ inline bool FinishPixel(const Setup& s, const SurfaceIntegralOptions& surface, b
   size_t kept = n;
   double lower = -std::numeric_limits<double>::infinity();
   double upper = std::numeric_limits<double>::infinity();
-  if (surface.robust && n >= 2) {
+  if (surface.robust && n >= 2 && histogram != nullptr &&
+      NoBandHolds(luminance, 2.0 * surface.agreement * s.range,
+                  surface.min_inlier_fraction * static_cast<double>(n), *histogram)) {
+    fell_back = true;  // what the search below would find, without sorting
+  } else if (surface.robust && n >= 2) {
     // The densest band [v, v + width] over the sorted luminances (two pointers).
     sorted = luminance;
     std::sort(sorted.begin(), sorted.end());
@@ -452,7 +488,7 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
           }
           if (chosen < views.size()) used[chosen] = 1;
           fallback += FinishPixel(s, surface, options.variance, channels, samples, luminance,
-                                  sorted, x, row, result);
+                                  sorted, nullptr, x, row, result);
         }
         ProgressAdvance(progress, 1);
       } catch (...) {
@@ -1252,6 +1288,7 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
     constexpr int kPixels = kRobustTile * kRobustTile;
     std::vector<std::vector<double>> samples(kPixels), luminance(kPixels);
     std::vector<double> sorted, value(static_cast<size_t>(s.channels));
+    std::vector<int32_t> histogram;
     std::vector<Vec3d> focal(kPixels);
     std::vector<uint8_t> valid(kPixels);
 #pragma omp for schedule(dynamic, 1)
@@ -1305,7 +1342,8 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
           if (!valid[static_cast<size_t>(j)]) continue;
           fallback += FinishPixel(s, surface, options.variance, channels,
                                   samples[static_cast<size_t>(j)],
-                                  luminance[static_cast<size_t>(j)], sorted, x0 + j % tile_width,
+                                  luminance[static_cast<size_t>(j)], sorted, &histogram,
+                                  x0 + j % tile_width,
                                   y0 + j / tile_width, result);
         }
         ProgressAdvance(progress, 1);
