@@ -127,7 +127,8 @@ def main() -> int:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for method in METHODS:
         def run_f0(knob: int) -> Any:
-            # The F0 frame has z pointing down: the slices run from the ground up 15 m.
+            # The F0 frame has z pointing down: the slices run from z = 0 up 15 m (z = 0 is
+            # 26.7 m below the camera, above the ground near z = +20: docs/benchmarks.md).
             return aos.all_in_focus(light_field, method=method, pose_view=191,
                                     fov_deg=F0_FOV_DEG, width=512, height=512,
                                     slices=args.slices, first_plane=aos.Plane.at_height(0.0),
