@@ -12,14 +12,19 @@ full-resolution slice pixels rendered, and:
   - on the JKU F0 light field (no truth): PSNR of the coarse-to-fine image against the full
     stack's, and the fraction of pixels whose merged slice moved by more than one slice.
 
+With --threads 1 the CPU times measure the work alone: on a shared machine two threads wait at
+every barrier for a peer the scheduler has parked, which loads both paths by a different amount
+(the load average at the start and end is printed with the tables).
+
 Usage: python3 tools/bench_coarse_to_fine.py [--repeats 1] [--factor 4] [--size 256]
                                              [--seeds 1] [--data ../shared/data/jku-f0]
-                                             [--skip-f0] [--skip-scenes]
+                                             [--skip-f0] [--skip-scenes] [--threads -1]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import statistics
 import sys
 import time
@@ -74,10 +79,13 @@ def main() -> int:
     parser.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "jku-f0"))
     parser.add_argument("--skip-f0", action="store_true")
     parser.add_argument("--skip-scenes", action="store_true")
+    parser.add_argument("--threads", type=int, default=-1,
+                        help="num_threads of every all_in_focus call (-1: all cores)")
     args = parser.parse_args()
     f = args.factor
     print(f"coarse_to_fine={f} against the full {args.slices}-slice stack; times are medians of "
-          f"{args.repeats} interleaved runs of the whole all_in_focus call (wall / CPU s)")
+          f"{args.repeats} interleaved runs of the whole all_in_focus call (wall / CPU s), "
+          f"num_threads {args.threads}; load average {os.getloadavg()[0]:.1f} at the start")
     print("| scene | method | full wall s | c2f wall s | wall ratio | full CPU s | c2f CPU s | "
           "CPU ratio | rendered | PSNR full dB | PSNR c2f dB | banding full | banding c2f |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")
@@ -94,7 +102,7 @@ def main() -> int:
                         light_field, method=method, slices=args.slices,
                         first_plane=aos.Plane.at_height(merge_study.FIRST_HEIGHT),
                         last_plane=aos.Plane.at_height(merge_study.LAST_HEIGHT),
-                        coarse_to_fine=knob, **camera)
+                        coarse_to_fine=knob, num_threads=args.threads, **camera)
                 c = compare(run, args.repeats, f)
                 full, fine = c["full"], c["c2f"]
                 print(f"| {occluders} seed {seed} | {method} | {c['wall'][0]:.2f} | "
@@ -108,6 +116,7 @@ def main() -> int:
                       flush=True)
     poses = Path(args.data) / "poses" / "poses.json"
     if args.skip_f0 or not poses.exists():
+        print(f"load average {os.getloadavg()[0]:.1f} at the end")
         print(f"F0: not measured ({'skipped' if args.skip_f0 else 'no data at ' + args.data})")
         return 0
     light_field = aos.load_lightfield(str(poses), fov_deg=F0_FOV_DEG).light_field
@@ -118,11 +127,13 @@ def main() -> int:
     print("|---|---|---|---|---|---|---|---|---|---|---|")
     for method in METHODS:
         def run_f0(knob: int) -> Any:
-            # The F0 frame has z pointing down: the slices run from the ground up 15 m.
+            # The F0 frame has z pointing down: the slices run from z = 0 up 15 m (z = 0 is
+            # 26.7 m below the camera, above the ground near z = +20: docs/benchmarks.md).
             return aos.all_in_focus(light_field, method=method, pose_view=191,
                                     fov_deg=F0_FOV_DEG, width=512, height=512,
                                     slices=args.slices, first_plane=aos.Plane.at_height(0.0),
-                                    last_plane=aos.Plane.at_height(-15.0), coarse_to_fine=knob)
+                                    last_plane=aos.Plane.at_height(-15.0), coarse_to_fine=knob,
+                                    num_threads=args.threads)
         c = compare(run_f0, args.repeats, f)
         full, fine = c["full"], c["c2f"]
         moved = float(np.mean(np.abs(np.asarray(fine.slice) - np.asarray(full.slice)) > 1.0))
@@ -131,6 +142,7 @@ def main() -> int:
               f"{c['cpu'][0] / c['cpu'][1]:.2f} | {fine.rendered_fraction:.3f} | "
               f"{psnr(np.asarray(fine.image), np.asarray(full.image)):.2f} | {moved:.3f} |",
               flush=True)
+    print(f"load average {os.getloadavg()[0]:.1f} at the end")
     return 0
 
 

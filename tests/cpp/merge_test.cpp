@@ -663,10 +663,12 @@ TEST(RenderAllInFocus, RecoversTheDepthOfTexturedGround) {
 
 TEST(RenderAllInFocus, CoarseToFineEqualsTheFullStackWhereTheFocusIsInRange) {
   // Flat ground at slice 20 of 41 (0.1 m apart): a block whose coarse maximum is coarse slice 5
-  // (full slice 20) takes the full slices 16..24. On the pixels whose full-stack peak lies in
-  // 17..23 (peak and both parabola neighbours taken) the fold without smoothing must give the
-  // full stack's slice: equal up to the float rounding between the plane render and the point
-  // render (a relative 1e-6 on the focus values moves a parabola vertex by far less than 1e-3
+  // (full slice 20) takes the full slices 16..24, narrowed to those within 1.5 slices of the
+  // coarse peak's vertex (merge.cpp kFineMargin) where it is concave: 4 or 5 slices. With the
+  // vertex within half a slice of 20 (the ground), every block takes 19..21 at least, so on the
+  // pixels whose full-stack peak lies within half a slice of 20 (peak and both parabola
+  // neighbours taken) the fold without smoothing must give the full stack's slice: equal up to
+  // the float rounding between the plane render and the point render (a relative 1e-6 on the focus values moves a parabola vertex by far less than 1e-3
   // slice). Those are most pixels for improved and robust (their focus window sees texture);
   // sobel's 3 x 3 gradient is 0 inside the checker squares (near-ties decide its peaks), so it
   // is only run. With smoothing the confidence is the coarse stack's, so the depth
@@ -683,8 +685,9 @@ TEST(RenderAllInFocus, CoarseToFineEqualsTheFullStackWhereTheFocusIsInRange) {
       const MergeResult fine = RenderAllInFocus(SimulatedGround(), options);
       ASSERT_TRUE(WellFormed(fine, size, size));
       EXPECT_EQ(full.rendered_fraction, 1.0);
-      // 9 of 41 slices a pixel.
-      EXPECT_NEAR(fine.rendered_fraction, 9.0 / 41.0, 1e-9);
+      // 4 or 5 of 41 slices a pixel (9 without the narrowing).
+      EXPECT_LE(fine.rendered_fraction, 5.0 / 41.0 + 1e-9);
+      EXPECT_GE(fine.rendered_fraction, 4.0 / 41.0 - 1e-9);
       EXPECT_EQ(fine.uncovered_pixels, full.uncovered_pixels);
       const double slice_tolerance = sigma == 0.0 ? 1e-3 : 0.05;
       double image_difference = 0.0;
@@ -693,7 +696,7 @@ TEST(RenderAllInFocus, CoarseToFineEqualsTheFullStackWhereTheFocusIsInRange) {
         for (int x = 0; x < size; ++x) {
           image_difference += std::abs(*fine.image.At<float>(x, y) - *full.image.At<float>(x, y));
           const float peak = *full.slice.At<float>(x, y);
-          if (method == MergeMethod::kSobel || !(peak >= 16.5f && peak <= 23.5f)) continue;
+          if (method == MergeMethod::kSobel || !(peak >= 19.5f && peak <= 20.5f)) continue;
           ++in_range;
           ASSERT_NEAR(*fine.slice.At<float>(x, y), *full.slice.At<float>(x, y), slice_tolerance)
               << x << "," << y;
@@ -703,7 +706,9 @@ TEST(RenderAllInFocus, CoarseToFineEqualsTheFullStackWhereTheFocusIsInRange) {
         }
       }
       if (method != MergeMethod::kSobel) {
-        EXPECT_GT(in_range, size * size * 9 / 10);
+        // The pixels' full-stack peaks spread over a few slices around 20 (texture); about half
+        // lie within half a slice of it here (improved, robust).
+        EXPECT_GT(in_range, size * size * 3 / 10);
         EXPECT_LT(image_difference / (size * size), sigma == 0.0 ? 0.05 : 1.0);
       }
       // Thread-count independence.

@@ -273,6 +273,72 @@ TEST(RenderIntegralAtPoints, LensViewsAndAFarReferenceAgreeWithTheReference) {
   }
 }
 
+// The robust mean's tiled route (views outer, culled per 16 x 16 tile) equals the per-pixel
+// reference loop bit for bit: the same samples, appended in the same (view) order, and the same
+// per-pixel arithmetic (image, count, inliers, variance, fallback pixels, views used).
+void ExpectIdentical(const SurfaceIntegralResult& a, const SurfaceIntegralResult& b,
+                     const std::string& what) {
+  EXPECT_EQ(a.integral.samples, b.integral.samples) << what;
+  EXPECT_EQ(a.integral.views_used, b.integral.views_used) << what;
+  EXPECT_EQ(a.integral.uncovered_pixels, b.integral.uncovered_pixels) << what;
+  EXPECT_EQ(a.used_view_indices, b.used_view_indices) << what;
+  EXPECT_EQ(a.fallback_pixels, b.fallback_pixels) << what;
+  EXPECT_TRUE(test_util::SameImage(a.integral.image, b.integral.image)) << what;
+  EXPECT_TRUE(test_util::SameImage(a.integral.count, b.integral.count)) << what;
+  EXPECT_TRUE(test_util::SameImage(a.inliers, b.inliers)) << what;
+  EXPECT_EQ(a.integral.variance.empty(), b.integral.variance.empty()) << what;
+  if (!a.integral.variance.empty()) {
+    EXPECT_TRUE(test_util::SameImage(a.integral.variance, b.integral.variance)) << what;
+  }
+}
+
+TEST(RenderIntegralAtPoints, RobustTiledRouteEqualsTheReferenceExactly) {
+  std::mt19937 rng(4321);
+  int compared = 0;
+  for (const auto& [type, channels] : std::vector<std::pair<PixelType, int>>{
+           {PixelType::kU8, 1}, {PixelType::kF32, 1}, {PixelType::kU8, 3}}) {
+    const LightField light_field = RandomLightField(24, channels, type, rng);
+    // 75 x 41: partial tiles at the right and bottom.
+    const FocalPoints points = RandomPoints(light_field, 75, 41, Vec3d(0.0), 6.0, rng);
+    for (const Case& c : Cases()) {
+      PointIntegralOptions options = OptionsFor(c, Vec3d(0.0));
+      for (bool variance : {false, true}) {
+        // agreement 0.3: a band of 153 grey levels on the random texture holds about half the
+        // samples, so both outcomes (inliers, fallback) occur.
+        for (double agreement : {0.02, 0.3}) {
+          options.variance = variance;
+          SurfaceIntegralOptions surface;
+          surface.robust = true;
+          surface.agreement = agreement;
+          const SurfaceIntegralResult tiled =
+              RenderIntegralAtPoints(light_field, points, options, surface);
+          const SurfaceIntegralResult reference = internal::RenderIntegralAtPointsReference(
+              light_field, points, options, surface, nullptr);
+          ASSERT_GT(reference.integral.samples, 0);
+          ExpectIdentical(tiled, reference,
+                          Describe(c, type, channels) + (variance ? " variance" : "") +
+                              " agreement " + std::to_string(agreement));
+          compared += reference.fallback_pixels > 0;
+        }
+      }
+    }
+  }
+  EXPECT_GT(compared, 0);  // some cases had fallback pixels
+  // Lens views (not culled by the image bounds) and a UTM-sized frame.
+  const Vec3d origin(512345.25, 5298765.5, 310.0);
+  const LightField light_field = RandomLightField(20, 1, PixelType::kU8, rng, origin, true);
+  const FocalPoints points = RandomPoints(light_field, 40, 37, origin, 6.0, rng);
+  for (const Case& c : Cases()) {
+    const PointIntegralOptions options = OptionsFor(c, origin);
+    SurfaceIntegralOptions surface;
+    surface.robust = true;
+    ExpectIdentical(RenderIntegralAtPoints(light_field, points, options, surface),
+                    internal::RenderIntegralAtPointsReference(light_field, points, options,
+                                                              surface, nullptr),
+                    Describe(c, PixelType::kU8, 1) + " lens, far");
+  }
+}
+
 TEST(RenderIntegralAtPoints, CylinderAdmitsAViewIffItsHorizontalDistanceIsAtMostTheRadius) {
   // Views straight down at horizontal distances d = 1, 2, ..., 8 m from the focal point (and a
   // second view at d = 5 m, the other side); each view's image is its own index + 1. A

@@ -243,16 +243,25 @@ class FocusAccumulator {
       const double scale = std::max(std::abs(best), std::abs(mean));
       (*confidence)[i] = scale > 0.0 ? static_cast<float>(std::clamp((best - mean) / scale, 0.0, 1.0)) : 0.0f;
       double offset = 0.0;
-      if (refine && before_[i] != kNone && after_[i] != kNone) {
-        // Vertex of the parabola through (-1, before), (0, best), (1, after).
-        const double a = before_[i], c = after_[i];
-        const double curvature = a - 2.0 * best + c;
-        if (curvature < 0.0) offset = std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
-      }
+      if (refine) Vertex(i, &offset);
       (*slice)[i] = static_cast<float>(std::clamp(best_index_[i] + offset, 0.0,
                                                   static_cast<double>(slices_ - 1)));
     }
     return uncovered;
+  }
+
+  // The vertex of the parabola through pixel i's best slice and its two neighbours, as an
+  // offset from the best slice clamped to [-1/2, 1/2]; false (offset 0) where a neighbour has
+  // no value or the three values are not strictly concave.
+  bool Vertex(size_t i, double* offset) const {
+    *offset = 0.0;
+    if (best_index_[i] < 0 || before_[i] == kNone || after_[i] == kNone) return false;
+    // Vertex of the parabola through (-1, before), (0, best), (1, after).
+    const double a = before_[i], b = best_[i], c = after_[i];
+    const double curvature = a - 2.0 * b + c;
+    if (!(curvature < 0.0)) return false;
+    *offset = std::clamp(0.5 * (a - c) / curvature, -0.5, 0.5);
+    return true;
   }
 
   const Image& guide() const { return guide_; }
@@ -433,6 +442,13 @@ void Reintegrate(const LightField& light_field, const IntegralOptions& render,
 // rounding): a render call has a fixed cost per view that small or sparse slices would pay
 // once each otherwise.
 
+// Where the coarse focus curve has a concave peak, the full slices taken are those within
+// kFineMargin full slices of its vertex (interpolated between the coarse slices' full indices),
+// inside the coarse slices on either side of the peak: on the merge study's scenes the full
+// stack's peak lies within half a slice of that vertex nearly everywhere, so the band holds it
+// and both parabola neighbours (1.5 = 1 + 1/2); 4 or 5 slices instead of 2 factor + 1.
+constexpr double kFineMargin = 1.5;
+
 // Points packed per render call, at most (bounds the memory whatever the number of slices).
 constexpr size_t kPackedPoints = size_t{1} << 21;
 constexpr int kPackedWidth = 64;
@@ -561,37 +577,6 @@ void RenderPackedSlices(const LightField& light_field, const IntegralOptions& re
   }
 }
 
-// A packed slice unpacked into an image of `camera`'s size: count 0 (and image 0) on the pixels
-// not rendered.
-struct UnpackedSlice {
-  Image image, count, variance;
-};
-UnpackedSlice Unpack(const SurfaceIntegralResult& packed, size_t first,
-                     const std::vector<int32_t>& pixels, const PinholeCamera& camera,
-                     bool variance) {
-  const IntegralResult& in = packed.integral;
-  const int channels = in.image.channels();
-  UnpackedSlice out;
-  out.image = Image(camera.width, camera.height, channels, PixelType::kF32);
-  out.count = Image(camera.width, camera.height, 1, PixelType::kU32);
-  if (variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
-  for (int y = 0; y < camera.height; ++y) {
-    std::fill(out.image.At<float>(0, y), out.image.At<float>(0, y) + camera.width * channels, 0.0f);
-    std::fill(out.count.At<uint32_t>(0, y), out.count.At<uint32_t>(0, y) + camera.width, 0u);
-    if (variance) std::fill(out.variance.At<float>(0, y), out.variance.At<float>(0, y) + camera.width, 0.0f);
-  }
-  for (size_t j = 0; j < pixels.size(); ++j) {
-    const int x = pixels[j] % camera.width, y = pixels[j] / camera.width;
-    const int px = static_cast<int>((first + j) % kPackedWidth);
-    const int py = static_cast<int>((first + j) / kPackedWidth);
-    std::copy(in.image.At<float>(px, py), in.image.At<float>(px, py) + channels,
-              out.image.At<float>(x, y));
-    out.count.At<uint32_t>(x, y)[0] = in.count.At<uint32_t>(px, py)[0];
-    if (variance) out.variance.At<float>(x, y)[0] = in.variance.At<float>(px, py)[0];
-  }
-  return out;
-}
-
 struct CoarseChoice {
   int blocks_x = 0, blocks_y = 0;
   // The coarse stack's confidence (over all its slices) of every block, 0 where uncovered.
@@ -603,12 +588,12 @@ struct CoarseChoice {
 // Renders the coarse stack (every factor-th slice) and chooses every block's slices: the full
 // slices from the coarse slice before its coarse pixel's focus maximum to the one after it (a
 // focus curve sampled every factor-th slice has its peak within one sample of the sampled
-// maximum). A coarse pixel that no coarse slice covers gives its block every slice (the coarse
-// pass knows nothing there).
+// maximum), narrowed to kFineMargin around the vertex where the coarse peak is concave. A
+// coarse pixel that no coarse slice covers gives its block every slice (the coarse pass knows
+// nothing there).
 CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions& run,
                           const IntegralOptions& resolved, const PinholeCamera& camera,
-                          const Rigid3d& cam_from_world, const SliceFocus& focus, int threads,
-                          ProgressSink* progress) {
+                          const SliceFocus& focus, int threads, ProgressSink* progress) {
   const int factor = run.coarse_to_fine, slices = run.stack.slices;
   IntegralOptions coarse = resolved;
   coarse.width = std::max(1, (camera.width + factor - 1) / factor);
@@ -623,23 +608,32 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
   // The focus window covers about the same ground as the full-resolution one.
   const int coarse_radius = std::max(1, (run.merge.window_radius + factor - 1) / factor);
   const bool variance = run.merge.method == MergeMethod::kRobust;
-  const std::vector<int32_t> every = MortonOrder(coarse_camera.width, coarse_camera.height);
   ProgressStart(progress, "coarse stack", coarse_slices);
   FocusAccumulator accumulator(coarse_camera, light_field.views.front().image.channels(),
                                coarse_slices);
-  RenderPackedSlices(
-      light_field, coarse, coarse_camera, cam_from_world, focus, indices,
-      [&](size_t) -> const std::vector<int32_t>& { return every; }, variance,
-      threads,
-      [&](size_t k, const SurfaceIntegralResult& packed, size_t first) {
-        const UnpackedSlice slice = Unpack(packed, first, every, coarse_camera, variance);
-        const std::vector<float> values =
-            FocusValues(run.merge.method, slice.image, slice.count,
-                        variance ? &slice.variance : nullptr, coarse_radius, threads);
-        accumulator.Add(static_cast<int>(k), slice.image, values);
-        ProgressAdvance(progress, 1);
-      },
-      progress);
+  // Each coarse slice is a whole (small) image: the plane render (span kernels) or, for a
+  // surface, RenderIntegral's surface path, as RenderFocalStackSlices renders a full slice.
+  coarse.variance = variance;
+  for (int k = 0; k < coarse_slices; ++k) {
+    if (ProgressCancelled(progress)) throw Cancelled();
+    const int i = indices[static_cast<size_t>(k)];
+    if (focus.surface) {
+      coarse.surface_offset = focus.offsets[static_cast<size_t>(i)];
+    } else {
+      coarse.focal_plane = focus.planes[static_cast<size_t>(i)];
+    }
+    IntegralResult slice;
+    try {
+      slice = RenderIntegral(light_field, coarse);
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid("slice " + std::to_string(i) + ": " + error.what());
+    }
+    const std::vector<float> values =
+        FocusValues(run.merge.method, slice.image, slice.count,
+                    variance ? &slice.variance : nullptr, coarse_radius, threads);
+    accumulator.Add(k, slice.image, values);
+    ProgressAdvance(progress, 1);
+  }
   const std::vector<int32_t>& best = accumulator.best_index();
   CoarseChoice choice;
   std::vector<float> coarse_slice;
@@ -654,6 +648,17 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
     choice.first[block] = b < 0 ? 0 : indices[static_cast<size_t>(std::max(0, b - 1))];
     choice.last[block] =
         b < 0 ? slices - 1 : indices[static_cast<size_t>(std::min(coarse_slices - 1, b + 1))];
+    double offset = 0.0;
+    if (b < 0 || !accumulator.Vertex(block, &offset)) continue;
+    // A concave coarse peak: its vertex, in full slices (between b's neighbours the coarse
+    // slices are evenly spaced but for the last), +- kFineMargin full slices, inside the band.
+    const size_t from = static_cast<size_t>(offset < 0.0 ? b - 1 : b);
+    const double fraction = offset < 0.0 ? 1.0 + offset : offset;
+    const double peak = indices[from] + fraction * (indices[from + 1] - indices[from]);
+    choice.first[block] = std::max(choice.first[block],
+                                   static_cast<int32_t>(std::floor(peak - kFineMargin)));
+    choice.last[block] = std::min(choice.last[block],
+                                  static_cast<int32_t>(std::ceil(peak + kFineMargin)));
   }
   return choice;
 }
@@ -957,8 +962,8 @@ MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOpti
   std::vector<float> coarse_confidence;  // coarse-to-fine: per output pixel
   if (run.coarse_to_fine > 0) {
     const IntegralOptions resolved = WithResolvedCamera(light_field, run.stack.render);
-    const CoarseChoice choice = ChooseSlices(light_field, run, resolved, camera,
-                                             cam_from_world, focus, threads, progress);
+    const CoarseChoice choice =
+        ChooseSlices(light_field, run, resolved, camera, focus, threads, progress);
     seconds_fine_render = timer.Seconds();  // the coarse stack counts as rendering
     // The fine fold sees only the slices near each pixel's focus, so its own confidence (best
     // against the mean of the curve) would compare the peak with its shoulders; the coarse

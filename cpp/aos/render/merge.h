@@ -43,17 +43,24 @@
 // Coarse-to-fine (RenderAllInFocus with AllInFocusOptions::coarse_to_fine = factor f >= 2)
 // - A coarse stack: the virtual camera at 1/f the width and height (rounded up; the field of
 //   view widened to match, so a coarse pixel is an f x f block of output pixels), on every f-th
-//   slice and the last, merged with the same focus cue (window radius ceil(r / f), at least 1).
+//   slice and the last, each rendered as a whole slice is (RenderIntegral), merged with the
+//   same focus cue (window radius ceil(r / f), at least 1).
 // - Each block takes the full slices from the coarse slice before its coarse focus maximum to
-//   the one after it (at most 2f + 1 slices; every slice where no coarse slice covers it). Full
-//   slice i is rendered at full resolution only on the blocks that take it, through the depth
-//   path (RenderIntegralAtPoints on the plane's or surface's points, many slices per call: the
+//   the one after it (at most 2f + 1 slices; every slice where no coarse slice covers it);
+//   where the coarse peak is concave (both neighbours, negative curvature) only those within
+//   1.5 full slices of the parabola's vertex (its coarse position mapped linearly onto the full
+//   slices): 4 or 5 slices, which hold the full-stack peak and both its parabola neighbours
+//   wherever that peak lies within half a slice of the vertex. Full slice i is rendered at full
+//   resolution only on the blocks that take it, through the depth path
+//   (RenderIntegralAtPoints on the plane's or surface's points, many slices per call: the
 //   plane render's rules, results equal up to float rounding), and its focus values, computed
 //   as for a full slice with the pixels not rendered counting as uncovered, enter the fold only
 //   there; elsewhere the slice has no focus value.
 // - So where a pixel's full-stack peak and its two neighbours lie in its block's slices, and the
 //   blocks within window_radius + 1 pixels take them too, the fold (best slice, parabola) equals
-//   the full stack's up to that rounding. The confidence is the coarse stack's (over every
+//   the full stack's up to that rounding; elsewhere it is the best slice within the band (a
+//   focus curve with several peaks, as on real low-texture data, may then end elsewhere than
+//   the full stack's: docs/benchmarks.md, F0). The confidence is the coarse stack's (over every
 //   slice; the fine fold sees only the slices near the peak), so the smoothed depth and the
 //   image differ slightly from the full stack's everywhere (tests: merge_test
 //   CoarseToFine*; figures: docs/accuracy-vs-time.md, tools/bench_coarse_to_fine.py).

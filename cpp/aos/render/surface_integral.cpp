@@ -43,8 +43,10 @@
 // projections of the nodes are cached per view and tile, so children reuse their parent's.
 // Nearest mode (aperture 0), other pixel types, far-away points and lens quads that fail at
 // 8 x 8 take AdmitSample and the double sampler per point, still tiled and culled (lens views
-// are not culled: their projection is not linear). The robust mean keeps the per-pixel loop
-// (internal::RenderIntegralAtPointsReference): it needs every sample of a pixel at once.
+// are not culled: their projection is not linear). The robust mean needs every sample of a
+// pixel at once: it gathers them tile by tile, views outer (RenderSampleListsTiled), with the
+// reference's double-precision admission and sampler, so it equals the per-pixel reference
+// loop (internal::RenderIntegralAtPointsReference) bit for bit; nearest mode keeps that loop.
 
 namespace aos {
 namespace {
@@ -258,6 +260,159 @@ inline bool AdmitSample(const Setup& s, const ViewSetup& view, const Vec3d& foca
   return true;
 }
 
+// One admitted sample of `view` at view pixel (u, v) into a pixel's lists: its channels (a
+// masked light field's divided by their mask weight: surface_integral.h) and their luminance.
+// False, and nothing added, for a masked sample of weight 0. `value` holds the view's channels.
+inline bool AddSample(const Setup& s, const ViewSetup& view, double u, double v, int channels,
+                      bool masked, double* value, std::vector<double>& samples,
+                      std::vector<double>& luminance) {
+  view.sample(*view.image, u, v, value);
+  double weight = 1.0;
+  if (masked) {
+    weight = value[channels] / s.range;
+    if (!(weight > 0.0)) return false;
+  }
+  double mean = 0.0;
+  for (int c = 0; c < channels; ++c) {
+    samples.push_back(value[c] / weight);
+    mean += samples.back();
+  }
+  luminance.push_back(mean / channels);
+  return true;
+}
+
+// True if no band [v, v + width] holds `needed` or more of `values` (then the robust mean falls
+// back, whatever the sort would find), from a histogram: bins of width / kBandBins from the
+// smallest value; a band's values lie in kBandBins + 1 consecutive bins, give or take one bin
+// at either end for rounding, so the largest sum over kBandBins + 3 consecutive bins bounds
+// every band's count from above. False (undecided: sort) where that bound reaches `needed`,
+// or where the values span more than kMaxBandBins bins.
+constexpr int kBandBins = 8;
+constexpr int kMaxBandBins = 4096;
+inline bool NoBandHolds(const std::vector<double>& values, double width, double needed,
+                        std::vector<int32_t>& histogram) {
+  const auto [lo, hi] = std::minmax_element(values.begin(), values.end());
+  const double bin = width / kBandBins;
+  if (!(bin > 0.0) || !(*hi - *lo < bin * (kMaxBandBins - 1))) return false;
+  const double scale = 1.0 / bin;
+  const int bins = static_cast<int>((*hi - *lo) * scale) + 1;
+  histogram.assign(static_cast<size_t>(bins + kBandBins + 3), 0);
+  for (const double value : values) {
+    ++histogram[static_cast<size_t>(std::min(bins - 1, static_cast<int>((value - *lo) * scale)))];
+  }
+  int32_t window = 0;
+  for (int i = 0; i < kBandBins + 3; ++i) window += histogram[static_cast<size_t>(i)];
+  int32_t most = window;
+  for (int i = kBandBins + 3; i < bins + kBandBins + 3; ++i) {
+    window += histogram[static_cast<size_t>(i)] - histogram[static_cast<size_t>(i - kBandBins - 3)];
+    most = std::max(most, window);
+  }
+  return static_cast<double>(most) < needed;
+}
+
+// Output pixel (x, y) from its samples (in view order, `channels` values each) and their
+// luminances: count, the robust mean's band and inliers, the variance, the (inlier) mean.
+// Returns true where the robust mean fell back to the plain mean. With a `histogram` (scratch)
+// a pixel that NoBandHolds decides falls back without the sort (the same outputs); without one
+// (the reference) every pixel is sorted.
+inline bool FinishPixel(const Setup& s, const SurfaceIntegralOptions& surface, bool variance,
+                        int channels, const std::vector<double>& samples,
+                        const std::vector<double>& luminance, std::vector<double>& sorted,
+                        std::vector<int32_t>* histogram, int x, int y,
+                        SurfaceIntegralResult& result) {
+  IntegralResult& out = result.integral;
+  const size_t n = luminance.size();
+  out.count.At<uint32_t>(x, y)[0] = static_cast<uint32_t>(n);
+  if (n == 0) return false;
+  bool fell_back = false;
+  // The inlier set: every sample, or those in the densest band of the luminance.
+  size_t kept = n;
+  double lower = -std::numeric_limits<double>::infinity();
+  double upper = std::numeric_limits<double>::infinity();
+  if (surface.robust && n >= 2 && histogram != nullptr &&
+      NoBandHolds(luminance, 2.0 * surface.agreement * s.range,
+                  surface.min_inlier_fraction * static_cast<double>(n), *histogram)) {
+    fell_back = true;  // what the search below would find, without sorting
+  } else if (surface.robust && n >= 2) {
+    // The densest band [v, v + width] over the sorted luminances (two pointers).
+    sorted = luminance;
+    std::sort(sorted.begin(), sorted.end());
+    const double width = 2.0 * surface.agreement * s.range;
+    size_t best_begin = 0, best_size = 0;
+    for (size_t begin = 0, end = 0; begin < n; ++begin) {
+      while (end < n && sorted[end] <= sorted[begin] + width) ++end;
+      if (end - begin > best_size) {
+        best_size = end - begin;
+        best_begin = begin;
+      }
+    }
+    if (static_cast<double>(best_size) >= surface.min_inlier_fraction * static_cast<double>(n)) {
+      lower = sorted[best_begin];
+      upper = sorted[best_begin + best_size - 1];
+      kept = best_size;
+    } else {
+      fell_back = true;
+    }
+  }
+  if (surface.robust) result.inliers.At<uint32_t>(x, y)[0] = static_cast<uint32_t>(kept);
+  if (variance && n >= 2 && !s.nearest) {
+    // Population variance of all the samples, mean over channels (integral.h).
+    double sum_variance = 0.0;
+    for (int c = 0; c < channels; ++c) {
+      double sum = 0.0, squares = 0.0;
+      for (size_t k = 0; k < n; ++k) {
+        const double value = samples[k * channels + static_cast<size_t>(c)];
+        sum += value;
+        squares += value * value;
+      }
+      const double mean = sum / static_cast<double>(n);
+      sum_variance += std::max(0.0, squares / static_cast<double>(n) - mean * mean);
+    }
+    out.variance.At<float>(x, y)[0] = static_cast<float>(sum_variance / channels);
+  }
+  float* pixel = out.image.At<float>(x, y);
+  for (int c = 0; c < channels; ++c) {
+    double sum = 0.0;
+    for (size_t k = 0; k < n; ++k) {
+      if (luminance[k] >= lower && luminance[k] <= upper) {
+        sum += samples[k * channels + static_cast<size_t>(c)];
+      }
+    }
+    pixel[c] = static_cast<float>(sum / static_cast<double>(kept));
+  }
+  return fell_back;
+}
+
+// The outputs of a per-sample render of `s` (image with the masked light field's channel
+// dropped, count, inliers for the robust mean, variance), sized and zeroed.
+SurfaceIntegralResult MakeOutputs(const Setup& s, int channels, bool robust, bool variance) {
+  SurfaceIntegralResult result;
+  IntegralResult& out = result.integral;
+  out.image = Image(s.width, s.height, channels, PixelType::kF32);
+  out.count = Image(s.width, s.height, 1, PixelType::kU32);
+  out.views_selected = static_cast<int>(s.views.size());
+  if (robust) result.inliers = Image(s.width, s.height, 1, PixelType::kU32);
+  if (variance) out.variance = Image(s.width, s.height, 1, PixelType::kF32);
+  return result;
+}
+
+// Views used, samples and uncovered pixels from the counts.
+void FinishStatistics(const Setup& s, const std::vector<uint8_t>& view_used,
+                      SurfaceIntegralResult& result) {
+  IntegralResult& out = result.integral;
+  for (size_t i = 0; i < view_used.size(); ++i) {
+    if (view_used[i]) result.used_view_indices.push_back(s.view_indices[i]);
+  }
+  out.views_used = static_cast<int>(result.used_view_indices.size());
+  for (int y = 0; y < s.height; ++y) {
+    const uint32_t* count = out.count.At<uint32_t>(0, y);
+    for (int x = 0; x < s.width; ++x) {
+      out.samples += count[x];
+      out.uncovered_pixels += count[x] == 0;
+    }
+  }
+}
+
 }  // namespace
 
 namespace internal {
@@ -280,18 +435,10 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
   const int sampled_channels = s.channels;
   const int channels = s.channels - (masked ? 1 : 0);
   const bool nearest = s.nearest;
-  struct Camera { int width, height; } camera{s.width, s.height};
-
-  SurfaceIntegralResult result;
-  IntegralResult& out = result.integral;
-  out.image = Image(camera.width, camera.height, channels, PixelType::kF32);
-  out.count = Image(camera.width, camera.height, 1, PixelType::kU32);
-  out.views_selected = static_cast<int>(views.size());
-  if (surface.robust) result.inliers = Image(camera.width, camera.height, 1, PixelType::kU32);
-  if (options.variance) out.variance = Image(camera.width, camera.height, 1, PixelType::kF32);
+  SurfaceIntegralResult result = MakeOutputs(s, channels, surface.robust, options.variance);
 
   const int threads = ResolveThreadCount(options.num_threads);
-  ProgressStart(progress, "render on surface", camera.height);
+  ProgressStart(progress, "render on surface", s.height);
   std::vector<uint8_t> view_used(views.size(), 0);
   int64_t fallback = 0;
   bool cancelled = false;
@@ -302,7 +449,7 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
     std::vector<double> samples, luminance, sorted;
     std::vector<double> value(static_cast<size_t>(sampled_channels));
 #pragma omp for schedule(dynamic, 4)
-    for (int64_t y = 0; y < camera.height; ++y) {
+    for (int64_t y = 0; y < s.height; ++y) {
       bool stop;
 #pragma omp atomic read
       stop = cancelled;
@@ -314,9 +461,8 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
           continue;
         }
         const int row = static_cast<int>(y);
-        for (int x = 0; x < camera.width; ++x) {
-          float* pixel = out.image.At<float>(x, row);
-          const Vec3d& point = points.points[static_cast<size_t>(row) * camera.width + x];
+        for (int x = 0; x < s.width; ++x) {
+          const Vec3d& point = points.points[static_cast<size_t>(row) * s.width + x];
           if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
           const Vec3d focal = point + s.shift;
           samples.clear();
@@ -334,75 +480,15 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
               samples.clear();
               luminance.clear();
             }
-            view.sample(*view.image, u, v, value.data());
-            double weight = 1.0;
-            if (masked) {
-              // Nearest mode keeps the nearest view even where it is masked (uncovered then).
-              weight = value[static_cast<size_t>(channels)] / s.range;
-              if (!(weight > 0.0)) continue;
+            // Nearest mode keeps the nearest view even where it is masked (uncovered then).
+            if (!AddSample(s, view, u, v, channels, masked, value.data(), samples, luminance)) {
+              continue;
             }
-            double mean = 0.0;
-            for (int c = 0; c < channels; ++c) {
-              samples.push_back(value[static_cast<size_t>(c)] / weight);
-              mean += samples.back();
-            }
-            luminance.push_back(mean / channels);
             if (!nearest) used[i] = 1;
           }
           if (chosen < views.size()) used[chosen] = 1;
-          const size_t n = luminance.size();
-          out.count.At<uint32_t>(x, row)[0] = static_cast<uint32_t>(n);
-          if (n == 0) continue;
-          // The inlier set: every sample, or those near the median of the luminance.
-          size_t kept = n;
-          double lower = -std::numeric_limits<double>::infinity();
-          double upper = std::numeric_limits<double>::infinity();
-          if (surface.robust && n >= 2) {
-            // The densest band [v, v + width] over the sorted luminances (two pointers).
-            sorted = luminance;
-            std::sort(sorted.begin(), sorted.end());
-            const double width = 2.0 * surface.agreement * s.range;
-            size_t best_begin = 0, best_size = 0;
-            for (size_t begin = 0, end = 0; begin < n; ++begin) {
-              while (end < n && sorted[end] <= sorted[begin] + width) ++end;
-              if (end - begin > best_size) {
-                best_size = end - begin;
-                best_begin = begin;
-              }
-            }
-            if (static_cast<double>(best_size) >= surface.min_inlier_fraction * static_cast<double>(n)) {
-              lower = sorted[best_begin];
-              upper = sorted[best_begin + best_size - 1];
-              kept = best_size;
-            } else {
-              ++fallback;
-            }
-          }
-          if (surface.robust) result.inliers.At<uint32_t>(x, row)[0] = static_cast<uint32_t>(kept);
-          if (options.variance && n >= 2 && !nearest) {
-            // Population variance of all the samples, mean over channels (integral.h).
-            double variance = 0.0;
-            for (int c = 0; c < channels; ++c) {
-              double sum = 0.0, squares = 0.0;
-              for (size_t k = 0; k < n; ++k) {
-                const double value = samples[k * channels + static_cast<size_t>(c)];
-                sum += value;
-                squares += value * value;
-              }
-              const double mean = sum / static_cast<double>(n);
-              variance += std::max(0.0, squares / static_cast<double>(n) - mean * mean);
-            }
-            out.variance.At<float>(x, row)[0] = static_cast<float>(variance / channels);
-          }
-          for (int c = 0; c < channels; ++c) {
-            double sum = 0.0;
-            for (size_t k = 0; k < n; ++k) {
-              if (luminance[k] >= lower && luminance[k] <= upper) {
-                sum += samples[k * channels + static_cast<size_t>(c)];
-              }
-            }
-            pixel[c] = static_cast<float>(sum / static_cast<double>(kept));
-          }
+          fallback += FinishPixel(s, surface, options.variance, channels, samples, luminance,
+                                  sorted, nullptr, x, row, result);
         }
         ProgressAdvance(progress, 1);
       } catch (...) {
@@ -418,17 +504,7 @@ SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_fi
   if (error) std::rethrow_exception(error);
   if (cancelled) throw Cancelled();
   result.fallback_pixels = fallback;
-  for (size_t i = 0; i < view_used.size(); ++i) {
-    if (view_used[i]) result.used_view_indices.push_back(s.view_indices[i]);
-  }
-  out.views_used = static_cast<int>(result.used_view_indices.size());
-  for (int y = 0; y < camera.height; ++y) {
-    const uint32_t* count = out.count.At<uint32_t>(0, y);
-    for (int x = 0; x < camera.width; ++x) {
-      out.samples += count[x];
-      out.uncovered_pixels += count[x] == 0;
-    }
-  }
+  FinishStatistics(s, view_used, result);
   return result;
 }
 
@@ -1172,6 +1248,122 @@ SurfaceIntegralResult RenderTiled(const Setup& s, const FocalPoints& points,
   return result;
 }
 
+
+// The robust mean (and any render with a masked light field's per-sample division), tile by
+// tile: the reference's per-pixel work on the same samples, gathered views outer. Per tile of
+// kRobustTile x kRobustTile pixels the views are culled by the bounding box of its focal points
+// (OutsideImage for pinhole views, OutsideAperture: conservative, so only views that admit no
+// point of the tile are skipped), and each remaining view's admitted samples (AdmitSample and
+// the double sampler, as the reference) are appended to their pixels' lists in ascending view
+// order: every pixel gets the reference's samples in the reference's order, and FinishPixel
+// makes the same arithmetic of them, so the outputs equal the reference's bit for bit. A view's
+// samples for one tile lie in a small patch of its image (the reference, pixel outer, walks
+// every view's image for every pixel). Not for nearest mode (aperture 0: one sample a pixel).
+constexpr int kRobustTile = 16;
+
+SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, const Setup& s,
+                                             const FocalPoints& points,
+                                             const PointIntegralOptions& options,
+                                             const SurfaceIntegralOptions& surface,
+                                             ProgressSink* progress) {
+  const bool masked = light_field.masked;
+  if (masked && s.channels < 2) {
+    ThrowInvalid("masked light field: the views have 1 channel; a masked view has its values "
+                 "and a weight channel");
+  }
+  const int channels = s.channels - (masked ? 1 : 0);
+  SurfaceIntegralResult result = MakeOutputs(s, channels, surface.robust, options.variance);
+  const int tiles_x = (s.width + kRobustTile - 1) / kRobustTile;
+  const int tiles_y = (s.height + kRobustTile - 1) / kRobustTile;
+  const int64_t tiles = static_cast<int64_t>(tiles_x) * tiles_y;
+  const int threads = ResolveThreadCount(options.num_threads);
+  ProgressStart(progress, "render on surface", tiles);
+  std::vector<uint8_t> view_used(s.views.size(), 0);
+  int64_t fallback = 0;
+  bool cancelled = false;
+  std::exception_ptr error;
+#pragma omp parallel num_threads(threads) reduction(+ : fallback)
+  {
+    std::vector<uint8_t> used(s.views.size(), 0);
+    constexpr int kPixels = kRobustTile * kRobustTile;
+    std::vector<std::vector<double>> samples(kPixels), luminance(kPixels);
+    std::vector<double> sorted, value(static_cast<size_t>(s.channels));
+    std::vector<int32_t> histogram;
+    std::vector<Vec3d> focal(kPixels);
+    std::vector<uint8_t> valid(kPixels);
+#pragma omp for schedule(dynamic, 1)
+    for (int64_t t = 0; t < tiles; ++t) {
+      bool stop;
+#pragma omp atomic read
+      stop = cancelled;
+      if (stop) continue;
+      try {
+        if (ProgressCancelled(progress)) {
+#pragma omp atomic write
+          cancelled = true;
+          continue;
+        }
+        const int x0 = static_cast<int>(t % tiles_x) * kRobustTile;
+        const int y0 = static_cast<int>(t / tiles_x) * kRobustTile;
+        const int x1 = std::min(s.width, x0 + kRobustTile), y1 = std::min(s.height, y0 + kRobustTile);
+        const int tile_width = x1 - x0, size = tile_width * (y1 - y0);
+        const double inf = std::numeric_limits<double>::infinity();
+        Box box{Vec3d(inf), Vec3d(-inf)};
+        bool any = false;
+        for (int j = 0; j < size; ++j) {
+          samples[static_cast<size_t>(j)].clear();
+          luminance[static_cast<size_t>(j)].clear();
+          const Vec3d& point =
+              points.points[static_cast<size_t>(y0 + j / tile_width) * s.width + x0 + j % tile_width];
+          valid[static_cast<size_t>(j)] =
+              std::isfinite(point.x) && std::isfinite(point.y) && std::isfinite(point.z);
+          if (!valid[static_cast<size_t>(j)]) continue;
+          focal[static_cast<size_t>(j)] = point + s.shift;
+          box.lo = glm::min(box.lo, focal[static_cast<size_t>(j)]);
+          box.hi = glm::max(box.hi, focal[static_cast<size_t>(j)]);
+          any = true;
+        }
+        for (size_t i = 0; any && i < s.views.size(); ++i) {
+          const ViewSetup& view = s.views[i];
+          int image_tests = 0;
+          if (view.lens == nullptr && OutsideImage(view, box, &image_tests)) continue;
+          if (OutsideAperture(s, view, box)) continue;
+          for (int j = 0; j < size; ++j) {
+            if (!valid[static_cast<size_t>(j)]) continue;
+            double u, v, distance2 = inf;
+            if (!AdmitSample(s, view, focal[static_cast<size_t>(j)], &u, &v, &distance2)) continue;
+            if (AddSample(s, view, u, v, channels, masked, value.data(),
+                          samples[static_cast<size_t>(j)], luminance[static_cast<size_t>(j)])) {
+              used[i] = 1;
+            }
+          }
+        }
+        for (int j = 0; j < size; ++j) {
+          if (!valid[static_cast<size_t>(j)]) continue;
+          fallback += FinishPixel(s, surface, options.variance, channels,
+                                  samples[static_cast<size_t>(j)],
+                                  luminance[static_cast<size_t>(j)], sorted, &histogram,
+                                  x0 + j % tile_width,
+                                  y0 + j / tile_width, result);
+        }
+        ProgressAdvance(progress, 1);
+      } catch (...) {
+#pragma omp critical(aos_surface_error)
+        if (!error) error = std::current_exception();
+#pragma omp atomic write
+        cancelled = true;
+      }
+    }
+#pragma omp critical(aos_surface_merge)
+    for (size_t i = 0; i < used.size(); ++i) view_used[i] |= used[i];
+  }
+  if (error) std::rethrow_exception(error);
+  if (cancelled) throw Cancelled();
+  result.fallback_pixels = fallback;
+  FinishStatistics(s, view_used, result);
+  return result;
+}
+
 }  // namespace
 
 void SurfaceIntegralOptions::Check() const {
@@ -1276,12 +1468,16 @@ SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
                                              const PointIntegralOptions& options,
                                              const SurfaceIntegralOptions& surface,
                                              ProgressSink* progress) {
-  if (surface.robust) {
-    // Masked light fields are divided per sample there (surface_integral.h).
-    return internal::RenderIntegralAtPointsReference(light_field, points, options, surface,
-                                                     progress);
-  }
   const Setup s = MakeSetup(light_field, points, options, surface);
+  if (surface.robust) {
+    // Masked light fields are divided per sample there (surface_integral.h). Nearest mode keeps
+    // one sample a pixel: the reference loop.
+    if (s.nearest) {
+      return internal::RenderIntegralAtPointsReference(light_field, points, options, surface,
+                                                       progress);
+    }
+    return RenderSampleListsTiled(light_field, s, points, options, surface, progress);
+  }
   SurfaceIntegralResult result = RenderTiled(s, points, options, progress);
   // A masked light field's mean over valid samples (masked_mean.h), for every route here.
   if (light_field.masked) {

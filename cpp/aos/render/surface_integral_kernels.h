@@ -74,7 +74,8 @@ using PointKernel = bool (*)(const Image& image, const PointTileArrays& points,
 PointKernel Avx2PointKernel(const Image& image);
 
 // The per-pixel scalar loop the fast route replaced (pixel-outer, view-inner, double precision):
-// the reference the tests compare against; also the route of the robust mean.
+// the reference the tests compare against; also the route of the robust mean in nearest mode
+// (elsewhere the robust mean gathers the same samples tile by tile and equals it bit for bit).
 SurfaceIntegralResult RenderIntegralAtPointsReference(const LightField& light_field,
                                                       const FocalPoints& points,
                                                       const PointIntegralOptions& options,
