@@ -692,6 +692,7 @@ struct TileBuffers {
   std::vector<Footprint> footprints;
   std::vector<const char*> lines;  // the next view's cache lines to prefetch
   std::vector<Vec3d> outline;      // points on the tile's border (footprints)
+  std::vector<Vec3d> lens_outline;  // fewer of them, for lens views
   // The lens route: exact projections at quad nodes, valid while node_stamp[j] == generation
   // (one generation per view), and each quad's departure from bilinear (-1 = not computed).
   struct LensNode {
@@ -846,8 +847,6 @@ struct LensRoute {
       cos_angle = std::min(cos_angle, p.z / length);
       distance = std::min(distance, length);
     }
-    const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
-    const double angle = std::acos(std::max(-1.0, cos_angle));
     const double q_per_radian = 1.0 / (cos_c * cos_c);
     // The map pixel = (U, V) / W with rows over (q / scale, 1), q / scale of about unit size.
     // First an affine map (W = 1), least squares through the four corners; where it misses the
@@ -931,7 +930,15 @@ struct LensRoute {
     const double gradient = std::sqrt(gradient2) / scale;  // pixels per unit q
     if (!(error + 2.25 * q_per_radian * gradient * turn <= s.lens_tolerance)) return false;
     // Every ray of the quad within the lens's valid field, with a margin of half the spread.
-    if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    // (acos only where needed: the spread of a quad is small, and for x <= 0.46 rad,
+    // x <= sqrt(2 (1 - cos x)) / (1 - x^2 / 12) <= 1.03 sqrt(2 (1 - cos x)), a bound that decides
+    // as the exact spread would wherever it passes.)
+    const double angle = std::acos(std::max(-1.0, cos_angle));
+    const double chord = std::sqrt(2.0 * std::max(0.0, 1.0 - cos_spread));
+    if (!(chord <= 0.45 && angle + 1.5 * (1.03 * chord) + turn < view.valid_angle)) {
+      const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
+      if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    }
     // The image bounds the kernel must test (PointKernelArgs::image_tests): W = c . X > 0 holds
     // within 60 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
     // quad's points too (their fitted pixels lie within the tolerance of the nodes' hull).
@@ -1072,8 +1079,11 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   const internal::PointTileArrays arrays{b.x.data(), b.y.data(), b.z.data(), b.valid.data(),
                                          padded};
   // The tile's outline: its valid points on the border, every 16 pixels, and the last ones
-  // (about 16 points; each is projected into every view the culls leave).
+  // (about 16 points; each is projected into every view the culls leave). Lens views take every
+  // 32 pixels (corners and edge midpoints, 8 points): their exact projections are dearer, and
+  // every view is projected (no cull).
   b.outline.clear();
+  b.lens_outline.clear();
   const int tile_height = y1 - y0;
   for (int ty = 0; ty < tile_height; ++ty) {
     if (!(ty % 16 == 0 || ty == tile_height - 1)) continue;
@@ -1082,12 +1092,17 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
       const bool on_border = border_row || tx == 0 || tx == tile_width - 1;
       const bool sampled = tx % 16 == 0 || tx == tile_width - 1;
       const size_t j = static_cast<size_t>(ty) * stride + tx;
-      if (on_border && sampled && b.valid[j] != 0) b.outline.push_back(b.focal[j]);
+      if (!(on_border && sampled && b.valid[j] != 0)) continue;
+      b.outline.push_back(b.focal[j]);
+      if ((tx % 32 == 0 || tx == tile_width - 1) && (ty % 32 == 0 || ty == tile_height - 1)) {
+        b.lens_outline.push_back(b.focal[j]);
+      }
     }
   }
   if (b.outline.empty()) {
     for (int k = 0; k < 8; ++k) b.outline.push_back(box.Corner(k));
   }
+  if (b.lens_outline.empty()) b.lens_outline = b.outline;
   b.views.clear();
   b.image_tests.clear();
   b.footprints.clear();
@@ -1099,7 +1114,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     b.views.push_back(static_cast<int>(i));
     b.image_tests.push_back(static_cast<uint8_t>(image_tests));
     b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline)
-                                                : LensFootprintOf(view, b.outline));
+                                                : LensFootprintOf(view, b.lens_outline));
   }
   b.lines.resize(kMaxPrefetch);
   if (!b.views.empty()) {
