@@ -841,10 +841,11 @@ struct LensRoute {
       const double length = glm::length(p), w = glm::dot(c, p);
       // Within 60 degrees of c, so that dq / d(angle) <= 1 / cos^2 <= 4.
       if (!(w > 0.5 * length)) return false;
-      q[k] = Vec2d(glm::dot(e1, p) / w, glm::dot(e2, p) / w);
-      cos_c = std::min(cos_c, w / length);
-      cos_spread = std::min(cos_spread, glm::dot(centre, p) / length);
-      cos_angle = std::min(cos_angle, p.z / length);
+      const double inverse_w = 1.0 / w, inverse_length = 1.0 / length;
+      q[k] = Vec2d(glm::dot(e1, p) * inverse_w, glm::dot(e2, p) * inverse_w);
+      cos_c = std::min(cos_c, w * inverse_length);
+      cos_spread = std::min(cos_spread, glm::dot(centre, p) * inverse_length);
+      cos_angle = std::min(cos_angle, p.z * inverse_length);
       distance = std::min(distance, length);
     }
     const double q_per_radian = 1.0 / (cos_c * cos_c);
@@ -865,6 +866,16 @@ struct LensRoute {
     const auto measure = [&] {
       error2 = 0.0;
       gradient2 = 0.0;
+      if (w_row == Vec3d(0.0, 0.0, 1.0)) {  // affine: no division, one gradient
+        for (int k = 0; k < 9; ++k) {
+          const Vec3d hq(q[k].x, q[k].y, 1.0);
+          const double du = glm::dot(u_row, hq) - node[k]->pixel.x;
+          const double dv = glm::dot(v_row, hq) - node[k]->pixel.y;
+          error2 = std::max(error2, du * du + dv * dv);
+        }
+        gradient2 = u_row.x * u_row.x + u_row.y * u_row.y + v_row.x * v_row.x + v_row.y * v_row.y;
+        return;
+      }
       for (int k = 0; k < 9; ++k) {
         const Vec3d hq(q[k].x, q[k].y, 1.0);
         const double w = glm::dot(w_row, hq);
