@@ -37,7 +37,9 @@
 // values carry float rounding (as the plane path's span kernels), accumulated in double.
 // Views with a lens model (LensRoute) take the same kernel quad by quad: per quad of the tile
 // (64, split down to 8 pixels) a homography fitted to the lens projection in the tangent plane of
-// the quad's centre ray (radtan: of the view's optical axis), accepted when it is within lens_tolerance_px of the exact projection at
+// the quad's centre ray (radtan: of the view's optical axis; affine through the corners, or where
+// that misses by less than 4x a full homography by least squares over the nodes, Homography8),
+// accepted when it is within lens_tolerance_px of the exact projection at
 // the quad's 3 x 3 nodes (plus a first-order bound for the surface's departure from the bilinear
 // sheet through the corners) and every ray keeps inside the lens's valid field; the exact
 // projections of the nodes are cached per view and tile, so children reuse their parent's.
