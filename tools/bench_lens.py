@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 import statistics
 import sys
 import time
@@ -131,6 +132,9 @@ def main() -> int:
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--write-docs", action="store_true")
     args = parser.parse_args()
+    # The machine is shared: its load average (1 minute) before and after the lens comparison is
+    # printed and written with the figures.
+    load_before = os.getloadavg()[0]
     rows = []
     # The radial-tangential lens's barrel distortion leaves a 100-degree perspective frame's
     # corners uncovered: its frames are rectified to 95 degrees (the truth camera's footprint
@@ -154,7 +158,11 @@ def main() -> int:
                      f"{1e3 * (r['rectify_s'] + r['pinhole_render_s']):.0f} ms | "
                      f"{1e3 * r['maps_s']:.0f} ms |")
     table = "\n".join(lines)
+    load_after = os.getloadavg()[0]
+    load = (f"load average (1 min) {load_before:.1f} before and {load_after:.1f} after, on "
+            f"{os.cpu_count()} cores")
     print(table)
+    print(load)
     speed = []
     for width, height in ((1024, 1024), (4592, 3056)):
         fps, maps = throughput(width, height, args.repeats)
@@ -182,7 +190,7 @@ homographies per quad of the output, each checked against the exact projection),
 (exact)" projects every sample through the lens (`lens_tolerance_px` 0); the three renders are
 interleaved in each of the {args.repeats} repeats, times are medians, "direct / pinhole" the
 median of the per-repeat ratios (the machine is shared: single timings move by 2x and more
-with its load, the ratios less):
+with its load, the ratios less; this run: {load}):
 
 {table}
 
@@ -190,10 +198,16 @@ Direct sampling resamples each raw frame once, through the lens model; rectifyin
 resamples twice (raw -> perspective -> integral) and loses detail at each step. Direct sampling
 takes the per-sample render path (`surface_integral.h`): per quad of 64 down to 8 output pixels
 and per view, the quad's nodes (corners, edge midpoints, centre) are projected exactly through
-the lens, a local homography is fitted through the corners, and the quad is sampled through it
-by the pinhole kernel when its error at the nodes (plus a bound for the surface's departure from
-a bilinear sheet) is within `lens_tolerance_px` view pixels; other quads are split, and the
-smallest ones projected sample by sample. A sample position off by at most t view pixels moves
+the lens, a local map is fitted (affine in the tangent plane of the quad's centre ray through the
+corners; where that misses the tolerance by less than 4x, a full homography by least squares
+over the nine nodes), and the quad is sampled through it by the point kernel when its error at
+the nodes (plus a bound for the surface's departure from a bilinear sheet) is within
+`lens_tolerance_px` view pixels; other quads are split, and the smallest ones projected sample
+by sample. At the default 0.02 px the fisheye and omnidirectional quads pass at 16 output pixels
+(their residual is the lens's curvature, which no homography takes up), the radial-tangential
+ones at 32 (the homography takes up most of it). The render's time beyond the pinhole path's
+is then the nodes' exact projections (81 per view and 64-pixel tile at 16-pixel quads) and the
+fits; the point kernel itself costs about what the pinhole path's span kernel costs. A sample position off by at most t view pixels moves
 a bilinear sample by at most t times the frame's largest step between neighbouring pixels.
 Rectifying pays off only when the same frames are rendered many times.
 

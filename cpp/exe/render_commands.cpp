@@ -853,6 +853,9 @@ CommandRunner DefineMap(CLI::App* command) {
                       "(default: all)");
   flags.Field("min_view_angle_deg", options.min_view_angle_deg,
               "Ignore rays meeting the focal plane at less than this angle, degrees");
+  flags.Field("lens_tolerance_px", options.lens_tolerance_px,
+              "Views with a lens model: largest sample-position error, view pixels, of the "
+              "local homographies that replace the exact projection; 0 = exact");
   flags.Field("tile_size", options.tile_size,
               "Pixels on a side of a render tile (memory is bounded by one tile)");
   flags.Threads(options.num_threads);
@@ -1104,6 +1107,7 @@ int RunMapDistributed(MapCommand& c) {
   }
   spec["views"] = c.views;
   spec["min_view_angle_deg"] = o.min_view_angle_deg;
+  spec["lens_tolerance_px"] = o.lens_tolerance_px;
   spec["tile_size"] = o.tile_size;
   spec["num_threads"] = o.num_threads;
   spec["output"] = c.output;

@@ -388,6 +388,10 @@ void BindMap(py::module_& m) {
       .Field("view_indices", &MapOptions::view_indices, "Views to integrate; [] = all.")
       .Field("min_view_angle_deg", &MapOptions::min_view_angle_deg,
              "Minimum angle between a view's ray and the focal plane, degrees, [0, 90).")
+      .Field("lens_tolerance_px", &MapOptions::lens_tolerance_px,
+             "Views with a lens model: the largest error of a sample position, view pixels, "
+             "[0, 1], where the exact lens projection is replaced by local homographies; 0 = "
+             "project every sample exactly.")
       .Field("tile_size", &MapOptions::tile_size, "Pixels on a side of a render tile, 16 .. 8192.")
       .Field("num_threads", &MapOptions::num_threads, "Worker threads; -1 = all cores.")
       .Finish()

@@ -685,8 +685,8 @@ def render_map(
     horizontal focal plane z = ``focal_height`` (local frame), rendered in tiles (docs/terrain-and-maps.md).
 
     ``kwargs`` are fields of :class:`MapOptions` (pixel_size or width, extent, focal_height,
-    aperture_radius, view_indices, min_view_angle_deg, tile_size, num_threads, focal_surface,
-    surface_offset). Returns a :class:`MapResult`: ``geotransform`` (GDAL's, world coordinates =
+    aperture_radius, view_indices, min_view_angle_deg, lens_tolerance_px, tile_size, num_threads,
+    focal_surface, surface_offset). Returns a :class:`MapResult`: ``geotransform`` (GDAL's, world coordinates =
     origin + local), ``crs`` (the light field's), the summary (``views_used``, ``samples``,
     ``uncovered_pixels``, ...) and, when held in memory, ``image`` (float32, row 0 = largest y)
     and ``count`` (uint32; 0 = no view sees the pixel).

@@ -687,6 +687,7 @@ class MapOptions:
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
+        lens_tolerance_px: float = ...,
         tile_size: int = ...,
         num_threads: int = ...,
     ) -> None:
@@ -718,6 +719,8 @@ class MapOptions:
     def view_indices(self, value: Sequence[int]) -> None: ...
     min_view_angle_deg: float
     """Minimum angle between a view's ray and the focal plane, degrees, [0, 90)."""
+    lens_tolerance_px: float
+    """Views with a lens model: largest sample-position error, view pixels, [0, 1]; 0 = exact."""
     tile_size: int
     """Pixels on a side of a render tile, 16 .. 8192."""
     num_threads: int

@@ -81,6 +81,7 @@ class MapKeywords(TypedDict, total=False):
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
+    lens_tolerance_px: float
     tile_size: int
     num_threads: int
 

@@ -396,6 +396,7 @@ class FocalStackFiles : public testing_util::TempFolderTest {
     options.render.aperture_radius = aperture;
     options.render.min_view_angle_deg = 2.5;
     options.render.view_indices = {0, 2, 4, 5, 8};
+    options.render.lens_tolerance_px = 0.125;
     options.slices = 3;
     return RenderFocalStack(GroundLightField(), options);
   }
@@ -464,6 +465,7 @@ TEST_F(FocalStackFiles, RoundTripKeepsEverything) {
     EXPECT_EQ(read.render.aperture_radius, aperture);
     EXPECT_EQ(read.render.min_view_angle_deg, 2.5);
     EXPECT_EQ(read.render.view_indices, (std::vector<int>{0, 2, 4, 5, 8}));
+    EXPECT_EQ(read.render.lens_tolerance_px, 0.125);
     EXPECT_EQ(read.render.variance, variance);
   }
 }

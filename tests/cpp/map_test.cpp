@@ -214,6 +214,52 @@ TEST(MapRender, ViewsUsedAreTheViewsThatContributeAnywhereUnitedOverTiles) {
   EXPECT_EQ(RenderMap(light_field, options).summary.views_used, 9);
 }
 
+TEST(MapRender, LensToleranceReachesTheRendererAndIsValidated) {
+  // Fisheye views (180 degrees): lens_tolerance_px 0 projects every sample exactly, the default
+  // takes local homographies; the two maps agree within the tolerance times the texture's steps
+  // (surface_integral.h) but not bit for bit, which shows the option reached the renderer.
+  const LensCamera lens =
+      LensFromFov(LensModel::kFisheye, 96, 80, 180.0, {0.01, -0.002, 0, 0, 0}, 0.0, "test");
+  LightField light_field;
+  const std::vector<Vec3d> centres = GridCentres(3, 2.0, 20.0);
+  for (size_t i = 0; i < centres.size(); ++i) {
+    Image image(lens.width, lens.height, 1, PixelType::kF32, 1);
+    for (int y = 0; y < lens.height; ++y) {
+      for (int x = 0; x < lens.width; ++x) {
+        image.At<float>(x, y)[0] = static_cast<float>(100.0 + 50.0 * std::sin(0.3 * x + 0.2 * y + i));
+      }
+    }
+    image.FillBorder();
+    light_field.views.push_back(
+        MakeView("v" + std::to_string(i), lens, NadirCamFromWorld(centres[i]), std::move(image)));
+  }
+  MapOptions options;
+  options.extent = {-12.0, -12.0, 12.0, 12.0};
+  options.pixel_size = 0.25;
+  options.lens_tolerance_px = 0.0;
+  const MapResult exact = RenderMap(light_field, options);
+  options.lens_tolerance_px = 0.02;
+  const MapResult fast = RenderMap(light_field, options);
+  ASSERT_GT(exact.summary.samples, 0);
+  double largest = 0.0;
+  for (int y = 0; y < exact.image.height(); ++y) {
+    for (int x = 0; x < exact.image.width(); ++x) {
+      if (exact.count.At<uint32_t>(x, y)[0] == 0 ||
+          exact.count.At<uint32_t>(x, y)[0] != fast.count.At<uint32_t>(x, y)[0]) {
+        continue;
+      }
+      largest = std::max(largest, static_cast<double>(std::abs(exact.image.At<float>(x, y)[0] -
+                                                               fast.image.At<float>(x, y)[0])));
+    }
+  }
+  // Neighbouring samples differ by at most 50 (0.3 + 0.2) = 25: twice the tolerance times that
+  // (the bound is checked at the quads' nodes), plus float rounding.
+  EXPECT_LE(largest, 2.0 * 0.02 * 25.0 + 1e-3);
+  EXPECT_GT(largest, 1e-4);
+  options.lens_tolerance_px = 1.5;
+  EXPECT_THAT(ErrorOf([&] { RenderMap(light_field, options); }), HasSubstr("lens_tolerance_px:"));
+}
+
 TEST(MapRender, TilesChangeNoBit) {
   LightField light_field = GroundLightField();
   light_field.origin = Vec3d(600000.0, 5200000.0, 0.0);  // UTM-sized world coordinates

@@ -432,7 +432,8 @@ void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
                  {"aperture_radius", std::isfinite(r.aperture_radius) ? ojson(r.aperture_radius)
                                                                       : ojson("inf")},
                  {"min_view_angle_deg", r.min_view_angle_deg},
-                 {"view_indices", r.view_indices}};
+                 {"view_indices", r.view_indices},
+                 {"lens_tolerance_px", r.lens_tolerance_px}};
   if (stack.focus.surface) j["surface"] = WriteStackSurface(temp, stack.focus);
   ojson slices = ojson::array();
   for (int i = 0; i < stack.size(); ++i) {
@@ -514,7 +515,9 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
   if (j.contains("render")) {
     const json& render = j["render"];
     const JsonPath at = top / "render";
-    RequireKnownKeys(render, {"fov_deg", "aperture_radius", "min_view_angle_deg", "view_indices"},
+    RequireKnownKeys(render,
+                     {"fov_deg", "aperture_radius", "min_view_angle_deg", "view_indices",
+                      "lens_tolerance_px"},
                      at);
     stack.render.fov_deg = ReadJsonNumber(RequireMember(render, "fov_deg", at), at / "fov_deg");
     const json& radius = RequireMember(render, "aperture_radius", at);
@@ -530,6 +533,11 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
     for (size_t i = 0; i < views.size(); ++i) {
       if (!views[i].is_number_integer()) (at / "view_indices" / i).Fail("must be an integer");
       stack.render.view_indices.push_back(views[i].get<int>());
+    }
+    // Optional: stacks written before it was stored were rendered at the default.
+    if (render.contains("lens_tolerance_px")) {
+      stack.render.lens_tolerance_px =
+          ReadJsonNumber(render["lens_tolerance_px"], at / "lens_tolerance_px");
     }
   } else {
     stack.render.fov_deg = stack.camera.FovXDeg();

@@ -424,12 +424,14 @@ Vec3d FocalSurface::ReferencePoint(const Vec3d& origin) const {
   return s.mesh_in_local_frame ? s.centroid : WorldToLocal(s.centroid, origin);
 }
 
-Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane) {
+Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane,
+                 int num_threads) {
   Image depth(camera.width, camera.height, 1, PixelType::kF32);
   const Vec3d center = cam_from_world.Center();
   const Vec3d normal = glm::normalize(plane.normal);
   const double h = glm::dot(normal, plane.point - center);
   const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+#pragma omp parallel for num_threads(ResolveThreadCount(num_threads)) schedule(static)
   for (int y = 0; y < camera.height; ++y) {
     float* row = depth.At<float>(0, y);
     for (int x = 0; x < camera.width; ++x) {
@@ -451,7 +453,7 @@ Image FocalSurface::DepthFor(const PinholeCamera& camera, const Rigid3d& cam_fro
   if (s.kind == FocalSurfaceKind::kPlane) {
     Plane shifted = s.plane;
     shifted.point += placement.offset * placement.up;
-    return PlaneDepth(camera, cam_from_world, shifted);
+    return PlaneDepth(camera, cam_from_world, shifted, num_threads);
   }
   if (s.kind == FocalSurfaceKind::kDepthMap && placement.offset == 0.0 &&
       camera.width == s.depth_camera.width && camera.height == s.depth_camera.height &&

@@ -145,7 +145,9 @@ SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const Ligh
 FocalSurface InCrs(const FocalSurface& surface, const std::string& crs);
 
 // Depth (z in the camera frame, metres) at which each pixel's ray meets `plane`; 0 where the ray
-// meets it behind the camera or never (float32, 1 channel).
-Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane);
+// meets it behind the camera or never (float32, 1 channel). Rows in parallel on num_threads
+// (-1 = all cores); the values do not depend on it.
+Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane,
+                 int num_threads = -1);
 
 }  // namespace aos

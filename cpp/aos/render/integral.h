@@ -35,7 +35,8 @@
 //   rectified copy). Such renders take surface_integral.h's per-sample path on the plane's depth
 //   map, with the same admission rules; the lens projection is replaced by local homographies
 //   within lens_tolerance_px view pixels (0: every sample projected exactly, results then equal
-//   up to float rounding), at about twice the time of the homography path pinhole views take
+//   up to float rounding), at about 1.4x (radial-tangential) to 2.2x (fisheye, omnidirectional)
+//   the time of the homography path pinhole views take on rectified frames
 //   (docs/lens-models.md).
 //
 // - With a focal_surface (focal_surface.h) that is not a plane, or with views that have a lens

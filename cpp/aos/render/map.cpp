@@ -114,6 +114,10 @@ void MapOptions::Check(int view_count) const {
   if (!(min_view_angle_deg >= 0.0 && min_view_angle_deg < 90.0)) {
     ThrowInvalid("min_view_angle_deg: must be in [0, 90) (got " + Num(min_view_angle_deg) + ")");
   }
+  if (!(lens_tolerance_px >= 0.0 && lens_tolerance_px <= 1.0)) {
+    ThrowInvalid("lens_tolerance_px: must be in [0, 1] view pixels (got " + Num(lens_tolerance_px) +
+                 ")");
+  }
   if (tile_size < 16 || tile_size > 8192) {
     ThrowInvalid("tile_size: must be in 16 .. 8192 (got " + std::to_string(tile_size) + ")");
   }
@@ -265,6 +269,7 @@ PointIntegralOptions MapPointOptions(const MapGrid& grid, const MapOptions& opti
   point.lens_axis = Vec3d(0.0, 0.0, grid.up_z);
   point.surface_normal = Vec3d(0.0, 0.0, grid.up_z);
   point.min_view_angle_deg = options.min_view_angle_deg;
+  point.lens_tolerance_px = options.lens_tolerance_px;
   point.view_indices = options.view_indices;
   point.num_threads = options.num_threads;
   return point;

@@ -84,6 +84,10 @@ struct MapOptions {
   std::vector<int> view_indices;
   // Minimum angle between a view's ray and the focal plane, degrees, [0, 90).
   double min_view_angle_deg = 1.0;
+  // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
+  // the exact lens projection is replaced by local homographies (surface_integral.h,
+  // PointIntegralOptions::lens_tolerance_px); 0 = project every sample exactly.
+  double lens_tolerance_px = 0.02;
   // Pixels on a side of a render tile, 16 .. 8192.
   int tile_size = 512;
   // Worker threads; -1 = all cores.

@@ -37,7 +37,9 @@
 // values carry float rounding (as the plane path's span kernels), accumulated in double.
 // Views with a lens model (LensRoute) take the same kernel quad by quad: per quad of the tile
 // (64, split down to 8 pixels) a homography fitted to the lens projection in the tangent plane of
-// the quad's centre ray (radtan: of the view's optical axis), accepted when it is within lens_tolerance_px of the exact projection at
+// the quad's centre ray (radtan: of the view's optical axis; affine through the corners, or where
+// that misses by less than 4x a full homography by least squares over the nodes, Homography8),
+// accepted when it is within lens_tolerance_px of the exact projection at
 // the quad's 3 x 3 nodes (plus a first-order bound for the surface's departure from the bilinear
 // sheet through the corners) and every ray keeps inside the lens's valid field; the exact
 // projections of the nodes are cached per view and tile, so children reuse their parent's.
@@ -768,6 +770,7 @@ struct TileBuffers {
   std::vector<Footprint> footprints;
   std::vector<const char*> lines;  // the next view's cache lines to prefetch
   std::vector<Vec3d> outline;      // points on the tile's border (footprints)
+  std::vector<Vec3d> lens_outline;  // fewer of them, for lens views
   // The lens route: exact projections at quad nodes, valid while node_stamp[j] == generation
   // (one generation per view), and each quad's departure from bilinear (-1 = not computed).
   struct LensNode {
@@ -779,6 +782,46 @@ struct TileBuffers {
   std::vector<LensNode> nodes;
   uint32_t generation = 0;
   std::vector<double> deviation;
+};
+
+// Least squares for a homography (u, v) = (a . (x, y, 1), b . (x, y, 1)) / (g . (x, y) + 1)
+// from point pairs, linearised (the algebraic error: a . h - u g . p = u, b . h - v g . p = v,
+// h = (x, y, 1), p = (x, y)). The normal equations' a and b blocks share N = sum h h^T, so g
+// comes from their 2 x 2 Schur complement and a, b from N^-1 (a few hundred flops a fit).
+struct Homography8 {
+  Mat3d n{0.0};                   // sum h h^T
+  Vec3d su{0.0}, sv{0.0};         // sum h u, sum h v
+  glm::dmat2x3 mu{0.0}, mv{0.0};  // sum h u p^T, sum h v p^T (3 x 2)
+  glm::dmat2 pp{0.0};             // sum (u^2 + v^2) p p^T
+  Vec2d rp{0.0};                  // sum (u^2 + v^2) p
+
+  void Add(const Vec2d& p, const Vec2d& uv) {
+    const Vec3d h(p.x, p.y, 1.0);
+    n += glm::outerProduct(h, h);
+    su += uv.x * h;
+    sv += uv.y * h;
+    mu += glm::outerProduct(uv.x * h, p);
+    mv += glm::outerProduct(uv.y * h, p);
+    const double r2 = uv.x * uv.x + uv.y * uv.y;
+    pp += glm::outerProduct(r2 * p, p);
+    rp += r2 * p;
+  }
+
+  // Rows (a, b, (g, 1)) of the homography; false if the system is (numerically) singular.
+  bool Solve(Vec3d* a, Vec3d* b, Vec2d* g) const {
+    if (!(std::abs(glm::determinant(n)) > 1e-300)) return false;
+    const Mat3d inverse = glm::inverse(n);
+    // [N 0 M_u; 0 N M_v; M_u^T M_v^T P] (a, b, -g) = (s_u, s_v, -r) after negating g's column.
+    const glm::dmat2x3 nu = inverse * mu, nv = inverse * mv;
+    const glm::dmat2 schur = pp - glm::transpose(mu) * nu - glm::transpose(mv) * nv;
+    const Vec2d right = -rp + glm::transpose(mu) * (inverse * su) + glm::transpose(mv) * (inverse * sv);
+    const double det = glm::determinant(schur);
+    if (!(std::abs(det) > 1e-12 * (std::abs(schur[0][0] * schur[1][1]) + 1e-300))) return false;
+    *g = glm::inverse(schur) * right;
+    *a = inverse * su + nu * (*g);
+    *b = inverse * sv + nv * (*g);
+    return std::isfinite(a->x + a->y + a->z + b->x + b->y + b->z + g->x + g->y);
+  }
 };
 
 // Quads of the lens route: 64 (the tile), 32, 16 and 8 pixels on a side; ids per level.
@@ -876,33 +919,92 @@ struct LensRoute {
       const double length = glm::length(p), w = glm::dot(c, p);
       // Within 60 degrees of c, so that dq / d(angle) <= 1 / cos^2 <= 4.
       if (!(w > 0.5 * length)) return false;
-      q[k] = Vec2d(glm::dot(e1, p) / w, glm::dot(e2, p) / w);
-      cos_c = std::min(cos_c, w / length);
-      cos_spread = std::min(cos_spread, glm::dot(centre, p) / length);
-      cos_angle = std::min(cos_angle, p.z / length);
+      const double inverse_w = 1.0 / w, inverse_length = 1.0 / length;
+      q[k] = Vec2d(glm::dot(e1, p) * inverse_w, glm::dot(e2, p) * inverse_w);
+      cos_c = std::min(cos_c, w * inverse_length);
+      cos_spread = std::min(cos_spread, glm::dot(centre, p) * inverse_length);
+      cos_angle = std::min(cos_angle, p.z * inverse_length);
       distance = std::min(distance, length);
     }
-    const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
-    const double angle = std::acos(std::max(-1.0, cos_angle));
     const double q_per_radian = 1.0 / (cos_c * cos_c);
-    // Affine pixel = A (q, 1), least squares through the four corners.
-    Mat3d normal(0.0);
-    Vec3d bu(0.0), bv(0.0);
-    for (int k : {0, 2, 6, 8}) {
-      const Vec3d h(q[k].x, q[k].y, 1.0);
-      normal += glm::outerProduct(h, h);
-      bu += node[k]->pixel.x * h;
-      bv += node[k]->pixel.y * h;
+    // The map pixel = (U, V) / W with rows over (q / scale, 1), q / scale of about unit size.
+    // First an affine map (W = 1), least squares through the four corners; where it misses the
+    // tolerance by less than kProjectiveRescue, a homography (8 parameters, least squares over
+    // the nine nodes; pixels relative to the centre node's): its projective row absorbs part of
+    // the lens's second-order terms (radial-tangential: 32-pixel quads pass at 0.02 px instead of
+    // 16-pixel ones; fisheye and omnidirectional lenses gain little, and pay only the cheap fit).
+    double scale = 0.0;
+    for (int k = 0; k < 9; ++k) scale = std::max({scale, std::abs(q[k].x), std::abs(q[k].y)});
+    if (!(scale > 0.0)) return false;
+    for (int k = 0; k < 9; ++k) q[k] /= scale;
+    Vec3d u_row, v_row, w_row(0.0, 0.0, 1.0);
+    // Its error at the nine nodes (corners, edge midpoints, centre) against the exact projection,
+    // and the largest gradient there (pixels per unit q / scale).
+    double error2 = 0.0, gradient2 = 0.0;
+    const auto measure = [&] {
+      error2 = 0.0;
+      gradient2 = 0.0;
+      if (w_row == Vec3d(0.0, 0.0, 1.0)) {  // affine: no division, one gradient
+        for (int k = 0; k < 9; ++k) {
+          const Vec3d hq(q[k].x, q[k].y, 1.0);
+          const double du = glm::dot(u_row, hq) - node[k]->pixel.x;
+          const double dv = glm::dot(v_row, hq) - node[k]->pixel.y;
+          error2 = std::max(error2, du * du + dv * dv);
+        }
+        gradient2 = u_row.x * u_row.x + u_row.y * u_row.y + v_row.x * v_row.x + v_row.y * v_row.y;
+        return;
+      }
+      for (int k = 0; k < 9; ++k) {
+        const Vec3d hq(q[k].x, q[k].y, 1.0);
+        const double w = glm::dot(w_row, hq);
+        const double u = glm::dot(u_row, hq) / w, v = glm::dot(v_row, hq) / w;
+        const double du = u - node[k]->pixel.x, dv = v - node[k]->pixel.y;
+        error2 = std::max(error2, du * du + dv * dv);
+        const double ux = (u_row.x - u * w_row.x) / w, uy = (u_row.y - u * w_row.y) / w;
+        const double vx = (v_row.x - v * w_row.x) / w, vy = (v_row.y - v * w_row.y) / w;
+        gradient2 = std::max(gradient2, ux * ux + uy * uy + vx * vx + vy * vy);
+      }
+    };
+    {
+      Mat3d normal(0.0);
+      Vec3d bu(0.0), bv(0.0);
+      for (int k : {0, 2, 6, 8}) {
+        const Vec3d h(q[k].x, q[k].y, 1.0);
+        normal += glm::outerProduct(h, h);
+        bu += node[k]->pixel.x * h;
+        bv += node[k]->pixel.y * h;
+      }
+      if (!(std::abs(glm::determinant(normal)) > 1e-300)) return false;
+      const Mat3d inverse = glm::inverse(normal);
+      u_row = inverse * bu;
+      v_row = inverse * bv;
+      measure();
     }
-    if (!(std::abs(glm::determinant(normal)) > 1e-300)) return false;
-    const Mat3d inverse = glm::inverse(normal);
-    const Vec3d a = inverse * bu, c_v = inverse * bv;
-    // Its error at the nine nodes (corners, edge midpoints, centre) against the exact projection.
-    double error2 = 0.0;
-    for (int k = 0; k < 9; ++k) {
-      const Vec3d h(q[k].x, q[k].y, 1.0);
-      const double du = glm::dot(a, h) - node[k]->pixel.x, dv = glm::dot(c_v, h) - node[k]->pixel.y;
-      error2 = std::max(error2, du * du + dv * dv);
+    constexpr double kProjectiveRescue = 4.0;
+    if (!(std::sqrt(error2) <= s.lens_tolerance) &&
+        std::sqrt(error2) <= kProjectiveRescue * s.lens_tolerance) {
+      const Vec2d origin = node[4]->pixel;
+      Homography8 fit;
+      for (int k = 0; k < 9; ++k) fit.Add(q[k], node[k]->pixel - origin);
+      Vec3d a, b;
+      Vec2d g;
+      // W = 1 + g . q / scale stays >= 0.5 while |q / scale| <= 2 (the quad's points lie within
+      // about its nodes' hull, |q / scale| <= 1): the sign of W is c . X's.
+      if (fit.Solve(&a, &b, &g) && std::abs(g.x) + std::abs(g.y) <= 0.25) {
+        const double affine_error2 = error2, affine_gradient2 = gradient2;
+        const Vec3d affine_u = u_row, affine_v = v_row;
+        w_row = Vec3d(g.x, g.y, 1.0);
+        u_row = a + origin.x * w_row;
+        v_row = b + origin.y * w_row;
+        measure();
+        if (!(error2 < affine_error2)) {  // keep the better of the two
+          error2 = affine_error2;
+          gradient2 = affine_gradient2;
+          u_row = affine_u;
+          v_row = affine_v;
+          w_row = Vec3d(0.0, 0.0, 1.0);
+        }
+      }
     }
     const double error = std::sqrt(error2);
     *fit_error = error;
@@ -914,10 +1016,18 @@ struct LensRoute {
     const double deviation = Deviation(id, qx, qy, xl, yl, x_end, y_end);
     if (!(deviation < 0.5 * distance)) return false;
     const double turn = deviation / (distance - deviation);
-    const double gradient = std::sqrt(a.x * a.x + a.y * a.y + c_v.x * c_v.x + c_v.y * c_v.y);
+    const double gradient = std::sqrt(gradient2) / scale;  // pixels per unit q
     if (!(error + 2.25 * q_per_radian * gradient * turn <= s.lens_tolerance)) return false;
     // Every ray of the quad within the lens's valid field, with a margin of half the spread.
-    if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    // (acos only where needed: the spread of a quad is small, and for x <= 0.46 rad,
+    // x <= sqrt(2 (1 - cos x)) / (1 - x^2 / 12) <= 1.03 sqrt(2 (1 - cos x)), a bound that decides
+    // as the exact spread would wherever it passes.)
+    const double angle = std::acos(std::max(-1.0, cos_angle));
+    const double chord = std::sqrt(2.0 * std::max(0.0, 1.0 - cos_spread));
+    if (!(chord <= 0.45 && angle + 1.5 * (1.03 * chord) + turn < view.valid_angle)) {
+      const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
+      if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    }
     // The image bounds the kernel must test (PointKernelArgs::image_tests): W = c . X > 0 holds
     // within 60 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
     // quad's points too (their fitted pixels lie within the tolerance of the nodes' hull).
@@ -935,8 +1045,10 @@ struct LensRoute {
     if (!(u_max <= view.width - kMargin)) *image_tests |= 4;
     if (!(v_min >= kMargin)) *image_tests |= 8;
     if (!(v_max <= view.height - kMargin)) *image_tests |= 16;
-    // (U, V, W) = [A; 0 0 1] (e1, e2, c)^T (R p + offset): u = U / W = A (q, 1).
-    const Vec3d h_rows[3] = {a, c_v, Vec3d(0.0, 0.0, 1.0)};
+    // (U, V, W) = H diag(1 / scale, 1 / scale, 1) (e1, e2, c)^T (R p + offset): u = U / W.
+    const Vec3d h_rows[3] = {Vec3d(u_row.x / scale, u_row.y / scale, u_row.z),
+                             Vec3d(v_row.x / scale, v_row.y / scale, v_row.z),
+                             Vec3d(w_row.x / scale, w_row.y / scale, w_row.z)};
     const Mat3d cam_from_world_t = glm::transpose(view.rotation);
     for (int r = 0; r < 3; ++r) {
       const Vec3d in_cam_row = h_rows[r].x * e1 + h_rows[r].y * e2 + h_rows[r].z * c;
@@ -1016,21 +1128,25 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   Box box{Vec3d(inf), Vec3d(-inf)};
   Vec3d extent(0.0);
   bool any = false;
-  for (int j = 0; j < size; ++j) {
-    if (j % stride >= tile_width) continue;  // padding
-    const Vec3d& point =
-        points.points[static_cast<size_t>(y0 + j / stride) * s.width + x0 + j % stride];
-    if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
-    const Vec3d focal = point + s.shift;
-    b.focal[static_cast<size_t>(j)] = focal;
-    b.x[static_cast<size_t>(j)] = static_cast<float>(focal.x);
-    b.y[static_cast<size_t>(j)] = static_cast<float>(focal.y);
-    b.z[static_cast<size_t>(j)] = static_cast<float>(focal.z);
-    b.valid[static_cast<size_t>(j)] = -1;
-    box.lo = glm::min(box.lo, focal);
-    box.hi = glm::max(box.hi, focal);
-    extent = glm::max(extent, glm::abs(focal));
-    any = true;
+  // Rows and columns as loops (an index's j / stride and j % stride were integer divisions per
+  // point, several per pixel of the render).
+  for (int ty = 0; ty < y1 - y0; ++ty) {
+    const Vec3d* row = points.points.data() + static_cast<size_t>(y0 + ty) * s.width + x0;
+    for (int tx = 0; tx < tile_width; ++tx) {
+      const Vec3d& point = row[tx];
+      if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
+      const size_t j = static_cast<size_t>(ty) * stride + tx;
+      const Vec3d focal = point + s.shift;
+      b.focal[j] = focal;
+      b.x[j] = static_cast<float>(focal.x);
+      b.y[j] = static_cast<float>(focal.y);
+      b.z[j] = static_cast<float>(focal.z);
+      b.valid[j] = -1;
+      box.lo = glm::min(box.lo, focal);
+      box.hi = glm::max(box.hi, focal);
+      extent = glm::max(extent, glm::abs(focal));
+      any = true;
+    }
   }
   if (!any) return;  // the outputs stay 0
   b.sum.assign(static_cast<size_t>(padded) * channels, 0.0);
@@ -1052,21 +1168,30 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
   const internal::PointTileArrays arrays{b.x.data(), b.y.data(), b.z.data(), b.valid.data(),
                                          padded};
   // The tile's outline: its valid points on the border, every 16 pixels, and the last ones
-  // (about 16 points; each is projected into every view the culls leave).
+  // (about 16 points; each is projected into every view the culls leave). Lens views take every
+  // 32 pixels (corners and edge midpoints, 8 points): their exact projections are dearer, and
+  // every view is projected (no cull).
   b.outline.clear();
+  b.lens_outline.clear();
   const int tile_height = y1 - y0;
-  for (int j = 0; j < size; ++j) {
-    const int tx = j % stride, ty = j / stride;
-    if (tx >= tile_width) continue;
-    const bool on_border = tx == 0 || ty == 0 || tx == tile_width - 1 || ty == tile_height - 1;
-    const bool sampled = (tx % 16 == 0 || tx == tile_width - 1) && (ty % 16 == 0 || ty == tile_height - 1);
-    if (on_border && sampled && b.valid[static_cast<size_t>(j)] != 0) {
-      b.outline.push_back(b.focal[static_cast<size_t>(j)]);
+  for (int ty = 0; ty < tile_height; ++ty) {
+    if (!(ty % 16 == 0 || ty == tile_height - 1)) continue;
+    const bool border_row = ty == 0 || ty == tile_height - 1;
+    for (int tx = 0; tx < tile_width; ++tx) {
+      const bool on_border = border_row || tx == 0 || tx == tile_width - 1;
+      const bool sampled = tx % 16 == 0 || tx == tile_width - 1;
+      const size_t j = static_cast<size_t>(ty) * stride + tx;
+      if (!(on_border && sampled && b.valid[j] != 0)) continue;
+      b.outline.push_back(b.focal[j]);
+      if ((tx % 32 == 0 || tx == tile_width - 1) && (ty % 32 == 0 || ty == tile_height - 1)) {
+        b.lens_outline.push_back(b.focal[j]);
+      }
     }
   }
   if (b.outline.empty()) {
     for (int k = 0; k < 8; ++k) b.outline.push_back(box.Corner(k));
   }
+  if (b.lens_outline.empty()) b.lens_outline = b.outline;
   b.views.clear();
   b.image_tests.clear();
   b.footprints.clear();
@@ -1078,7 +1203,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     b.views.push_back(static_cast<int>(i));
     b.image_tests.push_back(static_cast<uint8_t>(image_tests));
     b.footprints.push_back(view.lens == nullptr ? FootprintOf(view, b.outline)
-                                                : LensFootprintOf(view, b.outline));
+                                                : LensFootprintOf(view, b.lens_outline));
   }
   b.lines.resize(kMaxPrefetch);
   if (!b.views.empty()) {
@@ -1158,28 +1283,30 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     }
     for (int j = 0; j < size; ++j) exact(j);
   }
-  for (int j = 0; j < size; ++j) {
-    if (j % stride >= tile_width) continue;
-    const int x = x0 + j % stride, y = y0 + j / stride;
-    if (s.nearest && b.chosen[static_cast<size_t>(j)] >= 0) {
-      b.used[static_cast<size_t>(b.chosen[static_cast<size_t>(j)])] = 1;
-    }
-    const uint32_t n = b.count[static_cast<size_t>(j)];
-    out.count.At<uint32_t>(x, y)[0] = n;
-    if (n == 0) continue;
-    const double* sum = b.sum.data() + static_cast<size_t>(j) * channels;
-    if (variance && n >= 2 && !s.nearest) {
-      // Population variance, mean over channels (integral.h), as the reference.
-      const double* squares = b.sum_squares.data() + static_cast<size_t>(j) * channels;
-      double total = 0.0;
-      for (int c = 0; c < channels; ++c) {
-        const double mean = sum[c] / static_cast<double>(n);
-        total += std::max(0.0, squares[c] / static_cast<double>(n) - mean * mean);
+  for (int ty = 0; ty < tile_height; ++ty) {
+    const int y = y0 + ty;
+    uint32_t* count_row = out.count.At<uint32_t>(x0, y);
+    float* image_row = out.image.At<float>(x0, y);
+    for (int tx = 0; tx < tile_width; ++tx) {
+      const size_t j = static_cast<size_t>(ty) * stride + tx;
+      if (s.nearest && b.chosen[j] >= 0) b.used[static_cast<size_t>(b.chosen[j])] = 1;
+      const uint32_t n = b.count[j];
+      count_row[tx] = n;
+      if (n == 0) continue;
+      const double* sum = b.sum.data() + j * channels;
+      if (variance && n >= 2 && !s.nearest) {
+        // Population variance, mean over channels (integral.h), as the reference.
+        const double* squares = b.sum_squares.data() + j * channels;
+        double total = 0.0;
+        for (int c = 0; c < channels; ++c) {
+          const double mean = sum[c] / static_cast<double>(n);
+          total += std::max(0.0, squares[c] / static_cast<double>(n) - mean * mean);
+        }
+        out.variance.At<float>(x0 + tx, y)[0] = static_cast<float>(total / channels);
       }
-      out.variance.At<float>(x, y)[0] = static_cast<float>(total / channels);
+      float* pixel = image_row + static_cast<size_t>(tx) * channels;
+      for (int c = 0; c < channels; ++c) pixel[c] = static_cast<float>(sum[c] / static_cast<double>(n));
     }
-    float* pixel = out.image.At<float>(x, y);
-    for (int c = 0; c < channels; ++c) pixel[c] = static_cast<float>(sum[c] / static_cast<double>(n));
   }
 }
 

@@ -33,8 +33,9 @@
 //   focal point through LensCamera::Project) where lens_tolerance_px is 0, else quad by quad of
 //   the output (64 x 64 pixels, split down to 8 x 8): the quad's nodes (corners, edge midpoints,
 //   centre) are projected exactly, a homography is fitted to the corners (affine in the tangent
-//   plane of the centre ray; for radtan lenses in the view's own pinhole coordinates), and the
-//   quad is sampled through it (the pinhole kernel) when
+//   plane of the centre ray; for radtan lenses in the view's own pinhole coordinates; where that
+//   misses the tolerance by less than 4x, a full homography by least squares over the nine
+//   nodes), and the quad is sampled through it (the point kernel) when
 //   its error at the nodes, plus a first-order bound for the focal points' departure from the
 //   bilinear sheet through the corner points (steps and relief of the surface), is within
 //   lens_tolerance_px and every ray of the quad keeps inside the lens's valid field (with a

@@ -3,8 +3,9 @@
 flags' values come as one JSON object (the flags are declared once, in C++): light_field, load
 {fov_deg, images_dir, grey, mask, mask_dir}, pixel_size, width, extent, focal_height,
 focal_surface (path, "" = none), surface_offset, aperture_radius (number or "inf"), views ("" =
-all), min_view_angle_deg, tile_size, num_threads, output, force, workers, scheduler, cache_mb,
-dashboard, quiet, json. Draws a progress bar on stderr (plain lines when stderr is not a terminal), prints
+all), min_view_angle_deg, lens_tolerance_px, tile_size, num_threads, output, force, workers,
+scheduler, cache_mb, dashboard, quiet, json. Draws a progress bar on stderr (plain lines when
+stderr is not a terminal), prints
 the report (a JSON object with --json), exits 0; errors: one line on stderr, exit 1 (bad input)
 or 2 (bad spec)."""
 
@@ -96,7 +97,8 @@ def main(argv: list[str]) -> int:
             sys.stderr.write(f"note: {note}\n")
         light_field = loaded.light_field
         options = aos.MapOptions()
-        for name in ("pixel_size", "focal_height", "surface_offset", "min_view_angle_deg"):
+        for name in ("pixel_size", "focal_height", "surface_offset", "min_view_angle_deg",
+                     "lens_tolerance_px"):
             setattr(options, name, float(spec.get(name, getattr(options, name))))
         for name in ("width", "tile_size", "num_threads"):
             setattr(options, name, int(spec.get(name, getattr(options, name))))
