@@ -8,7 +8,7 @@ getrusage high-water mark of a fresh cluster), the tasks' summed time reading fr
 rendering, and the speed-up against the first worker count's run of the same round (--repeats
 rounds, interleaved).
 
-    python3 tools/bench_distributed.py --frames 2000 --frame-width 1152 --area-ha 5 \\
+    python3 tools/bench_distributed.py --frames 2000 --frame-width 1200 --area-ha 5 \\
         --pixel-size 0.05 --workers 1,2 --folder /tmp/survey-2000
     python3 tools/bench_distributed.py --frames 100 --frame-width 256 --area-ha 0.25 \\
         --pixel-size 0.05 --workers 1,2            # a quick run
