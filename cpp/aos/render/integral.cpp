@@ -654,41 +654,17 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
 
   const int threads = ResolveThreadCount(options_.num_threads);
   ProgressStart(progress, "render", static_cast<int64_t>(tiles.size()));
+  std::vector<TileBuffers> buffers(static_cast<size_t>(threads));  // one per thread
+  ParallelForPerThread(static_cast<int64_t>(tiles.size()), threads, progress,
+                       [&](int64_t t, int thread) {
+                         TileBuffers& mine = buffers[static_cast<size_t>(thread)];
+                         if (mine.view_used.empty()) mine.view_used.assign(views_.size(), 0);
+                         RenderTile(tiles[static_cast<size_t>(t)], mine);
+                       });
   std::vector<uint8_t> view_used(views_.size(), 0);
-  bool cancelled = false;
-  std::exception_ptr error;
-#pragma omp parallel num_threads(threads)
-  {
-    TileBuffers buffers;
-#pragma omp for schedule(dynamic, 1)
-    for (int64_t t = 0; t < static_cast<int64_t>(tiles.size()); ++t) {
-      bool stop;
-#pragma omp atomic read
-      stop = cancelled;
-      if (stop) continue;
-      // Nothing may escape the parallel region: the sink, the allocations and the tile itself
-      // report through `error`.
-      try {
-        if (ProgressCancelled(progress)) {
-#pragma omp atomic write
-          cancelled = true;
-          continue;
-        }
-        if (buffers.view_used.empty()) buffers.view_used.assign(views_.size(), 0);
-        RenderTile(tiles[static_cast<size_t>(t)], buffers);
-        ProgressAdvance(progress, 1);
-      } catch (...) {
-#pragma omp critical(aos_integral_error)
-        if (!error) error = std::current_exception();
-#pragma omp atomic write
-        cancelled = true;
-      }
-    }
-#pragma omp critical(aos_integral_merge)
-    for (size_t i = 0; i < buffers.view_used.size(); ++i) view_used[i] |= buffers.view_used[i];
+  for (const TileBuffers& mine : buffers) {
+    for (size_t i = 0; i < mine.view_used.size(); ++i) view_used[i] |= mine.view_used[i];
   }
-  if (error) std::rethrow_exception(error);
-  if (cancelled) throw Cancelled();
 
   for (uint8_t used : view_used) result_.views_used += used;
   for (int y = 0; y < height; ++y) {

@@ -1325,42 +1325,19 @@ SurfaceIntegralResult RenderTiled(const Setup& s, const FocalPoints& points,
 
   const int threads = ResolveThreadCount(options.num_threads);
   ProgressStart(progress, "render on surface", tiles);
+  std::vector<TileBuffers> buffers(static_cast<size_t>(threads));  // one per thread
+  ParallelForPerThread(tiles, threads, progress, [&](int64_t t, int thread) {
+    TileBuffers& mine = buffers[static_cast<size_t>(thread)];
+    if (mine.used.empty()) mine.used.assign(s.views.size(), 0);
+    const int x0 = static_cast<int>(t % tiles_x) * kTileWidth;
+    const int y0 = static_cast<int>(t / tiles_x) * kTileHeight;
+    RenderPointTile(s, points, options.variance, x0, y0, std::min(s.width, x0 + kTileWidth),
+                    std::min(s.height, y0 + kTileHeight), mine, out);
+  });
   std::vector<uint8_t> view_used(s.views.size(), 0);
-  bool cancelled = false;
-  std::exception_ptr error;
-#pragma omp parallel num_threads(threads)
-  {
-    TileBuffers buffers;
-    buffers.used.assign(s.views.size(), 0);
-#pragma omp for schedule(dynamic, 1)
-    for (int64_t t = 0; t < tiles; ++t) {
-      bool stop;
-#pragma omp atomic read
-      stop = cancelled;
-      if (stop) continue;
-      try {
-        if (ProgressCancelled(progress)) {
-#pragma omp atomic write
-          cancelled = true;
-          continue;
-        }
-        const int x0 = static_cast<int>(t % tiles_x) * kTileWidth;
-        const int y0 = static_cast<int>(t / tiles_x) * kTileHeight;
-        RenderPointTile(s, points, options.variance, x0, y0, std::min(s.width, x0 + kTileWidth),
-                        std::min(s.height, y0 + kTileHeight), buffers, out);
-        ProgressAdvance(progress, 1);
-      } catch (...) {
-#pragma omp critical(aos_surface_error)
-        if (!error) error = std::current_exception();
-#pragma omp atomic write
-        cancelled = true;
-      }
-    }
-#pragma omp critical(aos_surface_merge)
-    for (size_t i = 0; i < buffers.used.size(); ++i) view_used[i] |= buffers.used[i];
+  for (const TileBuffers& mine : buffers) {
+    for (size_t i = 0; i < mine.used.size(); ++i) view_used[i] |= mine.used[i];
   }
-  if (error) std::rethrow_exception(error);
-  if (cancelled) throw Cancelled();
   for (size_t i = 0; i < view_used.size(); ++i) {
     if (view_used[i]) result.used_view_indices.push_back(s.view_indices[i]);
   }
@@ -1405,87 +1382,78 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
   const int64_t tiles = static_cast<int64_t>(tiles_x) * tiles_y;
   const int threads = ResolveThreadCount(options.num_threads);
   ProgressStart(progress, "render on surface", tiles);
-  std::vector<uint8_t> view_used(s.views.size(), 0);
-  int64_t fallback = 0;
-  bool cancelled = false;
-  std::exception_ptr error;
-#pragma omp parallel num_threads(threads) reduction(+ : fallback)
-  {
-    std::vector<uint8_t> used(s.views.size(), 0);
-    constexpr int kPixels = kRobustTile * kRobustTile;
-    std::vector<std::vector<double>> samples(kPixels), luminance(kPixels);
-    std::vector<double> sorted, value(static_cast<size_t>(s.channels));
+  // Per-thread scratch: the tile's sample lists and the views it used.
+  struct Scratch {
+    std::vector<uint8_t> used;
+    std::vector<std::vector<double>> samples, luminance;
+    std::vector<double> sorted, value;
     std::vector<int32_t> histogram;
-    std::vector<Vec3d> focal(kPixels);
-    std::vector<uint8_t> valid(kPixels);
-#pragma omp for schedule(dynamic, 1)
-    for (int64_t t = 0; t < tiles; ++t) {
-      bool stop;
-#pragma omp atomic read
-      stop = cancelled;
-      if (stop) continue;
-      try {
-        if (ProgressCancelled(progress)) {
-#pragma omp atomic write
-          cancelled = true;
-          continue;
+    std::vector<Vec3d> focal;
+    std::vector<uint8_t> valid;
+    int64_t fallback = 0;
+  };
+  constexpr int kPixels = kRobustTile * kRobustTile;
+  std::vector<Scratch> scratch(static_cast<size_t>(threads));
+  ParallelForPerThread(tiles, threads, progress, [&](int64_t t, int thread) {
+    Scratch& mine = scratch[static_cast<size_t>(thread)];
+    if (mine.used.empty()) {
+      mine.used.assign(s.views.size(), 0);
+      mine.samples.resize(kPixels);
+      mine.luminance.resize(kPixels);
+      mine.value.resize(static_cast<size_t>(s.channels));
+      mine.focal.resize(kPixels);
+      mine.valid.resize(kPixels);
+    }
+    const int x0 = static_cast<int>(t % tiles_x) * kRobustTile;
+    const int y0 = static_cast<int>(t / tiles_x) * kRobustTile;
+    const int x1 = std::min(s.width, x0 + kRobustTile), y1 = std::min(s.height, y0 + kRobustTile);
+    const int tile_width = x1 - x0, size = tile_width * (y1 - y0);
+    const double inf = std::numeric_limits<double>::infinity();
+    Box box{Vec3d(inf), Vec3d(-inf)};
+    bool any = false;
+    for (int j = 0; j < size; ++j) {
+      mine.samples[static_cast<size_t>(j)].clear();
+      mine.luminance[static_cast<size_t>(j)].clear();
+      const Vec3d& point =
+          points.points[static_cast<size_t>(y0 + j / tile_width) * s.width + x0 + j % tile_width];
+      mine.valid[static_cast<size_t>(j)] =
+          std::isfinite(point.x) && std::isfinite(point.y) && std::isfinite(point.z);
+      if (!mine.valid[static_cast<size_t>(j)]) continue;
+      mine.focal[static_cast<size_t>(j)] = point + s.shift;
+      box.lo = glm::min(box.lo, mine.focal[static_cast<size_t>(j)]);
+      box.hi = glm::max(box.hi, mine.focal[static_cast<size_t>(j)]);
+      any = true;
+    }
+    for (size_t i = 0; any && i < s.views.size(); ++i) {
+      const ViewSetup& view = s.views[i];
+      int image_tests = 0;
+      if (view.lens == nullptr && OutsideImage(view, box, &image_tests)) continue;
+      if (OutsideAperture(s, view, box)) continue;
+      for (int j = 0; j < size; ++j) {
+        if (!mine.valid[static_cast<size_t>(j)]) continue;
+        double u, v, distance2 = inf;
+        if (!AdmitSample(s, view, mine.focal[static_cast<size_t>(j)], &u, &v, &distance2)) continue;
+        if (AddSample(s, view, u, v, channels, masked, mine.value.data(),
+                      mine.samples[static_cast<size_t>(j)], mine.luminance[static_cast<size_t>(j)])) {
+          mine.used[i] = 1;
         }
-        const int x0 = static_cast<int>(t % tiles_x) * kRobustTile;
-        const int y0 = static_cast<int>(t / tiles_x) * kRobustTile;
-        const int x1 = std::min(s.width, x0 + kRobustTile), y1 = std::min(s.height, y0 + kRobustTile);
-        const int tile_width = x1 - x0, size = tile_width * (y1 - y0);
-        const double inf = std::numeric_limits<double>::infinity();
-        Box box{Vec3d(inf), Vec3d(-inf)};
-        bool any = false;
-        for (int j = 0; j < size; ++j) {
-          samples[static_cast<size_t>(j)].clear();
-          luminance[static_cast<size_t>(j)].clear();
-          const Vec3d& point =
-              points.points[static_cast<size_t>(y0 + j / tile_width) * s.width + x0 + j % tile_width];
-          valid[static_cast<size_t>(j)] =
-              std::isfinite(point.x) && std::isfinite(point.y) && std::isfinite(point.z);
-          if (!valid[static_cast<size_t>(j)]) continue;
-          focal[static_cast<size_t>(j)] = point + s.shift;
-          box.lo = glm::min(box.lo, focal[static_cast<size_t>(j)]);
-          box.hi = glm::max(box.hi, focal[static_cast<size_t>(j)]);
-          any = true;
-        }
-        for (size_t i = 0; any && i < s.views.size(); ++i) {
-          const ViewSetup& view = s.views[i];
-          int image_tests = 0;
-          if (view.lens == nullptr && OutsideImage(view, box, &image_tests)) continue;
-          if (OutsideAperture(s, view, box)) continue;
-          for (int j = 0; j < size; ++j) {
-            if (!valid[static_cast<size_t>(j)]) continue;
-            double u, v, distance2 = inf;
-            if (!AdmitSample(s, view, focal[static_cast<size_t>(j)], &u, &v, &distance2)) continue;
-            if (AddSample(s, view, u, v, channels, masked, value.data(),
-                          samples[static_cast<size_t>(j)], luminance[static_cast<size_t>(j)])) {
-              used[i] = 1;
-            }
-          }
-        }
-        for (int j = 0; j < size; ++j) {
-          if (!valid[static_cast<size_t>(j)]) continue;
-          fallback += FinishPixel(s, surface, options.variance, channels,
-                                  samples[static_cast<size_t>(j)],
-                                  luminance[static_cast<size_t>(j)], sorted, &histogram,
-                                  x0 + j % tile_width,
-                                  y0 + j / tile_width, result);
-        }
-        ProgressAdvance(progress, 1);
-      } catch (...) {
-#pragma omp critical(aos_surface_error)
-        if (!error) error = std::current_exception();
-#pragma omp atomic write
-        cancelled = true;
       }
     }
-#pragma omp critical(aos_surface_merge)
-    for (size_t i = 0; i < used.size(); ++i) view_used[i] |= used[i];
+    for (int j = 0; j < size; ++j) {
+      if (!mine.valid[static_cast<size_t>(j)]) continue;
+      mine.fallback += FinishPixel(s, surface, options.variance, channels,
+                              mine.samples[static_cast<size_t>(j)],
+                              mine.luminance[static_cast<size_t>(j)], mine.sorted, &mine.histogram,
+                              x0 + j % tile_width,
+                              y0 + j / tile_width, result);
+    }
+  });
+  std::vector<uint8_t> view_used(s.views.size(), 0);
+  int64_t fallback = 0;
+  for (const Scratch& mine : scratch) {
+    for (size_t i = 0; i < mine.used.size(); ++i) view_used[i] |= mine.used[i];
+    fallback += mine.fallback;
   }
-  if (error) std::rethrow_exception(error);
-  if (cancelled) throw Cancelled();
   result.fallback_pixels = fallback;
   FinishStatistics(s, view_used, result);
   return result;

@@ -21,20 +21,22 @@ void CheckThreadCount(int num_threads) {
                ")");
 }
 
-void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
-                 const std::function<void(int64_t)>& fn) {
+namespace {
+
+template <typename Fn>
+void RunParallel(int64_t n, int num_threads, ProgressSink* progress, const Fn& fn) {
   std::atomic<int64_t> first_error_index{n};
   std::exception_ptr first_error;
   std::mutex error_mutex;
   std::atomic<bool> cancelled{false};
-#pragma omp parallel for schedule(dynamic) num_threads(ResolveThreadCount(num_threads))
+#pragma omp parallel for schedule(dynamic, 1) num_threads(ResolveThreadCount(num_threads))
   for (int64_t i = 0; i < n; ++i) {
     if (omp_get_thread_num() == 0 && !cancelled.load() && ProgressCancelled(progress)) {
       cancelled.store(true);
     }
     if (cancelled.load() || i > first_error_index.load()) continue;
     try {
-      fn(i);
+      fn(i, omp_get_thread_num());
       ProgressAdvance(progress, 1);
     } catch (...) {
       std::lock_guard<std::mutex> lock(error_mutex);
@@ -46,6 +48,18 @@ void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
   }
   if (cancelled.load() || ProgressCancelled(progress)) throw Cancelled();
   if (first_error) std::rethrow_exception(first_error);
+}
+
+}  // namespace
+
+void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
+                 const std::function<void(int64_t)>& fn) {
+  RunParallel(n, num_threads, progress, [&](int64_t i, int) { fn(i); });
+}
+
+void ParallelForPerThread(int64_t n, int num_threads, ProgressSink* progress,
+                          const std::function<void(int64_t, int)>& fn) {
+  RunParallel(n, num_threads, progress, fn);
 }
 
 }  // namespace aos

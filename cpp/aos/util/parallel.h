@@ -9,6 +9,10 @@
 //   reported does not depend on scheduling; indices above a known failure are skipped.
 // - Cancellation is polled from the calling thread (OpenMP thread 0) only; the loop then stops
 //   taking items and throws aos::Cancelled.
+// - ParallelForPerThread is the same loop, items taken one at a time (schedule(dynamic, 1): for
+//   tiles of uneven cost), with fn(i, thread) also given the OpenMP thread's index in
+//   [0, ResolveThreadCount(num_threads)): the caller keeps per-thread scratch (tile buffers,
+//   counters) in a vector of that many entries and merges it after the loop.
 #include <cstdint>
 #include <functional>
 
@@ -25,5 +29,8 @@ void CheckThreadCount(int num_threads);
 
 void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
                  const std::function<void(int64_t)>& fn);
+
+void ParallelForPerThread(int64_t n, int num_threads, ProgressSink* progress,
+                          const std::function<void(int64_t, int)>& fn);
 
 }  // namespace aos
