@@ -1338,17 +1338,7 @@ SurfaceIntegralResult RenderTiled(const Setup& s, const FocalPoints& points,
   for (const TileBuffers& mine : buffers) {
     for (size_t i = 0; i < mine.used.size(); ++i) view_used[i] |= mine.used[i];
   }
-  for (size_t i = 0; i < view_used.size(); ++i) {
-    if (view_used[i]) result.used_view_indices.push_back(s.view_indices[i]);
-  }
-  out.views_used = static_cast<int>(result.used_view_indices.size());
-  for (int y = 0; y < s.height; ++y) {
-    const uint32_t* count = out.count.At<uint32_t>(0, y);
-    for (int x = 0; x < s.width; ++x) {
-      out.samples += count[x];
-      out.uncovered_pixels += count[x] == 0;
-    }
-  }
+  FinishStatistics(s, view_used, result);
   return result;
 }
 
