@@ -376,6 +376,63 @@ TEST_F(MapWrite, WindowWriterLeavesNothingWithoutCommit) {
   EXPECT_THAT(ErrorOf([&] { writer.Commit(); }), HasSubstr("already committed"));
 }
 
+// At the start of the COG copy (the temporary GeoTIFF flushed), records the size of the
+// temporary file(s) in the folder.
+class MeasureTemporary : public ProgressSink {
+ public:
+  explicit MeasureTemporary(std::filesystem::path dir) : dir_(std::move(dir)) {}
+  void Start(const std::string&, int64_t) override {
+    for (const auto& entry : std::filesystem::directory_iterator(dir_)) {
+      if (entry.path().string().find(".tiles.tif") != std::string::npos) bytes += entry.file_size();
+    }
+  }
+  void Advance(int64_t) override {}
+  bool Cancelled() override { return false; }
+  uint64_t bytes = 0;
+
+ private:
+  std::filesystem::path dir_;
+};
+
+TEST_F(MapWrite, DiskEstimateCoversTheTemporaryFileAndTheCog) {
+  // The temporary GeoTIFF is uncompressed: once every window is written it holds the bands and
+  // the count as float32 (ZSTD would shrink these ramps many times) and the overview levels.
+  // MapWriteDiskBytes() is that plus half of it for the COG.
+  const LightField light_field = GroundLightField();
+  MapOptions options;
+  options.pixel_size = 0.02;
+  const MapGrid grid = ResolveMapGrid(light_field, options);
+  ASSERT_GT(grid.width, 512);  // two overview levels at least
+  for (int channels : {1, 3}) {
+    MapGeoTiffWriter writer(grid, channels, "", Path("map.tif"));
+    for (int y0 = 0; y0 < grid.height; y0 += 512) {
+      for (int x0 = 0; x0 < grid.width; x0 += 512) {
+        const int w = std::min(512, grid.width - x0), h = std::min(512, grid.height - y0);
+        Image image(w, h, channels, PixelType::kF32);
+        Image count(w, h, 1, PixelType::kU32);
+        for (int y = 0; y < h; ++y) {  // samples everywhere: no block is left out as empty
+          for (int x = 0; x < w; ++x) {
+            count.At<uint32_t>(x, y)[0] = 1 + (x + y) % 7;
+            for (int c = 0; c < channels; ++c) image.At<float>(x, y)[c] = 0.25f * x + y + c;
+          }
+        }
+        writer.Write(x0, y0, image, count);
+      }
+    }
+    MeasureTemporary measure(dir_);
+    writer.Commit(&measure);
+    EXPECT_EQ(Files(), std::vector<std::string>{"map.tif"});
+    const uint64_t estimate = MapWriteDiskBytes(grid, channels);
+    const uint64_t raw = static_cast<uint64_t>(grid.width) * grid.height * (channels + 1) * 4;
+    ASSERT_GT(measure.bytes, raw) << channels;  // uncompressed, with its overviews
+    EXPECT_GE(estimate, measure.bytes + std::filesystem::file_size(Path("map.tif"))) << channels;
+    // Not wildly over: the overview levels (a third of the base at most) may still be in GDAL's
+    // cache when the copy starts, and the COG guess is half the temporary file.
+    EXPECT_LE(estimate, measure.bytes * 5 / 2 + (2u << 20)) << channels;
+    std::filesystem::remove(Path("map.tif"));
+  }
+}
+
 // Stops after the first tile row.
 class StopAfterFirstRow : public ProgressSink {
  public:

@@ -175,7 +175,8 @@ struct MapWriteOptions {
 // predictor, on every core), 256-pixel
 // blocks, averaged overviews down to one block; geotransform GeoTransform(), CRS `crs` (an
 // "EPSG:<code>" or any text OGRSpatialReference::SetFromUserInput reads; empty = none). The tiles go into a tiled
-// temporary GeoTIFF beside `path`, the COG is copied from it into a second temporary name and
+// uncompressed temporary GeoTIFF beside `path` (refused up front where the folder lacks
+// MapWriteDiskBytes() of free space), the COG is copied from it into a second temporary name and
 // renamed to `path`: a failure or cancel leaves no output and no temporary file.
 // Throws std::invalid_argument naming `path` (exists without force, folder missing or not
 // writable) or the CRS.
@@ -236,6 +237,12 @@ class MapGeoTiffWriter {
 // Checks an output path before any work: its folder exists and is writable, it is not a folder,
 // and it does not exist unless write.force. Throws std::invalid_argument naming the path.
 void CheckMapOutputPath(const std::string& path, const MapWriteOptions& write);
+
+// The disk space writing a map of `grid` with `channels` image bands takes beside its output at
+// its peak, bytes: the uncompressed temporary GeoTIFF (bands and count as float32, with its
+// overview levels) plus an estimate of the COG (half that). MapGeoTiffWriter refuses to start
+// where the output's folder has less free space.
+uint64_t MapWriteDiskBytes(const MapGrid& grid, int channels);
 
 // Checks that `crs` is empty or a CRS GDAL reads; throws std::invalid_argument naming `where`.
 void CheckMapCrs(const std::string& crs, const std::string& where);

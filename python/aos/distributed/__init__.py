@@ -311,7 +311,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             image = np.zeros(shape, np.float32)
             count = np.zeros((grid["height"], grid["width"]), np.uint32)
         token = uuid.uuid4().hex
-        [poses_future] = client.scatter([poses], broadcast=True)
+        [poses_future] = client.scatter([poses], broadcast=True, hash=False)
         tile = options.tile_size
         windows = [(x0, y0, min(tile, grid["width"] - x0), min(tile, grid["height"] - y0))
                    for y0 in range(0, grid["height"], tile)
