@@ -460,9 +460,9 @@ def render_integral(
         image, count = result.image, result.count   # float32 and uint32, no copies
     """
     merged = _copy_options("render_integral", IntegralOptions, options)
-    kwargs = _surface_as_focal_surface(dict(kwargs))
-    _RENDER_INTEGRAL.apply([merged], kwargs)
-    _require_pose("render_integral", merged, kwargs)
+    keywords: dict = _surface_as_focal_surface(dict(kwargs))
+    _RENDER_INTEGRAL.apply([merged], keywords)
+    _require_pose("render_integral", merged, keywords)
     return _core.render_integral(light_field, merged, progress)
 
 
@@ -800,7 +800,7 @@ def plan_flight(
         with open(temporary, "w", encoding="utf-8") as stream:
             stream.write(text)
         os.replace(temporary, path)
-    if png is not None:
+    if png is not None and image is not None:
         write_image(os.fspath(png), image)
     return result
 

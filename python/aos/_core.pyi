@@ -261,8 +261,6 @@ class LightField:
         """World position of the local frame's zero (float64 copy)."""
     @origin.setter
     def origin(self, value: _Vector) -> None: ...
-    crs: str
-    """'EPSG:<code>' of the world coordinates (origin + local), or '' = not geo-referenced."""
     @property
     def crs(self) -> str:
         """'EPSG:<code>' of the world coordinates (origin + local), or '' = not geo-referenced."""
