@@ -80,6 +80,24 @@ def test_a_window_from_its_own_frames_is_the_window_from_all(survey: Path) -> No
     assert fewer >= 3  # the selection does leave frames out
 
 
+def test_a_tile_s_count_travels_narrowed_but_exact(survey: Path) -> None:
+    for values, dtype in [([0, 0], np.uint8), ([3, 255], np.uint8), ([0, 256], np.uint16),
+                          ([65535, 1], np.uint16), ([65536, 0], np.uint32)]:
+        count = np.array(values, np.uint32)
+        narrow = aos.distributed._narrow_count(count)
+        assert narrow.dtype == dtype and np.array_equal(narrow.astype(np.uint32), count)
+    # A task's result: the survey's 16 views fit in uint8, the counts unchanged.
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    options = aos.MapOptions(pixel_size=PIXEL, tile_size=TILE, num_threads=1)
+    out = aos.distributed._render_tile("test-narrow", poses, options, {}, 2**26, 32, 32, 32, 32, 0)
+    loaded = aos.load_lightfield(survey).light_field
+    views = aos._core._map_window_views(loaded, options, 32, 32, 32, 32)
+    reference = aos._core._render_map_window(loaded, options, 32, 32, 32, 32, views)
+    assert out["count"].dtype == np.uint8 and out["count"].max() > 0
+    assert np.array_equal(out["count"], reference["count"])
+    assert np.array_equal(out["image"], reference["image"])
+
+
 def test_the_dask_map_is_bit_for_bit_the_single_process_map(survey: Path, tmp_path: Path,
                                                             client) -> None:
     loaded = aos.load_lightfield(survey).light_field

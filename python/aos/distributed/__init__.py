@@ -138,6 +138,14 @@ class _FrameCache:
                 self.order[i] = None
 
 
+def _narrow_count(count: np.ndarray) -> np.ndarray:
+    """``count`` (uint32) in the smallest unsigned type that holds its values, exactly: uint8
+    where no pixel has more than 255 samples, as in most survey tiles. A tile's count then
+    travels in a quarter (or half) of its bytes: tiles are what the client takes in over the
+    network, which bounds it on a cluster (docs/distributed.md)."""
+    return count.astype(np.min_scalar_type(int(count.max()) if count.size else 0))
+
+
 _CACHE_LOCK = threading.Lock()
 _CACHES: "dict[str, _FrameCache]" = {}
 
@@ -163,6 +171,7 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
         out = _core._render_map_window(cache.light_field, options, x0, y0, w, h, views)
         out["seconds_decode"] = decoded - started
         out["seconds_render"] = time.perf_counter() - decoded
+        out["count"] = _narrow_count(out["count"])
         out["x0"], out["y0"] = x0, y0
         out["frames_read"] = cache.decoded - decoded_before
         return out
@@ -372,7 +381,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             x0, y0 = out["x0"], out["y0"]
             h, w = out["count"].shape
             if writer is not None:
-                writer.write(x0, y0, out["image"], out["count"])
+                writer.write(x0, y0, out["image"], out["count"].astype(np.uint32))
             if image is not None and count is not None:
                 image[y0:y0 + h, x0:x0 + w] = out["image"]
                 count[y0:y0 + h, x0:x0 + w] = out["count"]
