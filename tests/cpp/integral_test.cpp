@@ -633,8 +633,10 @@ FmaModelSample FmaModel(const Image& image, const internal::RowLine& line, int x
   };
   const float sx = clamp(std::fmaf(std::fmaf(du, fi, ua), inv_w, -0.5f), image.width() - 0.5f);
   const float sy = clamp(std::fmaf(std::fmaf(dv, fi, va), inv_w, -0.5f), image.height() - 0.5f);
-  const int ix = static_cast<int>(sx + 1.0f) - 1, iy = static_cast<int>(sy + 1.0f) - 1;
-  const float ax = sx - static_cast<float>(ix), ay = sy - static_cast<float>(iy);
+  // The top-left tap by floor (vroundps), the weights in [0, 1) exactly.
+  const float fx = std::floor(sx), fy = std::floor(sy);
+  const int ix = static_cast<int>(fx), iy = static_cast<int>(fy);
+  const float ax = sx - fx, ay = sy - fy;
   const auto p = [&](int dx, int dy) { return static_cast<float>(image.Value(ix + dx, iy + dy, 0)); };
   const float upper = std::fmaf(ax, p(1, 0) - p(0, 0), p(0, 0));
   const float lower = std::fmaf(ax, p(1, 1) - p(0, 1), p(0, 1));

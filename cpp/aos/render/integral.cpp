@@ -40,7 +40,7 @@ using internal::RowLine;
 using internal::SpanKernel;
 
 constexpr int kMaxTileWidth = 512;
-constexpr size_t kTileAccumulatorBytes = 64 * 1024;
+constexpr size_t kTileAccumulatorBytes = 256 * 1024;
 constexpr int kMaxSpans = 4;
 // How many rows ahead of the current one a view's pixels are prefetched.
 constexpr int kPrefetchRows = 2;
