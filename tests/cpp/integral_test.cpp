@@ -914,6 +914,33 @@ TEST(Integral, SimdAndScalarKernelsAgree) {
   }
 }
 
+TEST(Integral, OutputsDoNotDependOnTheThreadCount) {
+  // The tiles get shorter with more threads (at least four a thread), which must change no value:
+  // each pixel adds its views' samples in view order whichever tile holds it.
+  const LightField light_field = SimulatedLightField(6, 64, 48);
+  IntegralOptions options;
+  options.cam_from_world = LookAt(Vec3d(1, 2, 35), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
+  options.width = 131;
+  options.height = 257;  // 64, 32, 21 and 8 rows a tile for 1, 2, 3 and 8 threads
+  options.fov_deg = 40.0;
+  options.variance = true;
+  options.num_threads = 1;
+  const IntegralResult one = RenderIntegral(light_field, options);
+  EXPECT_GT(one.samples, 0);
+  for (int threads : {2, 3, 8}) {
+    options.num_threads = threads;
+    const IntegralResult many = RenderIntegral(light_field, options);
+    EXPECT_EQ(many.samples, one.samples);
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        ASSERT_EQ(*many.image.At<float>(x, y), *one.image.At<float>(x, y)) << threads;
+        ASSERT_EQ(*many.count.At<uint32_t>(x, y), *one.count.At<uint32_t>(x, y)) << threads;
+        ASSERT_EQ(*many.variance.At<float>(x, y), *one.variance.At<float>(x, y)) << threads;
+      }
+    }
+  }
+}
+
 // Bad input: each names the offending option.
 class IntegralBadInput : public ::testing::Test {
  protected:

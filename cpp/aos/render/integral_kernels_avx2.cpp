@@ -206,19 +206,20 @@ struct TapsU8 {
 // bottom border row); so at most 14 bytes past the last border row, in the slack (image.cpp:
 // kSlackBytes).
 __attribute__((target("avx2,fma"), always_inline)) inline TapsU8 FetchU8(const SpanSetup& c,
-                                                                          const Positions& p) {
-  const __m256i last = _mm256_set1_epi32(7);
-  // Lane 0: the smaller of lanes 0 and 7.
-  const __m256i x_min = _mm256_min_epi32(p.ix, _mm256_permutevar8x32_epi32(p.ix, last));
-  const __m256i y_min = _mm256_min_epi32(p.iy, _mm256_permutevar8x32_epi32(p.iy, last));
-  const __m256i d = _mm256_sub_epi32(p.ix, _mm256_broadcastd_epi32(_mm256_castsi256_si128(x_min)));
-  const __m256i e = _mm256_sub_epi32(p.iy, _mm256_broadcastd_epi32(_mm256_castsi256_si128(y_min)));
+                                                                          const Positions& p,
+                                                                          __m256i x_lane,
+                                                                          __m256i y_lane) {
+  // The base: every lane holds the first or the last lane's tap (x_lane, y_lane: all 0 or all 7).
+  const __m256i x_base = _mm256_permutevar8x32_epi32(p.ix, x_lane);
+  const __m256i y_base = _mm256_permutevar8x32_epi32(p.iy, y_lane);
+  const __m256i d = _mm256_sub_epi32(p.ix, x_base);
+  const __m256i e = _mm256_sub_epi32(p.iy, y_base);
   const __m256i d_max = _mm256_set1_epi32(14), e_max = _mm256_set1_epi32(1);
   const __m256i fits = _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_max_epu32(d, d_max), d_max),
                                         _mm256_cmpeq_epi32(_mm256_max_epu32(e, e_max), e_max));
   TapsU8 t;
   if (__builtin_expect(_mm256_movemask_epi8(fits) == -1, 1)) {
-    const int x0 = _mm256_cvtsi256_si32(x_min), y0 = _mm256_cvtsi256_si32(y_min);
+    const int x0 = _mm256_cvtsi256_si32(x_base), y0 = _mm256_cvtsi256_si32(y_base);
     const unsigned char* row = c.origin + static_cast<ptrdiff_t>(y0) * c.stride_bytes + x0;
     // Per lane, bytes [d, d + 1, zero, zero] (vpshufb zeroes for 0x80).
     const __m256i control = _mm256_add_epi32(_mm256_add_epi32(d, _mm256_slli_epi32(d, 8)),
@@ -227,12 +228,13 @@ __attribute__((target("avx2,fma"), always_inline)) inline TapsU8 FetchU8(const S
     // group in six spans two rows, and the branch it would take costs more than the third load.
     // At the bottom (y0 = height - 1) no lane is in row y0 + 1 and the third is not read.
     const ptrdiff_t third = y0 + 2 <= c.height ? 2 * c.stride_bytes : c.stride_bytes;
-    const __m256i row0 = ShuffleRow(row, control);
-    const __m256i row1 = ShuffleRow(row + c.stride_bytes, control);
-    const __m256i row2 = ShuffleRow(row + third, control);
-    const __m256i lower = _mm256_cmpeq_epi32(e, e_max);  // lanes in row y0 + 1
-    t.top = _mm256_blendv_epi8(row0, row1, lower);
-    t.bottom = _mm256_blendv_epi8(row1, row2, lower);
+    const __m256 row0 = _mm256_castsi256_ps(ShuffleRow(row, control));
+    const __m256 row1 = _mm256_castsi256_ps(ShuffleRow(row + c.stride_bytes, control));
+    const __m256 row2 = _mm256_castsi256_ps(ShuffleRow(row + third, control));
+    // Lanes in row y0 + 1 (e = 1) have the sign bit of the shifted e set.
+    const __m256 lower = _mm256_castsi256_ps(_mm256_slli_epi32(e, 31));
+    t.top = _mm256_castps_si256(_mm256_blendv_ps(row0, row1, lower));
+    t.bottom = _mm256_castps_si256(_mm256_blendv_ps(row1, row2, lower));
     return t;
   }
   const __m256i offset =
@@ -284,17 +286,23 @@ __attribute__((target("avx2,fma"))) void Avx2SpanU8Rows(const Image& image, cons
   double* out = sum + (xa - x0);
   double* squares = kSquares ? sum_squares + (xa - x0) : nullptr;
   const int n = xb - xa;
+  // The view position moves monotonically along the span (W > 0): U/W grows iff
+  // du w - u dw >= 0, so the smaller tap is the first lane's or the last lane's for the whole span.
+  const double u_a = line.u0 + line.du * xa, v_a = line.v0 + line.dv * xa,
+               w_a = line.w0 + line.dw * xa;
+  const __m256i x_lane = _mm256_set1_epi32(line.du * w_a - u_a * line.dw >= 0.0 ? 0 : 7);
+  const __m256i y_lane = _mm256_set1_epi32(line.dv * w_a - v_a * line.dw >= 0.0 ? 0 : 7);
   const __m256 eight = _mm256_set1_ps(8.0f);
   __m256 fi = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
   Positions p = Locate(c, fi);
-  TapsU8 taps = FetchU8(c, p);
+  TapsU8 taps = FetchU8(c, p, x_lane, y_lane);
   fi = _mm256_add_ps(fi, eight);
   Positions q = Locate(c, fi);
   int i = 0;
   for (; i + 8 < n; i += 8) {
     fi = _mm256_add_ps(fi, eight);
     const Positions after = Locate(c, fi);
-    const TapsU8 next = FetchU8(c, q);
+    const TapsU8 next = FetchU8(c, q, x_lane, y_lane);
     Accumulate(InterpolateU8(taps, p.ax, p.ay), out + i, kSquares ? squares + i : nullptr);
     taps = next;
     p = q;
