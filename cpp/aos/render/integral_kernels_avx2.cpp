@@ -41,27 +41,41 @@ struct Fetched {
   __m256 p00, p01, p10, p11;  // float views
 };
 
-// The sample positions of columns xa + fi (fi: 8 consecutive column offsets, as floats).
-__attribute__((target("avx2,fma"), always_inline)) inline Positions Locate(const SpanSetup& c,
-                                                                           __m256 fi) {
+// The clamped sample positions of columns xa + fi (fi: 8 consecutive column offsets, as floats).
+struct Samples {
+  __m256 sx, sy;
+};
+__attribute__((target("avx2,fma"), always_inline)) inline Samples LocateSamples(const SpanSetup& c,
+                                                                                __m256 fi) {
   const __m256 inv_w = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_fmadd_ps(c.dw, fi, c.wa));
   // Clamped to [-1, size - 0.5] as in the scalar kernel (max_ps returns its second operand,
   // -1, for NaN), so no rounding can send a load outside the bordered image.
   const __m256 half = _mm256_set1_ps(0.5f), minus_one = _mm256_set1_ps(-1.0f);
-  const __m256 sx = _mm256_min_ps(
+  Samples s;
+  s.sx = _mm256_min_ps(
       _mm256_max_ps(_mm256_fmsub_ps(_mm256_fmadd_ps(c.du, fi, c.ua), inv_w, half), minus_one),
       c.x_max);
-  const __m256 sy = _mm256_min_ps(
+  s.sy = _mm256_min_ps(
       _mm256_max_ps(_mm256_fmsub_ps(_mm256_fmadd_ps(c.dv, fi, c.va), inv_w, half), minus_one),
       c.y_max);
-  // The top-left tap and the weights: floor (exact) and the fraction in [0, 1) (exact too).
-  const __m256 fx = _mm256_floor_ps(sx), fy = _mm256_floor_ps(sy);
+  return s;
+}
+
+// The top-left tap and the weights: floor (exact) and the fraction in [0, 1) (exact too).
+__attribute__((target("avx2,fma"), always_inline)) inline Positions Split(const Samples& s) {
+  const __m256 fx = _mm256_floor_ps(s.sx), fy = _mm256_floor_ps(s.sy);
   Positions p;
   p.ix = _mm256_cvttps_epi32(fx);
   p.iy = _mm256_cvttps_epi32(fy);
-  p.ax = _mm256_sub_ps(sx, fx);
-  p.ay = _mm256_sub_ps(sy, fy);
+  p.ax = _mm256_sub_ps(s.sx, fx);
+  p.ay = _mm256_sub_ps(s.sy, fy);
   return p;
+}
+
+// The sample positions of columns xa + fi, split into taps and weights.
+__attribute__((target("avx2,fma"), always_inline)) inline Positions Locate(const SpanSetup& c,
+                                                                           __m256 fi) {
+  return Split(LocateSamples(c, fi));
 }
 
 // The 16 bytes at `p`, in both 128-bit halves, shuffled by `control`.
@@ -297,15 +311,17 @@ __attribute__((target("avx2,fma"))) void Avx2SpanU8Rows(const Image& image, cons
   Positions p = Locate(c, fi);
   TapsU8 taps = FetchU8(c, p, x_lane, y_lane);
   fi = _mm256_add_ps(fi, eight);
-  Positions q = Locate(c, fi);
+  // Between the first two stages only the clamped positions travel (two registers, not four).
+  Samples q = LocateSamples(c, fi);
   int i = 0;
   for (; i + 8 < n; i += 8) {
     fi = _mm256_add_ps(fi, eight);
-    const Positions after = Locate(c, fi);
-    const TapsU8 next = FetchU8(c, q, x_lane, y_lane);
+    const Samples after = LocateSamples(c, fi);
+    const Positions split = Split(q);
+    const TapsU8 next = FetchU8(c, split, x_lane, y_lane);
     Accumulate(InterpolateU8(taps, p.ax, p.ay), out + i, kSquares ? squares + i : nullptr);
     taps = next;
-    p = q;
+    p = split;
     q = after;
   }
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
