@@ -41,28 +41,41 @@ struct Fetched {
   __m256 p00, p01, p10, p11;  // float views
 };
 
-// The sample positions of columns xa + fi (fi: 8 consecutive column offsets, as floats).
-__attribute__((target("avx2,fma"), always_inline)) inline Positions Locate(const SpanSetup& c,
-                                                                           __m256 fi) {
-  const __m256 one = _mm256_set1_ps(1.0f);
-  const __m256 inv_w = _mm256_div_ps(one, _mm256_fmadd_ps(c.dw, fi, c.wa));
+// The clamped sample positions of columns xa + fi (fi: 8 consecutive column offsets, as floats).
+struct Samples {
+  __m256 sx, sy;
+};
+__attribute__((target("avx2,fma"), always_inline)) inline Samples LocateSamples(const SpanSetup& c,
+                                                                                __m256 fi) {
+  const __m256 inv_w = _mm256_div_ps(_mm256_set1_ps(1.0f), _mm256_fmadd_ps(c.dw, fi, c.wa));
   // Clamped to [-1, size - 0.5] as in the scalar kernel (max_ps returns its second operand,
   // -1, for NaN), so no rounding can send a load outside the bordered image.
   const __m256 half = _mm256_set1_ps(0.5f), minus_one = _mm256_set1_ps(-1.0f);
-  const __m256 sx = _mm256_min_ps(
+  Samples s;
+  s.sx = _mm256_min_ps(
       _mm256_max_ps(_mm256_fmsub_ps(_mm256_fmadd_ps(c.du, fi, c.ua), inv_w, half), minus_one),
       c.x_max);
-  const __m256 sy = _mm256_min_ps(
+  s.sy = _mm256_min_ps(
       _mm256_max_ps(_mm256_fmsub_ps(_mm256_fmadd_ps(c.dv, fi, c.va), inv_w, half), minus_one),
       c.y_max);
-  // sx, sy >= -1, so truncating s + 1 gives floor(s) + 1.
-  const __m256i one_i = _mm256_set1_epi32(1);
+  return s;
+}
+
+// The top-left tap and the weights: floor (exact) and the fraction in [0, 1) (exact too).
+__attribute__((target("avx2,fma"), always_inline)) inline Positions Split(const Samples& s) {
+  const __m256 fx = _mm256_floor_ps(s.sx), fy = _mm256_floor_ps(s.sy);
   Positions p;
-  p.ix = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sx, one)), one_i);
-  p.iy = _mm256_sub_epi32(_mm256_cvttps_epi32(_mm256_add_ps(sy, one)), one_i);
-  p.ax = _mm256_sub_ps(sx, _mm256_cvtepi32_ps(p.ix));
-  p.ay = _mm256_sub_ps(sy, _mm256_cvtepi32_ps(p.iy));
+  p.ix = _mm256_cvttps_epi32(fx);
+  p.iy = _mm256_cvttps_epi32(fy);
+  p.ax = _mm256_sub_ps(s.sx, fx);
+  p.ay = _mm256_sub_ps(s.sy, fy);
   return p;
+}
+
+// The sample positions of columns xa + fi, split into taps and weights.
+__attribute__((target("avx2,fma"), always_inline)) inline Positions Locate(const SpanSetup& c,
+                                                                           __m256 fi) {
+  return Split(LocateSamples(c, fi));
 }
 
 // The 16 bytes at `p`, in both 128-bit halves, shuffled by `control`.
@@ -72,63 +85,14 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256i ShuffleRow(con
       _mm256_broadcastsi128_si256(_mm_loadu_si128(reinterpret_cast<const __m128i*>(p))), control);
 }
 
-// 8-bit views: the taps of 8 consecutive samples usually lie in a short stretch of two view rows
-// (along an output row the view position moves by about one view pixel per output pixel; on F0
-// every group does). Then 16-byte row loads and byte shuffles replace the two gathers, which
-// issue 8 loads each and were the kernel's bottleneck. The words built are the gathers' words in
-// their low 16 bits ([p00, p01] and [p10, p11]); the upper bytes are zero instead of the next
-// pixels', which Finish masks off, so the samples are the same. The base is the smaller of the
-// first and last lanes' taps (the exact positions are monotonic along the span); since rounding
-// can break that by a pixel, every lane is checked: each tap must lie within 15 columns right of
-// the base column and in its row or the next. Returns false (the caller gathers) otherwise.
-// Memory: reads 16 bytes from the base column (>= -1, <= width - 1, as positions are clamped to
-// [-1, width - 0.5]) in rows y_min .. y_min + 2, the third only where y_min + 2 <= height (the
-// bottom border row); so at most 14 bytes past the last border row, in the slack (image.cpp:
-// kSlackBytes).
-__attribute__((target("avx2,fma"), always_inline)) inline bool FetchU8FromRows(const SpanSetup& c,
-                                                                               const Positions& p,
-                                                                               Fetched& f) {
-  const __m128i ix_high = _mm256_extracti128_si256(p.ix, 1);
-  const __m128i iy_high = _mm256_extracti128_si256(p.iy, 1);
-  const int ix_first = _mm256_cvtsi256_si32(p.ix), ix_last = _mm_extract_epi32(ix_high, 3);
-  const int iy_first = _mm256_cvtsi256_si32(p.iy), iy_last = _mm_extract_epi32(iy_high, 3);
-  const int x_min = ix_first < ix_last ? ix_first : ix_last;
-  const int y_min = iy_first < iy_last ? iy_first : iy_last;
-  // Every lane: 0 <= ix - x_min <= 14 and 0 <= iy - y_min <= 1 (unsigned: negatives fail).
-  const __m256i d = _mm256_sub_epi32(p.ix, _mm256_set1_epi32(x_min));
-  const __m256i e = _mm256_sub_epi32(p.iy, _mm256_set1_epi32(y_min));
-  const __m256i d_max = _mm256_set1_epi32(14), e_max = _mm256_set1_epi32(1);
-  const __m256i fits = _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_max_epu32(d, d_max), d_max),
-                                        _mm256_cmpeq_epi32(_mm256_max_epu32(e, e_max), e_max));
-  if (_mm256_movemask_epi8(fits) != -1) return false;
-  const unsigned char* row = c.origin + static_cast<ptrdiff_t>(y_min) * c.stride_bytes + x_min;
-  // Per lane, bytes [d, d + 1, zero, zero] (vpshufb zeroes for 0x80).
-  const __m256i control = _mm256_add_epi32(_mm256_add_epi32(d, _mm256_slli_epi32(d, 8)),
-                                           _mm256_set1_epi32(static_cast<int>(0x80800100u)));
-  // Always three rows and a blend (lanes in row y_min + 1 take the lower pair): on F0 about one
-  // group in six spans two rows, and the branch it would take costs more than the third load.
-  // At the bottom (y_min = height - 1) no lane is in row y_min + 1 and the third is not read.
-  const ptrdiff_t third = y_min + 2 <= c.height ? 2 : 1;
-  const __m256i row0 = ShuffleRow(row, control);
-  const __m256i row1 = ShuffleRow(row + c.stride_bytes, control);
-  const __m256i row2 = ShuffleRow(row + third * c.stride_bytes, control);
-  const __m256i lower = _mm256_cmpeq_epi32(e, e_max);  // lanes in row y_min + 1
-  f.top = _mm256_blendv_epi8(row0, row1, lower);
-  f.bottom = _mm256_blendv_epi8(row1, row2, lower);
-  return true;
-}
-
-// The taps of a group: row loads (8-bit views, when they fit) or gathers.
-template <PixelType kType, bool kRowLoads = true>
+// The taps of a group, by gathers (8-bit views have row loads: Avx2SpanU8Rows).
+template <PixelType kType>
 __attribute__((target("avx2,fma"), always_inline)) inline Fetched Fetch(const SpanSetup& c,
                                                                         const Positions& p) {
   constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
   Fetched f;
   f.ax = p.ax;
   f.ay = p.ay;
-  if constexpr (kType == PixelType::kU8 && kRowLoads) {
-    if (FetchU8FromRows(c, p, f)) return f;
-  }
   const __m256i offset =
       _mm256_add_epi32(_mm256_mullo_epi32(p.iy, _mm256_set1_epi32(c.stride_bytes)),
                        _mm256_mullo_epi32(p.ix, _mm256_set1_epi32(kValueSize)));
@@ -194,7 +158,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Finish(const Fetc
 // the division before them) overlaps useful work. Groups past the span's end are clamped into
 // the image, so their loads stay in bounds; the last group's extra lanes add zero to the
 // accumulators' padding (see the caller).
-template <PixelType kType, bool kSquares, bool kRowLoads = true>
+template <PixelType kType, bool kSquares>
 __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const RowLine& line,
                                                       int xa, int xb, int x0, double* sum,
                                                       double* sum_squares) {
@@ -219,14 +183,14 @@ __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const 
   // Column offsets as floats; adding 8 is exact (integers below 2^24).
   const __m256 eight = _mm256_set1_ps(8.0f);
   __m256 fi = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
-  Fetched current = Fetch<kType, kRowLoads>(c, Locate(c, fi));
+  Fetched current = Fetch<kType>(c, Locate(c, fi));
   fi = _mm256_add_ps(fi, eight);
   Positions ahead = Locate(c, fi);
   int i = 0;
   for (; i + 8 < n; i += 8) {
     fi = _mm256_add_ps(fi, eight);
     const Positions after = Locate(c, fi);
-    const Fetched next = Fetch<kType, kRowLoads>(c, ahead);
+    const Fetched next = Fetch<kType>(c, ahead);
     Finish<kType>(current, out + i, kSquares ? squares + i : nullptr, all);
     current = next;
     ahead = after;
@@ -236,23 +200,158 @@ __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const 
   Finish<kType>(current, out + i, kSquares ? squares + i : nullptr, keep);
 }
 
+// The taps of a group of an 8-bit view: both horizontal taps of the top row in the low 16 bits
+// of each lane of `top` ([p00, p01, 0, 0]), likewise `bottom`; the upper bytes are zero.
+struct TapsU8 {
+  __m256i top, bottom;
+};
+
+// 8-bit views: the taps of 8 consecutive samples usually lie in a short stretch of two view rows
+// (along an output row the view position moves by about one view pixel per output pixel; on F0
+// every group does). Then 16-byte row loads and byte shuffles replace the two gathers, which
+// issue 8 loads each. The words built are the gathers' words in their low 16 bits ([p00, p01]
+// and [p10, p11]) with the upper bytes zero, so the samples are the gathers'. The base is the
+// smaller of the first and last lanes' taps (one lane permute and a min: the exact positions are
+// monotonic along the span); since rounding can break that by a pixel, every lane is checked:
+// each tap must lie within 15 columns right of the base column and in its row or the next.
+// Otherwise the group gathers (the same words, masked to 16 bits).
+// Memory: reads 16 bytes from the base column (>= -1, <= width - 1, as positions are clamped to
+// [-1, width - 0.5]) in rows y_min .. y_min + 2, the third only where y_min + 2 <= height (the
+// bottom border row); so at most 14 bytes past the last border row, in the slack (image.cpp:
+// kSlackBytes).
+__attribute__((target("avx2,fma"), always_inline)) inline TapsU8 FetchU8(const SpanSetup& c,
+                                                                          const Positions& p,
+                                                                          __m256i x_lane,
+                                                                          __m256i y_lane) {
+  // The base: every lane holds the first or the last lane's tap (x_lane, y_lane: all 0 or all 7).
+  const __m256i x_base = _mm256_permutevar8x32_epi32(p.ix, x_lane);
+  const __m256i y_base = _mm256_permutevar8x32_epi32(p.iy, y_lane);
+  const __m256i d = _mm256_sub_epi32(p.ix, x_base);
+  const __m256i e = _mm256_sub_epi32(p.iy, y_base);
+  const __m256i d_max = _mm256_set1_epi32(14), e_max = _mm256_set1_epi32(1);
+  const __m256i fits = _mm256_and_si256(_mm256_cmpeq_epi32(_mm256_max_epu32(d, d_max), d_max),
+                                        _mm256_cmpeq_epi32(_mm256_max_epu32(e, e_max), e_max));
+  TapsU8 t;
+  if (__builtin_expect(_mm256_movemask_epi8(fits) == -1, 1)) {
+    const int x0 = _mm256_cvtsi256_si32(x_base), y0 = _mm256_cvtsi256_si32(y_base);
+    const unsigned char* row = c.origin + static_cast<ptrdiff_t>(y0) * c.stride_bytes + x0;
+    // Per lane, bytes [d, d + 1, zero, zero] (vpshufb zeroes for 0x80).
+    const __m256i control = _mm256_add_epi32(_mm256_add_epi32(d, _mm256_slli_epi32(d, 8)),
+                                             _mm256_set1_epi32(static_cast<int>(0x80800100u)));
+    // Always three rows and a blend (lanes in row y0 + 1 take the lower pair): on F0 about one
+    // group in six spans two rows, and the branch it would take costs more than the third load.
+    // At the bottom (y0 = height - 1) no lane is in row y0 + 1 and the third is not read.
+    const ptrdiff_t third = y0 + 2 <= c.height ? 2 * c.stride_bytes : c.stride_bytes;
+    const __m256 row0 = _mm256_castsi256_ps(ShuffleRow(row, control));
+    const __m256 row1 = _mm256_castsi256_ps(ShuffleRow(row + c.stride_bytes, control));
+    const __m256 row2 = _mm256_castsi256_ps(ShuffleRow(row + third, control));
+    // Lanes in row y0 + 1 (e = 1) have the sign bit of the shifted e set.
+    const __m256 lower = _mm256_castsi256_ps(_mm256_slli_epi32(e, 31));
+    t.top = _mm256_castps_si256(_mm256_blendv_ps(row0, row1, lower));
+    t.bottom = _mm256_castps_si256(_mm256_blendv_ps(row1, row2, lower));
+    return t;
+  }
+  const __m256i offset =
+      _mm256_add_epi32(_mm256_mullo_epi32(p.iy, _mm256_set1_epi32(c.stride_bytes)), p.ix);
+  const __m256i low16 = _mm256_set1_epi32(0xffff);
+  t.top = _mm256_and_si256(
+      _mm256_i32gather_epi32(reinterpret_cast<const int*>(c.origin), offset, 1), low16);
+  t.bottom = _mm256_and_si256(
+      _mm256_i32gather_epi32(reinterpret_cast<const int*>(c.origin + c.stride_bytes), offset, 1),
+      low16);
+  return t;
+}
+
+// Finish<kU8>'s arithmetic on TapsU8 (no masks needed above the second byte).
+__attribute__((target("avx2,fma"), always_inline)) inline __m256 InterpolateU8(const TapsU8& t,
+                                                                              __m256 ax,
+                                                                              __m256 ay) {
+  const __m256i byte = _mm256_set1_epi32(0xff);
+  const __m256 p00 = _mm256_cvtepi32_ps(_mm256_and_si256(t.top, byte));
+  const __m256 p01 = _mm256_cvtepi32_ps(_mm256_srli_epi32(t.top, 8));
+  const __m256 p10 = _mm256_cvtepi32_ps(_mm256_and_si256(t.bottom, byte));
+  const __m256 p11 = _mm256_cvtepi32_ps(_mm256_srli_epi32(t.bottom, 8));
+  const __m256 upper = _mm256_fmadd_ps(ax, _mm256_sub_ps(p01, p00), p00);
+  const __m256 lower = _mm256_fmadd_ps(ax, _mm256_sub_ps(p11, p10), p10);
+  return _mm256_fmadd_ps(ay, _mm256_sub_ps(lower, upper), upper);
+}
+
+// The 8-bit kernel with row loads, software-pipelined in three stages as Avx2SpanImpl (while
+// group g is interpolated and added, group g + 1's taps are loaded and group g + 2 located). Its
+// critical path per group (division, floor, base, row loads, interpolation, accumulation: about
+// 90 cycles of latency on Zen 3) is several times its issue time, so without the stages the
+// reorder buffer, not the execution units, bounds it.
+template <bool kSquares>
+__attribute__((target("avx2,fma"))) void Avx2SpanU8Rows(const Image& image, const RowLine& line,
+                                                        int xa, int xb, int x0, double* sum,
+                                                        double* sum_squares) {
+  SpanSetup c;
+  c.origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
+  c.stride_bytes = static_cast<int>(image.row_stride());
+  c.ua = _mm256_set1_ps(static_cast<float>(line.u0 + line.du * xa));
+  c.va = _mm256_set1_ps(static_cast<float>(line.v0 + line.dv * xa));
+  c.wa = _mm256_set1_ps(static_cast<float>(line.w0 + line.dw * xa));
+  c.du = _mm256_set1_ps(static_cast<float>(line.du));
+  c.dv = _mm256_set1_ps(static_cast<float>(line.dv));
+  c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
+  c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
+  c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
+  c.height = image.height();
+  double* out = sum + (xa - x0);
+  double* squares = kSquares ? sum_squares + (xa - x0) : nullptr;
+  const int n = xb - xa;
+  // The view position moves monotonically along the span (W > 0): U/W grows iff
+  // du w - u dw >= 0, so the smaller tap is the first lane's or the last lane's for the whole span.
+  const double u_a = line.u0 + line.du * xa, v_a = line.v0 + line.dv * xa,
+               w_a = line.w0 + line.dw * xa;
+  const __m256i x_lane = _mm256_set1_epi32(line.du * w_a - u_a * line.dw >= 0.0 ? 0 : 7);
+  const __m256i y_lane = _mm256_set1_epi32(line.dv * w_a - v_a * line.dw >= 0.0 ? 0 : 7);
+  const __m256 eight = _mm256_set1_ps(8.0f);
+  __m256 fi = _mm256_setr_ps(0, 1, 2, 3, 4, 5, 6, 7);
+  Positions p = Locate(c, fi);
+  TapsU8 taps = FetchU8(c, p, x_lane, y_lane);
+  fi = _mm256_add_ps(fi, eight);
+  // Between the first two stages only the clamped positions travel (two registers, not four).
+  Samples q = LocateSamples(c, fi);
+  int i = 0;
+  for (; i + 8 < n; i += 8) {
+    fi = _mm256_add_ps(fi, eight);
+    const Samples after = LocateSamples(c, fi);
+    const Positions split = Split(q);
+    const TapsU8 next = FetchU8(c, split, x_lane, y_lane);
+    Accumulate(InterpolateU8(taps, p.ax, p.ay), out + i, kSquares ? squares + i : nullptr);
+    taps = next;
+    p = split;
+    q = after;
+  }
+  const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+  const __m256 keep = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n - i), lane));
+  Accumulate(_mm256_and_ps(InterpolateU8(taps, p.ax, p.ay), keep), out + i,
+             kSquares ? squares + i : nullptr);
+}
+
 template <PixelType kType>
 __attribute__((target("avx2,fma"))) void Avx2Span(const Image& image, const RowLine& line,
                                                   int xa, int xb, int x0, double* sum) {
   Avx2SpanImpl<kType, false>(image, line, xa, xb, x0, sum, nullptr);
 }
 
+__attribute__((target("avx2,fma"))) void Avx2SpanU8RowsSum(const Image& image, const RowLine& line,
+                                                           int xa, int xb, int x0, double* sum) {
+  Avx2SpanU8Rows<false>(image, line, xa, xb, x0, sum, nullptr);
+}
+
 // 8-bit views with gathers only (no row loads): the kernel before row loads, for benchmarks.
 __attribute__((target("avx2,fma"))) void Avx2SpanU8Gathers(const Image& image, const RowLine& line,
                                                            int xa, int xb, int x0, double* sum) {
-  Avx2SpanImpl<PixelType::kU8, false, false>(image, line, xa, xb, x0, sum, nullptr);
+  Avx2SpanImpl<PixelType::kU8, false>(image, line, xa, xb, x0, sum, nullptr);
 }
 
 __attribute__((target("avx2,fma"))) void Avx2SpanSquaresU8Gathers(const Image& image,
                                                                   const RowLine& line, int xa,
                                                                   int xb, int x0, double* sum,
                                                                   double* sum_squares) {
-  Avx2SpanImpl<PixelType::kU8, true, false>(image, line, xa, xb, x0, sum, sum_squares);
+  Avx2SpanImpl<PixelType::kU8, true>(image, line, xa, xb, x0, sum, sum_squares);
 }
 
 template <PixelType kType>
@@ -357,7 +456,7 @@ SquaresKernel Avx2SquaresKernel(const Image& image) {
   if (!Avx2Usable(image) || image.channels() != 1) return nullptr;
   switch (image.type()) {
     case PixelType::kU8:
-      return SimdRowLoadsEnabled() ? &Avx2SpanSquares<PixelType::kU8> : &Avx2SpanSquaresU8Gathers;
+      return SimdRowLoadsEnabled() ? &Avx2SpanU8Rows<true> : &Avx2SpanSquaresU8Gathers;
     case PixelType::kU16: return &Avx2SpanSquares<PixelType::kU16>;
     case PixelType::kF32: return &Avx2SpanSquares<PixelType::kF32>;
     case PixelType::kU32: break;
@@ -371,7 +470,8 @@ SpanKernel Avx2SpanKernel(const Image& image) {
     return image.type() == PixelType::kU8 ? &Avx2SpanU8TwoChannels : nullptr;
   }
   switch (image.type()) {
-    case PixelType::kU8: return SimdRowLoadsEnabled() ? &Avx2Span<PixelType::kU8> : &Avx2SpanU8Gathers;
+    case PixelType::kU8:
+      return SimdRowLoadsEnabled() ? &Avx2SpanU8RowsSum : &Avx2SpanU8Gathers;
     case PixelType::kU16: return &Avx2Span<PixelType::kU16>;
     case PixelType::kF32: return &Avx2Span<PixelType::kF32>;
     case PixelType::kU32: break;
