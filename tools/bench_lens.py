@@ -205,9 +205,15 @@ the nodes (plus a bound for the surface's departure from a bilinear sheet) is wi
 `lens_tolerance_px` view pixels; other quads are split, and the smallest ones projected sample
 by sample. At the default 0.02 px the fisheye and omnidirectional quads pass at 16 output pixels
 (their residual is the lens's curvature, which no homography takes up), the radial-tangential
-ones at 32 (the homography takes up most of it). The render's time beyond the pinhole path's
-is then the nodes' exact projections (81 per view and 64-pixel tile at 16-pixel quads) and the
-fits; the point kernel itself costs about what the pinhole path's span kernel costs. A sample position off by at most t view pixels moves
+ones at 32 (the homography takes up most of it). A quad is split without a fit where a quarter
+of its parent's error (the affine error falls with the square of the side) is above twice the
+tolerance, except on radial-tangential lenses, whose 32-pixel homographies pass below 64-pixel
+tiles that missed by far more than that. The render's time beyond the pinhole path's is then the
+nodes' exact projections (81 per view and 64-pixel tile at 16-pixel quads, 25 at 32) and the
+fits, the per-sample path's own setup (every pixel's focal point, tile by tile), and the point
+kernel, which costs more per sample than the pinhole path's span kernel (profiles on one thread:
+the kernel about half of the fisheye render and two thirds of the radial-tangential one, the
+fits and node projections about a quarter and a tenth). A sample position off by at most t view pixels moves
 a bilinear sample by at most t times the frame's largest step between neighbouring pixels.
 Rectifying pays off only when the same frames are rendered many times.
 

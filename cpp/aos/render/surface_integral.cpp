@@ -1,6 +1,7 @@
 #include "aos/render/surface_integral.h"
 
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <exception>
 #include <limits>
@@ -67,6 +68,9 @@ struct ViewSetup {
   // Lens views: the largest angle from the view's optical axis within which every ray
   // projects (LensValidAngle), radians.
   double valid_angle = 0.0;
+  // cos(valid_angle - kAngleShortcut): a quad's rays within that cosine of the optical axis and
+  // a margin below kAngleShortcut are inside the valid field without an acos (LensRoute::Fit).
+  double cos_shortcut = 1.0;
   Sampler sample = nullptr;
   internal::PointKernel kernel = nullptr;  // pinhole views with an AVX2 kernel
 };
@@ -101,6 +105,9 @@ Sampler SamplerFor(const Image& image) {
     default: return &SampleTyped<float>;
   }
 }
+
+// Radians; see ViewSetup::cos_shortcut.
+constexpr double kAngleShortcut = 0.25;
 
 // The largest angle from the optical axis within which every ray of `lens` projects
 // (LensCamera::Project succeeds), radians: theta_max for a fisheye; for the radial-tangential
@@ -210,6 +217,7 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
     if (view.camera.model != LensModel::kPinhole) {
       setup.lens = &view.camera;
       setup.valid_angle = LensValidAngle(view.camera);
+      setup.cos_shortcut = std::cos(std::max(0.0, setup.valid_angle - kAngleShortcut));
     }
     setup.sample = SamplerFor(view.image);
     setup.kernel = internal::Avx2PointKernel(view.image);
@@ -774,7 +782,8 @@ struct TileBuffers {
   // The lens route: exact projections at quad nodes, valid while node_stamp[j] == generation
   // (one generation per view), and each quad's departure from bilinear (-1 = not computed).
   struct LensNode {
-    Vec3d in_cam;
+    Vec3d direction;  // unit: the node's focal point in the view's camera frame, normalised
+    double distance;  // metres from the view centre
     Vec2d pixel;
     bool valid;
   };
@@ -782,7 +791,13 @@ struct TileBuffers {
   std::vector<LensNode> nodes;
   uint32_t generation = 0;
   std::vector<double> deviation;
+  internal::LensRouteCounts counts;  // this tile's, added to the totals at its end
 };
+
+// Totals of internal::LensRouteCounts (relaxed atomics: one add per field and tile).
+std::atomic<int64_t> g_fitted_quads[4];
+std::atomic<int64_t> g_exact_quads{0};
+std::atomic<int64_t> g_projected_nodes{0};
 
 // Least squares for a homography (u, v) = (a . (x, y, 1), b . (x, y, 1)) / (g . (x, y) + 1)
 // from point pairs, linearised (the algebraic error: a . h - u g . p = u, b . h - v g . p = v,
@@ -856,8 +871,12 @@ struct LensRoute {
     b.node_stamp[j] = b.generation;
     node.valid = false;
     if (b.valid[j] == 0) return node;
-    node.in_cam = view.rotation * b.focal[j] + view.offset;
-    node.valid = view.lens->Project(node.in_cam, &node.pixel);
+    const Vec3d in_cam = view.rotation * b.focal[j] + view.offset;
+    ++b.counts.projected_nodes;
+    node.valid = view.lens->Project(in_cam, &node.pixel);
+    node.distance = glm::length(in_cam);
+    node.valid = node.valid && node.distance > 0.0;
+    node.direction = in_cam / node.distance;
     return node;
   }
 
@@ -903,7 +922,7 @@ struct LensRoute {
     // radial-tangential lens the view's own pinhole coordinates (c its optical axis: the lens
     // map is then its distortion, close to affine, and the fit a homography of the view); for
     // wide lenses the centre node's ray (their map is far from projective off the axis).
-    const Vec3d centre = glm::normalize(node[4]->in_cam);
+    const Vec3d& centre = node[4]->direction;
     const bool perspective = view.lens->model == LensModel::kRadTan;
     const Vec3d c = perspective ? Vec3d(0.0, 0.0, 1.0) : centre;
     const Vec3d helper = std::abs(c.x) < 0.9 ? Vec3d(1.0, 0.0, 0.0) : Vec3d(0.0, 1.0, 0.0);
@@ -914,17 +933,23 @@ struct LensRoute {
     // radius) and from the optical axis.
     double cos_c = 1.0, cos_spread = 1.0, cos_angle = 1.0;
     double distance = std::numeric_limits<double>::infinity();
+    // (On unit directions: q is the same for any point along the ray.)
     for (int k = 0; k < 9; ++k) {
-      const Vec3d& p = node[k]->in_cam;
-      const double length = glm::length(p), w = glm::dot(c, p);
+      const Vec3d& p = node[k]->direction;
+      const double w = glm::dot(c, p);
       // Within 60 degrees of c, so that dq / d(angle) <= 1 / cos^2 <= 4.
-      if (!(w > 0.5 * length)) return false;
-      const double inverse_w = 1.0 / w, inverse_length = 1.0 / length;
+      if (!(w > 0.5)) return false;
+      const double inverse_w = 1.0 / w;
       q[k] = Vec2d(glm::dot(e1, p) * inverse_w, glm::dot(e2, p) * inverse_w);
-      cos_c = std::min(cos_c, w * inverse_length);
-      cos_spread = std::min(cos_spread, glm::dot(centre, p) * inverse_length);
-      cos_angle = std::min(cos_angle, p.z * inverse_length);
-      distance = std::min(distance, length);
+      cos_c = std::min(cos_c, w);
+      cos_angle = std::min(cos_angle, p.z);
+      distance = std::min(distance, node[k]->distance);
+    }
+    // Wide lenses: c is the centre node's ray, so the spread is cos_c.
+    if (perspective) {
+      for (int k = 0; k < 9; ++k) cos_spread = std::min(cos_spread, glm::dot(centre, node[k]->direction));
+    } else {
+      cos_spread = cos_c;
     }
     const double q_per_radian = 1.0 / (cos_c * cos_c);
     // The map pixel = (U, V) / W with rows over (q / scale, 1), q / scale of about unit size.
@@ -1022,9 +1047,14 @@ struct LensRoute {
     // (acos only where needed: the spread of a quad is small, and for x <= 0.46 rad,
     // x <= sqrt(2 (1 - cos x)) / (1 - x^2 / 12) <= 1.03 sqrt(2 (1 - cos x)), a bound that decides
     // as the exact spread would wherever it passes.)
-    const double angle = std::acos(std::max(-1.0, cos_angle));
+    // First without any acos: the quad's rays within valid_angle - kAngleShortcut of the axis
+    // and a margin below kAngleShortcut (most quads of a render), then as it was.
     const double chord = std::sqrt(2.0 * std::max(0.0, 1.0 - cos_spread));
-    if (!(chord <= 0.45 && angle + 1.5 * (1.03 * chord) + turn < view.valid_angle)) {
+    const double margin = 1.5 * (1.03 * chord) + turn;
+    if (!(chord <= 0.45 && margin < kAngleShortcut - 1e-6 && cos_angle > view.cos_shortcut) &&
+        !(chord <= 0.45 &&
+          std::acos(std::max(-1.0, cos_angle)) + margin < view.valid_angle)) {
+      const double angle = std::acos(std::max(-1.0, cos_angle));
       const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
       if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
     }
@@ -1059,8 +1089,11 @@ struct LensRoute {
   }
 
   // `parent_error`: the parent quad's fit error at its nodes (infinity if unknown). A smooth
-  // map's fit error scales with the square of the quad's side: a quad whose predicted error
-  // (a quarter of its parent's) is above twice the tolerance is split without a fit.
+  // map's affine fit error scales with the square of the quad's side: a quad whose predicted
+  // error (a quarter of its parent's) is above twice the tolerance is split without a fit. Not
+  // for radial-tangential lenses: their homography takes up most of the second-order terms, so
+  // a parent far outside the tolerance says little about its children (on the lens benchmark
+  // nearly every 32-pixel quad passes below a 64-pixel tile that missed by 8x and more).
   void Quad(int level, int qx, int qy, double parent_error) {
     const int side = kTileWidth >> level;
     if (qx >= tile_width || qy >= tile_height) return;
@@ -1073,12 +1106,14 @@ struct LensRoute {
     double t[3];
     double error = std::numeric_limits<double>::infinity();
     int image_tests = 0x1f;
-    const bool hopeless = std::isfinite(parent_error) && 0.25 * parent_error > 2.0 * s.lens_tolerance &&
+    const bool hopeless = view.lens->model != LensModel::kRadTan && std::isfinite(parent_error) &&
+                          0.25 * parent_error > 2.0 * s.lens_tolerance &&
                           level + 1 < kLensQuadLevels;
     if (hopeless) error = 0.25 * parent_error;
     if (!hopeless && xl - qx >= 2 && yl - qy >= 2 &&
         Fit(id, qx, qy, xl, yl, x_end, y_end, rows, t, &error, &image_tests)) {
       internal::PointKernelArgs args = KernelArgsFor(s, view, rows, t, extent, grazing);
+      ++b.counts.fitted_quads[level];
       args.variance = variance;
       args.image_tests = image_tests;
       const int origin = qy * stride + qx;
@@ -1104,6 +1139,7 @@ struct LensRoute {
       for (int k = 0; k < 4; ++k) Quad(level + 1, qx + (k % 2) * half, qy + (k / 2) * half, error);
       return;
     }
+    ++b.counts.exact_quads;
     for (int ty = qy; ty < y_end; ++ty) {
       for (int tx = qx; tx < x_end; ++tx) exact(ty * stride + tx);
     }
@@ -1158,6 +1194,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     b.nodes.resize(static_cast<size_t>(size));
     b.generation = 0;
     b.deviation.assign(kLensQuadCount, -1.0);
+    b.counts = internal::LensRouteCounts{};
   }
   if (s.nearest) {
     b.best.assign(static_cast<size_t>(size), inf);
@@ -1282,6 +1319,13 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
       __builtin_prefetch(b.lines[static_cast<size_t>(line)], 0, 3);
     }
     for (int j = 0; j < size; ++j) exact(j);
+  }
+  if (s.lens_tolerance > 0.0) {
+    for (int level = 0; level < 4; ++level) {
+      g_fitted_quads[level].fetch_add(b.counts.fitted_quads[level], std::memory_order_relaxed);
+    }
+    g_exact_quads.fetch_add(b.counts.exact_quads, std::memory_order_relaxed);
+    g_projected_nodes.fetch_add(b.counts.projected_nodes, std::memory_order_relaxed);
   }
   for (int ty = 0; ty < tile_height; ++ty) {
     const int y = y0 + ty;
@@ -1570,5 +1614,23 @@ SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
   }
   return result;
 }
+
+namespace internal {
+
+LensRouteCounts GetLensRouteCounts() {
+  LensRouteCounts counts;
+  for (int level = 0; level < 4; ++level) counts.fitted_quads[level] = g_fitted_quads[level].load();
+  counts.exact_quads = g_exact_quads.load();
+  counts.projected_nodes = g_projected_nodes.load();
+  return counts;
+}
+
+void ResetLensRouteCounts() {
+  for (auto& count : g_fitted_quads) count.store(0);
+  g_exact_quads.store(0);
+  g_projected_nodes.store(0);
+}
+
+}  // namespace internal
 
 }  // namespace aos

@@ -73,6 +73,18 @@ using PointKernel = bool (*)(const Image& image, const PointTileArrays& points,
 // or a view type or channel count without one).
 PointKernel Avx2PointKernel(const Image& image);
 
+// The lens route's work (surface_integral.cpp, LensRoute), summed over every render since the
+// last ResetLensRouteCounts(): quads sampled through a local homography per level (0: 64 x 64
+// output pixels, 1: 32, 2: 16, 3: 8), 8 x 8 quads projected point by point, and exact node
+// projections. For tests of the route's choices; the renders' outputs do not depend on them.
+struct LensRouteCounts {
+  int64_t fitted_quads[4] = {0, 0, 0, 0};
+  int64_t exact_quads = 0;
+  int64_t projected_nodes = 0;
+};
+LensRouteCounts GetLensRouteCounts();
+void ResetLensRouteCounts();
+
 // The per-pixel scalar loop the fast route replaced (pixel-outer, view-inner, double precision):
 // the reference the tests compare against; also the route of the robust mean in nearest mode
 // (elsewhere the robust mean gathers the same samples tile by tile and equals it bit for bit).
