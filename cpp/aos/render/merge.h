@@ -52,8 +52,11 @@
 //   slices): 4 or 5 slices, which hold the full-stack peak and both its parabola neighbours
 //   wherever that peak lies within half a slice of the vertex. Full slice i is rendered at full
 //   resolution only on the blocks that take it, through the depth path
-//   (RenderIntegralAtPoints on the plane's or surface's points, many slices per call: the
-//   plane render's rules, results equal up to float rounding), and its focus values, computed
+//   (RenderIntegralAtPoints on the plane's or surface's points: the plane render's rules,
+//   results equal up to float rounding; every (slice, pixel) pair in one call, packed block by
+//   block so that each tile of points covers a compact patch of the image, or slice by slice
+//   in calls of at most 2^21 points where there are more or the planes' normals differ: the
+//   same outputs either way), and its focus values, computed
 //   as for a full slice with the pixels not rendered counting as uncovered, enter the fold only
 //   there; elsewhere the slice has no focus value.
 // - So where a pixel's full-stack peak and its two neighbours lie in its block's slices, and the
@@ -140,5 +143,13 @@ struct AllInFocusOptions {
 // winning slice's pixels.
 MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOptions& options,
                              ProgressSink* progress = nullptr);
+
+namespace internal {
+// Coarse-to-fine's fine pass packs its (slice, pixel) points block by block, one render call
+// (on by default; where they exceed one call's bound, or the planes' normals differ, it packs
+// them slice by slice); off: always slice by slice, as before. The outputs are the same either
+// way (tests compare them); only the time differs. Not thread-safe: set it before rendering.
+void SetCoarseToFineBlockPacking(bool enabled);
+}  // namespace internal
 
 }  // namespace aos
