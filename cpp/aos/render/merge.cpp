@@ -454,6 +454,11 @@ constexpr double kFineMargin = 1.5;
 // Whether the fine pass packs its points block by block (the default) rather than slice by
 // slice (internal::SetCoarseToFineBlockPacking; tests compare the two).
 std::atomic<bool> g_block_packing{true};
+// Whether the coarse stack renders through packed points (the default) rather than slice by
+// slice through RenderIntegral (internal::SetCoarseToFineCoarsePoints; tests compare the two).
+std::atomic<bool> g_coarse_points{true};
+// Coarse pixels whose slices are packed together (coarse stack through packed points).
+constexpr size_t kCoarseGroup = 16;
 
 // Points packed per render call, at most (bounds the memory whatever the number of slices).
 constexpr size_t kPackedPoints = size_t{1} << 21;
@@ -639,10 +644,80 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
   ProgressStart(progress, "coarse stack", coarse_slices);
   FocusAccumulator accumulator(coarse_camera, light_field.views.front().image.channels(),
                                coarse_slices);
-  // Each coarse slice is a whole (small) image: the plane render (span kernels) or, for a
-  // surface, RenderIntegral's surface path, as RenderFocalStackSlices renders a full slice.
+  // Every coarse slice in one call of packed points (below), or, where they exceed one call's
+  // bound or the planes' normals differ, each a whole (small) image: the plane render (span
+  // kernels) or, for a surface, RenderIntegral's surface path.
   coarse.variance = variance;
-  for (int k = 0; k < coarse_slices; ++k) {
+  const int cw = coarse_camera.width, ch = coarse_camera.height;
+  const size_t coarse_pixels = static_cast<size_t>(cw) * ch;
+  const size_t groups = (coarse_pixels + kCoarseGroup - 1) / kCoarseGroup;
+  bool one_normal = true;
+  for (int k = 0; k < coarse_slices && !focus.surface; ++k) {
+    one_normal = one_normal && focus.planes[static_cast<size_t>(indices[static_cast<size_t>(k)])]
+                                       .normal == focus.planes[0].normal;
+  }
+  const bool packed_route = g_coarse_points &&
+                            one_normal && groups * kCoarseGroup * coarse_slices <= kPackedPoints;
+  const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, coarse);
+  if (packed_route) {
+    // Every coarse slice in one render call of packed points: groups of kCoarseGroup coarse
+    // pixels in Morton order, each group's slices one after another. A tile of points is then a
+    // small patch of the image on every slice, and each view's pixels under it (the patch and
+    // its parallax across the slices) stay in cache from one slice to the next; rendered slice
+    // by slice, each slice streamed every view's footprint from memory again (a coarse pixel
+    // is factor view pixels wide, so neighbouring coarse pixels share no view pixels).
+    const std::vector<int32_t> order = MortonOrder(cw, ch);
+    FocalPoints points;
+    points.width = kPackedWidth;
+    const size_t total = groups * kCoarseGroup * static_cast<size_t>(coarse_slices);
+    points.height = static_cast<int>((total + kPackedWidth - 1) / kPackedWidth);
+    points.reference = cam_from_world.Center();
+    points.points.assign(static_cast<size_t>(points.width) * points.height,
+                         Vec3d(std::numeric_limits<double>::quiet_NaN()));
+    std::vector<int32_t> places(coarse_pixels);
+    std::vector<float> slice_of;
+    for (int k = 0; k < coarse_slices; ++k) {
+      for (size_t m = 0; m < coarse_pixels; ++m) {
+        places[m] = static_cast<int32_t>((m / kCoarseGroup) * kCoarseGroup * coarse_slices +
+                                         static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup);
+      }
+      SlicePoints(focus, coarse_camera, cam_from_world, indices[static_cast<size_t>(k)], order,
+                  places.data(), 0, points.points.data(), &slice_of, threads);
+    }
+    const Vec3d normal = focus.surface ? focus.GrazingPlane().normal : focus.planes[0].normal;
+    SurfaceIntegralResult packed;
+    try {
+      packed = RenderIntegralAtPoints(light_field, points,
+                                      PackedOptions(coarse, cam_from_world, normal, variance));
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid("coarse slices: " + std::string(error.what()));
+    }
+    const int channels = packed.integral.image.channels();
+    IntegralResult slice;
+    slice.image = Image(cw, ch, channels, PixelType::kF32);
+    slice.count = Image(cw, ch, 1, PixelType::kU32);
+    if (variance) slice.variance = Image(cw, ch, 1, PixelType::kF32);
+    for (int k = 0; k < coarse_slices; ++k) {
+      if (ProgressCancelled(progress)) throw Cancelled();
+      for (size_t m = 0; m < coarse_pixels; ++m) {
+        const size_t at = (m / kCoarseGroup) * kCoarseGroup * coarse_slices +
+                          static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup;
+        const int px = static_cast<int>(at % kPackedWidth), py = static_cast<int>(at / kPackedWidth);
+        const int x = order[m] % cw, y = order[m] / cw;
+        const float* in = packed.integral.image.At<float>(px, py);
+        float* out = slice.image.At<float>(x, y);
+        for (int c = 0; c < channels; ++c) out[c] = in[c];
+        *slice.count.At<uint32_t>(x, y) = *packed.integral.count.At<uint32_t>(px, py);
+        if (variance) *slice.variance.At<float>(x, y) = *packed.integral.variance.At<float>(px, py);
+      }
+      const std::vector<float> values =
+          FocusValues(run.merge.method, slice.image, slice.count,
+                      variance ? &slice.variance : nullptr, coarse_radius, threads);
+      accumulator.Add(k, slice.image, values);
+      ProgressAdvance(progress, 1);
+    }
+  }
+  for (int k = 0; k < coarse_slices && !packed_route; ++k) {
     if (ProgressCancelled(progress)) throw Cancelled();
     const int i = indices[static_cast<size_t>(k)];
     if (focus.surface) {
@@ -900,6 +975,7 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
 
 namespace internal {
 void SetCoarseToFineBlockPacking(bool enabled) { g_block_packing = enabled; }
+void SetCoarseToFineCoarsePoints(bool enabled) { g_coarse_points = enabled; }
 }  // namespace internal
 
 MergeMethod ParseMergeMethod(const std::string& name, const std::string& option) {
