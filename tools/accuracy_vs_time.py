@@ -600,7 +600,13 @@ def knob_merge(run: Run) -> Knob:
         f"merge timers (`seconds_render`, `seconds_merge`). The one-plane row is a single "
         f"`render_integral` at the middle of the range; the oracle row (the plain mean on the "
         f"true depth, `render_integral_on_depth`) needs the truth, so it is a reference, not on "
-        f"the Pareto front.")
+        f"the Pareto front. The coarse_to_fine {COARSE_TO_FINE} rows (the knob "
+        f"`AllInFocusOptions.coarse_to_fine`, merge.h) render a coarse stack at 1/{COARSE_TO_FINE} "
+        f"the width and height on every {COARSE_TO_FINE}th slice, then each "
+        f"{COARSE_TO_FINE} x {COARSE_TO_FINE} block's full-resolution slices near its coarse "
+        f"focus peak only (4-5 a pixel; all of them in one render call, packed block by block); "
+        f"the saving grows with the number of slices and the output size "
+        f"(`tools/bench_coarse_to_fine.py`, 100 slices: docs/benchmarks.md).")
     return Knob("merge", "Focal slices and merge method (all-in-focus)", setup,
                 "all_in_focus (ms)", rows)
 

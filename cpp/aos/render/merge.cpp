@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <atomic>
 #include <functional>
 #include <limits>
 #include <memory>
@@ -437,10 +438,11 @@ void Reintegrate(const LightField& light_field, const IntegralOptions& render,
 // field of view of the rounded-up size and square pixels, so blocks and coarse pixels coincide
 // up to under a coarse pixel). Blocks are the unit whose slices the coarse pass chooses.
 //
-// Both passes render their (slice, pixel) pairs as packed focal points, many slices in one
+// The fine pass renders its (slice, pixel) pairs as packed focal points, many slices in one
 // RenderIntegralAtPoints call (the depth path's rules: equal to the plane render up to float
 // rounding): a render call has a fixed cost per view that small or sparse slices would pay
-// once each otherwise.
+// once each otherwise. Packed block-major (each block's slices together), a tile of points is a
+// compact patch of the image and the renderer culls most views per tile by its bounding box.
 
 // Where the coarse focus curve has a concave peak, the full slices taken are those within
 // kFineMargin full slices of its vertex (interpolated between the coarse slices' full indices),
@@ -448,6 +450,15 @@ void Reintegrate(const LightField& light_field, const IntegralOptions& render,
 // stack's peak lies within half a slice of that vertex nearly everywhere, so the band holds it
 // and both parabola neighbours (1.5 = 1 + 1/2); 4 or 5 slices instead of 2 factor + 1.
 constexpr double kFineMargin = 1.5;
+
+// Whether the fine pass packs its points block by block (the default) rather than slice by
+// slice (internal::SetCoarseToFineBlockPacking; tests compare the two).
+std::atomic<bool> g_block_packing{true};
+// Whether the coarse stack renders through packed points (the default) rather than slice by
+// slice through RenderIntegral (internal::SetCoarseToFineCoarsePoints; tests compare the two).
+std::atomic<bool> g_coarse_points{true};
+// Coarse pixels whose slices are packed together (coarse stack through packed points).
+constexpr size_t kCoarseGroup = 16;
 
 // Points packed per render call, at most (bounds the memory whatever the number of slices).
 constexpr size_t kPackedPoints = size_t{1} << 21;
@@ -488,6 +499,63 @@ std::vector<int> CoarseSliceIndices(int slices, int factor) {
   return indices;
 }
 
+// The focal points of slice `slice` on pixels `list` (indices y * width + x of `camera`): point
+// j goes to out[positions[j]], or out[first + j] without positions; a ray that misses the plane
+// or surface leaves its point as it was (NaN: count 0). `slice_of` is scratch (surfaces).
+void SlicePoints(const SliceFocus& focus, const PinholeCamera& camera,
+                 const Rigid3d& cam_from_world, int slice, const std::vector<int32_t>& list,
+                 const int32_t* positions, size_t first, Vec3d* out,
+                 std::vector<float>* slice_of, int threads) {
+  const Vec3d centre = cam_from_world.Center();
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  const auto slot = [&](size_t j) -> Vec3d& {
+    return out[positions != nullptr ? static_cast<size_t>(positions[j]) : first + j];
+  };
+  if (focus.surface) {
+    slice_of->assign(static_cast<size_t>(camera.width) * camera.height, -1.0f);
+    for (const int32_t p : list) (*slice_of)[static_cast<size_t>(p)] = static_cast<float>(slice);
+    const Image depth = focus.DepthOfSlices(camera, cam_from_world, *slice_of, threads);
+    for (size_t j = 0; j < list.size(); ++j) {
+      const int x = list[j] % camera.width, y = list[j] / camera.width;
+      const double z = depth.At<float>(x, y)[0];
+      if (z > 0.0 && std::isfinite(z)) {
+        slot(j) = z * (world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5)));
+      }
+    }
+    return;
+  }
+  // A plane: where each pixel's ray meets it (DepthOfSlices' arithmetic, kept in double).
+  const Plane& plane = focus.planes[static_cast<size_t>(slice)];
+  const Vec3d unit = glm::normalize(plane.normal);
+  const double height = glm::dot(unit, plane.point - centre);
+  const int64_t count = static_cast<int64_t>(list.size());
+#pragma omp parallel for num_threads(threads) schedule(static)
+  for (int64_t j = 0; j < count; ++j) {
+    const int x = list[static_cast<size_t>(j)] % camera.width;
+    const int y = list[static_cast<size_t>(j)] / camera.width;
+    const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
+    const double f = glm::dot(unit, direction);
+    const double t = f != 0.0 ? height / f : 0.0;
+    if (t > 0.0 && std::isfinite(t)) slot(static_cast<size_t>(j)) = t * direction;
+  }
+}
+
+// The depth path's options for packed slices (the plane render's rules).
+PointIntegralOptions PackedOptions(const IntegralOptions& resolved, const Rigid3d& cam_from_world,
+                                   const Vec3d& normal, bool variance) {
+  PointIntegralOptions at_points;
+  at_points.aperture = PointIntegralOptions::Aperture::kLensPlane;
+  at_points.aperture_radius = resolved.aperture_radius;
+  at_points.lens_center = cam_from_world.Center();
+  at_points.lens_axis = Row(cam_from_world.rotation, 2);
+  at_points.surface_normal = normal;
+  at_points.min_view_angle_deg = resolved.min_view_angle_deg;
+  at_points.view_indices = resolved.view_indices;
+  at_points.num_threads = resolved.num_threads;
+  at_points.variance = variance;
+  return at_points;
+}
+
 // Renders slice `slices[k]`'s pixels `pixels(k)` (indices y * width + x of `camera`) for every
 // k in one call per kPackedPoints points, handing each slice to `on_slice(k, packed, first)`:
 // its pixels are packed row-major at positions first, first + 1, ... of the result
@@ -502,7 +570,6 @@ void RenderPackedSlices(const LightField& light_field, const IntegralOptions& re
                         const PixelLists& pixels, bool variance,
                         int threads, const PackedSink& on_slice, ProgressSink* progress) {
   const Vec3d centre = cam_from_world.Center();
-  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
   const size_t n = slices.size();
   std::vector<float> slice_of;  // surfaces: DepthOfSlices' per-pixel slice
   size_t k0 = 0;
@@ -527,45 +594,11 @@ void RenderPackedSlices(const LightField& light_field, const IntegralOptions& re
     for (size_t k = k0; k < k1; ++k) {
       const std::vector<int32_t>& list = pixels(k);
       first[k - k0 + 1] = first[k - k0] + list.size();
-      Vec3d* out = points.points.data() + first[k - k0];
-      if (focus.surface) {
-        slice_of.assign(static_cast<size_t>(camera.width) * camera.height, -1.0f);
-        for (const int32_t p : list) slice_of[static_cast<size_t>(p)] = static_cast<float>(slices[k]);
-        const Image depth = focus.DepthOfSlices(camera, cam_from_world, slice_of, threads);
-        for (size_t j = 0; j < list.size(); ++j) {
-          const int x = list[j] % camera.width, y = list[j] / camera.width;
-          const double z = depth.At<float>(x, y)[0];
-          if (z > 0.0 && std::isfinite(z)) {
-            out[j] = z * (world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5)));
-          }
-        }
-        continue;
-      }
-      // A plane: where each pixel's ray meets it (DepthOfSlices' arithmetic, kept in double).
-      const Plane& plane = focus.planes[static_cast<size_t>(slices[k])];
-      const Vec3d unit = glm::normalize(plane.normal);
-      const double height = glm::dot(unit, plane.point - centre);
-      const int64_t count = static_cast<int64_t>(list.size());
-#pragma omp parallel for num_threads(threads) schedule(static)
-      for (int64_t j = 0; j < count; ++j) {
-        const int x = list[static_cast<size_t>(j)] % camera.width;
-        const int y = list[static_cast<size_t>(j)] / camera.width;
-        const Vec3d direction = world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
-        const double f = glm::dot(unit, direction);
-        const double t = f != 0.0 ? height / f : 0.0;
-        if (t > 0.0 && std::isfinite(t)) out[j] = t * direction;
-      }
+      SlicePoints(focus, camera, cam_from_world, slices[k], list, nullptr, first[k - k0],
+                  points.points.data(), &slice_of, threads);
     }
-    PointIntegralOptions at_points;
-    at_points.aperture = PointIntegralOptions::Aperture::kLensPlane;
-    at_points.aperture_radius = resolved.aperture_radius;
-    at_points.lens_center = centre;
-    at_points.lens_axis = Row(cam_from_world.rotation, 2);
-    at_points.surface_normal = normal;
-    at_points.min_view_angle_deg = resolved.min_view_angle_deg;
-    at_points.view_indices = resolved.view_indices;
-    at_points.num_threads = resolved.num_threads;
-    at_points.variance = variance;
+    const PointIntegralOptions at_points =
+        PackedOptions(resolved, cam_from_world, normal, variance);
     SurfaceIntegralResult packed;
     try {
       packed = RenderIntegralAtPoints(light_field, points, at_points);
@@ -611,10 +644,80 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
   ProgressStart(progress, "coarse stack", coarse_slices);
   FocusAccumulator accumulator(coarse_camera, light_field.views.front().image.channels(),
                                coarse_slices);
-  // Each coarse slice is a whole (small) image: the plane render (span kernels) or, for a
-  // surface, RenderIntegral's surface path, as RenderFocalStackSlices renders a full slice.
+  // Every coarse slice in one call of packed points (below), or, where they exceed one call's
+  // bound or the planes' normals differ, each a whole (small) image: the plane render (span
+  // kernels) or, for a surface, RenderIntegral's surface path.
   coarse.variance = variance;
-  for (int k = 0; k < coarse_slices; ++k) {
+  const int cw = coarse_camera.width, ch = coarse_camera.height;
+  const size_t coarse_pixels = static_cast<size_t>(cw) * ch;
+  const size_t groups = (coarse_pixels + kCoarseGroup - 1) / kCoarseGroup;
+  bool one_normal = true;
+  for (int k = 0; k < coarse_slices && !focus.surface; ++k) {
+    one_normal = one_normal && focus.planes[static_cast<size_t>(indices[static_cast<size_t>(k)])]
+                                       .normal == focus.planes[0].normal;
+  }
+  const bool packed_route = g_coarse_points &&
+                            one_normal && groups * kCoarseGroup * coarse_slices <= kPackedPoints;
+  const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, coarse);
+  if (packed_route) {
+    // Every coarse slice in one render call of packed points: groups of kCoarseGroup coarse
+    // pixels in Morton order, each group's slices one after another. A tile of points is then a
+    // small patch of the image on every slice, and each view's pixels under it (the patch and
+    // its parallax across the slices) stay in cache from one slice to the next; rendered slice
+    // by slice, each slice streamed every view's footprint from memory again (a coarse pixel
+    // is factor view pixels wide, so neighbouring coarse pixels share no view pixels).
+    const std::vector<int32_t> order = MortonOrder(cw, ch);
+    FocalPoints points;
+    points.width = kPackedWidth;
+    const size_t total = groups * kCoarseGroup * static_cast<size_t>(coarse_slices);
+    points.height = static_cast<int>((total + kPackedWidth - 1) / kPackedWidth);
+    points.reference = cam_from_world.Center();
+    points.points.assign(static_cast<size_t>(points.width) * points.height,
+                         Vec3d(std::numeric_limits<double>::quiet_NaN()));
+    std::vector<int32_t> places(coarse_pixels);
+    std::vector<float> slice_of;
+    for (int k = 0; k < coarse_slices; ++k) {
+      for (size_t m = 0; m < coarse_pixels; ++m) {
+        places[m] = static_cast<int32_t>((m / kCoarseGroup) * kCoarseGroup * coarse_slices +
+                                         static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup);
+      }
+      SlicePoints(focus, coarse_camera, cam_from_world, indices[static_cast<size_t>(k)], order,
+                  places.data(), 0, points.points.data(), &slice_of, threads);
+    }
+    const Vec3d normal = focus.surface ? focus.GrazingPlane().normal : focus.planes[0].normal;
+    SurfaceIntegralResult packed;
+    try {
+      packed = RenderIntegralAtPoints(light_field, points,
+                                      PackedOptions(coarse, cam_from_world, normal, variance));
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid("coarse slices: " + std::string(error.what()));
+    }
+    const int channels = packed.integral.image.channels();
+    IntegralResult slice;
+    slice.image = Image(cw, ch, channels, PixelType::kF32);
+    slice.count = Image(cw, ch, 1, PixelType::kU32);
+    if (variance) slice.variance = Image(cw, ch, 1, PixelType::kF32);
+    for (int k = 0; k < coarse_slices; ++k) {
+      if (ProgressCancelled(progress)) throw Cancelled();
+      for (size_t m = 0; m < coarse_pixels; ++m) {
+        const size_t at = (m / kCoarseGroup) * kCoarseGroup * coarse_slices +
+                          static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup;
+        const int px = static_cast<int>(at % kPackedWidth), py = static_cast<int>(at / kPackedWidth);
+        const int x = order[m] % cw, y = order[m] / cw;
+        const float* in = packed.integral.image.At<float>(px, py);
+        float* out = slice.image.At<float>(x, y);
+        for (int c = 0; c < channels; ++c) out[c] = in[c];
+        *slice.count.At<uint32_t>(x, y) = *packed.integral.count.At<uint32_t>(px, py);
+        if (variance) *slice.variance.At<float>(x, y) = *packed.integral.variance.At<float>(px, py);
+      }
+      const std::vector<float> values =
+          FocusValues(run.merge.method, slice.image, slice.count,
+                      variance ? &slice.variance : nullptr, coarse_radius, threads);
+      accumulator.Add(k, slice.image, values);
+      ProgressAdvance(progress, 1);
+    }
+  }
+  for (int k = 0; k < coarse_slices && !packed_route; ++k) {
     if (ProgressCancelled(progress)) throw Cancelled();
     const int i = indices[static_cast<size_t>(k)];
     if (focus.surface) {
@@ -706,20 +809,24 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
   const bool variance = method == MergeMethod::kRobust;
   *accumulator = std::make_unique<FocusAccumulator>(camera, channels, slices);
   const Timer list_timer;
-  // Every slice's pixels, block by block in Morton order (packed points stay near each other).
+  // Every slice's pixels, block by block in Morton order (packed points stay near each other),
+  // and each one's place in the block-major packing: block after block in Morton order, each
+  // block's slices one after another.
   std::vector<int> indices(static_cast<size_t>(slices));
   std::vector<std::vector<int32_t>> lists(static_cast<size_t>(slices));
+  std::vector<std::vector<int32_t>> places(static_cast<size_t>(slices));
   int64_t rendered = 0;
+  int32_t place = 0;
   for (const int32_t block : MortonOrder(choice.blocks_x, choice.blocks_y)) {
-    {
-      const int bx = block % choice.blocks_x, by = block / choice.blocks_x;
-      for (int i = choice.first[static_cast<size_t>(block)];
-           i <= choice.last[static_cast<size_t>(block)]; ++i) {
-        std::vector<int32_t>& list = lists[static_cast<size_t>(i)];
-        for (int y = by * factor; y < std::min(h, (by + 1) * factor); ++y) {
-          for (int x = bx * factor; x < std::min(w, (bx + 1) * factor); ++x) {
-            list.push_back(y * w + x);
-          }
+    const int bx = block % choice.blocks_x, by = block / choice.blocks_x;
+    for (int i = choice.first[static_cast<size_t>(block)];
+         i <= choice.last[static_cast<size_t>(block)]; ++i) {
+      std::vector<int32_t>& list = lists[static_cast<size_t>(i)];
+      std::vector<int32_t>& at = places[static_cast<size_t>(i)];
+      for (int y = by * factor; y < std::min(h, (by + 1) * factor); ++y) {
+        for (int x = bx * factor; x < std::min(w, (bx + 1) * factor); ++x) {
+          list.push_back(y * w + x);
+          if (static_cast<size_t>(place) < kPackedPoints) at.push_back(place++);
         }
       }
     }
@@ -734,7 +841,115 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
   std::vector<float> values(pixels, kNone);
   Image image(w, h, channels, PixelType::kF32);
   *seconds_merge += list_timer.Seconds();
+  // Folds slice i, rendered on its pixels `lists[i]`, into the accumulator: `in` holds pixel
+  // j of the list (image index p) at position(j, p).
+  const auto fold = [&](int i, const IntegralResult& in, const auto& position) {
+    const size_t k = static_cast<size_t>(i);
+    const std::vector<int32_t>& list = lists[k];
+    for (size_t j = 0; j < list.size(); ++j) {
+      const size_t p = static_cast<size_t>(list[j]);
+      const auto [px, py] = position(j, p);
+      const uint32_t n = in.count.At<uint32_t>(px, py)[0];
+      const float* sample = in.image.At<float>(px, py);
+      float* out = image.At<float>(static_cast<int>(p % w), static_cast<int>(p / w));
+      float sum = 0.0f;
+      for (int c = 0; c < channels; ++c) {
+        out[c] = sample[c];
+        sum += sample[c];
+      }
+      covered[p] = n > 0;
+      agreeing[p] = n >= 2;
+      luminance[p] = sum / static_cast<float>(channels);
+      if (variance) spread[p] = in.variance.At<float>(px, py)[0];
+    }
+    const int64_t count = static_cast<int64_t>(list.size());
+    // Sobel energy (FocusValues' arithmetic; pixels not rendered are uncovered).
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int64_t j = 0; j < count; ++j) {
+      const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
+      const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
+      if (!covered[p]) continue;
+      energy[p] = SobelEnergyAt(luminance, covered, w, h, x, y);
+    }
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int64_t j = 0; j < count; ++j) {
+      const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
+      const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
+      if (!covered[p]) continue;
+      if (method == MergeMethod::kSobel) {
+        values[p] = static_cast<float>(std::sqrt(energy[p]));
+        continue;
+      }
+      const float sharp = WindowMeanAt(energy, covered, w, h, r, x, y);
+      if (method == MergeMethod::kImproved) {
+        values[p] = sharp;
+        continue;
+      }
+      const float disagreement = WindowMeanAt(spread, agreeing, w, h, r, x, y);
+      if (disagreement == kNone) continue;
+      const double e = sharp;
+      values[p] = static_cast<float>(e / (static_cast<double>(disagreement) + 1e-12 * (1.0 + e)));
+    }
+    (*accumulator)->AddAt(i, image, list, values);
+    // Back to the empty state for the next slice (only the pixels this one touched).
+    for (const int32_t p : list) {
+      covered[static_cast<size_t>(p)] = 0;
+      agreeing[static_cast<size_t>(p)] = 0;
+      values[static_cast<size_t>(p)] = kNone;
+    }
+  };
   ProgressStart(progress, "focal stack", slices);
+  bool one_normal = true;
+  for (int i = 0; i < slices && !focus.surface; ++i) {
+    one_normal = one_normal && focus.planes[static_cast<size_t>(i)].normal == focus.planes[0].normal;
+  }
+  if (g_block_packing && one_normal && static_cast<size_t>(rendered) <= kPackedPoints) {
+    // Block-major: one render call for every (slice, pixel) pair, so that each tile of packed
+    // points covers a compact patch of the image (about 50 blocks at factor 4) and the renderer's
+    // view culling by the tile's bounding box keeps only the views that see that patch. Packed
+    // slice by slice, a tile held about 256 blocks of one slice, which on a scene whose focus
+    // jumps (F0) lie all over the image, so nearly every view was tested on every point. Each
+    // pair's samples and their order are the same either way (test: merge_test
+    // CoarseToFineBlockPackingEqualsSlicePacking).
+    Timer render_timer;
+    FocalPoints points;
+    points.width = kPackedWidth;
+    points.height = static_cast<int>(
+        std::max<int64_t>(1, (rendered + kPackedWidth - 1) / kPackedWidth));
+    points.reference = cam_from_world.Center();
+    points.points.assign(static_cast<size_t>(points.width) * points.height,
+                         Vec3d(std::numeric_limits<double>::quiet_NaN()));
+    std::vector<float> slice_of;
+    for (int i = 0; i < slices; ++i) {
+      if (lists[static_cast<size_t>(i)].empty()) continue;
+      SlicePoints(focus, camera, cam_from_world, i, lists[static_cast<size_t>(i)],
+                  places[static_cast<size_t>(i)].data(), 0, points.points.data(), &slice_of,
+                  threads);
+    }
+    const Vec3d normal = focus.surface ? focus.GrazingPlane().normal : focus.planes[0].normal;
+    SurfaceIntegralResult packed;
+    try {
+      packed = RenderIntegralAtPoints(light_field, points,
+                                      PackedOptions(resolved, cam_from_world, normal, variance));
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid("fine slices: " + std::string(error.what()));
+    }
+    *seconds_render += render_timer.Seconds();
+    const Timer fold_timer;
+    for (int i = 0; i < slices; ++i) {
+      if (ProgressCancelled(progress)) throw Cancelled();
+      const std::vector<int32_t>& at = places[static_cast<size_t>(i)];
+      if (!at.empty()) {
+        fold(i, packed.integral, [&](size_t j, size_t) {
+          return std::pair<int, int>(at[j] % kPackedWidth, at[j] / kPackedWidth);
+        });
+      }
+      ProgressAdvance(progress, 1);
+    }
+    *seconds_merge += fold_timer.Seconds();
+    return static_cast<double>(rendered) / (static_cast<double>(pixels) * slices);
+  }
+  // Surfaces, lens views: packed points through the depth path, many slices a call.
   Timer render_timer;
   RenderPackedSlices(
       light_field, resolved, camera, cam_from_world, focus, indices,
@@ -742,65 +957,11 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
       [&](size_t k, const SurfaceIntegralResult& packed, size_t first) {
         if (k == 0 || first == 0) *seconds_render += render_timer.Seconds();
         const Timer fold_timer;
-        const int i = static_cast<int>(k);
-        const std::vector<int32_t>& list = lists[k];
-        if (list.empty()) {
-          ProgressAdvance(progress, 1);
-          *seconds_merge += fold_timer.Seconds();
-          return;
-        }
-        const IntegralResult& in = packed.integral;
-        for (size_t j = 0; j < list.size(); ++j) {
-          const size_t p = static_cast<size_t>(list[j]);
-          const int px = static_cast<int>((first + j) % kPackedWidth);
-          const int py = static_cast<int>((first + j) / kPackedWidth);
-          const uint32_t n = in.count.At<uint32_t>(px, py)[0];
-          const float* sample = in.image.At<float>(px, py);
-          float* out = image.At<float>(static_cast<int>(p % w), static_cast<int>(p / w));
-          float sum = 0.0f;
-          for (int c = 0; c < channels; ++c) {
-            out[c] = sample[c];
-            sum += sample[c];
-          }
-          covered[p] = n > 0;
-          agreeing[p] = n >= 2;
-          luminance[p] = sum / static_cast<float>(channels);
-          if (variance) spread[p] = in.variance.At<float>(px, py)[0];
-        }
-        const int64_t count = static_cast<int64_t>(list.size());
-        // Sobel energy (FocusValues' arithmetic; pixels not rendered are uncovered).
-#pragma omp parallel for num_threads(threads) schedule(static)
-        for (int64_t j = 0; j < count; ++j) {
-          const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
-          const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
-          if (!covered[p]) continue;
-          energy[p] = SobelEnergyAt(luminance, covered, w, h, x, y);
-        }
-#pragma omp parallel for num_threads(threads) schedule(static)
-        for (int64_t j = 0; j < count; ++j) {
-          const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
-          const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
-          if (!covered[p]) continue;
-          if (method == MergeMethod::kSobel) {
-            values[p] = static_cast<float>(std::sqrt(energy[p]));
-            continue;
-          }
-          const float sharp = WindowMeanAt(energy, covered, w, h, r, x, y);
-          if (method == MergeMethod::kImproved) {
-            values[p] = sharp;
-            continue;
-          }
-          const float disagreement = WindowMeanAt(spread, agreeing, w, h, r, x, y);
-          if (disagreement == kNone) continue;
-          const double e = sharp;
-          values[p] = static_cast<float>(e / (static_cast<double>(disagreement) + 1e-12 * (1.0 + e)));
-        }
-        (*accumulator)->AddAt(i, image, list, values);
-        // Back to the empty state for the next slice (only the pixels this one touched).
-        for (const int32_t p : list) {
-          covered[static_cast<size_t>(p)] = 0;
-          agreeing[static_cast<size_t>(p)] = 0;
-          values[static_cast<size_t>(p)] = kNone;
+        if (!lists[k].empty()) {
+          fold(static_cast<int>(k), packed.integral, [&](size_t j, size_t) {
+            return std::pair<int, int>(static_cast<int>((first + j) % kPackedWidth),
+                                       static_cast<int>((first + j) / kPackedWidth));
+          });
         }
         ProgressAdvance(progress, 1);
         *seconds_merge += fold_timer.Seconds();
@@ -811,6 +972,11 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
 }
 
 }  // namespace
+
+namespace internal {
+void SetCoarseToFineBlockPacking(bool enabled) { g_block_packing = enabled; }
+void SetCoarseToFineCoarsePoints(bool enabled) { g_coarse_points = enabled; }
+}  // namespace internal
 
 MergeMethod ParseMergeMethod(const std::string& name, const std::string& option) {
   if (name == "sobel") return MergeMethod::kSobel;

@@ -43,8 +43,11 @@
 // Coarse-to-fine (RenderAllInFocus with AllInFocusOptions::coarse_to_fine = factor f >= 2)
 // - A coarse stack: the virtual camera at 1/f the width and height (rounded up; the field of
 //   view widened to match, so a coarse pixel is an f x f block of output pixels), on every f-th
-//   slice and the last, each rendered as a whole slice is (RenderIntegral), merged with the
-//   same focus cue (window radius ceil(r / f), at least 1).
+//   slice and the last, all rendered in one call of the depth path (RenderIntegralAtPoints on
+//   the slices' points, packed 16 coarse pixels at a time with their slices together, so each
+//   view's pixels under a patch stay in cache across the slices; the plane render's rules,
+//   equal up to float rounding), merged with the same focus cue (window radius ceil(r / f), at
+//   least 1).
 // - Each block takes the full slices from the coarse slice before its coarse focus maximum to
 //   the one after it (at most 2f + 1 slices; every slice where no coarse slice covers it);
 //   where the coarse peak is concave (both neighbours, negative curvature) only those within
@@ -52,8 +55,11 @@
 //   slices): 4 or 5 slices, which hold the full-stack peak and both its parabola neighbours
 //   wherever that peak lies within half a slice of the vertex. Full slice i is rendered at full
 //   resolution only on the blocks that take it, through the depth path
-//   (RenderIntegralAtPoints on the plane's or surface's points, many slices per call: the
-//   plane render's rules, results equal up to float rounding), and its focus values, computed
+//   (RenderIntegralAtPoints on the plane's or surface's points: the plane render's rules,
+//   results equal up to float rounding; every (slice, pixel) pair in one call, packed block by
+//   block so that each tile of points covers a compact patch of the image, or slice by slice
+//   in calls of at most 2^21 points where there are more or the planes' normals differ: the
+//   same outputs either way), and its focus values, computed
 //   as for a full slice with the pixels not rendered counting as uncovered, enter the fold only
 //   there; elsewhere the slice has no focus value.
 // - So where a pixel's full-stack peak and its two neighbours lie in its block's slices, and the
@@ -140,5 +146,19 @@ struct AllInFocusOptions {
 // winning slice's pixels.
 MergeResult RenderAllInFocus(const LightField& light_field, const AllInFocusOptions& options,
                              ProgressSink* progress = nullptr);
+
+namespace internal {
+// Coarse-to-fine's fine pass packs its (slice, pixel) points block by block, one render call
+// (on by default; where they exceed one call's bound, or the planes' normals differ, it packs
+// them slice by slice); off: always slice by slice, as before. The outputs are the same either
+// way (tests compare them); only the time differs. Not thread-safe: set it before rendering.
+void SetCoarseToFineBlockPacking(bool enabled);
+// Coarse-to-fine's coarse stack renders every coarse slice in one call of packed points (on by
+// default, under the same conditions as above); off: slice by slice through RenderIntegral
+// (the plane's span kernels), as before. The focus values then differ by float rounding
+// (the depth path's samples against the span kernels'), so the outputs agree up to that
+// (tests compare them). Not thread-safe: set it before rendering.
+void SetCoarseToFineCoarsePoints(bool enabled);
+}  // namespace internal
 
 }  // namespace aos
