@@ -28,6 +28,26 @@ struct SpanSetup {
   int height;  // of the view, pixels
 };
 
+// The span's constants: the row line re-based at its first pixel `xa` (double, then float, as
+// the scalar kernel), the view's clamp limits and its rows; `value_size` bytes per sample.
+__attribute__((target("avx2,fma"))) inline SpanSetup MakeSpanSetup(const Image& image,
+                                                                   const RowLine& line, int xa,
+                                                                   int value_size) {
+  SpanSetup c;
+  c.origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
+  c.stride_bytes = static_cast<int>(image.row_stride()) * value_size;
+  c.ua = _mm256_set1_ps(static_cast<float>(line.u0 + line.du * xa));
+  c.va = _mm256_set1_ps(static_cast<float>(line.v0 + line.dv * xa));
+  c.wa = _mm256_set1_ps(static_cast<float>(line.w0 + line.dw * xa));
+  c.du = _mm256_set1_ps(static_cast<float>(line.du));
+  c.dv = _mm256_set1_ps(static_cast<float>(line.dv));
+  c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
+  c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
+  c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
+  c.height = image.height();
+  return c;
+}
+
 // Where the 8 samples of a group fall in the view: the top-left tap and the weights.
 struct Positions {
   __m256 ax, ay;
@@ -163,19 +183,8 @@ __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const 
                                                       int xa, int xb, int x0, double* sum,
                                                       double* sum_squares) {
   constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
-  SpanSetup c;
-  c.origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
-  c.stride_bytes = static_cast<int>(image.row_stride()) * kValueSize;
   // Same re-basing and arithmetic order as the scalar kernel.
-  c.ua = _mm256_set1_ps(static_cast<float>(line.u0 + line.du * xa));
-  c.va = _mm256_set1_ps(static_cast<float>(line.v0 + line.dv * xa));
-  c.wa = _mm256_set1_ps(static_cast<float>(line.w0 + line.dw * xa));
-  c.du = _mm256_set1_ps(static_cast<float>(line.du));
-  c.dv = _mm256_set1_ps(static_cast<float>(line.dv));
-  c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
-  c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
-  c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
-  c.height = image.height();
+  const SpanSetup c = MakeSpanSetup(image, line, xa, kValueSize);
   double* out = sum + (xa - x0);
   double* squares = kSquares ? sum_squares + (xa - x0) : nullptr;
   const int n = xb - xa;
@@ -285,18 +294,7 @@ template <bool kSquares>
 __attribute__((target("avx2,fma"))) void Avx2SpanU8Rows(const Image& image, const RowLine& line,
                                                         int xa, int xb, int x0, double* sum,
                                                         double* sum_squares) {
-  SpanSetup c;
-  c.origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
-  c.stride_bytes = static_cast<int>(image.row_stride());
-  c.ua = _mm256_set1_ps(static_cast<float>(line.u0 + line.du * xa));
-  c.va = _mm256_set1_ps(static_cast<float>(line.v0 + line.dv * xa));
-  c.wa = _mm256_set1_ps(static_cast<float>(line.w0 + line.dw * xa));
-  c.du = _mm256_set1_ps(static_cast<float>(line.du));
-  c.dv = _mm256_set1_ps(static_cast<float>(line.dv));
-  c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
-  c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
-  c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
-  c.height = image.height();
+  const SpanSetup c = MakeSpanSetup(image, line, xa, 1);
   double* out = sum + (xa - x0);
   double* squares = kSquares ? sum_squares + (xa - x0) : nullptr;
   const int n = xb - xa;
@@ -405,18 +403,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void FinishTwoChannels
 __attribute__((target("avx2,fma"))) void Avx2SpanU8TwoChannels(const Image& image,
                                                                const RowLine& line, int xa, int xb,
                                                                int x0, double* sum) {
-  SpanSetup c;
-  c.origin = static_cast<const unsigned char*>(image.RawAt(0, 0));
-  c.stride_bytes = static_cast<int>(image.row_stride());
-  c.ua = _mm256_set1_ps(static_cast<float>(line.u0 + line.du * xa));
-  c.va = _mm256_set1_ps(static_cast<float>(line.v0 + line.dv * xa));
-  c.wa = _mm256_set1_ps(static_cast<float>(line.w0 + line.dw * xa));
-  c.du = _mm256_set1_ps(static_cast<float>(line.du));
-  c.dv = _mm256_set1_ps(static_cast<float>(line.dv));
-  c.dw = _mm256_set1_ps(static_cast<float>(line.dw));
-  c.x_max = _mm256_set1_ps(static_cast<float>(image.width()) - 0.5f);
-  c.y_max = _mm256_set1_ps(static_cast<float>(image.height()) - 0.5f);
-  c.height = image.height();
+  const SpanSetup c = MakeSpanSetup(image, line, xa, 1);
   double* out = sum + 2 * (xa - x0);
   const int n = xb - xa;
   const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
