@@ -425,12 +425,28 @@ TEST_F(MapWrite, DiskEstimateCoversTheTemporaryFileAndTheCog) {
     const uint64_t estimate = MapWriteDiskBytes(grid, channels);
     const uint64_t raw = static_cast<uint64_t>(grid.width) * grid.height * (channels + 1) * 4;
     ASSERT_GT(measure.bytes, raw) << channels;  // uncompressed, with its overviews
+    // The temporary part alone (2/3 of the estimate) covers the temporary file: every block
+    // whole, the overview levels included (they may still be in GDAL's cache when measured).
+    EXPECT_GE(estimate * 2 / 3, measure.bytes) << channels;
     EXPECT_GE(estimate, measure.bytes + std::filesystem::file_size(Path("map.tif"))) << channels;
     // Not wildly over: the overview levels (a third of the base at most) may still be in GDAL's
     // cache when the copy starts, and the COG guess is half the temporary file.
     EXPECT_LE(estimate, measure.bytes * 5 / 2 + (2u << 20)) << channels;
     std::filesystem::remove(Path("map.tif"));
   }
+}
+
+TEST_F(MapWrite, RefusesToStartWithoutTheDiskSpaceNamingTheFolder) {
+  // A grid that no disk holds (4e12 pixels: petabytes): refused before any file is created.
+  MapGrid grid;
+  grid.pixel_size = 0.01;
+  grid.width = 2000000;
+  grid.height = 2000000;
+  const std::string error =
+      ErrorOf([&] { MapGeoTiffWriter writer(grid, 1, "", Path("map.tif")); });
+  EXPECT_THAT(error, HasSubstr(Path("map.tif") + ": its folder "));
+  EXPECT_THAT(error, HasSubstr("free; writing this 2000000 x 2000000 map needs about"));
+  EXPECT_TRUE(Files().empty());
 }
 
 // Stops after the first tile row.

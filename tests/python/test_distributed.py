@@ -96,6 +96,7 @@ def test_a_tile_s_count_travels_narrowed_but_exact(survey: Path) -> None:
     assert out["count"].dtype == np.uint8 and out["count"].max() > 0
     assert np.array_equal(out["count"], reference["count"])
     assert np.array_equal(out["image"], reference["image"])
+    aos.distributed._CACHES.clear()  # the task's frame cache, held in this process
 
 
 def test_the_dask_map_is_bit_for_bit_the_single_process_map(survey: Path, tmp_path: Path,

@@ -30,7 +30,7 @@ struct SpanSetup {
 
 // The span's constants: the row line re-based at its first pixel `xa` (double, then float, as
 // the scalar kernel), the view's clamp limits and its rows; `value_size` bytes per sample.
-__attribute__((target("avx2,fma"))) inline SpanSetup MakeSpanSetup(const Image& image,
+__attribute__((target("avx2,fma"), always_inline)) inline SpanSetup MakeSpanSetup(const Image& image,
                                                                    const RowLine& line, int xa,
                                                                    int value_size) {
   SpanSetup c;

@@ -300,19 +300,21 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         raise ValueError("render_map(): arrays=False without a path keeps nothing; give a path")
     options, poses, grid, selection, channels = prepare_map(light_field, options, load)
 
-    owned = None
-    if client is None:
-        from dask.distributed import Client
-
-        if scheduler:
-            client = owned = Client(scheduler)
-        else:
-            client = owned = local_client(workers or 1)
+    # The writer first: it checks the output (folder, existing file, CRS, free disk space)
+    # before a cluster is started.
     writer = None
+    if path is not None:
+        writer = _core._MapGeoTiffWriter(poses, options, channels, os.fspath(path), force)
+    owned = None
     futures: list = []
     try:
-        if path is not None:
-            writer = _core._MapGeoTiffWriter(poses, options, channels, os.fspath(path), force)
+        if client is None:
+            from dask.distributed import Client
+
+            if scheduler:
+                client = owned = Client(scheduler)
+            else:
+                client = owned = local_client(workers or 1)
         image: Optional[np.ndarray] = None
         count: Optional[np.ndarray] = None
         if arrays:
@@ -381,7 +383,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             x0, y0 = out["x0"], out["y0"]
             h, w = out["count"].shape
             if writer is not None:
-                writer.write(x0, y0, out["image"], out["count"].astype(np.uint32))
+                writer.write(x0, y0, out["image"], out["count"].astype(np.uint32, copy=False))
             if image is not None and count is not None:
                 image[y0:y0 + h, x0:x0 + w] = out["image"]
                 count[y0:y0 + h, x0:x0 + w] = out["count"]
