@@ -724,27 +724,34 @@ TEST(RenderAllInFocus, CoarseToFineEqualsTheFullStackWhereTheFocusIsInRange) {
   }
 }
 
+// Coarse-to-fine (factor 4) over 41 slices of the simulated ground: planes, or with `surface`
+// a terrain-following stack on a tilted mesh (the slices' depths vary over the image).
+AllInFocusOptions CoarseToFineOptions(MergeMethod method, int size, bool surface) {
+  AllInFocusOptions options = GroundStackOptions(method, size, 41);
+  options.coarse_to_fine = 4;
+  if (surface) {
+    Mesh tilted;
+    tilted.vertices = {{-100, -100, -4.0}, {100, -100, 4.0}, {100, 100, 4.0}, {-100, 100, -4.0}};
+    tilted.triangles = {{0, 1, 2}, {0, 2, 3}};
+    options.stack.render.focal_surface =
+        std::make_shared<const FocalSurface>(FocalSurface::FromMesh(tilted));
+    options.stack.first_offset = -2.0;
+    options.stack.last_offset = 2.0;
+  }
+  return options;
+}
+
 TEST(RenderAllInFocus, CoarseToFineBlockPackingEqualsSlicePacking) {
   // The fine pass packs its (slice, pixel) points block by block in one render call (the
   // default) or slice by slice (the reference): the same points, each with its samples in view
   // order, so every output must be equal bit for bit; for planes and for a terrain-following
   // stack (a tilted mesh: the slices' depths vary over the image), with 1 and 2 threads.
   const int size = 32;
-  Mesh tilted;
-  tilted.vertices = {{-100, -100, -4.0}, {100, -100, 4.0}, {100, 100, 4.0}, {-100, 100, -4.0}};
-  tilted.triangles = {{0, 1, 2}, {0, 2, 3}};
   for (MergeMethod method : kAllMethods) {
     SCOPED_TRACE(MergeMethodName(method));
     for (const bool surface : {false, true}) {
       SCOPED_TRACE(surface);
-      AllInFocusOptions options = GroundStackOptions(method, size, 41);
-      options.coarse_to_fine = 4;
-      if (surface) {
-        options.stack.render.focal_surface =
-            std::make_shared<const FocalSurface>(FocalSurface::FromMesh(tilted));
-        options.stack.first_offset = -2.0;
-        options.stack.last_offset = 2.0;
-      }
+      AllInFocusOptions options = CoarseToFineOptions(method, size, surface);
       for (const int threads : {1, 2}) {
         options.merge.num_threads = options.stack.render.num_threads = threads;
         internal::SetCoarseToFineBlockPacking(false);
@@ -772,21 +779,11 @@ TEST(RenderAllInFocus, CoarseToFineCoarseStackThroughPointsAgreesWithTheSliceRen
   // to far below a slice and a grey level; planes and a tilted surface, 1 and 2 threads (the
   // outputs independent of the thread count).
   const int size = 32;
-  Mesh tilted;
-  tilted.vertices = {{-100, -100, -4.0}, {100, -100, 4.0}, {100, 100, 4.0}, {-100, 100, -4.0}};
-  tilted.triangles = {{0, 1, 2}, {0, 2, 3}};
   for (MergeMethod method : kAllMethods) {
     SCOPED_TRACE(MergeMethodName(method));
     for (const bool surface : {false, true}) {
       SCOPED_TRACE(surface);
-      AllInFocusOptions options = GroundStackOptions(method, size, 41);
-      options.coarse_to_fine = 4;
-      if (surface) {
-        options.stack.render.focal_surface =
-            std::make_shared<const FocalSurface>(FocalSurface::FromMesh(tilted));
-        options.stack.first_offset = -2.0;
-        options.stack.last_offset = 2.0;
-      }
+      AllInFocusOptions options = CoarseToFineOptions(method, size, surface);
       MergeResult first;
       for (const int threads : {1, 2}) {
         options.merge.num_threads = options.stack.render.num_threads = threads;
