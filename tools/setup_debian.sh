@@ -10,7 +10,7 @@ set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
 packages=(
-  cmake ninja-build g++ pkg-config
+  cmake ninja-build g++ pkg-config ccache
   libopencv-dev libopencv-contrib-dev libembree-dev libglm-dev
   libopenimageio-dev openimageio-tools colmap libsqlite3-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev zlib1g-dev libpng-dev libproj-dev

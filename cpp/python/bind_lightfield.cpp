@@ -56,6 +56,15 @@ auto EqualityMethod(Equal equal) {
   };
 }
 
+// View `index` of `light_field`, or std::invalid_argument naming the index.
+const View& ViewAt(const LightField& light_field, int index) {
+  if (index < 0 || static_cast<size_t>(index) >= light_field.views.size()) {
+    ThrowInvalid("index: " + std::to_string(index) + " is not a view (the light field has " +
+                 std::to_string(light_field.views.size()) + ")");
+  }
+  return light_field.views[static_cast<size_t>(index)];
+}
+
 }  // namespace
 
 void BindLightField(py::module_& m) {
@@ -324,6 +333,33 @@ void BindLightField(py::module_& m) {
       },
       "light_field"_a, "indices"_a,
       "Drops the decoded images of views `indices` in place (poses stay). Used by aos.distributed.");
+
+  m.def(
+      "_view_image",
+      [](const LightField& light_field, int index) {
+        return ArrayFromImage(ViewAt(light_field, index).image);
+      },
+      "light_field"_a, "index"_a,
+      "The decoded image of view `index` as a new numpy array (None if not decoded). Used by "
+      "aos.distributed's shared frame store.");
+  m.def(
+      "_set_view_image",
+      [](LightField& light_field, int index, const py::handle& array) {
+        View& view = const_cast<View&>(ViewAt(light_field, index));
+        const std::string where = "view " + std::to_string(index) + " (" + view.image_path + ")";
+        Image image = ImageFromArray(array, /*border=*/1, where + ": image");
+        const Image old = std::move(view.image);
+        view.image = std::move(image);
+        try {
+          CheckView(view, where);
+        } catch (...) {
+          view.image = old;
+          throw;
+        }
+      },
+      "light_field"_a, "index"_a, "image"_a,
+      "Sets the decoded image of view `index` (a copy of `image`, checked against the view's "
+      "camera). Used by aos.distributed's shared frame store.");
 
   const LoadOptions load_defaults;
   m.def(

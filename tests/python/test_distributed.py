@@ -127,6 +127,76 @@ def test_the_dask_map_is_bit_for_bit_the_single_process_map(survey: Path, tmp_pa
     assert not list(tmp_path.glob(".*"))  # no temporary files left
 
 
+def test_frames_two_workers_need_are_decoded_once_on_their_machine(survey: Path,
+                                                                   tmp_path: Path,
+                                                                   client) -> None:
+    """The shared frame store: frames that tiles of both workers need (the bands' border) are
+    handed from one worker to the other rather than decoded twice; the map is unchanged, and
+    the run leaves nothing in shared memory."""
+    loaded = aos.load_lightfield(survey).light_field
+    options = aos.MapOptions(pixel_size=PIXEL, tile_size=TILE)
+    reference = aos.render_map(loaded, options)
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    runs = {}
+    for share in (0, aos.distributed.DEFAULT_SHARE_BYTES):
+        runs[share] = aos.distributed.render_map(poses, options, path=None, client=client,
+                                                 arrays=True, share_bytes=share)
+        assert np.array_equal(runs[share].image, reference.image)
+        assert np.array_equal(runs[share].count, reference.count)
+    alone, together = runs[0], runs[aos.distributed.DEFAULT_SHARE_BYTES]
+    assert alone.frames_shared == 0
+    assert together.frames_shared > 0
+    assert together.frames_read < alone.frames_read
+    # Each frame is decoded at least once on this machine; a frame taken from the store was
+    # decoded by the other worker.
+    assert together.frames_read >= together.views_used
+    left = [f for f in os.listdir(aos.distributed._FrameStore("x", 0).folder.rsplit("/", 1)[0])
+            if f.startswith("aos-frames-")]
+    assert left == []
+    with pytest.raises(ValueError, match="share_bytes"):
+        aos.distributed.render_map(poses, options, path=None, client=client, arrays=True,
+                                   share_bytes=-1)
+
+
+def test_a_frame_from_the_store_is_the_decoded_frame_or_is_decoded_again(survey: Path) -> None:
+    """_FrameCache with a _FrameStore, in this process: frames published by one cache are taken
+    by another (not decoded), with the decoded pixels; a damaged or foreign file in the store,
+    or a budget spent, only means decoding."""
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    loaded = aos.load_lightfield(survey).light_field
+    token = "test-store"
+    try:
+        one = aos.distributed._FrameCache(poses, {}, 2**26,
+                                          aos.distributed._FrameStore(token, 2**26))
+        one.hold([0, 1, 2, 3], publish=[1, 2, 3])
+        assert (one.decoded, one.shared) == (4, 0)
+        folder = Path(one.store.folder)
+        assert sorted(p.name for p in folder.iterdir()) == ["1.npy", "2.npy", "3.npy"]
+        other = aos.distributed._FrameCache(poses, {}, 2**26,
+                                            aos.distributed._FrameStore(token, 2**26))
+        other.hold([1])  # before its own first decode, the store is not used
+        assert (other.decoded, other.shared) == (1, 0)
+        # View 3's file damaged, view 2's replaced by another frame size: both decoded.
+        (folder / "3.npy").write_bytes(b"\x93NUMPY damaged")
+        np.save(folder / "2.npy", np.zeros((5, 7), np.uint8))
+        np.save(folder / "5.npy", aos._core._view_image(loaded, 5))
+        other.hold([2, 3, 5])
+        assert (other.decoded, other.shared) == (3, 1)
+        for i in (1, 2, 3, 5):
+            assert np.array_equal(aos._core._view_image(other.light_field, i),
+                                  loaded.views[i].image)
+        # A worker writes no more than its budget.
+        frame = loaded.views[0].image.nbytes
+        small = aos.distributed._FrameStore(token + "-small", frame + frame // 2)
+        full = aos.distributed._FrameCache(poses, {}, 2**26, small)
+        full.hold([6, 7, 8], publish=[6, 7, 8])
+        assert len(list(Path(small.folder).iterdir())) == 1
+    finally:
+        aos.distributed._remove_frame_store(token)
+        aos.distributed._remove_frame_store(token + "-small")
+    assert not Path(one.store.folder).exists()
+
+
 def test_a_worker_killed_mid_run_changes_nothing(survey: Path, tmp_path: Path) -> None:
     poses = aos.load_lightfield(survey, load_images=False).light_field
     options = aos.MapOptions(pixel_size=PIXEL, tile_size=16)  # 169 tiles

@@ -4,7 +4,9 @@ A map (map.h) is split into its render tiles (``MapOptions.tile_size`` pixels on
 tile is one task on a ``dask.distributed`` cluster. A task reads only the frames whose footprint
 may meet its tile (``MapWindowViews`` in map.h: a conservative projection test on poses and
 cameras), decoded from their files into a per-worker cache with a byte budget (least recently
-used frames are dropped first), renders its window (``RenderMapWindow``) and returns it; the
+used frames are dropped first; a frame that tiles of two workers need is handed from one worker
+to the others on its machine through shared memory rather than decoded twice, see
+``_FrameStore``), renders its window (``RenderMapWindow``) and returns it; the
 client writes the windows into the GeoTIFF as they arrive (``MapGeoTiffWriter``: a temporary
 file beside the output, the Cloud-Optimised copy renamed into place at the end, nothing left at
 the output path on an error). Every pixel is bit for bit the single-process render: the frames
@@ -26,9 +28,12 @@ output is written.
 from __future__ import annotations
 
 import collections
+import contextlib
 import copy
 import math
 import os
+import shutil
+import tempfile
 import threading
 import time
 import uuid
@@ -39,11 +44,16 @@ import numpy as np
 
 from .. import _core
 
-__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client", "DEFAULT_CACHE_BYTES"]
+__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client", "DEFAULT_CACHE_BYTES",
+           "DEFAULT_SHARE_BYTES"]
 
 # Per-worker frame cache budget: decoded frames held between tasks, bytes. A task's own frames
 # are always held, so a worker's frames peak at max(budget, one tile's frames).
 DEFAULT_CACHE_BYTES = 1 << 30
+
+# Per-worker budget of the shared frame store: decoded frames a worker publishes, for the other
+# workers on its machine, in shared memory (/dev/shm) during one run, bytes.
+DEFAULT_SHARE_BYTES = 1 << 29
 
 _LOAD_KEYS = ("grey", "mask", "mask_dir")
 
@@ -65,6 +75,7 @@ class DistributedMapResult:
     uncovered_pixels: int = 0
     tiles: int = 0
     frames_read: int = 0  # frame decodes summed over the tasks (cache misses)
+    frames_shared: int = 0  # cache misses served by another worker's decode (same machine)
     seconds_decode: float = 0.0  # the tasks' time reading frames (cache misses), summed
     seconds_render: float = 0.0  # the tasks' time rendering their windows, summed
     seconds: float = 0.0  # the whole call
@@ -94,19 +105,91 @@ class DistributedMapResult:
 # ---- worker side ------------------------------------------------------------------------------
 
 
+class _FrameStore:
+    """Decoded frames handed between the worker processes of one machine for one run: one .npy
+    file per frame in a folder named after the run's token, in shared memory (/dev/shm) where
+    there is one. The client tells each task which of its frames tiles of other workers need
+    (``publish``); the worker that decodes such a frame first writes it here, and a worker
+    that misses a frame in its cache looks here before it decodes. A file is written whole
+    under a temporary name and renamed, so a reader sees a frame complete or not at all; a
+    frame that cannot be written (no space, the worker's ``budget`` of bytes spent) or read is
+    simply decoded again. The pixels are the decoded ones, so the map is unchanged. Workers on
+    other machines see their own folder; the client removes the folders at the end of the run
+    (``_remove_frame_store`` on every worker)."""
+
+    def __init__(self, token: str, budget: int):
+        base = "/dev/shm" if os.access("/dev/shm", os.W_OK) else tempfile.gettempdir()
+        self.folder = os.path.join(base, f"aos-frames-{token}")
+        self.budget = budget  # bytes this worker may write
+        self.written = 0
+
+    def _path(self, index: int) -> str:
+        return os.path.join(self.folder, f"{index}.npy")
+
+    def get(self, index: int) -> Optional[np.ndarray]:
+        try:
+            return np.load(self._path(index), allow_pickle=False)
+        except (OSError, ValueError):
+            return None
+
+    def put(self, index: int, image: np.ndarray) -> None:
+        if self.written + image.nbytes > self.budget or os.path.exists(self._path(index)):
+            return
+        temporary = f"{self._path(index)}.{os.getpid()}.tmp"
+        try:
+            os.makedirs(self.folder, exist_ok=True)
+            with open(temporary, "wb") as file:
+                np.save(file, image, allow_pickle=False)
+            os.replace(temporary, self._path(index))
+            self.written += image.nbytes
+        except OSError:
+            with contextlib.suppress(OSError):
+                os.remove(temporary)
+
+
+def _remove_frame_store(token: str, locked: bool = False) -> None:
+    """Drops this worker's frames of the run ``token`` and removes the run's shared frames on
+    its machine (the client runs it on every worker at the end of a run; after the tile being
+    rendered, if any, so that no task writes into the folder afterwards)."""
+    with contextlib.nullcontext() if locked else _CACHE_LOCK:
+        _CACHES.pop(token, None)
+        shutil.rmtree(_FrameStore(token, 0).folder, ignore_errors=True)
+
+
 class _FrameCache:
     """The frames one worker process holds for one run: a poses-only light field into which
-    frames are decoded, least recently used dropped first beyond the byte budget."""
+    frames are decoded, least recently used dropped first beyond the byte budget; with a
+    ``store``, frames other workers of this machine decoded are taken from it (_FrameStore)."""
 
-    def __init__(self, light_field: Any, load: dict, budget: int):
+    def __init__(self, light_field: Any, load: dict, budget: int,
+                 store: Optional[_FrameStore] = None):
         self.light_field = copy.copy(light_field)
         self.load = load
         self.budget = budget
+        self.store = store
         self.order: "collections.OrderedDict[int, None]" = collections.OrderedDict()
         self.frame_bytes = 0  # bytes of one decoded frame, learnt from the first decode
         self.decoded = 0
+        self.shared = 0  # frames taken from the store
 
-    def hold(self, indices: Sequence[int]) -> None:
+    def _from_store(self, missing: list) -> list:
+        """Sets the frames of ``missing`` found in the store; returns the others. Only once this
+        cache has decoded a frame itself: the decode sets the light field's mask state."""
+        if self.store is None or not self.decoded:
+            return missing
+        rest = []
+        for i in missing:
+            image = self.store.get(i)
+            try:
+                if image is None:
+                    raise ValueError("not in the store")
+                _core._set_view_image(self.light_field, i, image)
+                self.shared += 1
+            except ValueError:
+                rest.append(i)
+        return rest
+
+    def hold(self, indices: Sequence[int], publish: Sequence[int] = ()) -> None:
         needed = set(indices)
         missing = [i for i in indices if i not in self.order]
         for i in indices:
@@ -130,8 +213,15 @@ class _FrameCache:
                     del self.order[i]
         if missing:
             before = self.light_field.image_bytes()
-            _core._load_view_images(self.light_field, missing, num_threads=1, **self.load)
-            self.decoded += len(missing)
+            decode = self._from_store(missing)
+            if decode:
+                _core._load_view_images(self.light_field, decode, num_threads=1, **self.load)
+                self.decoded += len(decode)
+                if self.store is not None:
+                    for i in sorted(set(decode) & set(publish)):
+                        image = _core._view_image(self.light_field, i)
+                        if image is not None:
+                            self.store.put(i, image)
             if not self.frame_bytes:
                 self.frame_bytes = max(1, (self.light_field.image_bytes() - before) // len(missing))
             for i in missing:
@@ -151,22 +241,26 @@ _CACHES: "dict[str, _FrameCache]" = {}
 
 
 def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget: int,
-                 x0: int, y0: int, w: int, h: int, first_view: int) -> dict:
-    """One task: the window's frames (cached), then its pixels."""
+                 x0: int, y0: int, w: int, h: int, first_view: int,
+                 publish: Sequence[int] = (), share_bytes: int = 0) -> dict:
+    """One task: the window's frames (cached; with ``share_bytes``, shared with the other
+    workers of this machine, ``publish`` being the frames they need), then its pixels."""
     with _CACHE_LOCK:  # one tile at a time per process; the render releases the GIL
         cache = _CACHES.get(token)
         if cache is None:
-            _CACHES.clear()  # one run's frames at a time
-            cache = _FrameCache(light_field, load, budget)
+            for old in list(_CACHES):  # one run's frames at a time
+                _remove_frame_store(old, locked=True)
+            store = _FrameStore(token, share_bytes) if share_bytes > 0 else None
+            cache = _FrameCache(light_field, load, budget, store)
             _CACHES[token] = cache
         views = _core._map_window_views(cache.light_field, options, x0, y0, w, h)
         if not views:
             # No view meets the window: any selected view renders it empty (count 0), the one
             # held already if there is one.
             views = [next(iter(cache.order), first_view)]
-        decoded_before = cache.decoded
+        decoded_before, shared_before = cache.decoded, cache.shared
         started = time.perf_counter()
-        cache.hold(views)
+        cache.hold(views, publish)
         decoded = time.perf_counter()
         out = _core._render_map_window(cache.light_field, options, x0, y0, w, h, views)
         out["seconds_decode"] = decoded - started
@@ -174,6 +268,7 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
         out["count"] = _narrow_count(out["count"])
         out["x0"], out["y0"] = x0, y0
         out["frames_read"] = cache.decoded - decoded_before
+        out["frames_shared"] = cache.shared - shared_before
         return out
 
 
@@ -283,19 +378,25 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
                scheduler: Optional[str] = None, workers: Optional[int] = None,
                load: Optional[dict] = None, force: bool = False, arrays: bool = False,
                cache_bytes: int = DEFAULT_CACHE_BYTES,
+               share_bytes: int = DEFAULT_SHARE_BYTES,
                progress: Optional[Callable[[str, int, int], object]] = None
                ) -> DistributedMapResult:
     """Renders the map of ``light_field`` (a LightField, with or without its images: the
     workers read the frames from their files) and ``options`` (a MapOptions) on Dask; see the
     module's docstring. ``path``: the Cloud-Optimised GeoTIFF to write (None with arrays=True
     keeps the map in memory only). ``load``: how the frames are decoded (grey, mask, mask_dir
-    as load_lightfield). ``progress(stage, done, total)`` is called on the client as tiles
+    as load_lightfield). ``cache_bytes``: each worker's frame cache budget. ``share_bytes``:
+    the bytes of decoded frames each worker may hand to the other workers of its machine
+    through shared memory (0: none; see _FrameStore). ``progress(stage, done, total)`` is
+    called on the client as tiles
     arrive ("render map", tiles) and while the COG is written. Raises ValueError naming the
     field or the file; nothing is written at ``path`` on any error."""
     started = time.perf_counter()
     load = dict(load or {})
     if cache_bytes < 0:
         raise ValueError(f"render_map(): cache_bytes: must be >= 0 (got {cache_bytes})")
+    if share_bytes < 0:
+        raise ValueError(f"render_map(): share_bytes: must be >= 0 (got {share_bytes})")
     if path is None and not arrays:
         raise ValueError("render_map(): arrays=False without a path keeps nothing; give a path")
     options, poses, grid, selection, channels = prepare_map(light_field, options, load)
@@ -307,6 +408,9 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         writer = _core._MapGeoTiffWriter(poses, options, channels, os.fspath(path), force)
     owned = None
     futures: list = []
+    token = uuid.uuid4().hex
+    views_of: dict = {}  # tile window -> its frames, when frames are shared
+    shared: set = set()
     try:
         if client is None:
             from dask.distributed import Client
@@ -321,7 +425,6 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             shape = (grid["height"], grid["width"]) + ((channels,) if channels > 1 else ())
             image = np.zeros(shape, np.float32)
             count = np.zeros((grid["height"], grid["width"]), np.uint32)
-        token = uuid.uuid4().hex
         [poses_future] = client.scatter([poses], broadcast=True, hash=False)
         tile = options.tile_size
         windows = [(x0, y0, min(tile, grid["width"] - x0), min(tile, grid["height"] - y0))
@@ -338,6 +441,18 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         addresses = _worker_addresses(client)
         queues = [collections.deque(group)
                   for group in _tile_groups(windows, grid["width"], tile, len(addresses))]
+        # The frames that tiles of two groups need (the bands' borders): the worker that decodes
+        # one first hands it to the others on its machine (_FrameStore), where each would
+        # decode it. A tile taken from another group hands on all its frames: the donor's next
+        # tiles need them.
+        if share_bytes > 0 and len(queues) > 1:
+            groups_of: "dict[int, set]" = collections.defaultdict(set)
+            for group, queue in enumerate(queues):
+                for window in queue:
+                    views_of[window] = _core._map_window_views(poses, options, *window)
+                    for view in views_of[window]:
+                        groups_of[view].add(group)
+            shared = {view for view, groups in groups_of.items() if len(groups) > 1}
         # A bounded number of tiles in flight, two per worker (one rendering, one queued):
         # finished tiles wait on their worker until the client has written them, so an
         # unbounded queue would hold the whole map there.
@@ -347,14 +462,17 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             queue = queues[group]
             if queue:
                 window = queue.popleft()
+                publish = [v for v in views_of.get(window, ()) if v in shared]
             else:
                 donor = max(range(len(queues)), key=lambda i: len(queues[i]))
                 if not queues[donor]:
                     return None
                 window = queues[donor].pop()
+                publish = list(views_of.get(window, ()))
             x0, y0, w, h = window
             future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
-                                   x0, y0, w, h, selection[0], pure=False,
+                                   x0, y0, w, h, selection[0], publish,
+                                   share_bytes if views_of else 0, pure=False,
                                    key=f"aos-map-tile-{x0}-{y0}-{token}",
                                    workers=[addresses[group]], allow_other_workers=True)
             futures.append(future)
@@ -391,6 +509,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             result.samples += int(out["samples"])
             result.uncovered_pixels += int(out["uncovered_pixels"])
             result.frames_read += int(out["frames_read"])
+            result.frames_shared += int(out["frames_shared"])
             result.seconds_decode += float(out["seconds_decode"])
             result.seconds_render += float(out["seconds_render"])
             result.tiles += 1
@@ -412,6 +531,11 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         raise
     finally:
         writer = None
+        if client is not None:
+            # The shared frames of this run, on every worker's machine (a dead worker's too:
+            # its folder is its machine's, named by the run).
+            with contextlib.suppress(Exception):
+                client.run(_remove_frame_store, token)
         if owned is not None:
             cluster = getattr(owned, "cluster", None)
             owned.close()
