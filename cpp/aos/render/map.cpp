@@ -386,18 +386,31 @@ std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& gr
   CheckWindow(grid, x0, y0, w, h);
   std::vector<int> selection = Selection(light_field, options.view_indices);
   std::sort(selection.begin(), selection.end());
-  const FocalPoints points = MapFocalPoints(grid, x0, y0, w, h);
   // The box of the window's finite focal points, local frame.
   Vec3d lo(std::numeric_limits<double>::infinity()), hi(-std::numeric_limits<double>::infinity());
-  for (const Vec3d& point : points.points) {
-    if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
-    lo = glm::min(lo, point);
-    hi = glm::max(hi, point);
+  Vec3d reference;
+  if (grid.surface) {
+    const FocalPoints points = MapFocalPoints(grid, x0, y0, w, h);
+    for (const Vec3d& point : points.points) {
+      if (!std::isfinite(point.x) || !std::isfinite(point.y) || !std::isfinite(point.z)) continue;
+      lo = glm::min(lo, point);
+      hi = glm::max(hi, point);
+    }
+    reference = points.reference;
+  } else {
+    // On the plane a pixel's point is (x(col), y(row), 0), each coordinate monotonic in its
+    // index: the box is that of the window's four corner pixels, the same doubles
+    // MapFocalPoints gives them (without the window's w x h points: 6 ms a 512^2 tile).
+    const FocalPoints corners = MapFocalPoints(grid, x0, y0, 1, 1);
+    const FocalPoints far = MapFocalPoints(grid, x0 + w - 1, y0 + h - 1, 1, 1);
+    lo = glm::min(corners.points[0], far.points[0]);
+    hi = glm::max(corners.points[0], far.points[0]);
+    reference = corners.reference;
   }
   std::vector<int> views;
   if (!(lo.x <= hi.x)) return views;  // no pixel meets the focal surface
-  lo += points.reference;
-  hi += points.reference;
+  lo += reference;
+  hi += reference;
   for (int index : selection) {
     const View& view = light_field.views[static_cast<size_t>(index)];
     const LensCamera& camera = view.camera;
