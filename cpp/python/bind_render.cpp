@@ -1,5 +1,7 @@
 // Bindings of render/integral.h. The kwargs merge of aos.render_integral lives in
 // python/aos/__init__.py.
+#include <array>
+
 #include "aos/render/focal_stack.h"
 #include "aos/render/focal_surface.h"
 #include "aos/render/integral.h"
@@ -512,6 +514,21 @@ void BindMapWindows(py::module_& m) {
       "light_field"_a, "options"_a, "x0"_a, "y0"_a, "w"_a, "h"_a,
       "The views that may contribute to map pixels [x0, x0 + w) x [y0, y0 + h) (map.h "
       "MapWindowViews; poses only).");
+  m.def(
+      "_map_windows_views",
+      [](const LightField& light_field, const MapOptions& options,
+         const std::vector<std::array<int, 4>>& windows) {
+        py::gil_scoped_release release;
+        const MapGrid grid = ResolveMapGrid(light_field, options);  // once, not per window
+        std::vector<std::vector<int>> views;
+        views.reserve(windows.size());
+        for (const auto& [x0, y0, w, h] : windows) {
+          views.push_back(MapWindowViews(light_field, grid, options, x0, y0, w, h));
+        }
+        return views;
+      },
+      "light_field"_a, "options"_a, "windows"_a,
+      "_map_window_views for each (x0, y0, w, h) of `windows`, the grid resolved once.");
   m.def(
       "_render_map_window",
       [](const LightField& light_field, const MapOptions& options, int x0, int y0, int w, int h,

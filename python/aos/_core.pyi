@@ -788,6 +788,9 @@ def _map_grid(light_field: LightField, options: MapOptions) -> dict[str, Any]: .
 def _map_window_views(
     light_field: LightField, options: MapOptions, x0: int, y0: int, w: int, h: int
 ) -> list[int]: ...
+def _map_windows_views(
+    light_field: LightField, options: MapOptions, windows: Sequence[tuple[int, int, int, int]]
+) -> list[list[int]]: ...
 def _render_map_window(
     light_field: LightField,
     options: MapOptions,

@@ -242,9 +242,11 @@ _CACHES: "dict[str, _FrameCache]" = {}
 
 def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget: int,
                  x0: int, y0: int, w: int, h: int, first_view: int,
-                 publish: Sequence[int] = (), share_bytes: int = 0) -> dict:
-    """One task: the window's frames (cached; with ``share_bytes``, shared with the other
-    workers of this machine, ``publish`` being the frames they need), then its pixels."""
+                 publish: Sequence[int] = (), share_bytes: int = 0,
+                 views: Optional[Sequence[int]] = None) -> dict:
+    """One task: the window's frames (``views``, else found here; cached; with
+    ``share_bytes``, shared with the other workers of this machine, ``publish`` being the
+    frames they need), then its pixels."""
     with _CACHE_LOCK:  # one tile at a time per process; the render releases the GIL
         cache = _CACHES.get(token)
         if cache is None:
@@ -253,7 +255,8 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
             store = _FrameStore(token, share_bytes) if share_bytes > 0 else None
             cache = _FrameCache(light_field, load, budget, store)
             _CACHES[token] = cache
-        views = _core._map_window_views(cache.light_field, options, x0, y0, w, h)
+        if views is None:
+            views = _core._map_window_views(cache.light_field, options, x0, y0, w, h)
         if not views:
             # No view meets the window: any selected view renders it empty (count 0), the one
             # held already if there is one.
@@ -409,8 +412,8 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     owned = None
     futures: list = []
     token = uuid.uuid4().hex
-    views_of: dict = {}  # tile window -> its frames, when frames are shared
-    shared: set = set()
+    views_of: dict = {}  # tile window -> its frames
+    shared: set = set()  # frames that tiles of two groups need, when frames are shared
     try:
         if client is None:
             from dask.distributed import Client
@@ -445,13 +448,15 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         # one first hands it to the others on its machine (_FrameStore), where each would
         # decode it. A tile taken from another group hands on all its frames: the donor's next
         # tiles need them.
+        # Each tile's frames, found here for all tiles at once (MapWindowViews, the grid resolved
+        # once) and sent with the task.
+        groups_of: "dict[int, set]" = collections.defaultdict(set)
+        for group, queue in enumerate(queues):
+            for window, views in zip(queue, _core._map_windows_views(poses, options, list(queue))):
+                views_of[window] = views
+                for view in views:
+                    groups_of[view].add(group)
         if share_bytes > 0 and len(queues) > 1:
-            groups_of: "dict[int, set]" = collections.defaultdict(set)
-            for group, queue in enumerate(queues):
-                for window in queue:
-                    views_of[window] = _core._map_window_views(poses, options, *window)
-                    for view in views_of[window]:
-                        groups_of[view].add(group)
             shared = {view for view, groups in groups_of.items() if len(groups) > 1}
         # A bounded number of tiles in flight, two per worker (one rendering, one queued):
         # finished tiles wait on their worker until the client has written them, so an
@@ -462,17 +467,17 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             queue = queues[group]
             if queue:
                 window = queue.popleft()
-                publish = [v for v in views_of.get(window, ()) if v in shared]
+                publish = [v for v in views_of[window] if v in shared]
             else:
                 donor = max(range(len(queues)), key=lambda i: len(queues[i]))
                 if not queues[donor]:
                     return None
                 window = queues[donor].pop()
-                publish = list(views_of.get(window, ()))
+                publish = list(views_of[window]) if shared else []
             x0, y0, w, h = window
             future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
                                    x0, y0, w, h, selection[0], publish,
-                                   share_bytes if views_of else 0, pure=False,
+                                   share_bytes if shared else 0, views_of[window], pure=False,
                                    key=f"aos-map-tile-{x0}-{y0}-{token}",
                                    workers=[addresses[group]], allow_other_workers=True)
             futures.append(future)
