@@ -731,6 +731,7 @@ struct MapCommand {
   int workers = 0;            // --workers N: a LocalCluster of N processes (0 = this process)
   std::string scheduler;      // --scheduler ADDRESS: an existing Dask cluster
   double cache_mb = 1024.0;   // --cache-mb: each worker's frame cache, MiB
+  double share_mb = 512.0;    // --share-mb: frames each worker hands to its machine's others, MiB
   bool dashboard = false;     // --dashboard: the local cluster serves Dask's dashboard
 };
 
@@ -874,6 +875,12 @@ CommandRunner DefineMap(CLI::App* command) {
                       "With --workers/--scheduler: decoded frames each worker keeps between "
                       "tasks, MiB (a task's own frames are always held)")
       ->default_str("1024");
+  command->add_option("--share-mb", c->share_mb,
+                      "With --workers/--scheduler: decoded frames each worker hands, through "
+                      "shared memory (/dev/shm), to the other workers of its machine whose tiles "
+                      "need them too (decoded once per machine, not once per worker), MiB; 0: "
+                      "none")
+      ->default_str("512");
   command->add_flag("--dashboard", c->dashboard,
                     "With --workers: the local cluster also serves Dask's dashboard (progress, "
                     "tasks, memory; needs bokeh) on 127.0.0.1, its address printed; read-only "
@@ -1078,6 +1085,9 @@ int RunMapDistributed(MapCommand& c) {
   if (!(c.cache_mb >= 0.0) || !std::isfinite(c.cache_mb)) {
     ThrowUsage("--cache-mb: must be >= 0 MiB (got " + FormatNumber(c.cache_mb) + ")");
   }
+  if (!(c.share_mb >= 0.0) || !std::isfinite(c.share_mb)) {
+    ThrowUsage("--share-mb: must be >= 0 MiB (got " + FormatNumber(c.share_mb) + ")");
+  }
   if (c.dashboard && c.workers == 0) {
     ThrowUsage("--dashboard: needs --workers N (a cluster of --scheduler serves its own "
                "dashboard, whose address is printed)");
@@ -1115,6 +1125,7 @@ int RunMapDistributed(MapCommand& c) {
   spec["workers"] = c.workers;
   spec["scheduler"] = c.scheduler;
   spec["cache_mb"] = c.cache_mb;
+  spec["share_mb"] = c.share_mb;
   spec["dashboard"] = c.dashboard;
   spec["quiet"] = Common().quiet;
   spec["json"] = Common().json;

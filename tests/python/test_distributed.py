@@ -246,14 +246,15 @@ def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
     spread = run("-o", str(tmp_path / "dask.tif"), "--workers", "2", "--json")
     assert spread.returncode == 0, spread.stderr
     report = json.loads(spread.stdout)
-    assert report["tiles"] == 49 and report["workers"] == 2
+    assert report["tiles"] == 49 and report["workers"] == 2 and report["frames_shared"] > 0
     assert np.array_equal(read_bands(tmp_path / "dask.tif"), read_bands(tmp_path / "single.tif"),
                           equal_nan=True)
     # Checked before any cluster starts: an existing output, a bad worker count.
     again = run("-o", str(tmp_path / "dask.tif"), "--workers", "2")
     assert again.returncode != 0 and "exists" in again.stderr
     for flags in (["--workers", "-1"], ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
-                  ["--workers", "2", "--cache-mb", "-1"], ["--dashboard"]):
+                  ["--workers", "2", "--cache-mb", "-1"], ["--workers", "2", "--share-mb", "-1"],
+                  ["--dashboard"]):
         bad = run("-o", str(tmp_path / "x.tif"), *flags)
         assert bad.returncode == 2, bad.stderr
         assert (flags[-2] if len(flags) > 1 else flags[0]) in bad.stderr

@@ -4,7 +4,7 @@ flags' values come as one JSON object (the flags are declared once, in C++): lig
 {fov_deg, images_dir, grey, mask, mask_dir}, pixel_size, width, extent, focal_height,
 focal_surface (path, "" = none), surface_offset, aperture_radius (number or "inf"), views ("" =
 all), min_view_angle_deg, lens_tolerance_px, tile_size, num_threads, output, force, workers,
-scheduler, cache_mb, dashboard, quiet, json. Draws a progress bar on stderr (plain lines when
+scheduler, cache_mb, share_mb, dashboard, quiet, json. Draws a progress bar on stderr (plain lines when
 stderr is not a terminal), prints
 the report (a JSON object with --json), exits 0; errors: one line on stderr, exit 1 (bad input)
 or 2 (bad spec)."""
@@ -146,7 +146,8 @@ def main(argv: list[str]) -> int:
             result = distributed.render_map(
                 light_field, options, path=spec["output"], client=client, load=frame_load,
                 force=bool(spec.get("force", False)),
-                cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)), progress=bar)
+                cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)),
+                share_bytes=int(float(spec.get("share_mb", 512)) * (1 << 20)), progress=bar)
         finally:
             cluster = getattr(client, "cluster", None)
             client.close()
@@ -175,7 +176,7 @@ def main(argv: list[str]) -> int:
               "views_selected": result.views_selected, "samples": result.samples,
               "uncovered_pixels": result.uncovered_pixels, "tiles": result.tiles,
               "workers": workers, "scheduler": scheduler, "frames_read": result.frames_read,
-              "seconds": round(result.seconds, 3)}
+              "frames_shared": result.frames_shared, "seconds": round(result.seconds, 3)}
     if spec.get("json"):
         print(json.dumps(report), flush=True)
     else:
@@ -185,7 +186,8 @@ def main(argv: list[str]) -> int:
         print(f"integrated {result.views_used} of {result.views_selected} selected views: "
               f"{result.samples} samples, {result.uncovered_pixels} of {pixels} pixels seen by "
               f"no view (nodata, count 0); {result.tiles} tiles, {result.frames_read} frame "
-              f"reads, {result.seconds:.1f} s")
+              f"reads, {result.frames_shared} frames handed between workers, "
+              f"{result.seconds:.1f} s")
     return 0
 
 
