@@ -219,6 +219,32 @@ def test_a_worker_killed_mid_run_changes_nothing(survey: Path, tmp_path: Path) -
     assert np.array_equal(result.count, reference.count)
 
 
+def test_a_tile_dask_drops_is_submitted_again(survey: Path, client) -> None:
+    """A tile's future cancelled under render_map (as Dask does when a worker dies with it,
+    "already forgotten"): the tile is submitted again and the map is complete and unchanged."""
+    from distributed import Future
+
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    options = aos.MapOptions(pixel_size=PIXEL, tile_size=TILE)
+    reference = aos.render_map(aos.load_lightfield(survey).light_field, options)
+    dropped: list[str] = []
+
+    def progress(stage: str, done: int, total: int) -> None:
+        if stage == "render map" and done == 3 and not dropped:
+            pending = [key for key, state in client.futures.items()
+                       if str(key).startswith("aos-map-tile") and state.status == "pending"]
+            assert pending
+            Future(pending[0], client).cancel()
+            dropped.append(pending[0])
+
+    result = aos.distributed.render_map(poses, options, path=None, client=client, arrays=True,
+                                        progress=progress)
+    assert dropped and dropped[0].endswith("-0")
+    assert result.tiles == 49
+    assert np.array_equal(result.image, reference.image)
+    assert np.array_equal(result.count, reference.count)
+
+
 def test_an_unreadable_frame_names_the_file_and_writes_nothing(survey: Path, tmp_path: Path,
                                                                client) -> None:
     folder = tmp_path / "flight"

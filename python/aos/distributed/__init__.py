@@ -36,6 +36,7 @@ import shutil
 import tempfile
 import threading
 import time
+from concurrent.futures import CancelledError
 import uuid
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Sequence
@@ -56,6 +57,9 @@ DEFAULT_CACHE_BYTES = 1 << 30
 DEFAULT_SHARE_BYTES = 1 << 29
 
 _LOAD_KEYS = ("grey", "mask", "mask_dir")
+
+# Times a tile is submitted when Dask cancels it without being asked (a worker lost with it).
+_TILE_ATTEMPTS = 3
 
 
 @dataclass
@@ -461,7 +465,18 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         # A bounded number of tiles in flight, two per worker (one rendering, one queued):
         # finished tiles wait on their worker until the client has written them, so an
         # unbounded queue would hold the whole map there.
-        group_of: dict = {}
+        submitted: dict = {}  # key -> (window, group, publish, attempt)
+
+        def submit(window: tuple, group: int, publish: list, attempt: int) -> Any:
+            x0, y0, w, h = window
+            future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
+                                   x0, y0, w, h, selection[0], publish,
+                                   share_bytes if shared else 0, views_of[window], pure=False,
+                                   key=f"aos-map-tile-{x0}-{y0}-{token}-{attempt}",
+                                   workers=[addresses[group]], allow_other_workers=True)
+            futures.append(future)
+            submitted[future.key] = (window, group, publish, attempt)
+            return future
 
         def submit_next(group: int) -> Any:
             queue = queues[group]
@@ -474,15 +489,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
                     return None
                 window = queues[donor].pop()
                 publish = list(views_of[window]) if shared else []
-            x0, y0, w, h = window
-            future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
-                                   x0, y0, w, h, selection[0], publish,
-                                   share_bytes if shared else 0, views_of[window], pure=False,
-                                   key=f"aos-map-tile-{x0}-{y0}-{token}",
-                                   workers=[addresses[group]], allow_other_workers=True)
-            futures.append(future)
-            group_of[future.key] = group
-            return future
+            return submit(window, group, publish, 0)
 
         for _ in range(2):
             for group in range(len(queues)):
@@ -498,9 +505,20 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         if progress is not None:
             progress("render map", 0, len(windows))
         for future in completed:
-            out = future.result()  # re-raises the task's error (a frame's ValueError)
+            window, group, publish, attempt = submitted.pop(future.key)
+            try:
+                out = future.result()  # re-raises the task's error (a frame's ValueError)
+            except CancelledError:
+                # Not cancelled here (that happens only on the way out): Dask dropped the task,
+                # which it can do when a worker dies with it (seen as "already forgotten" with
+                # a worker killed mid-run). The tile is submitted again, a few times at most.
+                future.release()
+                if attempt >= _TILE_ATTEMPTS - 1:
+                    raise
+                completed.add(submit(window, group, publish, attempt + 1))
+                continue
             future.release()
-            following = submit_next(group_of.pop(future.key))
+            following = submit_next(group)
             if following is not None:
                 completed.add(following)
             x0, y0 = out["x0"], out["y0"]
