@@ -204,17 +204,13 @@ def test_python_api_and_bad_input(flight, tmp_path) -> None:
     assert report["georeferenced"] is True
 
 
-def test_spatial_and_exhaustive_matching_with_real_colmap(flight, tmp_path) -> None:
-    # Spatial matching takes its pairs from the positions, which the pipeline writes into
-    # COLMAP's database as priors; exhaustive matches all pairs. Both register the flight.
+def test_exhaustive_matching_with_real_colmap(flight, tmp_path) -> None:
+    # Exhaustive matching matches all pairs and registers the flight. (Spatial matching, whose
+    # pairs come from the positions written into COLMAP's database as priors, is the quick
+    # preset's: test_quick_preset_with_real_colmap.)
     frames = flight["root"] / "sim" / "views"
     gps = str(flight["root"] / "gps.csv")
     camera = str(flight["root"] / "camera.json")
-    spatial = aos.estimate_poses(frames, matcher="spatial", positions_file=gps,
-                                 camera_file=camera, max_num_features=1024)
-    assert len(spatial.registered) == 16 and spatial.georeferenced
-    assert any("2 of 18 frames have no position prior" in w for w in spatial.warnings)
-    assert spatial.georeference_rms_m < 0.05
     stages = []
     exhaustive = aos.estimate_poses(frames, matcher="exhaustive", positions_file=gps,
                                     camera_file=camera, max_num_features=1024,
@@ -230,8 +226,10 @@ def test_quick_preset_with_real_colmap(flight, tmp_path) -> None:
     gps = str(flight["root"] / "gps.csv")
     quick = aos.estimate_poses(frames, preset="quick", positions_file=gps,
                                camera_file=str(flight["root"] / "camera.json"))
-    assert len(quick.registered) == 16 and quick.georeference_rms_m < 0.05
-    assert any("spatial matching cannot match" in w for w in quick.warnings)
+    assert len(quick.registered) == 16 and quick.georeferenced
+    assert quick.georeference_rms_m < 0.05
+    assert any("2 of 18 frames have no position prior; spatial matching cannot match" in w
+               for w in quick.warnings)
     with pytest.raises(ValueError, match="preset"):
         aos.estimate_poses(frames, preset="fast")
     done = subprocess.run(["aos-render", "poses", str(frames), "-o", str(tmp_path / "q.json"),
