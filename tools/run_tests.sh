@@ -4,6 +4,7 @@
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 source tools/python_env.sh
+source tools/ccache_env.sh   # the library's objects come from the package build (setup_debian.sh)
 jobs="$(nproc)"
 cmake -S . -B build-tests -G Ninja -DCMAKE_BUILD_TYPE=Release -DAOS_BUILD_TESTS=ON >/dev/null
 cmake --build build-tests -j "${jobs}"

@@ -28,6 +28,7 @@ apt-get update -qq
 apt-get install -y -qq --no-install-recommends "${packages[@]}" >/dev/null
 
 source tools/python_env.sh   # sets AOS_PYTHON (creates /opt/aos-venv if needed)
+source tools/ccache_env.sh   # compile through ccache: run_tests.sh's build reuses these objects
 echo "setup: building and installing the aos Python package and aos-render with ${AOS_PYTHON}"
 "${AOS_PYTHON}" -m pip install -q --upgrade pip >/dev/null 2>&1 || true
 "${AOS_PYTHON}" -m pip install -q '.[test]'

@@ -57,7 +57,8 @@ auto EqualityMethod(Equal equal) {
 }
 
 // View `index` of `light_field`, or std::invalid_argument naming the index.
-const View& ViewAt(const LightField& light_field, int index) {
+template <typename LightFieldT>
+auto& ViewAt(LightFieldT& light_field, int index) {
   if (index < 0 || static_cast<size_t>(index) >= light_field.views.size()) {
     ThrowInvalid("index: " + std::to_string(index) + " is not a view (the light field has " +
                  std::to_string(light_field.views.size()) + ")");
@@ -345,7 +346,7 @@ void BindLightField(py::module_& m) {
   m.def(
       "_set_view_image",
       [](LightField& light_field, int index, const py::handle& array) {
-        View& view = const_cast<View&>(ViewAt(light_field, index));
+        View& view = ViewAt(light_field, index);
         const std::string where = "view " + std::to_string(index) + " (" + view.image_path + ")";
         Image image = ImageFromArray(array, /*border=*/1, where + ": image");
         const Image old = std::move(view.image);

@@ -519,13 +519,10 @@ void BindMapWindows(py::module_& m) {
       [](const LightField& light_field, const MapOptions& options,
          const std::vector<std::array<int, 4>>& windows) {
         py::gil_scoped_release release;
-        const MapGrid grid = ResolveMapGrid(light_field, options);  // once, not per window
-        std::vector<std::vector<int>> views;
-        views.reserve(windows.size());
-        for (const auto& [x0, y0, w, h] : windows) {
-          views.push_back(MapWindowViews(light_field, grid, options, x0, y0, w, h));
-        }
-        return views;
+        std::vector<MapWindow> list;
+        list.reserve(windows.size());
+        for (const auto& [x0, y0, w, h] : windows) list.push_back(MapWindow{x0, y0, w, h});
+        return MapWindowsViews(light_field, ResolveMapGrid(light_field, options), options, list);
       },
       "light_field"_a, "options"_a, "windows"_a,
       "_map_window_views for each (x0, y0, w, h) of `windows`, the grid resolved once.");

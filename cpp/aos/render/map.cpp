@@ -453,6 +453,18 @@ std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& gr
   return views;
 }
 
+std::vector<std::vector<int>> MapWindowsViews(const LightField& light_field, const MapGrid& grid,
+                                              const MapOptions& options,
+                                              const std::vector<MapWindow>& windows) {
+  std::vector<std::vector<int>> views;
+  views.reserve(windows.size());
+  for (const MapWindow& window : windows) {
+    views.push_back(MapWindowViews(light_field, grid, options, window.x0, window.y0, window.w,
+                                   window.h));
+  }
+  return views;
+}
+
 SurfaceIntegralResult RenderMapWindow(const LightField& light_field, const MapGrid& grid,
                                       const MapOptions& options, int x0, int y0, int w, int h,
                                       const std::vector<int>& views, ProgressSink* progress) {

@@ -202,6 +202,17 @@ void WriteMapGeoTiff(const MapResult& map, const std::string& path,
 std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& grid,
                                 const MapOptions& options, int x0, int y0, int w, int h);
 
+// A map window: pixels [x0, x0 + w) x [y0, y0 + h).
+struct MapWindow {
+  int x0 = 0, y0 = 0, w = 0, h = 0;
+};
+
+// MapWindowViews of each of `windows`, in their order (the client of a distributed map asks for
+// every tile at once).
+std::vector<std::vector<int>> MapWindowsViews(const LightField& light_field, const MapGrid& grid,
+                                              const MapOptions& options,
+                                              const std::vector<MapWindow>& windows);
+
 // Map pixels [x0, x0 + w) x [y0, y0 + h) of `grid` (ResolveMapGrid of this light field's poses
 // and `options`), integrated over views `views` only (light-field indices within the options'
 // selection; they must hold their images, the others need not). When `views` holds

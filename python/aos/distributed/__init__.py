@@ -36,8 +36,8 @@ import shutil
 import tempfile
 import threading
 import time
-from concurrent.futures import CancelledError
 import uuid
+from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Sequence
 
@@ -45,8 +45,8 @@ import numpy as np
 
 from .. import _core
 
-__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client", "DEFAULT_CACHE_BYTES",
-           "DEFAULT_SHARE_BYTES"]
+__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client",
+           "DEFAULT_CACHE_BYTES", "DEFAULT_SHARE_BYTES"]
 
 # Per-worker frame cache budget: decoded frames held between tasks, bytes. A task's own frames
 # are always held, so a worker's frames peak at max(budget, one tile's frames).
@@ -78,7 +78,7 @@ class DistributedMapResult:
     samples: int = 0
     uncovered_pixels: int = 0
     tiles: int = 0
-    frames_read: int = 0  # frame decodes summed over the tasks (cache misses)
+    frames_read: int = 0  # frame decodes summed over the tasks
     frames_shared: int = 0  # cache misses served by another worker's decode (same machine)
     seconds_decode: float = 0.0  # the tasks' time reading frames (cache misses), summed
     seconds_render: float = 0.0  # the tasks' time rendering their windows, summed
@@ -121,27 +121,52 @@ class _FrameStore:
     other machines see their own folder; the client removes the folders at the end of the run
     (``_remove_frame_store`` on every worker)."""
 
+    # Left free in the store's file system after each frame: a quarter of it, at least 64 MiB
+    # (shared memory is RAM, and other programs use it too; Docker gives 64 MiB by default).
+    FREE_FRACTION = 0.25
+    FREE_BYTES = 64 << 20
+    # Folders of runs whose client and workers died without removing them are removed by the
+    # next run on the machine once they are this old (a frame missing only means a decode).
+    STALE_SECONDS = 6 * 3600
+
     def __init__(self, token: str, budget: int):
-        base = "/dev/shm" if os.access("/dev/shm", os.W_OK) else tempfile.gettempdir()
-        self.folder = os.path.join(base, f"aos-frames-{token}")
+        self.base = "/dev/shm" if os.access("/dev/shm", os.W_OK) else tempfile.gettempdir()
+        self.folder = os.path.join(self.base, f"aos-frames-{token}")
         self.budget = budget  # bytes this worker may write
         self.written = 0
 
     def _path(self, index: int) -> str:
         return os.path.join(self.folder, f"{index}.npy")
 
+    def sweep(self) -> None:
+        """Removes other runs' folders older than STALE_SECONDS."""
+        with contextlib.suppress(OSError):
+            for entry in os.scandir(self.base):
+                if (entry.name.startswith("aos-frames-") and entry.path != self.folder and
+                        time.time() - entry.stat().st_mtime > self.STALE_SECONDS):
+                    shutil.rmtree(entry.path, ignore_errors=True)
+
     def get(self, index: int) -> Optional[np.ndarray]:
         try:
             return np.load(self._path(index), allow_pickle=False)
-        except (OSError, ValueError):
+        except (OSError, ValueError, EOFError):
             return None
 
+    def _room(self, nbytes: int) -> bool:
+        try:
+            fs = os.statvfs(self.base)
+        except OSError:
+            return False
+        free, size = fs.f_bavail * fs.f_frsize, fs.f_blocks * fs.f_frsize
+        return free - nbytes >= max(self.FREE_BYTES, self.FREE_FRACTION * size)
+
     def put(self, index: int, image: np.ndarray) -> None:
-        if self.written + image.nbytes > self.budget or os.path.exists(self._path(index)):
+        if (self.written + image.nbytes > self.budget or os.path.exists(self._path(index)) or
+                not self._room(image.nbytes)):
             return
         temporary = f"{self._path(index)}.{os.getpid()}.tmp"
         try:
-            os.makedirs(self.folder, exist_ok=True)
+            os.makedirs(self.folder, mode=0o700, exist_ok=True)  # this user's frames
             with open(temporary, "wb") as file:
                 np.save(file, image, allow_pickle=False)
             os.replace(temporary, self._path(index))
@@ -151,13 +176,25 @@ class _FrameStore:
                 os.remove(temporary)
 
 
-def _remove_frame_store(token: str, locked: bool = False) -> None:
-    """Drops this worker's frames of the run ``token`` and removes the run's shared frames on
-    its machine (the client runs it on every worker at the end of a run; after the tile being
-    rendered, if any, so that no task writes into the folder afterwards)."""
-    with contextlib.nullcontext() if locked else _CACHE_LOCK:
-        _CACHES.pop(token, None)
-        shutil.rmtree(_FrameStore(token, 0).folder, ignore_errors=True)
+def _drop_run(token: str) -> None:
+    """Drops this process's frames of the run ``token`` and the run's shared frames on its
+    machine. Called with _CACHE_LOCK held."""
+    _CACHES.pop(token, None)
+    shutil.rmtree(_FrameStore(token, 0).folder, ignore_errors=True)
+
+
+def _remove_frame_store(token: str) -> None:
+    """The end of the run ``token`` on this worker (the client runs it on every worker, after
+    the run or its error): the run is marked finished, so that a task of it that starts later
+    (one cancelled but already queued here) renders nothing, and its frames are dropped, now or,
+    when a tile is being rendered, by that task before it returns (never waiting for it: this
+    runs on the worker's event loop)."""
+    _FINISHED.append(token)
+    if _CACHE_LOCK.acquire(blocking=False):
+        try:
+            _drop_run(token)
+        finally:
+            _CACHE_LOCK.release()
 
 
 class _FrameCache:
@@ -242,6 +279,7 @@ def _narrow_count(count: np.ndarray) -> np.ndarray:
 
 _CACHE_LOCK = threading.Lock()
 _CACHES: "dict[str, _FrameCache]" = {}
+_FINISHED: "collections.deque[str]" = collections.deque(maxlen=64)  # runs that ended
 
 
 def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget: int,
@@ -252,11 +290,16 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
     ``share_bytes``, shared with the other workers of this machine, ``publish`` being the
     frames they need), then its pixels."""
     with _CACHE_LOCK:  # one tile at a time per process; the render releases the GIL
+        if token in _FINISHED:  # cancelled with its run, but already queued here
+            _drop_run(token)
+            return {"finished": True}
         cache = _CACHES.get(token)
         if cache is None:
             for old in list(_CACHES):  # one run's frames at a time
-                _remove_frame_store(old, locked=True)
+                _drop_run(old)
             store = _FrameStore(token, share_bytes) if share_bytes > 0 else None
+            if store is not None:
+                store.sweep()
             cache = _FrameCache(light_field, load, budget, store)
             _CACHES[token] = cache
         if views is None:
@@ -276,6 +319,8 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
         out["x0"], out["y0"] = x0, y0
         out["frames_read"] = cache.decoded - decoded_before
         out["frames_shared"] = cache.shared - shared_before
+        if token in _FINISHED:  # the run ended while this tile rendered
+            _drop_run(token)
         return out
 
 
@@ -418,6 +463,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     token = uuid.uuid4().hex
     views_of: dict = {}  # tile window -> its frames
     shared: set = set()  # frames that tiles of two groups need, when frames are shared
+    submitted: dict = {}  # key of each tile in flight -> (window, group, publish, attempt)
     try:
         if client is None:
             from dask.distributed import Client
@@ -454,18 +500,17 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         # tiles need them.
         # Each tile's frames, found here for all tiles at once (MapWindowViews, the grid resolved
         # once) and sent with the task.
+        views_of.update(zip(windows, _core._map_windows_views(poses, options, windows)))
         groups_of: "dict[int, set]" = collections.defaultdict(set)
         for group, queue in enumerate(queues):
-            for window, views in zip(queue, _core._map_windows_views(poses, options, list(queue))):
-                views_of[window] = views
-                for view in views:
+            for window in queue:
+                for view in views_of[window]:
                     groups_of[view].add(group)
         if share_bytes > 0 and len(queues) > 1:
             shared = {view for view, groups in groups_of.items() if len(groups) > 1}
         # A bounded number of tiles in flight, two per worker (one rendering, one queued):
         # finished tiles wait on their worker until the client has written them, so an
         # unbounded queue would hold the whole map there.
-        submitted: dict = {}  # key -> (window, group, publish, attempt)
 
         def submit(window: tuple, group: int, publish: list, attempt: int) -> Any:
             x0, y0, w, h = window
@@ -508,13 +553,15 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             window, group, publish, attempt = submitted.pop(future.key)
             try:
                 out = future.result()  # re-raises the task's error (a frame's ValueError)
-            except CancelledError:
+            except CancelledError as error:
                 # Not cancelled here (that happens only on the way out): Dask dropped the task,
                 # which it can do when a worker dies with it (seen as "already forgotten" with
                 # a worker killed mid-run). The tile is submitted again, a few times at most.
                 future.release()
                 if attempt >= _TILE_ATTEMPTS - 1:
-                    raise
+                    raise ValueError(f"render_map(): the tile at pixel {window[0]}, {window[1]}: "
+                                     f"Dask cancelled it {_TILE_ATTEMPTS} times (workers lost?); "
+                                     "nothing written") from error
                 completed.add(submit(window, group, publish, attempt + 1))
                 continue
             future.release()
@@ -548,8 +595,10 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         result.seconds = time.perf_counter() - started
         return result
     except BaseException:
-        for future in futures:
-            future.cancel()
+        live = [future for future in futures if future.key in submitted]
+        if live:
+            with contextlib.suppress(Exception):
+                client.cancel(live)  # one message for all
         writer = None  # the writer's destructor removes its temporary files
         raise
     finally:
