@@ -533,7 +533,7 @@ void SlicePoints(const SliceFocus& focus, const PinholeCamera& camera,
   const Vec3d unit = glm::normalize(plane.normal);
   const double height = glm::dot(unit, plane.point - centre);
   const int64_t count = static_cast<int64_t>(list.size());
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
   for (int64_t j = 0; j < count; ++j) {
     const int x = list[static_cast<size_t>(j)] % camera.width;
     const int y = list[static_cast<size_t>(j)] / camera.width;
@@ -678,16 +678,20 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
     points.reference = cam_from_world.Center();
     points.points.assign(static_cast<size_t>(points.width) * points.height,
                          Vec3d(std::numeric_limits<double>::quiet_NaN()));
-    std::vector<int32_t> places(coarse_pixels);
-    std::vector<float> slice_of;
-    for (int k = 0; k < coarse_slices; ++k) {
+    // The slices' points, a slice per thread at a time (each writes its own places).
+    std::vector<std::vector<int32_t>> places(static_cast<size_t>(threads));
+    std::vector<std::vector<float>> slice_of(static_cast<size_t>(threads));
+    ParallelForPerThread(coarse_slices, threads, nullptr, [&](int64_t index, int thread) {
+      const size_t k = static_cast<size_t>(index);
+      std::vector<int32_t>& at = places[static_cast<size_t>(thread)];
+      at.resize(coarse_pixels);
       for (size_t m = 0; m < coarse_pixels; ++m) {
-        places[m] = static_cast<int32_t>((m / kCoarseGroup) * kCoarseGroup * coarse_slices +
-                                         static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup);
+        at[m] = static_cast<int32_t>((m / kCoarseGroup) * kCoarseGroup * coarse_slices +
+                                     k * kCoarseGroup + m % kCoarseGroup);
       }
-      SlicePoints(focus, coarse_camera, cam_from_world, indices[static_cast<size_t>(k)], order,
-                  places.data(), 0, points.points.data(), &slice_of, threads);
-    }
+      SlicePoints(focus, coarse_camera, cam_from_world, indices[k], order, at.data(), 0,
+                  points.points.data(), &slice_of[static_cast<size_t>(thread)], 1);
+    });
     const Vec3d normal = focus.surface ? focus.GrazingPlane().normal : focus.planes[0].normal;
     SurfaceIntegralResult packed;
     try {
@@ -697,12 +701,16 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
       ThrowInvalid("coarse slices: " + std::string(error.what()));
     }
     const int channels = packed.integral.image.channels();
-    IntegralResult slice;
-    slice.image = Image(cw, ch, channels, PixelType::kF32);
-    slice.count = Image(cw, ch, 1, PixelType::kU32);
-    if (variance) slice.variance = Image(cw, ch, 1, PixelType::kF32);
-    for (int k = 0; k < coarse_slices; ++k) {
-      if (ProgressCancelled(progress)) throw Cancelled();
+    // Each coarse slice's image and focus values, a slice per thread at a time, then folded
+    // in slice order.
+    std::vector<Image> images(static_cast<size_t>(coarse_slices));
+    std::vector<std::vector<float>> values(static_cast<size_t>(coarse_slices));
+    ParallelForPerThread(coarse_slices, threads, progress, [&](int64_t index, int) {
+      const int k = static_cast<int>(index);
+      IntegralResult slice;
+      slice.image = Image(cw, ch, channels, PixelType::kF32);
+      slice.count = Image(cw, ch, 1, PixelType::kU32);
+      if (variance) slice.variance = Image(cw, ch, 1, PixelType::kF32);
       for (size_t m = 0; m < coarse_pixels; ++m) {
         const size_t at = (m / kCoarseGroup) * kCoarseGroup * coarse_slices +
                           static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup;
@@ -714,11 +722,13 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
         *slice.count.At<uint32_t>(x, y) = *packed.integral.count.At<uint32_t>(px, py);
         if (variance) *slice.variance.At<float>(x, y) = *packed.integral.variance.At<float>(px, py);
       }
-      const std::vector<float> values =
+      values[static_cast<size_t>(k)] =
           FocusValues(run.merge.method, slice.image, slice.count,
-                      variance ? &slice.variance : nullptr, coarse_radius, threads);
-      accumulator.Add(k, slice.image, values);
-      ProgressAdvance(progress, 1);
+                      variance ? &slice.variance : nullptr, coarse_radius, 1);
+      images[static_cast<size_t>(k)] = std::move(slice.image);
+    });
+    for (int k = 0; k < coarse_slices; ++k) {
+      accumulator.Add(k, images[static_cast<size_t>(k)], values[static_cast<size_t>(k)]);
     }
   }
   for (int k = 0; k < coarse_slices && !packed_route; ++k) {
@@ -941,13 +951,15 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
     points.reference = cam_from_world.Center();
     points.points.assign(static_cast<size_t>(points.width) * points.height,
                          Vec3d(std::numeric_limits<double>::quiet_NaN()));
-    std::vector<float> slice_of;
-    for (int i = 0; i < slices; ++i) {
-      if (lists[static_cast<size_t>(i)].empty()) continue;
-      SlicePoints(focus, camera, cam_from_world, i, lists[static_cast<size_t>(i)],
-                  places[static_cast<size_t>(i)].data(), 0, points.points.data(), &slice_of,
-                  threads);
-    }
+    // The slices' points, a slice per thread at a time (each writes its own places).
+    std::vector<std::vector<float>> slice_of(static_cast<size_t>(threads));
+    ParallelForPerThread(slices, threads, nullptr, [&](int64_t index, int thread) {
+      const size_t i = static_cast<size_t>(index);
+      if (lists[i].empty()) return;
+      SlicePoints(focus, camera, cam_from_world, static_cast<int>(i), lists[i],
+                  places[i].data(), 0, points.points.data(), &slice_of[static_cast<size_t>(thread)],
+                  1);
+    });
     const Vec3d normal = focus.surface ? focus.GrazingPlane().normal : focus.planes[0].normal;
     SurfaceIntegralResult packed;
     try {
