@@ -48,8 +48,10 @@
 // 8 x 8 take AdmitSample and the double sampler per point, still tiled and culled (lens views
 // are not culled: their projection is not linear). The robust mean needs every sample of a
 // pixel at once: it gathers them tile by tile, views outer (RenderSampleListsTiled), with the
-// reference's double-precision admission and sampler, so it equals the per-pixel reference
-// loop (internal::RenderIntegralAtPointsReference) bit for bit; nearest mode keeps that loop.
+// reference's double-precision admission and sampler (for pinhole views of one channel an AVX2
+// kernel doing the same double operations in the same order, 4 points at a time, without
+// FMA), so it equals the per-pixel reference loop (internal::RenderIntegralAtPointsReference)
+// bit for bit; nearest mode keeps that loop.
 
 namespace aos {
 namespace {
@@ -1430,8 +1432,9 @@ SurfaceIntegralResult RenderTiled(const Setup& s, const FocalPoints& points,
 // kRobustTile x kRobustTile pixels the views are culled by the bounding box of its focal points
 // (OutsideImage for pinhole views, OutsideAperture: conservative, so only views that admit no
 // point of the tile are skipped), and each remaining view's admitted samples (AdmitSample and
-// the double sampler, as the reference) are appended to their pixels' lists in ascending view
-// order: every pixel gets the reference's samples in the reference's order, and FinishPixel
+// the double sampler, as the reference, or for a pinhole view of one channel the exact AVX2
+// gather, internal::ExactGather: the same tests and sample, 4 points at a time, about twice as
+// fast on F0) are appended to their pixels' lists in ascending view order: every pixel gets the reference's samples in the reference's order, and FinishPixel
 // makes the same arithmetic of them, so the outputs equal the reference's bit for bit. A view's
 // samples for one tile lie in a small patch of its image (the reference, pixel outer, walks
 // every view's image for every pixel). Not for nearest mode (aperture 0: one sample a pixel).
