@@ -292,11 +292,34 @@ void ExpectIdentical(const SurfaceIntegralResult& a, const SurfaceIntegralResult
   }
 }
 
+TEST(RenderIntegralAtPoints, RobustRouteGathersOneChannelPinholeViewsThroughTheExactKernel) {
+  // The robust route's AVX2 gather (ExactGather) is handed out for one-channel 8-bit, 16-bit
+  // and float views wherever the CPU has AVX2 and the build's scalar code does not fuse
+  // multiply-adds, so that RobustTiledRouteEqualsTheReferenceExactly compares it (and not only
+  // the scalar route) with the reference on this machine.
+#if defined(__FMA__) || !defined(__x86_64__)
+  GTEST_SKIP() << "no exact AVX2 gather in this build";
+#else
+  __builtin_cpu_init();
+  if (!__builtin_cpu_supports("avx2")) GTEST_SKIP() << "no AVX2";
+  for (PixelType type : {PixelType::kU8, PixelType::kU16, PixelType::kF32}) {
+    EXPECT_NE(internal::Avx2ExactGather(Image(8, 8, 1, type, 1)), nullptr);
+  }
+  EXPECT_EQ(internal::Avx2ExactGather(Image(8, 8, 3, PixelType::kU8, 1)), nullptr);
+  EXPECT_EQ(internal::Avx2ExactGather(Image(8, 8, 1, PixelType::kU32, 1)), nullptr);
+  internal::SetSimdEnabled(false);
+  EXPECT_EQ(internal::Avx2ExactGather(Image(8, 8, 1, PixelType::kU8, 1)), nullptr);
+  internal::SetSimdEnabled(true);
+#endif
+}
+
 TEST(RenderIntegralAtPoints, RobustTiledRouteEqualsTheReferenceExactly) {
+  // One-channel pinhole views take the exact AVX2 gather (where the CPU has one), three
+  // channels and lens views the scalar tests and sampler.
   std::mt19937 rng(4321);
   int compared = 0;
   for (const auto& [type, channels] : std::vector<std::pair<PixelType, int>>{
-           {PixelType::kU8, 1}, {PixelType::kF32, 1}, {PixelType::kU8, 3}}) {
+           {PixelType::kU8, 1}, {PixelType::kU16, 1}, {PixelType::kF32, 1}, {PixelType::kU8, 3}}) {
     const LightField light_field = RandomLightField(24, channels, type, rng);
     // 75 x 41: partial tiles at the right and bottom.
     const FocalPoints points = RandomPoints(light_field, 75, 41, Vec3d(0.0), 6.0, rng);

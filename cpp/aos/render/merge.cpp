@@ -205,28 +205,32 @@ class FocusAccumulator {
   // no neighbour for the parabola), without visiting them.
   void AddAt(int index, const Image& image, const std::vector<int32_t>& pixels,
              const std::vector<float>& focus) {
-    const int channels = image.channels();
     for (const int32_t p : pixels) {
       const size_t i = static_cast<size_t>(p);
-      const int x = static_cast<int>(p % w_), y = static_cast<int>(p / w_);
-      const float f = focus[i];
-      if (best_index_[i] == index - 1 && index > 0) after_[i] = f;
-      if (f != kNone) {
-        sum_[i] += f;
-        ++covered_slices_[i];
-        if (best_index_[i] < 0 || f > best_[i]) {
-          best_[i] = f;
-          best_index_[i] = index;
-          before_[i] = index > 0 && last_index_[i] == index - 1 ? last_[i] : kNone;
-          after_[i] = kNone;
-          const float* in = image.At<float>(x, y);
-          float* guide = guide_.At<float>(x, y);
-          for (int c = 0; c < channels; ++c) guide[c] = in[c];
-        }
-      }
-      last_[i] = f;
-      last_index_[i] = index;
+      AddOne(index, i, focus[i], image.At<float>(static_cast<int>(p % w_), static_cast<int>(p / w_)));
     }
+  }
+
+  // Slice `index`'s focus value f at pixel i (y * width + x), its sample `in` (the guide's
+  // channels): AddAt's work on one pixel. Calls for different pixels touch disjoint state.
+  void AddOne(int index, size_t i, float f, const float* in) {
+    if (best_index_[i] == index - 1 && index > 0) after_[i] = f;
+    if (f != kNone) {
+      sum_[i] += f;
+      ++covered_slices_[i];
+      if (best_index_[i] < 0 || f > best_[i]) {
+        best_[i] = f;
+        best_index_[i] = index;
+        before_[i] = index > 0 && last_index_[i] == index - 1 ? last_[i] : kNone;
+        after_[i] = kNone;
+        const int channels = guide_.channels();
+        float* guide = guide_.At<float>(static_cast<int>(i % static_cast<size_t>(w_)),
+                                        static_cast<int>(i / static_cast<size_t>(w_)));
+        for (int c = 0; c < channels; ++c) guide[c] = in[c];
+      }
+    }
+    last_[i] = f;
+    last_index_[i] = index;
   }
 
   // Fractional slice (-1 where uncovered), confidence, and the number of uncovered pixels.
@@ -529,7 +533,7 @@ void SlicePoints(const SliceFocus& focus, const PinholeCamera& camera,
   const Vec3d unit = glm::normalize(plane.normal);
   const double height = glm::dot(unit, plane.point - centre);
   const int64_t count = static_cast<int64_t>(list.size());
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(threads) schedule(static) if (threads > 1)
   for (int64_t j = 0; j < count; ++j) {
     const int x = list[static_cast<size_t>(j)] % camera.width;
     const int y = list[static_cast<size_t>(j)] / camera.width;
@@ -674,16 +678,20 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
     points.reference = cam_from_world.Center();
     points.points.assign(static_cast<size_t>(points.width) * points.height,
                          Vec3d(std::numeric_limits<double>::quiet_NaN()));
-    std::vector<int32_t> places(coarse_pixels);
-    std::vector<float> slice_of;
-    for (int k = 0; k < coarse_slices; ++k) {
+    // The slices' points, a slice per thread at a time (each writes its own places).
+    std::vector<std::vector<int32_t>> places(static_cast<size_t>(threads));
+    std::vector<std::vector<float>> slice_of(static_cast<size_t>(threads));
+    ParallelForPerThread(coarse_slices, threads, nullptr, [&](int64_t index, int thread) {
+      const size_t k = static_cast<size_t>(index);
+      std::vector<int32_t>& at = places[static_cast<size_t>(thread)];
+      at.resize(coarse_pixels);
       for (size_t m = 0; m < coarse_pixels; ++m) {
-        places[m] = static_cast<int32_t>((m / kCoarseGroup) * kCoarseGroup * coarse_slices +
-                                         static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup);
+        at[m] = static_cast<int32_t>((m / kCoarseGroup) * kCoarseGroup * coarse_slices +
+                                     k * kCoarseGroup + m % kCoarseGroup);
       }
-      SlicePoints(focus, coarse_camera, cam_from_world, indices[static_cast<size_t>(k)], order,
-                  places.data(), 0, points.points.data(), &slice_of, threads);
-    }
+      SlicePoints(focus, coarse_camera, cam_from_world, indices[k], order, at.data(), 0,
+                  points.points.data(), &slice_of[static_cast<size_t>(thread)], 1);
+    });
     const Vec3d normal = focus.surface ? focus.GrazingPlane().normal : focus.planes[0].normal;
     SurfaceIntegralResult packed;
     try {
@@ -693,12 +701,16 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
       ThrowInvalid("coarse slices: " + std::string(error.what()));
     }
     const int channels = packed.integral.image.channels();
-    IntegralResult slice;
-    slice.image = Image(cw, ch, channels, PixelType::kF32);
-    slice.count = Image(cw, ch, 1, PixelType::kU32);
-    if (variance) slice.variance = Image(cw, ch, 1, PixelType::kF32);
-    for (int k = 0; k < coarse_slices; ++k) {
-      if (ProgressCancelled(progress)) throw Cancelled();
+    // Each coarse slice's image and focus values, a slice per thread at a time, then folded
+    // in slice order.
+    std::vector<Image> images(static_cast<size_t>(coarse_slices));
+    std::vector<std::vector<float>> values(static_cast<size_t>(coarse_slices));
+    ParallelForPerThread(coarse_slices, threads, progress, [&](int64_t index, int) {
+      const int k = static_cast<int>(index);
+      IntegralResult slice;
+      slice.image = Image(cw, ch, channels, PixelType::kF32);
+      slice.count = Image(cw, ch, 1, PixelType::kU32);
+      if (variance) slice.variance = Image(cw, ch, 1, PixelType::kF32);
       for (size_t m = 0; m < coarse_pixels; ++m) {
         const size_t at = (m / kCoarseGroup) * kCoarseGroup * coarse_slices +
                           static_cast<size_t>(k) * kCoarseGroup + m % kCoarseGroup;
@@ -710,11 +722,13 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
         *slice.count.At<uint32_t>(x, y) = *packed.integral.count.At<uint32_t>(px, py);
         if (variance) *slice.variance.At<float>(x, y) = *packed.integral.variance.At<float>(px, py);
       }
-      const std::vector<float> values =
+      values[static_cast<size_t>(k)] =
           FocusValues(run.merge.method, slice.image, slice.count,
-                      variance ? &slice.variance : nullptr, coarse_radius, threads);
-      accumulator.Add(k, slice.image, values);
-      ProgressAdvance(progress, 1);
+                      variance ? &slice.variance : nullptr, coarse_radius, 1);
+      images[static_cast<size_t>(k)] = std::move(slice.image);
+    });
+    for (int k = 0; k < coarse_slices; ++k) {
+      accumulator.Add(k, images[static_cast<size_t>(k)], values[static_cast<size_t>(k)]);
     }
   }
   for (int k = 0; k < coarse_slices && !packed_route; ++k) {
@@ -817,7 +831,11 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
   std::vector<std::vector<int32_t>> places(static_cast<size_t>(slices));
   int64_t rendered = 0;
   int32_t place = 0;
-  for (const int32_t block : MortonOrder(choice.blocks_x, choice.blocks_y)) {
+  const std::vector<int32_t> block_order = MortonOrder(choice.blocks_x, choice.blocks_y);
+  std::vector<int32_t> block_place;  // the first place of each block (in block_order)
+  block_place.reserve(block_order.size());
+  for (const int32_t block : block_order) {
+    block_place.push_back(place);
     const int bx = block % choice.blocks_x, by = block / choice.blocks_x;
     for (int i = choice.first[static_cast<size_t>(block)];
          i <= choice.last[static_cast<size_t>(block)]; ++i) {
@@ -835,15 +853,28 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
     indices[static_cast<size_t>(i)] = i;
     rendered += static_cast<int64_t>(lists[static_cast<size_t>(i)].size());
   }
-  std::vector<float> luminance(pixels, 0.0f);
-  std::vector<double> energy(pixels, 0.0), spread(pixels, 0.0);
-  std::vector<uint8_t> covered(pixels, 0), agreeing(pixels, 0);
-  std::vector<float> values(pixels, kNone);
-  Image image(w, h, channels, PixelType::kF32);
   *seconds_merge += list_timer.Seconds();
-  // Folds slice i, rendered on its pixels `lists[i]`, into the accumulator: `in` holds pixel
-  // j of the list (image index p) at position(j, p).
-  const auto fold = [&](int i, const IntegralResult& in, const auto& position) {
+  // One slice's working images (read at its pixels and their neighbours only).
+  struct SliceScratch {
+    std::vector<float> luminance;
+    std::vector<double> energy, spread;
+    std::vector<uint8_t> covered, agreeing;
+    std::vector<float> values;
+    Image image;
+  };
+  const auto make_scratch = [&](SliceScratch* s) {
+    s->luminance.assign(pixels, 0.0f);
+    s->energy.assign(pixels, 0.0);
+    s->spread.assign(pixels, 0.0);
+    s->covered.assign(pixels, 0);
+    s->agreeing.assign(pixels, 0);
+    s->values.assign(pixels, kNone);
+    s->image = Image(w, h, channels, PixelType::kF32);
+  };
+  // Slice i's focus values on its pixels lists[i] into s.values (its samples into s.image):
+  // `in` holds pixel j of the list (image index p) at position(j, p); `inner` threads.
+  const auto slice_values = [&](int i, const IntegralResult& in, const auto& position,
+                                SliceScratch& s, int inner) {
     const size_t k = static_cast<size_t>(i);
     const std::vector<int32_t>& list = lists[k];
     for (size_t j = 0; j < list.size(); ++j) {
@@ -851,51 +882,52 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
       const auto [px, py] = position(j, p);
       const uint32_t n = in.count.At<uint32_t>(px, py)[0];
       const float* sample = in.image.At<float>(px, py);
-      float* out = image.At<float>(static_cast<int>(p % w), static_cast<int>(p / w));
+      float* out = s.image.At<float>(static_cast<int>(p % w), static_cast<int>(p / w));
       float sum = 0.0f;
       for (int c = 0; c < channels; ++c) {
         out[c] = sample[c];
         sum += sample[c];
       }
-      covered[p] = n > 0;
-      agreeing[p] = n >= 2;
-      luminance[p] = sum / static_cast<float>(channels);
-      if (variance) spread[p] = in.variance.At<float>(px, py)[0];
+      s.covered[p] = n > 0;
+      s.agreeing[p] = n >= 2;
+      s.luminance[p] = sum / static_cast<float>(channels);
+      if (variance) s.spread[p] = in.variance.At<float>(px, py)[0];
     }
     const int64_t count = static_cast<int64_t>(list.size());
     // Sobel energy (FocusValues' arithmetic; pixels not rendered are uncovered).
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(inner) schedule(static) if (inner > 1)
     for (int64_t j = 0; j < count; ++j) {
       const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
-      if (!covered[p]) continue;
-      energy[p] = SobelEnergyAt(luminance, covered, w, h, x, y);
+      if (!s.covered[p]) continue;
+      s.energy[p] = SobelEnergyAt(s.luminance, s.covered, w, h, x, y);
     }
-#pragma omp parallel for num_threads(threads) schedule(static)
+#pragma omp parallel for num_threads(inner) schedule(static) if (inner > 1)
     for (int64_t j = 0; j < count; ++j) {
       const size_t p = static_cast<size_t>(list[static_cast<size_t>(j)]);
       const int x = static_cast<int>(p % w), y = static_cast<int>(p / w);
-      if (!covered[p]) continue;
+      if (!s.covered[p]) continue;
       if (method == MergeMethod::kSobel) {
-        values[p] = static_cast<float>(std::sqrt(energy[p]));
+        s.values[p] = static_cast<float>(std::sqrt(s.energy[p]));
         continue;
       }
-      const float sharp = WindowMeanAt(energy, covered, w, h, r, x, y);
+      const float sharp = WindowMeanAt(s.energy, s.covered, w, h, r, x, y);
       if (method == MergeMethod::kImproved) {
-        values[p] = sharp;
+        s.values[p] = sharp;
         continue;
       }
-      const float disagreement = WindowMeanAt(spread, agreeing, w, h, r, x, y);
+      const float disagreement = WindowMeanAt(s.spread, s.agreeing, w, h, r, x, y);
       if (disagreement == kNone) continue;
       const double e = sharp;
-      values[p] = static_cast<float>(e / (static_cast<double>(disagreement) + 1e-12 * (1.0 + e)));
+      s.values[p] = static_cast<float>(e / (static_cast<double>(disagreement) + 1e-12 * (1.0 + e)));
     }
-    (*accumulator)->AddAt(i, image, list, values);
-    // Back to the empty state for the next slice (only the pixels this one touched).
-    for (const int32_t p : list) {
-      covered[static_cast<size_t>(p)] = 0;
-      agreeing[static_cast<size_t>(p)] = 0;
-      values[static_cast<size_t>(p)] = kNone;
+  };
+  // Back to the empty state for the next slice (only the pixels slice i touched).
+  const auto clear = [&](int i, SliceScratch& s) {
+    for (const int32_t p : lists[static_cast<size_t>(i)]) {
+      s.covered[static_cast<size_t>(p)] = 0;
+      s.agreeing[static_cast<size_t>(p)] = 0;
+      s.values[static_cast<size_t>(p)] = kNone;
     }
   };
   ProgressStart(progress, "focal stack", slices);
@@ -919,13 +951,15 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
     points.reference = cam_from_world.Center();
     points.points.assign(static_cast<size_t>(points.width) * points.height,
                          Vec3d(std::numeric_limits<double>::quiet_NaN()));
-    std::vector<float> slice_of;
-    for (int i = 0; i < slices; ++i) {
-      if (lists[static_cast<size_t>(i)].empty()) continue;
-      SlicePoints(focus, camera, cam_from_world, i, lists[static_cast<size_t>(i)],
-                  places[static_cast<size_t>(i)].data(), 0, points.points.data(), &slice_of,
-                  threads);
-    }
+    // The slices' points, a slice per thread at a time (each writes its own places).
+    std::vector<std::vector<float>> slice_of(static_cast<size_t>(threads));
+    ParallelForPerThread(slices, threads, nullptr, [&](int64_t index, int thread) {
+      const size_t i = static_cast<size_t>(index);
+      if (lists[i].empty()) return;
+      SlicePoints(focus, camera, cam_from_world, static_cast<int>(i), lists[i],
+                  places[i].data(), 0, points.points.data(), &slice_of[static_cast<size_t>(thread)],
+                  1);
+    });
     const Vec3d normal = focus.surface ? focus.GrazingPlane().normal : focus.planes[0].normal;
     SurfaceIntegralResult packed;
     try {
@@ -936,20 +970,59 @@ double FoldCoarseToFine(const LightField& light_field, const AllInFocusOptions& 
     }
     *seconds_render += render_timer.Seconds();
     const Timer fold_timer;
-    for (int i = 0; i < slices; ++i) {
-      if (ProgressCancelled(progress)) throw Cancelled();
+    // Every pair's focus value, at its place: the slices in parallel, each thread with its own
+    // scratch (a slice's values read that slice only; the same arithmetic as slice by slice).
+    std::vector<float> packed_values(static_cast<size_t>(rendered), kNone);
+    std::vector<SliceScratch> scratch(static_cast<size_t>(threads));
+    ParallelForPerThread(slices, threads, progress, [&](int64_t index, int thread) {
+      const int i = static_cast<int>(index);
       const std::vector<int32_t>& at = places[static_cast<size_t>(i)];
-      if (!at.empty()) {
-        fold(i, packed.integral, [&](size_t j, size_t) {
-          return std::pair<int, int>(at[j] % kPackedWidth, at[j] / kPackedWidth);
-        });
+      if (at.empty()) return;
+      SliceScratch& mine = scratch[static_cast<size_t>(thread)];
+      if (mine.values.empty()) make_scratch(&mine);
+      slice_values(i, packed.integral, [&](size_t j, size_t) {
+        return std::pair<int, int>(at[j] % kPackedWidth, at[j] / kPackedWidth);
+      }, mine, 1);
+      const std::vector<int32_t>& list = lists[static_cast<size_t>(i)];
+      for (size_t j = 0; j < list.size(); ++j) {
+        packed_values[static_cast<size_t>(at[j])] = mine.values[static_cast<size_t>(list[j])];
       }
-      ProgressAdvance(progress, 1);
+      clear(i, mine);
+    });
+    // Then folded block by block in parallel: a pixel lies in one block, whose slices follow
+    // one another in ascending order in the packing, so each pixel folds its slices in the
+    // order (and with the values) of AddAt slice by slice (test: merge_test
+    // CoarseToFineBlockPackingEqualsSlicePacking).
+    FocusAccumulator& fold_into = **accumulator;
+    const int64_t blocks = static_cast<int64_t>(block_order.size());
+#pragma omp parallel for num_threads(threads) schedule(static)
+    for (int64_t b = 0; b < blocks; ++b) {
+      const int32_t block = block_order[static_cast<size_t>(b)];
+      const int bx = block % choice.blocks_x, by = block / choice.blocks_x;
+      size_t at = static_cast<size_t>(block_place[static_cast<size_t>(b)]);
+      for (int i = choice.first[static_cast<size_t>(block)];
+           i <= choice.last[static_cast<size_t>(block)]; ++i) {
+        for (int y = by * factor; y < std::min(h, (by + 1) * factor); ++y) {
+          for (int x = bx * factor; x < std::min(w, (bx + 1) * factor); ++x, ++at) {
+            fold_into.AddOne(i, static_cast<size_t>(y) * w + x, packed_values[at],
+                             packed.integral.image.At<float>(static_cast<int>(at % kPackedWidth),
+                                                             static_cast<int>(at / kPackedWidth)));
+          }
+        }
+      }
     }
     *seconds_merge += fold_timer.Seconds();
     return static_cast<double>(rendered) / (static_cast<double>(pixels) * slices);
   }
-  // Surfaces, lens views: packed points through the depth path, many slices a call.
+  // Surfaces, lens views: packed points through the depth path, many slices a call, each
+  // slice folded in turn.
+  SliceScratch shared;
+  make_scratch(&shared);
+  const auto fold = [&](int i, const IntegralResult& in, const auto& position) {
+    slice_values(i, in, position, shared, threads);
+    (*accumulator)->AddAt(i, shared.image, lists[static_cast<size_t>(i)], shared.values);
+    clear(i, shared);
+  };
   Timer render_timer;
   RenderPackedSlices(
       light_field, resolved, camera, cam_from_world, focus, indices,

@@ -48,8 +48,10 @@
 // 8 x 8 take AdmitSample and the double sampler per point, still tiled and culled (lens views
 // are not culled: their projection is not linear). The robust mean needs every sample of a
 // pixel at once: it gathers them tile by tile, views outer (RenderSampleListsTiled), with the
-// reference's double-precision admission and sampler, so it equals the per-pixel reference
-// loop (internal::RenderIntegralAtPointsReference) bit for bit; nearest mode keeps that loop.
+// reference's double-precision admission and sampler (for pinhole views of one channel an AVX2
+// kernel doing the same double operations in the same order, 4 points at a time, without
+// FMA), so it equals the per-pixel reference loop (internal::RenderIntegralAtPointsReference)
+// bit for bit; nearest mode keeps that loop.
 
 namespace aos {
 namespace {
@@ -73,6 +75,9 @@ struct ViewSetup {
   double cos_shortcut = 1.0;
   Sampler sample = nullptr;
   internal::PointKernel kernel = nullptr;  // pinhole views with an AVX2 kernel
+  // Pinhole views of one channel: the robust route's exact AVX2 gather and its arguments.
+  internal::ExactGather exact_gather = nullptr;
+  internal::ExactViewArgs exact;
 };
 
 // Bilinear sample at continuous pixel coordinates (u, v), pixel centres at +0.5, clamped into
@@ -221,6 +226,27 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
     }
     setup.sample = SamplerFor(view.image);
     setup.kernel = internal::Avx2PointKernel(view.image);
+    if (setup.lens == nullptr && !s.nearest) {
+      setup.exact_gather = internal::Avx2ExactGather(view.image);
+      internal::ExactViewArgs& e = setup.exact;
+      for (int c = 0; c < 3; ++c) {
+        for (int r = 0; r < 3; ++r) e.rotation[c][r] = setup.rotation[c][r];
+        e.offset[c] = setup.offset[c];
+        e.b[c] = setup.b[c];
+        e.normal[c] = s.normal[c];
+        e.axis[c] = s.lens_axis[c];
+      }
+      e.fx = setup.fx;
+      e.fy = setup.fy;
+      e.cx = setup.cx;
+      e.cy = setup.cy;
+      e.width = setup.width;
+      e.height = setup.height;
+      e.sin2 = s.sin2_min;
+      e.aperture = s.finite_aperture ? (s.cylinder ? 2 : 1) : 0;
+      e.lens_b = setup.lens_b;
+      e.r2 = s.r2;
+    }
     s.views.push_back(setup);
   }
   return s;
@@ -273,10 +299,24 @@ inline bool AdmitSample(const Setup& s, const ViewSetup& view, const Vec3d& foca
 // One admitted sample of `view` at view pixel (u, v) into a pixel's lists: its channels (a
 // masked light field's divided by their mask weight: surface_integral.h) and their luminance.
 // False, and nothing added, for a masked sample of weight 0. `value` holds the view's channels.
+inline bool AddValues(const Setup& s, int channels, bool masked, const double* value,
+                      std::vector<double>& samples, std::vector<double>& luminance);
 inline bool AddSample(const Setup& s, const ViewSetup& view, double u, double v, int channels,
                       bool masked, double* value, std::vector<double>& samples,
                       std::vector<double>& luminance) {
   view.sample(*view.image, u, v, value);
+  return AddValues(s, channels, masked, value, samples, luminance);
+}
+
+// AddSample after the sampling: the view's channels `value` into the lists.
+inline bool AddValues(const Setup& s, int channels, bool masked, const double* value,
+                      std::vector<double>& samples, std::vector<double>& luminance) {
+  if (channels == 1 && !masked) {
+    // The same values without the divisions by 1: x / 1 = x and (0 + x) / 1 = x + 0 exactly.
+    samples.push_back(value[0]);
+    luminance.push_back(value[0] + 0.0);
+    return true;
+  }
   double weight = 1.0;
   if (masked) {
     weight = value[channels] / s.range;
@@ -1392,8 +1432,9 @@ SurfaceIntegralResult RenderTiled(const Setup& s, const FocalPoints& points,
 // kRobustTile x kRobustTile pixels the views are culled by the bounding box of its focal points
 // (OutsideImage for pinhole views, OutsideAperture: conservative, so only views that admit no
 // point of the tile are skipped), and each remaining view's admitted samples (AdmitSample and
-// the double sampler, as the reference) are appended to their pixels' lists in ascending view
-// order: every pixel gets the reference's samples in the reference's order, and FinishPixel
+// the double sampler, as the reference, or for a pinhole view of one channel the exact AVX2
+// gather, internal::ExactGather: the same tests and sample, 4 points at a time, about twice as
+// fast on F0) are appended to their pixels' lists in ascending view order: every pixel gets the reference's samples in the reference's order, and FinishPixel
 // makes the same arithmetic of them, so the outputs equal the reference's bit for bit. A view's
 // samples for one tile lie in a small patch of its image (the reference, pixel outer, walks
 // every view's image for every pixel). Not for nearest mode (aperture 0: one sample a pixel).
@@ -1424,6 +1465,8 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
     std::vector<int32_t> histogram;
     std::vector<Vec3d> focal;
     std::vector<uint8_t> valid;
+    std::vector<double> x, y, z, gathered;  // the exact gather's points and samples
+    std::vector<uint8_t> admitted;
     int64_t fallback = 0;
   };
   constexpr int kPixels = kRobustTile * kRobustTile;
@@ -1437,12 +1480,22 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
       mine.value.resize(static_cast<size_t>(s.channels));
       mine.focal.resize(kPixels);
       mine.valid.resize(kPixels);
+      for (std::vector<double>* array : {&mine.x, &mine.y, &mine.z, &mine.gathered}) {
+        array->resize(kPixels);
+      }
+      mine.admitted.resize(kPixels);
     }
     const int x0 = static_cast<int>(t % tiles_x) * kRobustTile;
     const int y0 = static_cast<int>(t / tiles_x) * kRobustTile;
     const int x1 = std::min(s.width, x0 + kRobustTile), y1 = std::min(s.height, y0 + kRobustTile);
     const int tile_width = x1 - x0, size = tile_width * (y1 - y0);
     const double inf = std::numeric_limits<double>::infinity();
+    const double nan = std::numeric_limits<double>::quiet_NaN();
+    const int padded = (size + 3) / 4 * 4;
+    for (int j = size; j < padded; ++j) {
+      mine.x[static_cast<size_t>(j)] = mine.y[static_cast<size_t>(j)] =
+          mine.z[static_cast<size_t>(j)] = nan;
+    }
     Box box{Vec3d(inf), Vec3d(-inf)};
     bool any = false;
     for (int j = 0; j < size; ++j) {
@@ -1452,8 +1505,14 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
           points.points[static_cast<size_t>(y0 + j / tile_width) * s.width + x0 + j % tile_width];
       mine.valid[static_cast<size_t>(j)] =
           std::isfinite(point.x) && std::isfinite(point.y) && std::isfinite(point.z);
+      // The exact gather's arrays: NaN (admitted by no view) where there is no point.
+      mine.x[static_cast<size_t>(j)] = mine.y[static_cast<size_t>(j)] =
+          mine.z[static_cast<size_t>(j)] = nan;
       if (!mine.valid[static_cast<size_t>(j)]) continue;
       mine.focal[static_cast<size_t>(j)] = point + s.shift;
+      mine.x[static_cast<size_t>(j)] = mine.focal[static_cast<size_t>(j)].x;
+      mine.y[static_cast<size_t>(j)] = mine.focal[static_cast<size_t>(j)].y;
+      mine.z[static_cast<size_t>(j)] = mine.focal[static_cast<size_t>(j)].z;
       box.lo = glm::min(box.lo, mine.focal[static_cast<size_t>(j)]);
       box.hi = glm::max(box.hi, mine.focal[static_cast<size_t>(j)]);
       any = true;
@@ -1463,6 +1522,22 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
       int image_tests = 0;
       if (view.lens == nullptr && OutsideImage(view, box, &image_tests)) continue;
       if (OutsideAperture(s, view, box)) continue;
+      if (view.exact_gather != nullptr && !masked) {
+        // Pinhole, one channel: the reference's tests and sampler, 4 points at a time.
+        if (!view.exact_gather(*view.image, mine.x.data(), mine.y.data(), mine.z.data(),
+                               padded, view.exact, mine.admitted.data(), mine.gathered.data())) {
+          continue;
+        }
+        for (int j = 0; j < size; ++j) {
+          if (!mine.admitted[static_cast<size_t>(j)]) continue;
+          if (AddValues(s, channels, masked, &mine.gathered[static_cast<size_t>(j)],
+                        mine.samples[static_cast<size_t>(j)],
+                        mine.luminance[static_cast<size_t>(j)])) {
+            mine.used[i] = 1;
+          }
+        }
+        continue;
+      }
       for (int j = 0; j < size; ++j) {
         if (!mine.valid[static_cast<size_t>(j)]) continue;
         double u, v, distance2 = inf;

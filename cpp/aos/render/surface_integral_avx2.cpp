@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <type_traits>
 
 #include "aos/render/integral_kernels.h"
 #include "aos/render/surface_integral_kernels.h"
@@ -267,6 +268,133 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
   return any;
 }
 
+// ---- the robust route's exact gather (ExactGather) ----
+// AVX2 without FMA: the compiler may not fuse a multiply and an add here, so every operation
+// rounds as the scalar reference's does (compiled for the baseline CPU, which has no FMA).
+#define AOS_EXACT_TARGET __attribute__((target("avx2"), always_inline)) inline
+
+// glm's dot product of a vec3 with itself or another: (a.x b.x + a.y b.y) + a.z b.z.
+AOS_EXACT_TARGET __m256d Dot3(__m256d ax, __m256d ay, __m256d az, __m256d bx, __m256d by,
+                              __m256d bz) {
+  return _mm256_add_pd(_mm256_add_pd(_mm256_mul_pd(ax, bx), _mm256_mul_pd(ay, by)),
+                       _mm256_mul_pd(az, bz));
+}
+
+AOS_EXACT_TARGET __m256d Broadcast(double v) { return _mm256_set1_pd(v); }
+
+// Row r of R_i focal + offset (glm: (m[0][r] x + m[1][r] y) + m[2][r] z, then + offset).
+AOS_EXACT_TARGET __m256d CameraRow(const ExactViewArgs& a, int r, __m256d x, __m256d y,
+                                   __m256d z) {
+  return _mm256_add_pd(
+      Dot3(Broadcast(a.rotation[0][r]), Broadcast(a.rotation[1][r]), Broadcast(a.rotation[2][r]), x, y, z),
+      Broadcast(a.offset[r]));
+}
+
+// SampleTyped's clamp: min(s > -1 ? s : -1, last), std::min's comparison (last < low).
+AOS_EXACT_TARGET __m256d ClampTap(__m256d s, __m256d minus_one, __m256d last) {
+  const __m256d low = _mm256_blendv_pd(minus_one, s, _mm256_cmp_pd(s, minus_one, _CMP_GT_OQ));
+  return _mm256_blendv_pd(low, last, _mm256_cmp_pd(last, low, _CMP_LT_OQ));
+}
+
+template <PixelType kType>
+__attribute__((target("avx2"))) bool Avx2Exact(const Image& image, const double* px,
+                                               const double* py, const double* pz, int count,
+                                               const ExactViewArgs& a, uint8_t* admitted,
+                                               double* value) {
+  using T = std::conditional_t<kType == PixelType::kU8, uint8_t,
+                               std::conditional_t<kType == PixelType::kU16, uint16_t, float>>;
+  const __m256d zero = _mm256_setzero_pd();
+  const __m256d half = _mm256_set1_pd(0.5), minus_one = _mm256_set1_pd(-1.0);
+  const __m256d last_x = Broadcast(image.width() - 0.5), last_y = Broadcast(image.height() - 0.5);
+  bool any = false;
+  for (int j = 0; j < count; j += 4) {
+    const __m256d x = _mm256_loadu_pd(px + j), y = _mm256_loadu_pd(py + j),
+                  z = _mm256_loadu_pd(pz + j);
+    // in_cam = R_i focal + offset.
+    const __m256d cam_x = CameraRow(a, 0, x, y, z), cam_y = CameraRow(a, 1, x, y, z),
+                  cam_z = CameraRow(a, 2, x, y, z);
+    const __m256d u = _mm256_add_pd(_mm256_div_pd(_mm256_mul_pd(Broadcast(a.fx), cam_x), cam_z),
+                                    Broadcast(a.cx));
+    const __m256d v = _mm256_add_pd(_mm256_div_pd(_mm256_mul_pd(Broadcast(a.fy), cam_y), cam_z),
+                                    Broadcast(a.cy));
+    __m256d ok = _mm256_cmp_pd(cam_z, zero, _CMP_GT_OQ);
+    ok = _mm256_and_pd(ok, _mm256_cmp_pd(u, zero, _CMP_GE_OQ));
+    ok = _mm256_and_pd(ok, _mm256_cmp_pd(u, Broadcast(a.width), _CMP_LE_OQ));
+    ok = _mm256_and_pd(ok, _mm256_cmp_pd(v, zero, _CMP_GE_OQ));
+    ok = _mm256_and_pd(ok, _mm256_cmp_pd(v, Broadcast(a.height), _CMP_LE_OQ));
+    // Grazing: rejected where along^2 < sin2 |to_view|^2, to_view = b - focal.
+    const __m256d tx = _mm256_sub_pd(Broadcast(a.b[0]), x), ty = _mm256_sub_pd(Broadcast(a.b[1]), y),
+                  tz = _mm256_sub_pd(Broadcast(a.b[2]), z);
+    const __m256d along = Dot3(Broadcast(a.normal[0]), Broadcast(a.normal[1]), Broadcast(a.normal[2]), tx, ty, tz);
+    ok = _mm256_and_pd(ok, _mm256_cmp_pd(_mm256_mul_pd(along, along),
+                                         _mm256_mul_pd(Broadcast(a.sin2), Dot3(tx, ty, tz, tx, ty, tz)),
+                                         _CMP_NLT_UQ));
+    if (a.aperture == 2) {
+      // Cylinder: across = to_view - (to_view . axis) axis; rejected where |across|^2 > r2.
+      const __m256d d = Dot3(tx, ty, tz, Broadcast(a.axis[0]), Broadcast(a.axis[1]), Broadcast(a.axis[2]));
+      const __m256d qx = _mm256_sub_pd(tx, _mm256_mul_pd(d, Broadcast(a.axis[0])));
+      const __m256d qy = _mm256_sub_pd(ty, _mm256_mul_pd(d, Broadcast(a.axis[1])));
+      const __m256d qz = _mm256_sub_pd(tz, _mm256_mul_pd(d, Broadcast(a.axis[2])));
+      ok = _mm256_and_pd(ok, _mm256_cmp_pd(Dot3(qx, qy, qz, qx, qy, qz), Broadcast(a.r2), _CMP_NGT_UQ));
+    } else if (a.aperture == 1) {
+      // Lens plane: D = a.b - a.X (rejected where 0), N = (a.b) X - (a.X) b, rejected where
+      // |N|^2 / D^2 > r2.
+      const __m256d a_x = Dot3(Broadcast(a.axis[0]), Broadcast(a.axis[1]), Broadcast(a.axis[2]), x, y, z);
+      const __m256d denominator = _mm256_sub_pd(Broadcast(a.lens_b), a_x);
+      ok = _mm256_and_pd(ok, _mm256_cmp_pd(denominator, zero, _CMP_NEQ_UQ));
+      const __m256d lens_b = Broadcast(a.lens_b);
+      const __m256d nx = _mm256_sub_pd(_mm256_mul_pd(lens_b, x), _mm256_mul_pd(a_x, Broadcast(a.b[0])));
+      const __m256d ny = _mm256_sub_pd(_mm256_mul_pd(lens_b, y), _mm256_mul_pd(a_x, Broadcast(a.b[1])));
+      const __m256d nz = _mm256_sub_pd(_mm256_mul_pd(lens_b, z), _mm256_mul_pd(a_x, Broadcast(a.b[2])));
+      const __m256d distance2 = _mm256_div_pd(Dot3(nx, ny, nz, nx, ny, nz),
+                                              _mm256_mul_pd(denominator, denominator));
+      ok = _mm256_and_pd(ok, _mm256_cmp_pd(distance2, Broadcast(a.r2), _CMP_NGT_UQ));
+    }
+    const int mask = _mm256_movemask_pd(ok);
+    for (int k = 0; k < 4; ++k) admitted[j + k] = static_cast<uint8_t>((mask >> k) & 1);
+    if (mask == 0) continue;
+    any = true;
+    // SampleTyped: sx = min(max-ish(u - 0.5, -1), width - 0.5) (the reference's comparisons),
+    // taps at floor(sx) and floor(sx) + 1, then the same three interpolations. Lanes not
+    // admitted sample at (0.5, 0.5) (inside the image; their values are not used).
+    const __m256d sx = ClampTap(_mm256_sub_pd(_mm256_blendv_pd(half, u, ok), half), minus_one,
+                                last_x);
+    const __m256d sy = ClampTap(_mm256_sub_pd(_mm256_blendv_pd(half, v, ok), half), minus_one,
+                                last_y);
+    const __m256d fx = _mm256_floor_pd(sx), fy = _mm256_floor_pd(sy);
+    const __m256d ax = _mm256_sub_pd(sx, fx), ay = _mm256_sub_pd(sy, fy);
+    alignas(16) int32_t ix[4], iy[4];
+    _mm_store_si128(reinterpret_cast<__m128i*>(ix), _mm256_cvttpd_epi32(fx));
+    _mm_store_si128(reinterpret_cast<__m128i*>(iy), _mm256_cvttpd_epi32(fy));
+    alignas(32) double p00[4], p01[4], p10[4], p11[4];
+    for (int k = 0; k < 4; ++k) {
+      const T* top = image.At<T>(ix[k], iy[k]);
+      const T* bottom = image.At<T>(ix[k], iy[k] + 1);
+      p00[k] = top[0];
+      p01[k] = top[1];
+      p10[k] = bottom[0];
+      p11[k] = bottom[1];
+    }
+    const __m256d t00 = _mm256_load_pd(p00), t01 = _mm256_load_pd(p01),
+                  t10 = _mm256_load_pd(p10), t11 = _mm256_load_pd(p11);
+    const __m256d upper = _mm256_add_pd(t00, _mm256_mul_pd(ax, _mm256_sub_pd(t01, t00)));
+    const __m256d lower = _mm256_add_pd(t10, _mm256_mul_pd(ax, _mm256_sub_pd(t11, t10)));
+    _mm256_storeu_pd(value + j,
+                     _mm256_add_pd(upper, _mm256_mul_pd(ay, _mm256_sub_pd(lower, upper))));
+  }
+  return any;
+}
+
+#undef AOS_EXACT_TARGET
+
+bool CpuHasAvx2() {
+  static const bool has = [] {
+    __builtin_cpu_init();
+    return __builtin_cpu_supports("avx2");
+  }();
+  return has;
+}
+
 bool CpuHasAvx2Fma() {
   static const bool has = [] {
     __builtin_cpu_init();
@@ -294,9 +422,30 @@ PointKernel Avx2PointKernel(const Image& image) {
   return nullptr;
 }
 
+ExactGather Avx2ExactGather(const Image& image) {
+#ifdef __FMA__
+  // The scalar reference may fuse multiply-adds in such a build (-march=native): its rounding
+  // is then not the kernel's.
+  (void)image;
+  return nullptr;
+#else
+  if (!SimdEnabled() || !CpuHasAvx2() || image.channels() != 1 || image.border() < 1) {
+    return nullptr;
+  }
+  switch (image.type()) {
+    case PixelType::kU8: return &Avx2Exact<PixelType::kU8>;
+    case PixelType::kU16: return &Avx2Exact<PixelType::kU16>;
+    case PixelType::kF32: return &Avx2Exact<PixelType::kF32>;
+    case PixelType::kU32: break;
+  }
+  return nullptr;
+#endif
+}
+
 #else
 
 PointKernel Avx2PointKernel(const Image&) { return nullptr; }
+ExactGather Avx2ExactGather(const Image&) { return nullptr; }
 
 #endif
 

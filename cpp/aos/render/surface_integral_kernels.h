@@ -73,6 +73,33 @@ using PointKernel = bool (*)(const Image& image, const PointTileArrays& points,
 // or a view type or channel count without one).
 PointKernel Avx2PointKernel(const Image& image);
 
+// The robust route's gather (surface_integral.cpp, RenderSampleListsTiled) for one pinhole view
+// of one channel: the reference's admission tests (AdmitSample) and bilinear sample
+// (SampleTyped), 4 points at a time in double precision with the reference's operations in the
+// reference's order and no fused multiply-add, so that the admitted samples and their values
+// are the reference's bit for bit (test: surface_integral_test
+// RobustTiledRouteEqualsTheReferenceExactly).
+struct ExactViewArgs {
+  double rotation[3][3];  // glm's column-major R_i: rotation[c][r] = R_i[c][r]
+  double offset[3];       // R_i (C - C_i)
+  double b[3];            // C_i - C
+  double fx, fy, cx, cy, width, height;  // the view's camera
+  double normal[3], sin2;                // the grazing test
+  // 0: no aperture test (infinite aperture), 1: lens plane, 2: cylinder.
+  int aperture = 0;
+  double axis[3], lens_b, r2;
+};
+// Points relative to the centre (structure of arrays, NaN for a pixel without a point), `count`
+// a multiple of 4: admitted[j] = 1 and value[j] = the sample where the view admits point j,
+// admitted[j] = 0 elsewhere (value[j] then unspecified). Returns whether any was admitted.
+using ExactGather = bool (*)(const Image& image, const double* x, const double* y,
+                             const double* z, int count, const ExactViewArgs& args,
+                             uint8_t* admitted, double* value);
+
+// The AVX2 gather for this view, or nullptr (no AVX2, SIMD disabled by SetSimdEnabled, a view
+// type or channel count without one, or a build whose scalar code may fuse multiply-adds).
+ExactGather Avx2ExactGather(const Image& image);
+
 // The lens route's work (surface_integral.cpp, LensRoute), summed over every render since the
 // last ResetLensRouteCounts(): quads sampled through a local homography per level (0: 64 x 64
 // output pixels, 1: 32, 2: 16, 3: 8), 8 x 8 quads projected point by point, and exact node
