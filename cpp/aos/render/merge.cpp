@@ -178,24 +178,9 @@ class FocusAccumulator {
     const int channels = image.channels();
     for (int y = 0; y < h_; ++y) {
       const float* in = image.At<float>(0, y);
-      float* guide = guide_.At<float>(0, y);
       for (int x = 0; x < w_; ++x) {
         const size_t i = static_cast<size_t>(y) * w_ + x;
-        const float f = focus[i];
-        if (best_index_[i] == index - 1 && index > 0) after_[i] = f;
-        if (f != kNone) {
-          sum_[i] += f;
-          ++covered_slices_[i];
-          if (best_index_[i] < 0 || f > best_[i]) {
-            best_[i] = f;
-            best_index_[i] = index;
-            before_[i] = index > 0 && last_index_[i] == index - 1 ? last_[i] : kNone;
-            after_[i] = kNone;
-            for (int c = 0; c < channels; ++c) guide[x * channels + c] = in[x * channels + c];
-          }
-        }
-        last_[i] = f;
-        last_index_[i] = index;
+        AddOne(index, i, focus[i], in + static_cast<size_t>(x) * channels);
       }
     }
   }
@@ -212,7 +197,8 @@ class FocusAccumulator {
   }
 
   // Slice `index`'s focus value f at pixel i (y * width + x), its sample `in` (the guide's
-  // channels): AddAt's work on one pixel. Calls for different pixels touch disjoint state.
+  // channels): Add's and AddAt's work on one pixel. Calls for different pixels touch disjoint
+  // state.
   void AddOne(int index, size_t i, float f, const float* in) {
     if (best_index_[i] == index - 1 && index > 0) after_[i] = f;
     if (f != kNone) {
