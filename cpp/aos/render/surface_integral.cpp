@@ -77,7 +77,7 @@ struct ViewSetup {
   internal::PointKernel kernel = nullptr;  // pinhole views with an AVX2 kernel
   // Pinhole views of one channel: the robust route's exact AVX2 gather and its arguments.
   internal::ExactGather exact_gather = nullptr;
-  internal::ExactViewArgs exact;
+  internal::ExactViewArgs exact{};
 };
 
 // Bilinear sample at continuous pixel coordinates (u, v), pixel centres at +0.5, clamped into

@@ -422,6 +422,14 @@ PointKernel Avx2PointKernel(const Image& image) {
   return nullptr;
 }
 
+bool ExactGatherBuilt() {
+#ifdef __FMA__
+  return false;
+#else
+  return true;
+#endif
+}
+
 ExactGather Avx2ExactGather(const Image& image) {
 #ifdef __FMA__
   // The scalar reference may fuse multiply-adds in such a build (-march=native): its rounding

@@ -100,6 +100,10 @@ using ExactGather = bool (*)(const Image& image, const double* x, const double* 
 // type or channel count without one, or a build whose scalar code may fuse multiply-adds).
 ExactGather Avx2ExactGather(const Image& image);
 
+// Whether this build compiles the exact gather at all: false where the scalar code may fuse
+// multiply-adds (-march=native on an FMA CPU, seen in the library's own flags).
+bool ExactGatherBuilt();
+
 // The lens route's work (surface_integral.cpp, LensRoute), summed over every render since the
 // last ResetLensRouteCounts(): quads sampled through a local homography per level (0: 64 x 64
 // output pixels, 1: 32, 2: 16, 3: 8), 8 x 8 quads projected point by point, and exact node
