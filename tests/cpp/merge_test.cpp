@@ -745,28 +745,31 @@ TEST(RenderAllInFocus, CoarseToFineBlockPackingEqualsSlicePacking) {
   // The fine pass packs its (slice, pixel) points block by block in one render call (the
   // default) or slice by slice (the reference): the same points, each with its samples in view
   // order, so every output must be equal bit for bit; for planes and for a terrain-following
-  // stack (a tilted mesh: the slices' depths vary over the image), with 1 and 2 threads.
-  const int size = 32;
-  for (MergeMethod method : kAllMethods) {
-    SCOPED_TRACE(MergeMethodName(method));
-    for (const bool surface : {false, true}) {
-      SCOPED_TRACE(surface);
-      AllInFocusOptions options = CoarseToFineOptions(method, size, surface);
-      for (const int threads : {1, 2}) {
-        options.merge.num_threads = options.stack.render.num_threads = threads;
-        internal::SetCoarseToFineBlockPacking(false);
-        const MergeResult slice_packed = RenderAllInFocus(SimulatedGround(), options);
-        internal::SetCoarseToFineBlockPacking(true);
-        const MergeResult block_packed = RenderAllInFocus(SimulatedGround(), options);
-        ASSERT_TRUE(WellFormed(block_packed, size, size));
-        EXPECT_EQ(block_packed.rendered_fraction, slice_packed.rendered_fraction);
-        EXPECT_LT(block_packed.rendered_fraction, 0.2);
-        EXPECT_EQ(block_packed.uncovered_pixels, slice_packed.uncovered_pixels);
-        EXPECT_EQ(block_packed.fallback_pixels, slice_packed.fallback_pixels);
-        EXPECT_TRUE(SameImage(block_packed.image, slice_packed.image));
-        EXPECT_TRUE(SameImage(block_packed.depth, slice_packed.depth));
-        EXPECT_TRUE(SameImage(block_packed.slice, slice_packed.slice));
-        EXPECT_TRUE(SameImage(block_packed.confidence, slice_packed.confidence));
+  // stack (a tilted mesh: the slices' depths vary over the image), with 1 and 2 threads; 30
+  // pixels wide too, so that the last blocks are partial (factor 4).
+  for (const int size : {32, 30}) {
+    SCOPED_TRACE(size);
+    for (MergeMethod method : kAllMethods) {
+      SCOPED_TRACE(MergeMethodName(method));
+      for (const bool surface : {false, true}) {
+        SCOPED_TRACE(surface);
+        AllInFocusOptions options = CoarseToFineOptions(method, size, surface);
+        for (const int threads : {1, 2}) {
+          options.merge.num_threads = options.stack.render.num_threads = threads;
+          internal::SetCoarseToFineBlockPacking(false);
+          const MergeResult slice_packed = RenderAllInFocus(SimulatedGround(), options);
+          internal::SetCoarseToFineBlockPacking(true);
+          const MergeResult block_packed = RenderAllInFocus(SimulatedGround(), options);
+          ASSERT_TRUE(WellFormed(block_packed, size, size));
+          EXPECT_EQ(block_packed.rendered_fraction, slice_packed.rendered_fraction);
+          EXPECT_LT(block_packed.rendered_fraction, 0.2);
+          EXPECT_EQ(block_packed.uncovered_pixels, slice_packed.uncovered_pixels);
+          EXPECT_EQ(block_packed.fallback_pixels, slice_packed.fallback_pixels);
+          EXPECT_TRUE(SameImage(block_packed.image, slice_packed.image));
+          EXPECT_TRUE(SameImage(block_packed.depth, slice_packed.depth));
+          EXPECT_TRUE(SameImage(block_packed.slice, slice_packed.slice));
+          EXPECT_TRUE(SameImage(block_packed.confidence, slice_packed.confidence));
+        }
       }
     }
   }
