@@ -221,13 +221,12 @@ class _FrameCache:
         rest = []
         for i in missing:
             image = self.store.get(i)
-            try:
-                if image is None:
-                    raise ValueError("not in the store")
-                _core._set_view_image(self.light_field, i, image)
-                self.shared += 1
-            except ValueError:
-                rest.append(i)
+            if image is not None:
+                with contextlib.suppress(ValueError):  # not this view's frame: decode it
+                    _core._set_view_image(self.light_field, i, image)
+                    self.shared += 1
+                    continue
+            rest.append(i)
         return rest
 
     def hold(self, indices: Sequence[int], publish: Sequence[int] = ()) -> None:
