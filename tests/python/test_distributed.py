@@ -391,6 +391,12 @@ def test_the_local_cluster_admits_only_its_own_client(survey: Path) -> None:
         with pytest.raises(Exception):
             Client(address, security=Security.temporary(), timeout=5)
         assert c.submit(sum, [1, 2]).result(timeout=60) == 3
+        # The quieter housekeeping reaches the worker processes (the nannies pass it on).
+        import dask
+
+        settings = c.run(lambda: (dask.config.get("distributed.admin.tick.interval"),
+                                  dask.config.get("distributed.worker.profile.enabled")))
+        assert list(settings.values()) == [("500ms", False)]
         base = c.dashboard_link.rsplit("/", 1)[0]
         assert base.startswith("http://127.0.0.1:")
         with urllib.request.urlopen(base + "/health", timeout=30) as page:

@@ -32,6 +32,7 @@ import contextlib
 import copy
 import math
 import os
+import pickle
 import shutil
 import tempfile
 import threading
@@ -287,7 +288,8 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
                  views: Optional[Sequence[int]] = None) -> dict:
     """One task: the window's frames (``views``, else found here; cached; with
     ``share_bytes``, shared with the other workers of this machine, ``publish`` being the
-    frames they need), then its pixels."""
+    frames they need), then its pixels. ``light_field``: the poses (a LightField without
+    images), or them pickled (bytes: render_map sends them so)."""
     with _CACHE_LOCK:  # one tile at a time per process; the render releases the GIL
         if token in _FINISHED:  # cancelled with its run, but already queued here
             _drop_run(token)
@@ -296,6 +298,8 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
         if cache is None:
             for old in list(_CACHES):  # one run's frames at a time
                 _drop_run(old)
+            if isinstance(light_field, bytes):  # the poses as render_map scatters them
+                light_field = pickle.loads(light_field)
             store = _FrameStore(token, share_bytes) if share_bytes > 0 else None
             if store is not None:
                 store.sweep()
@@ -346,7 +350,9 @@ def local_client(workers: int, *, dashboard: bool = False, **cluster_kwargs: Any
     program on this machine can submit work to it. ``dashboard``: also serve Dask's dashboard
     (progress, tasks, memory; needs bokeh) on a free port of 127.0.0.1 at
     ``client.dashboard_link`` - read-only pages, but without a token: anyone on this machine
-    can look at it while the run lasts. Close the client and its cluster
+    can look at it while the run lasts (without it, the workers' stack profiler is off). Dask's
+    periodic housekeeping runs less often than its defaults (see the settings below). Close
+    the client and its cluster
     (``client.close(); client.cluster.close()``) or use it as a context manager."""
     from dask.distributed import Client, LocalCluster
 
@@ -358,10 +364,22 @@ def local_client(workers: int, *, dashboard: bool = False, **cluster_kwargs: Any
                     dashboard_address="127.0.0.1:0", security=True,
                     scheduler_kwargs={"dashboard": dashboard})
     settings.update(cluster_kwargs)
-    config: dict = {"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 262144}
+    config: dict = {"distributed.nanny.pre-spawn-environ.MALLOC_MMAP_THRESHOLD_": 262144,
+                    # Dask's housekeeping, every process waking 50 times a second (the event
+                    # loop's tick), twice (system monitor) and ten times (each nanny's memory
+                    # check): 2 workers idle for 10 s cost 0.5-0.6 s of the client's CPU and
+                    # 0.4-0.5 s of each worker's, 0.13 and 0.05 s with these (docs/distributed.md):
+                    # CPU the tiles need on a small machine. The placement of tiles is
+                    # render_map's own (two in flight per worker), so no work stealing.
+                    "distributed.admin.tick.interval": "500ms",
+                    "distributed.admin.system-monitor.interval": "2s",
+                    "distributed.worker.memory.monitor-interval": "1s",
+                    "distributed.scheduler.work-stealing": False}
     if not dashboard:
         config["distributed.scheduler.http.routes"] = ["distributed.http.health"]
         config["distributed.worker.http.routes"] = ["distributed.http.health"]
+        # Each worker samples its task thread's stack every 10 ms for the dashboard's profile.
+        config["distributed.worker.profile.enabled"] = False
     # Frames (about a megabyte each) come and go: with glibc's default, its mmap threshold rises
     # after the first free and later frames stay in the heap, whose high-water mark then grows
     # with the frames read. A fixed threshold gives each frame its own mapping, returned on free.
@@ -477,7 +495,12 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             shape = (grid["height"], grid["width"]) + ((channels,) if channels > 1 else ())
             image = np.zeros(shape, np.float32)
             count = np.zeros((grid["height"], grid["width"]), np.uint32)
-        [poses_future] = client.scatter([poses], broadcast=True, hash=False)
+        # The poses go to every worker once, pickled here: Dask then copies bytes from worker
+        # to worker, where a LightField would be unpickled and pickled again on each hop (1.1 s
+        # against 0.3-0.6 s for 2,025 views and two workers); each worker unpickles them once,
+        # in its run's first task.
+        blob = pickle.dumps(poses, protocol=pickle.HIGHEST_PROTOCOL)
+        [poses_future] = client.scatter([blob], broadcast=True, hash=False)
         tile = options.tile_size
         windows = [(x0, y0, min(tile, grid["width"] - x0), min(tile, grid["height"] - y0))
                    for y0 in range(0, grid["height"], tile)
