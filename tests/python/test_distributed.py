@@ -293,6 +293,14 @@ def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
     # Checked before any cluster starts: an existing output, a bad worker count.
     again = run("-o", str(tmp_path / "dask.tif"), "--workers", "2")
     assert again.returncode != 0 and "exists" in again.stderr
+    # The writer's checks come before render_map starts a cluster (on_start never called).
+    started: list = []
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    with pytest.raises(ValueError, match="exists"):
+        aos.distributed.render_map(poses, aos.MapOptions(pixel_size=PIXEL, tile_size=TILE),
+                                   path=tmp_path / "dask.tif", workers=2,
+                                   on_start=started.append)
+    assert started == []
     for flags in (["--workers", "-1"], ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
                   ["--workers", "2", "--cache-mb", "-1"], ["--workers", "2", "--share-mb", "-1"],
                   ["--dashboard"]):

@@ -448,7 +448,9 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
                load: Optional[dict] = None, force: bool = False, arrays: bool = False,
                cache_bytes: int = DEFAULT_CACHE_BYTES,
                share_bytes: int = DEFAULT_SHARE_BYTES,
-               progress: Optional[Callable[[str, int, int], object]] = None
+               progress: Optional[Callable[[str, int, int], object]] = None,
+               dashboard: bool = False,
+               on_start: Optional[Callable[[Any], object]] = None
                ) -> DistributedMapResult:
     """Renders the map of ``light_field`` (a LightField, with or without its images: the
     workers read the frames from their files) and ``options`` (a MapOptions) on Dask; see the
@@ -458,8 +460,12 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     the bytes of decoded frames each worker may hand to the other workers of its machine
     through shared memory (0: none; see _FrameStore). ``progress(stage, done, total)`` is
     called on the client as tiles
-    arrive ("render map", tiles) and while the COG is written. Raises ValueError naming the
-    field or the file; nothing is written at ``path`` on any error."""
+    arrive ("render map", tiles) and while the COG is written. ``dashboard``: the local
+    cluster render_map starts serves Dask's dashboard (local_client). ``on_start(client)`` is
+    called once the inputs and the output are checked and the cluster is there, before the
+    first task (the CLI prints where the tiles run). Raises ValueError naming the field or the
+    file, before any cluster is started where the inputs or the output are at fault; nothing
+    is written at ``path`` on any error."""
     started = time.perf_counter()
     load = dict(load or {})
     if cache_bytes < 0:
@@ -486,9 +492,11 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             from dask.distributed import Client
 
             if scheduler:
-                client = owned = Client(scheduler)
+                client = owned = Client(scheduler, timeout=30)
             else:
-                client = owned = local_client(workers or 1)
+                client = owned = local_client(workers or 1, dashboard=dashboard)
+        if on_start is not None:
+            on_start(client)
         image: Optional[np.ndarray] = None
         count: Optional[np.ndarray] = None
         if arrays:

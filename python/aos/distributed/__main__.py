@@ -119,40 +119,33 @@ def main(argv: list[str]) -> int:
         frame_load = {key: load[key] for key in ("grey", "mask", "mask_dir") if load.get(key)}
         workers = int(spec.get("workers", 0))
         scheduler = str(spec.get("scheduler", ""))
-        # The inputs first (the poses, the grid, one frame decoded): a bad one fails before
-        # worker processes are started.
-        distributed.prepare_map(light_field, options, frame_load)
-        if scheduler:
-            from dask.distributed import Client
-
-            client = Client(scheduler, timeout=30)
-        else:
+        if not scheduler:
             try:
                 import cryptography  # noqa: F401  (the local cluster's TLS credentials)
             except ImportError:
                 return _fail("--workers needs the cryptography package for the local cluster's "
                              "session credentials: pip install 'aos[dask]'")
-            client = distributed.local_client(workers, dashboard=bool(spec.get("dashboard")))
-        try:
-            if not quiet:
-                where = f"the cluster at {scheduler}" if scheduler else \
-                    f"a local cluster of {workers} worker processes"
-                sys.stderr.write(f"map: {len(light_field)} frames, tiles of {options.tile_size} "
-                                 f"pixels as Dask tasks on {where}\n")
-                if scheduler or spec.get("dashboard"):
-                    link = _dashboard_link(client, local=not scheduler)
-                    sys.stderr.write(f"map: Dask dashboard at {link}\n" if link else
-                                     "map: no Dask dashboard (pip install bokeh)\n")
-            result = distributed.render_map(
-                light_field, options, path=spec["output"], client=client, load=frame_load,
-                force=bool(spec.get("force", False)),
-                cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)),
-                share_bytes=int(float(spec.get("share_mb", 512)) * (1 << 20)), progress=bar)
-        finally:
-            cluster = getattr(client, "cluster", None)
-            client.close()
-            if cluster is not None and not scheduler:
-                cluster.close()
+
+        def started(client: Any) -> None:
+            # render_map checked the inputs (the poses, the grid, one frame decoded) and the
+            # output (folder, existing file, free space) before it started the cluster.
+            if quiet:
+                return
+            where = f"the cluster at {scheduler}" if scheduler else \
+                f"a local cluster of {workers} worker processes"
+            sys.stderr.write(f"map: {len(light_field)} frames, tiles of {options.tile_size} "
+                             f"pixels as Dask tasks on {where}\n")
+            if scheduler or spec.get("dashboard"):
+                link = _dashboard_link(client, local=not scheduler)
+                sys.stderr.write(f"map: Dask dashboard at {link}\n" if link else
+                                 "map: no Dask dashboard (pip install bokeh)\n")
+
+        result = distributed.render_map(
+            light_field, options, path=spec["output"], scheduler=scheduler or None,
+            workers=workers, dashboard=bool(spec.get("dashboard")), on_start=started,
+            load=frame_load, force=bool(spec.get("force", False)),
+            cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)),
+            share_bytes=int(float(spec.get("share_mb", 512)) * (1 << 20)), progress=bar)
         bar.finish()
     except BadParameter as error:
         bar.finish()
