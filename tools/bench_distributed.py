@@ -76,6 +76,12 @@ def peak_rss_bytes() -> int:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024  # Linux: KiB
 
 
+def cpu_seconds() -> float:
+    """CPU time (user + system) this process has used so far, all its threads."""
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return usage.ru_utime + usage.ru_stime
+
+
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--frames", type=int, default=100, help="views (rounded up to a square)")
@@ -90,12 +96,15 @@ def main() -> int:
                         default=distributed.DEFAULT_CACHE_BYTES / 2**20,
                         help="frame cache per worker, MiB")
     parser.add_argument("--repeats", type=int, default=1,
-                        help="rounds of every worker count, interleaved")
+                        help="rounds of every worker count, interleaved (0: only make the "
+                        "survey)")
     parser.add_argument("--folder", default="", help="where the survey is (generated once)")
     parser.add_argument("--json", default="", help="also write the results here")
     args = parser.parse_args()
 
     path = survey(args)
+    if args.repeats == 0:  # --repeats 0: only make (or check) the survey
+        return 0
     poses = aos.load_lightfield(path, load_images=False).light_field
     frame = poses.views[0]
     probe = aos.load_lightfield(path, load_images=False).light_field
@@ -117,11 +126,19 @@ def main() -> int:
         for round_index in range(args.repeats):
             for workers in counts:
                 with distributed.local_client(workers) as client:
+                    # CPU of the workers and of this process (the client, the scheduler, the
+                    # nannies and the writer) over the run: on a machine of C cores no run can
+                    # take less than their sum / C.
+                    workers_cpu = client.run(cpu_seconds)
+                    client_cpu = cpu_seconds()
                     started = time.perf_counter()
                     result = distributed.render_map(
                         poses, options, path=Path(scratch) / f"map-{len(runs)}.tif",
                         client=client, cache_bytes=int(args.cache_mb * 2**20))
                     seconds = time.perf_counter() - started
+                    client_cpu = cpu_seconds() - client_cpu
+                    workers_cpu = [after - workers_cpu[address] for address, after in
+                                   client.run(cpu_seconds).items()]
                     peaks = sorted(client.run(peak_rss_bytes).values())
                     client.cluster.close()
                 run = {"round": round_index, "workers": workers, "seconds": round(seconds, 2),
@@ -130,14 +147,22 @@ def main() -> int:
                        "task_seconds_render": round(result.seconds_render, 2),
                        "frames_per_s": round(len(poses) / seconds, 2),
                        "map_mp_per_s": round(megapixels / seconds, 3),
+                       "cpu_s_client": round(client_cpu, 2),
+                       "cpu_s_workers": sorted(round(c, 2) for c in workers_cpu),
                        "tiles": result.tiles, "frame_reads": result.frames_read,
+                       "frames_shared": result.frames_shared,
                        "peak_worker_rss_mib": [round(p / 2**20) for p in peaks]}
                 runs.append(run)
                 print(json.dumps(run), file=sys.stderr)
     # Speed-up of each run against the first worker count's run of the same round.
+    cores = len(os.sched_getaffinity(0))
     for run in runs:
         base = next(r for r in runs if r["round"] == run["round"] and r["workers"] == counts[0])
         run["speedup"] = round(base["seconds"] / run["seconds"], 2)
+        # The most this run could have been sped up against the base on this machine's cores
+        # with the CPU work it did: base seconds / (all its CPU seconds / cores).
+        cpu = run["cpu_s_client"] + sum(run["cpu_s_workers"])
+        run["cpu_bound_speedup"] = round(base["seconds"] / (cpu / cores), 2)
     summary = {}
     for workers in counts:
         mine = [r for r in runs if r["workers"] == workers]
@@ -147,7 +172,9 @@ def main() -> int:
             "peak_worker_rss_mib": max(max(r["peak_worker_rss_mib"]) for r in mine)}
         print(f"{workers} worker(s): median {summary[workers]['median_seconds']:.1f} s, "
               f"speed-up {summary[workers]['median_speedup']:.2f}x (rounds: "
-              f"{', '.join(str(r['speedup']) for r in mine)}), peak worker memory "
+              f"{', '.join(str(r['speedup']) for r in mine)}; at most "
+              f"{', '.join(str(r['cpu_bound_speedup']) for r in mine)} with their CPU seconds "
+              f"on {cores} cores), peak worker memory "
               f"{summary[workers]['peak_worker_rss_mib']} MiB", file=sys.stderr)
     report = {"frames": len(poses), "frame_size": [frame.camera.width, frame.camera.height],
               "map_size": [grid["width"], grid["height"]], "map_mp": round(megapixels, 2),
