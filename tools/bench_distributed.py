@@ -5,8 +5,10 @@ data), then mapped on LocalClusters of 1, 2, ... worker processes (one thread ea
 run: seconds, frames/s (frames of the survey / seconds), map megapixels/s, frame reads (cache
 misses summed over the tasks) and the peak resident memory of each worker process (the
 getrusage high-water mark of a fresh cluster), the tasks' summed time reading frames and
-rendering, and the speed-up against the first worker count's run of the same round (--repeats
-rounds, interleaved).
+rendering, the CPU seconds of the client process (client, scheduler, nannies, writer) and of
+each worker, and the speed-up against the first worker count's run of the same round (--repeats
+rounds, interleaved) beside the most that run's CPU seconds allow on this machine's cores (base
+seconds / (CPU seconds / cores): no schedule of the same work on C cores is faster).
 
     python3 tools/bench_distributed.py --frames 2000 --frame-width 1200 --area-ha 5 \\
         --pixel-size 0.05 --workers 1,2 --folder /tmp/survey-2000
