@@ -35,7 +35,10 @@
 //   centre) are projected exactly, a homography is fitted to the corners (affine in the tangent
 //   plane of the centre ray; for radtan lenses in the view's own pinhole coordinates; where that
 //   misses the tolerance by less than 4x, a full homography by least squares over the nine
-//   nodes), and the quad is sampled through it (the point kernel) when
+//   nodes; for fisheye and omnidirectional lenses on 64- and 32-pixel quads a cubic polynomial
+//   in the tangent-plane coordinates instead, by least squares over a 5 x 5 grid of nodes, its
+//   error bounded between them from its second differences), and the quad is sampled through
+//   it (the point kernel) when
 //   its error at the nodes, plus a first-order bound for the focal points' departure from the
 //   bilinear sheet through the corner points (steps and relief of the surface), is within
 //   lens_tolerance_px and every ray of the quad keeps inside the lens's valid field (with a
