@@ -48,12 +48,26 @@ __attribute__((target("avx2,fma"), always_inline)) inline Taps Gather(const Pend
                                                                       int stride_bytes) {
   Taps t;
   if constexpr (kType == PixelType::kF32) {
-    const auto* base = reinterpret_cast<const float*>(origin);
-    const auto* below = reinterpret_cast<const float*>(origin + stride_bytes);
-    t.p00 = _mm256_i32gather_ps(base, p.offset, 1);
-    t.p01 = _mm256_i32gather_ps(base + 1, p.offset, 1);
-    t.p10 = _mm256_i32gather_ps(below, p.offset, 1);
-    t.p11 = _mm256_i32gather_ps(below + 1, p.offset, 1);
+    // Both horizontal taps of a row in one 64-bit load per lane (as the 8/16-bit views' 32-bit
+    // words): 16 loads instead of four 8-lane vgatherdps (32 elements). Lanes 0, 1, 4, 5 go
+    // to `a` and 2, 3, 6, 7 to `b` (two per 128-bit half), so that one shuffle per tap column
+    // puts the taps in lane order.
+    alignas(32) int32_t offsets[8];
+    _mm256_store_si256(reinterpret_cast<__m256i*>(offsets), p.offset);
+    const auto pairs = [&](int k0, int k1, int row) {
+      const __m128d low = _mm_castsi128_pd(
+          _mm_loadl_epi64(reinterpret_cast<const __m128i*>(origin + row + offsets[k0])));
+      return _mm_loadh_pd(low, reinterpret_cast<const double*>(origin + row + offsets[k1]));
+    };
+    for (int row = 0; row < 2; ++row) {
+      const int row_bytes = row == 0 ? 0 : stride_bytes;
+      const __m256 a = _mm256_castpd_ps(_mm256_insertf128_pd(
+          _mm256_castpd128_pd256(pairs(0, 1, row_bytes)), pairs(4, 5, row_bytes), 1));
+      const __m256 b = _mm256_castpd_ps(_mm256_insertf128_pd(
+          _mm256_castpd128_pd256(pairs(2, 3, row_bytes)), pairs(6, 7, row_bytes), 1));
+      (row == 0 ? t.p00 : t.p10) = _mm256_shuffle_ps(a, b, _MM_SHUFFLE(2, 0, 2, 0));
+      (row == 0 ? t.p01 : t.p11) = _mm256_shuffle_ps(a, b, _MM_SHUFFLE(3, 1, 3, 1));
+    }
   } else {
     // Both horizontal taps of a row in one 32-bit word, read with scalar loads: on Zen 3 16
     // scalar loads cost fewer cycles than two 8-lane vpgatherdd (about 13 cycles each), about
