@@ -633,7 +633,9 @@ TEST(RenderIntegral, RadialTangentialQuadsAreFittedBelowA64PixelTileThatMissed) 
 Image RampImage(int width, int height, bool along_x) {
   Image image(width, height, 1, PixelType::kF32, 1);
   for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) image.At<float>(x, y)[0] = static_cast<float>((along_x ? x : y) + 0.5);
+    for (int x = 0; x < width; ++x) {
+      image.At<float>(x, y)[0] = static_cast<float>((along_x ? x : y) + 0.5);
+    }
   }
   image.FillBorder();
   return image;
@@ -692,8 +694,9 @@ TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
           const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
           if (n != exact.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
           if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
-          largest = std::max(largest, static_cast<double>(std::abs(
-                                          fast.image.At<float>(x, y)[0] - exact.image.At<float>(x, y)[0])));
+          const double difference =
+              std::abs(fast.image.At<float>(x, y)[0] - exact.image.At<float>(x, y)[0]);
+          largest = std::max(largest, difference);
         }
       }
       EXPECT_LE(largest, options.lens_tolerance_px + 1e-4) << "pixels";

@@ -1560,7 +1560,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     };
     if (view.lens != nullptr && view.kernel != nullptr && float_points && !s.nearest &&
         s.lens_tolerance > 0.0 && glm::length(view.b) < kFloatRange) {
-      // Lens views: local homographies per quad, within the tolerance of the exact projection.
+      // Lens views: local maps per quad, within the tolerance of the exact projection.
       ++b.generation;
       // The next view's lines go out with the quads' kernel calls (about 16 of them at the
       // default tolerance), the rest at the end.

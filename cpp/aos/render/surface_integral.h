@@ -111,8 +111,8 @@ struct PointIntegralOptions {
   int num_threads = -1;
   bool variance = false;             // as IntegralOptions
   // Views with a lens model (lens.h): the largest error, in view pixels, allowed where the exact
-  // lens projection is replaced by a local homography (per quad of 64 down to 8 output pixels,
-  // checked at its corners, edge midpoints and centre; see "Lens views" above), [0, 1];
+  // lens projection is replaced by a local map (per quad of 64 down to 8 output pixels,
+  // checked at its nodes; see "Lens views" above), [0, 1];
   // 0 = project every sample exactly.
   double lens_tolerance_px = 0.02;
 

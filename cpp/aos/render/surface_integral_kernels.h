@@ -112,9 +112,10 @@ ExactGather Avx2ExactGather(const Image& image);
 bool ExactGatherBuilt();
 
 // The lens route's work (surface_integral.cpp, LensRoute), summed over every render since the
-// last ResetLensRouteCounts(): quads sampled through a local homography per level (0: 64 x 64
-// output pixels, 1: 32, 2: 16, 3: 8), 8 x 8 quads projected point by point, and exact node
-// projections. For tests of the route's choices; the renders' outputs do not depend on them.
+// last ResetLensRouteCounts(): quads sampled through a local map (homography or cubic) per
+// level (0: 64 x 64 output pixels, 1: 32, 2: 16, 3: 8), 8 x 8 quads projected point by point,
+// and exact node projections. For tests of the route's choices; the renders' outputs do not
+// depend on them.
 struct LensRouteCounts {
   int64_t fitted_quads[4] = {0, 0, 0, 0};
   int64_t exact_quads = 0;
