@@ -705,6 +705,61 @@ TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
   }
 }
 
+TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnATiltAndAStep) {
+  // The cubic map's tolerance where the focal points are not a plane's bilinear grid: a depth
+  // that grows by 0.02 mm per pixel (focal points quadratic in the pixel: about 0.1 mm off the
+  // bilinear sheet through a 64-pixel tile's corners, which the turn bound charges at about
+  // 0.004 px) and a 1 m step along a diagonal, across which quads are split down to the exact
+  // projection. (Any real relief sends quads below 16 pixels already: the turn bound allows
+  // about 0.5 mm off the sheet at 20 m.) Ramp frames (RampImage): the fast render differs from
+  // lens_tolerance_px = 0's by at most the tolerance, plus float rounding, as on the plane.
+  const LensCamera lens =
+      LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0, {0.01, -0.002, 0, 0, 0}, 0.0, "test");
+  for (const bool along_x : {true, false}) {
+    SCOPED_TRACE(along_x ? "u" : "v");
+    LightField light_field;
+    const Image ramp = RampImage(lens.width, lens.height, along_x);
+    for (int i = 0; i < 9; ++i) {
+      const Vec3d eye(4.0 * (i % 3 - 1), 4.0 * (i / 3 - 1), 20.0);
+      light_field.views.push_back(
+          MakeView("lens" + std::to_string(i), lens, NadirCamFromWorld(eye), ramp));
+    }
+    IntegralOptions options;
+    options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
+    options.fov_deg = 60.0;
+    options.width = options.height = 256;
+    Image depth(options.width, options.height, 1, PixelType::kF32);
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        depth.At<float>(x, y)[0] = static_cast<float>(
+            20.0 + 2e-5 * x + (x + y > 300 ? -1.0 : 0.0));
+      }
+    }
+    options.lens_tolerance_px = 0.0;
+    const SurfaceIntegralResult exact = RenderIntegralOnDepth(light_field, options, depth);
+    options.lens_tolerance_px = 0.02;
+    internal::ResetLensRouteCounts();
+    const SurfaceIntegralResult fast = RenderIntegralOnDepth(light_field, options, depth);
+    const internal::LensRouteCounts counts = internal::GetLensRouteCounts();
+    EXPECT_GT(counts.fitted_quads[0], 0);
+    EXPECT_GT(counts.exact_quads, 0);  // along the step
+    double largest = 0.0;
+    int64_t count_mismatches = 0;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        const uint32_t n = fast.integral.count.At<uint32_t>(x, y)[0];
+        if (n != exact.integral.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
+        if (n == 0 || n != exact.integral.count.At<uint32_t>(x, y)[0]) continue;
+        const double difference = std::abs(fast.integral.image.At<float>(x, y)[0] -
+                                           exact.integral.image.At<float>(x, y)[0]);
+        largest = std::max(largest, difference);
+      }
+    }
+    EXPECT_LE(largest, options.lens_tolerance_px + 1e-4) << "pixels";
+    EXPECT_EQ(count_mismatches, 0);
+  }
+}
+
 TEST(RenderIntegral, LensToleranceIsValidated) {
   const LensCamera lens =
       LensFromFov(LensModel::kFisheye, 64, 48, 180.0, {0, 0, 0, 0, 0}, 0.0, "test");
