@@ -8,7 +8,7 @@ Prints, in one run on this machine:
      radial-tangential lens - the integral image from the 512 x 512 truth camera (a 60-degree
      pinhole at the aperture centre) on the ground plane, rendered three ways: straight from the
      raw frames through the lens model (direct sampling, one resampling) with the default
-     lens_tolerance_px (local homographies per quad, "fast") and with lens_tolerance_px = 0
+     lens_tolerance_px (local maps per quad, "fast") and with lens_tolerance_px = 0
      (every sample projected exactly, "exact"), and after rectifying every frame to a 100-degree
      (radtan: 95-degree) perspective frame of the same width (two resamplings). PSNR and SSIM against the
      simulator's truth image of the ground, and the time of each way, the three renders
@@ -186,7 +186,7 @@ plane; quality against the simulator's truth image of the ground (PSNR with L = 
 the pixels both ways cover. Rectify-then-render rectifies to a 100-degree perspective frame of
 the same width (radtan: 95 degrees, which its barrel distortion still covers). "direct" is the
 default (`lens_tolerance_px` 0.02: local
-homographies per quad of the output, each checked against the exact projection), "direct
+maps per quad of the output, each checked against the exact projection), "direct
 (exact)" projects every sample through the lens (`lens_tolerance_px` 0); the three renders are
 interleaved in each of the {args.repeats} repeats, times are medians, "direct / pinhole" the
 median of the per-repeat ratios (the machine is shared: single timings move by 2x and more
@@ -197,23 +197,30 @@ with its load, the ratios less; this run: {load}):
 Direct sampling resamples each raw frame once, through the lens model; rectifying first
 resamples twice (raw -> perspective -> integral) and loses detail at each step. Direct sampling
 takes the per-sample render path (`surface_integral.h`): per quad of 64 down to 8 output pixels
-and per view, the quad's nodes (corners, edge midpoints, centre) are projected exactly through
-the lens, a local map is fitted (affine in the tangent plane of the quad's centre ray through the
-corners; where that misses the tolerance by less than 4x, a full homography by least squares
-over the nine nodes), and the quad is sampled through it by the point kernel when its error at
-the nodes (plus a bound for the surface's departure from a bilinear sheet) is within
-`lens_tolerance_px` view pixels; other quads are split, and the smallest ones projected sample
-by sample. At the default 0.02 px the fisheye and omnidirectional quads pass at 16 output pixels
-(their residual is the lens's curvature, which no homography takes up), the radial-tangential
-ones at 32 (the homography takes up most of it). A quad is split without a fit where a quarter
-of its parent's error (the affine error falls with the square of the side) is above twice the
-tolerance, except on radial-tangential lenses, whose 32-pixel homographies pass below 64-pixel
-tiles that missed by far more than that. The render's time beyond the pinhole path's is then the
-nodes' exact projections (81 per view and 64-pixel tile at 16-pixel quads, 25 at 32) and the
-fits, the per-sample path's own setup (every pixel's focal point, tile by tile), and the point
-kernel, which costs more per sample than the pinhole path's span kernel (profiles on one thread:
-the kernel about half of the fisheye render and two thirds of the radial-tangential one, the
-fits and node projections about a quarter and a tenth). A sample position off by at most t view pixels moves
+and per view, nodes of the quad are projected exactly through the lens and a local map is
+fitted to them. Fisheye and omnidirectional lenses first take, on 64- and 32-pixel quads, a
+cubic polynomial in the tangent-plane coordinates of the quad's centre ray, by least squares
+over a 5 x 5 grid of nodes, its error bounded by the largest error at the nodes plus the
+bilinear interpolation error between them (from the nodes' second differences); below that,
+and on radial-tangential lenses, the map is affine in the tangent plane through the corners or,
+where that misses the tolerance by less than 4x, a full homography by least squares over the
+3 x 3 nodes (corners, edge midpoints, centre). The quad is sampled through the map by the point
+kernel when that error (plus a bound for the surface's departure from a bilinear sheet) is
+within `lens_tolerance_px` view pixels; other quads are split, and the smallest ones projected
+sample by sample. At the default 0.02 px the fisheye and omnidirectional tiles pass whole, at
+64 output pixels (the cubic's residual there is about 3e-4 px: the PSNR is the exact route's
+to 0.01 dB; a homography, which cannot take up these lenses' second-order term, passed only at
+16 pixels), the radial-tangential quads at 32 (the homography
+takes up most of it). A quad is split without a fit where its parent's error predicts a miss by
+more than twice the tolerance (a quarter of it for affine fits, a sixteenth for cubic ones),
+except on radial-tangential lenses, whose 32-pixel homographies pass below 64-pixel tiles that
+missed by far more than that. The render's time beyond the pinhole path's is then mostly the
+point kernel, which costs more per sample than the pinhole path's span kernel (each focal point
+is projected in 3-D, and for the wide lenses the cubic evaluated; float frames' two horizontal
+taps of a row are read with one 64-bit load per sample, not gathered), then the per-sample
+path's own setup (every pixel's focal point, tile by tile) and the fits and node projections
+(one fit and 25 nodes per view and tile for the wide lenses, 25 nodes and four homographies for
+the radial-tangential one). A sample position off by at most t view pixels moves
 a bilinear sample by at most t times the frame's largest step between neighbouring pixels.
 Rectifying pays off only when the same frames are rendered many times.
 

@@ -122,7 +122,7 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
                "Ignore rays meeting the focal plane at less than this angle, degrees");
   render.Field("lens_tolerance_px", options.lens_tolerance_px,
                "Views with a lens model: largest sample-position error, view pixels, of the "
-               "local homographies that replace the exact projection; 0 = exact");
+               "local maps that replace the exact projection; 0 = exact");
   render.Threads(options.num_threads);
 }
 
@@ -856,7 +856,7 @@ CommandRunner DefineMap(CLI::App* command) {
               "Ignore rays meeting the focal plane at less than this angle, degrees");
   flags.Field("lens_tolerance_px", options.lens_tolerance_px,
               "Views with a lens model: largest sample-position error, view pixels, of the "
-              "local homographies that replace the exact projection; 0 = exact");
+              "local maps that replace the exact projection; 0 = exact");
   flags.Field("tile_size", options.tile_size,
               "Pixels on a side of a render tile (memory is bounded by one tile)");
   flags.Threads(options.num_threads);

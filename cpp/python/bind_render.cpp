@@ -182,7 +182,7 @@ void BindIntegral(py::module_& m) {
              "the scalar kernel, which also sums their squares: a few times slower).")
       .Field("lens_tolerance_px", &IntegralOptions::lens_tolerance_px,
              "Views with a lens model: the largest error of a sample position, view pixels, "
-             "[0, 1], where the exact lens projection is replaced by local homographies; 0 = "
+             "[0, 1], where the exact lens projection is replaced by local maps; 0 = "
              "project every sample exactly.")
       .Finish()
       .def("check", &IntegralOptions::Check, "view_count"_a,
@@ -392,7 +392,7 @@ void BindMap(py::module_& m) {
              "Minimum angle between a view's ray and the focal plane, degrees, [0, 90).")
       .Field("lens_tolerance_px", &MapOptions::lens_tolerance_px,
              "Views with a lens model: the largest error of a sample position, view pixels, "
-             "[0, 1], where the exact lens projection is replaced by local homographies; 0 = "
+             "[0, 1], where the exact lens projection is replaced by local maps; 0 = "
              "project every sample exactly.")
       .Field("tile_size", &MapOptions::tile_size, "Pixels on a side of a render tile, 16 .. 8192.")
       .Field("num_threads", &MapOptions::num_threads, "Worker threads; -1 = all cores.")

@@ -398,7 +398,7 @@ class IntegralOptions:
     """Also return the per-pixel variance of the view samples (scalar kernel: a few times slower)."""
     lens_tolerance_px: float
     """Views with a lens model: largest sample-position error, view pixels, [0, 1], of the local
-    homographies that replace the exact projection; 0 = exact."""
+    maps (homographies, cubics) that replace the exact projection; 0 = exact."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
     def __eq__(self, other: object) -> bool: ...

@@ -628,6 +628,138 @@ TEST(RenderIntegral, RadialTangentialQuadsAreFittedBelowA64PixelTileThatMissed) 
   EXPECT_LE(count_mismatches, options.width * options.height / 500);
 }
 
+// A ramp: pixel (x, y) holds x + 0.5 (along_x) or y + 0.5, the continuous coordinate of its
+// centre, so that a bilinear sample inside the image is its position u (or v) exactly.
+Image RampImage(int width, int height, bool along_x) {
+  Image image(width, height, 1, PixelType::kF32, 1);
+  for (int y = 0; y < height; ++y) {
+    for (int x = 0; x < width; ++x) {
+      image.At<float>(x, y)[0] = static_cast<float>((along_x ? x : y) + 0.5);
+    }
+  }
+  image.FillBorder();
+  return image;
+}
+
+TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
+  // The lens benchmark's fisheye and omnidirectional cases (tools/bench_lens.py: 1024 x 1024
+  // frames, 180 and 200 degrees, from 20 m; a 512 x 512 60-degree output), 3 x 3 views 4 m
+  // apart: the cubic map (LensRoute::FitCubic) passes the 0.02 px tolerance on whole 64-pixel
+  // tiles (its residual there is about 3e-4 px), where homographies passed only at 16 pixels.
+  // The frames are ramps (RampImage), so each output pixel is the mean over the views of the
+  // sample positions u (or v): the fast render differs from lens_tolerance_px = 0's by at most
+  // the tolerance (the fit's error bound at every point of the quad, on a plane), plus the
+  // kernel's float rounding (positions of about 1000 pixels: 1e-4). A wrong cubic (a
+  // coefficient, the pixel-centre offset) or a bound that lets a worse fit through fails here.
+  struct LensCase {
+    const char* name;
+    LensCamera lens;
+  };
+  const std::vector<LensCase> cases = {
+      {"fisheye 180", LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0,
+                                  {0.01, -0.002, 0, 0, 0}, 0.0, "test")},
+      {"omnidir 200", LensFromFov(LensModel::kOmnidir, 1024, 1024, 200.0,
+                                  {-0.05, 0.01, 0, 0, 0}, 1.2, "test")},
+  };
+  for (const LensCase& c : cases) {
+    for (const bool along_x : {true, false}) {
+      SCOPED_TRACE(std::string(c.name) + (along_x ? ", u" : ", v"));
+      LightField light_field;
+      const Image ramp = RampImage(c.lens.width, c.lens.height, along_x);
+      for (int i = 0; i < 9; ++i) {
+        const Vec3d eye(4.0 * (i % 3 - 1), 4.0 * (i / 3 - 1), 20.0);
+        light_field.views.push_back(
+            MakeView("lens" + std::to_string(i), c.lens, NadirCamFromWorld(eye), ramp));
+      }
+      IntegralOptions options;
+      options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
+      options.fov_deg = 60.0;
+      options.width = options.height = 512;
+      options.lens_tolerance_px = 0.0;
+      const IntegralResult exact = RenderIntegral(light_field, options);
+      options.lens_tolerance_px = 0.02;
+      internal::ResetLensRouteCounts();
+      const IntegralResult fast = RenderIntegral(light_field, options);
+      const internal::LensRouteCounts counts = internal::GetLensRouteCounts();
+      // 64 tiles x 9 views, each through one cubic map on 25 exactly projected nodes.
+      EXPECT_EQ(counts.fitted_quads[0], 64 * 9);
+      EXPECT_EQ(counts.fitted_quads[1] + counts.fitted_quads[2] + counts.fitted_quads[3] +
+                    counts.exact_quads,
+                0);
+      EXPECT_LE(counts.projected_nodes, 64 * 9 * 25);
+      double largest = 0.0;
+      int64_t count_mismatches = 0;
+      for (int y = 0; y < options.height; ++y) {
+        for (int x = 0; x < options.width; ++x) {
+          const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
+          if (n != exact.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
+          if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
+          const double difference =
+              std::abs(fast.image.At<float>(x, y)[0] - exact.image.At<float>(x, y)[0]);
+          largest = std::max(largest, difference);
+        }
+      }
+      EXPECT_LE(largest, options.lens_tolerance_px + 1e-4) << "pixels";
+      EXPECT_EQ(count_mismatches, 0);  // every view covers the output with a margin
+    }
+  }
+}
+
+TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnATiltAndAStep) {
+  // The cubic map's tolerance where the focal points are not a plane's bilinear grid: a depth
+  // that grows by 0.02 mm per pixel (focal points quadratic in the pixel: about 0.1 mm off the
+  // bilinear sheet through a 64-pixel tile's corners, which the turn bound charges at about
+  // 0.004 px) and a 1 m step along a diagonal, across which quads are split down to the exact
+  // projection. (Any real relief sends quads below 16 pixels already: the turn bound allows
+  // about 0.5 mm off the sheet at 20 m.) Ramp frames (RampImage): the fast render differs from
+  // lens_tolerance_px = 0's by at most the tolerance, plus float rounding, as on the plane.
+  const LensCamera lens =
+      LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0, {0.01, -0.002, 0, 0, 0}, 0.0, "test");
+  for (const bool along_x : {true, false}) {
+    SCOPED_TRACE(along_x ? "u" : "v");
+    LightField light_field;
+    const Image ramp = RampImage(lens.width, lens.height, along_x);
+    for (int i = 0; i < 9; ++i) {
+      const Vec3d eye(4.0 * (i % 3 - 1), 4.0 * (i / 3 - 1), 20.0);
+      light_field.views.push_back(
+          MakeView("lens" + std::to_string(i), lens, NadirCamFromWorld(eye), ramp));
+    }
+    IntegralOptions options;
+    options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
+    options.fov_deg = 60.0;
+    options.width = options.height = 256;
+    Image depth(options.width, options.height, 1, PixelType::kF32);
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        depth.At<float>(x, y)[0] = static_cast<float>(
+            20.0 + 2e-5 * x + (x + y > 300 ? -1.0 : 0.0));
+      }
+    }
+    options.lens_tolerance_px = 0.0;
+    const SurfaceIntegralResult exact = RenderIntegralOnDepth(light_field, options, depth);
+    options.lens_tolerance_px = 0.02;
+    internal::ResetLensRouteCounts();
+    const SurfaceIntegralResult fast = RenderIntegralOnDepth(light_field, options, depth);
+    const internal::LensRouteCounts counts = internal::GetLensRouteCounts();
+    EXPECT_GT(counts.fitted_quads[0], 0);
+    EXPECT_GT(counts.exact_quads, 0);  // along the step
+    double largest = 0.0;
+    int64_t count_mismatches = 0;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        const uint32_t n = fast.integral.count.At<uint32_t>(x, y)[0];
+        if (n != exact.integral.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
+        if (n == 0 || n != exact.integral.count.At<uint32_t>(x, y)[0]) continue;
+        const double difference = std::abs(fast.integral.image.At<float>(x, y)[0] -
+                                           exact.integral.image.At<float>(x, y)[0]);
+        largest = std::max(largest, difference);
+      }
+    }
+    EXPECT_LE(largest, options.lens_tolerance_px + 1e-4) << "pixels";
+    EXPECT_EQ(count_mismatches, 0);
+  }
+}
+
 TEST(RenderIntegral, LensToleranceIsValidated) {
   const LensCamera lens =
       LensFromFov(LensModel::kFisheye, 64, 48, 180.0, {0, 0, 0, 0, 0}, 0.0, "test");

@@ -33,11 +33,11 @@
 // - Views with a lens model (View::lens, lens.h) are sampled through it directly: each pixel's
 //   focal point is projected through the lens model into the raw frame (one resampling; no
 //   rectified copy). Such renders take surface_integral.h's per-sample path on the plane's depth
-//   map, with the same admission rules; the lens projection is replaced by local homographies
-//   within lens_tolerance_px view pixels (0: every sample projected exactly, results then equal
-//   up to float rounding), at about 1.4x (radial-tangential) to 2.2x (fisheye, omnidirectional)
-//   the time of the homography path pinhole views take on rectified frames
-//   (docs/lens-models.md).
+//   map, with the same admission rules; the lens projection is replaced by local maps
+//   (homographies; cubic polynomials for fisheye and omnidirectional lenses) within
+//   lens_tolerance_px view pixels (0: every sample projected exactly, results then equal up to
+//   float rounding), at about 1.2x (radial-tangential) to 1.4x (fisheye, omnidirectional) the
+//   time of the homography path pinhole views take on rectified frames (docs/lens-models.md).
 //
 // - With a focal_surface (focal_surface.h) that is not a plane, or with views that have a lens
 //   model, the render takes surface_integral.h's path on the surface's depth map
@@ -100,7 +100,7 @@ struct IntegralOptions {
   // squares: AVX2 for 1-channel views, else scalar).
   bool variance = false;
   // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-  // the exact lens projection is replaced by local homographies (surface_integral.h,
+  // the exact lens projection is replaced by local maps (surface_integral.h,
   // PointIntegralOptions::lens_tolerance_px, which this fills); 0 = project every sample exactly.
   // Check() refuses values outside [0, 1] for every render; pinhole views ignore it.
   double lens_tolerance_px = 0.02;

@@ -85,7 +85,7 @@ struct MapOptions {
   // Minimum angle between a view's ray and the focal plane, degrees, [0, 90).
   double min_view_angle_deg = 1.0;
   // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-  // the exact lens projection is replaced by local homographies (surface_integral.h,
+  // the exact lens projection is replaced by local maps (surface_integral.h,
   // PointIntegralOptions::lens_tolerance_px); 0 = project every sample exactly.
   double lens_tolerance_px = 0.02;
   // Pixels on a side of a render tile, 16 .. 8192.

@@ -39,10 +39,12 @@
 // Views with a lens model (LensRoute) take the same kernel quad by quad: per quad of the tile
 // (64, split down to 8 pixels) a homography fitted to the lens projection in the tangent plane of
 // the quad's centre ray (radtan: of the view's optical axis; affine through the corners, or where
-// that misses by less than 4x a full homography by least squares over the nodes, Homography8),
-// accepted when it is within lens_tolerance_px of the exact projection at
-// the quad's 3 x 3 nodes (plus a first-order bound for the surface's departure from the bilinear
-// sheet through the corners) and every ray keeps inside the lens's valid field; the exact
+// that misses by less than 4x a full homography by least squares over the nodes, Homography8;
+// fisheye and omnidirectional lenses on 64- and 32-pixel quads: a cubic polynomial in the
+// tangent-plane coordinates over 5 x 5 nodes, FitCubic, which passes on whole tiles where
+// homographies passed at 16 pixels), accepted when it is within lens_tolerance_px of the exact
+// projection at the quad's nodes (plus a first-order bound for the surface's departure from the
+// bilinear sheet through the corners) and every ray keeps inside the lens's valid field; the exact
 // projections of the nodes are cached per view and tile, so children reuse their parent's.
 // Nearest mode (aperture 0), other pixel types, far-away points and lens quads that fail at
 // 8 x 8 take AdmitSample and the double sampler per point, still tiled and culled (lens views
@@ -879,10 +881,61 @@ struct Homography8 {
   }
 };
 
+// The cubic map of the lens route (LensRoute::FitCubic): its monomials of (x, y) in the kernel's
+// order (PointKernelArgs::cubic).
+constexpr int kCubicTerms = 10;
+inline void CubicMonomials(double x, double y, double m[kCubicTerms]) {
+  m[0] = 1.0;
+  m[1] = x;
+  m[2] = y;
+  m[3] = x * x;
+  m[4] = x * y;
+  m[5] = y * y;
+  m[6] = x * x * x;
+  m[7] = x * x * y;
+  m[8] = x * y * y;
+  m[9] = y * y * y;
+}
+
+// Solves the normal equations a c = b[r] (a symmetric positive definite, upper triangle used)
+// for both right-hand sides by Cholesky, in place (b becomes c); false if a pivot falls below
+// 1e-12 of its diagonal entry (the nodes do not determine the map).
+inline bool SolveCubicNormalEquations(double a[kCubicTerms][kCubicTerms],
+                                      double b[2][kCubicTerms]) {
+  constexpr int n = kCubicTerms;
+  // a = L L^T with L stored transposed in the upper triangle: a[k][i] = L[i][k], i >= k.
+  for (int k = 0; k < n; ++k) {
+    double pivot = a[k][k];
+    for (int j = 0; j < k; ++j) pivot -= a[j][k] * a[j][k];
+    if (!(pivot > 1e-12 * a[k][k])) return false;
+    const double root = std::sqrt(pivot);
+    a[k][k] = root;
+    for (int i = k + 1; i < n; ++i) {
+      double value = a[k][i];
+      for (int j = 0; j < k; ++j) value -= a[j][k] * a[j][i];
+      a[k][i] = value / root;
+    }
+  }
+  for (int r = 0; r < 2; ++r) {
+    double* c = b[r];
+    for (int i = 0; i < n; ++i) {  // L y = b
+      for (int j = 0; j < i; ++j) c[i] -= a[j][i] * c[j];
+      c[i] /= a[i][i];
+    }
+    for (int i = n - 1; i >= 0; --i) {  // L^T c = y
+      for (int j = i + 1; j < n; ++j) c[i] -= a[i][j] * c[j];
+      c[i] /= a[i][i];
+    }
+  }
+  return true;
+}
+
 // Quads of the lens route: 64 (the tile), 32, 16 and 8 pixels on a side; ids per level.
 constexpr int kLensQuadLevels = 4;
 constexpr int kLensQuadOffset[kLensQuadLevels] = {0, 1, 5, 21};
 constexpr int kLensQuadCount = 85;
+// Wide lenses (fisheye, omnidirectional): the cubic map on 64- and 32-pixel quads.
+constexpr int kCubicLevels = 2;
 static_assert(kTileWidth == 64 && kTileHeight == 64, "the lens route's quads tile 64 x 64");
 
 // Lens views on a tile, quad by quad (see the top of this file): a quad whose local homography
@@ -946,6 +999,59 @@ struct LensRoute {
       }
     }
     return memo = std::sqrt(worst);
+  }
+
+  // What a fit within the tolerance at its nodes (`error`, view pixels) must pass besides: the
+  // surface's departure from the bilinear sheet through the quad's corners (its rays turn; the
+  // fit's `gradient`, pixels per unit q, and the lens's move them), the lens's valid field, and
+  // the image bounds the kernel must test (into *image_tests). `node`: the fit's `nodes` nodes;
+  // `distance`, `cos_spread`, `cos_angle` as in Fit.
+  bool Accept(int id, int qx, int qy, int xl, int yl, int x_end, int y_end,
+              const TileBuffers::LensNode* const* node, int nodes, double error,
+              double gradient, double q_per_radian, double distance, double cos_spread,
+              double cos_angle, int* image_tests) {
+    if (!(error <= s.lens_tolerance)) return false;
+    // Points off the bilinear sheet through the corners (a relief, a step in the surface) see
+    // their rays turn by at most deviation / (distance - deviation); the fit and the lens each
+    // move by at most about their gradient (pixels per unit q, times q_per_radian) times that
+    // (2.25 rather than 2 for the lens's gradient, which is the fit's only up to its error).
+    const double deviation = Deviation(id, qx, qy, xl, yl, x_end, y_end);
+    if (!(deviation < 0.5 * distance)) return false;
+    const double turn = deviation / (distance - deviation);
+    if (!(error + 2.25 * q_per_radian * gradient * turn <= s.lens_tolerance)) return false;
+    // Every ray of the quad within the lens's valid field, with a margin of half the spread.
+    // (acos only where needed: the spread of a quad is small, and for x <= 0.46 rad,
+    // x <= sqrt(2 (1 - cos x)) / (1 - x^2 / 12) <= 1.03 sqrt(2 (1 - cos x)), a bound that decides
+    // as the exact spread would wherever it passes.)
+    // First without any acos: the quad's rays within valid_angle - kAngleShortcut of the axis
+    // and a margin below kAngleShortcut (most quads of a render), then as it was.
+    const double chord = std::sqrt(2.0 * std::max(0.0, 1.0 - cos_spread));
+    const double margin = 1.5 * (1.03 * chord) + turn;
+    if (!(chord <= 0.45 && margin < kAngleShortcut - 1e-6 && cos_angle > view.cos_shortcut) &&
+        !(chord <= 0.45 &&
+          std::acos(std::max(-1.0, cos_angle)) + margin < view.valid_angle)) {
+      const double angle = std::acos(std::max(-1.0, cos_angle));
+      const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
+      if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    }
+    // The image bounds the kernel must test (PointKernelArgs::image_tests): W = c . X > 0 holds
+    // within 60 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
+    // quad's points too (their fitted pixels lie within the tolerance of the nodes' hull).
+    *image_tests = 0;
+    double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
+    double v_min = u_min, v_max = -u_min;
+    for (int k = 0; k < nodes; ++k) {
+      u_min = std::min(u_min, node[k]->pixel.x);
+      u_max = std::max(u_max, node[k]->pixel.x);
+      v_min = std::min(v_min, node[k]->pixel.y);
+      v_max = std::max(v_max, node[k]->pixel.y);
+    }
+    constexpr double kMargin = 2.0;
+    if (!(u_min >= kMargin)) *image_tests |= 2;
+    if (!(u_max <= view.width - kMargin)) *image_tests |= 4;
+    if (!(v_min >= kMargin)) *image_tests |= 8;
+    if (!(v_max <= view.height - kMargin)) *image_tests |= 16;
+    return true;
   }
 
   // The quad's local homography into `rows`, `t` (KernelArgsFor) if it is within the tolerance.
@@ -1073,48 +1179,10 @@ struct LensRoute {
     }
     const double error = std::sqrt(error2);
     *fit_error = error;
-    if (!(error <= s.lens_tolerance)) return false;
-    // Points off the bilinear sheet through the corners (a relief, a step in the surface) see
-    // their rays turn by at most deviation / (distance - deviation); the fit and the lens each
-    // move by at most about their gradient (pixels per unit q, times q_per_radian) times that
-    // (2.25 rather than 2 for the lens's gradient, which is the fit's only up to its error).
-    const double deviation = Deviation(id, qx, qy, xl, yl, x_end, y_end);
-    if (!(deviation < 0.5 * distance)) return false;
-    const double turn = deviation / (distance - deviation);
-    const double gradient = std::sqrt(gradient2) / scale;  // pixels per unit q
-    if (!(error + 2.25 * q_per_radian * gradient * turn <= s.lens_tolerance)) return false;
-    // Every ray of the quad within the lens's valid field, with a margin of half the spread.
-    // (acos only where needed: the spread of a quad is small, and for x <= 0.46 rad,
-    // x <= sqrt(2 (1 - cos x)) / (1 - x^2 / 12) <= 1.03 sqrt(2 (1 - cos x)), a bound that decides
-    // as the exact spread would wherever it passes.)
-    // First without any acos: the quad's rays within valid_angle - kAngleShortcut of the axis
-    // and a margin below kAngleShortcut (most quads of a render), then as it was.
-    const double chord = std::sqrt(2.0 * std::max(0.0, 1.0 - cos_spread));
-    const double margin = 1.5 * (1.03 * chord) + turn;
-    if (!(chord <= 0.45 && margin < kAngleShortcut - 1e-6 && cos_angle > view.cos_shortcut) &&
-        !(chord <= 0.45 &&
-          std::acos(std::max(-1.0, cos_angle)) + margin < view.valid_angle)) {
-      const double angle = std::acos(std::max(-1.0, cos_angle));
-      const double spread = std::acos(std::max(-1.0, std::min(1.0, cos_spread)));
-      if (!(angle + 1.5 * spread + turn < view.valid_angle)) return false;
+    if (!Accept(id, qx, qy, xl, yl, x_end, y_end, node, 9, error, std::sqrt(gradient2) / scale,
+                q_per_radian, distance, cos_spread, cos_angle, image_tests)) {
+      return false;
     }
-    // The image bounds the kernel must test (PointKernelArgs::image_tests): W = c . X > 0 holds
-    // within 60 degrees of c; a bound that every node's pixel keeps by 2 pixels holds for the
-    // quad's points too (their fitted pixels lie within the tolerance of the nodes' hull).
-    *image_tests = 0;
-    double u_min = std::numeric_limits<double>::infinity(), u_max = -u_min;
-    double v_min = u_min, v_max = -u_min;
-    for (int k = 0; k < 9; ++k) {
-      u_min = std::min(u_min, node[k]->pixel.x);
-      u_max = std::max(u_max, node[k]->pixel.x);
-      v_min = std::min(v_min, node[k]->pixel.y);
-      v_max = std::max(v_max, node[k]->pixel.y);
-    }
-    constexpr double kMargin = 2.0;
-    if (!(u_min >= kMargin)) *image_tests |= 2;
-    if (!(u_max <= view.width - kMargin)) *image_tests |= 4;
-    if (!(v_min >= kMargin)) *image_tests |= 8;
-    if (!(v_max <= view.height - kMargin)) *image_tests |= 16;
     // (U, V, W) = H diag(1 / scale, 1 / scale, 1) (e1, e2, c)^T (R p + offset): u = U / W.
     const Vec3d h_rows[3] = {Vec3d(u_row.x / scale, u_row.y / scale, u_row.z),
                              Vec3d(v_row.x / scale, v_row.y / scale, v_row.z),
@@ -1124,6 +1192,140 @@ struct LensRoute {
       const Vec3d in_cam_row = h_rows[r].x * e1 + h_rows[r].y * e2 + h_rows[r].z * c;
       rows[r] = cam_from_world_t * in_cam_row;
       t[r] = glm::dot(in_cam_row, view.offset);
+    }
+    return true;
+  }
+
+  // Wide lenses (fisheye, omnidirectional) on quads of 64 and 32 pixels: a cubic polynomial in
+  // the tangent-plane coordinates q of the quad's centre ray (PointKernelArgs::cubic), least
+  // squares over a 5 x 5 grid of nodes. A homography cannot take up the equidistant (or Mei)
+  // map's second-order term, which holds those lenses at 16-pixel quads; the cubic's residual
+  // is fourth order (on the lens benchmark about 3e-4 px at 64 pixels against 0.02). The error
+  // bound: the largest error e at the nodes plus the error of interpolating e bilinearly between
+  // them, |e - I e| <= (h_x^2 max |e_xx| + h_y^2 max |e_yy|) / 8 per component over a cell of
+  // h_x x h_y output pixels, with e_xx and e_yy taken as the largest second divided differences
+  // of e along the grid's rows and columns (each equals e_xx somewhere within its two cells; the
+  // bound is exact up to the third derivative of e times the cell, an order smaller again).
+  // Only where the kernel need not test any image bound (*image_tests 0): false otherwise.
+  bool FitCubic(int id, int qx, int qy, int xl, int yl, int x_end, int y_end, Vec3d rows[3],
+                double t[3], float cubic[2][kCubicTerms], double* fit_error, int* image_tests) {
+    *fit_error = std::numeric_limits<double>::infinity();
+    constexpr int kGrid = 5, kNodes = kGrid * kGrid;
+    // Nodes at quarters of the quad (rounded to pixels: on a 64-pixel tile 0, 16, 32, 47, 63,
+    // the nodes of the 32- and 16-pixel quads below).
+    int xs[kGrid], ys[kGrid];
+    for (int k = 0; k < kGrid; ++k) {
+      xs[k] = qx + ((xl - qx) * k + 2) / 4;
+      ys[k] = qy + ((yl - qy) * k + 2) / 4;
+    }
+    const TileBuffers::LensNode* node[kNodes];
+    for (int k = 0; k < kNodes; ++k) {
+      node[k] = &Node(xs[k % kGrid], ys[k / kGrid]);
+      if (!node[k]->valid) return false;
+    }
+    // Tangent-plane coordinates around the centre node's ray c, as Fit's for wide lenses.
+    const Vec3d& c = node[kNodes / 2]->direction;
+    const Vec3d helper = std::abs(c.x) < 0.9 ? Vec3d(1.0, 0.0, 0.0) : Vec3d(0.0, 1.0, 0.0);
+    const Vec3d e1 = glm::normalize(glm::cross(helper, c));
+    const Vec3d e2 = glm::cross(c, e1);
+    Vec2d q[kNodes];
+    double cos_c = 1.0, cos_angle = 1.0;
+    double distance = std::numeric_limits<double>::infinity();
+    for (int k = 0; k < kNodes; ++k) {
+      const Vec3d& p = node[k]->direction;
+      const double w = glm::dot(c, p);
+      if (!(w > 0.5)) return false;  // within 60 degrees of c, as Fit
+      q[k] = Vec2d(glm::dot(e1, p) / w, glm::dot(e2, p) / w);
+      cos_c = std::min(cos_c, w);
+      cos_angle = std::min(cos_angle, p.z);
+      distance = std::min(distance, node[k]->distance);
+    }
+    const double q_per_radian = 1.0 / (cos_c * cos_c);
+    double scale = 0.0;
+    for (int k = 0; k < kNodes; ++k) scale = std::max({scale, std::abs(q[k].x), std::abs(q[k].y)});
+    if (!(scale > 0.0)) return false;
+    for (int k = 0; k < kNodes; ++k) q[k] /= scale;
+    // Least squares, pixels relative to the centre node's.
+    const Vec2d origin = node[kNodes / 2]->pixel;
+    double normal[kCubicTerms][kCubicTerms] = {};
+    double coefficients[2][kCubicTerms] = {};
+    double m[kNodes][kCubicTerms];
+    for (int k = 0; k < kNodes; ++k) {
+      CubicMonomials(q[k].x, q[k].y, m[k]);
+      const Vec2d pixel = node[k]->pixel - origin;
+      for (int i = 0; i < kCubicTerms; ++i) {
+        for (int j = i; j < kCubicTerms; ++j) normal[i][j] += m[k][i] * m[k][j];
+        coefficients[0][i] += m[k][i] * pixel.x;
+        coefficients[1][i] += m[k][i] * pixel.y;
+      }
+    }
+    if (!SolveCubicNormalEquations(normal, coefficients)) return false;
+    coefficients[0][0] += origin.x;
+    coefficients[1][0] += origin.y;
+    // The error at the nodes, and the largest gradient there (pixels per unit q / scale).
+    Vec2d e[kNodes];
+    double error2 = 0.0, gradient2 = 0.0;
+    for (int k = 0; k < kNodes; ++k) {
+      double u = 0.0, v = 0.0;
+      for (int i = 0; i < kCubicTerms; ++i) {
+        u += coefficients[0][i] * m[k][i];
+        v += coefficients[1][i] * m[k][i];
+      }
+      e[k] = Vec2d(u, v) - node[k]->pixel;
+      error2 = std::max(error2, glm::dot(e[k], e[k]));
+      const double x = q[k].x, y = q[k].y;
+      double gradient = 0.0;
+      for (const double* a : {coefficients[0], coefficients[1]}) {
+        const double dx = a[1] + 2.0 * a[3] * x + a[4] * y + 3.0 * a[6] * x * x +
+                          2.0 * a[7] * x * y + a[8] * y * y;
+        const double dy = a[2] + a[4] * x + 2.0 * a[5] * y + a[7] * x * x +
+                          2.0 * a[8] * x * y + 3.0 * a[9] * y * y;
+        gradient += dx * dx + dy * dy;
+      }
+      gradient2 = std::max(gradient2, gradient);
+    }
+    // Between the nodes (see above): second divided differences along rows (x) and columns (y),
+    // per component, in pixels per output pixel squared.
+    Vec2d exx(0.0), eyy(0.0);
+    double hx = 0.0, hy = 0.0;
+    for (int k = 0; k + 1 < kGrid; ++k) {
+      hx = std::max(hx, static_cast<double>(xs[k + 1] - xs[k]));
+      hy = std::max(hy, static_cast<double>(ys[k + 1] - ys[k]));
+    }
+    for (int a = 0; a < kGrid; ++a) {
+      for (int k = 1; k + 1 < kGrid; ++k) {
+        const double left = xs[k] - xs[k - 1], right = xs[k + 1] - xs[k];
+        const double below = ys[k] - ys[k - 1], above = ys[k + 1] - ys[k];
+        const Vec2d along_x =
+            2.0 * ((e[a * kGrid + k + 1] - e[a * kGrid + k]) / right -
+                   (e[a * kGrid + k] - e[a * kGrid + k - 1]) / left) / (left + right);
+        const Vec2d along_y =
+            2.0 * ((e[(k + 1) * kGrid + a] - e[k * kGrid + a]) / above -
+                   (e[k * kGrid + a] - e[(k - 1) * kGrid + a]) / below) / (below + above);
+        exx = glm::max(exx, glm::abs(along_x));
+        eyy = glm::max(eyy, glm::abs(along_y));
+      }
+    }
+    const double error =
+        std::sqrt(error2) + glm::length(hx * hx * exx + hy * hy * eyy) / 8.0;
+    *fit_error = error;
+    if (!Accept(id, qx, qy, xl, yl, x_end, y_end, node, kNodes, error,
+                std::sqrt(gradient2) / scale, q_per_radian, distance, cos_c, cos_angle,
+                image_tests) ||
+        *image_tests != 0) {
+      return false;
+    }
+    // (E1, E2, W) = diag(1 / scale, 1 / scale, 1) (e1, e2, c)^T (R p + offset): q / scale =
+    // (E1, E2) / W, the kernel's (U, V) / Z.
+    const Vec3d in_cam_rows[3] = {e1 / scale, e2 / scale, c};
+    const Mat3d cam_from_world_t = glm::transpose(view.rotation);
+    for (int r = 0; r < 3; ++r) {
+      rows[r] = cam_from_world_t * in_cam_rows[r];
+      t[r] = glm::dot(in_cam_rows[r], view.offset);
+    }
+    for (int r = 0; r < 2; ++r) {
+      for (int i = 0; i < kCubicTerms; ++i) cubic[r][i] = static_cast<float>(coefficients[r][i]);
+      cubic[r][0] = static_cast<float>(coefficients[r][0] - 0.5);  // PointKernelArgs::cubic
     }
     return true;
   }
@@ -1146,16 +1348,27 @@ struct LensRoute {
     double t[3];
     double error = std::numeric_limits<double>::infinity();
     int image_tests = 0x1f;
+    // Wide lenses take the cubic map on the upper levels (FitCubic), whose error falls with the
+    // fourth power of the side (a sixteenth of the parent's for a child).
+    const bool cubic = view.lens->model != LensModel::kRadTan && level < kCubicLevels;
+    const double predicted = cubic ? parent_error / 16.0 : 0.25 * parent_error;
     const bool hopeless = view.lens->model != LensModel::kRadTan && std::isfinite(parent_error) &&
-                          0.25 * parent_error > 2.0 * s.lens_tolerance &&
-                          level + 1 < kLensQuadLevels;
-    if (hopeless) error = 0.25 * parent_error;
-    if (!hopeless && xl - qx >= 2 && yl - qy >= 2 &&
-        Fit(id, qx, qy, xl, yl, x_end, y_end, rows, t, &error, &image_tests)) {
+                          predicted > 2.0 * s.lens_tolerance && level + 1 < kLensQuadLevels;
+    if (hopeless) error = predicted;
+    float cubic_map[2][kCubicTerms];
+    const int fewest = cubic ? 8 : 2;  // the 5 x 5 grid's nodes at least 2 pixels apart
+    if (!hopeless && xl - qx >= fewest && yl - qy >= fewest &&
+        (cubic ? FitCubic(id, qx, qy, xl, yl, x_end, y_end, rows, t, cubic_map, &error,
+                          &image_tests)
+               : Fit(id, qx, qy, xl, yl, x_end, y_end, rows, t, &error, &image_tests))) {
       internal::PointKernelArgs args = KernelArgsFor(s, view, rows, t, extent, grazing);
       ++b.counts.fitted_quads[level];
       args.variance = variance;
       args.image_tests = image_tests;
+      if (cubic) {
+        args.cubic_map = true;
+        std::copy(&cubic_map[0][0], &cubic_map[0][0] + 2 * kCubicTerms, &args.cubic[0][0]);
+      }
       const int origin = qy * stride + qx;
       internal::PointTileArrays arrays{b.x.data() + origin, b.y.data() + origin,
                                        b.z.data() + origin, b.valid.data() + origin, 0};
@@ -1166,7 +1379,10 @@ struct LensRoute {
       args.exact = &ExactAdmitLane;
       args.exact_context = &context;
       args.prefetch = prefetch + prefetched;
-      args.prefetch_count = std::min(prefetch_slice, prefetch_count - prefetched);
+      // A slice per 16 x 16 pixels.
+      args.prefetch_count =
+          std::min(prefetch_slice * std::max(1, (side / 16) * (side / 16)),
+                   prefetch_count - prefetched);
       prefetched += args.prefetch_count;
       if (view.kernel(*view.image, arrays, args, b.sum.data() + origin,
                       variance ? b.sum_squares.data() + origin : nullptr, b.count.data() + origin)) {
@@ -1176,7 +1392,10 @@ struct LensRoute {
     }
     if (level + 1 < kLensQuadLevels) {
       const int half = side / 2;
-      for (int k = 0; k < 4; ++k) Quad(level + 1, qx + (k % 2) * half, qy + (k / 2) * half, error);
+      // A cubic's error does not predict an affine fit's.
+      const double passed =
+          cubic && level + 1 >= kCubicLevels ? std::numeric_limits<double>::infinity() : error;
+      for (int k = 0; k < 4; ++k) Quad(level + 1, qx + (k % 2) * half, qy + (k / 2) * half, passed);
       return;
     }
     ++b.counts.exact_quads;
@@ -1341,7 +1560,7 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
     };
     if (view.lens != nullptr && view.kernel != nullptr && float_points && !s.nearest &&
         s.lens_tolerance > 0.0 && glm::length(view.b) < kFloatRange) {
-      // Lens views: local homographies per quad, within the tolerance of the exact projection.
+      // Lens views: local maps per quad, within the tolerance of the exact projection.
       ++b.generation;
       // The next view's lines go out with the quads' kernel calls (about 16 of them at the
       // default tolerance), the rest at the end.

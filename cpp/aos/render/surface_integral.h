@@ -35,7 +35,10 @@
 //   centre) are projected exactly, a homography is fitted to the corners (affine in the tangent
 //   plane of the centre ray; for radtan lenses in the view's own pinhole coordinates; where that
 //   misses the tolerance by less than 4x, a full homography by least squares over the nine
-//   nodes), and the quad is sampled through it (the point kernel) when
+//   nodes; for fisheye and omnidirectional lenses on 64- and 32-pixel quads a cubic polynomial
+//   in the tangent-plane coordinates instead, by least squares over a 5 x 5 grid of nodes, its
+//   error bounded between them from its second differences), and the quad is sampled through
+//   it (the point kernel) when
 //   its error at the nodes, plus a first-order bound for the focal points' departure from the
 //   bilinear sheet through the corner points (steps and relief of the surface), is within
 //   lens_tolerance_px and every ray of the quad keeps inside the lens's valid field (with a
@@ -108,8 +111,8 @@ struct PointIntegralOptions {
   int num_threads = -1;
   bool variance = false;             // as IntegralOptions
   // Views with a lens model (lens.h): the largest error, in view pixels, allowed where the exact
-  // lens projection is replaced by a local homography (per quad of 64 down to 8 output pixels,
-  // checked at its corners, edge midpoints and centre; see "Lens views" above), [0, 1];
+  // lens projection is replaced by a local map (per quad of 64 down to 8 output pixels,
+  // checked at its nodes; see "Lens views" above), [0, 1];
   // 0 = project every sample exactly.
   double lens_tolerance_px = 0.02;
 

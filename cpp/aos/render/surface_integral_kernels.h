@@ -55,6 +55,13 @@ struct PointKernelArgs {
   int aperture = 0;
   float axis[3], b[3], lens_b, r2, aperture_bound, denominator_bound;
   bool variance = false;
+  // Lens views (surface_integral.cpp, LensRoute::FitCubic): the pixel is not (U / Z, V / Z) but
+  // a cubic polynomial in (x, y) = (U / Z, V / Z), u = sum cubic[0][k] m_k(x, y) and likewise v
+  // with cubic[1], monomials m = (1, x, y, x^2, x y, y^2, x^3, x^2 y, x y^2, y^3), the pixel-centre
+  // offset 0.5 already subtracted from both constant terms (u - 0.5 = cubic[0] . m). Only with
+  // image_tests 0 (the caller has checked that the tile's points lie inside the image).
+  bool cubic_map = false;
+  float cubic[2][10] = {};
   // Addresses to prefetch while the kernel runs (the next view's pixels), spread over the groups.
   const char* const* prefetch = nullptr;
   int prefetch_count = 0;
@@ -105,9 +112,10 @@ ExactGather Avx2ExactGather(const Image& image);
 bool ExactGatherBuilt();
 
 // The lens route's work (surface_integral.cpp, LensRoute), summed over every render since the
-// last ResetLensRouteCounts(): quads sampled through a local homography per level (0: 64 x 64
-// output pixels, 1: 32, 2: 16, 3: 8), 8 x 8 quads projected point by point, and exact node
-// projections. For tests of the route's choices; the renders' outputs do not depend on them.
+// last ResetLensRouteCounts(): quads sampled through a local map (homography or cubic) per
+// level (0: 64 x 64 output pixels, 1: 32, 2: 16, 3: 8), 8 x 8 quads projected point by point,
+// and exact node projections. For tests of the route's choices; the renders' outputs do not
+// depend on them.
 struct LensRouteCounts {
   int64_t fitted_quads[4] = {0, 0, 0, 0};
   int64_t exact_quads = 0;
