@@ -580,12 +580,19 @@ TEST(RenderIntegral, LensViewsDoNotDependOnTheThreadCount) {
   }
 }
 
+// Whether the lens route's point kernel runs on this machine (AVX2 and FMA, SIMD enabled): without
+// it every sample takes the exact projection and the route's quad counts stay 0.
+bool PointKernelRuns() {
+  return internal::Avx2PointKernel(Image(8, 8, 1, PixelType::kF32, 1)) != nullptr;
+}
+
 TEST(RenderIntegral, RadialTangentialQuadsAreFittedBelowA64PixelTileThatMissed) {
   // The lens benchmark's radial-tangential case (tools/bench_lens.py: 1024 x 1024 frames, 100
   // degrees, from 20 m; a 512 x 512 60-degree output), 3 x 3 views: a 64-pixel tile's affine
   // fit misses the 0.02 px tolerance by far more than 8x, yet nearly every 32-pixel quad passes
   // through the homography. A quarter of the tile's error (the split-without-fit rule of affine
   // fits) must not send them down to 16 pixels (4x the fits and nodes).
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
   const LensCamera lens = LensFromFov(LensModel::kRadTan, 1024, 1024, 100.0,
                                       {-0.05, 0.01, 0.001, -0.001, 0.0}, 0.0, "test");
   LightField light_field;
@@ -651,6 +658,7 @@ TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
   // the tolerance (the fit's error bound at every point of the quad, on a plane), plus the
   // kernel's float rounding (positions of about 1000 pixels: 1e-4). A wrong cubic (a
   // coefficient, the pixel-centre offset) or a bound that lets a worse fit through fails here.
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
   struct LensCase {
     const char* name;
     LensCamera lens;
@@ -713,6 +721,7 @@ TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnATiltAndAStep) {
   // projection. (Any real relief sends quads below 16 pixels already: the turn bound allows
   // about 0.5 mm off the sheet at 20 m.) Ramp frames (RampImage): the fast render differs from
   // lens_tolerance_px = 0's by at most the tolerance, plus float rounding, as on the plane.
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
   const LensCamera lens =
       LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0, {0.01, -0.002, 0, 0, 0}, 0.0, "test");
   for (const bool along_x : {true, false}) {
