@@ -580,12 +580,19 @@ TEST(RenderIntegral, LensViewsDoNotDependOnTheThreadCount) {
   }
 }
 
+// Whether the lens route's point kernel runs on this machine (AVX2 and FMA, SIMD enabled): without
+// it every sample takes the exact projection and the route's quad counts stay 0.
+bool PointKernelRuns() {
+  return internal::Avx2PointKernel(Image(8, 8, 1, PixelType::kF32, 1)) != nullptr;
+}
+
 TEST(RenderIntegral, RadialTangentialQuadsAreFittedBelowA64PixelTileThatMissed) {
   // The lens benchmark's radial-tangential case (tools/bench_lens.py: 1024 x 1024 frames, 100
   // degrees, from 20 m; a 512 x 512 60-degree output), 3 x 3 views: a 64-pixel tile's affine
   // fit misses the 0.02 px tolerance by far more than 8x, yet nearly every 32-pixel quad passes
   // through the homography. A quarter of the tile's error (the split-without-fit rule of affine
   // fits) must not send them down to 16 pixels (4x the fits and nodes).
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
   const LensCamera lens = LensFromFov(LensModel::kRadTan, 1024, 1024, 100.0,
                                       {-0.05, 0.01, 0.001, -0.001, 0.0}, 0.0, "test");
   LightField light_field;
@@ -651,6 +658,7 @@ TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
   // the tolerance (the fit's error bound at every point of the quad, on a plane), plus the
   // kernel's float rounding (positions of about 1000 pixels: 1e-4). A wrong cubic (a
   // coefficient, the pixel-centre offset) or a bound that lets a worse fit through fails here.
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
   struct LensCase {
     const char* name;
     LensCamera lens;
@@ -713,6 +721,7 @@ TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnATiltAndAStep) {
   // projection. (Any real relief sends quads below 16 pixels already: the turn bound allows
   // about 0.5 mm off the sheet at 20 m.) Ramp frames (RampImage): the fast render differs from
   // lens_tolerance_px = 0's by at most the tolerance, plus float rounding, as on the plane.
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
   const LensCamera lens =
       LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0, {0.01, -0.002, 0, 0, 0}, 0.0, "test");
   for (const bool along_x : {true, false}) {
@@ -758,6 +767,176 @@ TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnATiltAndAStep) {
     EXPECT_LE(largest, options.lens_tolerance_px + 1e-4) << "pixels";
     EXPECT_EQ(count_mismatches, 0);
   }
+}
+
+TEST(RenderIntegral, WideLensCubicMapsOnClippedTilesAndAcrossAFrameEdgeAgreeWithTheExactRoute) {
+  // A fisheye frame of 1024 x 768 pixels, 120 degrees across: its edges are 60 degrees off the
+  // axis left and right and about 45 above and below, inside the lens's valid field. Three
+  // views 20 m up: one over the output's centre, one 16 m aside in y (rays up to 48 degrees
+  // off its axis towards -y: its frame's edge crosses the output) and one 24 m aside in x (up to
+  // 61 degrees: likewise). On the cubic path the kernel's (U, V) / Z are tangent-plane
+  // coordinates, not pixels, so quads that need an image bound tested (*image_tests != 0) must
+  // be refused there and split down to the homographies, which test them. The output, 486 x 260
+  // over 60 degrees, clips the tiles: the right column is 38 pixels wide, the bottom row 4
+  // pixels high, fewer than the cubic's 8 (the 5 x 5 nodes 2 pixels apart), so its quads are
+  // fitted by homographies from 16 pixels down. Ramp frames (RampImage): each output pixel is
+  // the mean of its views' sample positions. The cubic's error estimate is checked everywhere
+  // on its quad, a homography's only at its 3 x 3 nodes, which the other lens cases
+  // (LensViewsThroughLocalHomographies...) allow twice the tolerance for; plus float rounding:
+  // the kernel's bilinear sample and the two renders' float outputs, 4 x 2^-24 x 1024 px.
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
+  const LensCamera lens =
+      LensFromFov(LensModel::kFisheye, 1024, 768, 120.0, {0.01, -0.002, 0, 0, 0}, 0.0, "test");
+  for (const bool along_x : {true, false}) {
+    SCOPED_TRACE(along_x ? "u" : "v");
+    LightField light_field;
+    const Image ramp = RampImage(lens.width, lens.height, along_x);
+    for (const Vec3d& eye :
+         {Vec3d(0.0, 0.0, 20.0), Vec3d(0.0, 16.0, 20.0), Vec3d(24.0, 0.0, 20.0)}) {
+      light_field.views.push_back(MakeView("lens" + std::to_string(light_field.views.size()), lens,
+                                           NadirCamFromWorld(eye), ramp));
+    }
+    IntegralOptions options;
+    options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
+    options.fov_deg = 60.0;
+    options.width = 486;
+    options.height = 260;
+    options.lens_tolerance_px = 0.0;
+    const IntegralResult exact = RenderIntegral(light_field, options);
+    options.lens_tolerance_px = 0.02;
+    internal::ResetLensRouteCounts();
+    const IntegralResult fast = RenderIntegral(light_field, options);
+    const internal::LensRouteCounts counts = internal::GetLensRouteCounts();
+    EXPECT_GT(counts.fitted_quads[0], 0);
+    EXPECT_GT(counts.fitted_quads[2], 0);  // the bottom row's, and across the frames' edges
+    ASSERT_GT(exact.samples, 0);
+    const double rounding = 4.0 * 0x1.0p-24 * 1024.0;
+    double largest = 0.0;
+    int64_t count_mismatches = 0, compared = 0, partial = 0;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
+        if (n != exact.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
+        if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
+        ++compared;
+        partial += n < 3;
+        const double difference =
+            std::abs(fast.image.At<float>(x, y)[0] - exact.image.At<float>(x, y)[0]);
+        largest = std::max(largest, difference);
+      }
+    }
+    EXPECT_LE(largest, 2.0 * options.lens_tolerance_px + rounding) << "pixels";
+    // Both aside views' frames end inside the output.
+    EXPECT_GT(partial, compared / 10);
+    EXPECT_LT(partial, compared);
+    // Admission is decided on the fitted position: counts may differ only where a sample lies
+    // within the tolerance of a frame's edge (a band of about 0.02 output pixels along some
+    // 750 pixels of edges: about 15 pixels; 13 on this machine).
+    EXPECT_LE(count_mismatches, 50);
+  }
+}
+
+// One view of the lens benchmark's 3 x 3 layout (4 m apart, 20 m up) rendered alone over
+// ramp frames (RampImage: the output is the view's sample position u or v), by the fast route
+// and by the exact one (lens_tolerance_px = 0): the lens route's counts and the largest
+// difference where both sampled.
+struct AloneRender {
+  internal::LensRouteCounts counts;
+  double largest = 0.0;
+  int64_t count_mismatches = 0;
+};
+AloneRender RenderAlone(const LensCamera& lens, int view, bool along_x, int size,
+                        double tolerance) {
+  LightField light_field;
+  const Vec3d eye(4.0 * (view % 3 - 1), 4.0 * (view / 3 - 1), 20.0);
+  light_field.views.push_back(MakeView("lens", lens, NadirCamFromWorld(eye),
+                                       RampImage(lens.width, lens.height, along_x)));
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
+  options.fov_deg = 60.0;
+  options.width = options.height = size;
+  options.lens_tolerance_px = 0.0;
+  const IntegralResult exact = RenderIntegral(light_field, options);
+  options.lens_tolerance_px = tolerance;
+  internal::ResetLensRouteCounts();
+  const IntegralResult fast = RenderIntegral(light_field, options);
+  AloneRender out;
+  out.counts = internal::GetLensRouteCounts();
+  for (int y = 0; y < size; ++y) {
+    for (int x = 0; x < size; ++x) {
+      const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
+      if (n != exact.count.At<uint32_t>(x, y)[0]) ++out.count_mismatches;
+      if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
+      out.largest = std::max(out.largest, static_cast<double>(std::abs(
+                                              fast.image.At<float>(x, y)[0] -
+                                              exact.image.At<float>(x, y)[0])));
+    }
+  }
+  return out;
+}
+
+TEST(RenderIntegral, WideLensCubicMapsStraddlingTheToleranceAreRefusedOrHoldIt) {
+  // The lens benchmark's fisheye and omnidirectional views rendered coarser: 144 x 144 output
+  // pixels over 60 degrees, so that a 64-pixel quad spans about 27 degrees, 3.6x the
+  // benchmark's, and the cubic's residual (fourth order in the quad's angle: 3e-4 px x 3.6^4,
+  // about 0.05 px, varying over the field) straddles a tolerance of 0.01 px: some 64-pixel cubic
+  // fits are accepted, the others refused and their 32-pixel quads (a sixteenth of the
+  // residual) fitted. Each view is rendered alone (RenderAlone), so the difference from the
+  // exact route is that view's sample position error: within the tolerance where the fit's
+  // error estimate (at and between the nodes, float rounding in the kernel included) holds,
+  // plus the float rounding of the bilinear sample and of the two renders' outputs, 4 x 2^-24
+  // x 1024 px (positions up to 1024 pixels). Checked at the nodes only (the estimate without
+  // its term between them), more 64-pixel fits pass and the error reaches about 0.015 px.
+  if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
+  struct LensCase {
+    const char* name;
+    LensCamera lens;
+  };
+  const std::vector<LensCase> cases = {
+      {"fisheye 180", LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0,
+                                  {0.01, -0.002, 0, 0, 0}, 0.0, "test")},
+      {"omnidir 200", LensFromFov(LensModel::kOmnidir, 1024, 1024, 200.0,
+                                  {-0.05, 0.01, 0, 0, 0}, 1.2, "test")},
+  };
+  const double tolerance = 0.01, rounding = 4.0 * 0x1.0p-24 * 1024.0;
+  for (const LensCase& c : cases) {
+    SCOPED_TRACE(c.name);
+    internal::LensRouteCounts total;
+    double largest = 0.0;
+    for (int view = 0; view < 9; ++view) {
+      for (const bool along_x : {true, false}) {
+        const AloneRender r = RenderAlone(c.lens, view, along_x, 144, tolerance);
+        for (int level = 0; level < 4; ++level) {
+          total.fitted_quads[level] += r.counts.fitted_quads[level];
+        }
+        total.exact_quads += r.counts.exact_quads;
+        largest = std::max(largest, r.largest);
+        EXPECT_EQ(r.count_mismatches, 0);  // the view covers the output with a margin
+      }
+    }
+    // 9 tiles (the last row and column 16 pixels) per render, 18 renders.
+    EXPECT_GT(total.fitted_quads[0], 0) << "some 64-pixel cubics accepted";
+    EXPECT_LT(total.fitted_quads[0], 9 * 18) << "some refused";
+    EXPECT_GT(total.fitted_quads[1], 0);
+    EXPECT_EQ(total.fitted_quads[2] + total.fitted_quads[3] + total.exact_quads, 0);
+    EXPECT_LE(largest, tolerance + rounding) << "pixels";
+  }
+  // A 64-pixel cubic that misses by more than 8x has a sixteenth of its error predicted for its
+  // 32-pixel quads, which are fitted (not split down to homographies without a fit, as a
+  // quarter would): the omnidirectional views at 96 x 96 output pixels and 0.02 px.
+  internal::LensRouteCounts total;
+  for (int view = 0; view < 9; ++view) {
+    const AloneRender r = RenderAlone(cases[1].lens, view, true, 96, 0.02);
+    for (int level = 0; level < 4; ++level) {
+      total.fitted_quads[level] += r.counts.fitted_quads[level];
+    }
+    total.exact_quads += r.counts.exact_quads;
+  }
+  EXPECT_LT(total.fitted_quads[0], 4 * 9);
+  EXPECT_GT(total.fitted_quads[1], 0);
+  EXPECT_EQ(total.fitted_quads[2] + total.fitted_quads[3] + total.exact_quads, 0)
+      << "16-pixel quads " << total.fitted_quads[2] << ", 8-pixel quads "
+      << total.fitted_quads[3] << ", exact " << total.exact_quads;
 }
 
 TEST(RenderIntegral, LensToleranceIsValidated) {

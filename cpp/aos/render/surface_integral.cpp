@@ -1201,18 +1201,20 @@ struct LensRoute {
   // squares over a 5 x 5 grid of nodes. A homography cannot take up the equidistant (or Mei)
   // map's second-order term, which holds those lenses at 16-pixel quads; the cubic's residual
   // is fourth order (on the lens benchmark about 3e-4 px at 64 pixels against 0.02). The error
-  // bound: the largest error e at the nodes plus the error of interpolating e bilinearly between
-  // them, |e - I e| <= (h_x^2 max |e_xx| + h_y^2 max |e_yy|) / 8 per component over a cell of
-  // h_x x h_y output pixels, with e_xx and e_yy taken as the largest second divided differences
-  // of e along the grid's rows and columns (each equals e_xx somewhere within its two cells; the
-  // bound is exact up to the third derivative of e times the cell, an order smaller again).
+  // estimate (not a strict bound): the largest error e at the nodes plus the error of
+  // interpolating e bilinearly between them, |e - I e| <= (h_x^2 max |e_xx| + h_y^2 max |e_yy|)
+  // / 8 per component over a cell of h_x x h_y output pixels, with e_xx and e_yy taken as the
+  // largest second divided differences of e along the grid's rows and columns (each equals e_xx
+  // somewhere within its two cells: the estimate holds up to the third derivative of e times
+  // the cell, an order smaller again), plus a bound on the kernel's float rounding.
   // Only where the kernel need not test any image bound (*image_tests 0): false otherwise.
   bool FitCubic(int id, int qx, int qy, int xl, int yl, int x_end, int y_end, Vec3d rows[3],
                 double t[3], float cubic[2][kCubicTerms], double* fit_error, int* image_tests) {
     *fit_error = std::numeric_limits<double>::infinity();
     constexpr int kGrid = 5, kNodes = kGrid * kGrid;
-    // Nodes at quarters of the quad (rounded to pixels: on a 64-pixel tile 0, 16, 32, 47, 63,
-    // the nodes of the 32- and 16-pixel quads below).
+    // Nodes at quarters of the quad, rounded to pixels: on a 64-pixel tile 0, 16, 32, 47, 63
+    // (its last node is the tile's last pixel, 63), of which all but 47 are nodes of the 32- and
+    // 16-pixel quads below (their nodes there: 0, 8, 16, 24, 32 and 32, 40, 48, 55, 63).
     int xs[kGrid], ys[kGrid];
     for (int k = 0; k < kGrid; ++k) {
       xs[k] = qx + ((xl - qx) * k + 2) / 4;
@@ -1306,15 +1308,6 @@ struct LensRoute {
         eyy = glm::max(eyy, glm::abs(along_y));
       }
     }
-    const double error =
-        std::sqrt(error2) + glm::length(hx * hx * exx + hy * hy * eyy) / 8.0;
-    *fit_error = error;
-    if (!Accept(id, qx, qy, xl, yl, x_end, y_end, node, kNodes, error,
-                std::sqrt(gradient2) / scale, q_per_radian, distance, cos_c, cos_angle,
-                image_tests) ||
-        *image_tests != 0) {
-      return false;
-    }
     // (E1, E2, W) = diag(1 / scale, 1 / scale, 1) (e1, e2, c)^T (R p + offset): q / scale =
     // (E1, E2) / W, the kernel's (U, V) / Z.
     const Vec3d in_cam_rows[3] = {e1 / scale, e2 / scale, c};
@@ -1322,6 +1315,41 @@ struct LensRoute {
     for (int r = 0; r < 3; ++r) {
       rows[r] = cam_from_world_t * in_cam_rows[r];
       t[r] = glm::dot(in_cam_rows[r], view.offset);
+    }
+    // Float rounding, outside the double-precision estimate (eps = 2^-24). The kernel forms
+    // (U, V, Z) from float points (|p| <= extent per axis) by three multiply-adds each: U
+    // within 3 eps (|rows[0]| . extent + |t[0]|), and so V and Z; with Z >= cos_c distance and
+    // |q / scale| <= about 1 (the nodes' hull), q / scale = U / Z (one more rounding) within
+    // dq, which moves the pixel by dq times the gradient. It then evaluates the cubic in float:
+    // the constant, the absolute pixel position, rounds by eps |c0|, every other coefficient by
+    // eps |c_i| (|monomial| <= 1), and each of the 10 multiply-adds (Cubic in the kernel) by eps
+    // times its result, at most |c0| + sum |c_i|: within eps (3 |c0| + 12 sum |c_i|) per
+    // component. About 3e-4 px on the lens benchmark (1024-pixel frames from 20 m; the cubic's
+    // residual there is as much again), some 8x that at 8192-pixel frames: a small share of
+    // the default 0.02.
+    constexpr double kEps = 0x1.0p-24;
+    double size[3];
+    for (int r = 0; r < 3; ++r) {
+      size[r] = std::abs(rows[r].x) * extent.x + std::abs(rows[r].y) * extent.y +
+                std::abs(rows[r].z) * extent.z + std::abs(t[r]);
+    }
+    const double z_min = cos_c * distance;
+    const double dq = kEps * (3.0 * std::max(size[0], size[1]) + 3.0 * size[2] + z_min) / z_min;
+    Vec2d rounding(0.0);
+    for (int r = 0; r < 2; ++r) {
+      double sum = 0.0;
+      for (int i = 1; i < kCubicTerms; ++i) sum += std::abs(coefficients[r][i]);
+      rounding[r] = kEps * (3.0 * (std::abs(coefficients[r][0]) + 0.5) + 12.0 * sum);
+    }
+    const double float_error = glm::length(rounding) + dq * std::sqrt(gradient2);
+    const double error =
+        std::sqrt(error2) + glm::length(hx * hx * exx + hy * hy * eyy) / 8.0 + float_error;
+    *fit_error = error;
+    if (!Accept(id, qx, qy, xl, yl, x_end, y_end, node, kNodes, error,
+                std::sqrt(gradient2) / scale, q_per_radian, distance, cos_c, cos_angle,
+                image_tests) ||
+        *image_tests != 0) {
+      return false;
     }
     for (int r = 0; r < 2; ++r) {
       for (int i = 0; i < kCubicTerms; ++i) cubic[r][i] = static_cast<float>(coefficients[r][i]);
@@ -1331,8 +1359,9 @@ struct LensRoute {
   }
 
   // `parent_error`: the parent quad's fit error at its nodes (infinity if unknown). A smooth
-  // map's affine fit error scales with the square of the quad's side: a quad whose predicted
-  // error (a quarter of its parent's) is above twice the tolerance is split without a fit. Not
+  // map's affine fit error scales with the square of the quad's side, a cubic's with the fourth
+  // power: a quad whose predicted error (a quarter of its parent's for an affine fit, a
+  // sixteenth for a cubic) is above twice the tolerance is split without a fit. Not
   // for radial-tangential lenses: their homography takes up most of the second-order terms, so
   // a parent far outside the tolerance says little about its children (on the lens benchmark
   // nearly every 32-pixel quad passes below a 64-pixel tile that missed by 8x and more).

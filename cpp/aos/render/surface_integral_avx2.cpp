@@ -1,10 +1,12 @@
-// AVX2 + FMA kernel of the per-sample renderer: one pinhole view at a tile of focal points,
-// 8 points per step (projection, admission tests as masks, bilinear taps, double
-// accumulation). Compiled for the baseline CPU; the function carries target attributes and is
-// only handed out after a runtime check of the CPU (as integral_kernels_avx2.cpp).
+// AVX2 + FMA kernel of the per-sample renderer: one view (a pinhole projection, or a lens view's
+// local homography or cubic map) at a tile of focal points, 8 points per step (projection,
+// admission tests as masks, bilinear taps, double accumulation). Compiled for the baseline
+// CPU; the function carries target attributes and is only handed out after a runtime check of
+// the CPU (as integral_kernels_avx2.cpp).
 #include <cstdint>
 #include <cstring>
 #include <limits>
+#include <stdexcept>
 #include <type_traits>
 
 #include "aos/render/integral_kernels.h"
@@ -314,6 +316,12 @@ __attribute__((target("avx2,fma"))) bool Avx2Points(const Image& image,
                                                     const PointKernelArgs& args, double* sum,
                                                     double* sum_squares, uint32_t* count) {
   if (args.cubic_map) {
+    // On the cubic path (U, V) / Z are tangent-plane coordinates, not pixels: no image bound
+    // can be tested on them (LensRoute::FitCubic takes only quads that need none). A broken
+    // invariant, checked in every build (one test per quad): the render rethrows it.
+    if (args.image_tests != 0) {
+      throw std::logic_error("Avx2Points: a cubic map with image bounds to test");
+    }
     return Avx2PointsMap<kType, true>(image, points, args, sum, sum_squares, count);
   }
   return Avx2PointsMap<kType, false>(image, points, args, sum, sum_squares, count);

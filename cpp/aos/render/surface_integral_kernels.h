@@ -1,7 +1,8 @@
 #pragma once
 // Internal to the per-sample renderer (surface_integral.cpp): the AVX2 kernel that samples one
-// pinhole view at a tile of focal points, and the exact scalar route kept as the reference. Not
-// part of the public API.
+// view at a tile of focal points (a pinhole view through its projection, a lens view through a
+// quad's local map: a homography or, for wide lenses, a cubic), and the exact scalar route kept
+// as the reference. Not part of the public API.
 //
 // The kernel works in float on points relative to the render's centre (tens of metres on real
 // flights): each admission test is a value whose sign decides (U >= 0 for u >= 0, ...), computed
