@@ -648,6 +648,19 @@ Image RampImage(int width, int height, bool along_x) {
   return image;
 }
 
+// The lens benchmark's wide lenses (tools/bench_lens.py): 1024 x 1024 frames through a
+// fisheye of 180 degrees and an omnidirectional (Mei) lens of 200 degrees.
+struct WideLensCase {
+  const char* name;
+  LensCamera lens;
+};
+std::vector<WideLensCase> BenchLensWideLenses() {
+  return {{"fisheye 180", LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0,
+                                      {0.01, -0.002, 0, 0, 0}, 0.0, "test")},
+          {"omnidir 200", LensFromFov(LensModel::kOmnidir, 1024, 1024, 200.0,
+                                      {-0.05, 0.01, 0, 0, 0}, 1.2, "test")}};
+}
+
 TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
   // The lens benchmark's fisheye and omnidirectional cases (tools/bench_lens.py: 1024 x 1024
   // frames, 180 and 200 degrees, from 20 m; a 512 x 512 60-degree output), 3 x 3 views 4 m
@@ -659,17 +672,8 @@ TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
   // kernel's float rounding (positions of about 1000 pixels: 1e-4). A wrong cubic (a
   // coefficient, the pixel-centre offset) or a bound that lets a worse fit through fails here.
   if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
-  struct LensCase {
-    const char* name;
-    LensCamera lens;
-  };
-  const std::vector<LensCase> cases = {
-      {"fisheye 180", LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0,
-                                  {0.01, -0.002, 0, 0, 0}, 0.0, "test")},
-      {"omnidir 200", LensFromFov(LensModel::kOmnidir, 1024, 1024, 200.0,
-                                  {-0.05, 0.01, 0, 0, 0}, 1.2, "test")},
-  };
-  for (const LensCase& c : cases) {
+  const std::vector<WideLensCase> cases = BenchLensWideLenses();
+  for (const WideLensCase& c : cases) {
     for (const bool along_x : {true, false}) {
       SCOPED_TRACE(std::string(c.name) + (along_x ? ", u" : ", v"));
       LightField light_field;
@@ -888,18 +892,9 @@ TEST(RenderIntegral, WideLensCubicMapsStraddlingTheToleranceAreRefusedOrHoldIt) 
   // x 1024 px (positions up to 1024 pixels). Checked at the nodes only (the estimate without
   // its term between them), more 64-pixel fits pass and the error reaches about 0.015 px.
   if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
-  struct LensCase {
-    const char* name;
-    LensCamera lens;
-  };
-  const std::vector<LensCase> cases = {
-      {"fisheye 180", LensFromFov(LensModel::kFisheye, 1024, 1024, 180.0,
-                                  {0.01, -0.002, 0, 0, 0}, 0.0, "test")},
-      {"omnidir 200", LensFromFov(LensModel::kOmnidir, 1024, 1024, 200.0,
-                                  {-0.05, 0.01, 0, 0, 0}, 1.2, "test")},
-  };
+  const std::vector<WideLensCase> cases = BenchLensWideLenses();
   const double tolerance = 0.01, rounding = 4.0 * 0x1.0p-24 * 1024.0;
-  for (const LensCase& c : cases) {
+  for (const WideLensCase& c : cases) {
     SCOPED_TRACE(c.name);
     internal::LensRouteCounts total;
     double largest = 0.0;

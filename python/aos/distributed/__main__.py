@@ -57,6 +57,12 @@ class _Bar:
         self.stage = ""
 
 
+def _mib_or(spec: dict, key: str, default_bytes: int) -> int:
+    """spec[key] (MiB, as the CLI sends it) in bytes; render_map's default where it is absent
+    (not a second copy of the default's value)."""
+    return int(float(spec[key]) * (1 << 20)) if key in spec else default_bytes
+
+
 def _dashboard_link(client: Any, local: bool) -> str:
     """The dashboard's address: a local cluster serves it only with bokeh installed here (without
     it Dask serves a page asking for bokeh); a remote scheduler's is its own."""
@@ -144,8 +150,8 @@ def main(argv: list[str]) -> int:
             light_field, options, path=spec["output"], scheduler=scheduler or None,
             workers=workers, dashboard=bool(spec.get("dashboard")), on_start=started,
             load=frame_load, force=bool(spec.get("force", False)),
-            cache_bytes=int(float(spec.get("cache_mb", 1024)) * (1 << 20)),
-            share_bytes=int(float(spec.get("share_mb", 512)) * (1 << 20)), progress=bar)
+            cache_bytes=_mib_or(spec, "cache_mb", distributed.DEFAULT_CACHE_BYTES),
+            share_bytes=_mib_or(spec, "share_mb", distributed.DEFAULT_SHARE_BYTES), progress=bar)
         bar.finish()
     except BadParameter as error:
         bar.finish()
