@@ -648,6 +648,33 @@ Image RampImage(int width, int height, bool along_x) {
   return image;
 }
 
+// The fast lens route's render against the exact one's (lens_tolerance_px 0), one channel:
+// the largest difference where both sampled the pixel equally often, the pixels whose counts
+// differ, the pixels compared and those of them with fewer than `partial_below` samples.
+struct RouteDifference {
+  double largest = 0.0;
+  int64_t count_mismatches = 0;
+  int64_t compared = 0;
+  int64_t partial = 0;
+};
+RouteDifference CompareWithExactRoute(const IntegralResult& fast, const IntegralResult& exact,
+                                      uint32_t partial_below = 0) {
+  RouteDifference out;
+  for (int y = 0; y < fast.count.height(); ++y) {
+    for (int x = 0; x < fast.count.width(); ++x) {
+      const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
+      if (n != exact.count.At<uint32_t>(x, y)[0]) ++out.count_mismatches;
+      if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
+      ++out.compared;
+      out.partial += n < partial_below;
+      out.largest = std::max(out.largest, static_cast<double>(std::abs(
+                                              fast.image.At<float>(x, y)[0] -
+                                              exact.image.At<float>(x, y)[0])));
+    }
+  }
+  return out;
+}
+
 // The lens benchmark's wide lenses (tools/bench_lens.py): 1024 x 1024 frames through a
 // fisheye of 180 degrees and an omnidirectional (Mei) lens of 200 degrees.
 struct WideLensCase {
@@ -699,20 +726,9 @@ TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
                     counts.exact_quads,
                 0);
       EXPECT_LE(counts.projected_nodes, 64 * 9 * 25);
-      double largest = 0.0;
-      int64_t count_mismatches = 0;
-      for (int y = 0; y < options.height; ++y) {
-        for (int x = 0; x < options.width; ++x) {
-          const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
-          if (n != exact.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
-          if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
-          const double difference =
-              std::abs(fast.image.At<float>(x, y)[0] - exact.image.At<float>(x, y)[0]);
-          largest = std::max(largest, difference);
-        }
-      }
-      EXPECT_LE(largest, options.lens_tolerance_px + 1e-4) << "pixels";
-      EXPECT_EQ(count_mismatches, 0);  // every view covers the output with a margin
+      const RouteDifference d = CompareWithExactRoute(fast, exact);
+      EXPECT_LE(d.largest, options.lens_tolerance_px + 1e-4) << "pixels";
+      EXPECT_EQ(d.count_mismatches, 0);  // every view covers the output with a margin
     }
   }
 }
@@ -756,20 +772,9 @@ TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnATiltAndAStep) {
     const internal::LensRouteCounts counts = internal::GetLensRouteCounts();
     EXPECT_GT(counts.fitted_quads[0], 0);
     EXPECT_GT(counts.exact_quads, 0);  // along the step
-    double largest = 0.0;
-    int64_t count_mismatches = 0;
-    for (int y = 0; y < options.height; ++y) {
-      for (int x = 0; x < options.width; ++x) {
-        const uint32_t n = fast.integral.count.At<uint32_t>(x, y)[0];
-        if (n != exact.integral.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
-        if (n == 0 || n != exact.integral.count.At<uint32_t>(x, y)[0]) continue;
-        const double difference = std::abs(fast.integral.image.At<float>(x, y)[0] -
-                                           exact.integral.image.At<float>(x, y)[0]);
-        largest = std::max(largest, difference);
-      }
-    }
-    EXPECT_LE(largest, options.lens_tolerance_px + 1e-4) << "pixels";
-    EXPECT_EQ(count_mismatches, 0);
+    const RouteDifference d = CompareWithExactRoute(fast.integral, exact.integral);
+    EXPECT_LE(d.largest, options.lens_tolerance_px + 1e-4) << "pixels";
+    EXPECT_EQ(d.count_mismatches, 0);
   }
 }
 
@@ -815,28 +820,15 @@ TEST(RenderIntegral, WideLensCubicMapsOnClippedTilesAndAcrossAFrameEdgeAgreeWith
     EXPECT_GT(counts.fitted_quads[2], 0);  // the bottom row's, and across the frames' edges
     ASSERT_GT(exact.samples, 0);
     const double rounding = 4.0 * 0x1.0p-24 * 1024.0;
-    double largest = 0.0;
-    int64_t count_mismatches = 0, compared = 0, partial = 0;
-    for (int y = 0; y < options.height; ++y) {
-      for (int x = 0; x < options.width; ++x) {
-        const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
-        if (n != exact.count.At<uint32_t>(x, y)[0]) ++count_mismatches;
-        if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
-        ++compared;
-        partial += n < 3;
-        const double difference =
-            std::abs(fast.image.At<float>(x, y)[0] - exact.image.At<float>(x, y)[0]);
-        largest = std::max(largest, difference);
-      }
-    }
-    EXPECT_LE(largest, 2.0 * options.lens_tolerance_px + rounding) << "pixels";
+    const RouteDifference d = CompareWithExactRoute(fast, exact, 3);
+    EXPECT_LE(d.largest, 2.0 * options.lens_tolerance_px + rounding) << "pixels";
     // Both aside views' frames end inside the output.
-    EXPECT_GT(partial, compared / 10);
-    EXPECT_LT(partial, compared);
+    EXPECT_GT(d.partial, d.compared / 10);
+    EXPECT_LT(d.partial, d.compared);
     // Admission is decided on the fitted position: counts may differ only where a sample lies
     // within the tolerance of a frame's edge (a band of about 0.02 output pixels along some
     // 750 pixels of edges: about 15 pixels; 13 on this machine).
-    EXPECT_LE(count_mismatches, 50);
+    EXPECT_LE(d.count_mismatches, 50);
   }
 }
 
@@ -866,16 +858,9 @@ AloneRender RenderAlone(const LensCamera& lens, int view, bool along_x, int size
   const IntegralResult fast = RenderIntegral(light_field, options);
   AloneRender out;
   out.counts = internal::GetLensRouteCounts();
-  for (int y = 0; y < size; ++y) {
-    for (int x = 0; x < size; ++x) {
-      const uint32_t n = fast.count.At<uint32_t>(x, y)[0];
-      if (n != exact.count.At<uint32_t>(x, y)[0]) ++out.count_mismatches;
-      if (n == 0 || n != exact.count.At<uint32_t>(x, y)[0]) continue;
-      out.largest = std::max(out.largest, static_cast<double>(std::abs(
-                                              fast.image.At<float>(x, y)[0] -
-                                              exact.image.At<float>(x, y)[0])));
-    }
-  }
+  const RouteDifference d = CompareWithExactRoute(fast, exact);
+  out.largest = d.largest;
+  out.count_mismatches = d.count_mismatches;
   return out;
 }
 
