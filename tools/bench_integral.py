@@ -293,6 +293,27 @@ def bench_kernels(args, light_field, options):
     print("target (issue 17): >= 1.0 G samples/s on F0 with all cores")
 
 
+def cpu_line() -> str:
+    """The CPU as the kernel sees it: its figures move with the host (2026-11-28's family-23
+    host ran the unchanged gather kernel at about half the speed of 2026-11-25's Zen 3 host),
+    so every run says which CPU it ran on."""
+    info = {}
+    try:
+        for line in Path("/proc/cpuinfo").read_text().splitlines():
+            key, _, value = line.partition(":")
+            info.setdefault(key.strip(), value.strip())
+    except OSError:
+        return "cpu: /proc/cpuinfo not readable"
+    flags = set(info.get("flags", "").split())
+    try:
+        l3 = Path("/sys/devices/system/cpu/cpu0/cache/index3/size").read_text().strip()
+    except OSError:
+        l3 = "?"
+    wide = ",".join(f for f in ("avx2", "fma", "vaes", "avx512f") if f in flags) or "none"
+    return (f"cpu: {info.get('model name', '?')}, family {info.get('cpu family', '?')} model "
+            f"{info.get('model', '?')}, L3 {l3}, {wide}")
+
+
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default=str(ROOT.parent / "shared" / "data" / "jku-f0"))
@@ -308,6 +329,7 @@ def main():
         return 0
 
     print(f"aos {aos.__version__}, {os.cpu_count()} cores; F0: {poses_path}")
+    print(cpu_line())
     loaded = aos.load_lightfield(str(poses_path), fov_deg=FOV_DEG)
     light_field = loaded.light_field
     options = aos.IntegralOptions(pose_view=191, fov_deg=FOV_DEG, width=512, height=512,
