@@ -95,7 +95,7 @@ def main() -> int:
     parser.add_argument("--tile-size", type=int, default=512, help="map tile, pixels")
     parser.add_argument("--workers", default="1,2", help="worker counts to run, e.g. 1,2")
     parser.add_argument("--cache-mb", type=float,
-                        default=distributed.DEFAULT_CACHE_BYTES / 2**20,
+                        default=aos.DistributedOptions().cache_mb,
                         help="frame cache per worker, MiB")
     parser.add_argument("--repeats", type=int, default=1,
                         help="rounds of every worker count, interleaved (0: only make the "
@@ -136,7 +136,7 @@ def main() -> int:
                     started = time.perf_counter()
                     result = distributed.render_map(
                         poses, options, path=Path(scratch) / f"map-{len(runs)}.tif",
-                        client=client, cache_bytes=int(args.cache_mb * 2**20))
+                        client=client, cache_mb=args.cache_mb)
                     seconds = time.perf_counter() - started
                     client_cpu = cpu_seconds() - client_cpu
                     workers_cpu = [after - workers_cpu[address] for address, after in

@@ -53,6 +53,21 @@ COMMANDS = [
     ("plan", "FlightPlanOptions"),
 ]
 
+# Structs outside a command's Options whose fields the command binds too, under a prefix of the
+# bindings' field paths: (command, Python class name, prefix).
+OUTSIDE = [
+    ("map", "DistributedOptions", "distributed."),
+]
+
+
+def structs() -> list[tuple[str, str, str]]:
+    """Every (command, struct, field-path prefix) the vocabulary covers, in page order."""
+    entries = [(command, class_name, "") for command, class_name in COMMANDS]
+    for command, class_name, prefix in OUTSIDE:
+        at = max(i for i, entry in enumerate(entries) if entry[0] == command)
+        entries.insert(at + 1, (command, class_name, prefix))
+    return entries
+
 
 class LensCameraFields:
     """The fields of a default aos.LensCamera that `aos-render camera` sets (the flags are bound
@@ -115,10 +130,11 @@ NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_fil
                       "fy", "cx", "cy",  # camera: fy = fx, cx/cy = the centre
                       "extent",  # the map's extent: none = the views' footprints
                       "vertices",  # plan: none = a circle, sector or rectangle
-                      "crs", "dem"}  # plan: none = a local frame, flat ground
+                      "crs", "dem",  # plan: none = a local frame, flat ground
+                      "scheduler"}  # map: none = no Dask scheduler (--workers or this process)
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).
-UNITS = [("_mps", "m/s"), ("_min", "minutes"), ("_s", "seconds"), ("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
+UNITS = [("_mps", "m/s"), ("_mb", "MiB"), ("_min", "minutes"), ("_s", "seconds"), ("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
          ("width", "pixels"), ("height", "pixels"), ("sigma", "pixels"), ("fraction", "0..1")]
 
 
@@ -240,41 +256,46 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
     table: list[dict[str, str]] = []
     problems: list[str] = []
     bindings = cli_bindings(aos_render)
-    for command, class_name in COMMANDS:
+    for command, class_name, prefix in structs():
         flags = cli_flags(aos_render, command)
-        fields = leaves(options_of(class_name))
+        fields = [(prefix + path, value) for path, value in leaves(options_of(class_name))]
         known = {path for path, _ in fields}
+        # Bindings under the prefix of another struct of this command are that struct's.
+        others = ["load."] + [p for c, _, p in structs() if c == command and p and p != prefix]
         for binding in bindings:
             field = binding["field"]
             if (binding["command"] == command and field not in known and "/" not in field
-                    and not field.startswith("load.")):
-                problems.append(f"{command} {binding['flag']}: bound to {class_name}.{field}, "
-                                "which the struct does not have")
+                    and field.startswith(prefix)
+                    and not any(field.startswith(other) for other in others)):
+                problems.append(f"{command} {binding['flag']}: bound to {class_name}."
+                                f"{field[len(prefix):]}, which the struct does not have")
         for path, value in fields:
             name = path.rsplit(".", 1)[-1]
             binding = binding_for(bindings, command, path)
             flag = binding["flag"] if binding else None
             why = (NOT_ON_THE_CLI.get((command, path)) or NOT_ON_THE_CLI.get(("*", name)))
-            row = {"command": command, "python": f"{class_name}.{path}", "flag": flag or "",
+            shown = f"{class_name}.{path[len(prefix):]}"
+            row = {"command": command, "python": shown,
+                   "flag": flag or "",
                    "default": python_default(value), "unit": unit_of(command, path),
                    "note": ""}
             if binding is None:
                 if why is None:
-                    problems.append(f"{command}: {class_name}.{path} has no flag "
+                    problems.append(f"{command}: {shown} has no flag "
                                     f"(--{name.replace('_', '-')}) and no reason in NOT_ON_THE_CLI")
                 row["note"] = why or "MISSING"
             else:
                 if why is not None:
                     problems.append(f"{command}: NOT_ON_THE_CLI gives a reason for "
-                                    f"{class_name}.{path}, but {flag} sets it: a stale entry")
+                                    f"{shown}, but {flag} sets it: a stale entry")
                 bound = binding["default"] or None
                 if bound is None and not (value is False or name in NO_PRINTED_DEFAULT):
                     problems.append(f"{command} {flag}: --help prints no default for "
-                                    f"{class_name}.{path} ({python_default(value)}): bind it "
+                                    f"{shown} ({python_default(value)}): bind it "
                                     "with Flags::Field or list it in NO_PRINTED_DEFAULT")
                 if not same_default(value, bound, path):
                     problems.append(f"{command} {flag}: the CLI default {bound!r} is not "
-                                    f"{class_name}.{path}'s {python_default(value)}")
+                                    f"{shown}'s {python_default(value)}")
                 if "/" not in flag and flags.get(flag) != bound and not (
                         bound is None and value is False):
                     problems.append(f"{command} {flag}: --help prints {flags.get(flag)!r} but "
@@ -297,7 +318,9 @@ command's function, routed by its name (`aos.all_in_focus(lf, agreement=0.1)` se
 `merge.robust.agreement`).
 
 Every flag is bound to the Options field it sets and named after it (cpp/exe/cli.h: Flags);
-`aos-render flags` lists the bindings. The exceptions, named by what they describe: `--threads`
+`aos-render flags` lists the bindings. `map` also binds a struct of its own beside MapOptions:
+DistributedOptions (how the tiles are spread over Dask), whose fields are
+`aos.distributed.render_map`'s keyword arguments of the same names. The exceptions, named by what they describe: `--threads`
 (`num_threads`, on every command: every stage of the command, and a cap on the process's
 workers), `--views` (`view_indices`), `--pattern COLUMNSxROWS` (`pattern_columns`,
 `pattern_rows`), `--focal-height`/`--focal-plane`/`--focal-distance` (`focal_plane`), and the
@@ -319,12 +342,12 @@ on `poses`, `rectify` and `resolution`; `--window-radius` on `metrics`; `--image
 `--overlap`, `--max-features` (`poses`), `--min-registered`, `--positions`,
 `--positions-from-exif` (`poses`, `import-colmap`).
 """.split("\n")
-    for command, class_name in COMMANDS:
+    for command, class_name, prefix in structs():
         lines += [f"## `aos-render {command}` ({class_name})", "",
                   "| Python field | CLI flag | Default | Unit | Note |",
                   "|---|---|---|---|---|"]
         for row in table:
-            if row["command"] == command:
+            if row["command"] == command and row["python"].startswith(class_name + "."):
                 flag = f"`{row['flag']}`" if row["flag"] else ""
                 lines.append(f"| `{row['python']}` | {flag} | `{row['default']}` | {row['unit']} "
                              f"| {row['note']} |")

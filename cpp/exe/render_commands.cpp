@@ -728,14 +728,10 @@ struct MapCommand {
   std::string focal_surface;  // --focal-surface FILE (mesh or DEM raster)
   std::string views;
   std::string output;
-  int workers = 0;            // --workers N: a LocalCluster of N processes (0 = this process)
-  std::string scheduler;      // --scheduler ADDRESS: an existing Dask cluster
-  double cache_mb = 1024.0;   // --cache-mb: each worker's frame cache, MiB
-  double share_mb = 512.0;    // --share-mb: frames each worker hands to its machine's others, MiB
-  bool dashboard = false;     // --dashboard: the local cluster serves Dask's dashboard
+  DistributedOptions distributed;  // --workers, --scheduler, --cache-mb, --share-mb, --dashboard
 };
 
-int RunMapDistributed(MapCommand& c);
+int RunMapDistributed(MapCommand& c, const Flags& flags);
 
 std::string UpText(const MapGrid& grid) { return grid.up_z > 0 ? "+z" : "-z"; }
 
@@ -748,7 +744,8 @@ int RunMap(MapCommand& c, const Flags& flags) {
   CheckOutputPath(c.output, {c.light_field_path}, "output");
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
-  if (c.workers != 0 || !c.scheduler.empty() || c.dashboard) return RunMapDistributed(c);
+  const DistributedOptions& d = c.distributed;
+  if (d.workers != 0 || !d.scheduler.empty() || d.dashboard) return RunMapDistributed(c, flags);
   c.load.num_threads = c.options.num_threads;
   // The surface and the flags first: a bad mesh, DEM or flag fails before the frames are loaded
   // (the views are checked again against the light field).
@@ -861,30 +858,27 @@ CommandRunner DefineMap(CLI::App* command) {
               "Pixels on a side of a render tile (memory is bounded by one tile)");
   flags.Threads(options.num_threads);
   command->add_option("-o,--output", c->output, "GeoTIFF to write (Cloud-Optimised)")->required();
-  command->add_option("--workers", c->workers,
-                      "Render the tiles as Dask tasks on a local cluster of N worker processes "
-                      "(python -m aos.distributed; each reads only the frames its tiles need); "
-                      "0 = in this process")
-      ->default_str("0");
-  command->add_option("--scheduler", c->scheduler,
-                      "Render the tiles as Dask tasks on the cluster of this scheduler address "
-                      "(e.g. tcp://10.0.0.5:8786); its workers must read the frames under the "
-                      "same paths")
-      ->default_str("");
-  command->add_option("--cache-mb", c->cache_mb,
-                      "With --workers/--scheduler: decoded frames each worker keeps between "
-                      "tasks, MiB (a task's own frames are always held)")
-      ->default_str("1024");
-  command->add_option("--share-mb", c->share_mb,
-                      "With --workers/--scheduler: decoded frames each worker hands, through "
-                      "shared memory (/dev/shm), to the other workers of its machine whose tiles "
-                      "need them too (decoded once per machine, not once per worker), MiB; 0: "
-                      "none")
-      ->default_str("512");
-  command->add_flag("--dashboard", c->dashboard,
-                    "With --workers: the local cluster also serves Dask's dashboard (progress, "
-                    "tasks, memory; needs bokeh) on 127.0.0.1, its address printed; read-only "
-                    "pages without a token");
+  Flags run = flags.At("distributed.");
+  run.Field("workers", c->distributed.workers,
+            "Render the tiles as Dask tasks on a local cluster of N worker processes "
+            "(python -m aos.distributed; each reads only the frames its tiles need); "
+            "0 = in this process");
+  run.Optional("--scheduler", "scheduler", c->distributed.scheduler,
+               "Render the tiles as Dask tasks on the cluster of this scheduler address "
+               "(e.g. tcp://10.0.0.5:8786); its workers must read the frames under the "
+               "same paths");
+  run.Field("cache_mb", c->distributed.cache_mb,
+            "With --workers/--scheduler: decoded frames each worker keeps between "
+            "tasks, MiB (a task's own frames are always held)");
+  run.Field("share_mb", c->distributed.share_mb,
+            "With --workers/--scheduler: decoded frames each worker hands, through "
+            "shared memory (/dev/shm), to the other workers of its machine whose tiles "
+            "need them too (decoded once per machine, not once per worker), MiB; 0: "
+            "none");
+  run.Switch("dashboard", c->distributed.dashboard,
+             "With --workers: the local cluster also serves Dask's dashboard (progress, "
+             "tasks, memory; needs bokeh) on 127.0.0.1, its address printed; read-only "
+             "pages without a token");
   flags.Force();
   return [c, flags] { return RunMap(*c, flags); };
 }
@@ -1076,22 +1070,8 @@ int RunView(ViewCommand& c, const Flags& flags) {
 // `aos-render map --workers N / --scheduler ADDRESS`: the command line is checked here (the
 // output before anything else, in RunMap), then handed over to `python -m aos.distributed
 // --spec JSON` (python/aos/distributed), which renders the tiles as Dask tasks.
-int RunMapDistributed(MapCommand& c) {
-  if (c.workers < 0) ThrowUsage("--workers: must be >= 1 (got " + std::to_string(c.workers) + ")");
-  if (c.workers > 0 && !c.scheduler.empty()) {
-    ThrowUsage("--workers and --scheduler exclude each other (the cluster of --scheduler has its "
-               "own workers)");
-  }
-  if (!(c.cache_mb >= 0.0) || !std::isfinite(c.cache_mb)) {
-    ThrowUsage("--cache-mb: must be >= 0 MiB (got " + FormatNumber(c.cache_mb) + ")");
-  }
-  if (!(c.share_mb >= 0.0) || !std::isfinite(c.share_mb)) {
-    ThrowUsage("--share-mb: must be >= 0 MiB (got " + FormatNumber(c.share_mb) + ")");
-  }
-  if (c.dashboard && c.workers == 0) {
-    ThrowUsage("--dashboard: needs --workers N (a cluster of --scheduler serves its own "
-               "dashboard, whose address is printed)");
-  }
+int RunMapDistributed(MapCommand& c, const Flags& flags) {
+  flags.At("distributed.").NamingFlags([&] { c.distributed.Check(); });
   if (!fs::exists(c.light_field_path)) ThrowInvalid(c.light_field_path + ": no such light-field file");
   if (!c.focal_surface.empty() && !fs::exists(c.focal_surface)) {
     throw UsageError("--focal-surface: " + c.focal_surface + ": no such file");
@@ -1122,11 +1102,12 @@ int RunMapDistributed(MapCommand& c) {
   spec["num_threads"] = o.num_threads;
   spec["output"] = c.output;
   spec["force"] = Common().force;
-  spec["workers"] = c.workers;
-  spec["scheduler"] = c.scheduler;
-  spec["cache_mb"] = c.cache_mb;
-  spec["share_mb"] = c.share_mb;
-  spec["dashboard"] = c.dashboard;
+  const DistributedOptions& d = c.distributed;
+  spec["workers"] = d.workers;
+  spec["scheduler"] = d.scheduler;
+  spec["cache_mb"] = d.cache_mb;
+  spec["share_mb"] = d.share_mb;
+  spec["dashboard"] = d.dashboard;
   spec["quiet"] = Common().quiet;
   spec["json"] = Common().json;
   ExecPythonModule("map", "distributed", spec.dump());

@@ -399,6 +399,26 @@ void BindMap(py::module_& m) {
       .Finish()
       .def("check", &MapOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
 
+  OptionsClass<DistributedOptions>(
+      m, "DistributedOptions",
+      "How aos.distributed.render_map (and aos-render map --workers/--scheduler) spreads a "
+      "map's tiles over Dask. Defaults from the C++ struct aos::DistributedOptions.")
+      .Field("workers", &DistributedOptions::workers,
+             "Worker processes of a local cluster, >= 0; 0 = none (render_map then starts one "
+             "unless it has a client or a scheduler).")
+      .Field("scheduler", &DistributedOptions::scheduler,
+             "Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. Not with "
+             "workers.")
+      .Field("cache_mb", &DistributedOptions::cache_mb,
+             "Decoded frames each worker keeps between tasks, MiB, >= 0.")
+      .Field("share_mb", &DistributedOptions::share_mb,
+             "Decoded frames each worker hands to the other workers of its machine through "
+             "shared memory, MiB, >= 0; 0 = none.")
+      .Field("dashboard", &DistributedOptions::dashboard,
+             "The local cluster also serves Dask's dashboard; needs workers >= 1.")
+      .Finish()
+      .def("check", &DistributedOptions::Check, "Raises ValueError naming the field.");
+
   py::class_<MapResult>(m, "MapResult", "What render_map returns: the map and its grid.")
       .def_property_readonly(
           "image", [](const MapResult& map) { return ArrayFromImage(KeptMapArray(map, map.image, "image")); },

@@ -732,6 +732,38 @@ class MapOptions:
     def __deepcopy__(self, memo: dict[int, Any]) -> MapOptions: ...
     def __repr__(self) -> str: ...
 
+class DistributedOptions:
+    """How aos.distributed.render_map spreads a map's tiles over Dask; fields and defaults of
+    aos::DistributedOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        workers: int = ...,
+        scheduler: str = ...,
+        cache_mb: float = ...,
+        share_mb: float = ...,
+        dashboard: bool = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    workers: int
+    """Worker processes of a local cluster, >= 0; 0 = none."""
+    scheduler: str
+    """Address of an existing Dask scheduler; '' = none. Not with workers."""
+    cache_mb: float
+    """Decoded frames each worker keeps between tasks, MiB, >= 0."""
+    share_mb: float
+    """Decoded frames each worker hands to its machine's other workers, MiB, >= 0; 0 = none."""
+    dashboard: bool
+    """The local cluster also serves Dask's dashboard; needs workers >= 1."""
+    def check(self) -> None:
+        """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
+    def __copy__(self) -> DistributedOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> DistributedOptions: ...
+    def __repr__(self) -> str: ...
+
 class MapResult:
     """What render_map returns: the map and its grid."""
 

@@ -127,6 +127,32 @@ TEST(MapGrid, RefusesBadSizesNamingTheField) {
   EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("focal_height:"));
 }
 
+TEST(DistributedOptions, DefaultsPassAndBadValuesAreRefusedNamingTheField) {
+  const DistributedOptions defaults;
+  EXPECT_NO_THROW(defaults.Check());
+  EXPECT_EQ(defaults.workers, 0);
+  auto error = [](const std::function<void(DistributedOptions&)>& set) {
+    DistributedOptions options;
+    set(options);
+    return ErrorOf([&] { options.Check(); });
+  };
+  EXPECT_THAT(error([](auto& o) { o.workers = -1; }), HasSubstr("workers: must be >= 0"));
+  EXPECT_THAT(error([](auto& o) { o.workers = 2, o.scheduler = "tcp://127.0.0.1:1"; }),
+              HasSubstr("workers/scheduler: exclude each other"));
+  EXPECT_THAT(error([](auto& o) { o.cache_mb = -1.0; }), HasSubstr("cache_mb: must be >= 0"));
+  EXPECT_THAT(error([](auto& o) { o.cache_mb = std::nan(""); }), HasSubstr("cache_mb:"));
+  EXPECT_THAT(error([](auto& o) { o.share_mb = INFINITY; }), HasSubstr("share_mb:"));
+  EXPECT_THAT(error([](auto& o) { o.dashboard = true; }), HasSubstr("dashboard: needs workers"));
+  DistributedOptions local;
+  local.workers = 2;
+  local.dashboard = true;
+  local.share_mb = 0.0;
+  EXPECT_NO_THROW(local.Check());
+  DistributedOptions remote;
+  remote.scheduler = "tcp://10.0.0.5:8786";
+  EXPECT_NO_THROW(remote.Check());
+}
+
 // The views that see world point X (a nadir pinhole each): projected inside the image.
 int ViewsSeeing(const LightField& light_field, const Vec3d& point) {
   int seen = 0;

@@ -111,7 +111,7 @@ def test_the_dask_map_is_bit_for_bit_the_single_process_map(survey: Path, tmp_pa
     frame_bytes = loaded.image_bytes() // len(loaded)
     result = aos.distributed.render_map(poses, aos.MapOptions(pixel_size=PIXEL, tile_size=TILE),
                                         path=out, client=client, arrays=True,
-                                        cache_bytes=2 * frame_bytes)
+                                        cache_mb=2 * frame_bytes / 2**20)
     assert np.array_equal(result.image, reference.image)
     assert np.array_equal(result.count, reference.count)
     assert np.array_equal(read_bands(out), read_bands(single), equal_nan=True)
@@ -145,21 +145,53 @@ def test_frames_two_workers_need_are_decoded_once_on_their_machine(survey: Path,
 
     before = stores()
     runs = {}
-    for share in (0, aos.distributed.DEFAULT_SHARE_BYTES):
+    default = aos.DistributedOptions().share_mb
+    for share in (0.0, default):
         runs[share] = aos.distributed.render_map(poses, options, path=None, client=client,
-                                                 arrays=True, share_bytes=share)
+                                                 arrays=True, share_mb=share)
         assert np.array_equal(runs[share].image, reference.image)
         assert np.array_equal(runs[share].count, reference.count)
-    alone, together = runs[0], runs[aos.distributed.DEFAULT_SHARE_BYTES]
+    alone, together = runs[0.0], runs[default]
     assert alone.frames_shared == 0
     assert together.frames_shared > 0
     # Each frame is decoded at least once on this machine; a frame taken from the store was
     # decoded by the other worker.
     assert together.frames_read >= together.views_used
     assert stores() <= before  # this run's folder is gone
-    with pytest.raises(ValueError, match="share_bytes"):
+    with pytest.raises(ValueError, match="share_mb"):
         aos.distributed.render_map(poses, options, path=None, client=client, arrays=True,
-                                   share_bytes=-1)
+                                   share_mb=-1)
+
+
+def test_render_map_takes_the_cluster_options_of_distributed_options() -> None:
+    """render_map's cluster knobs are aos.DistributedOptions' fields (defined once, in C++, as
+    the CLI's flags): its defaults where not given, bad values refused naming the field before
+    anything starts; the old byte spellings still work for one release, with a warning."""
+    defaults = aos.DistributedOptions()
+    run = aos.distributed._run_options(None, None, None, None, None, False, None, None)
+    assert (run.cache_mb, run.share_mb, run.workers, run.scheduler) == (
+        defaults.cache_mb, defaults.share_mb, 1, "")  # no client or scheduler: one local worker
+    run = aos.distributed._run_options(None, "tcp://127.0.0.1:1", None, 8.0, 0.0, False, None,
+                                       None)
+    assert (run.workers, run.cache_mb, run.share_mb) == (0, 8.0, 0.0)
+    with pytest.warns(DeprecationWarning, match="cache_bytes is deprecated; use cache_mb"):
+        run = aos.distributed._run_options(None, None, 2, None, None, False, 3 << 20, None)
+    assert (run.cache_mb, run.workers) == (3.0, 2)
+    with pytest.warns(DeprecationWarning, match="share_bytes is deprecated; use share_mb"):
+        run = aos.distributed._run_options(None, None, None, None, None, False, None, 1 << 19)
+    assert run.share_mb == 0.5
+    with pytest.warns(DeprecationWarning, match="DistributedOptions\\(\\).cache_mb"):
+        assert aos.distributed.DEFAULT_CACHE_BYTES == int(defaults.cache_mb * 2**20)
+    with pytest.warns(DeprecationWarning, match="DistributedOptions\\(\\).share_mb"):
+        assert aos.distributed.DEFAULT_SHARE_BYTES == int(defaults.share_mb * 2**20)
+    light_field, options = aos.LightField(), aos.MapOptions()  # never reached
+    for kwargs, field in (({"cache_mb": -1.0}, "cache_mb"), ({"share_mb": math.nan}, "share_mb"),
+                          ({"workers": 2, "scheduler": "tcp://127.0.0.1:1"}, "workers/scheduler"),
+                          ({"workers": 0}, "workers"),
+                          ({"cache_mb": 1.0, "cache_bytes": 1}, "cache_bytes: not with cache_mb"),
+                          ({"dashboard": True, "scheduler": "tcp://127.0.0.1:1"}, "dashboard")):
+        with pytest.raises(ValueError, match=f"render_map\\(\\): {field}"):
+            aos.distributed.render_map(light_field, options, path=None, arrays=True, **kwargs)
 
 
 def test_a_frame_from_the_store_is_the_decoded_frame_or_is_decoded_again(survey: Path) -> None:

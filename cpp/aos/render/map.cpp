@@ -336,6 +336,24 @@ MapResult RenderMap(const LightField& light_field, const MapOptions& options,
   return map;
 }
 
+void DistributedOptions::Check() const {
+  if (workers < 0) ThrowInvalid("workers: must be >= 0 (got " + std::to_string(workers) + ")");
+  if (workers > 0 && !scheduler.empty()) {
+    ThrowInvalid("workers/scheduler: exclude each other (the cluster of " + scheduler +
+                 " has its own workers)");
+  }
+  if (!(cache_mb >= 0.0) || !std::isfinite(cache_mb)) {
+    ThrowInvalid("cache_mb: must be >= 0 MiB (got " + Num(cache_mb) + ")");
+  }
+  if (!(share_mb >= 0.0) || !std::isfinite(share_mb)) {
+    ThrowInvalid("share_mb: must be >= 0 MiB (got " + Num(share_mb) + ")");
+  }
+  if (dashboard && workers == 0) {
+    ThrowInvalid("dashboard: needs workers >= 1 (a cluster of scheduler serves its own "
+                 "dashboard)");
+  }
+}
+
 namespace {
 
 void CheckWindow(const MapGrid& grid, int x0, int y0, int w, int h) {

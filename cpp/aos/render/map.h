@@ -202,6 +202,29 @@ void WriteMapGeoTiff(const MapResult& map, const std::string& path,
 std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& grid,
                                 const MapOptions& options, int x0, int y0, int w, int h);
 
+// How a map's tiles are spread over Dask (python/aos/distributed, docs/distributed.md): the
+// options of `aos-render map --workers/--scheduler` and of aos.distributed.render_map, defined
+// here once (the renderer itself is Python).
+struct DistributedOptions {
+  // Worker processes of a local cluster, >= 0; 0 = none: the CLI renders in its own process,
+  // render_map (always on Dask) starts one worker unless it has a client or a scheduler.
+  int workers = 0;
+  // Address of an existing Dask scheduler (e.g. "tcp://10.0.0.5:8786"), whose workers read the
+  // frames under the same paths; empty = none. Not with workers.
+  std::string scheduler;
+  // Decoded frames each worker keeps between tasks, MiB, >= 0 (a task's own frames are always
+  // held, so a worker's frames peak at max(cache_mb, one tile's frames)).
+  double cache_mb = 1024.0;
+  // Decoded frames each worker hands, through shared memory (/dev/shm), to the other workers of
+  // its machine whose tiles need them too, MiB, >= 0; 0 = none.
+  double share_mb = 512.0;
+  // The local cluster also serves Dask's dashboard (a cluster of `scheduler` serves its own);
+  // needs workers >= 1.
+  bool dashboard = false;
+  // Throws std::invalid_argument naming the field.
+  void Check() const;
+};
+
 // A map window: pixels [x0, x0 + w) x [y0, y0 + h).
 struct MapWindow {
   int x0 = 0, y0 = 0, w = 0, h = 0;

@@ -38,6 +38,7 @@ import tempfile
 import threading
 import time
 import uuid
+import warnings
 from concurrent.futures import CancelledError
 from dataclasses import dataclass, field
 from typing import Any, Callable, Optional, Sequence
@@ -46,16 +47,21 @@ import numpy as np
 
 from .. import _core
 
-__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client",
-           "DEFAULT_CACHE_BYTES", "DEFAULT_SHARE_BYTES"]
+__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client"]
 
-# Per-worker frame cache budget: decoded frames held between tasks, bytes. A task's own frames
-# are always held, so a worker's frames peak at max(budget, one tile's frames).
-DEFAULT_CACHE_BYTES = 1 << 30
+_MIB = 1 << 20
 
-# Per-worker budget of the shared frame store: decoded frames a worker publishes, for the other
-# workers on its machine, in shared memory (/dev/shm) during one run, bytes.
-DEFAULT_SHARE_BYTES = 1 << 29
+
+def __getattr__(name: str) -> Any:
+    """The old default constants, for one release (DeprecationWarning): the defaults are
+    aos.DistributedOptions' now, in MiB."""
+    fields = {"DEFAULT_CACHE_BYTES": "cache_mb", "DEFAULT_SHARE_BYTES": "share_mb"}
+    if name in fields:
+        warnings.warn(f"aos.distributed.{name} is deprecated; use "
+                      f"aos.DistributedOptions().{fields[name]} (MiB)", DeprecationWarning,
+                      stacklevel=2)
+        return int(getattr(_core.DistributedOptions(), fields[name]) * _MIB)
+    raise AttributeError(f"module 'aos.distributed' has no attribute {name!r}")
 
 _LOAD_KEYS = ("grey", "mask", "mask_dir")
 
@@ -443,22 +449,66 @@ def _worker_addresses(client: Any, timeout_s: float = 120.0) -> list:
     return sorted(client.nthreads())
 
 
+def _run_options(client: Any, scheduler: Optional[str], workers: Optional[int],
+                 cache_mb: Optional[float], share_mb: Optional[float], dashboard: bool,
+                 cache_bytes: Optional[int], share_bytes: Optional[int]) -> Any:
+    """render_map's cluster knobs as a checked DistributedOptions (defaults from C++). The old
+    byte spellings cache_bytes/share_bytes work for one release, with a DeprecationWarning."""
+    run = _core.DistributedOptions()
+    for old, new, value in (("cache_bytes", "cache_mb", cache_bytes),
+                            ("share_bytes", "share_mb", share_bytes)):
+        if value is None:
+            continue
+        if (cache_mb if new == "cache_mb" else share_mb) is not None:
+            raise ValueError(f"render_map(): {old}: not with {new} (the same budget in MiB)")
+        warnings.warn(f"render_map(): {old} is deprecated; use {new} (MiB)", DeprecationWarning,
+                      stacklevel=3)
+        if new == "cache_mb":
+            cache_mb = value / _MIB
+        else:
+            share_mb = value / _MIB
+    if cache_mb is not None:
+        run.cache_mb = cache_mb
+    if share_mb is not None:
+        run.share_mb = share_mb
+    run.scheduler = scheduler or ""
+    # Python always renders on Dask: no client and no scheduler means a local cluster (1 worker
+    # unless told).
+    if workers is not None:
+        run.workers = workers
+    elif client is None and not scheduler:
+        run.workers = 1
+    run.dashboard = dashboard
+    try:
+        run.check()
+        if client is None and not scheduler and run.workers < 1:
+            raise ValueError(f"workers: must be >= 1 for a local cluster (got {run.workers})")
+    except ValueError as error:
+        raise ValueError(f"render_map(): {error}") from None
+    return run
+
+
 def render_map(light_field: Any, options: Any, *, path: Optional[str], client: Any = None,
                scheduler: Optional[str] = None, workers: Optional[int] = None,
                load: Optional[dict] = None, force: bool = False, arrays: bool = False,
-               cache_bytes: int = DEFAULT_CACHE_BYTES,
-               share_bytes: int = DEFAULT_SHARE_BYTES,
+               cache_mb: Optional[float] = None,
+               share_mb: Optional[float] = None,
                progress: Optional[Callable[[str, int, int], object]] = None,
                dashboard: bool = False,
-               on_start: Optional[Callable[[Any], object]] = None
+               on_start: Optional[Callable[[Any], object]] = None,
+               cache_bytes: Optional[int] = None,
+               share_bytes: Optional[int] = None,
                ) -> DistributedMapResult:
     """Renders the map of ``light_field`` (a LightField, with or without its images: the
     workers read the frames from their files) and ``options`` (a MapOptions) on Dask; see the
     module's docstring. ``path``: the Cloud-Optimised GeoTIFF to write (None with arrays=True
     keeps the map in memory only). ``load``: how the frames are decoded (grey, mask, mask_dir
-    as load_lightfield). ``cache_bytes``: each worker's frame cache budget. ``share_bytes``:
-    the bytes of decoded frames each worker may hand to the other workers of its machine
-    through shared memory (0: none; see _FrameStore). ``progress(stage, done, total)`` is
+    as load_lightfield). ``workers``, ``scheduler``, ``cache_mb``, ``share_mb`` and
+    ``dashboard`` are the fields of :class:`aos.DistributedOptions` (its defaults where None):
+    each worker's frame cache budget in MiB, and the MiB of decoded frames each worker may hand
+    to the other workers of its machine through shared memory (0: none; see _FrameStore);
+    ``cache_bytes``/``share_bytes`` are their old spellings in bytes (deprecated).
+    ``progress(stage, done, total)`` is
     called on the client as tiles
     arrive ("render map", tiles) and while the COG is written. ``dashboard``: the local
     cluster render_map starts serves Dask's dashboard (local_client). ``on_start(client)`` is
@@ -468,10 +518,10 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     is written at ``path`` on any error."""
     started = time.perf_counter()
     load = dict(load or {})
-    if cache_bytes < 0:
-        raise ValueError(f"render_map(): cache_bytes: must be >= 0 (got {cache_bytes})")
-    if share_bytes < 0:
-        raise ValueError(f"render_map(): share_bytes: must be >= 0 (got {share_bytes})")
+    run = _run_options(client, scheduler, workers, cache_mb, share_mb, dashboard, cache_bytes,
+                       share_bytes)
+    cache_bytes = int(run.cache_mb * _MIB)
+    share_bytes = int(run.share_mb * _MIB)
     if path is None and not arrays:
         raise ValueError("render_map(): arrays=False without a path keeps nothing; give a path")
     options, poses, grid, selection, channels = prepare_map(light_field, options, load)
@@ -491,10 +541,10 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         if client is None:
             from dask.distributed import Client
 
-            if scheduler:
-                client = owned = Client(scheduler, timeout=30)
+            if run.scheduler:
+                client = owned = Client(run.scheduler, timeout=30)
             else:
-                client = owned = local_client(workers or 1, dashboard=dashboard)
+                client = owned = local_client(run.workers, dashboard=run.dashboard)
         if on_start is not None:
             on_start(client)
         image: Optional[np.ndarray] = None
@@ -641,7 +691,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
         if owned is not None:
             cluster = getattr(owned, "cluster", None)
             owned.close()
-            if cluster is not None and scheduler is None:
+            if cluster is not None and not run.scheduler:
                 cluster.close()
 
 

@@ -57,10 +57,10 @@ class _Bar:
         self.stage = ""
 
 
-def _mib_or(spec: dict, key: str, default_bytes: int) -> int:
-    """spec[key] (MiB, as the CLI sends it) in bytes; render_map's default where it is absent
-    (not a second copy of the default's value)."""
-    return int(float(spec[key]) * (1 << 20)) if key in spec else default_bytes
+def _mib(spec: dict, key: str) -> "float | None":
+    """spec[key] (MiB, as the CLI sends it); None where it is absent (render_map then takes
+    aos.DistributedOptions' default)."""
+    return float(spec[key]) if key in spec else None
 
 
 def _dashboard_link(client: Any, local: bool) -> str:
@@ -150,8 +150,7 @@ def main(argv: list[str]) -> int:
             light_field, options, path=spec["output"], scheduler=scheduler or None,
             workers=workers, dashboard=bool(spec.get("dashboard")), on_start=started,
             load=frame_load, force=bool(spec.get("force", False)),
-            cache_bytes=_mib_or(spec, "cache_mb", distributed.DEFAULT_CACHE_BYTES),
-            share_bytes=_mib_or(spec, "share_mb", distributed.DEFAULT_SHARE_BYTES), progress=bar)
+            cache_mb=_mib(spec, "cache_mb"), share_mb=_mib(spec, "share_mb"), progress=bar)
         bar.finish()
     except BadParameter as error:
         bar.finish()
