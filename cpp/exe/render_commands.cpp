@@ -731,7 +731,7 @@ struct MapCommand {
   DistributedOptions distributed;  // --workers, --scheduler, --cache-mb, --share-mb, --dashboard
 };
 
-int RunMapDistributed(MapCommand& c, const Flags& flags);
+int RunMapDistributed(MapCommand& c);
 
 std::string UpText(const MapGrid& grid) { return grid.up_z > 0 ? "+z" : "-z"; }
 
@@ -744,8 +744,17 @@ int RunMap(MapCommand& c, const Flags& flags) {
   CheckOutputPath(c.output, {c.light_field_path}, "output");
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
+  // The cluster options are checked whether or not there is a cluster; those that only a
+  // cluster reads are named when given without one.
+  flags.At("distributed.").NamingFlags([&] { c.distributed.Check(); });
   const DistributedOptions& d = c.distributed;
-  if (d.workers != 0 || !d.scheduler.empty() || d.dashboard) return RunMapDistributed(c, flags);
+  if (d.workers != 0 || !d.scheduler.empty() || d.dashboard) return RunMapDistributed(c);
+  for (const char* flag : {"--cache-mb", "--share-mb"}) {
+    if (flags.command()->count(flag) > 0) {
+      Warn(std::string(flag) + " is ignored without --workers or --scheduler (it budgets the "
+           "frames of a Dask worker; this process holds every frame)");
+    }
+  }
   c.load.num_threads = c.options.num_threads;
   // The surface and the flags first: a bad mesh, DEM or flag fails before the frames are loaded
   // (the views are checked again against the light field).
@@ -1070,8 +1079,7 @@ int RunView(ViewCommand& c, const Flags& flags) {
 // `aos-render map --workers N / --scheduler ADDRESS`: the command line is checked here (the
 // output before anything else, in RunMap), then handed over to `python -m aos.distributed
 // --spec JSON` (python/aos/distributed), which renders the tiles as Dask tasks.
-int RunMapDistributed(MapCommand& c, const Flags& flags) {
-  flags.At("distributed.").NamingFlags([&] { c.distributed.Check(); });
+int RunMapDistributed(MapCommand& c) {  // RunMap checked c.distributed
   if (!fs::exists(c.light_field_path)) ThrowInvalid(c.light_field_path + ": no such light-field file");
   if (!c.focal_surface.empty() && !fs::exists(c.focal_surface)) {
     throw UsageError("--focal-surface: " + c.focal_surface + ": no such file");

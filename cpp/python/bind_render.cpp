@@ -404,8 +404,8 @@ void BindMap(py::module_& m) {
       "How aos.distributed.render_map (and aos-render map --workers/--scheduler) spreads a "
       "map's tiles over Dask. Defaults from the C++ struct aos::DistributedOptions.")
       .Field("workers", &DistributedOptions::workers,
-             "Worker processes of a local cluster, >= 0; 0 = none (render_map then starts one "
-             "unless it has a client or a scheduler).")
+             "Worker processes of a local cluster, >= 0; 0 = none (render_map, always on Dask, "
+             "then starts one where it has no client or scheduler).")
       .Field("scheduler", &DistributedOptions::scheduler,
              "Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. Not with "
              "workers.")

@@ -748,7 +748,8 @@ class DistributedOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     workers: int
-    """Worker processes of a local cluster, >= 0; 0 = none."""
+    """Worker processes of a local cluster, >= 0; 0 = none (render_map: one, without a client
+    or a scheduler)."""
     scheduler: str
     """Address of an existing Dask scheduler; '' = none. Not with workers."""
     cache_mb: float

@@ -184,14 +184,24 @@ def test_render_map_takes_the_cluster_options_of_distributed_options() -> None:
         assert aos.distributed.DEFAULT_CACHE_BYTES == int(defaults.cache_mb * 2**20)
     with pytest.warns(DeprecationWarning, match="DistributedOptions\\(\\).share_mb"):
         assert aos.distributed.DEFAULT_SHARE_BYTES == int(defaults.share_mb * 2**20)
+    # Always on Dask: workers 0 (the struct's default, "no cluster" on the CLI) is one worker.
+    assert aos.distributed._run_options(None, None, 0, None, None, False, None, None).workers == 1
     light_field, options = aos.LightField(), aos.MapOptions()  # never reached
     for kwargs, field in (({"cache_mb": -1.0}, "cache_mb"), ({"share_mb": math.nan}, "share_mb"),
                           ({"workers": 2, "scheduler": "tcp://127.0.0.1:1"}, "workers/scheduler"),
-                          ({"workers": 0}, "workers"),
+                          ({"workers": -1}, "workers"),
                           ({"cache_mb": 1.0, "cache_bytes": 1}, "cache_bytes: not with cache_mb"),
-                          ({"dashboard": True, "scheduler": "tcp://127.0.0.1:1"}, "dashboard")):
+                          ({"dashboard": True, "scheduler": "tcp://127.0.0.1:1"}, "dashboard"),
+                          ({"client": object(), "workers": 2}, "workers: not with client"),
+                          ({"client": object(), "dashboard": True}, "dashboard: not with client")):
         with pytest.raises(ValueError, match=f"render_map\\(\\): {field}"):
             aos.distributed.render_map(light_field, options, path=None, arrays=True, **kwargs)
+    with pytest.warns(DeprecationWarning), pytest.raises(ValueError, match="cache_bytes: must be"):
+        aos.distributed.render_map(light_field, options, path=None, arrays=True, cache_bytes=-1)
+    with pytest.raises(TypeError, match="render_map\\(\\): workers: expected int, got str"):
+        aos.distributed.render_map(light_field, options, path=None, arrays=True, workers="2")
+    with pytest.raises(ValueError, match="run_cases\\(\\): workers/scheduler"):
+        aos.distributed.run_cases(print, [], workers=2, scheduler="tcp://127.0.0.1:1")
 
 
 def test_a_frame_from_the_store_is_the_decoded_frame_or_is_decoded_again(survey: Path) -> None:
@@ -314,8 +324,10 @@ def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
         return subprocess.run([EXE, "map", str(survey), "--pixel-size", str(PIXEL), "--tile-size",
                                str(TILE), *args], capture_output=True, text=True, timeout=300)
 
-    single = run("-o", str(tmp_path / "single.tif"), "-q")
+    single = run("-o", str(tmp_path / "single.tif"), "-q", "--cache-mb", "64")
     assert single.returncode == 0, single.stderr
+    # A cluster's budget without a cluster: checked, and said to be ignored.
+    assert "--cache-mb is ignored without --workers or --scheduler" in single.stderr
     spread = run("-o", str(tmp_path / "dask.tif"), "--workers", "2", "--json")
     assert spread.returncode == 0, spread.stderr
     report = json.loads(spread.stdout)
@@ -335,7 +347,7 @@ def test_cli_workers_write_the_same_map(survey: Path, tmp_path: Path) -> None:
     assert started == []
     for flags in (["--workers", "-1"], ["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"],
                   ["--workers", "2", "--cache-mb", "-1"], ["--workers", "2", "--share-mb", "-1"],
-                  ["--dashboard"]):
+                  ["--dashboard"], ["--share-mb", "inf"]):
         bad = run("-o", str(tmp_path / "x.tif"), *flags)
         assert bad.returncode == 2, bad.stderr
         assert (flags[-2] if len(flags) > 1 else flags[0]) in bad.stderr

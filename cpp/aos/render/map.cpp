@@ -343,14 +343,14 @@ void DistributedOptions::Check() const {
                  " has its own workers)");
   }
   if (!(cache_mb >= 0.0) || !std::isfinite(cache_mb)) {
-    ThrowInvalid("cache_mb: must be >= 0 MiB (got " + Num(cache_mb) + ")");
+    ThrowInvalid("cache_mb: must be finite and >= 0 MiB (got " + Num(cache_mb) + ")");
   }
   if (!(share_mb >= 0.0) || !std::isfinite(share_mb)) {
-    ThrowInvalid("share_mb: must be >= 0 MiB (got " + Num(share_mb) + ")");
+    ThrowInvalid("share_mb: must be finite and >= 0 MiB (got " + Num(share_mb) + ")");
   }
   if (dashboard && workers == 0) {
-    ThrowInvalid("dashboard: needs workers >= 1 (a cluster of scheduler serves its own "
-                 "dashboard)");
+    ThrowInvalid("dashboard: needs workers >= 1 (only a local cluster's is served here; a "
+                 "scheduler's cluster serves its own)");
   }
 }
 

@@ -206,8 +206,9 @@ std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& gr
 // options of `aos-render map --workers/--scheduler` and of aos.distributed.render_map, defined
 // here once (the renderer itself is Python).
 struct DistributedOptions {
-  // Worker processes of a local cluster, >= 0; 0 = none: the CLI renders in its own process,
-  // render_map (always on Dask) starts one worker unless it has a client or a scheduler.
+  // Worker processes of a local cluster, >= 0; 0 = none: the CLI renders in its own process;
+  // aos.distributed.render_map (always on Dask) starts one worker where it has no client or
+  // scheduler.
   int workers = 0;
   // Address of an existing Dask scheduler (e.g. "tcp://10.0.0.5:8786"), whose workers read the
   // frames under the same paths; empty = none. Not with workers.

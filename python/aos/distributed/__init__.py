@@ -451,40 +451,52 @@ def _worker_addresses(client: Any, timeout_s: float = 120.0) -> list:
 
 def _run_options(client: Any, scheduler: Optional[str], workers: Optional[int],
                  cache_mb: Optional[float], share_mb: Optional[float], dashboard: bool,
-                 cache_bytes: Optional[int], share_bytes: Optional[int]) -> Any:
-    """render_map's cluster knobs as a checked DistributedOptions (defaults from C++). The old
-    byte spellings cache_bytes/share_bytes work for one release, with a DeprecationWarning."""
+                 cache_bytes: Optional[int], share_bytes: Optional[int],
+                 caller: str = "render_map") -> Any:
+    """render_map's (or ``caller``'s) cluster options as a checked DistributedOptions (its defaults where None).
+    Python always renders on Dask: without a client or a scheduler, workers None or 0 means a
+    local cluster of one worker. A client brings its own cluster, so workers, scheduler and
+    dashboard are refused with it. The old byte spellings cache_bytes/share_bytes work for one
+    release, with a DeprecationWarning. Raises ValueError (TypeError for a wrong type) naming
+    the field."""
     run = _core.DistributedOptions()
+    if client is not None and (workers or scheduler or dashboard):
+        given = "/".join(name for name, value in (("workers", workers), ("scheduler", scheduler),
+                                                  ("dashboard", dashboard)) if value)
+        raise ValueError(f"{caller}(): {given}: not with client (the client's cluster has its "
+                         "own workers and dashboard)")
     for old, new, value in (("cache_bytes", "cache_mb", cache_bytes),
                             ("share_bytes", "share_mb", share_bytes)):
         if value is None:
             continue
         if (cache_mb if new == "cache_mb" else share_mb) is not None:
-            raise ValueError(f"render_map(): {old}: not with {new} (the same budget in MiB)")
-        warnings.warn(f"render_map(): {old} is deprecated; use {new} (MiB)", DeprecationWarning,
+            raise ValueError(f"{caller}(): {old}: not with {new} (the same budget in MiB)")
+        warnings.warn(f"{caller}(): {old} is deprecated; use {new} (MiB)", DeprecationWarning,
                       stacklevel=3)
+        if not isinstance(value, int) or value < 0:
+            raise ValueError(f"{caller}(): {old}: must be a whole number of bytes >= 0 "
+                             f"(got {value!r})")
         if new == "cache_mb":
             cache_mb = value / _MIB
         else:
             share_mb = value / _MIB
-    if cache_mb is not None:
-        run.cache_mb = cache_mb
-    if share_mb is not None:
-        run.share_mb = share_mb
-    run.scheduler = scheduler or ""
-    # Python always renders on Dask: no client and no scheduler means a local cluster (1 worker
-    # unless told).
-    if workers is not None:
-        run.workers = workers
-    elif client is None and not scheduler:
-        run.workers = 1
-    run.dashboard = dashboard
+    if client is None and not scheduler and not workers:
+        workers = 1
+    for name, value in (("workers", workers), ("scheduler", scheduler or ""),
+                        ("cache_mb", cache_mb), ("share_mb", share_mb),
+                        ("dashboard", dashboard)):
+        if value is None:
+            continue
+        try:
+            setattr(run, name, value)
+        except TypeError:
+            expected = type(getattr(run, name)).__name__
+            raise TypeError(f"{caller}(): {name}: expected {expected}, got "
+                            f"{type(value).__name__} {value!r}") from None
     try:
         run.check()
-        if client is None and not scheduler and run.workers < 1:
-            raise ValueError(f"workers: must be >= 1 for a local cluster (got {run.workers})")
     except ValueError as error:
-        raise ValueError(f"render_map(): {error}") from None
+        raise ValueError(f"{caller}(): {error}") from None
     return run
 
 
@@ -504,10 +516,13 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     module's docstring. ``path``: the Cloud-Optimised GeoTIFF to write (None with arrays=True
     keeps the map in memory only). ``load``: how the frames are decoded (grey, mask, mask_dir
     as load_lightfield). ``workers``, ``scheduler``, ``cache_mb``, ``share_mb`` and
-    ``dashboard`` are the fields of :class:`aos.DistributedOptions` (its defaults where None):
-    each worker's frame cache budget in MiB, and the MiB of decoded frames each worker may hand
-    to the other workers of its machine through shared memory (0: none; see _FrameStore);
-    ``cache_bytes``/``share_bytes`` are their old spellings in bytes (deprecated).
+    ``dashboard`` are the fields of :class:`aos.DistributedOptions` (its defaults where None;
+    without a client or a scheduler, workers None or 0 means one local worker, as this function
+    always renders on Dask): each worker's frame cache budget in MiB, and the MiB of decoded
+    frames each worker may hand to the other workers of its machine through shared memory (0:
+    none; see _FrameStore). With ``client``, workers, scheduler and dashboard are refused (its
+    cluster has its own). ``cache_bytes``/``share_bytes`` are the old spellings in bytes
+    (deprecated).
     ``progress(stage, done, total)`` is
     called on the client as tiles
     arrive ("render map", tiles) and while the COG is written. ``dashboard``: the local
@@ -702,17 +717,19 @@ def run_cases(function: Callable[[Any], Any], cases: Sequence[Any], *, client: A
               scheduler: Optional[str] = None, workers: Optional[int] = None,
               progress: Optional[Callable[[int, Any], object]] = None) -> list:
     """``[function(case) for case in cases]``, each call a Dask task (a study's cases:
-    tools/appendix_b.py --workers N). The cluster is chosen as in render_map: ``client``, else
-    ``scheduler``, else a local cluster of ``workers`` processes (closed at the end).
+    tools/appendix_b.py --workers N). The cluster is chosen as in render_map (and its options
+    checked the same way): ``client``, else ``scheduler``, else a local cluster of ``workers``
+    processes (None or 0: one; closed at the end).
     ``function`` and the cases must pickle (cloudpickle takes a script's own functions by
     value). ``progress(index, result)`` is called on the client as each case finishes, in
     completion order; the list is in the cases' order. The first failing case's exception is
     raised and the other tasks are cancelled."""
     from dask.distributed import Client, as_completed
 
+    run = _run_options(client, scheduler, workers, None, None, False, None, None, "run_cases")
     owned = None
     if client is None:
-        client = owned = Client(scheduler) if scheduler else local_client(workers or 1)
+        client = owned = Client(run.scheduler) if run.scheduler else local_client(run.workers)
     futures: list = []
     try:
         token = uuid.uuid4().hex
@@ -734,5 +751,5 @@ def run_cases(function: Callable[[Any], Any], cases: Sequence[Any], *, client: A
         if owned is not None:
             cluster = getattr(owned, "cluster", None)
             owned.close()
-            if cluster is not None and scheduler is None:
+            if cluster is not None and not run.scheduler:
                 cluster.close()
