@@ -1,13 +1,16 @@
 // Times the F0 integral render with one build of the AVX2 span kernel: loads F0 once, renders
 // the plane z = Z with T threads R times and prints the CPU and wall milliseconds (best and
-// median) and the samples a second. Linked against a copy of libaos_core.a whose kernel object
+// median), the samples a second and a hash of the image's bits (variants that must not change
+// the image print the kernel's hash). Linked against a copy of libaos_core.a whose kernel object
 // was compiled with one of variants.patch's K4 values (run.sh). A measuring tool, not a test.
 // Usage: driver F0_POSES_JSON Z THREADS REPEATS
 #include <aos/lightfield/formats.h>
 #include <aos/render/integral.h>
 
 #include <algorithm>
+#include <cstdint>
 #include <cstdio>
+#include <cstring>
 #include <cstdlib>
 #include <ctime>
 #include <vector>
@@ -17,6 +20,18 @@ double Seconds(clockid_t clock) {
   timespec t;
   clock_gettime(clock, &t);
   return t.tv_sec + 1e-9 * t.tv_nsec;
+}
+// FNV-1a over the image's rows (float32 bits).
+uint64_t ImageHash(const aos::Image& image) {
+  uint64_t hash = 1469598103934665603ull;
+  for (int y = 0; y < image.height(); ++y) {
+    const auto* row = static_cast<const unsigned char*>(image.RawAt(0, y));
+    for (size_t i = 0; i < static_cast<size_t>(image.width()) * image.channels() * sizeof(float);
+         ++i) {
+      hash = (hash ^ row[i]) * 1099511628211ull;
+    }
+  }
+  return hash;
 }
 }  // namespace
 
@@ -46,8 +61,10 @@ int main(int argc, char** argv) {
   std::sort(cpu.begin(), cpu.end());
   std::sort(wall.begin(), wall.end());
   const double median = wall[repeats / 2];
-  std::printf("cpu best %6.1f median %6.1f ms, wall best %6.1f median %6.1f ms, %.3f G samples/s\n",
+  std::printf("cpu best %6.1f median %6.1f ms, wall best %6.1f median %6.1f ms, %.3f G samples/s, "
+              "image %016llx\n",
               cpu[0] * 1e3, cpu[repeats / 2] * 1e3, wall[0] * 1e3, median * 1e3,
-              static_cast<double>(result.samples) / median / 1e9);
+              static_cast<double>(result.samples) / median / 1e9,
+              static_cast<unsigned long long>(ImageHash(result.image)));
   return 0;
 }

@@ -25,18 +25,33 @@ declare -A name=(
   [5]="no division (W instead of 1/W: positions clamp to the edge, reads hit the cache)"
   [7]="no division, no frame reads, no accumulator traffic"
   [8]="an empty kernel (the rest of the render)"
-  [6]="two groups a step (the same bits)")
+  [6]="two groups a step (unrolled; the same bits)")
+for v in $variants; do
+  [[ -n ${name[$v]+x} ]] || { echo "kernel_bound: unknown variant K4=$v (known: ${!name[*]})" >&2; exit 2; }
+done
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-patch -s -o "$work/kernel.cpp" "$root/cpp/aos/render/integral_kernels_avx2.cpp" "$root/tools/kernel_bound/variants.patch"
-# The libraries aos-render links, as the build recorded them.
-libs=$(awk '/^build cpp\/aos-render:/{f=1} f&&/LINK_LIBRARIES/{sub(/.*LINK_LIBRARIES = /,""); print; exit}' "$build/build.ninja" | sed 's#cpp/libaos_core.a##')
-flags=(-I"$root/cpp" -I"$build/cpp/generated" -isystem /usr/include/opencv4 -isystem /usr/include/Imath
-       -isystem /usr/include/gdal -O3 -DNDEBUG -std=c++17 -fPIC -fopenmp -DJSON_DIAGNOSTICS=1)
+# --fuzz=0: a patch that no longer fits the kernel exactly fails instead of landing elsewhere.
+patch -s --fuzz=0 -o "$work/kernel.cpp" "$root/cpp/aos/render/integral_kernels_avx2.cpp" \
+  "$root/tools/kernel_bound/variants.patch"
+# The kernel object's compile flags and the libraries aos-render links, as the build recorded
+# them, so that K4=0 is the kernel as shipped.
+rule() {  # rule BUILD-LINE-PREFIX VARIABLE: a variable of one ninja build statement
+  awk -v head="$1" -v key="  $2 = " 'index($0, head) == 1 {f = 1; next}
+    f && index($0, key) == 1 {print substr($0, length(key) + 1); exit}
+    f && !/^  / {exit}' "$build/build.ninja"
+}
+object="build cpp/CMakeFiles/aos_core.dir/aos/render/integral_kernels_avx2.cpp.o:"
+compile="$(rule "$object" DEFINES) $(rule "$object" INCLUDES) $(rule "$object" FLAGS)"
+libs=$(rule "build cpp/aos-render:" LINK_LIBRARIES | sed 's#cpp/libaos_core.a##')
+[[ $(rule "$object" FLAGS) == *-O* && -n $libs ]] || {
+  echo "kernel_bound: $build/build.ninja does not read as the Ninja build of tools/run_tests.sh" >&2; exit 2; }
+cd "$build"  # where the build's relative paths start
 for v in $variants; do
-  c++ "${flags[@]}" -DK4="$v" -c "$work/kernel.cpp" -o "$work/integral_kernels_avx2.cpp.o"
+  # shellcheck disable=SC2086
+  c++ $compile -DK4="$v" -c "$work/kernel.cpp" -o "$work/integral_kernels_avx2.cpp.o"
   cp "$build/cpp/libaos_core.a" "$work/lib$v.a"
-  ar r "$work/lib$v.a" "$work/integral_kernels_avx2.cpp.o" 2>/dev/null  # replaces the member
+  ar r "$work/lib$v.a" "$work/integral_kernels_avx2.cpp.o"  # replaces the member of that name
   # shellcheck disable=SC2086
   c++ -O2 -std=c++17 -fopenmp -I"$root/cpp" "$root/tools/kernel_bound/driver.cpp" "$work/lib$v.a" $libs -o "$work/driver$v"
 done
