@@ -34,6 +34,7 @@ from typing import Any, Callable
 import numpy as np
 
 import aos
+from host import cpu_line
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tools"))
@@ -85,7 +86,8 @@ def main() -> int:
     f = args.factor
     print(f"coarse_to_fine={f} against the full {args.slices}-slice stack; times are medians of "
           f"{args.repeats} interleaved runs of the whole all_in_focus call (wall / CPU s), "
-          f"num_threads {args.threads}; load average {os.getloadavg()[0]:.1f} at the start")
+          f"num_threads {args.threads}; load average {os.getloadavg()[0]:.1f} at the start; "
+          f"{cpu_line()}")
     print("| scene | method | full wall s | c2f wall s | wall ratio | full CPU s | c2f CPU s | "
           "CPU ratio | rendered | PSNR full dB | PSNR c2f dB | banding full | banding c2f |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|---|")

@@ -37,6 +37,7 @@ from pathlib import Path
 
 import aos
 from aos import distributed
+from host import cpu_line
 
 
 def scene_for(args: argparse.Namespace) -> dict:
@@ -184,6 +185,7 @@ def main() -> int:
               "cache_mb": args.cache_mb, "frame_mib": round(frame_bytes / 2**20, 3),
               "runs": runs, "summary": summary}
     report["load_average"] = os.getloadavg()
+    report["cpu"] = cpu_line()
     print(json.dumps(report, indent=1))
     if args.json:
         Path(args.json).write_text(json.dumps(report, indent=1))

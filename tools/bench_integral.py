@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 import aos
+from host import cpu_line
 
 FOV_DEG = 50.815436217896945
 ROOT = Path(__file__).resolve().parents[1]
@@ -291,27 +292,6 @@ def bench_kernels(args, light_field, options):
                     f"images {'identical' if same else 'DIFFER'}")
             print(line, flush=True)
     print("target (issue 17): >= 1.0 G samples/s on F0 with all cores")
-
-
-def cpu_line() -> str:
-    """The CPU as the kernel sees it: its figures move with the host (2026-11-28's family-23
-    host ran the unchanged gather kernel at about half the speed of 2026-11-25's Zen 3 host),
-    so every run says which CPU it ran on."""
-    info = {}
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            key, _, value = line.partition(":")
-            info.setdefault(key.strip(), value.strip())
-    except OSError:
-        return "cpu: /proc/cpuinfo not readable"
-    flags = set(info.get("flags", "").split())
-    try:
-        l3 = Path("/sys/devices/system/cpu/cpu0/cache/index3/size").read_text().strip()
-    except OSError:
-        l3 = "?"
-    wide = ",".join(f for f in ("avx2", "fma", "vaes", "avx512f") if f in flags) or "none"
-    return (f"cpu: {info.get('model name', '?')}, family {info.get('cpu family', '?')} model "
-            f"{info.get('model', '?')}, L3 {l3}, {wide}")
 
 
 def main():

@@ -33,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 import aos
+from host import cpu_line
 
 ALTITUDE = 20.0
 SIZE = 1024
@@ -160,7 +161,7 @@ def main() -> int:
     table = "\n".join(lines)
     load_after = os.getloadavg()[0]
     load = (f"load average (1 min) {load_before:.1f} before and {load_after:.1f} after, on "
-            f"{os.cpu_count()} cores")
+            f"{os.cpu_count()} cores; {cpu_line()}")
     print(table)
     print(load)
     speed = []
