@@ -1259,9 +1259,13 @@ struct LensRoute {
         return Vec2d(glm::dot(u_row, hq), glm::dot(v_row, hq)) / glm::dot(w_row, hq);
       };
       // (*fit_error stays the nodes' error: what the children's is predicted from.)
-      error = std::max(error, TurnedError(q, 9, scale, c, e1, e2, turn, 2.0, homography_at,
-                                          turned));
-      if (!(error <= s.lens_tolerance)) return false;
+      // The sheet between the nodes comes as close as distance cos_spread (not only distance).
+      if (!(deviation < 0.5 * distance * cos_spread)) return false;
+      const double turned_error =
+          TurnedError(q, 9, scale, c, e1, e2, deviation / (distance * cos_spread - deviation),
+                      2.0, homography_at, turned);
+      if (!(turned_error <= s.lens_tolerance)) return false;  // NaN too
+      error = std::max(error, turned_error);
       for (int k = 0; k < kTurnedNodes; ++k) hull[hull_nodes++] = &turned[k];
     }
     if (!Accept(id, qx, qy, xl, yl, x_end, y_end, hull, hull_nodes, error, gradient,
@@ -1455,9 +1459,14 @@ struct LensRoute {
         }
         return pixel;
       };
-      error = std::max(error, TurnedError(q, kNodes, scale, c, e1, e2, turn, 1.25, cubic_at,
-                                          turned) + 2.0 * float_error);
-      if (!(error <= s.lens_tolerance)) return false;
+      // The sheet between the nodes comes as close as distance cos_c (not only distance).
+      if (!(deviation < 0.5 * distance * cos_c)) return false;
+      const double turned_error =
+          TurnedError(q, kNodes, scale, c, e1, e2, deviation / (distance * cos_c - deviation),
+                      1.25, cubic_at, turned) +
+          2.0 * float_error;
+      if (!(turned_error <= s.lens_tolerance)) return false;  // NaN too
+      error = std::max(error, turned_error);
       for (int k = 0; k < kTurnedNodes; ++k) hull[hull_nodes++] = &turned[k];
     }
     if (!Accept(id, qx, qy, xl, yl, x_end, y_end, hull, hull_nodes, error, gradient,
