@@ -734,6 +734,53 @@ TEST(RenderIntegral, WideLensesAreSampledThroughCubicMapsOn64PixelQuads) {
   }
 }
 
+// Ramp frames (RampImage, along x or y) through `lens` from nadir views at `eyes`, rendered on
+// the depth map depth_at(x, y) (metres) of a 256 x 256, 60-degree camera 20 m over the origin,
+// with the exact projection and with lens_tolerance_px 0.02: how far the fast render is from
+// the exact one (view pixels: each output pixel is the mean of its views' sample positions),
+// and the fast render's lens-route counts.
+struct OnDepthRoutes {
+  RouteDifference difference;
+  internal::LensRouteCounts counts;
+};
+OnDepthRoutes RenderOnDepthBothRoutes(const LensCamera& lens, const std::vector<Vec3d>& eyes,
+                                      bool along_x,
+                                      const std::function<double(int, int)>& depth_at) {
+  LightField light_field;
+  const Image ramp = RampImage(lens.width, lens.height, along_x);
+  for (size_t i = 0; i < eyes.size(); ++i) {
+    light_field.views.push_back(
+        MakeView("lens" + std::to_string(i), lens, NadirCamFromWorld(eyes[i]), ramp));
+  }
+  IntegralOptions options;
+  options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
+  options.fov_deg = 60.0;
+  options.width = options.height = 256;
+  Image depth(options.width, options.height, 1, PixelType::kF32);
+  for (int y = 0; y < options.height; ++y) {
+    for (int x = 0; x < options.width; ++x) {
+      depth.At<float>(x, y)[0] = static_cast<float>(depth_at(x, y));
+    }
+  }
+  options.lens_tolerance_px = 0.0;
+  const SurfaceIntegralResult exact = RenderIntegralOnDepth(light_field, options, depth);
+  options.lens_tolerance_px = 0.02;
+  internal::ResetLensRouteCounts();
+  const SurfaceIntegralResult fast = RenderIntegralOnDepth(light_field, options, depth);
+  return {CompareWithExactRoute(fast.integral, exact.integral), internal::GetLensRouteCounts()};
+}
+
+// 3 x 3 views 4 m apart, 20 m up.
+std::vector<Vec3d> NineEyes() {
+  std::vector<Vec3d> eyes;
+  for (int i = 0; i < 9; ++i) eyes.emplace_back(4.0 * (i % 3 - 1), 4.0 * (i / 3 - 1), 20.0);
+  return eyes;
+}
+
+double Waves(int x, int y) {  // a 128-pixel sine in x times one in y
+  return std::sin(2.0 * kPi * x / 128.0) * std::cos(2.0 * kPi * y / 128.0);
+}
+
 TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnReliefTiltsAndSteps) {
   // The cubic map's tolerance where the focal points are not a plane's bilinear grid. The map
   // is a function of a ray's direction (q, the tangent-plane coordinates the kernel forms from
@@ -766,48 +813,25 @@ TEST(RenderIntegralOnDepth, WideLensCubicMapsHoldTheToleranceOnReliefTiltsAndSte
         Surface{"6 m step", 0.0, 6.0, 0.0}, Surface{"8 m pillar", 0.0, 0.0, 8.0}}) {
     for (const bool along_x : {true, false}) {
       SCOPED_TRACE(std::string(surface.name) + (along_x ? ", u" : ", v"));
-      LightField light_field;
-      const Image ramp = RampImage(lens.width, lens.height, along_x);
-      for (int i = 0; i < 9; ++i) {
-        const Vec3d eye(4.0 * (i % 3 - 1), 4.0 * (i / 3 - 1), 20.0);
-        light_field.views.push_back(
-            MakeView("lens" + std::to_string(i), lens, NadirCamFromWorld(eye), ramp));
-      }
-      IntegralOptions options;
-      options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
-      options.fov_deg = 60.0;
-      options.width = options.height = 256;
-      Image depth(options.width, options.height, 1, PixelType::kF32);
-      for (int y = 0; y < options.height; ++y) {
-        for (int x = 0; x < options.width; ++x) {
-          const double wave = std::sin(2.0 * kPi * x / 128.0) * std::cos(2.0 * kPi * y / 128.0);
-          // The pillar: 4 x 4 pixels near a tile's corner, between the cubic's nodes (0, 16, 32,
-          // 47, 63), so no node sees it.
-          const bool pillar = x % 64 >= 56 && x % 64 < 60 && y % 64 >= 56 && y % 64 < 60;
-          depth.At<float>(x, y)[0] = static_cast<float>(
-              20.0 + 2e-5 * x + surface.relief_m * wave + (x + y > 300 ? -surface.step_m : 0.0) -
-              (pillar ? surface.pillar_m : 0.0));
-        }
-      }
-      options.lens_tolerance_px = 0.0;
-      const SurfaceIntegralResult exact = RenderIntegralOnDepth(light_field, options, depth);
-      options.lens_tolerance_px = 0.02;
-      internal::ResetLensRouteCounts();
-      const SurfaceIntegralResult fast = RenderIntegralOnDepth(light_field, options, depth);
-      const internal::LensRouteCounts counts = internal::GetLensRouteCounts();
+      const OnDepthRoutes r = RenderOnDepthBothRoutes(lens, NineEyes(), along_x, [&](int x, int y) {
+        // The pillar: 4 x 4 pixels near a tile's corner, between the cubic's nodes (0, 16, 32,
+        // 47, 63), so no node sees it.
+        const bool pillar = x % 64 >= 56 && x % 64 < 60 && y % 64 >= 56 && y % 64 < 60;
+        return 20.0 + 2e-5 * x + surface.relief_m * Waves(x, y) -
+               (x + y > 300 ? surface.step_m : 0.0) - (pillar ? surface.pillar_m : 0.0);
+      });
       if (surface.relief_m > 0.0) {
         // 16 tiles x 9 views, every one through one cubic map.
-        EXPECT_EQ(counts.fitted_quads[0], 16 * 9);
-        EXPECT_EQ(counts.exact_quads, 0);
+        EXPECT_EQ(r.counts.fitted_quads[0], 16 * 9);
+        EXPECT_EQ(r.counts.exact_quads, 0);
       } else if (surface.step_m > 0.0) {
-        EXPECT_GT(counts.fitted_quads[0], 0);  // away from the step
-        if (surface.step_m > 2.0) EXPECT_GT(counts.exact_quads, 0);  // along it
+        EXPECT_GT(r.counts.fitted_quads[0], 0);  // away from the step
+        if (surface.step_m > 2.0) EXPECT_GT(r.counts.exact_quads, 0);  // along it
       } else {
-        EXPECT_EQ(counts.fitted_quads[0], 0);  // every tile holds a pillar
+        EXPECT_EQ(r.counts.fitted_quads[0], 0);  // every tile holds a pillar
       }
-      const RouteDifference d = CompareWithExactRoute(fast.integral, exact.integral);
-      EXPECT_LE(d.largest, options.lens_tolerance_px + 1e-4) << "pixels";
-      EXPECT_EQ(d.count_mismatches, 0);
+      EXPECT_LE(r.difference.largest, 0.02 + 1e-4) << "pixels";
+      EXPECT_EQ(r.difference.count_mismatches, 0);
     }
   }
 }
@@ -824,37 +848,14 @@ TEST(RenderIntegralOnDepth, RadialTangentialHomographiesHoldTheToleranceOnARelie
                                       {-0.05, 0.01, 0.001, -0.001, 0.0}, 0.0, "test");
   for (const bool along_x : {true, false}) {
     SCOPED_TRACE(along_x ? "u" : "v");
-    LightField light_field;
-    const Image ramp = RampImage(lens.width, lens.height, along_x);
-    for (int i = 0; i < 9; ++i) {
-      const Vec3d eye(4.0 * (i % 3 - 1), 4.0 * (i / 3 - 1), 20.0);
-      light_field.views.push_back(
-          MakeView("radtan" + std::to_string(i), lens, NadirCamFromWorld(eye), ramp));
-    }
-    IntegralOptions options;
-    options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
-    options.fov_deg = 60.0;
-    options.width = options.height = 256;
-    Image depth(options.width, options.height, 1, PixelType::kF32);
-    for (int y = 0; y < options.height; ++y) {
-      for (int x = 0; x < options.width; ++x) {
-        depth.At<float>(x, y)[0] = static_cast<float>(
-            20.0 + 0.05 * std::sin(2.0 * kPi * x / 128.0) * std::cos(2.0 * kPi * y / 128.0));
-      }
-    }
-    options.lens_tolerance_px = 0.0;
-    const SurfaceIntegralResult exact = RenderIntegralOnDepth(light_field, options, depth);
-    options.lens_tolerance_px = 0.02;
-    internal::ResetLensRouteCounts();
-    const SurfaceIntegralResult fast = RenderIntegralOnDepth(light_field, options, depth);
-    const internal::LensRouteCounts counts = internal::GetLensRouteCounts();
+    const OnDepthRoutes r = RenderOnDepthBothRoutes(
+        lens, NineEyes(), along_x, [](int x, int y) { return 20.0 + 0.05 * Waves(x, y); });
     // None projected exactly, and most quads as large as on the plane through the relief's
     // mean (there: 37 of 32 pixels, 2156 of 16, none of 8; here 14, 2152 and 384).
-    EXPECT_EQ(counts.exact_quads, 0);
-    EXPECT_LE(counts.fitted_quads[3], counts.fitted_quads[2] / 4);
-    const RouteDifference d = CompareWithExactRoute(fast.integral, exact.integral);
-    EXPECT_LE(d.largest, 2.0 * options.lens_tolerance_px + 1e-4) << "pixels";
-    EXPECT_EQ(d.count_mismatches, 0);
+    EXPECT_EQ(r.counts.exact_quads, 0);
+    EXPECT_LE(r.counts.fitted_quads[3], r.counts.fitted_quads[2] / 4);
+    EXPECT_LE(r.difference.largest, 2.0 * 0.02 + 1e-4) << "pixels";
+    EXPECT_EQ(r.difference.count_mismatches, 0);
   }
 }
 
@@ -863,36 +864,22 @@ TEST(RenderIntegralOnDepth, OneViewThroughAReliefKeepsTheToleranceWherePillarsTu
   // 4 m pillars of 2 x 2 pixels between the nodes of every 64-pixel tile: their rays turn by
   // about 0.1 rad, past the nodes' q. With the grid check of LensRoute::TurnedError skipped
   // (the map accepted on its nodes), this misses by 0.09-0.12 px (checked by hand); with it,
-  // the quads that hold a pillar are validated over the turned rays or split. Homographies are checked at nodes and grid points, not between
-  // them, so the bound is twice the tolerance, plus float rounding (as the other
-  // radial-tangential cases).
+  // the quads that hold a pillar are validated over the turned rays or split.
+  // Homographies are checked at nodes and grid points, not between them, so the bound is twice
+  // the tolerance, plus float rounding (as the other radial-tangential cases).
   if (!PointKernelRuns()) GTEST_SKIP() << "no AVX2 point kernel: the lens route is not taken";
   const LensCamera lens = LensFromFov(LensModel::kRadTan, 1024, 1024, 100.0,
                                       {-0.05, 0.01, 0.001, -0.001, 0.0}, 0.0, "test");
   for (const bool along_x : {true, false}) {
     SCOPED_TRACE(along_x ? "u" : "v");
-    LightField light_field;
-    light_field.views.push_back(MakeView("radtan", lens, NadirCamFromWorld(Vec3d(6.0, -3.0, 20.0)),
-                                         RampImage(lens.width, lens.height, along_x)));
-    IntegralOptions options;
-    options.cam_from_world = NadirCamFromWorld(Vec3d(0.0, 0.0, 20.0));
-    options.fov_deg = 60.0;
-    options.width = options.height = 256;
-    Image depth(options.width, options.height, 1, PixelType::kF32);
-    for (int y = 0; y < options.height; ++y) {
-      for (int x = 0; x < options.width; ++x) {
-        const bool pillar = x % 64 >= 20 && x % 64 < 22 && y % 64 >= 20 && y % 64 < 22;
-        depth.At<float>(x, y)[0] = static_cast<float>(pillar ? 16.0 : 20.0);
-      }
-    }
-    options.lens_tolerance_px = 0.0;
-    const SurfaceIntegralResult exact = RenderIntegralOnDepth(light_field, options, depth);
-    options.lens_tolerance_px = 0.02;
-    const SurfaceIntegralResult fast = RenderIntegralOnDepth(light_field, options, depth);
-    const RouteDifference d = CompareWithExactRoute(fast.integral, exact.integral);
-    EXPECT_GT(d.compared, options.width * options.height / 2);
-    EXPECT_LE(d.largest, 2.0 * options.lens_tolerance_px + 1e-4) << "pixels";
-    EXPECT_EQ(d.count_mismatches, 0);
+    const OnDepthRoutes r =
+        RenderOnDepthBothRoutes(lens, {Vec3d(6.0, -3.0, 20.0)}, along_x, [](int x, int y) {
+          const bool pillar = x % 64 >= 20 && x % 64 < 22 && y % 64 >= 20 && y % 64 < 22;
+          return pillar ? 16.0 : 20.0;
+        });
+    EXPECT_GT(r.difference.compared, 256 * 256 / 2);
+    EXPECT_LE(r.difference.largest, 2.0 * 0.02 + 1e-4) << "pixels";
+    EXPECT_EQ(r.difference.count_mismatches, 0);
   }
 }
 
