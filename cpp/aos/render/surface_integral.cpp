@@ -1074,11 +1074,15 @@ struct LensRoute {
   // to the exact projection under the gradient charge (about 2 px for a 2.5 mrad turn); over
   // the grown box the 64-pixel cubics pass.
   static constexpr int kTurnedGrid = 5, kTurnedNodes = kTurnedGrid * kTurnedGrid;
+  // `closest`: how near the view the sheet between the nodes comes (the nodes' distance times
+  // the cosine of the quad's spread); a deviation of half that or more is refused.
   template <class Map>
   double TurnedError(const Vec2d* q, int count, double scale, const Vec3d& c, const Vec3d& e1,
-                     const Vec3d& e2, double turn, double reach, const Map& map,
-                     TileBuffers::LensNode* turned) {
+                     const Vec3d& e2, double deviation, double closest, double reach,
+                     const Map& map, TileBuffers::LensNode* turned) {
     constexpr double kInfinity = std::numeric_limits<double>::infinity();
+    if (!(deviation < 0.5 * closest)) return kInfinity;
+    const double turn = deviation / (closest - deviation);
     Vec2d lo(kInfinity), hi(-kInfinity);
     for (int k = 0; k < count; ++k) lo = glm::min(lo, q[k]), hi = glm::max(hi, q[k]);
     // dq / d(angle) <= 1 + |q|^2 (= 1 / cos^2) at the grown box's farthest corner: two passes.
@@ -1259,11 +1263,8 @@ struct LensRoute {
         return Vec2d(glm::dot(u_row, hq), glm::dot(v_row, hq)) / glm::dot(w_row, hq);
       };
       // (*fit_error stays the nodes' error: what the children's is predicted from.)
-      // The sheet between the nodes comes as close as distance cos_spread (not only distance).
-      if (!(deviation < 0.5 * distance * cos_spread)) return false;
-      const double turned_error =
-          TurnedError(q, 9, scale, c, e1, e2, deviation / (distance * cos_spread - deviation),
-                      2.0, homography_at, turned);
+      const double turned_error = TurnedError(q, 9, scale, c, e1, e2, deviation,
+                                              distance * cos_spread, 2.0, homography_at, turned);
       if (!(turned_error <= s.lens_tolerance)) return false;  // NaN too
       error = std::max(error, turned_error);
       for (int k = 0; k < kTurnedNodes; ++k) hull[hull_nodes++] = &turned[k];
@@ -1459,12 +1460,9 @@ struct LensRoute {
         }
         return pixel;
       };
-      // The sheet between the nodes comes as close as distance cos_c (not only distance).
-      if (!(deviation < 0.5 * distance * cos_c)) return false;
-      const double turned_error =
-          TurnedError(q, kNodes, scale, c, e1, e2, deviation / (distance * cos_c - deviation),
-                      1.25, cubic_at, turned) +
-          2.0 * float_error;
+      const double turned_error = TurnedError(q, kNodes, scale, c, e1, e2, deviation,
+                                              distance * cos_c, 1.25, cubic_at, turned) +
+                                  2.0 * float_error;
       if (!(turned_error <= s.lens_tolerance)) return false;  // NaN too
       error = std::max(error, turned_error);
       for (int k = 0; k < kTurnedNodes; ++k) hull[hull_nodes++] = &turned[k];
