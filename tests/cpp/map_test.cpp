@@ -142,6 +142,10 @@ TEST(DistributedOptions, DefaultsPassAndBadValuesAreRefusedNamingTheField) {
   EXPECT_THAT(error([](auto& o) { o.cache_mb = -1.0; }), HasSubstr("cache_mb: must be finite and >= 0"));
   EXPECT_THAT(error([](auto& o) { o.cache_mb = std::nan(""); }), HasSubstr("cache_mb:"));
   EXPECT_THAT(error([](auto& o) { o.share_mb = INFINITY; }), HasSubstr("share_mb:"));
+  // Bytes given as MiB: 1 GiB in bytes would be a 1 PiB budget.
+  EXPECT_THAT(error([](auto& o) { o.cache_mb = 1 << 30; }),
+              HasSubstr("cache_mb: 1073741824 MiB is more than 16 TiB; the budget is in MiB"));
+  EXPECT_THAT(error([](auto& o) { o.share_mb = 1 << 29; }), HasSubstr("share_mb:"));
   EXPECT_THAT(error([](auto& o) { o.dashboard = true; }), HasSubstr("dashboard: needs workers"));
   DistributedOptions local;
   local.workers = 2;

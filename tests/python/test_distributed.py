@@ -188,6 +188,7 @@ def test_render_map_takes_the_cluster_options_of_distributed_options() -> None:
     assert aos.distributed._run_options(None, None, 0, None, None, False, None, None).workers == 1
     light_field, options = aos.LightField(), aos.MapOptions()  # never reached
     for kwargs, field in (({"cache_mb": -1.0}, "cache_mb"), ({"share_mb": math.nan}, "share_mb"),
+                          ({"cache_mb": float(1 << 30)}, "cache_mb: .* MiB, not bytes"),
                           ({"workers": 2, "scheduler": "tcp://127.0.0.1:1"}, "workers/scheduler"),
                           ({"workers": -1}, "workers"),
                           ({"cache_mb": 1.0, "cache_bytes": 1}, "cache_bytes: not with cache_mb"),

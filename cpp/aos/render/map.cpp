@@ -348,6 +348,14 @@ void DistributedOptions::Check() const {
   if (!(share_mb >= 0.0) || !std::isfinite(share_mb)) {
     ThrowInvalid("share_mb: must be finite and >= 0 MiB (got " + Num(share_mb) + ")");
   }
+  // A budget in bytes given as MiB (the old Python spelling was bytes) reads as petabytes.
+  constexpr double kMostMib = 1 << 24;  // 16 TiB
+  for (const auto& [name, value] : {std::pair{"cache_mb", cache_mb}, {"share_mb", share_mb}}) {
+    if (value > kMostMib) {
+      ThrowInvalid(std::string(name) + ": " + Num(value) + " MiB is more than 16 TiB; the " +
+                   "budget is in MiB, not bytes");
+    }
+  }
   if (dashboard && workers == 0) {
     ThrowInvalid("dashboard: needs workers >= 1 (only a local cluster's is served here; a "
                  "scheduler's cluster serves its own)");
