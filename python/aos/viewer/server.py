@@ -422,7 +422,7 @@ class Viewer:
             # Accepted only to say why (a browser sees no status of a refused handshake).
             self.stats["refused_pages"] += 1
             await socket.prepare(request)
-            reason = (f"refused: {self.max_pages} pages are open, the most this viewer serves "
+            reason = (f"refused: this viewer serves at most {self.max_pages} open pages "
                       "(max_pages); close one and reload")
             await socket.send_str(json.dumps({"type": "error", "id": None, "message": reason}))
             await socket.close(code=1013, message=reason.encode()[:120])  # 1013: try again later
