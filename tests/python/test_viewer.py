@@ -1105,7 +1105,7 @@ def test_connections_that_never_present_the_token_are_closed(
 
     from aos.viewer import server
 
-    timeout = 0.5
+    timeout = 1.0  # long enough for the authenticated request to be served first
     monkeypatch.setattr(server, "UNAUTHENTICATED_TIMEOUT_S", timeout, raising=False)
     handle = aos.view(textured_lightfield(), pose_view=4, open_browser=False, num_threads=1)
     host = f"127.0.0.1:{handle.port}"
