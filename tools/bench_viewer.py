@@ -16,8 +16,10 @@
    input-to-display latency p50/p95 of those updates.
 3. With --load: `--clients` WebSocket clients (default 20) each render in a loop (send, wait for
    the frame; every 5th also a one-shot HTTP render) for `--load-seconds` (default 60) on F0 at
-   preview and full size: errors, malformed responses, frames, and the server's RSS before and
-   after (memory flat).
+   preview and full size, after `--warmup-seconds` (default 5) of the same: errors, malformed
+   responses, frames, and the server's RSS growth, which must stay under an eighth of the RGBA
+   bytes sent (LEAK_FRACTION): a leak of one frame per update (1 MiB per full 512 x 512 frame,
+   256 or 64 KiB per preview; about 400 MiB over a 60 s run) fails the run (exit 1).
 
 Needs the F0 data (../shared/data/jku-f0, read in place; skipped with a message when absent)
 and, for 2, selenium with chromium-driver. Machine load matters: the report prints the load
@@ -45,6 +47,12 @@ DEFAULT_DATA = ROOT.parent / "shared" / "data" / "jku-f0"
 F0_FOV_DEG = 50.815436217896945
 F0_POSE_VIEW = 191
 F0_GROUND = 21.0
+# The load run fails when RSS grows by more than this fraction of the RGBA bytes it sent: the
+# bound a leak of one frame per update (or of the float image, the same size for 8-bit grey
+# F0) would break by 8x. It is only meaningful when that fraction is well above the
+# allocator's noise (a few tens of MiB), hence LEAK_MIN_BYTES.
+LEAK_FRACTION = 1.0 / 8.0
+LEAK_MIN_BYTES = 32 << 20
 
 
 def percentile(values: list[float], q: float) -> float:
@@ -141,7 +149,7 @@ async def load(viewer: Any, clients: int, seconds: float) -> dict[str, Any]:
     import aiohttp
 
     base = f"http://127.0.0.1:{viewer.port}"
-    counts = {"frames": 0, "http": 0, "errors": 0, "malformed": 0}
+    counts = {"frames": 0, "http": 0, "errors": 0, "malformed": 0, "frame_bytes": 0}
     latencies: list[float] = []
     deadline = time.monotonic() + seconds
 
@@ -176,6 +184,7 @@ async def load(viewer: Any, clients: int, seconds: float) -> dict[str, Any]:
                         if header["id"] != k or header["width"] not in sizes:
                             raise ValueError(header)
                         counts["frames"] += 1
+                        counts["frame_bytes"] += header["width"] * header["height"] * 4
                     except (ValueError, KeyError):
                         counts["malformed"] += 1
                     if k % 5 == 0:
@@ -186,8 +195,9 @@ async def load(viewer: Any, clients: int, seconds: float) -> dict[str, Any]:
                                 counts["errors"] += 1
                             else:
                                 try:
-                                    check(body)
+                                    header = check(body)
                                     counts["http"] += 1
+                                    counts["frame_bytes"] += header["width"] * header["height"] * 4
                                 except (ValueError, KeyError):
                                     counts["malformed"] += 1
 
@@ -200,7 +210,11 @@ async def load(viewer: Any, clients: int, seconds: float) -> dict[str, Any]:
 
     await asyncio.gather(sample(), *(page(index) for index in range(clients)))
     rss.append(rss_bytes())
+    growth = rss[-1] - rss[0]
+    bound = LEAK_FRACTION * counts["frame_bytes"]
     return {**counts, "clients": clients, "seconds": seconds,
+            "rss_growth_mib": growth / 2**20, "rss_bound_mib": bound / 2**20,
+            "memory_flat": growth < bound if bound >= LEAK_MIN_BYTES else None,
             "round_trip_ms_p50": percentile(latencies, 50),
             "round_trip_ms_p95": percentile(latencies, 95),
             "rss_mib_start": rss[0] / 2**20, "rss_mib_end": rss[-1] / 2**20,
@@ -222,6 +236,8 @@ def main() -> int:
     parser.add_argument("--load", action="store_true", help="run the load test too")
     parser.add_argument("--clients", type=int, default=20)
     parser.add_argument("--load-seconds", type=float, default=60.0)
+    parser.add_argument("--warmup-seconds", type=float, default=5.0,
+                        help="load before the measured run (allocator pools, caches)")
     parser.add_argument("--json", type=Path, help="also write the results here")
     args = parser.parse_args()
     poses = args.data / "poses" / "poses.json"
@@ -259,6 +275,8 @@ def main() -> int:
             else:
                 print(f"drag: skipped ({drag['skipped']})")
         if args.load:
+            if args.warmup_seconds > 0:
+                asyncio.run(load(viewer, args.clients, args.warmup_seconds))
             report["load"] = result = asyncio.run(load(viewer, args.clients, args.load_seconds))
             print(f"load: {result['clients']} clients for {result['seconds']:.0f} s: "
                   f"{result['frames']} frames + {result['http']} HTTP renders, "
@@ -267,6 +285,11 @@ def main() -> int:
                   f"{result['rss_mib_max']:.0f}); round trip p50 "
                   f"{result['round_trip_ms_p50']:.0f} ms, p95 {result['round_trip_ms_p95']:.0f} ms",
                   flush=True)
+            verdict = {True: "flat", False: "GROWING (a leak?)",
+                       None: "not judged: too few frames for the bound"}[result["memory_flat"]]
+            print(f"memory: RSS grew {result['rss_growth_mib']:.1f} MiB, bound "
+                  f"{result['rss_bound_mib']:.1f} MiB (1/{1 / LEAK_FRACTION:.0f} of the "
+                  f"{result['frame_bytes'] / 2**20:.0f} MiB of frames sent): {verdict}", flush=True)
     finally:
         viewer.stop()
     report["machine"]["load_average_end"] = list(os.getloadavg())
@@ -274,7 +297,8 @@ def main() -> int:
           f"{report['machine']['load_average_end'][0]:.1f} ({report['machine']['cpus']} CPUs)")
     if args.json:
         args.json.write_text(json.dumps(report, indent=1))
-    if "load" in report and (report["load"]["errors"] or report["load"]["malformed"]):
+    if "load" in report and (report["load"]["errors"] or report["load"]["malformed"]
+                             or report["load"]["memory_flat"] is False):
         return 1
     return 0
 

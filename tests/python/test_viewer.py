@@ -411,13 +411,17 @@ def rss_bytes() -> int:
 
 async def load(viewer: Viewer, clients: int, seconds: float) -> dict[str, Any]:
     """`clients` pages, each sending a render over its WebSocket and waiting for the frame, plus
-    one-shot HTTP renders, for `seconds`. Returns counts of frames, errors and bad responses."""
-    counts = {"frames": 0, "http": 0, "errors": 0, "malformed": 0}
+    one-shot HTTP renders, for `seconds`. Returns counts of frames, errors and bad responses, and
+    the frames' RGBA bytes (`frame_bytes`)."""
+    counts = {"frames": 0, "http": 0, "errors": 0, "malformed": 0, "frame_bytes": 0}
     deadline = time.monotonic() + seconds
+    defaults = viewer.session.defaults
+    width, height = defaults.width or 32, defaults.height or 24
 
     async def page(index: int) -> None:
         async with aiohttp.ClientSession() as client:
-            async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}") as socket:
+            async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}",
+                                         max_msg_size=16 << 20) as socket:
                 k = 0
                 while time.monotonic() < deadline:
                     k += 1
@@ -432,11 +436,13 @@ async def load(viewer: Viewer, clients: int, seconds: float) -> dict[str, Any]:
                     try:
                         header, image = decode_frame(message.data)
                         # Previews: a quarter of the pixels, or a sixteenth while slow.
-                        expected = [(16, 12), (8, 6)] if params["preview"] else [(32, 24)]
+                        expected = ([(width // 2, height // 2), (width // 4, height // 4)]
+                                    if params["preview"] else [(width, height)])
                         if header["id"] != k or (header["width"], header["height"]) not in \
                                 expected:
                             raise ValueError(header)
                         counts["frames"] += 1
+                        counts["frame_bytes"] += image.nbytes
                     except (ValueError, AssertionError, KeyError):
                         counts["malformed"] += 1
                     if k % 5 == 0:
@@ -447,22 +453,36 @@ async def load(viewer: Viewer, clients: int, seconds: float) -> dict[str, Any]:
                             if response.status != 200:
                                 counts["errors"] += 1
                             else:
-                                decode_frame(body)
+                                counts["frame_bytes"] += decode_frame(body)[1].nbytes
                                 counts["http"] += 1
 
     await asyncio.gather(*(page(index) for index in range(clients)))
     return counts
 
 
-def test_load_20_clients_no_errors_memory_flat(viewer: Viewer) -> None:
-    asyncio.run(load(viewer, 20, 1.5))  # warm up: allocator pools, caches
-    before = rss_bytes()
-    counts = asyncio.run(load(viewer, 20, 5.0))
-    after = rss_bytes()
+def test_load_20_clients_no_errors_memory_flat() -> None:
+    """20 pages (plus HTTP renders) for 5 s on 256 x 192 frames: no error, every frame
+    well-formed, and the server's memory flat to within a quarter of the frames' RGBA bytes.
+
+    The leak this catches: keeping one RGBA frame (or the float image of the same size) per
+    update. Every frame sent is counted (a full 256 x 192 frame is 192 KiB, a preview 48 or
+    12 KiB); a leak of one frame per update would grow the process by all of them, at least
+    the 32 MiB the test demands were sent (about 170 full frames; a loaded 2-core machine
+    sends a few hundred in 5 s), and the bound is a quarter of that."""
+    handle = aos.view(textured_lightfield(), focal_height=0.0, pose_view=4, width=512,
+                      height=384, open_browser=False, num_threads=1)
+    try:
+        asyncio.run(load(handle, 20, 1.5))  # warm up: allocator pools, caches
+        before = rss_bytes()
+        counts = asyncio.run(load(handle, 20, 5.0))
+        after = rss_bytes()
+    finally:
+        handle.stop()
+    print(f"RSS {before / 2**20:.1f} -> {after / 2**20:.1f} MiB over {counts}")
     assert counts["errors"] == 0 and counts["malformed"] == 0, counts
     assert counts["frames"] >= 20 and counts["http"] >= 1, counts
-    # Flat: growth well under what leaking the frames would cost (tens of MB for these counts).
-    assert after - before < 40 * 2**20, (before, after, counts)
+    assert counts["frame_bytes"] >= 32 * 2**20, counts  # else the bound would not catch a leak
+    assert after - before < counts["frame_bytes"] / 4, (before, after, counts)
 
 
 # ---- the CLI ----
@@ -849,3 +869,327 @@ def test_a_focal_stack_is_offered_as_a_zip(viewer: Viewer) -> None:
     assert "stack/stack.json" in names and len([n for n in names if "slice_" in n]) == 3
     status, _ = get(f"{base(viewer)}/api/download/nothing?token={viewer.token}")
     assert status == 404
+
+
+# ---- defence in depth beside the token (issue 31) ----
+
+def raw_request(port: int, path: str, host: Optional[str], method: str = "GET",
+                body: Optional[bytes] = None,
+                headers: Optional[dict[str, str]] = None) -> tuple[int, bytes]:
+    """One request to 127.0.0.1:port with exactly this Host header (None: none at all)."""
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=30)
+    try:
+        connection.putrequest(method, path, skip_host=True, skip_accept_encoding=True)
+        if host is not None:
+            connection.putheader("Host", host)
+        for name, value in (headers or {}).items():
+            connection.putheader(name, value)
+        if body is not None:
+            connection.putheader("Content-Type", "application/json")
+            connection.putheader("Content-Length", str(len(body)))
+        connection.endheaders(body)
+        response = connection.getresponse()
+        return response.status, response.read()
+    finally:
+        connection.close()
+
+
+def test_deeply_nested_json_is_refused_with_a_400_not_a_traceback(viewer: Viewer) -> None:
+    """A 60 KB "[[[[..." body answered 500 with a traceback (Python's recursion limit reached
+    by the JSON decoder); JSON nested deeper than the flat parameters need is now a 400 with one
+    line, over HTTP and over the WebSocket, and the server goes on."""
+    from aos.viewer import server
+
+    url = f"{base(viewer)}/api/render?token={viewer.token}"
+    nested_object = b'{"focal_height": ' + b"[" * 900 + b"]" * 900 + b"}"  # within the limit
+    for body in (b"[" * 60_000, b"[" * 30_000 + b"]" * 30_000, nested_object):
+        status, answer = get(url, headers={"Content-Type": "application/json"}, data=body)
+        assert status == 400, (status, answer[:300])
+        message = json.loads(answer)["error"]
+        assert f"nested more than {server.MAX_JSON_DEPTH} deep" in message, message
+        assert b"Traceback" not in answer and len(answer) < 300
+    status, _ = get(url, headers={"Content-Type": "application/json"},
+                    data=b'{"focal_height": 1.0}')
+    assert status == 200
+    received = asyncio.run(_ws_session(viewer, [{"type": "render", "id": 1}], expect=1))
+    assert received[0]["type"] == "frame"
+
+    async def nested_message() -> list[Any]:
+        async with aiohttp.ClientSession() as client:
+            async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}") as socket:
+                await socket.send_str("[" * 60_000)
+                error = json.loads((await socket.receive(timeout=30)).data)
+                await socket.send_str(json.dumps({"type": "render", "id": 2}))
+                frame = await socket.receive(timeout=30)
+                return [error, decode_frame(frame.data)[0]]
+
+    error, frame = asyncio.run(nested_message())
+    assert error["type"] == "error" and "nested more than" in error["message"], error
+    assert frame["id"] == 2
+
+
+def test_requests_must_name_this_server_in_their_host_header(viewer: Viewer) -> None:
+    """A DNS-rebinding page (evil.example resolved to 127.0.0.1) sends Host: evil.example; it was
+    served (only the token stopped it). Now only the addresses of this server are accepted."""
+    port = viewer.port
+    path = f"/api/info?token={viewer.token}"
+    for host in (f"127.0.0.1:{port}", f"localhost:{port}", f"LOCALHOST:{port}",
+                 f"[::1]:{port}"):
+        assert raw_request(port, path, host)[0] == 200, host
+    for host in ("evil.example", f"evil.example:{port}", f"127.0.0.1:{port + 1}", "127.0.0.1",
+                 f"127.0.0.1.evil.example:{port}", f"127.0.0.1:{port}@evil", f"[::1]x:{port}",
+                 f"127.0.0.2:{port}", ""):
+        status, body = raw_request(port, path, host)
+        assert status == 403 and b"Host" in body, (host, status, body)
+    assert raw_request(port, path, None)[0] == 400  # no Host at all: aiohttp refuses it
+    # The page, the API, a POST and the WebSocket alike.
+    for request_path in (f"/?token={viewer.token}", f"/static/viewer.js?token={viewer.token}",
+                         f"/api/render?token={viewer.token}"):
+        assert raw_request(port, request_path, f"evil.example:{port}")[0] == 403
+    assert raw_request(port, f"/api/render?token={viewer.token}", f"evil.example:{port}", "POST",
+                       b"{}")[0] == 403
+
+    def handshake(host: str, origin: str) -> int:
+        key = "dGhlIHNhbXBsZSBub25jZQ=="
+        status, _ = raw_request(port, f"/ws?token={viewer.token}", host, headers={
+            "Origin": origin, "Upgrade": "websocket", "Connection": "Upgrade",
+            "Sec-WebSocket-Key": key, "Sec-WebSocket-Version": "13"})
+        return status
+
+    # The finding: Host and Origin both evil.example, the token given: the handshake succeeded.
+    assert handshake(f"evil.example:{port}", f"http://evil.example:{port}") == 403
+    assert handshake(f"127.0.0.1:{port}", f"http://evil.example:{port}") == 403
+    assert handshake(f"127.0.0.1:{port}", f"http://127.0.0.1:{port}") == 101
+    assert handshake(f"localhost:{port}", f"http://localhost:{port}") == 101
+
+
+def test_the_accepted_host_names_follow_the_listening_address() -> None:
+    """Which Host names each kind of address accepts (docs/viewer.md), without listening."""
+    from aos.viewer import server
+
+    handle = server.Viewer(aos.viewer.Session(textured_lightfield()), "t" * 32)
+    try:
+        handle.listening_at("127.0.0.1", "127.0.0.1", 8123)
+        assert handle.host_allowed("127.0.0.1:8123") and handle.host_allowed("localhost:8123")
+        assert not handle.host_allowed("192.168.1.5:8123")
+        handle.listening_at("192.168.1.5", "192.168.1.5", 8123)  # a LAN address only
+        assert handle.host_allowed("192.168.1.5:8123")
+        assert not handle.host_allowed("localhost:8123") and not handle.host_allowed(
+            "evil.example:8123")
+        handle.listening_at("0.0.0.0", "0.0.0.0", 80)  # every address: any IP literal
+        assert handle.host_allowed("10.1.2.3") and handle.host_allowed("[fe80::1]:80")
+        assert handle.host_allowed("localhost:80") and not handle.host_allowed("evil.example")
+        assert not handle.host_allowed("10.1.2.3:81")
+    finally:
+        handle.close()
+
+
+def test_picks_and_exports_count_in_the_request_bound(viewer: Viewer,
+                                                      monkeypatch: pytest.MonkeyPatch) -> None:
+    """MAX_QUEUED_HTTP bounded only one-shot renders; a flood of picks or exports (each a
+    full-size render) queued without bound. With the bound reached, all three answer 503."""
+    from aos.viewer import server
+
+    monkeypatch.setattr(server, "MAX_QUEUED_HTTP", 0)  # the bound reached
+    for path in ("/api/render?", "/api/pick?u=1&v=1&", "/api/export?format=png&"):
+        status, body = get(f"{base(viewer)}{path}token={viewer.token}")
+        assert status == 503 and b"busy" in body, (path, status, body[:200])
+    monkeypatch.setattr(server, "MAX_QUEUED_HTTP", 64)
+    for path in ("/api/render?", "/api/pick?u=1&v=1&", "/api/export?format=png&"):
+        assert get(f"{base(viewer)}{path}token={viewer.token}")[0] == 200, path
+    assert viewer.server.queued_http == 0
+
+
+def test_open_pages_are_bounded() -> None:
+    """At most max_pages WebSockets (default MAX_PAGES); the next one is told why and closed
+    with 1013 (try again later); once one closes, a new page is served."""
+    from aos.viewer import server
+
+    assert server.MAX_PAGES == aos.viewer.MAX_PAGES >= 20  # the load test's 20 pages fit
+    with pytest.raises(ValueError, match="max_pages: must be an integer >= 1"):
+        aos.view(textured_lightfield(), max_pages=0, open_browser=False)
+    handle = aos.view(textured_lightfield(), pose_view=4, max_pages=2, open_browser=False,
+                      num_threads=1)
+    try:
+        async def run() -> None:
+            url = f"{base(handle)}/ws?token={handle.token}"
+            async with aiohttp.ClientSession() as client:
+                first = await client.ws_connect(url)
+                second = await client.ws_connect(url)
+                for k, socket in enumerate((first, second)):
+                    await socket.send_str(json.dumps({"type": "render", "id": k}))
+                    assert decode_frame((await socket.receive(timeout=30)).data)[0]["id"] == k
+                third = await client.ws_connect(url)
+                refusal = json.loads((await third.receive(timeout=30)).data)
+                assert refusal["type"] == "error", refusal
+                assert "at most 2 open pages (max_pages)" in refusal["message"], refusal
+                closing = await third.receive(timeout=30)
+                assert closing.type == aiohttp.WSMsgType.CLOSE and closing.data == 1013
+                assert "max_pages" in closing.extra
+                await first.close()
+                for _ in range(50):  # the server notices the close
+                    if len(handle.server.sockets) < 2:
+                        break
+                    await asyncio.sleep(0.05)
+                fourth = await client.ws_connect(url)
+                await fourth.send_str(json.dumps({"type": "render", "id": 4}))
+                assert decode_frame((await fourth.receive(timeout=30)).data)[0]["id"] == 4
+                await second.close()
+                await fourth.close()
+
+        asyncio.run(run())
+        assert handle.server.stats["refused_pages"] == 1
+    finally:
+        handle.stop()
+
+
+def test_the_browser_is_never_given_the_token(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The browser was opened with the tokenised URL, on its command line, where `ps` shows it
+    to every local user. It now gets a file of this user's that redirects to the URL."""
+    import webbrowser
+
+    opened: list[str] = []
+    monkeypatch.setattr(webbrowser, "open", lambda url, *a, **k: opened.append(url) or True)
+    handle = aos.view(textured_lightfield(), open_browser=True)
+    try:
+        assert len(opened) == 1 and handle.token not in opened[0], opened
+        assert opened[0].startswith("file://")
+        path = Path(urllib.parse.unquote(urllib.parse.urlparse(opened[0]).path))
+        assert path.stat().st_mode & 0o777 == 0o600
+        assert path.parent.stat().st_mode & 0o777 == 0o700
+        page = path.read_text()
+        assert f'content="0;url={handle.url}"' in page and f'href="{handle.url}"' in page
+    finally:
+        handle.stop()
+    assert not path.exists()
+
+
+@pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH")
+def test_cli_browser_is_never_given_the_token(lightfield_file: Path, tmp_path: Path) -> None:
+    """`aos-render view --browser`: the browser command (here $BROWSER, a script that records
+    its arguments: what `ps` would show) gets the redirect file, never the token."""
+    record = tmp_path / "argv.json"
+    browser = tmp_path / "browser.py"
+    browser.write_text("import json, sys\n"
+                       f"open({str(record)!r}, 'w').write(json.dumps(sys.argv[1:]))\n")
+    env = {**cli_env(), "BROWSER": f"{sys.executable} {browser} %s"}
+    process = subprocess.Popen([EXE, "view", str(lightfield_file), "--browser", "--json"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        report = json.loads(process.stdout.readline())
+        for _ in range(100):
+            if record.exists() and record.read_text():
+                break
+            time.sleep(0.1)
+        arguments = json.loads(record.read_text())
+        token = urllib.parse.parse_qs(urllib.parse.urlparse(report["url"]).query)["token"][0]
+        assert arguments and not any(token in argument for argument in arguments), arguments
+        path = Path(urllib.parse.unquote(urllib.parse.urlparse(arguments[0]).path))
+        assert report["url"] in path.read_text()
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
+        assert not path.exists()
+    finally:
+        if process.poll() is None:
+            process.kill()
+            process.wait()
+
+
+def test_connections_that_never_present_the_token_are_closed(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """An idle connection was kept for aiohttp's keep-alive time (an hour), whether or not it
+    ever presented the token: one page could hold any number. Now a connection that has not
+    presented the token UNAUTHENTICATED_TIMEOUT_S after it opened is closed; one that has is
+    kept."""
+    import socket
+
+    from aos.viewer import server
+
+    timeout = 1.0  # long enough for the authenticated request to be served first
+    monkeypatch.setattr(server, "UNAUTHENTICATED_TIMEOUT_S", timeout, raising=False)
+    handle = aos.view(textured_lightfield(), pose_view=4, open_browser=False, num_threads=1)
+    host = f"127.0.0.1:{handle.port}"
+
+    def request(path: str) -> bytes:
+        return f"GET {path} HTTP/1.1\r\nHost: {host}\r\n\r\n".encode()
+
+    def closed(connection: socket.socket, within: float) -> bool:
+        connection.settimeout(within)
+        try:
+            while connection.recv(65536):  # a refusal's response comes first
+                pass
+            return True
+        except ConnectionResetError:
+            return True
+        except socket.timeout:
+            return False
+
+    connections = [socket.create_connection(("127.0.0.1", handle.port)) for _ in range(4)]
+    try:
+        silent, trickle, refused, authenticated = connections
+        trickle.sendall(f"GET / HTTP/1.1\r\nHost: {host}\r\n".encode())  # never finished
+        refused.sendall(request("/api/info?token=wrong"))
+        authenticated.sendall(request(f"/api/info?token={handle.token}"))
+        assert authenticated.recv(65536).startswith(b"HTTP/1.1 200")
+        start = time.monotonic()
+        for connection in (silent, trickle, refused):
+            assert closed(connection, timeout + 3.0 - (time.monotonic() - start)), connection
+        assert handle.server.stats["closed_unauthenticated"] == 3
+        # The authenticated one is still served after the timeout.
+        authenticated.sendall(request(f"/api/info?token={handle.token}"))
+        authenticated.settimeout(10)
+        assert authenticated.recv(65536).startswith(b"HTTP/1.1 200")
+    finally:
+        for connection in connections:
+            connection.close()
+        handle.stop()
+
+
+def stack_job(handle: Viewer, width: int, height: int, slices: int) -> dict[str, Any]:
+    async def run() -> dict[str, Any]:
+        async with aiohttp.ClientSession() as client:
+            async with client.ws_connect(f"{base(handle)}/ws?token={handle.token}") as socket:
+                await socket.send_str(json.dumps({
+                    "type": "stack", "id": 1, "params": {"width": width, "height": height},
+                    "first_height": -1.0, "last_height": 1.0, "slices": slices}))
+                while True:
+                    reply = json.loads((await socket.receive(timeout=120)).data)
+                    if reply["type"] != "progress":
+                        return reply
+
+    return asyncio.run(run())
+
+
+def test_finished_stack_jobs_give_their_memory_back() -> None:
+    """Three focal-stack jobs left 1.9 GB resident: the zips were kept in memory and the freed
+    slices stayed in glibc's arenas. Now the zips are files (the newest two) and the freed heap
+    is handed back (malloc_trim) after each job: resident memory returns to where it was.
+
+    Each job holds 16 slices of 768 x 576 (float32 image + uint32 count: 3.4 MiB each, 54 MiB
+    in all) while it runs, then writes and zips them. Measured over three such jobs: the old
+    code stayed 99-123 MiB above the level before them (growing job after job); with the
+    memory handed back, 0-29 MiB (what writing the slices' TIFFs keeps, which does not grow
+    from job to job). The bound, 40 MiB, is under one job's slices."""
+    handle = aos.view(textured_lightfield(), pose_view=4, open_browser=False, num_threads=1)
+    try:
+        job_bytes = 16 * 768 * 576 * 8
+        stack_job(handle, 96, 72, 2)  # warm-up: the code paths, the allocator's first arenas
+        before = rss_bytes()
+        sizes = []
+        for _ in range(3):
+            reply = stack_job(handle, 768, 576, 16)
+            assert reply["type"] == "download", reply
+            sizes.append(reply["bytes"])
+        after = rss_bytes()
+        print(f"RSS before {before / 2**20:.1f} MiB, after 3 jobs {after / 2**20:.1f} MiB "
+              f"(one job's slices {job_bytes / 2**20:.0f} MiB, zips {sizes})")
+        assert after - before < 40 * 2**20 < job_bytes, (before, after)
+        # The two newest stacks are kept as files of the server's, never as bytes in memory.
+        downloads = handle.server.downloads
+        assert len(downloads) == 2
+        assert all(isinstance(path, str) and os.path.getsize(path) in sizes
+                   for path in downloads.values())
+        folder = handle.server.download_folder
+    finally:
+        handle.stop()
+    assert not os.path.exists(folder)

@@ -254,3 +254,47 @@ def test_buttons_copy_the_command_and_compute_all_in_focus_and_a_stack(
              "'focal stack ready');")
     assert driver.execute_script("return window.aosLastDownload.url").startswith("/api/download/")
     assert not driver.execute_script("return window.aosStats.errors;")
+
+
+def test_the_browser_opens_the_page_through_its_redirect_file(
+        driver: Any, simulation: aos.SimulationResult, evidence: Callable,
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """aos.view gives the browser a local file that redirects to the tokenised URL (so the token
+    is never on the browser's command line): Chromium follows it to a working page."""
+    import webbrowser
+
+    opened: list[str] = []
+    monkeypatch.setattr(webbrowser, "open", lambda url, *a, **k: opened.append(url) or True)
+    handle = aos.view(simulation.light_field, open_browser=True, width=64, height=64)
+    try:
+        assert len(opened) == 1 and handle.token not in opened[0]
+        driver.get(opened[0])
+        wait_for(driver, "return window.aosStats && window.aosStats.connected;")
+        wait_full_frame(driver)
+        evidence("opened_through_redirect")
+        assert driver.current_url == handle.url
+    finally:
+        handle.stop()
+
+
+def test_a_page_beyond_max_pages_says_why(driver: Any, simulation: aos.SimulationResult,
+                                          evidence: Callable) -> None:
+    """With max_pages=1, a second tab is refused and shows the reason, not a bare
+    'disconnected'."""
+    handle = aos.view(simulation.light_field, open_browser=False, width=64, height=64,
+                      max_pages=1)
+    first_tab = driver.current_window_handle
+    try:
+        open_page(driver, handle)
+        driver.switch_to.new_window("tab")
+        driver.get(handle.url)
+        text = wait_for(driver, "const s = document.getElementById('status').textContent; "
+                        "return s.includes('max_pages') && s.startsWith('disconnected') ? s : "
+                        "null;")
+        evidence("refused_tab")
+        assert "at most 1 open pages" in text, text
+    finally:
+        if driver.current_window_handle != first_tab:
+            driver.close()
+            driver.switch_to.window(first_tab)
+        handle.stop()

@@ -19,16 +19,20 @@ Example (also in a notebook; the server runs in a background thread)::
 from __future__ import annotations
 
 import asyncio
+import html
 import ipaddress
 import os
 import secrets
+import shutil
 import sys
+import tempfile
 import threading
 import warnings
 import webbrowser
+from pathlib import Path
 from typing import Any, Optional
 
-from .session import BadParameter, Params, Session
+from .session import MAX_PAGES, BadParameter, Params, Session
 
 __all__ = ["Viewer", "view", "BadParameter", "Params", "Session", "MISSING_AIOHTTP"]
 
@@ -71,11 +75,13 @@ class Viewer:
     """A running viewer: ``url`` (with its token), ``stop()``; a context manager.
 
     The server runs its own event loop in a background thread, so the caller (a script or a
-    notebook) is not blocked. In a notebook the handle shows as a link.
+    notebook) is not blocked. In a notebook the handle shows as a link. ``max_pages``: how many
+    pages (WebSockets) may be open at once; the next one is told so and closed.
     """
 
     def __init__(self, session: Session, *, host: str = "127.0.0.1", port: int = 0,
-                 token: Optional[str] = None, render_workers: int = 1) -> None:
+                 token: Optional[str] = None, render_workers: int = 1,
+                 max_pages: int = MAX_PAGES) -> None:
         _require_aiohttp()
         from aiohttp import web
 
@@ -90,7 +96,7 @@ class Viewer:
             raise ValueError("token: at least 16 URL-safe characters (A-Z, a-z, 0-9, -, _); "
                              "leave it out for a random one")
         self.token = token or secrets.token_urlsafe(24)
-        self.server = _Server(session, self.token, render_workers)
+        self.server = _Server(session, self.token, render_workers, max_pages)
         self._loop = asyncio.new_event_loop()
         self._ready = threading.Event()
         self._stopped = threading.Event()
@@ -98,6 +104,8 @@ class Viewer:
         self._runner: Optional[web.AppRunner] = None
         self.port = port
         self.bound_address = ""  # the address the socket listens on, once started
+        self._browser_folder = ""  # open_browser's redirect file, removed by stop()
+        self._watcher: Optional["asyncio.Task[None]"] = None
         self._thread = threading.Thread(target=self._serve, name="aos-viewer", daemon=True)
         self._thread.start()
         self._ready.wait()
@@ -119,6 +127,10 @@ class Viewer:
             if sockets:
                 self.bound_address = sockets[0].getsockname()[0]
                 self.port = sockets[0].getsockname()[1]
+            self.server.listening_at(self.host, self.bound_address, self.port)
+            runner = self._runner
+            self._watcher = asyncio.ensure_future(self.server.watch_connections(
+                lambda: runner.server.connections if runner.server is not None else []))
 
         try:
             self._loop.run_until_complete(start())
@@ -133,6 +145,8 @@ class Viewer:
         self._ready.set()
         self._loop.run_forever()
         try:
+            if self._watcher is not None:
+                self._watcher.cancel()
             if self._runner is not None:
                 self._loop.run_until_complete(self._runner.cleanup())
         finally:
@@ -156,6 +170,28 @@ class Viewer:
         if self._thread.is_alive():
             self._loop.call_soon_threadsafe(self._loop.stop)
             self._thread.join(timeout)
+        if self._browser_folder:
+            shutil.rmtree(self._browser_folder, ignore_errors=True)
+            self._browser_folder = ""
+
+    def open_browser(self) -> str:
+        """Opens the page in the desktop's browser without putting the token on any command
+        line (where `ps` shows it to every local user): the browser is given a local file,
+        readable by this user only (mode 0600 in a 0700 folder), that redirects to ``url``.
+        Returns the file's URI; stop() removes it."""
+        if not self._browser_folder:
+            self._browser_folder = tempfile.mkdtemp(prefix="aos-viewer-open-")
+        path = Path(self._browser_folder) / "open.html"
+        url = html.escape(self.url, quote=True)
+        descriptor = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600)
+        with os.fdopen(descriptor, "w", encoding="utf-8") as file:
+            file.write(f'<!DOCTYPE html>\n<meta charset="utf-8">\n'
+                       f'<meta http-equiv="refresh" content="0;url={url}">\n'
+                       f'<title>aos viewer</title>\n<p><a href="{url}">Open the aos viewer</a>'
+                       "</p>\n")
+        uri = path.as_uri()
+        webbrowser.open(uri)
+        return uri
 
     def wait(self) -> None:
         """Blocks until the server stops (Ctrl-C stops it)."""
@@ -187,7 +223,7 @@ def view(light_field: Any, *, focal_height: float = 0.0,
          view_indices: Optional[list[int]] = None, min_view_angle_deg: float = 1.0,
          num_threads: int = -1, host: str = "127.0.0.1", port: int = 0,
          open_browser: Optional[bool] = None, render_workers: int = 1,
-         source: str = "") -> Viewer:
+         max_pages: int = MAX_PAGES, source: str = "") -> Viewer:
     """Starts the viewer on ``light_field`` (an aos.LightField, or a path that
     aos.load_lightfield reads) and returns its handle at once (``.url``, ``.stop()``).
 
@@ -198,7 +234,8 @@ def view(light_field: Any, *, focal_height: float = 0.0,
     (a fixed pose instead of the views'), ``fov_deg``, ``width``, ``height``, ``view_indices``,
     ``min_view_angle_deg``, ``num_threads``. ``host`` other than a loopback address makes it
     reachable from other machines (a warning says so). ``open_browser``: None = where a desktop
-    session exists.
+    session exists (the browser gets a local file that redirects to the URL, so the token is
+    never on its command line). ``max_pages``: pages open at once (the next is refused).
     """
     import aos
 
@@ -233,9 +270,10 @@ def view(light_field: Any, *, focal_height: float = 0.0,
     warning = remote_warning(host)
     if warning:
         warnings.warn(warning, stacklevel=2)
-    viewer = Viewer(session, host=host, port=port, render_workers=render_workers)
+    viewer = Viewer(session, host=host, port=port, render_workers=render_workers,
+                    max_pages=max_pages)
     if open_browser is None:
         open_browser = can_open_browser()
     if open_browser:
-        webbrowser.open(viewer.url)
+        viewer.open_browser()
     return viewer

@@ -6,7 +6,8 @@ cleanly and exits 0. Errors: one line on stderr, exit 1 (bad input) or 2 (bad sp
 Spec keys: light_field (path), load {fov_deg, images_dir, grey}, pose_view (index or name, ""
 = none), cam_from_world (12 numbers or null), fov_deg, width, height, aperture_radius (number
 or "inf"), views ("" = all), min_view_angle_deg, num_threads, focal_height, focal_surface (path,
-"" = none), surface_offset, host, port, open_browser (true/false/null), quiet, json.
+"" = none), surface_offset, host, port, max_pages, open_browser (true/false/null), quiet,
+json.
 """
 
 from __future__ import annotations
@@ -39,7 +40,7 @@ def main(argv: list[str]) -> int:
         return _fail(MISSING_AIOHTTP)
     import aos
 
-    from . import Session, Viewer, remote_warning, can_open_browser
+    from . import MAX_PAGES, Session, Viewer, can_open_browser, remote_warning
     from .session import BadParameter, parse_view_list
 
     quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
@@ -97,7 +98,8 @@ def main(argv: list[str]) -> int:
         warning = remote_warning(host)
         if warning:
             sys.stderr.write(f"warning: {warning}\n")
-        viewer = Viewer(session, host=host, port=int(spec.get("port", 0)))
+        viewer = Viewer(session, host=host, port=int(spec.get("port", 0)),
+                        max_pages=int(spec.get("max_pages", MAX_PAGES)))
     except BadParameter as error:
         return _fail(str(error))
     except (ValueError, OSError) as error:
@@ -105,6 +107,16 @@ def main(argv: list[str]) -> int:
     except KeyError as error:
         return _fail(f"--spec: missing {error}", 2)
 
+    # From here on a signal stops the server cleanly (exit 0), also while the browser opens.
+    stop = threading.Event()
+
+    def on_signal(_signum: int, _frame: Any) -> None:
+        stop.set()
+
+    signal.signal(signal.SIGINT, on_signal)
+    signal.signal(signal.SIGTERM, on_signal)
+    if hasattr(signal, "SIGHUP"):
+        signal.signal(signal.SIGHUP, on_signal)
     if spec.get("json"):
         print(json.dumps({"url": viewer.url, "host": viewer.host, "port": viewer.port,
                           "views": session.view_count}), flush=True)
@@ -115,21 +127,11 @@ def main(argv: list[str]) -> int:
     if open_browser is None:
         open_browser = can_open_browser()
     if open_browser:
-        import webbrowser
+        viewer.open_browser()  # a redirect file: the token stays off the browser's command line
 
-        webbrowser.open(viewer.url)
-
-    stop = threading.Event()
-
-    def on_signal(_signum: int, _frame: Any) -> None:
-        stop.set()
-
-    signal.signal(signal.SIGINT, on_signal)
-    signal.signal(signal.SIGTERM, on_signal)
-    if hasattr(signal, "SIGHUP"):
-        signal.signal(signal.SIGHUP, on_signal)
     while not stop.wait(0.5):
         if not viewer.running:
+            viewer.stop()  # removes the browser's redirect file
             return _fail("the server stopped unexpectedly")
     viewer.stop()
     if not quiet:

@@ -3,19 +3,30 @@
 Security model (docs/viewer.md):
 
 * It binds 127.0.0.1 unless another host is given explicitly (the caller warns).
+* Every request must name this server in its ``Host`` header (``host_allowed``: the address it
+  listens on with its port, and ``localhost`` / ``127.0.0.1`` / ``[::1]`` where it serves
+  loopback): 403 otherwise, so a DNS-rebinding page (its own name resolved to 127.0.0.1) cannot
+  talk to it even with a leaked token. A WebSocket's ``Origin``, when sent, must be this
+  ``Host``.
 * Every request, the WebSocket included, must carry the session's random token (``?token=`` or
-  the ``X-AOS-Token`` header), compared in constant time: 403 without it. A WebSocket whose
-  ``Origin`` is not this server is refused too.
+  the ``X-AOS-Token`` header), compared in constant time: 403 without it. A connection that has
+  not presented the token within ``UNAUTHENTICATED_TIMEOUT_S`` of opening (nothing sent, a slow
+  header, only requests without the token) is closed.
 * It serves only its own page and assets, from a fixed in-package whitelist read into memory
   at start (``ASSETS``): no path from a request ever reaches the file system.
 * Parameters are validated (session.Params): a bad one answers 400 with the message, and the
   server goes on. Request bodies are limited to ``MAX_BODY_BYTES`` (413 beyond), WebSocket
-  messages to the same.
+  messages to the same; JSON nested deeper than ``MAX_JSON_DEPTH`` is refused (400). Any other
+  failure of a handler answers 500 with one line, never a traceback.
 * Renders are bounded: one render worker thread (``render_workers``) runs them one at a time;
   each WebSocket keeps only its newest request (a newer one supersedes the pending one, and
   cancels a running full-size render at its next progress check, at most 0.1 s apart; a running
-  preview finishes, so that images keep coming while the user drags), and at most
-  ``MAX_QUEUED_HTTP`` one-shot HTTP renders wait (503 beyond).
+  preview finishes, so that images keep coming while the user drags), at most ``max_pages``
+  WebSockets are open (the next one is told so and closed), and at most ``MAX_QUEUED_HTTP``
+  HTTP requests that use the render worker (renders, picks, exports) wait or run (503 beyond).
+* A finished focal stack is kept as a zip file in the server's private temporary folder (the
+  newest ``MAX_DOWNLOADS``), not in memory, and the freed heap is handed back to the system
+  (``release_memory``) after every all-in-focus or stack job.
 
 Endpoints: ``/`` (the page), ``/static/<asset>``, ``/api/info``, ``/api/render`` (GET query or
 POST JSON: one frame, the WebSocket's binary format), ``/api/pick``, ``/api/export``,
@@ -30,29 +41,45 @@ from __future__ import annotations
 
 import asyncio
 import concurrent.futures
+import ctypes
 import hmac
-import io
+import ipaddress
 import json
+import logging
 import math
 import os
+import re
 import secrets
+import shutil
+import socket as socket_module
 import struct
 import tempfile
 import threading
 import time
+import weakref
 import zipfile
 from importlib import resources
-from typing import Any, Optional
+from typing import Any, Callable, Optional
 
 from aiohttp import WSMsgType, web
 
-from .session import BadParameter, Frame, Params, Session, Superseded
+from . import is_loopback
+from .session import MAX_PAGES, BadParameter, Frame, Params, Session, Superseded
 
 MAX_BODY_BYTES = 64 * 1024
+# Nesting of a JSON body or message (the parameters are one flat object): deeper is refused
+# before anything walks it (a 60 KB "[[[[..." would otherwise reach Python's recursion limit).
+MAX_JSON_DEPTH = 8
+# HTTP requests that use the render worker (renders, picks, exports) waiting or running.
 MAX_QUEUED_HTTP = 64
-MAX_DOWNLOADS = 2  # focal stacks kept for download
-MAX_STACK_BYTES = 1 << 30  # one focal-stack request's slices in memory (the zip comes on top)
+# Seconds a connection may stay open without presenting the token (nothing sent, a header
+# trickled in, or only refused requests) before the server closes it.
+UNAUTHENTICATED_TIMEOUT_S = 10.0
+MAX_DOWNLOADS = 2  # focal stacks kept for download (zip files in the server's temporary folder)
+MAX_STACK_BYTES = 1 << 30  # one focal-stack request's slices in memory
 TOKEN_HEADER = "X-AOS-Token"
+
+log = logging.getLogger("aos.viewer")
 
 # The whole set of files the server can send: request name -> (package file, content type).
 ASSET_FILES = {
@@ -89,29 +116,152 @@ def _bad(message: str, status: int = 400) -> web.Response:
     return response
 
 
+def parse_json(text: str | bytes, what: str) -> Any:
+    """A request body or WebSocket message as JSON; BadParameter (naming ``what``) when it is
+    not JSON or is nested deeper than MAX_JSON_DEPTH."""
+    try:
+        value = json.loads(text)
+    except RecursionError:  # deeper than the interpreter's recursion limit
+        raise BadParameter(f"{what}: JSON nested more than {MAX_JSON_DEPTH} deep") from None
+    except (ValueError, UnicodeDecodeError):
+        raise BadParameter(f"{what}: not JSON") from None
+    # Walked without recursion: what later code does with the value (str(), repr) recurses.
+    pending = [(value, 1)]
+    while pending:
+        item, depth = pending.pop()
+        if isinstance(item, (list, dict)):
+            if depth > MAX_JSON_DEPTH:
+                raise BadParameter(f"{what}: JSON nested more than {MAX_JSON_DEPTH} deep")
+            children = item.values() if isinstance(item, dict) else item
+            pending.extend((child, depth + 1) for child in children)
+    return value
+
+
+_malloc_trim: Optional[Callable[[int], int]] = None
+
+
+def release_memory() -> None:
+    """Hands the freed heap back to the system (glibc's malloc_trim; nothing elsewhere). A
+    finished focal stack's slices are freed when the job ends, but glibc keeps freed blocks in
+    its arenas for reuse (large ones too, once its mmap threshold has grown past their size),
+    so without this the process stays at the job's peak resident size."""
+    global _malloc_trim
+    if _malloc_trim is None:
+        try:
+            _malloc_trim = ctypes.CDLL(None).malloc_trim
+        except (OSError, AttributeError):  # not glibc
+            _malloc_trim = lambda _pad: 0  # noqa: E731
+    _malloc_trim(0)
+
+
 class Viewer:
     """The server's state: the session, the token, the render worker."""
 
-    def __init__(self, session: Session, token: str, render_workers: int = 1) -> None:
+    def __init__(self, session: Session, token: str, render_workers: int = 1,
+                 max_pages: int = MAX_PAGES) -> None:
         if render_workers < 1:
             raise ValueError(f"render_workers: must be >= 1, got {render_workers}")
+        if isinstance(max_pages, bool) or not isinstance(max_pages, int) or max_pages < 1:
+            raise ValueError(f"max_pages: must be an integer >= 1, got {max_pages!r}")
         self.session = session
         self.token = token
+        self.max_pages = max_pages
         self.assets = load_assets()
         self.executor = concurrent.futures.ThreadPoolExecutor(
             max_workers=render_workers, thread_name_prefix="aos-render")
         self.queued_http = 0
-        self.stats = {"renders": 0, "superseded": 0, "dropped": 0, "errors": 0}
+        self.stats = {"renders": 0, "superseded": 0, "dropped": 0, "errors": 0,
+                      "refused_pages": 0, "closed_unauthenticated": 0}
         self.sockets: set[web.WebSocketResponse] = set()
-        # Focal stacks waiting to be downloaded: random key -> zip bytes (the newest few only).
-        self.downloads: dict[str, bytes] = {}
+        # Where the server listens (listening_at): the Host header values that name it.
+        self.port = -1
+        self.host_names: frozenset[str] = frozenset()
+        self.any_ip_host = False
+        # Connections (their transports) that presented the token; the others are closed
+        # UNAUTHENTICATED_TIMEOUT_S after they opened.
+        self.authenticated: "weakref.WeakSet[Any]" = weakref.WeakSet()
+        # Focal stacks waiting to be downloaded: random key -> zip file in download_folder (the
+        # newest MAX_DOWNLOADS; the folder is made at the first and removed by close()).
+        self.downloads: dict[str, str] = {}
+        self.download_folder = ""
 
-    def offer_download(self, data: bytes) -> str:
-        key = secrets.token_urlsafe(16)
-        self.downloads[key] = data
+    def listening_at(self, host: str, bound_address: str, port: int) -> None:
+        """Called once the socket listens on ``bound_address``:``port`` (``host`` as the caller
+        gave it). Accepted Host names: that host and address; where it serves loopback (a
+        loopback or wildcard address), also localhost, 127.0.0.1 and ::1; on a wildcard address
+        (0.0.0.0, ::) also this machine's name and any IP address literal (a DNS-rebinding page
+        reaches a server by a name of the attacker's, never by an IP literal)."""
+        wildcard = bound_address in ("0.0.0.0", "::", "")
+        names = {host.strip("[]").lower(), bound_address.lower()}
+        if wildcard or is_loopback(host) or is_loopback(bound_address):
+            names |= {"localhost", "127.0.0.1", "::1"}
+        if wildcard:
+            names.add(socket_module.gethostname().lower())
+        self.host_names = frozenset(name for name in names if name)
+        self.any_ip_host = wildcard
+        self.port = port
+
+    def host_allowed(self, header: Optional[str]) -> bool:
+        """Whether a Host header names this server (see listening_at)."""
+        text = (header or "").strip().lower()
+        if text.startswith("["):  # [IPv6]:port
+            name, _, rest = text[1:].partition("]")
+        else:
+            name, colon, port_text = text.partition(":")
+            rest = colon + port_text
+        if rest == "":
+            port = 80  # a browser leaves out the default port
+        elif re.fullmatch(r":[0-9]{1,5}", rest):
+            port = int(rest[1:])
+        else:
+            return False
+        if port != self.port or not name:
+            return False
+        if name in self.host_names:
+            return True
+        if self.any_ip_host:
+            try:
+                ipaddress.ip_address(name)
+                return True
+            except ValueError:
+                return False
+        return False
+
+    async def watch_connections(self, connections: Callable[[], list[Any]]) -> None:
+        """Runs until cancelled: closes every connection (``connections()``: aiohttp's
+        handlers, web.Server.connections) that has not presented the token
+        UNAUTHENTICATED_TIMEOUT_S after it was first seen (polled at most a quarter of that
+        apart). An authenticated one is left to aiohttp's keep-alive timeout, a WebSocket to
+        its heartbeat."""
+        first_seen: dict[Any, float] = {}
+        while True:
+            now = time.monotonic()
+            still_open = set()
+            for handler in connections():
+                transport = getattr(handler, "transport", None)
+                if transport is None or transport.is_closing():
+                    continue
+                still_open.add(transport)
+                seen = first_seen.setdefault(transport, now)
+                if (now - seen >= UNAUTHENTICATED_TIMEOUT_S
+                        and transport not in self.authenticated):
+                    self.stats["closed_unauthenticated"] += 1
+                    transport.abort()
+            for transport in [t for t in first_seen if t not in still_open]:
+                del first_seen[transport]
+            await asyncio.sleep(min(1.0, UNAUTHENTICATED_TIMEOUT_S / 4))
+
+    def offer_download(self, key: str, path: str) -> None:
+        self.downloads[key] = path
         while len(self.downloads) > MAX_DOWNLOADS:
-            self.downloads.pop(next(iter(self.downloads)))
-        return key
+            _remove_file(self.downloads.pop(next(iter(self.downloads))))
+
+    def new_download_path(self) -> tuple[str, str]:
+        """A fresh key and the path its zip is to be written to (in the private folder)."""
+        if not self.download_folder:
+            self.download_folder = tempfile.mkdtemp(prefix="aos-viewer-")  # mode 0700
+        key = secrets.token_urlsafe(16)
+        return key, os.path.join(self.download_folder, f"{key}.zip")
 
     def authorised(self, request: web.Request) -> bool:
         given = request.query.get("token") or request.headers.get(TOKEN_HEADER) or ""
@@ -121,20 +271,45 @@ class Viewer:
         loop = asyncio.get_running_loop()
         return await loop.run_in_executor(self.executor, function, *args)
 
+    async def run_request(self, function: Any, *args: Any) -> Any:
+        """An HTTP request's work on the render worker, counted in MAX_QUEUED_HTTP (renders,
+        picks and exports alike): 503 when that many wait or run already."""
+        if self.queued_http >= MAX_QUEUED_HTTP:
+            raise web.HTTPServiceUnavailable(
+                reason=f"busy: {MAX_QUEUED_HTTP} requests are waiting for the render worker; "
+                       "try again")
+        self.queued_http += 1
+        try:
+            return await self.run(function, *args)
+        finally:
+            self.queued_http -= 1
+
     # ---- the app ----
 
     def app(self) -> web.Application:
         @web.middleware
         async def guard(request: web.Request, handler: Any) -> web.StreamResponse:
+            host = request.headers.get("Host")
+            if not self.host_allowed(host):
+                return _bad(f"forbidden: the Host header {str(host)[:60]!r} does not name this "
+                            f"viewer (127.0.0.1:{self.port}, localhost:{self.port} or the "
+                            "address it listens on)", 403)
             if not self.authorised(request):
                 return _bad("forbidden: this viewer needs its session token (the URL it "
                             "printed)", 403)
+            if request.transport is not None:
+                self.authenticated.add(request.transport)
             try:
                 response = await handler(request)
             except web.HTTPException as error:
                 if error.status >= 400:
                     return _bad(error.reason or "error", error.status)
                 raise
+            except BadParameter as error:
+                return _bad(str(error))
+            except Exception as error:  # noqa: BLE001 - one line to the client, never a traceback
+                log.exception("viewer: %s %s failed", request.method, request.path)
+                return _bad(f"internal error ({type(error).__name__}); the server goes on", 500)
             _security_headers(response)
             return response
 
@@ -153,10 +328,14 @@ class Viewer:
 
     async def _close_sockets(self, _app: web.Application) -> None:
         for socket in list(self.sockets):
-            await socket.close()
+            if socket.prepared:
+                await socket.close()
 
     def close(self) -> None:
         self.executor.shutdown(wait=True, cancel_futures=True)
+        self.downloads.clear()
+        if self.download_folder:
+            shutil.rmtree(self.download_folder, ignore_errors=True)
 
     # ---- static ----
 
@@ -180,12 +359,7 @@ class Viewer:
     async def _params(self, request: web.Request) -> dict[str, Any]:
         raw: dict[str, Any] = {}
         if request.method == "POST":
-            try:
-                body = await request.json()
-            except web.HTTPRequestEntityTooLarge:
-                raise
-            except (ValueError, UnicodeDecodeError):
-                raise BadParameter("body: not JSON") from None
+            body = parse_json(await request.read(), "body")  # 413 beyond MAX_BODY_BYTES
             if not isinstance(body, dict):
                 raise BadParameter("body: expected a JSON object of parameters")
             raw.update(body)
@@ -199,84 +373,86 @@ class Viewer:
         return web.json_response(self.session.info())
 
     async def render_once(self, request: web.Request) -> web.Response:
-        try:
-            params = self.session.parse(await self._params(request))
-        except BadParameter as error:
-            return _bad(str(error))
-        if self.queued_http >= MAX_QUEUED_HTTP:
-            return _bad("busy: too many renders waiting; try again", 503)
-        self.queued_http += 1
-        try:
-            frame = await self.run(self.session.render, params)
-        except BadParameter as error:
-            return _bad(str(error))
-        finally:
-            self.queued_http -= 1
+        params = self.session.parse(await self._params(request))
+        frame = await self.run_request(self.session.render, params)
         self.stats["renders"] += 1
         return web.Response(body=encode_frame(frame, {"id": None}),
                             content_type="application/octet-stream")
 
     async def pick(self, request: web.Request) -> web.Response:
-        try:
-            params = self.session.parse(await self._params(request))
-            u = _finite(request.query.get("u"), "u")
-            v = _finite(request.query.get("v"), "v")
-            answer = await self.run(self.session.pick, params, u, v)
-        except BadParameter as error:
-            return _bad(str(error))
+        params = self.session.parse(await self._params(request))
+        u = _finite(request.query.get("u"), "u")
+        v = _finite(request.query.get("v"), "v")
+        answer = await self.run_request(self.session.pick, params, u, v)
         return web.json_response(answer)
 
     async def export(self, request: web.Request) -> web.Response:
-        try:
-            params = self.session.parse(await self._params(request))
-            kind = request.query.get("format", "png")
-            body, content_type, name = await self.run(self.session.export, params, kind)
-        except BadParameter as error:
-            return _bad(str(error))
+        params = self.session.parse(await self._params(request))
+        kind = request.query.get("format", "png")
+        body, content_type, name = await self.run_request(self.session.export, params, kind)
         response = web.Response(body=body, content_type=content_type)
         response.headers["Content-Disposition"] = f'attachment; filename="{name}"'
         return response
 
-    async def download(self, request: web.Request) -> web.Response:
+    async def download(self, request: web.Request) -> web.StreamResponse:
         # A key the server made (a dict lookup, never a path).
-        data = self.downloads.get(request.match_info["key"])
-        if data is None:
+        path = self.downloads.get(request.match_info["key"])
+        if path is None or not os.path.isfile(path):
             return _bad("not found (a focal stack is kept for the newest few requests)", 404)
-        response = web.Response(body=data, content_type="application/zip")
+        response = web.FileResponse(path, headers={"Content-Type": "application/zip"})
         response.headers["Content-Disposition"] = 'attachment; filename="aos-focal-stack.zip"'
         return response
 
     async def command(self, request: web.Request) -> web.Response:
-        try:
-            params = self.session.parse(await self._params(request))
-            answer = self.session.command(params)
-        except BadParameter as error:
-            return _bad(str(error))
-        return web.json_response(answer)
+        params = self.session.parse(await self._params(request))
+        return web.json_response(self.session.command(params))
 
     # ---- the WebSocket: the image stream ----
 
     async def websocket(self, request: web.Request) -> web.StreamResponse:
+        # The Host header names this server (the guard checked it), so an Origin equal to it is
+        # this server's page.
         origin = request.headers.get("Origin")
-        if origin is not None and origin not in (f"http://{request.host}",
-                                                 f"https://{request.host}"):
+        host = request.headers.get("Host", "")
+        if origin is not None and origin.lower() not in (f"http://{host}".lower(),
+                                                         f"https://{host}".lower()):
             return _bad("forbidden: cross-origin WebSocket", 403)
         socket = web.WebSocketResponse(max_msg_size=MAX_BODY_BYTES, heartbeat=30.0)
-        await socket.prepare(request)
-        self.sockets.add(socket)
+        if len(self.sockets) >= self.max_pages:
+            # Accepted only to say why (a browser sees no status of a refused handshake).
+            self.stats["refused_pages"] += 1
+            await socket.prepare(request)
+            reason = (f"refused: this viewer serves at most {self.max_pages} open pages "
+                      "(max_pages); close one and reload")
+            await socket.send_str(json.dumps({"type": "error", "id": None, "message": reason}))
+            await socket.close(code=1013, message=reason.encode()[:120])  # 1013: try again later
+            return socket
+        self.sockets.add(socket)  # before prepare: the count holds while it is awaited
         stream = _Stream(self, socket)
         try:
+            await socket.prepare(request)
             async for message in socket:
                 if message.type != WSMsgType.TEXT:
                     if message.type == WSMsgType.ERROR:
                         break
                     await stream.error(None, "messages must be JSON text")
                     continue
-                await stream.receive(message.data)
+                try:
+                    await stream.receive(message.data)
+                except Exception as error:  # noqa: BLE001 - one line to the page, never a traceback
+                    log.exception("viewer: a WebSocket message failed")
+                    await stream.error(None, f"internal error ({type(error).__name__})")
         finally:
             stream.close()
             self.sockets.discard(socket)
         return socket
+
+
+def _remove_file(path: str) -> None:
+    try:
+        os.remove(path)
+    except OSError:
+        pass
 
 
 def _finite(value: Optional[str], name: str) -> float:
@@ -311,9 +487,9 @@ class _Stream:
 
     async def receive(self, text: str) -> None:
         try:
-            message = json.loads(text)
-        except ValueError:
-            await self.error(None, "not JSON")
+            message = parse_json(text, "message")
+        except BadParameter as error:
+            await self.error(None, str(error))
             return
         if not isinstance(message, dict):
             await self.error(None, "expected a JSON object")
@@ -466,16 +642,33 @@ class _Stream:
                 keywords.update(first_plane=first, last_plane=last)
             return keywords
 
-        def work_stack() -> bytes:
+        def work_stack(path: str) -> int:
+            # The slices are written and zipped straight to the download file (never held as a
+            # zip in memory); they are freed when this returns.
             focal_stack = aos.render_focal_stack(session.light_field, **stack_keywords())
-            with tempfile.TemporaryDirectory(prefix="aos-viewer-") as folder:
-                target = os.path.join(folder, "stack")
-                aos.write_focal_stack(target, focal_stack)
-                buffer = io.BytesIO()
-                with zipfile.ZipFile(buffer, "w", zipfile.ZIP_DEFLATED, compresslevel=1) as zip:
-                    for name in sorted(os.listdir(target)):
-                        zip.write(os.path.join(target, name), f"stack/{name}")
-                return buffer.getvalue()
+            try:
+                with tempfile.TemporaryDirectory(prefix="aos-viewer-") as folder:
+                    target = os.path.join(folder, "stack")
+                    aos.write_focal_stack(target, focal_stack)
+                    del focal_stack
+                    with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED,
+                                         compresslevel=1) as zip:
+                        for name in sorted(os.listdir(target)):
+                            zip.write(os.path.join(target, name), f"stack/{name}")
+                return os.path.getsize(path)
+            except BaseException:
+                _remove_file(path)
+                raise
+
+        def finished(work: Callable[..., Any], *args: Any) -> Callable[[], Any]:
+            # The job, then its freed memory handed back to the system: its locals (the
+            # slices) are gone once it returns.
+            def job() -> Any:
+                try:
+                    return work(*args)
+                finally:
+                    release_memory()
+            return job
 
         async def run_job(work: Any) -> Any:
             # The job on the render worker; None when it was cancelled or failed (the page is
@@ -491,12 +684,13 @@ class _Stream:
             return None
 
         if stack:
-            data = await run_job(work_stack)
-            if data is None:
+            key, path = self.viewer.new_download_path()
+            size = await run_job(finished(work_stack, path))
+            if size is None:
                 return
-            key = self.viewer.offer_download(data)
+            self.viewer.offer_download(key, path)
             await self.send_json({"type": "download", "id": request_id,
-                                  "url": f"/api/download/{key}", "bytes": len(data)})
+                                  "url": f"/api/download/{key}", "bytes": size})
             return
 
         def work() -> Frame:
@@ -506,7 +700,7 @@ class _Stream:
             return Frame(rgba.tobytes(), rgba.shape[1], rgba.shape[0],
                          {"width": rgba.shape[1], "height": rgba.shape[0], "mode": "allinfocus"})
 
-        frame = await run_job(work)
+        frame = await run_job(finished(work))
         if frame is None:
             return
         if not self.socket.closed:

@@ -44,6 +44,9 @@ MAX_SIZE = 2048  # pixels on a side of a full render
 MIN_SIZE = 8
 MAX_TILT_DEG = 80.0
 MAX_ABS_COORDINATE = 1.0e7  # metres (UTM northings are < 1e7)
+# Pages (WebSockets) a viewer serves at once by default (Viewer's max_pages): each keeps one
+# pending render and may queue one all-in-focus or stack job.
+MAX_PAGES = 32
 # A preview should render in this time (about 15 updates per second with the page's overhead);
 # slower previews switch to a quarter of the width and height.
 PREVIEW_BUDGET_MS = 50.0

@@ -168,9 +168,11 @@ function connect() {
     if (typeof event.data === "string") handleMessage(JSON.parse(event.data));
     else handleFrame(event.data);
   };
-  socket.onclose = () => {
+  socket.onclose = (event) => {
+    // A refusal (too many pages open: code 1013) says why in its reason.
     stats.connected = false;
-    $("status").textContent = "disconnected (the server stopped?)";
+    $("status").textContent = event.reason ? `disconnected: ${event.reason}` :
+      "disconnected (the server stopped?)";
     $("status").className = "error";
   };
 }
