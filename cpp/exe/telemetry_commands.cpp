@@ -84,6 +84,9 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
               "Altitude outliers: running-median window in frames (odd, >= 3; 0 = off)");
   flags.Field("max_altitude_deviation_m", options.max_altitude_deviation_m,
               "An altitude further than this from its running median is replaced by it (listed)");
+  flags.Field("max_distance_from_centre_m", options.max_distance_from_centre_m,
+              "A position farther than this from the flight's centre (median lat, lon) is "
+              "refused (a swapped, radian or wrong-hemisphere row), metres");
   flags.Field("frame_interval_s", options.frame_interval_s,
               "With a time column: seconds between consecutive frames (name order)");
   flags.Field("time_offset_s", options.time_offset_s,

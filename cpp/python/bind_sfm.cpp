@@ -260,6 +260,9 @@ void BindSfm(py::module_& m) {
              "Altitude outliers: running-median window in frames, odd >= 3; 0 = no rule.")
       .Field("max_altitude_deviation_m", &TelemetryOptions::max_altitude_deviation_m,
              "An altitude further than this from its running median is replaced by it, metres.")
+      .Field("max_distance_from_centre_m", &TelemetryOptions::max_distance_from_centre_m,
+             "A position farther than this from the flight's centre (median lat, lon) is "
+             "refused, metres.")
       .Field("frame_interval_s", &TelemetryOptions::frame_interval_s,
              "With a time column: seconds between consecutive frames (name order).")
       .Field("time_offset_s", &TelemetryOptions::time_offset_s,

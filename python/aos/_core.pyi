@@ -1669,6 +1669,7 @@ class TelemetryOptions:
         altitude: str = ...,
         altitude_window: int = ...,
         max_altitude_deviation_m: float = ...,
+        max_distance_from_centre_m: float = ...,
         frame_interval_s: float = ...,
         time_offset_s: float = ...,
     ) -> None:
@@ -1679,6 +1680,7 @@ class TelemetryOptions:
     altitude: str
     altitude_window: int
     max_altitude_deviation_m: float
+    max_distance_from_centre_m: float
     frame_interval_s: float
     time_offset_s: float
     def check(self) -> None: ...

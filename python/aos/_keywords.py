@@ -222,6 +222,7 @@ class TelemetryKeywords(TypedDict, total=False):
     altitude: str
     altitude_window: int
     max_altitude_deviation_m: float
+    max_distance_from_centre_m: float
     frame_interval_s: float
     time_offset_s: float
 

@@ -390,6 +390,22 @@ TEST_F(PositionsFiles, MalformedLinesAreNamed) {
               HasSubstr("missing.csv: positions file not found"));
 }
 
+TEST_F(PositionsFiles, AByteOrderMarkAndQuotedFieldsAreRead) {
+  // Issue 31: a spreadsheet's UTF-8 byte-order mark made the header's first column unknown, and
+  // a quoted name with a comma split into two fields. The tokenizer is util/csv.h, shared with
+  // the telemetry reader.
+  const PositionsFile file = ReadPositionsFile(Write("bom.csv",
+                                                     "\xEF\xBB\xBFname,x,y,z\r\n"
+                                                     "\"a,1.png\",500000,5300000,420\r\n"
+                                                     "\"b \"\"2\"\".png\",\"500010\",5300001,421\r\n"));
+  ASSERT_EQ(file.positions.size(), 2u);
+  EXPECT_EQ(file.positions[0].name, "a,1.png");
+  EXPECT_EQ(file.positions[1].name, "b \"2\".png");
+  EXPECT_EQ(file.positions[1].position, Vec3d(500010.0, 5300001.0, 421.0));
+  EXPECT_THAT(ErrorOf([&] { ReadPositionsFile(Write("q.csv", "a.png,1,\"2,3\n")); }),
+              HasSubstr("q.csv: line 1: field 3: its opening quote is never closed"));
+}
+
 // Views whose poses are the true ones seen through an arbitrary similarity (COLMAP's frame).
 struct ModelFrameLightField {
   LightField light_field;

@@ -18,6 +18,7 @@
 #include "aos/geometry/geodesy.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/formats.h"
+#include "aos/util/error.h"
 #include "aos/util/math.h"
 #include "error_of.h"
 #include "gps_frame.h"
@@ -362,6 +363,225 @@ TEST_F(Telemetry, ExifGpsAndDjiXmpTagsArePosesToo) {
   ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(Path("frames/e.jpg"), 16, 12, 48.0, 15.0, 350.0));
   EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
               HasSubstr("e.jpg: no XMP drone-dji:GimbalYawDegree (the frame has no XMP packet)"));
+}
+
+// The CSV of Flight() with frame `frame`'s lat and lon replaced by `lat_lon` ("lat,lon").
+std::string WithPosition(std::string csv, const std::string& frame, const std::string& lat_lon) {
+  const size_t at = csv.find(frame + ",");
+  const size_t lat = at + frame.size() + 1;
+  const size_t alt = csv.find(',', csv.find(',', lat) + 1);
+  return csv.replace(lat, alt - lat, lat_lon);
+}
+
+TEST_F(Telemetry, APositionFarFromTheFlightIsRefusedNamingLineFrameAndDistance) {
+  const std::vector<TruePose> truth = Flight();
+  const std::string csv = FlightCsv(truth);
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  const auto error = [&](const std::string& text) {
+    options.telemetry_file = Write("log.csv", text);
+    return ErrorOf([&] { ImportTelemetry(Path("frames"), options); });
+  };
+  // f05 (line 8) at about 48.03 N, 15.60 E: swapped, in radians, in the other hemisphere. Each
+  // is thousands of kilometres from the median of the flight, far beyond 50 km.
+  const std::string swapped = error(WithPosition(csv, "f05.png", "15.6,48.03"));
+  EXPECT_THAT(swapped, HasSubstr("log.csv: line 8 (frame f05.png): lat, lon: (15.6, 48.03) is "));
+  EXPECT_THAT(swapped, HasSubstr("km from the flight's centre"));
+  EXPECT_THAT(swapped, HasSubstr("max_distance_from_centre_m = 50000"));
+  EXPECT_THAT(swapped, HasSubstr("latitude and longitude swapped?"));
+  EXPECT_THAT(error(WithPosition(csv, "f05.png", "0.8383,0.2723")),
+              HasSubstr("in radians, not degrees?"));
+  EXPECT_THAT(error(WithPosition(csv, "f05.png", "-48.03,15.6")),
+              HasSubstr("line 8 (frame f05.png): lat, lon: (-48.03, 15.6) is "));
+  // Half the rows in the other hemisphere: the centre is between them, every row is refused.
+  std::string half = csv;
+  for (const char* frame : {"f00.png", "f01.png", "f02.png", "f03.png", "f04.png", "f05.png"}) {
+    const size_t lat = half.find(std::string(frame) + ",") + 8;
+    half.insert(lat, "-");
+  }
+  EXPECT_THAT(error(half), HasSubstr("km from the flight's centre"));
+  // The bound is an option, checked: a flight that is truly that large is taken when asked.
+  options.max_distance_from_centre_m = 1e7;
+  EXPECT_THAT(error(WithPosition(csv, "f05.png", "15.6,48.03")), "no error");
+  options.max_distance_from_centre_m = 0.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }),
+              HasSubstr("max_distance_from_centre_m: must be > 0 metres"));
+  options.max_distance_from_centre_m = std::nan("");
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("max_distance_from_centre_m"));
+}
+
+TEST_F(Telemetry, ImplausibleAltitudesAreRefusedNamingTheField) {
+  std::string csv = FlightCsv(Flight());
+  const size_t at = csv.find("f03.png");
+  const size_t alt = csv.find(",103.0000,", at);
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  options.telemetry_file = Write("log.csv", csv.replace(alt, 10, ",1e308,"));
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("log.csv: line 6: alt: 1e+308 is outside the plausible altitudes "
+                        "[-5000, 10000] metres"));
+}
+
+// The antimeridian: a small flight at 16.5 S across longitude 180 (Fiji).
+TEST_F(Telemetry, AFlightAcrossTheAntimeridianIsOneZoneAndMetresApart) {
+  // Four frames 0.00002 degrees of longitude (2.13 m at 16.5 S) apart, crossing 180.
+  const double longitudes[] = {179.99997, 179.99999, -179.99999, -179.99997};
+  std::string csv = "frame,lat,lon,alt,yaw,pitch,roll\n";
+  for (int i = 0; i < 4; ++i) {
+    Frame("m" + std::to_string(i) + ".png");
+    char line[128];
+    std::snprintf(line, sizeof(line), "m%d.png,-16.5,%.5f,100,0,-90,0\n", i, longitudes[i]);
+    csv += line;
+  }
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  options.telemetry_file = Write("log.csv", csv);
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  const LightField& lf = result.light_field;
+  // One zone for the whole flight, one of the two that meet at 180 (south: EPSG:327zz).
+  EXPECT_THAT(lf.crs, ::testing::AnyOf("EPSG:32760", "EPSG:32701"));
+  ASSERT_EQ(lf.views.size(), 4u);
+  // Consecutive views 2.13 m apart eastwards: 0.00002 deg x 111.32 km/deg x cos(16.5 deg), within
+  // the UTM scale factor 3 degrees from the central meridian (0.9996 .. 1.0009) and the sphere's
+  // approximation (0.5%); due east is turned from grid east by the convergence (0.85 degrees:
+  // 2.13 m x sin 0.85 = 0.032 m of northing).
+  const double spacing = 0.00002 * 111320.0 * std::cos(16.5 * kDeg);
+  for (int i = 1; i < 4; ++i) {
+    const Vec3d step = lf.views[i].cam_from_world.Center() - lf.views[i - 1].cam_from_world.Center();
+    EXPECT_NEAR(step.x, spacing, 0.005 * spacing) << i;
+    EXPECT_NEAR(std::abs(step.y), 0.032, 0.002) << i;
+  }
+  // The origin is near the flight, and grid north is within the convergence 3 degrees from a
+  // central meridian: 3 x sin(16.5 deg) = 0.85 degrees.
+  const Vec3d first = lf.views[0].cam_from_world.Center();  // local: origin rounded to 100 m
+  EXPECT_LT(std::hypot(first.x, first.y), 71.0);
+  EXPECT_NEAR(result.max_convergence_deg, 0.85, 0.01);
+  // A time column interpolates the longitude along the shorter arc too (not through 0).
+  options.telemetry_file = Write("time.csv",
+                                 "time,lat,lon,alt,yaw,pitch,roll\n"
+                                 "0,-16.5,179.99997,100,0,-90,0\n"
+                                 "3,-16.5,-179.99997,100,0,-90,0\n");
+  options.frame_interval_s = 1.0;
+  const LightField timed = ImportTelemetry(Path("frames"), options).light_field;
+  EXPECT_THAT(timed.crs, ::testing::AnyOf("EPSG:32760", "EPSG:32701"));
+  for (int i = 0; i < 4; ++i) {
+    EXPECT_NEAR(timed.views[i].cam_from_world.Center().x + timed.origin.x,
+                lf.views[i].cam_from_world.Center().x + lf.origin.x, 0.01)
+        << i;
+  }
+}
+
+TEST_F(Telemetry, AFlightAcrossAZoneEdgeTakesTheZoneOfItsCentre) {
+  // Zones 33 and 34 meet at 18 E. Three frames just west of it and one 300 m east: the median
+  // longitude (17.9993) is in zone 33, the mean (18.00015) would be in 34. One zone for all.
+  const double longitudes[] = {17.9990, 17.9992, 17.9994, 18.0030};
+  std::string csv = "frame,lat,lon,alt,yaw,pitch,roll\n";
+  for (int i = 0; i < 4; ++i) {
+    Frame("z" + std::to_string(i) + ".png");
+    csv += "z" + std::to_string(i) + ".png,48.0," + FormatNumber(longitudes[i]) + ",100,0,-90,0\n";
+  }
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  options.telemetry_file = Write("log.csv", csv);
+  const LightField lf = ImportTelemetry(Path("frames"), options).light_field;
+  EXPECT_EQ(lf.crs, "EPSG:32633");
+  const Vec3d truth =
+      TransformPoints({Vec3d(18.0030, 48.0, 0.0)}, "EPSG:4326", "EPSG:32633", "t")[0];
+  EXPECT_NEAR(lf.views[3].cam_from_world.Center().x + lf.origin.x, truth.x, 1e-3);
+}
+
+TEST_F(Telemetry, AByteOrderMarkAndQuotedFieldsAreRead) {
+  Frame("a,b.png");
+  Frame("say \"hi\".png");
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  options.telemetry_file = Write("log.csv",
+                                 "\xEF\xBB\xBF" "frame,lat,lon,alt,yaw,pitch,roll\r\n"
+                                 "\"a,b.png\",48.0,15.0,100,0,-90,0\r\n"
+                                 "\"say \"\"hi\"\".png\",\"48.0001\",15.0,100,0,-90,0\r\n");
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  ASSERT_EQ(result.light_field.views.size(), 2u);
+  EXPECT_EQ(result.frames[0], "a,b.png");
+  EXPECT_EQ(result.frames[1], "say \"hi\".png");
+  // 0.0001 degrees of latitude apart: 11.1 m.
+  EXPECT_NEAR(result.light_field.views[1].cam_from_world.Center().y -
+                  result.light_field.views[0].cam_from_world.Center().y,
+              11.1, 0.05);
+  // A quote left open is one error naming the line it opened on.
+  options.telemetry_file = Write("log.csv",
+                                 "frame,lat,lon,alt,yaw,pitch,roll\n"
+                                 "\"a,b.png,48.0,15.0,100,0,-90,0\n");
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("log.csv: line 2: field 1: its opening quote is never closed"));
+}
+
+// A JPEG with GPS tags whose hemisphere letters are given as they are (not from the signs).
+std::string FrameWithGpsRefs(const std::string& path, const char* latitude_ref,
+                             const char* longitude_ref) {
+  OIIO::ImageSpec spec(16, 12, 1, OIIO::TypeDesc::UINT8);
+  const float latitude[3] = {48.0f, 0.0f, 0.0f}, longitude[3] = {15.0f, 0.0f, 0.0f};
+  spec.attribute("GPS:Latitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), latitude);
+  spec.attribute("GPS:LatitudeRef", latitude_ref);
+  spec.attribute("GPS:Longitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), longitude);
+  spec.attribute("GPS:LongitudeRef", longitude_ref);
+  spec.attribute("GPS:Altitude", 350.0f);
+  std::vector<uint8_t> pixels(16 * 12, 128);
+  auto output = OIIO::ImageOutput::create(path);
+  EXPECT_TRUE(output && output->open(path, spec) &&
+              output->write_image(OIIO::TypeDesc::UINT8, pixels.data()));
+  output->close();
+  return path;
+}
+
+TEST_F(Telemetry, HemisphereLettersOtherThanNSEWAreRefusedNamingTheTag) {
+  const std::string good = FrameWithGpsRefs(Path("good.jpg"), "S", "W");
+  const std::optional<GpsTag> tag = ReadGpsTag(good);
+  ASSERT_TRUE(tag.has_value());
+  EXPECT_NEAR(tag->latitude_deg, -48.0, 1e-9);
+  EXPECT_NEAR(tag->longitude_deg, -15.0, 1e-9);
+  EXPECT_THAT(ErrorOf([&] { ReadGpsTag(FrameWithGpsRefs(Path("x.jpg"), "X", "E")); }),
+              HasSubstr("x.jpg: GPS:LatitudeRef: \"X\" is not N or S"));
+  EXPECT_THAT(ErrorOf([&] { ReadGpsTag(FrameWithGpsRefs(Path("y.jpg"), "N", "S")); }),
+              HasSubstr("y.jpg: GPS:LongitudeRef: \"S\" is not E or W"));
+  // Through import-telemetry: the frame and the tag.
+  FrameWithGpsRefs(Path("frames/z.jpg"), "N", "Q");
+  InjectXmp(Path("frames/z.jpg"), DjiXmp(0.0, -90.0, 0.0, 30.0));
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("z.jpg: GPS:LongitudeRef: \"Q\" is not E or W"));
+}
+
+TEST_F(Telemetry, ImplausibleTagAltitudesAreRefusedNamingTheTag) {
+  const std::string path = Path("frames/d.jpg");
+  ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(path, 16, 12, 48.0, 15.0, 20000.0));
+  InjectXmp(path, DjiXmp(0.0, -90.0, 0.0, -1e308));
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("d.jpg: XMP drone-dji:RelativeAltitude: -1e+308 is outside the plausible "
+                        "altitudes [-5000, 10000] metres"));
+  options.altitude = "gps";
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
+              HasSubstr("d.jpg: GPS:Altitude: 20000 is outside the plausible altitudes "
+                        "[-500, 10000] metres"));
+}
+
+TEST_F(Telemetry, TagPositionsFarFromTheFlightAreRefusedNamingTheFrame) {
+  for (int i = 0; i < 5; ++i) {
+    const std::string path = Path("frames/d" + std::to_string(i) + ".jpg");
+    // d3 in radians.
+    const double lat = i == 3 ? 48.0 * kDeg : 48.0 + 0.0002 * i;
+    const double lon = i == 3 ? 15.0 * kDeg : 15.0;
+    ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(path, 16, 12, lat, lon, 350.0));
+    InjectXmp(path, DjiXmp(0.0, -90.0, 0.0, 30.0));
+  }
+  TelemetryOptions options;
+  options.fov_deg = 60.0;
+  const std::string message = ErrorOf([&] { ImportTelemetry(Path("frames"), options); });
+  EXPECT_THAT(message, HasSubstr("d3.jpg: GPS:Latitude, GPS:Longitude: ("));
+  EXPECT_THAT(message, HasSubstr("km from the flight's centre"));
+  EXPECT_THAT(message, HasSubstr("in radians, not degrees?"));
 }
 
 }  // namespace

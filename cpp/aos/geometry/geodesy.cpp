@@ -1,5 +1,6 @@
 #include "aos/geometry/geodesy.h"
 
+#include <algorithm>
 #include <cmath>
 #include <memory>
 
@@ -212,6 +213,64 @@ UtmCoordinate UtmFromWgs84(double latitude_deg, double longitude_deg, int zone,
   return result;
 }
 
+double UnwrapLongitude(double longitude_deg, double around_deg) {
+  double offset = std::fmod(longitude_deg - around_deg, 360.0);
+  if (offset > 180.0) offset -= 360.0;
+  if (offset <= -180.0) offset += 360.0;
+  return around_deg + offset;
+}
+
+GeographicPosition FlightCentre(const std::vector<GeographicPosition>& positions,
+                                const std::string& where) {
+  if (positions.empty()) ThrowInvalid(where + ": no positions to centre");
+  const double deg = std::acos(-1.0) / 180.0;
+  double sin_sum = 0.0, cos_sum = 0.0;
+  std::vector<double> latitudes;
+  for (const GeographicPosition& p : positions) {
+    if (!std::isfinite(p.latitude_deg) || !std::isfinite(p.longitude_deg)) {
+      ThrowInvalid(where + ": latitude/longitude must be finite");
+    }
+    latitudes.push_back(p.latitude_deg);
+    sin_sum += std::sin(p.longitude_deg * deg);
+    cos_sum += std::cos(p.longitude_deg * deg);
+  }
+  const auto median = [](std::vector<double> values) {
+    const size_t m = values.size();
+    std::nth_element(values.begin(), values.begin() + m / 2, values.end());
+    const double upper = values[m / 2];
+    if (m % 2 == 1) return upper;
+    return 0.5 * (*std::max_element(values.begin(), values.begin() + m / 2) + upper);
+  };
+  // The circular mean is only a reference for unwrapping (a minority of wild longitudes may pull
+  // it, but not by half a turn); the median around it, and around itself again, is the centre.
+  double around = (sin_sum == 0.0 && cos_sum == 0.0) ? positions.front().longitude_deg
+                                                     : std::atan2(sin_sum, cos_sum) / deg;
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<double> longitudes;
+    for (const GeographicPosition& p : positions) {
+      longitudes.push_back(UnwrapLongitude(p.longitude_deg, around));
+    }
+    around = median(longitudes);
+  }
+  GeographicPosition centre;
+  centre.latitude_deg = median(latitudes);
+  centre.longitude_deg = UnwrapLongitude(around, 0.0);
+  if (centre.longitude_deg >= 180.0) centre.longitude_deg -= 360.0;
+  return centre;
+}
+
+double GreatCircleDistance(const GeographicPosition& a, const GeographicPosition& b) {
+  const double deg = std::acos(-1.0) / 180.0, radius_m = 6371008.8;
+  const double phi_a = a.latitude_deg * deg, phi_b = b.latitude_deg * deg;
+  const double half_dphi = 0.5 * (phi_b - phi_a);
+  const double half_dlambda = 0.5 * (b.longitude_deg - a.longitude_deg) * deg;
+  // Haversine: well conditioned for the small distances a plausibility check compares.
+  const double h = std::sin(half_dphi) * std::sin(half_dphi) +
+                   std::cos(phi_a) * std::cos(phi_b) * std::sin(half_dlambda) *
+                       std::sin(half_dlambda);
+  return 2.0 * radius_m * std::asin(std::min(1.0, std::sqrt(h)));
+}
+
 bool IsGeographicCrs(const std::string& crs, const std::string& where) {
   Context ctx;
   const Pj pj = CreateCrs(ctx, crs, where);
@@ -229,22 +288,23 @@ MetricPoints MetricFromCrs(const std::vector<Vec3d>& points_in_crs, const std::s
   const char* name = proj_get_name(source.get());
   const std::string crs_name = name != nullptr ? name : crs;
   if (type == PJ_TYPE_GEOGRAPHIC_2D_CRS || type == PJ_TYPE_GEOGRAPHIC_3D_CRS) {
-    // Degrees: (longitude, latitude, height), projected to the UTM zone of the mean longitude.
-    double longitude_sum = 0.0, latitude_sum = 0.0;
+    // Degrees: (longitude, latitude, height), projected to the UTM zone of the points' centre
+    // (one zone for all, also across the 180th meridian).
+    std::vector<GeographicPosition> positions;
     for (const Vec3d& p : points_in_crs) {
       if (!(std::abs(p.x) <= 180.0) || !(std::abs(p.y) <= 90.0)) {
         ThrowInvalid(where + ": (" + FormatNumber(p.x) + ", " + FormatNumber(p.y) +
                      ") is not a longitude/latitude in degrees, as " + crs_name + " needs");
       }
-      longitude_sum += p.x;
-      latitude_sum += p.y;
+      positions.push_back({p.y, p.x});
     }
-    const double latitude = latitude_sum / points_in_crs.size();
+    const GeographicPosition centre = FlightCentre(positions, where);
+    const double latitude = centre.latitude_deg;
     if (latitude < -80.0 || latitude > 84.0) {
       ThrowInvalid(where + ": latitude " + FormatNumber(latitude) +
                    " is outside UTM's range [-80, 84] degrees");
     }
-    const int zone = StandardZone(longitude_sum / points_in_crs.size());
+    const int zone = StandardZone(centre.longitude_deg);
     const bool north = latitude >= 0.0;
     const Pj transform = CreateTransform(ctx, crs, UtmCrs(zone, north), where);
     for (const Vec3d& p : points_in_crs) {

@@ -10,9 +10,14 @@
 //   millimetre within a zone.
 // - zone 0 picks the standard zone of the longitude (1..60, no Norway/Svalbard exceptions);
 //   a given zone (1..60) forces it, so that points near a zone edge share one frame.
+// - A flight's zone: FlightCentre gives the robust centre of a set of positions (the median
+//   latitude and longitude, longitudes unwrapped around each other so that a flight across the
+//   180th meridian is centred there, not near 0). Its zone serves the whole flight: PROJ takes
+//   longitudes on the other side of 180 (or of a zone edge) relative to that zone's central
+//   meridian, so every view lands within the flight's extent.
 // - MetricFromCrs takes points in a CRS given as PROJ understands it ("EPSG:4326", "EPSG:25833",
 //   a WKT or PROJ string). A geographic CRS (degrees) is projected to the UTM zone of the points'
-//   mean longitude; a projected CRS in metres is kept as it is; other units are refused. Points are
+//   centre (FlightCentre); a projected CRS in metres is kept as it is; other units are refused. Points are
 //   (x, y, z) in the CRS's "visualisation" order: longitude/easting first. The result names the
 //   metric frame's EPSG code when it has one (MetricPoints::crs, e.g. "EPSG:32633").
 // - TransformPoints moves points between any two CRSs PROJ can relate (a DEM raster's CRS into a
@@ -43,6 +48,28 @@ struct UtmCoordinate {
 
 UtmCoordinate UtmFromWgs84(double latitude_deg, double longitude_deg, int zone = 0,
                            const std::string& where = "position");
+
+// A WGS84 position, degrees.
+struct GeographicPosition {
+  double latitude_deg = 0.0;
+  double longitude_deg = 0.0;  // [-180, 180)
+};
+
+// The robust centre of positions (see the contract): the median latitude, and the median of the
+// longitudes unwrapped around their circular mean (then around that median again), returned in
+// [-180, 180). A minority of wild positions (swapped, in radians, another hemisphere) barely
+// moves it. Throws std::invalid_argument for no positions or a non-finite value, naming `where`.
+GeographicPosition FlightCentre(const std::vector<GeographicPosition>& positions,
+                                const std::string& where);
+
+// The longitude `longitude_deg` plus a multiple of 360 that is nearest to `around_deg`:
+// within (around - 180, around + 180].
+double UnwrapLongitude(double longitude_deg, double around_deg);
+
+// The great-circle distance between two WGS84 positions on the sphere of the Earth's mean radius
+// (6,371,008.8 m), metres; within 0.5% of the ellipsoid's. For plausibility checks, not
+// geodetic work.
+double GreatCircleDistance(const GeographicPosition& a, const GeographicPosition& b);
 
 struct MetricPoints {
   std::vector<Vec3d> points;  // metres (easting, northing, height)

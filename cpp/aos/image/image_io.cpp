@@ -351,8 +351,9 @@ ImageFileInfo ReadImageInfo(const std::string& path) {
 std::optional<GpsTag> ReadGpsTag(const std::string& path) {
   auto input = Open(path);
   const oiio::ImageSpec& spec = input->spec();
-  // Degrees, minutes, seconds (three rationals or floats) and a hemisphere letter.
-  const auto angle = [&](const char* name, const char* ref_name, const char* negative,
+  // Degrees, minutes, seconds (three rationals or floats) and a hemisphere letter: `positive`
+  // or `negative` (either case), nothing else; a missing letter leaves the hemisphere unknown.
+  const auto angle = [&](const char* name, const char* ref_name, char positive, char negative,
                          double* degrees) {
     const oiio::ParamValue* value = spec.find_attribute(name);
     if (value == nullptr) return false;
@@ -362,18 +363,26 @@ std::optional<GpsTag> ReadGpsTag(const std::string& path) {
     for (int i = 0; i < n; ++i) dms[i] = value->get_float_indexed(i);
     *degrees = dms[0] + dms[1] / 60.0 + dms[2] / 3600.0;
     if (!std::isfinite(*degrees)) ThrowInvalid(path + ": " + name + ": not finite");
-    const std::string ref = spec.get_string_attribute(ref_name);
-    if (!ref.empty() && (ref[0] == negative[0] || ref[0] == std::tolower(negative[0]))) {
-      *degrees = -*degrees;
+    std::string ref = spec.get_string_attribute(ref_name);
+    while (!ref.empty() && (ref.back() == ' ' || ref.back() == '\0')) ref.pop_back();
+    const char letter = ref.size() == 1 ? static_cast<char>(std::toupper(ref[0])) : '\0';
+    if (letter != positive && letter != negative) {
+      ThrowInvalid(path + ": " + ref_name + ": " +
+                   (ref.empty() ? std::string("missing") : "\"" + ref + "\" is not") + " " +
+                   positive + " or " + negative + " (the hemisphere of " + name + ")");
     }
+    if (letter == negative) *degrees = -*degrees;
     return true;
   };
   GpsTag tag;
-  const bool has_latitude = angle("GPS:Latitude", "GPS:LatitudeRef", "S", &tag.latitude_deg);
-  const bool has_longitude = angle("GPS:Longitude", "GPS:LongitudeRef", "W", &tag.longitude_deg);
+  const bool has_latitude =
+      angle("GPS:Latitude", "GPS:LatitudeRef", 'N', 'S', &tag.latitude_deg);
+  const bool has_longitude =
+      angle("GPS:Longitude", "GPS:LongitudeRef", 'E', 'W', &tag.longitude_deg);
   if (!has_latitude || !has_longitude) return std::nullopt;
   if (const oiio::ParamValue* altitude = spec.find_attribute("GPS:Altitude")) {
     tag.altitude_m = altitude->get_float_indexed(0);
+    if (!std::isfinite(tag.altitude_m)) ThrowInvalid(path + ": GPS:Altitude: not finite");
     if (spec.get_int_attribute("GPS:AltitudeRef", 0) == 1) tag.altitude_m = -tag.altitude_m;
   }
   input->close();

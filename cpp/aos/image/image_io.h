@@ -29,7 +29,9 @@ ImageFileInfo ReadImageInfo(const std::string& path);
 // A frame's GPS position from its EXIF tags (GPS:Latitude/LatitudeRef, GPS:Longitude/
 // LongitudeRef, GPS:Altitude/AltitudeRef), WGS84 degrees (south and west negative) and metres;
 // nullopt when the frame has no latitude/longitude. altitude_m is NaN when absent. Throws like
-// ReadImageInfo for an unreadable file, and for malformed tags (naming the tag).
+// ReadImageInfo for an unreadable file, and for malformed tags (naming the tag): a hemisphere
+// letter (GPS:LatitudeRef, GPS:LongitudeRef) missing or other than N/S and E/W, a non-finite
+// angle or altitude.
 struct GpsTag {
   double latitude_deg = 0.0;
   double longitude_deg = 0.0;

@@ -17,6 +17,7 @@
 #include "aos/geometry/geodesy.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
+#include "aos/util/csv.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/math.h"
@@ -507,29 +508,15 @@ PositionColumns ColumnsFromHeader(const std::vector<std::string>& fields, const 
 
 PositionsFile ReadPositionsFile(const std::string& path, const std::string& crs) {
   CheckRegularFile(path, "positions file");
-  const std::string text = ReadTextFile(path);
-  std::istringstream in(text);
   std::vector<NamedPosition> positions;
   std::set<std::string> seen;
   std::optional<PositionColumns> columns;
   std::vector<int> lines;  // the line of each position
-  std::string line;
-  int number = 0;
   bool header = false;
-  while (std::getline(in, line)) {
-    ++number;
+  for (const CsvRecord& record : ParseCsv(ReadTextFile(path), path)) {
+    const int number = record.line;
     const std::string where = path + ": line " + std::to_string(number);
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (!IsValidUtf8(line)) ThrowInvalid(where + ": not valid UTF-8 text");
-    const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::vector<std::string> fields;
-    std::string field;
-    std::istringstream split(line);
-    while (std::getline(split, field, ',')) {
-      const size_t a = field.find_first_not_of(" \t"), b = field.find_last_not_of(" \t");
-      fields.push_back(a == std::string::npos ? "" : field.substr(a, b - a + 1));
-    }
+    const std::vector<std::string>& fields = record.fields;
     if (!columns) {
       // The first line: a header when its coordinate fields are not numbers.
       bool numbers = fields.size() >= 2;

@@ -172,12 +172,14 @@ struct NamedPosition {
 // Columns are read by the header's names (case-insensitive): name (or image, file, frame) and
 // either x, y, z (or easting, northing, altitude/height) in metres, or lat, lon[, alt] in
 // degrees; without a header the columns are name, x, y, z. Degrees (lat/lon columns, or a
-// geographic `crs`) are projected through PROJ to the UTM zone of their mean longitude; `crs`
+// geographic `crs`) are projected through PROJ to the UTM zone of their centre (geodesy.h's
+// FlightCentre: median latitude and longitude, also across the 180th meridian); `crs`
 // ("EPSG:25833", ...; empty = not stated) names the CRS of the coordinates. Metres in an unstated
 // frame that evidently are degrees (the whole flight within 0.1 x 0.1 of a longitude/latitude-
 // like point) are refused, with a stated projected `crs` too. A geographic `crs` (or lat/lon
 // columns) with a value outside [-180, 180] (longitude) or [-90, 90] (latitude), and lat/lon
-// columns with a stated projected `crs`, are refused naming the file, line and field.
+// columns with a stated projected `crs`, are refused naming the file, line and field. Fields are
+// CSV as util/csv.h reads them (RFC 4180 quotes, a UTF-8 byte-order mark skipped).
 // world_frame says which frame the positions are in; crs is its EPSG code ("EPSG:326zz" after
 // projecting degrees to UTM, the stated CRS's code for metres), "" for an unstated metric frame.
 struct PositionsFile {

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -17,6 +18,7 @@
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/sfm/colmap_model.h"
+#include "aos/util/csv.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/math.h"
@@ -67,9 +69,25 @@ void CheckSample(const TelemetrySample& s, const std::string& where,
   check(s.roll_deg, -180.0, 180.0, names[5], "[-180, 180] degrees");
 }
 
+// Plausible altitudes, metres (see the header): GPSAltitude is above sea level or the
+// ellipsoid; RelativeAltitude is above the take-off point (negative down into a valley); a log's
+// alt may be either.
+constexpr double kMaxAltitudeM = 10000.0;
+constexpr double kMinAbsoluteAltitudeM = -500.0;
+constexpr double kMinRelativeAltitudeM = -5000.0;
+constexpr double kMinLoggedAltitudeM = kMinRelativeAltitudeM;
+
+void CheckAltitude(double value, double low, const std::string& where, const std::string& name) {
+  if (!(value >= low && value <= kMaxAltitudeM)) {
+    ThrowInvalid(where + ": " + name + ": " + FormatNumber(value) +
+                 " is outside the plausible altitudes [" + FormatNumber(low) + ", " +
+                 FormatNumber(kMaxAltitudeM) + "] metres");
+  }
+}
+
 const char* const kCsvNames[6] = {"lat", "lon", "alt", "yaw", "pitch", "roll"};
-const char* const kTagNames[6] = {"GPSLatitude",
-                                  "GPSLongitude",
+const char* const kTagNames[6] = {"GPS:Latitude",
+                                  "GPS:Longitude",
                                   "altitude",
                                   "drone-dji:GimbalYawDegree",
                                   "drone-dji:GimbalPitchDegree",
@@ -89,7 +107,7 @@ struct CsvLog {
 
 CsvLog ReadTelemetryCsv(const std::string& path) {
   CheckRegularFile(path, "telemetry file");
-  std::istringstream in(ReadTextFile(path));
+  const std::vector<CsvRecord> records = ParseCsv(ReadTextFile(path), path);
   // Column index per field: key, lat, lon, alt, yaw, pitch, roll.
   std::map<std::string, std::string> aliases = {
       {"frame", "frame"},      {"name", "frame"},      {"image", "frame"},
@@ -101,22 +119,11 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
   std::map<std::string, int> column;
   CsvLog log;
   std::set<std::string> seen;
-  std::string line;
-  int number = 0;
   bool header = false;
   size_t columns = 0;
-  while (std::getline(in, line)) {
-    ++number;
-    const std::string where = path + ": line " + std::to_string(number);
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    if (!IsValidUtf8(line)) ThrowInvalid(where + ": not valid UTF-8 text");
-    const size_t first = line.find_first_not_of(" \t");
-    if (first == std::string::npos || line[first] == '#') continue;
-    std::vector<std::string> fields;
-    std::string field;
-    std::istringstream split(line);
-    while (std::getline(split, field, ',')) fields.push_back(Trim(field));
-    if (!line.empty() && line.back() == ',') fields.push_back("");
+  for (const CsvRecord& record : records) {
+    const std::string where = path + ": line " + std::to_string(record.line);
+    const std::vector<std::string>& fields = record.fields;
     if (!header) {
       header = true;
       columns = fields.size();
@@ -151,7 +158,7 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
                    std::to_string(fields.size()));
     }
     CsvRow row;
-    row.line = number;
+    row.line = record.line;
     if (log.by_time) {
       row.time = ParseValue(fields[column["time"]], where, "time");
     } else {
@@ -168,6 +175,7 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
       *values[k] = ParseValue(fields[column[kCsvNames[k]]], where, kCsvNames[k]);
     }
     CheckSample(row.sample, where, kCsvNames);
+    CheckAltitude(row.sample.altitude_m, kMinLoggedAltitudeM, where, "alt");
     if (log.by_time && !log.rows.empty() && !(row.time > log.rows.back().time)) {
       ThrowInvalid(where + ": time: " + FormatNumber(row.time) +
                    " does not increase (the line before has " +
@@ -178,6 +186,51 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
   if (!header) ThrowInvalid(path + ": no header line (frame|time, lat, lon, alt, yaw, pitch, roll)");
   if (log.rows.empty()) ThrowInvalid(path + ": no telemetry rows after the header");
   return log;
+}
+
+// Refuses a position farther than max_distance_m from the flight's centre (FlightCentre: the
+// median latitude and longitude of all `samples`), naming the first such (`wheres[i]`, `fields`),
+// its distance and a likely cause.
+void CheckNearCentre(const std::vector<TelemetrySample>& samples,
+                     const std::vector<std::string>& wheres, const std::string& fields,
+                     double max_distance_m, const std::string& source) {
+  std::vector<GeographicPosition> positions;
+  for (const TelemetrySample& s : samples) positions.push_back({s.latitude_deg, s.longitude_deg});
+  const GeographicPosition centre = FlightCentre(positions, source);
+  const auto distance = [&](double latitude, double longitude) {
+    return GreatCircleDistance({latitude, longitude}, centre);
+  };
+  size_t first = positions.size(), count = 0;
+  for (size_t i = 0; i < positions.size(); ++i) {
+    if (distance(positions[i].latitude_deg, positions[i].longitude_deg) > max_distance_m) {
+      if (count++ == 0) first = i;
+    }
+  }
+  if (count == 0) return;
+  const double latitude = positions[first].latitude_deg;
+  const double longitude = positions[first].longitude_deg;
+  const auto near = [&](double lat, double lon) {
+    return std::abs(lat) <= 90.0 && distance(lat, lon) <= max_distance_m;
+  };
+  std::string hint;
+  if (near(longitude, latitude)) {
+    hint = "; latitude and longitude swapped?";
+  } else if (near(latitude / kDeg, longitude / kDeg)) {
+    hint = "; in radians, not degrees?";
+  } else if (near(-latitude, longitude)) {
+    hint = "; the latitude's sign (hemisphere) wrong?";
+  } else if (near(latitude, -longitude)) {
+    hint = "; the longitude's sign wrong?";
+  }
+  char text[256];
+  std::snprintf(text, sizeof(text), "%.1f km from the flight's centre (%.6f, %.6f", 
+                distance(latitude, longitude) / 1000.0, centre.latitude_deg,
+                centre.longitude_deg);
+  ThrowInvalid(wheres[first] + ": " + fields + ": (" + FormatNumber(latitude) + ", " +
+               FormatNumber(longitude) + ") is " + text + ": the median of " +
+               std::to_string(positions.size()) + " positions), farther than "
+               "max_distance_from_centre_m = " + FormatNumber(max_distance_m) + " m" + hint +
+               (count > 1 ? " (" + std::to_string(count - 1) + " more position(s) as far)" : ""));
 }
 
 // The angle a + t (b - a) along the shorter arc, degrees.
@@ -269,12 +322,14 @@ TelemetrySample SampleFromTags(const std::string& path, const std::string& altit
       xmp("drone-dji:RelativeAltitude", altitude_mode == "relative");
   if (altitude_mode == "relative" || (altitude_mode == "auto" && relative)) {
     s.altitude_m = *relative;
+    CheckAltitude(s.altitude_m, kMinRelativeAltitudeM, path, "XMP drone-dji:RelativeAltitude");
   } else {
     if (!std::isfinite(gps->altitude_m)) {
       ThrowInvalid(path + ": no EXIF GPSAltitude" +
                    (altitude_mode == "auto" ? " (and no XMP drone-dji:RelativeAltitude)" : ""));
     }
     s.altitude_m = gps->altitude_m;
+    CheckAltitude(s.altitude_m, kMinAbsoluteAltitudeM, path, "GPS:Altitude");
   }
   CheckSample(s, path, kTagNames);
   return s;
@@ -304,6 +359,10 @@ void TelemetryOptions::Check() const {
   if (!(max_altitude_deviation_m > 0.0) || !std::isfinite(max_altitude_deviation_m)) {
     ThrowInvalid("max_altitude_deviation_m: must be > 0 metres (got " +
                  FormatNumber(max_altitude_deviation_m) + ")");
+  }
+  if (!(max_distance_from_centre_m > 0.0)) {
+    ThrowInvalid("max_distance_from_centre_m: must be > 0 metres (got " +
+                 FormatNumber(max_distance_from_centre_m) + ")");
   }
   if (!(frame_interval_s >= 0.0) || !std::isfinite(frame_interval_s)) {
     ThrowInvalid("frame_interval_s: must be >= 0 seconds (0 = no time column)");
@@ -379,6 +438,10 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
       if (options.frame_interval_s <= 0.0) {
         ThrowInvalid(path + ": a time column needs frame_interval_s (seconds between frames)");
       }
+      // Each frame's time and the row before it; the rows used must be plausible.
+      std::vector<double> times;
+      std::vector<size_t> before;
+      std::set<size_t> used;
       for (size_t i = 0; i < all_frames.size(); ++i) {
         const double t = options.time_offset_s + static_cast<double>(i) * options.frame_interval_s;
         if (t < log.rows.front().time || t > log.rows.back().time) {
@@ -387,15 +450,32 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
                        ", " + FormatNumber(log.rows.back().time) +
                        "] (frame_interval_s, time_offset_s)");
         }
-        size_t k = 0;
+        size_t k = before.empty() ? 0 : before.back();
         while (k + 1 < log.rows.size() && log.rows[k + 1].time < t) ++k;
+        times.push_back(t);
+        before.push_back(k);
+        used.insert(k);
+        used.insert(std::min(k + 1, log.rows.size() - 1));
+      }
+      std::vector<TelemetrySample> used_samples;
+      std::vector<std::string> wheres;
+      for (size_t k : used) {
+        used_samples.push_back(log.rows[k].sample);
+        wheres.push_back(path + ": line " + std::to_string(log.rows[k].line));
+      }
+      CheckNearCentre(used_samples, wheres, "lat, lon", options.max_distance_from_centre_m, path);
+      for (size_t i = 0; i < all_frames.size(); ++i) {
+        const double t = times[i];
+        const size_t k = before[i];
         const CsvRow& a = log.rows[k];
         const CsvRow& b = log.rows[std::min(k + 1, log.rows.size() - 1)];
         const double f = b.time > a.time ? (t - a.time) / (b.time - a.time) : 0.0;
         const auto lerp = [f](double u, double v) { return u + f * (v - u); };
         TelemetrySample s;
         s.latitude_deg = lerp(a.sample.latitude_deg, b.sample.latitude_deg);
-        s.longitude_deg = lerp(a.sample.longitude_deg, b.sample.longitude_deg);
+        // Along the shorter arc, also across the 180th meridian; back into (-180, 180].
+        s.longitude_deg = UnwrapLongitude(
+            InterpolateAngle(a.sample.longitude_deg, b.sample.longitude_deg, f), 0.0);
         s.altitude_m = lerp(a.sample.altitude_m, b.sample.altitude_m);
         s.yaw_deg = InterpolateAngle(a.sample.yaw_deg, b.sample.yaw_deg, f);
         s.pitch_deg = lerp(a.sample.pitch_deg, b.sample.pitch_deg);
@@ -411,6 +491,14 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
         auto [it, inserted] = by_file_name.emplace(fs::path(frame).filename().string(), frame);
         if (!inserted) it->second.clear();
       }
+      std::vector<TelemetrySample> row_samples;
+      std::vector<std::string> wheres;
+      for (const CsvRow& row : log.rows) {
+        row_samples.push_back(row.sample);
+        wheres.push_back(path + ": line " + std::to_string(row.line) + " (frame " + row.frame +
+                         ")");
+      }
+      CheckNearCentre(row_samples, wheres, "lat, lon", options.max_distance_from_centre_m, path);
       std::map<std::string, TelemetrySample> by_frame;
       for (const CsvRow& row : log.rows) {
         std::string frame;
@@ -448,10 +536,14 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
       }
     }
   } else {
+    std::vector<std::string> paths;
     for (const std::string& frame : all_frames) {
       frames.push_back(frame);
-      samples.push_back(SampleFromTags((fs::path(frames_dir) / frame).string(), options.altitude));
+      paths.push_back((fs::path(frames_dir) / frame).string());
+      samples.push_back(SampleFromTags(paths.back(), options.altitude));
     }
+    CheckNearCentre(samples, paths, std::string(kTagNames[0]) + ", " + kTagNames[1],
+                    options.max_distance_from_centre_m, frames_dir);
   }
 
   // The camera, and every frame's size against it (headers only).
@@ -485,16 +577,15 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
     result.altitude_outliers.push_back({frames[index], samples[index].altitude_m, median});
   }
 
-  // One UTM zone for the flight (its mean longitude and latitude), through PROJ; the meridian
+  // One UTM zone for the flight: its centre's (the median latitude and longitude, longitudes
+  // unwrapped around each other, so a flight across the 180th meridian is centred there), through
+  // PROJ, which takes every longitude relative to that zone's central meridian; the meridian
   // convergence from each position and one 1e-5 degrees north of it.
-  double mean_longitude = 0.0, mean_latitude = 0.0;
-  for (const TelemetrySample& s : samples) {
-    mean_longitude += s.longitude_deg;
-    mean_latitude += s.latitude_deg;
-  }
-  mean_longitude /= static_cast<double>(samples.size());
-  mean_latitude /= static_cast<double>(samples.size());
-  const UtmCoordinate zone = UtmFromWgs84(mean_latitude, mean_longitude, 0, "telemetry");
+  std::vector<GeographicPosition> positions;
+  for (const TelemetrySample& s : samples) positions.push_back({s.latitude_deg, s.longitude_deg});
+  const GeographicPosition centre = FlightCentre(positions, "telemetry");
+  const UtmCoordinate zone =
+      UtmFromWgs84(centre.latitude_deg, centre.longitude_deg, 0, "telemetry: the flight's centre");
   const std::string crs = UtmEpsg(zone.zone, zone.north);
   std::vector<Vec3d> geographic;
   for (size_t i = 0; i < samples.size(); ++i) {

@@ -9,14 +9,15 @@
 //   any case, sorted by name = view order). All must have the camera's size.
 // - Telemetry, one of:
 //   (a) a CSV file (telemetry_file) with a header line naming its columns (any order, case-
-//       insensitive; '#' comment lines and blank lines allowed; extra columns refused):
+//       insensitive; '#' comment lines and blank lines allowed; extra columns refused; RFC 4180
+//       quoted fields and a UTF-8 byte-order mark as util/csv.h reads them):
 //         frame (or name, image, file) | time,  lat, lon, alt, yaw, pitch, roll
 //       frame: a frame's path relative to frames_dir, or its file name (when unique); every
 //       named frame must exist. time: seconds; frame i (name order) is at
 //       time_offset_s + i * frame_interval_s, and its telemetry is interpolated linearly between
-//       the two rows around it (yaw along the shorter arc); times must increase and cover every
-//       frame. lat, lon: WGS84 degrees. alt: metres (whatever datum the log uses; it becomes
-//       the world z as given). Angles in degrees:
+//       the two rows around it (yaw and longitude along the shorter arc); times must increase
+//       and cover every frame. lat, lon: WGS84 degrees. alt: metres (whatever datum the log
+//       uses; it becomes the world z as given). Angles in degrees:
 //         yaw   = compass heading of the camera's forward direction (for a nadir camera: of the
 //                 image's up direction), clockwise from true north: 0 north, 90 east;
 //         pitch = gimbal pitch: 0 = looking at the horizon, -90 = straight down (nadir);
@@ -24,16 +25,32 @@
 //       (DJI's GimbalYawDegree / GimbalPitchDegree / GimbalRollDegree mean exactly these.)
 //   (b) the frames' own tags (telemetry_file empty): EXIF GPS (GPSLatitude, GPSLongitude,
 //       GPSAltitude, read through OpenImageIO) and the XMP packet DJI drones write
-//       (drone-dji:GimbalYawDegree, GimbalPitchDegree, GimbalRollDegree, RelativeAltitude),
+//       (drone-dji:GimbalYawDegree, GimbalPitchDegree, GimbalRollDegree, RelativeAltitude);
+//       GPSLatitudeRef/GPSLongitudeRef must be N/S and E/W (image_io.h's ReadGpsTag),
 //       read from the raw packet (OpenImageIO decodes only the XMP tags it knows, not DJI's
 //       namespace). `altitude` picks GPSAltitude ("gps"), RelativeAltitude ("relative": above
 //       the take-off point), or the latter when present ("auto").
 // - Camera: a camera file (camera_file, camera_file.h; any lens model) or a pinhole with the
 //   horizontal field of view fov_deg, principal point at the image centre.
 //
+// Plausibility (telemetry that is plausible and wrong is the worst input), each refused with the
+// file and line or the frame, the field and the value:
+// - positions: the flight's centre is the median latitude and longitude of its rows (frame
+//   column: every row; time column: the rows around the frames; tags: every frame), longitudes
+//   unwrapped around each other (geodesy.h's FlightCentre); a position farther than
+//   max_distance_from_centre_m from it (great circle) is refused with its distance and a likely
+//   cause (latitude and longitude swapped, radians, a hemisphere's sign). Half a flight in the
+//   other hemisphere puts the centre between the halves and is refused too.
+// - altitudes: EXIF GPSAltitude in [-500, 10000] m (above sea level or the ellipsoid), XMP
+//   RelativeAltitude (above the take-off point, negative into a valley) and a log's alt (either
+//   datum) in [-5000, 10000] m;
+// - non-finite numbers anywhere.
+//
 // Output: a geo-referenced light field (images not loaded; image_path = the frames):
-// - crs = the WGS84 / UTM zone of the flight's mean longitude ("EPSG:326zz" north, "EPSG:327zz"
-//   south; one zone for the whole flight); positions projected with PROJ;
+// - crs = the WGS84 / UTM zone of the flight's centre (as above; "EPSG:326zz" north,
+//   "EPSG:327zz" south; one zone for the whole flight, also when it spans several zones or
+//   crosses the 180th meridian: PROJ takes each longitude relative to the zone's central
+//   meridian, so every view lies within the flight's extent); positions projected with PROJ;
 // - origin = the mean position rounded to 100 m in easting and northing, z = 0, so local z is
 //   the altitude as given;
 // - world axes: x easting, y northing, z up. The heading is turned from true north to grid
@@ -48,7 +65,7 @@
 //   frames are outliers.
 //
 // Throws std::invalid_argument naming the file, line and field (a missing or repeated column, a
-// non-numeric or non-finite value, latitude outside [-80, 84] (UTM's range) or longitude outside
+// non-numeric or non-finite value, malformed quoting, an implausible position or altitude, latitude outside [-80, 84] (UTM's range) or longitude outside
 // [-180, 180], an angle outside [-360, 360], pitch outside [-180, 180], a repeated or unknown
 // frame name, decreasing times, a frame outside the log's times), or the frame and tag for
 // EXIF/XMP (a frame without GPS or gimbal tags), or the option. Nothing is written by this
@@ -76,6 +93,10 @@ struct TelemetryOptions {
   int altitude_window = 9;
   // An altitude further than this from its running median is an outlier, metres, > 0.
   double max_altitude_deviation_m = 5.0;
+  // A position farther than this from the flight's centre (the median latitude and longitude)
+  // is refused, metres, > 0 (infinity = no bound). 50 km holds any drone flight; raise it for a
+  // longer one.
+  double max_distance_from_centre_m = 50000.0;
   // A time column: seconds between consecutive frames (name order), > 0 (required then).
   double frame_interval_s = 0.0;
   // A time column: the log time of the first frame, seconds.
