@@ -407,6 +407,8 @@ def test_cli_a_dem_that_covers_none_of_the_map_is_refused_like_integral(flight_f
     utm = aos.Heightfield(np.full((40, 40), 0.5, np.float32),
                           (ORIGIN[0] - 20.0, 1.0, 0.0, ORIGIN[1] + 20.0, 0.0, -1.0), "EPSG:25833")
     utm.write(str(tmp_path / "utm.tif"))
+    aos.Heightfield(np.full((40, 40), 300.0, np.float32), (ORIGIN[0] - 20.0, 1.0, 0.0, ORIGIN[1] + 20.0, 0.0, -1.0),
+                    "EPSG:25833").write(str(tmp_path / "utm300.tif"))
     beside = aos.Heightfield(np.full((10, 10), 0.5, np.float32), (200.0, 1.0, 0.0, 210.0, 0.0, -1.0))
     beside.write(str(tmp_path / "beside.tif"))
     out = tmp_path / "out"
@@ -415,6 +417,11 @@ def test_cli_a_dem_that_covers_none_of_the_map_is_refused_like_integral(flight_f
             ("utm.tif", [], ["utm.tif: no pixel is covered: the surface does not cover the map",
                              "the surface is in EPSG:25833 but the light field has none"]),
             ("utm.tif", ["--extent", "-9", "-9", "9", "9"], ["utm.tif: no pixel is covered"]),
+            # Heights of 300 m lie above the views (z 20, local): up flips, and the footprints
+            # on its plane were "unbounded; give the extent" (exit 2).
+            ("utm300.tif", [], ["utm300.tif: no pixel is covered: the surface does not cover the map "
+                                "(under the views' centres)", "the surface is in EPSG:25833 but the "
+                                "light field has none"]),
             ("beside.tif", ["--extent", "-9", "-9", "9", "9"],
              ["beside.tif: no pixel is covered", "it spans x 200.5 .. 209.5, y 200.5 .. 209.5 (world), "
               "the map x -9 .. 9, y -9 .. 9"])):

@@ -193,8 +193,33 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
   } else {
     lo[0] = lo[1] = std::numeric_limits<double>::infinity();
     hi[0] = hi[1] = -std::numeric_limits<double>::infinity();
-    for (int index : selection) {
-      GrowByFootprint(light_field.views[static_cast<size_t>(index)], index, plane_z, lo, hi);
+    try {
+      for (int index : selection) {
+        GrowByFootprint(light_field.views[static_cast<size_t>(index)], index, plane_z, lo, hi);
+      }
+    } catch (const std::invalid_argument&) {
+      // A surface far beside the views (a UTM DEM under a light field in a local frame) may lie
+      // above them, flipping up, so that no footprint meets its plane: say that, not "give the
+      // extent". Its x/y box against the views' centres tells.
+      if (options.focal_surface) {
+        std::vector<double> centres{std::numeric_limits<double>::infinity(),
+                                    std::numeric_limits<double>::infinity(),
+                                    -std::numeric_limits<double>::infinity(),
+                                    -std::numeric_limits<double>::infinity()};
+        for (int index : selection) {
+          const Vec3d c = light_field.views[static_cast<size_t>(index)].cam_from_world.Center() +
+                          light_field.origin;
+          centres = {std::min(centres[0], c.x), std::min(centres[1], c.y),
+                     std::max(centres[2], c.x), std::max(centres[3], c.y)};
+        }
+        const std::array<double, 4> box = options.focal_surface->ExtentInWorld(light_field.origin);
+        if (box[2] < centres[0] || box[0] > centres[2] || box[3] < centres[1] ||
+            box[1] > centres[3]) {
+          CheckSurfaceCovers(*options.focal_surface, light_field,
+                             "the map (under the views' centres)", 1, 1, centres);
+        }
+      }
+      throw;
     }
     for (int i = 0; i < 2; ++i) {
       lo[i] += light_field.origin[i];
