@@ -305,10 +305,10 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
       flags.NamingFlags([&] { return RenderIntegral(light_field, c.options, &progress); });
   progress.Finish();
   const long long pixels = static_cast<long long>(result.image.width()) * result.image.height();
-  if (!c.args.focal_surface.empty() && result.uncovered_pixels == pixels) {
-    // Nothing written: an all-empty image is no render of the terrain.
-    ThrowInvalid(c.args.focal_surface + ": no pixel is covered: the surface does not cover the "
-                 "virtual camera's view (or no view sees it); check its extent and CRS");
+  if (c.options.focal_surface) {
+    // Nothing written: an all-empty image is no render of the terrain (the map refuses the same).
+    CheckSurfaceCovers(*c.options.focal_surface, light_field, "the virtual camera's view",
+                       result.uncovered_pixels, pixels);
   }
   if (!c.args.focal_surface.empty() && result.uncovered_pixels > 0) {
     Warn(c.args.focal_surface + ": " +

@@ -137,7 +137,9 @@ TEST_F(MeshFiles, BadMeshesAreRefusedNamingFileLineAndField) {
               }),
               HasSubstr("range.ply: element face 0: vertex_indices: index 3 is out of range"));
   EXPECT_THAT(ErrorOf([&] {
-                ReadMesh(Write("short.ply", PlyHeader("ascii", "float", 3, 1) + "0 0 0 1\n1 0 0\n"));
+                // Long enough for the header's counts (3 x 4 + 1 tokens of >= 2 bytes), but short.
+                ReadMesh(Write("short.ply", PlyHeader("ascii", "float", 3, 1) +
+                                                "0 0 0 1\n1.00000000000000000 0 0\n"));
               }),
               HasSubstr("short.ply: element vertex 1: red: the file ends early"));
   EXPECT_THAT(ErrorOf([&] { ReadMesh(Path("missing.obj")); }), HasSubstr("missing.obj"));
@@ -517,6 +519,197 @@ TEST(SurfaceMisses, PixelsWhoseRaysMissTheSurfaceGetCountZeroAndAreReported) {
   const IntegralResult holed = RenderIntegral(light_field, options);
   EXPECT_GT(holed.uncovered_pixels, 0);
   EXPECT_LT(holed.uncovered_pixels, misses);
+}
+
+// ---- Coordinates the float ray cast cannot hold, and header sizes (issue 31) ----
+
+// The values a broken file brings: past float (1e300: doubles only), at float's edge (3e38),
+// beyond Embree's FLT_LARGE (1e20), beyond kMaxSurfaceCoordinate yet modest (5e9), not finite.
+const double kExtremes[] = {1e20, 3e38, -3e38, 1e300, 5e9,
+                            std::numeric_limits<double>::quiet_NaN(),
+                            std::numeric_limits<double>::infinity()};
+
+std::string Text(double value) {
+  char buffer[64];
+  std::snprintf(buffer, sizeof(buffer), "%.17g", value);
+  return buffer;
+}
+
+// A binary PLY of a 1 m square at z = 0 (double x, y, z) whose vertex 2 has z = `z`.
+std::string BinaryPlySquare(double z) {
+  std::string bytes =
+      "ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty double x\n"
+      "property double y\nproperty double z\nelement face 1\n"
+      "property list uchar int vertex_indices\nend_header\n";
+  const double xyz[4][3] = {{0, 0, 0}, {1, 0, 0}, {1, 1, z}, {0, 1, 0}};
+  for (const auto& v : xyz) {
+    for (double c : v) Append(bytes, c);
+  }
+  Append(bytes, uint8_t{4});
+  for (int i = 0; i < 4; ++i) Append(bytes, int32_t{i});
+  return bytes;
+}
+
+// A binary PLY whose header declares `vertices` float vertices and `faces` faces, with `body`
+// bytes after it.
+std::string PlyWithCounts(const std::string& format, int64_t vertices, int64_t faces,
+                          const std::string& body) {
+  return "ply\nformat " + format + " 1.0\nelement vertex " + std::to_string(vertices) +
+         "\nproperty float x\nproperty float y\nproperty float z\nelement face " +
+         std::to_string(faces) + "\nproperty list uchar int vertex_indices\nend_header\n" + body;
+}
+
+TEST_F(MeshFiles, ExtremeCoordinatesAreRefusedNamingFileVertexAndField) {
+  // Before: a square at z = 1e20 read, and ray casting it aborted the process in Embree
+  // (assert ray.valid(), exit 134). Every reader refuses such a vertex, naming where it is.
+  for (double z : kExtremes) {
+    SCOPED_TRACE(Text(z));
+    const std::string obj = Write("e.obj", "v 0 0 0\nv 1 0 0\nv 1 1 " + Text(z) + "\nf 1 2 3\n");
+    const std::string finite = std::isfinite(z) ? "beyond +-1000000000 m" : "is not finite";
+    EXPECT_THAT(ErrorOf([&] { ReadMesh(obj); }), HasSubstr("e.obj: line 3: v: z "));
+    EXPECT_THAT(ErrorOf([&] { ReadMesh(obj); }), HasSubstr(finite));
+    EXPECT_THAT(ErrorOf([&] { ReadPoints(obj); }), HasSubstr("e.obj: line 3: v: z "));
+    const std::string ply = Write("e.ply", BinaryPlySquare(z));
+    EXPECT_THAT(ErrorOf([&] { ReadMesh(ply); }), HasSubstr("e.ply: element vertex 2: z "));
+    EXPECT_THAT(ErrorOf([&] { ReadMesh(ply); }), HasSubstr(finite));
+    // A mesh made in code (the Python Mesh) goes through Mesh::Check.
+    Mesh mesh = SquareMesh(0.0);
+    mesh.vertices[1].x = z;
+    EXPECT_THAT(ErrorOf([&] { FocalSurface::FromMesh(mesh, "m"); }), HasSubstr("m: vertex 1: x "));
+  }
+  // A float PLY at 3e38 (float's edge) is refused too.
+  std::string bytes;
+  for (float v : {0.f, 0.f, 0.f, 1.f, 0.f, 0.f, 0.f, 1.f, 3e38f}) Append(bytes, v);
+  Append(bytes, uint8_t{3});
+  for (int i = 0; i < 3; ++i) Append(bytes, int32_t{i});
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("f.ply", PlyWithCounts("binary_little_endian", 3, 1, bytes))); }),
+              HasSubstr("f.ply: element vertex 2: z is 3.000000005e+38 m, beyond +-1000000000 m"));
+  // A coordinate at the bound is read.
+  EXPECT_EQ(ReadMesh(Write("edge.obj", "v 0 0 0\nv 1 0 0\nv 1 1 1e9\nf 1 2 3\n")).vertices[2].z, 1e9);
+}
+
+TEST_F(HeightfieldFiles, ExtremeHeightsAndPlacesAreRefusedNamingThePixel) {
+  // DEM heights of 1e20 or +-3e38 (an undeclared nodata value) aborted the process in Embree.
+  for (double value : {1e20, 3e38, -3e38, 5e9, double(std::numeric_limits<float>::infinity())}) {
+    SCOPED_TRACE(Text(value));
+    Heightfield field = TiltedField(4, 3, 1.0);
+    field.heights[1 * 4 + 2] = static_cast<float>(value);  // pixel (2, 1)
+    EXPECT_THAT(ErrorOf([&] { FocalSurface::FromHeightfield(field, "d.tif"); }),
+                HasSubstr("d.tif: heights: pixel (2, 1) (column, row) "));
+    // Written by GDAL itself (WriteHeightfield checks too): a raster read back.
+    const std::string path = Path("extreme.tif");
+    std::remove(path.c_str());
+    {
+      GDALAllRegister();
+      GDALDatasetH dataset =
+          GDALCreate(GDALGetDriverByName("GTiff"), path.c_str(), 4, 3, 1, GDT_Float32, nullptr);
+      double gt[6] = {0, 1, 0, 3, 0, -1};
+      GDALSetGeoTransform(dataset, gt);
+      GDALRasterIO(GDALGetRasterBand(dataset, 1), GF_Write, 0, 0, 4, 3, field.heights.data(), 4,
+                   3, GDT_Float32, 0, 0);
+      GDALClose(dataset);
+    }
+    EXPECT_THAT(ErrorOf([&] { FocalSurface::Read(path); }),
+                HasSubstr("extreme.tif: heights: pixel (2, 1) (column, row) "));
+  }
+  // NaN is nodata, not an error; a raster placed at 1e20 is refused.
+  Heightfield field = TiltedField(4, 3, 1.0);
+  field.geotransform[3] = 1e20;
+  EXPECT_THAT(ErrorOf([&] { FocalSurface::FromHeightfield(field, "far.tif"); }),
+              HasSubstr("far.tif: geotransform: the raster's y range reaches a value that is 1e+20 m"));
+}
+
+TEST(SurfaceExtremes, PlanesDepthMapsPlacementsAndCamerasBeyondTheFloatRayCastAreRefused) {
+  const LightField& light_field = Ground();
+  for (double z : kExtremes) {
+    SCOPED_TRACE(Text(z));
+    // A plane given by numbers.
+    EXPECT_THAT(ErrorOf([&] { FocalSurface::FromPlane(Plane::AtHeight(z)); }),
+                HasSubstr("focal_plane: point"));
+    IntegralOptions options = GroundOptions();
+    options.focal_plane = Plane::AtHeight(z);
+    EXPECT_THAT(ErrorOf([&] { RenderIntegral(light_field, options); }), HasSubstr("focal_plane"));
+    // A depth map whose pixel (3, 2) is that far (a depth map holds float32).
+    const PinholeCamera camera = PinholeCamera::FromFov(6, 5, 50.0);
+    Image depth(6, 5, 1, PixelType::kF32);
+    for (int y = 0; y < 5; ++y) {
+      for (int x = 0; x < 6; ++x) depth.At<float>(x, y)[0] = 10.0f;
+    }
+    const float as_float = static_cast<float>(std::abs(z));
+    if (std::isfinite(as_float)) {
+      depth.At<float>(3, 2)[0] = as_float;
+      EXPECT_THAT(ErrorOf([&] { FocalSurface::FromDepthMap(depth, camera, NadirCamFromWorld(Vec3d(0, 0, 20))); }),
+                  HasSubstr("depth: pixel (3, 2): depth "));
+    }
+    // A placement's origin or offset.
+    SurfacePlacement placement;
+    placement.origin.y = z;
+    EXPECT_THAT(ErrorOf([&] { placement.Check(); }), HasSubstr("origin"));
+    placement = SurfacePlacement();
+    placement.offset = z;
+    EXPECT_THAT(ErrorOf([&] { placement.Check(); }), HasSubstr("surface_offset"));
+  }
+  // Within kMaxSurfaceCoordinate but 2e7 m from the rest of the mesh: past kMaxRayCastRadius.
+  Mesh spread = SquareMesh(0.0);
+  spread.vertices[2] = Vec3d(4e7, 100, 0);
+  EXPECT_THAT(ErrorOf([&] { FocalSurface::FromMesh(spread, "spread.obj"); }),
+              HasSubstr("spread.obj: vertex 0 (-100, -100, 0) lies 10000075 m from the surface's "
+                        "centroid (9999975, 0, 0); the float32 ray cast holds 10000000 m at most"));
+  // A mesh 5e8 m away in world coordinates (a UTM DEM under a light field without an origin):
+  // the camera is beyond kMaxRayOriginDistance of it; refused, not cast.
+  Mesh far = SquareMesh(0.0);
+  for (Vec3d& v : far.vertices) v.y += 5e8;
+  const FocalSurface surface = FocalSurface::FromMesh(far, "far.obj");
+  const PinholeCamera camera = PinholeCamera::FromFov(8, 8, 50.0);
+  EXPECT_THAT(ErrorOf([&] { surface.DepthFor(camera, NadirCamFromWorld(Vec3d(0, 0, 20)), SurfacePlacement()); }),
+              HasSubstr("cam_from_world: the virtual camera's centre lies 500000000 m from the centroid "
+                        "of the focal surface far.obj"));
+  // Offsets that move the ray origins 1e20 m (finite): refused naming offsets.
+  const FocalSurface square = FocalSurface::FromMesh(SquareMesh(0.0), "sq.obj");
+  std::vector<double> offsets(64, 0.5);
+  offsets[9] = 1e20;
+  EXPECT_THAT(ErrorOf([&] { square.DepthForOffsets(camera, NadirCamFromWorld(Vec3d(0, 0, 20)), SurfacePlacement(), offsets); }),
+              HasSubstr("offsets: the virtual camera's centre moved by an offset of 1e+20 m lies"));
+  // The map's vertical lines at 1e20 (or 5e8) miss, as they do geometrically; inside they hit.
+  const std::vector<double> z = square.HeightsAt({{1e20, 0}, {0, -3e38}, {5e8, 5e8}, {1, 1}}, SurfacePlacement());
+  EXPECT_TRUE(std::isnan(z[0]) && std::isnan(z[1]) && std::isnan(z[2]));
+  EXPECT_EQ(z[3], 0.0);
+}
+
+TEST_F(MeshFiles, PlyHeaderCountsAreCheckedAgainstTheFileAndTheMemoryBudget) {
+  // Before: 2e9 vertices in a 150-byte file reserved 48 GB: "error: std::bad_alloc", no file named.
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("huge.ply", PlyWithCounts("binary_little_endian", 2000000000, 1, std::string(40, '\0')))); }),
+              HasSubstr("huge.ply: PLY header: element vertex 2000000000: the file cannot hold "
+                        "that many (each takes at least 12 bytes (binary)"));
+  EXPECT_THAT(ErrorOf([&] { ReadPoints(Write("huge.ply", PlyWithCounts("ascii", 2000000000, 0, "0 0 0\n"))); }),
+              HasSubstr("huge.ply: PLY header: element vertex 2000000000: the file cannot hold"));
+  // Faces: 4 vertices (48 bytes) and 1e9 faces of at least 1 byte in a file of 60.
+  EXPECT_THAT(ErrorOf([&] { ReadMesh(Write("faces.ply", PlyWithCounts("binary_little_endian", 4, 1000000000, std::string(60, '\0')))); }),
+              HasSubstr("faces.ply: PLY header: element face 1000000000: the file cannot hold"));
+  // Counts the file holds but the memory budget does not: 60000 float vertices (720 kB on disk,
+  // 1.44 MB as doubles) under a 1 MiB budget.
+  std::string body(60000 * 12, '\0');
+  const std::string path = Write("budget.ply", PlyWithCounts("binary_little_endian", 60000, 0, body));
+  ::setenv("AOS_MEMORY_LIMIT_MB", "1", 1);
+  const std::string message = ErrorOf([&] { ReadPoints(path); });
+  ::unsetenv("AOS_MEMORY_LIMIT_MB");
+  EXPECT_THAT(message, HasSubstr("budget.ply: PLY header: element vertex 60000, element face 0: "
+                                 "needs 1 MiB of memory (their vertices and triangles)"));
+  EXPECT_EQ(ReadPoints(path).size(), 60000u);
+  // An OBJ's v and f lines are counted against the budget the same way: 50000 vertices.
+  std::string obj;
+  for (int i = 0; i < 50000; ++i) obj += "v 0 0 0\n";
+  const std::string obj_path = Write("budget.obj", obj);
+  ::setenv("AOS_MEMORY_LIMIT_MB", "1", 1);
+  const std::string obj_message = ErrorOf([&] { ReadPoints(obj_path); });
+  ::unsetenv("AOS_MEMORY_LIMIT_MB");
+  EXPECT_THAT(obj_message, HasSubstr("budget.obj: mesh: 50000 vertices and 0 triangles: needs"));
+  // An element without properties and an absurd count is nothing to read (it used to loop).
+  EXPECT_EQ(ReadMesh(Write("empty_element.ply",
+                           "ply\nformat ascii 1.0\nelement nothing 4000000000000000000\n"
+                           "element vertex 3\nproperty float x\nproperty float y\nproperty float z\n"
+                           "element face 1\nproperty list uchar int vertex_indices\nend_header\n"
+                           "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")).triangles.size(), 1u);
 }
 
 }  // namespace

@@ -501,5 +501,50 @@ TEST_F(MapWrite, CancelLeavesNoFile) {
   EXPECT_TRUE(Files().empty());
 }
 
+TEST_F(MapWrite, ASurfaceThatCoversNoneOfTheMapIsRefusedAndLeavesNoFile) {
+  // Before: a DEM beside the flight (or in another frame: a UTM DEM under a light field without
+  // origin or CRS) wrote an all-nodata GeoTIFF and returned, where aos-render integral refuses.
+  // The map now makes integral's check (CheckSurfaceCovers), naming the surface, its x/y box
+  // beside the map's and, for a DEM with a CRS under a light field without one, that cause.
+  const LightField light_field = GroundLightField();
+  MapOptions options;
+  options.pixel_size = 0.25;
+  options.extent = {-4.0, -4.0, 4.0, 4.0};
+  Heightfield dem;
+  dem.width = dem.height = 8;
+  dem.geotransform = {600000.0, 1.0, 0.0, 5200008.0, 0.0, -1.0};
+  dem.heights.assign(64, 0.0f);
+  dem.crs_wkt = "EPSG:32633";
+  options.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromHeightfield(dem, "utm.tif"));
+  const std::string path = Path("map.tif");
+  const std::string message = ErrorOf([&] { WriteMapGeoTiff(light_field, options, path); });
+  EXPECT_THAT(message, HasSubstr("utm.tif: no pixel is covered: the surface does not cover the "
+                                 "map (or no view sees it); check its extent and CRS: it spans "
+                                 "x 600000.5 .. 600007.5, y 5200000.5 .. 5200007.5 (world), the "
+                                 "map x -4 .. 4, y -4 .. 4"));
+  EXPECT_THAT(message, HasSubstr("the surface is in EPSG:32633 but the light field has none"));
+  EXPECT_THAT(ErrorOf([&] { RenderMap(light_field, options); }), HasSubstr("utm.tif: no pixel is covered"));
+  EXPECT_TRUE(Files().empty());
+  // A surface under the map that no selected view sees (its box holds pixel centres): refused
+  // after the render, again with no file left.
+  Mesh square;
+  square.vertices = {{-30, -30, 0}, {30, -30, 0}, {30, 30, 0}, {-30, 30, 0}};
+  square.triangles = {{0, 1, 2}, {0, 2, 3}};
+  options.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromMesh(square, "square.obj"));
+  options.extent = {40.0, 40.0, 44.0, 44.0};  // beyond the square: refused before rendering
+  EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, path); }),
+              HasSubstr("square.obj: no pixel is covered: the surface does not cover the map"));
+  options.extent = {20.0, 20.0, 24.0, 24.0};  // on the square, 15 m beside every footprint
+  EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, path); }),
+              HasSubstr("square.obj: no pixel is covered: the surface does not cover the map "
+                        "(or no view sees it); check its extent and CRS"));
+  EXPECT_TRUE(Files().empty());
+  // Covering part of the map is a map.
+  options.extent = {-4.0, -4.0, 4.0, 4.0};
+  const MapSummary summary = WriteMapGeoTiff(light_field, options, path);
+  EXPECT_LT(summary.uncovered_pixels, int64_t{summary.grid.width} * summary.grid.height);
+  EXPECT_EQ(Files(), std::vector<std::string>{"map.tif"});
+}
+
 }  // namespace
 }  // namespace aos

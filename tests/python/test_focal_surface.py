@@ -7,6 +7,7 @@ import json
 import os
 import pickle
 import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -411,3 +412,190 @@ def test_cli_a_surface_that_covers_part_or_none_of_the_view_is_said_loudly(tmp_p
                          capture_output=True, text=True)
     assert run.returncode != 0 and "far.obj: no pixel is covered" in run.stderr, run.stderr
     assert not out.exists()
+
+
+# ---- Coordinates past what the float ray cast holds (issue 31) ----
+#
+# A surface at z = 1e20 (or DEM heights of +-3e38, an undeclared nodata value) used to reach
+# Embree, which aborted the process (assert ray.valid(), exit 134) and took the Python
+# interpreter with it. The cases run in a child interpreter, so that an abort fails the test
+# instead of killing pytest: the child runs each case, records the ValueError's message (or
+# "ok", or another exception's type), and prints them as JSON; an abort shows as a negative
+# return code and no JSON.
+
+EXTREMES = ["1e20", "3e38", "-3e38", "1e300", "nan", "inf"]
+
+_CHILD = """
+import json
+import sys
+import numpy as np
+import aos
+outcomes = {}
+for label, code in json.loads(sys.argv[1]):
+    try:
+        exec(code, {"np": np, "aos": aos})
+        outcomes[label] = "ok"
+    except ValueError as error:
+        outcomes[label] = "ValueError: " + str(error)
+    except Exception as error:
+        outcomes[label] = type(error).__name__ + ": " + str(error)
+print(json.dumps(outcomes))
+"""
+
+
+def _in_child(cases: list[tuple[str, str]], env: dict | None = None) -> dict[str, str]:
+    run = subprocess.run([sys.executable, "-c", _CHILD, json.dumps(cases)], capture_output=True, text=True,
+                         timeout=120, env=env)
+    assert run.returncode == 0, (run.returncode, run.stderr[-2000:])  # an abort is a signal
+    return json.loads(run.stdout.strip().splitlines()[-1])
+
+
+def _refused(outcome: str, *words: str) -> None:
+    assert outcome.startswith("ValueError: "), outcome
+    for word in words:
+        assert word in outcome, (word, outcome)
+
+
+# Renders the surface read from PATH with a small light field: what aborted before.
+_RENDER = """
+light_field = aos.LightField()
+camera = aos.PinholeCamera.from_fov(16, 16, 50.0)
+for i in range(3):
+    light_field.add_view(np.zeros((16, 16), np.float32), camera,
+                         aos.look_at((i - 1.0, 0, 20), (i - 1.0, 0.1, 0), up=(0, 1, 0)))
+surface = aos.FocalSurface.read(PATH)
+aos.render_integral(light_field, focal_surface=surface, fov_deg=60.0, width=16, height=12,
+                    cam_from_world=aos.look_at((0, 0, 20), (0, 0.1, 0), up=(0, 1, 0)))
+"""
+
+
+def _render(path: Path) -> str:
+    return f"PATH = {str(path)!r}\n" + _RENDER
+
+
+def _ply_square(z: float) -> bytes:
+    header = ("ply\nformat binary_little_endian 1.0\nelement vertex 4\nproperty double x\n"
+              "property double y\nproperty double z\nelement face 1\n"
+              "property list uchar int vertex_indices\nend_header\n").encode()
+    vertices = np.array([[-100, -100, 0], [100, -100, 0], [100, 100, z], [-100, 100, 0]], "<f8")
+    return header + vertices.tobytes() + bytes([4]) + np.arange(4, dtype="<i4").tobytes()
+
+
+def test_extreme_mesh_and_plane_coordinates_are_value_errors_not_aborts(tmp_path):
+    cases = []
+    for i, value in enumerate(EXTREMES):
+        (tmp_path / f"e{i}.obj").write_text(f"v -100 -100 0\nv 100 -100 0\nv 100 100 {value}\nv -100 100 0\nf 1 2 3 4\n")
+        (tmp_path / f"e{i}.ply").write_bytes(_ply_square(float(value)))
+        cases += [
+            (f"obj {value}", _render(tmp_path / f"e{i}.obj")),
+            (f"ply {value}", _render(tmp_path / f"e{i}.ply")),
+            (f"Mesh.read {value}", f"aos.Mesh.read({str(tmp_path / f'e{i}.ply')!r})"),
+            # A Mesh made of arrays, and planes given by numbers.
+            (f"Mesh {value}", f"aos.Mesh(np.array([[0, 0, 0], [1, 0, 0], [0, 1, float('{value}')]]), [[0, 1, 2]])"),
+            (f"FocalSurface {value}", f"aos.FocalSurface(float('{value}'))"),
+            (f"focal_plane {value}", "lf = aos.LightField()\n"
+             "lf.add_view(np.zeros((8, 8), np.float32), aos.PinholeCamera.from_fov(8, 8, 50.0), aos.look_at((0, 0, 20), (0, 0.1, 0)))\n"
+             f"aos.render_integral(lf, focal_plane=float('{value}'), pose_view=0)"),
+        ]
+    outcomes = _in_child(cases)
+    for i, value in enumerate(EXTREMES):
+        field = "is not finite" if value in ("nan", "inf") else "beyond +-1000000000 m"
+        _refused(outcomes[f"obj {value}"], f"e{i}.obj: line 3: v: z ", field)
+        _refused(outcomes[f"ply {value}"], f"e{i}.ply: element vertex 2: z ", field)
+        _refused(outcomes[f"Mesh.read {value}"], f"e{i}.ply: element vertex 2: z ")
+        _refused(outcomes[f"Mesh {value}"], "Mesh: vertex 2: z ", field)
+        _refused(outcomes[f"FocalSurface {value}"], "focal_plane")
+        _refused(outcomes[f"focal_plane {value}"], "focal_plane")
+
+
+def test_extreme_dem_heights_are_value_errors_not_aborts(tmp_path):
+    rasterio = pytest.importorskip("rasterio")
+    cases = []
+    for i, value in enumerate(EXTREMES):
+        heights = np.zeros((4, 5), np.float64)
+        heights[2, 3] = float(value)  # 1e300 needs float64; GDAL reads it as float32
+        with rasterio.open(tmp_path / f"dem{i}.tif", "w", driver="GTiff", width=5, height=4, count=1,
+                           dtype="float64", transform=rasterio.Affine(50, 0, -100, 0, -50, 100)) as dst:
+            dst.write(heights[None])
+        cases += [(f"dem {value}", _render(tmp_path / f"dem{i}.tif")),
+                  (f"Heightfield {value}",
+                   f"aos.Heightfield(np.full((2, 2), float('{value}'), np.float32), (0, 1, 0, 0, 0, -1))")]
+    outcomes = _in_child(cases)
+    for i, value in enumerate(EXTREMES):
+        if value == "nan":
+            # NaN is nodata in a DEM: the raster is read (and renders) with a hole; all NaN is
+            # "every pixel is nodata".
+            assert outcomes["dem nan"] == "ok", outcomes["dem nan"]
+            _refused(outcomes["Heightfield nan"], "every pixel is nodata")
+            continue
+        _refused(outcomes[f"dem {value}"], f"dem{i}.tif: heights: pixel (3, 2) (column, row) ")
+        _refused(outcomes[f"Heightfield {value}"], "Heightfield: heights: pixel (0, 0) (column, row) ")
+
+
+def test_extreme_depth_maps_and_cameras_are_value_errors_and_far_map_points_miss():
+    cases = []
+    for value in ("1e20", "3e38"):
+        cases.append((f"depth {value}", f"""
+camera = aos.PinholeCamera.from_fov(6, 5, 50.0)
+depth = np.full((5, 6), 10.0, np.float32)
+depth[2, 3] = float('{value}')
+aos.FocalSurface.from_depth_map(depth, camera, aos.look_at((0, 0, 20), (0, 0.1, 0), up=(0, 1, 0)))
+"""))
+        # A finite mesh seen from a camera that far; the map's vertical lines that far miss.
+        cases.append((f"camera {value}", f"""
+mesh = aos.Mesh(np.array([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [-1, 1, 0.]]), [[0, 1, 2], [0, 2, 3]])
+camera = aos.PinholeCamera.from_fov(8, 8, 50.0)
+light_field = aos.LightField()
+light_field.add_view(np.zeros((8, 8), np.float32), camera, aos.look_at((0, 0, 20), (0, 0.1, 0), up=(0, 1, 0)))
+heights = aos.FocalSurface(mesh).heights_at(light_field, np.array([[float('{value}'), 0.0], [0.5, 0.5]]))
+assert np.isnan(heights[0]) and heights[1] == 0.0, heights
+aos.render_integral(light_field, focal_surface=mesh, fov_deg=60.0, width=8, height=8,
+                    cam_from_world=aos.look_at((0, 0, float('{value}')), (0, 0.1, 0), up=(0, 1, 0)))
+"""))
+    outcomes = _in_child(cases)
+    for value in ("1e20", "3e38"):
+        _refused(outcomes[f"depth {value}"], "depth: pixel (3, 2): depth ")
+        _refused(outcomes[f"camera {value}"], "cam_from_world: the virtual camera's centre lies")
+
+
+@pytest.mark.parametrize("value", ["1e20", "-3e38", "1e300", "nan"])
+def test_cli_extreme_surfaces_exit_1_writing_nothing(tmp_path, value):
+    light_field = _textured_lightfield()
+    aos.write_lightfield(str(tmp_path / "lf.json"), light_field)
+    (tmp_path / "e.obj").write_text(f"v -100 -100 0\nv 100 -100 0\nv 100 100 {value}\nv -100 100 0\nf 1 2 3 4\n")
+    camera = ["--look-at=0.7,-0.4,20,0,1,0,0,1,0", "--fov-deg", "60", "--width", "40", "--height", "30"]
+    for command, extra in (("integral", camera), ("map", ["--pixel-size", "0.5"])):
+        out = tmp_path / f"{command}.tif"
+        run = subprocess.run([_aos_render(), command, str(tmp_path / "lf.json"), *extra, "--focal-surface",
+                              str(tmp_path / "e.obj"), "-o", str(out)], capture_output=True, text=True, timeout=120)
+        assert run.returncode == 1, (command, run.returncode, run.stderr)
+        assert "e.obj: line 3: v: z " in run.stderr, run.stderr
+        assert not out.exists()
+    # A plane given by numbers: refused as bad input, never a signal.
+    run = subprocess.run([_aos_render(), "integral", str(tmp_path / "lf.json"), *camera, "--focal-height", value,
+                          "-o", str(tmp_path / "plane.tif")], capture_output=True, text=True, timeout=120)
+    assert run.returncode in (1, 2) and "--focal-height" in run.stderr, (run.returncode, run.stderr)
+    assert not (tmp_path / "plane.tif").exists()
+
+
+def test_a_ply_header_of_2e9_vertices_is_refused_naming_the_file_not_bad_alloc(tmp_path):
+    # Before: "error: std::bad_alloc" (the reader reserved 48 GB), naming no file.
+    header = ("ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\nproperty double x\n"
+              "property double y\nproperty double z\nend_header\n")
+    (tmp_path / "huge.ply").write_bytes(header.encode() + bytes(48))
+    with pytest.raises(ValueError, match=r"huge.ply: PLY header: element vertex 2000000000: the file cannot hold"):
+        aos.Mesh.read(str(tmp_path / "huge.ply"))
+    light_field = _textured_lightfield()
+    aos.write_lightfield(str(tmp_path / "lf.json"), light_field)
+    run = subprocess.run([_aos_render(), "integral", str(tmp_path / "lf.json"), "--look-at=0.7,-0.4,20,0,1,0,0,1,0",
+                          "--focal-surface", str(tmp_path / "huge.ply"), "-o", str(tmp_path / "out.tif")],
+                         capture_output=True, text=True, timeout=120)
+    assert run.returncode == 1 and "huge.ply: PLY header: element vertex 2000000000" in run.stderr, run.stderr
+    assert "bad_alloc" not in run.stderr
+    # Counts the file holds but the memory budget (AOS_MEMORY_LIMIT_MB) does not: refused naming
+    # the limit, where without it the file is read (and refused for having no faces).
+    (tmp_path / "budget.ply").write_bytes(header.replace("2000000000", "50000").encode() + bytes(50000 * 24))
+    case = [("read", f"aos.Mesh.read({str(tmp_path / 'budget.ply')!r})")]
+    _refused(_in_child(case)["read"], "budget.ply: the mesh has no triangles")
+    _refused(_in_child(case, env=dict(os.environ, AOS_MEMORY_LIMIT_MB="1"))["read"], "budget.ply",
+             "AOS_MEMORY_LIMIT_MB")

@@ -398,6 +398,61 @@ def test_a_dem_in_another_crs_is_refused_or_transformed(flight: aos.LightField,
     assert surface.in_crs("EPSG:25833") == surface
 
 
+def test_cli_a_dem_that_covers_none_of_the_map_is_refused_like_integral(flight_file: Path,
+                                                                      tmp_path: Path) -> None:
+    """Before: a DEM in UTM (EPSG:25833) under the simulated flight (local frame, no CRS), or a
+    DEM beside the flight, exited 0 with an all-nodata GeoTIFF ("0 of 9 views"), where
+    `aos-render integral` refuses such a surface. The map makes integral's check: exit 1, one
+    error naming the DEM and the likely cause, no file."""
+    utm = aos.Heightfield(np.full((40, 40), 0.5, np.float32),
+                          (ORIGIN[0] - 20.0, 1.0, 0.0, ORIGIN[1] + 20.0, 0.0, -1.0), "EPSG:25833")
+    utm.write(str(tmp_path / "utm.tif"))
+    aos.Heightfield(np.full((40, 40), 300.0, np.float32), (ORIGIN[0] - 20.0, 1.0, 0.0, ORIGIN[1] + 20.0, 0.0, -1.0),
+                    "EPSG:25833").write(str(tmp_path / "utm300.tif"))
+    beside = aos.Heightfield(np.full((10, 10), 0.5, np.float32), (200.0, 1.0, 0.0, 210.0, 0.0, -1.0))
+    beside.write(str(tmp_path / "beside.tif"))
+    out = tmp_path / "out"
+    out.mkdir()
+    for dem, extent, words in (
+            ("utm.tif", [], ["utm.tif: no pixel is covered: the surface does not cover the map",
+                             "the surface is in EPSG:25833 but the light field has none"]),
+            ("utm.tif", ["--extent", "-9", "-9", "9", "9"], ["utm.tif: no pixel is covered"]),
+            # Heights of 300 m lie above the views (z 20, local): up flips, and the footprints
+            # on its plane were "unbounded; give the extent" (exit 2).
+            ("utm300.tif", [], ["utm300.tif: no pixel is covered: the surface does not cover the map "
+                                "(under the views' centres)", "the surface is in EPSG:25833 but the "
+                                "light field has none"]),
+            ("beside.tif", ["--extent", "-9", "-9", "9", "9"],
+             ["beside.tif: no pixel is covered", "it spans x 200.5 .. 209.5, y 200.5 .. 209.5 (world), "
+              "the map x -9 .. 9, y -9 .. 9"])):
+        result = run("map", str(flight_file), "--pixel-size", "0.25", *extent, "--focal-surface",
+                     str(tmp_path / dem), "-o", str(out / "map.tif"))
+        assert result.returncode == 1, result.stderr
+        errors = [line for line in result.stderr.splitlines() if "error" in line]
+        assert len(errors) == 1, result.stderr
+        for word in words:
+            assert word in errors[0], result.stderr
+        assert not any(out.iterdir())
+    # integral's own refusal of the same DEM is the same sentence (one check, not two copies).
+    result = run("integral", str(flight_file), "--pose-view", "4", "--focal-surface",
+                 str(tmp_path / "beside.tif"), "-o", str(out / "integral.tif"))
+    assert result.returncode == 1 and "beside.tif: no pixel is covered: the surface does not cover the virtual " \
+        "camera's view (or no view sees it); check its extent and CRS" in result.stderr, result.stderr
+    assert not any(out.iterdir())
+
+
+def test_python_render_map_refuses_a_surface_that_covers_none_of_it(flight: aos.LightField,
+                                                                   tmp_path: Path) -> None:
+    beside = aos.Heightfield(np.full((10, 10), ORIGIN[2], np.float32),
+                             (ORIGIN[0] + 200.0, 1.0, 0.0, ORIGIN[1] + 210.0, 0.0, -1.0))
+    extent = [ORIGIN[0] - 9.0, ORIGIN[1] - 9.0, ORIGIN[0] + 9.0, ORIGIN[1] + 9.0]
+    with pytest.raises(ValueError, match="focal_surface: no pixel is covered: the surface does not cover the map"):
+        aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=beside)
+    with pytest.raises(ValueError, match="no pixel is covered"):
+        aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=beside, path=tmp_path / "m.tif")
+    assert not any(tmp_path.iterdir())
+
+
 def block_means(image: np.ndarray, count: np.ndarray, f: int) -> tuple[np.ndarray, np.ndarray]:
     """The overview of factor f by its definition: over each f x f block of the map (partial at
     the right and bottom edges), the mean of the values of the pixels with samples (NaN where

@@ -14,6 +14,7 @@
 
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/memory.h"
 
 namespace fs = std::filesystem;
 
@@ -92,13 +93,27 @@ void Heightfield::Check(const std::string& where) const {
   if (geotransform[1] == 0.0 || geotransform[5] == 0.0) {
     ThrowInvalid(Where(where, "geotransform: the pixel size is zero"));
   }
+  // The raster's outer corners bound every pixel centre (x and y are monotonic in column, row).
+  const double corners[2][2] = {{geotransform[0], geotransform[0] + width * geotransform[1]},
+                                {geotransform[3], geotransform[3] + height * geotransform[5]}};
+  for (int axis = 0; axis < 2; ++axis) {
+    for (double value : corners[axis]) {
+      const std::string problem = SurfaceCoordinateProblem(value);
+      if (!problem.empty()) {
+        ThrowInvalid(Where(where, std::string("geotransform: the raster's ") + "xy"[axis] +
+                                      " range reaches a value that " + problem));
+      }
+    }
+  }
   bool any_valid = false;
   for (size_t i = 0; i < heights.size(); ++i) {
-    if (std::isinf(heights[i])) {
+    if (std::isnan(heights[i])) continue;
+    const std::string problem = SurfaceCoordinateProblem(heights[i]);
+    if (!problem.empty()) {
       ThrowInvalid(Where(where, "heights: pixel (" + std::to_string(i % width) + ", " +
-                                    std::to_string(i / width) + ") is infinite"));
+                                    std::to_string(i / width) + ") (column, row) " + problem));
     }
-    any_valid = any_valid || !std::isnan(heights[i]);
+    any_valid = true;
   }
   if (!any_valid) ThrowInvalid(Where(where, "heights: every pixel is nodata"));
 }
@@ -132,6 +147,11 @@ Heightfield ReadHeightfield(const std::string& path) {
   const char* wkt = GDALGetProjectionRef(dataset);
   field.crs_wkt = wkt != nullptr ? wkt : "";
   GDALRasterBandH band = GDALGetRasterBand(dataset, 1);
+  CheckMemoryBudget(SaturatingProduct({static_cast<uint64_t>(width), static_cast<uint64_t>(height),
+                                       sizeof(float)}),
+                    path + ": size: " + std::to_string(width) + " x " + std::to_string(height) +
+                        " pixels",
+                    "the heights as float32");
   field.heights.resize(static_cast<size_t>(width * height));
   if (GDALRasterIO(band, GF_Read, 0, 0, field.width, field.height, field.heights.data(),
                    field.width, field.height, GDT_Float32, 0, 0) != CE_None) {

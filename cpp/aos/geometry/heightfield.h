@@ -13,9 +13,14 @@
 //   CRS is allowed: crs_wkt is then empty (its coordinates are taken as the light field's world
 //   frame as they are). A raster without a geotransform is refused (its pixels have no place).
 // - Only band 1 is read.
+// - Every valid height and every pixel centre's x, y lies within +-kMaxSurfaceCoordinate (1e9 m,
+//   mesh.h: what the float ray cast of focal surfaces can hold); a height beyond it (an
+//   undeclared nodata value such as -3.4e38) is refused naming its pixel (column, row).
 //
 // Throws std::invalid_argument naming the file and the field: unreadable file, no or rotated or
-// degenerate geotransform, more than kMaxHeightfieldPixels pixels, every pixel nodata.
+// degenerate geotransform, more than kMaxHeightfieldPixels pixels or more than the memory budget
+// holds (util/memory.h), a height or pixel centre beyond kMaxSurfaceCoordinate, every pixel
+// nodata.
 #include <array>
 #include <cstdint>
 #include <string>
@@ -48,8 +53,9 @@ struct Heightfield {
   double CenterY(int row) const { return geotransform[3] + (row + 0.5) * geotransform[5]; }
 
   // Throws std::invalid_argument ("<where>: <field>: ...") for a size that does not match the
-  // heights, an absurd size, a rotated, non-finite or zero-pixel-size geotransform, an infinite
-  // height, or no valid height at all.
+  // heights, an absurd size, a rotated, non-finite or zero-pixel-size geotransform, a raster
+  // reaching beyond kMaxSurfaceCoordinate, an infinite height or one beyond
+  // kMaxSurfaceCoordinate, or no valid height at all.
   void Check(const std::string& where) const;
 };
 

@@ -9,6 +9,7 @@
 
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
+#include "aos/util/memory.h"
 
 namespace aos {
 namespace {
@@ -22,6 +23,8 @@ std::string ReadBytes(const std::string& path) {
     ThrowInvalid(path + ": mesh: the file has " + std::to_string(size) +
                  " bytes, more than the 4 GiB a mesh may have");
   }
+  CheckMemoryBudget(size, path + ": mesh: a file of " + std::to_string(size) + " bytes",
+                    "the whole file is held while it is parsed");
   std::ifstream stream(path, std::ios::binary);
   if (!stream) ThrowInvalid(path + ": mesh: cannot open the file");
   std::string bytes(static_cast<size_t>(size), '\0');
@@ -56,13 +59,66 @@ void AddPolygon(const std::vector<int>& corners, Mesh& mesh) {
   }
 }
 
+// Bytes of a vertex and of a triangle once read (what a mesh's size is budgeted by).
+constexpr uint64_t kVertexBytes = sizeof(Vec3d);
+constexpr uint64_t kTriangleBytes = sizeof(std::array<int, 3>);
+
+uint64_t SaturatingSum(uint64_t a, uint64_t b) {
+  return a > std::numeric_limits<uint64_t>::max() - b ? std::numeric_limits<uint64_t>::max() : a + b;
+}
+
+bool IsBlank(char c) { return c == ' ' || c == '\t' || c == '\r' || c == '\v' || c == '\f'; }
+
+// The vertices (`v` lines) and triangles (corners - 2 of each `f` line) of an OBJ file, counted
+// without parsing a number: what ReadObj will allocate, checked before it does.
+void CountObj(const std::string& bytes, uint64_t& vertices, uint64_t& triangles) {
+  vertices = triangles = 0;
+  size_t i = 0;
+  const size_t n = bytes.size();
+  while (i < n) {
+    while (i < n && IsBlank(bytes[i])) ++i;
+    const bool is_v = i + 1 < n && bytes[i] == 'v' && IsBlank(bytes[i + 1]);
+    const bool is_f = i + 1 < n && bytes[i] == 'f' && IsBlank(bytes[i + 1]);
+    if (is_v) ++vertices;
+    uint64_t corners = 0;
+    if (is_f) ++i;
+    while (i < n && bytes[i] != '\n') {
+      if (is_f && !IsBlank(bytes[i]) && IsBlank(bytes[i - 1])) ++corners;
+      ++i;
+    }
+    if (corners > 2) triangles += corners - 2;
+    ++i;  // past the newline
+  }
+}
+
+// A vertex coordinate as read: finite and within kMaxSurfaceCoordinate, else thrown as
+// "<where>: <name> <problem>".
+double CheckedCoordinate(double value, const std::string& where, const std::string& name) {
+  const std::string problem = SurfaceCoordinateProblem(value);
+  if (!problem.empty()) ThrowInvalid(where + ": " + name + " " + problem);
+  return value;
+}
+
 Mesh ReadObj(const std::string& path, const std::string& bytes) {
   Mesh mesh;
-  std::istringstream stream(bytes);
+  uint64_t vertex_count = 0, triangle_count = 0;
+  CountObj(bytes, vertex_count, triangle_count);
+  CheckMemoryBudget(SaturatingSum(SaturatingProduct({vertex_count, kVertexBytes}),
+                                  SaturatingProduct({triangle_count, kTriangleBytes})),
+                    path + ": mesh: " + std::to_string(vertex_count) + " vertices and " +
+                        std::to_string(triangle_count) + " triangles",
+                    "read from the OBJ file's v and f lines");
+  mesh.vertices.reserve(static_cast<size_t>(vertex_count));
+  mesh.triangles.reserve(static_cast<size_t>(triangle_count));
   std::string line;
   int64_t line_number = 0;
   std::vector<int> corners;
-  while (std::getline(stream, line)) {
+  size_t line_start = 0;
+  while (line_start < bytes.size()) {
+    size_t line_end = bytes.find('\n', line_start);
+    if (line_end == std::string::npos) line_end = bytes.size();
+    line.assign(bytes, line_start, line_end - line_start);
+    line_start = line_end + 1;
     ++line_number;
     if (!line.empty() && line.back() == '\r') line.pop_back();
     std::istringstream words(line);
@@ -79,10 +135,7 @@ Mesh ReadObj(const std::string& path, const std::string& bytes) {
         if (!ParseDouble(token, value)) {
           ThrowInvalid(where + ": v: " + names[i] + " is not a number ('" + token + "')");
         }
-        if (!std::isfinite(value)) {
-          ThrowInvalid(where + ": v: " + names[i] + " is not finite (" + token + ")");
-        }
-        vertex[i] = value;
+        vertex[i] = CheckedCoordinate(value, where + ": v", names[i]);
       }
       mesh.vertices.push_back(vertex);
     } else if (keyword == "f") {
@@ -205,6 +258,48 @@ class PlyReader {
   bool binary_;
 };
 
+// The fewest bytes one item of `element` takes in the body: binary, the sum of its scalar
+// properties' sizes and its lists' count sizes (a list may be empty); ASCII, a character and a
+// separator per property.
+uint64_t PlyElementMinBytes(const PlyElement& element, bool binary) {
+  uint64_t bytes = 0;
+  for (const PlyProperty& property : element.properties) {
+    bytes += binary ? PlyTypeSize(property.is_list ? property.count_type : property.type) : 2;
+  }
+  return bytes;
+}
+
+// The header's counts against the file and the memory budget, before anything is allocated: a
+// header may declare 2e9 vertices in a file of a few bytes.
+void CheckPlyCounts(const std::string& path, const std::vector<PlyElement>& elements,
+                    uint64_t body_bytes, bool binary) {
+  // ASCII: the last token needs no separator after it.
+  const uint64_t available = binary ? body_bytes : body_bytes + 1;
+  uint64_t needed = 0;
+  uint64_t vertices = 0, faces = 0;
+  for (const PlyElement& element : elements) {
+    const uint64_t count = static_cast<uint64_t>(element.count);
+    const uint64_t each = PlyElementMinBytes(element, binary);
+    needed = SaturatingSum(needed, SaturatingProduct({count, each}));
+    if (needed > available) {
+      ThrowInvalid(path + ": PLY header: element " + element.name + " " +
+                   std::to_string(element.count) + ": the file cannot hold that many (each takes " +
+                   "at least " + std::to_string(each) + " bytes " +
+                   (binary ? "(binary)" : "(ASCII)") + "; the elements up to it need at least " +
+                   std::to_string(needed) + " bytes, the body has " + std::to_string(body_bytes) +
+                   ")");
+    }
+    if (element.name == "vertex") vertices = SaturatingSum(vertices, count);
+    if (element.name == "face") faces = SaturatingSum(faces, count);
+  }
+  // Every face gives at least one triangle (one with fewer than 3 corners is refused).
+  CheckMemoryBudget(SaturatingSum(SaturatingProduct({vertices, kVertexBytes}),
+                                  SaturatingProduct({faces, kTriangleBytes})),
+                    path + ": PLY header: element vertex " + std::to_string(vertices) +
+                        ", element face " + std::to_string(faces),
+                    "their vertices and triangles");
+}
+
 Mesh ReadPly(const std::string& path, const std::string& bytes) {
   // Header: lines up to "end_header".
   size_t offset = 0;
@@ -283,6 +378,7 @@ Mesh ReadPly(const std::string& path, const std::string& bytes) {
   }
   if (!ended) ThrowInvalid(path + ": PLY header: no 'end_header' line");
   if (!have_format) ThrowInvalid(path + ": PLY header: no 'format' line");
+  CheckPlyCounts(path, elements, bytes.size() - offset, binary);
 
   Mesh mesh;
   int64_t vertex_count = -1;
@@ -319,6 +415,9 @@ Mesh ReadPly(const std::string& path, const std::string& bytes) {
     if (is_face && index_property < 0) {
       ThrowInvalid(path + ": element face: no list property vertex_indices");
     }
+    if (is_face) mesh.triangles.reserve(static_cast<size_t>(element.count));
+    // An element without properties takes no bytes: nothing to read (and no count to loop on).
+    if (element.properties.empty()) continue;
     for (int64_t i = 0; i < element.count; ++i) {
       const std::string where = path + ": element " + element.name + " " + std::to_string(i);
       Vec3d vertex(0.0);
@@ -329,11 +428,7 @@ Mesh ReadPly(const std::string& path, const std::string& bytes) {
           const double value = reader.Read(property.type, where + ": " + property.name);
           for (int k = 0; k < 3 && is_vertex; ++k) {
             if (xyz[k] == static_cast<int>(p)) {
-              if (!std::isfinite(value)) {
-                ThrowInvalid(where + ": " + property.name + " is not finite (" +
-                             FormatNumber(value) + ")");
-              }
-              vertex[k] = value;
+              vertex[k] = CheckedCoordinate(value, where, property.name);
             }
           }
           continue;
@@ -384,6 +479,14 @@ bool EndsWith(const std::string& text, const std::string& suffix) {
 
 }  // namespace
 
+std::string SurfaceCoordinateProblem(double value) {
+  if (!std::isfinite(value)) return "is not finite (" + FormatNumber(value) + ")";
+  if (std::abs(value) <= kMaxSurfaceCoordinate) return "";
+  return "is " + FormatNumber(value) + " m, beyond +-" + FormatNumber(kMaxSurfaceCoordinate) +
+         " m, the most a surface coordinate may be (an undeclared nodata value, or a unit "
+         "mistake?)";
+}
+
 void DropDegenerateTriangles(Mesh& mesh) {
   size_t kept = 0;
   for (size_t i = 0; i < mesh.triangles.size(); ++i) {
@@ -414,9 +517,11 @@ void Mesh::Check(const std::string& where) const {
                                        : std::string())));
   }
   for (size_t i = 0; i < vertices.size(); ++i) {
-    const Vec3d& v = vertices[i];
-    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
-      ThrowInvalid(Where(where, "vertex " + std::to_string(i) + " is not finite"));
+    for (int k = 0; k < 3; ++k) {
+      const std::string problem = SurfaceCoordinateProblem(vertices[i][k]);
+      if (!problem.empty()) {
+        ThrowInvalid(Where(where, "vertex " + std::to_string(i) + ": " + "xyz"[k] + " " + problem));
+      }
     }
   }
   const int64_t count = static_cast<int64_t>(vertices.size());
@@ -457,9 +562,11 @@ std::vector<Vec3d> ReadPoints(const std::string& path) {
   Mesh mesh = ParseMeshFile(path);
   if (mesh.vertices.empty()) ThrowInvalid(path + ": the file has no vertices (points)");
   for (size_t i = 0; i < mesh.vertices.size(); ++i) {
-    const Vec3d& v = mesh.vertices[i];
-    if (!std::isfinite(v.x) || !std::isfinite(v.y) || !std::isfinite(v.z)) {
-      ThrowInvalid(path + ": vertex " + std::to_string(i) + " is not finite");
+    for (int k = 0; k < 3; ++k) {
+      const std::string problem = SurfaceCoordinateProblem(mesh.vertices[i][k]);
+      if (!problem.empty()) {
+        ThrowInvalid(path + ": vertex " + std::to_string(i) + ": " + "xyz"[k] + " " + problem);
+      }
     }
   }
   return std::move(mesh.vertices);

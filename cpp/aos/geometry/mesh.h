@@ -18,10 +18,25 @@
 //   product of two edges is exactly zero) are dropped, not an error, and counted in
 //   Mesh::dropped_triangles.
 //
+// - Coordinates. Every vertex coordinate is finite and |x|, |y|, |z| <= kMaxSurfaceCoordinate
+//   (1e9 m), else the vertex is refused. 1e9 m is more than any terrestrial CRS holds (the
+//   equator is 4.0e7 m = 1.3e8 US ft long; geocentric coordinates reach 6.4e6 m), so only a
+//   broken file (an undeclared nodata value such as -3.4e38, a unit mistake) is refused. It also
+//   keeps the surface inside what the float ray cast can hold (focal_surface.h,
+//   kMaxRayCastRadius): Embree asserts on ray origins beyond 1.8e18 (its FLT_LARGE) and its
+//   triangle test forms products of three coordinates (1e9^3 = 1e27, far below FLT_MAX 3.4e38).
+// - Sizes. The counts a PLY header declares are checked before anything is allocated: against
+//   the file (every element takes at least one byte per property: binary, the sum of its
+//   properties' sizes; ASCII, one character and a separator each) and against the memory budget
+//   (util/memory.h, AOS_MEMORY_LIMIT_MB); an OBJ's vertices and triangles are counted in a first
+//   pass and checked against the budget the same way. Either refusal is one std::invalid_argument
+//   naming the file and the header element, never std::bad_alloc.
+//
 // Throws std::invalid_argument naming the file, the line (OBJ) or element (PLY) and the field for
-// a file that cannot be read, a non-finite vertex coordinate, a face index out of range, a face
-// with fewer than 3 corners, an unknown PLY format or property type, a truncated file, and a mesh
-// with no vertex or no (non-degenerate) triangle.
+// a file that cannot be read, a non-finite or out-of-range vertex coordinate, a face index out of
+// range, a face with fewer than 3 corners, an unknown PLY format or property type, a truncated
+// file, header counts the file cannot hold or the memory budget cannot take, and a mesh with no
+// vertex or no (non-degenerate) triangle.
 #include <array>
 #include <cstdint>
 #include <string>
@@ -31,6 +46,14 @@
 
 namespace aos {
 
+// The largest |coordinate| of a surface's vertex (or height, or pixel centre), metres. See the
+// contract above.
+inline constexpr double kMaxSurfaceCoordinate = 1e9;
+
+// Empty when |value| <= kMaxSurfaceCoordinate (and finite), else the reason:
+// "is not finite (nan)" / "is 1e+20 m, beyond +-1e9 m (the most a surface coordinate may be)".
+std::string SurfaceCoordinateProblem(double value);
+
 struct Mesh {
   std::vector<Vec3d> vertices;                // world coordinates, metres
   std::vector<std::array<int, 3>> triangles;  // 0-based indices into vertices
@@ -39,7 +62,7 @@ struct Mesh {
   int64_t dropped_triangles = 0;
 
   // Throws std::invalid_argument ("<where>: ...") for no vertices, no triangles, a non-finite
-  // vertex or an index out of range.
+  // vertex or one beyond kMaxSurfaceCoordinate, or an index out of range.
   void Check(const std::string& where) const;
 };
 

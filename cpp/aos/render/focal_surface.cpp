@@ -16,6 +16,25 @@
 #include "aos/util/parallel.h"
 
 namespace aos {
+namespace {
+
+// Embree asserts (aborting the process) on a ray whose origin or direction has a component
+// beyond its FLT_LARGE, 1.844e18; rays past this never reach it (they are misses). The rules
+// of the contract (kMaxRayCastRadius, kMaxRayOriginDistance) keep every ray far inside it; this
+// is the last guard, where no exception may be thrown (inside the OpenMP loops).
+constexpr float kEmbreeLargest = 1e18f;
+
+bool EmbreeTakes(float org_x, float org_y, float org_z, float dir_x, float dir_y, float dir_z) {
+  for (float v : {org_x, org_y, org_z, dir_x, dir_y, dir_z}) {
+    if (!(std::abs(v) <= kEmbreeLargest)) return false;  // also NaN
+  }
+  return true;
+}
+
+// The largest |component| of v.
+double MaxNorm(const Vec3d& v) { return std::max({std::abs(v.x), std::abs(v.y), std::abs(v.z)}); }
+
+}  // namespace
 
 // What a surface holds: its source data and, for everything but a plane, a triangle mesh ray cast
 // through an Embree BVH built on first use.
@@ -31,6 +50,7 @@ struct FocalSurface::Impl {
   std::string source;
   Vec3d centroid{0.0};  // of the mesh's vertices (mesh frame), double
   double min_z = 0.0, max_z = 0.0;
+  double min_x = 0.0, max_x = 0.0, min_y = 0.0, max_y = 0.0;  // of the vertices (mesh frame)
 
   mutable std::once_flag bvh_once;
   mutable RTCDevice device = nullptr;
@@ -42,16 +62,47 @@ struct FocalSurface::Impl {
     if (device != nullptr) rtcReleaseDevice(device);
   }
 
+  // The centroid and z range, and the ray cast's rule: every vertex within kMaxRayCastRadius of
+  // the centroid (per axis), else std::invalid_argument naming the source and the vertex.
   void Finish() {
     Vec3d sum(0.0);
-    min_z = std::numeric_limits<double>::infinity();
-    max_z = -min_z;
+    min_x = min_y = min_z = std::numeric_limits<double>::infinity();
+    max_x = max_y = max_z = -min_z;
     for (const Vec3d& v : mesh.vertices) {
       sum += v;
+      min_x = std::min(min_x, v.x);
+      max_x = std::max(max_x, v.x);
+      min_y = std::min(min_y, v.y);
+      max_y = std::max(max_y, v.y);
       min_z = std::min(min_z, v.z);
       max_z = std::max(max_z, v.z);
     }
     centroid = mesh.vertices.empty() ? Vec3d(0.0) : sum / static_cast<double>(mesh.vertices.size());
+    for (size_t i = 0; i < mesh.vertices.size(); ++i) {
+      const Vec3d& v = mesh.vertices[i];
+      const double distance = MaxNorm(v - centroid);
+      if (!(distance <= kMaxRayCastRadius)) {
+        ThrowInvalid(Where(source.empty() ? std::string(FocalSurfaceKindName(kind)) : source,
+                           "vertex " + std::to_string(i) + " (" + FormatNumber(v.x) + ", " +
+                               FormatNumber(v.y) + ", " + FormatNumber(v.z) + ") lies " +
+                               FormatNumber(distance) + " m from the surface's centroid (" +
+                               FormatNumber(centroid.x) + ", " + FormatNumber(centroid.y) + ", " +
+                               FormatNumber(centroid.z) + "); the float32 ray cast holds " +
+                               FormatNumber(kMaxRayCastRadius) + " m at most"));
+      }
+    }
+  }
+
+  // Throws std::invalid_argument naming `what` when a ray from `origin` (mesh frame) lies beyond
+  // kMaxRayOriginDistance of the centroid.
+  void CheckRayOrigin(const Vec3d& origin, const std::string& what) const {
+    const double distance = MaxNorm(origin - centroid);
+    if (!(distance <= kMaxRayOriginDistance)) {
+      ThrowInvalid(what + " lies " + FormatNumber(distance) + " m from the centroid of the focal " +
+                   "surface" + (source.empty() ? std::string() : " " + source) +
+                   "; the float32 ray cast holds rays from within " +
+                   FormatNumber(kMaxRayOriginDistance) + " m of it");
+    }
   }
 
   // Builds the BVH once (float vertices relative to the centroid).
@@ -116,6 +167,10 @@ struct FocalSurface::Impl {
     rayhit.ray.time = 0.0f;
     rayhit.hit.geomID = RTC_INVALID_GEOMETRY_ID;
     rayhit.hit.primID = RTC_INVALID_GEOMETRY_ID;
+    if (!EmbreeTakes(rayhit.ray.org_x, rayhit.ray.org_y, rayhit.ray.org_z, rayhit.ray.dir_x,
+                     rayhit.ray.dir_y, rayhit.ray.dir_z)) {
+      return std::numeric_limits<double>::quiet_NaN();
+    }
     rtcIntersect1(bvh, &context, &rayhit);
     if (rayhit.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::numeric_limits<double>::quiet_NaN();
     return HitDistance(rayhit.hit.primID, rayhit.ray.tfar, origin, direction);
@@ -165,10 +220,14 @@ struct FocalSurface::Impl {
       rays.ray.time[k] = 0.0f;
       rays.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
       rays.hit.primID[k] = RTC_INVALID_GEOMETRY_ID;
+      if (!EmbreeTakes(rays.ray.org_x[k], rays.ray.org_y[k], rays.ray.org_z[k],
+                       rays.ray.dir_x[k], rays.ray.dir_y[k], rays.ray.dir_z[k])) {
+        valid[k] = 0;  // a miss (the last guard; CastDepth refuses such rays first)
+      }
     }
     rtcIntersect8(valid, bvh, &context, &rays);
     for (int k = 0; k < count; ++k) {
-      t[k] = rays.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID
+      t[k] = valid[k] == 0 || rays.hit.geomID[k] == RTC_INVALID_GEOMETRY_ID
                  ? std::numeric_limits<double>::quiet_NaN()
                  : HitDistance(rays.hit.primID[k], rays.ray.tfar[k], origins[k], directions[k]);
     }
@@ -179,6 +238,20 @@ struct FocalSurface::Impl {
   // pixels of a row (coherent rays: Embree traverses them together); 0 where it misses.
   Image CastDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Vec3d& origin,
                   const Vec3d& up, const std::vector<double>* offsets, int num_threads) const {
+    // The rays start at origin - offset * up: the farthest are those of the extreme offsets.
+    double lowest = 0.0, highest = 0.0;
+    if (offsets != nullptr && !offsets->empty()) {
+      const auto [low, high] = std::minmax_element(offsets->begin(), offsets->end());
+      lowest = *low;
+      highest = *high;
+    }
+    for (double offset : {lowest, highest}) {
+      CheckRayOrigin(origin - offset * up,
+                     offsets == nullptr
+                         ? "cam_from_world: the virtual camera's centre"
+                         : "offsets: the virtual camera's centre moved by an offset of " +
+                               FormatNumber(offset) + " m");
+    }
     RTCScene bvh = Scene();
     const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
     Image depth(camera.width, camera.height, 1, PixelType::kF32);
@@ -245,6 +318,13 @@ void SurfacePlacement::Check() const {
     ThrowInvalid("origin: must be finite");
   }
   if (!std::isfinite(offset)) ThrowInvalid("surface_offset: must be finite (got " + FormatNumber(offset) + ")");
+  for (int k = 0; k < 3; ++k) {
+    const std::string problem = SurfaceCoordinateProblem(origin[k]);
+    if (!problem.empty()) ThrowInvalid(std::string("origin: ") + "xyz"[k] + " " + problem);
+  }
+  if (const std::string problem = SurfaceCoordinateProblem(offset); !problem.empty()) {
+    ThrowInvalid("surface_offset: " + problem);
+  }
   if (!(up.x == 0.0 && up.y == 0.0 && std::abs(up.z) == 1.0)) {
     ThrowInvalid("up: must be (0, 0, 1) or (0, 0, -1)");
   }
@@ -255,6 +335,10 @@ FocalSurface FocalSurface::FromPlane(const Plane& plane) {
   if (!std::isfinite(length) || !(length > 0.0) || !std::isfinite(plane.point.x) ||
       !std::isfinite(plane.point.y) || !std::isfinite(plane.point.z)) {
     ThrowInvalid("focal_plane: point and normal must be finite and the normal non-zero");
+  }
+  for (int k = 0; k < 3; ++k) {
+    const std::string problem = SurfaceCoordinateProblem(plane.point[k]);
+    if (!problem.empty()) ThrowInvalid(std::string("focal_plane: point ") + "xyz"[k] + " " + problem);
   }
   auto impl = NewImpl(FocalSurfaceKind::kPlane);
   impl->plane = plane;
@@ -313,8 +397,17 @@ FocalSurface FocalSurface::FromDepthMap(const Image& depth, const PinholeCamera&
     for (int x = 0; x < w; ++x) {
       const double z = row[x];
       if (!(std::isfinite(z) && z > 0.0)) continue;
+      const Vec3d point = center + z * (world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5)));
+      for (int k = 0; k < 3; ++k) {
+        const std::string problem = SurfaceCoordinateProblem(point[k]);
+        if (!problem.empty()) {
+          ThrowInvalid("depth: pixel (" + std::to_string(x) + ", " + std::to_string(y) +
+                       "): depth " + FormatNumber(z) + " m puts its focal point's " + "xyz"[k] +
+                       " at a value that " + problem);
+        }
+      }
       index[static_cast<size_t>(y) * w + x] = static_cast<int>(impl->mesh.vertices.size());
-      impl->mesh.vertices.push_back(center + z * (world_from_cam * camera.Unproject(Vec2d(x + 0.5, y + 0.5))));
+      impl->mesh.vertices.push_back(point);
     }
   }
   for (int y = 0; y + 1 < h; ++y) {
@@ -422,6 +515,16 @@ Vec3d FocalSurface::ReferencePoint(const Vec3d& origin) const {
   const Impl& s = *impl_;
   if (s.kind == FocalSurfaceKind::kPlane) return s.plane.point;
   return s.mesh_in_local_frame ? s.centroid : WorldToLocal(s.centroid, origin);
+}
+
+std::array<double, 4> FocalSurface::ExtentInWorld(const Vec3d& origin) const {
+  const Impl& s = *impl_;
+  if (s.kind == FocalSurfaceKind::kPlane) {
+    const double inf = std::numeric_limits<double>::infinity();
+    return {-inf, -inf, inf, inf};
+  }
+  const Vec3d shift = s.mesh_in_local_frame ? origin : Vec3d(0.0);
+  return {s.min_x + shift.x, s.min_y + shift.y, s.max_x + shift.x, s.max_y + shift.y};
 }
 
 Image PlaneDepth(const PinholeCamera& camera, const Rigid3d& cam_from_world, const Plane& plane,
@@ -537,6 +640,12 @@ std::vector<double> FocalSurface::HeightsAt(const std::vector<Vec2d>& xy_in_worl
   for (int64_t i = 0; i < static_cast<int64_t>(xy_in_world.size()); ++i) {
     const Vec3d origin(xy_in_world[static_cast<size_t>(i)].x - to_world.x,
                        xy_in_world[static_cast<size_t>(i)].y - to_world.y, start_z);
+    // No vertex lies farther than kMaxRayCastRadius from the centroid in x or y: a vertical line
+    // beyond that misses (exactly, and without a float ray far from the surface).
+    if (!(std::abs(origin.x - s.centroid.x) <= kMaxRayCastRadius &&
+          std::abs(origin.y - s.centroid.y) <= kMaxRayCastRadius)) {
+      continue;
+    }
     const double t = s.Cast(bvh, origin, direction);
     if (std::isfinite(t)) heights[static_cast<size_t>(i)] = start_z - up_z * t + to_world.z;
   }
@@ -555,6 +664,34 @@ std::string HeightfieldCrs(const FocalSurface& surface) {
 }
 
 }  // namespace
+
+void CheckSurfaceCovers(const FocalSurface& surface, const LightField& light_field,
+                        const std::string& what, int64_t uncovered_pixels, int64_t pixels,
+                        const std::vector<double>& extent_in_world) {
+  if (pixels <= 0 || uncovered_pixels < pixels) return;
+  const std::string name = surface.source().empty() ? "focal_surface" : surface.source();
+  std::string message = name + ": no pixel is covered: the surface does not cover " + what +
+                        " (or no view sees it); check its extent and CRS";
+  const std::array<double, 4> box = surface.ExtentInWorld(light_field.origin);
+  const auto range = [](double x0, double y0, double x1, double y1) {
+    return "x " + FormatNumber(x0) + " .. " + FormatNumber(x1) + ", y " + FormatNumber(y0) +
+           " .. " + FormatNumber(y1);
+  };
+  if (extent_in_world.size() == 4 && std::isfinite(box[0]) &&
+      (box[2] < extent_in_world[0] || box[0] > extent_in_world[2] ||
+       box[3] < extent_in_world[1] || box[1] > extent_in_world[3])) {
+    message += ": it spans " + range(box[0], box[1], box[2], box[3]) + " (world), " + what +
+               " " + range(extent_in_world[0], extent_in_world[1], extent_in_world[2],
+                           extent_in_world[3]);
+  }
+  const std::string crs = HeightfieldCrs(surface);
+  if (!crs.empty() && light_field.crs.empty()) {
+    message += "; the surface is in " + (crs.size() > 40 ? std::string("a CRS") : crs) +
+               " but the light field has none, so its coordinates were taken as the light "
+               "field's world frame (origin + local) as they are";
+  }
+  ThrowInvalid(message);
+}
 
 FocalSurface InCrs(const FocalSurface& surface, const std::string& crs) {
   const std::string from = HeightfieldCrs(surface);

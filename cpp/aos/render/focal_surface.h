@@ -30,8 +30,24 @@
 //   valid depths).
 // - HeightsAt: the world z where a vertical ray at world (x, y), coming down from the up side,
 //   first meets the (offset) surface; NaN where it misses. For the orthographic map.
+// - Coordinates the float32 ray cast can hold. Every coordinate a surface is made of (a vertex,
+//   a height, a pixel centre, a plane's point, a depth map's focal point, the placement's origin
+//   and offset) lies within +-kMaxSurfaceCoordinate (1e9 m, mesh.h), else std::invalid_argument
+//   names the file or field and the vertex, pixel or coordinate. Embree then works in float
+//   relative to the surface's vertex centroid: every vertex lies within kMaxRayCastRadius
+//   (1e7 m, per axis) of it, refused when the surface is made otherwise, and every ray starts
+//   within kMaxRayOriginDistance (1e8 m) of it: DepthFor/DepthForOffsets refuse a camera centre
+//   (moved by the offsets) farther away, naming cam_from_world or offsets; HeightsAt's vertical
+//   lines beyond kMaxRayCastRadius miss (NaN), as they do geometrically. Why these numbers: float
+//   rounds a coordinate r to r * 2^-24, 0.6 m at 1e7 m and 6 m at 1e8 m, so a triangle is still
+//   found to within a cell of a coarse DEM (its hit distance is then recomputed in double);
+//   Embree's triangle test forms products of three coordinates (1e8^3 = 1e24, far below FLT_MAX
+//   3.4e38); and Embree aborts the process (assert ray.valid()) on a ray origin beyond 1.8e18
+//   (FLT_LARGE), which 1e20 or 3e38 surfaces made it reach. No ray beyond that is ever cast.
 //
 // Throws std::invalid_argument naming the file or field for bad surfaces and placements.
+#include <array>
+#include <cstdint>
 #include <memory>
 #include <string>
 #include <vector>
@@ -44,6 +60,12 @@
 #include "aos/lightfield/lightfield.h"
 
 namespace aos {
+
+// The farthest a surface's vertex may lie from its vertex centroid, per axis, metres (see the
+// contract).
+inline constexpr double kMaxRayCastRadius = 1e7;
+// The farthest a ray cast onto a surface may start from its vertex centroid, per axis, metres.
+inline constexpr double kMaxRayOriginDistance = 1e8;
 
 enum class FocalSurfaceKind { kPlane, kMesh, kHeightfield, kDepthMap };
 
@@ -70,7 +92,8 @@ inline Vec3d WorldToLocal(const Vec3d& point_in_world, const Vec3d& origin) {
 
 class FocalSurface {
  public:
-  // A plane in the local frame. Throws for a zero or non-finite normal or point.
+  // A plane in the local frame. Throws for a zero or non-finite normal or point, or a point
+  // beyond kMaxSurfaceCoordinate.
   static FocalSurface FromPlane(const Plane& plane);
   // A mesh in world coordinates (Mesh::Check'ed; degenerate triangles dropped and counted).
   static FocalSurface FromMesh(Mesh mesh, std::string source = "");
@@ -101,6 +124,10 @@ class FocalSurface {
 
   // The reference point used to resolve up, in the local frame for `origin`.
   Vec3d ReferencePoint(const Vec3d& origin) const;
+
+  // The world x/y box {XMIN, YMIN, XMAX, YMAX} of the surface's vertices for a light field whose
+  // origin is `origin` (a depth map's points are local); a plane's is unbounded (+-infinity).
+  std::array<double, 4> ExtentInWorld(const Vec3d& origin) const;
 
   // Depth map (float32, 1 channel, camera.width x camera.height) of the surface placed by
   // `placement`, seen by `camera` at `cam_from_world` (local frame); 0 where a ray misses.
@@ -143,6 +170,18 @@ SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const Ligh
 // itself when there is nothing to transform. Throws std::invalid_argument naming the file for a
 // CRS PROJ cannot transform.
 FocalSurface InCrs(const FocalSurface& surface, const std::string& crs);
+
+// The one check of a render on a focal surface that covers none of its pixels (aos-render
+// integral; the map: ResolveMapGrid before anything is rendered when the surface's x/y box misses
+// the map's, RenderMapTiles after): when uncovered_pixels == pixels > 0, throws
+// std::invalid_argument "<source>: no pixel is covered: the surface does not cover <what> (or no
+// view sees it); check its extent and CRS" followed by the likely cause where one is seen: the
+// surface's world x/y box beside `extent_in_world` ({XMIN, YMIN, XMAX, YMAX}; empty = not
+// known), a surface with a CRS under a light field without one (its coordinates were taken as
+// the light field's world frame), or a surface moved between CRSs. Does nothing otherwise.
+void CheckSurfaceCovers(const FocalSurface& surface, const LightField& light_field,
+                        const std::string& what, int64_t uncovered_pixels, int64_t pixels,
+                        const std::vector<double>& extent_in_world = {});
 
 // Depth (z in the camera frame, metres) at which each pixel's ray meets `plane`; 0 where the ray
 // meets it behind the camera or never (float32, 1 channel). Rows in parallel on num_threads

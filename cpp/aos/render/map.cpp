@@ -66,6 +66,12 @@ void GrowByFootprint(const View& view, int index, double height, double* lo, dou
   }
 }
 
+// The map's world box {XMIN, YMIN, XMAX, YMAX} (pixel edges).
+std::vector<double> MapExtent(const MapGrid& grid) {
+  return {grid.x_min, grid.y_max - grid.height * grid.pixel_size,
+          grid.x_min + grid.width * grid.pixel_size, grid.y_max};
+}
+
 // A progress sink for one tile: forwards advances and cancels to the map's sink, ignores the
 // tile's own stage.
 class TileProgress : public ProgressSink {
@@ -101,6 +107,9 @@ void MapOptions::Check(int view_count) const {
     }
     for (double v : extent) {
       if (!std::isfinite(v)) ThrowInvalid("extent: values must be finite");
+      if (const std::string problem = SurfaceCoordinateProblem(v); !problem.empty()) {
+        ThrowInvalid("extent: " + problem);
+      }
     }
     if (!(extent[2] > extent[0]) || !(extent[3] > extent[1])) {
       ThrowInvalid("extent: XMAX must exceed XMIN and YMAX exceed YMIN (got " + Num(extent[0]) +
@@ -108,6 +117,9 @@ void MapOptions::Check(int view_count) const {
     }
   }
   if (!std::isfinite(focal_height)) ThrowInvalid("focal_height: must be finite");
+  if (const std::string problem = SurfaceCoordinateProblem(focal_height); !problem.empty()) {
+    ThrowInvalid("focal_height: " + problem);
+  }
   if (!(aperture_radius >= 0.0)) {
     ThrowInvalid("aperture_radius: must be >= 0 (got " + Num(aperture_radius) + ")");
   }
@@ -181,8 +193,33 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
   } else {
     lo[0] = lo[1] = std::numeric_limits<double>::infinity();
     hi[0] = hi[1] = -std::numeric_limits<double>::infinity();
-    for (int index : selection) {
-      GrowByFootprint(light_field.views[static_cast<size_t>(index)], index, plane_z, lo, hi);
+    try {
+      for (int index : selection) {
+        GrowByFootprint(light_field.views[static_cast<size_t>(index)], index, plane_z, lo, hi);
+      }
+    } catch (const std::invalid_argument&) {
+      // A surface far beside the views (a UTM DEM under a light field in a local frame) may lie
+      // above them, flipping up, so that no footprint meets its plane: say that, not "give the
+      // extent". Its x/y box against the views' centres tells.
+      if (options.focal_surface) {
+        std::vector<double> centres{std::numeric_limits<double>::infinity(),
+                                    std::numeric_limits<double>::infinity(),
+                                    -std::numeric_limits<double>::infinity(),
+                                    -std::numeric_limits<double>::infinity()};
+        for (int index : selection) {
+          const Vec3d c = light_field.views[static_cast<size_t>(index)].cam_from_world.Center() +
+                          light_field.origin;
+          centres = {std::min(centres[0], c.x), std::min(centres[1], c.y),
+                     std::max(centres[2], c.x), std::max(centres[3], c.y)};
+        }
+        const std::array<double, 4> box = options.focal_surface->ExtentInWorld(light_field.origin);
+        if (box[2] < centres[0] || box[0] > centres[2] || box[3] < centres[1] ||
+            box[1] > centres[3]) {
+          CheckSurfaceCovers(*options.focal_surface, light_field,
+                             "the map (under the views' centres)", 1, 1, centres);
+        }
+      }
+      throw;
     }
     for (int i = 0; i < 2; ++i) {
       lo[i] += light_field.origin[i];
@@ -226,6 +263,16 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
   grid.pixel_size = p;
   grid.width = static_cast<int>(columns);
   grid.height = static_cast<int>(rows);
+  if (grid.surface) {
+    // A pixel's vertical line meets the surface only where its centre lies in the surface's x/y
+    // box: with no centre in it the map would be all nodata. Refused before anything is rendered.
+    const std::array<double, 4> box = grid.surface->ExtentInWorld(light_field.origin);
+    if (box[2] < grid.CenterX(0) || box[0] > grid.CenterX(grid.width - 1) ||
+        box[3] < grid.CenterY(grid.height - 1) || box[1] > grid.CenterY(0)) {
+      const int64_t pixels = static_cast<int64_t>(grid.width) * grid.height;
+      CheckSurfaceCovers(*grid.surface, light_field, "the map", pixels, pixels, MapExtent(grid));
+    }
+  }
   return grid;
 }
 
@@ -306,6 +353,13 @@ MapSummary RenderMapTiles(const LightField& light_field, const MapOptions& optio
     }
   }
   for (uint8_t u : used) summary.views_used += u;
+  // An all-nodata map on a surface is no map of the terrain (a DEM beside the flight or in
+  // another frame): refused like aos-render integral's render (WriteMapGeoTiff then leaves no
+  // file).
+  if (grid.surface) {
+    CheckSurfaceCovers(*grid.surface, light_field, "the map", summary.uncovered_pixels,
+                       static_cast<int64_t>(grid.width) * grid.height, MapExtent(grid));
+  }
   return summary;
 }
 

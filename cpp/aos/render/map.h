@@ -21,7 +21,11 @@
 //   (FocalSurface::HeightsAt); pixels whose line misses it get count 0. Every pixel's focal point
 //   comes from one function, MapFocalPoints. With a surface, up is the surface's
 //   (ResolveSurfacePlacement) and the default extent is the footprints on the horizontal plane
-//   through the surface's reference point.
+//   through the surface's reference point. A map on a surface that covers none of its pixels
+//   (its x/y box holds no pixel centre: refused before rendering; or no pixel has a sample) is
+//   refused by CheckSurfaceCovers (focal_surface.h), the check aos-render integral makes, naming
+//   the surface and the likely cause (its box beside the map's, its CRS beside the light
+//   field's); WriteMapGeoTiff then leaves no file.
 // - Views: a view contributes to a pixel's focal point X by integral.h's rules (in front, inside
 //   its image, not grazing: min_view_angle_deg against the horizontal) and the cylinder aperture:
 //   its centre lies within aperture_radius of the vertical line through X (horizontal distance);
