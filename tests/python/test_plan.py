@@ -4,10 +4,13 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
@@ -184,3 +187,121 @@ def test_study_tool_picks_the_cheapest_plan_reaching_the_target(tmp_path: Path):
     assert best is min(rows, key=lambda r: r.flight_min)
     assert study.cheapest(rows, 1000.0) is None
     ElementTree.fromstring(study.svg(rows, best, 18.0, "test"))  # well-formed SVG
+
+
+# The issue's cases (issue 31): each was minutes of work, 16 GB and a 6.6 GB CSV, or
+# std::bad_alloc / MemoryError; now each is refused from the count, before a waypoint is stored.
+LARGE_PLANS = [
+    (dict(radius_m=3000.0, spacing_m=0.5, along_spacing_m=0.5, battery_min=math.inf),
+     "max_waypoints: the plan has more than 1,000,000 waypoints (about 113,097,336"),
+    (dict(radius_m=1e7), "max_waypoints:"),
+    (dict(radius_m=5000.0), "max_waypoints:"),
+    (dict(radius_m=1e5), "max_waypoints:"),
+    (dict(spacing_m=1e-9), "scan lines across the aperture (aperture radius 15 m, spacing_m 1e-09 m) exceed max_waypoints"),
+    (dict(along_spacing_m=1e-9), "max_waypoints:"),
+    (dict(radius_m=math.inf), "radius_m: must be a finite number > 0"),
+    (dict(radius_m=math.nan), "radius_m: must be a finite number > 0"),
+]
+
+
+def test_large_plans_are_refused_quickly(tmp_path: Path):
+    for options, message in LARGE_PLANS:
+        start = time.monotonic()
+        with pytest.raises(ValueError, match=re.escape(message)):
+            aos.plan_flight(**options, csv=tmp_path / "big.csv")
+        # A few milliseconds each (the count stops at 10^6 shots); 2 s on a loaded machine.
+        assert time.monotonic() - start < 2.0, options
+        assert list(tmp_path.iterdir()) == []
+    assert aos.FlightPlanOptions().max_waypoints == 1_000_000
+    assert aos.plan_flight(**EXPERIMENT_1, max_waypoints=231).images == 231
+    with pytest.raises(ValueError, match="max_waypoints: the plan has more than 230 waypoints"):
+        aos.plan_flight(**EXPERIMENT_1, max_waypoints=230)
+
+
+@needs_cli
+def test_cli_refuses_large_plans_quickly(tmp_path: Path):
+    flags = [
+        ["--radius-m", "3000", "--spacing-m", "0.5", "--along-spacing-m", "0.5", "--battery-min", "inf"],
+        ["--radius-m", "1e7"],
+        ["--radius-m", "1e7", "--battery-min", "inf"],
+        ["--radius-m", "5000"],
+        ["--spacing-m", "1e-9"],
+        ["--radius-m", "inf"],
+        ["--radius-m", "nan"],
+    ]
+    for args in flags:
+        start = time.monotonic()
+        out = run("plan", *args, "--csv", str(tmp_path / "big.csv"))
+        elapsed = time.monotonic() - start
+        assert out.returncode in (1, 2), (args, out.stderr)
+        assert len(out.stderr.strip().splitlines()) == 1, out.stderr  # one line
+        assert "bad_alloc" not in out.stderr
+        assert elapsed < 2.0, (args, elapsed)
+        assert not (tmp_path / "big.csv").exists()
+    out = run("plan", "--radius-m", "3000", "--spacing-m", "0.5", "--along-spacing-m", "0.5",
+              "--battery-min", "inf")
+    assert "113,097,336" in out.stderr and "--max-waypoints" in out.stderr
+    # The bound is a flag bound to the field.
+    assert run("plan", *"--radius-m 15 --spacing-m 3 --along-spacing-m 1 --max-waypoints 231".split()).returncode == 0
+    assert run("plan", *"--radius-m 15 --spacing-m 3 --along-spacing-m 1 --max-waypoints 230".split()).returncode != 0
+
+
+def slow_polygon(vertices: int = 2000, radius: float = 300.0) -> list[tuple[float, float]]:
+    """A circle as a polygon of many corners: every inside test visits each edge, so a plan of
+    ~280,000 shots takes many seconds while its memory stays small (~50 MB)."""
+    return [(radius * math.cos(2 * math.pi * k / vertices), radius * math.sin(2 * math.pi * k / vertices))
+            for k in range(vertices)]
+
+
+@needs_cli
+def test_cli_stops_on_sigterm_and_writes_nothing(tmp_path: Path):
+    vertices = ";".join(f"{x:.6f},{y:.6f}" for x, y in slow_polygon())
+    csv = tmp_path / "big.csv"
+    process = subprocess.Popen(
+        [EXE, "plan", "--shape", "polygon", "--vertices", vertices, "--spacing-m", "1",
+         "--along-spacing-m", "1", "--battery-min", "inf", "--max-waypoints", "2000000",
+         "--csv", str(csv)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    time.sleep(0.5)
+    assert process.poll() is None, "the plan finished before the signal: make it larger"
+    process.send_signal(signal.SIGTERM)
+    signalled = time.monotonic()
+    try:
+        _, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert time.monotonic() - signalled < 2.0
+    assert process.returncode != 0  # 130 or 143
+    assert "interrupted" in stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_python_stops_on_ctrl_c_and_writes_nothing(tmp_path: Path):
+    script = (
+        "import sys, aos, json\n"
+        "vertices = json.loads(sys.argv[1])\n"
+        "print('ready', flush=True)\n"
+        "try:\n"
+        "    aos.plan_flight(shape='polygon', vertices=vertices, spacing_m=1.0, along_spacing_m=1.0,\n"
+        "                    battery_min=float('inf'), csv=sys.argv[2])\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', flush=True)\n"
+        "    sys.exit(3)\n"
+    )
+    env = dict(os.environ)
+    process = subprocess.Popen([sys.executable, "-c", script, json.dumps(slow_polygon()),
+                                str(tmp_path / "big.csv")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert process.stdout.readline().strip() == "ready"
+        time.sleep(0.5)
+        assert process.poll() is None
+        process.send_signal(signal.SIGINT)
+        signalled = time.monotonic()
+        stdout, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert time.monotonic() - signalled < 2.0
+    assert process.returncode == 3, stderr
+    assert "interrupted" in stdout
+    assert list(tmp_path.iterdir()) == []
