@@ -6,6 +6,7 @@ import json
 import math
 import os
 import re
+import resource
 import shutil
 import signal
 import subprocess
@@ -197,7 +198,7 @@ LARGE_PLANS = [
     (dict(radius_m=1e7), "max_waypoints:"),
     (dict(radius_m=5000.0), "max_waypoints:"),
     (dict(radius_m=1e5), "max_waypoints:"),
-    (dict(spacing_m=1e-9), "scan lines across the aperture (aperture radius 15 m, spacing_m 1e-09 m) exceed max_waypoints"),
+    (dict(spacing_m=1e-9), "(spacing_m 1e-09 m x along_spacing_m 1 m); radius_m 15; 30,000,00"),
     (dict(along_spacing_m=1e-9), "max_waypoints:"),
     (dict(radius_m=math.inf), "radius_m: must be a finite number > 0"),
     (dict(radius_m=math.nan), "radius_m: must be a finite number > 0"),
@@ -206,11 +207,11 @@ LARGE_PLANS = [
 
 def test_large_plans_are_refused_quickly(tmp_path: Path):
     for options, message in LARGE_PLANS:
-        start = time.monotonic()
+        start = time.process_time()  # CPU time: the machine running the tests may be loaded
         with pytest.raises(ValueError, match=re.escape(message)):
             aos.plan_flight(**options, csv=tmp_path / "big.csv")
-        # A few milliseconds each (the count stops at 10^6 shots); 2 s on a loaded machine.
-        assert time.monotonic() - start < 2.0, options
+        # Milliseconds each (the count stops at 10^6 shots, or knows the lines are too many).
+        assert time.process_time() - start < 1.0, options
         assert list(tmp_path.iterdir()) == []
     assert aos.FlightPlanOptions().max_waypoints == 1_000_000
     assert aos.plan_flight(**EXPERIMENT_1, max_waypoints=231).images == 231
@@ -220,27 +221,33 @@ def test_large_plans_are_refused_quickly(tmp_path: Path):
 
 @needs_cli
 def test_cli_refuses_large_plans_quickly(tmp_path: Path):
+    # (Python's test above has the rest of the cases; each run here loads the program.)
     flags = [
         ["--radius-m", "3000", "--spacing-m", "0.5", "--along-spacing-m", "0.5", "--battery-min", "inf"],
-        ["--radius-m", "1e7"],
         ["--radius-m", "1e7", "--battery-min", "inf"],
-        ["--radius-m", "5000"],
         ["--spacing-m", "1e-9"],
-        ["--radius-m", "inf"],
         ["--radius-m", "nan"],
     ]
+    def cpu_of_children() -> float:
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return usage.ru_utime + usage.ru_stime
+
+    start = cpu_of_children()
+    run("--version")
+    startup = cpu_of_children() - start  # loading the program: about 0.5 s of CPU
+    errors = []
     for args in flags:
-        start = time.monotonic()
+        start = cpu_of_children()
         out = run("plan", *args, "--csv", str(tmp_path / "big.csv"))
-        elapsed = time.monotonic() - start
+        cpu = cpu_of_children() - start  # CPU time: wall time on a loaded machine says little
         assert out.returncode in (1, 2), (args, out.stderr)
         assert len(out.stderr.strip().splitlines()) == 1, out.stderr  # one line
         assert "bad_alloc" not in out.stderr
-        assert elapsed < 2.0, (args, elapsed)
+        assert cpu < startup + 1.0, (args, cpu, startup)
         assert not (tmp_path / "big.csv").exists()
-    out = run("plan", "--radius-m", "3000", "--spacing-m", "0.5", "--along-spacing-m", "0.5",
-              "--battery-min", "inf")
-    assert "113,097,336" in out.stderr and "--max-waypoints" in out.stderr
+        errors.append(out.stderr)
+    assert "113,097,336" in errors[0] and "[option --max-waypoints]" in errors[0]
+    assert "radius_m" in errors[3] and "--radius-m" in errors[3]
     # The bound is a flag bound to the field.
     assert run("plan", *"--radius-m 15 --spacing-m 3 --along-spacing-m 1 --max-waypoints 231".split()).returncode == 0
     assert run("plan", *"--radius-m 15 --spacing-m 3 --along-spacing-m 1 --max-waypoints 230".split()).returncode != 0
@@ -254,6 +261,7 @@ def slow_polygon(vertices: int = 2000, radius: float = 300.0) -> list[tuple[floa
 
 
 @needs_cli
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc/PID/status")
 def test_cli_stops_on_sigterm_and_writes_nothing(tmp_path: Path):
     vertices = ";".join(f"{x:.6f},{y:.6f}" for x, y in slow_polygon())
     csv = tmp_path / "big.csv"
@@ -262,6 +270,15 @@ def test_cli_stops_on_sigterm_and_writes_nothing(tmp_path: Path):
          "--along-spacing-m", "1", "--battery-min", "inf", "--max-waypoints", "2000000",
          "--csv", str(csv)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Once the program catches SIGTERM (its handler is installed before the command runs; on a
+    # loaded machine loading it takes seconds), let it plan for 0.5 s.
+    status = Path(f"/proc/{process.pid}/status")
+    deadline = time.monotonic() + 60
+    while status.exists() and time.monotonic() < deadline:
+        caught = next((line for line in status.read_text().splitlines() if line.startswith("SigCgt:")), "")
+        if caught and int(caught.split()[1], 16) & (1 << (signal.SIGTERM - 1)):
+            break
+        time.sleep(0.02)
     time.sleep(0.5)
     assert process.poll() is None, "the plan finished before the signal: make it larger"
     process.send_signal(signal.SIGTERM)
