@@ -689,39 +689,130 @@ class PatternWalk {
     }
   }
 
-  // Indices of the ring's n points (at bearings 360 j / n) that can lie inside, as ascending,
-  // disjoint [first, last] ranges.
-  void RingCandidates(double r, int64_t n, std::vector<std::pair<int64_t, int64_t>>& ranges) const {
-    ranges.clear();
-    const double w = slack_;
-    if (shape_.kind == "sector" && shape_.angle_deg < 360.0 && r > 4.0 * w) {
-      const double spread = 2.0 * w / r * 180.0 / kPi;  // degrees, > asin(tolerance / r)
-      const double from = shape_.start_deg - spread, to = shape_.start_deg + shape_.angle_deg + spread;
-      if (to - from < 360.0) {
-        const auto lo = static_cast<int64_t>(std::floor(from * static_cast<double>(n) / 360.0)) - 1;
-        const auto hi = static_cast<int64_t>(std::ceil(to * static_cast<double>(n) / 360.0)) + 1;
-        if (hi - lo + 1 < n) {
-          const int64_t a = ((lo % n) + n) % n, b = ((hi % n) + n) % n;
-          if (a <= b) {
-            ranges.push_back({a, b});
-          } else {
-            ranges.push_back({0, b});
-            ranges.push_back({a, n - 1});
-          }
-          return;
-        }
+  // Point j of the ring of radius r with n points (at bearing 360 j / n).
+  Point2 RingPoint(double r, int64_t j, int64_t n) const {
+    const Point2 d = Bearing(360.0 * static_cast<double>(j) / static_cast<double>(n));
+    return {shape_.center[0] + r * d[0], shape_.center[1] + r * d[1]};
+  }
+
+  using IndexRanges = std::vector<std::pair<int64_t, int64_t>>;
+
+  // Adds the indices lo..hi (modulo n) to `ranges`; false when they cover the whole ring.
+  static bool AddIndices(int64_t lo, int64_t hi, int64_t n, IndexRanges& ranges) {
+    if (hi - lo + 1 >= n) return false;
+    const int64_t a = ((lo % n) + n) % n, b = ((hi % n) + n) % n;
+    if (a <= b) {
+      ranges.push_back({a, b});
+    } else {
+      ranges.push_back({0, b});
+      ranges.push_back({a, n - 1});
+    }
+    return true;
+  }
+  // The indices of the compass degrees [from, to] (and one more on each side) to `ranges`.
+  static bool AddDegrees(double from, double to, int64_t n, IndexRanges& ranges) {
+    if (to - from >= 360.0) return false;
+    const double shift = 360.0 * std::floor(from / 360.0);  // from into [0, 360)
+    const double scale = static_cast<double>(n) / 360.0;
+    return AddIndices(static_cast<int64_t>(std::floor((from - shift) * scale)) - 1,
+                      static_cast<int64_t>(std::ceil((to - shift) * scale)) + 1, n, ranges);
+  }
+  static void MergeIndices(IndexRanges& ranges) {
+    std::sort(ranges.begin(), ranges.end());
+    size_t kept = 0;
+    for (const auto& next : ranges) {
+      if (kept > 0 && next.first <= ranges[kept - 1].second + 1) {
+        ranges[kept - 1].second = std::max(ranges[kept - 1].second, next.second);
+      } else {
+        ranges[kept++] = next;
       }
     }
-    ranges.push_back({0, n - 1});
+    ranges.resize(kept);
+  }
+
+  // Indices of the ring's n points that can lie inside the shape, as ascending, disjoint
+  // [first, last] ranges: a sector's arc; for a polygon the arcs within w of an edge (the
+  // ring's crossings with the annulus r +- w around them) and, between those, the arcs that are
+  // inside (wholly inside or wholly outside, as no edge comes within w: one point decides).
+  void RingCandidates(double r, int64_t n, IndexRanges& ranges) const {
+    ranges.clear();
+    const double w = slack_;
+    if (r > 4.0 * w && shape_.kind == "sector" && shape_.angle_deg < 360.0) {
+      const double spread = 2.0 * w / r * 180.0 / kPi;  // degrees, > asin(tolerance / r)
+      if (AddDegrees(shape_.start_deg - spread, shape_.start_deg + shape_.angle_deg + spread, n,
+                     ranges)) {
+        MergeIndices(ranges);
+        return;
+      }
+      ranges.clear();
+    }
+    if (r > 4.0 * w && (shape_.kind == "polygon" || shape_.kind == "rectangle") &&
+        PolygonRingCandidates(r, n, ranges)) {
+      return;
+    }
+    ranges.assign(1, {0, n - 1});
+  }
+
+  bool PolygonRingCandidates(double r, int64_t n, IndexRanges& ranges) const {
+    const double w = slack_;
+    // A point of the ring within w of a boundary point q: q lies in the annulus, and its bearing
+    // is within asin(w / (r - w)) < spread of the point's.
+    const double spread = 2.0 * w / (r - w) * 180.0 / kPi;
+    IndexRanges near;
+    const size_t count = shape_.polygon.size();
+    for (size_t i = 0, j = count - 1; i < count; j = i++) {
+      const double ax = shape_.polygon[j][0] - shape_.center[0], ay = shape_.polygon[j][1] - shape_.center[1];
+      const double ex = shape_.polygon[i][0] - shape_.polygon[j][0], ey = shape_.polygon[i][1] - shape_.polygon[j][1];
+      const double qa = ex * ex + ey * ey, qb = 2.0 * (ax * ex + ay * ey), qc = ax * ax + ay * ay;
+      if (qa == 0.0) continue;
+      // t in [0, 1] where |a + t e| = rho: the roots of qa t^2 + qb t + qc - rho^2.
+      auto roots = [&](double rho, double& t0, double& t1) {
+        const double disc = qb * qb - 4.0 * qa * (qc - rho * rho);
+        if (disc < 0.0) return false;
+        t0 = (-qb - std::sqrt(disc)) / (2.0 * qa);
+        t1 = (-qb + std::sqrt(disc)) / (2.0 * qa);
+        return true;
+      };
+      double t1 = 0.0, t2 = 0.0, t3 = 0.0, t4 = 0.0;
+      if (!roots(r + w, t1, t2)) continue;
+      t1 = std::max(t1, 0.0);
+      t2 = std::min(t2, 1.0);
+      if (t1 > t2) continue;
+      std::pair<double, double> pieces[2] = {{t1, t2}, {1.0, 0.0}};
+      if (roots(r - w, t3, t4)) {  // without the part inside r - w
+        pieces[0] = {t1, std::min(t2, t3)};
+        pieces[1] = {std::max(t1, t4), t2};
+      }
+      for (const auto& [ta, tb] : pieces) {
+        if (ta > tb) continue;
+        const double bearing_a = std::atan2(ax + ta * ex, ay + ta * ey) * 180.0 / kPi;
+        const double bearing_b = std::atan2(ax + tb * ex, ay + tb * ey) * 180.0 / kPi;
+        const double sweep = std::remainder(bearing_b - bearing_a, 360.0);
+        const double from = sweep >= 0.0 ? bearing_a : bearing_b;
+        if (!AddDegrees(from - spread, from + std::abs(sweep) + spread, n, near)) return false;
+      }
+    }
+    MergeIndices(near);
+    ranges = near;
+    // The arcs between: in or out as a whole.
+    if (near.empty()) {
+      if (shape_.Inside(RingPoint(r, 0, n))) ranges.assign(1, {0, n - 1});
+      return true;
+    }
+    for (size_t k = 0; k < near.size(); ++k) {
+      const int64_t from = near[k].second + 1;
+      const int64_t to = k + 1 < near.size() ? near[k + 1].first - 1 : near[0].first - 1 + n;
+      if (from > to) continue;
+      if (shape_.Inside(RingPoint(r, (from + (to - from) / 2) % n, n))) AddIndices(from, to, n, ranges);
+    }
+    MergeIndices(ranges);
+    return true;
   }
 
   void WalkRings(int64_t limit, std::vector<Shot>* out, Totals& t) {
-    std::vector<std::pair<int64_t, int64_t>> ranges;
+    IndexRanges ranges;
     std::vector<int64_t> inside;
-    auto ring_point = [&](double r, int64_t j, int64_t n) -> Point2 {
-      const Point2 d = Bearing(360.0 * static_cast<double>(j) / static_cast<double>(n));
-      return {shape_.center[0] + r * d[0], shape_.center[1] + r * d[1]};
-    };
+    auto ring_point = [&](double r, int64_t j, int64_t n) { return RingPoint(r, j, n); };
     auto walk_ring = [&](double r) {
       Poll();
       if (r == 0.0) {
