@@ -1,6 +1,7 @@
 // `aos-render plan`: flight planning (plan/flight_plan.h). The flags fill FlightPlanOptions, the
 // same struct aos.plan_flight fills; every output is checked before planning and written only
-// when the plan is accepted (an error writes nothing).
+// when the plan is accepted (an error or an interrupt writes nothing). The plan's size is
+// bounded (max_waypoints, the battery, the memory budget) before it is generated.
 #include <algorithm>
 #include <array>
 #include <cmath>
@@ -60,19 +61,23 @@ int RunPlan(const PlanCommand& c, const Flags& flags) {
   if (!c.preview_png.empty() && c.simulate.empty()) ThrowUsage("--preview-png needs --simulate SCENE");
   std::unique_ptr<Scene> scene;
   if (!c.simulate.empty()) scene = std::make_unique<Scene>(LoadScene(c.simulate));
-  const FlightPlanResult r = flags.NamingFlags([&] { return PlanFlight(c.options); });
+  // One progress sink for every stage: SIGINT/SIGTERM stop the plan, the preview and the exports
+  // (aos::Cancelled; nothing is written).
+  ProgressBar progress(Common().quiet);
+  const FlightPlanResult r = flags.NamingFlags([&] { return PlanFlight(c.options, &progress); });
   PlanPreviewResult preview;
   if (scene) {
-    ProgressBar progress(Common().quiet);
     preview = PreviewFlightPlan(r, *scene, -1, &progress);
     progress.Finish();
   }
   // Everything that can refuse runs before the first file is written.
-  const std::string geojson = c.geojson.empty() ? "" : FlightPlanGeoJson(r);
-  const std::string kml = c.kml.empty() ? "" : FlightPlanKml(r);
+  const std::string csv = c.csv.empty() ? "" : FlightPlanCsv(r, &progress);
+  const std::string geojson = c.geojson.empty() ? "" : FlightPlanGeoJson(r, &progress);
+  const std::string kml = c.kml.empty() ? "" : FlightPlanKml(r, &progress);
   Image map;
-  if (!c.png.empty()) map = FlightPlanMap(c.options, r, c.png_size);
-  if (!c.csv.empty()) WriteTextFileAtomic(c.csv, FlightPlanCsv(r));
+  if (!c.png.empty()) map = FlightPlanMap(c.options, r, c.png_size, &progress);
+  if (ProgressCancelled(&progress)) throw Cancelled();
+  if (!c.csv.empty()) WriteTextFileAtomic(c.csv, csv);
   if (!c.geojson.empty()) WriteTextFileAtomic(c.geojson, geojson);
   if (!c.kml.empty()) WriteTextFileAtomic(c.kml, kml);
   if (!c.png.empty()) WriteImage(c.png, map);
@@ -190,6 +195,9 @@ CommandRunner DefinePlan(CLI::App* command) {
                DefaultText(o.battery_min),
                "Flight time one battery allows, minutes ('inf': no budget); a longer plan is "
                "refused");
+  flags.Field("max_waypoints", o.max_waypoints,
+              "Most shots a plan may have (and most scan lines or rings across it); a larger plan "
+              "is refused before it is generated");
   flags.Field("--image-width", "image_width", o.image_width, 1,
               "Camera for Eq. 2: image width, pixels");
   flags.Field("--image-height", "image_height", o.image_height, 1,

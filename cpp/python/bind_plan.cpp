@@ -45,6 +45,8 @@ void BindPlan(py::module_& m) {
       .Field("ground_speed_mps", &O::ground_speed_mps, "Ground speed, m/s (> 0).")
       .Field("hover_s", &O::hover_s, "Time at each shot, seconds (>= 0).")
       .Field("battery_min", &O::battery_min, "Flight time one battery allows, minutes (inf: none).")
+      .Field("max_waypoints", &O::max_waypoints,
+             "Most shots (and scan lines or rings) a plan may have; a larger one is refused first.")
       .Field("image_width", &O::image_width, "Camera for Eq. 2: width, pixels.")
       .Field("image_height", &O::image_height, "Camera for Eq. 2: height, pixels.")
       .Field("fov_deg", &O::fov_deg, "Camera for Eq. 2: horizontal field of view, degrees.")
@@ -92,28 +94,41 @@ void BindPlan(py::module_& m) {
         return out.str();
       });
 
+  // The GIL is released around each and Ctrl-C (or `progress` raising) stops it: aos::Cancelled
+  // gives way to the KeyboardInterrupt.
   m.def(
       "_plan_flight",
-      [](const O& options) {
-        py::gil_scoped_release release;
-        return PlanFlight(options);
+      [](const O& options, const py::object& progress) {
+        const O copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) { return PlanFlight(copy, sink); });
       },
-      "options"_a, "Use aos.plan_flight.");
-  m.def("flight_plan_csv", &FlightPlanCsv, "result"_a,
-        "The waypoints as CSV text: index,latitude,longitude,altitude_agl_m,x_m,y_m,z_m,"
-        "ground_z_m,line.");
-  m.def("flight_plan_geojson", &FlightPlanGeoJson, "result"_a,
-        "The path and waypoints as GeoJSON text (WGS84); ValueError without a CRS.");
-  m.def("flight_plan_kml", &FlightPlanKml, "result"_a,
-        "The path and waypoints as KML text (WGS84); ValueError without a CRS.");
+      "options"_a, "progress"_a = py::none(), "Use aos.plan_flight.");
+  m.def(
+      "flight_plan_csv",
+      [](const R& result) {
+        return RunWithProgress(py::none(), [&](ProgressSink* sink) { return FlightPlanCsv(result, sink); });
+      },
+      "result"_a,
+      "The waypoints as CSV text: index,latitude,longitude,altitude_agl_m,x_m,y_m,z_m,"
+      "ground_z_m,line.");
+  m.def(
+      "flight_plan_geojson",
+      [](const R& result) {
+        return RunWithProgress(py::none(), [&](ProgressSink* sink) { return FlightPlanGeoJson(result, sink); });
+      },
+      "result"_a, "The path and waypoints as GeoJSON text (WGS84); ValueError without a CRS.");
+  m.def(
+      "flight_plan_kml",
+      [](const R& result) {
+        return RunWithProgress(py::none(), [&](ProgressSink* sink) { return FlightPlanKml(result, sink); });
+      },
+      "result"_a, "The path and waypoints as KML text (WGS84); ValueError without a CRS.");
   m.def(
       "flight_plan_map",
       [](const O& options, const R& result, int size_px) {
-        Image image;
-        {
-          py::gil_scoped_release release;
-          image = FlightPlanMap(options, result, size_px);
-        }
+        const Image image = RunWithProgress(py::none(), [&](ProgressSink* sink) {
+          return FlightPlanMap(options, result, size_px, sink);
+        });
         return ArrayFromImage(image);
       },
       "options"_a, "result"_a, "size_px"_a = 800,

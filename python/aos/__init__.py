@@ -762,6 +762,7 @@ def plan_flight(
     png: "Optional[str | os.PathLike[str]]" = None,
     png_size: int = 800,
     force: bool = False,
+    progress: Optional[Callable[[str, int, int], object]] = None,
     **kwargs: Unpack[FlightPlanKeywords],
 ) -> FlightPlanResult:
     """Plans a flight over a synthetic aperture: the waypoints, the number of images, the flight's
@@ -772,6 +773,9 @@ def plan_flight(
     spacing_m, along_spacing_m, outer_scale, altitude_m, dem, ...). ``csv``, ``geojson``, ``kml``
     and ``png`` name files to write, each refused if it exists unless ``force``; they are written
     only when the plan is accepted (a bad option or a plan over the battery writes nothing).
+    A plan over ``max_waypoints`` (10**6), the battery or the memory budget is refused before it
+    is generated; Ctrl-C (or ``progress`` raising) stops the planning and the exports and writes
+    nothing.
 
     Example (the paper's experiment 1: 231 images)::
 
@@ -788,7 +792,7 @@ def plan_flight(
             raise ValueError(f"{os.fspath(path)}: {name} is a folder; give a file name")
         if os.path.lexists(path) and not force:
             raise ValueError(f"{os.fspath(path)}: {name} exists; give force=True to replace it (nothing was written)")
-    result = _core._plan_flight(merged)
+    result = _core._plan_flight(merged, progress)
     texts = {}
     if csv is not None:
         texts[csv] = flight_plan_csv(result)
@@ -799,9 +803,14 @@ def plan_flight(
     image = flight_plan_map(merged, result, png_size) if png is not None else None
     for path, text in texts.items():
         temporary = os.fspath(path) + ".partial"
-        with open(temporary, "w", encoding="utf-8") as stream:
-            stream.write(text)
-        os.replace(temporary, path)
+        try:
+            with open(temporary, "w", encoding="utf-8") as stream:
+                stream.write(text)
+            os.replace(temporary, path)
+        except BaseException:  # Ctrl-C or a full disk: no partial file is left behind
+            if os.path.lexists(temporary):
+                os.remove(temporary)
+            raise
     if png is not None and image is not None:
         write_image(os.fspath(png), image)
     return result

@@ -1165,6 +1165,7 @@ class FlightPlanOptions:
         ground_speed_mps: float = ...,
         hover_s: float = ...,
         battery_min: float = ...,
+        max_waypoints: int = ...,
         image_width: int = ...,
         image_height: int = ...,
         fov_deg: float = ...,
@@ -1195,6 +1196,7 @@ class FlightPlanOptions:
     ground_speed_mps: float
     hover_s: float
     battery_min: float
+    max_waypoints: int
     image_width: int
     image_height: int
     fov_deg: float
@@ -1264,7 +1266,7 @@ class FlightPlanResult:
     def warnings(self) -> list[str]: ...
     def __repr__(self) -> str: ...
 
-def _plan_flight(options: FlightPlanOptions) -> FlightPlanResult: ...
+def _plan_flight(options: FlightPlanOptions, progress: _Progress = None) -> FlightPlanResult: ...
 def flight_plan_csv(result: FlightPlanResult) -> str: ...
 def flight_plan_geojson(result: FlightPlanResult) -> str: ...
 def flight_plan_kml(result: FlightPlanResult) -> str: ...

@@ -187,6 +187,7 @@ class FlightPlanKeywords(TypedDict, total=False):
     ground_speed_mps: float
     hover_s: float
     battery_min: float
+    max_waypoints: int
     image_width: int
     image_height: int
     fov_deg: float

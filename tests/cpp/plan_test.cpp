@@ -3,6 +3,8 @@
 #include "aos/plan/flight_plan.h"
 
 #include <cmath>
+#include <cstdlib>
+#include <ctime>
 #include <limits>
 #include <regex>
 #include <set>
@@ -14,6 +16,8 @@
 #include "aos/geometry/mesh.h"
 #include "aos/geometry/pinhole.h"
 #include "aos/metrics/resolution.h"
+#include "aos/util/error.h"
+#include "aos/util/progress.h"
 
 namespace aos {
 namespace {
@@ -349,6 +353,238 @@ TEST(FlightPlan, BadInputNamesTheField) {
   EXPECT_EQ(wide.lines, 1);
   ASSERT_FALSE(wide.warnings.empty());
   EXPECT_THAT(wide.warnings[0], HasSubstr("exceeds the aperture"));
+}
+
+// The path's length in the xy plane, from the waypoints.
+double PathLengthXy(const FlightPlanResult& r) {
+  double length = 0.0;
+  for (size_t i = 1; i < r.waypoints.size(); ++i) {
+    length += std::hypot(r.waypoints[i].x - r.waypoints[i - 1].x, r.waypoints[i].y - r.waypoints[i - 1].y);
+  }
+  return length;
+}
+
+// The count pass (CountFlightPlan, which PlanFlight runs before it stores a shot) gives the
+// generated plan's count exactly, on every shape, pattern and spacing; its length is the path's
+// to rounding (a sum of about 10^3 legs: 1e-9 relative is 10^4 times the rounding).
+TEST(FlightPlanBounds, CountIsThePlansOnEveryShapeAndPattern) {
+  std::vector<FlightPlanOptions> shapes;
+  FlightPlanOptions o;
+  o.battery_min = std::numeric_limits<double>::infinity();
+  o.radius_m = 20.0;
+  shapes.push_back(o);  // circle
+  for (const double angle : {45.0, 90.0, 180.0, 200.0, 300.0, 360.0}) {
+    o.shape = "sector";
+    o.sector_start_deg = 350.0;  // crosses north
+    o.sector_angle_deg = angle;
+    shapes.push_back(o);
+  }
+  o = FlightPlanOptions{};
+  o.battery_min = std::numeric_limits<double>::infinity();
+  o.shape = "rectangle";
+  o.width_m = 17.0;
+  o.length_m = 41.0;
+  o.center = {512345.0, 5353210.0};
+  shapes.push_back(o);
+  o.shape = "polygon";
+  o.center = {0.0, 0.0};
+  o.vertices = {{0, 0}, {30, 0}, {30, 30}, {20, 30}, {20, 8}, {10, 8}, {10, 30}, {0, 30}};  // a U
+  shapes.push_back(o);
+  o.vertices = {{0, 0}, {25, 3}, {31, 19}, {12, 28}, {-4, 15}};  // convex
+  shapes.push_back(o);
+  int cases = 0;
+  for (const FlightPlanOptions& shape : shapes) {
+    for (const char* pattern : {"scan", "grid", "circles"}) {
+      for (const double outer_scale : {1.0, 2.5}) {
+        for (const double heading : {0.0, 33.0}) {
+          for (const auto& [across, along] : {std::pair{3.0, 1.0}, std::pair{1.7, 2.3}}) {
+            FlightPlanOptions p = shape;
+            p.pattern = pattern;
+            p.outer_scale = outer_scale;
+            p.heading_deg = heading;
+            p.spacing_m = across;
+            p.along_spacing_m = along;
+            const FlightPlanResult r = PlanFlight(p);
+            const FlightPlanCount c = CountFlightPlan(p);
+            const std::string what = shape.shape + " " + pattern + " scale " +
+                                     std::to_string(outer_scale) + " heading " +
+                                     std::to_string(heading) + " across " + std::to_string(across);
+            EXPECT_FALSE(c.over_max) << what;
+            EXPECT_EQ(c.images, r.images) << what;
+            EXPECT_EQ(c.lines, r.lines) << what;
+            EXPECT_NEAR(c.length_m, PathLengthXy(r), 1e-9 * PathLengthXy(r) + 1e-9) << what;
+            EXPECT_NEAR(r.length_m, PathLengthXy(r), 1e-9 * PathLengthXy(r) + 1e-9) << what;
+            ++cases;
+          }
+        }
+      }
+    }
+  }
+  EXPECT_EQ(cases, 10 * 3 * 2 * 2 * 2);
+  // The line shape.
+  o = FlightPlanOptions{};
+  o.shape = "line";
+  o.vertices = {{0, 0}, {10, 0}, {10, 7.5}, {-3, 2}};
+  o.along_spacing_m = 1.3;
+  const FlightPlanResult line = PlanFlight(o);
+  EXPECT_EQ(CountFlightPlan(o).images, line.images);
+  EXPECT_NEAR(CountFlightPlan(o).length_m, line.length_m, 1e-9 * line.length_m);
+  // The paper's experiment 1, whose shots touch the circle: 231 both ways.
+  EXPECT_EQ(CountFlightPlan(Experiment1()).images, 231);
+}
+
+// The cases: each refused, naming the field and giving the figures, in well under a
+// second (before, each ran for minutes or ended in std::bad_alloc: nothing was bounded before
+// the waypoints were stored).
+TEST(FlightPlanBounds, LargePlansAreRefusedBeforeTheyAreGenerated) {
+  // CPU seconds (the machine running the tests may be loaded).
+  auto cpu_seconds = [] { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; };
+  auto timed_error = [&](const FlightPlanOptions& o, double* seconds) {
+    const double start = cpu_seconds();
+    const std::string error = ErrorOf(o);
+    *seconds = cpu_seconds() - start;
+    return error;
+  };
+  double seconds = 0.0;
+  FlightPlanOptions o;
+  o.radius_m = 3000.0;
+  o.spacing_m = 0.5;
+  o.along_spacing_m = 0.5;
+  o.battery_min = std::numeric_limits<double>::infinity();
+  EXPECT_THAT(timed_error(o, &seconds),
+              HasSubstr("max_waypoints: the plan has more than 1,000,000 waypoints (about "
+                        "113,097,336: area 28,274,334 m^2 / (spacing_m 0.5 m x along_spacing_m "
+                        "0.5 m); radius_m 3000); raise max_waypoints or the spacings"));
+  // The count stops at 10^6 shots: a few milliseconds; 2 s on a loaded machine.
+  EXPECT_LT(seconds, 2.0);
+  o = FlightPlanOptions{};
+  o.radius_m = 1e7;
+  EXPECT_THAT(timed_error(o, &seconds), HasSubstr("max_waypoints: the plan has more than 1,000,000"));
+  EXPECT_LT(seconds, 2.0);
+  o.battery_min = std::numeric_limits<double>::infinity();
+  EXPECT_THAT(timed_error(o, &seconds), HasSubstr("max_waypoints:"));
+  EXPECT_LT(seconds, 2.0);
+  o = FlightPlanOptions{};
+  o.radius_m = 5000.0;
+  EXPECT_THAT(timed_error(o, &seconds), HasSubstr("max_waypoints:"));
+  EXPECT_LT(seconds, 2.0);
+  // Tiny spacings: too many lines is known without a walk; too many shots along a line stops
+  // the count.
+  o = FlightPlanOptions{};
+  o.spacing_m = 1e-9;
+  EXPECT_THAT(timed_error(o, &seconds),
+              HasSubstr("max_waypoints: the plan has more than 1,000,000 waypoints (about "
+                        "706,858,347,058: area 707 m^2 / (spacing_m 1e-09 m x along_spacing_m 1 "
+                        "m); radius_m 15; 30,000,00"));
+  EXPECT_LT(seconds, 2.0);
+  o = FlightPlanOptions{};
+  o.along_spacing_m = 1e-9;
+  EXPECT_THAT(timed_error(o, &seconds), HasSubstr("max_waypoints:"));
+  EXPECT_LT(seconds, 2.0);
+  o.pattern = "circles";
+  EXPECT_THAT(timed_error(o, &seconds), HasSubstr("max_waypoints:"));
+  EXPECT_LT(seconds, 2.0);
+  o = FlightPlanOptions{};
+  o.radius_m = 1e7;
+  o.spacing_m = 1e3;
+  o.along_spacing_m = 1e-9;
+  EXPECT_THAT(timed_error(o, &seconds), HasSubstr("along_spacing_m: 1e-09 m gives"));
+  // A thin strip across the scan lines: each line meets it over 1 m of its 10 km, and only that
+  // metre is visited (5,001 lines x 101 shots; the lines' 5 x 10^9 positions outside it are not).
+  o = FlightPlanOptions{};
+  o.shape = "rectangle";
+  o.width_m = 10000.0;
+  o.length_m = 1.0;
+  o.spacing_m = 2.0;
+  o.along_spacing_m = 1e-2;
+  o.battery_min = std::numeric_limits<double>::infinity();
+  double start = cpu_seconds();
+  EXPECT_EQ(CountFlightPlan(o).images, 5001 * 101);
+  EXPECT_LT(cpu_seconds() - start, 2.0);
+  // Rings over a 1 m x 20 km strip: each of the 10,001 rings meets it in two arcs of about a
+  // metre, and only those arcs (and the in-between arcs that are inside) are visited, not the
+  // rings' 3 x 10^8 positions.
+  o = FlightPlanOptions{};
+  o.shape = "rectangle";
+  o.width_m = 1.0;
+  o.length_m = 20000.0;
+  o.pattern = "circles";
+  o.spacing_m = 1.0;
+  o.along_spacing_m = 1.0;
+  o.min_shots_per_line = 1;
+  o.battery_min = std::numeric_limits<double>::infinity();
+  start = cpu_seconds();
+  const FlightPlanCount rings = CountFlightPlan(o);
+  EXPECT_LT(cpu_seconds() - start, 2.0);
+  EXPECT_FALSE(rings.over_max);
+  EXPECT_EQ(rings.images, PlanFlight(o).images);
+  EXPECT_GT(rings.images, 2 * 10000);  // about two shots a ring
+  // Non-finite radii are refused by Check().
+  o = FlightPlanOptions{};
+  o.radius_m = std::numeric_limits<double>::infinity();
+  EXPECT_THAT(ErrorOf(o), HasSubstr("radius_m: must be a finite number > 0"));
+  o.radius_m = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THAT(ErrorOf(o), HasSubstr("radius_m: must be a finite number > 0"));
+}
+
+TEST(FlightPlanBounds, MaxWaypointsIsAnOption) {
+  FlightPlanOptions o = Experiment1();
+  EXPECT_EQ(FlightPlanOptions{}.max_waypoints, 1000000);
+  o.max_waypoints = 231;
+  EXPECT_EQ(PlanFlight(o).images, 231);
+  o.max_waypoints = 230;
+  EXPECT_THAT(ErrorOf(o), HasSubstr("max_waypoints: the plan has more than 230 waypoints"));
+  EXPECT_TRUE(CountFlightPlan(o).over_max);
+  o.max_waypoints = 0;
+  EXPECT_THAT(ErrorOf(o), HasSubstr("max_waypoints: must be in [1, 10^12]"));
+  o.max_waypoints = 2000000000000;
+  EXPECT_THAT(ErrorOf(o), HasSubstr("max_waypoints: must be in [1, 10^12]"));
+}
+
+// The battery and then the memory budget refuse the plan from the count, before its 513,000
+// waypoints (45 MB) are stored.
+TEST(FlightPlanBounds, BatteryAndMemoryAreCheckedBeforeGenerating) {
+  FlightPlanOptions o;
+  o.radius_m = 700.0;
+  ::setenv("AOS_MEMORY_LIMIT_MB", "16", 1);
+  EXPECT_THAT(ErrorOf(o), HasSubstr("battery_min: the plan takes"));
+  o.battery_min = std::numeric_limits<double>::infinity();
+  EXPECT_THAT(ErrorOf(o), HasSubstr("spacing_m/along_spacing_m: needs"));
+  ::unsetenv("AOS_MEMORY_LIMIT_MB");
+}
+
+// A sink that asks to stop after `after` polls.
+class StopAfter : public ProgressSink {
+ public:
+  explicit StopAfter(int after) : after_(after) {}
+  void Start(const std::string&, int64_t) override {}
+  void Advance(int64_t) override {}
+  bool Cancelled() override { return ++polls_ > after_; }
+  int polls() const { return polls_; }
+
+ private:
+  int after_;
+  int polls_ = 0;
+};
+
+TEST(FlightPlanBounds, PlanningAndExportsStopWhenAsked) {
+  FlightPlanOptions o;
+  o.radius_m = 150.0;
+  o.battery_min = std::numeric_limits<double>::infinity();  // 70,000 shots
+  StopAfter stop(5);
+  EXPECT_THROW(PlanFlight(o, &stop), Cancelled);
+  EXPECT_EQ(stop.polls(), 6);
+  StopAfter count_stop(0);
+  EXPECT_THROW(CountFlightPlan(o, &count_stop), Cancelled);
+  const FlightPlanResult r = PlanFlight(o);
+  StopAfter csv_stop(3);
+  EXPECT_THROW(FlightPlanCsv(r, &csv_stop), Cancelled);
+  StopAfter map_stop(3);
+  EXPECT_THROW(FlightPlanMap(o, r, 200, &map_stop), Cancelled);
+  // The polls are frequent: every 1024 candidates, every 4096 rows.
+  StopAfter never(std::numeric_limits<int>::max());
+  FlightPlanCsv(r, &never);
+  EXPECT_GE(never.polls(), r.images / 4096);
 }
 
 TEST(FlightPlan, MapIsDrawn) {

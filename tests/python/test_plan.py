@@ -4,10 +4,14 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import re
+import resource
 import shutil
+import signal
 import subprocess
 import sys
+import time
 import xml.etree.ElementTree as ElementTree
 from pathlib import Path
 
@@ -184,3 +188,137 @@ def test_study_tool_picks_the_cheapest_plan_reaching_the_target(tmp_path: Path):
     assert best is min(rows, key=lambda r: r.flight_min)
     assert study.cheapest(rows, 1000.0) is None
     ElementTree.fromstring(study.svg(rows, best, 18.0, "test"))  # well-formed SVG
+
+
+# The issue's cases (issue 31): each was minutes of work, 16 GB and a 6.6 GB CSV, or
+# std::bad_alloc / MemoryError; now each is refused from the count, before a waypoint is stored.
+LARGE_PLANS = [
+    (dict(radius_m=3000.0, spacing_m=0.5, along_spacing_m=0.5, battery_min=math.inf),
+     "max_waypoints: the plan has more than 1,000,000 waypoints (about 113,097,336"),
+    (dict(radius_m=1e7), "max_waypoints:"),
+    (dict(radius_m=5000.0), "max_waypoints:"),
+    (dict(radius_m=1e5), "max_waypoints:"),
+    (dict(spacing_m=1e-9), "(spacing_m 1e-09 m x along_spacing_m 1 m); radius_m 15; 30,000,00"),
+    (dict(along_spacing_m=1e-9), "max_waypoints:"),
+    (dict(radius_m=math.inf), "radius_m: must be a finite number > 0"),
+    (dict(radius_m=math.nan), "radius_m: must be a finite number > 0"),
+]
+
+
+def test_large_plans_are_refused_quickly(tmp_path: Path):
+    for options, message in LARGE_PLANS:
+        start = time.process_time()  # CPU time: the machine running the tests may be loaded
+        with pytest.raises(ValueError, match=re.escape(message)):
+            aos.plan_flight(**options, csv=tmp_path / "big.csv")
+        # Milliseconds each (the count stops at 10^6 shots, or knows the lines are too many).
+        assert time.process_time() - start < 1.0, options
+        assert list(tmp_path.iterdir()) == []
+    assert aos.FlightPlanOptions().max_waypoints == 1_000_000
+    assert aos.plan_flight(**EXPERIMENT_1, max_waypoints=231).images == 231
+    with pytest.raises(ValueError, match="max_waypoints: the plan has more than 230 waypoints"):
+        aos.plan_flight(**EXPERIMENT_1, max_waypoints=230)
+
+
+@needs_cli
+def test_cli_refuses_large_plans_quickly(tmp_path: Path):
+    # (Python's test above has the rest of the issue's cases; each run here loads the program.)
+    flags = [
+        ["--radius-m", "3000", "--spacing-m", "0.5", "--along-spacing-m", "0.5", "--battery-min", "inf"],
+        ["--radius-m", "1e7", "--battery-min", "inf"],
+        ["--spacing-m", "1e-9"],
+        ["--radius-m", "nan"],
+    ]
+    def cpu_of_children() -> float:
+        usage = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return usage.ru_utime + usage.ru_stime
+
+    start = cpu_of_children()
+    run("--version")
+    startup = cpu_of_children() - start  # loading the program: about 0.5 s of CPU
+    errors = []
+    for args in flags:
+        start = cpu_of_children()
+        out = run("plan", *args, "--csv", str(tmp_path / "big.csv"))
+        cpu = cpu_of_children() - start  # CPU time: wall time on a loaded machine says little
+        assert out.returncode in (1, 2), (args, out.stderr)
+        assert len(out.stderr.strip().splitlines()) == 1, out.stderr  # one line
+        assert "bad_alloc" not in out.stderr
+        assert cpu < startup + 1.0, (args, cpu, startup)
+        assert not (tmp_path / "big.csv").exists()
+        errors.append(out.stderr)
+    assert "113,097,336" in errors[0] and "[option --max-waypoints]" in errors[0]
+    assert "radius_m" in errors[3] and "--radius-m" in errors[3]
+    # The bound is a flag bound to the field.
+    assert run("plan", *"--radius-m 15 --spacing-m 3 --along-spacing-m 1 --max-waypoints 231".split()).returncode == 0
+    assert run("plan", *"--radius-m 15 --spacing-m 3 --along-spacing-m 1 --max-waypoints 230".split()).returncode != 0
+
+
+def slow_polygon(vertices: int = 2000, radius: float = 300.0) -> list[tuple[float, float]]:
+    """A circle as a polygon of many corners: every inside test visits each edge, so a plan of
+    ~280,000 shots takes many seconds while its memory stays small (~50 MB)."""
+    return [(radius * math.cos(2 * math.pi * k / vertices), radius * math.sin(2 * math.pi * k / vertices))
+            for k in range(vertices)]
+
+
+@needs_cli
+@pytest.mark.skipif(not Path("/proc/self/status").exists(), reason="reads /proc/PID/status")
+def test_cli_stops_on_sigterm_and_writes_nothing(tmp_path: Path):
+    vertices = ";".join(f"{x:.6f},{y:.6f}" for x, y in slow_polygon())
+    csv = tmp_path / "big.csv"
+    process = subprocess.Popen(
+        [EXE, "plan", "--shape", "polygon", "--vertices", vertices, "--spacing-m", "1",
+         "--along-spacing-m", "1", "--battery-min", "inf", "--max-waypoints", "2000000",
+         "--csv", str(csv)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    # Once the program catches SIGTERM (its handler is installed before the command runs; on a
+    # loaded machine loading it takes seconds), let it plan for 0.5 s.
+    status = Path(f"/proc/{process.pid}/status")
+    deadline = time.monotonic() + 60
+    while status.exists() and time.monotonic() < deadline:
+        caught = next((line for line in status.read_text().splitlines() if line.startswith("SigCgt:")), "")
+        if caught and int(caught.split()[1], 16) & (1 << (signal.SIGTERM - 1)):
+            break
+        time.sleep(0.02)
+    time.sleep(0.5)
+    assert process.poll() is None, "the plan finished before the signal: make it larger"
+    process.send_signal(signal.SIGTERM)
+    signalled = time.monotonic()
+    try:
+        _, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert time.monotonic() - signalled < 2.0
+    assert process.returncode != 0  # 130 or 143
+    assert "interrupted" in stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_python_stops_on_ctrl_c_and_writes_nothing(tmp_path: Path):
+    script = (
+        "import sys, aos, json\n"
+        "vertices = json.loads(sys.argv[1])\n"
+        "print('ready', flush=True)\n"
+        "try:\n"
+        "    aos.plan_flight(shape='polygon', vertices=vertices, spacing_m=1.0, along_spacing_m=1.0,\n"
+        "                    battery_min=float('inf'), csv=sys.argv[2])\n"
+        "except KeyboardInterrupt:\n"
+        "    print('interrupted', flush=True)\n"
+        "    sys.exit(3)\n"
+    )
+    env = dict(os.environ)
+    process = subprocess.Popen([sys.executable, "-c", script, json.dumps(slow_polygon()),
+                                str(tmp_path / "big.csv")],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+    try:
+        assert process.stdout.readline().strip() == "ready"
+        time.sleep(0.5)
+        assert process.poll() is None
+        process.send_signal(signal.SIGINT)
+        signalled = time.monotonic()
+        stdout, stderr = process.communicate(timeout=10)
+    finally:
+        process.kill()
+    assert time.monotonic() - signalled < 2.0
+    assert process.returncode == 3, stderr
+    assert "interrupted" in stdout
+    assert list(tmp_path.iterdir()) == []

@@ -44,6 +44,16 @@
 // - Resolution: Eq. 2 (metrics/resolution.h) of a pinhole camera of image_width x image_height
 //   pixels and a horizontal field of view fov_deg (square pixels) looking straight down from
 //   altitude_m. The defaults are the AOS paper's camera (Appendix A: 1871 x 1871, 80 degrees).
+// - Bounds. Before a waypoint is stored, a first pass walks the pattern without storing it (only
+//   the positions that can lie inside the shape are visited: the chord of each scan line, the
+//   arc of each ring within a sector) and counts the shots and the path's length. A plan of more
+//   than max_waypoints shots, more scan lines or rings across the aperture than max_waypoints, a
+//   plan over the battery budget (without a DEM, or at a constant altitude, where the length is
+//   known before the heights) or one whose waypoints would not fit the memory budget
+//   (util/memory.h: AOS_MEMORY_LIMIT_MB) is refused then, with its figures, before anything is
+//   allocated for it. The count is the generated plan's, exactly (the two passes share one walk).
+// - Cancellation. PlanFlight and the writers poll `progress` (Cancelled(): Ctrl-C from the CLI
+//   or Python) in every loop over shots, lines or pixels and throw aos::Cancelled.
 // - Warnings (FlightPlanResult::warnings): the spacing is wider than the aperture (one line or
 //   ring), the plan takes more than 90% of the battery, terrain-following changes the altitude.
 //
@@ -51,7 +61,8 @@
 // options: non-finite or non-positive spacings, speeds and altitudes, sector angles outside
 // (0, 360], open (fewer than 3 distinct vertices) or self-intersecting polygons, coordinates in
 // degrees given as metres of a projected CRS (or metres given as latitudes), a shot outside the
-// DEM or below the terrain, no shot at all, and a plan over the battery budget (battery_min).
+// DEM or below the terrain, no shot at all, a plan over the battery budget (battery_min), over
+// max_waypoints or over the memory budget.
 // Nothing is written by PlanFlight; the writers below write one file each, atomically.
 #include <array>
 #include <cstdint>
@@ -60,6 +71,7 @@
 #include <vector>
 
 #include "aos/image/image.h"
+#include "aos/util/progress.h"
 
 namespace aos {
 
@@ -119,6 +131,10 @@ struct FlightPlanOptions {
   // Flight time one battery allows, minutes (> 0; infinity = no budget): a longer plan is
   // refused. 25 min: a mid-size survey drone's endurance with a reserve.
   double battery_min = 25.0;
+  // Most shots a plan may have (>= 1), and most scan lines or rings across the aperture: a larger
+  // plan is refused before it is generated. 10^6 shots: about 6 days of flying at 2 s a shot,
+  // 64 MB of waypoints and 100 MB of CSV.
+  int64_t max_waypoints = 1000000;
 
   // Camera for the sampling resolution (Eq. 2): image size, pixels, and horizontal field of view,
   // degrees in (0, 180). Default: the AOS paper's camera (Appendix A).
@@ -162,23 +178,39 @@ struct FlightPlanResult {
 
 std::ostream& operator<<(std::ostream& stream, const FlightPlanResult& result);
 
-// Plans the flight (see the contract above). Reads options.dem when set.
-FlightPlanResult PlanFlight(const FlightPlanOptions& options);
+// Plans the flight (see the contract above). Reads options.dem when set. `progress` (may be
+// null) is polled for cancellation.
+FlightPlanResult PlanFlight(const FlightPlanOptions& options, ProgressSink* progress = nullptr);
+
+// The first pass of PlanFlight alone (see "Bounds"): the number of shots and of lines or rings
+// flown, and the path's length in the xy plane (the plan's length without terrain, to rounding),
+// without storing a shot. over_max: the plan has more than max_waypoints shots, or more lines or
+// rings across the aperture (images and lines are then where the count stopped). Throws what
+// PlanFlight throws for the options and the shape.
+struct FlightPlanCount {
+  int64_t images = 0;
+  int64_t lines = 0;
+  double length_m = 0.0;
+  bool over_max = false;
+};
+FlightPlanCount CountFlightPlan(const FlightPlanOptions& options, ProgressSink* progress = nullptr);
 
 // The waypoints as text. CSV: a header line, then one row per shot:
 //   index,latitude,longitude,altitude_agl_m,x_m,y_m,z_m,ground_z_m,line
 // (latitude/longitude empty without a CRS). GeoJSON (RFC 7946): a FeatureCollection of one
 // LineString (the path) and one Point per shot, coordinates [longitude, latitude, height above
 // ground] in WGS84. KML: a Document with the path (LineString, altitudeMode relativeToGround) and
-// one Placemark per shot. GeoJSON and KML throw std::invalid_argument without a CRS.
-std::string FlightPlanCsv(const FlightPlanResult& result);
-std::string FlightPlanGeoJson(const FlightPlanResult& result);
-std::string FlightPlanKml(const FlightPlanResult& result);
+// one Placemark per shot. GeoJSON and KML throw std::invalid_argument without a CRS. Each checks
+// the text's size against the memory budget first and polls `progress` for cancellation.
+std::string FlightPlanCsv(const FlightPlanResult& result, ProgressSink* progress = nullptr);
+std::string FlightPlanGeoJson(const FlightPlanResult& result, ProgressSink* progress = nullptr);
+std::string FlightPlanKml(const FlightPlanResult& result, ProgressSink* progress = nullptr);
 
 // A picture of the plan, 8-bit RGB, north up: the DEM's hillshade (options.dem) or a blank map,
 // the outline, the path, the shots, the growth centre, a scale bar and an arrow to north (+y,
-// labelled so, in a local frame). `size_px` is the longer side (>= 64).
+// labelled so, in a local frame). `size_px` is the longer side (>= 64); the picture is checked
+// against the memory budget first, and `progress` is polled for cancellation.
 Image FlightPlanMap(const FlightPlanOptions& options, const FlightPlanResult& result,
-                    int size_px = 800);
+                    int size_px = 800, ProgressSink* progress = nullptr);
 
 }  // namespace aos
