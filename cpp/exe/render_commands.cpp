@@ -739,8 +739,13 @@ int RunMap(MapCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   MapWriteOptions write;
   write.force = Common().force;
-  // Refuse a bad output before loading: an existing file without --force, a missing or
-  // read-only folder.
+  // Refuse a bad output before loading: not a .tif name, an existing file without --force, a
+  // missing or read-only folder.
+  try {
+    CheckMapOutputExtension(c.output);
+  } catch (const std::invalid_argument& error) {
+    throw UsageError(std::string(error.what()) + " [option --output]");
+  }
   CheckOutputPath(c.output, {c.light_field_path}, "output");
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
