@@ -2,6 +2,7 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
+#include <cstdint>
 #include <filesystem>
 #include <map>
 #include <memory>
@@ -14,6 +15,7 @@
 #include "aos/metrics/resolution.h"
 #include "aos/render/rectify.h"
 #include "aos/util/file_util.h"
+#include "aos/util/memory.h"
 #include "aos/util/parallel.h"
 #include "commands.h"
 #include "progress_bar.h"
@@ -269,7 +271,11 @@ int RunRectifyLightField(const RectifyCommand& c, const Flags& flags, ProgressBa
   try {
     result = RectifyLightField(loaded.light_field, c.options, &progress);
   } catch (const std::invalid_argument& error) {
-    flags.RethrowNamingFlags(std::invalid_argument(WithFillFlag(error.what())));
+    const std::string message = error.what();
+    if (message.rfind("rectify: ", 0) == 0) {  // the memory needed: name the light field
+      ThrowInvalid(c.light_field_path + ": " + message.substr(9));
+    }
+    flags.RethrowNamingFlags(std::invalid_argument(WithFillFlag(message)));
   }
   if (c.options.fill) {
     Warn("--fill: pixels outside the lens's coverage are black in the rectified views, and a "
@@ -305,6 +311,38 @@ int RunRectify(const RectifyCommand& c, const Flags& flags) {
   }
   PendingFolder folder(c.output_dir);
   const LensCamera lens = ReadCameraFile(c.camera_path);
+  {
+    // Memory from the headers, before any map or frame is allocated: the maps, and for each
+    // frame in flight its decoded raw pixels, the rectified frame and the file buffer of it.
+    int width = 0, height = 0;
+    RectifiedSize(lens, c.options, &width, &height);
+    uint64_t per_frame = 0;
+    std::string largest;
+    for (const std::string& frame : c.frames) {
+      const ImageFileInfo info = ReadImageInfo(frame);
+      const uint64_t sample = static_cast<uint64_t>(info.channels) * PixelTypeSize(info.type);
+      const uint64_t bytes =
+          SaturatingProduct({static_cast<uint64_t>(info.width), static_cast<uint64_t>(info.height),
+                             sample}) +
+          SaturatingProduct({2, static_cast<uint64_t>(std::max(width, 0)),
+                             static_cast<uint64_t>(std::max(height, 0)), sample});
+      if (bytes > per_frame) {
+        per_frame = bytes;
+        largest = frame;
+      }
+    }
+    const uint64_t in_flight =
+        std::min<uint64_t>(c.frames.size(), static_cast<uint64_t>(ResolveThreadCount(-1)));
+    const uint64_t frames_bytes = SaturatingProduct({in_flight, per_frame});
+    const uint64_t maps = RectifierBytes(lens, c.options);
+    CheckMemoryBudget(maps + frames_bytes < maps ? UINT64_MAX : maps + frames_bytes,
+                      largest + ": rectifying " + std::to_string(c.frames.size()) +
+                          " frame(s) to " + std::to_string(width) + "x" + std::to_string(height) +
+                          " pixels (" + c.camera_path + ")",
+                      "the resampling maps, and for each of " + std::to_string(in_flight) +
+                          " frame(s) in flight the raw frame, the rectified frame and its file "
+                          "buffer");
+  }
   Rectifier rectifier;
   try {
     rectifier = MakeRectifier(lens, c.options);

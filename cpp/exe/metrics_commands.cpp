@@ -1,11 +1,17 @@
 // Image quality: metrics.
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <memory>
+#include <new>
 #include <optional>
 
 #include "aos/image/image_io.h"
 #include "aos/metrics/quality.h"
+#include "aos/util/error.h"
+#include "aos/util/memory.h"
 #include "commands.h"
+#include "progress_bar.h"
 
 namespace aos::cli {
 namespace {
@@ -17,25 +23,66 @@ struct MetricsCommand {
   QualityOptions options;
 };
 
+// "test.png against reference.png (mask m.png)": the files a comparison's errors name.
+std::string Files(const MetricsCommand& c) {
+  return c.test_path + " against " + c.reference_path +
+         (c.mask_path.empty() ? std::string() : " (mask " + c.mask_path + ")");
+}
+
+// What the comparison will allocate, from the headers alone: the decoded images and
+// CompareImages' working memory; refused naming the files before any pixel is decoded.
+void CheckMetricsMemory(const MetricsCommand& c) {
+  const ImageFileInfo test = ReadImageInfo(c.test_path);
+  const ImageFileInfo reference = ReadImageInfo(c.reference_path);
+  const auto decoded = [](const ImageFileInfo& info) {
+    return SaturatingProduct({static_cast<uint64_t>(info.width), static_cast<uint64_t>(info.height),
+                              static_cast<uint64_t>(info.channels), PixelTypeSize(info.type)});
+  };
+  uint64_t needed = decoded(test);
+  const auto add = [&](uint64_t bytes) {
+    needed = needed + bytes < needed ? std::numeric_limits<uint64_t>::max() : needed + bytes;
+  };
+  add(decoded(reference));
+  if (!c.mask_path.empty()) add(decoded(ReadImageInfo(c.mask_path)));
+  add(CompareImagesWorkingBytes(test.width, test.height, test.channels, test.type,
+                                reference.channels, reference.type, c.options));
+  CheckMemoryBudget(needed,
+                    Files(c) + ": images of " + std::to_string(test.width) + "x" +
+                        std::to_string(test.height) + "x" + std::to_string(test.channels) +
+                        " pixels",
+                    "the decoded images and the SSIM's working planes");
+}
+
 int RunMetrics(const MetricsCommand& c, const Flags& flags) {
   flags.NamingFlags([&] { c.options.Check(); });  // before the images are read
-  const Image test = ReadImage(c.test_path);
-  const Image reference = ReadImage(c.reference_path);
+  CheckMetricsMemory(c);
+  ProgressBar progress(Common().quiet);
+  const auto read = [&](const std::string& path) {
+    Image image;
+    try {
+      image = ReadImage(path);
+    } catch (const std::bad_alloc&) {
+      ThrowInvalid(path + ": not enough memory to decode this image");
+    }
+    if (progress.Cancelled()) throw Cancelled();  // decoding does not poll; stop before the next
+    return image;
+  };
+  const Image test = read(c.test_path);
+  const Image reference = read(c.reference_path);
   std::optional<Image> mask;
-  if (!c.mask_path.empty()) mask = ReadImage(c.mask_path);
+  if (!c.mask_path.empty()) mask = read(c.mask_path);
   QualityResult r;
   try {
-    r = CompareImages(test, reference, mask ? &*mask : nullptr, c.options);
+    r = CompareImages(test, reference, mask ? &*mask : nullptr, c.options, &progress);
   } catch (const std::invalid_argument& error) {
     // Name the files: "compare: the test image is ..." does not say which ones.
     const std::string message = error.what();
-    if (message.rfind("compare: ", 0) == 0) {
-      ThrowInvalid(c.test_path + " against " + c.reference_path +
-                   (c.mask_path.empty() ? std::string() : " (mask " + c.mask_path + ")") + ": " +
-                   message.substr(9));
-    }
+    if (message.rfind("compare: ", 0) == 0) ThrowInvalid(Files(c) + ": " + message.substr(9));
     flags.RethrowNamingFlags(error);
+  } catch (const std::bad_alloc&) {
+    ThrowInvalid(Files(c) + ": not enough memory to compare the images");
   }
+  progress.Finish();
   if (!r.note.empty()) Note(r.note);
   Report report("metrics");
   report.Set("mse", r.mse);

@@ -739,9 +739,18 @@ int RunMap(MapCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   MapWriteOptions write;
   write.force = Common().force;
-  // Refuse a bad output before loading: an existing file without --force, a missing or
-  // read-only folder.
+  // Refuse a bad output before loading: one of the inputs, not a .tif name, an existing file
+  // without --force, a missing or read-only folder.
   CheckOutputPath(c.output, {c.light_field_path}, "output");
+  try {
+    CheckMapOutputExtension(c.output);
+  } catch (const std::invalid_argument& error) {
+    // Over a frame is the graver mistake (a frame.png given as -o): say that first, from the
+    // poses alone (no frame decoded).
+    const LightField poses = PosesOnly(c.light_field_path, c.load, flags);
+    CheckOutputPath(c.output, InputsOf(c.light_field_path, poses), "output");
+    throw UsageError(std::string(error.what()) + " [option --output]");
+  }
   RefuseExisting(c.output, "output");
   CheckMapOutputPath(c.output, write);
   // The cluster options are checked whether or not there is a cluster; those that only a

@@ -130,9 +130,18 @@ void BindLightField(py::module_& m) {
               view.camera = v["camera"].cast<LensCamera>();
             }
             view.cam_from_world = v["cam_from_world"].cast<Rigid3d>();
+            const std::string where = "View '" + view.name + "'";
             if (!v["image"].is_none()) {
-              view.image = ImageFromArray(v["image"], /*border=*/1, "View: image");
-              CheckView(view, "View '" + view.name + "'");
+              // What add_view checks (MakeView: camera, pose, size, finite pixels), so a pickle
+              // cannot bring in a view that could not have been made.
+              return MakeView(view.name, view.camera, view.cam_from_world,
+                              ImageFromArray(v["image"], /*border=*/1, "View: image"),
+                              view.image_path);
+            }
+            // A view loaded without images: its camera and pose still as add_view checks them.
+            view.camera.Pinhole().Check(where);
+            if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {
+              ThrowInvalid(Where(where, "cam_from_world: " + *problem));
             }
             return view;
           }))

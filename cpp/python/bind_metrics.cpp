@@ -51,17 +51,20 @@ void BindMetrics(py::module_& m) {
   m.def(
       "_compare_images",
       [](const py::handle& test, const py::handle& reference, const py::object& mask,
-         const QualityOptions& options) {
+         const QualityOptions& options, const py::object& progress) {
         const Image test_image = ImageFromArray(test, 0, "compare_images: test");
         const Image reference_image = ImageFromArray(reference, 0, "compare_images: reference");
         std::optional<Image> mask_image;
         if (!mask.is_none()) mask_image = ImageFromArray(mask, 0, "compare_images: mask");
-        py::gil_scoped_release release;
-        return CompareImages(test_image, reference_image, mask_image ? &*mask_image : nullptr,
-                             options);
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return CompareImages(test_image, reference_image, mask_image ? &*mask_image : nullptr,
+                               options, sink);
+        });
       },
       "test"_a, "reference"_a, "mask"_a = py::none(), "options"_a = QualityOptions{},
-      "Use aos.compare_images.");
+      "progress"_a = py::none(),
+      "Use aos.compare_images. Checks its working memory against the budget (ValueError) and "
+      "polls progress / Ctrl-C every band of rows.");
 
   OptionsClass<ResolutionOptions>(
       m, "ResolutionOptions",

@@ -562,6 +562,8 @@ def compare_images(
     reference: Any,
     mask: Any = None,
     options: Optional[QualityOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
     **kwargs: Unpack[QualityKeywords],
 ) -> QualityResult:
     """PSNR, SSIM and colour (quaternion) SSIM of ``test`` against ``reference``.
@@ -569,10 +571,12 @@ def compare_images(
     Arrays (H, W) or (H, W, C) of uint8, uint16, uint32 or float32 (float64 converted), copied.
     ``mask`` (e.g. a count map): non-zero pixels are compared (SSIM: pixels whose whole window is
     valid). ``kwargs`` are fields of :class:`QualityOptions`. Definitions: docs/metrics.md.
+    The working memory is checked against the budget first (ValueError); the GIL is released
+    and ``progress(stage, done, total)`` works as in :func:`render_integral` (Ctrl-C stops it).
     """
     merged = _copy_options("compare_images", QualityOptions, options)
     _COMPARE_IMAGES.apply([merged], dict(kwargs))
-    return _core._compare_images(test, reference, mask, merged)
+    return _core._compare_images(test, reference, mask, merged, progress)
 
 
 def render_focal_stack(

@@ -1305,6 +1305,7 @@ def _compare_images(
     reference: numpy.typing.ArrayLike,
     mask: Optional[numpy.typing.ArrayLike] = None,
     options: QualityOptions = ...,
+    progress: _Progress = None,
 ) -> QualityResult: ...
 def _progress_selftest(
     total: int,

@@ -327,6 +327,28 @@ TEST_F(FilesTest, ReadErrorsNameTheFile) {
   ExpectInvalid([&] { ReadImageInfo(Path("garbage.png")); }, {"garbage.png"});
 }
 
+TEST_F(FilesTest, TruncatedJpegIsRefusedNamingTheFile) {
+  // A JPEG cut anywhere before its end-of-image marker is refused. libjpeg decodes this one (a
+  // gradient) without its last two bytes, the marker, without a word (other cuts it reports as
+  // "Premature end of JPEG file"). The whole file, and one with bytes after EOI, still read.
+  Image image(64, 48, 1, PixelType::kU8);
+  for (int y = 0; y < 48; ++y) {
+    for (int x = 0; x < 64; ++x) *image.At<uint8_t>(x, y) = static_cast<uint8_t>(x + y);
+  }
+  WriteImage(Path("whole.jpg"), image);
+  std::ifstream in(Path("whole.jpg"), std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  ASSERT_GT(bytes.size(), 500u);
+  ASSERT_EQ(bytes.substr(bytes.size() - 2), "\xff\xd9");
+  EXPECT_EQ(ReadImage(Path("whole.jpg")).width(), 64);
+  std::ofstream(Path("trailer.jpg"), std::ios::binary) << bytes << std::string(100, '\0');
+  EXPECT_EQ(ReadImage(Path("trailer.jpg")).width(), 64);
+  for (const size_t keep : {bytes.size() - 2, bytes.size() / 2, size_t{400}}) {
+    std::ofstream(Path("cut.jpg"), std::ios::binary) << bytes.substr(0, keep);
+    ExpectInvalid([&] { ReadImage(Path("cut.jpg")); }, {"cut.jpg", "truncated JPEG"});
+  }
+}
+
 // file_util
 
 TEST_F(FilesTest, PendingFileWithoutCommitLeavesNothing) {

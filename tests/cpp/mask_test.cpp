@@ -82,23 +82,35 @@ TEST_F(MaskTest, RefusesRgbaFramesAndOtherSizes) {
               HasSubstr("view 3: mask m.png is 2x1 but the frame is 3x2"));
 }
 
-TEST(MaskedMean, DividesCountsAndRecoversTheVariance) {
+TEST(MaskedMean, DividesCountsAndKeepsTheRenderersMaskedVariance) {
   // Pixel 0: four 8-bit samples of one channel, premultiplied: (10, 255), (20, 255),
-  // (30, 255), (0, 0) (masked). The renderer's means: 60/4 = 15 and 765/4 = 191.25; its
-  // variance over both channels: (125 + 12192.1875) / 2. Pixel 1: two samples, both masked.
+  // (30, 255), (0, 0) (masked). The renderer's sums: 60 and 765, the value channel's squares
+  // 100 + 400 + 900; its means 60/4 = 15 and 765/4 = 191.25. Pixel 1: two samples, both masked.
   // Pixel 2: no sample.
+  const double sums[2] = {60.0, 765.0};
+  const double variance = internal::MaskedVariance(sums, 1400.0, 2, 255.0);
+  EXPECT_DOUBLE_EQ(variance, 200.0 / 3.0);  // the population variance of 10, 20, 30
+  const double nothing[2] = {0.0, 0.0};
+  EXPECT_EQ(internal::MaskedVariance(nothing, 0.0, 2, 255.0), 0.0);
+  // 16-bit samples near the top of the range: equal ones give exactly 0, 60000 +- 1 exactly 1.
+  const double equal[2] = {3 * 60000.0, 3 * 65535.0};
+  EXPECT_EQ(internal::MaskedVariance(equal, 3 * 60000.0 * 60000.0, 2, 65535.0), 0.0);
+  const double spread[2] = {4 * 60000.0, 4 * 65535.0};
+  EXPECT_EQ(internal::MaskedVariance(spread, 2 * 59999.0 * 59999.0 + 2 * 60001.0 * 60001.0, 2,
+                                     65535.0),
+            1.0);
   IntegralResult result;
   result.image = Filled(3, 1, 2, PixelType::kF32, {15, 191.25, 0, 0, 0, 0});
   result.count = Image(3, 1, 1, PixelType::kU32);
   result.count.At<uint32_t>(0, 0)[0] = 4;
   result.count.At<uint32_t>(1, 0)[0] = 2;
-  result.variance = Filled(3, 1, 1, PixelType::kF32, {(125 + 12192.1875) / 2, 0, 0});
+  result.variance = Filled(3, 1, 1, PixelType::kF32, {variance, 0, 0});
   internal::DivideByMaskWeight(result, 255.0);
   ASSERT_EQ(result.image.channels(), 1);
   // The mean, count and population variance of the valid samples 10, 20, 30.
   EXPECT_NEAR(result.image.Value(0, 0), 20.0, 1e-5);
   EXPECT_EQ(result.count.Value(0, 0), 3);
-  EXPECT_NEAR(result.variance.Value(0, 0), 200.0 / 3.0, 1e-3);
+  EXPECT_FLOAT_EQ(result.variance.Value(0, 0), 200.0 / 3.0);
   for (int x = 1; x < 3; ++x) {
     EXPECT_EQ(result.image.Value(x, 0), 0.0);
     EXPECT_EQ(result.count.Value(x, 0), 0);

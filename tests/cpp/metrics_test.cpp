@@ -2,11 +2,16 @@
 #include "aos/metrics/quality.h"
 
 #include <cmath>
+#include <cstdlib>
 #include <functional>
 #include <random>
+#include <vector>
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+
+#include "aos/util/error.h"
+#include "aos/util/progress.h"
 
 namespace aos {
 namespace {
@@ -168,6 +173,96 @@ TEST(Metrics, GreyComparesLuminancesAndTheErrorOffersIt) {
   EXPECT_TRUE(std::isinf(r.psnr_db)) << r.mse;  // the luminance of the reference is the test
   EXPECT_DOUBLE_EQ(r.ssim, 1.0);
   EXPECT_THAT(r.note, testing::HasSubstr("Rec. 601"));
+}
+
+// SSIM by its definition, window by window (no OpenCV): the Gaussian weights of an 11 x 11
+// window with sigma 1.5, normalised per axis as OpenCV's separable kernel is.
+double DirectSsim(const Image& a, const Image& b) {
+  const int r = 5;
+  std::vector<double> w(2 * r + 1);
+  double total = 0.0;
+  for (int i = -r; i <= r; ++i) total += w[i + r] = std::exp(-i * i / (2 * 1.5 * 1.5));
+  for (double& v : w) v /= total;
+  const double C1 = std::pow(0.01 * 255, 2), C2 = std::pow(0.03 * 255, 2);
+  double sum = 0.0;
+  int64_t n = 0;
+  for (int y = r; y < a.height() - r; ++y) {
+    for (int x = r; x < a.width() - r; ++x) {
+      double ma = 0, mb = 0, aa = 0, bb = 0, ab = 0;
+      for (int dy = -r; dy <= r; ++dy) {
+        for (int dx = -r; dx <= r; ++dx) {
+          const double k = w[dy + r] * w[dx + r];
+          const double va = a.Value(x + dx, y + dy), vb = b.Value(x + dx, y + dy);
+          ma += k * va;
+          mb += k * vb;
+          aa += k * va * va;
+          bb += k * vb * vb;
+          ab += k * va * vb;
+        }
+      }
+      sum += ((2 * ma * mb + C1) * (2 * (ab - ma * mb) + C2)) /
+             ((ma * ma + mb * mb + C1) * (aa - ma * ma + bb - mb * mb + C2));
+      ++n;
+    }
+  }
+  return sum / static_cast<double>(n);
+}
+
+TEST(Metrics, SsimOfATallImageMatchesItsDefinition) {
+  // Tall enough that the SSIM is computed in several bands of rows: the bands' seams must not
+  // show. The direct sums and OpenCV's separable blur differ by rounding only (~1e-15 each).
+  std::mt19937 random(21);
+  const Image a = Filled(48, 2600, 1, PixelType::kU8, [&](int, int, int) { return random() % 256; });
+  const Image b = Filled(48, 2600, 1, PixelType::kU8, [&](int x, int y, int) {
+    return std::min(255.0, a.Value(x, y) * 0.8 + (random() % 40));
+  });
+  const QualityResult result = CompareImages(b, a);
+  EXPECT_EQ(result.ssim_pixels, (48 - 10) * (2600 - 10));
+  EXPECT_NEAR(result.ssim, DirectSsim(b, a), 1e-9);
+}
+
+// Cancels at the `after`-th poll.
+class CancelAfter : public ProgressSink {
+ public:
+  explicit CancelAfter(int after) : after_(after) {}
+  void Start(const std::string&, int64_t total) override { total_ += total; }
+  void Advance(int64_t units) override { done_ += units; }
+  bool Cancelled() override { return ++polls_ > after_; }
+  int polls_ = 0;
+  int64_t total_ = 0, done_ = 0;
+
+ private:
+  int after_;
+};
+
+TEST(Metrics, ComparisonPollsCancellation) {
+  const Image a = Filled(300, 3000, 3, PixelType::kU8, [](int x, int y, int c) { return (x * y + c) % 251; });
+  CancelAfter never(1 << 30);
+  const QualityResult result = CompareImages(a, a, nullptr, {}, &never);
+  EXPECT_DOUBLE_EQ(result.ssim, 1.0);
+  EXPECT_GE(never.polls_, 6);  // the MSE rows and the SSIM bands are polled
+  EXPECT_EQ(never.done_, never.total_);
+  for (const int after : {0, 1, 3}) {
+    CancelAfter cancel(after);
+    EXPECT_THROW(CompareImages(a, a, nullptr, {}, &cancel), Cancelled) << after;
+  }
+}
+
+TEST(Metrics, WorkingMemoryIsCheckedAgainstTheBudget) {
+  const Image a = Filled(2000, 300, 1, PixelType::kU8, [](int x, int y, int) { return (x + y) % 256; });
+  EXPECT_GT(CompareImagesWorkingBytes(2000, 300, 1, PixelType::kU8, 1, PixelType::kU8, {}),
+            uint64_t{1} << 20);
+  ::setenv("AOS_MEMORY_LIMIT_MB", "1", 1);
+  std::string error;
+  try {
+    CompareImages(a, a);
+  } catch (const std::invalid_argument& e) {
+    error = e.what();
+  }
+  ::unsetenv("AOS_MEMORY_LIMIT_MB");
+  EXPECT_THAT(error, HasSubstr("compare: images of 2000x300x1"));
+  EXPECT_THAT(error, HasSubstr("AOS_MEMORY_LIMIT_MB"));
+  EXPECT_DOUBLE_EQ(CompareImages(a, a).ssim, 1.0);
 }
 
 }  // namespace

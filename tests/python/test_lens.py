@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 
 import numpy as np
@@ -192,3 +193,36 @@ def test_cli_resolution_of_wide_lenses_is_sane() -> None:
     assert r["pixels_off_axis"] == 0 and r["sample_size_m"] < 0.05
     refused = resolution("--lens-fov-deg", "180")
     assert refused.returncode == 2 and "pinhole lens's field of view" in refused.stderr
+
+
+def test_rectify_checks_its_memory_before_allocating(tmp_path, monkeypatch) -> None:
+    # A 2000 x 2000 frame decodes to 3.8 MiB, under a 20 MiB budget; the resampling maps (8 bytes
+    # a rectified pixel: 31 MiB) and the rectified frames are not: refused from the headers,
+    # naming the frame and the camera file, before anything is allocated or written.
+    side = 2000
+    camera = {"format": "aos-camera", "version": 1, "model": "fisheye", "width": side,
+              "height": side, "fx": side / 3, "fy": side / 3, "cx": side / 2, "cy": side / 2,
+              "distortion": [0, 0, 0, 0]}
+    (tmp_path / "cam.json").write_text(json.dumps(camera))
+    aos.write_image(str(tmp_path / "f0.png"), np.zeros((side, side), np.uint8))
+    env = dict(os.environ, AOS_MEMORY_LIMIT_MB="20")
+    done = subprocess.run(["aos-render", "rectify", str(tmp_path / "f0.png"), "--camera",
+                           str(tmp_path / "cam.json"), "--rectified-fov-deg", "60", "-o",
+                           str(tmp_path / "out")], capture_output=True, text=True, env=env)
+    assert done.returncode == 1, done.stderr
+    assert "f0.png" in done.stderr and "cam.json" in done.stderr, done.stderr
+    assert "AOS_MEMORY_LIMIT_MB" in done.stderr and "2000x2000" in done.stderr, done.stderr
+    assert not (tmp_path / "out").exists()
+    # The library: the maps of make_rectifier, and rectify_light_field's new views.
+    lens = aos.LensCamera(aos.LensModel.fisheye, side, side, side / 3, side / 3, side / 2,
+                          side / 2, [0, 0, 0, 0])
+    light_field = aos.LightField()
+    light_field.add_view(np.zeros((side, side), np.uint8), lens, aos.Rigid3d(), name="f0.png")
+    monkeypatch.setenv("AOS_MEMORY_LIMIT_MB", "20")
+    with pytest.raises(ValueError, match=r"width/height: rectified frames of 2000x2000 pixels"):
+        aos.make_rectifier(lens, aos.RectifyOptions(fov_deg=60))
+    with pytest.raises(ValueError, match=r"rectify: 1 lens views: needs .* AOS_MEMORY_LIMIT_MB"):
+        aos.rectify_light_field(light_field, fov_deg=60, width=1600, height=1600)
+    monkeypatch.setenv("AOS_MEMORY_LIMIT_MB", "100")
+    assert aos.rectify_light_field(light_field, fov_deg=60, width=200,
+                                   height=200).rectified_views == 1

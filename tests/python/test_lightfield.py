@@ -242,3 +242,24 @@ def test_view_pickled_by_the_previous_version_still_loads() -> None:
         view.__setstate__({"name": "a.png", "image_path": "", "camera": pinhole_camera,
                            "lens": lens, "cam_from_world": aos.Rigid3d(), "image": image})
         assert view.camera == expected
+
+def test_unpickling_a_view_checks_it_as_add_view_does() -> None:
+    # A view whose pickled pixels hold NaN (or inf) is refused like add_view refuses them; so is
+    # a bad pose, with or without pixels.
+    camera = aos.PinholeCamera.from_fov(16, 12, 60.0)
+    light_field = aos.LightField()
+    light_field.add_view(np.ones((12, 16), np.float32), camera, aos.Rigid3d(), name="a.tif")
+    state = light_field.views[0].__getstate__()
+    for bad in (np.nan, np.inf):
+        image = np.ones((12, 16), np.float32)
+        image[3, 5] = bad
+        with pytest.raises(ValueError, match=r"a\.tif.*\(5, 3\)"):
+            aos.LightField().add_view(image, camera, aos.Rigid3d(), name="a.tif")
+        view = aos.View.__new__(aos.View)
+        with pytest.raises(ValueError, match=r"a\.tif.*\(5, 3\)"):
+            view.__setstate__(dict(state, image=image))
+    bad_pose = aos.Rigid3d(translation=(np.nan, 0.0, 0.0))
+    for changes in ({"image": None, "cam_from_world": bad_pose}, {"cam_from_world": bad_pose}):
+        with pytest.raises(ValueError, match="cam_from_world"):
+            aos.View.__new__(aos.View).__setstate__(dict(state, **changes))
+    assert pickle.loads(pickle.dumps(light_field)) == light_field

@@ -378,3 +378,58 @@ def test_a_masked_light_field_is_not_written(tmp_path: Path) -> None:
         with pytest.raises(ValueError, match="the light field is masked"):
             aos.write_lightfield(str(target), light_field)
         assert not target.exists()
+
+
+def _depth_of_plane(lf: aos.LightField) -> np.ndarray:
+    """Camera z of the plane z = 0 for RENDER's virtual camera (the depth-map routes)."""
+    camera = aos.virtual_camera(lf, aos.IntegralOptions(pose_view=4, fov_deg=50.0, width=40,
+                                                       height=32))
+    centre = lf.views[4].cam_from_world.center
+    R = lf.views[4].cam_from_world.rotation
+    ys, xs = np.mgrid[0:camera.height, 0:camera.width] + 0.5
+    rays = np.stack([xs, ys, np.ones_like(xs)], -1) @ np.linalg.inv(camera.K).T @ R
+    return (-centre[2] / rays[..., 2]).astype(np.float32)
+
+
+@pytest.mark.parametrize("kind", ["constant", "plus_minus_one"])
+def test_masked_variance_of_16_bit_frames_is_exact(tmp_path: Path, kind: str) -> None:
+    """16-bit frames near the top of their range: every view constant 60000, or 60000 + 1 and
+    60000 - 1 in turn. Each sample is then exact (bilinear weights of equal taps), so the
+    variance of the valid samples is exactly 0, or the analytic population variance up to double
+    rounding (~1e-6), on every render route; where some views are masked out (mean mask weight
+    below 1) it was recovered from float32 means of the premultiplied values, tens of units off."""
+    geometry = aos.simulate(scene_json(1)).light_field
+    valid = letterbox_mask()
+    clean, on_disk = aos.LightField(), aos.LightField()
+    for i, view in enumerate(geometry.views):
+        value = 60000 if kind == "constant" else 60000 + (1 if i % 2 else -1)
+        image = np.full((H, W), value, np.uint16)
+        clean.add_view(image, view.camera, view.cam_from_world, f"{i:04d}.png")
+        on_disk.add_view(np.where(valid == 1, image, 65535).astype(np.uint16), view.camera,
+                         view.cam_from_world, f"{i:04d}.png")
+    folder = tmp_path / "lf"
+    folder.mkdir()
+    aos.write_lightfield(str(folder / "lightfield.json"), on_disk)
+    aos.write_image(str(folder / "mask.png"), valid * 255)
+    lf = aos.load_lightfield(folder / "lightfield.json", mask=folder / "mask.png").light_field
+    assert lf.masked and lf.views[0].image.dtype == np.uint16
+    truth = reference(clean, lambda i: valid, RENDER)
+    ok = truth["clean"] & (truth["count"] >= 2)
+    partial = ok & (truth["count"] < 9)  # some views masked out: mean mask weight below 1
+    assert partial.sum() > 50
+    depth = _depth_of_plane(lf)
+    routes = {
+        "plane": aos.render_integral(lf, variance=True, **RENDER),
+        "depth": aos.render_integral_on_depth(lf, depth, variance=True, **RENDER).integral,
+        "robust": aos.render_integral_on_depth(lf, depth, robust=True, agreement=1.0,
+                                               variance=True, **RENDER).integral,
+    }
+    for route, result in routes.items():
+        same = ok & (result.count == truth["count"])
+        assert same[partial].mean() > 0.9, route
+        if kind == "constant":
+            assert np.all(result.variance[same] == 0.0), (route, result.variance[same].max())
+        else:
+            assert truth["variance"][same & partial].max() > 0.5
+            np.testing.assert_allclose(result.variance[same], truth["variance"][same], atol=1e-5,
+                                       err_msg=route)

@@ -2,8 +2,12 @@
 in docs/metrics.md (Gaussian-window SSIM of Wang et al. 2004)."""
 import json
 import math
+import os
 import shutil
+import signal
+import struct
 import subprocess
+import time
 
 import numpy as np
 import pytest
@@ -111,3 +115,105 @@ def test_mismatched_sample_types_are_normalised_or_refused(tmp_path) -> None:
         assert done.returncode == 0, done.stderr
         assert "scaled by 257" in done.stderr
         assert abs(json.loads(done.stdout)["psnr_db"] - same_scale.psnr_db) < 1e-6
+
+
+def _metrics_cli(*args: str, env: dict | None = None, **kwargs) -> subprocess.Popen:
+    exe = shutil.which("aos-render")
+    if exe is None:
+        pytest.skip("aos-render is not on PATH")
+    return subprocess.Popen([exe, "metrics", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=env, **kwargs)
+
+
+def test_cli_metrics_checks_the_comparisons_memory_before_decoding(tmp_path) -> None:
+    # Two 3000 x 3000 8-bit images decode to 8.6 MiB each, under a 12 MiB budget one at a time
+    # (the readers' own check), not together with the SSIM's working planes: refused from the
+    # headers, naming both files, instead of being allocated (or killed by the kernel).
+    zeros = np.zeros((3000, 3000), np.uint8)
+    aos.write_image(str(tmp_path / "a.png"), zeros)
+    aos.write_image(str(tmp_path / "b.png"), zeros)
+    env = dict(os.environ, AOS_MEMORY_LIMIT_MB="12")
+    done = _metrics_cli(str(tmp_path / "a.png"), str(tmp_path / "b.png"), env=env)
+    out, err = done.communicate(timeout=60)
+    assert done.returncode == 1, err
+    assert out == ""
+    assert f"{tmp_path / 'a.png'} against {tmp_path / 'b.png'}: images of 3000x3000x1" in err
+    assert "AOS_MEMORY_LIMIT_MB" in err and len(err.strip().splitlines()) == 1
+    env["AOS_MEMORY_LIMIT_MB"] = "40"
+    done = _metrics_cli(str(tmp_path / "a.png"), str(tmp_path / "b.png"), env=env)
+    out, err = done.communicate(timeout=60)
+    assert done.returncode == 0 and "PSNR inf" in out, err
+
+
+def _raw_tiff(path, image: np.ndarray) -> None:
+    """An uncompressed 8-bit grey TIFF in one strip (fast to write, unlike a compressed one)."""
+    height, width = image.shape
+    entries = [(256, 4, width), (257, 4, height), (258, 3, 8), (259, 3, 1), (262, 3, 1),
+               (273, 4, 0), (277, 3, 1), (278, 4, height), (279, 4, width * height)]
+    data_offset = 8 + 2 + 12 * len(entries) + 4
+    body = struct.pack("<H", len(entries))
+    for tag, kind, value in entries:
+        value = data_offset if tag == 273 else value
+        packed = struct.pack("<I", value) if kind == 4 else struct.pack("<HH", value, 0)
+        body += struct.pack("<HHI", tag, kind, 1) + packed
+    body += struct.pack("<I", 0)
+    with open(path, "wb") as file:
+        file.write(b"II*\x00" + struct.pack("<I", 8) + body)
+        file.write(np.ascontiguousarray(image, np.uint8).tobytes())
+
+
+def _wait_until_it_catches_sigterm(pid: int, timeout: float = 60.0) -> None:
+    """Until the process has installed its SIGTERM handler (SigCgt in /proc/PID/status): its
+    start (loading libraries) can take seconds on a busy machine."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            status = open(f"/proc/{pid}/status").read()
+        except FileNotFoundError:
+            return
+        caught = next(line.split()[1] for line in status.splitlines() if line.startswith("SigCgt:"))
+        if int(caught, 16) & (1 << (signal.SIGTERM - 1)):
+            return
+        time.sleep(0.02)
+
+
+def test_cli_metrics_stops_on_sigterm(tmp_path) -> None:
+    # 8000 x 8000 random images take seconds to compare; SIGTERM half a second into the work
+    # must stop the comparison within 2 s with the interrupted exit code and no result.
+    rng = np.random.default_rng(8)
+    image = rng.integers(0, 256, (8000, 8000), dtype=np.uint8)
+    _raw_tiff(tmp_path / "a.tif", image)
+    _raw_tiff(tmp_path / "b.tif", image // 2)
+    assert aos.read_image(str(tmp_path / "b.tif"))[17, 4000] == image[17, 4000] // 2
+    done = _metrics_cli(str(tmp_path / "a.tif"), str(tmp_path / "b.tif"))
+    _wait_until_it_catches_sigterm(done.pid)
+    time.sleep(0.5)
+    done.send_signal(signal.SIGTERM)
+    start = time.monotonic()
+    try:
+        out, err = done.communicate(timeout=2.0)
+    finally:
+        done.kill()
+    assert time.monotonic() - start < 2.0
+    assert done.returncode in (130, 143), err
+    assert "PSNR" not in out and "interrupted" in err
+
+
+def test_compare_images_polls_progress_and_checks_memory(monkeypatch) -> None:
+    image = (np.arange(300 * 2000) % 251).astype(np.uint8).reshape(300, 2000)
+    calls = []
+
+    def stop(stage: str, done: int, total: int) -> None:
+        calls.append((stage, done, total))
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        aos.compare_images(image, image, progress=stop)
+    assert calls and calls[0][0] == "metrics"
+    reports = []
+    assert aos.compare_images(image, image, progress=lambda *a: reports.append(a)).ssim == 1.0
+    assert reports[-1][1] == reports[-1][2] > 1
+    monkeypatch.setenv("AOS_MEMORY_LIMIT_MB", "1")
+    with pytest.raises(ValueError, match=r"compare: images of 2000x300x1 pixels: needs .*"
+                                         r"AOS_MEMORY_LIMIT_MB"):
+        aos.compare_images(image, image)

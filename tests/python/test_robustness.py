@@ -294,6 +294,78 @@ def test_truncated_tiff_is_an_error_not_junk(light_field: Path, tmp_path: Path) 
     assert not (tmp_path / "merged").exists()
 
 
+def test_merge_names_the_stack_json_that_names_a_missing_slice(light_field: Path,
+                                                               tmp_path: Path) -> None:
+    stack = tmp_path / "stack"
+    result = run("stack", light_field, *CAMERA, "--slices", "3", "-q", "-o", stack)
+    assert result.returncode == 0, result.stderr
+    (stack / "slice_0002.tif").unlink()
+    result = run("merge", stack, "-o", tmp_path / "merged")
+    message = assert_refused(result, "stack.json", "/slices/2/image", "slice_0002.tif")
+    assert message.index("stack.json") < message.index("slice_0002.tif"), message
+    with pytest.raises(ValueError, match=r"stack\.json: /slices/2/image: .*slice_0002\.tif"):
+        aos.read_focal_stack(str(stack))
+    assert not (tmp_path / "merged").exists()
+
+
+def test_output_formats_are_refused_before_rendering(light_field: Path, tmp_path: Path) -> None:
+    # An image output no writer takes (or a map that is not a .tif name) is refused before any
+    # rendering: nothing rendered ("integrated ..." comes after the render), nothing written.
+    cases = [
+        (["integral", light_field, *CAMERA, "-o", tmp_path / "a.xyz"], "a.xyz", "extension .xyz"),
+        (["integral", light_field, *CAMERA, "-o", tmp_path / "noext"], "noext", "no file extension"),
+        (["integral", light_field, *CAMERA, "-o", tmp_path / "a.tif", "--count",
+          tmp_path / "c.xyz"], "c.xyz", "extension .xyz"),
+        (["integral", light_field, *CAMERA, "-o", tmp_path / "a.exr", "--sample-type", "uint8"],
+         "a.exr", "EXR files hold float samples"),
+        (["map", light_field, "--pixel-size", "0.5", "-o", tmp_path / "map.png"], "map.png",
+         "Cloud-Optimised GeoTIFF"),
+    ]
+    for args, name, why in cases:
+        result = run(*args)
+        assert result.returncode in (1, 2), (args, result.stderr)
+        message = [line for line in result.stderr.splitlines() if "error" in line]
+        assert len(message) == 1 and name in message[0] and why in message[0], result.stderr
+        assert "integrated" not in result.stderr and "map:" not in result.stderr, result.stderr
+        no_leftovers(tmp_path, set())
+    result = run("map", light_field, "--pixel-size", "0.5", "-o", tmp_path / "map.png")
+    assert result.returncode == 2 and "--output" in result.stderr, result.stderr
+    lf = aos.load_lightfield(str(light_field)).light_field
+    with pytest.raises(ValueError, match=r"map\.png: a map is written as a Cloud-Optimised GeoTIFF"):
+        aos.render_map(lf, pixel_size=0.5, path=tmp_path / "map.png")
+    with pytest.raises(ValueError, match=r"a\.xyz: no image format has the extension \.xyz"):
+        aos.write_image(str(tmp_path / "a.xyz"), np.zeros((4, 4), np.uint8))
+    no_leftovers(tmp_path, set())
+
+
+def test_truncated_jpeg_is_an_error_not_grey(tmp_path: Path) -> None:
+    # A JPEG without its end-of-image marker: libjpeg decodes this one (a gradient, whose last
+    # scan data ends before the decoder looks past it) without a word; OpenImageIO catches
+    # other cuts ("Premature end of JPEG file"), not this one.
+    y, x = np.mgrid[0:48, 0:64]
+    whole = tmp_path / "whole.jpg"
+    aos.write_image(str(whole), ((x + y) % 256).astype(np.uint8))
+    data = whole.read_bytes()
+    assert data[-2:] == b"\xff\xd9"
+    truncated = tmp_path / "truncated.jpg"
+    for cut in (2, len(data) // 3):
+        truncated.write_bytes(data[:-cut])
+        with pytest.raises(ValueError, match="truncated.jpg: truncated JPEG"):
+            aos.read_image(str(truncated))
+    truncated.write_bytes(data[:-2])
+    assert_refused(run("metrics", truncated, whole), "truncated.jpg", "truncated JPEG")
+    camera = tmp_path / "camera.json"
+    camera.write_text(json.dumps({"format": "aos-camera", "version": 1, "model": "fisheye",
+                                  "width": 64, "height": 48, "fx": 24, "fy": 24, "cx": 32,
+                                  "cy": 24, "distortion": [0, 0, 0, 0]}))
+    out = tmp_path / "rectified"
+    result = run("rectify", truncated, "--camera", camera, "--rectified-fov-deg", "60", "-o", out)
+    assert_refused(result, "truncated.jpg", "truncated JPEG")
+    assert not out.exists()
+    result = run("rectify", whole, "--camera", camera, "--rectified-fov-deg", "60", "-o", out)
+    assert result.returncode == 0, result.stderr
+
+
 def test_rectify_refuses_non_finite_frames(tmp_path: Path) -> None:
     camera = tmp_path / "camera.json"
     camera.write_text(json.dumps({"format": "aos-camera", "version": 1, "model": "fisheye",

@@ -92,6 +92,58 @@ void CheckPngChunks(const std::string& path, uint64_t file_bytes) {
   }
 }
 
+// A JPEG file's markers, walked before libjpeg sees the file: libjpeg only warns ("Premature end
+// of JPEG file") when the data stops early and fills the missing rows with grey, which
+// OpenImageIO passes on as pixels. The walk follows the segments (each with its length) to the
+// first scan, then the entropy-coded data (where 0xFF is followed by 0x00 stuffing, a restart
+// marker or fill bytes) and any further segments and scans, to the end-of-image marker; a file
+// that ends first is truncated. A file that does not start with SOI (FF D8 FF) is left to the
+// decoders; bytes after EOI (a second image, padding) are not read.
+void CheckJpegEnd(const std::string& path, uint64_t file_bytes) {
+  std::ifstream file(path, std::ios::binary);
+  unsigned char start[3] = {};
+  if (!file.read(reinterpret_cast<char*>(start), 3) || start[0] != 0xFF || start[1] != 0xD8 ||
+      start[2] != 0xFF) {
+    return;
+  }
+  file.seekg(2);
+  std::vector<char> buffer(size_t{1} << 16);
+  size_t size = 0, next = 0;
+  uint64_t offset = 2;  // of the next byte
+  const auto byte = [&]() -> int {
+    if (next == size) {
+      file.read(buffer.data(), static_cast<std::streamsize>(buffer.size()));
+      size = static_cast<size_t>(file.gcount());
+      next = 0;
+      if (size == 0) {
+        ThrowInvalid(path + ": truncated JPEG file: it ends at byte " + std::to_string(file_bytes) +
+                     " before its end-of-image marker (nothing was decoded)");
+      }
+    }
+    ++offset;
+    return static_cast<unsigned char>(buffer[next++]);
+  };
+  const auto skip_segment = [&] {
+    const int high = byte();
+    const int length = (high << 8) | byte();
+    if (length < 2) {
+      ThrowInvalid(path + ": damaged JPEG file: a segment of length " + std::to_string(length) +
+                   " at byte " + std::to_string(offset - 2) + " (nothing was decoded)");
+    }
+    for (int i = 2; i < length; ++i) byte();
+  };
+  while (true) {
+    // Entropy-coded data, or extraneous bytes between segments (libjpeg skips them too).
+    int c = byte();
+    if (c != 0xFF) continue;
+    do c = byte(); while (c == 0xFF);  // fill bytes
+    // Stuffing, RSTn, TEM and SOI carry no length.
+    if (c == 0x00 || (c >= 0xD0 && c <= 0xD8) || c == 0x01) continue;
+    if (c == 0xD9) return;  // EOI
+    skip_segment();  // for SOS its header; the entropy-coded data follows
+  }
+}
+
 // PNG through libpng directly, with its errors and warnings captured: OpenImageIO 2.4 leaves
 // libpng's default handlers in place, which print "libpng error: ..." to stderr before OpenImageIO
 // reports the failure (two error lines for one damaged file). Headers are validated here before
@@ -286,7 +338,8 @@ std::unique_ptr<oiio::ImageInput> Open(const std::string& path) {
 // lossless codecs the formats use (deflate, LZW, PackBits, RLE, PIZ) shrink even a constant image
 // by far less than kMaxCompressionRatio, so a 69-byte PNG claiming 46340 x 46340 pixels is a lie,
 // not an image. Also refuses images larger than the memory budget.
-void CheckPlausibleSize(const std::string& path, const oiio::ImageSpec& spec, PixelType type) {
+void CheckPlausibleSize(const std::string& path, const oiio::ImageSpec& spec, PixelType type,
+                        bool check_budget = true) {
   constexpr uint64_t kMaxCompressionRatio = 16384;
   constexpr uint64_t kAlwaysPlausibleBytes = uint64_t{64} << 20;
   const uint64_t file_bytes = CheckRegularFile(path, "image file");
@@ -304,7 +357,9 @@ void CheckPlausibleSize(const std::string& path, const oiio::ImageSpec& spec, Pi
                  " decoded) but the file has only " + std::to_string(file_bytes) +
                  " bytes; a damaged or forged header (nothing was decoded)");
   }
-  CheckMemoryBudget(decoded, path + ": image of " + size + " pixels", "decoded samples");
+  if (check_budget) {
+    CheckMemoryBudget(decoded, path + ": image of " + size + " pixels", "decoded samples");
+  }
 }
 
 // Reads every pixel of `input` as `type` into `data` (rows y_stride bytes apart). A compressed
@@ -339,6 +394,7 @@ std::string ReaderError(oiio::ImageInput& input) {
 ImageFileInfo ReadImageInfo(const std::string& path) {
   auto input = Open(path);
   const oiio::ImageSpec& spec = input->spec();
+  CheckPlausibleSize(path, spec, NativeType(spec.format), /*check_budget=*/false);
   ImageFileInfo info;
   info.width = spec.width;
   info.height = spec.height;
@@ -390,6 +446,8 @@ std::optional<GpsTag> ReadGpsTag(const std::string& path) {
 }
 
 Image ReadImage(const std::string& path, int border) {
+  // Pixels only (header readers skip it: the whole file is walked), before the decoder sees it.
+  CheckJpegEnd(path, CheckRegularFile(path, "image file"));
   auto input = Open(path);
   const oiio::ImageSpec& spec = input->spec();
   if (spec.nchannels < 1 || spec.nchannels > 4) {
@@ -516,6 +574,14 @@ void WriteImageOptions::Check() const {
 SampleType ResolveSampleType(const std::string& path, const Image& image,
                              const WriteImageOptions& options) {
   const std::string extension = LowerExtension(path);
+  // The format first, so a render is never made for a file no writer takes.
+  if (extension.empty() || !oiio::ImageOutput::create(path)) {
+    oiio::geterror(true);  // OpenImageIO's own text ("could not find a format writer ...")
+    ThrowInvalid(path + ": " +
+                 (extension.empty() ? std::string("no file extension")
+                                    : "no image format has the extension " + extension) +
+                 " (the extension picks the format: .png, .tif, .exr, .jpg, ...)");
+  }
   const bool float_format = extension == ".exr" || extension == ".tif" || extension == ".tiff" ||
                             extension == ".pfm" || extension == ".hdr";
   const bool tiff = extension == ".tif" || extension == ".tiff";

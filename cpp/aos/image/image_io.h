@@ -80,7 +80,10 @@ struct WriteImageOptions {
 // file on failure; no partial file is left behind.
 void WriteImage(const std::string& path, const Image& image, const WriteImageOptions& options = {});
 
-// The sample type WriteImage will use for `image` at `path` under `options`.
+// The sample type WriteImage will use for `image` at `path` under `options`. Throws
+// std::invalid_argument naming the file for an extension no image writer takes (or none) and for
+// a sample type the format cannot hold (EXR integers, PNG float, JPEG 16-bit), so callers check
+// an output this way before any work.
 SampleType ResolveSampleType(const std::string& path, const Image& image,
                              const WriteImageOptions& options);
 

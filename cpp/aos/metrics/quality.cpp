@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
+#include <new>
 #include <limits>
 #include <string>
 
@@ -9,21 +11,67 @@
 #include <opencv2/imgproc.hpp>
 
 #include "aos/util/error.h"
+#include "aos/util/memory.h"
 
 namespace aos {
 namespace {
 
-// Channel c of `image` as a double matrix (values unchanged).
-cv::Mat ChannelPlane(const Image& image, int c) {
-  cv::Mat plane(image.height(), image.width(), CV_64F);
-  for (int y = 0; y < image.height(); ++y) {
-    double* row = plane.ptr<double>(y);
-    for (int x = 0; x < image.width(); ++x) row[x] = image.Value(x, y, c);
+// Output rows of one SSIM band: about kBandPixels pixels (a few MiB of double planes), at least
+// four window radii (the band reads a halo of one radius above and below), at most
+// kMaxBandRows. The MSE pass polls cancellation as often.
+constexpr int64_t kBandPixels = int64_t{1} << 18;
+constexpr int kMaxBandRows = 1024;
+int BandRows(int width, int radius) {
+  return static_cast<int>(
+      std::clamp<int64_t>(kBandPixels / std::max(width, 1), 4 * int64_t{radius}, kMaxBandRows));
+}
+
+// Double planes a band holds at once for `channels` channels: per channel the two images, the
+// five Gaussian statistics and one product being blurred; the validity and window-validity
+// planes; for three channels the three quaternion cross terms and their three temporaries.
+int WorkingPlanes(int channels) { return 8 * channels + 2 + (channels == 3 ? 6 : 0); }
+
+// Rows [y0, y1) of channel c of `image`, times `scale`, as a double matrix.
+cv::Mat ChannelRows(const Image& image, int c, int y0, int y1, double scale) {
+  cv::Mat plane(y1 - y0, image.width(), CV_64F);
+  for (int y = y0; y < y1; ++y) {
+    double* row = plane.ptr<double>(y - y0);
+    for (int x = 0; x < image.width(); ++x) row[x] = image.Value(x, y, c) * scale;
   }
   return plane;
 }
 
+void ThrowIfCancelled(ProgressSink* progress) {
+  if (ProgressCancelled(progress)) throw Cancelled();
+}
+
+QualityResult Compare(const Image& test, const Image& reference, const Image* mask,
+                      const QualityOptions& options, ProgressSink* progress);
+
 }  // namespace
+
+uint64_t CompareImagesWorkingBytes(int width, int height, int test_channels, PixelType test_type,
+                                   int reference_channels, PixelType reference_type,
+                                   const QualityOptions& options) {
+  const uint64_t pixels = SaturatingProduct({static_cast<uint64_t>(std::max(width, 0)),
+                                             static_cast<uint64_t>(std::max(height, 0))});
+  uint64_t bytes = 0;
+  int channels = std::max(test_channels, reference_channels);
+  if (options.grey) {
+    if (test_channels >= 3) bytes += SaturatingProduct({pixels, PixelTypeSize(test_type)});
+    if (reference_channels >= 3) {
+      bytes += SaturatingProduct({pixels, PixelTypeSize(reference_type)});
+    }
+    channels = std::max(test_channels >= 3 ? 1 : test_channels,
+                        reference_channels >= 3 ? 1 : reference_channels);
+  }
+  const int r = options.window_radius;
+  const int rows = std::min(std::max(height, 0), BandRows(width, r) + 2 * r);
+  const uint64_t planes = SaturatingProduct(
+      {static_cast<uint64_t>(WorkingPlanes(channels)), static_cast<uint64_t>(rows),
+       static_cast<uint64_t>(std::max(width, 0)), sizeof(double)});
+  return bytes + planes < bytes ? std::numeric_limits<uint64_t>::max() : bytes + planes;
+}
 
 void QualityOptions::Check() const {
   if (!(data_range >= 0.0) || !std::isfinite(data_range)) {
@@ -42,16 +90,42 @@ void QualityOptions::Check() const {
 }
 
 QualityResult CompareImages(const Image& test, const Image& reference, const Image* mask,
-                            const QualityOptions& options) {
+                            const QualityOptions& options, ProgressSink* progress) {
   options.Check();
   if (test.empty() || reference.empty()) ThrowInvalid("compare: an image is empty");
+  const std::string size = std::to_string(test.width()) + "x" + std::to_string(test.height()) +
+                           "x" + std::to_string(test.channels());
+  CheckMemoryBudget(CompareImagesWorkingBytes(test.width(), test.height(), test.channels(),
+                                              test.type(), reference.channels(), reference.type(),
+                                              options),
+                    "compare: images of " + size + " pixels",
+                    "working planes of the SSIM" +
+                        std::string(options.grey ? " and the luminance images" : ""));
+  try {
+    return Compare(test, reference, mask, options, progress);
+  } catch (const cv::Exception& error) {
+    if (error.code == cv::Error::StsNoMem) {
+      ThrowInvalid("compare: not enough memory to compare images of " + size + " pixels (" +
+                   OneLine(error.err) + ")");
+    }
+    ThrowInvalid("compare: OpenCV failed on images of " + size + " pixels (" + OneLine(error.err) +
+                 ")");
+  } catch (const std::bad_alloc&) {
+    ThrowInvalid("compare: not enough memory to compare images of " + size + " pixels");
+  }
+}
+
+namespace {
+
+QualityResult Compare(const Image& test, const Image& reference, const Image* mask,
+                      const QualityOptions& options, ProgressSink* progress) {
   if (options.grey) {
     QualityOptions plain = options;
     plain.grey = false;
     const auto grey = [](const Image& image) {
       return image.channels() >= 3 ? LuminanceImage(image) : image;
     };
-    QualityResult result = CompareImages(grey(test), grey(reference), mask, plain);
+    QualityResult result = Compare(grey(test), grey(reference), mask, plain, progress);
     if (test.channels() >= 3 || reference.channels() >= 3) {
       const std::string converted = "compared as luminance (Rec. 601: 0.299 R + 0.587 G + 0.114 B)";
       result.note = result.note.empty() ? converted : converted + "; " + result.note;
@@ -96,7 +170,9 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
       const Image& integer = test_float ? reference : test;
       units = integer.type();
       double float_max = 0.0, integer_max = 0.0;
+      const int poll_rows = BandRows(width, options.window_radius);
       for (int y = 0; y < height; ++y) {
+        if (y % poll_rows == 0) ThrowIfCancelled(progress);
         for (int x = 0; x < width; ++x) {
           for (int c = 0; c < channels; ++c) {
             float_max = std::max(float_max, std::abs(floating.Value(x, y, c)));
@@ -123,43 +199,39 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
   const double L = result.data_range;
   const double C1 = (options.k1 * L) * (options.k1 * L), C2 = (options.k2 * L) * (options.k2 * L);
 
-  // Valid pixels (mask), and pixels whose whole window is valid and inside the image.
-  cv::Mat valid(height, width, CV_64F, cv::Scalar(1.0));
-  if (mask != nullptr) {
-    for (int y = 0; y < height; ++y) {
-      for (int x = 0; x < width; ++x) valid.at<double>(y, x) = mask->Value(x, y) != 0.0 ? 1.0 : 0.0;
-    }
-  }
+  // The MSE over valid pixels, and every value checked finite, a band of rows at a time.
   const int r = options.window_radius, side = 2 * r + 1;
-  cv::Mat window_valid;
-  cv::boxFilter(valid, window_valid, CV_64F, cv::Size(side, side), cv::Point(-1, -1), false,
-                cv::BORDER_CONSTANT);
-
-  std::vector<cv::Mat> a(channels), b(channels);
+  const int band_rows = BandRows(width, r);
+  const int64_t mse_bands = (height + band_rows - 1) / band_rows;
+  const int64_t ssim_bands = (std::max(height - 2 * r, 0) + band_rows - 1) / band_rows;
+  ProgressStart(progress, "metrics", mse_bands + ssim_bands);
+  const double scale = result.test_scale;
   double squared_error = 0.0;
-  for (int c = 0; c < channels; ++c) {
-    a[c] = ChannelPlane(test, c) * result.test_scale;
-    b[c] = ChannelPlane(reference, c);
-    if (!cv::checkRange(a[c]) || !cv::checkRange(b[c])) {
-      ThrowInvalid("compare: the images contain NaN or infinite values");
-    }
-  }
-  for (int y = 0; y < height; ++y) {
-    for (int x = 0; x < width; ++x) {
-      if (valid.at<double>(y, x) == 0.0) continue;
-      ++result.mse_pixels;
-      for (int c = 0; c < channels; ++c) {
-        const double d = a[c].at<double>(y, x) - b[c].at<double>(y, x);
-        squared_error += d * d;
+  for (int y0 = 0; y0 < height; y0 += band_rows) {
+    ThrowIfCancelled(progress);
+    for (int y = y0; y < std::min(height, y0 + band_rows); ++y) {
+      for (int x = 0; x < width; ++x) {
+        const bool valid = mask == nullptr || mask->Value(x, y) != 0.0;
+        if (valid) ++result.mse_pixels;
+        for (int c = 0; c < channels; ++c) {
+          const double a = test.Value(x, y, c) * scale, b = reference.Value(x, y, c);
+          if (!std::isfinite(a) || !std::isfinite(b)) {
+            ThrowInvalid("compare: the images contain NaN or infinite values");
+          }
+          if (valid) squared_error += (a - b) * (a - b);
+        }
       }
     }
+    ProgressAdvance(progress, 1);
   }
   if (result.mse_pixels == 0) ThrowInvalid("compare: no valid pixel to compare (the mask is empty)");
   result.mse = squared_error / (static_cast<double>(result.mse_pixels) * channels);
   result.psnr_db = result.mse > 0.0 ? 10.0 * std::log10(L * L / result.mse)
                                     : std::numeric_limits<double>::infinity();
 
-  // Gaussian-weighted local statistics.
+  // Gaussian-weighted local statistics over bands of output rows [y0, y1), each read with a halo
+  // of r rows [y0 - r, y1 + r): the pixels scored (whole window inside the image) see exactly the
+  // rows of the whole image, so the border rule of the blur never enters a score.
   const cv::Size window(side, side);
   auto blur = [&](const cv::Mat& in) {
     cv::Mat out;
@@ -167,60 +239,78 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
                      cv::BORDER_REFLECT);
     return out;
   };
-  std::vector<cv::Mat> mu_a(channels), mu_b(channels), aa(channels), bb(channels), ab(channels);
-  for (int c = 0; c < channels; ++c) {
-    mu_a[c] = blur(a[c]);
-    mu_b[c] = blur(b[c]);
-    aa[c] = blur(a[c].mul(a[c]));
-    bb[c] = blur(b[c].mul(b[c]));
-    ab[c] = blur(a[c].mul(b[c]));
-  }
-  // Quaternion cross terms E[a x b] for three channels.
-  std::vector<cv::Mat> cross(3);
-  if (channels == 3) {
-    for (int k = 0; k < 3; ++k) {
-      const int i = (k + 1) % 3, j = (k + 2) % 3;
-      cross[k] = blur(a[i].mul(b[j]) - a[j].mul(b[i]));
-    }
-  }
-
   std::vector<double> ssim_sum(channels, 0.0);
   double color_sum = 0.0;
   const double full = static_cast<double>(side) * side;
-  for (int y = r; y < height - r; ++y) {
-    for (int x = r; x < width - r; ++x) {
-      if (window_valid.at<double>(y, x) < full - 0.5) continue;
-      ++result.ssim_pixels;
-      double mean_dot = 0.0, norm_a = 0.0, norm_b = 0.0, var_a = 0.0, var_b = 0.0, cov = 0.0;
-      for (int c = 0; c < channels; ++c) {
-        const double ma = mu_a[c].at<double>(y, x), mb = mu_b[c].at<double>(y, x);
-        const double sa = aa[c].at<double>(y, x) - ma * ma;
-        const double sb = bb[c].at<double>(y, x) - mb * mb;
-        const double sab = ab[c].at<double>(y, x) - ma * mb;
-        ssim_sum[c] += ((2 * ma * mb + C1) * (2 * sab + C2)) / ((ma * ma + mb * mb + C1) * (sa + sb + C2));
-        mean_dot += ma * mb;
-        norm_a += ma * ma;
-        norm_b += mb * mb;
-        var_a += sa;
-        var_b += sb;
-        cov += sab;
+  std::vector<cv::Mat> a(channels), b(channels), mu_a(channels), mu_b(channels), aa(channels),
+      bb(channels), ab(channels), cross(3);
+  for (int y0 = r; y0 < height - r; y0 += band_rows) {
+    ThrowIfCancelled(progress);
+    const int y1 = std::min(height - r, y0 + band_rows);
+    const int top = y0 - r, bottom = y1 + r;
+    // Pixels whose whole window is valid (mask): the count of valid pixels in the window.
+    cv::Mat window_valid;
+    if (mask != nullptr) {
+      cv::Mat valid(bottom - top, width, CV_64F);
+      for (int y = top; y < bottom; ++y) {
+        double* row = valid.ptr<double>(y - top);
+        for (int x = 0; x < width; ++x) row[x] = mask->Value(x, y) != 0.0 ? 1.0 : 0.0;
       }
-      // Quaternion form: 2 mu_a mu_b* = 2 (mu_a . mu_b, -mu_a x mu_b); sigma_ab likewise.
-      double mean_cross2 = 0.0, cov_cross2 = 0.0;
-      if (channels == 3) {
-        for (int k = 0; k < 3; ++k) {
-          const int i = (k + 1) % 3, j = (k + 2) % 3;
-          const double m = mu_a[i].at<double>(y, x) * mu_b[j].at<double>(y, x) -
-                           mu_a[j].at<double>(y, x) * mu_b[i].at<double>(y, x);
-          const double v = cross[k].at<double>(y, x) - m;
-          mean_cross2 += m * m;
-          cov_cross2 += v * v;
-        }
-      }
-      const double luminance = std::hypot(2 * mean_dot + C1, 2 * std::sqrt(mean_cross2));
-      const double structure = std::hypot(2 * cov + C2, 2 * std::sqrt(cov_cross2));
-      color_sum += luminance * structure / ((norm_a + norm_b + C1) * (var_a + var_b + C2));
+      cv::boxFilter(valid, window_valid, CV_64F, window, cv::Point(-1, -1), false,
+                    cv::BORDER_CONSTANT);
     }
+    for (int c = 0; c < channels; ++c) {
+      a[c] = ChannelRows(test, c, top, bottom, scale);
+      b[c] = ChannelRows(reference, c, top, bottom, 1.0);
+      mu_a[c] = blur(a[c]);
+      mu_b[c] = blur(b[c]);
+      aa[c] = blur(a[c].mul(a[c]));
+      bb[c] = blur(b[c].mul(b[c]));
+      ab[c] = blur(a[c].mul(b[c]));
+    }
+    // Quaternion cross terms E[a x b] for three channels.
+    if (channels == 3) {
+      for (int k = 0; k < 3; ++k) {
+        const int i = (k + 1) % 3, j = (k + 2) % 3;
+        cross[k] = blur(a[i].mul(b[j]) - a[j].mul(b[i]));
+      }
+    }
+    for (int y = y0 - top; y < y1 - top; ++y) {
+      for (int x = r; x < width - r; ++x) {
+        if (mask != nullptr && window_valid.at<double>(y, x) < full - 0.5) continue;
+        ++result.ssim_pixels;
+        double mean_dot = 0.0, norm_a = 0.0, norm_b = 0.0, var_a = 0.0, var_b = 0.0, cov = 0.0;
+        for (int c = 0; c < channels; ++c) {
+          const double ma = mu_a[c].at<double>(y, x), mb = mu_b[c].at<double>(y, x);
+          const double sa = aa[c].at<double>(y, x) - ma * ma;
+          const double sb = bb[c].at<double>(y, x) - mb * mb;
+          const double sab = ab[c].at<double>(y, x) - ma * mb;
+          ssim_sum[c] += ((2 * ma * mb + C1) * (2 * sab + C2)) / ((ma * ma + mb * mb + C1) * (sa + sb + C2));
+          mean_dot += ma * mb;
+          norm_a += ma * ma;
+          norm_b += mb * mb;
+          var_a += sa;
+          var_b += sb;
+          cov += sab;
+        }
+        // Quaternion form: 2 mu_a mu_b* = 2 (mu_a . mu_b, -mu_a x mu_b); sigma_ab likewise.
+        double mean_cross2 = 0.0, cov_cross2 = 0.0;
+        if (channels == 3) {
+          for (int k = 0; k < 3; ++k) {
+            const int i = (k + 1) % 3, j = (k + 2) % 3;
+            const double m = mu_a[i].at<double>(y, x) * mu_b[j].at<double>(y, x) -
+                             mu_a[j].at<double>(y, x) * mu_b[i].at<double>(y, x);
+            const double v = cross[k].at<double>(y, x) - m;
+            mean_cross2 += m * m;
+            cov_cross2 += v * v;
+          }
+        }
+        const double luminance = std::hypot(2 * mean_dot + C1, 2 * std::sqrt(mean_cross2));
+        const double structure = std::hypot(2 * cov + C2, 2 * std::sqrt(cov_cross2));
+        color_sum += luminance * structure / ((norm_a + norm_b + C1) * (var_a + var_b + C2));
+      }
+    }
+    ProgressAdvance(progress, 1);
   }
   if (result.ssim_pixels == 0) {
     ThrowInvalid("compare: no pixel has a whole " + std::to_string(side) + "x" +
@@ -236,4 +326,5 @@ QualityResult CompareImages(const Image& test, const Image& reference, const Ima
   return result;
 }
 
+}  // namespace
 }  // namespace aos

@@ -21,14 +21,22 @@
 // type; when the float image's values all lie in [-1, 1] while the integer one's exceed 1 (a
 // normalised float image), the comparison is refused. QualityResult::note says what was done.
 //
+// Memory and cancellation: the SSIM statistics are computed in bands of rows (a few MiB of
+// working planes, CompareImagesWorkingBytes) whatever the image size; that figure is checked
+// against the memory budget (util/memory.h) before anything is allocated, and an allocation that
+// fails anyway is reported as one std::invalid_argument. The progress sink (may be null) is
+// polled every band of rows; when it asks to stop, aos::Cancelled is thrown.
+//
 // Throws std::invalid_argument for images of different size or channel count (a grey image
 // against a colour one: the message names QualityOptions::grey), a mask of another
-// size, no pixel to compare, non-finite values, or bad options.
+// size, no pixel to compare, non-finite values, bad options, or too little memory; messages
+// start with "compare: " (callers replace it with the files' names).
 #include <cstdint>
 #include <string>
 #include <vector>
 
 #include "aos/image/image.h"
+#include "aos/util/progress.h"
 
 namespace aos {
 
@@ -64,6 +72,14 @@ struct QualityResult {
 };
 
 QualityResult CompareImages(const Image& test, const Image& reference, const Image* mask = nullptr,
-                            const QualityOptions& options = {});
+                            const QualityOptions& options = {}, ProgressSink* progress = nullptr);
+
+// Bytes CompareImages allocates besides its inputs for a test image of width x height pixels of
+// test_channels x test_type and a reference of reference_channels x reference_type (same size):
+// the luminance copies when options.grey converts an image, and the banded working planes. The
+// CLI adds the decoded images to it to check a comparison before reading any pixel.
+uint64_t CompareImagesWorkingBytes(int width, int height, int test_channels, PixelType test_type,
+                                   int reference_channels, PixelType reference_type,
+                                   const QualityOptions& options);
 
 }  // namespace aos

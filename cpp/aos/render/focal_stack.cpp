@@ -589,7 +589,14 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
       const json& name = RequireMember(slice, key.c_str(), at);
       if (!name.is_string()) (at / key).Fail("must be a string, got " + DescribeJson(name));
       path = (base / name.get<std::string>()).string();
-      Image image = ReadImage(path);
+      Image image;
+      try {
+        image = ReadImage(path);
+      } catch (const std::invalid_argument& error) {
+        // "stack.json: slices[3].image: stack/slice_0003.tif: not found": the file, and the
+        // stack that names it.
+        ThrowInvalid((at / key).Text() + ": " + error.what());
+      }
       if (image.width() != stack.camera.width || image.height() != stack.camera.height ||
           (channels > 0 && image.channels() != channels)) {
         ThrowInvalid((at / key).Text() + ": " + path + ": is " +

@@ -317,6 +317,7 @@ class IntegralRenderer {
   std::vector<ViewSetup> views_;
   Mode mode_ = Mode::kAverage;
   int channels_ = 1;
+  double full_range_ = 255.0;  // of the views' pixel type (a masked light field's weights)
   double sin2_min_angle_ = 0.0;
   IntegralResult result_;
 };
@@ -361,6 +362,8 @@ void IntegralRenderer::SetUpViews() {
   std::sort(selection.begin(), selection.end());
   const Geometry& g = geometry_;
   channels_ = light_field_.views[static_cast<size_t>(selection.front())].image.channels();
+  full_range_ =
+      PixelTypeFullRange(light_field_.views[static_cast<size_t>(selection.front())].image.type());
   const Mat3d K_v_inverse = glm::inverse(camera_.K());
   const Mat3d R_v_t = glm::transpose(cam_from_world_.rotation);
   // (n . D) x_cam = (h R_i + tau_i n^T) D, with D = R_v^T K_v^-1 p and tau_i = R_i (c - C_i);
@@ -608,7 +611,16 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
             mean_squares += mean * mean;
           }
           const double squares = buffers.sum_squares[static_cast<size_t>(tile_width) * r + i];
-          variance = std::max(0.0, (squares / n - mean_squares) / channels_);
+          if (light_field_.masked) {
+            // The valid samples' variance from the double sums (masked_mean.h); the weight
+            // channel's squares, full range x w for binary weights, are left out.
+            const double* pixel_sums = sum_row + static_cast<size_t>(i) * channels_;
+            variance = internal::MaskedVariance(
+                pixel_sums, squares - full_range_ * pixel_sums[channels_ - 1], channels_,
+                full_range_);
+          } else {
+            variance = std::max(0.0, (squares / n - mean_squares) / channels_);
+          }
         }
         result_.variance.At<float>(tile.x0, y)[i] = static_cast<float>(variance);
       }

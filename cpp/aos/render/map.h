@@ -273,9 +273,11 @@ class MapGeoTiffWriter {
   std::unique_ptr<Impl> impl_;
 };
 
-// Checks an output path before any work: its folder exists and is writable, it is not a folder,
-// and it does not exist unless write.force. Throws std::invalid_argument naming the path.
+// Checks an output path before any work: it ends in .tif or .tiff (maps are COG GeoTIFFs), its
+// folder exists and is writable, it is not a folder, and it does not exist unless write.force. Throws std::invalid_argument naming the path.
 void CheckMapOutputPath(const std::string& path, const MapWriteOptions& write);
+// The first of those checks alone: the name ends in .tif or .tiff.
+void CheckMapOutputExtension(const std::string& path);
 
 // The disk space writing a map of `grid` with `channels` image bands takes beside its output at
 // its peak, bytes: the uncompressed temporary GeoTIFF (bands and count as float32, with its

@@ -3,6 +3,7 @@
 
 #include <algorithm>
 #include <array>
+#include <cctype>
 #include <cmath>
 #include <filesystem>
 #include <limits>
@@ -419,9 +420,20 @@ uint64_t MapWriteDiskBytes(const MapGrid& grid, int channels) {
   return temporary + temporary / 2;
 }
 
+void CheckMapOutputExtension(const std::string& path) {
+  std::string extension = fs::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension != ".tif" && extension != ".tiff") {
+    // GDAL would write a GeoTIFF under any name: a "map.png" that no PNG reader opens.
+    ThrowInvalid(path + ": a map is written as a Cloud-Optimised GeoTIFF (georeferenced, with a "
+                 "count band); give it a .tif or .tiff name");
+  }
+}
+
 void CheckMapOutputPath(const std::string& path, const MapWriteOptions& write) {
   if (path.empty()) ThrowInvalid("output: the map needs a file name");
   if (write.gdal_cache_mb < 16) ThrowInvalid("gdal_cache_mb: must be >= 16");
+  CheckMapOutputExtension(path);
   const fs::path target(path);
   const fs::path folder = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code code;

@@ -35,27 +35,13 @@ void DivideByMaskWeight(IntegralResult& result, double full_range) {
         ++result.uncovered_pixels;
         continue;  // the value stays 0
       }
-      double value_squares = 0.0;
-      for (int c = 0; c < channels; ++c) {
-        const double value = in[c] / mbar;
-        out[c] = static_cast<float>(value);
-        value_squares += value * value;
-      }
+      for (int c = 0; c < channels; ++c) out[c] = static_cast<float>(in[c] / mbar);
       const uint32_t masked_count =
           static_cast<uint32_t>(std::max(1.0, std::round(n * mbar)));
       count[x] = masked_count;
       result.samples += masked_count;
-      if (variance == nullptr) continue;
-      if (masked_count < 2) {
-        variance[x] = 0.0f;
-        continue;
-      }
-      // Sum over the value channels of mean(s^2) over the n samples (see the header).
-      double squares = static_cast<double>(variance[x]) * channels_in;
-      for (int c = 0; c <= channels; ++c) squares += static_cast<double>(in[c]) * in[c];
-      squares -= full_range * in[channels];
-      variance[x] =
-          static_cast<float>(std::max(0.0, (squares / mbar - value_squares) / channels));
+      // The renderer's MaskedVariance stays, but for fewer than two valid samples.
+      if (variance != nullptr && masked_count < 2) variance[x] = 0.0f;
     }
   }
   result.image = std::move(image);

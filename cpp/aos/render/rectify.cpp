@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <cstring>
 #include <string>
 #include <utility>
@@ -9,6 +10,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "aos/util/error.h"
+#include "aos/util/memory.h"
 #include "aos/util/math.h"
 
 namespace aos {
@@ -48,13 +50,29 @@ void RectifyOptions::Check() const {
   }
 }
 
+void RectifiedSize(const LensCamera& lens, const RectifyOptions& options, int* width, int* height) {
+  *width = options.width > 0 ? options.width : lens.width;
+  *height = options.height > 0 ? options.height : lens.height;
+}
+
+uint64_t RectifierBytes(const LensCamera& lens, const RectifyOptions& options) {
+  int width = 0, height = 0;
+  RectifiedSize(lens, options, &width, &height);
+  return SaturatingProduct({static_cast<uint64_t>(std::max(width, 0)),
+                            static_cast<uint64_t>(std::max(height, 0)), 2 * sizeof(float)});
+}
+
 Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options) {
   options.Check();
   LensCamera checked = lens;
   checked.Finalize("camera");
   Rectifier r;
-  const int width = options.width > 0 ? options.width : lens.width;
-  const int height = options.height > 0 ? options.height : lens.height;
+  int width = 0, height = 0;
+  RectifiedSize(lens, options, &width, &height);
+  CheckMemoryBudget(RectifierBytes(lens, options),
+                    "width/height: rectified frames of " + std::to_string(width) + "x" +
+                        std::to_string(height) + " pixels",
+                    "the resampling maps, 8 bytes a pixel");
   r.camera = PinholeCamera::FromFov(width, height, options.fov_deg);
   r.lens_from_rectified = RotationAbout(2, options.roll_deg) * RotationAbout(0, options.pitch_deg) *
                           RotationAbout(1, options.yaw_deg);
@@ -121,6 +139,34 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
   // Resampled premultiplied values and weights stay premultiplied (lightfield/mask.h).
   result.light_field.masked = light_field.masked;
   std::vector<std::pair<LensCamera, Rectifier>> rectifiers;  // one per distinct lens
+  {
+    // What the loop allocates, before it does: the maps of each distinct lens and every
+    // rectified view (with its 1-pixel border).
+    std::vector<const LensCamera*> lenses;
+    uint64_t needed = 0;
+    int lens_views = 0;
+    const auto add = [&](uint64_t bytes) {
+      needed = needed + bytes < needed ? UINT64_MAX : needed + bytes;
+    };
+    for (const View& view : light_field.views) {
+      if (view.camera.model == LensModel::kPinhole) continue;
+      ++lens_views;
+      if (std::none_of(lenses.begin(), lenses.end(),
+                       [&](const LensCamera* lens) { return lens->SameParameters(view.camera); })) {
+        lenses.push_back(&view.camera);
+        add(RectifierBytes(view.camera, options));
+      }
+      int width = 0, height = 0;
+      RectifiedSize(view.camera, options, &width, &height);
+      add(SaturatingProduct({static_cast<uint64_t>(std::max(width, 0)) + 2,
+                             static_cast<uint64_t>(std::max(height, 0)) + 2,
+                             static_cast<uint64_t>(view.image.channels()),
+                             PixelTypeSize(view.image.type())}));
+    }
+    CheckMemoryBudget(needed, "rectify: " + std::to_string(lens_views) + " lens views",
+                      "the rectified views and the resampling maps of " +
+                          std::to_string(lenses.size()) + " lens(es)");
+  }
   ProgressStart(progress, "rectify", static_cast<int64_t>(light_field.views.size()));
   for (const View& view : light_field.views) {
     if (ProgressCancelled(progress)) throw Cancelled();

@@ -14,7 +14,10 @@
 // - Values: bilinear interpolation (cv::remap, replicated border), in the input's type and
 //   channels (8/16-bit rounded to nearest, float unchanged).
 //
-// Throws std::invalid_argument naming the option or the uncovered view.
+// - Memory: the maps (8 bytes an output pixel) and RectifyLightField's new views are checked
+//   against the memory budget (util/memory.h) before they are allocated.
+//
+// Throws std::invalid_argument naming the option or the uncovered view, or the memory needed.
 #include "aos/geometry/lens.h"
 #include <vector>
 
@@ -52,6 +55,11 @@ struct Rectifier {
 // Builds the resampling maps once for a lens and options (reused for every frame).
 Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options);
 
+// The rectified size for `lens` under `options` (options.width/height, 0 = the lens's), and the
+// bytes MakeRectifier's maps take for it.
+void RectifiedSize(const LensCamera& lens, const RectifyOptions& options, int* width, int* height);
+uint64_t RectifierBytes(const LensCamera& lens, const RectifyOptions& options);
+
 // Resamples one raw frame (the lens's size; any type but uint32, 1..4 channels).
 Image Rectify(const Rectifier& rectifier, const Image& raw);
 
@@ -65,7 +73,8 @@ struct RectifyLightFieldResult {
 // (cam_from_world of the rectified camera = lens_from_rectified^T * the lens's); pinhole views
 // are copied unchanged. Names, origin and pose source are kept (rectified views have no
 // image_path: their pixels are new). Throws
-// std::invalid_argument "<field>: ... (view <name>)" for a lens the options do not fit; the
+// std::invalid_argument "<field>: ... (view <name>)" for a lens the options do not fit, and
+// "rectify: ..." when the new views and maps exceed the memory budget; the
 // progress stage is "rectify" (one unit per view), and cancellation throws aos::Cancelled.
 RectifyLightFieldResult RectifyLightField(const LightField& light_field,
                                           const RectifyOptions& options,

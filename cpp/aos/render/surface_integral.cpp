@@ -156,6 +156,7 @@ struct Setup {
   double r2 = 0.0;
   int channels = 1;
   double range = 255.0;
+  bool masked = false;  // a masked light field: the last channel is the weight (masked_mean.h)
   double lens_tolerance = 0.0;  // PointIntegralOptions::lens_tolerance_px
   std::vector<ViewSetup> views;
   std::vector<int> view_indices;  // views[i] is light-field view view_indices[i] (ascending)
@@ -201,6 +202,7 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
   s.channels = light_field.views[static_cast<size_t>(selection.front())].image.channels();
   s.range =
       PixelTypeFullRange(light_field.views[static_cast<size_t>(selection.front())].image.type());
+  s.masked = light_field.masked;
   for (int index : selection) {
     const View& view = light_field.views[static_cast<size_t>(index)];
     CheckView(view, "view " + std::to_string(index) + (view.name.empty() ? "" : " (" + view.name + ")"));
@@ -409,16 +411,19 @@ inline bool FinishPixel(const Setup& s, const SurfaceIntegralOptions& surface, b
   if (surface.robust) result.inliers.At<uint32_t>(x, y)[0] = static_cast<uint32_t>(kept);
   if (variance && n >= 2 && !s.nearest) {
     // Population variance of all the samples, mean over channels (integral.h).
+    // Two passes (the mean, then the squared deviations from it): no cancellation, so equal
+    // samples give exactly 0 whatever their magnitude (16-bit values near 65535).
     double sum_variance = 0.0;
     for (int c = 0; c < channels; ++c) {
-      double sum = 0.0, squares = 0.0;
-      for (size_t k = 0; k < n; ++k) {
-        const double value = samples[k * channels + static_cast<size_t>(c)];
-        sum += value;
-        squares += value * value;
-      }
+      double sum = 0.0;
+      for (size_t k = 0; k < n; ++k) sum += samples[k * channels + static_cast<size_t>(c)];
       const double mean = sum / static_cast<double>(n);
-      sum_variance += std::max(0.0, squares / static_cast<double>(n) - mean * mean);
+      double squares = 0.0;
+      for (size_t k = 0; k < n; ++k) {
+        const double deviation = samples[k * channels + static_cast<size_t>(c)] - mean;
+        squares += deviation * deviation;
+      }
+      sum_variance += squares / static_cast<double>(n);
     }
     out.variance.At<float>(x, y)[0] = static_cast<float>(sum_variance / channels);
   }
@@ -1752,9 +1757,16 @@ void RenderPointTile(const Setup& s, const FocalPoints& points, bool variance, i
         // Population variance, mean over channels (integral.h), as the reference.
         const double* squares = b.sum_squares.data() + j * channels;
         double total = 0.0;
-        for (int c = 0; c < channels; ++c) {
-          const double mean = sum[c] / static_cast<double>(n);
-          total += std::max(0.0, squares[c] / static_cast<double>(n) - mean * mean);
+        if (s.masked) {
+          // The valid samples' variance (masked_mean.h), the weight channel's squares left out.
+          double value_squares = 0.0;
+          for (int c = 0; c + 1 < channels; ++c) value_squares += squares[c];
+          total = internal::MaskedVariance(sum, value_squares, channels, s.range) * channels;
+        } else {
+          for (int c = 0; c < channels; ++c) {
+            const double mean = sum[c] / static_cast<double>(n);
+            total += std::max(0.0, squares[c] / static_cast<double>(n) - mean * mean);
+          }
         }
         out.variance.At<float>(x0 + tx, y)[0] = static_cast<float>(total / channels);
       }
