@@ -1,6 +1,7 @@
-"""The fuzzer of issue 13 (tools/fuzz.py): a short seeded campaign over every file reader of aos
-finds no failure, and the fuzzer's classifier recognises each failure class (fake targets that
-fail on purpose), so a clean campaign means something.
+"""The fuzzer of issues 13 and 31 (tools/fuzz.py): a short seeded campaign over every file reader
+of aos (and the viewer's HTTP and WebSocket requests) finds no failure but the known ones listed
+below, and the fuzzer's classifier recognises each failure class (fake targets, and a fake viewer
+server, that fail on purpose), so a clean campaign means something.
 
 The campaign fuzzes the `aos-render` on PATH and the installed aos; AOS_FUZZ_AOS_RENDER and
 AOS_FUZZ_PYTHON_PATH select another build (e.g. a baseline snapshot).
@@ -25,10 +26,16 @@ FUZZ_PATH = ROOT / "tools" / "fuzz.py"
 EXE = os.environ.get("AOS_FUZZ_AOS_RENDER") or shutil.which("aos-render")
 PYTHON_PATH = os.environ.get("AOS_FUZZ_PYTHON_PATH")
 
-# 12 rounds over the 19 targets: rounds 1 to 4 give every target a FIFO, a link to /dev/zero and
-# a folder in place of one of its files and (where it writes one file) its output path set to an
-# input; the other 8 rounds are mutations. About 40 s on 2 cores when every case is refused.
-CASES = 228
+# 12 rounds over the 30 targets: rounds 1 to 4 give every target that reads a file itself a FIFO,
+# a link to /dev/zero and a folder in place of one of its files and (where it writes one file) its
+# output path set to an input; the other rounds are mutations. About 90 s on 2 cores.
+CASES = 360
+
+# Failures the campaign of seed 1 finds in readers other helpers of issue 31 are fixing in their
+# own branches: (target, class) -> who fixes it. Such failures are printed, not failed; the lead
+# removes an entry once its fix is merged (the campaign then fails if the failure is still there).
+KNOWN_FAILURES: dict[tuple[str, str], str] = {
+}
 
 
 def load_fuzz():
@@ -55,10 +62,18 @@ def test_a_seeded_campaign_over_every_target_finds_no_failure(tmp_path: Path) ->
     report = json.loads(result.stdout)
     assert report["cases"] == CASES, "the time limit cut the campaign short"
     assert set(report["targets"]) == {t.name for t in fuzz.TARGETS}
-    if report["failures"]:
-        lines = [f"{report['failures']} of {report['cases']} cases failed: "
+    groups = [g for g in report["distinct_failures"]
+              if (g["target"], g["class"]) not in KNOWN_FAILURES]
+    for group in report["distinct_failures"]:
+        if (group["target"], group["class"]) in KNOWN_FAILURES:
+            print(f"known failure ({KNOWN_FAILURES[group['target'], group['class']]} fixes it): "
+                  f"{group['class']} x{group['count']} in {group['target']}: "
+                  f"{group['example_detail'][:200]}")
+    if groups:
+        failures = sum(g["count"] for g in groups)
+        lines = [f"{failures} of {report['cases']} cases failed: "
                  f"{ {c: n for c, n in report['classes'].items() if n} }"]
-        for group in report["distinct_failures"]:
+        for group in groups:
             record = json.loads((Path(group["reproducer"]) / "case.json").read_text())
             lines += [f"{group['class']} x{group['count']} in {group['target']}: "
                       f"{group['example_detail'][:300]}",
@@ -66,7 +81,7 @@ def test_a_seeded_campaign_over_every_target_finds_no_failure(tmp_path: Path) ->
                       f"    reproduce: sh {group['reproducer']}/reproduce.sh",
                       f"    command: {record['command'][:300]}"]
         pytest.fail("\n".join(lines), pytrace=False)
-    assert result.returncode == 0
+    assert result.returncode == (1 if report["failures"] else 0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -105,6 +120,12 @@ FAKE = textwrap.dedent("""
         time.sleep(600)
     elif mode == "ignore-sigterm":
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        time.sleep(600)
+    elif mode == "slow-sigterm":   # stops on SIGTERM, but only after 10 s of cleaning up
+        signal.signal(signal.SIGTERM, lambda *_: (time.sleep(10), sys.exit(143)))
+        time.sleep(600)
+    elif mode == "exit-on-sigterm":   # a clean stop: exit 143 at once
+        signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
         time.sleep(600)
     elif mode == "multi-line":
         error(f"fake: error: {path}: bad input\\n  (more detail)")
@@ -149,7 +170,8 @@ CLI_CASES = [
     ("ok", "ok"), ("refuse", "refused"), ("refuse-after-warning", "refused"),
     ("partial", "partial-output"), ("hidden-temporary", "partial-output"),
     ("leftover-beside-input", "partial-output"), ("empty-output-folder", "partial-output"),
-    ("hang", "timeout"), ("ignore-sigterm", "timeout"),
+    ("hang", "timeout"), ("exit-on-sigterm", "timeout"), ("ignore-sigterm", "ignores-sigterm"),
+    ("slow-sigterm", "ignores-sigterm"),
     ("multi-line", "multi-line-error"), ("two-errors", "multi-line-error"),
     ("unnamed", "unnamed-error"), ("no-error-line", "unnamed-error"),
     ("modify", "modified-input"), ("touch", "modified-input"),
@@ -170,6 +192,8 @@ PYTHON_CASES = [
     ("block = bytearray(800 << 20)", "memory"),
     ("import os; os.kill(os.getpid(), 11)", "signal"),
     ("import time; time.sleep(600)", "timeout"),
+    ("import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(600)",
+     "ignores-sigterm"),
     ("result = np.array([1.0, np.nan], np.float32)", "accepted-invalid"),
     ("open('out/result.txt', 'w').write('half'); raise ValueError({file!r} + ': bad')",
      "partial-output"),
@@ -265,3 +289,120 @@ def test_cases_are_reproducible_from_the_seed(fake_fuzzer) -> None:
     assert [(c.kind, c.data, c.mutation) for c in first] == \
         [(c.kind, c.data, c.mutation) for c in again]
     assert [c.data for c in first] != [c.data for c in other]
+
+
+# ---------------------------------------------------------------------------------------------
+# The viewer target's classifier: a fake `aos-render view` (an HTTP server on 127.0.0.1 that
+# prints the URL with its token, as the real one does with --json) misbehaving on request.
+
+FAKE_VIEWER = textwrap.dedent("""
+    import http.server, json, os, signal, struct, sys, threading, time
+    TOKEN = "fake-token-0123456789abcdef"
+    ignore_sigterm = threading.Event()
+
+    def frame(width, height, rgba_bytes):
+        header = json.dumps({"width": width, "height": height}).encode()
+        return struct.pack("<I", len(header)) + header + b"\\x80" * rgba_bytes
+
+    class Handler(http.server.BaseHTTPRequestHandler):
+        def log_message(self, *args):
+            pass
+
+        def answer(self, status, body):
+            self.send_response(status)
+            self.send_header("Content-Length", str(len(body)))
+            self.end_headers()
+            self.wfile.write(body)
+
+        def do_POST(self):
+            body = self.rfile.read(int(self.headers.get("Content-Length", 0)))
+            if self.headers.get("X-AOS-Token") != TOKEN:
+                return self.answer(403, b'{"error": "forbidden"}')
+            if b"crash" in body:
+                return self.answer(500, b"500 Internal Server Error")
+            if b"refuse" in body:
+                return self.answer(400, b'{"error": "width: expected a number"}')
+            if b"traceback" in body:
+                sys.stderr.write("Traceback (most recent call last):\\n  File x\\nKeyError: 1\\n")
+                sys.stderr.flush()
+            if b"die" in body:
+                os._exit(3)
+            if b"ignore-sigterm" in body:
+                ignore_sigterm.set()
+                time.sleep(600)
+            if b"hang" in body:
+                time.sleep(600)
+            if b"bad-frame" in body:
+                return self.answer(200, frame(4, 4, 10))
+            self.answer(200, frame(4, 4, 64))
+
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
+    server.daemon_threads = True
+    port = server.server_address[1]
+    print(json.dumps({"url": f"http://127.0.0.1:{port}/?token={TOKEN}", "port": port}), flush=True)
+    threading.Thread(target=server.serve_forever, daemon=True).start()
+    while True:   # signal dispositions can only be set from the main thread
+        if ignore_sigterm.wait(0.01):
+            signal.signal(signal.SIGTERM, signal.SIG_IGN)
+            ignore_sigterm.clear()
+""")
+
+VIEWER_CASES = [
+    (b'{"width": 32}', "ok"), (b'{"refuse": 1}', "refused"), (b'{"crash": 1}', "server-error"),
+    (b'{"traceback": 1}', "traceback"), (b'{"die": 1}', "signal"), (b'{"hang": 1}', "timeout"),
+    (b'{"ignore-sigterm": 1}', "ignores-sigterm"), (b'{"bad-frame": 1}', "accepted-invalid"),
+]
+
+
+@pytest.fixture(scope="module")
+def fake_viewer(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fake-viewer")
+    corpus = root / "corpus"
+    (corpus / "viewer").mkdir(parents=True)
+    (corpus / "viewer" / "render.json").write_text('{"width": 32}\n')
+    script = root / "fake-aos-render"
+    script.write_text(f"#!{sys.executable}\n" + FAKE_VIEWER)
+    script.chmod(0o755)
+    (root / "work").mkdir()
+    limits = fuzz.Limits(timeout_s=2, address_space_mb=2048, rss_mb=400)
+    fuzzer = fuzz.Fuzzer(str(script), None, limits, root / "work", corpus)
+    yield fuzzer
+    fuzzer.close()
+
+
+@pytest.mark.parametrize("body,expected", VIEWER_CASES, ids=[e for _, e in VIEWER_CASES])
+def test_the_classifier_recognises_each_viewer_outcome(fake_viewer, body: bytes,
+                                                       expected: str) -> None:
+    """One server for all the cases, restarted after it died or hung: each case is classified
+    by its own answer and log."""
+    target = fuzz.Target("viewer-http", ("viewer/render.json",), viewer=True)
+    outcome = fake_viewer.execute(fuzz.Case(0, target, "viewer/render.json", "bytes", body, "x"))
+    assert outcome.cls == expected, (outcome.detail, outcome.execution.stderr[-500:])
+    # The next request finds a working server (a new one after a death or a hang).
+    again = fake_viewer.execute(fuzz.Case(1, target, "viewer/render.json", "bytes", b"{}", "x"))
+    assert again.cls == "ok", again.detail
+
+
+def test_websocket_answers_are_classified() -> None:
+    """The WebSocket's answers: an error message is a refusal, unless it reports an exception
+    the server did not handle; a close for a too big or non-UTF-8 message is a refusal, any
+    other close a server error; a frame must hold its pixels."""
+    case = fuzz.Case(0, fuzz.Target("viewer-ws", ("viewer/ws_render.json",), viewer=True),
+                     "viewer/ws_render.json", "bytes", b"{}", "x")
+    limits = fuzz.Limits()
+    header = json.dumps({"width": 2, "height": 1}).encode()
+    frame = struct.pack("<I", len(header)) + header + bytes(8)
+
+    def cls(**answer) -> str:
+        return fuzz.classify_viewer(case, fuzz.ViewerAnswer("ws", 101, **answer), "", None,
+                                    limits, 0)[0]
+    assert cls(body=b'{"type": "error", "id": 1, "message": "width: too big"}') == "refused"
+    assert cls(body=b'{"type": "error", "id": 1, "message": "RuntimeError: boom"}') == \
+        "server-error"
+    assert cls(body=b"", close_code=1009) == "refused"
+    assert cls(body=b"", close_code=1011) == "server-error"
+    assert cls(body=frame, binary=True) == "ok"
+    assert cls(body=frame[:-1], binary=True) == "accepted-invalid"
+    assert cls(body=b'{"type": "download", "url": "/api/download/x"}') == "ok"
+    assert fuzz.classify_viewer(case, fuzz.ViewerAnswer("http", 403, b"{}"), "", None, limits,
+                                0)[0] == "refused"
