@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Seeded mutation fuzzer over every file reader of aos, through `aos-render` and `import aos`.
+"""Seeded mutation fuzzer over every file reader of aos, through `aos-render` and `import aos`,
+and over the requests of the viewer's HTTP and WebSocket server.
 
 What it does
 ------------
@@ -7,9 +8,13 @@ What it does
    same for every seed): a tiny simulated light field (`aos-render simulate`, 3 x 3 views of
    32 x 32 pixels) with its `lightfield.json`, the same views as a JKU-style `poses.json`, the
    scene file, an aos-camera file, a focal stack folder (`aos-render stack`: stack.json and
-   TIFFs), COLMAP text and binary models of the views, a positions CSV (name,x,y,z) and one
+   TIFFs), COLMAP text and binary models of the views, a positions CSV (name,x,y,z), one
    image of every format (PNG 8/16-bit, TIFF uint8/uint16/float32, EXR, JPEG) with a copy of each
-   as a metrics reference.
+   as a metrics reference, two telemetry logs of the views (by frame name, by time), three JPEG
+   frames with EXIF GPS and DJI XMP gimbal tags, a terrain under the views as OBJ, ascii PLY,
+   binary PLY and DEM (float32 GeoTIFF), a mask for every view and a folder of masks one per
+   view, the plan's polygon (--vertices) and a DEM under it (UTM zone 33), and the viewer's
+   requests (viewer/*.json: HTTP bodies or query strings, and WebSocket messages).
 2. Runs the unmutated corpus through every target once; each must come out `ok` (this checks
    that the time and memory limits fit the build).
 3. Runs N cases. Case i draws from `random.Random(f"{seed}:{i}")` (so any case can be replayed
@@ -18,15 +23,24 @@ What it does
    bytes and integers, insertion, deletion, truncation, chunk duplication, splicing with another
    corpus file), structural for the file's type (JSON values of another type, 1e999, negative,
    zero and huge sizes, unknown and misspelled keys, deep nesting, invalid UTF-8, empty strings;
-   CSV and COLMAP text tokens; PNG/TIFF/JPEG/EXR size fields set huge with valid checksums,
-   truncated image data, non-finite float samples; COLMAP binary counts), or a special file in
-   its place (a FIFO, a link to /dev/zero, a folder) or the output path set to that input file.
-   These hand-made cases fill rounds 1 to 4 over the targets (cases n to 5n - 1 for n
-   targets: every target gets each once) and 2 % of the later cases.
+   CSV, OBJ and COLMAP text tokens; PNG/TIFF/JPEG/EXR size fields set huge with valid
+   checksums, truncated image data, non-finite float samples; GeoTIFF pixel scale and tie
+   point; COLMAP binary counts; PLY element counts, property types and formats; EXIF GPS
+   rationals, reference letters and entries, DJI XMP values and a packet cut short; plan
+   vertices non-finite, huge, repeated, self-intersecting; viewer requests past the server's
+   64 KiB limit, or with another Host or Origin header), or a special file in its place (a
+   FIFO, a link to /dev/zero, a folder) or the output path set to that input file. These
+   hand-made cases fill rounds 1 to 4 over the targets (cases n to 5n - 1 for n targets: every
+   target that reads its file itself gets each once) and 2 % of the later cases.
 4. Runs the target on a private copy of the corpus, in its own folder, under a timeout
-   (SIGKILL), an address-space limit (RLIMIT_AS) and a peak-RSS budget, and classifies the run.
-   CLI targets are one `aos-render` process per case; Python targets run in a worker process
-   (`fuzz.py --worker`, restarted after a crash or a hang) that imports aos once.
+   (SIGTERM, then SIGKILL if it still runs --term-grace seconds later), an address-space limit
+   (RLIMIT_AS) and a peak-RSS budget, and classifies the run. CLI targets are one `aos-render`
+   process per case ({text} in a target's command: the mutated file's bytes as one argument);
+   Python targets run in a worker process (`fuzz.py --worker`, restarted after a crash or a
+   hang) that imports aos once. Viewer targets send one request per case (HTTP with the token
+   header, or a WebSocket text message followed by a sentinel message that the server answers at
+   once) to an `aos-render view` server on 127.0.0.1 (a free port, its own token read from its
+   --json line) that each job thread starts once and again after it died or hung.
 5. Saves every failing case under --out: the minimised input file (delta debugging, bounded in
    time), `case.json` (target, seed, case index, class, mutation, command, stderr tail) and
    `reproduce.sh` (rebuilds the case folder from the saved corpus and runs the command).
@@ -38,11 +52,18 @@ refused           exit != 0 with exactly one stderr line containing "error", the
                   the mutated file (its base name); in Python a ValueError naming it, one line
 signal            killed by a signal other than our timeout's SIGKILL (crash, abort), or the
                   Python worker exited in the middle of a call
-timeout           still running after --timeout seconds (killed)
+timeout           still running after --timeout seconds, ended by SIGTERM (viewer: no answer
+                  in time, or the connection dropped while the server lives)
+ignores-sigterm   still running --term-grace seconds after the timeout's SIGTERM (killed)
 memory            std::bad_alloc / MemoryError / "Cannot allocate memory", SIGKILL not sent by
                   us (the kernel's OOM killer), or a peak RSS above --rss-limit-mb
 traceback         "Traceback (most recent call last)" on the CLI's stderr, or a Python exception
-                  of another type than ValueError
+                  of another type than ValueError, or (viewer) a traceback or "Error handling
+                  request" in the server's log during the request
+server-error      viewer: an HTTP 5xx (or 3xx) answer, a WebSocket closed with a code other
+                  than 1003/1007/1009, or an error message reporting an exception the server
+                  did not handle ("RuntimeError: ..."). A 4xx answer, an error message or a
+                  1003/1007/1009 close is `refused`; the server dying is `signal`
 multi-line-error  more than one stderr line containing "error", or lines after the error line,
                   or a ValueError message of several lines
 unnamed-error     the error line / ValueError message does not contain the mutated file's name
@@ -52,7 +73,8 @@ partial-output    exit != 0 and something was left in the output folder, or a ne
 modified-input    an input file's bytes or mtime changed or it disappeared, or (on success) a new
                   file appeared among the inputs
 accepted-invalid  exit 0 (no exception), but the mutated input is an image the fuzzer can
-                  prove incomplete or invalid (`image_defect`), or an output is invalid.
+                  prove incomplete or invalid (`image_defect`; not for targets that read only
+                  image headers and tags, decodes_pixels=False), or an output is invalid.
                   Inputs: a PNG without IHDR or IDAT, with an invalid IHDR (zero size, bad
                   depth or colour type), a wrong CRC on a critical chunk, a zlib stream that
                   ends or fails before yielding the bytes the IHDR size needs (an error after
@@ -64,13 +86,18 @@ accepted-invalid  exit 0 (no exception), but the mutated input is an image the f
                   without the end-of-image marker after its scan, or declaring more than 1000
                   samples per file byte; a scanline EXR whose chunk table or a chunk runs past
                   the end of the file, or declaring more than 1000 samples per file byte.
-                  Outputs: a promised output missing, a float TIFF holding NaN, a JSON file that
-                  does not parse or holds NaN/Infinity, an image with one of the defects above,
-                  the metrics JSON on stdout not finite, a Python result holding a float array
-                  with NaN or infinity.
+                  Outputs: a promised output missing, a float TIFF holding NaN, a JSON or GeoJSON
+                  file that does not parse or holds NaN/Infinity, a KML file that is not XML, a
+                  CSV file with a row of another length or a field that is not a finite number,
+                  an image with one of the defects above, the metrics JSON on stdout not finite,
+                  a Python result holding a float array with NaN or infinity; viewer: a frame
+                  whose RGBA bytes do not match its header's size, a JSON answer not finite.
 
-The first class that applies wins, in this order: timeout, signal, memory, modified-input,
-partial-output, traceback, multi-line-error, unnamed-error, accepted-invalid, then refused/ok.
+The first class that applies wins, in this order: ignores-sigterm, timeout, signal, memory,
+modified-input, partial-output, traceback, multi-line-error, unnamed-error, accepted-invalid,
+then refused/ok (viewer: signal, traceback, memory, timeout, server-error, accepted-invalid,
+refused/ok). A refusal names the mutated file's base name, or for a {text} target the
+target's error_name (the option it fills).
 
 Usage
 -----
@@ -1066,7 +1093,7 @@ def mutate_vertices(rng, data, ctx):
         vertices.insert(i, list(vertices[i]))
         description = f"vertex {i} repeated"
     elif op == "repeat":
-        times = rng.choice((10, 1000, 100000))
+        times = rng.choice((10, 100, 1000))   # 1000: about 80 kB, under Linux's 128 kB argument
         vertices = vertices * times
         description = f"the polygon repeated x{times}"
     elif op == "swap" and len(vertices) > 3:
@@ -1162,6 +1189,9 @@ class Target:
     # the option or field it fills.
     error_name: str = ""
     viewer: bool = False                # a request to the viewer server (see ViewerServer)
+    # Whether the command decodes the pixels of the images it reads: a command that reads only
+    # their headers and tags (import-telemetry) may accept an image whose pixel data is damaged.
+    decodes_pixels: bool = True
 
     @property
     def kind(self) -> str:
@@ -1250,7 +1280,7 @@ TARGETS = (
     Target("import-telemetry-exif", ("exif/*.jpg",),
            argv=("{aos_render}", "import-telemetry", "in/exif", "--frames-fov-deg",
                  str(FRAMES_FOV_DEG), "-o", "out/lf.json", QUIET),
-           outputs=("out/lf.json",), output_file="out/lf.json"),
+           outputs=("out/lf.json",), output_file="out/lf.json", decodes_pixels=False),
     Target("plan-vertices", ("plan/polygon.vertices",),
            argv=(*PLAN, "--vertices", "{text}", "--csv", "out/plan.csv", "--geojson",
                  "out/plan.geojson", "--kml", "out/plan.kml", QUIET),
@@ -1591,7 +1621,7 @@ class ViewerServer:
     def argv(self) -> list[str]:
         return [self.fuzzer.aos_render, "view", "in/sim/lightfield.json", *VIRTUAL_CAMERA[4:],
                 "--focal-surface", "in/surface/terrain.obj", "--port", "0", "--no-browser",
-                "--json", "--num-threads", "2"]
+                "--json"]
 
     def start(self) -> None:
         if not (self.folder / "in").exists():
@@ -2009,7 +2039,7 @@ def classify(case: Case, execution: Execution, before: dict, after: dict, output
 
 def accepted_class(case: Case, execution: Execution, case_dir: Path) -> tuple[str, str]:
     """ok, or accepted-invalid with the defect found in the input or the outputs."""
-    if case.kind == "bytes":
+    if case.kind == "bytes" and case.target.decodes_pixels:
         defect = image_defect(case_dir / "in" / case.file)
         if defect:
             return "accepted-invalid", f"accepted {case.file}: {defect}"
@@ -2072,7 +2102,8 @@ class Fuzzer:
         text = ""
         if target.text_argument:
             data = case.data if case.kind == "bytes" else (self.corpus / case.file).read_bytes()
-            text = os.fsdecode((data or b"").replace(b"\0", b""))
+            # At most 100 kB: Linux refuses a single argument of 128 kB (MAX_ARG_STRLEN).
+            text = os.fsdecode((data or b"").replace(b"\0", b"")[:100000])
         argv = [target.format(a, file, self.aos_render, text) for a in target.argv]
         code = target.format(target.code, file, self.aos_render) if target.code else ""
         if case.kind == "output-is-input" and target.output_file:
@@ -2768,6 +2799,9 @@ def parse_args(argv: Optional[list[str]] = None) -> argparse.Namespace:
     parser.add_argument("--out", default="fuzz-out", help="reproducer folder (default fuzz-out)")
     parser.add_argument("--jobs", type=int, default=1, help="cases run at once (default 1)")
     parser.add_argument("--timeout", type=float, default=10.0, help="seconds per run (default 10)")
+    parser.add_argument("--term-grace", type=float, default=2.0,
+                        help="seconds from the timeout's SIGTERM to SIGKILL; a run that needs "
+                             "the SIGKILL is an ignores-sigterm failure (default 2)")
     parser.add_argument("--memory-limit-mb", type=int, default=4096,
                         help="RLIMIT_AS of every run, MiB (default 4096)")
     parser.add_argument("--rss-limit-mb", type=int, default=1024,
@@ -2800,7 +2834,7 @@ def main(argv: Optional[list[str]] = None) -> int:
     if not args.aos_render or not shutil.which(args.aos_render):
         print("fuzz.py: error: no aos-render (give --aos-render)", file=sys.stderr)
         return 2
-    limits = Limits(args.timeout, args.memory_limit_mb, args.rss_limit_mb)
+    limits = Limits(args.timeout, args.memory_limit_mb, args.rss_limit_mb, args.term_grace)
     out = Path(args.out)
     with tempfile.TemporaryDirectory(prefix="aos-fuzz-") as tmp:
         fuzzer = Fuzzer(os.path.abspath(shutil.which(args.aos_render)), args.python_path, limits,
