@@ -2153,7 +2153,13 @@ class Fuzzer:
         it died or hung): the class from its answer, its log and whether it survived."""
         server = self.viewer()
         if not server.running():
-            server.start()
+            try:
+                server.start()
+            except RuntimeError as error:
+                if case.index < 0:   # the unmutated corpus: the set-up failed
+                    raise
+                return Outcome(case, "signal", f"the viewer server did not start again: {error}",
+                               Execution(), self.describe(case))
         server.new_log()
         method, path = VIEWER_ENDPOINTS.get(Path(case.file).name, ("WS", "/ws"))
         data = case.data or b""
@@ -2840,8 +2846,12 @@ def main(argv: Optional[list[str]] = None) -> int:
         fuzzer = Fuzzer(os.path.abspath(shutil.which(args.aos_render)), args.python_path, limits,
                         Path(tmp))
         try:
-            fuzzer.build_corpus()
-            broken = fuzzer.check_corpus(targets, args.jobs)
+            try:
+                fuzzer.build_corpus()
+                broken = fuzzer.check_corpus(targets, args.jobs)
+            except RuntimeError as error:   # the corpus, the Python worker or the viewer
+                print(f"fuzz.py: error: set-up failed: {error}", file=sys.stderr)
+                return 2
             if broken:
                 for outcome in broken:
                     print(f"fuzz.py: error: the unmutated corpus is not ok for "
