@@ -114,9 +114,11 @@ failed (no aos, or the unmutated corpus does not pass). Standard library and num
 from __future__ import annotations
 
 import argparse
+import base64
 import concurrent.futures
 import dataclasses
 import hashlib
+import http.client
 import json
 import math
 import os
@@ -135,6 +137,7 @@ import sys
 import tempfile
 import threading
 import time
+import urllib.parse
 import zlib
 from pathlib import Path
 from typing import Callable, Iterable, Optional
@@ -1596,6 +1599,7 @@ def worker_main() -> None:
 # =============================================================================================
 # The viewer: one `aos-render view` server per job thread, and its HTTP and WebSocket clients.
 
+TOKEN_HEADER = "X-AOS-Token"   # the viewer's session-token header (python/aos/viewer/server.py)
 VIEWER_SENTINEL = b'{"type": "aos-fuzz-sentinel", "id": "aos-fuzz-sentinel"}'
 VIEWER_LOG_FAILURES = re.compile(r"Traceback \(most recent call last\)|Error handling request")
 # Header mutations of viewer cases (drawn in make_case, 10 % of the cases): the Host header
@@ -1695,8 +1699,6 @@ class ViewerAnswer:
 
 def viewer_http(port: int, token: str, method: str, path: str, body: bytes,
                 headers: dict[str, str], timeout: float) -> ViewerAnswer:
-    import http.client
-    import urllib.parse
     connection = http.client.HTTPConnection("127.0.0.1", port, timeout=timeout)
     try:
         target = path
@@ -1727,9 +1729,6 @@ def viewer_http(port: int, token: str, method: str, path: str, body: bytes,
         return ViewerAnswer("none", error=f"{type(error).__name__}: {error}")
     finally:
         connection.close()
-
-
-TOKEN_HEADER = "X-AOS-Token"
 
 
 def ws_frame(opcode: int, payload: bytes) -> bytes:
@@ -1786,7 +1785,6 @@ def viewer_ws(port: int, token: str, message: bytes, headers: dict[str, str],
     with an error; reads until the answer to `message` (an error, a frame, a download, a
     cancellation: anything but progress and the sentinel's reply) has come, or, for a message
     that asks for no answer ("cancel"), the sentinel's reply."""
-    import base64
     deadline = time.monotonic() + timeout
     try:
         sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
