@@ -142,8 +142,9 @@ import zlib
 from pathlib import Path
 from typing import Callable, Iterable, Optional
 
-FAILURE_CLASSES = ("signal", "timeout", "ignores-sigterm", "memory", "server-error", "traceback", "multi-line-error",
-                   "unnamed-error", "partial-output", "modified-input", "accepted-invalid")
+FAILURE_CLASSES = ("signal", "timeout", "ignores-sigterm", "memory", "server-error", "traceback",
+                   "multi-line-error", "unnamed-error", "partial-output", "modified-input",
+                   "accepted-invalid")
 CLASSES = ("ok", "refused") + FAILURE_CLASSES
 
 # Environment of every child: a bounded number of threads and malloc arenas keeps the address
@@ -2715,7 +2716,8 @@ class Campaign:
                 "failures": len(self.failures()), "distinct_failures": self.distinct()}
 
     def table(self) -> str:
-        short = {"multi-line-error": "multi", "unnamed-error": "unnamed",
+        short = {"ignores-sigterm": "no-term", "server-error": "server",
+                 "multi-line-error": "multi", "unnamed-error": "unnamed",
                  "partial-output": "partial", "modified-input": "modified",
                  "accepted-invalid": "acc-inv"}
         columns = [short.get(c, c) for c in CLASSES]
