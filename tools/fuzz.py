@@ -74,7 +74,10 @@ modified-input    an input file's bytes or mtime changed or it disappeared, or (
                   file appeared among the inputs
 accepted-invalid  exit 0 (no exception), but the mutated input is an image the fuzzer can
                   prove incomplete or invalid (`image_defect`; not for targets that read only
-                  image headers and tags, decodes_pixels=False), or an output is invalid.
+                  image headers and tags, decodes_pixels=False), a frame of the EXIF target
+                  whose GPS tags cannot be a position (`gps_defect`: a reference letter other
+                  than N/S, E/W, a zero denominator, 60 minutes or seconds, more than 90/180
+                  degrees), or an output is invalid.
                   Inputs: a PNG without IHDR or IDAT, with an invalid IHDR (zero size, bad
                   depth or colour type), a wrong CRC on a critical chunk, a zlib stream that
                   ends or fails before yielding the bytes the IHDR size needs (an error after
@@ -457,6 +460,35 @@ def image_defect(path: Path) -> Optional[str]:
                 return check(data)
             except Exception:   # a header these parsers cannot follow: nothing proven
                 return None
+    return None
+
+
+def gps_defect(data: bytes) -> Optional[str]:
+    """Why the EXIF GPS tags of a frame cannot be a position, when the fuzzer can prove it: a
+    GPSLatitudeRef other than N or S, a GPSLongitudeRef other than E or W, a degrees, minutes,
+    seconds rational with a zero denominator, minutes or seconds of 60 or more, or more than 90
+    (180) degrees. Tags whose type was changed are not judged (a reader may skip them)."""
+    try:
+        base, entries = exif_entries(data)
+    except (ValueError, struct.error):
+        return None
+    names = {1: "GPSLatitudeRef", 2: "GPSLatitude", 3: "GPSLongitudeRef", 4: "GPSLongitude"}
+    for entry, tag, kind, count, _ in entries:
+        if tag in (1, 3) and kind == 2 and 1 <= count <= 4:
+            letter = data[entry + 8:entry + 9]
+            if letter not in ((b"N", b"S") if tag == 1 else (b"E", b"W")):
+                return f"{names[tag]} is {data[entry + 8:entry + 8 + count]!r}"
+        if tag in (2, 4) and kind == 5 and count == 3:
+            (offset,) = struct.unpack("<I", data[entry + 8:entry + 12])
+            at = base + offset
+            if at + 24 > len(data):
+                continue
+            values = struct.unpack("<6I", data[at:at + 24])
+            if 0 in values[1::2]:
+                return f"{names[tag]} has a zero denominator: {values}"
+            degrees, minutes, seconds = (values[i] / values[i + 1] for i in (0, 2, 4))
+            if minutes >= 60 or seconds >= 60 or degrees > (90 if tag == 2 else 180):
+                return f"{names[tag]} is {degrees:g} deg {minutes:g}' {seconds:g}\""
     return None
 
 
@@ -2040,6 +2072,10 @@ def accepted_class(case: Case, execution: Execution, case_dir: Path) -> tuple[st
     """ok, or accepted-invalid with the defect found in the input or the outputs."""
     if case.kind == "bytes" and case.target.decodes_pixels:
         defect = image_defect(case_dir / "in" / case.file)
+        if defect:
+            return "accepted-invalid", f"accepted {case.file}: {defect}"
+    if case.kind == "bytes" and case.file.startswith("exif/"):   # frames read for their tags
+        defect = gps_defect(case.data or b"")
         if defect:
             return "accepted-invalid", f"accepted {case.file}: {defect}"
     if execution.result_defect:

@@ -454,3 +454,19 @@ def test_websocket_answers_are_classified() -> None:
     assert cls(body=b'{"type": "download", "url": "/api/download/x"}') == "ok"
     assert fuzz.classify_viewer(case, fuzz.ViewerAnswer("http", 403, b"{}"), "", None, limits,
                                 0)[0] == "refused"
+
+
+def test_gps_tags_that_cannot_be_a_position_are_recognised() -> None:
+    """The EXIF target's frames: a reference letter other than N/S or E/W, a zero denominator
+    or 60 minutes make an accepted frame accepted-invalid; the tags as written are fine."""
+    jpeg = b"\xff\xd8\xff\xe0\x00\x10JFIF\x00\x01\x01\x00\x00\x01\x00\x01\x00\x00\xff\xd9"
+    good = fuzz.with_app_segments(jpeg, fuzz.exif_gps_segment(48.00001, -15.00001, 400.0))
+    assert fuzz.gps_defect(good) is None
+    base, entries = fuzz.exif_entries(good)
+    ref = next(e for e in entries if e[1] == 1)
+    assert "GPSLatitudeRef" in fuzz.gps_defect(good[:ref[0] + 8] + b"X\0\0\0" + good[ref[0] + 12:])
+    latitude = next(e for e in entries if e[1] == 2)
+    at = base + latitude[4] + 8   # the minutes
+    for minutes, words in (((61, 1), "61'"), ((1, 0), "zero denominator")):
+        bad = good[:at] + struct.pack("<II", *minutes) + good[at + 8:]
+        assert words in fuzz.gps_defect(bad)
