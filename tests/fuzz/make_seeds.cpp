@@ -241,8 +241,8 @@ void FocalStackSeeds(const fs::path& work, const fs::path& out) {
     if (variant == 1) stack.render.aperture_radius = std::numeric_limits<double>::infinity();
     const int slices = variant == 0 ? 2 : 1;
     for (int i = 0; i < slices; ++i) {
-      stack.planes.push_back(variant == 0 ? aos::Plane::AtHeight(i * 5.0)
-                                          : aos::Plane{aos::Vec3d(0, 0, 2), aos::Vec3d(0.1, 0, 1)});
+      stack.focus.planes.push_back(variant == 0 ? aos::Plane::AtHeight(i * 5.0)
+                                                : aos::Plane{aos::Vec3d(0, 0, 2), aos::Vec3d(0.1, 0, 1)});
       stack.images.push_back(aos_fuzz::Pattern(kFrameWidth, kFrameHeight, 1, aos::PixelType::kF32, i));
       stack.counts.push_back(aos_fuzz::Pattern(kFrameWidth, kFrameHeight, 1, aos::PixelType::kU32, i));
       if (variant == 0) {
