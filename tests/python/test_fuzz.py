@@ -159,7 +159,7 @@ FAKE = textwrap.dedent("""
     elif mode == "traceback":
         raise RuntimeError("an exception the program did not catch")
     elif mode == "resident":
-        block = bytearray(800 << 20)   # touched: 800 MiB resident
+        block = bytearray(600 << 20)   # touched: 600 MiB resident
         error(f"fake: error: {path}: bad input")
     elif mode == "address-space":
         block = bytearray(8 << 30)   # beyond RLIMIT_AS: MemoryError
@@ -199,7 +199,7 @@ PYTHON_CASES = [
     ("raise ValueError('[json.exception.out_of_range.406] number overflow')", "unnamed-error"),
     ("raise ValueError({file!r} + ': bad input\\nPNG library error')", "multi-line-error"),
     ("raise MemoryError()", "memory"),
-    ("block = bytearray(800 << 20)", "memory"),
+    ("block = bytearray(600 << 20)", "memory"),
     ("import os; os.kill(os.getpid(), 11)", "signal"),
     ("import time; time.sleep(600)", "timeout"),
     ("import signal, time; signal.signal(signal.SIGTERM, signal.SIG_IGN); time.sleep(600)",
@@ -230,8 +230,9 @@ def fake_fuzzer(tmp_path_factory):
     pixels = struct.pack("<16f", *[0.5, float("nan")] * 8)
     (root / "nan.tif").write_bytes(fuzz.tiff_file(4, 4, pixels, 32, 3))
     (root / "work").mkdir()
-    # The Python worker holds about 160 MiB with aos imported; the fakes allocate 800 MiB.
-    limits = fuzz.Limits(timeout_s=2, address_space_mb=2048, rss_mb=400)
+    # The Python worker holds about 160 MiB with aos imported; the fakes allocate 600 MiB, which
+    # takes seconds on a loaded machine (page faults): hence 5 s before the timeout's SIGTERM.
+    limits = fuzz.Limits(timeout_s=5, address_space_mb=2048, rss_mb=400)
     fuzzer = fuzz.Fuzzer(EXE or "aos-render", PYTHON_PATH, limits, root / "work", corpus)
     yield fuzzer, root
     fuzzer.close()
@@ -282,7 +283,7 @@ def test_special_files_and_an_output_on_an_input_are_set_up(fake_fuzzer) -> None
     a FIFO hangs it, the others make it fail); output-is-input points the output at the input."""
     fuzzer, root = fake_fuzzer
     target = fake_target(root, "ok", output_file="out/result.txt")
-    # Reading /dev/zero to the end fills the 2 GiB address space (memory), unless the 2 s
+    # Reading /dev/zero to the end fills the 2 GiB address space (memory), unless the 5 s
     # timeout comes first on a loaded machine: either shows the link is in place.
     expected = {"fifo": {"timeout"}, "devzero": {"memory", "timeout"}, "folder": {"traceback"},
                 "output-is-input": {"modified-input"}}
