@@ -1,5 +1,6 @@
 #!/usr/bin/env python3
-"""Seeded mutation fuzzer over every file reader of aos, through `aos-render` and `import aos`.
+"""Seeded mutation fuzzer over every file reader of aos, through `aos-render` and `import aos`,
+and over the requests of the viewer's HTTP and WebSocket server.
 
 What it does
 ------------
@@ -7,9 +8,13 @@ What it does
    same for every seed): a tiny simulated light field (`aos-render simulate`, 3 x 3 views of
    32 x 32 pixels) with its `lightfield.json`, the same views as a JKU-style `poses.json`, the
    scene file, an aos-camera file, a focal stack folder (`aos-render stack`: stack.json and
-   TIFFs), COLMAP text and binary models of the views, a positions CSV (name,x,y,z) and one
+   TIFFs), COLMAP text and binary models of the views, a positions CSV (name,x,y,z), one
    image of every format (PNG 8/16-bit, TIFF uint8/uint16/float32, EXR, JPEG) with a copy of each
-   as a metrics reference.
+   as a metrics reference, two telemetry logs of the views (by frame name, by time), three JPEG
+   frames with EXIF GPS and DJI XMP gimbal tags, a terrain under the views as OBJ, ascii PLY,
+   binary PLY and DEM (float32 GeoTIFF), a mask for every view and a folder of masks one per
+   view, the plan's polygon (--vertices) and a DEM under it (UTM zone 33), and the viewer's
+   requests (viewer/*.json: HTTP bodies or query strings, and WebSocket messages).
 2. Runs the unmutated corpus through every target once; each must come out `ok` (this checks
    that the time and memory limits fit the build).
 3. Runs N cases. Case i draws from `random.Random(f"{seed}:{i}")` (so any case can be replayed
@@ -18,15 +23,24 @@ What it does
    bytes and integers, insertion, deletion, truncation, chunk duplication, splicing with another
    corpus file), structural for the file's type (JSON values of another type, 1e999, negative,
    zero and huge sizes, unknown and misspelled keys, deep nesting, invalid UTF-8, empty strings;
-   CSV and COLMAP text tokens; PNG/TIFF/JPEG/EXR size fields set huge with valid checksums,
-   truncated image data, non-finite float samples; COLMAP binary counts), or a special file in
-   its place (a FIFO, a link to /dev/zero, a folder) or the output path set to that input file.
-   These hand-made cases fill rounds 1 to 4 over the targets (cases n to 5n - 1 for n
-   targets: every target gets each once) and 2 % of the later cases.
+   CSV, OBJ and COLMAP text tokens; PNG/TIFF/JPEG/EXR size fields set huge with valid
+   checksums, truncated image data, non-finite float samples; GeoTIFF pixel scale and tie
+   point; COLMAP binary counts; PLY element counts, property types and formats; EXIF GPS
+   rationals, reference letters and entries, DJI XMP values and a packet cut short; plan
+   vertices non-finite, huge, repeated, self-intersecting; viewer requests past the server's
+   64 KiB limit, or with another Host or Origin header), or a special file in its place (a
+   FIFO, a link to /dev/zero, a folder) or the output path set to that input file. These
+   hand-made cases fill rounds 1 to 4 over the targets (cases n to 5n - 1 for n targets: every
+   target that reads its file itself gets each once) and 2 % of the later cases.
 4. Runs the target on a private copy of the corpus, in its own folder, under a timeout
-   (SIGKILL), an address-space limit (RLIMIT_AS) and a peak-RSS budget, and classifies the run.
-   CLI targets are one `aos-render` process per case; Python targets run in a worker process
-   (`fuzz.py --worker`, restarted after a crash or a hang) that imports aos once.
+   (SIGTERM, then SIGKILL if it still runs --term-grace seconds later), an address-space limit
+   (RLIMIT_AS) and a peak-RSS budget, and classifies the run. CLI targets are one `aos-render`
+   process per case ({text} in a target's command: the mutated file's bytes as one argument);
+   Python targets run in a worker process (`fuzz.py --worker`, restarted after a crash or a
+   hang) that imports aos once. Viewer targets send one request per case (HTTP with the token
+   header, or a WebSocket text message followed by a sentinel message that the server answers at
+   once) to an `aos-render view` server on 127.0.0.1 (a free port, its own token read from its
+   --json line) that each job thread starts once and again after it died or hung.
 5. Saves every failing case under --out: the minimised input file (delta debugging, bounded in
    time), `case.json` (target, seed, case index, class, mutation, command, stderr tail) and
    `reproduce.sh` (rebuilds the case folder from the saved corpus and runs the command).
@@ -38,11 +52,18 @@ refused           exit != 0 with exactly one stderr line containing "error", the
                   the mutated file (its base name); in Python a ValueError naming it, one line
 signal            killed by a signal other than our timeout's SIGKILL (crash, abort), or the
                   Python worker exited in the middle of a call
-timeout           still running after --timeout seconds (killed)
+timeout           still running after --timeout seconds, ended by SIGTERM (viewer: no answer
+                  in time, or the connection dropped while the server lives)
+ignores-sigterm   still running --term-grace seconds after the timeout's SIGTERM (killed)
 memory            std::bad_alloc / MemoryError / "Cannot allocate memory", SIGKILL not sent by
                   us (the kernel's OOM killer), or a peak RSS above --rss-limit-mb
 traceback         "Traceback (most recent call last)" on the CLI's stderr, or a Python exception
-                  of another type than ValueError
+                  of another type than ValueError, or (viewer) a traceback or "Error handling
+                  request" in the server's log during the request
+server-error      viewer: an HTTP 5xx (or 3xx) answer, a WebSocket closed with a code other
+                  than 1003/1007/1009, or an error message reporting an exception the server
+                  did not handle ("RuntimeError: ..."). A 4xx answer, an error message or a
+                  1003/1007/1009 close is `refused`; the server dying is `signal`
 multi-line-error  more than one stderr line containing "error", or lines after the error line,
                   or a ValueError message of several lines
 unnamed-error     the error line / ValueError message does not contain the mutated file's name
@@ -52,7 +73,11 @@ partial-output    exit != 0 and something was left in the output folder, or a ne
 modified-input    an input file's bytes or mtime changed or it disappeared, or (on success) a new
                   file appeared among the inputs
 accepted-invalid  exit 0 (no exception), but the mutated input is an image the fuzzer can
-                  prove incomplete or invalid (`image_defect`), or an output is invalid.
+                  prove incomplete or invalid (`image_defect`; not for targets that read only
+                  image headers and tags, decodes_pixels=False), a frame of the EXIF target
+                  whose GPS tags cannot be a position (`gps_defect`: a reference letter other
+                  than N/S, E/W, a zero denominator, 60 minutes or seconds, more than 90/180
+                  degrees), or an output is invalid.
                   Inputs: a PNG without IHDR or IDAT, with an invalid IHDR (zero size, bad
                   depth or colour type), a wrong CRC on a critical chunk, a zlib stream that
                   ends or fails before yielding the bytes the IHDR size needs (an error after
@@ -64,13 +89,18 @@ accepted-invalid  exit 0 (no exception), but the mutated input is an image the f
                   without the end-of-image marker after its scan, or declaring more than 1000
                   samples per file byte; a scanline EXR whose chunk table or a chunk runs past
                   the end of the file, or declaring more than 1000 samples per file byte.
-                  Outputs: a promised output missing, a float TIFF holding NaN, a JSON file that
-                  does not parse or holds NaN/Infinity, an image with one of the defects above,
-                  the metrics JSON on stdout not finite, a Python result holding a float array
-                  with NaN or infinity.
+                  Outputs: a promised output missing, a float TIFF holding NaN, a JSON or GeoJSON
+                  file that does not parse or holds NaN/Infinity, a KML file that is not XML, a
+                  CSV file with a row of another length or a field that is not a finite number,
+                  an image with one of the defects above, the metrics JSON on stdout not finite,
+                  a Python result holding a float array with NaN or infinity; viewer: a frame
+                  whose RGBA bytes do not match its header's size, a JSON answer not finite.
 
-The first class that applies wins, in this order: timeout, signal, memory, modified-input,
-partial-output, traceback, multi-line-error, unnamed-error, accepted-invalid, then refused/ok.
+The first class that applies wins, in this order: ignores-sigterm, timeout, signal, memory,
+modified-input, partial-output, traceback, multi-line-error, unnamed-error, accepted-invalid,
+then refused/ok (viewer: signal, traceback, memory, timeout, server-error, accepted-invalid,
+refused/ok). A refusal names the mutated file's base name, or for a {text} target the
+target's error_name (the option it fills).
 
 Usage
 -----
@@ -87,9 +117,11 @@ failed (no aos, or the unmutated corpus does not pass). Standard library and num
 from __future__ import annotations
 
 import argparse
+import base64
 import concurrent.futures
 import dataclasses
 import hashlib
+import http.client
 import json
 import math
 import os
@@ -100,6 +132,7 @@ import select
 import shlex
 import shutil
 import signal
+import socket
 import stat
 import struct
 import subprocess
@@ -107,12 +140,14 @@ import sys
 import tempfile
 import threading
 import time
+import urllib.parse
 import zlib
 from pathlib import Path
 from typing import Callable, Iterable, Optional
 
-FAILURE_CLASSES = ("signal", "timeout", "memory", "traceback", "multi-line-error",
-                   "unnamed-error", "partial-output", "modified-input", "accepted-invalid")
+FAILURE_CLASSES = ("signal", "timeout", "ignores-sigterm", "memory", "server-error", "traceback",
+                   "multi-line-error", "unnamed-error", "partial-output", "modified-input",
+                   "accepted-invalid")
 CLASSES = ("ok", "refused") + FAILURE_CLASSES
 
 # Environment of every child: a bounded number of threads and malloc arenas keeps the address
@@ -428,6 +463,35 @@ def image_defect(path: Path) -> Optional[str]:
     return None
 
 
+def gps_defect(data: bytes) -> Optional[str]:
+    """Why the EXIF GPS tags of a frame cannot be a position, when the fuzzer can prove it: a
+    GPSLatitudeRef other than N or S, a GPSLongitudeRef other than E or W, a degrees, minutes,
+    seconds rational with a zero denominator, minutes or seconds of 60 or more, or more than 90
+    (180) degrees. Tags whose type was changed are not judged (a reader may skip them)."""
+    try:
+        base, entries = exif_entries(data)
+    except (ValueError, struct.error):
+        return None
+    names = {1: "GPSLatitudeRef", 2: "GPSLatitude", 3: "GPSLongitudeRef", 4: "GPSLongitude"}
+    for entry, tag, kind, count, _ in entries:
+        if tag in (1, 3) and kind == 2 and 1 <= count <= 4:
+            letter = data[entry + 8:entry + 9]
+            if letter not in ((b"N", b"S") if tag == 1 else (b"E", b"W")):
+                return f"{names[tag]} is {data[entry + 8:entry + 8 + count]!r}"
+        if tag in (2, 4) and kind == 5 and count == 3:
+            (offset,) = struct.unpack("<I", data[entry + 8:entry + 12])
+            at = base + offset
+            if at + 24 > len(data):
+                continue
+            values = struct.unpack("<6I", data[at:at + 24])
+            if 0 in values[1::2]:
+                return f"{names[tag]} has a zero denominator: {values}"
+            degrees, minutes, seconds = (values[i] / values[i + 1] for i in (0, 2, 4))
+            if minutes >= 60 or seconds >= 60 or degrees > (90 if tag == 2 else 180):
+                return f"{names[tag]} is {degrees:g} deg {minutes:g}' {seconds:g}\""
+    return None
+
+
 def float_tiff_nan(path: Path) -> Optional[str]:
     """'N NaN samples' for a float TIFF output holding NaN (outputs may hold infinities, e.g.
     depths of the sky, but NaN never)."""
@@ -450,8 +514,44 @@ def strict_json(text: str | bytes) -> object:
     return json.loads(text, parse_constant=refuse)
 
 
+def csv_defect(text: str) -> Optional[str]:
+    """A CSV output (the plan's waypoints): every row has the header's number of fields, and
+    every field after the header is a finite number."""
+    lines = [line for line in text.splitlines() if line.strip()]
+    if not lines:
+        return "an empty CSV file"
+    width = len(lines[0].split(","))
+    for number, line in enumerate(lines[1:], start=2):
+        fields = line.split(",")
+        if len(fields) != width:
+            return f"line {number} has {len(fields)} fields, the header {width}"
+        for field in fields:
+            try:
+                value = float(field)
+            except ValueError:
+                return f"line {number}: {field[:40]!r} is not a number"
+            if not math.isfinite(value):
+                return f"line {number}: {field} is not finite"
+    return None
+
+
 def output_defect(path: Path) -> Optional[str]:
     suffix = path.suffix.lower()
+    if suffix in (".csv", ".geojson", ".kml"):
+        try:
+            text = path.read_bytes().decode("utf-8")
+            if suffix == ".csv":
+                return csv_defect(text)
+            if suffix == ".geojson":
+                strict_json(text)
+            else:
+                import xml.etree.ElementTree as ElementTree
+                ElementTree.fromstring(text)
+        except (ValueError, UnicodeDecodeError) as error:
+            return f"invalid {suffix[1:].upper()} ({error})"
+        except SyntaxError as error:   # xml.etree.ElementTree.ParseError
+            return f"invalid {suffix[1:].upper()} ({type(error).__name__}: {error})"
+        return None
     if suffix in (".tif", ".tiff"):
         nan = float_tiff_nan(path)
         if nan:
@@ -794,7 +894,20 @@ def mutate_tiff(rng, data, ctx):
     ops = ["huge", "huge", "truncate-data", "strip-past-end", "bits", "samples"]
     if tiff.compression == 1 and tiff.sample_format == 3:
         ops += ["nonfinite", "nonfinite"]
+    geo_tags = [t for t in (33550, 33922) if t in tiff.tag_positions]   # pixel scale, tiepoint
+    if geo_tags:
+        ops += ["geo", "geo"]
     op = rng.choice(ops)
+    if op == "geo":   # a DEM's placement: a double of ModelPixelScale or ModelTiepoint
+        tag = rng.choice(geo_tags)
+        where, _ = tiff.tag_positions[tag]
+        (where,) = struct.unpack(tiff.order + "I", data[where:where + 4])   # doubles: an offset
+        k = rng.randrange(3 if tag == 33550 else 6)
+        value = rng.choice((0.0, -1.0, math.nan, math.inf, -math.inf, 1e300, -1e300, 1e-300,
+                            5e6, 1e15))
+        at = where + 8 * k
+        return data[:at] + struct.pack(tiff.order + "d", value) + data[at + 8:], \
+            f"geotiff: {'ModelPixelScale' if tag == 33550 else 'ModelTiepoint'}[{k}] = {value}"
     if op == "huge" and 256 in tiff.tag_positions and 257 in tiff.tag_positions:
         w, h = rng.choice(((30000, 30000), (65535, 65535), (1, 1 << 30), (IMAGE_SIZE, 100000)))
         data = tiff_set(tiff_set(data, tiff, 256, w), tiff, 257, h)
@@ -847,6 +960,198 @@ def mutate_exr(rng, data, ctx):
     return data[:cut], f"exr: truncated at {cut} of {len(data)} bytes"
 
 
+# --- EXIF GPS and DJI XMP tags of a frame (import-telemetry without a log).
+
+GPS_RATIONALS = ((0, 1), (1, 0), (0, 0), (0xFFFFFFFF, 1), (1, 0xFFFFFFFF), (90, 1), (91, 1),
+                 (181, 1), (0x7FFFFFFF, 0x7FFFFFFF), (60, 1), (3600 * 10000, 10000))
+XMP_VALUES = (b"nan", b"+nan", b"inf", b"-inf", b"1e999", b"", b" ", b"abc", b"+-1", b"--90",
+              b"1,5", b"361", b"-361", b"90", b"-180.5", b"+1e308", b"0x10", b"1e-400",
+              b"\xff\xfe", b"A" * 5000)
+
+
+def exif_entries(data: bytes) -> tuple[int, list[tuple[int, int, int, int, int]]]:
+    """(offset of the TIFF header, [(entry offset, tag, type, count, value/offset)]) of the GPS
+    IFD of the first APP1 Exif segment; raises ValueError when there is none to follow."""
+    at = data.find(b"Exif\0\0")
+    if at < 0:
+        raise ValueError("no Exif segment")
+    base = at + 6
+    order = "<" if data[base:base + 2] == b"II" else ">"
+    (ifd0,) = struct.unpack(order + "I", data[base + 4:base + 8])
+    (count,) = struct.unpack(order + "H", data[base + ifd0:base + ifd0 + 2])
+    gps = None
+    for i in range(count):
+        entry = base + ifd0 + 2 + 12 * i
+        tag, _, _, value = struct.unpack(order + "HHII", data[entry:entry + 12])
+        if tag == 0x8825:
+            gps = value
+    if gps is None:
+        raise ValueError("no GPS IFD")
+    (count,) = struct.unpack(order + "H", data[base + gps:base + gps + 2])
+    entries = []
+    for i in range(count):
+        entry = base + gps + 2 + 12 * i
+        entries.append((entry, *struct.unpack(order + "HHII", data[entry:entry + 12])))
+    return base, entries
+
+
+def mutate_exif(rng, data, ctx):
+    """GPS tags: a rational's numerator or denominator, a reference letter, an entry's type,
+    count or offset; XMP: a DJI value, a missing closing tag, the packet cut; else the JPEG's
+    own mutations."""
+    op = rng.choice(("rational", "rational", "ref", "entry", "xmp", "xmp", "xmp-close", "jpeg"))
+    try:
+        base, entries = exif_entries(data)
+    except (ValueError, struct.error):
+        op = "xmp" if op != "jpeg" else op
+        entries, base = [], 0
+    names = {0: "GPSVersionID", 1: "GPSLatitudeRef", 2: "GPSLatitude", 3: "GPSLongitudeRef",
+             4: "GPSLongitude", 5: "GPSAltitudeRef", 6: "GPSAltitude"}
+    rationals = [e for e in entries if e[2] == 5]
+    if op == "rational" and rationals:
+        entry, tag, _, count, offset = rng.choice(rationals)
+        k = rng.randrange(max(min(count, 3), 1))
+        n, d = rng.choice(GPS_RATIONALS)
+        at = base + offset + 8 * k
+        if at + 8 <= len(data):
+            return data[:at] + struct.pack("<II", n, d) + data[at + 8:], \
+                f"exif: {names.get(tag, tag)}[{k}] = {n}/{d}"
+    refs = [e for e in entries if e[1] in (1, 3)]
+    if op == "ref" and refs:
+        entry, tag, _, _, _ = rng.choice(refs)
+        letter = rng.choice((b"X", b"n", b"S", b"W", b"\0", b"\xff", b"NS"))
+        value = letter.ljust(4, b"\0")[:4]
+        return data[:entry + 8] + value + data[entry + 12:], \
+            f"exif: {names.get(tag, tag)} = {letter!r}"
+    if op == "entry" and entries:
+        entry, tag, kind, count, offset = rng.choice(entries)
+        field = rng.choice(("type", "count", "offset"))
+        if field == "type":
+            value, at, size = rng.choice((0, 2, 3, 7, 12, 13, 0xFFFF)), entry + 2, "H"
+        elif field == "count":
+            value, at, size = rng.choice((0, 2, 255, 0x7FFFFFFF, 0xFFFFFFFF)), entry + 4, "I"
+        else:
+            value, at, size = rng.choice((0, len(data), 0x7FFFFFFF, 0xFFFFFFF0)), entry + 8, "I"
+        return data[:at] + struct.pack("<" + size, value) + data[at + struct.calcsize(size):], \
+            f"exif: {names.get(tag, tag)} {field} = {value}"
+    values = list(re.finditer(rb'(drone-dji:[A-Za-z]+)="([^"]*)"', data))
+    if op == "xmp" and values:
+        match = rng.choice(values)
+        new = rng.choice(XMP_VALUES)
+        return data[:match.start(2)] + new + data[match.end(2):], \
+            f"xmp: {match.group(1).decode()} = {new[:20]!r}"
+    close = data.find(b"</x:xmpmeta>")
+    if op == "xmp-close" and close >= 0:
+        if rng.random() < 0.5:
+            return data[:close] + data[close + 12:], "xmp: closing </x:xmpmeta> removed"
+        cut = rng.randrange(data.find(b"<x:xmpmeta"), close)
+        return data[:cut], f"xmp: file cut inside the packet at {cut}"
+    return mutate_jpeg(rng, data, ctx)
+
+
+# --- Meshes: PLY headers (counts, types, formats); OBJ is text (mutate_text).
+
+PLY_COUNTS = (0, 1, 2, 0x7FFFFFFF, 0xFFFFFFFF, 4294967296, 1 << 40, -1, 100000000)
+PLY_TYPES = (b"char", b"uchar", b"short", b"int", b"uint", b"float", b"double", b"int64",
+             b"float16", b"list", b"")
+
+
+def mutate_ply(rng, data, ctx):
+    end = data.find(b"end_header\n")
+    if not data.startswith(b"ply") or end < 0:
+        return rng.choice(BYTE_MUTATIONS)(rng, data, ctx)
+    header, body = data[:end], data[end:]
+    lines = header.split(b"\n")
+    op = rng.choice(("count", "count", "type", "format", "property", "body"))
+    elements = [i for i, line in enumerate(lines) if line.startswith(b"element ")]
+    properties = [i for i, line in enumerate(lines) if line.startswith(b"property ")]
+    if op == "count" and elements:
+        i = rng.choice(elements)
+        words = lines[i].split(b" ")
+        count = rng.choice(PLY_COUNTS)
+        lines[i] = b" ".join(words[:2] + [str(count).encode()])
+        return b"\n".join(lines) + body, f"ply: {words[1].decode()} count {count}"
+    if op == "type" and properties:
+        i = rng.choice(properties)
+        words = lines[i].split(b" ")
+        j = rng.randrange(1, len(words) - 1) if len(words) > 2 else 1
+        new = rng.choice(PLY_TYPES)
+        description = f"ply: line {i + 1} type {words[j][:10]!r} -> {new!r}"
+        words[j] = new
+        lines[i] = b" ".join(words)
+        return b"\n".join(lines) + body, description
+    if op == "format":
+        new = rng.choice((b"format binary_big_endian 1.0", b"format ascii 2.0", b"format ascii",
+                          b"format binary_little_endian 1.0", b"format ascii 1.0"))
+        lines = [new if line.startswith(b"format") else line for line in lines]
+        return b"\n".join(lines) + body, f"ply: {new.decode()}"
+    if op == "property" and properties:
+        i = rng.choice(properties)
+        if rng.random() < 0.5:
+            del lines[i]
+            return b"\n".join(lines) + body, f"ply: property line {i + 1} removed"
+        lines.insert(i, lines[i])
+        return b"\n".join(lines) + body, f"ply: property line {i + 1} repeated"
+    if b"format ascii" in header:
+        mutated, description = mutate_text(rng, body[len(b"end_header\n"):], ctx)
+        return header + b"end_header\n" + mutated, "ply body: " + description
+    return rng.choice(BYTE_MUTATIONS)(rng, data, ctx)
+
+
+# --- The plan's --vertices argument: X,Y;X,Y;...
+
+VERTEX_NUMBERS = ("nan", "inf", "-inf", "1e999", "1e300", "-1e300", "1e15", "5e6", "0", "-0",
+                  "", " ", "abc", "1,5", "0x10", "1e-320", "4.9e-324", "500000.0000000001")
+
+
+def mutate_vertices(rng, data, ctx):
+    try:
+        text = data.decode()
+        vertices = [pair.split(",") for pair in text.split(";")]
+    except UnicodeDecodeError:
+        return rng.choice(BYTE_MUTATIONS)(rng, data, ctx)
+    op = rng.choice(("number", "number", "extreme", "drop", "duplicate", "repeat", "swap",
+                     "separator", "collinear"))
+    i = rng.randrange(len(vertices))
+    if op == "number" and vertices[i]:
+        j = rng.randrange(len(vertices[i]))
+        vertices[i][j] = rng.choice(VERTEX_NUMBERS)
+        description = f"vertex {i} coordinate {j} = {vertices[i][j]!r}"
+    elif op == "extreme":
+        scale = rng.choice((1e3, 1e6, 1e9, 1e12, -1.0))
+        vertices = [[f"{float(v) * scale!r}" if _is_float(v) else v for v in pair]
+                    for pair in vertices]
+        description = f"every coordinate x {scale:g}"
+    elif op == "drop" and len(vertices) > 1:
+        del vertices[i]
+        description = f"vertex {i} removed"
+    elif op == "duplicate":
+        vertices.insert(i, list(vertices[i]))
+        description = f"vertex {i} repeated"
+    elif op == "repeat":
+        times = rng.choice((10, 100, 1000))   # 1000: about 80 kB, under Linux's 128 kB argument
+        vertices = vertices * times
+        description = f"the polygon repeated x{times}"
+    elif op == "swap" and len(vertices) > 3:
+        vertices[0], vertices[2] = vertices[2], vertices[0]
+        description = "vertices 0 and 2 swapped (self-intersecting)"
+    elif op == "collinear":
+        vertices = [[str(k), str(k)] for k in range(len(vertices))]
+        description = "every vertex on one line"
+    else:
+        separator = rng.choice((";;", ";", ",", " ", "\n", ""))
+        return (separator.join(",".join(pair) for pair in vertices)).encode(), \
+            f"vertices joined by {separator!r}"
+    return ";".join(",".join(pair) for pair in vertices).encode(), "vertices: " + description
+
+
+def _is_float(text: str) -> bool:
+    try:
+        return math.isfinite(float(text))
+    except ValueError:
+        return False
+
+
 def mutate_colmap_binary(rng, data, ctx):
     count = rng.choice((0, 1 << 32, 1 << 40, (1 << 63) - 1, (1 << 64) - 1, 1000000))
     return struct.pack("<Q", count) + data[8:], f"colmap: leading count {count}"
@@ -855,6 +1160,12 @@ def mutate_colmap_binary(rng, data, ctx):
 def structural_mutation(name: str, data: bytes) -> Optional[Callable]:
     """The structural mutation for a file's type, by magic or extension (None: bytes only)."""
     suffix = Path(name).suffix.lower()
+    if name.startswith("exif/"):
+        return mutate_exif
+    if data.startswith(b"ply"):
+        return mutate_ply
+    if suffix == ".vertices":
+        return mutate_vertices
     if data.startswith(b"\x89PNG"):
         return mutate_png
     if data[:4] in (b"II*\0", b"MM\0*"):
@@ -865,7 +1176,7 @@ def structural_mutation(name: str, data: bytes) -> Optional[Callable]:
         return mutate_exr
     if suffix == ".json":
         return mutate_json
-    if suffix in (".csv", ".txt"):
+    if suffix in (".csv", ".txt", ".obj"):
         return mutate_text
     if suffix == ".bin":
         return mutate_colmap_binary
@@ -909,13 +1220,25 @@ class Target:
     outputs: tuple[str, ...] = ()       # paths that must exist after a success
     output_file: Optional[str] = None   # the single output file (for the output-is-input case)
     stdout_json: bool = False           # stdout is one JSON object to check
+    # The word a refusal must name; default: the mutated file's base name. For a target whose
+    # input is a command-line argument ({text}: the mutated file's bytes as that argument),
+    # the option or field it fills.
+    error_name: str = ""
+    viewer: bool = False                # a request to the viewer server (see ViewerServer)
+    # Whether the command decodes the pixels of the images it reads: a command that reads only
+    # their headers and tags (import-telemetry) may accept an image whose pixel data is damaged.
+    decodes_pixels: bool = True
 
     @property
     def kind(self) -> str:
-        return "python" if self.code else "cli"
+        return "viewer" if self.viewer else "python" if self.code else "cli"
 
-    def format(self, template: str, file: str, aos_render: str) -> str:
-        return template.format(file=file, name=Path(file).name, aos_render=aos_render)
+    @property
+    def text_argument(self) -> bool:
+        return any("{text}" in a for a in self.argv)
+
+    def format(self, template: str, file: str, aos_render: str, text: str = "") -> str:
+        return template.format(file=file, name=Path(file).name, aos_render=aos_render, text=text)
 
 
 LF = "in/sim/lightfield.json"
@@ -923,6 +1246,14 @@ JKU = "in/jku/poses/poses.json"
 STACK_FILES = ("stack/stack.json", "stack/slice_*.tif", "stack/count_*.tif")
 IMAGES = ("images/*",)
 QUIET = "-q"
+
+# A float32 integral image of the simulated light field (the surface and mask targets).
+SURFACE_RENDER = ("{aos_render}", "integral", LF, *VIRTUAL_CAMERA, "--sample-type", "float32",
+                  "-o", "out/integral.tif")
+# A polygon flight in UTM zone 33 (the plan targets; the polygon or the DEM is the input).
+PLAN = ("{aos_render}", "plan", "--shape", "polygon", "--crs", "EPSG:32633", "--spacing-m", "10",
+        "--along-spacing-m", "10", "--altitude-m", "30")
+PLAN_VERTICES = "500000,5300000;500060,5300000;500060,5300040;500000,5300040"
 
 TARGETS = (
     Target("integral-aos", ("sim/lightfield.json", "sim/views/*.png"),
@@ -962,6 +1293,41 @@ TARGETS = (
     Target("metrics", IMAGES,
            argv=("{aos_render}", "metrics", "{file}", "in/ref/{name}", "--json"),
            stdout_json=True),
+    Target("integral-surface-obj", ("surface/terrain.obj",),
+           argv=(*SURFACE_RENDER, "--focal-surface", "{file}", QUIET),
+           outputs=("out/integral.tif",), output_file="out/integral.tif"),
+    Target("integral-surface-ply", ("surface/terrain.ply", "surface/terrain_binary.ply"),
+           argv=(*SURFACE_RENDER, "--focal-surface", "{file}", QUIET),
+           outputs=("out/integral.tif",), output_file="out/integral.tif"),
+    Target("integral-surface-dem", ("surface/dem.tif",),
+           argv=(*SURFACE_RENDER, "--focal-surface", "{file}", QUIET),
+           outputs=("out/integral.tif",), output_file="out/integral.tif"),
+    Target("integral-mask", ("mask.png",),
+           argv=(*SURFACE_RENDER, "--mask", "in/mask.png", QUIET),
+           outputs=("out/integral.tif",), output_file="out/integral.tif"),
+    Target("integral-mask-dir", ("masks/*.png",),
+           argv=(*SURFACE_RENDER, "--mask-dir", "in/masks", QUIET),
+           outputs=("out/integral.tif",)),
+    Target("import-telemetry-csv", ("telemetry/*.csv",),
+           argv=("{aos_render}", "import-telemetry", "in/sim/views", "--telemetry-file", "{file}",
+                 "--frames-fov-deg", str(FRAMES_FOV_DEG), "--frame-interval-s", "1",
+                 "-o", "out/lf.json", QUIET),
+           outputs=("out/lf.json",), output_file="out/lf.json"),
+    Target("import-telemetry-exif", ("exif/*.jpg",),
+           argv=("{aos_render}", "import-telemetry", "in/exif", "--frames-fov-deg",
+                 str(FRAMES_FOV_DEG), "-o", "out/lf.json", QUIET),
+           outputs=("out/lf.json",), output_file="out/lf.json", decodes_pixels=False),
+    Target("plan-vertices", ("plan/polygon.vertices",),
+           argv=(*PLAN, "--vertices", "{text}", "--csv", "out/plan.csv", "--geojson",
+                 "out/plan.geojson", "--kml", "out/plan.kml", QUIET),
+           outputs=("out/plan.csv", "out/plan.geojson", "out/plan.kml"), error_name="vertices"),
+    Target("plan-dem", ("plan/dem.tif",),
+           argv=(*PLAN, "--vertices", PLAN_VERTICES, "--dem", "in/plan/dem.tif", "--csv",
+                 "out/plan.csv", "--geojson", "out/plan.geojson", QUIET),
+           outputs=("out/plan.csv", "out/plan.geojson")),
+    Target("viewer-http", ("viewer/render.json", "viewer/map.json", "viewer/pick.json",
+                           "viewer/export.json", "viewer/command.json"), viewer=True),
+    Target("viewer-ws", ("viewer/ws_*.json",), viewer=True),
     Target("py-load-lightfield-aos", ("sim/lightfield.json", "sim/views/*.png"),
            code=f"result = aos.load_lightfield({LF!r})"),
     Target("py-load-lightfield-jku", ("jku/poses/poses.json", "jku/images/*.png"),
@@ -1009,6 +1375,7 @@ class Limits:
     timeout_s: float = 10.0
     address_space_mb: int = 4096    # RLIMIT_AS of every child
     rss_mb: int = 1024              # peak resident memory above this is a failure (memory)
+    term_grace_s: float = 2.0       # after the timeout's SIGTERM, seconds until SIGKILL
 
 
 def limit_address_space(megabytes: int) -> Callable[[], None]:
@@ -1032,6 +1399,7 @@ class Execution:
     returncode: Optional[int] = None     # exit status (None when killed by a signal)
     signal: Optional[int] = None
     timed_out: bool = False
+    ignored_sigterm: bool = False        # timed out and still running term_grace_s after SIGTERM
     stdout: str = ""
     stderr: str = ""
     peak_rss_kb: int = 0
@@ -1042,10 +1410,33 @@ class Execution:
     result_defect: Optional[str] = None  # a non-finite value in the returned arrays
 
 
+def terminate(pid: int, grace_s: float) -> tuple[int, resource.struct_rusage, bool]:
+    """Stops the process `pid` (a session leader) as a user would: SIGTERM to its process
+    group, then, if it is still running after grace_s seconds, SIGKILL. Returns its wait status,
+    its resource usage and whether SIGKILL was needed (it ignored or outlived SIGTERM)."""
+    try:
+        os.killpg(pid, signal.SIGTERM)
+    except ProcessLookupError:
+        pass
+    deadline = time.monotonic() + grace_s
+    while time.monotonic() < deadline:
+        reaped, status, usage = os.wait4(pid, os.WNOHANG)
+        if reaped:
+            return status, usage, False
+        time.sleep(0.01)
+    try:
+        os.killpg(pid, signal.SIGKILL)
+    except ProcessLookupError:
+        pass
+    _, status, usage = os.wait4(pid, 0)
+    return status, usage, True
+
+
 def run_process(argv: list[str], cwd: Path, limits: Limits, env: dict[str, str],
                 log_dir: Path) -> Execution:
-    """Runs argv in cwd with stdout/stderr in files, the address-space limit, and SIGKILL to its
-    process group after the timeout; the peak RSS comes from wait4."""
+    """Runs argv in cwd with stdout/stderr in files, the address-space limit, and after the
+    timeout SIGTERM to its process group, then SIGKILL if it has not ended within
+    limits.term_grace_s (terminate); the peak RSS comes from wait4."""
     out_path, err_path = log_dir / "stdout", log_dir / "stderr"
     start = time.monotonic()
     with open(out_path, "wb") as out, open(err_path, "wb") as err:
@@ -1061,11 +1452,7 @@ def run_process(argv: list[str], cwd: Path, limits: Limits, env: dict[str, str],
             break
         if time.monotonic() > deadline:
             execution.timed_out = True
-            try:
-                os.killpg(process.pid, signal.SIGKILL)
-            except ProcessLookupError:
-                pass
-            pid, status, usage = os.wait4(process.pid, 0)
+            status, usage, execution.ignored_sigterm = terminate(process.pid, limits.term_grace_s)
             break
         time.sleep(delay)
         delay = min(delay * 1.5, 0.02)
@@ -1112,20 +1499,26 @@ class PythonWorker:
             return None
         return self.process.stdout.readline().decode()   # "" at the end of the stream
 
-    def stop(self) -> tuple[Optional[int], int]:
-        """Kills the worker; returns (the signal that ended it or None, its peak RSS in kB)."""
+    def stop(self, grace_s: float = 0.0) -> tuple[Optional[int], int, bool]:
+        """Ends the worker: SIGKILL, or with grace_s > 0 SIGTERM first (terminate). Returns
+        (the signal that ended it or None, its peak RSS in kB, whether SIGKILL was needed after
+        a SIGTERM)."""
         if not self.process:
-            return None, 0
-        try:
-            os.killpg(self.process.pid, signal.SIGKILL)
-        except ProcessLookupError:
-            pass
-        _, status, usage = os.wait4(self.process.pid, 0)
+            return None, 0, False
+        ignored = False
+        if grace_s > 0:
+            status, usage, ignored = terminate(self.process.pid, grace_s)
+        else:
+            try:
+                os.killpg(self.process.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            _, status, usage = os.wait4(self.process.pid, 0)
         self.process.returncode = os.waitstatus_to_exitcode(status)
         for stream in (self.process.stdin, self.process.stdout):
             stream.close()
         self.process = None
-        return (os.WTERMSIG(status) if os.WIFSIGNALED(status) else None), usage.ru_maxrss
+        return (os.WTERMSIG(status) if os.WIFSIGNALED(status) else None), usage.ru_maxrss, ignored
 
     def run(self, code: str, cwd: Path, log_dir: Path) -> Execution:
         if not self.process:
@@ -1152,7 +1545,8 @@ class PythonWorker:
             execution.timed_out = line is None   # None: no answer in time; "": the worker died
             # A worker that exits instead of answering (e.g. abort() after a message, or
             # os._exit) is reported by its signal, or as exit status 1.
-            killed_signal, execution.peak_rss_kb = self.stop()
+            killed_signal, execution.peak_rss_kb, execution.ignored_sigterm = self.stop(
+                self.limits.term_grace_s if execution.timed_out else 0.0)
             if not execution.timed_out:
                 execution.signal = killed_signal
                 execution.returncode = None if killed_signal else 1
@@ -1236,6 +1630,329 @@ def worker_main() -> None:
 
 
 # =============================================================================================
+# The viewer: one `aos-render view` server per job thread, and its HTTP and WebSocket clients.
+
+TOKEN_HEADER = "X-AOS-Token"   # the viewer's session-token header (python/aos/viewer/server.py)
+VIEWER_SENTINEL = b'{"type": "aos-fuzz-sentinel", "id": "aos-fuzz-sentinel"}'
+VIEWER_LOG_FAILURES = re.compile(r"Traceback \(most recent call last\)|Error handling request")
+# Header mutations of viewer cases (drawn in make_case, 10 % of the cases): the Host header
+# (HTTP) or the Origin header (WebSocket) replaced.
+VIEWER_HOSTS = ("evil.example", "", "127.0.0.1:0", "[::1", "localhost:99999", "a" * 300,
+                "127.0.0.1:80:80", "\u00e9.example")
+VIEWER_ORIGINS = ("http://evil.example", "null", "", "http://127.0.0.1", "file://")
+
+
+class ViewerServer:
+    """`aos-render view` on 127.0.0.1, any free port, over the corpus's simulated light field
+    with the terrain mesh as focal surface, started in a folder of its own. Its stdout's first
+    line (--json) gives the URL with the session's token; its stderr goes to a log that every
+    case reads from where the previous one stopped (a traceback there is a failure)."""
+
+    def __init__(self, fuzzer: "Fuzzer", folder: Path):
+        self.fuzzer, self.folder = fuzzer, folder
+        self.process: Optional[subprocess.Popen] = None
+        self.port, self.token = 0, ""
+        self.log = folder / "server.log"
+        self.log_offset = 0
+
+    def argv(self) -> list[str]:
+        return [self.fuzzer.aos_render, "view", "in/sim/lightfield.json", *VIRTUAL_CAMERA[4:],
+                "--focal-surface", "in/surface/terrain.obj", "--port", "0", "--no-browser",
+                "--json"]
+
+    def start(self) -> None:
+        if not (self.folder / "in").exists():
+            self.folder.mkdir(parents=True, exist_ok=True)
+            shutil.copytree(self.fuzzer.corpus, self.folder / "in", symlinks=True)
+        with open(self.log, "ab") as log:
+            self.process = subprocess.Popen(
+                self.argv(), cwd=self.folder, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                stderr=log, env=self.fuzzer.env, start_new_session=True,
+                preexec_fn=limit_address_space(self.fuzzer.limits.address_space_mb))
+        assert self.process.stdout
+        ready, _, _ = select.select([self.process.stdout], [], [], 120.0)
+        line = self.process.stdout.readline().decode() if ready else ""
+        try:
+            url = json.loads(line)["url"]
+            self.port = int(json.loads(line)["port"])
+            self.token = re.search(r"token=([A-Za-z0-9_-]+)", url).group(1)
+        except (ValueError, KeyError, AttributeError, TypeError):
+            tail = self.log.read_bytes()[-2000:].decode("utf-8", "replace")
+            self.stop()
+            raise RuntimeError(f"the viewer did not start: {line!r} {tail}")
+        self.log_offset = self.log.stat().st_size
+
+    def running(self) -> bool:
+        return self.process is not None and self.process.poll() is None
+
+    def stop(self) -> tuple[Optional[int], bool]:
+        """SIGTERM, then SIGKILL after the grace time; (the signal that ended it or None,
+        whether SIGKILL was needed)."""
+        if not self.process:
+            return None, False
+        ignored = False
+        if self.process.poll() is None:
+            status, _, ignored = terminate(self.process.pid, self.fuzzer.limits.term_grace_s)
+            self.process.returncode = os.waitstatus_to_exitcode(status)
+        else:   # reaped by poll(): its group may still hold children
+            try:
+                os.killpg(self.process.pid, signal.SIGKILL)
+            except (ProcessLookupError, PermissionError):
+                pass
+        code = self.process.returncode
+        if self.process.stdout:
+            self.process.stdout.close()
+        self.process = None
+        return (-code if code < 0 else None), ignored
+
+    def new_log(self) -> str:
+        data = self.log.read_bytes()
+        text = data[self.log_offset:].decode("utf-8", "replace")
+        self.log_offset = len(data)
+        return text
+
+    def peak_rss_kb(self) -> int:
+        try:
+            with open(f"/proc/{self.process.pid}/status") as status:
+                return next(int(line.split()[1]) for line in status if line.startswith("VmHWM"))
+        except (OSError, StopIteration, AttributeError):
+            return 0
+
+
+@dataclasses.dataclass
+class ViewerAnswer:
+    """What one viewer request got back."""
+    kind: str = ""             # "http", "ws", or "none" (no answer in time / connection lost)
+    status: int = 0            # HTTP status (the WebSocket handshake's for a refused upgrade)
+    body: bytes = b""          # HTTP body, or the final WebSocket answer (text or binary)
+    binary: bool = False       # WebSocket: the final answer was a binary frame
+    close_code: Optional[int] = None   # WebSocket: the server closed with this code
+    error: str = ""            # what went wrong on the client side (timeout, reset, ...)
+
+
+def viewer_http(port: int, token: str, method: str, path: str, body: bytes,
+                headers: dict[str, str], timeout: float) -> ViewerAnswer:
+    connection = http.client.HTTPConnection("127.0.0.1", port, timeout=timeout)
+    try:
+        target = path
+        if method == "GET":   # the document's items as the query string
+            try:
+                document = json.loads(body)
+                items = document.items() if isinstance(document, dict) else [("q", body)]
+            except (ValueError, UnicodeDecodeError, RecursionError):
+                items = [("q", body)]
+            query = urllib.parse.urlencode(
+                [(str(k), v if isinstance(v, (str, bytes)) else json.dumps(v))
+                 for k, v in items])
+            target += "?" + query
+            body = b""
+        connection.putrequest(method, target, skip_host="Host" in headers,
+                              skip_accept_encoding=True)
+        for name, value in {TOKEN_HEADER: token, **headers}.items():
+            connection.putheader(name, value.encode("utf-8", "surrogateescape"))
+        if method == "POST":
+            connection.putheader("Content-Type", "application/json")
+            connection.putheader("Content-Length", str(len(body)))
+        connection.endheaders(body if method == "POST" else None)
+        response = connection.getresponse()
+        return ViewerAnswer("http", response.status, response.read(1 << 24))
+    except (socket.timeout, TimeoutError):
+        return ViewerAnswer("none", error=f"no answer within {timeout:g} s")
+    except (OSError, http.client.HTTPException) as error:
+        return ViewerAnswer("none", error=f"{type(error).__name__}: {error}")
+    finally:
+        connection.close()
+
+
+def ws_frame(opcode: int, payload: bytes) -> bytes:
+    """A masked client frame (RFC 6455 section 5.2)."""
+    mask = os.urandom(4)
+    size = len(payload)
+    head = bytes([0x80 | opcode])
+    if size < 126:
+        head += bytes([0x80 | size])
+    elif size < 1 << 16:
+        head += bytes([0x80 | 126]) + struct.pack(">H", size)
+    else:
+        head += bytes([0x80 | 127]) + struct.pack(">Q", size)
+    return head + mask + bytes(b ^ mask[i % 4] for i, b in enumerate(payload))
+
+
+def ws_read_frame(sock, deadline: float) -> tuple[int, bytes]:
+    """(opcode, payload) of the server's next frame (fragments joined)."""
+    def exactly(n: int) -> bytes:
+        data = b""
+        while len(data) < n:
+            sock.settimeout(max(deadline - time.monotonic(), 0.001))
+            chunk = sock.recv(n - len(data))
+            if not chunk:
+                raise ConnectionError("the server closed the connection")
+            data += chunk
+        return data
+    payload, first_opcode = b"", None
+    while True:
+        b0, b1 = exactly(2)
+        size = b1 & 0x7F
+        if size == 126:
+            (size,) = struct.unpack(">H", exactly(2))
+        elif size == 127:
+            (size,) = struct.unpack(">Q", exactly(8))
+        if size > 1 << 26:
+            raise ConnectionError(f"a frame of {size} bytes")
+        mask = exactly(4) if b1 & 0x80 else b""
+        data = exactly(size)
+        if mask:
+            data = bytes(b ^ mask[i % 4] for i, b in enumerate(data))
+        opcode = b0 & 0x0F
+        if opcode >= 8:                 # control frames come whole, between fragments too
+            return opcode, data
+        first_opcode = first_opcode if opcode == 0 else opcode
+        payload += data
+        if b0 & 0x80:
+            return first_opcode or 1, payload
+
+
+def viewer_ws(port: int, token: str, message: bytes, headers: dict[str, str],
+              timeout: float) -> ViewerAnswer:
+    """Sends `message` as a text frame, then a sentinel message the server answers at once
+    with an error; reads until the answer to `message` (an error, a frame, a download, a
+    cancellation: anything but progress and the sentinel's reply) has come, or, for a message
+    that asks for no answer ("cancel"), the sentinel's reply."""
+    deadline = time.monotonic() + timeout
+    try:
+        sock = socket.create_connection(("127.0.0.1", port), timeout=timeout)
+    except OSError as error:
+        return ViewerAnswer("none", error=f"connect: {error}")
+    try:
+        key = base64.b64encode(os.urandom(16)).decode()
+        lines = [f"GET /ws?token={token} HTTP/1.1", f"Host: 127.0.0.1:{port}",
+                 "Upgrade: websocket", "Connection: Upgrade", f"Sec-WebSocket-Key: {key}",
+                 "Sec-WebSocket-Version: 13"]
+        lines += [f"{name}: {value}" for name, value in headers.items()]
+        sock.sendall(("\r\n".join(lines) + "\r\n\r\n").encode("utf-8", "surrogateescape"))
+        response = b""
+        while b"\r\n\r\n" not in response:
+            sock.settimeout(max(deadline - time.monotonic(), 0.001))
+            chunk = sock.recv(4096)
+            if not chunk:
+                raise ConnectionError("closed during the handshake")
+            response += chunk
+        head, _, rest = response.partition(b"\r\n\r\n")
+        status = int(head.split(b" ", 2)[1])
+        if status != 101:
+            return ViewerAnswer("http", status, rest)
+        sock.sendall(ws_frame(1, message) + ws_frame(1, VIEWER_SENTINEL))
+        try:
+            parsed = json.loads(message)
+            silent = isinstance(parsed, dict) and parsed.get("type") == "cancel"
+        except (ValueError, UnicodeDecodeError, RecursionError):
+            silent = False
+        sentinel_seen = False
+        while True:
+            opcode, payload = ws_read_frame(sock, deadline)
+            if opcode == 8:
+                code = struct.unpack(">H", payload[:2])[0] if len(payload) >= 2 else None
+                return ViewerAnswer("ws", 101, payload[2:], close_code=code)
+            if opcode in (9, 10):
+                continue
+            if opcode == 2:
+                return ViewerAnswer("ws", 101, payload, binary=True)
+            try:
+                reply = json.loads(payload)
+            except ValueError:
+                return ViewerAnswer("ws", 101, payload)   # not JSON: checked as an answer
+            if isinstance(reply, dict) and reply.get("id") == "aos-fuzz-sentinel":
+                sentinel_seen = True
+                if silent:
+                    return ViewerAnswer("ws", 101, b"")
+                continue
+            if isinstance(reply, dict) and reply.get("type") == "progress":
+                continue
+            return ViewerAnswer("ws", 101, payload)
+    except (socket.timeout, TimeoutError):
+        return ViewerAnswer("none", error=f"no answer within {timeout:g} s")
+    except (OSError, ConnectionError, ValueError, IndexError, struct.error) as error:
+        return ViewerAnswer("none", error=f"{type(error).__name__}: {error}")
+    finally:
+        sock.close()
+
+
+def viewer_frame_defect(data: bytes) -> Optional[str]:
+    """A binary frame: uint32 header length, a JSON header with width and height, then
+    width * height RGBA bytes."""
+    if len(data) < 4:
+        return f"a frame of {len(data)} bytes"
+    (size,) = struct.unpack("<I", data[:4])
+    try:
+        header = strict_json(data[4:4 + size])
+        width, height = int(header["width"]), int(header["height"])
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as error:
+        return f"the frame header is not JSON with a width and height ({error})"
+    if len(data) != 4 + size + 4 * width * height:
+        return (f"the frame holds {len(data) - 4 - size} bytes of RGBA for {width} x {height} "
+                "pixels")
+    return None
+
+
+def classify_viewer(case: "Case", answer: ViewerAnswer, log: str, server_exit: Optional[str],
+                    limits: Limits, peak_rss_kb: int) -> tuple[str, str]:
+    """The class of a viewer case (see the module docstring): the server's death or log first,
+    then the answer."""
+    log_lines = [line for line in log.splitlines() if line.strip()]
+    if server_exit is not None:
+        return "signal", f"the viewer server ended: {server_exit}; " + " | ".join(log_lines[-2:])
+    if VIEWER_LOG_FAILURES.search(log):
+        return "traceback", "server log: " + " | ".join(log_lines[-2:])[:300]
+    if peak_rss_kb > limits.rss_mb * 1024:
+        return "memory", f"viewer peak RSS {peak_rss_kb // 1024} MiB > {limits.rss_mb} MiB"
+    if answer.kind == "none":
+        return "timeout", answer.error
+    text = answer.body[:300].decode("utf-8", "replace")
+    if answer.kind == "http" or (answer.kind == "ws" and answer.status != 101):
+        if answer.status >= 500:
+            return "server-error", f"HTTP {answer.status}: {text}"
+        if answer.status >= 400:
+            return "refused", f"HTTP {answer.status}: {text}"
+        if answer.status >= 300 or answer.kind == "ws":
+            return "server-error", f"unexpected HTTP {answer.status}: {text}"
+        path = VIEWER_ENDPOINTS.get(Path(case.file).name, ("", ""))[1]
+        if path == "/api/render":
+            defect = viewer_frame_defect(answer.body)
+        elif path in ("/api/pick", "/api/command"):
+            try:
+                strict_json(answer.body)
+                defect = None
+            except (ValueError, UnicodeDecodeError) as error:
+                defect = f"the answer is not finite JSON ({error})"
+        else:
+            defect = None if answer.body else "an empty export"
+        return ("accepted-invalid", f"HTTP {answer.status}: {defect}") if defect else ("ok", "")
+    if answer.close_code is not None:   # refusals by the WebSocket layer: too big, not UTF-8
+        if answer.close_code in (1003, 1007, 1009):
+            return "refused", f"closed with {answer.close_code} {text}"
+        return "server-error", f"WebSocket closed with {answer.close_code} {text}"
+    if answer.binary:
+        defect = viewer_frame_defect(answer.body)
+        return ("accepted-invalid", defect) if defect else ("ok", "")
+    if not answer.body:
+        return "ok", ""
+    try:
+        reply = strict_json(answer.body)
+    except (ValueError, UnicodeDecodeError) as error:
+        return "accepted-invalid", f"a WebSocket answer that is not finite JSON ({error})"
+    kind = reply.get("type") if isinstance(reply, dict) else None
+    if kind == "error":
+        message = str(reply.get("message", ""))
+        if re.match(r"(RuntimeError|TypeError|KeyError|AttributeError|IndexError|"
+                    r"OverflowError|ZeroDivisionError|MemoryError|RecursionError)\b", message):
+            return "server-error", f"WebSocket error from an uncaught exception: {message[:200]}"
+        return "refused", message[:300]
+    if kind in ("download", "cancelled"):
+        return "ok", ""
+    return "accepted-invalid", f"an unexpected WebSocket answer: {text}"
+
+
+# =============================================================================================
 # Cases and their classification.
 
 SPECIAL_KINDS = ("fifo", "devzero", "folder", "output-is-input")
@@ -1254,6 +1971,7 @@ class Case:
     kind: str = "bytes"          # "bytes" or one of SPECIAL_KINDS
     data: Optional[bytes] = None
     mutation: str = ""
+    headers: dict = dataclasses.field(default_factory=dict)   # viewer: HTTP headers replaced
 
 
 @dataclasses.dataclass
@@ -1303,11 +2021,14 @@ def error_shape(lines: list[str], name: str) -> tuple[str, str]:
 def classify(case: Case, execution: Execution, before: dict, after: dict, outputs: dict,
              case_dir: Path, limits: Limits) -> tuple[str, str]:
     """The class of a run and a one-line detail (see the module docstring)."""
-    name = Path(case.file).name
+    name = case.target.error_name or Path(case.file).name
     stderr_lines = [line for line in execution.stderr.splitlines() if line.strip()]
     failed = execution.returncode != 0
+    if execution.ignored_sigterm:
+        return "ignores-sigterm", (f"still running {limits.term_grace_s:g} s after SIGTERM "
+                                   f"(sent after {limits.timeout_s:g} s); killed")
     if execution.timed_out:
-        return "timeout", f"killed after {limits.timeout_s:g} s"
+        return "timeout", f"stopped by SIGTERM after {limits.timeout_s:g} s"
     python_memory = execution.exception_type == "MemoryError"
     last_lines = " | ".join(stderr_lines[-2:])
     if execution.signal is not None:
@@ -1349,8 +2070,12 @@ def classify(case: Case, execution: Execution, before: dict, after: dict, output
 
 def accepted_class(case: Case, execution: Execution, case_dir: Path) -> tuple[str, str]:
     """ok, or accepted-invalid with the defect found in the input or the outputs."""
-    if case.kind == "bytes":
+    if case.kind == "bytes" and case.target.decodes_pixels:
         defect = image_defect(case_dir / "in" / case.file)
+        if defect:
+            return "accepted-invalid", f"accepted {case.file}: {defect}"
+    if case.kind == "bytes" and case.file.startswith("exif/"):   # frames read for their tags
+        defect = gps_defect(case.data or b"")
         if defect:
             return "accepted-invalid", f"accepted {case.file}: {defect}"
     if execution.result_defect:
@@ -1384,6 +2109,7 @@ class Fuzzer:
         self.env = child_environment(python_path)
         self.local = threading.local()
         self.workers: list[PythonWorker] = []
+        self.viewers: list[ViewerServer] = []
         self.lock = threading.Lock()
         self.counter = 0
         self.splice_sources: Optional[list[tuple[str, bytes]]] = None
@@ -1400,17 +2126,33 @@ class Fuzzer:
     def close(self) -> None:
         for worker in self.workers:
             worker.stop()
+        for viewer in self.viewers:
+            viewer.stop()
 
     def command(self, case: Case) -> tuple[list[str], str]:
-        """(argv, Python code) of the case; paths relative to the case folder."""
+        """(argv, Python code) of the case; paths relative to the case folder. {text}: the
+        mutated file's bytes as one argument (NUL bytes dropped: argv cannot hold them; other
+        bytes kept, invalid UTF-8 included, through surrogateescape)."""
         target, file = case.target, "in/" + case.file
-        argv = [target.format(a, file, self.aos_render) for a in target.argv]
+        text = ""
+        if target.text_argument:
+            data = case.data if case.kind == "bytes" else (self.corpus / case.file).read_bytes()
+            # At most 100 kB: Linux refuses a single argument of 128 kB (MAX_ARG_STRLEN).
+            text = os.fsdecode((data or b"").replace(b"\0", b"")[:100000])
+        argv = [target.format(a, file, self.aos_render, text) for a in target.argv]
         code = target.format(target.code, file, self.aos_render) if target.code else ""
         if case.kind == "output-is-input" and target.output_file:
             argv = [file if a == target.output_file else a for a in argv]
         return argv, code
 
     def describe(self, case: Case) -> str:
+        if case.target.kind == "viewer":
+            method, path = VIEWER_ENDPOINTS.get(Path(case.file).name, ("WebSocket message to",
+                                                                       "/ws"))
+            headers = "".join(f" with {k}: {v[:40]!r}" for k, v in case.headers.items())
+            server = ViewerServer(self, Path("."))
+            return (f"{method} {path} ({len(case.data or b'')} bytes of {case.file}){headers} "
+                    f"to: cd <corpus>/.. && {shlex.join(server.argv())}")
         argv, code = self.command(case)
         if code:
             env = f"env PYTHONPATH={shlex.quote(self.python_path)} " if self.python_path else ""
@@ -1431,7 +2173,62 @@ class Fuzzer:
             {"fifo": os.mkfifo, "folder": os.mkdir,
              "devzero": lambda p: os.symlink("/dev/zero", p)}[case.kind](path)
 
+    def viewer(self) -> ViewerServer:
+        if not hasattr(self.local, "viewer"):
+            with self.lock:
+                self.counter += 1
+                folder = self.work / f"viewer-{self.counter}"
+            self.local.viewer = ViewerServer(self, folder)
+            with self.lock:
+                self.viewers.append(self.local.viewer)
+        return self.local.viewer
+
+    def execute_viewer(self, case: Case) -> Outcome:
+        """One request to this thread's viewer server (started on first use, and again after
+        it died or hung): the class from its answer, its log and whether it survived."""
+        server = self.viewer()
+        if not server.running():
+            try:
+                server.start()
+            except RuntimeError as error:
+                if case.index < 0:   # the unmutated corpus: the set-up failed
+                    raise
+                return Outcome(case, "signal", f"the viewer server did not start again: {error}",
+                               Execution(), self.describe(case))
+        server.new_log()
+        method, path = VIEWER_ENDPOINTS.get(Path(case.file).name, ("WS", "/ws"))
+        data = case.data or b""
+        start = time.monotonic()
+        if method == "WS":
+            answer = viewer_ws(server.port, server.token, data, case.headers, self.limits.timeout_s)
+        else:
+            answer = viewer_http(server.port, server.token, method, path, data, case.headers,
+                                 self.limits.timeout_s)
+        execution = Execution(wall_s=time.monotonic() - start, returncode=0)
+        time.sleep(0.05)   # lets the server finish writing its log for this request
+        server_exit = None
+        if not server.running():
+            code = server.process.returncode if server.process else None
+            server_exit = (f"signal {signal.Signals(-code).name}" if code is not None and code < 0
+                           else f"exit status {code}")
+            server.stop()
+        peak = server.peak_rss_kb() if server.running() else 0
+        log = server.new_log()
+        cls, detail = classify_viewer(case, answer, log, server_exit, self.limits, peak)
+        if cls in ("timeout", "memory") and server.running():   # a hung or bloated server
+            _, ignored = server.stop()
+            if ignored:
+                cls, detail = "ignores-sigterm", (f"the viewer server was still running "
+                                                  f"{self.limits.term_grace_s:g} s after "
+                                                  f"SIGTERM; {detail}")
+        execution.stderr = log
+        execution.stdout = answer.body[:2000].decode("utf-8", "replace")
+        execution.peak_rss_kb = peak
+        return Outcome(case, cls, detail, execution, self.describe(case))
+
     def execute(self, case: Case) -> Outcome:
+        if case.target.kind == "viewer":
+            return self.execute_viewer(case)
         with self.lock:
             self.counter += 1
             case_dir = self.work / f"case-{case.index}-{self.counter}"
@@ -1478,6 +2275,16 @@ class Fuzzer:
         (root / "camera.json").write_text(json.dumps(CAMERA_FILE, indent=2) + "\n")
         self.write_images(root / "images")
         shutil.copytree(root / "images", root / "ref")
+        write_viewer_requests(root / "viewer")
+        write_telemetry(root / "telemetry", views)
+        write_meshes(root / "surface")
+        (root / "plan").mkdir()
+        write_plan_vertices(root / "plan" / "polygon.vertices")
+        self.write_rasters(root, [name for name, _ in views])
+        for i, jpeg in enumerate(sorted((root / "exif").glob("*.jpg"))):
+            jpeg.write_bytes(with_app_segments(
+                jpeg.read_bytes(), exif_gps_segment(48 + 1e-5 * i, 15.0 + 1e-5 * i, 400.0 + i)
+                + xmp_dji_segment(12.3 + i, -90.0, 0.0, 20.0 + 0.1 * i)))
 
     def run_cli(self, args: list[str], cwd: Path) -> None:
         result = subprocess.run([self.aos_render, *args], cwd=cwd, env=self.env,
@@ -1511,13 +2318,46 @@ class Fuzzer:
         (folder / "float-raw.tif").write_bytes(tiff_file(IMAGE_SIZE, IMAGE_SIZE, pixels, 32, 3))
         shutil.rmtree(log)
 
+    def write_rasters(self, root: Path, view_names: list[str]) -> None:
+        """In the worker, with aos's writers: the DEMs (float32 GeoTIFFs: surface/dem.tif in the
+        simulated light field's frame without a CRS, plan/dem.tif in UTM zone 33 under the plan
+        polygon), the masks (mask.png for every view, masks/<view name> one per view: a disc of
+        valid pixels, a different radius per view) and the frames of the EXIF target
+        (exif/frame_N.jpg, tagged afterwards)."""
+        code = (
+            "import os\n"
+            "v = np.add.outer(np.arange(8.0), np.arange(8.0)).astype(np.float32)\n"
+            "aos.Heightfield(0.1 * v, (-20.0, 5.0, 0.0, 20.0, 0.0, -5.0)).write("
+            "'surface/dem.tif')\n"
+            "aos.Heightfield(300 + v, (499990.0, 10.0, 0.0, 5300060.0, 0.0, -10.0), "
+            "'EPSG:32633').write('plan/dem.tif')\n"
+            f"n = {IMAGE_SIZE}\n"
+            "yy, xx = np.mgrid[0:n, 0:n]\n"
+            "r2 = (xx - n / 2 + 0.5) ** 2 + (yy - n / 2 + 0.5) ** 2\n"
+            "aos.write_image('mask.png', (r2 < (0.45 * n) ** 2).astype(np.uint8) * 255)\n"
+            "os.mkdir('masks')\n"
+            f"for i, name in enumerate({view_names!r}):\n"
+            "    radius = (0.3 + 0.02 * i) * n\n"
+            "    aos.write_image('masks/' + name, (r2 < radius ** 2).astype(np.uint8) * 255)\n"
+            "os.mkdir('exif')\n"
+            "g = ((xx * 7 + yy * 3) % 256).astype(np.uint8)\n"
+            "for i in range(3):\n"
+            "    aos.write_image(f'exif/frame_{i}.jpg', g)\n")
+        log = self.work / "corpus-rasters.log"
+        log.mkdir(exist_ok=True)
+        execution = self.worker().run(code, root, log)
+        if execution.returncode != 0:
+            raise RuntimeError(f"corpus: writing the rasters failed: {execution.stderr}")
+        shutil.rmtree(log)
+
     def check_corpus(self, targets: list[Target], jobs: int) -> list[Outcome]:
         """Every target on the unmutated corpus; a target whose command names the file ({file})
         once per file name pattern (digits ignored: views/0000.png stands for all views).
         Returns the runs that were not ok."""
         cases = []
         for target in targets:
-            names_file = any("{file}" in a or "{name}" in a for a in target.argv + (target.code,))
+            names_file = target.kind == "viewer" or any(
+                "{file}" in a or "{name}" in a for a in target.argv + (target.code,))
             files = [f for pattern in target.files for f in self.files(pattern)]
             if names_file:
                 files = list({re.sub(r"\d+", "N", f): f for f in files}.values())
@@ -1544,8 +2384,9 @@ class Fuzzer:
         special = SPECIAL_ROUNDS.get(index // len(targets))
         if special is None and rng.random() < SPECIAL_RATE:
             special = rng.choice(SPECIAL_KINDS)
-        if special == "output-is-input" and not target.output_file:
-            special = None
+        if ((special == "output-is-input" and not target.output_file) or target.text_argument
+                or target.kind == "viewer"):
+            special = None   # {text} and viewer targets: the fuzzer reads the file, not aos
         if special:
             description = {"fifo": "a FIFO", "devzero": "a symbolic link to /dev/zero",
                            "folder": "an empty folder",
@@ -1557,7 +2398,20 @@ class Fuzzer:
             self.splice_sources = [(str(p.relative_to(self.corpus)), p.read_bytes())
                                    for p in sorted(self.corpus.rglob("*")) if p.is_file()]
         mutated, description = mutate(rng, data, MutationContext(file, self.splice_sources))
-        return Case(index, target, file, "bytes", mutated, description)
+        headers: dict[str, str] = {}
+        if target.kind == "viewer":
+            roll = rng.random()
+            if roll < 0.08:   # oversized: past the server's 64 KiB limit on bodies and messages
+                mutated = data.rstrip()[:-1] + b', "padding": "' + b"x" * 70000 + b'"}'
+                description = "a 70 kB request (past MAX_BODY_BYTES)"
+            elif roll < 0.18:
+                if file.startswith("viewer/ws_"):
+                    headers["Origin"] = rng.choice(VIEWER_ORIGINS)
+                else:
+                    headers["Host"] = rng.choice(VIEWER_HOSTS)
+                name, value = next(iter(headers.items()))
+                description += f"; header {name}: {value[:40]!r}"
+        return Case(index, target, file, "bytes", mutated, description, headers)
 
     def minimise(self, outcome: Outcome, budget_s: float) -> bytes:
         """Delta debugging: removes chunks (halves, quarters, ... down to single bytes) while
@@ -1612,13 +2466,19 @@ class Fuzzer:
             "folder": f'rm "in/{case.file}" && mkdir "in/{case.file}"',
             "output-is-input": ":",
         }[case.kind]
+        if case.target.kind == "viewer":   # a request to a server: replayed by the fuzzer
+            setup = ":"
+            outcome = dataclasses.replace(outcome, command=(
+                f"{replay} --case {case.index}".replace("tools/fuzz.py",
+                                                        shlex.quote(os.path.abspath(__file__)))))
         script = (f"#!/bin/sh\n# {case.target.name}, case {case.index} of seed {seed}: "
                   f"{outcome.cls}\n# {outcome.detail}\nset -e\n"
                   "here=$(cd \"$(dirname \"$0\")\" && pwd)\n"
                   "work=$(mktemp -d)\ncp -r \"$here/../corpus\" \"$work/in\"\nmkdir \"$work/out\"\n"
                   f"cd \"$work\"\n{setup}\necho \"case folder: $work\" >&2\n"
                   f"exec {outcome.command}\n")
-        (folder / "reproduce.sh").write_text(script)
+        # An argument from {text} may hold invalid UTF-8: written back as the bytes it was.
+        (folder / "reproduce.sh").write_bytes(script.encode("utf-8", "surrogateescape"))
         (folder / "reproduce.sh").chmod(0o755)
         return folder
 
@@ -1688,6 +2548,159 @@ def write_positions(path: Path, views) -> None:
     path.write_text("\n".join(rows) + "\n")
 
 
+def write_telemetry(folder: Path, views) -> None:
+    """Two flight logs of the simulated views (import-telemetry --telemetry-file): one row per
+    frame by name, and one by time (1 s per frame, --frame-interval-s 1), nadir, heading north,
+    on UTM zone 33's central meridian."""
+    folder.mkdir()
+    header = "lat,lon,alt,yaw,pitch,roll\n"
+    by_name = "".join(f"{name},{48 + 1e-5 * i:.7f},15.0,{20 + 0.1 * i:.1f},0,-90,0\n"
+                      for i, (name, _) in enumerate(views))
+    (folder / "frames.csv").write_text("frame," + header + by_name)
+    by_time = "".join(f"{i - 0.5:g},{48 + 1e-5 * i:.7f},15.0,20.0,{(359 + 2 * i) % 360},-90,0\n"
+                      for i in range(len(views) + 1))
+    (folder / "time.csv").write_text("# a log sampled between the frames\ntime," + header + by_time)
+
+
+def exif_gps_segment(lat: float, lon: float, altitude: float) -> bytes:
+    """A JPEG APP1 Exif segment holding only a GPS IFD (version, latitude/longitude as degrees,
+    minutes, seconds rationals with their N/S, E/W references, altitude above sea level): the
+    tags a drone writes and ReadGpsTag reads. Little-endian TIFF layout; the offsets are from the
+    TIFF header."""
+    def dms(value: float) -> list[tuple[int, int]]:
+        value = abs(value)
+        degrees = int(value)
+        minutes = int((value - degrees) * 60)
+        seconds = round((value - degrees - minutes / 60) * 3600 * 10000)
+        return [(degrees, 1), (minutes, 1), (seconds, 10000)]
+    rationals = {2: dms(lat), 4: dms(lon), 6: [(round(abs(altitude) * 1000), 1000)]}
+    ascii_refs = {1: b"N\0" if lat >= 0 else b"S\0", 3: b"E\0" if lon >= 0 else b"W\0"}
+    tags = [0, 1, 2, 3, 4, 5, 6]
+    gps_ifd_at = 8 + 2 + 12 + 4                   # IFD0: one entry (the GPS IFD pointer)
+    data_at = gps_ifd_at + 2 + 12 * len(tags) + 4
+    entries, data = b"", b""
+    for tag in tags:
+        if tag == 0:
+            entries += struct.pack("<HHI4s", 0, 1, 4, bytes([2, 3, 0, 0]))
+        elif tag in ascii_refs:
+            entries += struct.pack("<HHI4s", tag, 2, 2, ascii_refs[tag].ljust(4, b"\0"))
+        elif tag == 5:
+            entries += struct.pack("<HHI4s", 5, 1, 1, bytes([0 if altitude >= 0 else 1, 0, 0, 0]))
+        else:
+            values = rationals[tag]
+            entries += struct.pack("<HHII", tag, 5, len(values), data_at + len(data))
+            data += b"".join(struct.pack("<II", n, d) for n, d in values)
+    tiff = (b"II*\0" + struct.pack("<I", 8) + struct.pack("<H", 1)
+            + struct.pack("<HHII", 0x8825, 4, 1, gps_ifd_at) + struct.pack("<I", 0)
+            + struct.pack("<H", len(tags)) + entries + struct.pack("<I", 0) + data)
+    payload = b"Exif\0\0" + tiff
+    return b"\xff\xe1" + struct.pack(">H", len(payload) + 2) + payload
+
+
+def xmp_dji_segment(yaw: float, pitch: float, roll: float, relative_altitude: float) -> bytes:
+    """A JPEG APP1 XMP segment with DJI's gimbal angles and relative altitude (drone-dji:...,
+    attribute form with DJI's explicit signs)."""
+    packet = ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>'
+              '<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF '
+              'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"><rdf:Description '
+              'rdf:about="" xmlns:drone-dji="http://www.dji.com/drone-dji/1.0/" '
+              f'drone-dji:RelativeAltitude="{relative_altitude:+.2f}" '
+              f'drone-dji:GimbalRollDegree="{roll:+.2f}" '
+              f'drone-dji:GimbalYawDegree="{yaw:+.2f}" '
+              f'drone-dji:GimbalPitchDegree="{pitch:+.2f}"/>'
+              '</rdf:RDF></x:xmpmeta><?xpacket end="w"?>').encode()
+    payload = b"http://ns.adobe.com/xap/1.0/\0" + packet
+    return b"\xff\xe1" + struct.pack(">H", len(payload) + 2) + payload
+
+
+def with_app_segments(jpeg: bytes, segments: bytes) -> bytes:
+    """The JPEG with `segments` inserted after its SOI and JFIF APP0 (if any)."""
+    at = 2
+    if jpeg[2:4] == b"\xff\xe0":
+        (length,) = struct.unpack(">H", jpeg[4:6])
+        at = 4 + length
+    return jpeg[:at] + segments + jpeg[at:]
+
+
+def terrain_grid(n: int = 5, half: float = 20.0) -> tuple[list, list]:
+    """An n x n vertex grid over [-half, half]^2 near z = 0 (the simulated ground) and its
+    triangles (0-based): the focal surface of the surface targets."""
+    step = 2 * half / (n - 1)
+    vertices = [(-half + i * step, -half + j * step, 0.05 * ((i + j) % 3))
+                for j in range(n) for i in range(n)]
+    triangles = []
+    for j in range(n - 1):
+        for i in range(n - 1):
+            a = j * n + i
+            triangles += [(a, a + 1, a + n + 1), (a, a + n + 1, a + n)]
+    return vertices, triangles
+
+
+def write_meshes(folder: Path) -> None:
+    """The terrain as OBJ (quads as two triangles, v/vt/vn corners, comments), ascii PLY (an
+    extra colour property) and binary little-endian PLY (double coordinates, uchar/int lists)."""
+    folder.mkdir()
+    vertices, triangles = terrain_grid()
+    obj = ["# aos fuzz terrain", "o ground"]
+    obj += [f"v {x:g} {y:g} {z:g}" for x, y, z in vertices] + ["vt 0 0", "vn 0 0 1"]
+    obj += [f"f {a + 1}/1/1 {b + 1}/1/1 {c + 1}//1" for a, b, c in triangles]
+    (folder / "terrain.obj").write_text("\n".join(obj) + "\n")
+    header = ("ply\nformat {}\ncomment aos fuzz terrain\nelement vertex {}\n"
+              "property {t} x\nproperty {t} y\nproperty {t} z\n{extra}element face {}\n"
+              "property list uchar int vertex_indices\nend_header\n")
+    ascii_ply = header.format("ascii 1.0", len(vertices), len(triangles), t="float",
+                              extra="property uchar red\n")
+    ascii_ply += "".join(f"{x:g} {y:g} {z:g} {k % 256}\n" for k, (x, y, z) in enumerate(vertices))
+    ascii_ply += "".join(f"3 {a} {b} {c}\n" for a, b, c in triangles)
+    (folder / "terrain.ply").write_text(ascii_ply)
+    binary = header.format("binary_little_endian 1.0", len(vertices), len(triangles),
+                           t="double", extra="").encode()
+    binary += b"".join(struct.pack("<3d", *v) for v in vertices)
+    binary += b"".join(struct.pack("<B3i", 3, *t) for t in triangles)
+    (folder / "terrain_binary.ply").write_bytes(binary)
+
+
+def write_plan_vertices(path: Path) -> None:
+    """The polygon of the plan targets (--vertices X,Y;X,Y;...): UTM zone 33 metres."""
+    corners = [(500000, 5300000), (500060, 5300000), (500070, 5300030), (500030, 5300050),
+               (500000, 5300040)]
+    path.write_text(";".join(f"{x},{y}" for x, y in corners))   # no newline: one argument
+
+
+# The viewer's requests (viewer/*.json): the HTTP ones by file name (VIEWER_ENDPOINTS), the
+# WebSocket messages (ws_*.json) sent as text frames. GET endpoints take the object's items as
+# the query string. Parameters: python/aos/viewer/session.py.
+VIEWER_REQUESTS = {
+    "render.json": {"mode": "perspective", "focal_height": 2.0, "aperture_radius": "inf",
+                    "width": 32, "height": 32, "colormap": "turbo", "range": "auto",
+                    "gain": 1.5, "offset": 0.1, "orbit_deg": 10, "tilt_deg": 5},
+    "map.json": {"mode": "map", "surface": True, "surface_offset": 0.5, "width": 32,
+                 "height": 32, "view_first": 1, "view_last": 8, "preview": True},
+    "pick.json": {"u": 16.5, "v": 10.25, "focal_height": 0.0, "width": 32, "height": 32},
+    "export.json": {"format": "tiff", "width": 32, "height": 32, "tilt_x_deg": 10,
+                    "pan_x": 1.5},
+    "command.json": {"width": 32, "height": 32, "pose_view": 4, "fov_deg": 40,
+                     "aperture_radius": 3.0},
+    "ws_render.json": {"type": "render", "id": 1,
+                       "params": {"width": 32, "height": 32, "focal_height": 1.0,
+                                  "colormap": "iron", "preview": False}},
+    "ws_allinfocus.json": {"type": "allinfocus", "id": "aif", "first_height": -1.0,
+                           "last_height": 4.0, "slices": 3, "params": {"width": 32, "height": 32}},
+    "ws_stack.json": {"type": "stack", "id": 3, "first_height": 0.0, "last_height": 2.0,
+                      "slices": 2, "params": {"width": 16, "height": 16}},
+}
+# HTTP method and path of each viewer/*.json that is not a WebSocket message.
+VIEWER_ENDPOINTS = {"render.json": ("POST", "/api/render"), "map.json": ("POST", "/api/render"),
+                    "pick.json": ("GET", "/api/pick"), "export.json": ("GET", "/api/export"),
+                    "command.json": ("GET", "/api/command")}
+
+
+def write_viewer_requests(folder: Path) -> None:
+    folder.mkdir()
+    for name, document in VIEWER_REQUESTS.items():
+        (folder / name).write_text(json.dumps(document, indent=1) + "\n")
+
+
 CAMERA_FILE = {"format": "aos-camera", "version": 1, "model": "radtan", "width": IMAGE_SIZE,
                "height": IMAGE_SIZE, "fx": 30.0, "fy": 30.0, "cx": 16.0, "cy": 16.0,
                "distortion": [0.01, 0.0, 0.0, 0.0, 0.0], "xi": 0.0, "skew": 0.0}
@@ -1739,7 +2752,8 @@ class Campaign:
                 "failures": len(self.failures()), "distinct_failures": self.distinct()}
 
     def table(self) -> str:
-        short = {"multi-line-error": "multi", "unnamed-error": "unnamed",
+        short = {"ignores-sigterm": "no-term", "server-error": "server",
+                 "multi-line-error": "multi", "unnamed-error": "unnamed",
                  "partial-output": "partial", "modified-input": "modified",
                  "accepted-invalid": "acc-inv"}
         columns = [short.get(c, c) for c in CLASSES]
@@ -1827,6 +2841,9 @@ def parse_args(argv: Optional[list[str]] = None) -> argparse.Namespace:
     parser.add_argument("--out", default="fuzz-out", help="reproducer folder (default fuzz-out)")
     parser.add_argument("--jobs", type=int, default=1, help="cases run at once (default 1)")
     parser.add_argument("--timeout", type=float, default=10.0, help="seconds per run (default 10)")
+    parser.add_argument("--term-grace", type=float, default=2.0,
+                        help="seconds from the timeout's SIGTERM to SIGKILL; a run that needs "
+                             "the SIGKILL is an ignores-sigterm failure (default 2)")
     parser.add_argument("--memory-limit-mb", type=int, default=4096,
                         help="RLIMIT_AS of every run, MiB (default 4096)")
     parser.add_argument("--rss-limit-mb", type=int, default=1024,
@@ -1859,14 +2876,18 @@ def main(argv: Optional[list[str]] = None) -> int:
     if not args.aos_render or not shutil.which(args.aos_render):
         print("fuzz.py: error: no aos-render (give --aos-render)", file=sys.stderr)
         return 2
-    limits = Limits(args.timeout, args.memory_limit_mb, args.rss_limit_mb)
+    limits = Limits(args.timeout, args.memory_limit_mb, args.rss_limit_mb, args.term_grace)
     out = Path(args.out)
     with tempfile.TemporaryDirectory(prefix="aos-fuzz-") as tmp:
         fuzzer = Fuzzer(os.path.abspath(shutil.which(args.aos_render)), args.python_path, limits,
                         Path(tmp))
         try:
-            fuzzer.build_corpus()
-            broken = fuzzer.check_corpus(targets, args.jobs)
+            try:
+                fuzzer.build_corpus()
+                broken = fuzzer.check_corpus(targets, args.jobs)
+            except RuntimeError as error:   # the corpus, the Python worker or the viewer
+                print(f"fuzz.py: error: set-up failed: {error}", file=sys.stderr)
+                return 2
             if broken:
                 for outcome in broken:
                     print(f"fuzz.py: error: the unmutated corpus is not ok for "

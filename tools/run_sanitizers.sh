@@ -15,7 +15,9 @@
 #    build-fuzz/logs/<harness>.log. Reproduce one with build-fuzz/tests/fuzz/<harness>_fuzzer
 #    <file> (AOS_FUZZ_VERBOSE=1 prints what each reader said). The harness contract (only
 #    std::invalid_argument with a one-line UTF-8 message may escape a reader) is in
-#    tests/fuzz/fuzz_util.h. Needs clang: apt-get install clang libclang-rt-14-dev libomp-14-dev.
+#    tests/fuzz/fuzz_util.h. Needs clang with libFuzzer and OpenMP: on Debian/Ubuntu
+#    apt-get install clang libclang-rt-14-dev libomp-14-dev (AOS_INSTALL_CLANG=1 lets this
+#    script run that apt-get itself, as root, when clang++ is missing).
 #
 #   bash tools/run_sanitizers.sh              # both stages (fuzzing skipped with a warning
 #                                             #   when clang++ is missing)
@@ -28,11 +30,12 @@
 #   AOS_JOBS                build jobs and parallel ctests (default: all cores)
 #   AOS_SANITIZER_TIMEOUT   per-test limit of stage 1, seconds (default 1500; ASan is slow)
 #   AOS_FUZZ_SECONDS        fuzzing time per harness, seconds (default 60; -max_total_time)
-#   AOS_FUZZ_TARGETS        harnesses to run (default: all ten, all_targets below)
+#   AOS_FUZZ_TARGETS        harnesses to run (default: all fourteen, all_targets below)
 #   AOS_FUZZ_TIMEOUT        one input slower than this, seconds, is a finding (default 30)
 #   AOS_FUZZ_MEMORY_MB      libFuzzer's -rss_limit_mb and -malloc_limit_mb (default 2048): a
 #                           larger allocation is an out-of-memory finding; the core's own memory
 #                           budget is set to half of it (AOS_MEMORY_LIMIT_MB, fuzz_util.h)
+#   AOS_INSTALL_CLANG       1: install clang with apt-get when clang++ is missing (root only)
 #   AOS_FUZZ_ARGS           more libFuzzer flags for every harness, e.g. "-fork=1
 #                           -ignore_timeouts=1 -ignore_ooms=1" to keep fuzzing past a known
 #                           finding (libFuzzer otherwise stops a harness at its first one)
@@ -77,26 +80,36 @@ if [[ ${run_ctest} == 1 ]]; then
 fi
 
 # --- Stage 2: libFuzzer harnesses ------------------------------------------------------------
+clang_packages="clang libclang-rt-14-dev libomp-14-dev"
+if [[ ${run_fuzz} == 1 && ${AOS_INSTALL_CLANG:-0} == 1 ]] && ! command -v clang++ >/dev/null; then
+  echo "run_sanitizers.sh: installing ${clang_packages} (AOS_INSTALL_CLANG=1)" >&2
+  # shellcheck disable=SC2086  # a list of packages
+  apt-get install -y ${clang_packages} >&2 || echo "run_sanitizers.sh: apt-get failed" >&2
+fi
 if [[ ${run_fuzz} == 1 ]]; then
   if ! command -v clang++ >/dev/null; then
     if [[ ${run_ctest} == 1 ]]; then
-      echo "WARNING: fuzzing skipped: clang++ not found (apt-get install clang" \
-        "libclang-rt-14-dev libomp-14-dev; --no-fuzz silences this)" >&2
+      echo "WARNING: fuzzing skipped: clang++ not found (apt-get install ${clang_packages}," \
+        "or AOS_INSTALL_CLANG=1; --no-fuzz silences this)" >&2
       exit "${status}"
     fi
-    echo "run_sanitizers.sh: --fuzz-only needs clang++ (apt-get install clang" \
-      "libclang-rt-14-dev libomp-14-dev)" >&2
+    echo "run_sanitizers.sh: --fuzz-only needs clang++ (apt-get install ${clang_packages}," \
+      "or AOS_INSTALL_CLANG=1)" >&2
     exit 2
   fi
   build=build-fuzz
   seconds="${AOS_FUZZ_SECONDS:-60}"
   memory_mb="${AOS_FUZZ_MEMORY_MB:-2048}"
   all_targets="lightfield camera_file scene focal_stack colmap_text colmap_binary"
+  all_targets+=" telemetry_csv positions_csv mesh_obj mesh_ply"
   all_targets+=" image_png image_tif image_exr image_jpg"
   targets="${AOS_FUZZ_TARGETS:-${all_targets}}"
   CXX=clang++ cmake -S . -B "${build}" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo \
     -DAOS_BUILD_FUZZERS=ON -DAOS_BUILD_TESTS=OFF >/dev/null
-  cmake --build "${build}" --target aos_fuzzers -j "${jobs}"
+  # Only the harnesses asked for (and the seed writer): a subset builds faster.
+  fuzzer_binaries=(aos_fuzz_seeds)
+  for target in ${targets}; do fuzzer_binaries+=("${target}_fuzzer"); done
+  cmake --build "${build}" --target "${fuzzer_binaries[@]}" -j "${jobs}"
   "${build}/tests/fuzz/aos_fuzz_seeds" "${build}/corpus/seeds" scenes
   mkdir -p "${build}/logs"
 
@@ -112,6 +125,8 @@ if [[ ${run_fuzz} == 1 ]]; then
     fi
     case "${target}" in
       colmap_*) dict=tests/fuzz/colmap.dict ;;
+      *_csv) dict=tests/fuzz/csv.dict ;;
+      mesh_*) dict=tests/fuzz/mesh.dict ;;
       image_*) dict="" ;;
       *) dict=tests/fuzz/json.dict ;;
     esac

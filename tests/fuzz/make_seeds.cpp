@@ -18,6 +18,7 @@
 #include <OpenImageIO/imageio.h>
 
 #include "aos/geometry/lens.h"
+#include "aos/geometry/mesh.h"
 #include "aos/geometry/rigid.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/lightfield/formats.h"
@@ -240,8 +241,8 @@ void FocalStackSeeds(const fs::path& work, const fs::path& out) {
     if (variant == 1) stack.render.aperture_radius = std::numeric_limits<double>::infinity();
     const int slices = variant == 0 ? 2 : 1;
     for (int i = 0; i < slices; ++i) {
-      stack.planes.push_back(variant == 0 ? aos::Plane::AtHeight(i * 5.0)
-                                          : aos::Plane{aos::Vec3d(0, 0, 2), aos::Vec3d(0.1, 0, 1)});
+      stack.focus.planes.push_back(variant == 0 ? aos::Plane::AtHeight(i * 5.0)
+                                                : aos::Plane{aos::Vec3d(0, 0, 2), aos::Vec3d(0.1, 0, 1)});
       stack.images.push_back(aos_fuzz::Pattern(kFrameWidth, kFrameHeight, 1, aos::PixelType::kF32, i));
       stack.counts.push_back(aos_fuzz::Pattern(kFrameWidth, kFrameHeight, 1, aos::PixelType::kU32, i));
       if (variant == 0) {
@@ -346,6 +347,78 @@ void ColmapSeeds(const fs::path& out_text, const fs::path& out_binary) {
                       cameras.bytes + separator + images.bytes + separator + empty.bytes);
 }
 
+// --- CSV: telemetry logs and positions files ---------------------------------------------
+
+// Telemetry logs for the four fixture frames 0000.png .. 0003.png (csv_fuzzer.cpp): by frame
+// name (with aliases, comments, CRLF), and by time (interpolated at 1 s per frame).
+void TelemetryCsvSeeds(const fs::path& out) {
+  aos_fuzz::WriteText(out / "frames.csv",
+                      "frame,lat,lon,alt,yaw,pitch,roll\n"
+                      "0000.png,48.0000000000,15.0,120.0,0,-90,0\n"
+                      "0001.png,48.0001000000,15.0,120.5,0,-90,0\n"
+                      "0002.png,48.0002000000,15.0,121.0,10,-90,0\n"
+                      "0003.png,48.0003000000,15.0,119.5,350.5,-89.5,0.5\n");
+  aos_fuzz::WriteText(out / "aliases.csv",
+                      "# DJI-style log\r\nName, Latitude, Longitude, Altitude, Heading, Pitch, "
+                      "Roll\r\n\r\n0000.png, -33.5, -70.25, 50, 180, -90, 0\r\n"
+                      "0001.png, -33.5001, -70.25, 50, 180, -90, 0\r\n"
+                      "0002.png, -33.5002, -70.25, 50, 180, -90, 0\r\n"
+                      "0003.png, -33.5003, -70.25, 50, 180, -90, 0\r\n");
+  aos_fuzz::WriteText(out / "time.csv",
+                      "time,lat,lon,alt,yaw,pitch,roll\n"
+                      "-0.5,48.0,15.0,120.0,0,-90,0\n"
+                      "1.25,48.0001,15.0,120.0,359,-90,0\n"
+                      "2.5,48.0002,15.0,120.0,1,-90,0\n"
+                      "4.0,48.0003,15.0,120.0,0,-90,0\n");
+}
+
+// Positions files (csv_fuzzer.cpp): name,x,y,z without a header (UTM metres), a header naming
+// x, y, z in another order, and latitude/longitude columns (degrees). The harness states
+// EPSG:32633 when the input's first byte is odd ('a', '#'), no CRS when it is even ('n').
+void PositionsCsvSeeds(const fs::path& out) {
+  aos_fuzz::WriteText(out / "plain.csv",
+                      "a.png,543210.5,5432109.25,312.0\nb.png,543211.5,5432109.25,312.5\n"
+                      "c.png,543212.5,5432110.25,313.0\n");
+  aos_fuzz::WriteText(out / "header.csv",
+                      "# positions\nz, name, y, x\n312, views/a.png, 5432109.25, 543210.5\n"
+                      "312.5, views/b.png, 5432109.25, 543211.5\n");
+  aos_fuzz::WriteText(out / "latlon.csv",
+                      "name,latitude,longitude,altitude\r\nA.JPG,48.0,15.0,400\r\n"
+                      "B.JPG,48.0001,15.0001,401\r\nC.JPG,48.0002,15.0,402\r\n");
+}
+
+// --- meshes -------------------------------------------------------------------------------
+
+// OBJ (mesh_obj) and PLY (mesh_ply) seeds: a triangle and a quad in UTM-like world coordinates,
+// corners in every OBJ form (v, v/vt, v/vt/vn, v//vn, negative), ascii PLY with extra
+// properties and elements, binary PLY written by aos's own WritePly.
+void MeshSeeds(const fs::path& work, const fs::path& out_obj, const fs::path& out_ply) {
+  aos_fuzz::WriteText(out_obj / "quad.obj",
+                      "# terrain\nmtllib t.mtl\no ground\nv 543200 5432100 300\n"
+                      "v 543260 5432100 301.5\nv 543260 5432160 302\nv 543200 5432160 300.5 1\n"
+                      "vt 0 0\nvt 1 0\nvt 1 1\nvn 0 0 1\ns off\nf 1/1/1 2/2/1 3/3/1 4//1\n");
+  aos_fuzz::WriteText(out_obj / "negative.obj",
+                      "v 0 0 0\nv 1 0 0\nv 0 1 0\nf -3 -2 -1\nv 1 1 0.5\nf 2 4 3\nf 1 1 2\n");
+  aos_fuzz::WriteText(out_ply / "ascii.ply",
+                      "ply\nformat ascii 1.0\ncomment aos seed\nelement vertex 4\n"
+                      "property float x\nproperty float y\nproperty double z\n"
+                      "property uchar red\nelement face 2\n"
+                      "property list uchar int vertex_indices\nelement edge 1\n"
+                      "property int vertex1\nproperty int vertex2\nend_header\n"
+                      "0 0 10 255\n4 0 10.5 0\n4 4 11 7\n0 4 10 9\n3 0 1 2\n4 0 2 3 1\n0 1\n");
+  const std::vector<aos::Vec3d> vertices = {
+      {543200.0, 5432100.0, 300.0}, {543260.0, 5432100.0, 301.5},
+      {543260.0, 5432160.0, 302.0}, {543200.0, 5432160.0, 300.5}};
+  const fs::path binary = work / "seed_binary.ply";
+  fs::remove(binary);
+  aos::WritePly(binary.string(), vertices, {{0, 1, 2}, {0, 2, 3}});
+  fs::copy_file(binary, out_ply / "binary.ply");
+  const fs::path points = work / "seed_points.ply";
+  fs::remove(points);
+  aos::WritePly(points.string(), vertices);
+  fs::copy_file(points, out_ply / "points.ply");
+}
+
 // --- images --------------------------------------------------------------------------------
 
 // A small frame with the GPS tags a drone writes (ReadGpsTag).
@@ -430,6 +503,9 @@ int main(int argc, char** argv) {
     SceneSeeds(work, scenes, folder("scene"));
     FocalStackSeeds(work, folder("focal_stack"));
     ColmapSeeds(folder("colmap_text"), folder("colmap_binary"));
+    TelemetryCsvSeeds(folder("telemetry_csv"));
+    PositionsCsvSeeds(folder("positions_csv"));
+    MeshSeeds(work, folder("mesh_obj"), folder("mesh_ply"));
     for (const char* extension : {".png", ".tif", ".exr", ".jpg"}) {
       ImageSeeds(work, folder((std::string("image_") + (extension + 1)).c_str()), extension);
     }
