@@ -8,7 +8,11 @@
 namespace aos::cli {
 namespace {
 volatile std::sig_atomic_t g_interrupted = 0;
-void OnInterrupt(int) { g_interrupted = 1; }
+volatile std::sig_atomic_t g_signal = 0;  // the first signal that came
+void OnInterrupt(int signal_number) {
+  if (g_signal == 0) g_signal = signal_number;
+  g_interrupted = 1;
+}
 }  // namespace
 
 void InstallInterruptHandler() {
@@ -24,6 +28,7 @@ void InstallInterruptHandler() {
   }
 }
 bool Interrupted() { return g_interrupted != 0; }
+int InterruptExitCode() { return 128 + (g_signal != 0 ? static_cast<int>(g_signal) : SIGINT); }
 
 ProgressBar::ProgressBar(bool quiet) : quiet_(quiet), terminal_(::isatty(STDERR_FILENO) != 0) {}
 
