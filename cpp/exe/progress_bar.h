@@ -35,7 +35,9 @@ class ProgressBar : public ProgressSink {
 };
 
 // Installs a handler for SIGINT, SIGTERM and SIGHUP that makes every ProgressBar report
-// Cancelled() (the one cancellation source of the CLI; commands poll it through their sink).
+// Cancelled() (the one cancellation source of the CLI; commands poll it through their sink),
+// and a watchdog thread that ends the process 1.5 s after the signal if the work has not
+// stopped by then (pending outputs removed, exit code as below).
 void InstallInterruptHandler();
 bool Interrupted();
 // The exit code for the signal that came: 128 + its number (130 SIGINT, 143 SIGTERM, 129

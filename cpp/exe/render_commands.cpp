@@ -992,6 +992,9 @@ std::vector<std::string> PythonCandidates() {
   }
   std::fflush(stdout);
   std::fflush(stderr);
+  // A signal that came while this process checked the command line ends it here: after exec
+  // the handler is gone and the flag with it.
+  if (Interrupted()) throw Cancelled();
   const std::string name = "aos." + module;
   execlp(python.c_str(), python.c_str(), "-m", name.c_str(), "--spec", text.c_str(),
          static_cast<char*>(nullptr));
