@@ -2,12 +2,17 @@
 // same ones Python fills) through flags bound to their fields (cli.h), runs the algorithm with a
 // progress bar, and writes outputs atomically. The table below lists every command once; each
 // area's commands live in their own file (commands.h).
+// Before a command runs, every output flag is checked against every input flag of the command
+// (CheckFileFlags, cli.h): an input is never an output, --force or not.
 // Exit codes: 0 success, 1 bad input or failure (one line on stderr), 2 bad command line (an
-// unknown flag, or a value out of range: UsageError), 130 interrupted (SIGINT, SIGTERM, SIGHUP).
+// unknown flag, or a value out of range: UsageError), 128 + the signal when interrupted (the
+// shell's convention): 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP; the work stops at its next
+// poll (within about a second) and no output is left behind.
 #include <omp.h>
 
 #include <cstdio>
 #include <map>
+#include <memory>
 #include <string>
 
 #include <nlohmann/json.hpp>
@@ -21,11 +26,24 @@
 namespace aos::cli {
 namespace {
 
-// `aos-render flags`: every flag bound to an Options field, as JSON (tools/vocabulary.py).
+// `aos-render flags`: every flag bound to an Options field, as JSON (tools/vocabulary.py);
+// `aos-render flags --files`: every flag naming a file or folder, with its role (cli.h).
 CommandRunner DefineFlags(CLI::App* command) {
-  (void)command;
-  return [] {
+  auto files = std::make_shared<bool>(false);
+  command->add_flag("--files", *files,
+                    "List the flags that name files or folders instead, with their role (input, "
+                    "input-folder, output, output-folder)");
+  return [files] {
     nlohmann::ordered_json list = nlohmann::ordered_json::array();
+    if (*files) {
+      for (const FileFlag& file : AllFileFlags()) {
+        list.push_back({{"command", file.command},
+                        {"flag", file.flag},
+                        {"role", FileRoleName(file.role)}});
+      }
+      std::fputs((list.dump(1) + "\n").c_str(), stdout);
+      return 0;
+    }
     for (const FlagBinding& binding : AllBindings()) {
       list.push_back({{"command", binding.command},
                       {"flag", binding.flag},
@@ -160,11 +178,12 @@ int main(int argc, char** argv) {
         throw UsageError(std::string(error.what()) + " [option --threads]");
       }
       if (threads >= 1) omp_set_num_threads(threads);
+      CheckFileFlags(command->get_name());
       return run();
     }
   } catch (const aos::Cancelled&) {
     std::fprintf(stderr, "aos-render: interrupted; no output written\n");
-    return 130;
+    return InterruptExitCode();
   } catch (const UsageError& error) {
     std::fprintf(stderr, "aos-render: error: %s\n", error.what());
     return 2;
@@ -172,7 +191,7 @@ int main(int argc, char** argv) {
     // One line, naming the user's paths (also for errors that did not come through ThrowInvalid).
     std::fprintf(stderr, "aos-render: error: %s\n",
                  aos::OneLine(aos::UserPaths(error.what())).c_str());
-    return Interrupted() ? 130 : 1;
+    return Interrupted() ? InterruptExitCode() : 1;
   }
   return 2;
 }

@@ -133,6 +133,76 @@ CLI::Option* Flags::Switch(const std::string& field, bool& value, const std::str
   return option;
 }
 
+namespace {
+std::vector<FileFlag>& FileFlags() {
+  static std::vector<FileFlag> file_flags;
+  return file_flags;
+}
+}  // namespace
+
+const std::vector<FileFlag>& AllFileFlags() { return FileFlags(); }
+
+const char* FileRoleName(FileRole role) {
+  switch (role) {
+    case FileRole::kInput: return "input";
+    case FileRole::kInputFolder: return "input-folder";
+    case FileRole::kOutput: return "output";
+    case FileRole::kOutputFolder: return "output-folder";
+  }
+  return "?";
+}
+
+CLI::Option* Flags::Role(const std::string& name, FileRole role) const {
+  CLI::Option* option = command_->get_option(name);  // throws for a name never declared
+  FileFlags().push_back({command_->get_name(), name, role, option});
+  return option;
+}
+
+void CheckFileFlags(const std::string& command) {
+  struct Named {
+    std::string path, flag;
+    bool folder;
+  };
+  std::vector<Named> inputs, outputs;
+  for (const FileFlag& file : AllFileFlags()) {
+    if (file.command != command) continue;
+    const bool is_input = file.role == FileRole::kInput || file.role == FileRole::kInputFolder;
+    const bool folder = file.role == FileRole::kInputFolder || file.role == FileRole::kOutputFolder;
+    for (const std::string& path : file.option->results()) {
+      if (!path.empty()) (is_input ? inputs : outputs).push_back({path, file.flag, folder});
+    }
+  }
+  std::error_code error;
+  for (size_t i = 0; i < outputs.size(); ++i) {
+    const Named& out = outputs[i];
+    const fs::path out_path = fs::weakly_canonical(fs::absolute(out.path, error), error);
+    for (size_t j = 0; j < i; ++j) {
+      if (fs::weakly_canonical(fs::absolute(outputs[j].path, error), error) == out_path) {
+        ThrowInvalid(out.path + ": " + out.flag + " and " + outputs[j].flag +
+                     " name the same file (nothing was written)");
+      }
+    }
+    // Nothing there yet: it is no input (the folder is the command's to check).
+    if (!fs::exists(fs::symlink_status(out.path, error))) continue;
+    for (const Named& in : inputs) {
+      if (out.folder || fs::is_directory(out.path, error)) {
+        // An output folder (or a folder given for a file): refused if it is an input folder.
+        if (fs::exists(in.path, error) && fs::equivalent(out.path, in.path, error)) {
+          ThrowInvalid(out.path + ": " + out.flag + ": refusing to write into an input (it is " +
+                       in.flag + " " + in.path + "; nothing was written)");
+        }
+        continue;
+      }
+      try {
+        CheckOutputPath(out.path, {in.path}, out.flag);
+      } catch (const std::invalid_argument& refused) {
+        ThrowInvalid(std::string(refused.what()) + " given as " + in.flag +
+                     "; nothing was written");
+      }
+    }
+  }
+}
+
 void Flags::Describe(const std::string& field, const std::string& flags,
                      const std::string& default_text) {
   fields_->emplace_back(prefix_ + field, flags);

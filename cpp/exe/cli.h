@@ -12,8 +12,14 @@
 // binding, so that an error from Options::Check() ("fov_deg: ...") names the flag that set the
 // field, and `aos-render flags` lists every binding (tools/vocabulary.py reads it).
 //
-// Exit codes: 0 success, 1 bad input or failure, 2 bad command line (UsageError), 130
-// interrupted.
+// A flag that names a file is declared with its role (Flags::Input, InputFolder, Output,
+// OutputFolder, by the option's name): before a command runs, main() refuses every output that
+// is the same file as an input or a file of an input folder (links resolved), and two outputs
+// naming one file, --force or not (CheckFileFlags); `aos-render flags --files` lists the roles
+// (tests/python/test_cli_table.py runs every output x input pair of every command from it).
+//
+// Exit codes: 0 success, 1 bad input or failure, 2 bad command line (UsageError), 128 + the
+// signal when interrupted: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP (progress_bar.h).
 #include <cstdio>
 #include <functional>
 #include <map>
@@ -91,6 +97,24 @@ struct FlagBinding {
 };
 // Every binding of every command, in declaration order (for `aos-render flags`).
 const std::vector<FlagBinding>& AllBindings();
+
+// What a flag's value names (see the header comment).
+enum class FileRole { kInput, kInputFolder, kOutput, kOutputFolder };
+// "input", "input-folder", "output", "output-folder".
+const char* FileRoleName(FileRole role);
+struct FileFlag {
+  std::string command;  // e.g. "integral"
+  std::string flag;     // the option's name as --help prints it: "--mask", "lightfield"
+  FileRole role;
+  const CLI::Option* option;  // its values once parsed
+};
+// Every file flag of every command, in declaration order.
+const std::vector<FileFlag>& AllFileFlags();
+// Throws std::invalid_argument naming both flags if an output flag of `command` names an
+// existing file that is the same file as an input flag's (or a file of an input folder, or an
+// input folder itself), or if two output flags name the same path. Run by main() after parsing,
+// before the command; the frames a light field names are checked by the command once loaded.
+void CheckFileFlags(const std::string& command);
 
 // Refuses whole numbers below `minimum` with a plain message (the parser then exits with 2).
 CLI::Validator AtLeast(long long minimum);
@@ -177,6 +201,17 @@ class Flags {
     Record(flag, field, default_text);
     return option;
   }
+  // Declares the role of the option named `name` (a flag "--mask" or a positional "lightfield";
+  // it must exist) in the command's file checks. Returns the option.
+  CLI::Option* Input(const std::string& name) const { return Role(name, FileRole::kInput); }
+  CLI::Option* InputFolder(const std::string& name) const {
+    return Role(name, FileRole::kInputFolder);
+  }
+  CLI::Option* Output(const std::string& name) const { return Role(name, FileRole::kOutput); }
+  CLI::Option* OutputFolder(const std::string& name) const {
+    return Role(name, FileRole::kOutputFolder);
+  }
+
   // Records that `field` is set by the flags `flags` (e.g. "--focal-height/--focal-plane"),
   // declared by hand; errors about the field then name them.
   void Describe(const std::string& field, const std::string& flags,
@@ -213,6 +248,7 @@ class Flags {
   static std::string FlagOf(const std::string& field);
   std::string Names(const std::string& flag) const;
   void Record(const std::string& flag, const std::string& field, const std::string& text);
+  CLI::Option* Role(const std::string& name, FileRole role) const;
 
   CLI::App* command_;
   std::string prefix_;

@@ -105,6 +105,8 @@ CommandRunner DefineCalibrate(CLI::App* command) {
   flags.Parsed("--model", "model", options.model, ParseModelFlag, LensModelName(options.model),
                "pinhole, radtan, fisheye or omnidir");
   command->add_option("-o,--output", c->output, "Camera file to write (JSON)")->required();
+  flags.Input("frames");
+  flags.Output("--output");
   flags.Threads();
   flags.Force();
   return [c, flags] { return RunCalibrate(*c, flags); };
@@ -228,6 +230,7 @@ CommandRunner DefineCamera(CLI::App* command) {
   flags.Field("skew", camera.skew, "omnidir: skew");
   command->add_option("-o,--output", c->output, "Camera file to write (aos-camera JSON)")
       ->required();
+  flags.Output("--output");
   flags.Force();
   return [c, flags] { return RunCamera(*c, flags); };
 }
@@ -433,6 +436,10 @@ CommandRunner DefineRectify(CLI::App* command) {
                       "Output folder (must not exist or be empty): the frames under their own "
                       "names, and camera.json (the rectified pinhole camera)")
       ->required();
+  flags.Input("frames");
+  flags.Input("--camera");
+  flags.Input("--lightfield");
+  flags.OutputFolder("--output-dir");
   flags.Threads();
   return [c, flags] { return RunRectify(*c, flags); };
 }

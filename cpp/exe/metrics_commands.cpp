@@ -127,6 +127,9 @@ CommandRunner DefineMetrics(CLI::App* command) {
                "Compare luminances: RGB(A) images become Rec. 601 luminance (0.299 R + 0.587 G + "
                "0.114 B) first, e.g. a grey render (--grey) against an RGB reference");
   flags.Threads();
+  flags.Input("test");
+  flags.Input("reference");
+  flags.Input("--mask");
   return [c, flags] { return RunMetrics(*c, flags); };
 }
 

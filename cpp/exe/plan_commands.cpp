@@ -219,6 +219,11 @@ CommandRunner DefinePlan(CLI::App* command) {
   command->add_option("--preview-png", c->preview_png,
                       "Write the preview's integral image on the ground (needs --simulate)");
   flags.Force();
+  flags.Input("--dem");
+  flags.Input("--simulate");
+  for (const char* output : {"--csv", "--geojson", "--kml", "--png", "--preview-png"}) {
+    flags.Output(output);
+  }
   return [c, flags] { return RunPlan(*c, flags); };
 }
 

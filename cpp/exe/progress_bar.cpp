@@ -2,13 +2,21 @@
 
 #include <csignal>
 #include <cstdio>
+#include <thread>
 
 #include <unistd.h>
+
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
 
 namespace aos::cli {
 namespace {
 volatile std::sig_atomic_t g_interrupted = 0;
-void OnInterrupt(int) { g_interrupted = 1; }
+volatile std::sig_atomic_t g_signal = 0;  // the first signal that came
+void OnInterrupt(int signal_number) {
+  if (g_signal == 0) g_signal = signal_number;
+  g_interrupted = 1;
+}
 }  // namespace
 
 void InstallInterruptHandler() {
@@ -22,8 +30,21 @@ void InstallInterruptHandler() {
   for (const int signal_number : {SIGINT, SIGTERM, SIGHUP}) {
     sigaction(signal_number, &action, nullptr);
   }
+  // The bound: work that has not reached a poll 1.5 s after the signal (a loop without one, a
+  // library call) is ended here, its pending outputs removed, so that no command runs more than
+  // 2 s after SIGTERM and none leaves a partial output. A child process (COLMAP) has had its
+  // SIGTERM from RunProcess's poll by then.
+  std::thread([] {
+    while (g_interrupted == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    std::this_thread::sleep_for(std::chrono::milliseconds(1500));
+    RemovePendingOutputs();
+    static const char kMessage[] = "aos-render: interrupted; no output written\n";
+    (void)!::write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+    ::_exit(InterruptExitCode());
+  }).detach();
 }
 bool Interrupted() { return g_interrupted != 0; }
+int InterruptExitCode() { return 128 + (g_signal != 0 ? static_cast<int>(g_signal) : SIGINT); }
 
 ProgressBar::ProgressBar(bool quiet) : quiet_(quiet), terminal_(::isatty(STDERR_FILENO) != 0) {}
 

@@ -1,6 +1,6 @@
 #pragma once
 // The CLI's progress sink: a bar on stderr when it is a terminal, plain start/end lines when it
-// is not. Ctrl-C (SIGINT) asks the running computation to stop.
+// is not. Ctrl-C (SIGINT), SIGTERM and SIGHUP ask the running computation to stop.
 #include <atomic>
 #include <chrono>
 #include <mutex>
@@ -34,8 +34,14 @@ class ProgressBar : public ProgressSink {
   bool open_line_ = false;
 };
 
-// Installs a SIGINT handler that makes every ProgressBar report Cancelled().
+// Installs a handler for SIGINT, SIGTERM and SIGHUP that makes every ProgressBar report
+// Cancelled() (the one cancellation source of the CLI; commands poll it through their sink),
+// and a watchdog thread that ends the process 1.5 s after the signal if the work has not
+// stopped by then (pending outputs removed, exit code as below).
 void InstallInterruptHandler();
 bool Interrupted();
+// The exit code for the signal that came: 128 + its number (130 SIGINT, 143 SIGTERM, 129
+// SIGHUP), the shell's convention; 130 when none came (a Cancelled from elsewhere).
+int InterruptExitCode();
 
 }  // namespace aos::cli

@@ -80,6 +80,9 @@ void AddLoadFlags(const Flags& flags, LoadOptions& load) {
       "Folder with one mask per frame, named like the frame (any image extension, case "
       "ignored); a frame without one is an error");
   mask->excludes(mask_dir);
+  flags.InputFolder("--images-dir");
+  flags.Input("--mask");
+  flags.InputFolder("--mask-dir");
 }
 
 // `render` binds the IntegralOptions fields (nested for stack and allinfocus).
@@ -88,6 +91,7 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
       ->add_option("lightfield", args.light_field_path,
                    "Light-field file: aos JSON, or a JKU-ICG/AOS poses.json")
       ->required();
+  render.Input("lightfield");
   AddLoadFlags(render, args.load);
   render.Describe("pose_view", "--pose-view");
   auto* pose_view = render.command()->add_option(
@@ -139,7 +143,8 @@ CLI::Option* AddFocalHeightFlag(Flags& flags, Plane& focal_plane, const char* he
 // --focal-surface (IntegralOptions::focal_surface).
 CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, const char* help) {
   render.Describe("focal_surface", "--focal-surface");
-  return render.command()->add_option("--focal-surface", args.focal_surface, help);
+  render.command()->add_option("--focal-surface", args.focal_surface, help);
+  return render.Input("--focal-surface");
 }
 
 // --focal-surface and --surface-offset (IntegralOptions::focal_surface, surface_offset).
@@ -448,6 +453,7 @@ StackFlags AddStackFlags(Flags& stack, Flags& render, RenderArgs& args,
       "With --focal-surface or --ground: offset of the last slice along up, metres");
   surface->excludes(first)->excludes(last)->excludes(ground_flag);
   ground_flag->excludes(first)->excludes(last);
+  stack.Input("--ground");
   stack.Field("slices", options.slices, "Number of slices (1..100000)");
   StackFlags flags;
   flags.surface = surface;
@@ -584,6 +590,7 @@ CommandRunner DefineStack(CLI::App* command) {
   c->stack_flags = AddStackFlags(flags, render, c->args, c->options, c->ground);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
+  flags.OutputFolder("--output-dir");
   return [c, flags] { return RunStack(*c, flags); };
 }
 
@@ -655,6 +662,9 @@ CommandRunner DefineMerge(CLI::App* command) {
   flags.Threads(c->options.num_threads);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
+  flags.InputFolder("stack");
+  flags.Input("--lightfield");
+  flags.OutputFolder("--output-dir");
   return [c, flags] { return RunMerge(*c, flags); };
 }
 
@@ -714,6 +724,7 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
               "resolution (4: docs/accuracy-vs-time.md)");
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
+  flags.OutputFolder("--output-dir");
   return [c, flags] { return RunAllInFocus(*c, flags); };
 }
 
@@ -898,6 +909,9 @@ CommandRunner DefineMap(CLI::App* command) {
              "tasks, memory; needs bokeh) on 127.0.0.1, its address printed; read-only "
              "pages without a token");
   flags.Force();
+  flags.Input("lightfield");
+  flags.Input("--focal-surface");
+  flags.Output("--output");
   return [c, flags] { return RunMap(*c, flags); };
 }
 
@@ -987,6 +1001,9 @@ std::vector<std::string> PythonCandidates() {
   }
   std::fflush(stdout);
   std::fflush(stderr);
+  // A signal that came while this process checked the command line ends it here: after exec
+  // the handler is gone and the flag with it.
+  if (Interrupted()) throw Cancelled();
   const std::string name = "aos." + module;
   execlp(python.c_str(), python.c_str(), "-m", name.c_str(), "--spec", text.c_str(),
          static_cast<char*>(nullptr));

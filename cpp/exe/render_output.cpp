@@ -49,6 +49,8 @@ void AddRenderOutputFlags(Flags& flags, RenderOutput& out) {
                       "Also write the per-pixel count of contributing views (.tif uint32, .png "
                       "16-bit, .exr float)");
   AddImageOutputFlags(flags, out.image);
+  flags.Output("--output");
+  flags.Output("--count");
 }
 
 void CheckRenderOutput(const RenderOutput& out, const std::vector<std::string>& inputs) {

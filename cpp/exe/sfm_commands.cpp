@@ -33,6 +33,7 @@ void AddPointsOutputFlag(CLI::App* command, PosesCommand& c) {
   command->add_option("--points-output", c.points_output,
                       "Also write the reconstructed 3-D points as a PLY file (world coordinates: "
                       "light-field origin + local), for `aos-render ground`");
+  Flags(command).Output("--points-output");
 }
 
 void WritePoints(const PosesCommand& c, const PosesResult& result, Report& report) {
@@ -57,6 +58,7 @@ void AddPositionFlags(Flags& flags, PosesOptions& options) {
                "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
   flags.Field("min_registered_fraction", options.min_registered_fraction,
               "Fail below this fraction of frames registered");
+  flags.Input("--positions-file");
 }
 
 // The scene-scale check against the flight height, shared by poses and import-colmap.
@@ -221,6 +223,10 @@ CommandRunner DefinePoses(CLI::App* command) {
   flags.Field("colmap", options.colmap, "COLMAP executable");
   flags.Threads(options.num_threads);
   flags.Force();
+  flags.InputFolder("frames");
+  flags.Input("--camera-file");
+  flags.Output("--output");
+  flags.OutputFolder("--workspace");
   AddPointsOutputFlag(command, *c);
   return [c, flags] { return RunPoses(*c, flags); };
 }
@@ -239,6 +245,9 @@ CommandRunner DefineImportColmap(CLI::App* command) {
                "Keep an implausible scene scale (with a warning)");
   flags.Threads();
   flags.Force();
+  flags.InputFolder("model");
+  flags.InputFolder("--images-dir");
+  flags.Output("--output");
   AddPointsOutputFlag(command, *c);
   return [c, flags] { return RunImportColmap(*c, flags); };
 }
@@ -377,6 +386,10 @@ CommandRunner DefineGround(CLI::App* command) {
               "A candidate more than this far above the ground around it is canopy, metres");
   flags.Threads();
   flags.Force();
+  flags.Input("lightfield");
+  flags.Input("--points");
+  flags.Input("--terrain");
+  flags.Output("--output");
   return [c, flags] { return RunGround(*c, flags); };
 }
 

@@ -95,6 +95,8 @@ CommandRunner DefineSimulate(CLI::App* command) {
   flags.Threads(c->options.num_threads);
   command->add_flag("--print-scene", c->print_scene,
                     "Print the scene with every field written out and exit");
+  flags.Input("scene");
+  flags.OutputFolder("--output-dir");
   return [c, flags] { return RunSimulate(*c, flags); };
 }
 
@@ -170,6 +172,8 @@ CommandRunner DefineDemo(CLI::App* command) {
               "Ring of ground around each target used as its surroundings in the visibility "
               "figures, metres");
   flags.Threads(options.num_threads);
+  flags.Input("--scene");
+  flags.OutputFolder("--output-dir");
   return [c, flags] { return RunDemo(*c, flags); };
 }
 

@@ -93,6 +93,10 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
               "With a time column: the log time of the first frame, seconds");
   flags.Threads();
   flags.Force();
+  flags.InputFolder("frames");
+  flags.Input("--telemetry-file");
+  flags.Input("--camera-file");
+  flags.Output("--output");
   return [c, flags] { return RunImportTelemetry(*c, flags); };
 }
 

@@ -7,6 +7,8 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
+#include <mutex>
+#include <set>
 #include <sstream>
 #include <system_error>
 
@@ -31,11 +33,40 @@ std::string MakeTempPath(const std::string& final_path) {
   return (path.parent_path() / name).string();
 }
 
+// The temporary paths of the PendingFiles and PendingFolders alive and not committed, for
+// RemovePendingOutputs.
+std::mutex& PendingMutex() {
+  static std::mutex mutex;
+  return mutex;
+}
+std::set<std::string>& PendingPaths() {
+  static std::set<std::string> paths;
+  return paths;
+}
+void AddPending(const std::string& path) {
+  std::lock_guard<std::mutex> lock(PendingMutex());
+  PendingPaths().insert(path);
+}
+void ErasePending(const std::string& path) {
+  std::lock_guard<std::mutex> lock(PendingMutex());
+  PendingPaths().erase(path);
+}
+
 }  // namespace
+
+void RemovePendingOutputs() {
+  std::lock_guard<std::mutex> lock(PendingMutex());
+  for (const std::string& path : PendingPaths()) {
+    std::error_code ignored;
+    fs::remove_all(path, ignored);
+  }
+  PendingPaths().clear();
+}
 
 PendingFile::PendingFile(std::string final_path)
     : final_path_(std::move(final_path)), temp_path_(MakeTempPath(final_path_)) {
   RegisterPathAlias(temp_path_, final_path_);
+  AddPending(temp_path_);
 }
 
 PendingFile::PendingFile(PendingFile&& other) noexcept
@@ -49,6 +80,7 @@ PendingFile::~PendingFile() {
   if (!committed_) {
     std::error_code ignored;
     fs::remove(temp_path_, ignored);
+    ErasePending(temp_path_);
   }
 }
 
@@ -60,6 +92,7 @@ void PendingFile::Commit() {
                  ")");
   }
   committed_ = true;
+  ErasePending(temp_path_);
 }
 
 void CommitTogether(const std::vector<PendingFile*>& files) {
@@ -293,12 +326,14 @@ PendingFolder::PendingFolder(const std::string& output_dir) : output_dir_(output
   std::string shown = output_dir;
   while (shown.size() > 1 && shown.back() == '/') shown.pop_back();
   RegisterPathAlias(temp_path_, shown);
+  AddPending(temp_path_);
 }
 
 PendingFolder::~PendingFolder() {
   if (!committed_ && !temp_path_.empty()) {
     std::error_code ignored;
     fs::remove_all(temp_path_, ignored);
+    ErasePending(temp_path_);
   }
 }
 
@@ -318,6 +353,7 @@ void PendingFolder::Commit() {
                  error.message() + ")");
   }
   committed_ = true;
+  ErasePending(temp_path_);
 }
 
 }  // namespace aos

@@ -47,6 +47,11 @@ class PendingFile {
   bool committed_ = false;
 };
 
+// Removes the temporary file or folder of every PendingFile and PendingFolder that is neither
+// committed nor destroyed: for a process that must end at once without running destructors (the
+// CLI ends the work this way when it has not stopped 1.5 s after SIGTERM/SIGINT; progress_bar.h).
+void RemovePendingOutputs();
+
 // Moves several finished files into place together: files already at the final paths are first
 // renamed to backups, then every temporary file is renamed; if any rename fails, the new files are
 // removed and the backups restored, so either all outputs are new or none changed. Throws

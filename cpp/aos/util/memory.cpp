@@ -1,11 +1,13 @@
 #include "aos/util/memory.h"
 
+#include <algorithm>
 #include <cstdio>
 #include <cstdlib>
 #include <fstream>
 #include <limits>
 #include <string>
 
+#include <sys/resource.h>
 #include <unistd.h>
 
 #include "aos/util/error.h"
@@ -41,11 +43,28 @@ uint64_t AvailableFromKernel() {
   return std::numeric_limits<uint64_t>::max();
 }
 
+// What the address-space limit (RLIMIT_AS, `ulimit -v`) leaves of this process's virtual size,
+// or UINT64_MAX without one: past it every allocation fails (std::bad_alloc) whatever memory the
+// machine has.
+uint64_t AddressSpaceLeft() {
+  struct rlimit limit {};
+  if (::getrlimit(RLIMIT_AS, &limit) != 0 || limit.rlim_cur == RLIM_INFINITY) {
+    return std::numeric_limits<uint64_t>::max();
+  }
+  std::ifstream statm("/proc/self/statm");
+  uint64_t pages = 0;
+  statm >> pages;
+  const long page_size = ::sysconf(_SC_PAGE_SIZE);
+  const uint64_t used = pages * static_cast<uint64_t>(page_size > 0 ? page_size : 4096);
+  const uint64_t cap = static_cast<uint64_t>(limit.rlim_cur);
+  return cap > used ? cap - used : 0;
+}
+
 }  // namespace
 
 uint64_t MemoryBudgetBytes() {
   const uint64_t limit = EnvironmentLimit();
-  return limit > 0 ? limit : AvailableFromKernel();
+  return std::min(limit > 0 ? limit : AvailableFromKernel(), AddressSpaceLeft());
 }
 
 std::string FormatBytes(uint64_t bytes) {
@@ -64,11 +83,15 @@ std::string FormatBytes(uint64_t bytes) {
 
 void CheckMemoryBudget(uint64_t needed_bytes, const std::string& what, const std::string& detail) {
   const uint64_t limit = EnvironmentLimit();
-  const uint64_t budget = limit > 0 ? limit : AvailableFromKernel();
+  const uint64_t memory = limit > 0 ? limit : AvailableFromKernel();
+  const uint64_t address_space = AddressSpaceLeft();
+  const uint64_t budget = std::min(memory, address_space);
   if (needed_bytes <= budget) return;
   ThrowInvalid(what + ": needs " + FormatBytes(needed_bytes) + " of memory (" + detail +
                ") but only " + FormatBytes(budget) + " are available (" +
-               (limit > 0 ? "the limit AOS_MEMORY_LIMIT_MB" : "MemAvailable of this machine") +
+               (address_space < memory ? "the address-space limit RLIMIT_AS (ulimit -v)"
+                : limit > 0           ? "the limit AOS_MEMORY_LIMIT_MB"
+                                      : "MemAvailable of this machine") +
                "); make it smaller");
 }
 

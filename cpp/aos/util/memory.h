@@ -4,7 +4,9 @@
 //
 // The budget is the AOS_MEMORY_LIMIT_MB environment variable when it is set (a whole number of
 // MiB, e.g. for a shared machine or a test), else the memory the kernel reports as available
-// (MemAvailable in /proc/meminfo), else the physical memory.
+// (MemAvailable in /proc/meminfo), else the physical memory; and never more than an address-space
+// limit (RLIMIT_AS, `ulimit -v`) leaves of the process's current virtual size, since past that
+// every allocation fails whatever the machine has.
 #include <cstdint>
 #include <initializer_list>
 #include <string>

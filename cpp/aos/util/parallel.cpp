@@ -12,19 +12,22 @@
 namespace aos {
 
 int ResolveThreadCount(int num_threads) {
-  return num_threads == -1 ? std::max(1, omp_get_max_threads()) : num_threads;
+  CheckThreadCount(num_threads);  // a bad count never reaches OpenMP, checked or not
+  return num_threads == -1 ? std::max(1, std::min(omp_get_max_threads(), kMaxThreads))
+                           : num_threads;
 }
 
 void CheckThreadCount(int num_threads) {
-  if (num_threads == -1 || num_threads >= 1) return;
-  ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " + std::to_string(num_threads) +
-               ")");
+  if (num_threads == -1 || (num_threads >= 1 && num_threads <= kMaxThreads)) return;
+  ThrowInvalid("num_threads: must be -1 (all cores) or 1.." + std::to_string(kMaxThreads) +
+               " (got " + std::to_string(num_threads) + ")");
 }
 
 namespace {
 
 template <typename Fn>
 void RunParallel(int64_t n, int num_threads, ProgressSink* progress, const Fn& fn) {
+  CheckThreadCount(num_threads);
   std::atomic<int64_t> first_error_index{n};
   std::exception_ptr first_error;
   std::mutex error_mutex;

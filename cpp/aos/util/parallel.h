@@ -20,11 +20,20 @@
 
 namespace aos {
 
-// -1 -> all cores (at least 1); other values unchanged. The one place a thread count is resolved.
+// -1 -> all cores (at least 1, at most kMaxThreads); other values unchanged, after
+// CheckThreadCount (it throws for a count out of range). The one place a thread count is
+// resolved.
 int ResolveThreadCount(int num_threads);
 
-// Throws std::invalid_argument "num_threads: must be -1 (all cores) or >= 1 (got N)" otherwise.
-// The one check every Options::Check() with a num_threads field calls.
+// Most worker threads a job may ask for: 1024, whatever the machine. More than the cores gains
+// nothing, and OpenMP creates every thread asked for (libgomp fails at a few thousand, "Thread
+// creation failed", and crashed with SIGSEGV at 100000, taking the Python interpreter with it);
+// a fixed bound keeps the same command line valid on every machine.
+inline constexpr int kMaxThreads = 1024;
+
+// Throws std::invalid_argument "num_threads: must be -1 (all cores) or 1..1024 (got N)"
+// otherwise. The one check every Options::Check() with a num_threads field calls (and the CLI's
+// --threads, and ParallelFor for callers that check nothing).
 void CheckThreadCount(int num_threads);
 
 void ParallelFor(int64_t n, int num_threads, ProgressSink* progress,
