@@ -18,6 +18,7 @@
 #include <nlohmann/json.hpp>
 
 #include "aos/util/error.h"
+#include "aos/util/file_util.h"
 #include "aos/util/parallel.h"
 #include "aos/util/version.h"
 #include "commands.h"
@@ -152,6 +153,7 @@ int main(int argc, char** argv) {
   }
   // First of all, so that a signal is never lost, whatever stage the command is in.
   InstallInterruptHandler();
+  aos::SetCommitCancelled(&Interrupted);
   WarnDeprecatedSpellings(argc, argv);
   try {
     app.parse(argc, argv);

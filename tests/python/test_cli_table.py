@@ -193,18 +193,11 @@ NOT_LONG = {
     "resolution": "closed-form formulas over the flags; reads no file",
 }
 # Known failures, xfail until fixed (the reason names the fix).
-FIXED_ELSEWHERE = {
-    "rectify": "rectify allocates the output before checking it against the memory budget; "
-               "fixed by helper 'small' (rectify memory/cancellation)",
-}
+FIXED_ELSEWHERE: dict[str, str] = {}
 CANCEL_XFAIL = {
-    "rectify": "aborts (SIGABRT, \"terminate called after throwing an instance of 'bool'\") when "
-               "signalled while rectifying; rectify's cancellation is helper 'small''s fix",
-    "integral": "a signal while the output is written (after the last ProgressBar stage; ~1 s for "
-                "a 2048^2 TIFF here) is not polled and the output is committed: needs a "
-                "cancellation check in PendingFile::Commit/CommitTogether (file_util)",
-    "import-colmap": "finishes and commits its output ~0.2 s after the signal: the model import "
-                     "(sfm/colmap_model.cpp) has no poll and the command no ProgressBar stage",
+    "import-colmap": "the model import (sfm/colmap_model.cpp) has no poll and this input is too "
+                     "small: the command has committed its (complete) output and exits 0 when "
+                     "the signal comes; needs a poll in the import and a larger model",
 }
 # Commands not yet covered by a long-running input here, with the reason (a known gap).
 NOT_YET = {
@@ -308,7 +301,10 @@ def long_command(command: str, found: dict[str, Path], out: Path) -> tuple[list[
         "simulate": ([str(found["scene"]), "-o", str(out / "d")], out / "d"),
         "demo": (["-o", str(out / "d")], out / "d"),
         "metrics": ([lf, lf], None),  # replaced below: two large images
-        "plan": (["--radius-m", "20000", "--spacing-m", "0.5", "--csv", str(out / "p.csv")],
+        # About 7 M waypoints (a few seconds): the default --max-waypoints (10^6) is raised.
+        "plan": (["--radius-m", "3000", "--spacing-m", "2", "--along-spacing-m", "2",
+                  "--battery-min", "inf", "--max-waypoints", "100000000",
+                  "--csv", str(out / "p.csv")],
                  out / "p.csv"),
     }
     if command == "metrics":

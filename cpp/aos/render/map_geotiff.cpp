@@ -433,7 +433,6 @@ void CheckMapOutputExtension(const std::string& path) {
 void CheckMapOutputPath(const std::string& path, const MapWriteOptions& write) {
   if (path.empty()) ThrowInvalid("output: the map needs a file name");
   if (write.gdal_cache_mb < 16) ThrowInvalid("gdal_cache_mb: must be >= 16");
-  CheckMapOutputExtension(path);
   const fs::path target(path);
   const fs::path folder = target.has_parent_path() ? target.parent_path() : fs::path(".");
   std::error_code code;
@@ -448,6 +447,8 @@ void CheckMapOutputPath(const std::string& path, const MapWriteOptions& write) {
     if (fs::is_directory(status)) ThrowInvalid(path + ": is a folder");
     if (!write.force) ThrowInvalid(path + ": exists; force replaces it");
   }
+  // Last, so that a folder or an existing file is named as such first.
+  CheckMapOutputExtension(path);
 }
 
 MapSummary WriteMapGeoTiff(const LightField& light_field, const MapOptions& options,

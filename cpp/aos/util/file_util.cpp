@@ -54,6 +54,16 @@ void ErasePending(const std::string& path) {
 
 }  // namespace
 
+namespace {
+std::atomic<bool (*)()> g_commit_cancelled{nullptr};
+void ThrowIfCommitCancelled() {
+  bool (*cancelled)() = g_commit_cancelled.load();
+  if (cancelled != nullptr && cancelled()) throw Cancelled();
+}
+}  // namespace
+
+void SetCommitCancelled(bool (*cancelled)()) { g_commit_cancelled.store(cancelled); }
+
 void RemovePendingOutputs() {
   std::lock_guard<std::mutex> lock(PendingMutex());
   for (const std::string& path : PendingPaths()) {
@@ -85,6 +95,7 @@ PendingFile::~PendingFile() {
 }
 
 void PendingFile::Commit() {
+  ThrowIfCommitCancelled();
   std::error_code error;
   fs::rename(temp_path_, final_path_, error);
   if (error) {
@@ -96,6 +107,7 @@ void PendingFile::Commit() {
 }
 
 void CommitTogether(const std::vector<PendingFile*>& files) {
+  ThrowIfCommitCancelled();
   struct Backup {
     std::string final_path, backup_path;
   };
@@ -338,6 +350,7 @@ PendingFolder::~PendingFolder() {
 }
 
 void PendingFolder::Commit() {
+  ThrowIfCommitCancelled();
   std::error_code error;
   // An existing empty folder is replaced; anything else that appeared meanwhile is kept.
   if (fs::exists(final_path_, error)) {

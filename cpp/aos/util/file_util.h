@@ -52,6 +52,12 @@ class PendingFile {
 // CLI ends the work this way when it has not stopped 1.5 s after SIGTERM/SIGINT; progress_bar.h).
 void RemovePendingOutputs();
 
+// The process's cancellation source as outputs see it: when set and it answers true,
+// PendingFile::Commit, CommitTogether and PendingFolder::Commit throw aos::Cancelled instead of
+// moving a finished output into place, so a signal that arrives while an output is being written
+// (after the command's last progress poll) still leaves no output. The CLI sets its signal flag.
+void SetCommitCancelled(bool (*cancelled)());
+
 // Moves several finished files into place together: files already at the final paths are first
 // renamed to backups, then every temporary file is renamed; if any rename fails, the new files are
 // removed and the backups restored, so either all outputs are new or none changed. Throws
