@@ -36,12 +36,6 @@ CASES = 300
 # own branches: (target, class) -> who fixes it. Such failures are printed, not failed; the lead
 # removes an entry once its fix is merged (the campaign then fails if the failure is still there).
 KNOWN_FAILURES: dict[tuple[str, str], str] = {
-    # A polygon vertex at x = 0 among UTM eastings near 500000: a 500 km polygon whose plan runs
-    # on past SIGTERM (plan bounds and SIGTERM).
-    ("plan-vertices", "ignores-sigterm"): "plan",
-    # --dem naming a FIFO: IsMeshFile (ReadTerrain) opens it and blocks until SIGTERM (found by
-    # this fuzzer; the integral's --focal-surface checks for a regular file first).
-    ("plan-dem", "timeout"): "plan",
     # A request line over 8190 bytes (a 200 kB query): aiohttp answers 400 but logs "Error
     # handling request" with a LineTooLong traceback (found by this fuzzer).
     ("viewer-http", "traceback"): "viewer",

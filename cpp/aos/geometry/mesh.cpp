@@ -550,6 +550,8 @@ Mesh ParseMeshFile(const std::string& path) {
 }  // namespace
 
 bool IsMeshFile(const std::string& path) {
+  // A FIFO would block the open below forever, a device never ends: regular files only.
+  CheckRegularFile(path, "surface or DEM file");
   std::ifstream file(path, std::ios::binary);
   if (!file) ThrowInvalid(path + ": cannot open the file");
   char bytes[3] = {0, 0, 0};
