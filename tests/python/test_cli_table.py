@@ -23,6 +23,7 @@ import numpy as np
 import pytest
 
 import aos
+from signal_util import catches
 
 EXE = shutil.which("aos-render")
 pytestmark = pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH (pip install .)")
@@ -313,16 +314,6 @@ def long_command(command: str, found: dict[str, Path], out: Path) -> tuple[list[
             aos.write_image(str(out / name), big)
         return [str(out / "a.tif"), str(out / "b.tif")], None
     return table[command]
-
-
-def catches(pid: int, sig: signal.Signals) -> bool:
-    """Whether the process has a handler for `sig` (SigCgt of /proc/PID/status)."""
-    try:
-        status = Path(f"/proc/{pid}/status").read_text()
-    except OSError:
-        return False
-    mask = int(re.search(r"^SigCgt:\s*([0-9a-f]+)", status, flags=re.M).group(1), 16)
-    return bool(mask >> (sig - 1) & 1)
 
 
 def running_python(pid: int) -> bool:
