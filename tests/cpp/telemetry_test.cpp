@@ -4,6 +4,7 @@
 #include "aos/sfm/telemetry.h"
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
@@ -517,12 +518,13 @@ TEST_F(Telemetry, AByteOrderMarkAndQuotedFieldsAreRead) {
 
 // A JPEG with GPS tags whose hemisphere letters are given as they are (not from the signs).
 std::string FrameWithGpsRefs(const std::string& path, const char* latitude_ref,
-                             const char* longitude_ref) {
+                             const char* longitude_ref,
+                             std::array<float, 3> latitude = {48.0f, 0.0f, 0.0f},
+                             std::array<float, 3> longitude = {15.0f, 0.0f, 0.0f}) {
   OIIO::ImageSpec spec(16, 12, 1, OIIO::TypeDesc::UINT8);
-  const float latitude[3] = {48.0f, 0.0f, 0.0f}, longitude[3] = {15.0f, 0.0f, 0.0f};
-  spec.attribute("GPS:Latitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), latitude);
+  spec.attribute("GPS:Latitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), latitude.data());
   spec.attribute("GPS:LatitudeRef", latitude_ref);
-  spec.attribute("GPS:Longitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), longitude);
+  spec.attribute("GPS:Longitude", OIIO::TypeDesc(OIIO::TypeDesc::FLOAT, 3), longitude.data());
   spec.attribute("GPS:LongitudeRef", longitude_ref);
   spec.attribute("GPS:Altitude", 350.0f);
   std::vector<uint8_t> pixels(16 * 12, 128);
@@ -550,6 +552,32 @@ TEST_F(Telemetry, HemisphereLettersOtherThanNSEWAreRefusedNamingTheTag) {
   options.fov_deg = 60.0;
   EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options); }),
               HasSubstr("z.jpg: GPS:LongitudeRef: \"Q\" is not E or W"));
+}
+
+// Found by tools/fuzz.py: 91 minutes or 3600 seconds were read as a position.
+TEST_F(Telemetry, GpsAnglesWithMinutesOrSecondsOf60OrMoreAreRefused) {
+  const std::optional<GpsTag> tag = ReadGpsTag(
+      FrameWithGpsRefs(Path("ok.jpg"), "N", "E", {48.0f, 59.0f, 59.5f}, {180.0f, 0.0f, 0.0f}));
+  ASSERT_TRUE(tag.has_value());
+  EXPECT_NEAR(tag->latitude_deg, 48.0 + 59.0 / 60 + 59.5 / 3600, 1e-6);
+  EXPECT_NEAR(tag->longitude_deg, 180.0, 1e-9);
+  EXPECT_THAT(ErrorOf([&] {
+                ReadGpsTag(FrameWithGpsRefs(Path("m.jpg"), "N", "E", {48.0f, 91.0f, 0.0f}));
+              }),
+              HasSubstr("m.jpg: GPS:Latitude: 48 deg 91' 0\" is not an angle of 0 to 90"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadGpsTag(FrameWithGpsRefs(Path("s.jpg"), "N", "E", {48.0f, 0.0f, 0.0f},
+                                            {15.0f, 0.0f, 3600.0f}));
+              }),
+              HasSubstr("s.jpg: GPS:Longitude: 15 deg 0' 3600\" is not an angle of 0 to 180"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadGpsTag(FrameWithGpsRefs(Path("d.jpg"), "N", "E", {95.0f, 0.0f, 0.0f}));
+              }),
+              HasSubstr("d.jpg: GPS:Latitude: 95 deg"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadGpsTag(FrameWithGpsRefs(Path("n.jpg"), "N", "E", {-48.0f, 0.0f, 0.0f}));
+              }),
+              HasSubstr("n.jpg: GPS:Latitude: -48 deg"));
 }
 
 TEST_F(Telemetry, ImplausibleTagAltitudesAreRefusedNamingTheTag) {

@@ -36,9 +36,6 @@ CASES = 300
 # own branches: (target, class) -> who fixes it. Such failures are printed, not failed; the lead
 # removes an entry once its fix is merged (the campaign then fails if the failure is still there).
 KNOWN_FAILURES: dict[tuple[str, str], str] = {
-    # A request line over 8190 bytes (a 200 kB query): aiohttp answers 400 but logs "Error
-    # handling request" with a LineTooLong traceback (found by this fuzzer).
-    ("viewer-http", "traceback"): "viewer",
 }
 
 

@@ -9,6 +9,7 @@ from __future__ import annotations
 import asyncio
 import http.client
 import json
+import logging
 import math
 import shlex
 import os
@@ -926,6 +927,45 @@ def test_deeply_nested_json_is_refused_with_a_400_not_a_traceback(viewer: Viewer
     error, frame = asyncio.run(nested_message())
     assert error["type"] == "error" and "nested more than" in error["message"], error
     assert frame["id"] == 2
+
+
+def test_numbers_no_float_holds_are_refused_not_echoed(viewer: Viewer) -> None:
+    """A WebSocket message with "id": -1e999 was echoed back as -Infinity, which is not JSON
+    (found by tools/fuzz.py); 1e999, NaN and Infinity are now refused like any bad parameter."""
+    from aos.viewer import server
+    from aos.viewer.session import BadParameter
+
+    for text in ('{"id": -1e999}', '{"id": NaN}', '[Infinity]', '{"a": [1e400]}'):
+        with pytest.raises(BadParameter, match="not finite|not a JSON number"):
+            server.parse_json(text, "message")
+    assert server.parse_json('{"id": 1e300, "n": 12}', "message") == {"id": 1e300, "n": 12}
+
+    async def message() -> Any:
+        async with aiohttp.ClientSession() as client:
+            async with client.ws_connect(f"{base(viewer)}/ws?token={viewer.token}") as socket:
+                await socket.send_str('{"type": "render", "id": -1e999}')
+                return json.loads((await socket.receive(timeout=30)).data)
+
+    answer = asyncio.run(message())   # json.loads here refuses nothing: check the value
+    assert answer["type"] == "error" and "not finite" in answer["message"], answer
+
+
+def test_a_malformed_request_is_one_log_line_without_a_traceback(
+        viewer: Viewer, caplog: pytest.LogCaptureFixture) -> None:
+    """A request line over 8190 bytes was answered 400 by aiohttp, which logged "Error handling
+    request" with a LineTooLong traceback (found by tools/fuzz.py): now one warning line."""
+    with caplog.at_level(logging.DEBUG, logger="aiohttp.server"):
+        status, _ = raw_request(viewer.port, "/api/info?q=" + "a" * 200_000,
+                                f"127.0.0.1:{viewer.port}")
+        deadline = time.monotonic() + 10
+        while not any(r.name == "aiohttp.server" for r in caplog.records):
+            assert time.monotonic() < deadline, "aiohttp logged nothing"
+            time.sleep(0.05)
+    assert status == 400
+    records = [r for r in caplog.records if r.name == "aiohttp.server"]
+    assert all(r.exc_info is None and r.levelno == logging.WARNING for r in records), records
+    assert "refused a malformed request" in records[0].getMessage()
+    assert "Traceback" not in caplog.text
 
 
 def test_requests_must_name_this_server_in_their_host_header(viewer: Viewer) -> None:

@@ -419,6 +419,16 @@ std::optional<GpsTag> ReadGpsTag(const std::string& path) {
     for (int i = 0; i < n; ++i) dms[i] = value->get_float_indexed(i);
     *degrees = dms[0] + dms[1] / 60.0 + dms[2] / 3600.0;
     if (!std::isfinite(*degrees)) ThrowInvalid(path + ": " + name + ": not finite");
+    // Unsigned (the letter gives the sign), minutes and seconds below 60, the angle within its
+    // range: "91 minutes" or "3600 seconds" is a corrupt tag, not a position.
+    const double max_degrees = positive == 'N' ? 90.0 : 180.0;
+    if (dms[0] < 0 || dms[1] < 0 || dms[2] < 0 || (n == 3 && (dms[1] >= 60 || dms[2] >= 60)) ||
+        *degrees > max_degrees) {
+      ThrowInvalid(path + ": " + name + ": " + FormatNumber(dms[0]) + " deg " +
+                   FormatNumber(dms[1]) + "' " + FormatNumber(dms[2]) +
+                   "\" is not an angle of 0 to " + FormatNumber(max_degrees) +
+                   " degrees (minutes and seconds below 60)");
+    }
     std::string ref = spec.get_string_attribute(ref_name);
     while (!ref.empty() && (ref.back() == ' ' || ref.back() == '\0')) ref.pop_back();
     const char letter = ref.size() == 1 ? static_cast<char>(std::toupper(ref[0])) : '\0';

@@ -61,7 +61,7 @@ import zipfile
 from importlib import resources
 from typing import Any, Callable, Optional
 
-from aiohttp import WSMsgType, web
+from aiohttp import WSMsgType, http_exceptions, web
 
 from . import is_loopback
 from .session import MAX_PAGES, BadParameter, Frame, Params, Session, Superseded
@@ -80,6 +80,24 @@ MAX_STACK_BYTES = 1 << 30  # one focal-stack request's slices in memory
 TOKEN_HEADER = "X-AOS-Token"
 
 log = logging.getLogger("aos.viewer")
+
+
+class _MalformedRequestsInOneLine(logging.Filter):
+    """aiohttp answers a malformed request (a request line over 8190 bytes, a bad header) with a
+    400 itself, but logs it as "Error handling request" with a traceback: a client's mistake,
+    not the server's. Such records become one warning line without the traceback."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        error = record.exc_info[1] if record.exc_info else None
+        if isinstance(error, http_exceptions.HttpProcessingError):
+            message = " ".join(str(error).split())[:200]
+            record.msg, record.args = "refused a malformed request: %s", (message,)
+            record.exc_info, record.exc_text = None, None
+            record.levelno, record.levelname = logging.WARNING, "WARNING"
+        return True
+
+
+logging.getLogger("aiohttp.server").addFilter(_MalformedRequestsInOneLine())
 
 # The whole set of files the server can send: request name -> (package file, content type).
 ASSET_FILES = {
@@ -118,9 +136,21 @@ def _bad(message: str, status: int = 400) -> web.Response:
 
 def parse_json(text: str | bytes, what: str) -> Any:
     """A request body or WebSocket message as JSON; BadParameter (naming ``what``) when it is
-    not JSON or is nested deeper than MAX_JSON_DEPTH."""
+    not JSON, holds a number no float can hold (1e999, NaN, Infinity: echoed back they would
+    not be JSON) or is nested deeper than MAX_JSON_DEPTH."""
+    def finite(literal: str) -> float:
+        number = float(literal)
+        if not math.isfinite(number):
+            raise BadParameter(f"{what}: the number {literal[:40]} is not finite")
+        return number
+
+    def constant(literal: str) -> float:
+        raise BadParameter(f"{what}: {literal} is not a JSON number")
+
     try:
-        value = json.loads(text)
+        value = json.loads(text, parse_float=finite, parse_int=int, parse_constant=constant)
+    except BadParameter:
+        raise
     except RecursionError:  # deeper than the interpreter's recursion limit
         raise BadParameter(f"{what}: JSON nested more than {MAX_JSON_DEPTH} deep") from None
     except (ValueError, UnicodeDecodeError):
