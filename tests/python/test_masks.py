@@ -181,13 +181,7 @@ def test_every_render_route_gives_the_masked_mean(tmp_path: Path) -> None:
     path, clean = write_scene(tmp_path, 1, per_view=False)
     lf = aos.load_lightfield(path, mask=path.parent / "mask.png").light_field
     plane = aos.render_integral(lf, **RENDER)
-    camera = aos.virtual_camera(lf, aos.IntegralOptions(pose_view=4, fov_deg=50.0, width=40,
-                                                       height=32))
-    centre = lf.views[4].cam_from_world.center
-    R = lf.views[4].cam_from_world.rotation
-    ys, xs = np.mgrid[0:camera.height, 0:camera.width] + 0.5
-    rays = np.stack([xs, ys, np.ones_like(xs)], -1) @ np.linalg.inv(camera.K).T @ R
-    depth = (-centre[2] / rays[..., 2]).astype(np.float32)  # camera z of the plane z = 0
+    depth = _depth_of_plane(lf)  # camera z of the plane z = 0
     on_depth = aos.render_integral_on_depth(lf, depth, **RENDER).integral
     assert on_depth.image.shape == plane.image.shape
     np.testing.assert_allclose(on_depth.image, plane.image, atol=2e-3)
