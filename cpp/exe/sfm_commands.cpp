@@ -162,6 +162,7 @@ int RunPoses(PosesCommand& c, const Flags& flags) {
 }
 
 int RunImportColmap(PosesCommand& c, const Flags& flags) {
+  ProgressBar progress(Common().quiet);
   // The model folder (cameras, images, points3D), the frames folder and the positions are inputs.
   const std::vector<std::string> inputs{c.model_dir, c.frames_dir, c.options.positions_file};
   CheckOutputPath(c.output, inputs, "output");
@@ -171,7 +172,10 @@ int RunImportColmap(PosesCommand& c, const Flags& flags) {
     RefuseExisting(c.points_output, "--points-output");
   }
   const PosesResult result =
-      flags.NamingFlags([&] { return ImportColmapPoses(c.model_dir, c.frames_dir, c.options); });
+      flags.NamingFlags([&] {
+        return ImportColmapPoses(c.model_dir, c.frames_dir, c.options, &progress);
+      });
+  progress.Finish();
   CheckOutputPath(c.output, inputs, "output");  // again: the model may have changed meanwhile
   WriteLightField(c.output, result.light_field);
   Report report("import-colmap");

@@ -6,6 +6,7 @@
 #include "aos/sfm/telemetry.h"
 #include "aos/util/file_util.h"
 #include "commands.h"
+#include "progress_bar.h"
 
 namespace aos::cli {
 namespace {
@@ -21,8 +22,10 @@ int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
                                         c.options.camera_file};
   CheckOutputPath(c.output, inputs, "output");
   RefuseExisting(c.output, "output");
+  ProgressBar progress(Common().quiet);
   const TelemetryResult result =
-      flags.NamingFlags([&] { return ImportTelemetry(c.frames_dir, c.options); });
+      flags.NamingFlags([&] { return ImportTelemetry(c.frames_dir, c.options, &progress); });
+  progress.Finish();
   WriteLightField(c.output, result.light_field);
   Report report("import-telemetry");
   for (const std::string& warning : result.warnings) Warn(warning);

@@ -160,11 +160,14 @@ void BindSfm(py::module_& m) {
 
   m.def(
       "_import_colmap",
-      [](const std::string& model_dir, const std::string& images_dir, const PosesOptions& options) {
-        py::gil_scoped_release release;
-        return ImportColmapPoses(model_dir, images_dir, options);
+      [](const std::string& model_dir, const std::string& images_dir, const PosesOptions& options,
+         const py::object& progress) {
+        const PosesOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return ImportColmapPoses(model_dir, images_dir, options_copy, sink);
+        });
       },
-      "model_dir"_a, "images_dir"_a, "options"_a,
+      "model_dir"_a, "images_dir"_a, "options"_a, "progress"_a = py::none(),
       "Imports a COLMAP sparse model, GIL released. Prefer aos.import_colmap.");
   OptionsClass<GroundOptions>(
       m, "GroundOptions",
@@ -297,11 +300,14 @@ void BindSfm(py::module_& m) {
 
   m.def(
       "_import_telemetry",
-      [](const std::string& frames_dir, const TelemetryOptions& options) {
-        py::gil_scoped_release release;
-        return ImportTelemetry(frames_dir, options);
+      [](const std::string& frames_dir, const TelemetryOptions& options,
+         const py::object& progress) {
+        const TelemetryOptions options_copy = options;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return ImportTelemetry(frames_dir, options_copy, sink);
+        });
       },
-      "frames_dir"_a, "options"_a, "Poses from telemetry, GIL released. Prefer aos.import_telemetry.");
+      "frames_dir"_a, "options"_a, "progress"_a = py::none(), "Poses from telemetry, GIL released. Prefer aos.import_telemetry.");
 }
 
 }  // namespace aos::python

@@ -978,6 +978,8 @@ def import_colmap(
     model_dir: str | os.PathLike[str],
     images_dir: str | os.PathLike[str],
     options: Optional[PosesOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
     **kwargs: Unpack[PosesKeywords],
 ) -> PosesResult:
     """Imports an existing COLMAP sparse model (a ``sparse/N`` folder, text or binary) with the
@@ -985,16 +987,19 @@ def import_colmap(
     views (images not loaded), the others are listed as unregistered, and ``positions_file`` or
     ``exif_positions`` (fields of :class:`PosesOptions`, like ``min_registered_fraction``)
     geo-reference it; ``flight_height_m`` checks the geo-referenced scale, as for
-    :func:`estimate_poses`. Raises ValueError naming the file and the field.
+    :func:`estimate_poses`. Raises ValueError naming the file and the field; ``progress`` as for
+    :func:`estimate_poses` (Ctrl-C raises KeyboardInterrupt while the model is read).
     """
     merged = _copy_options("import_colmap", PosesOptions, options)
     _IMPORT_COLMAP.apply([merged], dict(kwargs))
-    return _core._import_colmap(os.fspath(model_dir), os.fspath(images_dir), merged)
+    return _core._import_colmap(os.fspath(model_dir), os.fspath(images_dir), merged, progress)
 
 
 def import_telemetry(
     frames_dir: str | os.PathLike[str],
     options: Optional[TelemetryOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
     **kwargs: Unpack[TelemetryKeywords],
 ) -> TelemetryResult:
     """Poses a folder of frames from GPS and gimbal telemetry, without COLMAP, as
@@ -1006,7 +1011,8 @@ def import_telemetry(
     near the mean position. Altitude outliers are replaced by a running median and listed in
     ``result.altitude_outliers`` (docs/terrain-and-maps.md). Raises ValueError naming the file,
     line and field. Nothing is written: pass ``result.light_field`` to
-    :func:`write_lightfield`.
+    :func:`write_lightfield`. ``progress`` as for :func:`estimate_poses` (a unit per frame
+    header; Ctrl-C raises KeyboardInterrupt).
 
     Example::
 
@@ -1015,7 +1021,7 @@ def import_telemetry(
     """
     merged = _copy_options("import_telemetry", TelemetryOptions, options)
     _IMPORT_TELEMETRY.apply([merged], dict(kwargs))
-    return _core._import_telemetry(os.fspath(frames_dir), merged)
+    return _core._import_telemetry(os.fspath(frames_dir), merged, progress)
 
 
 def view(light_field: "LightField | str | os.PathLike[str]", **kwargs: Any) -> Any:

@@ -139,7 +139,8 @@ std::string_view Trim(std::string_view text) {
 // Reads a text file line by line; `Fail` messages carry "<path>: line <n>: <entry>: ".
 class TextReader {
  public:
-  explicit TextReader(std::string path) : path_(std::move(path)) {
+  TextReader(std::string path, ProgressSink* progress)
+      : path_(std::move(path)), progress_(progress) {
     CheckRegularFile(path_, "COLMAP model file");
     file_.open(path_, std::ios::binary);
     if (!file_) ThrowInvalid(path_ + ": cannot open the file");
@@ -162,6 +163,7 @@ class TextReader {
       return false;
     }
     ++line_;
+    if ((line_ & 4095) == 0 && ProgressCancelled(progress_)) throw Cancelled();
     *line = buffer_;
     return true;
   }
@@ -202,14 +204,15 @@ class TextReader {
 
  private:
   std::string path_;
+  ProgressSink* progress_ = nullptr;  // polled for cancellation every 4096 entries
   std::ifstream file_;
   std::string buffer_;
   size_t line_ = 0;
   std::string entry_;
 };
 
-void ReadCamerasText(const std::string& path, ColmapModel* model) {
-  TextReader reader(path);
+void ReadCamerasText(const std::string& path, ColmapModel* model, ProgressSink* progress) {
+  TextReader reader(path, progress);
   std::string_view line;
   while (reader.NextEntryLine(&line)) {
     const auto tokens = Tokens(line);
@@ -239,8 +242,8 @@ void ReadCamerasText(const std::string& path, ColmapModel* model) {
   }
 }
 
-void ReadImagesText(const std::string& path, ColmapModel* model) {
-  TextReader reader(path);
+void ReadImagesText(const std::string& path, ColmapModel* model, ProgressSink* progress) {
+  TextReader reader(path, progress);
   std::string_view line;
   while (reader.NextEntryLine(&line)) {
     const auto tokens = Tokens(line);
@@ -283,8 +286,8 @@ void ReadImagesText(const std::string& path, ColmapModel* model) {
   }
 }
 
-void ReadPointsText(const std::string& path, ColmapModel* model) {
-  TextReader reader(path);
+void ReadPointsText(const std::string& path, ColmapModel* model, ProgressSink* progress) {
+  TextReader reader(path, progress);
   std::string_view line;
   while (reader.NextEntryLine(&line)) {
     const auto tokens = Tokens(line);
@@ -318,7 +321,8 @@ void ReadPointsText(const std::string& path, ColmapModel* model) {
 // Sequential little-endian reads through a buffer, every read checked against the file size.
 class BinaryReader {
  public:
-  explicit BinaryReader(std::string path) : path_(std::move(path)) {
+  BinaryReader(std::string path, ProgressSink* progress)
+      : path_(std::move(path)), progress_(progress) {
     size_ = CheckRegularFile(path_, "COLMAP model file");
     file_.open(path_, std::ios::binary);
     if (!file_) ThrowInvalid(path_ + ": cannot open the file");
@@ -329,6 +333,7 @@ class BinaryReader {
 
   // The entry being read, for messages: "<kind> <index> of <count>" and its id once known.
   void SetEntry(const char* kind, uint64_t index, uint64_t count) {
+    if ((index & 4095) == 4095 && ProgressCancelled(progress_)) throw Cancelled();
     kind_ = kind;
     index_ = index;
     count_ = count;
@@ -430,6 +435,7 @@ class BinaryReader {
   }
 
   std::string path_;
+  ProgressSink* progress_ = nullptr;  // polled for cancellation every 4096 entries
   std::ifstream file_;
   uint64_t size_ = 0;
   uint64_t offset_ = 0;       // bytes consumed
@@ -441,8 +447,8 @@ class BinaryReader {
   bool has_id_ = false;
 };
 
-void ReadCamerasBinary(const std::string& path, ColmapModel* model) {
-  BinaryReader reader(path);
+void ReadCamerasBinary(const std::string& path, ColmapModel* model, ProgressSink* progress) {
+  BinaryReader reader(path, progress);
   const uint64_t count = reader.U64("number of cameras");
   // id, model id, width, height (the parameters come on top).
   reader.CheckCount(count, 4 + 4 + 8 + 8, "number of cameras");
@@ -470,8 +476,8 @@ void ReadCamerasBinary(const std::string& path, ColmapModel* model) {
   reader.ExpectEnd();
 }
 
-void ReadImagesBinary(const std::string& path, ColmapModel* model) {
-  BinaryReader reader(path);
+void ReadImagesBinary(const std::string& path, ColmapModel* model, ProgressSink* progress) {
+  BinaryReader reader(path, progress);
   const uint64_t count = reader.U64("number of images");
   // id, qvec, tvec, camera id, the name's NUL, num points2D.
   reader.CheckCount(count, 4 + 56 + 4 + 1 + 8, "number of images");
@@ -501,8 +507,8 @@ void ReadImagesBinary(const std::string& path, ColmapModel* model) {
   reader.ExpectEnd();
 }
 
-void ReadPointsBinary(const std::string& path, ColmapModel* model) {
-  BinaryReader reader(path);
+void ReadPointsBinary(const std::string& path, ColmapModel* model, ProgressSink* progress) {
+  BinaryReader reader(path, progress);
   const uint64_t count = reader.U64("number of points");
   // id, xyz, rgb, error, track length.
   reader.CheckCount(count, 8 + 24 + 3 + 8 + 8, "number of points");
@@ -635,7 +641,7 @@ int ColmapModelNumParams(const std::string& model_name) {
   return -1;
 }
 
-ColmapModel ReadColmapModel(const std::string& folder) {
+ColmapModel ReadColmapModel(const std::string& folder, ProgressSink* progress) {
   std::error_code error;
   if (!fs::is_directory(folder, error)) {
     ThrowInvalid(folder + ": COLMAP model folder does not exist");
@@ -682,13 +688,13 @@ ColmapModel ReadColmapModel(const std::string& folder) {
   model.images_path = (root / (std::string("images") + extension)).string();
   model.points_path = (root / (std::string("points3D") + extension)).string();
   if (model.format == "binary") {
-    ReadCamerasBinary(model.cameras_path, &model);
-    ReadImagesBinary(model.images_path, &model);
-    ReadPointsBinary(model.points_path, &model);
+    ReadCamerasBinary(model.cameras_path, &model, progress);
+    ReadImagesBinary(model.images_path, &model, progress);
+    ReadPointsBinary(model.points_path, &model, progress);
   } else {
-    ReadCamerasText(model.cameras_path, &model);
-    ReadImagesText(model.images_path, &model);
-    ReadPointsText(model.points_path, &model);
+    ReadCamerasText(model.cameras_path, &model, progress);
+    ReadImagesText(model.images_path, &model, progress);
+    ReadPointsText(model.points_path, &model, progress);
   }
   Finish(&model);
   return model;

@@ -106,7 +106,8 @@ struct ColmapModel {
 
 // Reads the model in `folder` (binary preferred, see above). Throws std::invalid_argument naming
 // the folder when the files are missing (with a hint when they sit in a numbered subfolder).
-ColmapModel ReadColmapModel(const std::string& folder);
+// `progress` is polled for cancellation every 4096 lines or entries (throws aos::Cancelled).
+ColmapModel ReadColmapModel(const std::string& folder, ProgressSink* progress = nullptr);
 
 // The model names COLMAP knows, by binary model id (0..17); "" for an unknown id.
 std::string ColmapModelName(int model_id);

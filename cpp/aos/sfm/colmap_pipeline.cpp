@@ -222,10 +222,11 @@ double MedianDepth(const ColmapModel& model, const LightField& light_field) {
 // `positions` (matched to frame names), and the pose record.
 void ImportInto(ColmapModel model, const std::string& frames_dir,
                 const std::vector<NamedPosition>& positions, const std::string& positions_where,
-                double min_registered_fraction, PosesResult* result) {
+                double min_registered_fraction, PosesResult* result,
+                ProgressSink* progress = nullptr) {
   ColmapImportOptions import_options;
   import_options.load_images = false;
-  ColmapImport imported = ImportColmapModel(model, frames_dir, import_options);
+  ColmapImport imported = ImportColmapModel(model, frames_dir, import_options, progress);
   result->light_field = std::move(imported.light_field);
   result->registered = imported.registered;
   // Unregistered: the listed frames the model lacks (not every file in the folder: unreadable
@@ -1077,10 +1078,10 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& giv
 }
 
 PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& frames_dir,
-                              const PosesOptions& options) {
+                              const PosesOptions& options, ProgressSink* progress) {
   options.Check();
   const Timer timer;
-  ColmapModel model = ReadColmapModel(model_dir);
+  ColmapModel model = ReadColmapModel(model_dir, progress);
   PosesResult result;
   result.models = 1;
   result.frames = ListFrameFiles(frames_dir);  // a registered frame missing here is an error
@@ -1103,7 +1104,7 @@ PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& f
   }
   ImportInto(std::move(model), frames_dir, positions,
              options.exif_positions ? frames_dir + " (EXIF GPS)" : options.positions_file,
-             options.min_registered_fraction, &result);
+             options.min_registered_fraction, &result, progress);
   CheckSceneScale(options, /*warn_unchecked=*/false, &result);
   result.stages.push_back({"import", timer.Seconds()});
   return result;

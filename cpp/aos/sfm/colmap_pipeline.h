@@ -161,7 +161,7 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
 // it, min_registered_fraction and the scene-scale check (flight_height_m) apply; the COLMAP and
 // self-calibration options are not used.
 PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& frames_dir,
-                              const PosesOptions& options);
+                              const PosesOptions& options, ProgressSink* progress = nullptr);
 
 // Camera positions from a CSV file (see above): name -> position. Throws std::invalid_argument
 // naming the file and line for a malformed line, a non-finite value or a repeated name.

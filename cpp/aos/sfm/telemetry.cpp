@@ -421,8 +421,12 @@ std::vector<std::pair<size_t, double>> ReplaceAltitudeOutliers(std::vector<doubl
   return replaced;
 }
 
-TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options) {
+TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options,
+                                ProgressSink* progress) {
   options.Check();
+  auto poll = [progress] {
+    if (ProgressCancelled(progress)) throw Cancelled();
+  };
   TelemetryResult result;
   result.source = options.telemetry_file.empty() ? "exif" : "csv";
   const std::vector<std::string> all_frames = ListFrameFiles(frames_dir);
@@ -537,7 +541,10 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
     }
   } else {
     std::vector<std::string> paths;
+    ProgressStart(progress, "tags", static_cast<int64_t>(all_frames.size()));
     for (const std::string& frame : all_frames) {
+      poll();
+      ProgressAdvance(progress, 1);
       frames.push_back(frame);
       paths.push_back((fs::path(frames_dir) / frame).string());
       samples.push_back(SampleFromTags(paths.back(), options.altitude));
@@ -557,7 +564,10 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
     camera = LensCamera::FromPinhole(PinholeCamera::FromFov(info.width, info.height,
                                                             options.fov_deg));
   }
+  ProgressStart(progress, "headers", static_cast<int64_t>(frames.size()));
   for (const std::string& frame : frames) {
+    poll();
+    ProgressAdvance(progress, 1);
     const std::string path = (fs::path(frames_dir) / frame).string();
     const ImageFileInfo info = ReadImageInfo(path);
     if (info.width != camera.width || info.height != camera.height) {

@@ -74,6 +74,7 @@
 #include <vector>
 
 #include "aos/lightfield/lightfield.h"
+#include "aos/util/progress.h"
 
 namespace aos {
 
@@ -119,7 +120,10 @@ struct TelemetryResult {
   double max_convergence_deg = 0.0;        // largest |meridian convergence| applied, degrees
 };
 
-TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options);
+// `progress` gets one "headers" stage (a unit per frame header read) and is polled for
+// cancellation once per frame (throws aos::Cancelled).
+TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options,
+                                ProgressSink* progress = nullptr);
 
 // One frame's telemetry as read (degrees, metres). Exposed for tests.
 struct TelemetrySample {
