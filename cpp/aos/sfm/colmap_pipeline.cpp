@@ -21,6 +21,7 @@
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/math.h"
+#include "aos/util/memory.h"
 #include "aos/util/parallel.h"
 #include "aos/util/process.h"
 #include "aos/util/timer.h"
@@ -1031,6 +1032,15 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& giv
 
   // Frames: readable ones, one size; then their positions (from EXIF too).
   const FrameSize size = ListFrames(frames_dir, &result);
+  // COLMAP decodes a whole frame per extraction thread (a bitmap and its grey copy, about 4 bytes
+  // a pixel, before it downscales to max_image_size); its child process inherits this one's
+  // limits. Refused here, naming the frames, rather than COLMAP failing on an allocation.
+  CheckMemoryBudget(SaturatingProduct({static_cast<uint64_t>(ResolveThreadCount(options.num_threads)),
+                                       static_cast<uint64_t>(size.width),
+                                       static_cast<uint64_t>(size.height), 4}),
+                    frames_dir + ": frames of " + std::to_string(size.width) + "x" +
+                        std::to_string(size.height),
+                    "COLMAP decodes one frame per extraction thread, about 4 bytes a pixel");
   if (known && (known_camera.width != size.width || known_camera.height != size.height)) {
     ThrowInvalid(options.camera_file + ": the camera is " + std::to_string(known_camera.width) +
                  "x" + std::to_string(known_camera.height) + " but the frames are " +
