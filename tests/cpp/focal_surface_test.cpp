@@ -220,6 +220,27 @@ TEST_F(HeightfieldFiles, BadRastersAreRefusedNamingFileAndField) {
   }
   EXPECT_THAT(ErrorOf([&] { ReadHeightfield(huge); }),
               HasSubstr("huge.tif: size: 20000 x 20000 pixels is not 1 .. 268435456"));
+  // Blocks the file does not hold (a sparse GeoTIFF, or size tags claiming more than was
+  // written): GDAL reads them as nodata, or as heights of 0 without a nodata value; refused.
+  for (const bool nodata : {false, true}) {
+    const std::string sparse = Path(nodata ? "sparse_nodata.tif" : "sparse.tif");
+    char** options = nullptr;
+    options = CSLSetNameValue(options, "SPARSE_OK", "TRUE");
+    options = CSLSetNameValue(options, "TILED", "YES");
+    GDALDatasetH dataset = GDALCreate(GDALGetDriverByName("GTiff"), sparse.c_str(), 512, 512, 1,
+                                      GDT_Float32, options);
+    CSLDestroy(options);
+    double gt[6] = {0, 1, 0, 0, 0, -1};
+    GDALSetGeoTransform(dataset, gt);
+    if (nodata) GDALSetRasterNoDataValue(GDALGetRasterBand(dataset, 1), -9999.0);
+    std::vector<float> block(256 * 256, 12.5f);  // one tile of four written
+    GDALRasterIO(GDALGetRasterBand(dataset, 1), GF_Write, 0, 0, 256, 256, block.data(), 256, 256,
+                 GDT_Float32, 0, 0);
+    GDALClose(dataset);
+    EXPECT_THAT(ErrorOf([&] { ReadHeightfield(sparse); }),
+                AllOf(HasSubstr("band 1: 75 % of the raster has no data in the file"),
+                      HasSubstr(nodata ? "as nodata" : "as heights of 0")));
+  }
   // No geotransform at all.
   const std::string plain = Path("plain.tif");
   {

@@ -47,15 +47,19 @@ std::string LowerExtension(const std::string& path) {
 
 // A PNG file's chunk structure and checksums, walked before libpng sees the file: libpng prints
 // its own "libpng error: ..." line to stderr on a damaged file (OpenImageIO does not catch it),
-// so damage is found here first and reported as one error naming the file. A file that does not
-// start with the PNG signature is left to the decoders.
+// so damage is found here first and reported as one error naming the file. A file that starts
+// with "\x89PNG" but not the whole signature is damaged (libpng: "corrupted by ASCII
+// conversion"); any other file is left to the decoders.
 void CheckPngChunks(const std::string& path, uint64_t file_bytes) {
   static const unsigned char kSignature[8] = {0x89, 'P', 'N', 'G', '\r', '\n', 0x1A, '\n'};
   std::ifstream file(path, std::ios::binary);
   unsigned char signature[8] = {};
-  if (!file.read(reinterpret_cast<char*>(signature), 8) ||
-      std::memcmp(signature, kSignature, 8) != 0) {
-    return;
+  file.read(reinterpret_cast<char*>(signature), 8);
+  if (std::memcmp(signature, kSignature, 4) != 0) return;
+  if (file.gcount() < 8 || std::memcmp(signature, kSignature, 8) != 0) {
+    ThrowInvalid(path + ": damaged PNG file: its 8-byte signature is " +
+                 (file.gcount() < 8 ? std::string("cut short") : std::string("altered")) +
+                 " (as by a text-mode transfer; nothing was decoded)");
   }
   uint64_t offset = 8;
   std::vector<unsigned char> data;
