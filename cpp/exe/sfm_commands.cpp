@@ -303,6 +303,7 @@ int RunGround(GroundCommand& c, const Flags& flags) {
   if (!c.output.empty()) {
     CheckOutputPath(c.output, {c.light_field_path, c.points_path}, "output");
     RefuseExisting(c.output, "output");
+    CheckHeightfieldOutputName(c.output);  // before the points are read
   }
   LoadOptions load;
   load.load_images = false;

@@ -88,14 +88,16 @@ def test_ground_dem_lands_where_its_geotransform_says(flight: Path) -> None:
 
 
 @pytest.mark.parametrize("case", ["both", "neither", "no_output", "nan_point", "exists",
-                                  "output_is_input", "bad_cell"])
+                                  "output_is_input", "bad_cell", "not_tif"])
 def test_ground_bad_input_fails_cleanly(case: str, flight: Path) -> None:
     out = flight / "ground.tif"
     args = ["ground", flight / "lf.json", "--points", flight / "points.ply", "-o", out]
     expected = {"both": "either --points", "neither": "either --points",
                 "no_output": "-o:", "nan_point": "points.ply: element vertex 1: y is not finite",
                 "exists": "exists", "output_is_input": "output",
-                "bad_cell": "cell_size_m: must be > 0 metres"}[case]
+                "bad_cell": "cell_size_m: must be > 0 metres",
+                # It wrote a GeoTIFF named ground.xyz (exit 0) before.
+                "not_tif": "ground.xyz: a height field is written as a GeoTIFF"}[case]
     if case == "both":
         args += ["--terrain", flight / "points.ply"]
     elif case == "neither":
@@ -112,6 +114,8 @@ def test_ground_bad_input_fails_cleanly(case: str, flight: Path) -> None:
         args[-1] = flight / "points.ply"
     elif case == "bad_cell":
         args += ["--cell-size-m", "0"]
+    elif case == "not_tif":
+        args[-1] = flight / "ground.xyz"
     before = {p.name: p.read_bytes() for p in flight.iterdir() if p.is_file()}
     result = run(*args)
     assert result.returncode != 0

@@ -1,5 +1,6 @@
 #include "aos/geometry/heightfield.h"
 
+#include <cctype>
 #include <cmath>
 #include <cstring>
 #include <filesystem>
@@ -183,7 +184,16 @@ Heightfield ReadHeightfield(const std::string& path) {
   return field;
 }
 
+void CheckHeightfieldOutputName(const std::string& path) {
+  std::string extension = fs::path(path).extension().string();
+  for (char& c : extension) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  if (extension != ".tif" && extension != ".tiff") {
+    ThrowInvalid(path + ": a height field is written as a GeoTIFF; give it a .tif or .tiff name");
+  }
+}
+
 void WriteHeightfield(const std::string& path, const Heightfield& heightfield, bool overwrite) {
+  CheckHeightfieldOutputName(path);
   heightfield.Check(path);
   std::error_code error;
   if (!overwrite && fs::exists(path, error)) {

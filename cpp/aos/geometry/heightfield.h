@@ -71,9 +71,14 @@ void RegisterGdal();
 // Reads band 1 of a GDAL raster. See the contract above.
 Heightfield ReadHeightfield(const std::string& path);
 
+// Refuses (std::invalid_argument naming it) a path without a .tif or .tiff extension: a height
+// field is written as a GeoTIFF whatever its name. Callers check before the work.
+void CheckHeightfieldOutputName(const std::string& path);
+
 // Writes a single-band float32 GeoTIFF (nodata = NaN, the CRS when crs_wkt is set), under a
 // temporary name in the destination folder renamed into place when complete. Refuses an existing
-// file unless `overwrite`. Throws std::invalid_argument naming the file.
+// file unless `overwrite`, and a name CheckHeightfieldOutputName refuses. Throws
+// std::invalid_argument naming the file.
 void WriteHeightfield(const std::string& path, const Heightfield& heightfield,
                       bool overwrite = false);
 
