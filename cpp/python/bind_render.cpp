@@ -568,6 +568,14 @@ void BindMapWindows(py::module_& m) {
       "Map pixels [x0, x0 + w) x [y0, y0 + h) from views `views` only (map.h RenderMapWindow): "
       "a dict with image (float32 (h, w, C) or (h, w)), count (uint32), used_view_indices, "
       "samples, uncovered_pixels. GIL released.");
+  m.def(
+      "_check_map_covered",
+      [](const LightField& light_field, const MapOptions& options, int64_t uncovered_pixels) {
+        py::gil_scoped_release release;
+        CheckMapCovered(light_field, ResolveMapGrid(light_field, options), uncovered_pixels);
+      },
+      "light_field"_a, "options"_a, "uncovered_pixels"_a,
+      "Refuses a map on a focal surface with no pixel covered (map.h CheckMapCovered).");
   py::class_<MapGeoTiffWriter>(m, "_MapGeoTiffWriter",
                                "Writes a map window by window (map.h MapGeoTiffWriter).")
       .def(py::init([](const LightField& light_field, const MapOptions& options, int channels,

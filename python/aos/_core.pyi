@@ -833,6 +833,9 @@ def _render_map_window(
     h: int,
     views: Sequence[int],
 ) -> dict[str, Any]: ...
+def _check_map_covered(
+    light_field: LightField, options: MapOptions, uncovered_pixels: int
+) -> None: ...
 
 class _MapGeoTiffWriter:
     """Writes a map window by window (map.h MapGeoTiffWriter)."""

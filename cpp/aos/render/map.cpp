@@ -356,11 +356,15 @@ MapSummary RenderMapTiles(const LightField& light_field, const MapOptions& optio
   // An all-nodata map on a surface is no map of the terrain (a DEM beside the flight or in
   // another frame): refused like aos-render integral's render (WriteMapGeoTiff then leaves no
   // file).
+  CheckMapCovered(light_field, grid, summary.uncovered_pixels);
+  return summary;
+}
+
+void CheckMapCovered(const LightField& light_field, const MapGrid& grid, int64_t uncovered_pixels) {
   if (grid.surface) {
-    CheckSurfaceCovers(*grid.surface, light_field, "the map", summary.uncovered_pixels,
+    CheckSurfaceCovers(*grid.surface, light_field, "the map", uncovered_pixels,
                        static_cast<int64_t>(grid.width) * grid.height, MapExtent(grid));
   }
-  return summary;
 }
 
 MapResult RenderMap(const LightField& light_field, const MapOptions& options,

@@ -126,6 +126,11 @@ struct MapGrid {
 // pixels or fewer than 2 on a side (naming pixel_size or width, and extent).
 MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options);
 
+// After a map on a focal surface is rendered (here, or tile by tile on a cluster): refuses it
+// when no pixel is covered, `uncovered_pixels` being the sum over its tiles
+// (CheckSurfaceCovers, naming the surface, its extent and the map's). No-op on a plane.
+void CheckMapCovered(const LightField& light_field, const MapGrid& grid, int64_t uncovered_pixels);
+
 // THE focal points of the map pixels [x0, x0 + w) x [y0, y0 + h): each pixel centre's vertical
 // line meets the focal surface (today the plane z = focal_height), relative to the map's centre
 // (the reference of every tile).

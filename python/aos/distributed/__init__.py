@@ -682,6 +682,8 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             if progress is not None:
                 progress("render map", done, len(windows))
         result.views_used = len(used)
+        # A map on a surface with no pixel covered is refused, as on one machine (no file).
+        _core._check_map_covered(poses, options, result.uncovered_pixels)
         if writer is not None:
             write_started = time.perf_counter()
             writer.commit(progress)
