@@ -392,13 +392,13 @@ def test_a_map_on_a_sloped_dem_is_bit_for_bit_too(survey: Path, tmp_path: Path, 
 
 def test_a_map_on_a_dem_that_covers_no_pixel_is_refused_too(survey: Path, tmp_path: Path,
                                                             client) -> None:
-    """A DEM whose box spans the map but whose heights there are all nodata (its valid pixels
-    lie far outside): in one process the map is refused (no pixel covered); on a cluster it was
-    written, every pixel nodata, with exit 0."""
+    """A DEM whose valid heights are a ring around the map (nodata inside): its extent spans the
+    map, so only the render finds that no pixel is covered. In one process the map is refused;
+    on a cluster it was written, every pixel nodata, with exit 0."""
     lf = aos.load_lightfield(survey).light_field
-    heights = np.full((200, 200), np.nan, np.float32)
-    heights[0:2, 0:2] = 0.0  # one cell of 2 x 2 valid pixels, at the far corner
-    dem = aos.Heightfield(heights, (-100.0, 1.0, 0.0, 100.0, 0.0, -1.0))
+    heights = np.zeros((40, 40), np.float32)
+    heights[2:-2, 2:-2] = np.nan
+    dem = aos.Heightfield(heights, (-20.0, 1.0, 0.0, 20.0, 0.0, -1.0))
     options = dict(pixel_size=PIXEL, focal_surface=dem, tile_size=TILE)
     with pytest.raises(ValueError, match="no pixel is covered"):
         aos.render_map(lf, **options)
