@@ -932,6 +932,7 @@ struct ViewCommand {
   IntegralOptions options;
   std::string host = "127.0.0.1";
   int port = 0;
+  int max_pages = 0;  // 0: not given (the viewer's default, MAX_PAGES in aos/viewer/session.py)
   bool no_browser = false;
   bool browser = false;
 };
@@ -1088,6 +1089,7 @@ int RunView(ViewCommand& c, const Flags& flags) {
   spec["surface_offset"] = o.surface_offset;
   spec["host"] = c.host;
   spec["port"] = c.port;
+  if (c.max_pages > 0) spec["max_pages"] = c.max_pages;
   if (c.no_browser) {
     spec["open_browser"] = false;
   } else if (c.browser) {
@@ -1166,6 +1168,10 @@ CommandRunner DefineView(CLI::App* command) {
   command->add_option("--port", c->port, "TCP port; 0 = any free port")
       ->check(CLI::Range(0, 65535))
       ->default_str("0");
+  command->add_option("--max-pages", c->max_pages,
+                      "Pages (browser tabs) served at once; the next is refused until one closes "
+                      "(default 32)")
+      ->check(CLI::Range(1, 4096));
   command->add_flag("--no-browser", c->no_browser,
                     "Do not open a browser (default: open one where a desktop session exists)");
   command->add_flag("--browser", c->browser, "Open a browser even without a desktop session");

@@ -1084,6 +1084,39 @@ def test_open_pages_are_bounded() -> None:
         handle.stop()
 
 
+@pytest.mark.skipif(EXE is None, reason="aos-render is not on PATH")
+def test_cli_max_pages_bounds_the_open_pages(lightfield_file: Path) -> None:
+    """`aos-render view --max-pages N` (it was a Python-only option): the second page of N = 1
+    is refused with the reason; 0 is a usage error."""
+    bad = subprocess.run([EXE, "view", str(lightfield_file), "--no-browser", "--max-pages", "0"],
+                         capture_output=True, text=True, timeout=60, env=cli_env())
+    assert bad.returncode == 2 and "--max-pages" in bad.stderr, bad.stderr
+    process = subprocess.Popen([EXE, "view", str(lightfield_file), "--no-browser", "--json",
+                                "--pose-view", "4", "--max-pages", "1"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               env=cli_env())
+    try:
+        report = json.loads(process.stdout.readline())
+        url = report["url"].replace("http://", "ws://").replace("/?token=", "/ws?token=")
+
+        async def run() -> None:
+            async with aiohttp.ClientSession() as client:
+                first = await client.ws_connect(url)
+                await first.send_str(json.dumps({"type": "render", "id": 1}))
+                assert decode_frame((await first.receive(timeout=30)).data)[0]["id"] == 1
+                second = await client.ws_connect(url)
+                refusal = json.loads((await second.receive(timeout=30)).data)
+                assert "at most 1 open pages (max_pages)" in refusal["message"], refusal
+                await first.close()
+
+        asyncio.run(run())
+        process.send_signal(signal.SIGINT)
+        assert process.wait(timeout=30) == 0
+    finally:
+        if process.poll() is None:
+            process.kill()
+
+
 def test_the_browser_is_never_given_the_token(monkeypatch: pytest.MonkeyPatch) -> None:
     """The browser was opened with the tokenised URL, on its command line, where `ps` shows it
     to every local user. It now gets a file of this user's that redirects to the URL."""
