@@ -348,7 +348,7 @@ int RunRectify(const RectifyCommand& c, const Flags& flags) {
   }
   Rectifier rectifier;
   try {
-    rectifier = MakeRectifier(lens, c.options);
+    rectifier = MakeRectifier(lens, c.options, &progress);
   } catch (const std::invalid_argument& error) {
     // A lens that cannot cover the view comes from the camera file: name it too (its values
     // may be what is wrong). Other errors name their flag.

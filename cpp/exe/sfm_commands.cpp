@@ -321,8 +321,10 @@ int RunGround(GroundCommand& c, const Flags& flags) {
     std::vector<Vec3d> points = ReadPoints(c.points_path);
     for (Vec3d& p : points) p -= light_field.origin;
     const int up_sign = GroundUpSign(points, light_field);
+    ProgressBar progress(Common().quiet);
     const GroundResult ground =
-        flags.NamingFlags([&] { return EstimateGround(points, up_sign, c.options); });
+        flags.NamingFlags([&] { return EstimateGround(points, up_sign, c.options, &progress); });
+    progress.Finish();
     if (up_sign < 0) {
       Warn(c.output + ": the light field's z axis points down (the cameras fly at smaller z than "
            "the ground), so the DEM holds the frame's z values, which grow downwards: not "

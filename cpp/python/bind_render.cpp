@@ -879,9 +879,15 @@ void BindRectify(py::module_& m) {
         return "Rectifier(camera=" + std::string(py::repr(py::cast(rectifier.camera))) + ")";
       });
 
-  m.def("make_rectifier", &MakeRectifier, "lens"_a, "options"_a,
-        "Resampling maps for a lens and options; raises ValueError if the lens does not cover "
-        "the requested view.");
+  m.def(
+      "make_rectifier",
+      [](const LensCamera& lens, const RectifyOptions& options) {
+        return RunWithProgress(py::none(),
+                               [&](ProgressSink* sink) { return MakeRectifier(lens, options, sink); });
+      },
+      "lens"_a, "options"_a,
+      "Resampling maps for a lens and options; raises ValueError if the lens does not cover "
+      "the requested view (Ctrl-C raises KeyboardInterrupt).");
 
   py::class_<RectifyLightFieldResult>(m, "RectifyLightFieldResult",
                                       "What rectify_light_field returns.")

@@ -219,10 +219,13 @@ void BindSfm(py::module_& m) {
       [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points, int up_sign,
          const GroundOptions& options) {
         const std::vector<Vec3d> list = PointsFromArray(points);
-        py::gil_scoped_release release;
-        return EstimateGround(list, up_sign, options);
+        const GroundOptions options_copy = options;
+        return RunWithProgress(py::none(), [&](ProgressSink* sink) {
+          return EstimateGround(list, up_sign, options_copy, sink);
+        });
       },
-      "points"_a, "up_sign"_a, "options"_a, "Prefer aos.estimate_ground.");
+      "points"_a, "up_sign"_a, "options"_a,
+      "Prefer aos.estimate_ground (Ctrl-C raises KeyboardInterrupt).");
   m.def(
       "_ground_up_sign",
       [](const py::array_t<double, py::array::c_style | py::array::forcecast>& points,

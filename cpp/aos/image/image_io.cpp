@@ -714,13 +714,24 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
     spec.attribute("oiio:UnassociatedAlpha", 1);
     spec.attribute("png:compressionLevel", options.png_compression_level);
   }
-  if (!output->open(pending.TempPath(), spec) ||
-      !output->write_image(file_type, buffer.data()) || !output->close()) {
+  auto fail = [&] {
     std::string reason = output->geterror();
     ThrowInvalid(path + ": cannot write image (" + (reason.empty() ? "unknown reason" : reason) +
                  ")");
+  };
+  if (!output->open(pending.TempPath(), spec)) fail();
+  // In bands of rows, the process's cancellation polled between them (a 2048^2 float TIFF takes
+  // about a second): a signal stops the write, and the temporary file goes with `pending`.
+  const size_t row_bytes = static_cast<size_t>(width) * channels * file_type.size();
+  constexpr int kBandRows = 64;
+  for (int y = 0; y < height; y += kBandRows) {
+    ThrowIfOutputCancelled();
+    const int end = std::min(height, y + kBandRows);
+    if (!output->write_scanlines(y, end, 0, file_type, buffer.data() + row_bytes * y)) fail();
   }
+  if (!output->close()) fail();
   output.reset();
+  ThrowIfOutputCancelled();
   // libtiff reports some failures (a full disk, a file-size limit) only as a file that cannot
   // be read back, while every call above succeeds: read the file back, and compare it where the
   // format is lossless, before it replaces anything.

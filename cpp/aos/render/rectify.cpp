@@ -62,7 +62,8 @@ uint64_t RectifierBytes(const LensCamera& lens, const RectifyOptions& options) {
                             static_cast<uint64_t>(std::max(height, 0)), 2 * sizeof(float)});
 }
 
-Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options) {
+Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options,
+                        ProgressSink* progress) {
   options.Check();
   LensCamera checked = lens;
   checked.Finalize("camera");
@@ -81,6 +82,7 @@ Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options) {
   int64_t uncovered = 0;
   double worst_angle = 0.0;
   for (int y = 0; y < height; ++y) {
+    if (ProgressCancelled(progress)) throw Cancelled();
     for (int x = 0; x < width; ++x) {
       const Vec3d ray = r.lens_from_rectified * r.camera.Unproject(Vec2d(x + 0.5, y + 0.5));
       Vec2d pixel;
@@ -179,7 +181,7 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
                               [&](const auto& entry) { return entry.first.SameParameters(view.camera); });
     if (found == rectifiers.end()) {
       try {
-        rectifiers.emplace_back(view.camera, MakeRectifier(view.camera, options));
+        rectifiers.emplace_back(view.camera, MakeRectifier(view.camera, options, progress));
       } catch (const std::invalid_argument& error) {
         ThrowInvalid(std::string(error.what()) + " (view " + view.name + ")");
       }

@@ -53,7 +53,9 @@ struct Rectifier {
 };
 
 // Builds the resampling maps once for a lens and options (reused for every frame).
-Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options);
+// `progress` is polled for cancellation (aos::Cancelled) once per row of the maps.
+Rectifier MakeRectifier(const LensCamera& lens, const RectifyOptions& options,
+                        ProgressSink* progress = nullptr);
 
 // The rectified size for `lens` under `options` (options.width/height, 0 = the lens's), and the
 // bytes MakeRectifier's maps take for it.

@@ -113,12 +113,17 @@ int GroundUpSign(const std::vector<Vec3d>& points, const LightField& light_field
 }
 
 GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
-                            const GroundOptions& options) {
+                            const GroundOptions& options, ProgressSink* progress) {
   options.Check();
+  // Polled every 65536 items of the loops below (and every row of the fill).
+  const auto poll = [progress](size_t item) {
+    if ((item & 0xFFFF) == 0 && ProgressCancelled(progress)) throw Cancelled();
+  };
   if (up_sign != 1 && up_sign != -1) ThrowInvalid("up_sign: must be +1 or -1");
   double min_x = std::numeric_limits<double>::infinity(), min_y = min_x;
   double max_x = -min_x, max_y = -min_x;
   for (size_t i = 0; i < points.size(); ++i) {
+    poll(i);
     const Vec3d& p = points[i];
     if (!std::isfinite(p.x) || !std::isfinite(p.y) || !std::isfinite(p.z)) {
       ThrowInvalid("points: point " + std::to_string(i) + " is not finite");
@@ -151,7 +156,9 @@ GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
 
   // Heights (up_sign * z) per cell.
   std::vector<std::vector<double>> heights(count);
-  for (const Vec3d& p : points) {
+  for (size_t n = 0; n < points.size(); ++n) {
+    poll(n);
+    const Vec3d& p = points[n];
     const int i = std::min(static_cast<int>((p.x - min_x) / cell), result.width - 1);
     const int j = std::min(static_cast<int>((p.y - min_y) / cell), result.height - 1);
     heights[static_cast<size_t>(j) * result.width + i].push_back(up_sign * p.z);
@@ -161,6 +168,7 @@ GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
   std::vector<Vec3d> samples;  // (x, y, height) per measured cell
   std::vector<size_t> sample_cell;
   for (size_t k = 0; k < count; ++k) {
+    poll(k);
     std::vector<double>& h = heights[k];
     if (static_cast<int>(h.size()) < options.min_points_per_cell) continue;
     std::sort(h.begin(), h.end());
@@ -263,6 +271,7 @@ GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
   };
   std::vector<uint8_t> drop(count, 0);
   for (size_t k = 0; k < count; ++k) {
+    poll(k);
     if (!candidate[k]) continue;
     const int i = static_cast<int>(k % static_cast<size_t>(result.width));
     const int j = static_cast<int>(k / static_cast<size_t>(result.width));
@@ -275,7 +284,10 @@ GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
   // Fill from the nearest ring of measured cells (their mean residual from the plane).
   result.z.assign(count, 0.0f);
   result.measured = measured;
+  ProgressStart(progress, "ground", result.height);
   for (int j = 0; j < result.height; ++j) {
+    if (ProgressCancelled(progress)) throw Cancelled();
+    ProgressAdvance(progress, 1);
     for (int i = 0; i < result.width; ++i) {
       const size_t k = static_cast<size_t>(j) * result.width + i;
       double height = value[k];

@@ -39,6 +39,7 @@
 #include "aos/geometry/heightfield.h"
 #include "aos/geometry/rigid.h"
 #include "aos/lightfield/lightfield.h"
+#include "aos/util/progress.h"
 
 namespace aos {
 
@@ -79,8 +80,10 @@ struct GroundResult {
 // +1 if the camera centres lie above the points' median z (z up), else -1.
 int GroundUpSign(const std::vector<Vec3d>& points, const LightField& light_field);
 
+// `progress` is polled for cancellation (aos::Cancelled) while cells are binned, judged and
+// filled, and gets one "ground" stage of a unit per row of cells.
 GroundResult EstimateGround(const std::vector<Vec3d>& points, int up_sign,
-                            const GroundOptions& options = {});
+                            const GroundOptions& options = {}, ProgressSink* progress = nullptr);
 
 // The elevation model as a height field (a DEM GeoTIFF with WriteHeightfield): world coordinates
 // (origin + local), row 0 at the largest y (north up for a geo-referenced frame), world z as

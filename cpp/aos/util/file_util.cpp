@@ -64,6 +64,8 @@ void ThrowIfCommitCancelled() {
 
 void SetCommitCancelled(bool (*cancelled)()) { g_commit_cancelled.store(cancelled); }
 
+void ThrowIfOutputCancelled() { ThrowIfCommitCancelled(); }
+
 void RemovePendingOutputs() {
   std::lock_guard<std::mutex> lock(PendingMutex());
   for (const std::string& path : PendingPaths()) {

@@ -57,6 +57,9 @@ void RemovePendingOutputs();
 // moving a finished output into place, so a signal that arrives while an output is being written
 // (after the command's last progress poll) still leaves no output. The CLI sets its signal flag.
 void SetCommitCancelled(bool (*cancelled)());
+// Throws aos::Cancelled when that source is set and answers true: for writers to poll between
+// parts of a long write (WriteImage polls between bands of rows).
+void ThrowIfOutputCancelled();
 
 // Moves several finished files into place together: files already at the final paths are first
 // renamed to backups, then every temporary file is renamed; if any rename fails, the new files are
