@@ -66,6 +66,39 @@ def loaded_with_pose_source(tmp_path: Path) -> aos.LoadResult:
     return aos.load_lightfield(path)
 
 
+# The light-field-level fields (not the views), each set to a value unlike its default below.
+LIGHT_FIELD_FIELDS = ("origin", "crs", "pose_source", "masked")
+
+
+def test_every_light_field_field_survives_rectify_copy_pickle_and_files(tmp_path: Path) -> None:
+    """rectify_light_field dropped the crs (EPSG:32633 became ''), and the next render on a DEM
+    covered nothing. Every field of a light field but its views carries through rectify,
+    copy, pickle and a write/read; a field added to LightField fails here until listed."""
+    properties = {name for name in dir(aos.LightField)
+                  if isinstance(getattr(aos.LightField, name), property)}
+    assert properties - {"views"} == set(LIGHT_FIELD_FIELDS)
+    light_field = loaded_with_pose_source(tmp_path).light_field
+    light_field.crs = "EPSG:32633"
+    assert light_field.pose_source is not None and tuple(light_field.origin) != (0, 0, 0)
+
+    def fields(lf: aos.LightField) -> dict:
+        return {name: (tuple(getattr(lf, name)) if name == "origin" else
+                       pickle.dumps(getattr(lf, name))) for name in LIGHT_FIELD_FIELDS}
+
+    expected = fields(light_field)
+    assert fields(aos.rectify_light_field(light_field, fov_deg=60).light_field) == expected
+    assert fields(copy.copy(light_field)) == expected
+    assert fields(pickle.loads(pickle.dumps(light_field))) == expected
+    aos.write_lightfield(tmp_path / "again.json", light_field)
+    assert fields(aos.load_lightfield(tmp_path / "again.json").light_field) == expected
+    # masked (a written light field is never masked): through rectify and pickle.
+    aos.write_image(str(tmp_path / "mask.png"), np.full((12, 16), 255, np.uint8))
+    masked = aos.load_lightfield(tmp_path / "again.json", mask=tmp_path / "mask.png").light_field
+    assert masked.masked
+    assert fields(aos.rectify_light_field(masked, fov_deg=60).light_field) == fields(masked)
+    assert fields(pickle.loads(pickle.dumps(masked))) == fields(masked)
+
+
 # --- 1. results have .image; a focal stack's slices are one ndarray --------------------------
 
 def test_every_image_result_has_image() -> None:

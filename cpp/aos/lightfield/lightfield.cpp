@@ -10,6 +10,15 @@
 
 namespace aos {
 
+LightField EmptyLike(const LightField& light_field) {
+  LightField empty;
+  empty.origin = light_field.origin;
+  empty.crs = light_field.crs;
+  empty.pose_source = light_field.pose_source;
+  empty.masked = light_field.masked;
+  return empty;
+}
+
 size_t LightField::ImageBytes() const {
   size_t bytes = 0;
   for (const View& view : views) bytes += view.image.PixelBytes();

@@ -63,6 +63,11 @@ struct LightField {
   size_t ImageBytes() const;
 };
 
+// Every field of `light_field` but its views (origin, crs, pose_source, masked): the start of a
+// light field derived from it view by view (rectify), so that none of its fields is dropped.
+// A field added to LightField is added here (test_python_api.py checks each field survives).
+LightField EmptyLike(const LightField& light_field);
+
 // Builds a view from an image, checking it. The image is copied with a replicated border if it
 // has none (else its pixels are shared). Throws std::invalid_argument naming `name` and the field
 // for a bad camera, a camera that disagrees with the image size, an invalid pose, or a

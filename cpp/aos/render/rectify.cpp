@@ -136,10 +136,9 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
                                           ProgressSink* progress) {
   options.Check();
   RectifyLightFieldResult result;
-  result.light_field.origin = light_field.origin;
-  result.light_field.pose_source = light_field.pose_source;
-  // Resampled premultiplied values and weights stay premultiplied (lightfield/mask.h).
-  result.light_field.masked = light_field.masked;
+  // Every field but the views (the crs was dropped); resampled premultiplied values and weights
+  // stay premultiplied (lightfield/mask.h), so masked carries over too.
+  result.light_field = EmptyLike(light_field);
   std::vector<std::pair<LensCamera, Rectifier>> rectifiers;  // one per distinct lens
   {
     // What the loop allocates, before it does: the maps of each distinct lens and every
