@@ -23,6 +23,7 @@
 #include <optional>
 #include <string>
 #include <thread>
+#include <type_traits>
 #include <utility>
 #include <vector>
 
@@ -211,14 +212,50 @@ auto RunWithProgress(const py::object& callback, Compute&& compute) {
 //   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
 //   __repr__ listing the fields, __eq__ comparing them, __copy__ and __deepcopy__ (C++ copies),
 //   and pickling (the state is a dict of the fields, nested options pickled the same way).
+// A value of the bound enum E from Python: an E, or the name of one of its values. Raises
+// ValueError naming `field` and the choices for an unknown name (TypeError for other types).
+template <typename E>
+E EnumFromPython(const py::object& value, const std::string& field) {
+  if (py::isinstance<py::str>(value)) {
+    const std::string name = value.cast<std::string>();
+    const py::dict members = py::cast(E{}).get_type().attr("__members__");
+    if (members.contains(name)) return members[name.c_str()].template cast<E>();
+    std::string choices;
+    for (const auto& item : members) {
+      choices += (choices.empty() ? "" : ", ") + py::str(item.first).cast<std::string>();
+    }
+    throw py::value_error(field + ": unknown value '" + name + "' (one of " + choices + ")");
+  }
+  try {
+    return value.cast<E>();
+  } catch (const py::cast_error&) {
+    throw py::type_error(field + ": expected " +
+                         py::str(py::cast(E{}).get_type().attr("__name__")).cast<std::string>() +
+                         " or the name of one of its values, got " +
+                         py::str(value.get_type().attr("__name__")).cast<std::string>());
+  }
+}
+
 template <typename Options>
 class OptionsClass {
  public:
   OptionsClass(py::module_& m, const char* name, const char* doc) : class_(m, name, doc) {}
 
+  // An enum field also takes its value's name ("robust" for MergeMethod.robust), in the
+  // keyword constructor and on assignment; an unknown name raises ValueError with the choices.
   template <typename T>
   OptionsClass& Field(const char* name, T Options::*member, const char* doc) {
-    class_.def_readwrite(name, member, doc);
+    if constexpr (std::is_enum_v<T>) {
+      const std::string field = name;
+      class_.def_property(
+          name, [member](const Options& options) { return options.*member; },
+          [member, field](Options& options, const py::object& value) {
+            options.*member = EnumFromPython<T>(value, field);
+          },
+          doc);
+    } else {
+      class_.def_readwrite(name, member, doc);
+    }
     fields_.emplace_back(name);
     return *this;
   }

@@ -574,7 +574,7 @@ class CalibrateOptions:
     def __init__(
         self,
         *,
-        model: LensModel = ...,
+        model: LensModel | str = ...,
         pattern_columns: int = ...,
         pattern_rows: int = ...,
         square_size_m: float = ...,
@@ -960,7 +960,7 @@ class MergeOptions:
     def __init__(
         self,
         *,
-        method: MergeMethod = ...,
+        method: MergeMethod | str = ...,
         window_radius: int = ...,
         smoothing_sigma: float = ...,
         edge_sigma: float = ...,

@@ -99,6 +99,23 @@ def test_every_light_field_field_survives_rectify_copy_pickle_and_files(tmp_path
     assert fields(pickle.loads(pickle.dumps(masked))) == fields(masked)
 
 
+def test_enum_options_take_their_names() -> None:
+    """aos.MergeOptions(method="robust") was a TypeError listing signatures (only the functions'
+    keywords took names); an unknown name is a ValueError with the choices."""
+    assert aos.MergeOptions(method="robust").method == aos.MergeMethod.robust
+    assert aos.CalibrateOptions(model="fisheye").model == aos.LensModel.fisheye
+    options = aos.MergeOptions()
+    options.method = "sobel"
+    assert options.method == aos.MergeMethod.sobel
+    options.method = aos.MergeMethod.improved
+    assert options == aos.MergeOptions(method="improved")
+    with pytest.raises(ValueError, match=r"method: unknown value 'median' \(one of sobel, "
+                                         r"improved, robust\)"):
+        aos.MergeOptions(method="median")
+    with pytest.raises(TypeError, match="method: expected MergeMethod or the name"):
+        aos.MergeOptions(method=2)
+
+
 # --- 1. results have .image; a focal stack's slices are one ndarray --------------------------
 
 def test_every_image_result_has_image() -> None:
