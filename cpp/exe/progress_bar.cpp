@@ -1,5 +1,6 @@
 #include "progress_bar.h"
 
+#include <atomic>
 #include <csignal>
 #include <cstdio>
 #include <thread>
@@ -13,6 +14,8 @@ namespace aos::cli {
 namespace {
 volatile std::sig_atomic_t g_interrupted = 0;
 volatile std::sig_atomic_t g_signal = 0;  // the first signal that came
+// Set when a poll (Interrupted()) has seen the signal: the work is stopping on its own.
+std::atomic<bool> g_seen{false};
 void OnInterrupt(int signal_number) {
   if (g_signal == 0) g_signal = signal_number;
   g_interrupted = 1;
@@ -38,16 +41,26 @@ void InstallInterruptHandler() {
     while (g_interrupted == 0) std::this_thread::sleep_for(std::chrono::milliseconds(50));
     std::this_thread::sleep_for(std::chrono::milliseconds(1500));
     RemovePendingOutputs();
-    // Said apart from the usual line: the table test (test_cli_table.py) tells a command that
-    // stopped at a poll from one this ended.
-    static const char kMessage[] =
+    // Said apart from the usual line when no poll has seen the signal (the table test,
+    // test_cli_table.py, tells work stopped at a poll from work this ended); a command that saw
+    // it and is still unwinding ends here too, with the usual line.
+    static const char kMessage[] = "aos-render: interrupted; no output written\n";
+    static const char kBetweenPolls[] =
         "aos-render: interrupted; no output written (ended 1.5 s after the signal, between "
         "polls)\n";
-    (void)!::write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+    if (g_seen.load()) {
+      (void)!::write(STDERR_FILENO, kMessage, sizeof(kMessage) - 1);
+    } else {
+      (void)!::write(STDERR_FILENO, kBetweenPolls, sizeof(kBetweenPolls) - 1);
+    }
     ::_exit(InterruptExitCode());
   }).detach();
 }
-bool Interrupted() { return g_interrupted != 0; }
+bool Interrupted() {
+  if (g_interrupted == 0) return false;
+  g_seen.store(true);
+  return true;
+}
 int InterruptExitCode() { return 128 + (g_signal != 0 ? static_cast<int>(g_signal) : SIGINT); }
 
 ProgressBar::ProgressBar(bool quiet) : quiet_(quiet), terminal_(::isatty(STDERR_FILENO) != 0) {}

@@ -259,7 +259,7 @@ void BindTerrain(py::module_& m) {
            },
            "path"_a, "overwrite"_a = false,
            "Writes a float32 GeoTIFF (nodata NaN), atomically; refuses an existing file unless "
-           "overwrite.")
+           "overwrite, and a path not ending in .tif or .tiff.")
       .def("to_mesh", [](const Heightfield& field) { return HeightfieldToMesh(field); },
            "Two triangles per cell of 2 x 2 valid pixel centres (world coordinates).")
       .def_readonly("width", &Heightfield::width, "Pixels.")

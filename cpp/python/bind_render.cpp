@@ -882,8 +882,11 @@ void BindRectify(py::module_& m) {
   m.def(
       "make_rectifier",
       [](const LensCamera& lens, const RectifyOptions& options) {
-        return RunWithProgress(py::none(),
-                               [&](ProgressSink* sink) { return MakeRectifier(lens, options, sink); });
+        const LensCamera lens_copy = lens;  // the GIL is released while the maps are built
+        const RectifyOptions options_copy = options;
+        return RunWithProgress(py::none(), [&](ProgressSink* sink) {
+          return MakeRectifier(lens_copy, options_copy, sink);
+        });
       },
       "lens"_a, "options"_a,
       "Resampling maps for a lens and options; raises ValueError if the lens does not cover "

@@ -207,11 +207,6 @@ auto RunWithProgress(const py::object& callback, Compute&& compute) {
   return std::move(*result);
 }
 
-// Binds an XxxOptions struct as a Python class whose read/write properties are exactly the
-// struct's fields (defaults therefore come from C++), with
-//   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
-//   __repr__ listing the fields, __eq__ comparing them, __copy__ and __deepcopy__ (C++ copies),
-//   and pickling (the state is a dict of the fields, nested options pickled the same way).
 // A value of the bound enum E from Python: an E, or the name of one of its values. Raises
 // ValueError naming `field` and the choices for an unknown name (TypeError for other types).
 template <typename E>
@@ -236,6 +231,11 @@ E EnumFromPython(const py::object& value, const std::string& field) {
   }
 }
 
+// Binds an XxxOptions struct as a Python class whose read/write properties are exactly the
+// struct's fields (defaults therefore come from C++), with
+//   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
+//   __repr__ listing the fields, __eq__ comparing them, __copy__ and __deepcopy__ (C++ copies),
+//   and pickling (the state is a dict of the fields, nested options pickled the same way).
 template <typename Options>
 class OptionsClass {
  public:

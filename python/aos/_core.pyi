@@ -432,7 +432,8 @@ class Heightfield:
     def read(path: str) -> Heightfield:
         """Reads band 1 of a GDAL raster (nodata -> NaN)."""
     def write(self, path: str, overwrite: bool = False) -> None:
-        """Writes a float32 GeoTIFF atomically; refuses an existing file unless overwrite."""
+        """Writes a float32 GeoTIFF atomically; refuses an existing file unless overwrite, and a
+        path not ending in .tif or .tiff."""
     def to_mesh(self) -> Mesh: ...
     @property
     def width(self) -> int: ...
@@ -580,8 +581,11 @@ class CalibrateOptions:
         square_size_m: float = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
-    model: LensModel
-    """Lens model to fit (pinhole, radtan, fisheye, omnidir)."""
+    @property
+    def model(self) -> LensModel:
+        """Lens model to fit (pinhole, radtan, fisheye, omnidir); also set by name."""
+    @model.setter
+    def model(self, value: LensModel | str) -> None: ...
     pattern_columns: int
     """Inner corners of the checkerboard per row (>= 2)."""
     pattern_rows: int
@@ -969,7 +973,11 @@ class MergeOptions:
         num_threads: int = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
-    method: MergeMethod
+    @property
+    def method(self) -> MergeMethod:
+        """sobel, improved (default) or robust; also set by name."""
+    @method.setter
+    def method(self, value: MergeMethod | str) -> None: ...
     window_radius: int
     smoothing_sigma: float
     edge_sigma: float

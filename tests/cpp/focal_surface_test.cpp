@@ -221,7 +221,8 @@ TEST_F(HeightfieldFiles, BadRastersAreRefusedNamingFileAndField) {
   EXPECT_THAT(ErrorOf([&] { ReadHeightfield(huge); }),
               HasSubstr("huge.tif: size: 20000 x 20000 pixels is not 1 .. 268435456"));
   // Blocks the file does not hold (a sparse GeoTIFF, or size tags claiming more than was
-  // written): GDAL reads them as nodata, or as heights of 0 without a nodata value; refused.
+  // written): GDAL reads them as heights of 0 without a nodata value (refused), as nodata with
+  // one (holes).
   for (const bool nodata : {false, true}) {
     const std::string sparse = Path(nodata ? "sparse_nodata.tif" : "sparse.tif");
     char** options = nullptr;
@@ -237,9 +238,15 @@ TEST_F(HeightfieldFiles, BadRastersAreRefusedNamingFileAndField) {
     GDALRasterIO(GDALGetRasterBand(dataset, 1), GF_Write, 0, 0, 256, 256, block.data(), 256, 256,
                  GDT_Float32, 0, 0);
     GDALClose(dataset);
-    EXPECT_THAT(ErrorOf([&] { ReadHeightfield(sparse); }),
-                AllOf(HasSubstr("band 1: 75 % of the raster has no data in the file"),
-                      HasSubstr(nodata ? "as nodata" : "as heights of 0")));
+    if (!nodata) {
+      EXPECT_THAT(ErrorOf([&] { ReadHeightfield(sparse); }),
+                  AllOf(HasSubstr("band 1: 75 % of the raster has no data in the file"),
+                        HasSubstr("heights of 0")));
+      continue;
+    }
+    const Heightfield holes = ReadHeightfield(sparse);
+    EXPECT_EQ(holes.heights[0], 12.5f);                       // the written tile
+    EXPECT_TRUE(std::isnan(holes.heights[511 * 512 + 511]));  // a missing one: a hole
   }
   // No geotransform at all.
   const std::string plain = Path("plain.tif");

@@ -160,19 +160,20 @@ Heightfield ReadHeightfield(const std::string& path) {
   }
   int has_nodata = 0;
   const double nodata = GDALGetRasterNoDataValue(band, &has_nodata);
-  // Strips or tiles the file does not hold (offset or size 0: a header whose size tags claim
-  // more than was written, a cut file, or a sparse GeoTIFF) come back from GDAL as nodata, or as
-  // heights of 0 that look real when the file declares none. Refused either way: a DEM is
-  // expected to hold every block (gdal_translate writes them all, as nodata where unknown).
+  // Blocks the file does not hold (strips or tiles with no data: a sparse GeoTIFF, size tags
+  // claiming more than was written; areas no source covers in a VRT) come back from GDAL as the
+  // nodata value, holes, when the raster declares one, and as heights of 0 that look real when
+  // it declares none: refused then.
   double covered_percent = 100.0;
   const int coverage = GDALGetDataCoverageStatus(band, 0, 0, field.width, field.height, 0,
                                                  &covered_percent);
-  if ((coverage & GDAL_DATA_COVERAGE_STATUS_EMPTY) != 0) {
-    ThrowInvalid(path + ": band 1: " + FormatNumber(std::round((100.0 - covered_percent) * 10) / 10) +
-                 " % of the raster has no data in the file (missing strips or tiles: a cut, "
-                 "forged or sparse file; GDAL would read them as " +
-                 (has_nodata ? std::string("nodata") : std::string("heights of 0")) +
-                 "); write every block first (gdal_translate)");
+  if (!has_nodata && (coverage & GDAL_DATA_COVERAGE_STATUS_EMPTY) != 0) {
+    const double empty = 100.0 - covered_percent;
+    ThrowInvalid(path + ": band 1: " +
+                 (empty < 0.1 ? std::string("under 0.1") : FormatNumber(std::round(empty * 10) / 10)) +
+                 " % of the raster has no data in the file (missing strips or tiles, or areas no "
+                 "source covers) and it declares no nodata value, so GDAL would read heights of "
+                 "0 there; declare a nodata value (gdal_translate -a_nodata) or write every block");
   }
   if (has_nodata) {
     const float nodata_f = static_cast<float>(nodata);

@@ -9,7 +9,10 @@
 //   gt[5] (GDAL's convention: gt[0], gt[3] are the outer corner of pixel (0, 0)). Heights are
 //   metres in the same world frame (for a light field: world = LightField::origin + local).
 //   Rotated or sheared geotransforms (gt[2], gt[4] != 0) are refused.
-// - Nodata pixels (the band's nodata value, or NaN) are NaN in `heights`. A raster without a
+// - Nodata pixels (the band's nodata value, or NaN) are NaN in `heights`, and so are blocks the
+//   file does not hold (a sparse GeoTIFF, areas no VRT source covers) when the band declares a
+//   nodata value; without one GDAL would read them as heights of 0, and the file is refused.
+//   A raster without a
 //   CRS is allowed: crs_wkt is then empty (its coordinates are taken as the light field's world
 //   frame as they are). A raster without a geotransform is refused (its pixels have no place).
 // - Only band 1 is read.
@@ -20,7 +23,7 @@
 // Throws std::invalid_argument naming the file and the field: unreadable file, no or rotated or
 // degenerate geotransform, more than kMaxHeightfieldPixels pixels or more than the memory budget
 // holds (util/memory.h), a height or pixel centre beyond kMaxSurfaceCoordinate, every pixel
-// nodata.
+// nodata, blocks without data and no nodata value.
 #include <array>
 #include <cstdint>
 #include <string>

@@ -719,6 +719,7 @@ void WriteImage(const std::string& path, const Image& image, const WriteImageOpt
     ThrowInvalid(path + ": cannot write image (" + (reason.empty() ? "unknown reason" : reason) +
                  ")");
   };
+  ThrowIfOutputCancelled();  // before open: a PNG closed with no rows makes libpng print
   if (!output->open(pending.TempPath(), spec)) fail();
   // In bands of rows, the process's cancellation polled between them (a 2048^2 float TIFF takes
   // about a second): a signal stops the write, and the temporary file goes with `pending`.

@@ -77,7 +77,9 @@ struct WriteImageOptions {
 };
 
 // Writes `image` to `path` (format from the extension). Throws std::invalid_argument naming the
-// file on failure; no partial file is left behind.
+// file on failure; no partial file is left behind. Polls the process's output cancellation
+// (SetCommitCancelled, file_util.h; the CLI sets it) between bands of rows and throws
+// aos::Cancelled when it answers true.
 void WriteImage(const std::string& path, const Image& image, const WriteImageOptions& options = {});
 
 // The sample type WriteImage will use for `image` at `path` under `options`. Throws

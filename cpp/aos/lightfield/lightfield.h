@@ -65,7 +65,8 @@ struct LightField {
 
 // Every field of `light_field` but its views (origin, crs, pose_source, masked): the start of a
 // light field derived from it view by view (rectify), so that none of its fields is dropped.
-// A field added to LightField is added here (test_python_api.py checks each field survives).
+// A field added to LightField is added here (test_python_api.py checks that every field bound
+// in Python survives rectify, copy, pickle and files).
 LightField EmptyLike(const LightField& light_field);
 
 // Builds a view from an image, checking it. The image is copied with a replicated border if it

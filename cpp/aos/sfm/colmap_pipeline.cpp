@@ -1040,7 +1040,8 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& giv
                                        static_cast<uint64_t>(size.height), 4}),
                     frames_dir + ": frames of " + std::to_string(size.width) + "x" +
                         std::to_string(size.height),
-                    "COLMAP decodes one frame per extraction thread, about 4 bytes a pixel");
+                    "COLMAP decodes one frame per extraction thread, about 4 bytes a pixel; "
+                    "fewer threads need less");
   if (known && (known_camera.width != size.width || known_camera.height != size.height)) {
     ThrowInvalid(options.camera_file + ": the camera is " + std::to_string(known_camera.width) +
                  "x" + std::to_string(known_camera.height) + " but the frames are " +

@@ -159,7 +159,8 @@ PosesResult EstimatePoses(const std::string& frames_dir, const PosesOptions& opt
 // stage does it: the frames in frames_dir (the images folder COLMAP was given) that the model
 // lacks are unregistered, positions (options.positions_file or exif_positions) geo-reference
 // it, min_registered_fraction and the scene-scale check (flight_height_m) apply; the COLMAP and
-// self-calibration options are not used.
+// self-calibration options are not used. `progress` is polled for cancellation (throws
+// aos::Cancelled) while the model is read and its frames listed.
 PosesResult ImportColmapPoses(const std::string& model_dir, const std::string& frames_dir,
                               const PosesOptions& options, ProgressSink* progress = nullptr);
 

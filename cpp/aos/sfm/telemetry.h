@@ -120,8 +120,9 @@ struct TelemetryResult {
   double max_convergence_deg = 0.0;        // largest |meridian convergence| applied, degrees
 };
 
-// `progress` gets one "headers" stage (a unit per frame header read) and is polled for
-// cancellation once per frame (throws aos::Cancelled).
+// `progress` gets a "tags" stage (EXIF/XMP source: a unit per frame's tags) and a "headers"
+// stage (a unit per frame's header), and is polled for cancellation once per frame in each
+// (throws aos::Cancelled).
 TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options,
                                 ProgressSink* progress = nullptr);
 
