@@ -301,9 +301,12 @@ def test_python_stops_on_ctrl_c_and_writes_nothing(tmp_path: Path):
         "    sys.exit(3)\n"
     )
     env = dict(os.environ)
+    # A test run started in the background (nohup ... &) passes SIGINT on as ignored, and Python
+    # then installs no KeyboardInterrupt handler: restore the default in the child.
     process = subprocess.Popen([sys.executable, "-c", script, json.dumps(slow_polygon()),
                                 str(tmp_path / "big.csv")],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     try:
         assert process.stdout.readline().strip() == "ready"
         time.sleep(0.5)
