@@ -38,15 +38,7 @@ void BindCalib(py::module_& m) {
       m, "CalibrateOptions",
       "Options of calibrate (defaults from the C++ struct aos::CalibrateOptions). aos.calibrate "
       "also accepts model as a string ('pinhole', 'radtan', 'fisheye', 'omnidir').")
-      .Field("model", &CalibrateOptions::model,
-             "Lens model to fit: pinhole, radtan (cv::calibrateCamera), fisheye "
-             "(cv::fisheye::calibrate) or omnidir (cv::omnidir::calibrate, Mei's model).")
-      .Field("pattern_columns", &CalibrateOptions::pattern_columns,
-             "Inner corners of the checkerboard per row (>= 2).")
-      .Field("pattern_rows", &CalibrateOptions::pattern_rows,
-             "Inner corners of the checkerboard per column (>= 2).")
-      .Field("square_size_m", &CalibrateOptions::square_size_m,
-             "Side of one square, metres (> 0).")
+      .Table()
       .Finish()
       .def("check", &CalibrateOptions::Check, "Raises ValueError naming the field.");
 

@@ -10,14 +10,7 @@ void BindDemo(py::module_& m) {
   OptionsClass<DemoOptions>(m, "DemoOptions",
                             "Options of run_demo. Defaults come from the C++ struct "
                             "aos::DemoOptions.")
-      .Field("num_threads", &DemoOptions::num_threads,
-             "Worker threads of the simulation and the renders; -1 = all cores.")
-      .Field("all_in_focus_slices", &DemoOptions::all_in_focus_slices,
-             "Slices of the all-in-focus stack from the ground to the top of the occluders, "
-             "0..1000; 0 = no all-in-focus image.")
-      .Field("target_margin_m", &DemoOptions::target_margin_m,
-             "Ring of ground around each target used as its surroundings in the visibility "
-             "figures, metres (> 0).")
+      .Table()
       .Finish()
       .def("check", &DemoOptions::Check, "Raises ValueError naming the offending field.");
 

@@ -466,11 +466,7 @@ void BindGeometry(py::module_& m) {
                ", cy=" + FormatNumber(camera.cy) + ")";
       });
 
-  py::enum_<LensModel>(m, "LensModel", "Lens model of a LensCamera (aos/geometry/lens.h).")
-      .value("pinhole", LensModel::kPinhole)
-      .value("radtan", LensModel::kRadTan)
-      .value("fisheye", LensModel::kFisheye)
-      .value("omnidir", LensModel::kOmnidir);
+  BindEnum<LensModel>(m, "LensModel", "Lens model of a LensCamera (aos/geometry/lens.h).");
 
   py::class_<LensCamera>(
       m, "LensCamera",

@@ -15,17 +15,7 @@ void BindMetrics(py::module_& m) {
   OptionsClass<QualityOptions>(
       m, "QualityOptions",
       "Options of compare_images (defaults from the C++ struct aos::QualityOptions).")
-      .Field("data_range", &QualityOptions::data_range,
-             "Peak-to-peak value range L; 0 = from the reference's dtype (uint8 255, uint16 65535, "
-             "float 1.0).")
-      .Field("gaussian_sigma", &QualityOptions::gaussian_sigma,
-             "Standard deviation of the SSIM window, pixels (> 0).")
-      .Field("window_radius", &QualityOptions::window_radius,
-             "SSIM window radius, pixels (>= 1); the window is (2r + 1)^2.")
-      .Field("k1", &QualityOptions::k1, "SSIM constant k1, (0, 1).")
-      .Field("k2", &QualityOptions::k2, "SSIM constant k2, (0, 1).")
-      .Field("grey", &QualityOptions::grey,
-             "Compare luminances: 3- or 4-channel images become Rec. 601 luminance first.")
+      .Table()
       .Finish()
       .def("check", &QualityOptions::Check, "Raises ValueError naming the offending field.");
 
@@ -69,15 +59,7 @@ void BindMetrics(py::module_& m) {
   OptionsClass<ResolutionOptions>(
       m, "ResolutionOptions",
       "Options of sampling_resolution (defaults from the C++ struct aos::ResolutionOptions).")
-      .Field("distance_m", &ResolutionOptions::distance_m,
-             "Distance from the camera to the focal plane along its axis, metres (> 0).")
-      .Field("pose_error_px", &ResolutionOptions::pose_error_px,
-             "Pose error in pixels (>= 0), converted to metres with the sample size.")
-      .Field("pose_error_m", &ResolutionOptions::pose_error_m,
-             "Pose error in metres at the focal plane (>= 0); at most one of the two.")
-      .Field("max_off_axis_deg", &ResolutionOptions::max_off_axis_deg,
-             "The back-projected figure counts pixels whose ray is within this angle of the "
-             "axis, degrees in (0, 90).")
+      .Table()
       .Finish()
       .def("check", &ResolutionOptions::Check, "Raises ValueError naming the field.");
 

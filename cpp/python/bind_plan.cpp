@@ -16,40 +16,7 @@ void BindPlan(py::module_& m) {
   OptionsClass<O>(m, "FlightPlanOptions",
                   "Options of plan_flight (defaults from the C++ struct aos::FlightPlanOptions; "
                   "docs/flight-planning.md).")
-      .Field("shape", &O::shape, "circle, sector, rectangle, polygon or line.")
-      .Field("coordinates", &O::coordinates,
-             "world (x, y metres) or latlon (latitude, longitude degrees, WGS84).")
-      .Field("crs", &O::crs, "CRS of world coordinates (projected, metres); '' = local frame.")
-      .Field("center", &O::center, "Centre of a circle, sector or rectangle: (x, y) or (lat, lon).")
-      .Field("radius_m", &O::radius_m, "Radius of a circle or sector, metres (> 0).")
-      .Field("sector_start_deg", &O::sector_start_deg, "Sector: bearing of its first edge, degrees.")
-      .Field("sector_angle_deg", &O::sector_angle_deg, "Sector: its angle, degrees in (0, 360].")
-      .Field("width_m", &O::width_m, "Rectangle: size across the heading, metres.")
-      .Field("length_m", &O::length_m, "Rectangle: size along the heading, metres.")
-      .Field("vertices", &O::vertices, "Polygon corners or line points, (x, y) or (lat, lon).")
-      .Field("pattern", &O::pattern, "scan, grid or circles.")
-      .Field("spacing_m", &O::spacing_m, "Distance between lines or rings at the centre, metres.")
-      .Field("along_spacing_m", &O::along_spacing_m,
-             "Distance between shots along a line or ring at the centre, metres; 0 = spacing_m.")
-      .Field("outer_scale", &O::outer_scale, "Spacing at the edge over spacing at the centre (>= 1).")
-      .Field("heading_deg", &O::heading_deg, "Compass direction of the scan lines, degrees.")
-      .Field("min_shots_per_line", &O::min_shots_per_line,
-             "Scan lines with fewer shots inside the shape are not flown (>= 1).")
-      .Field("altitude_m", &O::altitude_m, "Height above the ground, metres (> 0).")
-      .Field("altitude_mode", &O::altitude_mode, "terrain or constant.")
-      .Field("dem", &O::dem, "Terrain mesh (OBJ, PLY) or raster path; '' = flat ground.")
-      .Field("ground_height_m", &O::ground_height_m, "Flat ground's z without a DEM, metres.")
-      .Field("terrain_up", &O::terrain_up, "+z or -z (z down, JKU's F0).")
-      .Field("min_clearance_m", &O::min_clearance_m,
-             "Least height above the terrain of a constant-altitude shot, metres.")
-      .Field("ground_speed_mps", &O::ground_speed_mps, "Ground speed, m/s (> 0).")
-      .Field("hover_s", &O::hover_s, "Time at each shot, seconds (>= 0).")
-      .Field("battery_min", &O::battery_min, "Flight time one battery allows, minutes (inf: none).")
-      .Field("max_waypoints", &O::max_waypoints,
-             "Most shots (and scan lines or rings) a plan may have; a larger one is refused first.")
-      .Field("image_width", &O::image_width, "Camera for Eq. 2: width, pixels.")
-      .Field("image_height", &O::image_height, "Camera for Eq. 2: height, pixels.")
-      .Field("fov_deg", &O::fov_deg, "Camera for Eq. 2: horizontal field of view, degrees.")
+      .Table()
       .Finish()
       .def("check", &O::Check, "Raises ValueError naming the field.");
 

@@ -15,12 +15,7 @@
 #include "bindings.h"
 
 namespace aos::python {
-namespace {
 
-using namespace pybind11::literals;
-
-// A focal surface from what Python passes: None, a FocalSurface, a Mesh, a Heightfield, a Plane
-// or a number (a horizontal plane).
 std::shared_ptr<const FocalSurface> SurfaceFromPython(const py::object& value) {
   if (value.is_none()) return nullptr;
   if (py::isinstance<FocalSurface>(value)) return std::make_shared<const FocalSurface>(value.cast<FocalSurface>());
@@ -35,6 +30,15 @@ std::shared_ptr<const FocalSurface> SurfaceFromPython(const py::object& value) {
                          "a number, got " + std::string(py::str(py::type::of(value).attr("__name__"))));
   }
 }
+
+py::object SurfaceToPython(const std::shared_ptr<const FocalSurface>& surface) {
+  if (!surface) return py::none();
+  return py::cast(*surface);
+}
+
+namespace {
+
+using namespace pybind11::literals;
 
 void BindFocalSurface(py::module_& m) {
   py::class_<FocalSurface>(m, "FocalSurface",
@@ -142,48 +146,7 @@ void BindIntegral(py::module_& m) {
       m, "IntegralOptions",
       "Options of render_integral. Defaults come from the C++ struct aos::IntegralOptions; "
       "IntegralOptions(**fields) overrides them by name (unknown names raise TypeError).")
-      .Field("cam_from_world", &IntegralOptions::cam_from_world,
-             "Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when pose_view "
-             ">= 0.")
-      .Field("pose_view", &IntegralOptions::pose_view,
-             "If >= 0, the virtual camera takes the pose of this view (index into the light "
-             "field).")
-      .Field("fov_deg", &IntegralOptions::fov_deg,
-             "Horizontal field of view of the virtual camera, degrees, (0, 180).")
-      .Field("width", &IntegralOptions::width, "Output width, pixels (1 .. 65536).")
-      .Field("height", &IntegralOptions::height, "Output height, pixels (1 .. 65536).")
-      .Field("aperture_radius", &IntegralOptions::aperture_radius,
-             "Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one "
-             "view per pixel), infinity means every view.")
-      .Field("focal_plane", &IntegralOptions::focal_plane,
-             "The focal plane (local frame): any point on it and its normal. With a focal_surface "
-             "only its normal is used (grazing test).")
-      .Property(
-          "focal_surface",
-          [](const IntegralOptions& o) -> py::object {
-            if (!o.focal_surface) return py::none();
-            return py::cast(*o.focal_surface);
-          },
-          [](IntegralOptions& o, const py::object& value) { o.focal_surface = SurfaceFromPython(value); },
-          "A focal surface instead of focal_plane: FocalSurface, Mesh, Heightfield (or a Plane); "
-          "None = focal_plane. Reading returns a FocalSurface sharing the BVH.")
-      .Field("surface_offset", &IntegralOptions::surface_offset,
-             "Offset of focal_surface along up (towards the views), metres; must be 0 without a "
-             "focal_surface.")
-      .Field("view_indices", &IntegralOptions::view_indices,
-             "Views to integrate (indices into the light field); empty means all views. Reading "
-             "returns a new list: assign a list to change it.")
-      .Field("min_view_angle_deg", &IntegralOptions::min_view_angle_deg,
-             "Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller "
-             "(grazing) rays are ignored.")
-      .Field("num_threads", &IntegralOptions::num_threads, "Worker threads; -1 = all cores.")
-      .Field("variance", &IntegralOptions::variance,
-             "Also return the per-pixel variance of the view samples (the samples then go through "
-             "the scalar kernel, which also sums their squares: a few times slower).")
-      .Field("lens_tolerance_px", &IntegralOptions::lens_tolerance_px,
-             "Views with a lens model: the largest error of a sample position, view pixels, "
-             "[0, 1], where the exact lens projection is replaced by local maps; 0 = "
-             "project every sample exactly.")
+      .Table()
       .Finish()
       .def("check", &IntegralOptions::Check, "view_count"_a,
            "Raises ValueError naming the offending field. `view_count` is the number of views in "
@@ -293,14 +256,7 @@ void BindSurfaceIntegral(py::module_& m) {
       m, "SurfaceIntegralOptions",
       "Options of render_integral_on_depth (the mean on a depth surface). Defaults from the C++ "
       "struct aos::SurfaceIntegralOptions.")
-      .Field("robust", &SurfaceIntegralOptions::robust,
-             "Outlier-rejecting mean instead of the plain mean.")
-      .Field("agreement", &SurfaceIntegralOptions::agreement,
-             "Half-width of the band within which samples agree, as a fraction of the views' "
-             "full range (255 for 8-bit, 65535 for 16-bit, 1 for float), (0, 1].")
-      .Field("min_inlier_fraction", &SurfaceIntegralOptions::min_inlier_fraction,
-             "Fewest inliers, as a fraction of the pixel's samples, for the robust mean to be "
-             "used, [0, 1]; fewer keep the plain mean.")
+      .Table()
       .Finish()
       .def("check", &SurfaceIntegralOptions::Check, "Raises ValueError naming the field.");
 
@@ -363,39 +319,7 @@ void BindMap(py::module_& m) {
       m, "MapOptions",
       "Options of render_map (an orthographic map looking straight down). Defaults from the C++ "
       "struct aos::MapOptions.")
-      .Field("pixel_size", &MapOptions::pixel_size,
-             "Ground size of a pixel, metres (> 0); 0 = the extent's width / width.")
-      .Field("width", &MapOptions::width, "Map width in pixels when pixel_size is 0 (>= 2).")
-      .Field("extent", &MapOptions::extent,
-             "World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the selected views' "
-             "footprints on the focal plane.")
-      .Field("focal_height", &MapOptions::focal_height,
-             "Height of the horizontal focal plane z = focal_height, local frame, metres (without "
-             "a focal_surface).")
-      .Property(
-          "focal_surface",
-          [](const MapOptions& o) -> py::object {
-            if (!o.focal_surface) return py::none();
-            return py::cast(*o.focal_surface);
-          },
-          [](MapOptions& o, const py::object& value) { o.focal_surface = SurfaceFromPython(value); },
-          "A terrain to focus on instead of the plane: FocalSurface, Mesh or Heightfield; None = "
-          "the plane z = focal_height.")
-      .Field("surface_offset", &MapOptions::surface_offset,
-             "Offset of focal_surface along up (towards the views), metres; must be 0 without a "
-             "focal_surface.")
-      .Field("aperture_radius", &MapOptions::aperture_radius,
-             "Horizontal distance from the focal point to a view centre, metres; 0 = the single "
-             "nearest view, inf = every view.")
-      .Field("view_indices", &MapOptions::view_indices, "Views to integrate; [] = all.")
-      .Field("min_view_angle_deg", &MapOptions::min_view_angle_deg,
-             "Minimum angle between a view's ray and the focal plane, degrees, [0, 90).")
-      .Field("lens_tolerance_px", &MapOptions::lens_tolerance_px,
-             "Views with a lens model: the largest error of a sample position, view pixels, "
-             "[0, 1], where the exact lens projection is replaced by local maps; 0 = "
-             "project every sample exactly.")
-      .Field("tile_size", &MapOptions::tile_size, "Pixels on a side of a render tile, 16 .. 8192.")
-      .Field("num_threads", &MapOptions::num_threads, "Worker threads; -1 = all cores.")
+      .Table()
       .Finish()
       .def("check", &MapOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
 
@@ -403,19 +327,7 @@ void BindMap(py::module_& m) {
       m, "DistributedOptions",
       "How aos.distributed.render_map (and aos-render map --workers/--scheduler) spreads a "
       "map's tiles over Dask. Defaults from the C++ struct aos::DistributedOptions.")
-      .Field("workers", &DistributedOptions::workers,
-             "Worker processes of a local cluster, >= 0; 0 = none (render_map, always on Dask, "
-             "then starts one where it has no client or scheduler).")
-      .Field("scheduler", &DistributedOptions::scheduler,
-             "Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. Not with "
-             "workers.")
-      .Field("cache_mb", &DistributedOptions::cache_mb,
-             "Decoded frames each worker keeps between tasks, MiB, >= 0.")
-      .Field("share_mb", &DistributedOptions::share_mb,
-             "Decoded frames each worker hands to the other workers of its machine through "
-             "shared memory, MiB, >= 0; 0 = none.")
-      .Field("dashboard", &DistributedOptions::dashboard,
-             "The local cluster also serves Dask's dashboard; needs workers >= 1.")
+      .Table()
       .Finish()
       .def("check", &DistributedOptions::Check, "Raises ValueError naming the field.");
 
@@ -613,36 +525,7 @@ void BindFocalStack(py::module_& m) {
   OptionsClass<FocalStackOptions>(
       m, "FocalStackOptions",
       "Options of render_focal_stack. Defaults from the C++ struct aos::FocalStackOptions.")
-      .Field("render", &FocalStackOptions::render,
-             "Virtual camera, aperture, views, threads and variance flag of every slice "
-             "(IntegralOptions); render.focal_plane is ignored.")
-      .Field("first_plane", &FocalStackOptions::first_plane,
-             "Boundary plane of slice 0 (local frame).")
-      .Field("last_plane", &FocalStackOptions::last_plane,
-             "Boundary plane of slice N-1 (local frame).")
-      .Property(
-          "ground_plane",
-          [](const FocalStackOptions& o) -> py::object {
-            if (!o.ground_plane) return py::none();
-            return py::cast(*o.ground_plane);
-          },
-          [](FocalStackOptions& o, const py::object& value) {
-            if (value.is_none()) {
-              o.ground_plane.reset();
-            } else {
-              o.ground_plane = value.cast<Plane>();
-            }
-          },
-          "A ground plane (e.g. estimate_ground(...).plane): the slices then lie parallel to it "
-          "at first_offset .. last_offset along its normal turned towards the views; None = "
-          "first_plane/last_plane.")
-      .Field("first_offset", &FocalStackOptions::first_offset,
-             "Terrain-following stacks (render.focal_surface set) and stacks around ground_plane: "
-             "offset of slice 0 along up, metres.")
-      .Field("last_offset", &FocalStackOptions::last_offset,
-             "Terrain-following stacks and stacks around ground_plane: offset of slice N-1 along "
-             "up, metres.")
-      .Field("slices", &FocalStackOptions::slices, "Number of slices, 1 .. 100000.")
+      .Table()
       .Finish()
       .def("check", &FocalStackOptions::Check, "view_count"_a,
            "Raises ValueError naming the offending field.");
@@ -743,33 +626,13 @@ void BindFocalStack(py::module_& m) {
 }
 
 void BindMerge(py::module_& m) {
-  py::enum_<MergeMethod>(m, "MergeMethod", "All-in-focus merge method (docs: merge.h).")
-      .value("sobel", MergeMethod::kSobel)
-      .value("improved", MergeMethod::kImproved)
-      .value("robust", MergeMethod::kRobust);
+  BindEnum<MergeMethod>(m, "MergeMethod", "All-in-focus merge method (docs: merge.h).");
 
   OptionsClass<MergeOptions>(
       m, "MergeOptions",
       "Options of merge_focal_stack and all_in_focus. Defaults from the C++ struct "
       "aos::MergeOptions. aos.merge_focal_stack also accepts method as a string.")
-      .Field("method", &MergeOptions::method, "sobel, improved (default) or robust.")
-      .Field("window_radius", &MergeOptions::window_radius,
-             "improved/robust: focus measure window radius, pixels (window 2r+1 on a side), "
-             "0..32.")
-      .Field("smoothing_sigma", &MergeOptions::smoothing_sigma,
-             "improved/robust: spatial sigma of the edge-aware depth smoothing, pixels, [0, 16]; "
-             "0 = off.")
-      .Field("edge_sigma", &MergeOptions::edge_sigma,
-             "improved/robust: range sigma of the smoothing, as a fraction of the guide image's "
-             "contrast (1st to 99th percentile), > 0.")
-      .Field("smoothing_iterations", &MergeOptions::smoothing_iterations,
-             "improved/robust: smoothing passes, 0..20.")
-      .Field("robust", &MergeOptions::robust,
-             "robust: the outlier-rejecting mean (SurfaceIntegralOptions; its robust flag is "
-             "forced on).")
-      .Field("num_threads", &MergeOptions::num_threads,
-             "Worker threads of the merge (slices render with render.num_threads); -1 = all "
-             "cores.")
+      .Table()
       .Finish()
       .def("check", &MergeOptions::Check, "Raises ValueError naming the field.");
 
@@ -806,11 +669,7 @@ void BindMerge(py::module_& m) {
       });
 
   OptionsClass<AllInFocusOptions>(m, "AllInFocusOptions", "Options of all_in_focus.")
-      .Field("stack", &AllInFocusOptions::stack, "The slices (FocalStackOptions).")
-      .Field("merge", &AllInFocusOptions::merge, "The merge (MergeOptions).")
-      .Field("coarse_to_fine", &AllInFocusOptions::coarse_to_fine,
-             "0 = off; a factor 2..16: a coarse stack (1/factor the size, every factor-th "
-             "slice) chooses each factor x factor block's slices, only those render at full resolution.")
+      .Table()
       .Finish()
       .def("check", &AllInFocusOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
 
@@ -846,15 +705,7 @@ void BindRectify(py::module_& m) {
   OptionsClass<RectifyOptions>(
       m, "RectifyOptions",
       "Options of make_rectifier (defaults from the C++ struct aos::RectifyOptions).")
-      .Field("fov_deg", &RectifyOptions::fov_deg,
-             "Horizontal field of view of the rectified image, degrees, (0, 180).")
-      .Field("width", &RectifyOptions::width, "Output width, pixels; 0 = the raw frame's.")
-      .Field("height", &RectifyOptions::height, "Output height, pixels; 0 = the raw frame's.")
-      .Field("yaw_deg", &RectifyOptions::yaw_deg, "Turn about the lens's y axis, degrees.")
-      .Field("pitch_deg", &RectifyOptions::pitch_deg, "Turn about the lens's x axis, degrees.")
-      .Field("roll_deg", &RectifyOptions::roll_deg, "Turn about the optical axis, degrees.")
-      .Field("fill", &RectifyOptions::fill,
-             "Pixels the lens does not cover become 0 (black) instead of an error.")
+      .Table()
       .Finish()
       .def("check", &RectifyOptions::Check, "Raises ValueError naming the field.");
 

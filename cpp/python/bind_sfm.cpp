@@ -34,52 +34,7 @@ void BindSfm(py::module_& m) {
   OptionsClass<PosesOptions>(
       m, "PosesOptions",
       "Options of estimate_poses (defaults from the C++ struct aos::PosesOptions).")
-      .Field("colmap", &PosesOptions::colmap, "The COLMAP executable (on PATH or a path).")
-      .Field("workspace", &PosesOptions::workspace,
-             "Keep COLMAP's workspace in this new folder; '' = a temporary one, removed.")
-      .Field("matcher", &PosesOptions::matcher, "'sequential', 'spatial' or 'exhaustive'.")
-      .Field("sequential_overlap", &PosesOptions::sequential_overlap,
-             "Sequential matching: successors each frame is matched with.")
-      .Field("spatial_neighbors", &PosesOptions::spatial_neighbors,
-             "Spatial matching: nearest frames (by position) each frame is matched with.")
-      .Field("camera_file", &PosesOptions::camera_file,
-             "Known camera (aos-camera file); '' = self-calibration of camera_model.")
-      .Field("camera_model", &PosesOptions::camera_model, "COLMAP model to self-calibrate.")
-      .Field("fov_deg", &PosesOptions::fov_deg,
-             "Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's guess.")
-      .Field("positions_file", &PosesOptions::positions_file,
-             "CSV of name,x,y,z positions (metres): geo-reference and spatial priors.")
-      .Field("positions_crs", &PosesOptions::positions_crs,
-             "CRS of positions_file as PROJ names it (e.g. EPSG:4326, EPSG:25833); empty: from "
-             "the header (lat/lon columns are WGS84 degrees, x/y/z metres in an unstated frame).")
-      .Field("exif_positions", &PosesOptions::exif_positions,
-             "Positions from the frames' EXIF GPS tags (UTM) instead of a file.")
-      .Field("max_image_size", &PosesOptions::max_image_size,
-             "Features on frames downscaled to this longest side.")
-      .Field("max_num_features", &PosesOptions::max_num_features, "Features per frame.")
-      .Field("sift_first_octave", &PosesOptions::sift_first_octave,
-             "SIFT's first octave: -1 = on the frame upsampled 2x (COLMAP's default), 0 = on the "
-             "frame itself (about 4x faster extraction).")
-      .Field("min_registered_fraction", &PosesOptions::min_registered_fraction,
-             "Error below this fraction of frames registered.")
-      .Field("num_threads", &PosesOptions::num_threads, "COLMAP's threads; -1 = all cores.")
-      .Field("max_focal_deviation", &PosesOptions::max_focal_deviation,
-             "Self-calibration: refuse a focal length further than this fraction from the "
-             "fov_deg prior's, > 0.")
-      .Field("flight_height_m", &PosesOptions::flight_height_m,
-             "The cameras' height above the ground as flown, metres (e.g. 35 for a flight 35 m "
-             "above the ground): the geo-referenced median depth is checked against it; 0 = not "
-             "checked. Needs positions.")
-      .Field("max_scale_deviation", &PosesOptions::max_scale_deviation,
-             "Refuse a median depth further than this fraction from flight_height_m, > 0.")
-      .Field("allow_implausible", &PosesOptions::allow_implausible,
-             "Keep implausible self-calibrated intrinsics or scene scale with a warning instead "
-             "of refusing.")
-      .Field("preset", &PosesOptions::preset,
-             "'default' or 'quick': quick sets max_image_size 480, max_num_features 512, "
-             "sift_first_octave 0, "
-             "sequential_overlap 3, spatial_neighbors 8 and, with positions, matcher 'spatial', "
-             "each where left at its default (docs/poses.md).")
+      .Table()
       .Finish()
       .def("check", &PosesOptions::Check, "Raises ValueError naming the field.");
 
@@ -172,15 +127,7 @@ void BindSfm(py::module_& m) {
   OptionsClass<GroundOptions>(
       m, "GroundOptions",
       "Options of estimate_ground (defaults from the C++ struct aos::GroundOptions).")
-      .Field("cell_size_m", &GroundOptions::cell_size_m, "Side of a DEM cell, metres, > 0.")
-      .Field("quantile", &GroundOptions::quantile,
-             "Height quantile of a cell's points taken as its ground, [0, 1).")
-      .Field("min_points_per_cell", &GroundOptions::min_points_per_cell,
-             "Fewest points for a cell to be measured, >= 1.")
-      .Field("outlier_sigmas", &GroundOptions::outlier_sigmas,
-             "Cells this many robust sigmas above the plane are canopy candidates, > 0.")
-      .Field("max_step_m", &GroundOptions::max_step_m,
-             "A candidate this far above the ground around it is canopy, metres, >= 0.")
+      .Table()
       .Finish()
       .def("check", &GroundOptions::Check, "Raises ValueError naming the field.");
 
@@ -251,28 +198,7 @@ void BindSfm(py::module_& m) {
   OptionsClass<TelemetryOptions>(
       m, "TelemetryOptions",
       "Options of import_telemetry (defaults from the C++ struct aos::TelemetryOptions).")
-      .Field("telemetry_file", &TelemetryOptions::telemetry_file,
-             "CSV log frame|time,lat,lon,alt,yaw,pitch,roll; '' = the frames' EXIF GPS and DJI "
-             "XMP gimbal tags.")
-      .Field("camera_file", &TelemetryOptions::camera_file,
-             "Known camera (aos-camera file, any lens model); '' = a pinhole from fov_deg.")
-      .Field("fov_deg", &TelemetryOptions::fov_deg,
-             "Horizontal field of view of a pinhole camera, degrees, (0, 180); without "
-             "camera_file.")
-      .Field("altitude", &TelemetryOptions::altitude,
-             "EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), 'gps', "
-             "'relative'.")
-      .Field("altitude_window", &TelemetryOptions::altitude_window,
-             "Altitude outliers: running-median window in frames, odd >= 3; 0 = no rule.")
-      .Field("max_altitude_deviation_m", &TelemetryOptions::max_altitude_deviation_m,
-             "An altitude further than this from its running median is replaced by it, metres.")
-      .Field("max_distance_from_centre_m", &TelemetryOptions::max_distance_from_centre_m,
-             "A position farther than this from the flight's centre (median lat, lon) is "
-             "refused, metres.")
-      .Field("frame_interval_s", &TelemetryOptions::frame_interval_s,
-             "With a time column: seconds between consecutive frames (name order).")
-      .Field("time_offset_s", &TelemetryOptions::time_offset_s,
-             "With a time column: the log time of the first frame, seconds.")
+      .Table()
       .Finish()
       .def("check", &TelemetryOptions::Check, "Raises ValueError naming the field.");
 

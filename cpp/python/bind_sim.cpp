@@ -63,7 +63,7 @@ void BindSim(py::module_& m) {
   OptionsClass<SimulateOptions>(
       m, "SimulateOptions",
       "Options of simulate. Defaults come from the C++ struct aos::SimulateOptions.")
-      .Field("num_threads", &SimulateOptions::num_threads, "Worker threads; -1 = all cores.")
+      .Table()
       .Finish()
       .def("check", &SimulateOptions::Check, "Raises ValueError naming the offending field.");
 

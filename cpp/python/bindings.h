@@ -36,7 +36,9 @@
 #include "aos/geometry/pinhole.h"
 #include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
+#include "aos/lightfield/options_json.h"
 #include "aos/util/error.h"
+#include "aos/util/option_fields.h"
 #include "aos/util/progress.h"
 
 namespace pybind11::detail {
@@ -103,9 +105,18 @@ struct type_caster<glm::dmat3> {
 
 }  // namespace pybind11::detail
 
+namespace aos {
+class FocalSurface;  // render/focal_surface.h
+}  // namespace aos
+
 namespace aos::python {
 
 namespace py = pybind11;
+
+// A focal surface from what Python passes: None, a FocalSurface, a Mesh, a Heightfield, a Plane
+// or a number (a horizontal plane); and back (None for null). bind_render.cpp.
+std::shared_ptr<const FocalSurface> SurfaceFromPython(const py::object& value);
+py::object SurfaceToPython(const std::shared_ptr<const FocalSurface>& surface);
 
 void BindGeometry(py::module_& m);
 void BindImage(py::module_& m);
@@ -231,6 +242,42 @@ E EnumFromPython(const py::object& value, const std::string& field) {
   }
 }
 
+// The Python annotation of a bound C++ type, as the stubs write it ("float", "list[int]",
+// "MergeMethod | str" for a value given, "Plane | None"); `given` is the setter's side (enums
+// also take names).
+template <typename T>
+std::string PythonTypeName(bool given = false) {
+  if constexpr (std::is_same_v<T, bool>) {
+    return "bool";
+  } else if constexpr (std::is_integral_v<T>) {
+    return "int";
+  } else if constexpr (std::is_floating_point_v<T>) {
+    return "float";
+  } else if constexpr (std::is_same_v<T, std::string>) {
+    return "str";
+  } else if constexpr (options_json::IsVector<T>::value || options_json::IsArray<T>::value) {
+    return "list[" + PythonTypeName<typename T::value_type>(given) + "]";
+  } else if constexpr (options_json::IsOptional<T>::value) {
+    return PythonTypeName<typename T::value_type>(given) + " | None";
+  } else if constexpr (std::is_same_v<T, std::shared_ptr<const FocalSurface>>) {
+    return given ? "FocalSurface | Mesh | Heightfield | Plane | float | None" : "FocalSurface | None";
+  } else {
+    const py::detail::type_info* info = py::detail::get_type_info(typeid(T));
+    if (info == nullptr) throw std::logic_error("PythonTypeName: an unbound type");
+    const std::string name = py::str(py::handle(reinterpret_cast<PyObject*>(info->type)).attr("__name__"));
+    if (std::is_enum_v<T> && given) return name + " | str";
+    return name;
+  }
+}
+
+// Binds enum E with the names of EnumNames<E> (util/option_fields.h).
+template <typename E>
+py::enum_<E> BindEnum(py::module_& m, const char* name, const char* doc) {
+  py::enum_<E> bound(m, name, doc);
+  for (const auto& [value, value_name] : EnumNames<E>::kValues) bound.value(value_name, value);
+  return bound;
+}
+
 // Binds an XxxOptions struct as a Python class whose read/write properties are exactly the
 // struct's fields (defaults therefore come from C++), with
 //   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
@@ -257,6 +304,73 @@ class OptionsClass {
       class_.def_readwrite(name, member, doc);
     }
     fields_.emplace_back(name);
+    return *this;
+  }
+
+  // Binds every field of the struct's table (util/option_fields.h), in its order, with the
+  // table's help as docstring, and records the table as the class attribute `_field_table`
+  // (a tuple of dicts: name, type, given, unit, range, help) that tools/options.py reads.
+  // Also adds to_json() and from_json(text) (lightfield/options_json.h).
+  OptionsClass& Table() {
+    static_assert(kHasFieldTable<Options>, "Table() needs a field table");
+    py::list table;
+    Options::Fields([this, &table](const auto& spec) {
+      using T = typename std::decay_t<decltype(spec)>::Type;
+      auto member = spec.member;
+      const std::string field = spec.name;
+      if constexpr (std::is_same_v<T, std::shared_ptr<const FocalSurface>>) {
+        Property(
+            spec.name, [member](const Options& o) { return SurfaceToPython(o.*member); },
+            [member](Options& o, const py::object& value) { o.*member = SurfaceFromPython(value); },
+            spec.help);
+      } else if constexpr (options_json::IsOptional<T>::value) {
+        Property(
+            spec.name,
+            [member](const Options& o) -> py::object {
+              if (!(o.*member)) return py::none();
+              return py::cast(*(o.*member));
+            },
+            [member](Options& o, const py::object& value) {
+              if (value.is_none()) {
+                (o.*member).reset();
+              } else {
+                o.*member = value.cast<typename T::value_type>();
+              }
+            },
+            spec.help);
+      } else {
+        Field(spec.name, member, spec.help);
+      }
+      py::dict row;
+      row["name"] = field;
+      row["type"] = PythonTypeName<T>(false);
+      row["given"] = PythonTypeName<T>(true);
+      row["unit"] = spec.unit;
+      row["range"] = spec.range.IsAny() ? std::string() : spec.range.Text();
+      row["help"] = spec.help;
+      table.append(row);
+    });
+    class_.attr("_field_table") = py::tuple(table);
+    const std::string class_name = py::str(class_.attr("__name__"));
+    class_.def(
+        "to_json",
+        [](const Options& options) { return OptionsToJson(options).dump(); },
+        "The options as one JSON object (every field but a focal surface; infinities as "
+        "\"inf\"), what from_json reads.");
+    class_.def_static(
+        "from_json",
+        [class_name](const std::string& text) {
+          nlohmann::json json;
+          try {
+            json = nlohmann::json::parse(text);
+          } catch (const nlohmann::json::exception& error) {
+            throw py::value_error(class_name + " JSON: not JSON (" + error.what() + ")");
+          }
+          return OptionsFromJson<Options>(json, JsonPath(class_name + " JSON"));
+        },
+        py::arg("text"),
+        "Default options with the JSON object's members read in (unknown keys and bad values "
+        "raise ValueError naming the key).");
     return *this;
   }
 

@@ -17,6 +17,7 @@
 #include "aos/geometry/lens.h"
 #include "aos/image/image.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -29,6 +30,21 @@ struct CalibrateOptions {
   double square_size_m = 0.025;
 
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = CalibrateOptions;
+    field(OptionField("model", &O::model, "", Range::Any(),
+                      "Lens model to fit: pinhole, radtan (cv::calibrateCamera), fisheye "
+                      "(cv::fisheye::calibrate) or omnidir (cv::omnidir::calibrate, Mei's "
+                      "model)."));
+    field(OptionField("pattern_columns", &O::pattern_columns, "", Range::Any(),
+                      "Inner corners of the checkerboard per row (>= 2)."));
+    field(OptionField("pattern_rows", &O::pattern_rows, "", Range::Any(),
+                      "Inner corners of the checkerboard per column (>= 2)."));
+    field(OptionField("square_size_m", &O::square_size_m, "m", Range::Any(),
+                      "Side of one square, metres (> 0)."));
+  }
 };
 
 struct CalibrationResult {

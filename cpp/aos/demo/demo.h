@@ -57,6 +57,7 @@
 #include "aos/sim/scene.h"
 #include "aos/sim/simulator.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -70,6 +71,19 @@ struct DemoOptions {
   // in the visibility figures, metres (> 0).
   double target_margin_m = 1.0;
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = DemoOptions;
+    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+                      "Worker threads of the simulation and the renders; -1 = all cores."));
+    field(OptionField("all_in_focus_slices", &O::all_in_focus_slices, "", Range::Any(),
+                      "Slices of the all-in-focus stack from the ground to the top of the "
+                      "occluders, 0..1000; 0 = no all-in-focus image."));
+    field(OptionField("target_margin_m", &O::target_margin_m, "m", Range::Any(),
+                      "Ring of ground around each target used as its surroundings in the "
+                      "visibility figures, metres (> 0)."));
+  }
 };
 
 // How clearly the targets show in one image (see the contract above).

@@ -35,6 +35,7 @@
 
 #include "aos/geometry/pinhole.h"
 #include "aos/geometry/rigid.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -43,6 +44,12 @@ enum class LensModel { kPinhole, kRadTan, kFisheye, kOmnidir };
 // "pinhole", "radtan", "fisheye", "omnidir"; throws std::invalid_argument naming `where`.
 LensModel ParseLensModel(const std::string& name, const std::string& where);
 const char* LensModelName(LensModel model);
+template <>
+struct EnumNames<LensModel> {
+  static constexpr std::pair<LensModel, const char*> kValues[] = {
+      {LensModel::kPinhole, "pinhole"}, {LensModel::kRadTan, "radtan"},
+      {LensModel::kFisheye, "fisheye"}, {LensModel::kOmnidir, "omnidir"}};
+};
 
 struct LensCamera {
   LensModel model = LensModel::kPinhole;

@@ -37,6 +37,7 @@
 
 #include "aos/image/image.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -56,6 +57,25 @@ struct QualityOptions {
   // scored against an RGB reference. Without it, channel counts must match.
   bool grey = false;
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = QualityOptions;
+    field(OptionField("data_range", &O::data_range, "", Range::Any(),
+                      "Peak-to-peak value range L; 0 = from the reference's dtype (uint8 255, "
+                      "uint16 65535, float 1.0)."));
+    field(OptionField("gaussian_sigma", &O::gaussian_sigma, "", Range::Any(),
+                      "Standard deviation of the SSIM window, pixels (> 0)."));
+    field(OptionField("window_radius", &O::window_radius, "", Range::Any(),
+                      "SSIM window radius, pixels (>= 1); the window is (2r + 1)^2."));
+    field(OptionField("k1", &O::k1, "", Range::Any(),
+                      "SSIM constant k1, (0, 1)."));
+    field(OptionField("k2", &O::k2, "", Range::Any(),
+                      "SSIM constant k2, (0, 1)."));
+    field(OptionField("grey", &O::grey, "", Range::Any(),
+                      "Compare luminances: 3- or 4-channel images become Rec. 601 luminance "
+                      "first."));
+  }
 };
 
 struct QualityResult {

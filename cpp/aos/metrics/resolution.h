@@ -24,6 +24,7 @@
 #include <cstdint>
 
 #include "aos/geometry/lens.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -39,6 +40,22 @@ struct ResolutionOptions {
   double max_off_axis_deg = 60.0;
 
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = ResolutionOptions;
+    field(OptionField("distance_m", &O::distance_m, "m", Range::Any(),
+                      "Distance from the camera to the focal plane along its axis, metres (> "
+                      "0)."));
+    field(OptionField("pose_error_px", &O::pose_error_px, "px", Range::Any(),
+                      "Pose error in pixels (>= 0), converted to metres with the sample size."));
+    field(OptionField("pose_error_m", &O::pose_error_m, "m", Range::Any(),
+                      "Pose error in metres at the focal plane (>= 0); at most one of the "
+                      "two."));
+    field(OptionField("max_off_axis_deg", &O::max_off_axis_deg, "deg", Range::Any(),
+                      "The back-projected figure counts pixels whose ray is within this angle "
+                      "of the axis, degrees in (0, 90)."));
+  }
 };
 
 struct ResolutionResult {

@@ -72,6 +72,7 @@
 
 #include "aos/image/image.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -144,6 +145,71 @@ struct FlightPlanOptions {
 
   // Throws std::invalid_argument naming the field.
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = FlightPlanOptions;
+    field(OptionField("shape", &O::shape, "", Range::Any(),
+                      "circle, sector, rectangle, polygon or line."));
+    field(OptionField("coordinates", &O::coordinates, "", Range::Any(),
+                      "world (x, y metres) or latlon (latitude, longitude degrees, WGS84)."));
+    field(OptionField("crs", &O::crs, "", Range::Any(),
+                      "CRS of world coordinates (projected, metres); '' = local frame."));
+    field(OptionField("center", &O::center, "", Range::Any(),
+                      "Centre of a circle, sector or rectangle: (x, y) or (lat, lon)."));
+    field(OptionField("radius_m", &O::radius_m, "m", Range::Any(),
+                      "Radius of a circle or sector, metres (> 0)."));
+    field(OptionField("sector_start_deg", &O::sector_start_deg, "deg", Range::Any(),
+                      "Sector: bearing of its first edge, degrees."));
+    field(OptionField("sector_angle_deg", &O::sector_angle_deg, "deg", Range::Any(),
+                      "Sector: its angle, degrees in (0, 360]."));
+    field(OptionField("width_m", &O::width_m, "m", Range::Any(),
+                      "Rectangle: size across the heading, metres."));
+    field(OptionField("length_m", &O::length_m, "m", Range::Any(),
+                      "Rectangle: size along the heading, metres."));
+    field(OptionField("vertices", &O::vertices, "", Range::Any(),
+                      "Polygon corners or line points, (x, y) or (lat, lon)."));
+    field(OptionField("pattern", &O::pattern, "", Range::Any(),
+                      "scan, grid or circles."));
+    field(OptionField("spacing_m", &O::spacing_m, "m", Range::Any(),
+                      "Distance between lines or rings at the centre, metres."));
+    field(OptionField("along_spacing_m", &O::along_spacing_m, "m", Range::Any(),
+                      "Distance between shots along a line or ring at the centre, metres; 0 = "
+                      "spacing_m."));
+    field(OptionField("outer_scale", &O::outer_scale, "", Range::Any(),
+                      "Spacing at the edge over spacing at the centre (>= 1)."));
+    field(OptionField("heading_deg", &O::heading_deg, "deg", Range::Any(),
+                      "Compass direction of the scan lines, degrees."));
+    field(OptionField("min_shots_per_line", &O::min_shots_per_line, "", Range::Any(),
+                      "Scan lines with fewer shots inside the shape are not flown (>= 1)."));
+    field(OptionField("altitude_m", &O::altitude_m, "m", Range::Any(),
+                      "Height above the ground, metres (> 0)."));
+    field(OptionField("altitude_mode", &O::altitude_mode, "", Range::Any(),
+                      "terrain or constant."));
+    field(OptionField("dem", &O::dem, "", Range::Any(),
+                      "Terrain mesh (OBJ, PLY) or raster path; '' = flat ground."));
+    field(OptionField("ground_height_m", &O::ground_height_m, "m", Range::Any(),
+                      "Flat ground's z without a DEM, metres."));
+    field(OptionField("terrain_up", &O::terrain_up, "", Range::Any(),
+                      "+z or -z (z down, JKU's F0)."));
+    field(OptionField("min_clearance_m", &O::min_clearance_m, "m", Range::Any(),
+                      "Least height above the terrain of a constant-altitude shot, metres."));
+    field(OptionField("ground_speed_mps", &O::ground_speed_mps, "m/s", Range::Any(),
+                      "Ground speed, m/s (> 0)."));
+    field(OptionField("hover_s", &O::hover_s, "s", Range::Any(),
+                      "Time at each shot, seconds (>= 0)."));
+    field(OptionField("battery_min", &O::battery_min, "", Range::Any(),
+                      "Flight time one battery allows, minutes (inf: none)."));
+    field(OptionField("max_waypoints", &O::max_waypoints, "", Range::Any(),
+                      "Most shots (and scan lines or rings) a plan may have; a larger one is "
+                      "refused first."));
+    field(OptionField("image_width", &O::image_width, "", Range::Any(),
+                      "Camera for Eq. 2: width, pixels."));
+    field(OptionField("image_height", &O::image_height, "", Range::Any(),
+                      "Camera for Eq. 2: height, pixels."));
+    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
+                      "Camera for Eq. 2: horizontal field of view, degrees."));
+  }
 };
 
 struct Waypoint {

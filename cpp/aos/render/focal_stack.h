@@ -45,6 +45,7 @@
 
 #include "aos/render/focal_surface.h"
 #include "aos/render/integral.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -69,6 +70,30 @@ struct FocalStackOptions {
 
   // Throws std::invalid_argument naming the field (render fields as IntegralOptions::Check).
   void Check(int view_count) const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = FocalStackOptions;
+    field(OptionField("render", &O::render, "", Range::Any(),
+                      "Virtual camera, aperture, views, threads and variance flag of every "
+                      "slice (IntegralOptions); render.focal_plane is ignored."));
+    field(OptionField("first_plane", &O::first_plane, "", Range::Any(),
+                      "Boundary plane of slice 0 (local frame)."));
+    field(OptionField("last_plane", &O::last_plane, "", Range::Any(),
+                      "Boundary plane of slice N-1 (local frame)."));
+    field(OptionField("ground_plane", &O::ground_plane, "", Range::Any(),
+                      "A ground plane (e.g. estimate_ground(...).plane): the slices then lie "
+                      "parallel to it at first_offset .. last_offset along its normal turned "
+                      "towards the views; None = first_plane/last_plane."));
+    field(OptionField("first_offset", &O::first_offset, "", Range::Any(),
+                      "Terrain-following stacks (render.focal_surface set) and stacks around "
+                      "ground_plane: offset of slice 0 along up, metres."));
+    field(OptionField("last_offset", &O::last_offset, "", Range::Any(),
+                      "Terrain-following stacks and stacks around ground_plane: offset of "
+                      "slice N-1 along up, metres."));
+    field(OptionField("slices", &O::slices, "", Range::Any(),
+                      "Number of slices, 1 .. 100000."));
+  }
 };
 
 // Plane of parameter s in [0, 1] between `first` and `last`, interpolated about `center` as

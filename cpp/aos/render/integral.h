@@ -55,6 +55,7 @@
 #include "aos/image/image.h"
 #include "aos/lightfield/lightfield.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -108,6 +109,52 @@ struct IntegralOptions {
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
   // in the light field (for pose_view and view_indices).
   void Check(int view_count) const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = IntegralOptions;
+    field(OptionField("cam_from_world", &O::cam_from_world, "", Range::Any(),
+                      "Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when "
+                      "pose_view >= 0."));
+    field(OptionField("pose_view", &O::pose_view, "", Range::Any(),
+                      "If >= 0, the virtual camera takes the pose of this view (index into "
+                      "the light field)."));
+    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
+                      "Horizontal field of view of the virtual camera, degrees, (0, 180)."));
+    field(OptionField("width", &O::width, "", Range::Any(),
+                      "Output width, pixels (1 .. 65536)."));
+    field(OptionField("height", &O::height, "", Range::Any(),
+                      "Output height, pixels (1 .. 65536)."));
+    field(OptionField("aperture_radius", &O::aperture_radius, "", Range::Any(),
+                      "Radius of the virtual aperture on the lens plane, metres; 0 means a "
+                      "pinhole (one view per pixel), infinity means every view."));
+    field(OptionField("focal_plane", &O::focal_plane, "", Range::Any(),
+                      "The focal plane (local frame): any point on it and its normal. With a "
+                      "focal_surface only its normal is used (grazing test)."));
+    field(OptionField("focal_surface", &O::focal_surface, "", Range::Any(),
+                      "A focal surface instead of focal_plane: FocalSurface, Mesh, "
+                      "Heightfield (or a Plane); None = focal_plane. Reading returns a "
+                      "FocalSurface sharing the BVH."));
+    field(OptionField("surface_offset", &O::surface_offset, "", Range::Any(),
+                      "Offset of focal_surface along up (towards the views), metres; must be "
+                      "0 without a focal_surface."));
+    field(OptionField("view_indices", &O::view_indices, "", Range::Any(),
+                      "Views to integrate (indices into the light field); empty means all "
+                      "views. Reading returns a new list: assign a list to change it."));
+    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::Any(),
+                      "Minimum angle between a view's ray and the focal plane, degrees, [0, "
+                      "90); smaller (grazing) rays are ignored."));
+    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+                      "Worker threads; -1 = all cores."));
+    field(OptionField("variance", &O::variance, "", Range::Any(),
+                      "Also return the per-pixel variance of the view samples (the samples "
+                      "then go through the scalar kernel, which also sums their squares: a "
+                      "few times slower)."));
+    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Any(),
+                      "Views with a lens model: the largest error of a sample position, view "
+                      "pixels, [0, 1], where the exact lens projection is replaced by local "
+                      "maps; 0 = project every sample exactly."));
+  }
 };
 
 struct IntegralResult {

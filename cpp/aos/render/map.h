@@ -61,6 +61,7 @@
 #include "aos/render/integral.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -99,6 +100,43 @@ struct MapOptions {
 
   // Throws std::invalid_argument naming the field. `view_count`: views in the light field.
   void Check(int view_count) const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = MapOptions;
+    field(OptionField("pixel_size", &O::pixel_size, "", Range::Any(),
+                      "Ground size of a pixel, metres (> 0); 0 = the extent's width / width."));
+    field(OptionField("width", &O::width, "", Range::Any(),
+                      "Map width in pixels when pixel_size is 0 (>= 2)."));
+    field(OptionField("extent", &O::extent, "", Range::Any(),
+                      "World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the "
+                      "selected views' footprints on the focal plane."));
+    field(OptionField("focal_height", &O::focal_height, "", Range::Any(),
+                      "Height of the horizontal focal plane z = focal_height, local frame, "
+                      "metres (without a focal_surface)."));
+    field(OptionField("focal_surface", &O::focal_surface, "", Range::Any(),
+                      "A terrain to focus on instead of the plane: FocalSurface, Mesh or "
+                      "Heightfield; None = the plane z = focal_height."));
+    field(OptionField("surface_offset", &O::surface_offset, "", Range::Any(),
+                      "Offset of focal_surface along up (towards the views), metres; must be "
+                      "0 without a focal_surface."));
+    field(OptionField("aperture_radius", &O::aperture_radius, "", Range::Any(),
+                      "Horizontal distance from the focal point to a view centre, metres; 0 = "
+                      "the single nearest view, inf = every view."));
+    field(OptionField("view_indices", &O::view_indices, "", Range::Any(),
+                      "Views to integrate; [] = all."));
+    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::Any(),
+                      "Minimum angle between a view's ray and the focal plane, degrees, [0, "
+                      "90)."));
+    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Any(),
+                      "Views with a lens model: the largest error of a sample position, view "
+                      "pixels, [0, 1], where the exact lens projection is replaced by local "
+                      "maps; 0 = project every sample exactly."));
+    field(OptionField("tile_size", &O::tile_size, "", Range::Any(),
+                      "Pixels on a side of a render tile, 16 .. 8192."));
+    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+                      "Worker threads; -1 = all cores."));
+  }
 };
 
 // The resolved orthographic camera: the map's grid in world x/y and its focal surface.
@@ -233,6 +271,24 @@ struct DistributedOptions {
   bool dashboard = false;
   // Throws std::invalid_argument naming the field.
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = DistributedOptions;
+    field(OptionField("workers", &O::workers, "", Range::Any(),
+                      "Worker processes of a local cluster, >= 0; 0 = none (render_map, "
+                      "always on Dask, then starts one where it has no client or scheduler)."));
+    field(OptionField("scheduler", &O::scheduler, "", Range::Any(),
+                      "Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. "
+                      "Not with workers."));
+    field(OptionField("cache_mb", &O::cache_mb, "MiB", Range::Any(),
+                      "Decoded frames each worker keeps between tasks, MiB, >= 0."));
+    field(OptionField("share_mb", &O::share_mb, "MiB", Range::Any(),
+                      "Decoded frames each worker hands to the other workers of its machine "
+                      "through shared memory, MiB, >= 0; 0 = none."));
+    field(OptionField("dashboard", &O::dashboard, "", Range::Any(),
+                      "The local cluster also serves Dask's dashboard; needs workers >= 1."));
+  }
 };
 
 // A map window: pixels [x0, x0 + w) x [y0, y0 + h).

@@ -78,6 +78,7 @@
 
 #include "aos/render/focal_stack.h"
 #include "aos/render/surface_integral.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -86,6 +87,12 @@ enum class MergeMethod { kSobel, kImproved, kRobust };
 // "sobel", "improved", "robust"; throws std::invalid_argument naming `option` otherwise.
 MergeMethod ParseMergeMethod(const std::string& name, const std::string& option = "method");
 const char* MergeMethodName(MergeMethod method);
+template <>
+struct EnumNames<MergeMethod> {
+  static constexpr std::pair<MergeMethod, const char*> kValues[] = {
+      {MergeMethod::kSobel, "sobel"}, {MergeMethod::kImproved, "improved"},
+      {MergeMethod::kRobust, "robust"}};
+};
 
 struct MergeOptions {
   MergeMethod method = MergeMethod::kImproved;
@@ -105,6 +112,30 @@ struct MergeOptions {
   int num_threads = -1;
 
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = MergeOptions;
+    field(OptionField("method", &O::method, "", Range::Any(),
+                      "sobel, improved (default) or robust."));
+    field(OptionField("window_radius", &O::window_radius, "", Range::Any(),
+                      "improved/robust: focus measure window radius, pixels (window 2r+1 on a "
+                      "side), 0..32."));
+    field(OptionField("smoothing_sigma", &O::smoothing_sigma, "", Range::Any(),
+                      "improved/robust: spatial sigma of the edge-aware depth smoothing, "
+                      "pixels, [0, 16]; 0 = off."));
+    field(OptionField("edge_sigma", &O::edge_sigma, "", Range::Any(),
+                      "improved/robust: range sigma of the smoothing, as a fraction of the "
+                      "guide image's contrast (1st to 99th percentile), > 0."));
+    field(OptionField("smoothing_iterations", &O::smoothing_iterations, "", Range::Any(),
+                      "improved/robust: smoothing passes, 0..20."));
+    field(OptionField("robust", &O::robust, "", Range::Any(),
+                      "robust: the outlier-rejecting mean (SurfaceIntegralOptions; its robust "
+                      "flag is forced on)."));
+    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+                      "Worker threads of the merge (slices render with render.num_threads); "
+                      "-1 = all cores."));
+  }
 };
 
 struct MergeResult {
@@ -138,6 +169,19 @@ struct AllInFocusOptions {
   // Also refuses robust with aperture_radius 0 (one view a pixel has no variance), and a
   // coarse_to_fine outside 0 and 2..16.
   void Check(int view_count) const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = AllInFocusOptions;
+    field(OptionField("stack", &O::stack, "", Range::Any(),
+                      "The slices (FocalStackOptions)."));
+    field(OptionField("merge", &O::merge, "", Range::Any(),
+                      "The merge (MergeOptions)."));
+    field(OptionField("coarse_to_fine", &O::coarse_to_fine, "", Range::Any(),
+                      "0 = off; a factor 2..16: a coarse stack (1/factor the size, every "
+                      "factor-th slice) chooses each factor x factor block's slices, only "
+                      "those render at full resolution."));
+  }
 };
 
 // The one-call pipeline: renders the slices one at a time and folds each into per-pixel focus

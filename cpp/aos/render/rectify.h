@@ -24,6 +24,7 @@
 #include "aos/image/image.h"
 #include "aos/lightfield/lightfield.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -42,6 +43,25 @@ struct RectifyOptions {
   bool fill = false;
 
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = RectifyOptions;
+    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
+                      "Horizontal field of view of the rectified image, degrees, (0, 180)."));
+    field(OptionField("width", &O::width, "", Range::Any(),
+                      "Output width, pixels; 0 = the raw frame's."));
+    field(OptionField("height", &O::height, "", Range::Any(),
+                      "Output height, pixels; 0 = the raw frame's."));
+    field(OptionField("yaw_deg", &O::yaw_deg, "deg", Range::Any(),
+                      "Turn about the lens's y axis, degrees."));
+    field(OptionField("pitch_deg", &O::pitch_deg, "deg", Range::Any(),
+                      "Turn about the lens's x axis, degrees."));
+    field(OptionField("roll_deg", &O::roll_deg, "deg", Range::Any(),
+                      "Turn about the optical axis, degrees."));
+    field(OptionField("fill", &O::fill, "", Range::Any(),
+                      "Pixels the lens does not cover become 0 (black) instead of an error."));
+  }
 };
 
 struct Rectifier {

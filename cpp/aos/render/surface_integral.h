@@ -61,6 +61,7 @@
 #include <vector>
 
 #include "aos/render/integral.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -74,6 +75,20 @@ struct SurfaceIntegralOptions {
   double min_inlier_fraction = 0.5;
 
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = SurfaceIntegralOptions;
+    field(OptionField("robust", &O::robust, "", Range::Any(),
+                      "Outlier-rejecting mean instead of the plain mean."));
+    field(OptionField("agreement", &O::agreement, "", Range::Any(),
+                      "Half-width of the band within which samples agree, as a fraction of "
+                      "the views' full range (255 for 8-bit, 65535 for 16-bit, 1 for float), "
+                      "(0, 1]."));
+    field(OptionField("min_inlier_fraction", &O::min_inlier_fraction, "", Range::Any(),
+                      "Fewest inliers, as a fraction of the pixel's samples, for the robust "
+                      "mean to be used, [0, 1]; fewer keep the plain mean."));
+  }
 };
 
 // The focal points of an output image, for renders whose pixels do not come from a plane: the

@@ -57,6 +57,7 @@
 #include "aos/lightfield/lightfield.h"
 #include "aos/sfm/colmap_model.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -106,6 +107,68 @@ struct PosesOptions {
   // tools/bench_poses.py.
   std::string preset = "default";
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = PosesOptions;
+    field(OptionField("colmap", &O::colmap, "", Range::Any(),
+                      "The COLMAP executable (on PATH or a path)."));
+    field(OptionField("workspace", &O::workspace, "", Range::Any(),
+                      "Keep COLMAP's workspace in this new folder; '' = a temporary one, "
+                      "removed."));
+    field(OptionField("matcher", &O::matcher, "", Range::Any(),
+                      "'sequential', 'spatial' or 'exhaustive'."));
+    field(OptionField("sequential_overlap", &O::sequential_overlap, "", Range::Any(),
+                      "Sequential matching: successors each frame is matched with."));
+    field(OptionField("spatial_neighbors", &O::spatial_neighbors, "", Range::Any(),
+                      "Spatial matching: nearest frames (by position) each frame is matched "
+                      "with."));
+    field(OptionField("camera_file", &O::camera_file, "", Range::Any(),
+                      "Known camera (aos-camera file); '' = self-calibration of camera_model."));
+    field(OptionField("camera_model", &O::camera_model, "", Range::Any(),
+                      "COLMAP model to self-calibrate."));
+    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
+                      "Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's "
+                      "guess."));
+    field(OptionField("positions_file", &O::positions_file, "", Range::Any(),
+                      "CSV of name,x,y,z positions (metres): geo-reference and spatial "
+                      "priors."));
+    field(OptionField("positions_crs", &O::positions_crs, "", Range::Any(),
+                      "CRS of positions_file as PROJ names it (e.g. EPSG:4326, EPSG:25833); "
+                      "empty: from the header (lat/lon columns are WGS84 degrees, x/y/z "
+                      "metres in an unstated frame)."));
+    field(OptionField("exif_positions", &O::exif_positions, "", Range::Any(),
+                      "Positions from the frames' EXIF GPS tags (UTM) instead of a file."));
+    field(OptionField("max_image_size", &O::max_image_size, "", Range::Any(),
+                      "Features on frames downscaled to this longest side."));
+    field(OptionField("max_num_features", &O::max_num_features, "", Range::Any(),
+                      "Features per frame."));
+    field(OptionField("sift_first_octave", &O::sift_first_octave, "", Range::Any(),
+                      "SIFT's first octave: -1 = on the frame upsampled 2x (COLMAP's "
+                      "default), 0 = on the frame itself (about 4x faster extraction)."));
+    field(OptionField("min_registered_fraction", &O::min_registered_fraction, "", Range::Any(),
+                      "Error below this fraction of frames registered."));
+    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+                      "COLMAP's threads; -1 = all cores."));
+    field(OptionField("max_focal_deviation", &O::max_focal_deviation, "", Range::Any(),
+                      "Self-calibration: refuse a focal length further than this fraction "
+                      "from the fov_deg prior's, > 0."));
+    field(OptionField("flight_height_m", &O::flight_height_m, "m", Range::Any(),
+                      "The cameras' height above the ground as flown, metres (e.g. 35 for a "
+                      "flight 35 m above the ground): the geo-referenced median depth is "
+                      "checked against it; 0 = not checked. Needs positions."));
+    field(OptionField("max_scale_deviation", &O::max_scale_deviation, "", Range::Any(),
+                      "Refuse a median depth further than this fraction from flight_height_m, "
+                      "> 0."));
+    field(OptionField("allow_implausible", &O::allow_implausible, "", Range::Any(),
+                      "Keep implausible self-calibrated intrinsics or scene scale with a "
+                      "warning instead of refusing."));
+    field(OptionField("preset", &O::preset, "", Range::Any(),
+                      "'default' or 'quick': quick sets max_image_size 480, max_num_features "
+                      "512, sift_first_octave 0, sequential_overlap 3, spatial_neighbors 8 "
+                      "and, with positions, matcher 'spatial', each where left at its default "
+                      "(docs/poses.md)."));
+  }
 };
 
 // The options EstimatePoses runs with: `options` with its preset applied (see

@@ -40,6 +40,7 @@
 #include "aos/geometry/rigid.h"
 #include "aos/lightfield/lightfield.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -56,6 +57,23 @@ struct GroundOptions {
   double max_step_m = 2.0;
 
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = GroundOptions;
+    field(OptionField("cell_size_m", &O::cell_size_m, "m", Range::Any(),
+                      "Side of a DEM cell, metres, > 0."));
+    field(OptionField("quantile", &O::quantile, "", Range::Any(),
+                      "Height quantile of a cell's points taken as its ground, [0, 1)."));
+    field(OptionField("min_points_per_cell", &O::min_points_per_cell, "", Range::Any(),
+                      "Fewest points for a cell to be measured, >= 1."));
+    field(OptionField("outlier_sigmas", &O::outlier_sigmas, "", Range::Any(),
+                      "Cells this many robust sigmas above the plane are canopy candidates, > "
+                      "0."));
+    field(OptionField("max_step_m", &O::max_step_m, "m", Range::Any(),
+                      "A candidate this far above the ground around it is canopy, metres, >= "
+                      "0."));
+  }
 };
 
 struct GroundResult {

@@ -75,6 +75,7 @@
 
 #include "aos/lightfield/lightfield.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
@@ -103,6 +104,36 @@ struct TelemetryOptions {
   // A time column: the log time of the first frame, seconds.
   double time_offset_s = 0.0;
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = TelemetryOptions;
+    field(OptionField("telemetry_file", &O::telemetry_file, "", Range::Any(),
+                      "CSV log frame|time,lat,lon,alt,yaw,pitch,roll; '' = the frames' EXIF "
+                      "GPS and DJI XMP gimbal tags."));
+    field(OptionField("camera_file", &O::camera_file, "", Range::Any(),
+                      "Known camera (aos-camera file, any lens model); '' = a pinhole from "
+                      "fov_deg."));
+    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
+                      "Horizontal field of view of a pinhole camera, degrees, (0, 180); "
+                      "without camera_file."));
+    field(OptionField("altitude", &O::altitude, "", Range::Any(),
+                      "EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), "
+                      "'gps', 'relative'."));
+    field(OptionField("altitude_window", &O::altitude_window, "", Range::Any(),
+                      "Altitude outliers: running-median window in frames, odd >= 3; 0 = no "
+                      "rule."));
+    field(OptionField("max_altitude_deviation_m", &O::max_altitude_deviation_m, "m", Range::Any(),
+                      "An altitude further than this from its running median is replaced by "
+                      "it, metres."));
+    field(OptionField("max_distance_from_centre_m", &O::max_distance_from_centre_m, "m", Range::Any(),
+                      "A position farther than this from the flight's centre (median lat, "
+                      "lon) is refused, metres."));
+    field(OptionField("frame_interval_s", &O::frame_interval_s, "s", Range::Any(),
+                      "With a time column: seconds between consecutive frames (name order)."));
+    field(OptionField("time_offset_s", &O::time_offset_s, "s", Range::Any(),
+                      "With a time column: the log time of the first frame, seconds."));
+  }
 };
 
 struct AltitudeOutlier {

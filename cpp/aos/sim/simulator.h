@@ -47,12 +47,20 @@
 #include "aos/lightfield/lightfield.h"
 #include "aos/sim/scene.h"
 #include "aos/util/progress.h"
+#include "aos/util/option_fields.h"
 
 namespace aos {
 
 struct SimulateOptions {
   int num_threads = -1;  // worker threads; -1 = all cores
   void Check() const;
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = SimulateOptions;
+    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+                      "Worker threads; -1 = all cores."));
+  }
 };
 
 // What each stage did. Counters are exact; seconds are wall time of the stage (0 if skipped).

@@ -1,0 +1,181 @@
+#pragma once
+// Field tables: every field of an Options struct listed once (name, member, unit, range, help),
+// the way COLMAP's option manager registers each option once for its CLI and its project file.
+//
+// Contract
+// - An Options struct with a table declares, after its members,
+//     template <class Visit> static void Fields(Visit&& field) {
+//       field(OptionField("agreement", &SurfaceIntegralOptions::agreement, "",
+//                         Range::OpenClosed(0.0, 1.0), "Half-width of the agreement band ..."));
+//       ...
+//     }
+//   calling `field` once per member, in declaration order. The default of a field is the
+//   member's initializer: nothing else states it.
+// - From the table come, without a second list: the Python class (cpp/python/bindings.h:
+//   OptionsClass::Table: properties, keyword constructor, repr, ==, pickle, to_json/from_json,
+//   docstrings from `help`), the JSON form (lightfield/options_json.h: the view and map
+//   --workers hand-off), the range part of Check() (CheckFieldRanges below), the CLI flags bound
+//   through cpp/exe/cli.h Flags::Table (flag = --kebab-name, help and default from here), the
+//   schema `aos._core._option_tables()` that tools/options.py turns into the Options blocks of
+//   _core.pyi, the keyword TypedDicts of _keywords.py and docs/vocabulary.md (a test fails when
+//   they are stale).
+// - `range` is checked by CheckFieldRanges for number fields (int, double; bool excluded): a
+//   value outside it (NaN included) throws std::invalid_argument "name: must be <range>, got v".
+//   Conditions between fields stay in the struct's Check().
+// - Enum fields name their values through EnumNames<E> (specialised beside the enum): the JSON,
+//   the CLI and Python use those names.
+#include <cmath>
+#include <cstddef>
+#include <limits>
+#include <string>
+#include <type_traits>
+#include <utility>
+
+#include "aos/util/error.h"
+
+namespace aos {
+
+// The values a number field may take: an interval, and optionally one value outside it with a
+// meaning of its own (0 = "the pose view's", -1 = "all cores"), stated in the field's help.
+struct Range {
+  double lo = -std::numeric_limits<double>::infinity();
+  double hi = std::numeric_limits<double>::infinity();
+  bool lo_open = false;
+  bool hi_open = false;
+  bool has_special = false;
+  double special = 0.0;
+
+  // Any value (for a double: any finite value or +-infinity; NaN is refused).
+  static constexpr Range Any() { return Range{}; }
+  static constexpr Range Closed(double lo, double hi) { return Range{lo, hi, false, false}; }
+  static constexpr Range Open(double lo, double hi) { return Range{lo, hi, true, true}; }
+  static constexpr Range ClosedOpen(double lo, double hi) { return Range{lo, hi, false, true}; }
+  static constexpr Range OpenClosed(double lo, double hi) { return Range{lo, hi, true, false}; }
+  static constexpr Range AtLeast(double lo) {
+    return Range{lo, std::numeric_limits<double>::infinity(), false, false};
+  }
+  static constexpr Range Above(double lo) {
+    return Range{lo, std::numeric_limits<double>::infinity(), true, false};
+  }
+  // Finite values only.
+  static constexpr Range Finite() {
+    return Range{-std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
+  }
+  // This range and also `value`.
+  constexpr Range Or(double value) const {
+    Range range = *this;
+    range.has_special = true;
+    range.special = value;
+    return range;
+  }
+
+  bool Contains(double value) const {
+    if (has_special && value == special) return true;
+    if (std::isnan(value)) return false;
+    const bool above = lo_open ? value > lo : value >= lo;
+    const bool below = hi_open ? value < hi : value <= hi;
+    return above && below;
+  }
+  bool IsAny() const { return !has_special && std::isinf(lo) && lo < 0 && std::isinf(hi); }
+  // "in [0, 90)", "> 0", ">= 16 or 0", "a number" (for Any).
+  std::string Text() const;
+};
+
+// One row of a field table (see the contract).
+template <class Options, class T>
+struct OptionFieldSpec {
+  using Struct = Options;
+  using Type = T;
+  const char* name;
+  T Options::*member;
+  const char* unit;  // "m", "deg", "px", "MiB", "" (none)
+  Range range;
+  const char* help;
+};
+
+template <class Options, class T>
+constexpr OptionFieldSpec<Options, T> OptionField(const char* name, T Options::*member,
+                                                  const char* unit, Range range,
+                                                  const char* help) {
+  return {name, member, unit, range, help};
+}
+
+// The names of an enum's values, specialised beside the enum:
+//   template <> struct EnumNames<MergeMethod> {
+//     static constexpr std::pair<MergeMethod, const char*> kValues[] = {...};
+//   };
+template <class E>
+struct EnumNames;
+
+// The name of `value` ("?" for a value not listed).
+template <class E>
+const char* EnumName(E value) {
+  for (const auto& [candidate, name] : EnumNames<E>::kValues) {
+    if (candidate == value) return name;
+  }
+  return "?";
+}
+// "a, b, c": every name.
+template <class E>
+std::string EnumChoices() {
+  std::string text;
+  for (const auto& entry : EnumNames<E>::kValues) {
+    text += (text.empty() ? "" : ", ") + std::string(entry.second);
+  }
+  return text;
+}
+// The value named `name`; throws std::invalid_argument "field: unknown value 'x' (one of ...)".
+template <class E>
+E EnumFromName(const std::string& name, const std::string& field) {
+  for (const auto& [value, candidate] : EnumNames<E>::kValues) {
+    if (name == candidate) return value;
+  }
+  ThrowInvalid(field + ": unknown value '" + name + "' (one of " + EnumChoices<E>() + ")");
+}
+
+namespace detail {
+struct AnyFieldVisitor {
+  template <class O, class T>
+  void operator()(const OptionFieldSpec<O, T>&) const {}
+};
+}  // namespace detail
+
+// Whether T declares a field table.
+template <class T, class = void>
+struct HasFieldTable : std::false_type {};
+template <class T>
+struct HasFieldTable<T, std::void_t<decltype(T::Fields(std::declval<detail::AnyFieldVisitor&>()))>>
+    : std::true_type {};
+template <class T>
+inline constexpr bool kHasFieldTable = HasFieldTable<T>::value;
+
+// Whether T is an enum with EnumNames.
+template <class T, class = void>
+struct HasEnumNames : std::false_type {};
+template <class T>
+struct HasEnumNames<T, std::void_t<decltype(EnumNames<T>::kValues)>> : std::true_type {};
+
+// Number of fields in T's table.
+template <class Options>
+size_t FieldCount() {
+  size_t count = 0;
+  Options::Fields([&count](const auto&) { ++count; });
+  return count;
+}
+
+// Checks every number field of `options` against its range (see the contract).
+template <class Options>
+void CheckFieldRanges(const Options& options) {
+  Options::Fields([&options](const auto& field) {
+    using T = typename std::decay_t<decltype(field)>::Type;
+    if constexpr (std::is_arithmetic_v<T> && !std::is_same_v<T, bool>) {
+      const double value = static_cast<double>(options.*(field.member));
+      if (!field.range.Contains(value)) {
+        ThrowInvalid(std::string(field.name) + ": must be " + field.range.Text() + ", got " +
+                     FormatNumber(value));
+      }
+    }
+  });
+}
+
+}  // namespace aos
