@@ -22,6 +22,7 @@
 #include "aos/image/image_io.h"
 #include "aos/image/preview.h"
 #include "aos/lightfield/formats.h"
+#include "aos/lightfield/options_json.h"
 #include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
 #include "aos/render/map.h"
@@ -1021,11 +1022,7 @@ int RunView(ViewCommand& c, const Flags& flags) {
   if (c.no_browser && c.browser) ThrowUsage("--browser and --no-browser exclude each other");
   nlohmann::ordered_json spec;
   spec["light_field"] = c.args.light_field_path;
-  spec["load"] = {{"fov_deg", c.args.load.fov_deg},
-                  {"images_dir", c.args.load.images_dir},
-                  {"grey", c.args.load.grey},
-                  {"mask", c.args.load.mask},
-                  {"mask_dir", c.args.load.mask_dir}};
+  spec["load"] = OptionsToJson(c.args.load);
   spec["pose_view"] = c.args.pose_view;
   if (!c.args.pose_view.empty() && c.args.pose_view[0] == '-') {
     ThrowUsage("--pose-view: a view index is >= 0 (got " + c.args.pose_view + ")");
@@ -1073,20 +1070,11 @@ int RunView(ViewCommand& c, const Flags& flags) {
   // the viewer loads the frames.
   flags.NamingFlags([&] { o.Check(1); });
   flags.At("load.").NamingFlags([&] { c.args.load.Check(); });
-  spec["fov_deg"] = o.fov_deg;
-  spec["width"] = o.width;
-  spec["height"] = o.height;
-  if (std::isinf(o.aperture_radius)) {
-    spec["aperture_radius"] = "inf";
-  } else {
-    spec["aperture_radius"] = o.aperture_radius;
-  }
+  // The options travel whole, in their JSON form (lightfield/options_json.h); the view list
+  // and a pose view given by name are resolved once the light field is loaded.
+  spec["options"] = OptionsToJson(o);
   spec["views"] = c.args.views;
-  spec["min_view_angle_deg"] = o.min_view_angle_deg;
-  spec["num_threads"] = o.num_threads;
-  spec["focal_height"] = o.focal_plane.point.z;
   spec["focal_surface"] = c.args.focal_surface;
-  spec["surface_offset"] = o.surface_offset;
   spec["host"] = c.host;
   spec["port"] = c.port;
   if (c.max_pages > 0) spec["max_pages"] = c.max_pages;
@@ -1116,34 +1104,15 @@ int RunMapDistributed(MapCommand& c) {  // RunMap checked c.distributed
   c.options.Check(std::numeric_limits<int>::max());  // the view count is known after loading
   nlohmann::ordered_json spec;
   spec["light_field"] = c.light_field_path;
-  spec["load"] = {{"fov_deg", c.load.fov_deg},   {"images_dir", c.load.images_dir},
-                  {"grey", c.load.grey},         {"mask", c.load.mask},
-                  {"mask_dir", c.load.mask_dir}};
-  const MapOptions& o = c.options;
-  spec["pixel_size"] = o.pixel_size;
-  spec["width"] = o.width;
-  spec["extent"] = o.extent;
-  spec["focal_height"] = o.focal_height;
+  // The options travel whole, in their JSON form (lightfield/options_json.h); the view list
+  // is resolved once the light field is loaded, the surface is read from its file.
+  spec["load"] = OptionsToJson(c.load);
+  spec["options"] = OptionsToJson(c.options);
+  spec["distributed"] = OptionsToJson(c.distributed);
   spec["focal_surface"] = c.focal_surface;
-  spec["surface_offset"] = o.surface_offset;
-  if (std::isinf(o.aperture_radius)) {
-    spec["aperture_radius"] = "inf";
-  } else {
-    spec["aperture_radius"] = o.aperture_radius;
-  }
   spec["views"] = c.views;
-  spec["min_view_angle_deg"] = o.min_view_angle_deg;
-  spec["lens_tolerance_px"] = o.lens_tolerance_px;
-  spec["tile_size"] = o.tile_size;
-  spec["num_threads"] = o.num_threads;
   spec["output"] = c.output;
   spec["force"] = Common().force;
-  const DistributedOptions& d = c.distributed;
-  spec["workers"] = d.workers;
-  spec["scheduler"] = d.scheduler;
-  spec["cache_mb"] = d.cache_mb;
-  spec["share_mb"] = d.share_mb;
-  spec["dashboard"] = d.dashboard;
   spec["quiet"] = Common().quiet;
   spec["json"] = Common().json;
   ExecPythonModule("map", "distributed", spec.dump());

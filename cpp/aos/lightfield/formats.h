@@ -54,6 +54,7 @@
 #include <vector>
 
 #include "aos/lightfield/lightfield.h"
+#include "aos/util/option_fields.h"
 #include "aos/util/progress.h"
 
 namespace aos {
@@ -83,6 +84,28 @@ struct LoadOptions {
   // Worker threads for decoding frames; -1 = all cores.
   int num_threads = -1;
   void Check() const;
+
+  // The field table (util/option_fields.h): every field once, in declaration order.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = LoadOptions;
+    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Open(0.0, 180.0).Or(0.0),
+                      "Horizontal field of view of the frames, degrees (JKU poses.json only); "
+                      "0 = not given."));
+    field(OptionField("images_dir", &O::images_dir, "", Range::Any(),
+                      "Folder of the frames (JKU poses.json); '' = ../images beside it."));
+    field(OptionField("load_images", &O::load_images, "", Range::Any(),
+                      "Decode the frames; false loads poses and cameras only."));
+    field(OptionField("grey", &O::grey, "", Range::Any(),
+                      "Frames become one-channel Rec. 601 luminance at load."));
+    field(OptionField("mask", &O::mask, "", Range::Any(),
+                      "Mask image for every frame, the frames' size: zero pixels are left out "
+                      "of every average; '' = none. Not with mask_dir."));
+    field(OptionField("mask_dir", &O::mask_dir, "", Range::Any(),
+                      "Folder with one mask per frame, named like the frame; '' = none."));
+    field(OptionField("num_threads", &O::num_threads, "", Range::AtLeast(1).Or(-1),
+                      "Worker threads decoding frames; -1 = all cores."));
+  }
 };
 
 struct LoadResult {

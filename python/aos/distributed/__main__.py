@@ -1,10 +1,10 @@
 """``python -m aos.distributed --spec JSON``: what ``aos-render map --workers N`` (or
 ``--scheduler ADDRESS``) runs once it has checked its command line and the output path. The
-flags' values come as one JSON object (the flags are declared once, in C++): light_field, load
-{fov_deg, images_dir, grey, mask, mask_dir}, pixel_size, width, extent, focal_height,
-focal_surface (path, "" = none), surface_offset, aperture_radius (number or "inf"), views ("" =
-all), min_view_angle_deg, lens_tolerance_px, tile_size, num_threads, output, force, workers,
-scheduler, cache_mb, share_mb, dashboard, quiet, json. Draws a progress bar on stderr (plain lines when
+flags' values come as one JSON object (the flags are declared once, in C++): light_field;
+load, options and distributed: aos::LoadOptions, aos::MapOptions and aos::DistributedOptions in
+their JSON form (cpp/aos/lightfield/options_json.h, read here by from_json: no field is listed
+twice); focal_surface (path, "" = none) and views ("" = all), resolved once the light field is
+loaded; output, force, quiet, json. Draws a progress bar on stderr (plain lines when
 stderr is not a terminal), prints
 the report (a JSON object with --json), exits 0; errors: one line on stderr, exit 1 (bad input)
 or 2 (bad spec)."""
@@ -12,7 +12,6 @@ or 2 (bad spec)."""
 from __future__ import annotations
 
 import json
-import math
 import sys
 import time
 from typing import Any
@@ -57,12 +56,6 @@ class _Bar:
         self.stage = ""
 
 
-def _mib(spec: dict, key: str) -> "float | None":
-    """spec[key] (MiB, as the CLI sends it); None where it is absent (render_map then takes
-    aos.DistributedOptions' default)."""
-    return float(spec[key]) if key in spec else None
-
-
 def _dashboard_link(client: Any, local: bool) -> str:
     """The dashboard's address: a local cluster serves it only with bokeh installed here (without
     it Dask serves a page asking for bokeh); a remote scheduler's is its own."""
@@ -96,21 +89,14 @@ def main(argv: list[str]) -> int:
     quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
     bar = _Bar(quiet)
     try:
-        load = spec.get("load", {})
-        loaded = aos.load_lightfield(spec["light_field"], fov_deg=float(load.get("fov_deg", 0.0)),
-                                     images_dir=load.get("images_dir", ""), load_images=False)
+        load = spec["load"]
+        options = aos.MapOptions.from_json(json.dumps(spec["options"]))
+        run = aos.DistributedOptions.from_json(json.dumps(spec["distributed"]))
+        loaded = aos.load_lightfield(spec["light_field"], fov_deg=load["fov_deg"],
+                                     images_dir=load["images_dir"], load_images=False)
         for note in loaded.notes:
             sys.stderr.write(f"note: {note}\n")
         light_field = loaded.light_field
-        options = aos.MapOptions()
-        for name in ("pixel_size", "focal_height", "surface_offset", "min_view_angle_deg",
-                     "lens_tolerance_px"):
-            setattr(options, name, float(spec.get(name, getattr(options, name))))
-        for name in ("width", "tile_size", "num_threads"):
-            setattr(options, name, int(spec.get(name, getattr(options, name))))
-        options.extent = [float(v) for v in spec.get("extent", [])]
-        radius = spec.get("aperture_radius", "inf")
-        options.aperture_radius = math.inf if radius == "inf" else float(radius)
         if spec.get("views"):
             options.view_indices = parse_view_list(spec["views"], len(light_field))
         if spec.get("focal_surface"):
@@ -123,8 +109,8 @@ def main(argv: list[str]) -> int:
                              "map has none: GIS tools will place it in the frame's own "
                              "coordinates (origin + local), not on the Earth\n")
         frame_load = {key: load[key] for key in ("grey", "mask", "mask_dir") if load.get(key)}
-        workers = int(spec.get("workers", 0))
-        scheduler = str(spec.get("scheduler", ""))
+        workers = run.workers
+        scheduler = run.scheduler
         if not scheduler:
             try:
                 import cryptography  # noqa: F401  (the local cluster's TLS credentials)
@@ -141,16 +127,16 @@ def main(argv: list[str]) -> int:
                 f"a local cluster of {workers} worker processes"
             sys.stderr.write(f"map: {len(light_field)} frames, tiles of {options.tile_size} "
                              f"pixels as Dask tasks on {where}\n")
-            if scheduler or spec.get("dashboard"):
+            if scheduler or run.dashboard:
                 link = _dashboard_link(client, local=not scheduler)
                 sys.stderr.write(f"map: Dask dashboard at {link}\n" if link else
                                  "map: no Dask dashboard (pip install bokeh)\n")
 
         result = distributed.render_map(
             light_field, options, path=spec["output"], scheduler=scheduler or None,
-            workers=workers, dashboard=bool(spec.get("dashboard")), on_start=started,
+            workers=workers, dashboard=run.dashboard, on_start=started,
             load=frame_load, force=bool(spec.get("force", False)),
-            cache_mb=_mib(spec, "cache_mb"), share_mb=_mib(spec, "share_mb"), progress=bar)
+            cache_mb=run.cache_mb, share_mb=run.share_mb, progress=bar)
         bar.finish()
     except BadParameter as error:
         bar.finish()

@@ -3,11 +3,11 @@ command line (the native CLI parses the flags; this takes the values as one JSON
 flags are declared once, in C++). Prints the URL, serves until Ctrl-C (or SIGTERM), then stops
 cleanly and exits 0. Errors: one line on stderr, exit 1 (bad input) or 2 (bad spec).
 
-Spec keys: light_field (path), load {fov_deg, images_dir, grey}, pose_view (index or name, ""
-= none), cam_from_world (12 numbers or null), fov_deg, width, height, aperture_radius (number
-or "inf"), views ("" = all), min_view_angle_deg, num_threads, focal_height, focal_surface (path,
-"" = none), surface_offset, host, port, max_pages, open_browser (true/false/null), quiet,
-json.
+Spec keys: light_field (path); load and options: aos::LoadOptions and aos::IntegralOptions in
+their JSON form (cpp/aos/lightfield/options_json.h; read here by IntegralOptions.from_json, so no
+field is listed twice); pose_view (index or name, "" = none), cam_from_world (12 numbers or
+null), views ("" = all), focal_surface (path, "" = none): what is resolved once the light field is
+loaded; host, port, max_pages, open_browser (true/false/null), quiet, json: the viewer's own.
 """
 
 from __future__ import annotations
@@ -45,13 +45,11 @@ def main(argv: list[str]) -> int:
 
     quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
     try:
-        load = spec.get("load", {})
-        load_options = {"fov_deg": float(load.get("fov_deg", 0.0)),
-                        "images_dir": load.get("images_dir", ""),
-                        "grey": bool(load.get("grey", False)),
-                        "mask": load.get("mask", ""), "mask_dir": load.get("mask_dir", "")}
-        loaded = aos.load_lightfield(spec["light_field"], **load_options,
-                                     num_threads=int(spec.get("num_threads", -1)))
+        options = aos.IntegralOptions.from_json(json.dumps(spec["options"]))
+        load = {key: value for key, value in spec["load"].items()
+                if key not in ("load_images", "num_threads")}
+        loaded = aos.load_lightfield(spec["light_field"], **load,
+                                     num_threads=options.num_threads)
         for note in loaded.notes:
             sys.stderr.write(f"note: {note}\n")
         light_field = loaded.light_field
@@ -64,13 +62,13 @@ def main(argv: list[str]) -> int:
                 sys.stderr.write(f"focal surface: {surface!r}\n")
         defaults: dict[str, Any] = {
             "surface": surface is not None,
-            "surface_offset": float(spec.get("surface_offset", 0.0)),
-            "focal_height": float(spec.get("focal_height", 0.0)),
-            "fov_deg": float(spec.get("fov_deg", 0.0)),
-            "width": int(spec.get("width", 0)), "height": int(spec.get("height", 0)),
+            "surface_offset": options.surface_offset,
+            "focal_height": float(options.focal_plane.point[2]),
+            "fov_deg": options.fov_deg,
+            "width": options.width, "height": options.height,
+            "aperture_radius": "inf" if math.isinf(options.aperture_radius)
+            else options.aperture_radius,
         }
-        radius = spec.get("aperture_radius", "inf")
-        defaults["aperture_radius"] = radius if isinstance(radius, str) else float(radius)
         pose_view = str(spec.get("pose_view", ""))
         if pose_view:
             count = len(light_field)
@@ -89,11 +87,11 @@ def main(argv: list[str]) -> int:
         if spec.get("views"):
             views = parse_view_list(spec["views"], len(light_field))
         session = Session(light_field, source=spec["light_field"], focal_surface=surface,
-                          load_options=load_options,
+                          load_options=load,
                           surface_path=spec.get("focal_surface", ""),
                           defaults=defaults, cam_from_world=cam_from_world, view_indices=views,
-                          min_view_angle_deg=float(spec.get("min_view_angle_deg", 1.0)),
-                          num_threads=int(spec.get("num_threads", -1)))
+                          min_view_angle_deg=options.min_view_angle_deg,
+                          num_threads=options.num_threads)
         host = str(spec.get("host", "127.0.0.1"))
         warning = remote_warning(host)
         if warning:
