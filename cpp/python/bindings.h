@@ -242,9 +242,9 @@ E EnumFromPython(const py::object& value, const std::string& field) {
   }
 }
 
-// The Python annotation of a bound C++ type, as the stubs write it ("float", "list[int]",
-// "MergeMethod | str" for a value given, "Plane | None"); `given` is the setter's side (enums
-// also take names).
+// The Python annotation of a bound C++ type, as the stubs write it: read ("float", "list[int]",
+// "Plane | None") or `given` (what the setter takes: "Sequence[int]", "Plane | float",
+// "MergeMethod | Literal['sobel', ...]").
 template <typename T>
 std::string PythonTypeName(bool given = false) {
   if constexpr (std::is_same_v<T, bool>) {
@@ -256,7 +256,9 @@ std::string PythonTypeName(bool given = false) {
   } else if constexpr (std::is_same_v<T, std::string>) {
     return "str";
   } else if constexpr (options_json::IsVector<T>::value || options_json::IsArray<T>::value) {
-    return "list[" + PythonTypeName<typename T::value_type>(given) + "]";
+    return (given ? "Sequence[" : "list[") + PythonTypeName<typename T::value_type>(given) + "]";
+  } else if constexpr (std::is_same_v<T, Plane>) {
+    return given ? "Plane | float" : "Plane";
   } else if constexpr (options_json::IsOptional<T>::value) {
     return PythonTypeName<typename T::value_type>(given) + " | None";
   } else if constexpr (std::is_same_v<T, std::shared_ptr<const FocalSurface>>) {
@@ -265,7 +267,15 @@ std::string PythonTypeName(bool given = false) {
     const py::detail::type_info* info = py::detail::get_type_info(typeid(T));
     if (info == nullptr) throw std::logic_error("PythonTypeName: an unbound type");
     const std::string name = py::str(py::handle(reinterpret_cast<PyObject*>(info->type)).attr("__name__"));
-    if (std::is_enum_v<T> && given) return name + " | str";
+    if constexpr (std::is_enum_v<T>) {
+      if (given) {
+        std::string names;
+        for (const auto& entry : EnumNames<T>::kValues) {
+          names += (names.empty() ? "'" : ", '") + std::string(entry.second) + "'";
+        }
+        return name + " | Literal[" + names + "]";
+      }
+    }
     return name;
   }
 }

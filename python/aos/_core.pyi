@@ -21,7 +21,7 @@ __deepcopy__ (the others copy through pickling).
 """
 
 import os
-from typing import Any, Callable, ClassVar, Optional, Sequence, Union
+from typing import Any, Callable, ClassVar, Literal, Optional, Sequence, Union
 
 import numpy
 import numpy.typing
@@ -337,7 +337,8 @@ def write_lightfield(
     """Writes the aos JSON format (fields of aos::WriteLightFieldOptions)."""
 
 class IntegralOptions:
-    """Options of render_integral; fields and defaults of aos::IntegralOptions."""
+    """Options of render_integral. Defaults come from the C++ struct aos::IntegralOptions;
+    IntegralOptions(**fields) overrides them by name (unknown names raise TypeError)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -349,8 +350,8 @@ class IntegralOptions:
         width: int = ...,
         height: int = ...,
         aperture_radius: float = ...,
-        focal_plane: _PlaneLike = ...,
-        focal_surface: _SurfaceLike | None = ...,
+        focal_plane: Plane | float = ...,
+        focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None = ...,
         surface_offset: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
@@ -364,41 +365,53 @@ class IntegralOptions:
     pose_view: int
     """If >= 0, the virtual camera takes the pose of this view (index into the light field)."""
     fov_deg: float
-    """Horizontal field of view of the virtual camera, degrees, (0, 180)."""
+    """Horizontal field of view of the virtual camera, degrees, (0, 180). [deg]"""
     width: int
     """Output width, pixels (1 .. 65536)."""
     height: int
     """Output height, pixels (1 .. 65536)."""
     aperture_radius: float
-    """Radius of the virtual aperture on the lens plane, metres; 0 = pinhole, inf = every view."""
+    """Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
+    pixel), infinity means every view."""
     @property
     def focal_plane(self) -> Plane:
-        """The focal plane (local frame): any point on it and its normal."""
+        """The focal plane (local frame): any point on it and its normal. With a focal_surface only
+        its normal is used (grazing test)."""
     @focal_plane.setter
-    def focal_plane(self, value: _PlaneLike) -> None:
-        """A Plane, or a number: the horizontal plane at that height."""
+    def focal_plane(self, value: Plane | float) -> None: ...
     @property
-    def focal_surface(self) -> Optional[FocalSurface]:
-        """A focal surface instead of focal_plane (None = focal_plane)."""
+    def focal_surface(self) -> FocalSurface | None:
+        """A focal surface instead of focal_plane: FocalSurface, Mesh, Heightfield (or a Plane);
+        None = focal_plane. Reading returns a FocalSurface sharing the BVH."""
     @focal_surface.setter
-    def focal_surface(self, value: _SurfaceLike | None) -> None:
-        """A FocalSurface, Mesh, Heightfield, Plane or number, or None."""
+    def focal_surface(
+        self, value: FocalSurface | Mesh | Heightfield | Plane | float | None
+    ) -> None: ...
     surface_offset: float
-    """Offset of focal_surface along up (towards the views), metres; 0 without a surface."""
+    """Offset of focal_surface along up (towards the views), metres; must be 0 without a
+    focal_surface."""
     @property
     def view_indices(self) -> list[int]:
-        """Views to integrate; empty means all. Reading returns a new list."""
+        """Views to integrate (indices into the light field); empty means all views. Reading returns
+        a new list: assign a list to change it."""
     @view_indices.setter
     def view_indices(self, value: Sequence[int]) -> None: ...
     min_view_angle_deg: float
-    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90)."""
+    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
+    rays are ignored. [deg]"""
     num_threads: int
     """Worker threads; -1 = all cores."""
     variance: bool
-    """Also return the per-pixel variance of the view samples (scalar kernel: a few times slower)."""
+    """Also return the per-pixel variance of the view samples (the samples then go through the
+    scalar kernel, which also sums their squares: a few times slower)."""
     lens_tolerance_px: float
-    """Views with a lens model: largest sample-position error, view pixels, [0, 1], of the local
-    maps (homographies, cubics) that replace the exact projection; 0 = exact."""
+    """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
+    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> IntegralOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
     def __eq__(self, other: object) -> bool: ...
@@ -514,7 +527,7 @@ def render_integral(
 def virtual_camera(light_field: LightField, options: IntegralOptions) -> PinholeCamera: ...
 
 class RectifyOptions:
-    """Options of make_rectifier; fields and defaults of aos::RectifyOptions."""
+    """Options of make_rectifier (defaults from the C++ struct aos::RectifyOptions)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -530,12 +543,24 @@ class RectifyOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     fov_deg: float
+    """Horizontal field of view of the rectified image, degrees, (0, 180). [deg]"""
     width: int
+    """Output width, pixels; 0 = the raw frame's."""
     height: int
+    """Output height, pixels; 0 = the raw frame's."""
     yaw_deg: float
+    """Turn about the lens's y axis, degrees. [deg]"""
     pitch_deg: float
+    """Turn about the lens's x axis, degrees. [deg]"""
     roll_deg: float
+    """Turn about the optical axis, degrees. [deg]"""
     fill: bool
+    """Pixels the lens does not cover become 0 (black) instead of an error."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> RectifyOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> RectifyOptions: ...
@@ -569,13 +594,14 @@ def _rectify_light_field(
 ) -> RectifyLightFieldResult: ...
 
 class CalibrateOptions:
-    """Options of calibrate; fields and defaults of aos::CalibrateOptions."""
+    """Options of calibrate (defaults from the C++ struct aos::CalibrateOptions). aos.calibrate also
+    accepts model as a string ('pinhole', 'radtan', 'fisheye', 'omnidir')."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
         self,
         *,
-        model: LensModel | str = ...,
+        model: LensModel | Literal['pinhole', 'radtan', 'fisheye', 'omnidir'] = ...,
         pattern_columns: int = ...,
         pattern_rows: int = ...,
         square_size_m: float = ...,
@@ -583,15 +609,23 @@ class CalibrateOptions:
         """Defaults from C++; unknown names raise TypeError."""
     @property
     def model(self) -> LensModel:
-        """Lens model to fit (pinhole, radtan, fisheye, omnidir); also set by name."""
+        """Lens model to fit: pinhole, radtan (cv::calibrateCamera), fisheye
+        (cv::fisheye::calibrate) or omnidir (cv::omnidir::calibrate, Mei's model)."""
     @model.setter
-    def model(self, value: LensModel | str) -> None: ...
+    def model(
+        self, value: LensModel | Literal['pinhole', 'radtan', 'fisheye', 'omnidir']
+    ) -> None: ...
     pattern_columns: int
     """Inner corners of the checkerboard per row (>= 2)."""
     pattern_rows: int
     """Inner corners of the checkerboard per column (>= 2)."""
     square_size_m: float
-    """Side of one square, metres (> 0)."""
+    """Side of one square, metres (> 0). [m]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> CalibrateOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None:
         """ValueError naming the field."""
     def __eq__(self, other: object) -> bool: ...
@@ -629,19 +663,31 @@ def _write_camera_file(path: _PathLike, camera: LensCamera, calibration_json: st
     """Writes a camera file atomically; see aos.write_camera_file."""
 
 class SurfaceIntegralOptions:
-    """Options of render_integral_on_depth; fields and defaults of aos::SurfaceIntegralOptions."""
+    """Options of render_integral_on_depth (the mean on a depth surface). Defaults from the C++
+    struct aos::SurfaceIntegralOptions."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
-        self, *, robust: bool = ..., agreement: float = ..., min_inlier_fraction: float = ...
+        self,
+        *,
+        robust: bool = ...,
+        agreement: float = ...,
+        min_inlier_fraction: float = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     robust: bool
-    """Outlier-rejecting (densest agreeing band) mean instead of the plain mean."""
+    """Outlier-rejecting mean instead of the plain mean."""
     agreement: float
-    """Half-width of the agreement band, fraction of the views' full range, (0, 1]."""
+    """Half-width of the band within which samples agree, as a fraction of the views' full range
+    (255 for 8-bit, 65535 for 16-bit, 1 for float), (0, 1]."""
     min_inlier_fraction: float
-    """Fewest agreeing samples (fraction) for the robust mean, [0, 1]; else the plain mean."""
+    """Fewest inliers, as a fraction of the pixel's samples, for the robust mean to be used, [0, 1];
+    fewer keep the plain mean."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> SurfaceIntegralOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None:
         """ValueError naming the field."""
     def __eq__(self, other: object) -> bool: ...
@@ -676,7 +722,8 @@ def _render_integral_on_depth(
 ) -> SurfaceIntegralResult: ...
 
 class MapOptions:
-    """Options of render_map; fields and defaults of aos::MapOptions."""
+    """Options of render_map (an orthographic map looking straight down). Defaults from the C++
+    struct aos::MapOptions."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -686,7 +733,7 @@ class MapOptions:
         width: int = ...,
         extent: Sequence[float] = ...,
         focal_height: float = ...,
-        focal_surface: _SurfaceLike | None = ...,
+        focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None = ...,
         surface_offset: float = ...,
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
@@ -702,33 +749,46 @@ class MapOptions:
     """Map width in pixels when pixel_size is 0 (>= 2)."""
     @property
     def extent(self) -> list[float]:
-        """World [XMIN, YMIN, XMAX, YMAX]; [] = the views' footprints on the focal plane."""
+        """World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the selected views'
+        footprints on the focal plane."""
     @extent.setter
     def extent(self, value: Sequence[float]) -> None: ...
     focal_height: float
-    """Horizontal focal plane z = focal_height, local frame, metres."""
+    """Height of the horizontal focal plane z = focal_height, local frame, metres (without a
+    focal_surface)."""
     @property
-    def focal_surface(self) -> Optional[FocalSurface]:
-        """A terrain to focus on instead of the plane; None = the plane."""
+    def focal_surface(self) -> FocalSurface | None:
+        """A terrain to focus on instead of the plane: FocalSurface, Mesh or Heightfield; None = the
+        plane z = focal_height."""
     @focal_surface.setter
-    def focal_surface(self, value: _SurfaceLike | None) -> None: ...
+    def focal_surface(
+        self, value: FocalSurface | Mesh | Heightfield | Plane | float | None
+    ) -> None: ...
     surface_offset: float
-    """Offset of focal_surface along up (towards the views), metres; 0 without a surface."""
+    """Offset of focal_surface along up (towards the views), metres; must be 0 without a
+    focal_surface."""
     aperture_radius: float
-    """Horizontal distance focal point - view centre, metres; 0 = nearest view, inf = all."""
+    """Horizontal distance from the focal point to a view centre, metres; 0 = the single nearest
+    view, inf = every view."""
     @property
     def view_indices(self) -> list[int]:
         """Views to integrate; [] = all."""
     @view_indices.setter
     def view_indices(self, value: Sequence[int]) -> None: ...
     min_view_angle_deg: float
-    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90)."""
+    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90). [deg]"""
     lens_tolerance_px: float
-    """Views with a lens model: largest sample-position error, view pixels, [0, 1]; 0 = exact."""
+    """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
+    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px]"""
     tile_size: int
     """Pixels on a side of a render tile, 16 .. 8192."""
     num_threads: int
     """Worker threads; -1 = all cores."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> MapOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self, view_count: int) -> None:
         """ValueError naming the field."""
     def __eq__(self, other: object) -> bool: ...
@@ -737,8 +797,8 @@ class MapOptions:
     def __repr__(self) -> str: ...
 
 class DistributedOptions:
-    """How aos.distributed.render_map spreads a map's tiles over Dask; fields and defaults of
-    aos::DistributedOptions."""
+    """How aos.distributed.render_map (and aos-render map --workers/--scheduler) spreads a map's
+    tiles over Dask. Defaults from the C++ struct aos::DistributedOptions."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -752,16 +812,22 @@ class DistributedOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     workers: int
-    """Worker processes of a local cluster, >= 0; 0 = none (render_map: one, without a client
-    or a scheduler)."""
+    """Worker processes of a local cluster, >= 0; 0 = none (render_map, always on Dask, then starts
+    one where it has no client or scheduler)."""
     scheduler: str
-    """Address of an existing Dask scheduler; '' = none. Not with workers."""
+    """Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. Not with workers."""
     cache_mb: float
-    """Decoded frames each worker keeps between tasks, MiB, >= 0."""
+    """Decoded frames each worker keeps between tasks, MiB, >= 0. [MiB]"""
     share_mb: float
-    """Decoded frames each worker hands to its machine's other workers, MiB, >= 0; 0 = none."""
+    """Decoded frames each worker hands to the other workers of its machine through shared memory,
+    MiB, >= 0; 0 = none. [MiB]"""
     dashboard: bool
     """The local cluster also serves Dask's dashboard; needs workers >= 1."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> DistributedOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None:
         """ValueError naming the field."""
     def __eq__(self, other: object) -> bool: ...
@@ -862,44 +928,54 @@ class _MapGeoTiffWriter:
     def commit(self, progress: _Progress = None) -> None: ...
 
 class FocalStackOptions:
-    """Options of render_focal_stack; fields and defaults of aos::FocalStackOptions."""
+    """Options of render_focal_stack. Defaults from the C++ struct aos::FocalStackOptions."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
         self,
         *,
         render: IntegralOptions = ...,
-        first_plane: _PlaneLike = ...,
-        last_plane: _PlaneLike = ...,
-        ground_plane: Optional[_PlaneLike] = ...,
+        first_plane: Plane | float = ...,
+        last_plane: Plane | float = ...,
+        ground_plane: Plane | float | None = ...,
         first_offset: float = ...,
         last_offset: float = ...,
         slices: int = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     render: IntegralOptions
-    """Virtual camera, aperture, views, threads and variance flag of every slice."""
+    """Virtual camera, aperture, views, threads and variance flag of every slice (IntegralOptions);
+    render.focal_plane is ignored."""
     @property
     def first_plane(self) -> Plane:
-        """Boundary plane of slice 0."""
+        """Boundary plane of slice 0 (local frame)."""
     @first_plane.setter
-    def first_plane(self, value: _PlaneLike) -> None: ...
+    def first_plane(self, value: Plane | float) -> None: ...
     @property
     def last_plane(self) -> Plane:
-        """Boundary plane of slice N-1."""
+        """Boundary plane of slice N-1 (local frame)."""
     @last_plane.setter
-    def last_plane(self, value: _PlaneLike) -> None: ...
+    def last_plane(self, value: Plane | float) -> None: ...
     @property
-    def ground_plane(self) -> Optional[Plane]:
-        """A ground plane the slices lie parallel to (None = first_plane/last_plane)."""
+    def ground_plane(self) -> Plane | None:
+        """A ground plane (e.g. estimate_ground(...).plane): the slices then lie parallel to it at
+        first_offset .. last_offset along its normal turned towards the views; None =
+        first_plane/last_plane."""
     @ground_plane.setter
-    def ground_plane(self, value: Optional[_PlaneLike]) -> None: ...
+    def ground_plane(self, value: Plane | float | None) -> None: ...
     first_offset: float
-    """Terrain-following stacks: offset of slice 0 along up, metres."""
+    """Terrain-following stacks (render.focal_surface set) and stacks around ground_plane: offset of
+    slice 0 along up, metres."""
     last_offset: float
-    """Terrain-following stacks: offset of slice N-1 along up, metres."""
+    """Terrain-following stacks and stacks around ground_plane: offset of slice N-1 along up,
+    metres."""
     slices: int
     """Number of slices, 1 .. 100000."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> FocalStackOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self, view_count: int) -> None:
         """ValueError naming the offending field."""
     def __eq__(self, other: object) -> bool: ...
@@ -958,13 +1034,14 @@ class MergeMethod:
     def value(self) -> int: ...
 
 class MergeOptions:
-    """Options of merge_focal_stack and all_in_focus; fields and defaults of aos::MergeOptions."""
+    """Options of merge_focal_stack and all_in_focus. Defaults from the C++ struct
+    aos::MergeOptions. aos.merge_focal_stack also accepts method as a string."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
         self,
         *,
-        method: MergeMethod | str = ...,
+        method: MergeMethod | Literal['sobel', 'improved', 'robust'] = ...,
         window_radius: int = ...,
         smoothing_sigma: float = ...,
         edge_sigma: float = ...,
@@ -975,15 +1052,27 @@ class MergeOptions:
         """Defaults from C++; unknown names raise TypeError."""
     @property
     def method(self) -> MergeMethod:
-        """sobel, improved (default) or robust; also set by name."""
+        """sobel, improved (default) or robust."""
     @method.setter
-    def method(self, value: MergeMethod | str) -> None: ...
+    def method(self, value: MergeMethod | Literal['sobel', 'improved', 'robust']) -> None: ...
     window_radius: int
+    """improved/robust: focus measure window radius, pixels (window 2r+1 on a side), 0..32."""
     smoothing_sigma: float
+    """improved/robust: spatial sigma of the edge-aware depth smoothing, pixels, [0, 16]; 0 = off."""
     edge_sigma: float
+    """improved/robust: range sigma of the smoothing, as a fraction of the guide image's contrast
+    (1st to 99th percentile), > 0."""
     smoothing_iterations: int
+    """improved/robust: smoothing passes, 0..20."""
     robust: SurfaceIntegralOptions
+    """robust: the outlier-rejecting mean (SurfaceIntegralOptions; its robust flag is forced on)."""
     num_threads: int
+    """Worker threads of the merge (slices render with render.num_threads); -1 = all cores."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> MergeOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None:
         """ValueError naming the field."""
     def __eq__(self, other: object) -> bool: ...
@@ -1025,8 +1114,17 @@ class AllInFocusOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     stack: FocalStackOptions
+    """The slices (FocalStackOptions)."""
     merge: MergeOptions
+    """The merge (MergeOptions)."""
     coarse_to_fine: int
+    """0 = off; a factor 2..16: a coarse stack (1/factor the size, every factor-th slice) chooses
+    each factor x factor block's slices, only those render at full resolution."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> AllInFocusOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self, view_count: int) -> None:
         """ValueError naming the field."""
     def __eq__(self, other: object) -> bool: ...
@@ -1045,7 +1143,7 @@ def _all_in_focus(
 ) -> MergeResult: ...
 
 class QualityOptions:
-    """Options of compare_images; fields and defaults of aos::QualityOptions."""
+    """Options of compare_images (defaults from the C++ struct aos::QualityOptions)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -1060,11 +1158,23 @@ class QualityOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     data_range: float
+    """Peak-to-peak value range L; 0 = from the reference's dtype (uint8 255, uint16 65535, float
+    1.0)."""
     gaussian_sigma: float
+    """Standard deviation of the SSIM window, pixels (> 0)."""
     window_radius: int
+    """SSIM window radius, pixels (>= 1); the window is (2r + 1)^2."""
     k1: float
+    """SSIM constant k1, (0, 1)."""
     k2: float
+    """SSIM constant k2, (0, 1)."""
     grey: bool
+    """Compare luminances: 3- or 4-channel images become Rec. 601 luminance first."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> QualityOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> QualityOptions: ...
@@ -1097,7 +1207,7 @@ class QualityResult:
     def __repr__(self) -> str: ...
 
 class ResolutionOptions:
-    """Options of sampling_resolution; fields and defaults of aos::ResolutionOptions."""
+    """Options of sampling_resolution (defaults from the C++ struct aos::ResolutionOptions)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -1110,9 +1220,19 @@ class ResolutionOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     distance_m: float
+    """Distance from the camera to the focal plane along its axis, metres (> 0). [m]"""
     pose_error_px: float
+    """Pose error in pixels (>= 0), converted to metres with the sample size. [px]"""
     pose_error_m: float
+    """Pose error in metres at the focal plane (>= 0); at most one of the two. [m]"""
     max_off_axis_deg: float
+    """The back-projected figure counts pixels whose ray is within this angle of the axis, degrees
+    in (0, 90). [deg]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> ResolutionOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> ResolutionOptions: ...
@@ -1145,7 +1265,8 @@ class ResolutionResult:
 def _sampling_resolution(camera: LensCamera, options: ResolutionOptions) -> ResolutionResult: ...
 
 class FlightPlanOptions:
-    """Options of plan_flight; fields and defaults of aos::FlightPlanOptions."""
+    """Options of plan_flight (defaults from the C++ struct aos::FlightPlanOptions; docs/flight-
+    planning.md)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -1154,13 +1275,13 @@ class FlightPlanOptions:
         shape: str = ...,
         coordinates: str = ...,
         crs: str = ...,
-        center: tuple[float, float] = ...,
+        center: Sequence[float] = ...,
         radius_m: float = ...,
         sector_start_deg: float = ...,
         sector_angle_deg: float = ...,
         width_m: float = ...,
         length_m: float = ...,
-        vertices: list[tuple[float, float]] = ...,
+        vertices: Sequence[Sequence[float]] = ...,
         pattern: str = ...,
         spacing_m: float = ...,
         along_spacing_m: float = ...,
@@ -1183,34 +1304,74 @@ class FlightPlanOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     shape: str
+    """circle, sector, rectangle, polygon or line."""
     coordinates: str
+    """world (x, y metres) or latlon (latitude, longitude degrees, WGS84)."""
     crs: str
-    center: tuple[float, float]
+    """CRS of world coordinates (projected, metres); '' = local frame."""
+    @property
+    def center(self) -> list[float]:
+        """Centre of a circle, sector or rectangle: (x, y) or (lat, lon)."""
+    @center.setter
+    def center(self, value: Sequence[float]) -> None: ...
     radius_m: float
+    """Radius of a circle or sector, metres (> 0). [m]"""
     sector_start_deg: float
+    """Sector: bearing of its first edge, degrees. [deg]"""
     sector_angle_deg: float
+    """Sector: its angle, degrees in (0, 360]. [deg]"""
     width_m: float
+    """Rectangle: size across the heading, metres. [m]"""
     length_m: float
-    vertices: list[tuple[float, float]]
+    """Rectangle: size along the heading, metres. [m]"""
+    @property
+    def vertices(self) -> list[list[float]]:
+        """Polygon corners or line points, (x, y) or (lat, lon)."""
+    @vertices.setter
+    def vertices(self, value: Sequence[Sequence[float]]) -> None: ...
     pattern: str
+    """scan, grid or circles."""
     spacing_m: float
+    """Distance between lines or rings at the centre, metres. [m]"""
     along_spacing_m: float
+    """Distance between shots along a line or ring at the centre, metres; 0 = spacing_m. [m]"""
     outer_scale: float
+    """Spacing at the edge over spacing at the centre (>= 1)."""
     heading_deg: float
+    """Compass direction of the scan lines, degrees. [deg]"""
     min_shots_per_line: int
+    """Scan lines with fewer shots inside the shape are not flown (>= 1)."""
     altitude_m: float
+    """Height above the ground, metres (> 0). [m]"""
     altitude_mode: str
+    """terrain or constant."""
     dem: str
+    """Terrain mesh (OBJ, PLY) or raster path; '' = flat ground."""
     ground_height_m: float
+    """Flat ground's z without a DEM, metres. [m]"""
     terrain_up: str
+    """+z or -z (z down, JKU's F0)."""
     min_clearance_m: float
+    """Least height above the terrain of a constant-altitude shot, metres. [m]"""
     ground_speed_mps: float
+    """Ground speed, m/s (> 0). [m/s]"""
     hover_s: float
+    """Time at each shot, seconds (>= 0). [s]"""
     battery_min: float
+    """Flight time one battery allows, minutes (inf: none)."""
     max_waypoints: int
+    """Most shots (and scan lines or rings) a plan may have; a larger one is refused first."""
     image_width: int
+    """Camera for Eq. 2: width, pixels."""
     image_height: int
+    """Camera for Eq. 2: height, pixels."""
     fov_deg: float
+    """Camera for Eq. 2: horizontal field of view, degrees. [deg]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> FlightPlanOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> FlightPlanOptions: ...
@@ -1344,12 +1505,22 @@ def parse_scene(json_text: str, source: str = "<json>", base_dir: str = ".") -> 
 def default_scene() -> Scene: ...
 
 class SimulateOptions:
-    """Options of simulate; fields and defaults of aos::SimulateOptions."""
+    """Options of simulate. Defaults come from the C++ struct aos::SimulateOptions."""
 
     _fields: ClassVar[tuple[str, ...]]
-    def __init__(self, *, num_threads: int = ...) -> None:
+    def __init__(
+        self,
+        *,
+        num_threads: int = ...,
+    ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     num_threads: int
+    """Worker threads; -1 = all cores."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> SimulateOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> SimulateOptions: ...
@@ -1407,7 +1578,7 @@ def ground_heightfield(
     """The scene's ground as a DEM on the simulator's grid (all-zero extent = ground.extent)."""
 
 class DemoOptions:
-    """Options of run_demo; fields and defaults of aos::DemoOptions."""
+    """Options of run_demo. Defaults come from the C++ struct aos::DemoOptions."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -1419,8 +1590,18 @@ class DemoOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     num_threads: int
+    """Worker threads of the simulation and the renders; -1 = all cores."""
     all_in_focus_slices: int
+    """Slices of the all-in-focus stack from the ground to the top of the occluders, 0..1000; 0 = no
+    all-in-focus image."""
     target_margin_m: float
+    """Ring of ground around each target used as its surroundings in the visibility figures, metres
+    (> 0). [m]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> DemoOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> DemoOptions: ...
@@ -1502,7 +1683,7 @@ def _run_demo(scene: Scene, options: DemoOptions, progress: _Progress = None) ->
 def write_demo(result: DemoResult, folder: str) -> list[str]: ...
 
 class PosesOptions:
-    """Options of estimate_poses; fields and defaults of aos::PosesOptions."""
+    """Options of estimate_poses (defaults from the C++ struct aos::PosesOptions)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -1532,26 +1713,60 @@ class PosesOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     colmap: str
+    """The COLMAP executable (on PATH or a path)."""
     workspace: str
+    """Keep COLMAP's workspace in this new folder; '' = a temporary one, removed."""
     matcher: str
+    """'sequential', 'spatial' or 'exhaustive'."""
     sequential_overlap: int
+    """Sequential matching: successors each frame is matched with."""
     spatial_neighbors: int
+    """Spatial matching: nearest frames (by position) each frame is matched with."""
     camera_file: str
+    """Known camera (aos-camera file); '' = self-calibration of camera_model."""
     camera_model: str
+    """COLMAP model to self-calibrate."""
     fov_deg: float
+    """Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's guess. [deg]"""
     positions_file: str
+    """CSV of name,x,y,z positions (metres): geo-reference and spatial priors."""
     positions_crs: str
+    """CRS of positions_file as PROJ names it (e.g. EPSG:4326, EPSG:25833); empty: from the header
+    (lat/lon columns are WGS84 degrees, x/y/z metres in an unstated frame)."""
     exif_positions: bool
+    """Positions from the frames' EXIF GPS tags (UTM) instead of a file."""
     max_image_size: int
+    """Features on frames downscaled to this longest side."""
     max_num_features: int
+    """Features per frame."""
     sift_first_octave: int
+    """SIFT's first octave: -1 = on the frame upsampled 2x (COLMAP's default), 0 = on the frame
+    itself (about 4x faster extraction)."""
     min_registered_fraction: float
+    """Error below this fraction of frames registered."""
     num_threads: int
+    """COLMAP's threads; -1 = all cores."""
     max_focal_deviation: float
+    """Self-calibration: refuse a focal length further than this fraction from the fov_deg prior's,
+    > 0."""
     flight_height_m: float
+    """The cameras' height above the ground as flown, metres (e.g. 35 for a flight 35 m above the
+    ground): the geo-referenced median depth is checked against it; 0 = not checked. Needs
+    positions. [m]"""
     max_scale_deviation: float
+    """Refuse a median depth further than this fraction from flight_height_m, > 0."""
     allow_implausible: bool
+    """Keep implausible self-calibrated intrinsics or scene scale with a warning instead of
+    refusing."""
     preset: str
+    """'default' or 'quick': quick sets max_image_size 480, max_num_features 512, sift_first_octave
+    0, sequential_overlap 3, spatial_neighbors 8 and, with positions, matcher 'spatial', each
+    where left at its default (docs/poses.md)."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> PosesOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> PosesOptions: ...
@@ -1559,7 +1774,7 @@ class PosesOptions:
     def __repr__(self) -> str: ...
 
 class GroundOptions:
-    """Options of estimate_ground; fields and defaults of aos::GroundOptions."""
+    """Options of estimate_ground (defaults from the C++ struct aos::GroundOptions)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -1573,10 +1788,20 @@ class GroundOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     cell_size_m: float
+    """Side of a DEM cell, metres, > 0. [m]"""
     quantile: float
+    """Height quantile of a cell's points taken as its ground, [0, 1)."""
     min_points_per_cell: int
+    """Fewest points for a cell to be measured, >= 1."""
     outlier_sigmas: float
+    """Cells this many robust sigmas above the plane are canopy candidates, > 0."""
     max_step_m: float
+    """A candidate this far above the ground around it is canopy, metres, >= 0. [m]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> GroundOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> GroundOptions: ...
@@ -1673,7 +1898,7 @@ def _import_colmap(
 ) -> PosesResult: ...
 
 class TelemetryOptions:
-    """Options of import_telemetry; fields and defaults of aos::TelemetryOptions."""
+    """Options of import_telemetry (defaults from the C++ struct aos::TelemetryOptions)."""
 
     _fields: ClassVar[tuple[str, ...]]
     def __init__(
@@ -1691,14 +1916,30 @@ class TelemetryOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     telemetry_file: str
+    """CSV log frame|time,lat,lon,alt,yaw,pitch,roll; '' = the frames' EXIF GPS and DJI XMP gimbal
+    tags."""
     camera_file: str
+    """Known camera (aos-camera file, any lens model); '' = a pinhole from fov_deg."""
     fov_deg: float
+    """Horizontal field of view of a pinhole camera, degrees, (0, 180); without camera_file. [deg]"""
     altitude: str
+    """EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), 'gps', 'relative'."""
     altitude_window: int
+    """Altitude outliers: running-median window in frames, odd >= 3; 0 = no rule."""
     max_altitude_deviation_m: float
+    """An altitude further than this from its running median is replaced by it, metres. [m]"""
     max_distance_from_centre_m: float
+    """A position farther than this from the flight's centre (median lat, lon) is refused, metres.
+    [m]"""
     frame_interval_s: float
+    """With a time column: seconds between consecutive frames (name order). [s]"""
     time_offset_s: float
+    """With a time column: the log time of the first frame, seconds. [s]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> TelemetryOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
     def check(self) -> None: ...
 
 class AltitudeOutlier:

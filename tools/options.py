@@ -1,0 +1,200 @@
+#!/usr/bin/env python3
+"""Writes what the Options structs' field tables define into the files that restate them:
+
+- python/aos/_core.pyi: the head of every Options class (docstring, keyword constructor, one
+  annotated attribute or property per field with its help, to_json/from_json), from the class's
+  ``_field_table`` (cpp/aos/util/option_fields.h; cpp/python/bindings.h OptionsClass::Table).
+  The methods after it (check, __eq__, ...) stay hand-written.
+- python/aos/_keywords.py: the keyword TypedDict of every wrapper, from its router
+  (aos._Router: the routed field names, each typed as its field's table says it is given, plus
+  the router's ``also`` types).
+
+    python3 tools/options.py            # rewrites both files
+    python3 tools/options.py --check    # exit 1 naming the stale files (tests/python/test_options.py)
+
+Standard library only (and the aos under test).
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import textwrap
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+STUB = ROOT / "python" / "aos" / "_core.pyi"
+KEYWORDS = ROOT / "python" / "aos" / "_keywords.py"
+WIDTH = 100
+
+
+def _docstring(text: str, indent: str) -> list[str]:
+    """A docstring of `text` wrapped at WIDTH columns."""
+    text = " ".join(text.split()).replace('"""', "'''")
+    one = f'{indent}"""{text}"""'
+    if len(one) <= WIDTH:
+        return [one]
+    lines = textwrap.wrap(text, WIDTH - len(indent) - 3)
+    lines[0] = '"""' + lines[0]
+    return [indent + line for line in lines[:-1]] + [indent + lines[-1] + '"""']
+
+
+def option_classes() -> list[type]:
+    from aos import _core
+
+    return [getattr(_core, name) for name in dir(_core)
+            if hasattr(getattr(_core, name), "_field_table")]
+
+
+def stub_head(cls: type) -> list[str]:
+    """The generated head of `cls`'s block in _core.pyi."""
+    name = cls.__name__
+    table = cls._field_table  # type: ignore[attr-defined]
+    lines = [f"class {name}:"]
+    lines += _docstring(cls.__doc__ or name, "    ")
+    lines += ["", "    _fields: ClassVar[tuple[str, ...]]", "    def __init__(", "        self,",
+              "        *,"]
+    for row in table:
+        lines.append(f"        {row['name']}: {row['given']} = ...,")
+    lines += ["    ) -> None:", '        """Defaults from C++; unknown names raise TypeError."""']
+    for row in table:
+        help_text = row["help"]
+        if row["unit"] or row["range"]:
+            facts = ", ".join(part for part in (row["unit"], row["range"]) if part)
+            help_text = f"{help_text} [{facts}]"
+        if row["type"] == row["given"]:
+            lines.append(f"    {row['name']}: {row['type']}")
+            lines += _docstring(help_text, "    ")
+        else:
+            lines += ["    @property", f"    def {row['name']}(self) -> {row['type']}:"]
+            lines += _docstring(help_text, "        ")
+            setter = f"    def {row['name']}(self, value: {row['given']}) -> None: ..."
+            if len(setter) > WIDTH:
+                setter = (f"    def {row['name']}(\n        self, value: {row['given']}\n"
+                          "    ) -> None: ...")
+            lines += [f"    @{row['name']}.setter", setter]
+    lines += ["    def to_json(self) -> str:",
+              '        """The options as one JSON object (lightfield/options_json.h)."""',
+              "    @staticmethod",
+              f"    def from_json(text: str) -> {name}:",
+              '        """Default options with the JSON object\'s members read in (ValueError '
+              'naming the key)."""']
+    return lines
+
+
+def write_stub(text: str) -> str:
+    lines = text.split("\n")
+    for cls in option_classes():
+        start = lines.index(f"class {cls.__name__}:")
+        end = start + 1
+        while not re.match(r"    def (check|__eq__|__copy__|__repr__)\b", lines[end]):
+            if lines[end].startswith("class "):
+                raise SystemExit(f"{STUB}: class {cls.__name__} has no check/__eq__ method to "
+                                 "end its generated head")
+            end += 1
+        lines[start:end] = stub_head(cls)
+    text = "\n".join(lines)
+    # The typing names the heads use.
+    match = re.search(r"^from typing import (.*)$", text, re.M)
+    if match is None:
+        raise SystemExit(f"{STUB}: no 'from typing import' line")
+    names = set(match.group(1).split(", ")) | {"ClassVar", "Literal", "Sequence"}
+    return text.replace(match.group(0), "from typing import " + ", ".join(sorted(names)), 1)
+
+
+def _union(types: list[str]) -> str:
+    parts: list[str] = []
+    for text in types:
+        for part in text.split(" | "):
+            if part not in parts:
+                parts.append(part)
+    if "None" in parts:  # last, as written by hand
+        parts.remove("None")
+        parts.append("None")
+    return " | ".join(parts)
+
+
+def keyword_types(router: Any) -> dict[str, str]:
+    """Keyword -> its type: every field it routes to, as given, and the router's extras."""
+    roots = [root_type() for root_type in router.root_types]
+    types: dict[str, list[str]] = {}
+    for name, paths in router.paths.items():
+        for path in paths:
+            owner = roots[path[0]]
+            for step in path[1:-1]:
+                owner = getattr(owner, step)
+            row = next(row for row in type(owner)._field_table if row["name"] == name)
+            types.setdefault(name, []).append(row["given"])
+        if name in router.also:
+            types[name].append(router.also[name])
+    return {name: _union(found) for name, found in types.items()}
+
+
+def keywords_module() -> str:
+    import aos
+
+    routers = [value for value in vars(aos).values() if isinstance(value, aos._Router)]
+    by_name: dict[str, list[Any]] = {}
+    for router in routers:
+        by_name.setdefault(router.keywords, []).append(router)
+    classes: list[str] = []
+    used: set[str] = set()
+    for keywords, group in by_name.items():
+        types: dict[str, str] = {}
+        for router in group:
+            for name, text in keyword_types(router).items():
+                types[name] = _union([types[name], text]) if name in types else text
+        functions = ", ".join(f"aos.{router.function}" for router in group)
+        roots = ", ".join(dict.fromkeys(t.__name__ for router in group
+                                        for t in router.root_types))
+        lines = [f"class {keywords}(TypedDict, total=False):"]
+        lines += _docstring(f"Keywords of {functions}: the fields of {roots} (nested ones "
+                            "included) that its router accepts.", "    ")
+        lines.append("")
+        for name, text in types.items():
+            lines.append(f"    {name}: {text}")
+            used.update(re.findall(r"\b[A-Z]\w*", text))
+        classes.append("\n".join(lines))
+    from aos import _core
+
+    core_names = sorted(name for name in used if hasattr(_core, name))
+    typing_names = sorted(name for name in used if name in ("Literal", "Sequence", "TypedDict"))
+    head = f'''"""The keyword arguments of the aos wrappers, typed for type checkers. GENERATED by
+tools/options.py from the routers (aos._Router) and the Options structs' field tables: do not edit.
+
+Each wrapper (``aos.render_integral(light_field, **kwargs)``, ...) routes its keywords by name to
+the fields of its C++ Options structs; these TypedDicts give those keywords their types, so that
+``**kwargs: Unpack[IntegralKeywords]`` lets mypy reject ``aos.render_integral(lf,
+pose_view="191")``. A keyword's type is what its field takes when set (a plane also as a number,
+an enum also by name); tests/python/test_options.py fails when this file is stale.
+"""
+
+from __future__ import annotations
+
+from typing import {", ".join(sorted(set(typing_names) | {"TypedDict"}))}
+
+from ._core import (
+{"".join(f"    {name},{chr(10)}" for name in core_names)})
+'''
+    return head + "\n\n" + "\n\n\n".join(classes) + "\n"
+
+
+def main(argv: list[str]) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--check", action="store_true", help="exit 1 if a file is stale")
+    args = parser.parse_args(argv)
+    outputs = {STUB: write_stub(STUB.read_text(encoding="utf-8")), KEYWORDS: keywords_module()}
+    stale = [path for path, text in outputs.items() if path.read_text(encoding="utf-8") != text]
+    if args.check:
+        for path in stale:
+            print(f"{path.relative_to(ROOT)} is stale: run python3 tools/options.py")
+        return 1 if stale else 0
+    for path in stale:
+        path.write_text(outputs[path], encoding="utf-8")
+        print(f"wrote {path.relative_to(ROOT)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv[1:]))
