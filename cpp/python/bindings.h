@@ -218,30 +218,6 @@ auto RunWithProgress(const py::object& callback, Compute&& compute) {
   return std::move(*result);
 }
 
-// A value of the bound enum E from Python: an E, or the name of one of its values. Raises
-// ValueError naming `field` and the choices for an unknown name (TypeError for other types).
-template <typename E>
-E EnumFromPython(const py::object& value, const std::string& field) {
-  if (py::isinstance<py::str>(value)) {
-    const std::string name = value.cast<std::string>();
-    const py::dict members = py::cast(E{}).get_type().attr("__members__");
-    if (members.contains(name)) return members[name.c_str()].template cast<E>();
-    std::string choices;
-    for (const auto& item : members) {
-      choices += (choices.empty() ? "" : ", ") + py::str(item.first).cast<std::string>();
-    }
-    throw py::value_error(field + ": unknown value '" + name + "' (one of " + choices + ")");
-  }
-  try {
-    return value.cast<E>();
-  } catch (const py::cast_error&) {
-    throw py::type_error(field + ": expected " +
-                         py::str(py::cast(E{}).get_type().attr("__name__")).cast<std::string>() +
-                         " or the name of one of its values, got " +
-                         py::str(value.get_type().attr("__name__")).cast<std::string>());
-  }
-}
-
 // The Python annotation of a bound C++ type, as the stubs write it: read ("float", "list[int]",
 // "Plane | None") or `given` (what the setter takes: "Sequence[int]", "Plane | float",
 // "MergeMethod | Literal['sobel', ...]").
@@ -277,6 +253,26 @@ std::string PythonTypeName(bool given = false) {
       }
     }
     return name;
+  }
+}
+
+// A value of the bound enum E from Python: an E, or the name of one of its values. Raises
+// ValueError naming `field` and the choices for an unknown name (TypeError for other types).
+template <typename E>
+E EnumFromPython(const py::object& value, const std::string& field) {
+  if (py::isinstance<py::str>(value)) {
+    try {
+      return EnumFromName<E>(value.cast<std::string>(), field);
+    } catch (const std::invalid_argument& error) {
+      throw py::value_error(error.what());
+    }
+  }
+  try {
+    return value.cast<E>();
+  } catch (const py::cast_error&) {
+    throw py::type_error(field + ": expected " + PythonTypeName<E>() +
+                         " or the name of one of its values, got " +
+                         py::str(py::type::of(value).attr("__name__")).cast<std::string>());
   }
 }
 

@@ -363,16 +363,16 @@ class IntegralOptions:
     cam_from_world: Rigid3d
     """Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when pose_view >= 0."""
     pose_view: int
-    """If >= 0, the virtual camera takes the pose of this view (index into the light field)."""
+    """If >= 0, the virtual camera takes the pose of this view (index into the light field). [>= -1]"""
     fov_deg: float
-    """Horizontal field of view of the virtual camera, degrees, (0, 180). [deg]"""
+    """Horizontal field of view of the virtual camera, degrees, (0, 180). [deg, in (0, 180) or 0]"""
     width: int
-    """Output width, pixels (1 .. 65536)."""
+    """Output width, pixels (1 .. 65536). [px, in [1, 65536] or 0]"""
     height: int
-    """Output height, pixels (1 .. 65536)."""
+    """Output height, pixels (1 .. 65536). [px, in [1, 65536] or 0]"""
     aperture_radius: float
     """Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
-    pixel), infinity means every view."""
+    pixel), infinity means every view. [m, >= 0]"""
     @property
     def focal_plane(self) -> Plane:
         """The focal plane (local frame): any point on it and its normal. With a focal_surface only
@@ -389,7 +389,7 @@ class IntegralOptions:
     ) -> None: ...
     surface_offset: float
     """Offset of focal_surface along up (towards the views), metres; must be 0 without a
-    focal_surface."""
+    focal_surface. [m, finite]"""
     @property
     def view_indices(self) -> list[int]:
         """Views to integrate (indices into the light field); empty means all views. Reading returns
@@ -398,15 +398,16 @@ class IntegralOptions:
     def view_indices(self, value: Sequence[int]) -> None: ...
     min_view_angle_deg: float
     """Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
-    rays are ignored. [deg]"""
+    rays are ignored. [deg, in [0, 90)]"""
     num_threads: int
-    """Worker threads; -1 = all cores."""
+    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     variance: bool
     """Also return the per-pixel variance of the view samples (the samples then go through the
     scalar kernel, which also sums their squares: a few times slower)."""
     lens_tolerance_px: float
     """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px]"""
+    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px,
+    in [0, 1]]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -679,10 +680,10 @@ class SurfaceIntegralOptions:
     """Outlier-rejecting mean instead of the plain mean."""
     agreement: float
     """Half-width of the band within which samples agree, as a fraction of the views' full range
-    (255 for 8-bit, 65535 for 16-bit, 1 for float), (0, 1]."""
+    (255 for 8-bit, 65535 for 16-bit, 1 for float), (0, 1]. [in (0, 1]]"""
     min_inlier_fraction: float
     """Fewest inliers, as a fraction of the pixel's samples, for the robust mean to be used, [0, 1];
-    fewer keep the plain mean."""
+    fewer keep the plain mean. [in [0, 1]]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -744,9 +745,9 @@ class MapOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     pixel_size: float
-    """Ground size of a pixel, metres (> 0); 0 = the extent's width / width."""
+    """Ground size of a pixel, metres (> 0); 0 = the extent's width / width. [m, >= 0 and finite]"""
     width: int
-    """Map width in pixels when pixel_size is 0 (>= 2)."""
+    """Map width in pixels when pixel_size is 0 (>= 2). [px, >= 2 or 0]"""
     @property
     def extent(self) -> list[float]:
         """World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the selected views'
@@ -755,7 +756,7 @@ class MapOptions:
     def extent(self, value: Sequence[float]) -> None: ...
     focal_height: float
     """Height of the horizontal focal plane z = focal_height, local frame, metres (without a
-    focal_surface)."""
+    focal_surface). [m, finite]"""
     @property
     def focal_surface(self) -> FocalSurface | None:
         """A terrain to focus on instead of the plane: FocalSurface, Mesh or Heightfield; None = the
@@ -766,24 +767,25 @@ class MapOptions:
     ) -> None: ...
     surface_offset: float
     """Offset of focal_surface along up (towards the views), metres; must be 0 without a
-    focal_surface."""
+    focal_surface. [m, finite]"""
     aperture_radius: float
     """Horizontal distance from the focal point to a view centre, metres; 0 = the single nearest
-    view, inf = every view."""
+    view, inf = every view. [m, >= 0]"""
     @property
     def view_indices(self) -> list[int]:
         """Views to integrate; [] = all."""
     @view_indices.setter
     def view_indices(self, value: Sequence[int]) -> None: ...
     min_view_angle_deg: float
-    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90). [deg]"""
+    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90). [deg, in [0, 90)]"""
     lens_tolerance_px: float
     """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px]"""
+    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px,
+    in [0, 1]]"""
     tile_size: int
-    """Pixels on a side of a render tile, 16 .. 8192."""
+    """Pixels on a side of a render tile, 16 .. 8192. [px, in [16, 8192]]"""
     num_threads: int
-    """Worker threads; -1 = all cores."""
+    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -813,14 +815,14 @@ class DistributedOptions:
         """Defaults from C++; unknown names raise TypeError."""
     workers: int
     """Worker processes of a local cluster, >= 0; 0 = none (render_map, always on Dask, then starts
-    one where it has no client or scheduler)."""
+    one where it has no client or scheduler). [>= 0]"""
     scheduler: str
     """Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. Not with workers."""
     cache_mb: float
-    """Decoded frames each worker keeps between tasks, MiB, >= 0. [MiB]"""
+    """Decoded frames each worker keeps between tasks, MiB, >= 0. [MiB, >= 0 and finite]"""
     share_mb: float
     """Decoded frames each worker hands to the other workers of its machine through shared memory,
-    MiB, >= 0; 0 = none. [MiB]"""
+    MiB, >= 0; 0 = none. [MiB, >= 0 and finite]"""
     dashboard: bool
     """The local cluster also serves Dask's dashboard; needs workers >= 1."""
     def to_json(self) -> str:
@@ -965,12 +967,12 @@ class FocalStackOptions:
     def ground_plane(self, value: Plane | float | None) -> None: ...
     first_offset: float
     """Terrain-following stacks (render.focal_surface set) and stacks around ground_plane: offset of
-    slice 0 along up, metres."""
+    slice 0 along up, metres. [m, finite]"""
     last_offset: float
     """Terrain-following stacks and stacks around ground_plane: offset of slice N-1 along up,
-    metres."""
+    metres. [m, finite]"""
     slices: int
-    """Number of slices, 1 .. 100000."""
+    """Number of slices, 1 .. 100000. [in [1, 100000]]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -1056,18 +1058,21 @@ class MergeOptions:
     @method.setter
     def method(self, value: MergeMethod | Literal['sobel', 'improved', 'robust']) -> None: ...
     window_radius: int
-    """improved/robust: focus measure window radius, pixels (window 2r+1 on a side), 0..32."""
+    """improved/robust: focus measure window radius, pixels (window 2r+1 on a side), 0..32. [px, in
+    [0, 32]]"""
     smoothing_sigma: float
-    """improved/robust: spatial sigma of the edge-aware depth smoothing, pixels, [0, 16]; 0 = off."""
+    """improved/robust: spatial sigma of the edge-aware depth smoothing, pixels, [0, 16]; 0 = off.
+    [px, in [0, 16]]"""
     edge_sigma: float
     """improved/robust: range sigma of the smoothing, as a fraction of the guide image's contrast
-    (1st to 99th percentile), > 0."""
+    (1st to 99th percentile), > 0. [> 0 and finite]"""
     smoothing_iterations: int
-    """improved/robust: smoothing passes, 0..20."""
+    """improved/robust: smoothing passes, 0..20. [in [0, 20]]"""
     robust: SurfaceIntegralOptions
     """robust: the outlier-rejecting mean (SurfaceIntegralOptions; its robust flag is forced on)."""
     num_threads: int
-    """Worker threads of the merge (slices render with render.num_threads); -1 = all cores."""
+    """Worker threads of the merge (slices render with render.num_threads); -1 = all cores. [in [1,
+    1024] or -1]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -1119,7 +1124,7 @@ class AllInFocusOptions:
     """The merge (MergeOptions)."""
     coarse_to_fine: int
     """0 = off; a factor 2..16: a coarse stack (1/factor the size, every factor-th slice) chooses
-    each factor x factor block's slices, only those render at full resolution."""
+    each factor x factor block's slices, only those render at full resolution. [in [2, 16] or 0]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod

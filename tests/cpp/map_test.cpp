@@ -139,7 +139,7 @@ TEST(DistributedOptions, DefaultsPassAndBadValuesAreRefusedNamingTheField) {
   EXPECT_THAT(error([](auto& o) { o.workers = -1; }), HasSubstr("workers: must be >= 0"));
   EXPECT_THAT(error([](auto& o) { o.workers = 2, o.scheduler = "tcp://127.0.0.1:1"; }),
               HasSubstr("workers/scheduler: exclude each other"));
-  EXPECT_THAT(error([](auto& o) { o.cache_mb = -1.0; }), HasSubstr("cache_mb: must be finite and >= 0"));
+  EXPECT_THAT(error([](auto& o) { o.cache_mb = -1.0; }), HasSubstr("cache_mb: must be >= 0 and finite, got -1"));
   EXPECT_THAT(error([](auto& o) { o.cache_mb = std::nan(""); }), HasSubstr("cache_mb:"));
   EXPECT_THAT(error([](auto& o) { o.share_mb = INFINITY; }), HasSubstr("share_mb:"));
   // Bytes given as MiB: 1 GiB in bytes would be a 1 PiB budget.

@@ -53,14 +53,7 @@ void FocalStackOptions::Check(int view_count) const {
                  "ground_plane (planes parallel to the ground), not both");
   }
   if (ground_plane) UnitNormal(*ground_plane, "ground_plane");
-  if (render.focal_surface || ground_plane) {
-    if (!std::isfinite(first_offset)) {
-      ThrowInvalid("first_offset: must be finite metres (got " + FormatNumber(first_offset) + ")");
-    }
-    if (!std::isfinite(last_offset)) {
-      ThrowInvalid("last_offset: must be finite metres (got " + FormatNumber(last_offset) + ")");
-    }
-  }
+  CheckFieldRanges(*this);  // the table's ranges (focal_stack.h)
   if (render.focal_surface) {
     if (render.surface_offset != 0.0) {
       ThrowInvalid("render.surface_offset: must be 0 in a stack (its slices lie at first_offset.."
@@ -69,10 +62,6 @@ void FocalStackOptions::Check(int view_count) const {
   } else if (!ground_plane) {
     UnitNormal(first_plane, "first_plane");
     UnitNormal(last_plane, "last_plane");
-  }
-  if (slices < 1 || slices > kMaxSlices) {
-    ThrowInvalid("slices: must be 1.." + std::to_string(kMaxSlices) + " (got " +
-                 std::to_string(slices) + ")");
   }
 }
 

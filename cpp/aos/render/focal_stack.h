@@ -85,13 +85,13 @@ struct FocalStackOptions {
                       "A ground plane (e.g. estimate_ground(...).plane): the slices then lie "
                       "parallel to it at first_offset .. last_offset along its normal turned "
                       "towards the views; None = first_plane/last_plane."));
-    field(OptionField("first_offset", &O::first_offset, "", Range::Any(),
+    field(OptionField("first_offset", &O::first_offset, "m", Range::Finite(),
                       "Terrain-following stacks (render.focal_surface set) and stacks around "
                       "ground_plane: offset of slice 0 along up, metres."));
-    field(OptionField("last_offset", &O::last_offset, "", Range::Any(),
+    field(OptionField("last_offset", &O::last_offset, "m", Range::Finite(),
                       "Terrain-following stacks and stacks around ground_plane: offset of "
                       "slice N-1 along up, metres."));
-    field(OptionField("slices", &O::slices, "", Range::Any(),
+    field(OptionField("slices", &O::slices, "", Range::Closed(1, 100000),
                       "Number of slices, 1 .. 100000."));
   }
 };

@@ -745,27 +745,7 @@ Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions
 }
 
 void IntegralOptions::Check(int view_count) const {
-  if (!(fov_deg == 0.0 || (fov_deg > 0.0 && fov_deg < 180.0))) {
-    ThrowInvalid("fov_deg: a pinhole field of view must be in (0, 180) degrees, or 0 for the "
-                 "pose view's (got " + FormatNumber(fov_deg) + ")");
-  }
-  if (width < 0 || width > 65536 || height < 0 || height > 65536) {
-    ThrowInvalid("width/height: must be 1..65536 pixels, or 0 for the pose view's (got " +
-                 std::to_string(width) + "x" + std::to_string(height) + ")");
-  }
-  if (!(lens_tolerance_px >= 0.0 && lens_tolerance_px <= 1.0)) {
-    ThrowInvalid("lens_tolerance_px: must be in [0, 1] view pixels (got " +
-                 FormatNumber(lens_tolerance_px) + ")");
-  }
-  if (!(aperture_radius >= 0.0)) {
-    ThrowInvalid("aperture_radius: must be >= 0 metres or infinity (got " +
-                 FormatNumber(aperture_radius) + ")");
-  }
-  if (!(min_view_angle_deg >= 0.0 && min_view_angle_deg < 90.0)) {
-    ThrowInvalid("min_view_angle_deg: must be in [0, 90) degrees (got " +
-                 FormatNumber(min_view_angle_deg) + ")");
-  }
-  CheckThreadCount(num_threads);
+  CheckFieldRanges(*this);  // the table's ranges (integral.h)
   for (int i = 0; i < 3; ++i) {
     if (!std::isfinite(focal_plane.point[i]) || !std::isfinite(focal_plane.normal[i])) {
       ThrowInvalid("focal_plane: point and normal must be finite");
@@ -773,9 +753,6 @@ void IntegralOptions::Check(int view_count) const {
   }
   if (!(glm::length(focal_plane.normal) > 0.0)) {
     ThrowInvalid("focal_plane: normal must not be zero");
-  }
-  if (!std::isfinite(surface_offset)) {
-    ThrowInvalid("surface_offset: must be finite metres (got " + FormatNumber(surface_offset) + ")");
   }
   if (surface_offset != 0.0 && !focal_surface) {
     ThrowInvalid("surface_offset: needs a focal_surface (for a plane, move focal_plane instead)");

@@ -56,6 +56,7 @@
 #include "aos/lightfield/lightfield.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 
@@ -116,16 +117,16 @@ struct IntegralOptions {
     field(OptionField("cam_from_world", &O::cam_from_world, "", Range::Any(),
                       "Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when "
                       "pose_view >= 0."));
-    field(OptionField("pose_view", &O::pose_view, "", Range::Any(),
+    field(OptionField("pose_view", &O::pose_view, "", Range::AtLeast(-1),
                       "If >= 0, the virtual camera takes the pose of this view (index into "
                       "the light field)."));
-    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
+    field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Open(0.0, 180.0).Or(0.0),
                       "Horizontal field of view of the virtual camera, degrees, (0, 180)."));
-    field(OptionField("width", &O::width, "", Range::Any(),
+    field(OptionField("width", &O::width, "px", Range::Closed(1, 65536).Or(0),
                       "Output width, pixels (1 .. 65536)."));
-    field(OptionField("height", &O::height, "", Range::Any(),
+    field(OptionField("height", &O::height, "px", Range::Closed(1, 65536).Or(0),
                       "Output height, pixels (1 .. 65536)."));
-    field(OptionField("aperture_radius", &O::aperture_radius, "", Range::Any(),
+    field(OptionField("aperture_radius", &O::aperture_radius, "m", Range::AtLeast(0.0),
                       "Radius of the virtual aperture on the lens plane, metres; 0 means a "
                       "pinhole (one view per pixel), infinity means every view."));
     field(OptionField("focal_plane", &O::focal_plane, "", Range::Any(),
@@ -135,22 +136,22 @@ struct IntegralOptions {
                       "A focal surface instead of focal_plane: FocalSurface, Mesh, "
                       "Heightfield (or a Plane); None = focal_plane. Reading returns a "
                       "FocalSurface sharing the BVH."));
-    field(OptionField("surface_offset", &O::surface_offset, "", Range::Any(),
+    field(OptionField("surface_offset", &O::surface_offset, "m", Range::Finite(),
                       "Offset of focal_surface along up (towards the views), metres; must be "
                       "0 without a focal_surface."));
     field(OptionField("view_indices", &O::view_indices, "", Range::Any(),
                       "Views to integrate (indices into the light field); empty means all "
                       "views. Reading returns a new list: assign a list to change it."));
-    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::Any(),
+    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::ClosedOpen(0.0, 90.0),
                       "Minimum angle between a view's ray and the focal plane, degrees, [0, "
                       "90); smaller (grazing) rays are ignored."));
-    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "Worker threads; -1 = all cores."));
     field(OptionField("variance", &O::variance, "", Range::Any(),
                       "Also return the per-pixel variance of the view samples (the samples "
                       "then go through the scalar kernel, which also sums their squares: a "
                       "few times slower)."));
-    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Any(),
+    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Closed(0.0, 1.0),
                       "Views with a lens model: the largest error of a sample position, view "
                       "pixels, [0, 1], where the exact lens projection is replaced by local "
                       "maps; 0 = project every sample exactly."));

@@ -88,17 +88,13 @@ class TileProgress : public ProgressSink {
 }  // namespace
 
 void MapOptions::Check(int view_count) const {
-  if (!std::isfinite(surface_offset)) ThrowInvalid("surface_offset: must be finite metres");
+  CheckFieldRanges(*this);  // the table's ranges (map.h)
   if (surface_offset != 0.0 && !focal_surface) {
     ThrowInvalid("surface_offset: needs a focal_surface (got " + Num(surface_offset) +
                  " m without one; move a plane with focal_height)");
   }
-  if (!(pixel_size >= 0.0) || !std::isfinite(pixel_size)) {
-    ThrowInvalid("pixel_size: must be > 0 and finite, metres (got " + Num(pixel_size) + ")");
-  }
   if (pixel_size == 0.0) {
     if (width == 0) ThrowInvalid("pixel_size: must be > 0 (or give the width in pixels)");
-    if (width < 2) ThrowInvalid("width: must be >= 2 pixels (got " + std::to_string(width) + ")");
   }
   if (!extent.empty()) {
     if (extent.size() != 4) {
@@ -116,25 +112,8 @@ void MapOptions::Check(int view_count) const {
                    " " + Num(extent[1]) + " " + Num(extent[2]) + " " + Num(extent[3]) + ")");
     }
   }
-  if (!std::isfinite(focal_height)) ThrowInvalid("focal_height: must be finite");
   if (const std::string problem = SurfaceCoordinateProblem(focal_height); !problem.empty()) {
     ThrowInvalid("focal_height: " + problem);
-  }
-  if (!(aperture_radius >= 0.0)) {
-    ThrowInvalid("aperture_radius: must be >= 0 (got " + Num(aperture_radius) + ")");
-  }
-  if (!(min_view_angle_deg >= 0.0 && min_view_angle_deg < 90.0)) {
-    ThrowInvalid("min_view_angle_deg: must be in [0, 90) (got " + Num(min_view_angle_deg) + ")");
-  }
-  if (!(lens_tolerance_px >= 0.0 && lens_tolerance_px <= 1.0)) {
-    ThrowInvalid("lens_tolerance_px: must be in [0, 1] view pixels (got " + Num(lens_tolerance_px) +
-                 ")");
-  }
-  if (tile_size < 16 || tile_size > 8192) {
-    ThrowInvalid("tile_size: must be in 16 .. 8192 (got " + std::to_string(tile_size) + ")");
-  }
-  if (num_threads == 0 || num_threads < -1) {
-    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1");
   }
   if (view_count <= 0) ThrowInvalid("light field: has no views");
   for (int index : view_indices) {
@@ -395,16 +374,10 @@ MapResult RenderMap(const LightField& light_field, const MapOptions& options,
 }
 
 void DistributedOptions::Check() const {
-  if (workers < 0) ThrowInvalid("workers: must be >= 0 (got " + std::to_string(workers) + ")");
+  CheckFieldRanges(*this);  // the table's ranges (map.h)
   if (workers > 0 && !scheduler.empty()) {
     ThrowInvalid("workers/scheduler: exclude each other (the cluster of " + scheduler +
                  " has its own workers)");
-  }
-  if (!(cache_mb >= 0.0) || !std::isfinite(cache_mb)) {
-    ThrowInvalid("cache_mb: must be finite and >= 0 MiB (got " + Num(cache_mb) + ")");
-  }
-  if (!(share_mb >= 0.0) || !std::isfinite(share_mb)) {
-    ThrowInvalid("share_mb: must be finite and >= 0 MiB (got " + Num(share_mb) + ")");
   }
   // A budget in bytes given as MiB (the old Python spelling was bytes) reads as petabytes.
   constexpr double kMostMib = 1 << 24;  // 16 TiB

@@ -62,6 +62,7 @@
 #include "aos/render/surface_integral.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 
@@ -104,37 +105,37 @@ struct MapOptions {
   template <class Visit>
   static void Fields(Visit&& field) {
     using O = MapOptions;
-    field(OptionField("pixel_size", &O::pixel_size, "", Range::Any(),
+    field(OptionField("pixel_size", &O::pixel_size, "m", Range::FiniteAtLeast(0.0),
                       "Ground size of a pixel, metres (> 0); 0 = the extent's width / width."));
-    field(OptionField("width", &O::width, "", Range::Any(),
+    field(OptionField("width", &O::width, "px", Range::AtLeast(2).Or(0),
                       "Map width in pixels when pixel_size is 0 (>= 2)."));
     field(OptionField("extent", &O::extent, "", Range::Any(),
                       "World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the "
                       "selected views' footprints on the focal plane."));
-    field(OptionField("focal_height", &O::focal_height, "", Range::Any(),
+    field(OptionField("focal_height", &O::focal_height, "m", Range::Finite(),
                       "Height of the horizontal focal plane z = focal_height, local frame, "
                       "metres (without a focal_surface)."));
     field(OptionField("focal_surface", &O::focal_surface, "", Range::Any(),
                       "A terrain to focus on instead of the plane: FocalSurface, Mesh or "
                       "Heightfield; None = the plane z = focal_height."));
-    field(OptionField("surface_offset", &O::surface_offset, "", Range::Any(),
+    field(OptionField("surface_offset", &O::surface_offset, "m", Range::Finite(),
                       "Offset of focal_surface along up (towards the views), metres; must be "
                       "0 without a focal_surface."));
-    field(OptionField("aperture_radius", &O::aperture_radius, "", Range::Any(),
+    field(OptionField("aperture_radius", &O::aperture_radius, "m", Range::AtLeast(0.0),
                       "Horizontal distance from the focal point to a view centre, metres; 0 = "
                       "the single nearest view, inf = every view."));
     field(OptionField("view_indices", &O::view_indices, "", Range::Any(),
                       "Views to integrate; [] = all."));
-    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::Any(),
+    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::ClosedOpen(0.0, 90.0),
                       "Minimum angle between a view's ray and the focal plane, degrees, [0, "
                       "90)."));
-    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Any(),
+    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Closed(0.0, 1.0),
                       "Views with a lens model: the largest error of a sample position, view "
                       "pixels, [0, 1], where the exact lens projection is replaced by local "
                       "maps; 0 = project every sample exactly."));
-    field(OptionField("tile_size", &O::tile_size, "", Range::Any(),
+    field(OptionField("tile_size", &O::tile_size, "px", Range::Closed(16, 8192),
                       "Pixels on a side of a render tile, 16 .. 8192."));
-    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "Worker threads; -1 = all cores."));
   }
 };
@@ -275,15 +276,15 @@ struct DistributedOptions {
   template <class Visit>
   static void Fields(Visit&& field) {
     using O = DistributedOptions;
-    field(OptionField("workers", &O::workers, "", Range::Any(),
+    field(OptionField("workers", &O::workers, "", Range::AtLeast(0),
                       "Worker processes of a local cluster, >= 0; 0 = none (render_map, "
                       "always on Dask, then starts one where it has no client or scheduler)."));
     field(OptionField("scheduler", &O::scheduler, "", Range::Any(),
                       "Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. "
                       "Not with workers."));
-    field(OptionField("cache_mb", &O::cache_mb, "MiB", Range::Any(),
+    field(OptionField("cache_mb", &O::cache_mb, "MiB", Range::FiniteAtLeast(0.0),
                       "Decoded frames each worker keeps between tasks, MiB, >= 0."));
-    field(OptionField("share_mb", &O::share_mb, "MiB", Range::Any(),
+    field(OptionField("share_mb", &O::share_mb, "MiB", Range::FiniteAtLeast(0.0),
                       "Decoded frames each worker hands to the other workers of its machine "
                       "through shared memory, MiB, >= 0; 0 = none."));
     field(OptionField("dashboard", &O::dashboard, "", Range::Any(),

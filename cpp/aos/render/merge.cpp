@@ -1053,29 +1053,14 @@ const char* MergeMethodName(MergeMethod method) {
 }
 
 void MergeOptions::Check() const {
-  if (window_radius < 0 || window_radius > 32) {
-    ThrowInvalid("window_radius: must be 0..32 pixels (got " + std::to_string(window_radius) + ")");
-  }
-  if (!(smoothing_sigma >= 0.0 && smoothing_sigma <= 16.0)) {
-    ThrowInvalid("smoothing_sigma: must be in [0, 16] pixels (got " + FormatNumber(smoothing_sigma) + ")");
-  }
-  if (!(edge_sigma > 0.0) || !std::isfinite(edge_sigma)) {
-    ThrowInvalid("edge_sigma: must be a finite number > 0 (got " + FormatNumber(edge_sigma) + ")");
-  }
-  if (smoothing_iterations < 0 || smoothing_iterations > 20) {
-    ThrowInvalid("smoothing_iterations: must be 0..20 (got " + std::to_string(smoothing_iterations) + ")");
-  }
-  CheckThreadCount(num_threads);
+  CheckFieldRanges(*this);  // the table's ranges (merge.h)
   robust.Check();
 }
 
 void AllInFocusOptions::Check(int view_count) const {
   stack.Check(view_count);
   merge.Check();
-  if (coarse_to_fine != 0 && (coarse_to_fine < 2 || coarse_to_fine > 16)) {
-    ThrowInvalid("coarse_to_fine: must be 0 (off: every slice at full resolution) or a factor "
-                 "2..16 (got " + std::to_string(coarse_to_fine) + ")");
-  }
+  CheckFieldRanges(*this);
   if (merge.method == MergeMethod::kRobust && stack.render.aperture_radius == 0.0) {
     ThrowInvalid("aperture_radius: 0 (one view a pixel) leaves method robust no variance to "
                  "work with; use a wider aperture");

@@ -79,6 +79,7 @@
 #include "aos/render/focal_stack.h"
 #include "aos/render/surface_integral.h"
 #include "aos/util/option_fields.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 
@@ -118,21 +119,21 @@ struct MergeOptions {
     using O = MergeOptions;
     field(OptionField("method", &O::method, "", Range::Any(),
                       "sobel, improved (default) or robust."));
-    field(OptionField("window_radius", &O::window_radius, "", Range::Any(),
+    field(OptionField("window_radius", &O::window_radius, "px", Range::Closed(0, 32),
                       "improved/robust: focus measure window radius, pixels (window 2r+1 on a "
                       "side), 0..32."));
-    field(OptionField("smoothing_sigma", &O::smoothing_sigma, "", Range::Any(),
+    field(OptionField("smoothing_sigma", &O::smoothing_sigma, "px", Range::Closed(0.0, 16.0),
                       "improved/robust: spatial sigma of the edge-aware depth smoothing, "
                       "pixels, [0, 16]; 0 = off."));
-    field(OptionField("edge_sigma", &O::edge_sigma, "", Range::Any(),
+    field(OptionField("edge_sigma", &O::edge_sigma, "", Range::FiniteAtLeast(0.0, /*open=*/true),
                       "improved/robust: range sigma of the smoothing, as a fraction of the "
                       "guide image's contrast (1st to 99th percentile), > 0."));
-    field(OptionField("smoothing_iterations", &O::smoothing_iterations, "", Range::Any(),
+    field(OptionField("smoothing_iterations", &O::smoothing_iterations, "", Range::Closed(0, 20),
                       "improved/robust: smoothing passes, 0..20."));
     field(OptionField("robust", &O::robust, "", Range::Any(),
                       "robust: the outlier-rejecting mean (SurfaceIntegralOptions; its robust "
                       "flag is forced on)."));
-    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "Worker threads of the merge (slices render with render.num_threads); "
                       "-1 = all cores."));
   }
@@ -177,7 +178,7 @@ struct AllInFocusOptions {
                       "The slices (FocalStackOptions)."));
     field(OptionField("merge", &O::merge, "", Range::Any(),
                       "The merge (MergeOptions)."));
-    field(OptionField("coarse_to_fine", &O::coarse_to_fine, "", Range::Any(),
+    field(OptionField("coarse_to_fine", &O::coarse_to_fine, "", Range::Closed(2, 16).Or(0),
                       "0 = off; a factor 2..16: a coarse stack (1/factor the size, every "
                       "factor-th slice) chooses each factor x factor block's slices, only "
                       "those render at full resolution."));

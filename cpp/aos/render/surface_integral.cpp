@@ -1953,13 +1953,7 @@ SurfaceIntegralResult RenderSampleListsTiled(const LightField& light_field, cons
 }  // namespace
 
 void SurfaceIntegralOptions::Check() const {
-  if (!(agreement > 0.0 && agreement <= 1.0)) {
-    ThrowInvalid("agreement: must be in (0, 1] (got " + FormatNumber(agreement) + ")");
-  }
-  if (!(min_inlier_fraction >= 0.0 && min_inlier_fraction <= 1.0)) {
-    ThrowInvalid("min_inlier_fraction: must be in [0, 1] (got " +
-                 FormatNumber(min_inlier_fraction) + ")");
-  }
+  CheckFieldRanges(*this);  // the table's ranges (surface_integral.h)
 }
 
 void PointIntegralOptions::Check(int view_count) const {

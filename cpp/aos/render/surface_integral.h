@@ -81,11 +81,11 @@ struct SurfaceIntegralOptions {
     using O = SurfaceIntegralOptions;
     field(OptionField("robust", &O::robust, "", Range::Any(),
                       "Outlier-rejecting mean instead of the plain mean."));
-    field(OptionField("agreement", &O::agreement, "", Range::Any(),
+    field(OptionField("agreement", &O::agreement, "", Range::OpenClosed(0.0, 1.0),
                       "Half-width of the band within which samples agree, as a fraction of "
                       "the views' full range (255 for 8-bit, 65535 for 16-bit, 1 for float), "
                       "(0, 1]."));
-    field(OptionField("min_inlier_fraction", &O::min_inlier_fraction, "", Range::Any(),
+    field(OptionField("min_inlier_fraction", &O::min_inlier_fraction, "", Range::Closed(0.0, 1.0),
                       "Fewest inliers, as a fraction of the pixel's samples, for the robust "
                       "mean to be used, [0, 1]; fewer keep the plain mean."));
   }

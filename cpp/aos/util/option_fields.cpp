@@ -10,8 +10,9 @@ std::string Range::Text() const {
     text = "a number";
   } else if (lo == -std::numeric_limits<double>::max() && hi == std::numeric_limits<double>::max()) {
     text = "finite";
-  } else if (no_hi) {
+  } else if (no_hi || hi == std::numeric_limits<double>::max()) {
     text = (lo_open ? "> " : ">= ") + FormatNumber(lo);
+    if (!no_hi) text += " and finite";
   } else if (no_lo) {
     text = (hi_open ? "< " : "<= ") + FormatNumber(hi);
   } else {

@@ -61,6 +61,10 @@ struct Range {
   static constexpr Range Finite() {
     return Range{-std::numeric_limits<double>::max(), std::numeric_limits<double>::max()};
   }
+  // Finite values >= lo (> lo with `open`).
+  static constexpr Range FiniteAtLeast(double lo, bool open = false) {
+    return Range{lo, std::numeric_limits<double>::max(), open, false};
+  }
   // This range and also `value`.
   constexpr Range Or(double value) const {
     Range range = *this;

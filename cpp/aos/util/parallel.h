@@ -16,6 +16,7 @@
 #include <cstdint>
 #include <functional>
 
+#include "aos/util/option_fields.h"
 #include "aos/util/progress.h"
 
 namespace aos {
@@ -30,6 +31,8 @@ int ResolveThreadCount(int num_threads);
 // creation failed", and crashed with SIGSEGV at 100000, taking the Python interpreter with it);
 // a fixed bound keeps the same command line valid on every machine.
 inline constexpr int kMaxThreads = 1024;
+// The values of every num_threads field (the field tables' range).
+inline constexpr Range kThreadCountRange = Range::Closed(1, kMaxThreads).Or(-1);
 
 // Throws std::invalid_argument "num_threads: must be -1 (all cores) or 1..1024 (got N)"
 // otherwise. The one check every Options::Check() with a num_threads field calls (and the CLI's
