@@ -105,6 +105,11 @@ Flags Flags::At(const std::string& prefix) const {
   return other;
 }
 
+std::string Flags::NumberText(double value) {
+  if (std::isinf(value)) return value > 0 ? "inf" : "-inf";
+  return FormatNumber(value);
+}
+
 std::string Flags::FlagOf(const std::string& field) {
   std::string flag = "--" + field;
   std::replace(flag.begin(), flag.end(), '_', '-');
@@ -431,11 +436,6 @@ Plane ParsePlane(const std::string& text, const std::string& option) {
                "')");
   }
   return Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
-}
-
-double ParseRadius(const std::string& text) {
-  if (text == "inf" || text == "infinity") return std::numeric_limits<double>::infinity();
-  return AsUsage([&] { return ParseNumberText(text, "--aperture-radius"); });
 }
 
 std::vector<int> ParseViewList(const std::string& text, int view_count) {

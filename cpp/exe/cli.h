@@ -20,7 +20,9 @@
 //
 // Exit codes: 0 success, 1 bad input or failure, 2 bad command line (UsageError), 128 + the
 // signal when interrupted: 130 SIGINT (Ctrl-C), 143 SIGTERM, 129 SIGHUP (progress_bar.h).
+#include <cmath>
 #include <cstdio>
+#include <limits>
 #include <functional>
 #include <map>
 #include <memory>
@@ -35,7 +37,9 @@
 
 #include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
+#include "aos/lightfield/formats.h"
 #include "aos/util/error.h"
+#include "aos/util/option_fields.h"
 
 namespace aos::cli {
 
@@ -169,6 +173,19 @@ class Flags {
     Record(flag, field, text);
     return option;
   }
+  // The flag of the field `name` of `options`' table (util/option_fields.h): --kebab-name bound
+  // to that field, its help the table's, its default the field's value. A number outside the
+  // table's range is refused by the parser (exit 2) naming the flag and the range; a double
+  // takes "inf" where the range allows it; an enum takes its value names; a bool is a switch.
+  template <class Options>
+  CLI::Option* Field(Options& options, const std::string& name) {
+    CLI::Option* option = nullptr;
+    Options::Fields([&](const auto& spec) {
+      if (name == spec.name) option = TableField(options.*(spec.member), spec);
+    });
+    if (option == nullptr) throw std::logic_error("Flags::Field: no field " + name + " in the table");
+    return option;
+  }
   // A field whose "not given" means something the help states (no default printed).
   template <class T>
   CLI::Option* Optional(const std::string& flag, const std::string& field, T& value,
@@ -245,6 +262,54 @@ class Flags {
   CLI::App* command() const { return command_; }
 
  private:
+  template <class T, class Spec>
+  CLI::Option* TableField(T& value, const Spec& spec) {
+    const std::string name = spec.name;
+    const std::string flag = FlagOf(name);
+    if constexpr (std::is_same_v<T, bool>) {
+      return Switch(name, value, spec.help);
+    } else if constexpr (std::is_enum_v<T>) {
+      return Parsed(
+          flag, name, value, [flag](const std::string& text) { return EnumFromName<T>(text, flag); },
+          EnumName(value), std::string(spec.help) + " (" + EnumChoices<T>() + ")");
+    } else if constexpr (std::is_arithmetic_v<T>) {
+      const Range range = spec.range;
+      return Parsed(
+          flag, name, value,
+                 [name, flag, range](const std::string& text) {
+            return NumberInRange<T>(text, name, flag, range);
+          },
+                 NumberText(static_cast<double>(value)), spec.help)
+          ->type_name(std::is_integral_v<T> ? "INT" : "FLOAT");
+    } else if constexpr (std::is_same_v<T, std::string>) {
+      return Field(flag, name, value, spec.help);
+    } else {
+      throw std::logic_error("Flags::Field: " + name + " has no flag of its own type");
+    }
+  }
+  // A number as --help prints a default ("inf" for infinity).
+  static std::string NumberText(double value);
+  // `text` as a T in `range` ("inf" and "infinity" too for a double); throws
+  // std::invalid_argument "field: ... [option --flag]" otherwise, as Check() errors read.
+  template <class T>
+  static T NumberInRange(const std::string& text, const std::string& field,
+                         const std::string& flag, const Range& range) {
+    double number = 0.0;
+    if (std::is_floating_point_v<T> && (text == "inf" || text == "infinity")) {
+      number = std::numeric_limits<double>::infinity();
+    } else {
+      number = ParseNumberText(text, flag);
+    }
+    if (std::is_integral_v<T> &&
+        (number != std::floor(number) || !(number >= std::numeric_limits<T>::min() &&
+                                           number <= std::numeric_limits<T>::max()))) {
+      ThrowInvalid(field + ": expected a whole number, got " + text + " [option " + flag + "]");
+    }
+    if (!range.Contains(number)) {
+      ThrowInvalid(field + ": must be " + range.Text() + ", got " + text + " [option " + flag + "]");
+    }
+    return static_cast<T>(number);
+  }
   static std::string FlagOf(const std::string& field);
   std::string Names(const std::string& flag) const;
   void Record(const std::string& flag, const std::string& field, const std::string& text);
@@ -292,8 +357,6 @@ std::vector<double> ParseNumbers(const std::string& text, const std::string& opt
                                  size_t count = 0);
 // "H" (the horizontal plane z = H) or "PX,PY,PZ,NX,NY,NZ".
 Plane ParsePlane(const std::string& text, const std::string& option);
-// "inf"/"infinity" or a number.
-double ParseRadius(const std::string& text);
 // "0:10,15,20:30" -> indices checked against [0, view_count).
 std::vector<int> ParseViewList(const std::string& text, int view_count);
 

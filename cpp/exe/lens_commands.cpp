@@ -101,7 +101,7 @@ CommandRunner DefineCalibrate(CLI::App* command) {
           },
           "Inner corners COLUMNSxROWS")
       ->default_str(pattern);
-  flags.Field("square_size_m", options.square_size_m, "Square side, metres");
+  flags.Field(options, "square_size_m");
   flags.Parsed("--model", "model", options.model, ParseModelFlag, LensModelName(options.model),
                "pinhole, radtan, fisheye or omnidir");
   command->add_option("-o,--output", c->output, "Camera file to write (JSON)")->required();
@@ -422,11 +422,11 @@ CommandRunner DefineRectify(CLI::App* command) {
   flags.Field("--rectified-fov-deg", "fov_deg", options.fov_deg,
               "Horizontal field of view of the rectified frames, degrees (--fov-deg is its old "
               "name)");
-  flags.Field("width", options.width, "Output width, pixels (0 = the raw width)");
-  flags.Field("height", options.height, "Output height, pixels (0 = the raw height)");
-  flags.Field("yaw_deg", options.yaw_deg, "Turn about the lens's y axis, degrees");
-  flags.Field("pitch_deg", options.pitch_deg, "Turn about the lens's x axis, degrees");
-  flags.Field("roll_deg", options.roll_deg, "Turn about the optical axis, degrees");
+  flags.Field(options, "width");
+  flags.Field(options, "height");
+  flags.Field(options, "yaw_deg");
+  flags.Field(options, "pitch_deg");
+  flags.Field(options, "roll_deg");
   flags.Switch("fill", options.fill,
                "Allow a rectified view wider than the lens covers: pixels outside its coverage "
                "are black (without it such a view is refused)");
@@ -557,15 +557,13 @@ CommandRunner DefineResolution(CLI::App* command) {
   command->add_option("--xi", c->xi, "omnidir: xi")->capture_default_str();
   command->add_option("--skew", c->skew, "omnidir: skew")->capture_default_str();
   ResolutionOptions& options = c->options;
-  flags.Field("distance_m", options.distance_m,
-              "Distance to the focal plane (altitude above it), metres");
+  flags.Field(options, "distance_m");
   auto* error_px = flags.Optional("--pose-error-px", "pose_error_px", options.pose_error_px,
                                   "Pose error, pixels (default: none)");
   auto* error_m = flags.Optional("--pose-error-m", "pose_error_m", options.pose_error_m,
                                  "Pose error at the focal plane, metres (default: none)");
   error_px->excludes(error_m);
-  flags.Field("max_off_axis_deg", options.max_off_axis_deg,
-              "Back-projected figure over pixels within this angle of the axis, degrees");
+  flags.Field(options, "max_off_axis_deg");
   flags.Threads();
   return [c, flags] { return RunResolution(*c, flags); };
 }

@@ -115,14 +115,12 @@ CommandRunner DefineMetrics(CLI::App* command) {
   command->add_option("--mask", c->mask_path,
                       "Only pixels where this image (e.g. a count map) is non-zero");
   QualityOptions& options = c->options;
-  flags.Field("data_range", options.data_range,
-              "Peak value range L; 0 = from the reference's type (8-bit 255, 16-bit 65535, "
-              "float 1)");
-  flags.Field("gaussian_sigma", options.gaussian_sigma, "SSIM window sigma, pixels");
+  flags.Field(options, "data_range");
+  flags.Field(options, "gaussian_sigma");
   flags.Field("--ssim-window-radius", "window_radius", options.window_radius,
               "SSIM window radius, pixels (--window-radius is its old name)");
-  flags.Field("k1", options.k1, "SSIM constant k1");
-  flags.Field("k2", options.k2, "SSIM constant k2");
+  flags.Field(options, "k1");
+  flags.Field(options, "k2");
   flags.Switch("grey", options.grey,
                "Compare luminances: RGB(A) images become Rec. 601 luminance (0.299 R + 0.587 G + "
                "0.114 B) first, e.g. a grey render (--grey) against an RGB reference");

@@ -148,61 +148,44 @@ CommandRunner DefinePlan(CLI::App* command) {
   auto c = std::make_shared<PlanCommand>();
   FlightPlanOptions& o = c->options;
   Flags flags(command);
-  flags.Field("shape", o.shape, "Aperture shape: circle, sector, rectangle, polygon or line");
-  flags.Field("coordinates", o.coordinates,
-              "How --center and --vertices are given: world (x,y metres) or latlon (latitude, "
-              "longitude degrees, WGS84; planned in its UTM zone)");
-  flags.Field("crs", o.crs,
-              "CRS of world coordinates (a projected CRS in metres, e.g. EPSG:32633); empty = a "
-              "local frame (CSV only)");
+  flags.Field(o, "shape");
+  flags.Field(o, "coordinates");
+  flags.Field(o, "crs");
   flags.Parsed("--center", "center", o.center,
                [](const std::string& text) { return ParsePair(text, "--center"); }, "0,0",
                "Centre of a circle, sector or rectangle: X,Y metres or LAT,LON degrees");
-  flags.Field("radius_m", o.radius_m, "Radius of a circle or sector, metres");
-  flags.Field("sector_start_deg", o.sector_start_deg,
-              "Sector: compass bearing of its first edge, degrees");
-  flags.Field("sector_angle_deg", o.sector_angle_deg,
-              "Sector: its angle, clockwise from the first edge, degrees in (0, 360]");
-  flags.Field("width_m", o.width_m, "Rectangle: size across the heading, metres");
-  flags.Field("length_m", o.length_m, "Rectangle: size along the heading, metres");
+  flags.Field(o, "radius_m");
+  flags.Field(o, "sector_start_deg");
+  flags.Field(o, "sector_angle_deg");
+  flags.Field(o, "width_m");
+  flags.Field(o, "length_m");
   flags.Parsed("--vertices", "vertices", o.vertices, ParseVertices, "",
                "Polygon corners or line points: 'X,Y;X,Y;...' (or LAT,LON pairs)");
-  flags.Field("pattern", o.pattern, "Pattern: scan (lines), grid (square lattice) or circles");
-  flags.Field("spacing_m", o.spacing_m,
-              "Distance between scan lines or rings at the growth centre, metres");
-  flags.Field("along_spacing_m", o.along_spacing_m,
-              "Distance between shots along a line or ring at the centre, metres; 0 = "
-              "--spacing-m");
-  flags.Field("outer_scale", o.outer_scale,
-              "Spacing at the aperture's edge over spacing at its centre (>= 1; 1 = constant)");
-  flags.Field("heading_deg", o.heading_deg,
-              "Compass direction of the scan lines (and the rectangle's length), degrees");
+  flags.Field(o, "pattern");
+  flags.Field(o, "spacing_m");
+  flags.Field(o, "along_spacing_m");
+  flags.Field(o, "outer_scale");
+  flags.Field(o, "heading_deg");
   flags.Field("--min-shots-per-line", "min_shots_per_line", o.min_shots_per_line, 1,
               "Scan lines with fewer shots inside the shape are not flown");
-  flags.Field("altitude_m", o.altitude_m, "Height above the ground, metres");
-  flags.Field("altitude_mode", o.altitude_mode,
-              "terrain (constant height above the DEM) or constant (one altitude)");
-  flags.Field("dem", o.dem,
-              "Terrain in the plan's world frame: a mesh (OBJ, PLY) or a raster (GeoTIFF, ...); "
-              "empty = flat ground");
-  flags.Field("ground_height_m", o.ground_height_m, "Height of the flat ground without a DEM, z metres");
-  flags.Field("terrain_up", o.terrain_up, "Which way z points: +z (up) or -z (down, JKU's F0)");
-  flags.Field("min_clearance_m", o.min_clearance_m,
-              "A constant-altitude shot must be at least this high above the terrain, metres");
-  flags.Field("ground_speed_mps", o.ground_speed_mps, "Ground speed between shots, m/s");
-  flags.Field("hover_s", o.hover_s, "Time at each shot to stabilise and shoot, seconds");
+  flags.Field(o, "altitude_m");
+  flags.Field(o, "altitude_mode");
+  flags.Field(o, "dem");
+  flags.Field(o, "ground_height_m");
+  flags.Field(o, "terrain_up");
+  flags.Field(o, "min_clearance_m");
+  flags.Field(o, "ground_speed_mps");
+  flags.Field(o, "hover_s");
   flags.Parsed("--battery-min", "battery_min", o.battery_min, ParseBattery,
                DefaultText(o.battery_min),
                "Flight time one battery allows, minutes ('inf': no budget); a longer plan is "
                "refused");
-  flags.Field("max_waypoints", o.max_waypoints,
-              "Most shots a plan may have (and most scan lines or rings across it); a larger plan "
-              "is refused before it is generated");
+  flags.Field(o, "max_waypoints");
   flags.Field("--image-width", "image_width", o.image_width, 1,
               "Camera for Eq. 2: image width, pixels");
   flags.Field("--image-height", "image_height", o.image_height, 1,
               "Camera for Eq. 2: image height, pixels");
-  flags.Field("fov_deg", o.fov_deg, "Camera for Eq. 2: horizontal field of view, degrees");
+  flags.Field(o, "fov_deg");
   command->add_option("--csv", c->csv,
                       "Write the waypoints as CSV (index,latitude,longitude,altitude_agl_m,x_m,"
                       "y_m,z_m,ground_z_m,line)");

@@ -50,10 +50,6 @@ std::string PlaneText(const Plane& plane) {
   return text;
 }
 
-std::string RadiusText(double radius) {
-  return std::isinf(radius) ? "inf" : FormatNumber(radius);
-}
-
 // The light field to load and the virtual camera: shared by integral, stack and allinfocus.
 struct RenderArgs {
   std::string light_field_path;
@@ -110,24 +106,16 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
       "camera, OpenCV axes)");
   pose_view->excludes(look_at)->excludes(pose);
   look_at->excludes(pose);
-  render.Field("fov_deg", options.fov_deg,
-               "Horizontal field of view of the virtual camera, degrees; 0 = the pose view's, "
-               "else 50");
-  render.Field("width", options.width, "Output width, pixels; 0 = the pose view's, else 512");
-  render.Field("height", options.height, "Output height, pixels; 0 = the pose view's, else 512");
-  render.Parsed("--aperture-radius", "aperture_radius", options.aperture_radius, ParseRadius,
-                RadiusText(options.aperture_radius),
-                "Radius of the virtual aperture, metres; 0 = pinhole (nearest view), inf = "
-                "every view");
+  render.Field(options, "fov_deg");
+  render.Field(options, "width");
+  render.Field(options, "height");
+  render.Field(options, "aperture_radius");
   render.Describe("view_indices", "--views");
   render.command()->add_option("--views", args.views,
                                "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
                                "(default: all)");
-  render.Field("min_view_angle_deg", options.min_view_angle_deg,
-               "Ignore rays meeting the focal plane at less than this angle, degrees");
-  render.Field("lens_tolerance_px", options.lens_tolerance_px,
-               "Views with a lens model: largest sample-position error, view pixels, of the "
-               "local maps that replace the exact projection; 0 = exact");
+  render.Field(options, "min_view_angle_deg");
+  render.Field(options, "lens_tolerance_px");
   render.Threads(options.num_threads);
 }
 
@@ -155,9 +143,7 @@ CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& o
       "Focus on a terrain instead of a plane: an OBJ or PLY mesh, or a DEM raster GDAL reads "
       "(GeoTIFF...), in world coordinates (light field origin + local); pixels whose rays miss "
       "it are uncovered");
-  render.Field("surface_offset", options.surface_offset,
-               "Move the focal surface this far along up (towards the views), metres: 1.0 = one "
-               "metre above the terrain");
+  render.Field(options, "surface_offset");
   return surface;
 }
 
@@ -446,16 +432,12 @@ StackFlags AddStackFlags(Flags& stack, Flags& render, RenderArgs& args,
       "--last-offset along up: reconstructed points (poses --points-output) or a mesh, PLY/OBJ in "
       "world coordinates (the robust plane of `aos-render ground`); for a DEM use "
       "--focal-surface");
-  CLI::Option* first_offset = stack.Field(
-      "first_offset", options.first_offset,
-      "With --focal-surface or --ground: offset of slice 0 along up (towards the views), metres");
-  CLI::Option* last_offset = stack.Field(
-      "last_offset", options.last_offset,
-      "With --focal-surface or --ground: offset of the last slice along up, metres");
+  CLI::Option* first_offset = stack.Field(options, "first_offset");
+  CLI::Option* last_offset = stack.Field(options, "last_offset");
   surface->excludes(first)->excludes(last)->excludes(ground_flag);
   ground_flag->excludes(first)->excludes(last);
   stack.Input("--ground");
-  stack.Field("slices", options.slices, "Number of slices (1..100000)");
+  stack.Field(options, "slices");
   StackFlags flags;
   flags.surface = surface;
   flags.ground_flag = ground_flag;
@@ -470,19 +452,13 @@ void AddMergeFlags(Flags& merge, MergeOptions& options) {
                MergeMethodName(options.method),
                "sobel (the paper's), improved (context-aware) or robust (view variance and an "
                "outlier-rejecting mean; needs the light field)");
-  merge.Field("window_radius", options.window_radius,
-              "improved/robust: focus window radius, pixels");
-  merge.Field("smoothing_sigma", options.smoothing_sigma,
-              "improved/robust: depth smoothing sigma, pixels (0 = off)");
-  merge.Field("edge_sigma", options.edge_sigma,
-              "improved/robust: smoothing range sigma, fraction of the image contrast");
-  merge.Field("smoothing_iterations", options.smoothing_iterations,
-              "improved/robust: smoothing passes");
+  merge.Field(options, "window_radius");
+  merge.Field(options, "smoothing_sigma");
+  merge.Field(options, "edge_sigma");
+  merge.Field(options, "smoothing_iterations");
   Flags robust = merge.Nested("robust.");
-  robust.Field("agreement", options.robust.agreement,
-               "robust: half-width of the band of agreeing samples, fraction of the views' range");
-  robust.Field("min_inlier_fraction", options.robust.min_inlier_fraction,
-               "robust: fewest agreeing samples (fraction) for the robust mean");
+  robust.Field(options.robust, "agreement");
+  robust.Field(options.robust, "min_inlier_fraction");
 }
 
 // Writes image, depth, confidence and slice maps and their previews into a new folder
@@ -719,10 +695,7 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
   c->stack_flags = AddStackFlags(stack, render, c->args, c->options.stack, c->ground);
   Flags merge = flags.Nested("merge.");
   AddMergeFlags(merge, c->options.merge);
-  flags.Field("coarse_to_fine", c->options.coarse_to_fine,
-              "0 = off; a factor 2..16: a coarse stack (1/factor the size, every factor-th "
-              "slice) chooses each factor x factor block's slices and only those render at full "
-              "resolution (4: docs/accuracy-vs-time.md)");
+  flags.Field(c->options, "coarse_to_fine");
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   flags.OutputFolder("--output-dir");
@@ -855,56 +828,37 @@ CommandRunner DefineMap(CLI::App* command) {
       ->required();
   AddLoadFlags(flags, c->load);
   MapOptions& options = c->options;
-  flags.Field("pixel_size", options.pixel_size,
-              "Ground size of a map pixel, metres; 0 = the extent's width / --width");
-  flags.Field("width", options.width, "Map width in pixels, when --pixel-size is 0");
+  flags.Field(options, "pixel_size");
+  flags.Field(options, "width");
   flags.Optional("--extent", "extent", options.extent,
                  "World XMIN YMIN XMAX YMAX (origin + local, metres; default: the selected "
                  "views' footprints on the focal plane)")
       ->expected(4);
-  flags.Field("focal_height", options.focal_height,
-              "Horizontal focal plane z = H (local frame, metres), without --focal-surface");
+  flags.Field(options, "focal_height");
   flags.Describe("focal_surface", "--focal-surface");
   command->add_option("--focal-surface", c->focal_surface,
                       "Focus on a terrain instead of the plane: an OBJ or PLY mesh, or a DEM "
                       "raster GDAL reads, in world coordinates; pixels whose vertical line misses "
                       "it are nodata");
-  flags.Field("surface_offset", options.surface_offset,
-              "Move the focal surface this far along up (towards the views), metres");
-  flags.Parsed("--aperture-radius", "aperture_radius", options.aperture_radius, ParseRadius,
-               RadiusText(options.aperture_radius),
-               "Horizontal distance from the focal point to a view centre, metres; 0 = the "
-               "nearest view, inf = every view");
+  flags.Field(options, "surface_offset");
+  flags.Field(options, "aperture_radius");
   flags.Describe("view_indices", "--views");
   command->add_option("--views", c->views,
                       "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
                       "(default: all)");
-  flags.Field("min_view_angle_deg", options.min_view_angle_deg,
-              "Ignore rays meeting the focal plane at less than this angle, degrees");
-  flags.Field("lens_tolerance_px", options.lens_tolerance_px,
-              "Views with a lens model: largest sample-position error, view pixels, of the "
-              "local maps that replace the exact projection; 0 = exact");
-  flags.Field("tile_size", options.tile_size,
-              "Pixels on a side of a render tile (memory is bounded by one tile)");
+  flags.Field(options, "min_view_angle_deg");
+  flags.Field(options, "lens_tolerance_px");
+  flags.Field(options, "tile_size");
   flags.Threads(options.num_threads);
   command->add_option("-o,--output", c->output, "GeoTIFF to write (Cloud-Optimised)")->required();
   Flags run = flags.At("distributed.");
-  run.Field("workers", c->distributed.workers,
-            "Render the tiles as Dask tasks on a local cluster of N worker processes "
-            "(python -m aos.distributed; each reads only the frames its tiles need); "
-            "0 = in this process");
+  run.Field(c->distributed, "workers");
   run.Optional("--scheduler", "scheduler", c->distributed.scheduler,
                "Render the tiles as Dask tasks on the cluster of this scheduler address "
                "(e.g. tcp://10.0.0.5:8786); its workers must read the frames under the "
                "same paths");
-  run.Field("cache_mb", c->distributed.cache_mb,
-            "With --workers/--scheduler: decoded frames each worker keeps between "
-            "tasks, MiB (a task's own frames are always held)");
-  run.Field("share_mb", c->distributed.share_mb,
-            "With --workers/--scheduler: decoded frames each worker hands, through "
-            "shared memory (/dev/shm), to the other workers of its machine whose tiles "
-            "need them too (decoded once per machine, not once per worker), MiB; 0: "
-            "none");
+  run.Field(c->distributed, "cache_mb");
+  run.Field(c->distributed, "share_mb");
   run.Switch("dashboard", c->distributed.dashboard,
              "With --workers: the local cluster also serves Dask's dashboard (progress, "
              "tasks, memory; needs bokeh) on 127.0.0.1, its address printed; read-only "

@@ -56,19 +56,14 @@ void AddPositionFlags(Flags& flags, PosesOptions& options) {
                  "CRS of the --positions-file coordinates (e.g. EPSG:4326, EPSG:25833)");
   flags.Switch("exif_positions", options.exif_positions,
                "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
-  flags.Field("min_registered_fraction", options.min_registered_fraction,
-              "Fail below this fraction of frames registered");
+  flags.Field(options, "min_registered_fraction");
   flags.Input("--positions-file");
 }
 
 // The scene-scale check against the flight height, shared by poses and import-colmap.
 void AddScaleFlags(Flags& flags, PosesOptions& options) {
-  flags.Field("flight_height_m", options.flight_height_m,
-              "The cameras' height above the ground as flown, metres (e.g. 35): the model's "
-              "median depth is checked against it (0 = not checked)");
-  flags.Field("max_scale_deviation", options.max_scale_deviation,
-              "Refuse a median depth more than 1 + d or less than 1 / (1 + d) times "
-              "--flight-height-m (d = this)");
+  flags.Field(options, "flight_height_m");
+  flags.Field(options, "max_scale_deviation");
 }
 
 // Warnings, then the light field and what the user needs to judge the poses.
@@ -195,36 +190,25 @@ CommandRunner DefinePoses(CLI::App* command) {
   command->add_option("-o,--output", c->output, "Light-field file to write (JSON)")->required();
   flags.Optional("--workspace", "workspace", options.workspace,
                  "Keep COLMAP's workspace in this new folder (default: a temporary one)");
-  flags.Field("matcher", options.matcher, "sequential, spatial or exhaustive");
-  flags.Field("sequential_overlap", options.sequential_overlap,
-              "Sequential matching: successors each frame is matched with");
-  flags.Field("spatial_neighbors", options.spatial_neighbors,
-              "Spatial matching: nearest frames (by position) each frame is matched with");
-  flags.Field("preset", options.preset,
-              "default or quick: quick sets --max-image-size 480, --max-num-features 512, "
-              "--sift-first-octave 0, "
-              "--sequential-overlap 3, --spatial-neighbors 8 and, with positions, --matcher "
-              "spatial, each where left at its default (docs/poses.md)");
+  flags.Field(options, "matcher");
+  flags.Field(options, "sequential_overlap");
+  flags.Field(options, "spatial_neighbors");
+  flags.Field(options, "preset");
   flags.Optional("--camera-file", "camera_file", options.camera_file,
                  "Known camera (aos-camera file from `calibrate`); default: self-calibration");
-  flags.Field("camera_model", options.camera_model, "COLMAP model to self-calibrate");
+  flags.Field(options, "camera_model");
   flags.Field("--frames-fov-deg", "fov_deg", options.fov_deg,
               "The frames' horizontal field of view: self-calibration's start and the prior its "
               "result is checked against (0 = none; --fov-deg is its old name)");
-  flags.Field("max_focal_deviation", options.max_focal_deviation,
-              "Refuse a self-calibrated focal length further than this fraction from the "
-              "--frames-fov-deg prior's");
+  flags.Field(options, "max_focal_deviation");
   AddScaleFlags(flags, options);
   flags.Switch("allow_implausible", options.allow_implausible,
                "Keep implausible self-calibrated intrinsics or scene scale (with a warning)");
   AddPositionFlags(flags, options);
-  flags.Field("max_image_size", options.max_image_size,
-              "Features on frames downscaled to this longest side");
-  flags.Field("max_num_features", options.max_num_features, "Features per frame");
-  flags.Field("sift_first_octave", options.sift_first_octave,
-              "SIFT's first octave: -1 = on the frame upsampled 2x (COLMAP's default), 0 = on "
-              "the frame itself (about 4x faster extraction)");
-  flags.Field("colmap", options.colmap, "COLMAP executable");
+  flags.Field(options, "max_image_size");
+  flags.Field(options, "max_num_features");
+  flags.Field(options, "sift_first_octave");
+  flags.Field(options, "colmap");
   flags.Threads(options.num_threads);
   flags.Force();
   flags.InputFolder("frames");
@@ -382,15 +366,11 @@ CommandRunner DefineGround(CLI::App* command) {
                       "A known terrain (mesh or DEM raster): report the flight's height above it");
   command->add_option("-o,--output", c->output, "DEM GeoTIFF to write the estimate to");
   GroundOptions& options = c->options;
-  flags.Field("cell_size_m", options.cell_size_m, "Cell size of the elevation model, metres");
-  flags.Field("quantile", options.quantile,
-              "Height quantile of a cell's points taken as its ground (0 = the lowest)");
-  flags.Field("min_points_per_cell", options.min_points_per_cell,
-              "Fewest points for a cell to be measured");
-  flags.Field("outlier_sigmas", options.outlier_sigmas,
-              "Cells this many robust sigmas above the ground plane are canopy candidates");
-  flags.Field("max_step_m", options.max_step_m,
-              "A candidate more than this far above the ground around it is canopy, metres");
+  flags.Field(options, "cell_size_m");
+  flags.Field(options, "quantile");
+  flags.Field(options, "min_points_per_cell");
+  flags.Field(options, "outlier_sigmas");
+  flags.Field(options, "max_step_m");
   flags.Threads();
   flags.Force();
   flags.Input("lightfield");

@@ -165,12 +165,8 @@ CommandRunner DefineDemo(CLI::App* command) {
   command->add_option("--grid", c->grid, "Override sampling.grid (views per side, >= 1)")
       ->check(AtLeast(1));
   DemoOptions& options = c->options;
-  flags.Field("all_in_focus_slices", options.all_in_focus_slices,
-              "Slices of the all-in-focus stack (ground to the top of the occluders); 0 = no "
-              "all-in-focus image");
-  flags.Field("target_margin_m", options.target_margin_m,
-              "Ring of ground around each target used as its surroundings in the visibility "
-              "figures, metres");
+  flags.Field(options, "all_in_focus_slices");
+  flags.Field(options, "target_margin_m");
   flags.Threads(options.num_threads);
   flags.Input("--scene");
   flags.OutputFolder("--output-dir");

@@ -81,19 +81,12 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
   flags.Field("--frames-fov-deg", "fov_deg", options.fov_deg,
               "The frames' horizontal field of view, degrees: a pinhole camera (without "
               "--camera-file)");
-  flags.Field("altitude", options.altitude,
-              "EXIF/XMP altitude: auto (XMP RelativeAltitude, else GPSAltitude), gps, relative");
-  flags.Field("altitude_window", options.altitude_window,
-              "Altitude outliers: running-median window in frames (odd, >= 3; 0 = off)");
-  flags.Field("max_altitude_deviation_m", options.max_altitude_deviation_m,
-              "An altitude further than this from its running median is replaced by it (listed)");
-  flags.Field("max_distance_from_centre_m", options.max_distance_from_centre_m,
-              "A position farther than this from the flight's centre (median lat, lon) is "
-              "refused (a swapped, radian or wrong-hemisphere row), metres");
-  flags.Field("frame_interval_s", options.frame_interval_s,
-              "With a time column: seconds between consecutive frames (name order)");
-  flags.Field("time_offset_s", options.time_offset_s,
-              "With a time column: the log time of the first frame, seconds");
+  flags.Field(options, "altitude");
+  flags.Field(options, "altitude_window");
+  flags.Field(options, "max_altitude_deviation_m");
+  flags.Field(options, "max_distance_from_centre_m");
+  flags.Field(options, "frame_interval_s");
+  flags.Field(options, "time_offset_s");
   flags.Threads();
   flags.Force();
   flags.InputFolder("frames");

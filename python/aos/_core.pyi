@@ -365,11 +365,12 @@ class IntegralOptions:
     pose_view: int
     """If >= 0, the virtual camera takes the pose of this view (index into the light field). [>= -1]"""
     fov_deg: float
-    """Horizontal field of view of the virtual camera, degrees, (0, 180). [deg, in (0, 180) or 0]"""
+    """Horizontal field of view of the virtual camera, degrees, (0, 180); 0 = the pose view's, else
+    50. [deg, in (0, 180) or 0]"""
     width: int
-    """Output width, pixels (1 .. 65536). [px, in [1, 65536] or 0]"""
+    """Output width, pixels (1 .. 65536); 0 = the pose view's, else 512. [px, in [1, 65536] or 0]"""
     height: int
-    """Output height, pixels (1 .. 65536). [px, in [1, 65536] or 0]"""
+    """Output height, pixels (1 .. 65536); 0 = the pose view's, else 512. [px, in [1, 65536] or 0]"""
     aperture_radius: float
     """Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
     pixel), infinity means every view. [m, >= 0]"""

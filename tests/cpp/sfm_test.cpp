@@ -812,7 +812,7 @@ TEST_F(ColmapImportTest, BadFramesAreNamed) {
   ColmapImportOptions bad_threads;
   bad_threads.num_threads = 0;
   EXPECT_THAT(ErrorOf([&] { ImportColmapModel(model, Path("images"), bad_threads); }),
-              HasSubstr("num_threads: must be -1"));
+              HasSubstr("num_threads: must be in [1, 1024] or -1"));
   model.images.clear();
   EXPECT_THAT(ErrorOf([&] { ImportColmapModel(model, Path("images")); }),
               HasSubstr("the model has no registered images"));

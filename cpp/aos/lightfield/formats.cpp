@@ -769,14 +769,7 @@ std::string ViewLabel(const std::string& where, size_t index, const View& view) 
 }  // namespace
 
 void LoadOptions::Check() const {
-  if (!std::isfinite(fov_deg) || !(fov_deg == 0.0 || (fov_deg > 0.0 && fov_deg < 180.0))) {
-    ThrowInvalid("fov_deg: must be in (0, 180) degrees, or 0 for not given (got " +
-                 FormatNumber(fov_deg) + ")");
-  }
-  if (!(num_threads == -1 || num_threads >= 1)) {
-    ThrowInvalid("num_threads: must be -1 (all cores) or >= 1 (got " +
-                 std::to_string(num_threads) + ")");
-  }
+  CheckFieldRanges(*this);  // the table's ranges (formats.h)
   if (!mask.empty() && !mask_dir.empty()) {
     ThrowInvalid("mask/mask_dir: give one mask for all frames or a folder of masks, not both");
   }

@@ -55,6 +55,7 @@
 
 #include "aos/lightfield/lightfield.h"
 #include "aos/util/option_fields.h"
+#include "aos/util/parallel.h"
 #include "aos/util/progress.h"
 
 namespace aos {
@@ -103,7 +104,7 @@ struct LoadOptions {
                       "of every average; '' = none. Not with mask_dir."));
     field(OptionField("mask_dir", &O::mask_dir, "", Range::Any(),
                       "Folder with one mask per frame, named like the frame; '' = none."));
-    field(OptionField("num_threads", &O::num_threads, "", Range::AtLeast(1).Or(-1),
+    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "Worker threads decoding frames; -1 = all cores."));
   }
 };

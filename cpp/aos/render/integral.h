@@ -121,11 +121,12 @@ struct IntegralOptions {
                       "If >= 0, the virtual camera takes the pose of this view (index into "
                       "the light field)."));
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Open(0.0, 180.0).Or(0.0),
-                      "Horizontal field of view of the virtual camera, degrees, (0, 180)."));
+                      "Horizontal field of view of the virtual camera, degrees, (0, 180); 0 = "
+                      "the pose view's, else 50."));
     field(OptionField("width", &O::width, "px", Range::Closed(1, 65536).Or(0),
-                      "Output width, pixels (1 .. 65536)."));
+                      "Output width, pixels (1 .. 65536); 0 = the pose view's, else 512."));
     field(OptionField("height", &O::height, "px", Range::Closed(1, 65536).Or(0),
-                      "Output height, pixels (1 .. 65536)."));
+                      "Output height, pixels (1 .. 65536); 0 = the pose view's, else 512."));
     field(OptionField("aperture_radius", &O::aperture_radius, "m", Range::AtLeast(0.0),
                       "Radius of the virtual aperture on the lens plane, metres; 0 means a "
                       "pinhole (one view per pixel), infinity means every view."));

@@ -19,8 +19,8 @@ int ResolveThreadCount(int num_threads) {
 
 void CheckThreadCount(int num_threads) {
   if (num_threads == -1 || (num_threads >= 1 && num_threads <= kMaxThreads)) return;
-  ThrowInvalid("num_threads: must be -1 (all cores) or 1.." + std::to_string(kMaxThreads) +
-               " (got " + std::to_string(num_threads) + ")");
+  ThrowInvalid("num_threads: must be " + kThreadCountRange.Text() + ", got " +
+               std::to_string(num_threads));
 }
 
 namespace {

@@ -34,7 +34,7 @@ inline constexpr int kMaxThreads = 1024;
 // The values of every num_threads field (the field tables' range).
 inline constexpr Range kThreadCountRange = Range::Closed(1, kMaxThreads).Or(-1);
 
-// Throws std::invalid_argument "num_threads: must be -1 (all cores) or 1..1024 (got N)"
+// Throws std::invalid_argument "num_threads: must be in [1, 1024] or -1, got N"
 // otherwise. The one check every Options::Check() with a num_threads field calls (and the CLI's
 // --threads, and ParallelFor for callers that check nothing).
 void CheckThreadCount(int num_threads);
