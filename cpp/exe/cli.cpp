@@ -110,6 +110,13 @@ std::string Flags::NumberText(double value) {
   return FormatNumber(value);
 }
 
+bool Flags::Bound(const std::string& field) const {
+  for (const auto& [path, flag] : *fields_) {
+    if (path == prefix_ + field) return true;
+  }
+  return false;
+}
+
 std::string Flags::FlagOf(const std::string& field) {
   std::string flag = "--" + field;
   std::replace(flag.begin(), flag.end(), '_', '-');

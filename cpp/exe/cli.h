@@ -24,6 +24,7 @@
 #include <cstdio>
 #include <limits>
 #include <functional>
+#include <initializer_list>
 #include <map>
 #include <memory>
 #include <sstream>
@@ -186,6 +187,26 @@ class Flags {
     if (option == nullptr) throw std::logic_error("Flags::Field: no field " + name + " in the table");
     return option;
   }
+  // Flags for every field of `options`' table that has none yet on this binder's path and is
+  // not in `not_on_the_cli` (each with its reason in tools/vocabulary.py NOT_ON_THE_CLI), as
+  // Field(options, name) binds them. Nested Options fields are skipped (their binder calls
+  // this for them). Call last in a command's Define, after the fields bound by hand: a field
+  // added to a table then gets its flag on every command that fills that struct.
+  template <class Options>
+  void Remaining(Options& options, std::initializer_list<const char*> not_on_the_cli = {}) {
+    std::vector<std::string> names;
+    Options::Fields([&](const auto& spec) {
+      using T = typename std::decay_t<decltype(spec)>::Type;
+      if constexpr (!kHasFieldTable<T>) {
+        const std::string name = spec.name;
+        for (const char* excluded : not_on_the_cli) {
+          if (name == excluded) return;
+        }
+        if (!Bound(name)) names.push_back(name);
+      }
+    });
+    for (const std::string& name : names) Field(options, name);
+  }
   // A field whose "not given" means something the help states (no default printed).
   template <class T>
   CLI::Option* Optional(const std::string& flag, const std::string& field, T& value,
@@ -294,22 +315,32 @@ class Flags {
   template <class T>
   static T NumberInRange(const std::string& text, const std::string& field,
                          const std::string& flag, const Range& range) {
+    const std::string option = " [option " + flag + "]";
     double number = 0.0;
     if (std::is_floating_point_v<T> && (text == "inf" || text == "infinity")) {
       number = std::numeric_limits<double>::infinity();
     } else {
-      number = ParseNumberText(text, flag);
+      try {
+        number = ParseNumberText(text, field);
+      } catch (const std::invalid_argument& error) {
+        ThrowInvalid(error.what() + option);
+      }
     }
-    if (std::is_integral_v<T> &&
-        (number != std::floor(number) || !(number >= std::numeric_limits<T>::min() &&
-                                           number <= std::numeric_limits<T>::max()))) {
-      ThrowInvalid(field + ": expected a whole number, got " + text + " [option " + flag + "]");
+    if constexpr (std::is_integral_v<T>) {
+      // The bounds as doubles: max + 1 is exact (2^31) or rounds to 2^63, both excluded.
+      const double lowest = static_cast<double>(std::numeric_limits<T>::min());
+      const double beyond = static_cast<double>(std::numeric_limits<T>::max()) + 1.0;
+      if (number != std::floor(number) || !(number >= lowest && number < beyond)) {
+        ThrowInvalid(field + ": expected a whole number, got " + text + option);
+      }
     }
     if (!range.Contains(number)) {
-      ThrowInvalid(field + ": must be " + range.Text() + ", got " + text + " [option " + flag + "]");
+      ThrowInvalid(field + ": must be " + range.Text() + ", got " + text + option);
     }
     return static_cast<T>(number);
   }
+  // Whether `field` (on this binder's path) has a flag already.
+  bool Bound(const std::string& field) const;
   static std::string FlagOf(const std::string& field);
   std::string Names(const std::string& flag) const;
   void Record(const std::string& flag, const std::string& field, const std::string& text);

@@ -109,6 +109,8 @@ CommandRunner DefineCalibrate(CLI::App* command) {
   flags.Output("--output");
   flags.Threads();
   flags.Force();
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunCalibrate(*c, flags); };
 }
 
@@ -441,6 +443,8 @@ CommandRunner DefineRectify(CLI::App* command) {
   flags.Input("--lightfield");
   flags.OutputFolder("--output-dir");
   flags.Threads();
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunRectify(*c, flags); };
 }
 
@@ -565,6 +569,8 @@ CommandRunner DefineResolution(CLI::App* command) {
   error_px->excludes(error_m);
   flags.Field(options, "max_off_axis_deg");
   flags.Threads();
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunResolution(*c, flags); };
 }
 

@@ -128,6 +128,8 @@ CommandRunner DefineMetrics(CLI::App* command) {
   flags.Input("test");
   flags.Input("reference");
   flags.Input("--mask");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunMetrics(*c, flags); };
 }
 

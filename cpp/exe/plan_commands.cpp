@@ -207,6 +207,8 @@ CommandRunner DefinePlan(CLI::App* command) {
   for (const char* output : {"--csv", "--geojson", "--kml", "--png", "--preview-png"}) {
     flags.Output(output);
   }
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunPlan(*c, flags); };
 }
 

@@ -356,6 +356,8 @@ CommandRunner DefineIntegral(CLI::App* command) {
   horizontal->needs(distance);
   AddRenderOutputFlags(flags, c->out);
   flags.Force();
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options, {"variance"});
   return [c, flags] { return RunIntegral(*c, flags); };
 }
 
@@ -568,6 +570,9 @@ CommandRunner DefineStack(CLI::App* command) {
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   flags.OutputFolder("--output-dir");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  render.Remaining(c->options.render, {"focal_plane", "surface_offset"});
+  flags.Remaining(c->options);
   return [c, flags] { return RunStack(*c, flags); };
 }
 
@@ -642,6 +647,9 @@ CommandRunner DefineMerge(CLI::App* command) {
   flags.InputFolder("stack");
   flags.Input("--lightfield");
   flags.OutputFolder("--output-dir");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
+  flags.Nested("robust.").Remaining(c->options.robust, {"robust"});
   return [c, flags] { return RunMerge(*c, flags); };
 }
 
@@ -699,6 +707,12 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   flags.OutputFolder("--output-dir");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  render.Remaining(c->options.stack.render, {"focal_plane", "surface_offset", "variance"});
+  stack.Remaining(c->options.stack);
+  merge.Remaining(c->options.merge);
+  merge.Nested("robust.").Remaining(c->options.merge.robust, {"robust"});
+  flags.Remaining(c->options);
   return [c, flags] { return RunAllInFocus(*c, flags); };
 }
 
@@ -742,6 +756,8 @@ int RunMap(MapCommand& c, const Flags& flags) {
   // cluster reads are named when given without one.
   flags.At("distributed.").NamingFlags([&] { c.distributed.Check(); });
   const DistributedOptions& d = c.distributed;
+  c.load.num_threads = c.options.num_threads;
+  flags.At("load.").NamingFlags([&] { c.load.Check(); });  // also before a cluster's hand-off
   if (d.workers != 0 || !d.scheduler.empty() || d.dashboard) return RunMapDistributed(c);
   for (const char* flag : {"--cache-mb", "--share-mb"}) {
     if (flags.command()->count(flag) > 0) {
@@ -867,6 +883,9 @@ CommandRunner DefineMap(CLI::App* command) {
   flags.Input("lightfield");
   flags.Input("--focal-surface");
   flags.Output("--output");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
+  flags.At("distributed.").Remaining(c->distributed);
   return [c, flags] { return RunMap(*c, flags); };
 }
 
@@ -1098,6 +1117,8 @@ CommandRunner DefineView(CLI::App* command) {
   command->add_flag("--no-browser", c->no_browser,
                     "Do not open a browser (default: open one where a desktop session exists)");
   command->add_flag("--browser", c->browser, "Open a browser even without a desktop session");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options, {"variance"});
   return [c, flags] { return RunView(*c, flags); };
 }
 

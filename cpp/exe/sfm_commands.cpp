@@ -216,6 +216,8 @@ CommandRunner DefinePoses(CLI::App* command) {
   flags.Output("--output");
   flags.OutputFolder("--workspace");
   AddPointsOutputFlag(command, *c);
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunPoses(*c, flags); };
 }
 
@@ -237,6 +239,11 @@ CommandRunner DefineImportColmap(CLI::App* command) {
   flags.InputFolder("--images-dir");
   flags.Output("--output");
   AddPointsOutputFlag(command, *c);
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options, {"colmap", "workspace", "matcher", "sequential_overlap",
+                                 "spatial_neighbors", "preset", "camera_file", "camera_model",
+                                 "fov_deg", "max_image_size", "max_num_features",
+                                 "sift_first_octave", "max_focal_deviation", "num_threads"});
   return [c, flags] { return RunImportColmap(*c, flags); };
 }
 
@@ -377,6 +384,8 @@ CommandRunner DefineGround(CLI::App* command) {
   flags.Input("--points");
   flags.Input("--terrain");
   flags.Output("--output");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunGround(*c, flags); };
 }
 

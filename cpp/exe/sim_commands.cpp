@@ -97,6 +97,8 @@ CommandRunner DefineSimulate(CLI::App* command) {
                     "Print the scene with every field written out and exit");
   flags.Input("scene");
   flags.OutputFolder("--output-dir");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunSimulate(*c, flags); };
 }
 
@@ -170,6 +172,8 @@ CommandRunner DefineDemo(CLI::App* command) {
   flags.Threads(options.num_threads);
   flags.Input("--scene");
   flags.OutputFolder("--output-dir");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunDemo(*c, flags); };
 }
 

@@ -93,6 +93,8 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
   flags.Input("--telemetry-file");
   flags.Input("--camera-file");
   flags.Output("--output");
+  // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  flags.Remaining(c->options);
   return [c, flags] { return RunImportTelemetry(*c, flags); };
 }
 

@@ -322,7 +322,7 @@ class OptionsClass {
     py::list table;
     Options::Fields([this, &table](const auto& spec) {
       using T = typename std::decay_t<decltype(spec)>::Type;
-      auto member = spec.member;
+      T Options::*member = spec.member;  // a field of a base block (aperture.h) too
       const std::string field = spec.name;
       if constexpr (std::is_same_v<T, std::shared_ptr<const FocalSurface>>) {
         Property(

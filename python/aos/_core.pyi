@@ -349,15 +349,15 @@ class IntegralOptions:
         fov_deg: float = ...,
         width: int = ...,
         height: int = ...,
-        aperture_radius: float = ...,
         focal_plane: Plane | float = ...,
         focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None = ...,
         surface_offset: float = ...,
+        variance: bool = ...,
+        aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
-        num_threads: int = ...,
-        variance: bool = ...,
         lens_tolerance_px: float = ...,
+        num_threads: int = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     cam_from_world: Rigid3d
@@ -371,9 +371,6 @@ class IntegralOptions:
     """Output width, pixels (1 .. 65536); 0 = the pose view's, else 512. [px, in [1, 65536] or 0]"""
     height: int
     """Output height, pixels (1 .. 65536); 0 = the pose view's, else 512. [px, in [1, 65536] or 0]"""
-    aperture_radius: float
-    """Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
-    pixel), infinity means every view. [m, >= 0]"""
     @property
     def focal_plane(self) -> Plane:
         """The focal plane (local frame): any point on it and its normal. With a focal_surface only
@@ -391,6 +388,13 @@ class IntegralOptions:
     surface_offset: float
     """Offset of focal_surface along up (towards the views), metres; must be 0 without a
     focal_surface. [m, finite]"""
+    variance: bool
+    """Also return the per-pixel variance of the view samples (the samples then go through the
+    scalar kernel, which also sums their squares: a few times slower)."""
+    aperture_radius: float
+    """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
+    around the vertical line through the focal point for a map; 0 = the single nearest view, inf
+    = every view. [m, >= 0]"""
     @property
     def view_indices(self) -> list[int]:
         """Views to integrate (indices into the light field); empty means all views. Reading returns
@@ -400,15 +404,12 @@ class IntegralOptions:
     min_view_angle_deg: float
     """Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
     rays are ignored. [deg, in [0, 90)]"""
-    num_threads: int
-    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
-    variance: bool
-    """Also return the per-pixel variance of the view samples (the samples then go through the
-    scalar kernel, which also sums their squares: a few times slower)."""
     lens_tolerance_px: float
     """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
     the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px,
     in [0, 1]]"""
+    num_threads: int
+    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -737,18 +738,18 @@ class MapOptions:
         focal_height: float = ...,
         focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None = ...,
         surface_offset: float = ...,
+        tile_size: int = ...,
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
         lens_tolerance_px: float = ...,
-        tile_size: int = ...,
         num_threads: int = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     pixel_size: float
     """Ground size of a pixel, metres (> 0); 0 = the extent's width / width. [m, >= 0 and finite]"""
     width: int
-    """Map width in pixels when pixel_size is 0 (>= 2). [px, >= 2 or 0]"""
+    """Map width in pixels when pixel_size is 0 (>= 2). [px]"""
     @property
     def extent(self) -> list[float]:
         """World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the selected views'
@@ -769,22 +770,25 @@ class MapOptions:
     surface_offset: float
     """Offset of focal_surface along up (towards the views), metres; must be 0 without a
     focal_surface. [m, finite]"""
+    tile_size: int
+    """Pixels on a side of a render tile, 16 .. 8192. [px, in [16, 8192]]"""
     aperture_radius: float
-    """Horizontal distance from the focal point to a view centre, metres; 0 = the single nearest
-    view, inf = every view. [m, >= 0]"""
+    """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
+    around the vertical line through the focal point for a map; 0 = the single nearest view, inf
+    = every view. [m, >= 0]"""
     @property
     def view_indices(self) -> list[int]:
-        """Views to integrate; [] = all."""
+        """Views to integrate (indices into the light field); empty means all views. Reading returns
+        a new list: assign a list to change it."""
     @view_indices.setter
     def view_indices(self, value: Sequence[int]) -> None: ...
     min_view_angle_deg: float
-    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90). [deg, in [0, 90)]"""
+    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
+    rays are ignored. [deg, in [0, 90)]"""
     lens_tolerance_px: float
     """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
     the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px,
     in [0, 1]]"""
-    tile_size: int
-    """Pixels on a side of a render tile, 16 .. 8192. [px, in [16, 8192]]"""
     num_threads: int
     """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     def to_json(self) -> str:
@@ -815,12 +819,13 @@ class DistributedOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     workers: int
-    """Worker processes of a local cluster, >= 0; 0 = none (render_map, always on Dask, then starts
-    one where it has no client or scheduler). [>= 0]"""
+    """Worker processes of a local Dask cluster that renders the map's tiles, >= 0; 0 = none (the
+    CLI renders in its own process; aos.distributed.render_map then starts one worker). [>= 0]"""
     scheduler: str
     """Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. Not with workers."""
     cache_mb: float
-    """Decoded frames each worker keeps between tasks, MiB, >= 0. [MiB, >= 0 and finite]"""
+    """Decoded frames each Dask worker keeps between tasks, MiB, >= 0 (with workers or a scheduler).
+    [MiB, >= 0 and finite]"""
     share_mb: float
     """Decoded frames each worker hands to the other workers of its machine through shared memory,
     MiB, >= 0; 0 = none. [MiB, >= 0 and finite]"""
@@ -1521,7 +1526,7 @@ class SimulateOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     num_threads: int
-    """Worker threads; -1 = all cores."""
+    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -1596,7 +1601,7 @@ class DemoOptions:
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     num_threads: int
-    """Worker threads of the simulation and the renders; -1 = all cores."""
+    """Worker threads of the simulation and the renders; -1 = all cores. [in [1, 1024] or -1]"""
     all_in_focus_slices: int
     """Slices of the all-in-focus stack from the ground to the top of the occluders, 0..1000; 0 = no
     all-in-focus image."""
@@ -1751,7 +1756,7 @@ class PosesOptions:
     min_registered_fraction: float
     """Error below this fraction of frames registered."""
     num_threads: int
-    """COLMAP's threads; -1 = all cores."""
+    """COLMAP's threads; -1 = all cores. [in [1, 1024] or -1]"""
     max_focal_deviation: float
     """Self-calibration: refuse a focal length further than this fraction from the fov_deg prior's,
     > 0."""

@@ -36,15 +36,15 @@ class IntegralKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    aperture_radius: float
     focal_plane: Plane | float | Mesh | Heightfield | FocalSurface
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
     surface_offset: float
+    variance: bool
+    aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
-    num_threads: int
-    variance: bool
     lens_tolerance_px: float
+    num_threads: int
 
 
 class FocalStackKeywords(TypedDict, total=False):
@@ -57,13 +57,13 @@ class FocalStackKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    aperture_radius: float
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
+    variance: bool
+    aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
-    num_threads: int
-    variance: bool
     lens_tolerance_px: float
+    num_threads: int
     first_plane: Plane | float
     last_plane: Plane | float
     ground_plane: Plane | float | None
@@ -98,13 +98,13 @@ class AllInFocusKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    aperture_radius: float
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
+    variance: bool
+    aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
-    num_threads: int
-    variance: bool
     lens_tolerance_px: float
+    num_threads: int
     first_plane: Plane | float
     last_plane: Plane | float
     ground_plane: Plane | float | None
@@ -132,13 +132,13 @@ class SurfaceIntegralKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    aperture_radius: float
     focal_plane: Plane | float
+    variance: bool
+    aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
-    num_threads: int
-    variance: bool
     lens_tolerance_px: float
+    num_threads: int
     robust: bool
     agreement: float
     min_inlier_fraction: float
@@ -154,11 +154,11 @@ class MapKeywords(TypedDict, total=False):
     focal_height: float
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
     surface_offset: float
+    tile_size: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
     lens_tolerance_px: float
-    tile_size: int
     num_threads: int
 
 

@@ -48,8 +48,8 @@ TEST(FieldTable, EveryFieldOnceInDeclarationOrder) {
   std::string names;
   MapOptions::Fields([&](const auto& field) { names += std::string(field.name) + " "; });
   EXPECT_EQ(names,
-            "pixel_size width extent focal_height focal_surface surface_offset aperture_radius "
-            "view_indices min_view_angle_deg lens_tolerance_px tile_size num_threads ");
+            "pixel_size width extent focal_height focal_surface surface_offset tile_size "
+            "aperture_radius view_indices min_view_angle_deg lens_tolerance_px num_threads ");
 }
 
 TEST(FieldTable, CheckRefusesValuesOutsideTheTablesRangeNamingTheField) {

@@ -58,6 +58,7 @@
 #include "aos/sim/simulator.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 
@@ -75,7 +76,7 @@ struct DemoOptions {
   template <class Visit>
   static void Fields(Visit&& field) {
     using O = DemoOptions;
-    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "Worker threads of the simulation and the renders; -1 = all cores."));
     field(OptionField("all_in_focus_slices", &O::all_in_focus_slices, "", Range::Any(),
                       "Slices of the all-in-focus stack from the ground to the top of the "

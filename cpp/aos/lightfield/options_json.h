@@ -14,8 +14,9 @@
 //
 // Internal header: it includes nlohmann/json (through json_codec.h).
 #include <array>
-#include <climits>
 #include <cmath>
+#include <cstdint>
+#include <limits>
 #include <memory>
 #include <optional>
 #include <string>
@@ -58,13 +59,18 @@ nlohmann::ordered_json OptionsToJson(const Options& options) {
   Options::Fields([&](const auto& field) {
     using T = typename std::decay_t<decltype(field)>::Type;
     if constexpr (!options_json::IsShared<T>::value) {
-      object[field.name] = options_json::ValueToJson(options.*(field.member));
+      try {
+        object[field.name] = options_json::ValueToJson(options.*(field.member));
+      } catch (const std::invalid_argument& error) {
+        ThrowInvalid(std::string(field.name) + ": " + error.what());
+      }
     }
   });
   return object;
 }
 
-// Reads the members of `json` into `options` (fields not given keep their value).
+// Reads the members of `json` into `options`: fields not given keep their value (a nested
+// Options struct given is read whole, its members not given taking their defaults).
 template <class Options>
 void OptionsFromJson(const nlohmann::json& json, const JsonPath& at, Options* options) {
   if (!json.is_object()) at.Fail("expected an object, got " + DescribeJson(json));
@@ -133,7 +139,36 @@ T ValueFromJson(const nlohmann::json& json, const JsonPath& at) {
     if (!json.is_boolean()) at.Fail("expected true or false, got " + DescribeJson(json));
     return json.get<bool>();
   } else if constexpr (std::is_integral_v<T>) {
-    return static_cast<T>(ReadJsonInt(json, at, INT_MIN, INT_MAX));
+    // Exact for every whole number of T (int64 included: read as an integer, not a double).
+    if (json.is_number_float()) {  // 5.0: whole numbers written as floats are taken
+      const double number = json.get<double>();
+      const double lowest = static_cast<double>(std::numeric_limits<T>::min());
+      const double beyond = static_cast<double>(std::numeric_limits<T>::max()) + 1.0;
+      if (number == std::floor(number) && number >= lowest && number < beyond) {
+        return static_cast<T>(number);
+      }
+    }
+    if (!json.is_number_integer()) {
+      at.Fail("expected a whole number, got " + DescribeJson(json));
+    }
+    if (json.is_number_unsigned()) {
+      const uint64_t value = json.get<uint64_t>();
+      if (value > static_cast<uint64_t>(std::numeric_limits<T>::max())) {
+        at.Fail("expected a whole number in " + std::to_string(std::numeric_limits<T>::min()) +
+                ".." + std::to_string(std::numeric_limits<T>::max()) + ", got " +
+                DescribeJson(json));
+      }
+      return static_cast<T>(value);
+    }
+    const int64_t value = json.get<int64_t>();
+    if (value < static_cast<int64_t>(std::numeric_limits<T>::min()) ||
+        (value > 0 && static_cast<uint64_t>(value) >
+                          static_cast<uint64_t>(std::numeric_limits<T>::max()))) {
+      at.Fail("expected a whole number in " + std::to_string(std::numeric_limits<T>::min()) +
+              ".." + std::to_string(std::numeric_limits<T>::max()) + ", got " +
+              DescribeJson(json));
+    }
+    return static_cast<T>(value);
   } else if constexpr (std::is_floating_point_v<T>) {
     if (json.is_string()) {
       const std::string text = json.get<std::string>();

@@ -54,6 +54,7 @@
 #include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
 #include "aos/lightfield/lightfield.h"
+#include "aos/render/aperture.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
 #include "aos/util/parallel.h"
@@ -66,7 +67,9 @@ class FocalSurface;  // render/focal_surface.h
 constexpr double kDefaultFovDeg = 50.0;
 constexpr int kDefaultSize = 512;
 
-struct IntegralOptions {
+// The aperture (aperture.h: aperture_radius, view_indices, min_view_angle_deg,
+// lens_tolerance_px, num_threads) and the virtual camera, focus and outputs below.
+struct IntegralOptions : ApertureOptions {
   // Virtual camera pose, local frame -> camera (OpenCV axes). Ignored when pose_view >= 0.
   Rigid3d cam_from_world;
   // If >= 0, the virtual camera takes the pose of this view (index into the light field).
@@ -78,9 +81,6 @@ struct IntegralOptions {
   // pose_view.
   int width = 0;
   int height = 0;
-  // Radius of the virtual aperture on the lens plane, metres; 0 means a pinhole (one view per
-  // pixel), infinity means every view.
-  double aperture_radius = std::numeric_limits<double>::infinity();
   // The focal plane (local frame): any point on it and its normal. Used when focal_surface is
   // null; with a focal_surface only its normal is used, for the grazing-angle test (set to the
   // up axis, +-z, by RenderIntegral for mesh, height field and depth-map surfaces).
@@ -91,21 +91,9 @@ struct IntegralOptions {
   // Offset of focal_surface along the up axis (focal_surface.h: +-z, towards the views), metres:
   // 1.0 focuses one metre above the terrain. Must be 0 without a focal_surface (move the plane).
   double surface_offset = 0.0;
-  // Views to integrate (indices into the light field); empty means all views.
-  std::vector<int> view_indices;
-  // Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
-  // rays are ignored.
-  double min_view_angle_deg = 1.0;
-  // Worker threads; -1 = all cores.
-  int num_threads = -1;
   // Also return the per-pixel variance of the view samples (the kernels then also sum their
   // squares: AVX2 for 1-channel views, else scalar).
   bool variance = false;
-  // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-  // the exact lens projection is replaced by local maps (surface_integral.h,
-  // PointIntegralOptions::lens_tolerance_px, which this fills); 0 = project every sample exactly.
-  // Check() refuses values outside [0, 1] for every render; pinhole views ignore it.
-  double lens_tolerance_px = 0.02;
 
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
   // in the light field (for pose_view and view_indices).
@@ -127,9 +115,6 @@ struct IntegralOptions {
                       "Output width, pixels (1 .. 65536); 0 = the pose view's, else 512."));
     field(OptionField("height", &O::height, "px", Range::Closed(1, 65536).Or(0),
                       "Output height, pixels (1 .. 65536); 0 = the pose view's, else 512."));
-    field(OptionField("aperture_radius", &O::aperture_radius, "m", Range::AtLeast(0.0),
-                      "Radius of the virtual aperture on the lens plane, metres; 0 means a "
-                      "pinhole (one view per pixel), infinity means every view."));
     field(OptionField("focal_plane", &O::focal_plane, "", Range::Any(),
                       "The focal plane (local frame): any point on it and its normal. With a "
                       "focal_surface only its normal is used (grazing test)."));
@@ -140,22 +125,11 @@ struct IntegralOptions {
     field(OptionField("surface_offset", &O::surface_offset, "m", Range::Finite(),
                       "Offset of focal_surface along up (towards the views), metres; must be "
                       "0 without a focal_surface."));
-    field(OptionField("view_indices", &O::view_indices, "", Range::Any(),
-                      "Views to integrate (indices into the light field); empty means all "
-                      "views. Reading returns a new list: assign a list to change it."));
-    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::ClosedOpen(0.0, 90.0),
-                      "Minimum angle between a view's ray and the focal plane, degrees, [0, "
-                      "90); smaller (grazing) rays are ignored."));
-    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
-                      "Worker threads; -1 = all cores."));
     field(OptionField("variance", &O::variance, "", Range::Any(),
                       "Also return the per-pixel variance of the view samples (the samples "
                       "then go through the scalar kernel, which also sums their squares: a "
                       "few times slower)."));
-    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Closed(0.0, 1.0),
-                      "Views with a lens model: the largest error of a sample position, view "
-                      "pixels, [0, 1], where the exact lens projection is replaced by local "
-                      "maps; 0 = project every sample exactly."));
+    ApertureOptions::Fields(field);  // aperture.h
   }
 };
 

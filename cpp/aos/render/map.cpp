@@ -95,6 +95,7 @@ void MapOptions::Check(int view_count) const {
   }
   if (pixel_size == 0.0) {
     if (width == 0) ThrowInvalid("pixel_size: must be > 0 (or give the width in pixels)");
+    if (width < 2) ThrowInvalid("width: must be >= 2 pixels (got " + std::to_string(width) + ")");
   }
   if (!extent.empty()) {
     if (extent.size() != 4) {
@@ -290,14 +291,10 @@ FocalPoints MapFocalPoints(const MapGrid& grid, int x0, int y0, int w, int h) {
 
 PointIntegralOptions MapPointOptions(const MapGrid& grid, const MapOptions& options) {
   PointIntegralOptions point;
+  static_cast<ApertureOptions&>(point) = options;  // the aperture, whole
   point.aperture = PointIntegralOptions::Aperture::kCylinder;
-  point.aperture_radius = options.aperture_radius;
   point.lens_axis = Vec3d(0.0, 0.0, grid.up_z);
   point.surface_normal = Vec3d(0.0, 0.0, grid.up_z);
-  point.min_view_angle_deg = options.min_view_angle_deg;
-  point.lens_tolerance_px = options.lens_tolerance_px;
-  point.view_indices = options.view_indices;
-  point.num_threads = options.num_threads;
   return point;
 }
 

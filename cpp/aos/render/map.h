@@ -69,7 +69,9 @@ namespace aos {
 // The most pixels a map may have (width * height): more is refused as a mistake of units.
 constexpr double kMaxMapPixels = 1e9;
 
-struct MapOptions {
+// The aperture (aperture.h: aperture_radius, view_indices, min_view_angle_deg,
+// lens_tolerance_px, num_threads) and the map's grid, focus and tiles below.
+struct MapOptions : ApertureOptions {
   // Ground size of a pixel, metres (> 0); 0 = the extent's width / width.
   double pixel_size = 0.0;
   // Map width in pixels when pixel_size is 0 (>= 2); ignored otherwise.
@@ -83,21 +85,8 @@ struct MapOptions {
   std::shared_ptr<const FocalSurface> focal_surface;
   // Metres along up by which focal_surface is moved (1.0 = one metre above the terrain).
   double surface_offset = 0.0;
-  // Horizontal distance from the focal point to a view centre, metres; 0 = the single nearest
-  // view, infinity = every view.
-  double aperture_radius = std::numeric_limits<double>::infinity();
-  // Views to integrate (indices into the light field); empty = all views.
-  std::vector<int> view_indices;
-  // Minimum angle between a view's ray and the focal plane, degrees, [0, 90).
-  double min_view_angle_deg = 1.0;
-  // Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-  // the exact lens projection is replaced by local maps (surface_integral.h,
-  // PointIntegralOptions::lens_tolerance_px); 0 = project every sample exactly.
-  double lens_tolerance_px = 0.02;
   // Pixels on a side of a render tile, 16 .. 8192.
   int tile_size = 512;
-  // Worker threads; -1 = all cores.
-  int num_threads = -1;
 
   // Throws std::invalid_argument naming the field. `view_count`: views in the light field.
   void Check(int view_count) const;
@@ -107,7 +96,7 @@ struct MapOptions {
     using O = MapOptions;
     field(OptionField("pixel_size", &O::pixel_size, "m", Range::FiniteAtLeast(0.0),
                       "Ground size of a pixel, metres (> 0); 0 = the extent's width / width."));
-    field(OptionField("width", &O::width, "px", Range::AtLeast(2).Or(0),
+    field(OptionField("width", &O::width, "px", Range::Any(),
                       "Map width in pixels when pixel_size is 0 (>= 2)."));
     field(OptionField("extent", &O::extent, "", Range::Any(),
                       "World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the "
@@ -121,22 +110,9 @@ struct MapOptions {
     field(OptionField("surface_offset", &O::surface_offset, "m", Range::Finite(),
                       "Offset of focal_surface along up (towards the views), metres; must be "
                       "0 without a focal_surface."));
-    field(OptionField("aperture_radius", &O::aperture_radius, "m", Range::AtLeast(0.0),
-                      "Horizontal distance from the focal point to a view centre, metres; 0 = "
-                      "the single nearest view, inf = every view."));
-    field(OptionField("view_indices", &O::view_indices, "", Range::Any(),
-                      "Views to integrate; [] = all."));
-    field(OptionField("min_view_angle_deg", &O::min_view_angle_deg, "deg", Range::ClosedOpen(0.0, 90.0),
-                      "Minimum angle between a view's ray and the focal plane, degrees, [0, "
-                      "90)."));
-    field(OptionField("lens_tolerance_px", &O::lens_tolerance_px, "px", Range::Closed(0.0, 1.0),
-                      "Views with a lens model: the largest error of a sample position, view "
-                      "pixels, [0, 1], where the exact lens projection is replaced by local "
-                      "maps; 0 = project every sample exactly."));
     field(OptionField("tile_size", &O::tile_size, "px", Range::Closed(16, 8192),
                       "Pixels on a side of a render tile, 16 .. 8192."));
-    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
-                      "Worker threads; -1 = all cores."));
+    ApertureOptions::Fields(field);  // aperture.h
   }
 };
 
@@ -277,13 +253,15 @@ struct DistributedOptions {
   static void Fields(Visit&& field) {
     using O = DistributedOptions;
     field(OptionField("workers", &O::workers, "", Range::AtLeast(0),
-                      "Worker processes of a local cluster, >= 0; 0 = none (render_map, "
-                      "always on Dask, then starts one where it has no client or scheduler)."));
+                      "Worker processes of a local Dask cluster that renders the map's tiles, "
+                      ">= 0; 0 = none (the CLI renders in its own process; "
+                      "aos.distributed.render_map then starts one worker)."));
     field(OptionField("scheduler", &O::scheduler, "", Range::Any(),
                       "Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. "
                       "Not with workers."));
     field(OptionField("cache_mb", &O::cache_mb, "MiB", Range::FiniteAtLeast(0.0),
-                      "Decoded frames each worker keeps between tasks, MiB, >= 0."));
+                      "Decoded frames each Dask worker keeps between tasks, MiB, >= 0 (with "
+                      "workers or a scheduler)."));
     field(OptionField("share_mb", &O::share_mb, "MiB", Range::FiniteAtLeast(0.0),
                       "Decoded frames each worker hands to the other workers of its machine "
                       "through shared memory, MiB, >= 0; 0 = none."));

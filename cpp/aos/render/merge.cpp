@@ -534,14 +534,12 @@ void SlicePoints(const SliceFocus& focus, const PinholeCamera& camera,
 PointIntegralOptions PackedOptions(const IntegralOptions& resolved, const Rigid3d& cam_from_world,
                                    const Vec3d& normal, bool variance) {
   PointIntegralOptions at_points;
+  // The aperture, whole (lens_tolerance_px included: it was left at its default before).
+  static_cast<ApertureOptions&>(at_points) = resolved;
   at_points.aperture = PointIntegralOptions::Aperture::kLensPlane;
-  at_points.aperture_radius = resolved.aperture_radius;
   at_points.lens_center = cam_from_world.Center();
   at_points.lens_axis = Row(cam_from_world.rotation, 2);
   at_points.surface_normal = normal;
-  at_points.min_view_angle_deg = resolved.min_view_angle_deg;
-  at_points.view_indices = resolved.view_indices;
-  at_points.num_threads = resolved.num_threads;
   at_points.variance = variance;
   return at_points;
 }

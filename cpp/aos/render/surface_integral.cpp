@@ -1957,14 +1957,7 @@ void SurfaceIntegralOptions::Check() const {
 }
 
 void PointIntegralOptions::Check(int view_count) const {
-  if (!(aperture_radius >= 0.0)) {
-    ThrowInvalid("aperture_radius: must be >= 0 metres or infinity (got " +
-                 FormatNumber(aperture_radius) + ")");
-  }
-  if (!(min_view_angle_deg >= 0.0 && min_view_angle_deg < 90.0)) {
-    ThrowInvalid("min_view_angle_deg: must be in [0, 90) degrees (got " +
-                 FormatNumber(min_view_angle_deg) + ")");
-  }
+  CheckFieldRanges(static_cast<const ApertureOptions&>(*this));  // aperture.h's ranges
   for (int i = 0; i < 3; ++i) {
     if (!std::isfinite(lens_center[i]) || !std::isfinite(lens_axis[i]) ||
         !std::isfinite(surface_normal[i])) {
@@ -1973,11 +1966,6 @@ void PointIntegralOptions::Check(int view_count) const {
   }
   if (!(glm::length(lens_axis) > 0.0)) ThrowInvalid("lens_axis: must not be zero");
   if (!(glm::length(surface_normal) > 0.0)) ThrowInvalid("surface_normal: must not be zero");
-  if (!(lens_tolerance_px >= 0.0 && lens_tolerance_px <= 1.0)) {
-    ThrowInvalid("lens_tolerance_px: must be in [0, 1] view pixels (got " +
-                 FormatNumber(lens_tolerance_px) + ")");
-  }
-  CheckThreadCount(num_threads);
   if (view_count <= 0) ThrowInvalid("view selection is empty: the light field has no views");
   std::vector<uint8_t> seen(static_cast<size_t>(view_count), 0);
   for (int index : view_indices) {
@@ -2026,16 +2014,12 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
     }
   }
   PointIntegralOptions at_points;
+  static_cast<ApertureOptions&>(at_points) = options;  // the aperture, whole
   at_points.aperture = PointIntegralOptions::Aperture::kLensPlane;
-  at_points.aperture_radius = options.aperture_radius;
   at_points.lens_center = points.reference;
   at_points.lens_axis = Row(cam_from_world.rotation, 2);
   at_points.surface_normal = options.focal_plane.normal;
-  at_points.min_view_angle_deg = options.min_view_angle_deg;
-  at_points.view_indices = options.view_indices;
-  at_points.num_threads = options.num_threads;
   at_points.variance = options.variance;
-  at_points.lens_tolerance_px = options.lens_tolerance_px;
   SurfaceIntegralResult result =
       RenderIntegralAtPoints(light_field, points, at_points, surface, progress);
   result.integral.cam_from_world = cam_from_world;

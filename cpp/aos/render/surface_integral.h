@@ -104,7 +104,9 @@ struct FocalPoints {
 
 // How RenderIntegralAtPoints chooses the views at a focal point X: the rules of integral.h
 // (in front of the view, inside its image, not grazing against surface_normal), and an aperture.
-struct PointIntegralOptions {
+// The aperture (aperture.h; aperture_radius is measured as `aperture` says) and the geometry
+// of the points' cameras below.
+struct PointIntegralOptions : ApertureOptions {
   enum class Aperture {
     // A perspective virtual camera: the line from X through the view centre C_i must cross the
     // lens plane (through lens_center, perpendicular to lens_axis) within aperture_radius of
@@ -116,20 +118,10 @@ struct PointIntegralOptions {
     kCylinder,
   };
   Aperture aperture = Aperture::kLensPlane;
-  // Metres; 0 = the single nearest view, infinity = every view.
-  double aperture_radius = std::numeric_limits<double>::infinity();
   Vec3d lens_center{0.0};            // local frame (kLensPlane)
   Vec3d lens_axis{0.0, 0.0, 1.0};    // unit: the virtual camera's optical axis, or the map's up
   Vec3d surface_normal{0.0, 0.0, 1.0};  // what the grazing test measures against
-  double min_view_angle_deg = 1.0;   // as IntegralOptions
-  std::vector<int> view_indices;     // empty = all views
-  int num_threads = -1;
   bool variance = false;             // as IntegralOptions
-  // Views with a lens model (lens.h): the largest error, in view pixels, allowed where the exact
-  // lens projection is replaced by a local map (per quad of 64 down to 8 output pixels,
-  // checked at its nodes; see "Lens views" above), [0, 1];
-  // 0 = project every sample exactly.
-  double lens_tolerance_px = 0.02;
 
   // Throws std::invalid_argument naming the field.
   void Check(int view_count) const;

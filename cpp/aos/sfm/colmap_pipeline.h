@@ -58,6 +58,7 @@
 #include "aos/sfm/colmap_model.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 
@@ -148,7 +149,7 @@ struct PosesOptions {
                       "default), 0 = on the frame itself (about 4x faster extraction)."));
     field(OptionField("min_registered_fraction", &O::min_registered_fraction, "", Range::Any(),
                       "Error below this fraction of frames registered."));
-    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "COLMAP's threads; -1 = all cores."));
     field(OptionField("max_focal_deviation", &O::max_focal_deviation, "", Range::Any(),
                       "Self-calibration: refuse a focal length further than this fraction "

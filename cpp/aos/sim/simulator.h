@@ -48,6 +48,7 @@
 #include "aos/sim/scene.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 
@@ -58,7 +59,7 @@ struct SimulateOptions {
   template <class Visit>
   static void Fields(Visit&& field) {
     using O = SimulateOptions;
-    field(OptionField("num_threads", &O::num_threads, "", Range::Any(),
+    field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "Worker threads; -1 = all cores."));
   }
 };

@@ -11,14 +11,16 @@
 //     }
 //   calling `field` once per member, in declaration order. The default of a field is the
 //   member's initializer: nothing else states it.
-// - From the table come, without a second list: the Python class (cpp/python/bindings.h:
-//   OptionsClass::Table: properties, keyword constructor, repr, ==, pickle, to_json/from_json,
-//   docstrings from `help`), the JSON form (lightfield/options_json.h: the view and map
-//   --workers hand-off), the range part of Check() (CheckFieldRanges below), the CLI flags bound
-//   through cpp/exe/cli.h Flags::Table (flag = --kebab-name, help and default from here), the
-//   schema `aos._core._option_tables()` that tools/options.py turns into the Options blocks of
-//   _core.pyi, the keyword TypedDicts of _keywords.py and docs/vocabulary.md (a test fails when
-//   they are stale).
+// - From the table come, without a second list: the Python class of a bound struct
+//   (cpp/python/bindings.h: OptionsClass::Table: properties, keyword constructor, repr, ==,
+//   pickle, to_json/from_json, docstrings from `help`, and the class attribute `_field_table`);
+//   the JSON form (lightfield/options_json.h: the `view` and `map --workers` hand-off); the
+//   range part of Check() (CheckFieldRanges below); the CLI flags (cpp/exe/cli.h:
+//   Flags::Field(options, name) and Flags::Remaining: --kebab-name, help, default and range);
+//   and, through tools/options.py, the Options classes of _core.pyi and the keyword TypedDicts
+//   of _keywords.py (tests/python/test_options.py fails when they are stale). docs/options.md.
+// - A block of fields several structs share is a base struct with its own table, which the
+//   derived tables include (render/aperture.h: ApertureOptions).
 // - `range` is checked by CheckFieldRanges for number fields (int, double; bool excluded): a
 //   value outside it (NaN included) throws std::invalid_argument "name: must be <range>, got v".
 //   Conditions between fields stay in the struct's Check().

@@ -31,7 +31,7 @@ int ResolveThreadCount(int num_threads);
 // creation failed", and crashed with SIGSEGV at 100000, taking the Python interpreter with it);
 // a fixed bound keeps the same command line valid on every machine.
 inline constexpr int kMaxThreads = 1024;
-// The values of every num_threads field (the field tables' range).
+// The values of every num_threads field (the range of its row in every field table).
 inline constexpr Range kThreadCountRange = Range::Closed(1, kMaxThreads).Or(-1);
 
 // Throws std::invalid_argument "num_threads: must be in [1, 1024] or -1, got N"

@@ -2,8 +2,8 @@
 ``--scheduler ADDRESS``) runs once it has checked its command line and the output path. The
 flags' values come as one JSON object (the flags are declared once, in C++): light_field;
 load, options and distributed: aos::LoadOptions, aos::MapOptions and aos::DistributedOptions in
-their JSON form (cpp/aos/lightfield/options_json.h, read here by from_json: no field is listed
-twice); focal_surface (path, "" = none) and views ("" = all), resolved once the light field is
+their JSON form (cpp/aos/lightfield/options_json.h; options and distributed are read here by
+from_json, load is a dict whose keys are load_lightfield's: no field is listed twice); focal_surface (path, "" = none) and views ("" = all), resolved once the light field is
 loaded; output, force, quiet, json. Draws a progress bar on stderr (plain lines when
 stderr is not a terminal), prints
 the report (a JSON object with --json), exits 0; errors: one line on stderr, exit 1 (bad input)

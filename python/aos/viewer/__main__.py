@@ -91,6 +91,7 @@ def main(argv: list[str]) -> int:
                           surface_path=spec.get("focal_surface", ""),
                           defaults=defaults, cam_from_world=cam_from_world, view_indices=views,
                           min_view_angle_deg=options.min_view_angle_deg,
+                          lens_tolerance_px=options.lens_tolerance_px,
                           num_threads=options.num_threads)
         host = str(spec.get("host", "127.0.0.1"))
         warning = remote_warning(host)

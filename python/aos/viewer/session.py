@@ -237,6 +237,7 @@ class Session:
                  cam_from_world: Optional[aos.Rigid3d] = None,
                  view_indices: Optional[list[int]] = None,
                  min_view_angle_deg: float = 1.0, num_threads: int = -1,
+                 lens_tolerance_px: Optional[float] = None,
                  adaptive_preview: bool = True) -> None:
         if len(light_field) == 0:
             raise ValueError("view(): the light field has no views")
@@ -252,6 +253,9 @@ class Session:
         self.focal_surface = focal_surface
         self.num_threads = num_threads
         self.min_view_angle_deg = min_view_angle_deg
+        # Views with a lens model: the renders' lens_tolerance_px (None = IntegralOptions').
+        self.lens_tolerance_px = (aos.IntegralOptions().lens_tolerance_px
+                                  if lens_tolerance_px is None else lens_tolerance_px)
         self.view_indices = view_indices  # a fixed subset from --views (None = all)
         # A pose given as such (--look-at, --cam-from-world) replaces the views' as the base.
         self.fixed_cam_from_world = cam_from_world
@@ -393,7 +397,7 @@ class Session:
             cam_from_world=cam_from_world, fov_deg=camera.fov_x_deg(), width=camera.width,
             height=camera.height, aperture_radius=params.aperture_radius,
             view_indices=self.views_of(params), min_view_angle_deg=self.min_view_angle_deg,
-            num_threads=self.num_threads)
+            lens_tolerance_px=self.lens_tolerance_px, num_threads=self.num_threads)
         if params.surface:
             options.focal_surface = self.focal_surface
             options.surface_offset = params.surface_offset
@@ -408,6 +412,7 @@ class Session:
         options = aos.MapOptions(width=width, aperture_radius=params.aperture_radius,
                                  view_indices=self.views_of(params),
                                  min_view_angle_deg=self.min_view_angle_deg,
+                                 lens_tolerance_px=self.lens_tolerance_px,
                                  num_threads=self.num_threads)
         if params.surface:
             options.focal_surface = self.focal_surface
