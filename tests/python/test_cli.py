@@ -295,7 +295,7 @@ def test_errors_name_the_flag_that_set_the_field(scene: Path, tmp_path: Path) ->
     bad = run("stack", str(scene), "--pose-view", "0", "--slices", "abc", "-o",
               str(tmp_path / "s"))
     assert bad.returncode == 2 and bad.stderr.splitlines() == [
-        'aos-render: error: --slices: "abc" is not a number'], bad.stderr
+        'aos-render: error: slices: "abc" is not a number [option --slices]'], bad.stderr
 
 
 def test_defaults_from_the_data_and_focus_by_distance(scene: Path, tmp_path: Path) -> None:

@@ -90,3 +90,11 @@ def test_generated_files_are_current() -> None:
     done = subprocess.run([sys.executable, str(ROOT / "tools" / "options.py"), "--check"],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stdout + done.stderr
+
+
+def test_whole_numbers_round_trip_exactly_at_every_width() -> None:
+    plan = aos.FlightPlanOptions(max_waypoints=5_000_000_001)  # an int64 field
+    assert aos.FlightPlanOptions.from_json(plan.to_json()).max_waypoints == 5_000_000_001
+    with pytest.raises(ValueError, match=r"/tile_size: expected a whole number in "):
+        aos.MapOptions.from_json('{"tile_size": 5000000000}')
+    assert aos.MapOptions.from_json('{"tile_size": 1024.0}').tile_size == 1024

@@ -18,9 +18,10 @@ import aos
 from aos import _core
 
 INTEGRAL_FIELDS = (
-    "cam_from_world", "pose_view", "fov_deg", "width", "height", "aperture_radius",
-    "focal_plane", "focal_surface", "surface_offset", "view_indices", "min_view_angle_deg",
-    "num_threads", "variance", "lens_tolerance_px",
+    "cam_from_world", "pose_view", "fov_deg", "width", "height", "focal_plane", "focal_surface",
+    "surface_offset", "variance",
+    # The aperture block (render/aperture.h), shared with MapOptions.
+    "aperture_radius", "view_indices", "min_view_angle_deg", "lens_tolerance_px", "num_threads",
 )
 SIMULATE_FIELDS = ("num_threads",)
 
