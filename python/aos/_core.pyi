@@ -739,6 +739,7 @@ class MapOptions:
         focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None = ...,
         surface_offset: float = ...,
         tile_size: int = ...,
+        max_pixels: int = ...,
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
@@ -772,6 +773,9 @@ class MapOptions:
     focal_surface. [m, finite]"""
     tile_size: int
     """Pixels on a side of a render tile, 16 .. 8192. [px, in [16, 8192]]"""
+    max_pixels: int
+    """The most pixels (width x height) the map may have; more is refused as a likely mistake of
+    units. Raise it for a map that large on purpose. [px, in [4, 1e+14]]"""
     aperture_radius: float
     """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
     around the vertical line through the focal point for a map; 0 = the single nearest view, inf

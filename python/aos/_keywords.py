@@ -155,6 +155,7 @@ class MapKeywords(TypedDict, total=False):
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
     surface_offset: float
     tile_size: int
+    max_pixels: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float

@@ -102,6 +102,20 @@ TEST(MapGrid, DefaultExtentIsTheFootprintsWidenedToWholePixels) {
   EXPECT_EQ(ResolveMapGrid(light_field, options).up_z, -1.0);
 }
 
+TEST(MapGrid, MaxPixelsBoundsTheMapAndCanBeRaised) {
+  const LightField light_field = GroundLightField();
+  MapOptions options;
+  options.extent = {-10.0, -10.0, 10.0, 10.0};
+  options.pixel_size = 0.01;  // 2000 x 2000 pixels
+  options.max_pixels = 3'999'999;
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }),
+              HasSubstr("makes 2000 x 2000 pixels, more than max_pixels 3999999"));
+  options.max_pixels = 4'000'000;
+  EXPECT_EQ(ResolveMapGrid(light_field, options).width, 2000);
+  options.max_pixels = 3;
+  EXPECT_THAT(ErrorOf([&] { options.Check(1); }), HasSubstr("max_pixels: must be in [4, "));
+}
+
 TEST(MapGrid, RefusesBadSizesNamingTheField) {
   const LightField light_field = GroundLightField();
   MapOptions options;

@@ -184,6 +184,25 @@ def test_cli_map_tiles_change_no_bit_and_report(flight_file: Path, tmp_path: Pat
         assert np.array_equal(a.read(), b.read(), equal_nan=True)
 
 
+def test_max_pixels_bounds_a_map_from_python_and_the_cli(flight: aos.LightField,
+                                                        flight_file: Path,
+                                                        tmp_path: Path) -> None:
+    """max_pixels (MapOptions) is one field of the table: Python takes it, the CLI has
+    --max-pixels, and both refuse a map over it naming the field."""
+    with pytest.raises(ValueError, match="more than max_pixels 100"):
+        aos.render_map(flight, pixel_size=0.09, max_pixels=100)
+    assert aos.render_map(flight, pixel_size=0.5, max_pixels=10**6).image.size <= 10**6
+    out = tmp_path / "m.tif"
+    result = run("map", str(flight_file), "--pixel-size", "0.09", "--max-pixels", "100",
+                 "-o", str(out))
+    assert result.returncode != 0 and "more than max_pixels 100" in result.stderr
+    assert not out.exists()
+    result = run("map", str(flight_file), "--max-pixels", "2", "--pixel-size", "0.09",
+                 "-o", str(out))
+    assert result.returncode == 2 and "max_pixels: must be in [4, " in result.stderr
+    assert "[option --max-pixels]" in result.stderr
+
+
 def test_a_map_with_a_path_is_streamed_unless_its_arrays_are_asked_for(
         flight: aos.LightField, tmp_path: Path) -> None:
     options = dict(pixel_size=0.1, tile_size=32, extent=[ORIGIN[0] + 1.0, ORIGIN[1] - 4.0,

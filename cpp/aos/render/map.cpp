@@ -232,11 +232,14 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
   }
   const double columns = std::ceil((hi[0] - lo[0]) / p * (1.0 - 1e-12));
   const double rows = std::ceil((hi[1] - lo[1]) / p * (1.0 - 1e-12));
-  if (!(columns * rows <= kMaxMapPixels) || columns > 1e7 || rows > 1e7) {
+  if (!(columns * rows <= static_cast<double>(options.max_pixels)) || columns > 1e7 ||
+      rows > 1e7) {
     ThrowInvalid(size_field + ": " + Num(p) + " m over the extent " + Num(hi[0] - lo[0]) + " x " +
                  Num(hi[1] - lo[1]) + " m makes " + Num(columns) + " x " + Num(rows) +
-                 " pixels, more than " + Num(kMaxMapPixels) +
-                 " (check the units of the pixel size and the extent)");
+                 " pixels, more than max_pixels " + std::to_string(options.max_pixels) +
+                 (columns > 1e7 || rows > 1e7 ? " or 10^7 on a side" : "") +
+                 " (check the units of the pixel size and the extent; raise max_pixels for a map "
+                 "that large on purpose)");
   }
   grid.x_min = lo[0];
   grid.y_max = hi[1];

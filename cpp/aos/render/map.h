@@ -66,9 +66,6 @@
 
 namespace aos {
 
-// The most pixels a map may have (width * height): more is refused as a mistake of units.
-constexpr double kMaxMapPixels = 1e9;
-
 // The aperture (aperture.h: aperture_radius, view_indices, min_view_angle_deg,
 // lens_tolerance_px, num_threads) and the map's grid, focus and tiles below.
 struct MapOptions : ApertureOptions {
@@ -87,6 +84,9 @@ struct MapOptions : ApertureOptions {
   double surface_offset = 0.0;
   // Pixels on a side of a render tile, 16 .. 8192.
   int tile_size = 512;
+  // The most pixels (width * height) the map may have: more is refused as a likely mistake of
+  // units (the map is streamed tile by tile, so memory does not bound it).
+  int64_t max_pixels = 1'000'000'000;
 
   // Throws std::invalid_argument naming the field. `view_count`: views in the light field.
   void Check(int view_count) const;
@@ -112,6 +112,9 @@ struct MapOptions : ApertureOptions {
                       "0 without a focal_surface."));
     field(OptionField("tile_size", &O::tile_size, "px", Range::Closed(16, 8192),
                       "Pixels on a side of a render tile, 16 .. 8192."));
+    field(OptionField("max_pixels", &O::max_pixels, "px", Range::Closed(4.0, 1e14),
+                      "The most pixels (width x height) the map may have; more is refused as "
+                      "a likely mistake of units. Raise it for a map that large on purpose."));
     ApertureOptions::Fields(field);  // aperture.h
   }
 };
@@ -137,7 +140,7 @@ struct MapGrid {
   double CenterY(int64_t row) const { return y_max - (static_cast<double>(row) + 0.5) * pixel_size; }
 };
 
-// Resolves the extent, pixel size, size and up direction; refuses more than kMaxMapPixels
+// Resolves the extent, pixel size, size and up direction; refuses more than options.max_pixels
 // pixels or fewer than 2 on a side (naming pixel_size or width, and extent).
 MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options);
 
