@@ -1,5 +1,6 @@
-"""Type stubs of aos._core, the pybind11 module built from cpp/python/ (hand-written; checked
-against the module by tests/python/test_stubs.py).
+"""Type stubs of aos._core, the pybind11 module built from cpp/python/ (hand-written, but for
+the head of every Options class, which tools/options.py writes from the C++ field tables;
+checked against the module by tests/python/test_stubs.py and tests/python/test_options.py).
 
 numpy copy rules:
 
