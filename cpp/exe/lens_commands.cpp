@@ -132,20 +132,6 @@ struct CameraCommand {
   std::string output;
 };
 
-// The index in LensCamera::distortion of coefficient `name` for `model`, or -1 if the model has
-// no such coefficient: radtan {k1, k2, p1, p2, k3}, fisheye {k1, k2, k3, k4}, omnidir {k1, k2, p1,
-// p2}, pinhole none.
-int DistortionIndex(LensModel model, const std::string& name) {
-  static const std::map<LensModel, std::vector<std::string>> kOrder = {
-      {LensModel::kPinhole, {}},
-      {LensModel::kRadTan, {"k1", "k2", "p1", "p2", "k3"}},
-      {LensModel::kFisheye, {"k1", "k2", "k3", "k4"}},
-      {LensModel::kOmnidir, {"k1", "k2", "p1", "p2"}}};
-  const std::vector<std::string>& order = kOrder.at(model);
-  const auto found = std::find(order.begin(), order.end(), name);
-  return found == order.end() ? -1 : static_cast<int>(found - order.begin());
-}
-
 int RunCamera(CameraCommand& c, const Flags& flags) {
   LensCamera& camera = c.camera;
   if (!c.fy_given) camera.fy = camera.fx;  // square pixels

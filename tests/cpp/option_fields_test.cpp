@@ -48,7 +48,7 @@ TEST(FieldTable, EveryFieldOnceInDeclarationOrder) {
   std::string names;
   MapOptions::Fields([&](const auto& field) { names += std::string(field.name) + " "; });
   EXPECT_EQ(names,
-            "pixel_size width extent focal_height focal_surface surface_offset tile_size "
+            "pixel_size width extent focal_height focal_surface surface_offset tile_size max_pixels "
             "aperture_radius view_indices min_view_angle_deg lens_tolerance_px num_threads ");
 }
 
@@ -122,6 +122,31 @@ TEST(OptionsJson, BadValuesNameTheFileAndTheKey) {
   MapOptions nan;
   nan.focal_height = std::nan("");
   EXPECT_THAT(ErrorOf([&] { OptionsToJson(nan); }), HasSubstr("NaN"));
+}
+
+}  // namespace
+}  // namespace aos
+
+namespace aos {
+namespace {
+
+TEST(LensModelTraits, OneRowPerModelReadByNamesParametersAndColmap) {
+  for (const LensModelTraits& traits : kLensModels) {
+    EXPECT_EQ(ParseLensModel(traits.name, "model"), traits.model);
+    EXPECT_STREQ(LensModelName(traits.model), traits.name);
+    EXPECT_STREQ(EnumName(traits.model), traits.name);
+    for (int i = 0; i < traits.distortion_count; ++i) {
+      EXPECT_EQ(DistortionIndex(traits.model, traits.distortion_names[static_cast<size_t>(i)]), i);
+    }
+  }
+  EXPECT_EQ(DistortionIndex(LensModel::kFisheye, "p1"), -1);
+  EXPECT_EQ(DistortionIndex(LensModel::kPinhole, "k1"), -1);
+  EXPECT_EQ(DistortionIndex(LensModel::kRadTan, "k3"), 4);
+  EXPECT_THAT(ErrorOf([] { ParseLensModel("kannala", "model"); }),
+              HasSubstr("model: unknown lens model 'kannala' (pinhole, radtan, fisheye, omnidir)"));
+  EXPECT_TRUE(TraitsOf(LensModel::kRadTan).perspective);
+  EXPECT_FALSE(TraitsOf(LensModel::kOmnidir).perspective);
+  EXPECT_STREQ(TraitsOf(LensModel::kOmnidir).colmap_model, "");
 }
 
 }  // namespace

@@ -1,5 +1,7 @@
 #include "aos/geometry/lens.h"
 
+#include <iterator>
+
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -50,21 +52,39 @@ double FirstFold(Slope slope, double limit, int steps) {
 
 }  // namespace
 
+namespace {
+constexpr bool SameText(const char* a, const char* b) {
+  while (*a != '\0' && *a == *b) ++a, ++b;
+  return *a == *b;
+}
+constexpr bool TraitsInEnumOrder() {
+  for (int i = 0; i < 4; ++i) {
+    if (static_cast<int>(kLensModels[i].model) != i) return false;
+    if (!SameText(kLensModels[i].name, EnumNames<LensModel>::kValues[i].second)) return false;
+  }
+  return true;
+}
+static_assert(std::size(kLensModels) == 4 && TraitsInEnumOrder(),
+              "kLensModels: one row per LensModel, in enum order, named as EnumNames says");
+}  // namespace
+
 LensModel ParseLensModel(const std::string& name, const std::string& where) {
-  if (name == "pinhole") return LensModel::kPinhole;
-  if (name == "radtan") return LensModel::kRadTan;
-  if (name == "fisheye") return LensModel::kFisheye;
-  if (name == "omnidir") return LensModel::kOmnidir;
-  ThrowInvalid(where + ": unknown lens model '" + name + "' (pinhole, radtan, fisheye, omnidir)");
+  std::string names;
+  for (const LensModelTraits& traits : kLensModels) {
+    if (name == traits.name) return traits.model;
+    names += (names.empty() ? "" : ", ") + std::string(traits.name);
+  }
+  ThrowInvalid(where + ": unknown lens model '" + name + "' (" + names + ")");
 }
 
-const char* LensModelName(LensModel model) {
-  switch (model) {
-    case LensModel::kPinhole: return "pinhole";
-    case LensModel::kRadTan: return "radtan";
-    case LensModel::kFisheye: return "fisheye";
-    default: return "omnidir";
+const char* LensModelName(LensModel model) { return TraitsOf(model).name; }
+
+int DistortionIndex(LensModel model, const std::string& name) {
+  const LensModelTraits& traits = TraitsOf(model);
+  for (int i = 0; i < traits.distortion_count; ++i) {
+    if (name == traits.distortion_names[static_cast<size_t>(i)]) return i;
   }
+  return -1;
 }
 
 LensCamera LensCamera::FromPinhole(const PinholeCamera& camera) {

@@ -41,11 +41,47 @@ namespace aos {
 
 enum class LensModel { kPinhole, kRadTan, kFisheye, kOmnidir };
 
+// What code outside the model's own maths needs to know of a lens model, in one table
+// (kLensModels, one row per model, in enum order): adding a model adds a row here, its maths in
+// lens.cpp and its tests; names, parameters, the CLI, the bindings and the COLMAP mapping read
+// the row.
+struct LensModelTraits {
+  LensModel model;
+  const char* name;  // as files, the CLI and Python spell it
+  // The coefficients the model reads from LensCamera::distortion, in that order (the rest are 0).
+  int distortion_count;
+  std::array<const char*, 5> distortion_names;
+  bool has_xi;        // Mei's xi (and skew) are parameters
+  // Its rays stay within 90 degrees of the axis, so one frame is a perspective image
+  // (homographies approximate its local maps; surface_integral.h).
+  bool perspective;
+  // COLMAP's camera model for it ("" = COLMAP has none; rectify the frames first). A radtan
+  // lens with k3 != 0 takes FULL_OPENCV.
+  const char* colmap_model;
+  const char* opencv_calibration;  // the OpenCV function that calibrates it
+};
+inline constexpr LensModelTraits kLensModels[] = {
+    {LensModel::kPinhole, "pinhole", 0, {}, false, true, "PINHOLE", "cv::calibrateCamera"},
+    {LensModel::kRadTan, "radtan", 5, {"k1", "k2", "p1", "p2", "k3"}, false, true, "OPENCV",
+     "cv::calibrateCamera"},
+    {LensModel::kFisheye, "fisheye", 4, {"k1", "k2", "k3", "k4"}, false, false, "OPENCV_FISHEYE",
+     "cv::fisheye::calibrate"},
+    {LensModel::kOmnidir, "omnidir", 4, {"k1", "k2", "p1", "p2"}, true, false, "",
+     "cv::omnidir::calibrate"},
+};
+// The row of `model`.
+constexpr const LensModelTraits& TraitsOf(LensModel model) {
+  return kLensModels[static_cast<int>(model)];
+}
+// The index in LensCamera::distortion of coefficient `name` ("k1", "p2", ...) for `model`, or -1
+// if the model has none of that name.
+int DistortionIndex(LensModel model, const std::string& name);
+
 // "pinhole", "radtan", "fisheye", "omnidir"; throws std::invalid_argument naming `where`.
 LensModel ParseLensModel(const std::string& name, const std::string& where);
 const char* LensModelName(LensModel model);
 template <>
-struct EnumNames<LensModel> {
+struct EnumNames<LensModel> {  // the names of kLensModels (lens.cpp asserts they agree)
   static constexpr std::pair<LensModel, const char*> kValues[] = {
       {LensModel::kPinhole, "pinhole"}, {LensModel::kRadTan, "radtan"},
       {LensModel::kFisheye, "fisheye"}, {LensModel::kOmnidir, "omnidir"}};

@@ -117,24 +117,21 @@ std::pair<std::string, std::string> ColmapCameraFor(const LensCamera& lens, cons
   const auto& d = lens.distortion;
   const std::string f = Number(lens.fx) + "," + Number(lens.fy) + "," + Number(lens.cx) + "," +
                         Number(lens.cy);
-  switch (lens.model) {
-    case LensModel::kPinhole:
-      return {"PINHOLE", f};
-    case LensModel::kRadTan:
-      if (d[4] != 0.0) {
-        return {"FULL_OPENCV", f + "," + Number(d[0]) + "," + Number(d[1]) + "," + Number(d[2]) +
-                                   "," + Number(d[3]) + "," + Number(d[4]) + ",0,0,0"};
-      }
-      return {"OPENCV", f + "," + Number(d[0]) + "," + Number(d[1]) + "," + Number(d[2]) + "," +
-                            Number(d[3])};
-    case LensModel::kFisheye:
-      return {"OPENCV_FISHEYE", f + "," + Number(d[0]) + "," + Number(d[1]) + "," +
-                                    Number(d[2]) + "," + Number(d[3])};
-    case LensModel::kOmnidir:
-      break;
+  const LensModelTraits& traits = TraitsOf(lens.model);
+  if (traits.colmap_model[0] == '\0') {
+    ThrowInvalid(where + ": model: COLMAP has no " + traits.name + " model; rectify the frames "
+                 "first (aos-render rectify) and give the rectified camera");
   }
-  ThrowInvalid(where + ": model: COLMAP has no omnidir (Mei) model; rectify the frames first "
-                       "(aos-render rectify) and give the rectified camera");
+  // COLMAP's OPENCV and OPENCV_FISHEYE take the model's coefficients in aos's order; a radtan
+  // k3 needs FULL_OPENCV (k1 k2 p1 p2 k3 k4 k5 k6).
+  std::string parameters = f;
+  for (int i = 0; i < traits.distortion_count && i < 4; ++i) {
+    parameters += "," + Number(d[static_cast<size_t>(i)]);
+  }
+  if (lens.model == LensModel::kRadTan && d[4] != 0.0) {
+    return {"FULL_OPENCV", parameters + "," + Number(d[4]) + ",0,0,0"};
+  }
+  return {traits.colmap_model, parameters};
 }
 
 // Starting parameters of a self-calibrated COLMAP model from a horizontal FOV.

@@ -772,7 +772,7 @@ SimCameras PlaceCameras(const Scene& scene, SimulationStats* stats) {
       truth_position.y = scene.sampling.center[1];
     }
   }
-  const bool wide_lens = lens.model == LensModel::kFisheye || lens.model == LensModel::kOmnidir;
+  const bool wide_lens = !TraitsOf(lens.model).perspective;  // fisheye, omnidir
   const PinholeCamera truth_camera = PinholeCamera::FromFov(
       scene.truth.width > 0 ? scene.truth.width : cam.width,
       scene.truth.height > 0 ? scene.truth.height : cam.height,
