@@ -41,27 +41,27 @@ TEST(Scene, EmptyObjectGivesTheDocumentedDefaults) {
 
 TEST(Scene, UnknownKeysAreErrorsWithTheirPath) {
   EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"densty": 0.5}}})"),
-              HasSubstr("scene.json: occluders.voxels.densty: unknown key"));
-  EXPECT_THAT(ErrorOf(R"({"camera": {"fov": 60}})"), HasSubstr("camera.fov: unknown key"));
-  EXPECT_THAT(ErrorOf(R"({"colour": 1})"), HasSubstr("colour: unknown key"));
+              HasSubstr("scene.json: /occluders/voxels/densty: unknown key"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"fov": 60}})"), HasSubstr("/camera/fov: unknown key"));
+  EXPECT_THAT(ErrorOf(R"({"colour": 1})"), HasSubstr("/colour: unknown key"));
   EXPECT_THAT(ErrorOf(R"({"targets": [{"centre": [0, 0]}]})"),
-              HasSubstr("targets[0].centre: unknown key"));
+              HasSubstr("/targets/0/centre: unknown key"));
   EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "checker", "patch": 2}}})"),
-              HasSubstr("ground.texture.patch: unknown key"));
+              HasSubstr("/ground/texture/patch: unknown key"));
 }
 
 TEST(Scene, WrongTypesAreErrorsWithTheirPath) {
   EXPECT_THAT(ErrorOf(R"({"camera": {"width": "512"}})"),
-              HasSubstr("camera.width: must be an integer, not a string"));
-  EXPECT_THAT(ErrorOf(R"({"camera": {"width": 512.5}})"), HasSubstr("camera.width: must be an integer"));
+              HasSubstr("/camera/width: expected a whole number, got \"512\""));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"width": 512.5}})"), HasSubstr("/camera/width: expected a whole number"));
   EXPECT_THAT(ErrorOf(R"({"sampling": {"altitude": [20]}})"),
-              HasSubstr("sampling.altitude: must be a number, not an array"));
+              HasSubstr("/sampling/altitude: expected a number, got ["));
   EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"center": [0, 0]}}})"),
-              HasSubstr("occluders.voxels.center: must be an array of 3 numbers"));
+              HasSubstr("/occluders/voxels/center: expected a list of 3 numbers"));
   EXPECT_THAT(ErrorOf(R"({"truth": {"blocked_fraction": 1}})"),
-              HasSubstr("truth.blocked_fraction: must be true or false"));
-  EXPECT_THAT(ErrorOf(R"({"occluders": []})"), HasSubstr("occluders: must be an object"));
-  EXPECT_THAT(ErrorOf("[1, 2]"), HasSubstr("must be an object"));
+              HasSubstr("/truth/blocked_fraction: expected true or false"));
+  EXPECT_THAT(ErrorOf(R"({"occluders": []})"), HasSubstr("/occluders: expected an object, got []"));
+  EXPECT_THAT(ErrorOf("[1, 2]"), HasSubstr("scene.json: expected an object, got [1,2]"));
   // Syntax errors name the file and the key path where the parser stopped.
   EXPECT_THAT(ErrorOf("{\"seed\": 1,"), HasSubstr("scene.json: /seed: not valid JSON"));
   EXPECT_THAT(ErrorOf(R"({"sampling": {"grid": 1e999}})"),
@@ -70,41 +70,41 @@ TEST(Scene, WrongTypesAreErrorsWithTheirPath) {
 
 TEST(Scene, OutOfRangeValuesAreErrors) {
   EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"density": 1.0}}})"),
-              HasSubstr("occluders.voxels.density: 1 is outside [0, 1)"));
+              HasSubstr("/occluders/voxels/density: 1 is outside [0, 1)"));
   EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"density": -0.1}}})"),
-              HasSubstr("occluders.voxels.density: -0.1 is outside [0, 1)"));
+              HasSubstr("/occluders/voxels/density: -0.1 is outside [0, 1)"));
   EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"size": [10, -1, 10]}}})"),
-              HasSubstr("occluders.voxels.size[1]: -1 must be > 0"));
+              HasSubstr("/occluders/voxels/size/1: -1 must be > 0"));
   EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"grid": 513}}})"),
-              HasSubstr("occluders.voxels.grid[0]: 513 is outside 1..512"));
-  EXPECT_THAT(ErrorOf(R"({"targets": [{"size": [0, 1]}]})"), HasSubstr("targets[0].size[0]"));
+              HasSubstr("/occluders/voxels/grid/0: 513 is outside 1..512"));
+  EXPECT_THAT(ErrorOf(R"({"targets": [{"size": [0, 1]}]})"), HasSubstr("/targets/0/size/0"));
   EXPECT_THAT(ErrorOf(R"({"occluders": {"trees": {"leaf_size": -0.3}}})"),
-              HasSubstr("occluders.trees.leaf_size"));
+              HasSubstr("/occluders/trees/leaf_size"));
   EXPECT_THAT(ErrorOf(R"({"occluders": {"trees": {"height": [9, 5]}}})"),
-              HasSubstr("occluders.trees.height: the upper end is below the lower end"));
-  EXPECT_THAT(ErrorOf(R"({"camera": {"fov_deg": 180}})"), HasSubstr("camera.fov_deg"));
-  EXPECT_THAT(ErrorOf(R"({"camera": {"channels": 2}})"), HasSubstr("camera.channels: must be 1 or 3"));
+              HasSubstr("/occluders/trees/height: the upper end is below the lower end"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"fov_deg": 180}})"), HasSubstr("/camera/fov_deg"));
+  EXPECT_THAT(ErrorOf(R"({"camera": {"channels": 2}})"), HasSubstr("/camera/channels: must be 1 or 3"));
   EXPECT_THAT(ErrorOf(R"({"sampling": {"aperture": {"shape": "hexagon"}}})"),
-              HasSubstr("sampling.aperture.shape"));
+              HasSubstr("/sampling/aperture/shape"));
   EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "marble"}}})"),
-              HasSubstr("ground.texture.type: \"marble\" is not one of"));
+              HasSubstr("/ground/texture/type: \"marble\" is not one of"));
   EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"colors": [0.5, 1.5]}}})"),
-              HasSubstr("ground.texture.colors[1]: 1.5 is outside [0, 1]"));
+              HasSubstr("/ground/texture/colors/1: 1.5 is outside [0, 1]"));
   EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "constant", "color": 1.5}}})"),
-              HasSubstr("ground.texture.color: 1.5 is outside [0, 1]"));
+              HasSubstr("/ground/texture/color: 1.5 is outside [0, 1]"));
   EXPECT_THAT(ErrorOf(R"({"ground": {"texture": {"type": "noise", "seed": -1}}})"),
-              HasSubstr("ground.texture.seed: must be >= 0"));
+              HasSubstr("/ground/texture/seed: must be >= 0"));
   EXPECT_THAT(ErrorOf(R"({"effects": {"sun": {"elevation_deg": 0}}})"),
-              HasSubstr("effects.sun.elevation_deg"));
+              HasSubstr("/effects/sun/elevation_deg"));
   EXPECT_THAT(ErrorOf(R"({"effects": {"thermal": {}}, "camera": {"channels": 3}})"),
-              HasSubstr("camera.channels: must be 1 in thermal mode"));
+              HasSubstr("/camera/channels: must be 1 in thermal mode"));
 }
 
 TEST(Scene, CamerasBelowTheGroundOrInsideOccludersAreErrors) {
   EXPECT_THAT(ErrorOf(R"({"ground": {"height": 25}})"),
               HasSubstr("is not above the ground (z = 25 m there)"));
   EXPECT_THAT(ErrorOf(R"({"sampling": {"positions": [[0, 0, 30], [0, 0, -1]]}})"),
-              HasSubstr("sampling.positions[1]: camera at z = -1 m is not above the ground"));
+              HasSubstr("/sampling/positions/1: camera at z = -1 m is not above the ground"));
   // A slope lifts the ground under the outer views.
   EXPECT_THAT(ErrorOf(R"({"ground": {"slope": [1.5, 0]}})"), HasSubstr("not above the ground"));
   EXPECT_THAT(ErrorOf(R"({"occluders": {"voxels": {"center": [0, 0, 18], "size": [40, 40, 10]}}})"),
@@ -112,7 +112,7 @@ TEST(Scene, CamerasBelowTheGroundOrInsideOccludersAreErrors) {
   EXPECT_THAT(ErrorOf(R"({"occluders": {"trees": {"height": [15, 25]}}})"),
               HasSubstr("camera is not above the trees"));
   EXPECT_THAT(ErrorOf(R"({"truth": {"position": [0, 0, -2]}})"),
-              HasSubstr("truth.position: camera at z = -2 m is not above the ground"));
+              HasSubstr("/truth/position: camera at z = -2 m is not above the ground"));
 }
 
 TEST(Scene, LensCamerasParseCheckAndRoundTrip) {
@@ -149,20 +149,20 @@ TEST(Scene, LensCamerasParseCheckAndRoundTrip) {
 
 TEST(Scene, LensCamerasThatCannotBeInvertedOverTheFieldAreErrors) {
   EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye2"}})"),
-              HasSubstr("camera.lens: \"fisheye2\" is not a lens model"));
+              HasSubstr("/camera/lens: \"fisheye2\" is not a lens model"));
   EXPECT_THAT(ErrorOf(R"({"camera": {"distortion": [0.1]}})"),
-              HasSubstr("camera.distortion[0]: a pinhole lens has no distortion"));
+              HasSubstr("/camera/distortion/0: a pinhole lens has no distortion"));
   EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye", "xi": 2}})"),
-              HasSubstr("camera.xi: only the omnidir lens has xi"));
+              HasSubstr("/camera/xi: only the omnidir lens has xi"));
   EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye", "distortion": [0, 0, 0, 0, 0.1]}})"),
-              HasSubstr("camera.distortion[4]: the fisheye model has k1..k4 only"));
+              HasSubstr("/camera/distortion/4: the fisheye model has k1..k4 only"));
   EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "radtan", "fov_deg": 190}})"),
-              HasSubstr("camera.fov_deg: 190 is outside [0, 180)"));
+              HasSubstr("/camera/fov_deg: 190 is outside [0, 180)"));
   EXPECT_THAT(ErrorOf(R"({"camera": {"distortion": []}})"),
-              HasSubstr("camera.distortion: must be an array of 1 to 5 numbers"));
+              HasSubstr("/camera/distortion: must be an array of 1 to 5 numbers"));
   // A radtan lens whose distortion folds inside the frame is not invertible.
   EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "radtan", "fov_deg": 120, "distortion": [-0.2]}})"),
-              HasSubstr("camera: distortion: folds the image"));
+              HasSubstr("/camera: distortion: folds the image"));
   // A fisheye whose distortion stops increasing before half the field of view.
   EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "fisheye", "fov_deg": 300, "distortion": [-0.05]}})"),
               HasSubstr("camera.fov_deg: half the field of view (150 degrees) is beyond the "
@@ -172,10 +172,10 @@ TEST(Scene, LensCamerasThatCannotBeInvertedOverTheFieldAreErrors) {
               HasSubstr("camera.fov_deg: 200 degrees is beyond what an omnidir lens with xi = 0.1 "
                         "images"));
   EXPECT_THAT(ErrorOf(R"({"camera": {"lens": "omnidir", "xi": -1}})"),
-              HasSubstr("camera.xi: -1 is outside [0, 1000]"));
+              HasSubstr("/camera/xi: -1 is outside [0, 1000]"));
   // The lens is set on the camera, not as an effect.
   EXPECT_THAT(ErrorOf(R"({"effects": {"lens_distortion": {"k1": 0.1}}})"),
-              HasSubstr("effects.lens_distortion: is not an effect"));
+              HasSubstr("/effects/lens_distortion: is not an effect"));
 }
 
 class SceneFiles : public testing_util::TempFolderTest {};
@@ -197,7 +197,7 @@ TEST_F(SceneFiles, ImageTexturesAreLoadedAndMissingFilesNamed) {
     }
     return std::string();
   }();
-  EXPECT_THAT(error, HasSubstr("scene.json: ground.texture.path:"));
+  EXPECT_THAT(error, HasSubstr("scene.json: /ground/texture/path:"));
   EXPECT_THAT(error, HasSubstr("missing.png"));
 }
 
@@ -252,7 +252,7 @@ TEST_F(SceneFiles, LoadSceneNamesTheFile) {
     LoadScene(path);
     FAIL() << "no error";
   } catch (const std::invalid_argument& error) {
-    EXPECT_THAT(error.what(), HasSubstr(path + ": camera.widht: unknown key"));
+    EXPECT_THAT(error.what(), HasSubstr(path + ": /camera/widht: unknown key"));
   }
   EXPECT_THROW(LoadScene(Path("missing.json")), std::invalid_argument);
 }

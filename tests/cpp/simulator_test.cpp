@@ -567,7 +567,7 @@ TEST(Simulator, CancelsAndChecksOptions) {
     Simulate(scene);
     FAIL() << "no error";
   } catch (const std::invalid_argument& error) {
-    EXPECT_THAT(error.what(), HasSubstr("ground.cell_size"));
+    EXPECT_THAT(error.what(), HasSubstr("/ground/cell_size"));
   }
 }
 

@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "aos/image/image_io.h"
+#include "aos/lightfield/json_codec.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/json_file.h"
@@ -25,27 +26,40 @@ std::string Join(const std::string& path, const std::string& key) {
   return path.empty() ? key : path + "." + key;
 }
 
-std::string TypeName(const json& value) {
-  if (value.is_number()) return "a number";
-  if (value.is_string()) return "a string";
-  if (value.is_boolean()) return "a boolean";
-  if (value.is_array()) return "an array";
-  if (value.is_object()) return "an object";
-  return "null";
+// The JSON pointer of a key path written with dots and brackets ("ground.texture.colors[1]" ->
+// "/ground/texture/colors/1"; "" -> the document). Text after a space is a note kept as it is
+// ("sampling (view 3)" -> "/sampling (view 3)"). Paths are built in the readable form and turned
+// into pointers where an error is raised, so that every error has the codec's form
+// (lightfield/json_codec.h): "<file>: /a/b/0: <reason>".
+std::string PointerOf(const std::string& path) {
+  if (path.empty()) return "";
+  const size_t space = path.find(' ');
+  const std::string keys = path.substr(0, space);
+  std::string pointer = "/";
+  for (char c : keys) {
+    if (c == '.' || c == '[') {
+      pointer += '/';
+    } else if (c != ']') {
+      pointer += c;
+    }
+  }
+  return space == std::string::npos ? pointer : pointer + path.substr(space);
 }
 
 // One JSON object being read: every key must be read (or it is unknown, an error), every value
-// must have the expected type. Errors read "<source>: <key path>: <reason>".
+// must have the expected type, read by the codec's readers (json_codec.h). Errors read
+// "<source>: <JSON pointer>: <reason>".
 class Reader {
  public:
   Reader(const json& object, std::string path, const std::string& source)
       : object_(object), path_(std::move(path)), source_(source) {
-    if (!object_.is_object()) Fail(path_, "must be an object, not " + TypeName(object_));
+    if (!object_.is_object()) Fail(path_, "expected an object, got " + DescribeJson(object_));
   }
 
   [[noreturn]] void Fail(const std::string& path, const std::string& reason) const {
-    ThrowInvalid(Where(source_, Where(path.empty() ? "(top level)" : path, reason)));
+    At(path).Fail(reason);
   }
+  JsonPath At(const std::string& path) const { return JsonPath(source_, PointerOf(path)); }
 
   bool Has(const std::string& key) {
     allowed_.insert(key);
@@ -70,14 +84,14 @@ class Reader {
   bool Bool(const std::string& key, bool fallback) {
     if (!Has(key)) return fallback;
     const json& value = Get(key);
-    if (!value.is_boolean()) Fail(Join(path_, key), "must be true or false, not " + TypeName(value));
+    if (!value.is_boolean()) Fail(Join(path_, key), "expected true or false, got " + DescribeJson(value));
     return value.get<bool>();
   }
 
   std::string String(const std::string& key, const std::string& fallback) {
     if (!Has(key)) return fallback;
     const json& value = Get(key);
-    if (!value.is_string()) Fail(Join(path_, key), "must be a string, not " + TypeName(value));
+    if (!value.is_string()) Fail(Join(path_, key), "expected a string, got " + DescribeJson(value));
     return value.get<std::string>();
   }
 
@@ -97,7 +111,7 @@ class Reader {
 
   const json& Array(const std::string& key) {
     const json& value = Get(key);
-    if (!value.is_array()) Fail(Join(path_, key), "must be an array, not " + TypeName(value));
+    if (!value.is_array()) Fail(Join(path_, key), "expected a list, got " + DescribeJson(value));
     return value;
   }
 
@@ -110,31 +124,24 @@ class Reader {
       if (allowed_.count(it.key()) == 0) {
         std::string known;
         for (const std::string& key : allowed_) known += (known.empty() ? "" : ", ") + key;
-        Fail(Join(path_, it.key()), "unknown key (known here: " + known + ")");
+        Fail(Join(path_, it.key()), "unknown key (known: " + known + ")");
       }
     }
   }
 
   double NumberOf(const json& value, const std::string& path) const {
-    if (!value.is_number()) Fail(path, "must be a number, not " + TypeName(value));
-    const double number = value.get<double>();
-    if (!std::isfinite(number)) Fail(path, "must be finite");
-    return number;
+    return ReadJsonNumber(value, At(path));
   }
 
   int IntOf(const json& value, const std::string& path) const {
-    if (!value.is_number_integer()) Fail(path, "must be an integer, not " + TypeName(value));
-    const long long number = value.get<long long>();
-    if (number < std::numeric_limits<int>::min() || number > std::numeric_limits<int>::max()) {
-      Fail(path, "is out of range");
-    }
-    return static_cast<int>(number);
+    return ReadJsonInt(value, At(path), std::numeric_limits<int>::min(),
+                       std::numeric_limits<int>::max());
   }
 
   template <size_t N>
   std::array<double, N> NumbersOf(const json& value, const std::string& path) const {
     if (!value.is_array() || value.size() != N) {
-      Fail(path, "must be an array of " + std::to_string(N) + " numbers");
+      Fail(path, "expected a list of " + std::to_string(N) + " numbers, got " + DescribeJson(value));
     }
     std::array<double, N> numbers{};
     for (size_t i = 0; i < N; ++i) {
@@ -149,7 +156,7 @@ class Reader {
       return Rgb{grey, grey, grey};
     }
     if (!value.is_array() || value.size() != 3) {
-      Fail(path, "must be a number (grey) or an array [r, g, b]");
+      Fail(path, "expected a number (grey) or a list [r, g, b], got " + DescribeJson(value));
     }
     return NumbersOf<3>(value, path);
   }
@@ -239,12 +246,12 @@ TextureSpec DefaultTargetTexture() {
   return t;
 }
 
-// ---- Check() helpers: "<source>: <path>: <reason>" ----
+// ---- Check() helpers: "<source>: <JSON pointer>: <reason>", as the reader's ----
 
 struct Checker {
   const std::string& source;
   [[noreturn]] void Fail(const std::string& path, const std::string& reason) const {
-    ThrowInvalid(Where(source, Where(path, reason)));
+    JsonPath(source, PointerOf(path)).Fail(reason);
   }
   void Positive(double value, const std::string& path) const {
     if (!(value > 0.0) || !std::isfinite(value)) Fail(path, FormatNumber(value) + " must be > 0");
@@ -476,7 +483,7 @@ void Scene::Check() const {
 
 LensCamera ViewLens(const Scene& scene) {
   const CameraSpec& c = scene.camera;
-  const LensModel model = ParseLensModel(c.lens, scene.source + ": camera.lens");
+  const LensModel model = ParseLensModel(c.lens, scene.source + ": /camera/lens");
   if (c.fx > 0.0) {
     LensCamera lens;
     lens.model = model;
@@ -491,11 +498,11 @@ LensCamera ViewLens(const Scene& scene) {
       lens.xi = c.xi;
       lens.skew = c.skew;
     }
-    lens.Finalize(scene.source + ": camera");
+    lens.Finalize(scene.source + ": /camera");
     return lens;
   }
   return LensFromFov(model, c.width, c.height,
-                     c.fov_deg, c.distortion, c.xi, scene.source + ": camera");
+                     c.fov_deg, c.distortion, c.xi, scene.source + ": /camera");
 }
 
 std::vector<Vec3d> ViewPositions(const Scene& scene) {

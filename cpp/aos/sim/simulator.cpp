@@ -145,7 +145,7 @@ std::pair<int, int> GroundGridCells(const GroundSpec& g, const std::array<double
   const double ny_real = std::ceil((extent[3] - extent[1]) / g.cell_size);
   constexpr double kMaxCells = 4096;
   if (nx_real > kMaxCells || ny_real > kMaxCells) {
-    ThrowInvalid(Where(source, "ground.cell_size: " + FormatNumber(g.cell_size) + " m over a " +
+    ThrowInvalid(Where(source, "/ground/cell_size: " + FormatNumber(g.cell_size) + " m over a " +
                                    FormatNumber(extent[2] - extent[0]) + " x " +
                                    FormatNumber(extent[3] - extent[1]) +
                                    " m extent needs more than 4096 x 4096 cells; use a larger "
@@ -1116,7 +1116,7 @@ Heightfield GroundHeightfield(const Scene& scene, const std::array<double, 4>& e
   if (extent == std::array<double, 4>{0, 0, 0, 0}) extent = g.extent;
   if (extent == std::array<double, 4>{0, 0, 0, 0}) {
     ThrowInvalid(Where(scene.source,
-                       "ground.extent: all zero (the simulator then takes the views' footprint, "
+                       "/ground/extent: all zero (the simulator then takes the views' footprint, "
                        "which GroundHeightfield does not know); give an extent"));
   }
   for (double v : extent) {
