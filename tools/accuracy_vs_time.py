@@ -317,7 +317,7 @@ def out_options(truth: aos.GroundTruth, width: int, **kwargs: Any) -> aos.Integr
     focused on the ground under it."""
     return aos.IntegralOptions(cam_from_world=truth.cam_from_world,
                                fov_deg=truth.camera.fov_x_deg(), width=width, height=width,
-                               focal_plane=aos.Plane.at_height(truth.ground_height_at_center),
+                               focal_surface=aos.Plane.at_height(truth.ground_height_at_center),
                                **kwargs)
 
 
@@ -552,7 +552,7 @@ def knob_merge(run: Run) -> Knob:
                         np.asarray(merged.slice) >= 0, depth))
         run.log(f"merge: {name}, {slices} slices: {ms(seconds)} ms")
     mid = 0.5 * (MERGE_FIRST + MERGE_LAST)
-    plane = aos.IntegralOptions(focal_plane=aos.Plane.at_height(mid), **camera)
+    plane = aos.IntegralOptions(focal_surface=aos.Plane.at_height(mid), **camera)
     seconds, single = run.timed(lambda: aos.render_integral(lf, plane))
     row = Row("merge", "one plane", f"one plane z={mid:g}", seconds,
               {"method": f"one plane (z = {mid:g} m)", "slices": "1",

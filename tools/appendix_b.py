@@ -121,7 +121,7 @@ def evaluate(case: Case, size: int = 512, voxel_grid: int = 100, seed: int = 1,
     truth = result.truth
     options = dict(cam_from_world=truth.cam_from_world, fov_deg=truth.camera.fov_x_deg(),
                    width=truth.camera.width, height=truth.camera.height,
-                   focal_plane=aos.Plane.at_height(truth.ground_height_at_center))
+                   focal_surface=aos.Plane.at_height(truth.ground_height_at_center))
     if pinhole:
         options["view_indices"] = [len(result.light_field) // 2]
     start = time.perf_counter()

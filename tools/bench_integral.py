@@ -189,7 +189,7 @@ def bench_surfaces(args, light_field, options):
               f"z = 0 is {abs(centre[2]):.1f} m from the camera, the ground "
               f"{abs(ground_z - centre[2]):.1f} m")
         ground = copy.copy(options)
-        ground.focal_plane = aos.Plane.at_height(ground_z)
+        ground.focal_surface = aos.Plane.at_height(ground_z)
         renderers = {"plane z=0": renderers["plane z=0"],
                      "plane ground": lambda: aos.render_integral(light_field, ground),
                      "depth(plane)": renderers["depth(plane)"]}
@@ -265,7 +265,7 @@ def bench_kernels(args, light_field, options):
     for height in (0.0, 21.0):
         for threads in (-1, 1):
             o = copy.copy(options)
-            o.focal_plane = aos.Plane.at_height(height)
+            o.focal_surface = aos.Plane.at_height(height)
             o.num_threads = threads
             images = {}
             times = {"row loads": [], "gathers": []}
@@ -313,7 +313,7 @@ def main():
     loaded = aos.load_lightfield(str(poses_path), fov_deg=FOV_DEG)
     light_field = loaded.light_field
     options = aos.IntegralOptions(pose_view=191, fov_deg=FOV_DEG, width=512, height=512,
-                                  focal_plane=aos.Plane.at_height(0.0))
+                                  focal_surface=aos.Plane.at_height(0.0))
     if args.surfaces_only:
         bench_surfaces(args, light_field, options)
         return 0

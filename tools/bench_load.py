@@ -59,7 +59,7 @@ def main() -> int:
             light_field = loaded.light_field
         wall, _, _ = timed(lambda: aos.render_integral(
             light_field, pose_view=len(light_field.views) // 2, aperture_radius=math.inf,
-            focal_plane=aos.Plane.at_height(0.0)))
+            focal_surface=aos.Plane.at_height(0.0)))
         samples["render"].append(wall)
     median = {key: statistics.median(values) for key, values in samples.items() if values}
     views = len(light_field.views)

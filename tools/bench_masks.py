@@ -69,7 +69,7 @@ def quality() -> None:
         aos.write_image(str(folder / "mask.png"), valid)
         render = dict(cam_from_world=truth.cam_from_world, fov_deg=truth.camera.fov_x_deg(),
                       width=truth.camera.width, height=truth.camera.height,
-                      focal_plane=truth.ground_height_at_center)
+                      focal_surface=truth.ground_height_at_center)
         runs = {
             "clean frames": sim.light_field,
             "painted, no mask": aos.load_lightfield(folder / "lf.json").light_field,
@@ -102,10 +102,10 @@ def speed(data: Path, repeats: int) -> None:
         aos.write_image(str(mask), valid)
         plain = aos.load_lightfield(poses, fov_deg=F0_FOV_DEG).light_field
         masked = aos.load_lightfield(poses, fov_deg=F0_FOV_DEG, mask=mask).light_field
-    render = dict(pose_view=191, width=512, height=512, focal_plane=0.0)
+    render = dict(pose_view=191, width=512, height=512, focal_surface=0.0)
     mesh = aos.Mesh.read(str(data / "dem" / "dem_lr.obj"))
     cases = {"plane": render,
-             "mesh": {**{k: v for k, v in render.items() if k != "focal_plane"},
+             "mesh": {**{k: v for k, v in render.items() if k != "focal_surface"},
                       "focal_surface": mesh}}
     print(f"speed: F0, {len(plain)} views, mask {100 * (valid == 0).mean():.1f}% masked, "
           f"{repeats} interleaved rounds")

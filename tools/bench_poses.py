@@ -117,9 +117,9 @@ def run(args: argparse.Namespace, work: Path, simulation, preset: str) -> dict:
     moved = aos.Rigid3d(r, np.asarray(pose.translation) - r @ shift)
     common = dict(fov_deg=40.0, width=256, height=256, aperture_radius=math.inf)
     true_image = aos.render_integral(simulation.light_field, cam_from_world=pose,
-                                     focal_plane=aos.Plane.at_height(0.0), **common).image
+                                     focal_surface=aos.Plane.at_height(0.0), **common).image
     recovered_image = aos.render_integral(recovered, cam_from_world=moved,
-                                          focal_plane=aos.Plane.at_height(shift[2]), **common).image
+                                          focal_surface=aos.Plane.at_height(shift[2]), **common).image
     quality = aos.compare_images(recovered_image, true_image, np.ones(true_image.shape, np.uint8),
                                  data_range=255.0)
     source = recovered.pose_source

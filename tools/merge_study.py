@@ -253,7 +253,7 @@ def write_docs(args: argparse.Namespace, rows: list[dict[str, Any]], summary: st
     simulation = aos.simulate(study_scene(1, args.size, "voxels"))
     single = np.asarray(aos.render_integral(simulation.light_field, pose_view=len(
         simulation.light_field.views) // 2, width=args.size, height=args.size,
-        fov_deg=TRUTH_FOV_DEG, aperture_radius=0.0, focal_plane=aos.Plane.at_height(0.0)).image)
+        fov_deg=TRUTH_FOV_DEG, aperture_radius=0.0, focal_surface=aos.Plane.at_height(0.0)).image)
     panels = [("single view", single)]
     for method in METHODS:
         row = next(r for r in rows if r["occluders"] == "voxels" and r["seed"] == 1

@@ -20,6 +20,7 @@ import argparse
 import re
 import sys
 import textwrap
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -74,6 +75,17 @@ def stub_head(cls: type) -> list[str]:
                 setter = (f"    def {row['name']}(\n        self, value: {row['given']}\n"
                           "    ) -> None: ...")
             lines += [f"    @{row['name']}.setter", setter]
+    for old, new in sorted(getattr(cls, "_deprecated", {}).items()):
+        row = next(row for row in table if row["name"] == new)
+        # A deprecated spelling (OptionsClass::Deprecated): typed as what it reads, so that
+        # code using it type-checks for the release it is kept.
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            read = type(getattr(cls(), old)).__name__
+        lines += ["    @property", f"    def {old}(self) -> {read}:",
+                  f'        """Deprecated: use {new}."""',
+                  f"    @{old}.setter",
+                  f"    def {old}(self, value: {row['given']}) -> None: ..."]
     lines += ["    def to_json(self) -> str:",
               '        """The options as one JSON object (lightfield/options_json.h)."""',
               "    @staticmethod",

@@ -81,7 +81,7 @@ def side_by_side(panels: list[np.ndarray], gap: int = 8) -> np.ndarray:
 def view_panels(light_field: aos.LightField, mesh: aos.Mesh, report: dict) -> np.ndarray:
     common = dict(pose_view=VIEW, fov_deg=FOV_DEG, width=512, height=512)
     renders = {}
-    for name, extra in (("plane z=+21", dict(focal_plane=aos.Plane.at_height(PLANE_Z))),
+    for name, extra in (("plane z=+21", dict(focal_surface=aos.Plane.at_height(PLANE_Z))),
                         ("dem_lr.obj", dict(focal_surface=mesh)),
                         ("dem_lr.obj +1 m", dict(focal_surface=mesh, surface_offset=1.0))):
         start = time.perf_counter()

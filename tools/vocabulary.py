@@ -57,6 +57,7 @@ COMMANDS = [
 # bindings' field paths: (command, Python class name, prefix).
 OUTSIDE = [
     ("map", "DistributedOptions", "distributed."),
+    ("view", "ViewerOptions", "viewer."),
 ]
 
 
@@ -95,8 +96,6 @@ def options_of(class_name: str) -> Any:
 
 # Fields set on the command line in another way, or Python only: (command or "*", field) -> why.
 NOT_ON_THE_CLI = {
-    ("stack", "render.focal_plane"): "the slices' planes replace it",
-    ("allinfocus", "stack.render.focal_plane"): "the slices' planes replace it",
     ("stack", "render.surface_offset"): "a stack's slices lie at --first-offset..--last-offset",
     ("allinfocus", "stack.render.surface_offset"): "a stack's slices lie at --first-offset..--last-offset",
     ("integral", "variance"): "Python only (render_integral(variance=True))",
@@ -131,7 +130,8 @@ NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_fil
                       "extent",  # the map's extent: none = the views' footprints
                       "vertices",  # plan: none = a circle, sector or rectangle
                       "crs", "dem",  # plan: none = a local frame, flat ground
-                      "scheduler"}  # map: none = no Dask scheduler (--workers or this process)
+                      "scheduler",  # map: none = no Dask scheduler (--workers or this process)
+                      "open_browser"}  # view: none = where a desktop session exists
 
 # Flags on two commands with the same spelling and different meanings (listed on the page).
 UNITS = [("_mps", "m/s"), ("_mb", "MiB"), ("_min", "minutes"), ("_s", "seconds"), ("_deg", "degrees"), ("_m", "metres"), ("_px", "pixels"), ("radius", "metres"),
@@ -148,7 +148,7 @@ def unit_of(command: str, field: str) -> str:
         return "fraction of the image's range"
     if name == "agreement":
         return "fraction of the image's range"
-    if name in ("pixel_size", "extent", "focal_height"):
+    if name in ("pixel_size", "extent"):
         return "metres"
     if name == "tile_size":
         return "pixels"
@@ -195,6 +195,8 @@ def python_default(value: Any) -> str:
         return "[]" if not value else repr(list(value))
     if isinstance(value, str):
         return value if value else "''"
+    if type(value).__name__ == "FocalSurface" and value.plane is not None:
+        return "plane " + python_default(value.plane)
     if type(value).__name__ == "Plane":
         point = list(value.point)
         if list(value.normal) == [0.0, 0.0, 1.0] and point[:2] == [0.0, 0.0]:
@@ -214,6 +216,8 @@ def same_default(python_value: Any, cli: Optional[str], path: str = "") -> bool:
         return len(parts) == 2 and parts[0 if path.endswith("columns") else 1] == str(python_value)
     if hasattr(python_value, "name") and hasattr(type(python_value), "__members__"):
         return cli == python_value.name
+    if type(python_value).__name__ == "FocalSurface" and python_value.plane is not None:
+        python_value = python_value.plane
     if type(python_value).__name__ == "Plane":
         try:
             return float(cli) == python_value.point[2] and list(python_value.normal) == [0, 0, 1]
@@ -240,7 +244,7 @@ def cli_bindings(aos_render: str) -> list[dict[str, str]]:
 
 def binding_for(bindings: list[dict[str, str]], command: str, path: str) -> Optional[dict]:
     """The binding of one field: a single flag with a printed default first (a field set by
-    several flags, such as focal_plane, also has a combined entry naming them all)."""
+    several flags, such as focal_surface, also has a combined entry naming them all)."""
     found = [b for b in bindings if b["command"] == command and b["field"] == path]
     single = [b for b in found if "/" not in b["flag"]]
     for candidates in ([b for b in single if b["default"]], single, found):
@@ -320,10 +324,12 @@ command's function, routed by its name (`aos.all_in_focus(lf, agreement=0.1)` se
 Every flag is bound to the Options field it sets and named after it (cpp/exe/cli.h: Flags);
 `aos-render flags` lists the bindings. `map` also binds a struct of its own beside MapOptions:
 DistributedOptions (how the tiles are spread over Dask), whose fields are
-`aos.distributed.render_map`'s keyword arguments of the same names. The exceptions, named by what they describe: `--threads`
+`aos.distributed.render_map`'s keyword arguments of the same names; `view` binds
+ViewerOptions (the server's own settings: host, port, pages, browser), whose fields are
+`aos.view`'s keyword arguments. The exceptions, named by what they describe: `--threads`
 (`num_threads`, on every command: every stage of the command, and a cap on the process's
 workers), `--views` (`view_indices`), `--pattern COLUMNSxROWS` (`pattern_columns`,
-`pattern_rows`), `--focal-height`/`--focal-plane`/`--focal-distance` (`focal_plane`), and the
+`pattern_rows`), `--focal-height`/`--focal-plane`/`--focal-distance`/`--focal-surface` (`focal_surface`), and the
 fields of one name but different meaning: `--fov-deg` is the virtual camera's field of view
 (`integral`, `stack`, `allinfocus`), `--frames-fov-deg` the input frames' (`poses`; JKU frames
 on the rendering commands), `--rectified-fov-deg` the rectified frames' (`rectify`),

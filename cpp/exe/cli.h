@@ -227,11 +227,15 @@ class Flags {
                       const std::string& default_text, const std::string& help) {
     CLI::Option* option = command_->add_option_function<std::string>(
         Names(flag),
-        [&value, parse](const std::string& text) {
+        [&value, parse, flag](const std::string& text) {
           try {
             value = parse(text);
           } catch (const std::invalid_argument& error) {
-            throw CLI::ValidationError(OneLine(error.what()));
+            const std::string message = OneLine(error.what());
+            // Name the flag, as range errors do, unless the message names it already.
+            throw CLI::ValidationError(message.find(flag) == std::string::npos
+                                           ? message + " [option " + flag + "]"
+                                           : message);
           }
         },
         help);
@@ -303,7 +307,18 @@ class Flags {
                  NumberText(static_cast<double>(value)), spec.help)
           ->type_name(std::is_integral_v<T> ? "INT" : "FLOAT");
     } else if constexpr (std::is_same_v<T, std::string>) {
-      return Field(flag, name, value, spec.help);
+      CLI::Option* option = Field(flag, name, value, spec.help);
+      if (spec.range.choices != nullptr) {  // refused while parsing, naming field and flag
+        const Range range = spec.range;
+        option->check(
+            [range, name, flag](const std::string& text) -> std::string {
+              return range.ContainsText(text) ? std::string()
+                                              : name + ": must be " + range.Text() + ", got '" +
+                                                    text + "' [option " + flag + "]";
+            },
+            "");  // the help lists the choices
+      }
+      return option;
     } else {
       throw std::logic_error("Flags::Field: " + name + " has no flag of its own type");
     }

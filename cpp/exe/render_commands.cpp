@@ -23,6 +23,8 @@
 #include "aos/image/preview.h"
 #include "aos/lightfield/formats.h"
 #include "aos/lightfield/options_json.h"
+#include "aos/render/focal_surface_json.h"
+#include "aos/viewer/viewer_options.h"
 #include "aos/render/focal_stack.h"
 #include "aos/render/integral.h"
 #include "aos/render/map.h"
@@ -119,14 +121,19 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   render.Threads(options.num_threads);
 }
 
-// --focal-height H: focal_plane as the horizontal plane z = H.
-CLI::Option* AddFocalHeightFlag(Flags& flags, Plane& focal_plane, const char* help) {
+// A focal surface's default in a flag's spelling: a plane's (PlaneText), else none.
+std::string SurfaceText(const FocalSurface& surface) {
+  return surface.kind() == FocalSurfaceKind::kPlane ? PlaneText(surface.plane()) : "";
+}
+
+// --focal-height H: focal_surface as the horizontal plane z = H.
+CLI::Option* AddFocalHeightFlag(Flags& flags, FocalSurface& focal_surface, const char* help) {
   return flags.Parsed(
-      "--focal-height", "focal_plane", focal_plane,
+      "--focal-height", "focal_surface", focal_surface,
       [](const std::string& text) {
-        return Plane::AtHeight(ParseNumberText(text, "--focal-height"));
+        return FocalSurface::FromPlane(Plane::AtHeight(ParseNumberText(text, "--focal-height")));
       },
-      PlaneText(focal_plane), help);
+      SurfaceText(focal_surface), help);
 }
 
 // --focal-surface (IntegralOptions::focal_surface).
@@ -147,22 +154,14 @@ CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& o
   return surface;
 }
 
-// --focal-surface FILE: the mesh or DEM (null when no file is given), read before the frames so
-// that a bad file fails first; described on stderr.
-std::shared_ptr<const FocalSurface> ReadFocalSurface(const std::string& path) {
-  if (path.empty()) return nullptr;
-  auto surface = std::make_shared<const FocalSurface>(FocalSurface::Read(path));
+// --focal-surface FILE: the mesh or DEM read into `surface` (left as it is when no file is
+// given), before the frames so that a bad file fails first; described on stderr.
+void ReadFocalSurface(const std::string& path, FocalSurface* surface) {
+  if (path.empty()) return;
+  *surface = FocalSurface::Read(path);
   if (!Common().quiet && !Common().json) {
     std::fprintf(stderr, "focal surface: %s\n", surface->Describe().c_str());
   }
-  return surface;
-}
-
-// The surface in the light field's CRS (a DEM in another CRS transformed through PROJ).
-std::shared_ptr<const FocalSurface> InLightFieldCrs(std::shared_ptr<const FocalSurface> surface,
-                                                    const LightField& light_field) {
-  if (!surface) return surface;
-  return std::make_shared<const FocalSurface>(InCrs(*surface, light_field.crs));
 }
 
 // --pose-view: a view's index or its name (FindViewByName). Digits are both an index and a
@@ -221,7 +220,7 @@ LightField PosesOnly(const std::string& light_field_path, LoadOptions load, cons
 LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, const Flags& flags,
                                 ProgressBar& progress, const std::function<void(int)>& check) {
   args.load.num_threads = options.num_threads;
-  options.focal_surface = ReadFocalSurface(args.focal_surface);
+  ReadFocalSurface(args.focal_surface, &options.focal_surface);
   if (!args.look_at.empty()) {
     const std::vector<double> v = ParseNumbers(args.look_at, "--look-at");
     if (v.size() != 6 && v.size() != 9) ThrowUsage("--look-at: expected 6 or 9 numbers");
@@ -249,7 +248,8 @@ LoadResult LoadAndResolveCamera(RenderArgs& args, IntegralOptions& options, cons
       [&] { return LoadLightField(args.light_field_path, args.load, &progress); });
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
-  options.focal_surface = InLightFieldCrs(options.focal_surface, loaded.light_field);
+  // The surface in the light field's CRS (a DEM in another CRS transformed through PROJ).
+  options.focal_surface = InCrs(options.focal_surface, loaded.light_field.crs);
   if (!args.pose_view.empty()) options.pose_view = ResolvePoseView(args.pose_view, loaded.light_field);
   if (!args.views.empty()) {
     options.view_indices =
@@ -286,8 +286,9 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
   if (c.focal_distance != 0.0) {
     const Rigid3d cam_from_world = flags.NamingFlags(
         [&] { return VirtualCamFromWorld(light_field, c.options); });
-    c.options.focal_plane = AsUsage([&] {
-      return Plane::InFrontOf(cam_from_world, c.focal_distance, c.horizontal);
+    c.options.focal_surface = AsUsage([&] {
+      return FocalSurface::FromPlane(
+          Plane::InFrontOf(cam_from_world, c.focal_distance, c.horizontal));
     });
   }
   std::vector<std::string> inputs = InputsOf(c.args.light_field_path, light_field);
@@ -297,9 +298,9 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
       flags.NamingFlags([&] { return RenderIntegral(light_field, c.options, &progress); });
   progress.Finish();
   const long long pixels = static_cast<long long>(result.image.width()) * result.image.height();
-  if (c.options.focal_surface) {
+  if (!c.args.focal_surface.empty()) {
     // Nothing written: an all-empty image is no render of the terrain (the map refuses the same).
-    CheckSurfaceCovers(*c.options.focal_surface, light_field, "the virtual camera's view",
+    CheckSurfaceCovers(c.options.focal_surface, light_field, "the virtual camera's view",
                        result.uncovered_pixels, pixels);
   }
   if (!c.args.focal_surface.empty() && result.uncovered_pixels > 0) {
@@ -332,15 +333,16 @@ CommandRunner DefineIntegral(CLI::App* command) {
   auto c = std::make_shared<IntegralCommand>();
   Flags flags(command);
   AddRenderFlags(flags, c->args, c->options);
+  // Errors about focal_surface name all its flags (the first description of a field wins).
+  flags.Describe("focal_surface", "--focal-height/--focal-plane/--focal-distance/--focal-surface");
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
-  flags.Describe("focal_plane", "--focal-height/--focal-plane/--focal-distance");
-  CLI::Option* height = AddFocalHeightFlag(flags, c->options.focal_plane,
+  CLI::Option* height = AddFocalHeightFlag(flags, c->options.focal_surface,
                                            "Horizontal focal plane z = H (local frame, metres)");
   auto* plane = flags.Parsed(
-      "--focal-plane", "focal_plane", c->options.focal_plane,
+      "--focal-plane", "focal_surface", c->options.focal_surface,
       [](const std::string& text) {
         const std::vector<double> v = ParseNumbers(text, "--focal-plane", 6);
-        return Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
+        return FocalSurface::FromPlane(Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])});
       },
       "", "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
   auto* distance = command->add_option(
@@ -571,7 +573,7 @@ CommandRunner DefineStack(CLI::App* command) {
       ->required();
   flags.OutputFolder("--output-dir");
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
-  render.Remaining(c->options.render, {"focal_plane", "surface_offset"});
+  render.Remaining(c->options.render, {"surface_offset"});
   flags.Remaining(c->options);
   return [c, flags] { return RunStack(*c, flags); };
 }
@@ -708,7 +710,7 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
       ->required();
   flags.OutputFolder("--output-dir");
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
-  render.Remaining(c->options.stack.render, {"focal_plane", "surface_offset", "variance"});
+  render.Remaining(c->options.stack.render, {"surface_offset", "variance"});
   stack.Remaining(c->options.stack);
   merge.Remaining(c->options.merge);
   merge.Nested("robust.").Remaining(c->options.merge.robust, {"robust"});
@@ -768,7 +770,7 @@ int RunMap(MapCommand& c, const Flags& flags) {
   c.load.num_threads = c.options.num_threads;
   // The surface and the flags first: a bad mesh, DEM or flag fails before the frames are loaded
   // (the views are checked again against the light field).
-  c.options.focal_surface = ReadFocalSurface(c.focal_surface);
+  ReadFocalSurface(c.focal_surface, &c.options.focal_surface);
   flags.At("load.").NamingFlags([&] { c.load.Check(); });
   flags.NamingFlags([&] { c.options.Check(1); });
   if (!c.views.empty()) {  // against the poses alone, before any frame is decoded
@@ -780,7 +782,7 @@ int RunMap(MapCommand& c, const Flags& flags) {
   progress.Finish();
   for (const std::string& note : loaded.notes) Note(note);
   const LightField& light_field = loaded.light_field;
-  c.options.focal_surface = InLightFieldCrs(c.options.focal_surface, light_field);
+  c.options.focal_surface = InCrs(c.options.focal_surface, light_field.crs);
   if (!c.views.empty()) {
     c.options.view_indices =
         ParseViewList(c.views, static_cast<int>(light_field.views.size()));
@@ -850,12 +852,15 @@ CommandRunner DefineMap(CLI::App* command) {
                  "World XMIN YMIN XMAX YMAX (origin + local, metres; default: the selected "
                  "views' footprints on the focal plane)")
       ->expected(4);
-  flags.Field(options, "focal_height");
-  flags.Describe("focal_surface", "--focal-surface");
-  command->add_option("--focal-surface", c->focal_surface,
-                      "Focus on a terrain instead of the plane: an OBJ or PLY mesh, or a DEM "
-                      "raster GDAL reads, in world coordinates; pixels whose vertical line misses "
-                      "it are nodata");
+  flags.Describe("focal_surface", "--focal-height/--focal-surface");
+  CLI::Option* height = AddFocalHeightFlag(
+      flags, options.focal_surface, "Horizontal focal plane z = H (local frame, metres)");
+  command
+      ->add_option("--focal-surface", c->focal_surface,
+                   "Focus on a terrain instead of the plane: an OBJ or PLY mesh, or a DEM "
+                   "raster GDAL reads, in world coordinates; pixels whose vertical line misses "
+                   "it are nodata")
+      ->excludes(height);
   flags.Field(options, "surface_offset");
   flags.Field(options, "aperture_radius");
   flags.Describe("view_indices", "--views");
@@ -904,9 +909,7 @@ namespace {
 struct ViewCommand {
   RenderArgs args;
   IntegralOptions options;
-  std::string host = "127.0.0.1";
-  int port = 0;
-  int max_pages = 0;  // 0: not given (the viewer's default, MAX_PAGES in aos/viewer/session.py)
+  ViewerOptions viewer;  // the server's own settings (viewer/viewer_options.h)
   bool no_browser = false;
   bool browser = false;
 };
@@ -1036,8 +1039,9 @@ int RunView(ViewCommand& c, const Flags& flags) {
     ThrowUsage("--min-view-angle-deg: must be in [0, 90), got " +
                FormatNumber(o.min_view_angle_deg));
   }
-  if (o.focal_plane.normal != Vec3d(0.0, 0.0, 1.0) || !std::isfinite(o.focal_plane.point.z)) {
-    ThrowUsage("--focal-height: must be a finite height");
+  if (o.focal_surface.kind() != FocalSurfaceKind::kPlane ||
+      o.focal_surface.plane().normal != Vec3d(0.0, 0.0, 1.0)) {
+    ThrowUsage("--focal-height: the viewer starts on a horizontal plane");
   }
   // The rest as integral checks it (one placeholder view; the viewer checks the views), before
   // the viewer loads the frames.
@@ -1048,16 +1052,13 @@ int RunView(ViewCommand& c, const Flags& flags) {
   spec["options"] = OptionsToJson(o);
   spec["views"] = c.args.views;
   spec["focal_surface"] = c.args.focal_surface;
-  spec["host"] = c.host;
-  spec["port"] = c.port;
-  if (c.max_pages > 0) spec["max_pages"] = c.max_pages;
   if (c.no_browser) {
-    spec["open_browser"] = false;
+    c.viewer.open_browser = false;
   } else if (c.browser) {
-    spec["open_browser"] = true;
-  } else {
-    spec["open_browser"] = nullptr;
+    c.viewer.open_browser = true;
   }
+  flags.At("viewer.").NamingFlags([&] { c.viewer.Check(); });
+  spec["viewer"] = OptionsToJson(c.viewer);
   spec["quiet"] = Common().quiet;
   spec["json"] = Common().json;
   const std::string text = spec.dump();
@@ -1073,16 +1074,16 @@ int RunMapDistributed(MapCommand& c) {  // RunMap checked c.distributed
   if (!c.focal_surface.empty() && !fs::exists(c.focal_surface)) {
     throw UsageError("--focal-surface: " + c.focal_surface + ": no such file");
   }
-  c.options.focal_surface = ReadFocalSurface(c.focal_surface);  // a bad file fails here
+  ReadFocalSurface(c.focal_surface, &c.options.focal_surface);  // a bad file fails here
   c.options.Check(std::numeric_limits<int>::max());  // the view count is known after loading
   nlohmann::ordered_json spec;
   spec["light_field"] = c.light_field_path;
   // The options travel whole, in their JSON form (lightfield/options_json.h); the view list
-  // is resolved once the light field is loaded, the surface is read from its file.
+  // is resolved once the light field is loaded; a surface travels as its file (read there,
+  // and moved into the light field's CRS as here).
   spec["load"] = OptionsToJson(c.load);
   spec["options"] = OptionsToJson(c.options);
   spec["distributed"] = OptionsToJson(c.distributed);
-  spec["focal_surface"] = c.focal_surface;
   spec["views"] = c.views;
   spec["output"] = c.output;
   spec["force"] = Common().force;
@@ -1097,28 +1098,23 @@ CommandRunner DefineView(CLI::App* command) {
   auto c = std::make_shared<ViewCommand>();
   Flags flags(command);
   AddRenderFlags(flags, c->args, c->options);
+  flags.Describe("focal_surface", "--focal-height/--focal-surface");
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
-  flags.Describe("focal_plane", "--focal-height");
-  AddFocalHeightFlag(flags, c->options.focal_plane,
+  AddFocalHeightFlag(flags, c->options.focal_surface,
                      "Starting focus: the horizontal focal plane z = H (local frame, metres); the "
                      "page moves it");
   (void)surface;
-  command->add_option("--host", c->host,
-                      "Address to listen on; anything but a loopback address makes the viewer "
-                      "reachable from other machines (a warning says so)")
-      ->default_str(c->host);
-  command->add_option("--port", c->port, "TCP port; 0 = any free port")
-      ->check(CLI::Range(0, 65535))
-      ->default_str("0");
-  command->add_option("--max-pages", c->max_pages,
-                      "Pages (browser tabs) served at once; the next is refused until one closes "
-                      "(default 32)")
-      ->check(CLI::Range(1, 4096));
+  Flags viewer = flags.At("viewer.");
+  viewer.Field(c->viewer, "host");
+  viewer.Field(c->viewer, "port");
+  viewer.Field(c->viewer, "max_pages");
+  viewer.Describe("open_browser", "--browser/--no-browser");
   command->add_flag("--no-browser", c->no_browser,
                     "Do not open a browser (default: open one where a desktop session exists)");
   command->add_flag("--browser", c->browser, "Open a browser even without a desktop session");
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
   flags.Remaining(c->options, {"variance"});
+  viewer.Remaining(c->viewer);
   return [c, flags] { return RunView(*c, flags); };
 }
 

@@ -4,6 +4,7 @@
 
 #include "aos/render/focal_stack.h"
 #include "aos/render/focal_surface.h"
+#include "aos/viewer/viewer_options.h"
 #include "aos/render/integral.h"
 #include "aos/render/integral_kernels.h"
 #include "aos/render/map.h"
@@ -16,29 +17,31 @@
 
 namespace aos::python {
 
-std::shared_ptr<const FocalSurface> SurfaceFromPython(const py::object& value) {
-  if (value.is_none()) return nullptr;
-  if (py::isinstance<FocalSurface>(value)) return std::make_shared<const FocalSurface>(value.cast<FocalSurface>());
-  if (py::isinstance<Mesh>(value)) return std::make_shared<const FocalSurface>(FocalSurface::FromMesh(value.cast<Mesh>()));
-  if (py::isinstance<Heightfield>(value)) {
-    return std::make_shared<const FocalSurface>(FocalSurface::FromHeightfield(value.cast<Heightfield>()));
+FocalSurface SurfaceFromPython(const py::object& value) {
+  if (py::isinstance<FocalSurface>(value)) return value.cast<FocalSurface>();
+  if (py::isinstance<Mesh>(value)) return FocalSurface::FromMesh(value.cast<Mesh>());
+  if (py::isinstance<Heightfield>(value)) return FocalSurface::FromHeightfield(value.cast<Heightfield>());
+  if (!value.is_none()) {
+    try {
+      return FocalSurface::FromPlane(value.cast<Plane>());
+    } catch (const py::cast_error&) {
+    }
   }
-  try {
-    return std::make_shared<const FocalSurface>(FocalSurface::FromPlane(value.cast<Plane>()));
-  } catch (const py::cast_error&) {
-    throw py::type_error("focal_surface: expected None, a FocalSurface, Mesh, Heightfield, Plane or "
-                         "a number, got " + std::string(py::str(py::type::of(value).attr("__name__"))));
-  }
-}
-
-py::object SurfaceToPython(const std::shared_ptr<const FocalSurface>& surface) {
-  if (!surface) return py::none();
-  return py::cast(*surface);
+  throw py::type_error("focal_surface: expected a FocalSurface, Mesh, Heightfield, Plane or a number "
+                       "(the height of a horizontal plane), got " +
+                       std::string(py::str(py::type::of(value).attr("__name__"))));
 }
 
 namespace {
 
 using namespace pybind11::literals;
+
+// A plane surface's Plane, None for other kinds (the deprecated focal_plane's value).
+py::object PlaneOfSurface(const py::object& surface) {
+  const FocalSurface& s = surface.cast<const FocalSurface&>();
+  if (s.kind() != FocalSurfaceKind::kPlane) return py::none();
+  return py::cast(s.plane());
+}
 
 void BindFocalSurface(py::module_& m) {
   py::class_<FocalSurface>(m, "FocalSurface",
@@ -47,7 +50,7 @@ void BindFocalSurface(py::module_& m) {
                            "depth map of a virtual camera. Shared and immutable; its Embree BVH is "
                            "built once on first use. Up = +z or -z, whichever points from the "
                            "surface towards the views' mean centre; an offset moves it along up.")
-      .def(py::init([](const py::object& value) { return *SurfaceFromPython(value); }), "surface"_a,
+      .def(py::init([](const py::object& value) { return SurfaceFromPython(value); }), "surface"_a,
            "From a Mesh, a Heightfield, a Plane or a number (horizontal plane).")
       .def("in_crs", &InCrs, "crs"_a,
            "The surface in another CRS ('EPSG:32633'): a DEM whose raster CRS differs is "
@@ -64,6 +67,12 @@ void BindFocalSurface(py::module_& m) {
       .def_property_readonly("kind", [](const FocalSurface& s) { return FocalSurfaceKindName(s.kind()); },
                              "'plane', 'mesh', 'heightfield' or 'depth_map'.")
       .def_property_readonly("source", &FocalSurface::source, "The file it was read from, or ''.")
+      .def_property_readonly(
+          "plane", [](const py::object& self) { return PlaneOfSurface(self); },
+          "The plane (local frame) of a plane surface; None for other kinds.")
+      .def_property_readonly("file", &FocalSurface::file,
+                             "The file read() read it from, when it is that file's surface as "
+                             "it is (not moved between CRSs); else ''. What to_json carries.")
       .def("describe", &FocalSurface::Describe, "One line: kind, source, size.")
       .def(
           "depth_for",
@@ -147,6 +156,7 @@ void BindIntegral(py::module_& m) {
       "Options of render_integral. Defaults come from the C++ struct aos::IntegralOptions; "
       "IntegralOptions(**fields) overrides them by name (unknown names raise TypeError).")
       .Table()
+      .Deprecated("focal_plane", "focal_surface", PlaneOfSurface)
       .Finish()
       .def("check", &IntegralOptions::Check, "view_count"_a,
            "Raises ValueError naming the offending field. `view_count` is the number of views in "
@@ -320,6 +330,12 @@ void BindMap(py::module_& m) {
       "Options of render_map (an orthographic map looking straight down). Defaults from the C++ "
       "struct aos::MapOptions.")
       .Table()
+      .Deprecated("focal_height", "focal_surface",
+                  [](const py::object& surface) -> py::object {
+                    const py::object plane = PlaneOfSurface(surface);
+                    if (plane.is_none()) return plane;
+                    return py::float_(plane.cast<Plane>().point.z);
+                  })
       .Finish()
       .def("check", &MapOptions::Check, "view_count"_a, "Raises ValueError naming the field.");
 
@@ -330,6 +346,15 @@ void BindMap(py::module_& m) {
       .Table()
       .Finish()
       .def("check", &DistributedOptions::Check, "Raises ValueError naming the field.");
+
+  OptionsClass<ViewerOptions>(
+      m, "ViewerOptions",
+      "The browser viewer's own settings (aos.view, aos-render view): where it listens, how "
+      "many pages it serves, whether it opens a browser. Defaults from the C++ struct "
+      "aos::ViewerOptions.")
+      .Table()
+      .Finish()
+      .def("check", &ViewerOptions::Check, "Raises ValueError naming the field.");
 
   py::class_<MapResult>(m, "MapResult", "What render_map returns: the map and its grid.")
       .def_property_readonly(

@@ -19,6 +19,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <mutex>
 #include <optional>
 #include <string>
@@ -37,6 +38,7 @@
 #include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
 #include "aos/lightfield/options_json.h"
+#include "aos/render/focal_surface_json.h"
 #include "aos/util/error.h"
 #include "aos/util/option_fields.h"
 #include "aos/util/progress.h"
@@ -105,18 +107,16 @@ struct type_caster<glm::dmat3> {
 
 }  // namespace pybind11::detail
 
-namespace aos {
-class FocalSurface;  // render/focal_surface.h
-}  // namespace aos
-
 namespace aos::python {
 
 namespace py = pybind11;
 
-// A focal surface from what Python passes: None, a FocalSurface, a Mesh, a Heightfield, a Plane
-// or a number (a horizontal plane); and back (None for null). bind_render.cpp.
-std::shared_ptr<const FocalSurface> SurfaceFromPython(const py::object& value);
-py::object SurfaceToPython(const std::shared_ptr<const FocalSurface>& surface);
+// A focal surface from what Python passes: a FocalSurface, a Mesh, a Heightfield, a Plane or a
+// number (a horizontal plane); TypeError naming focal_surface otherwise. bind_render.cpp.
+FocalSurface SurfaceFromPython(const py::object& value);
+
+// Issues a DeprecationWarning with `message` (raises if warnings are errors). module.cpp.
+void WarnDeprecated(const std::string& message);
 
 void BindGeometry(py::module_& m);
 void BindImage(py::module_& m);
@@ -237,8 +237,8 @@ std::string PythonTypeName(bool given = false) {
     return given ? "Plane | float" : "Plane";
   } else if constexpr (options_json::IsOptional<T>::value) {
     return PythonTypeName<typename T::value_type>(given) + " | None";
-  } else if constexpr (std::is_same_v<T, std::shared_ptr<const FocalSurface>>) {
-    return given ? "FocalSurface | Mesh | Heightfield | Plane | float | None" : "FocalSurface | None";
+  } else if constexpr (std::is_same_v<T, FocalSurface>) {
+    return given ? "FocalSurface | Mesh | Heightfield | Plane | float" : "FocalSurface";
   } else {
     const py::detail::type_info* info = py::detail::get_type_info(typeid(T));
     if (info == nullptr) throw std::logic_error("PythonTypeName: an unbound type");
@@ -324,9 +324,9 @@ class OptionsClass {
       using T = typename std::decay_t<decltype(spec)>::Type;
       T Options::*member = spec.member;  // a field of a base block (aperture.h) too
       const std::string field = spec.name;
-      if constexpr (std::is_same_v<T, std::shared_ptr<const FocalSurface>>) {
+      if constexpr (std::is_same_v<T, FocalSurface>) {
         Property(
-            spec.name, [member](const Options& o) { return SurfaceToPython(o.*member); },
+            spec.name, [member](const Options& o) { return o.*member; },
             [member](Options& o, const py::object& value) { o.*member = SurfaceFromPython(value); },
             spec.help);
       } else if constexpr (options_json::IsOptional<T>::value) {
@@ -351,6 +351,15 @@ class OptionsClass {
       row["name"] = field;
       row["type"] = PythonTypeName<T>(false);
       row["given"] = PythonTypeName<T>(true);
+      if (std::is_same_v<T, std::string> && spec.range.choices != nullptr) {
+        std::string literal;  // Literal['scan', 'grid']: type checkers catch a misspelt choice
+        for (const std::string& choice : spec.range.Choices()) {
+          literal += (literal.empty() ? "Literal['" : ", '") + choice + "'";
+        }
+        literal += "]";
+        row["type"] = literal;
+        row["given"] = literal;
+      }
       row["unit"] = spec.unit;
       row["range"] = spec.range.IsAny() ? std::string() : spec.range.Text();
       row["help"] = spec.help;
@@ -361,7 +370,7 @@ class OptionsClass {
     class_.def(
         "to_json",
         [](const Options& options) { return OptionsToJson(options).dump(); },
-        "The options as one JSON object (every field but a focal surface; infinities as "
+        "The options as one JSON object (a focal surface as its plane or its file; infinities as "
         "\"inf\"), what from_json reads.");
     class_.def_static(
         "from_json",
@@ -380,15 +389,43 @@ class OptionsClass {
     return *this;
   }
 
+  // A deprecated spelling `name` of the field `replacement`, kept for one release: reading or
+  // setting it (also as a constructor keyword) warns with DeprecationWarning naming the
+  // replacement; `read` converts the replacement's value to the old form (None: as it is);
+  // a value set is passed to the replacement's setter as it is. Not in _fields, repr, ==, pickle
+  // or JSON.
+  OptionsClass& Deprecated(const char* name, const char* replacement,
+                           std::function<py::object(const py::object&)> read = nullptr) {
+    const std::string old_name = name, new_name = replacement;
+    const std::string class_name = py::str(class_.attr("__name__"));
+    const std::string message = class_name + "." + old_name + " is deprecated; use " + new_name;
+    class_.def_property(
+        name,
+        [new_name, message, read](const py::object& self) {
+          WarnDeprecated(message);
+          py::object value = self.attr(new_name.c_str());
+          return read ? read(value) : value;
+        },
+        [new_name, message](const py::object& self, const py::object& value) {
+          WarnDeprecated(message);
+          py::setattr(self, new_name.c_str(), value);
+        },
+        ("Deprecated: use " + new_name + ".").c_str());
+    deprecated_.emplace_back(old_name, new_name);
+    return *this;
+  }
+
   // Adds the protocol methods; call after the last Field().
   py::class_<Options>& Finish() {
     const std::vector<std::string> fields = fields_;
+    std::vector<std::string> accepted = fields_;
+    for (const auto& spelling : deprecated_) accepted.push_back(spelling.first);
     const std::string class_name = py::str(class_.attr("__name__"));
-    class_.def(py::init([fields, class_name](const py::kwargs& kwargs) {
+    class_.def(py::init([fields, accepted, class_name](const py::kwargs& kwargs) {
                  py::object options = py::cast(Options{});
                  for (const auto& item : kwargs) {
                    const std::string key = py::str(item.first);
-                   if (std::find(fields.begin(), fields.end(), key) == fields.end()) {
+                   if (std::find(accepted.begin(), accepted.end(), key) == accepted.end()) {
                      throw py::type_error(class_name + "() got an unexpected keyword argument '" +
                                           key + "' (options: " + Join(fields) + ")");
                    }
@@ -400,6 +437,9 @@ class OptionsClass {
     py::tuple names(fields.size());
     for (size_t i = 0; i < fields.size(); ++i) names[i] = py::str(fields[i]);
     class_.attr("_fields") = names;
+    py::dict deprecated;  // old spelling -> field (aos._Router renames keywords through it)
+    for (const auto& [old_name, new_name] : deprecated_) deprecated[py::str(old_name)] = new_name;
+    class_.attr("_deprecated") = deprecated;
     class_.def("__repr__", [fields, class_name](const py::object& self) {
       std::string text = class_name + "(";
       for (size_t i = 0; i < fields.size(); ++i) {
@@ -462,6 +502,7 @@ class OptionsClass {
 
   py::class_<Options> class_;
   std::vector<std::string> fields_;
+  std::vector<std::pair<std::string, std::string>> deprecated_;  // old spelling, field
 };
 
 }  // namespace aos::python

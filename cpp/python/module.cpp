@@ -93,6 +93,10 @@ void PythonProgress::Report(bool force) {
   }
 }
 
+void WarnDeprecated(const std::string& message) {
+  if (PyErr_WarnEx(PyExc_DeprecationWarning, message.c_str(), 2) < 0) throw py::error_already_set();
+}
+
 bool ValuesEqual(const py::handle& a, const py::handle& b) {
   const py::module_ numpy = py::module_::import("numpy");
   const py::object ndarray = numpy.attr("ndarray");

@@ -7,7 +7,7 @@ Options object and/or keywords; one mechanism (``_Router``) sends every keyword 
 that name, nested structs included (``all_in_focus(num_threads=3)`` sets the rendering's and the
 merge's), refusing unknown or ambiguous names with TypeError. The keywords are typed for type
 checkers (``aos._keywords``). A number is a horizontal plane wherever a plane is taken
-(``focal_plane=21.0`` is ``Plane.at_height(21.0)``); enums are also taken by name
+(``focal_surface=21.0`` is the plane ``Plane.at_height(21.0)``); enums are also taken by name
 (``method="robust"``). Simulated scenes are JSON documents (docs/scenes.md) parsed by the C++ core.
 
 Objects: every class has a repr; results that are images have ``.image``. Light fields, views,
@@ -36,6 +36,7 @@ work and its exception propagates; Ctrl-C during long calls raises KeyboardInter
 from __future__ import annotations
 
 import copy
+import warnings
 import json
 import os
 from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence, TypeVar
@@ -110,6 +111,7 @@ from ._core import (
     MapOptions,
     MapResult,
     DistributedOptions,
+    ViewerOptions,
     QualityOptions,
     QualityResult,
     IntegralOptions,
@@ -201,6 +203,7 @@ __all__ = [
     "MapOptions",
     "MapResult",
     "DistributedOptions",
+    "ViewerOptions",
     "render_map",
     "all_in_focus",
     "interpolate_plane",
@@ -271,7 +274,9 @@ class _Router:
     field takes an Options object of its type, otherwise the keyword names a plain field. A name
     at several plain fields is refused as ambiguous, unless it is one of _SHARED_FIELDS, which is
     set at all of them. Unknown names raise TypeError listing the valid ones; ``exclude`` lists
-    fields the function ignores (a stack's render.focal_plane), which are refused likewise.
+    fields the function ignores (a stack's render.surface_offset), which are refused likewise.
+    A deprecated spelling of a field (the class's ``_deprecated``: ``focal_plane`` for
+    ``focal_surface``) warns with DeprecationWarning and sets the field.
     Values: an enum field takes its member's name (``method="robust"``, ValueError for an unknown
     one), a plane field a number (its height; converted by aos._core).
     """
@@ -287,8 +292,12 @@ class _Router:
         excluded = {tuple(path) for path in exclude}
         # Paths (root index, field, nested field, ...) by the field name they end with.
         self.paths: dict[str, list[tuple[Any, ...]]] = {}
+        # Deprecated spellings (old name -> field name) of the structs' fields: a keyword so
+        # spelled warns (DeprecationWarning) and goes to the field.
+        self.deprecated: dict[str, str] = {}
 
         def walk(options: Any, prefix: tuple[Any, ...]) -> None:
+            self.deprecated.update(getattr(type(options), "_deprecated", {}))
             for name in type(options)._fields:
                 path = prefix + (name,)
                 if path[1:] in excluded:
@@ -308,7 +317,17 @@ class _Router:
     def apply(self, roots: Sequence[Any], kwargs: dict[str, Any]) -> None:
         """Sets each keyword on its field(s) of ``roots`` (Options objects of root_types), in
         place. Outer fields first: ``stack=FocalStackOptions(...)`` is set before ``slices=``."""
-        assignments = [(path, value) for key, value in kwargs.items()
+        renamed: dict[str, Any] = {}
+        for key, value in kwargs.items():
+            if key in self.deprecated and key not in self.paths:
+                new = self.deprecated[key]
+                warnings.warn(f"{self.function}(): {key}= is deprecated; use {new}=",
+                              DeprecationWarning, stacklevel=3)
+                if new in kwargs:
+                    raise TypeError(f"{self.function}(): give {new}= or {key}=, not both")
+                key = new
+            renamed[key] = value
+        assignments = [(path, value) for key, value in renamed.items()
                        for path in self._targets(roots, key, value)]
         for path, value in sorted(assignments, key=lambda assignment: len(assignment[0])):
             self._set(roots, path, value)
@@ -361,6 +380,9 @@ class _Router:
             expected = type(current).__name__
             if isinstance(current, Plane):
                 expected = "Plane or a number (the height of a horizontal plane)"
+            elif isinstance(current, _core.FocalSurface):
+                expected = ("a FocalSurface, Mesh, Heightfield, Plane or a number (the height of "
+                            "a horizontal plane)")
             raise TypeError(
                 f"{self.function}(): {name}: expected {expected}, got {type(value).__name__} "
                 f"{value!r}"
@@ -397,32 +419,28 @@ def _require_pose(function: str, render: IntegralOptions, kwargs: dict[str, Any]
         )
 
 
-# A Mesh, Heightfield or FocalSurface given as focal_plane is the focal_surface
-# (_surface_as_focal_surface).
-_RENDER_INTEGRAL = _Router("render_integral", IntegralOptions, keywords="IntegralKeywords",
-                           also={"focal_plane": "Mesh | Heightfield | FocalSurface"})
-# A stack's slices replace the focal plane; a terrain-following stack takes focal_surface and
-# first_offset/last_offset (its slices' offsets replace surface_offset).
-_SURFACE_FIELDS = ("focal_surface", "surface_offset")
+_RENDER_INTEGRAL = _Router("render_integral", IntegralOptions, keywords="IntegralKeywords")
+# A stack's slices replace its surface's offset; a terrain-following stack takes focal_surface (a
+# mesh, DEM or depth map) and first_offset/last_offset.
 _RENDER_FOCAL_STACK = _Router(
     "render_focal_stack",
     FocalStackOptions,
     keywords="FocalStackKeywords",
-    exclude=[("render", "focal_plane"), ("render", "surface_offset")],
+    exclude=[("render", "surface_offset")],
 )
 _MERGE_FOCAL_STACK = _Router("merge_focal_stack", MergeOptions, keywords="MergeKeywords")
 _ALL_IN_FOCUS = _Router(
     "all_in_focus",
     AllInFocusOptions,
     keywords="AllInFocusKeywords",
-    exclude=[("stack", "render", "focal_plane"), ("stack", "render", "surface_offset")],
+    exclude=[("stack", "render", "surface_offset")],
 )
 _RENDER_INTEGRAL_ON_DEPTH = _Router(
     "render_integral_on_depth",
     IntegralOptions,
     SurfaceIntegralOptions,
     keywords="SurfaceIntegralKeywords",
-    exclude=[(name,) for name in _SURFACE_FIELDS],
+    exclude=[("surface_offset",)],  # the depth gives the focal points
 )
 _RENDER_MAP = _Router("render_map", MapOptions, keywords="MapKeywords")
 _SIMULATE = _Router("simulate", SimulateOptions, keywords="SimulateKeywords")
@@ -438,15 +456,18 @@ _IMPORT_COLMAP = _Router("import_colmap", PosesOptions, keywords="PosesKeywords"
 _ESTIMATE_GROUND = _Router("estimate_ground", GroundOptions, keywords="GroundKeywords")
 
 
-def _surface_as_focal_surface(kwargs: dict[str, Any]) -> dict[str, Any]:
-    """A Mesh, Heightfield or FocalSurface given as ``focal_plane`` is the focal_surface (a
-    surface is accepted wherever a plane is)."""
-    value = kwargs.get("focal_plane")
-    if isinstance(value, (_core.Mesh, _core.Heightfield, _core.FocalSurface)):
-        if kwargs.get("focal_surface") is not None:
-            raise TypeError("render_integral(): give the surface as focal_plane or focal_surface, not both")
-        kwargs["focal_surface"] = kwargs.pop("focal_plane")
-    return kwargs
+def _refuse_plane_stack_surface(function: str, kwargs: dict[str, Any]) -> None:
+    """A stack follows a focal_surface only when it is not a plane (focal_stack.h); a plane or
+    a number given as its focal_surface would be ignored, so it is refused."""
+    value = kwargs.get("focal_surface", kwargs.get("focal_plane"))
+    if value is None:
+        return
+    if isinstance(value, (int, float, Plane)) or (
+            isinstance(value, _core.FocalSurface) and value.kind == "plane"):
+        raise TypeError(
+            f"{function}(): focal_surface: a stack's slices lie on planes (first_plane .. "
+            "last_plane, or around ground_plane); a terrain-following stack takes a Mesh, "
+            "Heightfield or FocalSurface that is not a plane")
 
 
 _IMPORT_TELEMETRY = _Router("import_telemetry", TelemetryOptions, keywords="TelemetryKeywords")
@@ -462,19 +483,19 @@ def render_integral(
     """Integral rendering of ``light_field`` (Eq. 1 of the AOS paper).
 
     ``kwargs`` are fields of :class:`IntegralOptions` overriding those of a copy of ``options``
-    (or of the defaults); unknown names raise TypeError. ``focal_plane`` may be a number: the
-    horizontal plane at that height. The virtual camera needs a pose: ``pose_view`` or
+    (or of the defaults); unknown names raise TypeError. ``focal_surface`` may be a number: the
+    horizontal plane at that height; or a Plane, Mesh, Heightfield or FocalSurface. The virtual camera needs a pose: ``pose_view`` or
     ``cam_from_world`` (ValueError otherwise). ``progress(stage, done, total)`` is called from
     this thread at most every 0.1 s (and once when done == total); if it raises, rendering stops
     and the exception propagates. The GIL is released while rendering.
 
     Example::
 
-        result = aos.render_integral(lf, focal_plane=0.0, pose_view=60)
+        result = aos.render_integral(lf, focal_surface=0.0, pose_view=60)
         image, count = result.image, result.count   # float32 and uint32, no copies
     """
     merged = _copy_options("render_integral", IntegralOptions, options)
-    keywords: dict = _surface_as_focal_surface(dict(kwargs))
+    keywords: dict = dict(kwargs)
     _RENDER_INTEGRAL.apply([merged], keywords)
     _require_pose("render_integral", merged, keywords)
     return _core.render_integral(light_field, merged, progress)
@@ -602,9 +623,10 @@ def render_focal_stack(
 
     ``kwargs`` are fields of :class:`FocalStackOptions` (first_plane, last_plane, slices; a
     number is the horizontal plane at that height) or of :class:`IntegralOptions` (applied to
-    ``options.render``: pose_view, fov_deg, width, aperture_radius, variance, ...; not
-    focal_plane, which the slices replace). All slices stay in memory; :func:`all_in_focus`
-    streams.
+    ``options.render``: pose_view, fov_deg, width, aperture_radius, variance, ...).
+    ``focal_surface`` (a Mesh, Heightfield or FocalSurface that is not a plane) makes a
+    terrain-following stack at first_offset .. last_offset; a plane there is refused (the
+    slices' planes replace it). All slices stay in memory; :func:`all_in_focus` streams.
 
     Example::
 
@@ -613,6 +635,7 @@ def render_focal_stack(
         images = stack.images   # float32 (100, H, W[, C]), a copy
     """
     merged = _copy_options("render_focal_stack", FocalStackOptions, options)
+    _refuse_plane_stack_surface("render_focal_stack", kwargs)
     _RENDER_FOCAL_STACK.apply([merged], dict(kwargs))
     _require_pose("render_focal_stack", merged.render, dict(kwargs))
     return _core._render_focal_stack(light_field, merged, progress)
@@ -660,6 +683,7 @@ def all_in_focus(
         image, depth = result.image, result.depth
     """
     merged = _copy_options("all_in_focus", AllInFocusOptions, options)
+    _refuse_plane_stack_surface("all_in_focus", kwargs)
     _ALL_IN_FOCUS.apply([merged], dict(kwargs))
     _require_pose("all_in_focus", merged.stack.render, dict(kwargs))
     return _core._all_in_focus(light_field, merged, progress)
@@ -677,8 +701,9 @@ def render_integral_on_depth(
     """Integral on a per-pixel depth surface (``depth``: camera z in metres, (H, W), copied).
 
     ``kwargs`` are fields of :class:`IntegralOptions` or :class:`SurfaceIntegralOptions`
-    (robust, agreement, min_inlier_fraction). Used for the "oracle" image on
-    a true depth map and for re-integrating a merged depth map.
+    (robust, agreement, min_inlier_fraction). The depth gives the focal points; focal_surface
+    gives only the normal of the grazing test (a plane's, else the up axis). Used for the
+    "oracle" image on a true depth map and for re-integrating a merged depth map.
     """
     render = _copy_options("render_integral_on_depth", IntegralOptions, options)
     surf = _copy_options("render_integral_on_depth", SurfaceIntegralOptions, surface)
@@ -699,12 +724,14 @@ def render_map(
     load: Optional[dict[str, Any]] = None,
     **kwargs: Unpack[MapKeywords],
 ) -> MapResult:
-    """An orthographic map of ``light_field``: a virtual camera looking straight down onto the
-    horizontal focal plane z = ``focal_height`` (local frame), rendered in tiles (docs/terrain-and-maps.md).
+    """An orthographic map of ``light_field``: a virtual camera looking straight down onto
+    ``focal_surface`` (default the horizontal plane z = 0, local frame; a number is the plane at
+    that height; a Mesh or DEM Heightfield a terrain), rendered in tiles
+    (docs/terrain-and-maps.md).
 
-    ``kwargs`` are fields of :class:`MapOptions` (pixel_size or width, extent, focal_height,
-    aperture_radius, view_indices, min_view_angle_deg, lens_tolerance_px, tile_size, num_threads,
-    focal_surface, surface_offset). Returns a :class:`MapResult`: ``geotransform`` (GDAL's, world coordinates =
+    ``kwargs`` are fields of :class:`MapOptions` (pixel_size or width, extent, focal_surface,
+    surface_offset, aperture_radius, view_indices, min_view_angle_deg, lens_tolerance_px,
+    tile_size, num_threads, max_pixels). Returns a :class:`MapResult`: ``geotransform`` (GDAL's, world coordinates =
     origin + local), ``crs`` (the light field's), the summary (``views_used``, ``samples``,
     ``uncovered_pixels``, ...) and, when held in memory, ``image`` (float32, row 0 = largest y)
     and ``count`` (uint32; 0 = no view sees the pixel).
@@ -718,7 +745,7 @@ def render_map(
 
     Example::
 
-        m = aos.render_map(lf, pixel_size=0.05, focal_height=0.0, path="map.tif")   # streamed
+        m = aos.render_map(lf, pixel_size=0.05, focal_surface=0.0, path="map.tif")   # streamed
         x0, p, _, y0, _, _ = m.geotransform   # pixel (col, row) centre: x0 + (col + 0.5) p
         m = aos.render_map(lf, pixel_size=0.05)                          # in memory: m.image
 
@@ -863,7 +890,7 @@ def rectify_light_field(
     Example::
 
         pinhole = aos.rectify_light_field(raw_lf, fov_deg=80).light_field
-        image = aos.render_integral(pinhole, pose_view=10, focal_plane=0.0).image
+        image = aos.render_integral(pinhole, pose_view=10, focal_surface=0.0).image
     """
     merged = _copy_options("rectify_light_field", RectifyOptions, options)
     _RECTIFY_LIGHT_FIELD.apply([merged], dict(kwargs))
@@ -1040,14 +1067,14 @@ def view(light_field: "LightField | str | os.PathLike[str]", **kwargs: Any) -> A
     """Starts the interactive browser viewer on ``light_field`` (a LightField or a path) and
     returns its handle at once: ``.url`` (with the session token), ``.stop()``. Works in a
     notebook (the server runs in a background thread). Keywords: the starting focus and camera
-    with IntegralOptions' names (focal_height, focal_surface, surface_offset, aperture_radius,
+    with IntegralOptions' names (focal_surface, surface_offset, aperture_radius,
     pose_view, cam_from_world, fov_deg, width, height, view_indices, min_view_angle_deg,
     num_threads) and host, port, open_browser; see :func:`aos.viewer.view` and docs/viewer.md.
     Needs aiohttp (a dependency of aos; ``pip install aiohttp`` if it was removed).
 
     Example::
 
-        viewer = aos.view(lf, focal_height=21.0)
+        viewer = aos.view(lf, focal_surface=21.0)
         print(viewer.url)
         viewer.stop()
     """

@@ -350,8 +350,7 @@ class IntegralOptions:
         fov_deg: float = ...,
         width: int = ...,
         height: int = ...,
-        focal_plane: Plane | float = ...,
-        focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None = ...,
+        focal_surface: FocalSurface | Mesh | Heightfield | Plane | float = ...,
         surface_offset: float = ...,
         variance: bool = ...,
         aperture_radius: float = ...,
@@ -373,22 +372,13 @@ class IntegralOptions:
     height: int
     """Output height, pixels (1 .. 65536); 0 = the pose view's, else 512. [px, in [1, 65536] or 0]"""
     @property
-    def focal_plane(self) -> Plane:
-        """The focal plane (local frame): any point on it and its normal. With a focal_surface only
-        its normal is used (grazing test)."""
-    @focal_plane.setter
-    def focal_plane(self, value: Plane | float) -> None: ...
-    @property
-    def focal_surface(self) -> FocalSurface | None:
-        """A focal surface instead of focal_plane: FocalSurface, Mesh, Heightfield (or a Plane);
-        None = focal_plane. Reading returns a FocalSurface sharing the BVH."""
+    def focal_surface(self) -> FocalSurface:
+        """Where the rays are focused: a plane (a number is the horizontal plane z = that height,
+        local frame), a Mesh, a Heightfield (DEM) or a FocalSurface; default the plane z = 0."""
     @focal_surface.setter
-    def focal_surface(
-        self, value: FocalSurface | Mesh | Heightfield | Plane | float | None
-    ) -> None: ...
+    def focal_surface(self, value: FocalSurface | Mesh | Heightfield | Plane | float) -> None: ...
     surface_offset: float
-    """Offset of focal_surface along up (towards the views), metres; must be 0 without a
-    focal_surface. [m, finite]"""
+    """Offset of focal_surface along up (towards the views), metres. [m, finite]"""
     variance: bool
     """Also return the per-pixel variance of the view samples (the samples then go through the
     scalar kernel, which also sums their squares: a few times slower)."""
@@ -411,6 +401,11 @@ class IntegralOptions:
     in [0, 1]]"""
     num_threads: int
     """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
+    @property
+    def focal_plane(self) -> Plane:
+        """Deprecated: use focal_surface."""
+    @focal_plane.setter
+    def focal_plane(self, value: FocalSurface | Mesh | Heightfield | Plane | float) -> None: ...
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -481,6 +476,13 @@ class FocalSurface:
         """'plane', 'mesh', 'heightfield' or 'depth_map'."""
     @property
     def source(self) -> str: ...
+    @property
+    def plane(self) -> Plane | None:
+        """The plane (local frame) of a plane surface; None for other kinds."""
+    @property
+    def file(self) -> str:
+        """The file read() read it from, as it is (not moved between CRSs); else ''. What
+        to_json carries."""
     def describe(self) -> str: ...
     def in_crs(self, crs: str) -> FocalSurface:
         """A DEM in another CRS transformed into `crs` through PROJ; else the surface itself."""
@@ -736,8 +738,7 @@ class MapOptions:
         pixel_size: float = ...,
         width: int = ...,
         extent: Sequence[float] = ...,
-        focal_height: float = ...,
-        focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None = ...,
+        focal_surface: FocalSurface | Mesh | Heightfield | Plane | float = ...,
         surface_offset: float = ...,
         tile_size: int = ...,
         max_pixels: int = ...,
@@ -758,20 +759,14 @@ class MapOptions:
         footprints on the focal plane."""
     @extent.setter
     def extent(self, value: Sequence[float]) -> None: ...
-    focal_height: float
-    """Height of the horizontal focal plane z = focal_height, local frame, metres (without a
-    focal_surface). [m, finite]"""
     @property
-    def focal_surface(self) -> FocalSurface | None:
-        """A terrain to focus on instead of the plane: FocalSurface, Mesh or Heightfield; None = the
-        plane z = focal_height."""
+    def focal_surface(self) -> FocalSurface:
+        """Where the map focuses: a plane (a number is the horizontal plane z = that height, local
+        frame), a Mesh, a Heightfield (DEM) or a FocalSurface; default the plane z = 0."""
     @focal_surface.setter
-    def focal_surface(
-        self, value: FocalSurface | Mesh | Heightfield | Plane | float | None
-    ) -> None: ...
+    def focal_surface(self, value: FocalSurface | Mesh | Heightfield | Plane | float) -> None: ...
     surface_offset: float
-    """Offset of focal_surface along up (towards the views), metres; must be 0 without a
-    focal_surface. [m, finite]"""
+    """Offset of focal_surface along up (towards the views), metres. [m, finite]"""
     tile_size: int
     """Pixels on a side of a render tile, 16 .. 8192. [px, in [16, 8192]]"""
     max_pixels: int
@@ -796,6 +791,11 @@ class MapOptions:
     in [0, 1]]"""
     num_threads: int
     """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
+    @property
+    def focal_height(self) -> float:
+        """Deprecated: use focal_surface."""
+    @focal_height.setter
+    def focal_height(self, value: FocalSurface | Mesh | Heightfield | Plane | float) -> None: ...
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -846,6 +846,44 @@ class DistributedOptions:
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> DistributedOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> DistributedOptions: ...
+    def __repr__(self) -> str: ...
+
+class ViewerOptions:
+    """The browser viewer's own settings (aos.view, aos-render view): where it listens, how many
+    pages it serves, whether it opens a browser. Defaults from the C++ struct aos::ViewerOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        host: str = ...,
+        port: int = ...,
+        max_pages: int = ...,
+        render_workers: int = ...,
+        open_browser: bool | None = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    host: str
+    """Address to listen on; anything but a loopback address makes the viewer reachable from other
+    machines (a warning says so)."""
+    port: int
+    """TCP port; 0 = any free port. [in [0, 65535]]"""
+    max_pages: int
+    """Pages (browser tabs) served at once; the next is refused until one closes. [in [1, 4096]]"""
+    render_workers: int
+    """Threads rendering the pages' requests. [in [1, 64]]"""
+    open_browser: bool | None
+    """Open a browser on the viewer's page: True, False, or None = where a desktop session exists."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> ViewerOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
+    def check(self) -> None:
+        """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
+    def __copy__(self) -> ViewerOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> ViewerOptions: ...
     def __repr__(self) -> str: ...
 
 class MapResult:
@@ -958,7 +996,8 @@ class FocalStackOptions:
         """Defaults from C++; unknown names raise TypeError."""
     render: IntegralOptions
     """Virtual camera, aperture, views, threads and variance flag of every slice (IntegralOptions);
-    render.focal_plane is ignored."""
+    a render.focal_surface that is not a plane makes a terrain-following stack (a plane is
+    ignored)."""
     @property
     def first_plane(self) -> Plane:
         """Boundary plane of slice 0 (local frame)."""
@@ -977,8 +1016,8 @@ class FocalStackOptions:
     @ground_plane.setter
     def ground_plane(self, value: Plane | float | None) -> None: ...
     first_offset: float
-    """Terrain-following stacks (render.focal_surface set) and stacks around ground_plane: offset of
-    slice 0 along up, metres. [m, finite]"""
+    """Terrain-following stacks (render.focal_surface not a plane) and stacks around ground_plane:
+    offset of slice 0 along up, metres. [m, finite]"""
     last_offset: float
     """Terrain-following stacks and stacks around ground_plane: offset of slice N-1 along up,
     metres. [m, finite]"""
@@ -1288,8 +1327,8 @@ class FlightPlanOptions:
     def __init__(
         self,
         *,
-        shape: str = ...,
-        coordinates: str = ...,
+        shape: Literal['circle', 'sector', 'rectangle', 'polygon', 'line'] = ...,
+        coordinates: Literal['world', 'latlon'] = ...,
         crs: str = ...,
         center: Sequence[float] = ...,
         radius_m: float = ...,
@@ -1298,17 +1337,17 @@ class FlightPlanOptions:
         width_m: float = ...,
         length_m: float = ...,
         vertices: Sequence[Sequence[float]] = ...,
-        pattern: str = ...,
+        pattern: Literal['scan', 'grid', 'circles'] = ...,
         spacing_m: float = ...,
         along_spacing_m: float = ...,
         outer_scale: float = ...,
         heading_deg: float = ...,
         min_shots_per_line: int = ...,
         altitude_m: float = ...,
-        altitude_mode: str = ...,
+        altitude_mode: Literal['terrain', 'constant'] = ...,
         dem: str = ...,
         ground_height_m: float = ...,
-        terrain_up: str = ...,
+        terrain_up: Literal['+z', '-z'] = ...,
         min_clearance_m: float = ...,
         ground_speed_mps: float = ...,
         hover_s: float = ...,
@@ -1319,10 +1358,11 @@ class FlightPlanOptions:
         fov_deg: float = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
-    shape: str
-    """circle, sector, rectangle, polygon or line."""
-    coordinates: str
-    """world (x, y metres) or latlon (latitude, longitude degrees, WGS84)."""
+    shape: Literal['circle', 'sector', 'rectangle', 'polygon', 'line']
+    """circle, sector, rectangle, polygon or line. [one of circle, sector, rectangle, polygon or
+    line]"""
+    coordinates: Literal['world', 'latlon']
+    """world (x, y metres) or latlon (latitude, longitude degrees, WGS84). [one of world or latlon]"""
     crs: str
     """CRS of world coordinates (projected, metres); '' = local frame."""
     @property
@@ -1345,8 +1385,8 @@ class FlightPlanOptions:
         """Polygon corners or line points, (x, y) or (lat, lon)."""
     @vertices.setter
     def vertices(self, value: Sequence[Sequence[float]]) -> None: ...
-    pattern: str
-    """scan, grid or circles."""
+    pattern: Literal['scan', 'grid', 'circles']
+    """scan, grid or circles. [one of scan, grid or circles]"""
     spacing_m: float
     """Distance between lines or rings at the centre, metres. [m]"""
     along_spacing_m: float
@@ -1359,14 +1399,14 @@ class FlightPlanOptions:
     """Scan lines with fewer shots inside the shape are not flown (>= 1)."""
     altitude_m: float
     """Height above the ground, metres (> 0). [m]"""
-    altitude_mode: str
-    """terrain or constant."""
+    altitude_mode: Literal['terrain', 'constant']
+    """terrain or constant. [one of terrain or constant]"""
     dem: str
     """Terrain mesh (OBJ, PLY) or raster path; '' = flat ground."""
     ground_height_m: float
     """Flat ground's z without a DEM, metres. [m]"""
-    terrain_up: str
-    """+z or -z (z down, JKU's F0)."""
+    terrain_up: Literal['+z', '-z']
+    """+z or -z (z down, JKU's F0). [one of +z or -z]"""
     min_clearance_m: float
     """Least height above the terrain of a constant-altitude shot, metres. [m]"""
     ground_speed_mps: float
@@ -1707,11 +1747,11 @@ class PosesOptions:
         *,
         colmap: str = ...,
         workspace: str = ...,
-        matcher: str = ...,
+        matcher: Literal['sequential', 'spatial', 'exhaustive'] = ...,
         sequential_overlap: int = ...,
         spatial_neighbors: int = ...,
         camera_file: str = ...,
-        camera_model: str = ...,
+        camera_model: Literal['SIMPLE_PINHOLE', 'PINHOLE', 'SIMPLE_RADIAL', 'RADIAL', 'OPENCV', 'OPENCV_FISHEYE', 'SIMPLE_RADIAL_FISHEYE', 'RADIAL_FISHEYE'] = ...,
         fov_deg: float = ...,
         positions_file: str = ...,
         positions_crs: str = ...,
@@ -1725,23 +1765,24 @@ class PosesOptions:
         flight_height_m: float = ...,
         max_scale_deviation: float = ...,
         allow_implausible: bool = ...,
-        preset: str = ...,
+        preset: Literal['default', 'quick'] = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     colmap: str
     """The COLMAP executable (on PATH or a path)."""
     workspace: str
     """Keep COLMAP's workspace in this new folder; '' = a temporary one, removed."""
-    matcher: str
-    """'sequential', 'spatial' or 'exhaustive'."""
+    matcher: Literal['sequential', 'spatial', 'exhaustive']
+    """'sequential', 'spatial' or 'exhaustive'. [one of sequential, spatial or exhaustive]"""
     sequential_overlap: int
     """Sequential matching: successors each frame is matched with."""
     spatial_neighbors: int
     """Spatial matching: nearest frames (by position) each frame is matched with."""
     camera_file: str
     """Known camera (aos-camera file); '' = self-calibration of camera_model."""
-    camera_model: str
-    """COLMAP model to self-calibrate."""
+    camera_model: Literal['SIMPLE_PINHOLE', 'PINHOLE', 'SIMPLE_RADIAL', 'RADIAL', 'OPENCV', 'OPENCV_FISHEYE', 'SIMPLE_RADIAL_FISHEYE', 'RADIAL_FISHEYE']
+    """COLMAP model to self-calibrate. [one of SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL,
+    OPENCV, OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE or RADIAL_FISHEYE]"""
     fov_deg: float
     """Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's guess. [deg]"""
     positions_file: str
@@ -1774,10 +1815,10 @@ class PosesOptions:
     allow_implausible: bool
     """Keep implausible self-calibrated intrinsics or scene scale with a warning instead of
     refusing."""
-    preset: str
+    preset: Literal['default', 'quick']
     """'default' or 'quick': quick sets max_image_size 480, max_num_features 512, sift_first_octave
     0, sequential_overlap 3, spatial_neighbors 8 and, with positions, matcher 'spatial', each
-    where left at its default (docs/poses.md)."""
+    where left at its default (docs/poses.md). [one of default or quick]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -1923,7 +1964,7 @@ class TelemetryOptions:
         telemetry_file: str = ...,
         camera_file: str = ...,
         fov_deg: float = ...,
-        altitude: str = ...,
+        altitude: Literal['auto', 'gps', 'relative'] = ...,
         altitude_window: int = ...,
         max_altitude_deviation_m: float = ...,
         max_distance_from_centre_m: float = ...,
@@ -1938,8 +1979,9 @@ class TelemetryOptions:
     """Known camera (aos-camera file, any lens model); '' = a pinhole from fov_deg."""
     fov_deg: float
     """Horizontal field of view of a pinhole camera, degrees, (0, 180); without camera_file. [deg]"""
-    altitude: str
-    """EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), 'gps', 'relative'."""
+    altitude: Literal['auto', 'gps', 'relative']
+    """EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), 'gps', 'relative'. [one
+    of auto, gps or relative]"""
     altitude_window: int
     """Altitude outliers: running-median window in frames, odd >= 3; 0 = no rule."""
     max_altitude_deviation_m: float

@@ -36,8 +36,7 @@ class IntegralKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    focal_plane: Plane | float | Mesh | Heightfield | FocalSurface
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
+    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     surface_offset: float
     variance: bool
     aperture_radius: float
@@ -57,7 +56,7 @@ class FocalStackKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
+    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     variance: bool
     aperture_radius: float
     view_indices: Sequence[int]
@@ -98,7 +97,7 @@ class AllInFocusKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
+    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     variance: bool
     aperture_radius: float
     view_indices: Sequence[int]
@@ -132,7 +131,7 @@ class SurfaceIntegralKeywords(TypedDict, total=False):
     fov_deg: float
     width: int
     height: int
-    focal_plane: Plane | float
+    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     variance: bool
     aperture_radius: float
     view_indices: Sequence[int]
@@ -151,8 +150,7 @@ class MapKeywords(TypedDict, total=False):
     pixel_size: float
     width: int
     extent: Sequence[float]
-    focal_height: float
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float | None
+    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     surface_offset: float
     tile_size: int
     max_pixels: int
@@ -205,8 +203,8 @@ class FlightPlanKeywords(TypedDict, total=False):
     """Keywords of aos.plan_flight: the fields of FlightPlanOptions (nested ones included) that its
     router accepts."""
 
-    shape: str
-    coordinates: str
+    shape: Literal['circle', 'sector', 'rectangle', 'polygon', 'line']
+    coordinates: Literal['world', 'latlon']
     crs: str
     center: Sequence[float]
     radius_m: float
@@ -215,17 +213,17 @@ class FlightPlanKeywords(TypedDict, total=False):
     width_m: float
     length_m: float
     vertices: Sequence[Sequence[float]]
-    pattern: str
+    pattern: Literal['scan', 'grid', 'circles']
     spacing_m: float
     along_spacing_m: float
     outer_scale: float
     heading_deg: float
     min_shots_per_line: int
     altitude_m: float
-    altitude_mode: str
+    altitude_mode: Literal['terrain', 'constant']
     dem: str
     ground_height_m: float
-    terrain_up: str
+    terrain_up: Literal['+z', '-z']
     min_clearance_m: float
     ground_speed_mps: float
     hover_s: float
@@ -265,11 +263,11 @@ class PosesKeywords(TypedDict, total=False):
 
     colmap: str
     workspace: str
-    matcher: str
+    matcher: Literal['sequential', 'spatial', 'exhaustive']
     sequential_overlap: int
     spatial_neighbors: int
     camera_file: str
-    camera_model: str
+    camera_model: Literal['SIMPLE_PINHOLE', 'PINHOLE', 'SIMPLE_RADIAL', 'RADIAL', 'OPENCV', 'OPENCV_FISHEYE', 'SIMPLE_RADIAL_FISHEYE', 'RADIAL_FISHEYE']
     fov_deg: float
     positions_file: str
     positions_crs: str
@@ -283,7 +281,7 @@ class PosesKeywords(TypedDict, total=False):
     flight_height_m: float
     max_scale_deviation: float
     allow_implausible: bool
-    preset: str
+    preset: Literal['default', 'quick']
 
 
 class GroundKeywords(TypedDict, total=False):
@@ -304,7 +302,7 @@ class TelemetryKeywords(TypedDict, total=False):
     telemetry_file: str
     camera_file: str
     fov_deg: float
-    altitude: str
+    altitude: Literal['auto', 'gps', 'relative']
     altitude_window: int
     max_altitude_deviation_m: float
     max_distance_from_centre_m: float

@@ -258,7 +258,7 @@ FocalStackOptions SmallStackOptions() {
   options.render.aperture_radius = 5.0;
   options.render.variance = true;
   options.render.num_threads = 1;  // tiny renders: OpenMP barriers would dominate
-  options.render.focal_plane = Plane::AtHeight(100.0);  // ignored: the slices replace it
+  options.render.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(100.0));  // ignored: the slices replace it
   options.first_plane = Plane{Vec3d(0, 0, -1), Vec3d(0.1, 0, 1)};
   options.last_plane = Plane{Vec3d(0, 0, 3), Vec3d(0, -0.1, 1)};
   options.slices = 5;
@@ -295,7 +295,7 @@ TEST(FocalStack, EverySliceIsRenderIntegralOnItsPlaneBitForBit) {
       EXPECT_EQ(stack.focus.planes[k].point, planes[k].point) << i;
       EXPECT_EQ(stack.focus.planes[k].normal, planes[k].normal) << i;
       IntegralOptions single = options.render;
-      single.focal_plane = planes[k];
+      single.focal_surface = FocalSurface::FromPlane(planes[k]);
       const IntegralResult reference = RenderIntegral(light_field, single);
       EXPECT_TRUE(SameImage(stack.images[k], reference.image)) << "slice " << i;
       EXPECT_TRUE(SameImage(stack.counts[k], reference.count)) << "slice " << i;
@@ -716,7 +716,7 @@ double MaxAbsDifference(const Image& a, const Image& b) {
 
 FocalStackOptions TerrainStackOptions(double mesh_height) {
   FocalStackOptions options = SmallStackOptions();
-  options.render.focal_surface = std::make_shared<const FocalSurface>(FocalSurface::FromMesh(FlatMesh(mesh_height)));
+  options.render.focal_surface = FocalSurface::FromMesh(FlatMesh(mesh_height));
   options.first_offset = -0.3;
   options.last_offset = 1.2;
   options.slices = 4;
@@ -869,9 +869,9 @@ TEST(StackAroundTheGround, PlanesParallelToTheGroundAtTheOffsetsTowardsTheViews)
     EXPECT_LT(MaxAbsDifference(stack.images[i], reference.images[i]), 1e-3) << i;
   }
   // A ground plane and a surface together, or a bad ground plane, are refused by name.
-  around.render.focal_surface = std::make_shared<const FocalSurface>(FocalSurface::FromMesh(FlatMesh(0.3)));
+  around.render.focal_surface = FocalSurface::FromMesh(FlatMesh(0.3));
   EXPECT_THAT(test_util::ErrorOf([&] { around.Check(9); }), HasSubstr("ground_plane: give either"));
-  around.render.focal_surface.reset();
+  around.render.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.0));
   around.ground_plane = Plane{Vec3d(0.0), Vec3d(0.0)};
   EXPECT_THAT(test_util::ErrorOf([&] { around.Check(9); }), HasSubstr("ground_plane"));
 }
@@ -892,7 +892,7 @@ TEST_F(FocalStackFiles, ATerrainFollowingStackRoundTripsWithItsSurface) {
   for (const auto& [name, surface] : surfaces) {
     SCOPED_TRACE(name);
     FocalStackOptions options = TerrainStackOptions(0.3);
-    options.render.focal_surface = std::make_shared<const FocalSurface>(surface);
+    options.render.focal_surface = surface;
     const FocalStack stack = RenderFocalStack(GroundLightField(), options);
     const std::string folder = Path("terrain_" + name);
     WriteFocalStack(folder, stack);
@@ -1027,7 +1027,7 @@ TEST(IntegralVariance, ATexturedPlaneIsSharpOnlyInFocus) {
   options.variance = true;
   options.num_threads = 1;
   auto mean_variance = [&](double height) {
-    options.focal_plane = Plane::AtHeight(height);
+    options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(height));
     const IntegralResult result = RenderIntegral(light_field, options);
     double sum = 0.0;
     for (int y = 0; y < 24; ++y) {

@@ -84,8 +84,8 @@ Vec3d FocalPoint(const LightField& light_field, const IntegralOptions& options, 
   const Vec3d direction =
       glm::transpose(cam_from_world.rotation) * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
   const Vec3d centre = cam_from_world.Center();
-  const Vec3d n = options.focal_plane.normal;
-  const double t = glm::dot(n, options.focal_plane.point - centre) / glm::dot(n, direction);
+  const Vec3d n = options.focal_surface.plane().normal;
+  const double t = glm::dot(n, options.focal_surface.plane().point - centre) / glm::dot(n, direction);
   return centre + t * direction;
 }
 
@@ -107,7 +107,7 @@ TEST(Integral, SingleViewFromItsOwnPoseReturnsThatImage) {
     options.width = 64;
     options.height = 48;
     options.aperture_radius = radius;
-    options.focal_plane = Plane::AtHeight(0.0);
+    options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.0));
     const IntegralResult result = RenderIntegral(light_field, options);
     ASSERT_EQ(result.image.width(), 64);
     ASSERT_EQ(result.image.height(), 48);
@@ -175,7 +175,7 @@ TEST_P(TexturedPlane, ComesBackWithinHalfAnEightBitStep) {
   options.fov_deg = 40.0;
   options.width = 128;
   options.height = 96;
-  options.focal_plane = plane;
+  options.focal_surface = FocalSurface::FromPlane(plane);
   for (PixelType type : {PixelType::kF32, PixelType::kU8}) {
     const LightField light_field = NadirLightField(scene, camera, centres, type);
     const IntegralResult result = RenderIntegral(light_field, options);
@@ -278,10 +278,11 @@ TEST(Integral, UtmCoordinatesGiveTheSameImageAsTheSceneAtTheOrigin) {
   options.fov_deg = 45.0;
   options.aperture_radius = 5.0;
   options.cam_from_world = NadirCamFromWorld(Vec3d(0.7, -0.4, 35.0));
-  options.focal_plane = Plane{Vec3d(0, 0, 0.5), Vec3d(0.1, 0.05, 1.0)};
+  options.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 0.5), Vec3d(0.1, 0.05, 1.0)});
   const IntegralResult reference = RenderIntegral(near, options);
   options.cam_from_world.translation -= options.cam_from_world.rotation * offset;
-  options.focal_plane.point += offset;
+  options.focal_surface = FocalSurface::FromPlane(
+      Plane{options.focal_surface.plane().point + offset, options.focal_surface.plane().normal});
   const IntegralResult moved = RenderIntegral(far, options);
   // Transforms are composed in double relative to the virtual camera: 5e6 m * 2^-52 ~ 1e-9 m,
   // far below a pixel, so the images agree to float rounding.
@@ -310,7 +311,7 @@ BruteForce BruteForceIntegral(const LightField& light_field, const IntegralOptio
   const Rigid3d& pose = options.cam_from_world;
   const Vec3d c = pose.Center();
   const Vec3d axis = Row(pose.rotation, 2);
-  const Vec3d n = glm::normalize(options.focal_plane.normal);
+  const Vec3d n = glm::normalize(options.focal_surface.plane().normal);
   const double sin_min = std::sin(options.min_view_angle_deg * M_PI / 180.0);
   BruteForce out;
   const size_t pixels = static_cast<size_t>(options.width) * options.height;
@@ -321,7 +322,7 @@ BruteForce BruteForceIntegral(const LightField& light_field, const IntegralOptio
     for (int x = 0; x < options.width; ++x) {
       const size_t p = static_cast<size_t>(y) * options.width + x;
       const Vec3d d = glm::transpose(pose.rotation) * camera.Unproject(Vec2d(x + 0.5, y + 0.5));
-      const double t = glm::dot(n, options.focal_plane.point - c) / glm::dot(n, d);
+      const double t = glm::dot(n, options.focal_surface.plane().point - c) / glm::dot(n, d);
       if (!(t > 0.0)) continue;
       const Vec3d X = c + t * d;
       double sum = 0.0;
@@ -395,7 +396,7 @@ TEST(Integral, CountsAndValuesMatchBruteForceForGeneralGeometry) {
     options.height = 70;
     options.aperture_radius = test_case.aperture;
     options.min_view_angle_deg = test_case.min_angle;
-    options.focal_plane = Plane{Vec3d(0, 0, 1.0), Vec3d(0.2, -0.3, 1.0)};
+    options.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 1.0), Vec3d(0.2, -0.3, 1.0)});
     const IntegralResult result = RenderIntegral(light_field, options);
     const BruteForce truth = BruteForceIntegral(light_field, options);
     int compared = 0, partial_views = 0;
@@ -436,11 +437,11 @@ TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
   options.width = 60;
   options.height = 50;
   options.aperture_radius = 0.0;
-  options.focal_plane = Plane{Vec3d(0, 0, 0.5), Vec3d(0.1, 0.2, 1.0)};
+  options.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 0.5), Vec3d(0.1, 0.2, 1.0)});
   const IntegralResult result = RenderIntegral(light_field, options);
   const Rigid3d& pose = options.cam_from_world;
   const Vec3d c = pose.Center(), axis = Row(pose.rotation, 2);
-  const Vec3d n = glm::normalize(options.focal_plane.normal);
+  const Vec3d n = glm::normalize(options.focal_surface.plane().normal);
   const double sin_min = std::sin(options.min_view_angle_deg * M_PI / 180.0);
   std::set<int> chosen;
   int compared = 0;
@@ -893,7 +894,7 @@ TEST(Integral, SimdAndScalarKernelsAgree) {
     options.width = 203;  // not a multiple of 8: exercises the masked last group
     options.height = 101;
     options.fov_deg = 40.0;
-    options.focal_plane = Plane{Vec3d(0, 0, 2), Vec3d(0.1, 0.0, 1.0)};
+    options.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 2), Vec3d(0.1, 0.0, 1.0)});
     if (internal::Avx2SpanKernel(light_field.views[0].image) == nullptr) {
       GTEST_SKIP() << "no AVX2/FMA on this CPU: only the scalar kernels exist";
     }
@@ -981,25 +982,35 @@ TEST_F(IntegralBadInput, LensTolerance) {
 
 TEST_F(IntegralBadInput, FocalPlaneBehindOrParallelToTheRays) {
   IntegralOptions bad = options;
-  bad.focal_plane = Plane::AtHeight(50.0);  // above a camera at 35 m that looks down
+  bad.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(50.0));  // above a camera at 35 m that looks down
   EXPECT_THAT(ErrorOf(bad), HasSubstr("lies behind the virtual camera"));
   // A plane through the camera centre contains (is parallel to) the rays that lie in it and
   // meets every other ray only at the centre.
-  bad.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(1, 0, 0)};  // vertical, through the axis
+  bad.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 0), Vec3d(1, 0, 0)});  // vertical, through the axis
   EXPECT_THAT(ErrorOf(bad), HasSubstr("contains the virtual camera centre"));
-  bad.focal_plane = Plane{Vec3d(0, 0, 35), Vec3d(0.3, 0, 1)};
+  bad.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 35), Vec3d(0.3, 0, 1)});
   EXPECT_THAT(ErrorOf(bad), HasSubstr("contains the virtual camera centre"));
-  bad.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(0, 0, 0)};
-  EXPECT_THAT(ErrorOf(bad), HasSubstr("normal must not be zero"));
-  bad.focal_plane = Plane{Vec3d(0, 0, std::nan("")), Vec3d(0, 0, 1)};
-  EXPECT_THAT(ErrorOf(bad), HasSubstr("focal_plane"));
+  // A plane that is no plane cannot be made (the one focal-surface value is always valid).
+  const auto plane_error = [](const Plane& plane) -> std::string {
+    try {
+      FocalSurface::FromPlane(plane);
+    } catch (const std::invalid_argument& error) {
+      return error.what();
+    }
+    return "no error";
+  };
+  EXPECT_THAT(plane_error(Plane{Vec3d(0, 0, 0), Vec3d(0, 0, 0)}),
+              HasSubstr("focal_surface: plane: point and normal must be finite and the normal "
+                        "non-zero"));
+  EXPECT_THAT(plane_error(Plane{Vec3d(0, 0, std::nan("")), Vec3d(0, 0, 1)}),
+              HasSubstr("focal_surface: plane: point and normal must be finite"));
 }
 
 TEST_F(IntegralBadInput, PlanesSeenByPartOfTheImageAreRendered) {
   // A vertical plane beside a nadir camera, and the ground seen by a camera looking at the
   // horizon: the pixels whose rays meet the plane in front are rendered, the others get count 0.
   IntegralOptions side = options;
-  side.focal_plane = Plane{Vec3d(5, 0, 0), Vec3d(1, 0, 0)};
+  side.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(5, 0, 0), Vec3d(1, 0, 0)});
   IntegralOptions horizon = options;
   horizon.cam_from_world = LookAt(Vec3d(0, 0, 2), Vec3d(10, 0, 2), Vec3d(0, 0, 1));
   horizon.fov_deg = 90.0;

@@ -97,7 +97,7 @@ TEST(MapGrid, DefaultExtentIsTheFootprintsWidenedToWholePixels) {
   EXPECT_EQ(grid.width, static_cast<int>(std::round(
                             (std::ceil((1.0 + half_x) / 0.25) * 0.25 - grid.x_min) / 0.25)));
   // The focal plane above the views: up is -z (as for a z-down frame).
-  options.focal_height = 40.0;
+  options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(40.0));
   options.extent = {-5.0, -5.0, 5.0, 5.0};
   EXPECT_EQ(ResolveMapGrid(light_field, options).up_z, -1.0);
 }
@@ -137,8 +137,8 @@ TEST(MapGrid, RefusesBadSizesNamingTheField) {
   options.extent = {-10.0, -10.0, 10.0};
   EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("extent:"));
   options.extent = {-10.0, -10.0, 10.0, 10.0};
-  options.focal_height = 20.0;  // the views' mean centre lies on the plane
-  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("focal_height:"));
+  options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(20.0));  // the views' mean centre lies on the plane
+  EXPECT_THAT(ErrorOf([&] { ResolveMapGrid(light_field, options); }), HasSubstr("focal_surface:"));
 }
 
 TEST(DistributedOptions, DefaultsPassAndBadValuesAreRefusedNamingTheField) {
@@ -302,6 +302,45 @@ TEST(MapRender, LensToleranceReachesTheRendererAndIsValidated) {
   EXPECT_GT(largest, 1e-4);
   options.lens_tolerance_px = 1.5;
   EXPECT_THAT(ErrorOf([&] { RenderMap(light_field, options); }), HasSubstr("lens_tolerance_px:"));
+}
+
+// The one focal-surface value (map.h): an offset moves a plane along up exactly as it moves the
+// plane's height, and a tilted plane renders as the same plane given as a mesh (HeightsAt on a
+// plane is exact; a mesh's hit is recomputed in double on its triangle, so they agree to float
+// rounding of the focal heights).
+TEST(MapRender, APlaneIsAFocalSurfaceLikeAnyOther) {
+  const LightField light_field = GroundLightField();  // views at z = 20: up is +z
+  MapOptions options;
+  options.pixel_size = 0.3;
+  options.extent = {-6.0, -5.0, 6.0, 5.0};
+  options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(1.5));
+  const MapResult raised = RenderMap(light_field, options);
+  options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.5));
+  options.surface_offset = 1.0;
+  const MapResult moved = RenderMap(light_field, options);
+  EXPECT_EQ(moved.summary.grid.focal_height, 1.5);
+  EXPECT_TRUE(SameImage(moved.image, raised.image));
+  EXPECT_TRUE(SameImage(moved.count, raised.count));
+
+  options.surface_offset = 0.0;
+  const Plane tilted{Vec3d(0.0, 0.0, 0.5), Vec3d(0.1, -0.05, 1.0)};
+  options.focal_surface = FocalSurface::FromPlane(tilted);
+  const MapResult plane = RenderMap(light_field, options);
+  const auto z_at = [&](double x, double y) {
+    return tilted.point.z - (tilted.normal.x * x + tilted.normal.y * y) / tilted.normal.z;
+  };
+  Mesh mesh;
+  for (const auto& [x, y] : {std::pair{-50.0, -50.0}, {50.0, -50.0}, {50.0, 50.0}, {-50.0, 50.0}}) {
+    mesh.vertices.push_back(Vec3d(x, y, z_at(x, y)));
+  }
+  mesh.triangles = {{0, 1, 2}, {0, 2, 3}};
+  options.focal_surface = FocalSurface::FromMesh(mesh);
+  const MapResult on_mesh = RenderMap(light_field, options);
+  EXPECT_TRUE(SameImage(plane.count, on_mesh.count));
+  EXPECT_LT(test_util::MaxAbsDifference(plane.image, on_mesh.image), 1e-3);
+  // And it is another image than the horizontal plane through the same point.
+  options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.5));
+  EXPECT_GT(test_util::MaxAbsDifference(RenderMap(light_field, options).image, plane.image), 0.05);
 }
 
 TEST(MapRender, TilesChangeNoBit) {
@@ -529,7 +568,7 @@ TEST_F(MapWrite, ASurfaceThatCoversNoneOfTheMapIsRefusedAndLeavesNoFile) {
   dem.geotransform = {600000.0, 1.0, 0.0, 5200008.0, 0.0, -1.0};
   dem.heights.assign(64, 0.0f);
   dem.crs_wkt = "EPSG:32633";
-  options.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromHeightfield(dem, "utm.tif"));
+  options.focal_surface = FocalSurface::FromHeightfield(dem, "utm.tif");
   const std::string path = Path("map.tif");
   const std::string message = ErrorOf([&] { WriteMapGeoTiff(light_field, options, path); });
   EXPECT_THAT(message, HasSubstr("utm.tif: no pixel is covered: the surface does not cover the "
@@ -544,7 +583,7 @@ TEST_F(MapWrite, ASurfaceThatCoversNoneOfTheMapIsRefusedAndLeavesNoFile) {
   Mesh square;
   square.vertices = {{-30, -30, 0}, {30, -30, 0}, {30, 30, 0}, {-30, 30, 0}};
   square.triangles = {{0, 1, 2}, {0, 2, 3}};
-  options.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromMesh(square, "square.obj"));
+  options.focal_surface = FocalSurface::FromMesh(square, "square.obj");
   options.extent = {40.0, 40.0, 44.0, 44.0};  // beyond the square: refused before rendering
   EXPECT_THAT(ErrorOf([&] { WriteMapGeoTiff(light_field, options, path); }),
               HasSubstr("square.obj: no pixel is covered: the surface does not cover the map"));

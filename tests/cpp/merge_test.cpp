@@ -734,7 +734,7 @@ AllInFocusOptions CoarseToFineOptions(MergeMethod method, int size, bool surface
     tilted.vertices = {{-100, -100, -4.0}, {100, -100, 4.0}, {100, 100, 4.0}, {-100, 100, -4.0}};
     tilted.triangles = {{0, 1, 2}, {0, 2, 3}};
     options.stack.render.focal_surface =
-        std::make_shared<const FocalSurface>(FocalSurface::FromMesh(tilted));
+        (FocalSurface::FromMesh(tilted));
     options.stack.first_offset = -2.0;
     options.stack.last_offset = 2.0;
   }
@@ -849,7 +849,7 @@ TEST(RenderAllInFocus, ATerrainFollowingStackFindsTheGroundOffTheGivenSurface) {
   for (MergeMethod method : kAllMethods) {
     SCOPED_TRACE(MergeMethodName(method));
     AllInFocusOptions options = GroundStackOptions(method, size, 21);
-    options.stack.render.focal_surface = std::make_shared<const FocalSurface>(FocalSurface::FromMesh(low));
+    options.stack.render.focal_surface = FocalSurface::FromMesh(low);
     options.stack.first_offset = -2.0;
     options.stack.last_offset = 2.0;
     const MergeResult result = RenderAllInFocus(SimulatedGround(), options);
@@ -1101,10 +1101,10 @@ TEST(RenderIntegralOnDepth, PlainMeanOnAPlanesDepthIsRenderIntegralOnThatPlane) 
     options.width = 40;
     options.height = 30;
     options.aperture_radius = aperture;
-    options.focal_plane = Plane{Vec3d(0, 0, 0.3), Vec3d(0.1, -0.05, 1)};
+    options.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 0.3), Vec3d(0.1, -0.05, 1)});
     options.num_threads = 1;
     const IntegralResult reference = RenderIntegral(light_field, options);
-    const Image depth = PlaneDepth(VirtualCamera(light_field, options), options.cam_from_world, options.focal_plane);
+    const Image depth = PlaneDepth(VirtualCamera(light_field, options), options.cam_from_world, options.focal_surface.plane());
     const SurfaceIntegralResult result = RenderIntegralOnDepth(light_field, options, depth);
     EXPECT_TRUE(result.inliers.empty());
     EXPECT_EQ(result.fallback_pixels, 0);
@@ -1329,7 +1329,7 @@ TEST(RenderIntegralOnDepth, GrazingIsMeasuredAgainstTheFocalPlaneNormal) {
   options.num_threads = 1;
   const Image depth = ConstantImage(8, 8, {20.0f});
   const SurfaceIntegralResult level = RenderIntegralOnDepth(light_field, options, depth);
-  options.focal_plane = Plane{Vec3d(0, 0, 0), Vec3d(1, 0, 0)};
+  options.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(0, 0, 0), Vec3d(1, 0, 0)});
   const SurfaceIntegralResult vertical = RenderIntegralOnDepth(light_field, options, depth);
   for (int y = 0; y < 8; ++y) {
     for (int x = 0; x < 8; ++x) {

@@ -12,9 +12,11 @@
 #include "aos/lightfield/options_json.h"
 #include "aos/plan/flight_plan.h"
 #include "aos/render/map.h"
+#include "aos/render/focal_surface_json.h"
 #include "aos/render/merge.h"
 #include "aos/util/option_fields.h"
 #include "error_of.h"
+#include "temp_folder.h"
 
 namespace aos {
 namespace {
@@ -40,15 +42,28 @@ TEST(Range, ContainsAndText) {
   EXPECT_TRUE(Range::Any().IsAny());
   EXPECT_TRUE(Range::Any().Contains(-kInf));
   EXPECT_FALSE(Range::Any().Contains(std::nan("")));
+  // Text choices.
+  const Range shapes = Range::OneOf("circle|sector|line");
+  EXPECT_EQ(shapes.Text(), "one of circle, sector or line");
+  EXPECT_EQ(shapes.Choices(), (std::vector<std::string>{"circle", "sector", "line"}));
+  EXPECT_TRUE(shapes.ContainsText("sector"));
+  EXPECT_FALSE(shapes.ContainsText("Sector"));
+  EXPECT_FALSE(shapes.ContainsText(""));
+  EXPECT_FALSE(shapes.IsAny());
+  EXPECT_TRUE(Range::Any().ContainsText("anything"));
+  FlightPlanOptions plan;
+  plan.pattern = "spiral";
+  EXPECT_THAT(ErrorOf([&] { plan.Check(); }),
+              HasSubstr("pattern: must be one of scan, grid or circles, got 'spiral'"));
 }
 
 TEST(FieldTable, EveryFieldOnceInDeclarationOrder) {
   EXPECT_EQ(FieldCount<MergeOptions>(), 7u);
-  EXPECT_EQ(FieldCount<IntegralOptions>(), 14u);
+  EXPECT_EQ(FieldCount<IntegralOptions>(), 13u);
   std::string names;
   MapOptions::Fields([&](const auto& field) { names += std::string(field.name) + " "; });
   EXPECT_EQ(names,
-            "pixel_size width extent focal_height focal_surface surface_offset tile_size max_pixels "
+            "pixel_size width extent focal_surface surface_offset tile_size max_pixels "
             "aperture_radius view_indices min_view_angle_deg lens_tolerance_px num_threads ");
 }
 
@@ -71,6 +86,40 @@ TEST(FieldTable, CheckRefusesValuesOutsideTheTablesRangeNamingTheField) {
   EXPECT_THAT(ErrorOf([&] { merge.Check(); }), HasSubstr("num_threads: must be in [1, 1024] or -1"));
 }
 
+class OptionsJsonFiles : public testing_util::TempFolderTest {};
+
+// The one focal-surface value in JSON (focal_surface_json.h): a plane as its plane, a number as
+// a horizontal plane, a file's surface as its file (read back from it); a surface built in
+// memory or moved has no JSON form.
+TEST_F(OptionsJsonFiles, AFocalSurfaceTravelsAsItsPlaneOrItsFile) {
+  const auto read = [](const std::string& text) {
+    return OptionsFromJson<IntegralOptions>(nlohmann::json::parse(text), JsonPath("t"));
+  };
+  IntegralOptions options;
+  options.focal_surface = FocalSurface::FromPlane(Plane{Vec3d(1.0, 2.0, 3.5), Vec3d(0.0, 0.6, 0.8)});
+  IntegralOptions back = read(OptionsToJson(options).dump());
+  ASSERT_EQ(back.focal_surface.kind(), FocalSurfaceKind::kPlane);
+  EXPECT_EQ(back.focal_surface.plane().point, options.focal_surface.plane().point);
+  EXPECT_EQ(back.focal_surface.plane().normal, options.focal_surface.plane().normal);
+  back = read(R"({"focal_surface": 21.5})");
+  EXPECT_EQ(back.focal_surface.plane().point, Vec3d(0.0, 0.0, 21.5));
+  EXPECT_EQ(back.focal_surface.plane().normal, Vec3d(0.0, 0.0, 1.0));
+
+  const std::string path = Path("terrain.ply");
+  WritePly(path, {Vec3d(0.0, 0.0, 1.0), Vec3d(4.0, 0.0, 1.0), Vec3d(0.0, 4.0, 2.0)}, {{0, 1, 2}});
+  options.focal_surface = FocalSurface::Read(path);
+  const nlohmann::ordered_json json = OptionsToJson(options);
+  EXPECT_EQ(json["focal_surface"]["file"], path);
+  back = read(json.dump());
+  EXPECT_EQ(back.focal_surface.kind(), FocalSurfaceKind::kMesh);
+  EXPECT_TRUE(back.focal_surface.SameAs(options.focal_surface));
+
+  options.focal_surface = FocalSurface::FromMesh(options.focal_surface.mesh());  // in memory
+  EXPECT_THAT(ErrorOf([&] { OptionsToJson(options); }),
+              HasSubstr("focal_surface: a mesh surface not read from a file as it is has no "
+                        "JSON form"));
+}
+
 TEST(OptionsJson, RoundTripsEveryKindOfField) {
   AllInFocusOptions options;
   options.merge.method = MergeMethod::kRobust;
@@ -85,8 +134,8 @@ TEST(OptionsJson, RoundTripsEveryKindOfField) {
   const nlohmann::ordered_json json = OptionsToJson(options);
   EXPECT_EQ(json["merge"]["method"], "robust");
   EXPECT_EQ(json["stack"]["render"]["aperture_radius"], "inf");
-  EXPECT_TRUE(json["stack"]["render"].contains("focal_plane"));
-  EXPECT_FALSE(json["stack"]["render"].contains("focal_surface"));  // not carried
+  EXPECT_EQ(json["stack"]["render"]["focal_surface"].dump(),
+            R"({"plane":{"point":[0.0,0.0,0.0],"normal":[0.0,0.0,1.0]}})");
   const AllInFocusOptions back =
       OptionsFromJson<AllInFocusOptions>(nlohmann::json::parse(json.dump()), JsonPath("t"));
   EXPECT_EQ(OptionsToJson(back).dump(), json.dump());
@@ -113,15 +162,23 @@ TEST(OptionsJson, BadValuesNameTheFileAndTheKey) {
   EXPECT_THAT(error(R"({"tile_size": 5.5})"), HasSubstr("spec: /tile_size: expected a whole number"));
   EXPECT_THAT(error(R"({"aperture_radius": "huge"})"), HasSubstr("/aperture_radius: expected a number"));
   EXPECT_THAT(error(R"({"extent": [0, 1, "x", 3]})"), HasSubstr("/extent/2: expected a number"));
-  EXPECT_THAT(error(R"({"focal_surface": "dem.tif"})"), HasSubstr("/focal_surface: not carried"));
+  EXPECT_THAT(error(R"({"focal_surface": "dem.tif"})"),
+              HasSubstr("/focal_surface: expected a number (the height of a horizontal plane), "
+                        "{\"plane\": {...}} or {\"file\": PATH}"));
+  EXPECT_THAT(error(R"({"focal_surface": {"file": "/no/such/dem.tif"}})"),
+              HasSubstr("spec: /focal_surface/file: "));
+  EXPECT_THAT(error(R"({"focal_surface": {"plane": {"point": [0, 0, 0], "normal": [0, 0, 0]}}})"),
+              HasSubstr("spec: /focal_surface/plane/normal: must not be zero"));
+  EXPECT_THAT(error(R"({"focal_surface": {"plane": {"point": [0, 0, 1e20], "normal": [0, 0, 1]}}})"),
+              HasSubstr("spec: /focal_surface: focal_surface: plane: point z is 1e+20 m"));
   EXPECT_THAT(ErrorOf([] {
                 OptionsFromJson<MergeOptions>(nlohmann::json::parse(R"({"method": "best"})"),
                                               JsonPath("spec"));
               }),
               HasSubstr("spec: /method: unknown value 'best' (one of sobel, improved, robust)"));
   MapOptions nan;
-  nan.focal_height = std::nan("");
-  EXPECT_THAT(ErrorOf([&] { OptionsToJson(nan); }), HasSubstr("NaN"));
+  nan.surface_offset = std::nan("");
+  EXPECT_THAT(ErrorOf([&] { OptionsToJson(nan); }), HasSubstr("surface_offset: a NaN"));
 }
 
 }  // namespace

@@ -344,7 +344,7 @@ TEST(FlightPlan, BadInputNamesTheField) {
   EXPECT_THAT(ErrorOf(o), HasSubstr("altitude_m:"));
   o = FlightPlanOptions{};
   o.pattern = "spiral";
-  EXPECT_THAT(ErrorOf(o), HasSubstr("pattern: 'spiral'"));
+  EXPECT_THAT(ErrorOf(o), HasSubstr("pattern: must be one of scan, grid or circles, got 'spiral'"));
   // Spacing wider than the aperture: a warning, one line.
   o = FlightPlanOptions{};
   o.radius_m = 2.0;

@@ -623,13 +623,13 @@ class PosesPipeline : public testing_util::TempFolderTest {
 TEST_F(PosesPipeline, OptionsAreChecked) {
   PosesOptions options;
   options.matcher = "vocab_tree";
-  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("matcher: \"vocab_tree\" is not one of"));
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("matcher: must be one of sequential, spatial or exhaustive, got 'vocab_tree'"));
   options = PosesOptions();
   options.matcher = "spatial";
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("matcher: spatial matching needs positions"));
   options = PosesOptions();
   options.camera_model = "FOV";
-  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("camera_model: \"FOV\" is not a supported"));
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("camera_model: must be one of SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, SIMPLE_RADIAL_FISHEYE or RADIAL_FISHEYE, got 'FOV'"));
   options = PosesOptions();
   options.min_registered_fraction = 0.0;
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("min_registered_fraction"));
@@ -921,7 +921,7 @@ TEST(PosesPreset, QuickSetsTheFieldsLeftAtTheirDefaults) {
   PosesOptions options;
   EXPECT_EQ(WithPreset(options).max_image_size, 1600);  // "default" changes nothing
   options.preset = "fast";
-  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("preset: \"fast\" is not one of default, quick"));
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("preset: must be one of default or quick, got 'fast'"));
   options = PosesOptions();
   options.sift_first_octave = 1;
   EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("sift_first_octave: must be -1"));

@@ -1,6 +1,7 @@
 #pragma once
 // Test-only helpers shared by the focal stack, surface integral and merge tests: small synthetic
 // light fields (plane_scene.h) and byte-exact image comparison.
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <string>
@@ -90,6 +91,17 @@ inline ::testing::AssertionResult SameImage(const Image& a, const Image& b) {
     }
   }
   return ::testing::AssertionSuccess();
+}
+
+// The largest |a - b| over the pixels and channels of two float32 images of one shape.
+inline double MaxAbsDifference(const Image& a, const Image& b) {
+  double worst = 0.0;
+  for (int y = 0; y < a.height(); ++y) {
+    for (int x = 0; x < a.width() * a.channels(); ++x) {
+      worst = std::max(worst, std::abs(double(a.At<float>(0, y)[x]) - b.At<float>(0, y)[x]));
+    }
+  }
+  return worst;
 }
 
 // Success when no value of the float image is NaN or infinite.

@@ -209,7 +209,7 @@ TEST(TerrainOracle, RenderOnTheTrueDemEqualsTheOracleAndBeatsEveryPlane) {
 
   // On the DEM, through the focal-surface route (Embree cast, then the depth path).
   IntegralOptions on_dem = options;
-  on_dem.focal_surface = std::make_shared<FocalSurface>(FocalSurface::FromHeightfield(dem, "ground"));
+  on_dem.focal_surface = FocalSurface::FromHeightfield(dem, "ground");
   const IntegralResult dem_render = RenderIntegral(light_field, on_dem);
   // The oracle: render_integral_on_depth on the analytic ground's depth map.
   const Image oracle_depth =
@@ -244,7 +244,7 @@ TEST(TerrainOracle, RenderOnTheTrueDemEqualsTheOracleAndBeatsEveryPlane) {
   double best_plane_psnr = -std::numeric_limits<double>::infinity(), best_height = 0.0;
   for (double z = std::floor(*lowest); z <= std::ceil(*highest) + 1e-9; z += 0.1) {
     IntegralOptions on_plane = options;
-    on_plane.focal_plane = Plane::AtHeight(z);
+    on_plane.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(z));
     const double p = psnr(RenderIntegral(light_field, on_plane));
     if (p > best_plane_psnr) best_plane_psnr = p, best_height = z;
   }

@@ -160,10 +160,10 @@ def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None
         expect = ("--views", "empty")
     elif case == "plane behind":
         args += ["--focal-height", "100"]
-        expect = ("focal_plane", "behind")
+        expect = ("focal_surface", "behind")
     elif case == "plane parallel":  # through the camera centre: its rays run along it
         args += ["--focal-plane", "0,0,35,0.3,0,1"]
-        expect = ("focal_plane", "parallel", "--focal-height/--focal-plane")
+        expect = ("focal_surface", "parallel", "--focal-height/--focal-plane/--focal-distance/--focal-surface")
     elif case == "fov negative":  # 0 means the pose view's; below 0 is refused
         args[args.index("--fov-deg") + 1] = "-5"
         expect = ("fov_deg",)

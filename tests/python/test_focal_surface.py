@@ -10,6 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -58,7 +60,7 @@ def test_a_plane_as_obj_ply_dem_and_depth_map_renders_as_the_plane(tmp_path):
     # exactly (as the C++ test focal_surface/SurfaceRender...).
     rasterio = pytest.importorskip("rasterio")
     light_field = _textured_lightfield()
-    plane = aos.render_integral(light_field, focal_plane=0.3, **CAMERA)
+    plane = aos.render_integral(light_field, focal_surface=0.3, **CAMERA)
     (tmp_path / "square.obj").write_text(SQUARE_OBJ.format(h=0.3))
     (tmp_path / "square.ply").write_text(SQUARE_PLY.format(h=0.3))
     # A DEM written independently of aos (rasterio): 2 x 2 pixels of 200 m, centres at +-100 m.
@@ -76,9 +78,14 @@ def test_a_plane_as_obj_ply_dem_and_depth_map_renders_as_the_plane(tmp_path):
         "depth map": aos.FocalSurface.from_depth_map(depth, camera, CAMERA["cam_from_world"]),
     }
     for name, surface in surfaces.items():
-        # A surface is accepted where a plane is (focal_plane=) and as focal_surface=.
+        # A surface is accepted as focal_surface= and, deprecated, as focal_plane= (it warns).
         for key in ("focal_plane", "focal_surface"):
-            result = aos.render_integral(light_field, **{key: surface}, **CAMERA)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                result = aos.render_integral(light_field, **{key: surface}, **CAMERA)
+            assert [str(w.message) for w in caught if w.category is DeprecationWarning] == (
+                ["render_integral(): focal_plane= is deprecated; use focal_surface="]
+                if key == "focal_plane" else [])
             np.testing.assert_array_equal(result.count, plane.count, err_msg=name)
             assert np.max(np.abs(result.image - plane.image)) < 1e-3, name
             assert result.uncovered_pixels == plane.uncovered_pixels == 0
@@ -88,7 +95,7 @@ def test_an_offset_moves_the_mesh_along_up_and_pickles(tmp_path):
     light_field = _textured_lightfield()
     (tmp_path / "square.obj").write_text(SQUARE_OBJ.format(h=0.3))
     mesh = aos.Mesh.read(str(tmp_path / "square.obj"))
-    plane = aos.render_integral(light_field, focal_plane=0.3 + 0.45, **CAMERA)
+    plane = aos.render_integral(light_field, focal_surface=0.3 + 0.45, **CAMERA)
     options = aos.IntegralOptions(focal_surface=mesh, surface_offset=0.45, **CAMERA)
     moved = aos.render_integral(light_field, options)
     np.testing.assert_array_equal(moved.count, plane.count)
@@ -100,8 +107,9 @@ def test_an_offset_moves_the_mesh_along_up_and_pickles(tmp_path):
     assert again.focal_surface.kind == "mesh" and again.surface_offset == 0.45
     np.testing.assert_array_equal(aos.render_integral(light_field, again).image, moved.image)
     assert pickle.loads(pickle.dumps(mesh)) == mesh
-    with pytest.raises(ValueError, match="surface_offset: needs a focal_surface"):
-        aos.render_integral(light_field, surface_offset=1.0, focal_plane=0.3, **CAMERA)
+    # An offset moves a plane along up as it moves a mesh: the same image as the moved plane.
+    plane_moved = aos.render_integral(light_field, surface_offset=0.45, focal_surface=0.3, **CAMERA)
+    np.testing.assert_array_equal(plane_moved.image, plane.image)
 
 
 def test_heightfield_arrays_geotransform_crs_and_nodata(tmp_path):
@@ -495,7 +503,7 @@ def test_extreme_mesh_and_plane_coordinates_are_value_errors_not_aborts(tmp_path
             (f"FocalSurface {value}", f"aos.FocalSurface(float('{value}'))"),
             (f"focal_plane {value}", "lf = aos.LightField()\n"
              "lf.add_view(np.zeros((8, 8), np.float32), aos.PinholeCamera.from_fov(8, 8, 50.0), aos.look_at((0, 0, 20), (0, 0.1, 0)))\n"
-             f"aos.render_integral(lf, focal_plane=float('{value}'), pose_view=0)"),
+             f"aos.render_integral(lf, focal_surface=float('{value}'), pose_view=0)"),
         ]
     outcomes = _in_child(cases)
     for i, value in enumerate(EXTREMES):
@@ -504,8 +512,8 @@ def test_extreme_mesh_and_plane_coordinates_are_value_errors_not_aborts(tmp_path
         _refused(outcomes[f"ply {value}"], f"e{i}.ply: element vertex 2: z ", field)
         _refused(outcomes[f"Mesh.read {value}"], f"e{i}.ply: element vertex 2: z ")
         _refused(outcomes[f"Mesh {value}"], "Mesh: vertex 2: z ", field)
-        _refused(outcomes[f"FocalSurface {value}"], "focal_plane")
-        _refused(outcomes[f"focal_plane {value}"], "focal_plane")
+        _refused(outcomes[f"FocalSurface {value}"], "focal_surface: plane: point")
+        _refused(outcomes[f"focal_plane {value}"], "focal_surface: plane: point")
 
 
 def test_extreme_dem_heights_are_value_errors_not_aborts(tmp_path):

@@ -91,7 +91,7 @@ def test_loads_all_382_views_and_says_which_frames_it_used(f0):
 def test_view_191_on_z0_matches_an_independent_float64_reference(f0, tmp_path_factory):
     light_field = f0.light_field
     result = aos.render_integral(light_field, pose_view=191, fov_deg=FOV_DEG, width=512, height=512,
-                                 focal_plane=aos.Plane.at_height(0.0))
+                                 focal_surface=aos.Plane.at_height(0.0))
     assert result.image.shape == (512, 512) and result.image.dtype == np.float32
     assert np.all(np.isfinite(result.image))
     assert result.count.min() > 0, "every pixel must be covered (view 191 itself sees all)"

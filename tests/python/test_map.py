@@ -125,7 +125,7 @@ def test_a_simulated_flight_lands_where_the_geotransform_says(
 
 
 def test_the_map_agrees_with_a_numpy_reference(flight: aos.LightField) -> None:
-    result = aos.render_map(flight, pixel_size=0.13, focal_height=0.0)
+    result = aos.render_map(flight, pixel_size=0.13, focal_surface=0.0)
     x0, p, _, y0, _, _ = result.geotransform
     rng = np.random.default_rng(5)
     rows = rng.integers(0, result.height, 300)
@@ -244,14 +244,14 @@ def test_z_down_frames_map_in_their_own_x_y(flight: aos.LightField) -> None:
         pose = view.cam_from_world
         down.add_view(view.image, view.camera,
                       aos.Rigid3d(pose.rotation @ flip, pose.translation), name=view.name)
-    result = aos.render_map(down, pixel_size=0.1, focal_height=0.0)
+    result = aos.render_map(down, pixel_size=0.1, focal_surface=0.0)
     assert result.up_z == -1.0
     x0, p, _, y0, _, _ = result.geotransform
     col = int((TARGET[0] - x0) // p)
     row = int((y0 - (-TARGET[1])) // p)
     assert result.image[row, col] > 0.9 * 0.95 * 255
     # The original z-up frame has it at y = -2, and nothing bright at y = +2.
-    up = aos.render_map(flight, pixel_size=0.1, focal_height=0.0)
+    up = aos.render_map(flight, pixel_size=0.1, focal_surface=0.0)
     assert up.up_z == 1.0
     ux0, up_p, _, uy0, _, _ = up.geotransform
     ucol = int((ORIGIN[0] + TARGET[0] - ux0) // up_p)
@@ -356,7 +356,7 @@ def test_a_map_on_a_dem_is_the_map_on_its_plane_and_holes_are_nodata(
     heights[18:22, 30:34] = np.nan  # a hole: world x 10..14, y -2..2 around the local frame
     dem = aos.Heightfield(heights, (x0, 1.0, 0.0, y0, 0.0, -1.0))
     extent = [ORIGIN[0] - 9.0, ORIGIN[1] - 9.0, ORIGIN[0] + 15.0, ORIGIN[1] + 9.0]
-    plane = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_height=h)
+    plane = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=h)
     on_dem = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=dem,
                             surface_offset=offset)
     assert on_dem.geotransform == plane.geotransform
@@ -372,9 +372,10 @@ def test_a_map_on_a_dem_is_the_map_on_its_plane_and_holes_are_nodata(
     keep = ~in_hole
     np.testing.assert_array_equal(on_dem.count[keep], plane.count[keep])
     np.testing.assert_allclose(on_dem.image[keep], plane.image[keep], atol=1e-4)
-    # Without a surface an offset is refused, naming the field.
-    with pytest.raises(ValueError, match="surface_offset: needs a focal_surface"):
-        aos.render_map(flight, pixel_size=0.25, extent=extent, surface_offset=1.0)
+    # An offset moves the default plane as it moves the DEM: the plane at h, offset by 1 m up.
+    moved = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=h - 1.0,
+                           surface_offset=1.0)
+    np.testing.assert_array_equal(moved.image, plane.image)
     # The CLI takes the DEM as --focal-surface. The simulated file keeps origin 0, so its DEM
     # and extent are in the local frame.
     local_dem = aos.Heightfield(np.full((40, 40), h - offset, np.float32),
@@ -409,7 +410,7 @@ def test_a_dem_in_another_crs_is_refused_or_transformed(flight: aos.LightField,
     moved = surface.in_crs("EPSG:32633")
     assert "EPSG:25833 -> EPSG:32633" in moved.describe()
     assert moved.kind == "mesh"
-    plane = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_height=h)
+    plane = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=h)
     on_dem = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=moved)
     np.testing.assert_array_equal(on_dem.count, plane.count)
     np.testing.assert_allclose(on_dem.image, plane.image, atol=1e-3)

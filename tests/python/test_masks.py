@@ -30,7 +30,7 @@ def scene_json(channels: int) -> dict:
     }
 
 
-RENDER = dict(pose_view=4, fov_deg=50.0, width=40, height=32, focal_plane=0.0)
+RENDER = dict(pose_view=4, fov_deg=50.0, width=40, height=32, focal_surface=0.0)
 WRONG = 255  # the letterbox and logo colour (every channel)
 
 
@@ -79,7 +79,7 @@ def reference(clean: aos.LightField, valid_of, options: dict) -> dict:
     unclean (the renderer weights such a sample by its bilinear mask weight)."""
     integral_options = aos.IntegralOptions()
     for key, value in options.items():
-        setattr(integral_options, key, aos.Plane.at_height(value) if key == "focal_plane" else value)
+        setattr(integral_options, key, value)
     camera = aos.virtual_camera(clean, integral_options)
     pose = clean.views[options["pose_view"]].cam_from_world
     R, centre = pose.rotation, pose.center
@@ -188,7 +188,7 @@ def test_every_render_route_gives_the_masked_mean(tmp_path: Path) -> None:
     assert np.abs(on_depth.count.astype(int) - plane.count.astype(int)).max() <= 1
     assert (on_depth.count != plane.count).mean() < 0.02  # rounding at mask edges only
     stack = aos.render_focal_stack(lf, first_plane=0.0, last_plane=1.0, slices=2,
-                                   **{k: v for k, v in RENDER.items() if k != "focal_plane"})
+                                   **{k: v for k, v in RENDER.items() if k != "focal_surface"})
     np.testing.assert_allclose(stack.images[0], plane.image, atol=1e-5)
     # Nearest mode: the nearest view's sample where it is valid, else uncovered.
     nearest = aos.render_integral(lf, **{**RENDER, "aperture_radius": 0.0})
@@ -207,8 +207,8 @@ def test_map(tmp_path: Path) -> None:
     path, _ = write_scene(tmp_path, 1, per_view=False)
     lf = aos.load_lightfield(path, mask=path.parent / "mask.png").light_field
     plain_lf = aos.load_lightfield(path).light_field
-    masked_map = aos.render_map(lf, pixel_size=0.5, focal_height=0.0)
-    plain_map = aos.render_map(plain_lf, pixel_size=0.5, focal_height=0.0)
+    masked_map = aos.render_map(lf, pixel_size=0.5, focal_surface=0.0)
+    plain_map = aos.render_map(plain_lf, pixel_size=0.5, focal_surface=0.0)
     assert masked_map.image.shape == plain_map.image.shape  # no weight channel
     covered = masked_map.count > 0
     # The painted letterbox (255) pulls the unmasked map up; the masked one never sees it.
@@ -238,7 +238,7 @@ def test_robust_mean_divides_per_sample(tmp_path: Path) -> None:
     np.testing.assert_allclose(robust.integral.variance[ok], truth["variance"][ok], atol=0.01)
     # The whole pipeline runs on a masked light field and returns the frames' channels.
     merged = aos.all_in_focus(lf, method="robust", first_plane=0.0, last_plane=1.0, slices=2,
-                              **{k: v for k, v in RENDER.items() if k != "focal_plane"})
+                              **{k: v for k, v in RENDER.items() if k != "focal_surface"})
     assert merged.image.shape == (32, 40)
 
 

@@ -71,7 +71,7 @@ def test_stack_planes_interpolate_between_the_boundaries(simulation: aos.Simulat
     heights = [plane.point[2] for plane in stack.planes]
     np.testing.assert_allclose(heights, [-1.0, 0.0, 1.0, 2.0], atol=1e-9)
     assert len(stack) == 4 and stack.images.shape == (4, 48, 48) and stack.variances is None
-    single = aos.render_integral(simulation.light_field, focal_plane=stack.planes[2], **camera(simulation))
+    single = aos.render_integral(simulation.light_field, focal_surface=stack.planes[2], **camera(simulation))
     np.testing.assert_array_equal(stack.images[2], single.image)
 
 

@@ -73,7 +73,7 @@ def test_integral_of_the_default_scene_beats_a_single_view():
     truth = result.truth
     options = dict(cam_from_world=truth.cam_from_world, fov_deg=truth.camera.fov_x_deg(),
                    width=truth.camera.width, height=truth.camera.height,
-                   focal_plane=aos.Plane.at_height(truth.ground_height_at_center))
+                   focal_surface=aos.Plane.at_height(truth.ground_height_at_center))
     integral = aos.render_integral(result.light_field, **options).image
     single = aos.render_integral(result.light_field, aperture_radius=0.0, **options).image
     a = aos.compare_images(integral, truth.ground)

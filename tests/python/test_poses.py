@@ -147,9 +147,9 @@ def test_integral_from_recovered_poses_matches_the_true_one(flight) -> None:
     moved = aos.Rigid3d(rotation, np.asarray(pose.translation) - rotation @ shift)
     common = dict(fov_deg=40.0, width=96, height=96, aperture_radius=math.inf)
     true_image = aos.render_integral(simulation.light_field, cam_from_world=pose,
-                                     focal_plane=aos.Plane.at_height(0.0), **common).image
+                                     focal_surface=aos.Plane.at_height(0.0), **common).image
     recovered_image = aos.render_integral(recovered, cam_from_world=moved,
-                                          focal_plane=aos.Plane.at_height(shift[2]), **common).image
+                                          focal_surface=aos.Plane.at_height(shift[2]), **common).image
     mask = np.ones(true_image.shape, np.uint8)
     psnr = aos.compare_images(recovered_image, true_image, mask, data_range=255.0).psnr_db
     print(f"integral from recovered poses vs true poses: {psnr:.1f} dB")

@@ -607,7 +607,7 @@ def check_reprojection(camera, view_pose, plane, virtual) -> None:
     expected = analytic_reprojection(camera, view_pose, plane, virtual)
     # Lens views: every sample projected exactly (lens_tolerance_px 0; the local homographies of
     # the default are tested against this exact path in test_lens.py and surface_integral_test).
-    options = dict(virtual, focal_plane=plane, aperture_radius=math.inf, min_view_angle_deg=0.0,
+    options = dict(virtual, focal_surface=plane, aperture_radius=math.inf, min_view_angle_deg=0.0,
                    num_threads=2, lens_tolerance_px=0.0)
     width, height = camera.width, camera.height
     margin = 1e-6

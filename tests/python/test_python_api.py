@@ -23,7 +23,7 @@ import pytest
 import aos
 from conftest import build_lightfield, nadir_pose
 
-RENDER = dict(pose_view=4, focal_plane=aos.Plane.at_height(0.0), num_threads=1)
+RENDER = dict(pose_view=4, focal_surface=aos.Plane.at_height(0.0), num_threads=1)
 STACK = dict(pose_view=4, first_plane=aos.Plane.at_height(-1.0),
              last_plane=aos.Plane.at_height(1.0), slices=3, num_threads=1)
 
@@ -153,7 +153,7 @@ def test_focal_stack_slices_are_one_ndarray(channels: int) -> None:
     assert counts.shape == (3, 12, 16) and counts.dtype == np.uint32
     assert variances is not None and variances.shape == (3, 12, 16)
     for index, plane in enumerate(stack.planes):
-        single = aos.render_integral(light_field, pose_view=4, focal_plane=plane, variance=True,
+        single = aos.render_integral(light_field, pose_view=4, focal_surface=plane, variance=True,
                                      num_threads=1)
         np.testing.assert_array_equal(images[index], single.image)
         np.testing.assert_array_equal(counts[index], single.count)
@@ -241,7 +241,7 @@ def changed(value: Any, field: str = "") -> Any:
         return aos.look_at((1.0, 2.0, 30.0), (0.0, 0.0, 0.0))
     if value is None and field == "ground_plane":  # FocalStackOptions.ground_plane
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
-    if value is None:  # IntegralOptions.focal_surface
+    if isinstance(value, aos.FocalSurface):  # IntegralOptions/MapOptions.focal_surface
         return aos.FocalSurface(aos.Mesh([[0, 0, 1], [1, 0, 1], [0, 1, 1]], [[0, 1, 2]]))
     raise AssertionError(f"no changed value for {value!r}")
 
@@ -339,7 +339,7 @@ def test_light_field_pickles_with_its_pixels_and_fields(tmp_path: Path) -> None:
 
 def render_in_worker(light_field: aos.LightField, pose_view: int) -> np.ndarray:
     return aos.render_integral(light_field, pose_view=pose_view,
-                               focal_plane=aos.Plane.at_height(0.0), num_threads=1).image.copy()
+                               focal_surface=aos.Plane.at_height(0.0), num_threads=1).image.copy()
 
 
 def test_process_pool_renders_a_pickled_light_field() -> None:
@@ -389,19 +389,21 @@ def test_mypy_checks_the_keyword_options(tmp_path: Path) -> None:
         aos.render_integral(lf, pose_view="191")
         aos.all_in_focus(lf, method="best")
         aos.render_focal_stack(lf, focal_plane=2.0)
+        aos.plan_flight(shape="cirlce")
     """)
     assert wrong.returncode == 1, wrong.stdout + wrong.stderr
     assert ('snippet.py:3: error: Argument "pose_view" to "render_integral" has incompatible '
             'type "str"; expected "int"') in wrong.stdout
     assert 'snippet.py:4: error: Argument "method" to "all_in_focus"' in wrong.stdout
     assert 'snippet.py:5: error: Unexpected keyword argument "focal_plane"' in wrong.stdout
+    assert 'snippet.py:6: error: Argument "shape" to "plan_flight"' in wrong.stdout
     right = run_mypy(tmp_path, """\
         import aos
         lf = aos.LightField()
-        aos.render_integral(lf, pose_view=191, focal_plane=21.0, view_indices=[1, 2])
+        aos.render_integral(lf, pose_view=191, focal_surface=21.0, view_indices=[1, 2])
         aos.all_in_focus(lf, method="robust", num_threads=3, first_plane=0, agreement=0.1)
-        options = aos.IntegralOptions(focal_plane=2.0)
-        options.focal_plane = 3.0
+        options = aos.IntegralOptions(focal_surface=2.0)
+        options.focal_surface = 3.0
         images = aos.render_focal_stack(lf, first_plane=0.0, last_plane=aos.Plane(5.0)).images
         lens = aos.LensCamera(aos.LensModel.fisheye, 9, 9, 1.0, 1.0, 4.5, 4.5,
                               distortion=[0.1, 0.0, 0.0, 0.0])
@@ -441,22 +443,23 @@ def test_typed_keywords_are_the_routed_fields(router_name: str, keywords_name: s
 
 def test_a_number_is_a_horizontal_plane() -> None:
     assert aos.Plane(21.0) == aos.Plane.at_height(21.0) == aos.Plane(21)
-    assert aos.IntegralOptions(focal_plane=2.5).focal_plane == aos.Plane.at_height(2.5)
+    assert aos.IntegralOptions(focal_surface=2.5).focal_surface.plane == aos.Plane.at_height(2.5)
     options = aos.FocalStackOptions(first_plane=-1, last_plane=np.float64(3.0))
     assert (options.first_plane, options.last_plane) == (aos.Plane.at_height(-1.0),
                                                          aos.Plane.at_height(3.0))
-    options.render.focal_plane = 4.0
-    assert options.render.focal_plane == aos.Plane.at_height(4.0)
+    options.render.focal_surface = 4.0
+    assert options.render.focal_surface.plane == aos.Plane.at_height(4.0)
     assert aos.stack_planes(0.0, 2, 3, (0.0, 0.0, 10.0))[1] == aos.Plane.at_height(1.0)
     light_field = textured_lightfield()
-    by_number = aos.render_integral(light_field, pose_view=4, focal_plane=0.5)
-    by_plane = aos.render_integral(light_field, pose_view=4, focal_plane=aos.Plane.at_height(0.5))
+    by_number = aos.render_integral(light_field, pose_view=4, focal_surface=0.5)
+    by_plane = aos.render_integral(light_field, pose_view=4, focal_surface=aos.Plane.at_height(0.5))
     np.testing.assert_array_equal(by_number.image, by_plane.image)
     stack = aos.render_focal_stack(light_field, pose_view=4, first_plane=0, last_plane=2.0,
                                    slices=3)
     assert stack.planes == [aos.Plane.at_height(z) for z in (0.0, 1.0, 2.0)]
-    with pytest.raises(TypeError, match="focal_plane: expected Plane or a number"):
-        aos.render_integral(light_field, pose_view=4, focal_plane=True)
+    with pytest.raises(TypeError, match="focal_surface: expected a FocalSurface, Mesh, Heightfield, "
+                                        "Plane or a number"):
+        aos.render_integral(light_field, pose_view=4, focal_surface=True)
     with pytest.raises(TypeError):
         aos.Plane(True)
     with pytest.raises(TypeError, match="a height takes no normal"):
@@ -546,12 +549,15 @@ def test_bad_keywords_are_refused_with_the_valid_names() -> None:
     with pytest.raises(TypeError, match=r"all_in_focus\(\) got an unexpected keyword argument "
                                         r"'slice_count' \(options: .*first_plane.*slices"):
         aos.all_in_focus(light_field, slice_count=5)
-    # The slices replace render.focal_plane, which a stack ignores: refused, not dropped.
+    # The slices replace a plane focal_surface, which a stack ignores: refused, not dropped (also
+    # in its deprecated spelling).
     plane = aos.Plane.at_height(3.0)
-    with pytest.raises(TypeError, match="unexpected keyword argument 'focal_plane'"):
-        aos.render_focal_stack(light_field, pose_view=0, focal_plane=plane)
-    with pytest.raises(TypeError, match="unexpected keyword argument 'focal_plane'"):
-        aos.all_in_focus(light_field, pose_view=0, focal_plane=plane)
+    for function in (aos.render_focal_stack, aos.all_in_focus):
+        for value in (plane, 3.0, aos.FocalSurface(plane)):
+            with pytest.raises(TypeError, match="focal_surface: a stack's slices lie on planes"):
+                function(light_field, pose_view=0, focal_surface=value)
+        with pytest.raises(TypeError, match="focal_surface: a stack's slices lie on planes"):
+            function(light_field, pose_view=0, focal_plane=plane)
     with pytest.raises(TypeError, match=r"render_integral\(\): pose_view: expected int, got str"):
         aos.render_integral(light_field, pose_view="191")  # type: ignore[typeddict-item]
     with pytest.raises(ValueError, match=r"method: unknown merge method 'best' \(sobel, improved "

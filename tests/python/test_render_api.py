@@ -18,7 +18,7 @@ import aos
 from aos import _core
 
 INTEGRAL_FIELDS = (
-    "cam_from_world", "pose_view", "fov_deg", "width", "height", "focal_plane", "focal_surface",
+    "cam_from_world", "pose_view", "fov_deg", "width", "height", "focal_surface",
     "surface_offset", "variance",
     # The aperture block (render/aperture.h), shared with MapOptions.
     "aperture_radius", "view_indices", "min_view_angle_deg", "lens_tolerance_px", "num_threads",
@@ -35,9 +35,9 @@ def test_integral_options_defaults_match_the_header() -> None:
     assert options.fov_deg == 0.0
     assert (options.width, options.height) == (0, 0)
     assert options.aperture_radius == math.inf
-    np.testing.assert_array_equal(options.focal_plane.point, [0, 0, 0])
-    np.testing.assert_array_equal(options.focal_plane.normal, [0, 0, 1])
-    assert options.focal_surface is None and options.surface_offset == 0.0
+    np.testing.assert_array_equal(options.focal_surface.plane.point, [0, 0, 0])
+    np.testing.assert_array_equal(options.focal_surface.plane.normal, [0, 0, 1])
+    assert options.focal_surface.kind == "plane" and options.surface_offset == 0.0
     assert options.view_indices == []
     assert options.min_view_angle_deg == 1.0
     assert options.num_threads == -1
@@ -52,10 +52,10 @@ def test_integral_options_defaults_match_the_header() -> None:
 
 def test_integral_options_kwargs_and_copies() -> None:
     options = aos.IntegralOptions(width=64, height=32, view_indices=(2, 0),
-                                  focal_plane=aos.Plane.at_height(3.0), aperture_radius=0.0)
+                                  focal_surface=aos.Plane.at_height(3.0), aperture_radius=0.0)
     assert (options.width, options.height) == (64, 32)
     assert options.view_indices == [2, 0]
-    assert options.focal_plane.point[2] == 3.0
+    assert options.focal_surface.plane.point[2] == 3.0
     assert options.aperture_radius == 0.0
     with pytest.raises(TypeError, match="widht"):
         aos.IntegralOptions(widht=3)
@@ -65,8 +65,8 @@ def test_integral_options_kwargs_and_copies() -> None:
         aos.IntegralOptions(width="wide")
     duplicate = copy.copy(options)
     duplicate.width = 8
-    duplicate.focal_plane.point = (0, 0, 9)  # nested objects are copied too (C++ value semantics)
-    assert options.width == 64 and options.focal_plane.point[2] == 3.0
+    duplicate.focal_surface.plane.point = (0, 0, 9)  # nested objects are copied too (C++ value semantics)
+    assert options.width == 64 and options.focal_surface.plane.point[2] == 3.0
     assert copy.deepcopy(options).height == 32
 
 
@@ -113,7 +113,7 @@ def test_virtual_camera(make_lightfield) -> None:
 def _centre_options(**kwargs) -> aos.IntegralOptions:
     # The virtual camera takes the pose of the centre view of a 3x3 grid and matches its camera,
     # focused on the ground; every pixel then sees at least the centre view.
-    base = dict(pose_view=4, fov_deg=60.0, width=16, height=12, focal_plane=aos.Plane.at_height(0))
+    base = dict(pose_view=4, fov_deg=60.0, width=16, height=12, focal_surface=aos.Plane.at_height(0))
     base.update(kwargs)
     return aos.IntegralOptions(**base)
 

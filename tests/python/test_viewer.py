@@ -55,7 +55,7 @@ def textured_lightfield() -> aos.LightField:
 
 @pytest.fixture(scope="module")
 def viewer() -> Iterator[Viewer]:
-    handle = aos.view(textured_lightfield(), focal_height=0.0, pose_view=4, open_browser=False,
+    handle = aos.view(textured_lightfield(), focal_surface=0.0, pose_view=4, open_browser=False,
                       num_threads=1)
     yield handle
     handle.stop()
@@ -269,7 +269,7 @@ def test_pick_gives_the_world_point_on_the_focal_plane(viewer: Viewer, u: float,
     assert answer["depth"] == pytest.approx(depth, abs=1e-9)
     assert answer["world"][2] == pytest.approx(height, abs=1e-9)
     # The count is the render's: every view sees the centre of a low plane.
-    result = aos.render_integral(viewer.session.light_field, pose_view=4, focal_plane=height,
+    result = aos.render_integral(viewer.session.light_field, pose_view=4, focal_surface=height,
                                  num_threads=1)
     assert answer["count"] == int(result.count[int(v), int(u)])
     status, body = get(f"{base(viewer)}/api/pick?token={viewer.token}&u=40&v=1")
@@ -470,7 +470,7 @@ def test_load_20_clients_no_errors_memory_flat() -> None:
     12 KiB); a leak of one frame per update would grow the process by all of them, at least
     the 32 MiB the test demands were sent (about 170 full frames; a loaded 2-core machine
     sends a few hundred in 5 s), and the bound is a quarter of that."""
-    handle = aos.view(textured_lightfield(), focal_height=0.0, pose_view=4, width=512,
+    handle = aos.view(textured_lightfield(), focal_surface=0.0, pose_view=4, width=512,
                       height=384, open_browser=False, num_threads=1)
     try:
         asyncio.run(load(handle, 20, 1.5))  # warm up: allocator pools, caches
@@ -620,13 +620,16 @@ def test_map_mode_picks_through_the_geotransform(viewer: Viewer) -> None:
 
 
 def test_focus_on_a_surface_with_an_offset() -> None:
-    """A flat terrain at z = -1 (a plane given as the focal surface): 'surface' with offset 1.5
-    focuses at z = 0.5, and renders the same as the plane z = 0.5."""
-    handle = aos.view(textured_lightfield(), pose_view=4, focal_surface=aos.Plane(-1.0),
+    """A flat terrain at z = -1 (a mesh given as the focal surface): 'surface' with offset 1.5
+    focuses at z = 0.5, and renders the same as the plane z = 0.5. (A plane given as
+    focal_surface is where the page's plane starts: see test_a_plane_focal_surface_starts_the_page.)"""
+    flat = aos.Mesh([[-100, -100, -1], [100, -100, -1], [100, 100, -1], [-100, 100, -1]],
+                    [[0, 1, 2], [0, 2, 3]])
+    handle = aos.view(textured_lightfield(), pose_view=4, focal_surface=flat,
                       surface_offset=1.5, open_browser=False, num_threads=1)
     try:
         assert json.loads(get(f"{base(handle)}/api/info?token={handle.token}")[1])[
-            "surface"] == "plane"
+            "surface"] == "mesh"
         answer = pick(handle, u=20.5, v=7.5, surface="true", surface_offset=1.5)
         world, depth = expected_world(20.5, 7.5, 0.5)
         np.testing.assert_allclose(answer["world"], world, atol=1e-6)
@@ -638,6 +641,30 @@ def test_focus_on_a_surface_with_an_offset() -> None:
         assert np.abs(on_surface.astype(int) - on_plane.astype(int)).max() <= 1
     finally:
         handle.stop()
+
+
+def test_a_plane_focal_surface_starts_the_page() -> None:
+    """aos.view takes focal_surface as IntegralOptions does: a number or a horizontal Plane is
+    the plane the page starts on (no surface to switch to); focal_height= is its deprecated
+    spelling; a tilted plane is refused (the page tilts its plane itself)."""
+    for given in (0.75, aos.Plane.at_height(0.75), aos.FocalSurface(0.75)):
+        handle = aos.view(textured_lightfield(), pose_view=4, focal_surface=given,
+                          open_browser=False, num_threads=1)
+        try:
+            assert handle.session.defaults.focal_height == 0.75
+            assert handle.session.focal_surface is None
+        finally:
+            handle.stop()
+    with pytest.warns(DeprecationWarning, match="focal_height= is deprecated"):
+        handle = aos.view(textured_lightfield(), pose_view=4, focal_height=0.5,
+                          open_browser=False, num_threads=1)
+    try:
+        assert handle.session.defaults.focal_height == 0.5
+    finally:
+        handle.stop()
+    with pytest.raises(ValueError, match="the viewer starts on a horizontal plane"):
+        aos.view(textured_lightfield(), focal_surface=aos.Plane((0, 0, 0), (0.1, 0, 1)),
+                 open_browser=False)
 
 
 def test_display_range_gain_and_colour_maps(viewer: Viewer) -> None:
@@ -738,7 +765,9 @@ def test_all_in_focus_on_the_surface_is_terrain_following() -> None:
     """With focus on the surface, first/last are offsets: a flat terrain at z = -1 and offsets
     0.5 .. 2.5 give the all-in-focus image of the planes z = -0.5 .. 1.5."""
     light_field = textured_lightfield()
-    handle = aos.view(light_field, pose_view=4, focal_surface=aos.Plane(-1.0), open_browser=False,
+    flat = aos.Mesh([[-100, -100, -1], [100, -100, -1], [100, 100, -1], [-100, 100, -1]],
+                    [[0, 1, 2], [0, 2, 3]])
+    handle = aos.view(light_field, pose_view=4, focal_surface=flat, open_browser=False,
                       num_threads=1)
     try:
         async def run(message: dict[str, Any]) -> Any:
@@ -784,7 +813,7 @@ def test_cli_view_takes_the_mask(lightfield_file: Path) -> None:
         assert f"--mask {mask}" in command["cli"] and "mask=" in command["python"]
         header, shown = decode_frame(get(report["url"].replace("/?token=", "/api/render?token="))[1])
         masked = aos.load_lightfield(str(lightfield_file), mask=str(mask)).light_field
-        options = dict(pose_view=4, focal_plane=0.0)
+        options = dict(pose_view=4, focal_surface=0.0)
         expected = aos.render_integral(masked, **options)
         plain = aos.render_integral(aos.load_lightfield(str(lightfield_file)).light_field, **options)
         assert np.abs(expected.image - plain.image).max() > 5  # the mask matters here
@@ -1047,8 +1076,12 @@ def test_open_pages_are_bounded() -> None:
     from aos.viewer import server
 
     assert server.MAX_PAGES == aos.viewer.MAX_PAGES >= 20  # the load test's 20 pages fit
-    with pytest.raises(ValueError, match="max_pages: must be an integer >= 1"):
+    # The range is the C++ table's (aos.ViewerOptions), as the CLI's --max-pages.
+    with pytest.raises(ValueError, match=r"max_pages: must be in \[1, 4096\], got 0"):
         aos.view(textured_lightfield(), max_pages=0, open_browser=False)
+    with pytest.raises(ValueError, match=r"port: must be in \[0, 65535\], got 70000"):
+        aos.view(textured_lightfield(), port=70000, open_browser=False)
+    assert aos.viewer.MAX_PAGES == aos.ViewerOptions().max_pages == 32
     handle = aos.view(textured_lightfield(), pose_view=4, max_pages=2, open_browser=False,
                       num_threads=1)
     try:
@@ -1091,6 +1124,7 @@ def test_cli_max_pages_bounds_the_open_pages(lightfield_file: Path) -> None:
     bad = subprocess.run([EXE, "view", str(lightfield_file), "--no-browser", "--max-pages", "0"],
                          capture_output=True, text=True, timeout=60, env=cli_env())
     assert bad.returncode == 2 and "--max-pages" in bad.stderr, bad.stderr
+    assert "max_pages: must be in [1, 4096], got 0 [option --max-pages]" in bad.stderr
     process = subprocess.Popen([EXE, "view", str(lightfield_file), "--no-browser", "--json",
                                 "--pose-view", "4", "--max-pages", "1"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

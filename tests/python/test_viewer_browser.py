@@ -63,7 +63,7 @@ def viewer(simulation: aos.SimulationResult) -> Iterator[Any]:
     truth = simulation.truth
     handle = aos.view(simulation.light_field, cam_from_world=truth.cam_from_world,
                       fov_deg=truth.camera.fov_x_deg(), width=truth.camera.width,
-                      height=truth.camera.height, focal_height=CANOPY_HEIGHT,
+                      height=truth.camera.height, focal_surface=CANOPY_HEIGHT,
                       open_browser=False)
     yield handle
     handle.stop()
@@ -165,7 +165,7 @@ def test_dragging_focus_from_canopy_to_ground_reveals_the_target(
     expected = aos.render_integral(simulation.light_field,
                                    cam_from_world=simulation.truth.cam_from_world,
                                    fov_deg=simulation.truth.camera.fov_x_deg(),
-                                   width=128, height=128, focal_plane=ground_height).image
+                                   width=128, height=128, focal_surface=ground_height).image
     np.testing.assert_array_equal(ground, np.clip(expected + 0.5, 0, 255).astype(np.uint8))
     stats = driver.execute_script("return window.aosStats;")
     assert not stats["errors"], stats["errors"]

@@ -47,7 +47,7 @@ int main(int argc, char** argv) {
   options.pose_view = 191;
   options.fov_deg = load.fov_deg;
   options.width = options.height = 512;
-  options.focal_plane = aos::Plane::AtHeight(std::atof(argv[2]));
+  options.focal_surface = aos::FocalSurface::FromPlane(aos::Plane::AtHeight(std::atof(argv[2])));
   options.num_threads = std::atoi(argv[3]);
   const int repeats = std::max(1, std::atoi(argv[4]));
   aos::IntegralResult result = aos::RenderIntegral(loaded.light_field, options);  // warm-up

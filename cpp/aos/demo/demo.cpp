@@ -299,7 +299,7 @@ DemoResult RunDemo(const Scene& scene, const DemoOptions& options, ProgressSink*
   }
   for (const Job& job : jobs) {
     const Timer render_timer;
-    render.focal_plane = Plane::AtHeight(job.height);
+    render.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(job.height));
     render.aperture_radius = job.radius;
     IntegralResult integral = RenderIntegral(light_field, render, progress);
     DemoRender out;

@@ -9,8 +9,9 @@
 // (JSON has none; NaN is refused both ways); strings; enums by name (EnumNames); lists and
 // fixed-size arrays of these; a Plane {"point", "normal"} and a pose {"rotation",
 // "translation"} as json_codec.h writes them; an optional value as null or the value; a nested
-// Options struct as its own object. A shared pointer (a focal surface: a mesh, a DEM) is not
-// carried: it is left out when written and refused when read (hand over its file instead).
+// Options struct as its own object. Other types are written and read by a specialisation of
+// JsonForm<T> (a FocalSurface: render/focal_surface_json.h, which a caller that writes options
+// holding one includes; without it the code does not compile).
 //
 // Internal header: it includes nlohmann/json (through json_codec.h).
 #include <array>
@@ -27,6 +28,12 @@
 #include "aos/util/option_fields.h"
 
 namespace aos {
+// The JSON form of a field type the codec does not know (specialise: static
+// nlohmann::ordered_json ToJson(const T&) and static T FromJson(const nlohmann::json&,
+// const JsonPath&)).
+template <class T>
+struct JsonForm;
+
 namespace options_json {
 
 template <class T>
@@ -41,10 +48,6 @@ template <class T>
 struct IsOptional : std::false_type {};
 template <class T>
 struct IsOptional<std::optional<T>> : std::true_type {};
-template <class T>
-struct IsShared : std::false_type {};
-template <class T>
-struct IsShared<std::shared_ptr<T>> : std::true_type {};
 
 template <class T>
 nlohmann::ordered_json ValueToJson(const T& value);
@@ -58,12 +61,10 @@ nlohmann::ordered_json OptionsToJson(const Options& options) {
   nlohmann::ordered_json object = nlohmann::ordered_json::object();
   Options::Fields([&](const auto& field) {
     using T = typename std::decay_t<decltype(field)>::Type;
-    if constexpr (!options_json::IsShared<T>::value) {
-      try {
-        object[field.name] = options_json::ValueToJson(options.*(field.member));
-      } catch (const std::invalid_argument& error) {
-        ThrowInvalid(std::string(field.name) + ": " + error.what());
-      }
+    try {
+      object[field.name] = options_json::ValueToJson(options.*(field.member));
+    } catch (const std::invalid_argument& error) {
+      ThrowInvalid(std::string(field.name) + ": " + error.what());
     }
   });
   return object;
@@ -84,12 +85,7 @@ void OptionsFromJson(const nlohmann::json& json, const JsonPath& at, Options* op
       if (item.key() != field.name) return;
       found = true;
       using T = typename std::decay_t<decltype(field)>::Type;
-      if constexpr (options_json::IsShared<T>::value) {
-        (at / item.key())
-            .Fail("not carried in JSON (a surface is handed over as its file, not its value)");
-      } else {
-        options->*(field.member) = options_json::ValueFromJson<T>(item.value(), at / item.key());
-      }
+      options->*(field.member) = options_json::ValueFromJson<T>(item.value(), at / item.key());
     });
     if (!found) (at / item.key()).Fail("unknown key (known: " + known + ")");
   }
@@ -129,7 +125,7 @@ nlohmann::ordered_json ValueToJson(const T& value) {
   } else if constexpr (kHasFieldTable<T>) {
     return OptionsToJson(value);
   } else {
-    static_assert(sizeof(T) == 0, "no JSON form for this field type");
+    return JsonForm<T>::ToJson(value);
   }
 }
 
@@ -217,7 +213,7 @@ T ValueFromJson(const nlohmann::json& json, const JsonPath& at) {
   } else if constexpr (kHasFieldTable<T>) {
     return OptionsFromJson<T>(json, at);
   } else {
-    static_assert(sizeof(T) == 0, "no JSON form for this field type");
+    return JsonForm<T>::FromJson(json, at);
   }
 }
 

@@ -927,22 +927,7 @@ void RefuseOverBattery(const FlightPlanOptions& options, double length_m, int64_
 }  // namespace
 
 void FlightPlanOptions::Check() const {
-  const char* shapes[] = {"circle", "sector", "rectangle", "polygon", "line"};
-  if (std::find(std::begin(shapes), std::end(shapes), shape) == std::end(shapes)) {
-    ThrowInvalid("shape: '" + shape + "' is not one of circle, sector, rectangle, polygon, line");
-  }
-  if (coordinates != "world" && coordinates != "latlon") {
-    ThrowInvalid("coordinates: '" + coordinates + "' is not world or latlon");
-  }
-  if (pattern != "scan" && pattern != "grid" && pattern != "circles") {
-    ThrowInvalid("pattern: '" + pattern + "' is not one of scan, grid, circles");
-  }
-  if (altitude_mode != "terrain" && altitude_mode != "constant") {
-    ThrowInvalid("altitude_mode: '" + altitude_mode + "' is not terrain or constant");
-  }
-  if (terrain_up != "+z" && terrain_up != "-z") {
-    ThrowInvalid("terrain_up: '" + terrain_up + "' is not +z or -z");
-  }
+  CheckFieldChoices(*this);  // shape, pattern, ...: the table's choices (flight_plan.h)
   CheckFinite(center[0], "center");
   CheckFinite(center[1], "center");
   for (size_t i = 0; i < vertices.size(); ++i) {
@@ -991,6 +976,7 @@ void FlightPlanOptions::Check() const {
   if (!(fov_deg > 0.0 && fov_deg < 180.0)) {
     ThrowInvalid("fov_deg: must be in (0, 180) degrees (got " + Num(fov_deg) + ")");
   }
+  CheckFieldRanges(*this);  // what the conditions above leave (NaN in a field they skip)
 }
 
 FlightPlanResult PlanFlight(const FlightPlanOptions& options, ProgressSink* progress) {

@@ -149,9 +149,9 @@ struct FlightPlanOptions {
   template <class Visit>
   static void Fields(Visit&& field) {
     using O = FlightPlanOptions;
-    field(OptionField("shape", &O::shape, "", Range::Any(),
+    field(OptionField("shape", &O::shape, "", Range::OneOf("circle|sector|rectangle|polygon|line"),
                       "circle, sector, rectangle, polygon or line."));
-    field(OptionField("coordinates", &O::coordinates, "", Range::Any(),
+    field(OptionField("coordinates", &O::coordinates, "", Range::OneOf("world|latlon"),
                       "world (x, y metres) or latlon (latitude, longitude degrees, WGS84)."));
     field(OptionField("crs", &O::crs, "", Range::Any(),
                       "CRS of world coordinates (projected, metres); '' = local frame."));
@@ -169,7 +169,7 @@ struct FlightPlanOptions {
                       "Rectangle: size along the heading, metres."));
     field(OptionField("vertices", &O::vertices, "", Range::Any(),
                       "Polygon corners or line points, (x, y) or (lat, lon)."));
-    field(OptionField("pattern", &O::pattern, "", Range::Any(),
+    field(OptionField("pattern", &O::pattern, "", Range::OneOf("scan|grid|circles"),
                       "scan, grid or circles."));
     field(OptionField("spacing_m", &O::spacing_m, "m", Range::Any(),
                       "Distance between lines or rings at the centre, metres."));
@@ -184,13 +184,13 @@ struct FlightPlanOptions {
                       "Scan lines with fewer shots inside the shape are not flown (>= 1)."));
     field(OptionField("altitude_m", &O::altitude_m, "m", Range::Any(),
                       "Height above the ground, metres (> 0)."));
-    field(OptionField("altitude_mode", &O::altitude_mode, "", Range::Any(),
+    field(OptionField("altitude_mode", &O::altitude_mode, "", Range::OneOf("terrain|constant"),
                       "terrain or constant."));
     field(OptionField("dem", &O::dem, "", Range::Any(),
                       "Terrain mesh (OBJ, PLY) or raster path; '' = flat ground."));
     field(OptionField("ground_height_m", &O::ground_height_m, "m", Range::Any(),
                       "Flat ground's z without a DEM, metres."));
-    field(OptionField("terrain_up", &O::terrain_up, "", Range::Any(),
+    field(OptionField("terrain_up", &O::terrain_up, "", Range::OneOf("+z|-z"),
                       "+z or -z (z down, JKU's F0)."));
     field(OptionField("min_clearance_m", &O::min_clearance_m, "m", Range::Any(),
                       "Least height above the terrain of a constant-altitude shot, metres."));

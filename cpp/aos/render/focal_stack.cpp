@@ -48,21 +48,27 @@ std::string SliceName(const char* prefix, int index) {
 
 void FocalStackOptions::Check(int view_count) const {
   render.Check(view_count);
-  if (ground_plane && render.focal_surface) {
-    ThrowInvalid("ground_plane: give either render.focal_surface (a terrain-following stack) or "
-                 "ground_plane (planes parallel to the ground), not both");
+  const bool follows = FollowsSurface(render);
+  if (ground_plane && follows) {
+    ThrowInvalid("ground_plane: give either render.focal_surface (a mesh, DEM or depth map: a "
+                 "terrain-following stack) or ground_plane (planes parallel to the ground), not "
+                 "both");
   }
   if (ground_plane) UnitNormal(*ground_plane, "ground_plane");
   CheckFieldRanges(*this);  // the table's ranges (focal_stack.h)
-  if (render.focal_surface) {
-    if (render.surface_offset != 0.0) {
-      ThrowInvalid("render.surface_offset: must be 0 in a stack (its slices lie at first_offset.."
-                   "last_offset along up; got " + FormatNumber(render.surface_offset) + ")");
-    }
-  } else if (!ground_plane) {
+  if (render.surface_offset != 0.0) {
+    ThrowInvalid("render.surface_offset: must be 0 in a stack (its slices lie at first_offset.."
+                 "last_offset along up, or on the planes; got " +
+                 FormatNumber(render.surface_offset) + ")");
+  }
+  if (!follows && !ground_plane) {
     UnitNormal(first_plane, "first_plane");
     UnitNormal(last_plane, "last_plane");
   }
+}
+
+bool FollowsSurface(const IntegralOptions& render) {
+  return render.focal_surface.kind() != FocalSurfaceKind::kPlane;
 }
 
 Plane InterpolatePlane(const Plane& first, const Plane& last, double s, const Vec3d& center) {
@@ -179,8 +185,8 @@ Image SliceFocus::DepthOfSlices(const PinholeCamera& camera, const Rigid3d& cam_
 SliceFocus ResolveSliceFocus(const LightField& light_field, const FocalStackOptions& options) {
   options.Check(static_cast<int>(light_field.views.size()));
   SliceFocus focus;
-  if (options.render.focal_surface) {
-    focus.surface = options.render.focal_surface;
+  if (FollowsSurface(options.render)) {
+    focus.surface = std::make_shared<const FocalSurface>(options.render.focal_surface);
     focus.placement = ResolveSurfacePlacement(*focus.surface, light_field,
                                               options.render.view_indices, 0.0);
     focus.offsets = StackOffsets(options.first_offset, options.last_offset, options.slices);
@@ -290,7 +296,7 @@ void RenderFocalStackSlices(const LightField& light_field, const FocalStackOptio
     if (focus.surface) {
       render.surface_offset = focus.offsets[static_cast<size_t>(i)];
     } else {
-      render.focal_plane = focus.planes[static_cast<size_t>(i)];
+      render.focal_surface = FocalSurface::FromPlane(focus.planes[static_cast<size_t>(i)]);
     }
     IntegralResult slice;
     try {

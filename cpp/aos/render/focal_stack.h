@@ -9,20 +9,22 @@
 //   n = normalize((1 - s) n0 + s n1), h = (1 - s) h0 + s h1, s = i / (N - 1) (s = 1/2 when
 //   N = 1), and is stored as the plane through C + h n with normal n. Parallel boundary planes
 //   give equally spaced parallel slices; identical ones give N identical slices.
-// - Terrain-following stacks. With render.focal_surface set (a mesh, DEM, depth map or plane:
-//   focal_surface.h), slice i lies on that surface moved along up by
+// - Terrain-following stacks. With a render.focal_surface that is not a plane (a mesh, DEM or
+//   depth map: focal_surface.h; FollowsSurface), slice i lies on that surface moved along up by
 //   o_i = first_offset + (last_offset - first_offset) i / (N - 1) (the midway offset when
 //   N = 1; the last is last_offset exactly): the same surface N times,
 //   N offsets, each slice rendered as RenderIntegral renders a surface (rays that miss it give
-//   count 0). first_plane/last_plane are then ignored; render.surface_offset must be 0 (the
-//   offsets replace it). The surface is placed once for the whole stack
+//   count 0). first_plane/last_plane are then ignored. render.surface_offset must be 0 in every
+//   stack (the offsets or planes replace it); a plane as render.focal_surface is ignored (the
+//   slices' planes replace it; ground_plane gives planes parallel to a given one). The surface is placed once for the whole stack
 //   (ResolveSurfacePlacement: the views' up, the light field's origin).
-// - Stacks around the ground. With ground_plane set (and no focal_surface), the boundary planes
+// - Stacks around the ground. With ground_plane set (and a plane focal_surface), the boundary planes
 //   are ground_plane moved first_offset and last_offset along its normal turned towards the
 //   views (the mean centre of the selected views); first_plane/last_plane are then ignored. The
 //   ground plane comes from an estimate (sfm/ground.h: EstimateGround's robust plane through
 //   COLMAP's points; `aos-render stack --ground points.ply`).
-// - Each slice is RenderIntegral's result with FocalStackOptions::render (focal_plane replaced),
+// - Each slice is RenderIntegral's result with FocalStackOptions::render (its focal_surface or
+//   surface_offset replaced by the slice's),
 //   so every rule of integral.h holds per slice (count 0 where no view sees a pixel).
 // - A stack on disk is a folder: stack.json (camera, pose, planes, file names) and per slice
 //   slice_NNNN.tif (float32 image), count_NNNN.tif (uint32) and, when rendered with variance,
@@ -50,8 +52,9 @@
 namespace aos {
 
 struct FocalStackOptions {
-  // Virtual camera, aperture, views, threads and the variance flag of every slice;
-  // render.focal_plane is ignored (the slices replace it).
+  // Virtual camera, aperture, views, threads and the variance flag of every slice, and the
+  // surface of a terrain-following stack (render.focal_surface not a plane; a plane is ignored:
+  // the slices' planes replace it).
   IntegralOptions render;
   // Boundary planes (local frame): slice 0 lies on the first, slice N-1 on the last (for
   // N = 1, the one slice lies midway).
@@ -60,7 +63,7 @@ struct FocalStackOptions {
   // A ground plane (local frame) for a plane stack around it (see the contract): the slices
   // then lie parallel to it at first_offset .. last_offset. Unset = first_plane/last_plane.
   std::optional<Plane> ground_plane;
-  // Terrain-following stacks (render.focal_surface set) and stacks around ground_plane: the
+  // Terrain-following stacks (render.focal_surface not a plane) and stacks around ground_plane: the
   // offsets along up of slice 0 and of the last slice, metres. The defaults span 2 m below the surface (a DEM that is a little
   // high) to 30 m above it (the top of a tall forest canopy); 100 slices are then 0.32 m apart.
   double first_offset = -2.0;
@@ -76,7 +79,8 @@ struct FocalStackOptions {
     using O = FocalStackOptions;
     field(OptionField("render", &O::render, "", Range::Any(),
                       "Virtual camera, aperture, views, threads and variance flag of every "
-                      "slice (IntegralOptions); render.focal_plane is ignored."));
+                      "slice (IntegralOptions); a render.focal_surface that is not a plane "
+                      "makes a terrain-following stack (a plane is ignored)."));
     field(OptionField("first_plane", &O::first_plane, "", Range::Any(),
                       "Boundary plane of slice 0 (local frame)."));
     field(OptionField("last_plane", &O::last_plane, "", Range::Any(),
@@ -86,7 +90,7 @@ struct FocalStackOptions {
                       "parallel to it at first_offset .. last_offset along its normal turned "
                       "towards the views; None = first_plane/last_plane."));
     field(OptionField("first_offset", &O::first_offset, "m", Range::Finite(),
-                      "Terrain-following stacks (render.focal_surface set) and stacks around "
+                      "Terrain-following stacks (render.focal_surface not a plane) and stacks around "
                       "ground_plane: offset of slice 0 along up, metres."));
     field(OptionField("last_offset", &O::last_offset, "m", Range::Finite(),
                       "Terrain-following stacks and stacks around ground_plane: offset of "
@@ -95,6 +99,10 @@ struct FocalStackOptions {
                       "Number of slices, 1 .. 100000."));
   }
 };
+
+// Whether a stack with these render options follows its surface (render.focal_surface is a mesh,
+// a DEM or a depth map) rather than lying on planes.
+bool FollowsSurface(const IntegralOptions& render);
 
 // Plane of parameter s in [0, 1] between `first` and `last`, interpolated about `center` as
 // described above. Throws std::invalid_argument if a normal is zero or not finite.

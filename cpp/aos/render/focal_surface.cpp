@@ -48,6 +48,7 @@ struct FocalSurface::Impl {
   PinholeCamera depth_camera;
   Rigid3d depth_cam_from_world;
   std::string source;
+  std::string file;     // the path Read() read it from (empty otherwise)
   Vec3d centroid{0.0};  // of the mesh's vertices (mesh frame), double
   double min_z = 0.0, max_z = 0.0;
   double min_x = 0.0, max_x = 0.0, min_y = 0.0, max_y = 0.0;  // of the vertices (mesh frame)
@@ -334,11 +335,11 @@ FocalSurface FocalSurface::FromPlane(const Plane& plane) {
   const double length = glm::length(plane.normal);
   if (!std::isfinite(length) || !(length > 0.0) || !std::isfinite(plane.point.x) ||
       !std::isfinite(plane.point.y) || !std::isfinite(plane.point.z)) {
-    ThrowInvalid("focal_plane: point and normal must be finite and the normal non-zero");
+    ThrowInvalid("focal_surface: plane: point and normal must be finite and the normal non-zero");
   }
   for (int k = 0; k < 3; ++k) {
     const std::string problem = SurfaceCoordinateProblem(plane.point[k]);
-    if (!problem.empty()) ThrowInvalid(std::string("focal_plane: point ") + "xyz"[k] + " " + problem);
+    if (!problem.empty()) ThrowInvalid(std::string("focal_surface: plane: point ") + "xyz"[k] + " " + problem);
   }
   auto impl = NewImpl(FocalSurfaceKind::kPlane);
   impl->plane = plane;
@@ -429,8 +430,11 @@ FocalSurface FocalSurface::FromDepthMap(const Image& depth, const PinholeCamera&
 
 FocalSurface FocalSurface::Read(const std::string& path) {
   CheckRegularFile(path, "focal surface");
-  if (IsMeshFile(path)) return FromMesh(ReadMesh(path), path);
-  return FromHeightfield(ReadHeightfield(path), path);
+  FocalSurface surface = IsMeshFile(path) ? FromMesh(ReadMesh(path), path)
+                                          : FromHeightfield(ReadHeightfield(path), path);
+  // The Impl was made just now and is not shared yet.
+  std::const_pointer_cast<Impl>(surface.impl_)->file = path;
+  return surface;
 }
 
 FocalSurfaceKind FocalSurface::kind() const { return impl_->kind; }
@@ -443,6 +447,7 @@ const Image& FocalSurface::depth() const { return impl_->kind == FocalSurfaceKin
 const PinholeCamera& FocalSurface::depth_camera() const { return impl_->depth_camera; }
 const Rigid3d& FocalSurface::depth_cam_from_world() const { return impl_->depth_cam_from_world; }
 const std::string& FocalSurface::source() const { return impl_->source; }
+const std::string& FocalSurface::file() const { return impl_->file; }
 
 std::string FocalSurface::Describe() const {
   const Impl& s = *impl_;

@@ -115,6 +115,9 @@ class FocalSurface {
   const PinholeCamera& depth_camera() const;
   const Rigid3d& depth_cam_from_world() const;
   const std::string& source() const;  // the file it was read from, if any
+  // The file Read() read it from, when it is that file's surface as it is (not transformed by
+  // InCrs); else empty. What the JSON form carries (focal_surface_json.h).
+  const std::string& file() const;
   // One line: "mesh terrain.obj (5837 vertices, 11424 triangles, 0 degenerate dropped)".
   std::string Describe() const;
 

@@ -298,8 +298,10 @@ int NearestSpan(const Image& image, int32_t view, const RowLine& line,
 
 class IntegralRenderer {
  public:
-  IntegralRenderer(const LightField& light_field, const IntegralOptions& options)
-      : light_field_(light_field), options_(options) {}
+  // `plane`: the focal plane (options.focal_surface's, moved by its offset).
+  IntegralRenderer(const LightField& light_field, const IntegralOptions& options,
+                   const Plane& plane)
+      : light_field_(light_field), options_(options), plane_(plane) {}
 
   IntegralResult Run(ProgressSink* progress);
 
@@ -311,6 +313,7 @@ class IntegralRenderer {
 
   const LightField& light_field_;
   const IntegralOptions& options_;
+  const Plane plane_;
   Rigid3d cam_from_world_;
   PinholeCamera camera_;
   Geometry geometry_;
@@ -327,16 +330,16 @@ void IntegralRenderer::SetUpGeometry() {
   camera_ = VirtualCamera(light_field_, options_);
   Geometry& g = geometry_;
   g.center = cam_from_world_.Center();
-  g.normal = glm::normalize(options_.focal_plane.normal);
+  g.normal = glm::normalize(plane_.normal);
   g.lens_axis = Row(cam_from_world_.rotation, 2);
   g.world_from_pixel = glm::transpose(cam_from_world_.rotation) * glm::inverse(camera_.K());
-  const Vec3d to_plane = options_.focal_plane.point - g.center;
+  const Vec3d to_plane = plane_.point - g.center;
   g.h = glm::dot(g.normal, to_plane);
   g.sign_h = g.h < 0.0 ? -1.0 : 1.0;
   const double scale = std::max(1.0, glm::length(to_plane));
   // Written as !(a > b) so that NaN fails the checks too.
   if (!(std::abs(g.h) > 1e-9 * scale)) {
-    ThrowInvalid("focal_plane: contains the virtual camera centre, so the camera's rays run along "
+    ThrowInvalid("focal_surface: the plane contains the virtual camera centre, so the camera's rays run along "
                  "it (parallel) or meet it only at the centre");
   }
   // A pixel's ray meets the plane in front iff sign(h) (n . D) > 0, a linear function of the
@@ -347,7 +350,7 @@ void IntegralRenderer::SetUpGeometry() {
     any_in_front = any_in_front || g.sign_h * glm::dot(g.normal, direction) > 0.0;
   }
   if (!any_in_front) {
-    ThrowInvalid("focal_plane: lies behind the virtual camera: no pixel's ray meets it in front "
+    ThrowInvalid("focal_surface: the plane lies behind the virtual camera: no pixel's ray meets it in front "
                  "(check its height or normal and the camera pose)");
   }
 }
@@ -746,17 +749,6 @@ Rigid3d VirtualCamFromWorld(const LightField& light_field, const IntegralOptions
 
 void IntegralOptions::Check(int view_count) const {
   CheckFieldRanges(*this);  // the table's ranges (integral.h)
-  for (int i = 0; i < 3; ++i) {
-    if (!std::isfinite(focal_plane.point[i]) || !std::isfinite(focal_plane.normal[i])) {
-      ThrowInvalid("focal_plane: point and normal must be finite");
-    }
-  }
-  if (!(glm::length(focal_plane.normal) > 0.0)) {
-    ThrowInvalid("focal_plane: normal must not be zero");
-  }
-  if (surface_offset != 0.0 && !focal_surface) {
-    ThrowInvalid("surface_offset: needs a focal_surface (for a plane, move focal_plane instead)");
-  }
   if (view_count <= 0) ThrowInvalid("view selection is empty: the light field has no views");
   if (pose_view < -1 || pose_view >= view_count) {
     ThrowInvalid("pose_view: no view " + std::to_string(pose_view) + " (the light field has " +
@@ -779,6 +771,12 @@ void IntegralOptions::Check(int view_count) const {
   }
 }
 
+Vec3d GrazingNormal(const LightField& light_field, const IntegralOptions& options) {
+  const FocalSurface& surface = options.focal_surface;
+  if (surface.kind() == FocalSurfaceKind::kPlane) return glm::normalize(surface.plane().normal);
+  return ResolveSurfacePlacement(surface, light_field, options.view_indices, 0.0).up;
+}
+
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress) {
   // One route for every surface: a plane over pinhole views takes the homography kernel; any
@@ -792,33 +790,28 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
                                     static_cast<int>(i)) != options.view_indices.end();
     lens_views = lens_views || (selected && light_field.views[i].camera.model != LensModel::kPinhole);
   }
-  const FocalSurface surface = options.focal_surface ? *options.focal_surface
-                                                     : FocalSurface::FromPlane(options.focal_plane);
+  const FocalSurface& surface = options.focal_surface;
   const bool is_plane = surface.kind() == FocalSurfaceKind::kPlane;
+  // The placement (up from the views) is resolved only where it is needed: an offset, or a
+  // surface other than a plane.
+  const auto placement = [&] {
+    return ResolveSurfacePlacement(surface, light_field, options.view_indices,
+                                   options.surface_offset);
+  };
   if (is_plane && !lens_views) {
-    if (!options.focal_surface) {
-      IntegralRenderer renderer(light_field, options);
-      return renderer.Run(progress);
+    Plane plane = surface.plane();
+    if (options.surface_offset != 0.0) {
+      const SurfacePlacement placed = placement();
+      plane.point += placed.offset * placed.up;
     }
-    // A plane given as a surface: move it by the offset and render it as focal_plane.
-    const SurfacePlacement placement = ResolveSurfacePlacement(
-        surface, light_field, options.view_indices, options.surface_offset);
-    IntegralOptions plane_options = options;
-    plane_options.focal_surface.reset();
-    plane_options.surface_offset = 0.0;
-    plane_options.focal_plane = surface.plane();
-    plane_options.focal_plane.point += placement.offset * placement.up;
-    IntegralRenderer renderer(light_field, plane_options);
+    IntegralRenderer renderer(light_field, options, plane);
     return renderer.Run(progress);
   }
   const PinholeCamera camera = VirtualCamera(light_field, options);
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
-  const SurfacePlacement placement = ResolveSurfacePlacement(
-      surface, light_field, options.view_indices, options.surface_offset);
-  const Image depth = surface.DepthFor(camera, cam_from_world, placement, options.num_threads);
-  IntegralOptions depth_options = options;
+  const SurfacePlacement placed = placement();
+  const Image depth = surface.DepthFor(camera, cam_from_world, placed, options.num_threads);
   if (is_plane) {
-    depth_options.focal_plane = surface.plane();
     bool any_in_front = false;
     for (int y = 0; y < camera.height && !any_in_front; ++y) {
       for (int x = 0; x < camera.width && !any_in_front; ++x) {
@@ -826,14 +819,11 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
       }
     }
     if (!any_in_front) {
-      ThrowInvalid("focal_plane: lies behind the virtual camera or contains its centre: no "
-                   "pixel's ray meets it in front");
+      ThrowInvalid("focal_surface: the plane lies behind the virtual camera or contains its "
+                   "centre: no pixel's ray meets it in front");
     }
-  } else {
-    // Grazing angles are measured against the horizontal (the up axis is the normal).
-    depth_options.focal_plane = Plane{Vec3d(0.0), placement.up};
   }
-  return RenderIntegralOnDepth(light_field, depth_options, depth, SurfaceIntegralOptions{},
+  return RenderIntegralOnDepth(light_field, options, depth, SurfaceIntegralOptions{},
                                progress)
       .integral;
 }

@@ -42,7 +42,9 @@
 // - With a focal_surface (focal_surface.h) that is not a plane, or with views that have a lens
 //   model, the render takes surface_integral.h's path on the surface's depth map
 //   (FocalSurface::DepthFor): pixels whose rays miss the surface get count 0 and count in
-//   uncovered_pixels. A plane surface over pinhole views takes the homography path.
+//   uncovered_pixels. A plane surface over pinhole views takes the homography path. The
+//   grazing test (b) measures against the plane, or for other surfaces against the horizontal
+//   (GrazingNormal). surface_offset moves any surface, a plane too, along up.
 //
 // Throws std::invalid_argument (naming the option) for bad options, aos::Cancelled if the
 // progress sink asks to stop.
@@ -55,13 +57,12 @@
 #include "aos/image/image.h"
 #include "aos/lightfield/lightfield.h"
 #include "aos/render/aperture.h"
+#include "aos/render/focal_surface.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
 #include "aos/util/parallel.h"
 
 namespace aos {
-
-class FocalSurface;  // render/focal_surface.h
 
 // The virtual camera when neither it nor a pose view gives one.
 constexpr double kDefaultFovDeg = 50.0;
@@ -81,15 +82,13 @@ struct IntegralOptions : ApertureOptions {
   // pose_view.
   int width = 0;
   int height = 0;
-  // The focal plane (local frame): any point on it and its normal. Used when focal_surface is
-  // null; with a focal_surface only its normal is used, for the grazing-angle test (set to the
-  // up axis, +-z, by RenderIntegral for mesh, height field and depth-map surfaces).
-  Plane focal_plane = Plane::AtHeight(0.0);
-  // A focal surface other than focal_plane (a mesh, a DEM height field, a depth map or a plane:
-  // focal_surface.h); null = focal_plane. Shared, never modified.
-  std::shared_ptr<const FocalSurface> focal_surface;
+  // Where the rays are focused (focal_surface.h): a plane (local frame; the exact homography
+  // kernel), a mesh, a DEM height field or a depth map. The default is the horizontal plane z = 0.
+  // One value for every render (stack, merge, map, viewer); `--focal-height H` is the CLI
+  // spelling of FocalSurface::FromPlane(Plane::AtHeight(H)). Shares its data, never modified.
+  FocalSurface focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.0));
   // Offset of focal_surface along the up axis (focal_surface.h: +-z, towards the views), metres:
-  // 1.0 focuses one metre above the terrain. Must be 0 without a focal_surface (move the plane).
+  // 1.0 focuses one metre above the terrain (or above the plane).
   double surface_offset = 0.0;
   // Also return the per-pixel variance of the view samples (the kernels then also sum their
   // squares: AVX2 for 1-channel views, else scalar).
@@ -115,16 +114,12 @@ struct IntegralOptions : ApertureOptions {
                       "Output width, pixels (1 .. 65536); 0 = the pose view's, else 512."));
     field(OptionField("height", &O::height, "px", Range::Closed(1, 65536).Or(0),
                       "Output height, pixels (1 .. 65536); 0 = the pose view's, else 512."));
-    field(OptionField("focal_plane", &O::focal_plane, "", Range::Any(),
-                      "The focal plane (local frame): any point on it and its normal. With a "
-                      "focal_surface only its normal is used (grazing test)."));
     field(OptionField("focal_surface", &O::focal_surface, "", Range::Any(),
-                      "A focal surface instead of focal_plane: FocalSurface, Mesh, "
-                      "Heightfield (or a Plane); None = focal_plane. Reading returns a "
-                      "FocalSurface sharing the BVH."));
+                      "Where the rays are focused: a plane (a number is the horizontal plane "
+                      "z = that height, local frame), a Mesh, a Heightfield (DEM) or a "
+                      "FocalSurface; default the plane z = 0."));
     field(OptionField("surface_offset", &O::surface_offset, "m", Range::Finite(),
-                      "Offset of focal_surface along up (towards the views), metres; must be "
-                      "0 without a focal_surface."));
+                      "Offset of focal_surface along up (towards the views), metres."));
     field(OptionField("variance", &O::variance, "", Range::Any(),
                       "Also return the per-pixel variance of the view samples (the samples "
                       "then go through the scalar kernel, which also sums their squares: a "
@@ -132,6 +127,10 @@ struct IntegralOptions : ApertureOptions {
     ApertureOptions::Fields(field);  // aperture.h
   }
 };
+
+// The normal the grazing-angle test measures against: a plane surface's unit normal, else the
+// up axis of the surface's placement for these views (ResolveSurfacePlacement: +-z).
+Vec3d GrazingNormal(const LightField& light_field, const IntegralOptions& options);
 
 struct IntegralResult {
   Image image;          // float32, width x height x channels of the views

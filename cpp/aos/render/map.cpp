@@ -89,10 +89,6 @@ class TileProgress : public ProgressSink {
 
 void MapOptions::Check(int view_count) const {
   CheckFieldRanges(*this);  // the table's ranges (map.h)
-  if (surface_offset != 0.0 && !focal_surface) {
-    ThrowInvalid("surface_offset: needs a focal_surface (got " + Num(surface_offset) +
-                 " m without one; move a plane with focal_height)");
-  }
   if (pixel_size == 0.0) {
     if (width == 0) ThrowInvalid("pixel_size: must be > 0 (or give the width in pixels)");
     if (width < 2) ThrowInvalid("width: must be >= 2 pixels (got " + std::to_string(width) + ")");
@@ -113,9 +109,6 @@ void MapOptions::Check(int view_count) const {
                    " " + Num(extent[1]) + " " + Num(extent[2]) + " " + Num(extent[3]) + ")");
     }
   }
-  if (const std::string problem = SurfaceCoordinateProblem(focal_height); !problem.empty()) {
-    ThrowInvalid("focal_height: " + problem);
-  }
   if (view_count <= 0) ThrowInvalid("light field: has no views");
   for (int index : view_indices) {
     if (index < 0 || index >= view_count) {
@@ -135,32 +128,38 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
   const std::vector<int> selection = Selection(light_field, options.view_indices);
   MapGrid grid;
   grid.origin = light_field.origin;
-  grid.focal_height = options.focal_height;
 
-  // Up: the z direction from the focal plane (or surface) towards the views' mean centre.
-  double plane_z = options.focal_height;
-  if (options.focal_surface) {
-    grid.surface = options.focal_surface;
-    grid.placement = ResolveSurfacePlacement(*options.focal_surface, light_field,
-                                             options.view_indices, options.surface_offset);
+  // Up: the z direction from the focal plane (or surface) towards the views' mean centre. A
+  // horizontal plane takes the plane path (grid.surface null); a tilted plane, a mesh or a DEM
+  // the surface path (FocalSurface::HeightsAt).
+  const FocalSurface& surface = options.focal_surface;
+  const bool horizontal_plane = surface.kind() == FocalSurfaceKind::kPlane &&
+                                surface.plane().normal.x == 0.0 &&
+                                surface.plane().normal.y == 0.0;
+  double plane_z = 0.0;
+  if (!horizontal_plane) {
+    grid.surface = std::make_shared<const FocalSurface>(surface);
+    grid.placement = ResolveSurfacePlacement(surface, light_field, options.view_indices,
+                                             options.surface_offset);
     grid.up_z = grid.placement.up.z;
     // The default extent's plane and the points' reference height: through the surface's
     // reference point, offset.
-    plane_z = options.focal_surface->ReferencePoint(light_field.origin).z +
-              grid.placement.offset * grid.up_z;
-    grid.focal_height = plane_z;
+    plane_z = surface.ReferencePoint(light_field.origin).z + grid.placement.offset * grid.up_z;
   } else {
+    const double height = surface.plane().point.z;
     double mean_z = 0.0;
     for (int index : selection) {
       mean_z += light_field.views[static_cast<size_t>(index)].cam_from_world.Center().z;
     }
     mean_z /= static_cast<double>(selection.size());
-    if (mean_z == options.focal_height) {
-      ThrowInvalid("focal_height: the views' mean centre lies on the focal plane (z = " +
+    if (mean_z == height) {
+      ThrowInvalid("focal_surface: the views' mean centre lies on the focal plane (z = " +
                    Num(mean_z) + "), so up is undefined");
     }
-    grid.up_z = mean_z > options.focal_height ? 1.0 : -1.0;
+    grid.up_z = mean_z > height ? 1.0 : -1.0;
+    plane_z = height + options.surface_offset * grid.up_z;
   }
+  grid.focal_height = plane_z;
 
   // Extent in world x/y.
   double lo[2], hi[2];
@@ -181,7 +180,7 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
       // A surface far beside the views (a UTM DEM under a light field in a local frame) may lie
       // above them, flipping up, so that no footprint meets its plane: say that, not "give the
       // extent". Its x/y box against the views' centres tells.
-      if (options.focal_surface) {
+      if (grid.surface) {
         std::vector<double> centres{std::numeric_limits<double>::infinity(),
                                     std::numeric_limits<double>::infinity(),
                                     -std::numeric_limits<double>::infinity(),
@@ -192,10 +191,10 @@ MapGrid ResolveMapGrid(const LightField& light_field, const MapOptions& options)
           centres = {std::min(centres[0], c.x), std::min(centres[1], c.y),
                      std::max(centres[2], c.x), std::max(centres[3], c.y)};
         }
-        const std::array<double, 4> box = options.focal_surface->ExtentInWorld(light_field.origin);
+        const std::array<double, 4> box = grid.surface->ExtentInWorld(light_field.origin);
         if (box[2] < centres[0] || box[0] > centres[2] || box[3] < centres[1] ||
             box[1] > centres[3]) {
-          CheckSurfaceCovers(*options.focal_surface, light_field,
+          CheckSurfaceCovers(*grid.surface, light_field,
                              "the map (under the views' centres)", 1, 1, centres);
         }
       }

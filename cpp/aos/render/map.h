@@ -15,8 +15,9 @@
 //   in the frame's own x/y axes: for a z-down frame (x, y, z right-handed) the map therefore shows
 //   the ground as seen from below (mirrored against a photograph from above), which is what the
 //   frame's coordinates say; GIS tools place every pixel at its x/y correctly.
-// - Focal surface: the horizontal plane z = focal_height (local frame), or focal_surface (a mesh
-//   or DEM, focal_surface.h) moved by surface_offset along up: a pixel's focal point is where the
+// - Focal surface: focal_surface (focal_surface.h; default the plane z = 0, local frame), moved
+//   by surface_offset along up. A horizontal plane z = h is the plane path (every focal point at
+//   z = h + offset * up); a tilted plane, a mesh or a DEM: a pixel's focal point is where the
 //   vertical line through its centre, coming down from the up side, first meets the surface
 //   (FocalSurface::HeightsAt); pixels whose line misses it get count 0. Every pixel's focal point
 //   comes from one function, MapFocalPoints. With a surface, up is the surface's
@@ -45,7 +46,7 @@
 //   views' units), count is uint32 (samples per pixel); pixels no view sees get count 0 and
 //   image 0 in memory, NaN (the nodata value) in the GeoTIFF.
 //
-// Throws std::invalid_argument naming the option (pixel_size, width, extent, focal_height, ...)
+// Throws std::invalid_argument naming the option (pixel_size, width, extent, focal_surface, ...)
 // or the file for bad input, aos::Cancelled if the progress sink asks to stop.
 #include <array>
 #include <cstdint>
@@ -75,11 +76,9 @@ struct MapOptions : ApertureOptions {
   int width = 0;
   // World XMIN, YMIN, XMAX, YMAX (origin + local, metres); empty = the views' footprints.
   std::vector<double> extent;
-  // Height of the horizontal focal plane z = focal_height, local frame, metres (without a
-  // focal_surface).
-  double focal_height = 0.0;
-  // A terrain (mesh or DEM) to focus on instead of the plane; null = the plane.
-  std::shared_ptr<const FocalSurface> focal_surface;
+  // Where the map focuses (focal_surface.h), as IntegralOptions::focal_surface: a plane (a
+  // horizontal one is the exact plane path), a mesh or a DEM; default the plane z = 0.
+  FocalSurface focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.0));
   // Metres along up by which focal_surface is moved (1.0 = one metre above the terrain).
   double surface_offset = 0.0;
   // Pixels on a side of a render tile, 16 .. 8192.
@@ -101,15 +100,12 @@ struct MapOptions : ApertureOptions {
     field(OptionField("extent", &O::extent, "", Range::Any(),
                       "World [XMIN, YMIN, XMAX, YMAX] (origin + local, metres); [] = the "
                       "selected views' footprints on the focal plane."));
-    field(OptionField("focal_height", &O::focal_height, "m", Range::Finite(),
-                      "Height of the horizontal focal plane z = focal_height, local frame, "
-                      "metres (without a focal_surface)."));
     field(OptionField("focal_surface", &O::focal_surface, "", Range::Any(),
-                      "A terrain to focus on instead of the plane: FocalSurface, Mesh or "
-                      "Heightfield; None = the plane z = focal_height."));
+                      "Where the map focuses: a plane (a number is the horizontal plane z = "
+                      "that height, local frame), a Mesh, a Heightfield (DEM) or a "
+                      "FocalSurface; default the plane z = 0."));
     field(OptionField("surface_offset", &O::surface_offset, "m", Range::Finite(),
-                      "Offset of focal_surface along up (towards the views), metres; must be "
-                      "0 without a focal_surface."));
+                      "Offset of focal_surface along up (towards the views), metres."));
     field(OptionField("tile_size", &O::tile_size, "px", Range::Closed(16, 8192),
                       "Pixels on a side of a render tile, 16 .. 8192."));
     field(OptionField("max_pixels", &O::max_pixels, "px", Range::Closed(4.0, 1e14),
@@ -127,7 +123,8 @@ struct MapGrid {
   int width = 0;
   int height = 0;
   Vec3d origin{0.0};        // the light field's origin (world of local zero)
-  double focal_height = 0.0;  // local z of the focal plane
+  double focal_height = 0.0;  // local z of the focal plane (offset applied), or of the surface's
+                              // reference point
   double up_z = 1.0;        // +1: up is +z; -1: up is -z (z-down frames)
   // The focal surface and its placement, when the map focuses on one (else the plane).
   std::shared_ptr<const FocalSurface> surface;

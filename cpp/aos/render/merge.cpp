@@ -409,8 +409,8 @@ void Reintegrate(const LightField& light_field, const IntegralOptions& render,
   SurfaceIntegralOptions surface = options.robust;
   surface.robust = options.method == MergeMethod::kRobust;
   IntegralOptions on_depth = render;
-  on_depth.focal_plane = focus.GrazingPlane();
-  on_depth.focal_surface.reset();
+  // The depth gives the focal points; the surface gives only the grazing normal.
+  on_depth.focal_surface = FocalSurface::FromPlane(focus.GrazingPlane());
   on_depth.surface_offset = 0.0;
   on_depth.variance = false;
   on_depth.num_threads = options.num_threads;
@@ -721,7 +721,7 @@ CoarseChoice ChooseSlices(const LightField& light_field, const AllInFocusOptions
     if (focus.surface) {
       coarse.surface_offset = focus.offsets[static_cast<size_t>(i)];
     } else {
-      coarse.focal_plane = focus.planes[static_cast<size_t>(i)];
+      coarse.focal_surface = FocalSurface::FromPlane(focus.planes[static_cast<size_t>(i)]);
     }
     IntegralResult slice;
     try {

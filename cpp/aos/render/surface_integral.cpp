@@ -2018,7 +2018,7 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   at_points.aperture = PointIntegralOptions::Aperture::kLensPlane;
   at_points.lens_center = points.reference;
   at_points.lens_axis = Row(cam_from_world.rotation, 2);
-  at_points.surface_normal = options.focal_plane.normal;
+  at_points.surface_normal = GrazingNormal(light_field, options);
   at_points.variance = options.variance;
   SurfaceIntegralResult result =
       RenderIntegralAtPoints(light_field, points, at_points, surface, progress);

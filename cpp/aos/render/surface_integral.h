@@ -6,9 +6,9 @@
 //
 // Contract
 // - The virtual camera, aperture, view selection, grazing angle and threads come from
-//   IntegralOptions exactly as in integral.h; focal_plane is used only for its normal, against
-//   which the grazing test measures each view's ray (the surface is taken as locally parallel to
-//   it). The renderer's admission rules are integral.h's: in front of the view, inside its image,
+//   IntegralOptions exactly as in integral.h; GrazingNormal(light_field, options) (integral.h: a
+//   plane's normal, else the up axis) is the normal against which the grazing test measures each
+//   view's ray (the surface is taken as locally parallel to it). The renderer's admission rules are integral.h's: in front of the view, inside its image,
 //   not grazing, through the aperture (0 = the single nearest view, ties to the lower index).
 // - depth(x, y) is the z of the surface point in the virtual camera frame, metres (the focal
 //   point is C + depth * R^T K^-1 (x + 0.5, y + 0.5, 1)); pixels whose depth is not finite or
@@ -146,7 +146,8 @@ SurfaceIntegralResult RenderIntegralAtPoints(const LightField& light_field,
 
 // The depth path: the virtual camera of `options` (integral.h) and its depth map give the focal
 // points (relative to the camera centre), the lens plane is the camera's, and
-// options.focal_plane's normal is the grazing test's.
+// GrazingNormal(light_field, options) is the grazing test's (the depth map, not
+// options.focal_surface, gives the focal points).
 SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
                                             const IntegralOptions& options, const Image& depth,
                                             const SurfaceIntegralOptions& surface = {},

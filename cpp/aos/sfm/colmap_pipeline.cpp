@@ -367,9 +367,7 @@ void CheckSceneScale(const PosesOptions& options, bool warn_unchecked, PosesResu
 
 void PosesOptions::Check() const {
   if (colmap.empty()) ThrowInvalid("colmap: must name the COLMAP executable");
-  if (matcher != "sequential" && matcher != "spatial" && matcher != "exhaustive") {
-    ThrowInvalid("matcher: \"" + matcher + "\" is not one of sequential, spatial, exhaustive");
-  }
+  CheckFieldChoices(*this);  // matcher, preset, camera_model: the table's choices
   if (!(max_focal_deviation > 0.0) || !std::isfinite(max_focal_deviation)) {
     ThrowInvalid("max_focal_deviation: must be > 0 (a fraction of the prior's focal length)");
   }
@@ -397,17 +395,6 @@ void PosesOptions::Check() const {
   }
   if (sequential_overlap < 1) ThrowInvalid("sequential_overlap: must be >= 1");
   if (spatial_neighbors < 1) ThrowInvalid("spatial_neighbors: must be >= 1");
-  if (preset != "default" && preset != "quick") {
-    ThrowInvalid("preset: \"" + preset + "\" is not one of default, quick");
-  }
-  static const std::set<std::string> kModels = {
-      "SIMPLE_PINHOLE", "PINHOLE",        "SIMPLE_RADIAL",         "RADIAL",
-      "OPENCV",         "OPENCV_FISHEYE", "SIMPLE_RADIAL_FISHEYE", "RADIAL_FISHEYE"};
-  if (kModels.count(camera_model) == 0) {
-    ThrowInvalid("camera_model: \"" + camera_model + "\" is not a supported COLMAP model (" +
-                 "SIMPLE_PINHOLE, PINHOLE, SIMPLE_RADIAL, RADIAL, OPENCV, OPENCV_FISHEYE, "
-                 "SIMPLE_RADIAL_FISHEYE, RADIAL_FISHEYE)");
-  }
   const bool fisheye = camera_model.find("FISHEYE") != std::string::npos;
   if (!(fov_deg == 0.0 || (fov_deg > 0.0 && fov_deg < (fisheye ? 360.0 : 180.0)))) {
     ThrowInvalid("fov_deg: must be 0 (unknown) or in (0, " + std::string(fisheye ? "360" : "180") +

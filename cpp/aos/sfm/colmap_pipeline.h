@@ -117,7 +117,7 @@ struct PosesOptions {
     field(OptionField("workspace", &O::workspace, "", Range::Any(),
                       "Keep COLMAP's workspace in this new folder; '' = a temporary one, "
                       "removed."));
-    field(OptionField("matcher", &O::matcher, "", Range::Any(),
+    field(OptionField("matcher", &O::matcher, "", Range::OneOf("sequential|spatial|exhaustive"),
                       "'sequential', 'spatial' or 'exhaustive'."));
     field(OptionField("sequential_overlap", &O::sequential_overlap, "", Range::Any(),
                       "Sequential matching: successors each frame is matched with."));
@@ -126,7 +126,9 @@ struct PosesOptions {
                       "with."));
     field(OptionField("camera_file", &O::camera_file, "", Range::Any(),
                       "Known camera (aos-camera file); '' = self-calibration of camera_model."));
-    field(OptionField("camera_model", &O::camera_model, "", Range::Any(),
+    field(OptionField("camera_model", &O::camera_model, "",
+                      Range::OneOf("SIMPLE_PINHOLE|PINHOLE|SIMPLE_RADIAL|RADIAL|OPENCV|"
+                                   "OPENCV_FISHEYE|SIMPLE_RADIAL_FISHEYE|RADIAL_FISHEYE"),
                       "COLMAP model to self-calibrate."));
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
                       "Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's "
@@ -164,7 +166,7 @@ struct PosesOptions {
     field(OptionField("allow_implausible", &O::allow_implausible, "", Range::Any(),
                       "Keep implausible self-calibrated intrinsics or scene scale with a "
                       "warning instead of refusing."));
-    field(OptionField("preset", &O::preset, "", Range::Any(),
+    field(OptionField("preset", &O::preset, "", Range::OneOf("default|quick"),
                       "'default' or 'quick': quick sets max_image_size 480, max_num_features "
                       "512, sift_first_octave 0, sequential_overlap 3, spatial_neighbors 8 "
                       "and, with positions, matcher 'spatial', each where left at its default "

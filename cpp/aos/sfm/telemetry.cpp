@@ -338,6 +338,7 @@ TelemetrySample SampleFromTags(const std::string& path, const std::string& altit
 }  // namespace
 
 void TelemetryOptions::Check() const {
+  CheckFieldChoices(*this);  // altitude: the table's choices (telemetry.h)
   if (camera_file.empty() && !(fov_deg > 0.0 && fov_deg < 180.0)) {
     ThrowInvalid("fov_deg: a camera is needed: give camera_file, or fov_deg in (0, 180) (got " +
                  FormatNumber(fov_deg) + ")");
@@ -345,9 +346,6 @@ void TelemetryOptions::Check() const {
   if (!camera_file.empty() && fov_deg != 0.0) {
     ThrowInvalid("fov_deg: give camera_file or fov_deg, not both (the camera file has its "
                  "intrinsics)");
-  }
-  if (altitude != "auto" && altitude != "gps" && altitude != "relative") {
-    ThrowInvalid("altitude: \"" + altitude + "\" is not one of auto, gps, relative");
   }
   if (altitude != "auto" && !telemetry_file.empty()) {
     ThrowInvalid("altitude: picks an EXIF/XMP altitude; a telemetry file has its alt column");

@@ -117,7 +117,7 @@ struct TelemetryOptions {
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
                       "Horizontal field of view of a pinhole camera, degrees, (0, 180); "
                       "without camera_file."));
-    field(OptionField("altitude", &O::altitude, "", Range::Any(),
+    field(OptionField("altitude", &O::altitude, "", Range::OneOf("auto|gps|relative"),
                       "EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), "
                       "'gps', 'relative'."));
     field(OptionField("altitude_window", &O::altitude_window, "", Range::Any(),

@@ -23,6 +23,9 @@
 //   derived tables include (render/aperture.h: ApertureOptions).
 // - `range` is checked by CheckFieldRanges for number fields (int, double; bool excluded): a
 //   value outside it (NaN included) throws std::invalid_argument "name: must be <range>, got v".
+//   A text field's range may list its choices (Range::OneOf("scan|grid|circles")): another
+//   value throws "name: must be one of scan, grid or circles, got 'x'"; Python types it as a
+//   Literal and the CLI refuses another value while parsing.
 //   Conditions between fields stay in the struct's Check().
 // - Enum fields name their values through EnumNames<E> (specialised beside the enum): the JSON,
 //   the CLI and Python use those names.
@@ -32,6 +35,7 @@
 #include <string>
 #include <type_traits>
 #include <utility>
+#include <vector>
 
 #include "aos/util/error.h"
 
@@ -46,6 +50,8 @@ struct Range {
   bool hi_open = false;
   bool has_special = false;
   double special = 0.0;
+  // For a text field: the values it takes, separated by '|' ("circle|sector|line"); null = any.
+  const char* choices = nullptr;
 
   // Any value (for a double: any finite value or +-infinity; NaN is refused).
   static constexpr Range Any() { return Range{}; }
@@ -67,6 +73,12 @@ struct Range {
   static constexpr Range FiniteAtLeast(double lo, bool open = false) {
     return Range{lo, std::numeric_limits<double>::max(), open, false};
   }
+  // A text field taking one of `choices`, separated by '|' ("scan|grid|circles").
+  static constexpr Range OneOf(const char* choices) {
+    Range range;
+    range.choices = choices;
+    return range;
+  }
   // This range and also `value`.
   constexpr Range Or(double value) const {
     Range range = *this;
@@ -82,8 +94,14 @@ struct Range {
     const bool below = hi_open ? value < hi : value <= hi;
     return above && below;
   }
-  bool IsAny() const { return !has_special && std::isinf(lo) && lo < 0 && std::isinf(hi); }
-  // "in [0, 90)", "> 0", ">= 16 or 0", "a number" (for Any).
+  bool IsAny() const {
+    return choices == nullptr && !has_special && std::isinf(lo) && lo < 0 && std::isinf(hi);
+  }
+  // Whether a text field's value is one of the choices (true without choices).
+  bool ContainsText(const std::string& value) const;
+  // The choices, in order (empty without choices).
+  std::vector<std::string> Choices() const;
+  // "in [0, 90)", "> 0", ">= 16 or 0", "a number" (for Any), "one of scan, grid or circles".
   std::string Text() const;
 };
 
@@ -170,6 +188,22 @@ size_t FieldCount() {
 }
 
 // Checks every number field of `options` against its range (see the contract).
+// The text fields' choices only (part of CheckFieldRanges), for a Check() that tests them before
+// conditions that read them.
+template <class Options>
+void CheckFieldChoices(const Options& options) {
+  Options::Fields([&options](const auto& field) {
+    using T = typename std::decay_t<decltype(field)>::Type;
+    if constexpr (std::is_same_v<T, std::string>) {
+      const std::string& value = options.*(field.member);
+      if (!field.range.ContainsText(value)) {
+        ThrowInvalid(std::string(field.name) + ": must be " + field.range.Text() + ", got '" +
+                     value + "'");
+      }
+    }
+  });
+}
+
 template <class Options>
 void CheckFieldRanges(const Options& options) {
   Options::Fields([&options](const auto& field) {
@@ -182,6 +216,7 @@ void CheckFieldRanges(const Options& options) {
       }
     }
   });
+  CheckFieldChoices(options);
 }
 
 }  // namespace aos

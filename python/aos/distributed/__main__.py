@@ -3,8 +3,9 @@
 flags' values come as one JSON object (the flags are declared once, in C++): light_field;
 load, options and distributed: aos::LoadOptions, aos::MapOptions and aos::DistributedOptions in
 their JSON form (cpp/aos/lightfield/options_json.h; options and distributed are read here by
-from_json, load is a dict whose keys are load_lightfield's: no field is listed twice); focal_surface (path, "" = none) and views ("" = all), resolved once the light field is
-loaded; output, force, quiet, json. Draws a progress bar on stderr (plain lines when
+from_json, load is a dict whose keys are load_lightfield's: no field is listed twice; a focal
+surface travels in options as its plane or its file); views ("" = all), resolved once the light
+field is loaded; output, force, quiet, json. Draws a progress bar on stderr (plain lines when
 stderr is not a terminal), prints
 the report (a JSON object with --json), exits 0; errors: one line on stderr, exit 1 (bad input)
 or 2 (bad spec)."""
@@ -99,11 +100,8 @@ def main(argv: list[str]) -> int:
         light_field = loaded.light_field
         if spec.get("views"):
             options.view_indices = parse_view_list(spec["views"], len(light_field))
-        if spec.get("focal_surface"):
-            surface = aos.FocalSurface.read(spec["focal_surface"])
-            if light_field.crs:
-                surface = surface.in_crs(light_field.crs)
-            options.focal_surface = surface
+        if light_field.crs:  # a surface read from its file (its JSON form), in the map's CRS
+            options.focal_surface = options.focal_surface.in_crs(light_field.crs)
         if not light_field.crs:
             sys.stderr.write(f"warning: {spec['light_field']}: the light field has no CRS, so the "
                              "map has none: GIS tools will place it in the frame's own "

@@ -32,7 +32,13 @@ import webbrowser
 from pathlib import Path
 from typing import Any, Optional
 
+import aos as _aos
+
 from .session import MAX_PAGES, BadParameter, Params, Session
+
+# The server's defaults: aos::ViewerOptions (cpp/aos/viewer/viewer_options.h), one definition for
+# aos.view, the Viewer class and aos-render view.
+_SERVED = _aos.ViewerOptions()
 
 __all__ = ["Viewer", "view", "BadParameter", "Params", "Session", "MISSING_AIOHTTP"]
 
@@ -216,26 +222,27 @@ class Viewer:
                 f"({'running' if self.running else 'stopped'}; {self.session.view_count} views)")
 
 
-def view(light_field: Any, *, focal_height: float = 0.0,
-         focal_surface: Any = None, surface_offset: float = 0.0,
+def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float = 0.0,
          aperture_radius: float = float("inf"), pose_view: Optional[int] = None,
          cam_from_world: Any = None, fov_deg: float = 0.0, width: int = 0, height: int = 0,
          view_indices: Optional[list[int]] = None, min_view_angle_deg: float = 1.0,
-         num_threads: int = -1, host: str = "127.0.0.1", port: int = 0,
-         open_browser: Optional[bool] = None, render_workers: int = 1,
-         max_pages: int = MAX_PAGES, source: str = "") -> Viewer:
+         num_threads: int = -1, host: str = _SERVED.host, port: int = _SERVED.port,
+         open_browser: Optional[bool] = None, render_workers: int = _SERVED.render_workers,
+         max_pages: int = MAX_PAGES, source: str = "",
+         focal_height: Optional[float] = None) -> Viewer:
     """Starts the viewer on ``light_field`` (an aos.LightField, or a path that
     aos.load_lightfield reads) and returns its handle at once (``.url``, ``.stop()``).
 
     The keywords are the starting values of the page's controls, with the names and meaning of
-    :class:`aos.IntegralOptions`' fields: ``focal_height`` (the plane z = H), ``focal_surface``
-    (a path, Mesh, Heightfield or FocalSurface; then the page can focus ``surface_offset`` metres
-    above it), ``aperture_radius``, ``pose_view`` (default: the middle view), ``cam_from_world``
+    :class:`aos.IntegralOptions`' fields: ``focal_surface`` (a number H: the plane z = H, or a
+    horizontal Plane; or a path, Mesh, Heightfield or FocalSurface: the page then starts on it,
+    ``surface_offset`` metres above it, and can switch to the plane z = 0), ``aperture_radius``, ``pose_view`` (default: the middle view), ``cam_from_world``
     (a fixed pose instead of the views'), ``fov_deg``, ``width``, ``height``, ``view_indices``,
     ``min_view_angle_deg``, ``num_threads``. ``host`` other than a loopback address makes it
     reachable from other machines (a warning says so). ``open_browser``: None = where a desktop
     session exists (the browser gets a local file that redirects to the URL, so the token is
     never on its command line). ``max_pages``: pages open at once (the next is refused).
+    ``focal_height`` is the deprecated spelling of a number as ``focal_surface`` (it warns).
     """
     import aos
 
@@ -246,6 +253,11 @@ def view(light_field: Any, *, focal_height: float = 0.0,
     if not isinstance(light_field, aos.LightField):
         raise TypeError(f"view(): light_field must be an aos.LightField or a path, not "
                         f"{type(light_field).__name__}")
+    start_height = 0.0  # of the page's plane
+    if focal_height is not None:
+        warnings.warn("view(): focal_height= is deprecated; use focal_surface=", DeprecationWarning,
+                      stacklevel=2)
+        start_height = float(focal_height)
     surface = None
     surface_path = ""
     if focal_surface is not None:
@@ -254,8 +266,15 @@ def view(light_field: Any, *, focal_height: float = 0.0,
             surface = aos.FocalSurface.read(surface_path)
         else:
             surface = aos.FocalSurface(focal_surface)
-        surface = surface.in_crs(light_field.crs) if light_field.crs else surface
-    defaults: dict[str, Any] = {"focal_height": focal_height, "surface_offset": surface_offset,
+        if surface.kind == "plane":  # the starting plane, not a surface to switch to
+            plane = surface.plane
+            if plane.normal[0] != 0.0 or plane.normal[1] != 0.0:
+                raise ValueError("view(): focal_surface: the viewer starts on a horizontal "
+                                 "plane (a number or Plane.at_height(H)); it tilts it on the page")
+            start_height, surface = float(plane.point[2]), None
+        else:
+            surface = surface.in_crs(light_field.crs) if light_field.crs else surface
+    defaults: dict[str, Any] = {"focal_height": start_height, "surface_offset": surface_offset,
                                 "aperture_radius": aperture_radius, "fov_deg": fov_deg,
                                 "width": width, "height": height,
                                 "surface": surface is not None}
@@ -267,6 +286,10 @@ def view(light_field: Any, *, focal_height: float = 0.0,
                       focal_surface=surface, defaults=defaults,
                       cam_from_world=cam_from_world, view_indices=view_indices,
                       min_view_angle_deg=min_view_angle_deg, num_threads=num_threads)
+    # The server's settings, checked by their C++ table (aos.ViewerOptions: ranges named).
+    served = aos.ViewerOptions(host=host, port=port, render_workers=render_workers,
+                               max_pages=max_pages, open_browser=open_browser)
+    served.check()
     warning = remote_warning(host)
     if warning:
         warnings.warn(warning, stacklevel=2)

@@ -7,7 +7,8 @@ Spec keys: light_field (path); load and options: aos::LoadOptions and aos::Integ
 their JSON form (cpp/aos/lightfield/options_json.h; read here by IntegralOptions.from_json, so no
 field is listed twice); pose_view (index or name, "" = none), cam_from_world (12 numbers or
 null), views ("" = all), focal_surface (path, "" = none): what is resolved once the light field is
-loaded; host, port, max_pages, open_browser (true/false/null), quiet, json: the viewer's own.
+loaded; viewer: aos::ViewerOptions (host, port, max_pages, render_workers, open_browser) in its
+JSON form; quiet, json.
 """
 
 from __future__ import annotations
@@ -40,7 +41,7 @@ def main(argv: list[str]) -> int:
         return _fail(MISSING_AIOHTTP)
     import aos
 
-    from . import MAX_PAGES, Session, Viewer, can_open_browser, remote_warning
+    from . import Session, Viewer, can_open_browser, remote_warning
     from .session import BadParameter, parse_view_list
 
     quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
@@ -63,7 +64,7 @@ def main(argv: list[str]) -> int:
         defaults: dict[str, Any] = {
             "surface": surface is not None,
             "surface_offset": options.surface_offset,
-            "focal_height": float(options.focal_plane.point[2]),
+            "focal_height": float(options.focal_surface.plane.point[2]),
             "fov_deg": options.fov_deg,
             "width": options.width, "height": options.height,
             "aperture_radius": "inf" if math.isinf(options.aperture_radius)
@@ -93,12 +94,13 @@ def main(argv: list[str]) -> int:
                           min_view_angle_deg=options.min_view_angle_deg,
                           lens_tolerance_px=options.lens_tolerance_px,
                           num_threads=options.num_threads)
-        host = str(spec.get("host", "127.0.0.1"))
-        warning = remote_warning(host)
+        served = aos.ViewerOptions.from_json(json.dumps(spec["viewer"]))
+        served.check()
+        warning = remote_warning(served.host)
         if warning:
             sys.stderr.write(f"warning: {warning}\n")
-        viewer = Viewer(session, host=host, port=int(spec.get("port", 0)),
-                        max_pages=int(spec.get("max_pages", MAX_PAGES)))
+        viewer = Viewer(session, host=served.host, port=served.port,
+                        render_workers=served.render_workers, max_pages=served.max_pages)
     except BadParameter as error:
         return _fail(str(error))
     except (ValueError, OSError) as error:
@@ -122,7 +124,7 @@ def main(argv: list[str]) -> int:
     else:
         print(f"aos viewer: {session.view_count} views of {spec['light_field']} at\n"
               f"  {viewer.url}\n(Ctrl-C stops it)", flush=True)
-    open_browser = spec.get("open_browser")
+    open_browser = served.open_browser
     if open_browser is None:
         open_browser = can_open_browser()
     if open_browser:

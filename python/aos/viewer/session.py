@@ -45,8 +45,9 @@ MIN_SIZE = 8
 MAX_TILT_DEG = 80.0
 MAX_ABS_COORDINATE = 1.0e7  # metres (UTM northings are < 1e7)
 # Pages (WebSockets) a viewer serves at once by default (Viewer's max_pages): each keeps one
-# pending render and may queue one all-in-focus or stack job.
-MAX_PAGES = 32
+# pending render and may queue one all-in-focus or stack job. The default is the C++ table's
+# (aos.ViewerOptions, cpp/aos/viewer/viewer_options.h), as the CLI's is.
+MAX_PAGES = aos.ViewerOptions().max_pages
 # A preview should render in this time (about 15 updates per second with the page's overhead);
 # slower previews switch to a quarter of the width and height.
 PREVIEW_BUDGET_MS = 50.0
@@ -402,7 +403,7 @@ class Session:
             options.focal_surface = self.focal_surface
             options.surface_offset = params.surface_offset
         else:
-            options.focal_plane = self.focal_plane(params)
+            options.focal_surface = self.focal_plane(params)
         return options
 
     def map_options(self, params: Params) -> aos.MapOptions:
@@ -418,7 +419,7 @@ class Session:
             options.focal_surface = self.focal_surface
             options.surface_offset = params.surface_offset
         else:
-            options.focal_height = params.focal_height
+            options.focal_surface = params.focal_height
         return options
 
     # ---- rendering ----
@@ -614,7 +615,7 @@ class Session:
                    + (f" --views {view_text}" if views else "") + " -o map.tif")
             py_focus = ("focal_surface=surface, surface_offset="
                         f"{params.surface_offset!r}" if params.surface
-                        else f"focal_height={params.focal_height!r}")
+                        else f"focal_surface={params.focal_height!r}")
             python = prelude + (f"result = aos.render_map(lf, width={width}, {py_focus}, aperture_radius="
                       f"{py_radius}"
                       + (f", view_indices={views!r}" if views else "") + ")")
@@ -628,11 +629,11 @@ class Session:
             plane = self.focal_plane(params)
             numbers = list(np.asarray(plane.point)) + list(np.asarray(plane.normal))
             focus = "--focal-plane " + ",".join(f"{v:.9g}" for v in numbers)
-            py_focus = (f"focal_plane=aos.Plane({tuple(float(v) for v in plane.point)}, "
+            py_focus = (f"focal_surface=aos.Plane({tuple(float(v) for v in plane.point)}, "
                         f"{tuple(float(v) for v in plane.normal)})")
         else:
             focus = f"--focal-height {params.focal_height:.9g}"
-            py_focus = f"focal_plane={params.focal_height!r}"
+            py_focus = f"focal_surface={params.focal_height!r}"
         cli = (f"aos-render integral {source} --cam-from-world {matrix} --fov-deg "
                f"{camera.fov_x_deg():.9g} --width {camera.width} --height {camera.height} "
                f"{focus} --aperture-radius {radius}"
