@@ -253,7 +253,7 @@ def main() -> int:
     light_field = aos.load_lightfield(str(poses), fov_deg=F0_FOV_DEG,
                                       num_threads=args.threads).light_field
     report["load_s"] = time.perf_counter() - start
-    viewer = aos.view(light_field, pose_view=F0_POSE_VIEW, focal_height=F0_GROUND,
+    viewer = aos.view(light_field, pose_view=F0_POSE_VIEW, focal_surface=F0_GROUND,
                       width=512, height=512, num_threads=args.threads, open_browser=False,
                       source=str(poses))
     try:

@@ -82,7 +82,7 @@ def stub_head(cls: type) -> list[str]:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DeprecationWarning)
             read = type(getattr(cls(), old)).__name__
-        lines += ["    @property", f"    def {old}(self) -> {read}:",
+        lines += ["    @property", f"    def {old}(self) -> {read} | None:",
                   f'        """Deprecated: use {new}."""',
                   f"    @{old}.setter",
                   f"    def {old}(self, value: {row['given']}) -> None: ..."]

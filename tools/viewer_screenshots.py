@@ -59,7 +59,7 @@ def main() -> int:
 
     if F0.exists():
         light_field = aos.load_lightfield(str(F0), fov_deg=50.815436217896945).light_field
-        viewer = aos.view(light_field, pose_view=191, focal_height=21.0, open_browser=False,
+        viewer = aos.view(light_field, pose_view=191, focal_surface=21.0, open_browser=False,
                           source="jku-f0/poses/poses.json")
         try:
             shoot(viewer, args.out / "viewer-f0.png", """
@@ -75,7 +75,7 @@ def main() -> int:
     truth = simulation.truth
     viewer = aos.view(simulation.light_field, cam_from_world=truth.cam_from_world,
                       fov_deg=truth.camera.fov_x_deg(), width=truth.camera.width,
-                      height=truth.camera.height, focal_height=0.0, open_browser=False,
+                      height=truth.camera.height, focal_surface=0.0, open_browser=False,
                       source="aos-render demo (scenes/forest_person.json)")
     try:
         shoot(viewer, args.out / "viewer-demo.png", "window.aosPickAt(128, 128);")

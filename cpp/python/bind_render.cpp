@@ -21,10 +21,16 @@ FocalSurface SurfaceFromPython(const py::object& value) {
   if (py::isinstance<FocalSurface>(value)) return value.cast<FocalSurface>();
   if (py::isinstance<Mesh>(value)) return FocalSurface::FromMesh(value.cast<Mesh>());
   if (py::isinstance<Heightfield>(value)) return FocalSurface::FromHeightfield(value.cast<Heightfield>());
-  if (!value.is_none()) {
+  if (!value.is_none() && !PyBool_Check(value.ptr())) {
     try {
       return FocalSurface::FromPlane(value.cast<Plane>());
     } catch (const py::cast_error&) {
+    }
+    if (PyNumber_Check(value.ptr()) && !py::isinstance<py::array>(value)) {
+      try {  // a numpy scalar (np.float32(21.0)): the height of a horizontal plane
+        return FocalSurface::FromPlane(Plane::AtHeight(value.cast<double>()));
+      } catch (const py::cast_error&) {
+      }
     }
   }
   throw py::type_error("focal_surface: expected a FocalSurface, Mesh, Heightfield, Plane or a number "

@@ -421,8 +421,15 @@ class OptionsClass {
     std::vector<std::string> accepted = fields_;
     for (const auto& spelling : deprecated_) accepted.push_back(spelling.first);
     const std::string class_name = py::str(class_.attr("__name__"));
-    class_.def(py::init([fields, accepted, class_name](const py::kwargs& kwargs) {
+    const auto spellings = deprecated_;
+    class_.def(py::init([fields, accepted, spellings, class_name](const py::kwargs& kwargs) {
                  py::object options = py::cast(Options{});
+                 for (const auto& [old_name, new_name] : spellings) {
+                   if (kwargs.contains(old_name) && kwargs.contains(new_name)) {
+                     throw py::type_error(class_name + "(): give " + new_name + " or " +
+                                          old_name + " (its deprecated spelling), not both");
+                   }
+                 }
                  for (const auto& item : kwargs) {
                    const std::string key = py::str(item.first);
                    if (std::find(accepted.begin(), accepted.end(), key) == accepted.end()) {

@@ -94,7 +94,8 @@ void PythonProgress::Report(bool force) {
 }
 
 void WarnDeprecated(const std::string& message) {
-  if (PyErr_WarnEx(PyExc_DeprecationWarning, message.c_str(), 2) < 0) throw py::error_already_set();
+  // Level 1 from C is the Python frame that called into the binding: the user's code.
+  if (PyErr_WarnEx(PyExc_DeprecationWarning, message.c_str(), 1) < 0) throw py::error_already_set();
 }
 
 bool ValuesEqual(const py::handle& a, const py::handle& b) {

@@ -456,20 +456,6 @@ _IMPORT_COLMAP = _Router("import_colmap", PosesOptions, keywords="PosesKeywords"
 _ESTIMATE_GROUND = _Router("estimate_ground", GroundOptions, keywords="GroundKeywords")
 
 
-def _refuse_plane_stack_surface(function: str, kwargs: dict[str, Any]) -> None:
-    """A stack follows a focal_surface only when it is not a plane (focal_stack.h); a plane or
-    a number given as its focal_surface would be ignored, so it is refused."""
-    value = kwargs.get("focal_surface", kwargs.get("focal_plane"))
-    if value is None:
-        return
-    if isinstance(value, (int, float, Plane)) or (
-            isinstance(value, _core.FocalSurface) and value.kind == "plane"):
-        raise TypeError(
-            f"{function}(): focal_surface: a stack's slices lie on planes (first_plane .. "
-            "last_plane, or around ground_plane); a terrain-following stack takes a Mesh, "
-            "Heightfield or FocalSurface that is not a plane")
-
-
 _IMPORT_TELEMETRY = _Router("import_telemetry", TelemetryOptions, keywords="TelemetryKeywords")
 
 
@@ -625,8 +611,8 @@ def render_focal_stack(
     number is the horizontal plane at that height) or of :class:`IntegralOptions` (applied to
     ``options.render``: pose_view, fov_deg, width, aperture_radius, variance, ...).
     ``focal_surface`` (a Mesh, Heightfield or FocalSurface that is not a plane) makes a
-    terrain-following stack at first_offset .. last_offset; a plane there is refused (the
-    slices' planes replace it). All slices stay in memory; :func:`all_in_focus` streams.
+    terrain-following stack at first_offset .. last_offset; another plane there is refused
+    (the slices' planes replace it). All slices stay in memory; :func:`all_in_focus` streams.
 
     Example::
 
@@ -635,7 +621,6 @@ def render_focal_stack(
         images = stack.images   # float32 (100, H, W[, C]), a copy
     """
     merged = _copy_options("render_focal_stack", FocalStackOptions, options)
-    _refuse_plane_stack_surface("render_focal_stack", kwargs)
     _RENDER_FOCAL_STACK.apply([merged], dict(kwargs))
     _require_pose("render_focal_stack", merged.render, dict(kwargs))
     return _core._render_focal_stack(light_field, merged, progress)
@@ -683,7 +668,6 @@ def all_in_focus(
         image, depth = result.image, result.depth
     """
     merged = _copy_options("all_in_focus", AllInFocusOptions, options)
-    _refuse_plane_stack_surface("all_in_focus", kwargs)
     _ALL_IN_FOCUS.apply([merged], dict(kwargs))
     _require_pose("all_in_focus", merged.stack.render, dict(kwargs))
     return _core._all_in_focus(light_field, merged, progress)

@@ -402,7 +402,7 @@ class IntegralOptions:
     num_threads: int
     """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     @property
-    def focal_plane(self) -> Plane:
+    def focal_plane(self) -> Plane | None:
         """Deprecated: use focal_surface."""
     @focal_plane.setter
     def focal_plane(self, value: FocalSurface | Mesh | Heightfield | Plane | float) -> None: ...
@@ -792,7 +792,7 @@ class MapOptions:
     num_threads: int
     """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     @property
-    def focal_height(self) -> float:
+    def focal_height(self) -> float | None:
         """Deprecated: use focal_surface."""
     @focal_height.setter
     def focal_height(self, value: FocalSurface | Mesh | Heightfield | Plane | float) -> None: ...
@@ -996,8 +996,8 @@ class FocalStackOptions:
         """Defaults from C++; unknown names raise TypeError."""
     render: IntegralOptions
     """Virtual camera, aperture, views, threads and variance flag of every slice (IntegralOptions);
-    a render.focal_surface that is not a plane makes a terrain-following stack (a plane is
-    ignored)."""
+    a render.focal_surface that is not a plane makes a terrain-following stack (another plane
+    than the default is refused)."""
     @property
     def first_plane(self) -> Plane:
         """Boundary plane of slice 0 (local frame)."""

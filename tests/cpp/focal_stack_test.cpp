@@ -258,7 +258,6 @@ FocalStackOptions SmallStackOptions() {
   options.render.aperture_radius = 5.0;
   options.render.variance = true;
   options.render.num_threads = 1;  // tiny renders: OpenMP barriers would dominate
-  options.render.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(100.0));  // ignored: the slices replace it
   options.first_plane = Plane{Vec3d(0, 0, -1), Vec3d(0.1, 0, 1)};
   options.last_plane = Plane{Vec3d(0, 0, 3), Vec3d(0, -0.1, 1)};
   options.slices = 5;
@@ -455,7 +454,7 @@ TEST_F(FocalStackFiles, RoundTripKeepsEverything) {
     EXPECT_EQ(read.camera.cy, stack.camera.cy);
     EXPECT_EQ(read.cam_from_world.rotation, stack.cam_from_world.rotation);
     EXPECT_EQ(read.cam_from_world.translation, stack.cam_from_world.translation);
-    // The render options, all but num_threads (focal_plane is replaced by the slices).
+    // The render options, all but num_threads (the slices replace the focus).
     EXPECT_EQ(read.render.cam_from_world.rotation, stack.render.cam_from_world.rotation);
     EXPECT_EQ(read.render.cam_from_world.translation, stack.render.cam_from_world.translation);
     EXPECT_EQ(read.render.pose_view, -1);
@@ -872,6 +871,11 @@ TEST(StackAroundTheGround, PlanesParallelToTheGroundAtTheOffsetsTowardsTheViews)
   around.render.focal_surface = FocalSurface::FromMesh(FlatMesh(0.3));
   EXPECT_THAT(test_util::ErrorOf([&] { around.Check(9); }), HasSubstr("ground_plane: give either"));
   around.render.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.0));
+  // Another plane as the stack's surface would be ignored (the slices replace it): refused.
+  FocalStackOptions plane_surface = around;
+  plane_surface.render.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(100.0));
+  EXPECT_THAT(test_util::ErrorOf([&] { plane_surface.Check(9); }),
+              HasSubstr("render.focal_surface: a plane here would be ignored"));
   around.ground_plane = Plane{Vec3d(0.0), Vec3d(0.0)};
   EXPECT_THAT(test_util::ErrorOf([&] { around.Check(9); }), HasSubstr("ground_plane"));
 }

@@ -365,7 +365,6 @@ TEST_F(SurfaceRender, AHorizontalPlaneAsMeshObjPlyDemAndDepthMapRendersAsThePlan
     }
     EXPECT_LE(worst_relative, 1.2e-7);  // one float32 rounding (2^-23) of the depth
     IntegralOptions surface_options = options;
-    surface_options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(-50.0));  // ignored but for its normal
     surface_options.focal_surface = surface;
     const IntegralResult result = RenderIntegral(light_field, surface_options);
     EXPECT_TRUE(SameImage(result.count, plane.count));

@@ -1315,9 +1315,11 @@ TEST(RenderIntegralOnDepth, NearestModeTiesGoToTheLowerViewIndex) {
 
 TEST(RenderIntegralOnDepth, GrazingIsMeasuredAgainstTheFocalPlaneNormal) {
   // 3 x 3 views 4 m apart at 20 m; focal points on the ground within 0.6 m of the axis. With a
-  // vertical focal_plane normal (1, 0, 0) a view's ray makes an angle asin(|dx| / |d|) with that
-  // plane: the outer columns (|dx| >= 3.4 m, >= 9.6 deg) pass a 5 deg limit, the middle column
-  // (|dx| <= 0.6 m, <= 1.7 deg) does not: 6 of 9 views. The horizontal normal admits all 9.
+  // vertical focal plane, normal (1, 0, 0), a view's ray makes an angle asin(|dx| / |d|) with
+  // that plane: the outer columns (|dx| >= 3.4 m, >= 9.6 deg) pass a 5 deg limit, the middle
+  // column (|dx| <= 0.6 m, <= 1.7 deg) does not: 6 of 9 views. The horizontal normal admits all
+  // 9, and so does any surface that is not a plane, however steep: its grazing test measures
+  // against the horizontal (GrazingNormal: the up axis).
   const LightField light_field =
       NadirLightField(test_util::TexturedGround(0.0), PinholeCamera::FromFov(48, 48, 60.0),
                       GridCentres(3, 4.0, 20.0), PixelType::kU8);
@@ -1337,6 +1339,12 @@ TEST(RenderIntegralOnDepth, GrazingIsMeasuredAgainstTheFocalPlaneNormal) {
       EXPECT_EQ(*vertical.integral.count.At<uint32_t>(x, y), 6u) << x << "," << y;
     }
   }
+  Mesh steep;  // a wall-like triangle: its own normal is nearly (1, 0, 0)
+  steep.vertices = {Vec3d(0, -50, -50), Vec3d(0.1, 50, -50), Vec3d(0, 0, 50)};
+  steep.triangles = {{0, 1, 2}};
+  options.focal_surface = FocalSurface::FromMesh(steep);
+  const SurfaceIntegralResult on_mesh = RenderIntegralOnDepth(light_field, options, depth);
+  EXPECT_TRUE(SameImage(on_mesh.integral.count, level.integral.count));
 }
 
 TEST(RenderIntegralOnDepth, RobustResultDoesNotDependOnTheThreadCount) {

@@ -3,6 +3,7 @@
 // light fields (plane_scene.h) and byte-exact image comparison.
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <cstring>
 #include <string>
 #include <vector>
@@ -93,12 +94,18 @@ inline ::testing::AssertionResult SameImage(const Image& a, const Image& b) {
   return ::testing::AssertionSuccess();
 }
 
-// The largest |a - b| over the pixels and channels of two float32 images of one shape.
+// The largest |a - b| over the pixels and channels of two float32 images: infinity when their
+// shapes differ, NaN when a difference is NaN (so that EXPECT_LT fails on either).
 inline double MaxAbsDifference(const Image& a, const Image& b) {
+  if (a.width() != b.width() || a.height() != b.height() || a.channels() != b.channels()) {
+    return std::numeric_limits<double>::infinity();
+  }
   double worst = 0.0;
   for (int y = 0; y < a.height(); ++y) {
     for (int x = 0; x < a.width() * a.channels(); ++x) {
-      worst = std::max(worst, std::abs(double(a.At<float>(0, y)[x]) - b.At<float>(0, y)[x]));
+      const double d = std::abs(double(a.At<float>(0, y)[x]) - b.At<float>(0, y)[x]);
+      if (std::isnan(d)) return d;
+      worst = std::max(worst, d);
     }
   }
   return worst;

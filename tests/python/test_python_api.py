@@ -239,6 +239,8 @@ def changed(value: Any, field: str = "") -> Any:
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if isinstance(value, aos.Rigid3d):
         return aos.look_at((1.0, 2.0, 30.0), (0.0, 0.0, 0.0))
+    if value is None and field == "open_browser":  # ViewerOptions.open_browser
+        return True
     if value is None and field == "ground_plane":  # FocalStackOptions.ground_plane
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if isinstance(value, aos.FocalSurface):  # IntegralOptions/MapOptions.focal_surface
@@ -549,15 +551,19 @@ def test_bad_keywords_are_refused_with_the_valid_names() -> None:
     with pytest.raises(TypeError, match=r"all_in_focus\(\) got an unexpected keyword argument "
                                         r"'slice_count' \(options: .*first_plane.*slices"):
         aos.all_in_focus(light_field, slice_count=5)
-    # The slices replace a plane focal_surface, which a stack ignores: refused, not dropped (also
-    # in its deprecated spelling).
+    # The slices replace a plane focal_surface, which a stack would ignore: refused, not dropped
+    # (also in its deprecated spelling, and in the options given whole).
     plane = aos.Plane.at_height(3.0)
+    ignored = "render.focal_surface: a plane here would be ignored"
     for function in (aos.render_focal_stack, aos.all_in_focus):
-        for value in (plane, 3.0, aos.FocalSurface(plane)):
-            with pytest.raises(TypeError, match="focal_surface: a stack's slices lie on planes"):
+        for value in (plane, 3.0, np.float32(3.0), aos.FocalSurface(plane)):
+            with pytest.raises(ValueError, match=ignored):
                 function(light_field, pose_view=0, focal_surface=value)
-        with pytest.raises(TypeError, match="focal_surface: a stack's slices lie on planes"):
+        with pytest.warns(DeprecationWarning), pytest.raises(ValueError, match=ignored):
             function(light_field, pose_view=0, focal_plane=plane)
+    with pytest.raises(ValueError, match=ignored):
+        aos.render_focal_stack(light_field, aos.FocalStackOptions(
+            render=aos.IntegralOptions(pose_view=0, focal_surface=plane)))
     with pytest.raises(TypeError, match=r"render_integral\(\): pose_view: expected int, got str"):
         aos.render_integral(light_field, pose_view="191")  # type: ignore[typeddict-item]
     with pytest.raises(ValueError, match=r"method: unknown merge method 'best' \(sobel, improved "

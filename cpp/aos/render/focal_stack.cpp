@@ -61,6 +61,12 @@ void FocalStackOptions::Check(int view_count) const {
                  "last_offset along up, or on the planes; got " +
                  FormatNumber(render.surface_offset) + ")");
   }
+  if (!follows && !render.focal_surface.SameAs(IntegralOptions().focal_surface)) {
+    // A plane would be ignored (the slices' planes replace it): refused, not dropped.
+    ThrowInvalid("render.focal_surface: a plane here would be ignored: a stack's slices lie on "
+                 "planes (first_plane .. last_plane, or around ground_plane); a "
+                 "terrain-following stack takes a mesh, DEM or depth map");
+  }
   if (!follows && !ground_plane) {
     UnitNormal(first_plane, "first_plane");
     UnitNormal(last_plane, "last_plane");

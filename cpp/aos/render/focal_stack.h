@@ -15,8 +15,9 @@
 //   N = 1; the last is last_offset exactly): the same surface N times,
 //   N offsets, each slice rendered as RenderIntegral renders a surface (rays that miss it give
 //   count 0). first_plane/last_plane are then ignored. render.surface_offset must be 0 in every
-//   stack (the offsets or planes replace it); a plane as render.focal_surface is ignored (the
-//   slices' planes replace it; ground_plane gives planes parallel to a given one). The surface is placed once for the whole stack
+//   stack (the offsets or planes replace it); a plane as render.focal_surface other than the
+//   default z = 0 is refused (the slices' planes would replace it; ground_plane gives planes
+//   parallel to a given one). The surface is placed once for the whole stack
 //   (ResolveSurfacePlacement: the views' up, the light field's origin).
 // - Stacks around the ground. With ground_plane set (and a plane focal_surface), the boundary planes
 //   are ground_plane moved first_offset and last_offset along its normal turned towards the
@@ -53,8 +54,8 @@ namespace aos {
 
 struct FocalStackOptions {
   // Virtual camera, aperture, views, threads and the variance flag of every slice, and the
-  // surface of a terrain-following stack (render.focal_surface not a plane; a plane is ignored:
-  // the slices' planes replace it).
+  // surface of a terrain-following stack (render.focal_surface not a plane; a plane other than
+  // the default is refused: the slices' planes replace it).
   IntegralOptions render;
   // Boundary planes (local frame): slice 0 lies on the first, slice N-1 on the last (for
   // N = 1, the one slice lies midway).
@@ -80,7 +81,8 @@ struct FocalStackOptions {
     field(OptionField("render", &O::render, "", Range::Any(),
                       "Virtual camera, aperture, views, threads and variance flag of every "
                       "slice (IntegralOptions); a render.focal_surface that is not a plane "
-                      "makes a terrain-following stack (a plane is ignored)."));
+                      "makes a terrain-following stack (another plane than the default is "
+                      "refused)."));
     field(OptionField("first_plane", &O::first_plane, "", Range::Any(),
                       "Boundary plane of slice 0 (local frame)."));
     field(OptionField("last_plane", &O::last_plane, "", Range::Any(),

@@ -109,6 +109,9 @@ void MapOptions::Check(int view_count) const {
                    " " + Num(extent[1]) + " " + Num(extent[2]) + " " + Num(extent[3]) + ")");
     }
   }
+  if (const std::string problem = SurfaceCoordinateProblem(surface_offset); !problem.empty()) {
+    ThrowInvalid("surface_offset: " + problem);
+  }
   if (view_count <= 0) ThrowInvalid("light field: has no views");
   for (int index : view_indices) {
     if (index < 0 || index >= view_count) {

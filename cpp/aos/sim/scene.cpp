@@ -124,7 +124,7 @@ class Reader {
       if (allowed_.count(it.key()) == 0) {
         std::string known;
         for (const std::string& key : allowed_) known += (known.empty() ? "" : ", ") + key;
-        Fail(Join(path_, it.key()), "unknown key (known: " + known + ")");
+        (At(path_) / it.key()).Fail("unknown key (known: " + known + ")");  // escaped (RFC 6901)
       }
     }
   }

@@ -187,7 +187,6 @@ size_t FieldCount() {
   return count;
 }
 
-// Checks every number field of `options` against its range (see the contract).
 // The text fields' choices only (part of CheckFieldRanges), for a Check() that tests them before
 // conditions that read them.
 template <class Options>
@@ -204,6 +203,8 @@ void CheckFieldChoices(const Options& options) {
   });
 }
 
+// Checks every number field of `options` against its range, and every text field against its
+// choices (see the contract).
 template <class Options>
 void CheckFieldRanges(const Options& options) {
   Options::Fields([&options](const auto& field) {

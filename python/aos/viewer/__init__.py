@@ -222,6 +222,16 @@ class Viewer:
                 f"({'running' if self.running else 'stopped'}; {self.session.view_count} views)")
 
 
+def _caller_level() -> int:
+    """The stacklevel of warnings.warn that names the first frame outside the aos package (the
+    user's call, through aos.view or aos.viewer.view)."""
+    package = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    frame, level = sys._getframe(1), 1
+    while frame is not None and os.path.abspath(frame.f_code.co_filename).startswith(package):
+        frame, level = frame.f_back, level + 1
+    return level
+
+
 def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float = 0.0,
          aperture_radius: float = float("inf"), pose_view: Optional[int] = None,
          cam_from_world: Any = None, fov_deg: float = 0.0, width: int = 0, height: int = 0,
@@ -247,6 +257,11 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
     import aos
 
     _require_aiohttp()
+    # The server's settings first (before any frame is loaded), checked by their C++ table
+    # (aos.ViewerOptions: ranges named).
+    served = aos.ViewerOptions(host=host, port=port, render_workers=render_workers,
+                               max_pages=max_pages, open_browser=open_browser)
+    served.check()
     if isinstance(light_field, (str, os.PathLike)):
         source = source or os.fspath(light_field)
         light_field = aos.load_lightfield(os.fspath(light_field)).light_field
@@ -256,7 +271,7 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
     start_height = 0.0  # of the page's plane
     if focal_height is not None:
         warnings.warn("view(): focal_height= is deprecated; use focal_surface=", DeprecationWarning,
-                      stacklevel=2)
+                      stacklevel=_caller_level())
         start_height = float(focal_height)
     surface = None
     surface_path = ""
@@ -286,10 +301,6 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
                       focal_surface=surface, defaults=defaults,
                       cam_from_world=cam_from_world, view_indices=view_indices,
                       min_view_angle_deg=min_view_angle_deg, num_threads=num_threads)
-    # The server's settings, checked by their C++ table (aos.ViewerOptions: ranges named).
-    served = aos.ViewerOptions(host=host, port=port, render_workers=render_workers,
-                               max_pages=max_pages, open_browser=open_browser)
-    served.check()
     warning = remote_warning(host)
     if warning:
         warnings.warn(warning, stacklevel=2)
