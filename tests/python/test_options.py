@@ -112,7 +112,11 @@ def test_deprecated_spellings_warn_and_set_the_one_focal_surface() -> None:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             value = call()
-        return value, [str(w.message) for w in caught if w.category is DeprecationWarning]
+        deprecations = [w for w in caught if w.category is DeprecationWarning]
+        # Attributed to the caller's line (this file), so that Python's default filters show
+        # it in a user's script.
+        assert all(w.filename == __file__ for w in deprecations), [w.filename for w in deprecations]
+        return value, [str(w.message) for w in deprecations]
 
     options, messages = warned(lambda: aos.IntegralOptions(focal_plane=21.0))
     assert messages == ["IntegralOptions.focal_plane is deprecated; use focal_surface"]
