@@ -318,6 +318,8 @@ DemoResult RunDemo(const Scene& scene, const DemoOptions& options, ProgressSink*
     const Timer render_timer;
     AllInFocusOptions all;
     all.stack.render = render;
+    // The slices' planes replace the focus (a stack refuses a plane it would ignore).
+    all.stack.render.focal_surface = IntegralOptions().focal_surface;
     all.stack.render.aperture_radius = kInf;
     all.stack.first_plane = Plane::AtHeight(result.ground_height);
     all.stack.last_plane = Plane::AtHeight(result.top_height);
