@@ -58,30 +58,16 @@ Plane PlaneFromPython(const py::object& point, const std::optional<Vec3d>& norma
 // Lens distortion in Python has the model's natural length: radtan k1, k2, p1, p2, k3; fisheye
 // k1..k4; omnidir k1, k2, p1, p2; pinhole none (C++ keeps 5 numbers, the rest 0).
 size_t DistortionLength(LensModel model) {
-  switch (model) {
-    case LensModel::kRadTan:
-      return 5;
-    case LensModel::kFisheye:
-    case LensModel::kOmnidir:
-      return 4;
-    case LensModel::kPinhole:
-      break;
-  }
-  return 0;
+  return static_cast<size_t>(TraitsOf(model).distortion_count);
 }
 
-const char* DistortionNames(LensModel model) {
-  switch (model) {
-    case LensModel::kRadTan:
-      return "k1, k2, p1, p2, k3";
-    case LensModel::kFisheye:
-      return "k1, k2, k3, k4";
-    case LensModel::kOmnidir:
-      return "k1, k2, p1, p2";
-    case LensModel::kPinhole:
-      break;
+std::string DistortionNames(LensModel model) {
+  const LensModelTraits& traits = TraitsOf(model);
+  std::string names;
+  for (int i = 0; i < traits.distortion_count; ++i) {
+    names += (i == 0 ? "" : ", ") + std::string(traits.distortion_names[static_cast<size_t>(i)]);
   }
-  return "none";
+  return names.empty() ? "none" : names;
 }
 
 std::vector<double> GetDistortion(const LensCamera& lens) {
@@ -609,7 +595,7 @@ void BindGeometry(py::module_& m) {
                            ", height=" + std::to_string(c.height) + ", fx=" + ReprNumber(c.fx) +
                            ", fy=" + ReprNumber(c.fy) + ", cx=" + ReprNumber(c.cx) +
                            ", cy=" + ReprNumber(c.cy) + ", distortion=[" + distortion + "]";
-        if (c.model == LensModel::kOmnidir) {
+        if (c.traits().has_xi) {
           text += ", xi=" + ReprNumber(c.xi) + ", skew=" + ReprNumber(c.skew);
         }
         return text + ")";

@@ -103,7 +103,7 @@ CalibrationResult Calibrate(const std::vector<Image>& frames, const std::vector<
     case LensModel::kRadTan: {
       cv::Mat D;
       int flags = 0;
-      if (options.model == LensModel::kPinhole) {
+      if (TraitsOf(options.model).pinhole) {
         flags = cv::CALIB_FIX_K1 | cv::CALIB_FIX_K2 | cv::CALIB_FIX_K3 | cv::CALIB_ZERO_TANGENT_DIST;
       }
       std::vector<std::vector<cv::Point3f>> object_f;
@@ -111,9 +111,9 @@ CalibrationResult Calibrate(const std::vector<Image>& frames, const std::vector<
       for (const auto& v : object_points) object_f.emplace_back(v.begin(), v.end());
       for (const auto& v : image_points) image_f.emplace_back(v.begin(), v.end());
       result.rms_px = cv::calibrateCamera(object_f, image_f, size, K, D, rvecs, tvecs, flags);
-      for (int k = 0; k < 5 && k < static_cast<int>(D.total()); ++k) {
-        camera.distortion[static_cast<size_t>(k)] = options.model == LensModel::kPinhole ? 0.0 : D.at<double>(k);
-      }
+      // A pinhole reads none of D (its coefficients were held at zero anyway).
+      const int count = std::min(TraitsOf(options.model).distortion_count, static_cast<int>(D.total()));
+      for (int k = 0; k < count; ++k) camera.distortion[static_cast<size_t>(k)] = D.at<double>(k);
       break;
     }
     case LensModel::kFisheye: {

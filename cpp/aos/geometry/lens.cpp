@@ -440,4 +440,27 @@ LensCamera LensFromFov(LensModel model, int width, int height, double fov_deg,
   return lens;
 }
 
+double LensCamera::ValidAngle() const {
+  switch (model) {
+    case LensModel::kPinhole: return 0.5 * kPi;
+    case LensModel::kFisheye: return theta_max;
+    case LensModel::kRadTan:
+      return std::isfinite(max_radius) ? std::atan(max_radius) : 0.5 * kPi;
+    case LensModel::kOmnidir: {
+      // The undistorted radius sin(t) / (cos(t) + xi) increases with t below theta_max (its
+      // derivative is (1 + xi cos t) / (cos t + xi)^2 > 0 there): bisection.
+      if (!std::isfinite(max_radius)) return theta_max;
+      const auto radius = [&](double t) { return std::sin(t) / (std::cos(t) + xi); };
+      if (radius(theta_max * (1.0 - 1e-12)) <= max_radius) return theta_max;
+      double lo = 0.0, hi = theta_max;
+      for (int i = 0; i < 100; ++i) {
+        const double mid = 0.5 * (lo + hi);
+        (radius(mid) <= max_radius ? lo : hi) = mid;
+      }
+      return lo;
+    }
+  }
+  return 0.0;
+}
+
 }  // namespace aos

@@ -52,6 +52,9 @@ struct LensModelTraits {
   int distortion_count;
   std::array<const char*, 5> distortion_names;
   bool has_xi;        // Mei's xi (and skew) are parameters
+  // A plain pinhole: no distortion, so a frame maps to any plane by a homography (the exact
+  // plane kernels of integral.h apply; every other model takes the lens path).
+  bool pinhole;
   // Its rays stay within 90 degrees of the axis, so one frame is a perspective image
   // (homographies approximate its local maps; surface_integral.h).
   bool perspective;
@@ -61,12 +64,12 @@ struct LensModelTraits {
   const char* opencv_calibration;  // the OpenCV function that calibrates it
 };
 inline constexpr LensModelTraits kLensModels[] = {
-    {LensModel::kPinhole, "pinhole", 0, {}, false, true, "PINHOLE", "cv::calibrateCamera"},
-    {LensModel::kRadTan, "radtan", 5, {"k1", "k2", "p1", "p2", "k3"}, false, true, "OPENCV",
-     "cv::calibrateCamera"},
-    {LensModel::kFisheye, "fisheye", 4, {"k1", "k2", "k3", "k4"}, false, false, "OPENCV_FISHEYE",
-     "cv::fisheye::calibrate"},
-    {LensModel::kOmnidir, "omnidir", 4, {"k1", "k2", "p1", "p2"}, true, false, "",
+    {LensModel::kPinhole, "pinhole", 0, {}, false, true, true, "PINHOLE", "cv::calibrateCamera"},
+    {LensModel::kRadTan, "radtan", 5, {"k1", "k2", "p1", "p2", "k3"}, false, false, true,
+     "OPENCV", "cv::calibrateCamera"},
+    {LensModel::kFisheye, "fisheye", 4, {"k1", "k2", "k3", "k4"}, false, false, false,
+     "OPENCV_FISHEYE", "cv::fisheye::calibrate"},
+    {LensModel::kOmnidir, "omnidir", 4, {"k1", "k2", "p1", "p2"}, true, false, false, "",
      "cv::omnidir::calibrate"},
 };
 // The row of `model`.
@@ -104,6 +107,10 @@ struct LensCamera {
   double theta_max = 0.0;   // fisheye: largest ray angle from the axis, radians
 
   static LensCamera FromPinhole(const PinholeCamera& camera);
+  // The row of kLensModels for `model`.
+  const LensModelTraits& traits() const { return TraitsOf(model); }
+  // Whether this is a plain pinhole (traits().pinhole): the exact plane kernels apply.
+  bool IsPinhole() const { return traits().pinhole; }
   // The pinhole part (size, fx, fy, cx, cy): the whole camera for kPinhole, the intrinsics a
   // lens model shares with its pinhole for the others (skew, xi and distortion dropped).
   PinholeCamera Pinhole() const { return PinholeCamera{width, height, fx, fy, cx, cy}; }
@@ -119,6 +126,12 @@ struct LensCamera {
 
   // The distortion in normalised coordinates (radtan/omnidir): undistorted -> distorted.
   Vec2d Distort(const Vec2d& undistorted) const;
+
+  // The largest angle from the optical axis within which every ray projects (Project
+  // succeeds), radians, in (0, pi]: pi / 2 for a pinhole, theta_max for a fisheye, and for the
+  // radial-tangential part of radtan and omnidir lenses also the angle whose undistorted radius
+  // is max_radius. Requires Finalize().
+  double ValidAngle() const;
 
   // Whether `other` has the same model and parameters (size, intrinsics, skew, xi, distortion);
   // the derived valid field follows from them.

@@ -150,7 +150,7 @@ LensCamera ReadCameraJson(const json& value, const JsonPath& at,
   camera.height = ReadJsonInt(RequireMember(value, "height", at), at / "height", 1, kMaxImageSide);
   const bool has_any_intrinsic = value.contains("fx") || value.contains("fy") ||
                                  value.contains("cx") || value.contains("cy");
-  const bool lens_by_fov = value.contains("fov_deg") && camera.model != LensModel::kPinhole;
+  const bool lens_by_fov = value.contains("fov_deg") && !camera.IsPinhole();
   if (value.contains("fov_deg") && has_any_intrinsic) {
     at.Fail("give either fov_deg or fx, fy, cx, cy, not both");
   }
@@ -191,7 +191,7 @@ LensCamera ReadCameraJson(const json& value, const JsonPath& at,
                          camera.xi, at.Text());
     camera.skew = skew;
   }
-  if (camera.model == LensModel::kPinhole &&
+  if (camera.IsPinhole() &&
       (camera.xi != 0.0 || camera.skew != 0.0 ||
        camera.distortion != std::array<double, 5>{0, 0, 0, 0, 0})) {
     at.Fail("distortion/xi/skew: a pinhole camera has none (all zero or absent; model radtan, "
@@ -209,7 +209,7 @@ ordered_json CameraToJson(const LensCamera& camera) {
                     {"fy", camera.fy},
                     {"cx", camera.cx},
                     {"cy", camera.cy}};
-  if (camera.model != LensModel::kPinhole) {
+  if (!camera.IsPinhole()) {
     j["distortion"] = camera.distortion;
     j["xi"] = camera.xi;
     j["skew"] = camera.skew;

@@ -27,7 +27,7 @@ size_t LightField::ImageBytes() const {
 
 void CheckView(const View& view, const std::string& where) {
   view.camera.Pinhole().Check(where);
-  if (view.camera.model != LensModel::kPinhole && !(view.camera.theta_max > 0.0)) {
+  if (!view.camera.IsPinhole() && !(view.camera.theta_max > 0.0)) {
     ThrowInvalid(Where(where, "camera: the lens's valid field is not set (LensCamera::Finalize)"));
   }
   if (auto problem = DescribeInvalidRigid(view.cam_from_world)) {

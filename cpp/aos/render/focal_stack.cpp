@@ -503,7 +503,7 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
   }
   FocalStack stack;
   const LensCamera camera = ReadCameraJson(RequireMember(j, "camera", top), top / "camera");
-  if (camera.model != LensModel::kPinhole) {
+  if (!camera.IsPinhole()) {
     (top / "camera" / "model").Fail("a focal stack's camera is a pinhole, not " +
                                     std::string(LensModelName(camera.model)));
   }

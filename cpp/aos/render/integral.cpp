@@ -788,7 +788,7 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
     const bool selected = options.view_indices.empty() ||
                           std::find(options.view_indices.begin(), options.view_indices.end(),
                                     static_cast<int>(i)) != options.view_indices.end();
-    lens_views = lens_views || (selected && light_field.views[i].camera.model != LensModel::kPinhole);
+    lens_views = lens_views || (selected && !light_field.views[i].camera.IsPinhole());
   }
   const FocalSurface& surface = options.focal_surface;
   const bool is_plane = surface.kind() == FocalSurfaceKind::kPlane;

@@ -474,7 +474,7 @@ std::vector<int> MapWindowViews(const LightField& light_field, const MapGrid& gr
     const View& view = light_field.views[static_cast<size_t>(index)];
     const LensCamera& camera = view.camera;
     double box_lo[2], box_hi[2];  // normalised coordinates that reach the image
-    const bool pinhole = camera.model == LensModel::kPinhole;
+    const bool pinhole = camera.IsPinhole();
     if (pinhole) {
       // Pixel u in [-1, width + 1] <=> x/z in [(-1 - cx) / fx, (width + 1 - cx) / fx].
       box_lo[0] = (-1.0 - camera.cx) / camera.fx;

@@ -150,7 +150,7 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
       needed = needed + bytes < needed ? UINT64_MAX : needed + bytes;
     };
     for (const View& view : light_field.views) {
-      if (view.camera.model == LensModel::kPinhole) continue;
+      if (view.camera.IsPinhole()) continue;
       ++lens_views;
       if (std::none_of(lenses.begin(), lenses.end(),
                        [&](const LensCamera* lens) { return lens->SameParameters(view.camera); })) {
@@ -171,7 +171,7 @@ RectifyLightFieldResult RectifyLightField(const LightField& light_field,
   ProgressStart(progress, "rectify", static_cast<int64_t>(light_field.views.size()));
   for (const View& view : light_field.views) {
     if (ProgressCancelled(progress)) throw Cancelled();
-    if (view.camera.model == LensModel::kPinhole) {
+    if (view.camera.IsPinhole()) {
       result.light_field.views.push_back(view);
       ProgressAdvance(progress, 1);
       continue;

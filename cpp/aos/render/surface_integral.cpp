@@ -70,7 +70,7 @@ struct ViewSetup {
   double fx = 0, fy = 0, cx = 0, cy = 0, width = 0, height = 0;
   const LensCamera* lens = nullptr;  // set for views with a lens model (direct sampling)
   // Lens views: the largest angle from the view's optical axis within which every ray
-  // projects (LensValidAngle), radians.
+  // projects (LensCamera::ValidAngle), radians.
   double valid_angle = 0.0;
   // cos(valid_angle - kAngleShortcut): a quad's rays within that cosine of the optical axis and
   // a margin below kAngleShortcut are inside the valid field without an acos (LensRoute::Fit).
@@ -115,32 +115,6 @@ Sampler SamplerFor(const Image& image) {
 
 // Radians; see ViewSetup::cos_shortcut.
 constexpr double kAngleShortcut = 0.25;
-
-// The largest angle from the optical axis within which every ray of `lens` projects
-// (LensCamera::Project succeeds), radians: theta_max for a fisheye; for the radial-tangential
-// part of radtan and omnidir lenses also the angle whose undistorted radius is max_radius.
-double LensValidAngle(const LensCamera& lens) {
-  switch (lens.model) {
-    case LensModel::kPinhole: return 0.5 * kPi;
-    case LensModel::kFisheye: return lens.theta_max;
-    case LensModel::kRadTan:
-      return std::isfinite(lens.max_radius) ? std::atan(lens.max_radius) : 0.5 * kPi;
-    case LensModel::kOmnidir: {
-      // The undistorted radius sin(t) / (cos(t) + xi) increases with t below theta_max (its
-      // derivative is (1 + xi cos t) / (cos t + xi)^2 > 0 there): bisection.
-      if (!std::isfinite(lens.max_radius)) return lens.theta_max;
-      const auto radius = [&](double t) { return std::sin(t) / (std::cos(t) + lens.xi); };
-      if (radius(lens.theta_max * (1.0 - 1e-12)) <= lens.max_radius) return lens.theta_max;
-      double lo = 0.0, hi = lens.theta_max;
-      for (int i = 0; i < 100; ++i) {
-        const double mid = 0.5 * (lo + hi);
-        (radius(mid) <= lens.max_radius ? lo : hi) = mid;
-      }
-      return lo;
-    }
-  }
-  return 0.0;
-}
 
 // What every route shares: the geometry of the admission tests and the selected views.
 struct Setup {
@@ -223,9 +197,9 @@ Setup MakeSetup(const LightField& light_field, const FocalPoints& points,
     setup.cy = view.camera.cy;
     setup.width = view.camera.width;
     setup.height = view.camera.height;
-    if (view.camera.model != LensModel::kPinhole) {
+    if (!view.camera.IsPinhole()) {
       setup.lens = &view.camera;
-      setup.valid_angle = LensValidAngle(view.camera);
+      setup.valid_angle = view.camera.ValidAngle();
       setup.cos_shortcut = std::cos(std::max(0.0, setup.valid_angle - kAngleShortcut));
     }
     setup.sample = SamplerFor(view.image);
@@ -1141,7 +1115,7 @@ struct LensRoute {
     // map is then its distortion, close to affine, and the fit a homography of the view); for
     // wide lenses the centre node's ray (their map is far from projective off the axis).
     const Vec3d& centre = node[4]->direction;
-    const bool perspective = view.lens->model == LensModel::kRadTan;
+    const bool perspective = view.lens->traits().perspective;
     const Vec3d c = perspective ? Vec3d(0.0, 0.0, 1.0) : centre;
     const Vec3d helper = std::abs(c.x) < 0.9 ? Vec3d(1.0, 0.0, 0.0) : Vec3d(0.0, 1.0, 0.0);
     const Vec3d e1 = perspective ? Vec3d(1.0, 0.0, 0.0) : glm::normalize(glm::cross(helper, c));
@@ -1506,9 +1480,9 @@ struct LensRoute {
     int image_tests = 0x1f;
     // Wide lenses take the cubic map on the upper levels (FitCubic), whose error falls with the
     // fourth power of the side (a sixteenth of the parent's for a child).
-    const bool cubic = view.lens->model != LensModel::kRadTan && level < kCubicLevels;
+    const bool cubic = !view.lens->traits().perspective && level < kCubicLevels;
     const double predicted = cubic ? parent_error / 16.0 : 0.25 * parent_error;
-    const bool hopeless = view.lens->model != LensModel::kRadTan && std::isfinite(parent_error) &&
+    const bool hopeless = !view.lens->traits().perspective && std::isfinite(parent_error) &&
                           predicted > 2.0 * s.lens_tolerance && level + 1 < kLensQuadLevels;
     if (hopeless) error = predicted;
     float cubic_map[2][kCubicTerms];

@@ -493,8 +493,8 @@ LensCamera ViewLens(const Scene& scene) {
     lens.fy = c.fy;
     lens.cx = c.cx;
     lens.cy = c.cy;
-    if (model != LensModel::kPinhole) lens.distortion = c.distortion;
-    if (model == LensModel::kOmnidir) {
+    if (!TraitsOf(model).pinhole) lens.distortion = c.distortion;
+    if (TraitsOf(model).has_xi) {
       lens.xi = c.xi;
       lens.skew = c.skew;
     }

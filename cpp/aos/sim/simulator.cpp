@@ -743,7 +743,7 @@ SimCameras PlaceCameras(const Scene& scene, SimulationStats* stats) {
   // resampling); pixels outside its valid field (a fisheye's image circle) trace nothing and
   // stay 0. Its view keeps the pinhole intrinsics in View::camera and the lens in View::lens.
   const LensCamera lens = ViewLens(scene);
-  const bool through_lens = lens.model != LensModel::kPinhole;
+  const bool through_lens = !lens.IsPinhole();
   PinholeCamera camera;
   if (through_lens || cam.fx > 0.0) {
     camera = lens.Pinhole();
