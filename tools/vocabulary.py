@@ -211,9 +211,6 @@ def same_default(python_value: Any, cli: Optional[str], path: str = "") -> bool:
     """Whether the CLI's printed default means the struct's default."""
     if cli is None:
         return True  # the flag prints none: the struct's applies
-    if path.endswith(("pattern_columns", "pattern_rows")):  # --pattern COLUMNSxROWS
-        parts = cli.split("x")
-        return len(parts) == 2 and parts[0 if path.endswith("columns") else 1] == str(python_value)
     if hasattr(python_value, "name") and hasattr(type(python_value), "__members__"):
         return cli == python_value.name
     if type(python_value).__name__ == "FocalSurface" and python_value.plane is not None:
@@ -243,14 +240,26 @@ def cli_bindings(aos_render: str) -> list[dict[str, str]]:
 
 
 def binding_for(bindings: list[dict[str, str]], command: str, path: str) -> Optional[dict]:
-    """The binding of one field: a single flag with a printed default first (a field set by
-    several flags, such as focal_surface, also has a combined entry naming them all)."""
+    """The binding of one field: its own flag (source "table", or "hand" for a struct without a
+    table); shorthands (--focal-height for focal_surface) only where it has none."""
     found = [b for b in bindings if b["command"] == command and b["field"] == path]
-    single = [b for b in found if "/" not in b["flag"]]
-    for candidates in ([b for b in single if b["default"]], single, found):
+    for candidates in ([b for b in found if b.get("source") != "shorthand"], found):
         if candidates:
             return candidates[0]
     return None
+
+
+def shorthands_for(bindings: list[dict[str, str]], command: str, path: str) -> list[str]:
+    """The other spellings of one field (Flags::Shorthand), in declaration order."""
+    return [b["flag"] for b in bindings if b["command"] == command and b["field"] == path
+            and b.get("source") == "shorthand"]
+
+
+def has_table(class_name: str) -> bool:
+    """Whether the struct lists its fields in a C++ field table (util/option_fields.h)."""
+    import aos
+
+    return hasattr(getattr(aos, class_name, None), "_field_table")
 
 
 def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
@@ -281,6 +290,8 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
             shown = f"{class_name}.{path[len(prefix):]}"
             row = {"command": command, "python": shown,
                    "flag": flag or "",
+                   "how": binding.get("source", "") if binding else "",
+                   "also": ", ".join(f"`{f}`" for f in shorthands_for(bindings, command, path)),
                    "default": python_default(value), "unit": unit_of(command, path),
                    "note": ""}
             if binding is None:
@@ -289,6 +300,10 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
                                     f"(--{name.replace('_', '-')}) and no reason in NOT_ON_THE_CLI")
                 row["note"] = why or "MISSING"
             else:
+                if has_table(class_name) and binding.get("source") != "table":
+                    problems.append(f"{command} {flag}: {shown}'s flag is not its table row's "
+                                    "(bind it with Flags::Field(options, name); another "
+                                    "spelling is a Flags::Shorthand beside it)")
                 if why is not None:
                     problems.append(f"{command}: NOT_ON_THE_CLI gives a reason for "
                                     f"{shown}, but {flag} sets it: a stale entry")
@@ -304,13 +319,18 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
                         bound is None and value is False):
                     problems.append(f"{command} {flag}: --help prints {flags.get(flag)!r} but "
                                     f"the flag is bound with the default {bound!r}")
-                if flag != "--" + name.replace("_", "-"):
-                    row["note"] = "flag spelled differently from the field"
+                if flag != "--" + name.replace("_", "-") and name != "num_threads":
+                    row["note"] = "the row names its flag (OptionFieldSpec::flag)"
             table.append(row)
     return table, problems
 
 
 def page(table: list[dict[str, str]]) -> str:
+    how = [row["how"] for row in table if row["how"]]
+    counts = (f"Of the {len(how)} fields on the command line, {how.count('table')} take their "
+              f"flag from their table row and {how.count('hand')} are declared by hand (structs "
+              f"without a table); {sum(1 for row in table if row['also'])} also have "
+              "shorthands.")
     lines = """\
 # Vocabulary: every option, its Python name, CLI flag, default and unit
 
@@ -321,20 +341,29 @@ default differs from the struct's. In Python every field is also a keyword argum
 command's function, routed by its name (`aos.all_in_focus(lf, agreement=0.1)` sets
 `merge.robust.agreement`).
 
-Every flag is bound to the Options field it sets and named after it (cpp/exe/cli.h: Flags);
-`aos-render flags` lists the bindings. `map` also binds a struct of its own beside MapOptions:
-DistributedOptions (how the tiles are spread over Dask), whose fields are
-`aos.distributed.render_map`'s keyword arguments of the same names; `view` binds
-ViewerOptions (the server's own settings: host, port, pages, browser), whose fields are
-`aos.view`'s keyword arguments. The exceptions, named by what they describe: `--threads`
-(`num_threads`, on every command: every stage of the command, and a cap on the process's
-workers), `--views` (`view_indices`), `--pattern COLUMNSxROWS` (`pattern_columns`,
-`pattern_rows`), `--focal-height`/`--focal-plane`/`--focal-distance`/`--focal-surface` (`focal_surface`), and the
-fields of one name but different meaning: `--fov-deg` is the virtual camera's field of view
-(`integral`, `stack`, `allinfocus`), `--frames-fov-deg` the input frames' (`poses`; JKU frames
-on the rendering commands), `--rectified-fov-deg` the rectified frames' (`rectify`),
-`--lens-fov-deg` the lens's (`resolution`); `--window-radius` is the focus window (`merge`,
-`allinfocus`), `--ssim-window-radius` the SSIM window (`metrics`).
+Every flag is bound to the Options field it sets (cpp/exe/cli.h: Flags), and `aos-render flags`
+lists the bindings with how each was declared. A field of a struct with a field table
+(cpp/aos/util/option_fields.h) gets its flag from its row: the flag is the field's name
+(`view_indices` is `--view-indices`), its help and range are the row's, its default the
+member's; `tests/python/test_vocabulary.py` fails for a field whose flag is declared any other
+way. {counts}
+
+The rule and the exceptions, each stated in one place:
+- `num_threads` is `--threads` on every command (every stage of the command, and a cap on the
+  process's workers; `allinfocus` sets the stack's and the merge's from one flag).
+- A row names its own flag (OptionFieldSpec::flag, the Note column says so) where one command
+  would otherwise have two fields of one name or the name alone would mislead: `--frames-fov-deg`
+  is the input frames' field of view (LoadOptions on the rendering commands, `poses`,
+  `import-telemetry`) beside the virtual camera's `--fov-deg` (`integral`, `stack`,
+  `allinfocus`, `view`); `--rectified-fov-deg` the rectified frames' (`rectify`);
+  `--ssim-window-radius` the SSIM window (`metrics`) beside the merge's focus `--window-radius`.
+- Shorthands (the Also column): other spellings of a field that has its own flag, such as
+  `--focal-height H` (the horizontal plane) for `--focal-surface`, `--look-at` for
+  `--cam-from-world`, `--pattern COLUMNSxROWS` for `--pattern-columns`/`--pattern-rows`,
+  `--ground FILE` (a plane fitted to points) for `--ground-plane`, `--browser`/`--no-browser` for
+  `--open-browser`.
+- `aos-render camera` writes a LensCamera, a geometry type without a field table: its flags are
+  declared in the command (`resolution`'s lens flags likewise).
 
 Flags outside the Options structs: `-q/--quiet`, `--json` (the command's report as one JSON
 object on stdout) and `--threads` on every command, `-o` (the output path) on every command that
@@ -346,17 +375,18 @@ Old spellings work for one release with a warning naming the new one (CHANGELOG.
 on `poses`, `rectify` and `resolution`; `--window-radius` on `metrics`; `--images` on
 `import-colmap`; `--square-size` (`calibrate`), `--distance` (`resolution`), `--camera`,
 `--overlap`, `--max-features` (`poses`), `--min-registered`, `--positions`,
-`--positions-from-exif` (`poses`, `import-colmap`).
-""".split("\n")
+`--positions-from-exif` (`poses`, `import-colmap`); `--views` (`--view-indices`, on every command
+that renders).
+""".format(counts=counts).split("\n")
     for command, class_name, prefix in structs():
         lines += [f"## `aos-render {command}` ({class_name})", "",
-                  "| Python field | CLI flag | Default | Unit | Note |",
-                  "|---|---|---|---|---|"]
+                  "| Python field | CLI flag | Also | Default | Unit | Note |",
+                  "|---|---|---|---|---|---|"]
         for row in table:
             if row["command"] == command and row["python"].startswith(class_name + "."):
                 flag = f"`{row['flag']}`" if row["flag"] else ""
-                lines.append(f"| `{row['python']}` | {flag} | `{row['default']}` | {row['unit']} "
-                             f"| {row['note']} |")
+                lines.append(f"| `{row['python']}` | {flag} | {row['also']} | `{row['default']}` "
+                             f"| {row['unit']} | {row['note']} |")
         lines.append("")
     return "\n".join(lines)
 

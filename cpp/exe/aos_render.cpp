@@ -49,7 +49,8 @@ CommandRunner DefineFlags(CLI::App* command) {
       list.push_back({{"command", binding.command},
                       {"flag", binding.flag},
                       {"field", binding.field},
-                      {"default", binding.default_text}});
+                      {"default", binding.default_text},
+                      {"source", binding.source}});
     }
     std::fputs((list.dump(1) + "\n").c_str(), stdout);
     return 0;

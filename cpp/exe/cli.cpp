@@ -37,14 +37,12 @@ void Say(const char* format, ...) {
 void Warn(const std::string& message) { std::fprintf(stderr, "warning: %s\n", message.c_str()); }
 void Note(const std::string& message) { std::fprintf(stderr, "note: %s\n", message.c_str()); }
 
-namespace {
-std::vector<FlagBinding>& Bindings() {
+std::vector<FlagBinding>& Flags::Bindings() {
   static std::vector<FlagBinding> bindings;
   return bindings;
 }
-}  // namespace
 
-const std::vector<FlagBinding>& AllBindings() { return Bindings(); }
+const std::vector<FlagBinding>& AllBindings() { return Flags::Bindings(); }
 
 const std::vector<DeprecatedSpelling>& DeprecatedSpellings() {
   static const std::vector<DeprecatedSpelling> spellings{
@@ -66,6 +64,12 @@ const std::vector<DeprecatedSpelling>& DeprecatedSpellings() {
       {"import-colmap", "--min-registered", "--min-registered-fraction"},
       {"import-colmap", "--positions", "--positions-file"},
       {"import-colmap", "--positions-from-exif", "--exif-positions"},
+      // Flags named after their field (issue 32): the view list.
+      {"integral", "--views", "--view-indices"},
+      {"stack", "--views", "--view-indices"},
+      {"allinfocus", "--views", "--view-indices"},
+      {"map", "--views", "--view-indices"},
+      {"view", "--views", "--view-indices"},
   };
   return spellings;
 }
@@ -111,17 +115,17 @@ std::string Flags::NumberText(double value) {
 }
 
 bool Flags::Bound(const std::string& field) const {
-  for (const auto& [path, flag] : *fields_) {
-    if (path == prefix_ + field) return true;
+  // A shorthand leaves the field its own flag to get.
+  for (const FlagBinding& binding : Bindings()) {
+    if (binding.command == command_->get_name() && binding.field == prefix_ + field &&
+        binding.source != "shorthand") {
+      return true;
+    }
   }
   return false;
 }
 
-std::string Flags::FlagOf(const std::string& field) {
-  std::string flag = "--" + field;
-  std::replace(flag.begin(), flag.end(), '_', '-');
-  return flag;
-}
+std::string Flags::FlagOf(const std::string& field) { return FlagOfField(field); }
 
 std::string Flags::Names(const std::string& flag) const {
   std::string names = flag;
@@ -215,10 +219,40 @@ void CheckFileFlags(const std::string& command) {
   }
 }
 
-void Flags::Describe(const std::string& field, const std::string& flags,
-                     const std::string& default_text) {
-  fields_->emplace_back(prefix_ + field, flags);
-  Bindings().push_back({command_->get_name(), flags, prefix_ + field, default_text});
+void Flags::Shorthand(const std::string& field, const std::string& flag) {
+  fields_->emplace_back(prefix_ + field, flag);
+  Bindings().push_back({command_->get_name(), flag, prefix_ + field, "", "shorthand"});
+}
+
+void Flags::AlsoSets(const std::string& field, const std::string& flag) {
+  const std::string leaf = field.substr(field.rfind('.') == std::string::npos ? 0 : field.rfind('.') + 1);
+  std::string text;
+  for (const FlagBinding& binding : Bindings()) {
+    if (binding.command == command_->get_name() && binding.flag == flag) text = binding.default_text;
+  }
+  fields_->emplace_back(prefix_ + field, flag);
+  Bindings().push_back({command_->get_name(), flag, prefix_ + field, text,
+                        flag == FlagOf(leaf) ? "table" : "hand"});
+}
+
+void Flags::FromTable() { Bindings().back().source = "table"; }
+
+CLI::Option* Flags::AddTaking(const std::string& flag,
+                              std::function<void(const std::string&)> take,
+                              const std::string& help) {
+  return command_->add_option_function<std::string>(
+      Names(flag),
+      [take = std::move(take), flag](const std::string& text) {
+        try {
+          take(text);
+        } catch (const std::invalid_argument& error) {
+          const std::string message = OneLine(error.what());
+          throw CLI::ValidationError(message.find(flag) == std::string::npos
+                                         ? message + " [option " + flag + "]"
+                                         : message);
+        }
+      },
+      help);
 }
 
 CLI::Option* Flags::Field(const std::string& flag, const std::string& field, int& value,
@@ -230,8 +264,14 @@ CLI::Option* Flags::Field(const std::string& flag, const std::string& field, int
 
 CLI::Option* Flags::Threads(int& num_threads, const std::string& field) {
   Common().num_threads[command_->get_name()] = &num_threads;
-  return Field("--threads", field, num_threads,
-               "Worker threads for every stage of the command; -1 = all cores");
+  CLI::Option* option = Field("--threads", field, num_threads,
+                              "Worker threads for every stage of the command; -1 = all cores");
+  // The field's flag by the one spelling rule (FlagOf), as its table would give it.
+  if (FlagOf(field.substr(field.rfind('.') == std::string::npos ? 0 : field.rfind('.') + 1)) ==
+      "--threads") {
+    FromTable();
+  }
+  return option;
 }
 
 CLI::Option* Flags::Threads() {
@@ -284,12 +324,20 @@ void Flags::RethrowNamingFlags(const std::invalid_argument& error) const {
     return scope_.empty() ? path.rfind("load.", 0) != 0 : path.rfind(scope_, 0) == 0;
   };
   // The flag bound to one field named in a message: its path, else its name in scope.
+  // Every flag of that field (its own, then its shorthands: --focal-surface/--focal-height).
   auto flag_of = [&](const std::string& field) -> std::string {
-    for (const auto& [path, flag] : *fields_) {
-      if (in_scope(path) && (path == field || path == scope_ + field)) return flag;
-    }
-    for (const auto& [path, flag] : *fields_) {
-      if (in_scope(path) && leaf_of(path) == field) return flag;
+    for (const bool by_leaf : {false, true}) {
+      std::string found, path_found;
+      for (const auto& [path, flag] : *fields_) {
+        const bool match = by_leaf ? leaf_of(path) == field
+                                   : (path == field || path == scope_ + field);
+        if (!in_scope(path) || !match || (!path_found.empty() && path != path_found)) continue;
+        path_found = path;
+        if (("/" + found + "/").find("/" + flag + "/") == std::string::npos) {
+          found += (found.empty() ? "" : "/") + flag;
+        }
+      }
+      if (!found.empty()) return found;
     }
     return "";
   };
@@ -435,6 +483,42 @@ std::vector<double> ParseNumbers(const std::string& text, const std::string& opt
   return values;
 }
 
+Plane TextForm<Plane>::Parse(const std::string& text, const std::string& flag) {
+  return ParsePlane(text, flag);
+}
+
+std::string TextForm<Plane>::Text(const Plane& plane) {
+  if (plane.normal == Vec3d(0.0, 0.0, 1.0) && plane.point.x == 0.0 && plane.point.y == 0.0) {
+    return FormatNumber(plane.point.z);
+  }
+  std::string text;
+  for (double v : {plane.point.x, plane.point.y, plane.point.z, plane.normal.x, plane.normal.y,
+                   plane.normal.z}) {
+    text += (text.empty() ? "" : ",") + FormatNumber(v);
+  }
+  return text;
+}
+
+std::optional<Plane> TextForm<std::optional<Plane>>::Parse(const std::string& text,
+                                                           const std::string& flag) {
+  return ParsePlane(text, flag);
+}
+
+std::string TextForm<std::optional<Plane>>::Text(const std::optional<Plane>& value) {
+  return value ? TextForm<Plane>::Text(*value) : "";
+}
+
+std::optional<bool> TextForm<std::optional<bool>>::Parse(const std::string& text,
+                                                         const std::string& flag) {
+  if (text == "true") return true;
+  if (text == "false") return false;
+  ThrowUsage(flag + ": expected true or false (got '" + text + "')");
+}
+
+std::string TextForm<std::optional<bool>>::Text(const std::optional<bool>& value) {
+  return value ? (*value ? "true" : "false") : "";
+}
+
 Plane ParsePlane(const std::string& text, const std::string& option) {
   const std::vector<double> v = ParseNumbers(text, option);
   if (v.size() == 1) return Plane::AtHeight(v[0]);
@@ -445,16 +529,16 @@ Plane ParsePlane(const std::string& text, const std::string& option) {
   return Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])};
 }
 
-std::vector<int> ParseViewList(const std::string& text, int view_count) {
+std::vector<int> ParseViewList(const std::string& text, int view_count, const std::string& flag) {
   std::vector<int> indices;
   std::stringstream stream(text);
   std::string item;
   auto to_index = [&](const std::string& part, int fallback, int upper) {
     if (part.empty()) return fallback;
-    const double value = AsUsage([&] { return ParseNumberText(part, "--views"); });
-    if (value != std::floor(value)) ThrowUsage("--views: '" + part + "' is not an integer");
+    const double value = AsUsage([&] { return ParseNumberText(part, flag); });
+    if (value != std::floor(value)) ThrowUsage(flag + ": '" + part + "' is not an integer");
     if (value < 0 || value > upper) {
-      ThrowUsage("--views: index " + part + " is outside 0.." + std::to_string(upper) +
+      ThrowUsage(flag + ": index " + part + " is outside 0.." + std::to_string(upper) +
                  " (the light field has " + std::to_string(view_count) + " views)");
     }
     return static_cast<int>(value);
@@ -467,12 +551,12 @@ std::vector<int> ParseViewList(const std::string& text, int view_count) {
     } else {
       const int begin = to_index(item.substr(0, colon), 0, view_count);
       const int end = to_index(item.substr(colon + 1), view_count, view_count);
-      if (begin > end) ThrowUsage("--views: range '" + item + "' runs backwards");
+      if (begin > end) ThrowUsage(flag + ": range '" + item + "' runs backwards");
       for (int i = begin; i < end; ++i) indices.push_back(i);
     }
   }
   if (indices.empty()) {
-    ThrowUsage("--views: the selection '" + text + "' is empty (view selection is empty)");
+    ThrowUsage(flag + ": the selection '" + text + "' is empty (view selection is empty)");
   }
   return indices;
 }
@@ -515,11 +599,8 @@ void CheckImageOutput(const ImageOutputOptions& out, const std::string& path) {
   AsUsage([&] { return ResolveSampleType(path, Image(1, 1, 1, PixelType::kF32), write); });
 }
 
-CLI::Option* AddGreyFlag(Flags& loader, bool& grey) {
-  return loader.Switch("grey", grey,
-                       "Integrate the frames as grey: RGB(A) frames become one-channel luminance "
-                       "at load, Rec. 601 weights 0.299 R + 0.587 G + 0.114 B (e.g. false-colour "
-                       "thermal frames)");
+CLI::Option* AddGreyFlag(Flags& loader, LoadOptions& load) {
+  return loader.Field(load, "grey");
 }
 
 }  // namespace aos::cli

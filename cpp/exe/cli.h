@@ -7,10 +7,15 @@
 // table in aos_render.cpp lists each command once (name, one-line help, Define function), the
 // way COLMAP's exe/colmap.cc does. Each area's commands live in their own file.
 //
-// A flag is a field: Flags::Field binds `--kebab-name` to the Options field `kebab_name`, prints
-// the struct's default in --help (read from the field itself, never re-typed), and records the
-// binding, so that an error from Options::Check() ("fov_deg: ...") names the flag that set the
-// field, and `aos-render flags` lists every binding (tools/vocabulary.py reads it).
+// A flag is a field: Flags::Field(options, name) binds the flag of a field-table row
+// (util/option_fields.h: `--kebab-name`, or the row's own flag) to that field, with the row's
+// help and range and the struct's default (read from the field itself, never re-typed); a type
+// beyond numbers, text, enums and switches is read by its TextForm, and a value resolved once
+// the light field is loaded by a per-row reader. Flags::Remaining gives every other row its
+// flag. Other spellings of a field (--focal-height H for focal_surface) are shorthands beside
+// its own flag (Flags::Shorthand). Every binding is recorded, so that an error from
+// Options::Check() ("fov_deg: ...") names the flags that set the field, and `aos-render flags`
+// lists every binding with how it was declared (tools/vocabulary.py reads it).
 //
 // A flag that names a file is declared with its role (Flags::Input, InputFolder, Output,
 // OutputFolder, by the option's name): before a command runs, main() refuses every output that
@@ -27,6 +32,7 @@
 #include <initializer_list>
 #include <map>
 #include <memory>
+#include <optional>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -99,6 +105,11 @@ struct FlagBinding {
   std::string flag;     // e.g. "--agreement" (the new spelling)
   std::string field;    // dotted path in the command's Options struct, e.g. "merge.robust.agreement"
   std::string default_text;  // as --help prints it ("" when it prints none)
+  // How the flag was declared: "table" (from the field's row: flag, help, default and range,
+  // Flags::Field(options, name) and Remaining), "shorthand" (another spelling of a field that
+  // has its table flag too, Flags::Shorthand: --focal-height H for focal_surface), or "hand"
+  // (flag and help typed in the command: a struct without a table).
+  std::string source = "hand";
 };
 // Every binding of every command, in declaration order (for `aos-render flags`).
 const std::vector<FlagBinding>& AllBindings();
@@ -148,6 +159,53 @@ std::string DefaultText(const T& value) {
   }
 }
 
+// A field type's spelling on the command line, beyond numbers, text, enums and switches (which
+// Flags reads itself): `Parse(text, flag)` (throws std::invalid_argument), `Text(value)` (the
+// default as --help prints it; "" for none) and `kSpelling` (the help's hint). A table row of
+// such a type gets its flag like any other (Flags::Field, Remaining).
+template <class T>
+struct TextForm;
+template <class T, class = void>
+struct HasTextForm : std::false_type {};
+template <class T>
+struct HasTextForm<T, std::void_t<decltype(TextForm<T>::kSpelling)>> : std::true_type {};
+template <class T>
+inline constexpr bool kHasTextForm = HasTextForm<T>::value;
+
+// A plane: "H" (the horizontal plane z = H) or "PX,PY,PZ,NX,NY,NZ"; printed as H when it is
+// the horizontal plane through (0, 0, H).
+template <>
+struct TextForm<Plane> {
+  static constexpr const char* kSpelling = "a height H or PX,PY,PZ,NX,NY,NZ";
+  static Plane Parse(const std::string& text, const std::string& flag);
+  static std::string Text(const Plane& value);
+};
+// The same, unset by default.
+template <>
+struct TextForm<std::optional<Plane>> {
+  static constexpr const char* kSpelling = "H or PX,PY,PZ,NX,NY,NZ";
+  static std::optional<Plane> Parse(const std::string& text, const std::string& flag);
+  static std::string Text(const std::optional<Plane>& value);
+};
+// N numbers "A,B,..." (a centre X,Y).
+template <size_t N>
+struct TextForm<std::array<double, N>> {
+  static constexpr const char* kSpelling = "comma-separated numbers";
+  static std::array<double, N> Parse(const std::string& text, const std::string& flag);
+  static std::string Text(const std::array<double, N>& value) {
+    std::string text;
+    for (double v : value) text += (text.empty() ? "" : ",") + FormatNumber(v);
+    return text;
+  }
+};
+// A yes/no that may be left unset (the program decides): "true" or "false".
+template <>
+struct TextForm<std::optional<bool>> {
+  static constexpr const char* kSpelling = "true or false; unset: decided at run time";
+  static std::optional<bool> Parse(const std::string& text, const std::string& flag);
+  static std::string Text(const std::optional<bool>& value);
+};
+
 // Binds one command's flags to the fields of its Options struct (see the header comment).
 class Flags {
  public:
@@ -182,11 +240,50 @@ class Flags {
   CLI::Option* Field(Options& options, const std::string& name) {
     CLI::Option* option = nullptr;
     Options::Fields([&](const auto& spec) {
-      if (name == spec.name) option = TableField(options.*(spec.member), spec);
+      if (name == spec.name) {
+        option = TableField(options.*(spec.member), spec);
+        FromTable();
+      }
     });
     if (option == nullptr) throw std::logic_error("Flags::Field: no field " + name + " in the table");
     return option;
   }
+  // The flag of the field `name` of `options`' table (its row's flag, help and default, as
+  // above), whose text goes to `take` instead of the type's own reading: a value spelled beyond
+  // its type and resolved once the light field is loaded (a view's index or name, a height or
+  // a terrain file). `take` may throw std::invalid_argument (exit 2, naming the flag).
+  template <class Options>
+  CLI::Option* Field(Options& options, const std::string& name,
+                     std::function<void(const std::string&)> take,
+                     const std::string& more_help = "") {
+    CLI::Option* option = nullptr;
+    Options::Fields([&](const auto& spec) {
+      if (name != spec.name) return;
+      const std::string flag = FlagOf(spec);
+      option = AddTaking(flag, std::move(take), spec.help + more_help);
+      const std::string text = TextOf(options.*(spec.member));
+      if (!text.empty()) option->default_str(text);
+      Record(flag, name, text);
+      FromTable();
+    });
+    if (option == nullptr) throw std::logic_error("Flags::Field: no field " + name + " in the table");
+    return option;
+  }
+  // Another spelling of `field`, which has its table flag too (declared by the caller on
+  // command(): --focal-height H for focal_surface, --look-at for cam_from_world); errors about
+  // the field then name it as well, and `aos-render flags` lists it as a shorthand.
+  void Shorthand(const std::string& field, const std::string& flag);
+  // A shorthand declared here: `flag` whose text `parse` turns into the field's value.
+  template <class T, class Parse>
+  CLI::Option* Shorthand(const std::string& field, const std::string& flag, T& value, Parse parse,
+                         const std::string& help) {
+    CLI::Option* option = Parsed(flag, field, value, parse, "", help);
+    Bindings().back().source = "shorthand";
+    return option;
+  }
+  // The same flag for a second field of this name in the command (allinfocus's --threads sets
+  // the stack's and the merge's num_threads): recorded as that field's table flag.
+  void AlsoSets(const std::string& field, const std::string& flag);
   // Flags for every field of `options`' table that has none yet on this binder's path and is
   // not in `not_on_the_cli` (each with its reason in tools/vocabulary.py NOT_ON_THE_CLI), as
   // Field(options, name) binds them. Nested Options fields are skipped (their binder calls
@@ -254,10 +351,6 @@ class Flags {
     return Role(name, FileRole::kOutputFolder);
   }
 
-  // Records that `field` is set by the flags `flags` (e.g. "--focal-height/--focal-plane"),
-  // declared by hand; errors about the field then name them.
-  void Describe(const std::string& field, const std::string& flags,
-                const std::string& default_text = "");
 
   // --threads bound to `num_threads` (an Options field; all stages of the command read it).
   CLI::Option* Threads(int& num_threads, const std::string& field = "num_threads");
@@ -285,14 +378,23 @@ class Flags {
   }
 
   CLI::App* command() const { return command_; }
+  // Every binding of every command (AllBindings), to record in.
+  static std::vector<FlagBinding>& Bindings();
 
  private:
   template <class T, class Spec>
   CLI::Option* TableField(T& value, const Spec& spec) {
     const std::string name = spec.name;
-    const std::string flag = FlagOf(name);
+    const std::string flag = FlagOf(spec);
     if constexpr (std::is_same_v<T, bool>) {
-      return Switch(name, value, spec.help);
+      CLI::Option* option = command_->add_flag(Names(flag), value, spec.help);
+      Record(flag, name, "");
+      return option;
+    } else if constexpr (kHasTextForm<T>) {
+      return Parsed(
+          flag, name, value,
+          [flag](const std::string& text) { return TextForm<T>::Parse(text, flag); },
+          TextForm<T>::Text(value), std::string(spec.help) + " (" + TextForm<T>::kSpelling + ")");
     } else if constexpr (std::is_enum_v<T>) {
       return Parsed(
           flag, name, value, [flag](const std::string& text) { return EnumFromName<T>(text, flag); },
@@ -306,6 +408,10 @@ class Flags {
           },
                  NumberText(static_cast<double>(value)), spec.help)
           ->type_name(std::is_integral_v<T> ? "INT" : "FLOAT");
+    } else if constexpr (std::is_same_v<T, std::vector<double>>) {  // numbers as arguments
+      CLI::Option* option = command_->add_option(Names(flag), value, spec.help);
+      Record(flag, name, "");
+      return option;
     } else if constexpr (std::is_same_v<T, std::string>) {
       CLI::Option* option = Field(flag, name, value, spec.help);
       if (spec.range.choices != nullptr) {  // refused while parsing, naming field and flag
@@ -356,7 +462,34 @@ class Flags {
   }
   // Whether `field` (on this binder's path) has a flag already.
   bool Bound(const std::string& field) const;
+  // --kebab-name; num_threads is --threads on every command (the one spelling rule).
   static std::string FlagOf(const std::string& field);
+  // A row's flag: its own (OptionFieldSpec::flag) or FlagOf(name).
+  template <class Spec>
+  static std::string FlagOf(const Spec& spec) {
+    return FlagOfField(spec.name, spec.flag);
+  }
+  // A value's text as --help prints a default ("" for none).
+  template <class T>
+  static std::string TextOf(const T& value) {
+    if constexpr (std::is_same_v<T, bool>) {
+      return "";
+    } else if constexpr (std::is_enum_v<T>) {
+      return EnumName(value);
+    } else if constexpr (std::is_arithmetic_v<T>) {
+      return NumberText(static_cast<double>(value));
+    } else if constexpr (std::is_same_v<T, std::string>) {
+      return value;
+    } else if constexpr (kHasTextForm<T>) {
+      return TextForm<T>::Text(value);
+    } else {
+      return "";
+    }
+  }
+  CLI::Option* AddTaking(const std::string& flag, std::function<void(const std::string&)> take,
+                         const std::string& help);
+  // Marks the last binding recorded as the table's (FlagBinding::source).
+  static void FromTable();
   std::string Names(const std::string& flag) const;
   void Record(const std::string& flag, const std::string& field, const std::string& text);
   CLI::Option* Role(const std::string& name, FileRole role) const;
@@ -403,8 +536,9 @@ std::vector<double> ParseNumbers(const std::string& text, const std::string& opt
                                  size_t count = 0);
 // "H" (the horizontal plane z = H) or "PX,PY,PZ,NX,NY,NZ".
 Plane ParsePlane(const std::string& text, const std::string& option);
-// "0:10,15,20:30" -> indices checked against [0, view_count).
-std::vector<int> ParseViewList(const std::string& text, int view_count);
+// "0:10,15,20:30" -> indices checked against [0, view_count); errors name `flag`.
+std::vector<int> ParseViewList(const std::string& text, int view_count,
+                               const std::string& flag = "--view-indices");
 
 // Refuses an existing `path` (a file, a folder or a link) unless --force (files only: folders
 // are never replaced).
@@ -412,7 +546,7 @@ void RefuseExisting(const std::string& path, const std::string& what);
 
 // --grey bound to LoadOptions::grey through `loader` (the binder At("load.")): the one spelling
 // on every command that loads a light field (frames become Rec. 601 luminance at load).
-CLI::Option* AddGreyFlag(Flags& loader, bool& grey);
+CLI::Option* AddGreyFlag(Flags& loader, LoadOptions& load);
 
 // Sample type and value range of written images (--sample-type, --range).
 struct ImageOutputOptions {
@@ -422,5 +556,14 @@ struct ImageOutputOptions {
 void AddImageOutputFlags(Flags& flags, ImageOutputOptions& out);
 // Checks --sample-type/--range and that `path` can hold the samples; throws a UsageError.
 void CheckImageOutput(const ImageOutputOptions& out, const std::string& path);
+
+template <size_t N>
+std::array<double, N> TextForm<std::array<double, N>>::Parse(const std::string& text,
+                                                             const std::string& flag) {
+  const std::vector<double> v = ParseNumbers(text, flag, N);
+  std::array<double, N> values{};
+  std::copy(v.begin(), v.end(), values.begin());
+  return values;
+}
 
 }  // namespace aos::cli

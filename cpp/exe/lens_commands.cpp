@@ -87,8 +87,10 @@ CommandRunner DefineCalibrate(CLI::App* command) {
   CalibrateOptions& options = c->options;
   const std::string pattern = std::to_string(options.pattern_columns) + "x" +
                               std::to_string(options.pattern_rows);
-  flags.Describe("pattern_columns", "--pattern", pattern);
-  flags.Describe("pattern_rows", "--pattern", pattern);
+  CLI::Option* columns = flags.Field(options, "pattern_columns");
+  CLI::Option* rows = flags.Field(options, "pattern_rows");
+  flags.Shorthand("pattern_columns", "--pattern");
+  flags.Shorthand("pattern_rows", "--pattern");
   command
       ->add_option_function<std::string>(
           "--pattern",
@@ -99,11 +101,12 @@ CommandRunner DefineCalibrate(CLI::App* command) {
               throw CLI::ValidationError(OneLine(error.what()));
             }
           },
-          "Inner corners COLUMNSxROWS")
-      ->default_str(pattern);
+          "Inner corners COLUMNSxROWS: sets --pattern-columns and --pattern-rows")
+      ->default_str(pattern)
+      ->excludes(columns)
+      ->excludes(rows);
   flags.Field(options, "square_size_m");
-  flags.Parsed("--model", "model", options.model, ParseModelFlag, LensModelName(options.model),
-               "pinhole, radtan, fisheye or omnidir");
+  flags.Field(options, "model");
   command->add_option("-o,--output", c->output, "Camera file to write (JSON)")->required();
   flags.Input("frames");
   flags.Output("--output");
@@ -201,9 +204,21 @@ CommandRunner DefineCamera(CLI::App* command) {
   flags.Optional("--cy", "cy", camera.cy,
                  "Principal point y, pixels, as --cx (OpenCV's cy + 0.5; default: height / 2)")
       ->each([c](const std::string&) { c->cy_given = true; });
-  flags.Describe("distortion", "--k1/--k2/--p1/--p2/--k3/--k4", "0");
+  CLI::Option* all = flags.Parsed(
+      "--distortion", "distortion", camera.distortion,
+      [](const std::string& text) {
+        const std::vector<double> v = ParseNumbers(text, "--distortion");
+        if (v.size() > 5) ThrowUsage("--distortion: at most 5 coefficients (got " + text + ")");
+        std::array<double, 5> d{0, 0, 0, 0, 0};
+        std::copy(v.begin(), v.end(), d.begin());
+        return d;
+      },
+      "0,0,0,0,0",
+      "Distortion coefficients in the model's order (radtan k1,k2,p1,p2,k3; fisheye k1,k2,k3,k4; "
+      "omnidir k1,k2,p1,p2), the rest 0");
   for (DistortionFlag& flag : c->distortion) {
     DistortionFlag* target = &flag;
+    flags.Shorthand("distortion", std::string("--") + flag.name);
     command
         ->add_option_function<double>(
             std::string("--") + flag.name,
@@ -212,7 +227,9 @@ CommandRunner DefineCamera(CLI::App* command) {
               target->given = true;
             },
             std::string("Distortion coefficient ") + flag.name +
-                " (radtan k1 k2 p1 p2 k3; fisheye k1..k4; omnidir k1 k2 p1 p2; default 0)");
+                " (radtan k1 k2 p1 p2 k3; fisheye k1..k4; omnidir k1 k2 p1 p2; default 0): sets "
+                "its place in --distortion")
+        ->excludes(all);
   }
   flags.Field("xi", camera.xi, "omnidir: Mei's xi (>= 0)");
   flags.Field("skew", camera.skew, "omnidir: skew");
@@ -407,19 +424,15 @@ CommandRunner DefineRectify(CLI::App* command) {
       "DIR/lightfield.json pointing at the rectified frames, with pinhole cameras");
   light_field->excludes(frames)->excludes(camera);
   RectifyOptions& options = c->options;
-  flags.Field("--rectified-fov-deg", "fov_deg", options.fov_deg,
-              "Horizontal field of view of the rectified frames, degrees (--fov-deg is its old "
-              "name)");
+  flags.Field(options, "fov_deg");
   flags.Field(options, "width");
   flags.Field(options, "height");
   flags.Field(options, "yaw_deg");
   flags.Field(options, "pitch_deg");
   flags.Field(options, "roll_deg");
-  flags.Switch("fill", options.fill,
-               "Allow a rectified view wider than the lens covers: pixels outside its coverage "
-               "are black (without it such a view is refused)");
+  flags.Field(options, "fill");
   Flags loader = flags.At("load.");
-  AddGreyFlag(loader, c->load.grey)->needs(light_field);
+  AddGreyFlag(loader, c->load)->needs(light_field);
   command->add_option("-o,--output-dir", c->output_dir,
                       "Output folder (must not exist or be empty): the frames under their own "
                       "names, and camera.json (the rectified pinhole camera)")
@@ -548,10 +561,8 @@ CommandRunner DefineResolution(CLI::App* command) {
   command->add_option("--skew", c->skew, "omnidir: skew")->capture_default_str();
   ResolutionOptions& options = c->options;
   flags.Field(options, "distance_m");
-  auto* error_px = flags.Optional("--pose-error-px", "pose_error_px", options.pose_error_px,
-                                  "Pose error, pixels (default: none)");
-  auto* error_m = flags.Optional("--pose-error-m", "pose_error_m", options.pose_error_m,
-                                 "Pose error at the focal plane, metres (default: none)");
+  auto* error_px = flags.Field(options, "pose_error_px");
+  auto* error_m = flags.Field(options, "pose_error_m");
   error_px->excludes(error_m);
   flags.Field(options, "max_off_axis_deg");
   flags.Threads();

@@ -117,13 +117,10 @@ CommandRunner DefineMetrics(CLI::App* command) {
   QualityOptions& options = c->options;
   flags.Field(options, "data_range");
   flags.Field(options, "gaussian_sigma");
-  flags.Field("--ssim-window-radius", "window_radius", options.window_radius,
-              "SSIM window radius, pixels (--window-radius is its old name)");
+  flags.Field(options, "window_radius");
   flags.Field(options, "k1");
   flags.Field(options, "k2");
-  flags.Switch("grey", options.grey,
-               "Compare luminances: RGB(A) images become Rec. 601 luminance (0.299 R + 0.587 G + "
-               "0.114 B) first, e.g. a grey render (--grey) against an RGB reference");
+  flags.Field(options, "grey");
   flags.Threads();
   flags.Input("test");
   flags.Input("reference");

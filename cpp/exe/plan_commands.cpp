@@ -46,11 +46,6 @@ std::vector<std::array<double, 2>> ParseVertices(const std::string& text) {
   return out;
 }
 
-double ParseBattery(const std::string& text) {
-  if (text == "inf" || text == "infinity") return std::numeric_limits<double>::infinity();
-  return ParseNumbers(text, "--battery-min", 1)[0];
-}
-
 int RunPlan(const PlanCommand& c, const Flags& flags) {
   for (const auto& [path, what] : {std::pair{c.csv, "--csv"}, std::pair{c.geojson, "--geojson"},
                                    std::pair{c.kml, "--kml"}, std::pair{c.png, "--png"}}) {
@@ -151,23 +146,20 @@ CommandRunner DefinePlan(CLI::App* command) {
   flags.Field(o, "shape");
   flags.Field(o, "coordinates");
   flags.Field(o, "crs");
-  flags.Parsed("--center", "center", o.center,
-               [](const std::string& text) { return ParsePair(text, "--center"); }, "0,0",
-               "Centre of a circle, sector or rectangle: X,Y metres or LAT,LON degrees");
+  flags.Field(o, "center");
   flags.Field(o, "radius_m");
   flags.Field(o, "sector_start_deg");
   flags.Field(o, "sector_angle_deg");
   flags.Field(o, "width_m");
   flags.Field(o, "length_m");
-  flags.Parsed("--vertices", "vertices", o.vertices, ParseVertices, "",
-               "Polygon corners or line points: 'X,Y;X,Y;...' (or LAT,LON pairs)");
+  flags.Field(o, "vertices", [&o](const std::string& text) { o.vertices = ParseVertices(text); },
+              " On the command line 'X,Y;X,Y;...' (or LAT,LON pairs).");
   flags.Field(o, "pattern");
   flags.Field(o, "spacing_m");
   flags.Field(o, "along_spacing_m");
   flags.Field(o, "outer_scale");
   flags.Field(o, "heading_deg");
-  flags.Field("--min-shots-per-line", "min_shots_per_line", o.min_shots_per_line, 1,
-              "Scan lines with fewer shots inside the shape are not flown");
+  flags.Field(o, "min_shots_per_line");
   flags.Field(o, "altitude_m");
   flags.Field(o, "altitude_mode");
   flags.Field(o, "dem");
@@ -176,15 +168,10 @@ CommandRunner DefinePlan(CLI::App* command) {
   flags.Field(o, "min_clearance_m");
   flags.Field(o, "ground_speed_mps");
   flags.Field(o, "hover_s");
-  flags.Parsed("--battery-min", "battery_min", o.battery_min, ParseBattery,
-               DefaultText(o.battery_min),
-               "Flight time one battery allows, minutes ('inf': no budget); a longer plan is "
-               "refused");
+  flags.Field(o, "battery_min");
   flags.Field(o, "max_waypoints");
-  flags.Field("--image-width", "image_width", o.image_width, 1,
-              "Camera for Eq. 2: image width, pixels");
-  flags.Field("--image-height", "image_height", o.image_height, 1,
-              "Camera for Eq. 2: image height, pixels");
+  flags.Field(o, "image_width");
+  flags.Field(o, "image_height");
   flags.Field(o, "fov_deg");
   command->add_option("--csv", c->csv,
                       "Write the waypoints as CSV (index,latitude,longitude,altitude_agl_m,x_m,"

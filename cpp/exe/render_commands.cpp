@@ -40,17 +40,9 @@ namespace fs = std::filesystem;
 namespace aos::cli {
 namespace {
 
-std::string PlaneText(const Plane& plane) {
-  if (plane.normal == Vec3d(0.0, 0.0, 1.0) && plane.point.x == 0.0 && plane.point.y == 0.0) {
-    return FormatNumber(plane.point.z);
-  }
-  std::string text;
-  for (double v : {plane.point.x, plane.point.y, plane.point.z, plane.normal.x, plane.normal.y,
-                   plane.normal.z}) {
-    text += (text.empty() ? "" : ",") + FormatNumber(v);
-  }
-  return text;
-}
+// What --view-indices takes on the command line.
+constexpr const char* kViewListHelp =
+    " On the command line indices and half-open ranges, e.g. 0:100,150 (default: all).";
 
 // The light field to load and the virtual camera: shared by integral, stack and allinfocus.
 struct RenderArgs {
@@ -65,19 +57,11 @@ struct RenderArgs {
 
 void AddLoadFlags(const Flags& flags, LoadOptions& load) {
   Flags loader = flags.At("load.");
-  loader.Optional("--frames-fov-deg", "fov_deg", load.fov_deg,
-                  "Horizontal field of view of the frames, degrees (JKU poses.json only)");
-  loader.Optional("--images-dir", "images_dir", load.images_dir,
-                  "Folder of the frames (JKU poses.json; default: ../images beside it)");
-  AddGreyFlag(loader, load.grey);
-  auto* mask = loader.Optional(
-      "--mask", "mask", load.mask,
-      "Mask image for every frame, the frames' size: zero pixels (a letterbox, a burnt-in logo) "
-      "are left out of every average, non-zero ones are valid");
-  auto* mask_dir = loader.Optional(
-      "--mask-dir", "mask_dir", load.mask_dir,
-      "Folder with one mask per frame, named like the frame (any image extension, case "
-      "ignored); a frame without one is an error");
+  loader.Field(load, "fov_deg");
+  loader.Field(load, "images_dir");
+  AddGreyFlag(loader, load);
+  auto* mask = loader.Field(load, "mask");
+  auto* mask_dir = loader.Field(load, "mask_dir");
   mask->excludes(mask_dir);
   flags.InputFolder("--images-dir");
   flags.Input("--mask");
@@ -92,64 +76,77 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
       ->required();
   render.Input("lightfield");
   AddLoadFlags(render, args.load);
-  render.Describe("pose_view", "--pose-view");
-  auto* pose_view = render.command()->add_option(
-      "--pose-view", args.pose_view,
-      "Virtual camera = the pose of view K (0-based index) or of the view named NAME (its frame "
-      "name, with or without the extension; case is ignored if nothing matches exactly)");
-  render.Describe("cam_from_world", "--cam-from-world/--look-at");
+  auto* pose_view = render.Field(
+      options, "pose_view", [&args](const std::string& text) { args.pose_view = text; },
+      " On the command line also the view named NAME (its frame name, with or without the "
+      "extension; case is ignored if nothing matches exactly).");
+  auto* pose = render.Field(
+      options, "cam_from_world", [&args](const std::string& text) { args.cam_from_world = text; },
+      " On the command line 12 numbers: the 3x4 matrix [R|t] row by row.");
+  render.Shorthand("cam_from_world", "--look-at");
   auto* look_at = render.command()->add_option(
       "--look-at", args.look_at,
       "Virtual camera at EX,EY,EZ looking at TX,TY,TZ (optional up UX,UY,UZ; default 0,0,1, or "
-      "0,1,0 looking straight down or up)");
-  auto* pose = render.command()->add_option(
-      "--cam-from-world", args.cam_from_world,
-      "Virtual camera pose as 12 numbers: the 3x4 matrix [R|t] row by row (local frame -> "
-      "camera, OpenCV axes)");
+      "0,1,0 looking straight down or up): sets --cam-from-world");
   pose_view->excludes(look_at)->excludes(pose);
   look_at->excludes(pose);
   render.Field(options, "fov_deg");
   render.Field(options, "width");
   render.Field(options, "height");
   render.Field(options, "aperture_radius");
-  render.Describe("view_indices", "--views");
-  render.command()->add_option("--views", args.views,
-                               "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
-                               "(default: all)");
+  render.Field(options, "view_indices", [&args](const std::string& text) { args.views = text; },
+               kViewListHelp);
   render.Field(options, "min_view_angle_deg");
   render.Field(options, "lens_tolerance_px");
   render.Threads(options.num_threads);
 }
 
-// A focal surface's default in a flag's spelling: a plane's (PlaneText), else none.
-std::string SurfaceText(const FocalSurface& surface) {
-  return surface.kind() == FocalSurfaceKind::kPlane ? PlaneText(surface.plane()) : "";
+// --focal-surface's text: a height H or PX,PY,PZ,NX,NY,NZ is that plane (at once); anything else
+// is a mesh or DEM file, kept in `path` and read by ReadFocalSurface before the frames.
+std::function<void(const std::string&)> TakeFocalSurface(FocalSurface* surface, std::string* path) {
+  return [surface, path](const std::string& text) {
+    std::vector<double> numbers;
+    try {
+      numbers = ParseNumbers(text, "--focal-surface");
+    } catch (const std::invalid_argument&) {
+    }
+    if (numbers.size() == 1 || numbers.size() == 6) {
+      *surface = FocalSurface::FromPlane(ParsePlane(text, "--focal-surface"));
+      path->clear();
+    } else {
+      *path = text;
+    }
+  };
 }
+
+constexpr const char* kFocalSurfaceHelp =
+    " On the command line a height H (the horizontal plane z = H), a plane PX,PY,PZ,NX,NY,NZ, or "
+    "a file: an OBJ or PLY mesh or a DEM raster GDAL reads (GeoTIFF...), in world coordinates "
+    "(light field origin + local; a file named like a number: ./12.5).";
 
 // --focal-height H: focal_surface as the horizontal plane z = H.
 CLI::Option* AddFocalHeightFlag(Flags& flags, FocalSurface& focal_surface, const char* help) {
-  return flags.Parsed(
-      "--focal-height", "focal_surface", focal_surface,
+  return flags.Shorthand(
+      "focal_surface", "--focal-height", focal_surface,
       [](const std::string& text) {
         return FocalSurface::FromPlane(Plane::AtHeight(ParseNumberText(text, "--focal-height")));
       },
-      SurfaceText(focal_surface), help);
+      help);
 }
 
-// --focal-surface (IntegralOptions::focal_surface).
-CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, const char* help) {
-  render.Describe("focal_surface", "--focal-surface");
-  render.command()->add_option("--focal-surface", args.focal_surface, help);
+// --focal-surface (IntegralOptions::focal_surface), with a command's `note` on it.
+CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, IntegralOptions& options,
+                                 const char* note) {
+  render.Field(options, "focal_surface",
+               TakeFocalSurface(&options.focal_surface, &args.focal_surface),
+               std::string(kFocalSurfaceHelp) + " " + note);
   return render.Input("--focal-surface");
 }
 
 // --focal-surface and --surface-offset (IntegralOptions::focal_surface, surface_offset).
 CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   CLI::Option* surface = AddFocalSurfaceFlag(
-      render, args,
-      "Focus on a terrain instead of a plane: an OBJ or PLY mesh, or a DEM raster GDAL reads "
-      "(GeoTIFF...), in world coordinates (light field origin + local); pixels whose rays miss "
-      "it are uncovered");
+      render, args, options, "Pixels whose rays miss a terrain are uncovered.");
   render.Field(options, "surface_offset");
   return surface;
 }
@@ -334,17 +331,17 @@ CommandRunner DefineIntegral(CLI::App* command) {
   Flags flags(command);
   AddRenderFlags(flags, c->args, c->options);
   // Errors about focal_surface name all its flags (the first description of a field wins).
-  flags.Describe("focal_surface", "--focal-height/--focal-plane/--focal-distance/--focal-surface");
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
   CLI::Option* height = AddFocalHeightFlag(flags, c->options.focal_surface,
                                            "Horizontal focal plane z = H (local frame, metres)");
-  auto* plane = flags.Parsed(
-      "--focal-plane", "focal_surface", c->options.focal_surface,
+  auto* plane = flags.Shorthand(
+      "focal_surface", "--focal-plane", c->options.focal_surface,
       [](const std::string& text) {
         const std::vector<double> v = ParseNumbers(text, "--focal-plane", 6);
         return FocalSurface::FromPlane(Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])});
       },
-      "", "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
+      "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
+  flags.Shorthand("focal_surface", "--focal-distance");
   auto* distance = command->add_option(
       "--focal-distance", c->focal_distance,
       "Focal plane D metres in front of the virtual camera, perpendicular to its axis (e.g. 35 "
@@ -415,27 +412,21 @@ void ResolveGround(const std::string& path, std::vector<Vec3d> points,
 // --ground) planes parallel to an estimated ground.
 StackFlags AddStackFlags(Flags& stack, Flags& render, RenderArgs& args,
                          FocalStackOptions& options, std::string& ground) {
-  CLI::Option* first = stack.Parsed(
-      "--first-plane", "first_plane", options.first_plane,
-      [](const std::string& text) { return ParsePlane(text, "--first-plane"); },
-      PlaneText(options.first_plane),
-      "Boundary plane of slice 0: a height H (horizontal plane z = H) or PX,PY,PZ,NX,NY,NZ");
-  CLI::Option* last = stack.Parsed(
-      "--last-plane", "last_plane", options.last_plane,
-      [](const std::string& text) { return ParsePlane(text, "--last-plane"); },
-      PlaneText(options.last_plane), "Boundary plane of the last slice, as --first-plane");
+  CLI::Option* first = stack.Field(options, "first_plane");
+  CLI::Option* last = stack.Field(options, "last_plane");
   CLI::Option* surface = AddFocalSurfaceFlag(
-      render, args,
-      "A terrain-following stack: every slice lies on this surface (an OBJ or PLY mesh, or a "
-      "DEM raster GDAL reads, in world coordinates) moved along up by --first-offset .. "
-      "--last-offset; instead of --first-plane/--last-plane");
-  stack.Describe("ground_plane", "--ground");
+      render, args, options.render,
+      "A stack given a terrain follows it: every slice lies on the terrain moved along up by "
+      "--first-offset .. --last-offset, instead of --first-plane/--last-plane.");
+  CLI::Option* ground_plane = stack.Field(options, "ground_plane");
+  stack.Shorthand("ground_plane", "--ground");
   CLI::Option* ground_flag = stack.command()->add_option(
       "--ground", ground,
       "Planes parallel to the ground estimated from this file, from --first-offset to "
       "--last-offset along up: reconstructed points (poses --points-output) or a mesh, PLY/OBJ in "
       "world coordinates (the robust plane of `aos-render ground`); for a DEM use "
-      "--focal-surface");
+      "--focal-surface; sets --ground-plane");
+  ground_flag->excludes(ground_plane);
   CLI::Option* first_offset = stack.Field(options, "first_offset");
   CLI::Option* last_offset = stack.Field(options, "last_offset");
   surface->excludes(first)->excludes(last)->excludes(ground_flag);
@@ -451,11 +442,7 @@ StackFlags AddStackFlags(Flags& stack, Flags& render, RenderArgs& args,
 }
 
 void AddMergeFlags(Flags& merge, MergeOptions& options) {
-  merge.Parsed("--method", "method", options.method,
-               [](const std::string& text) { return ParseMergeMethod(text, "--method"); },
-               MergeMethodName(options.method),
-               "sobel (the paper's), improved (context-aware) or robust (view variance and an "
-               "outlier-rejecting mean; needs the light field)");
+  merge.Field(options, "method");
   merge.Field(options, "window_radius");
   merge.Field(options, "smoothing_sigma");
   merge.Field(options, "edge_sigma");
@@ -566,8 +553,7 @@ CommandRunner DefineStack(CLI::App* command) {
   Flags flags(command);
   Flags render = flags.Nested("render.");
   AddRenderFlags(render, c->args, c->options.render);
-  render.Switch("variance", c->options.render.variance,
-                "Also write the per-pixel variance of the view samples (for --method robust)");
+  render.Field(c->options.render, "variance");
   c->stack_flags = AddStackFlags(flags, render, c->args, c->options, c->ground);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
@@ -700,7 +686,7 @@ CommandRunner DefineAllInFocus(CLI::App* command) {
   Flags flags(command);
   Flags render = flags.Nested("stack.render.");
   AddRenderFlags(render, c->args, c->options.stack.render);
-  flags.Describe("merge.num_threads", "--threads", DefaultText(c->options.merge.num_threads));
+  flags.AlsoSets("merge.num_threads", "--threads");
   Flags stack = flags.Nested("stack.");
   c->stack_flags = AddStackFlags(stack, render, c->args, c->options.stack, c->ground);
   Flags merge = flags.Nested("merge.");
@@ -848,25 +834,17 @@ CommandRunner DefineMap(CLI::App* command) {
   MapOptions& options = c->options;
   flags.Field(options, "pixel_size");
   flags.Field(options, "width");
-  flags.Optional("--extent", "extent", options.extent,
-                 "World XMIN YMIN XMAX YMAX (origin + local, metres; default: the selected "
-                 "views' footprints on the focal plane)")
-      ->expected(4);
-  flags.Describe("focal_surface", "--focal-height/--focal-surface");
+  flags.Field(options, "extent")->expected(4);
+  CLI::Option* surface = flags.Field(
+      options, "focal_surface", TakeFocalSurface(&options.focal_surface, &c->focal_surface),
+      std::string(kFocalSurfaceHelp) + " Pixels whose vertical line misses a terrain are nodata.");
   CLI::Option* height = AddFocalHeightFlag(
       flags, options.focal_surface, "Horizontal focal plane z = H (local frame, metres)");
-  command
-      ->add_option("--focal-surface", c->focal_surface,
-                   "Focus on a terrain instead of the plane: an OBJ or PLY mesh, or a DEM "
-                   "raster GDAL reads, in world coordinates; pixels whose vertical line misses "
-                   "it are nodata")
-      ->excludes(height);
+  surface->excludes(height);
   flags.Field(options, "surface_offset");
   flags.Field(options, "aperture_radius");
-  flags.Describe("view_indices", "--views");
-  command->add_option("--views", c->views,
-                      "Views to integrate: indices and half-open ranges, e.g. 0:100,150 "
-                      "(default: all)");
+  flags.Field(options, "view_indices", [c](const std::string& text) { c->views = text; },
+               kViewListHelp);
   flags.Field(options, "min_view_angle_deg");
   flags.Field(options, "lens_tolerance_px");
   flags.Field(options, "tile_size");
@@ -874,16 +852,10 @@ CommandRunner DefineMap(CLI::App* command) {
   command->add_option("-o,--output", c->output, "GeoTIFF to write (Cloud-Optimised)")->required();
   Flags run = flags.At("distributed.");
   run.Field(c->distributed, "workers");
-  run.Optional("--scheduler", "scheduler", c->distributed.scheduler,
-               "Render the tiles as Dask tasks on the cluster of this scheduler address "
-               "(e.g. tcp://10.0.0.5:8786); its workers must read the frames under the "
-               "same paths");
+  run.Field(c->distributed, "scheduler");
   run.Field(c->distributed, "cache_mb");
   run.Field(c->distributed, "share_mb");
-  run.Switch("dashboard", c->distributed.dashboard,
-             "With --workers: the local cluster also serves Dask's dashboard (progress, "
-             "tasks, memory; needs bokeh) on 127.0.0.1, its address printed; read-only "
-             "pages without a token");
+  run.Field(c->distributed, "dashboard");
   flags.Force();
   flags.Input("lightfield");
   flags.Input("--focal-surface");
@@ -1041,7 +1013,8 @@ int RunView(ViewCommand& c, const Flags& flags) {
   }
   if (o.focal_surface.kind() != FocalSurfaceKind::kPlane ||
       o.focal_surface.plane().normal != Vec3d(0.0, 0.0, 1.0)) {
-    ThrowUsage("--focal-height: the viewer starts on a horizontal plane");
+    ThrowUsage("focal_surface: the viewer starts on a horizontal plane (--focal-height H, "
+               "--focal-surface H or a terrain file) [option --focal-surface/--focal-height]");
   }
   // The rest as integral checks it (one placeholder view; the viewer checks the views), before
   // the viewer loads the frames.
@@ -1098,7 +1071,6 @@ CommandRunner DefineView(CLI::App* command) {
   auto c = std::make_shared<ViewCommand>();
   Flags flags(command);
   AddRenderFlags(flags, c->args, c->options);
-  flags.Describe("focal_surface", "--focal-height/--focal-surface");
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
   AddFocalHeightFlag(flags, c->options.focal_surface,
                      "Starting focus: the horizontal focal plane z = H (local frame, metres); the "
@@ -1108,10 +1080,16 @@ CommandRunner DefineView(CLI::App* command) {
   viewer.Field(c->viewer, "host");
   viewer.Field(c->viewer, "port");
   viewer.Field(c->viewer, "max_pages");
-  viewer.Describe("open_browser", "--browser/--no-browser");
-  command->add_flag("--no-browser", c->no_browser,
-                    "Do not open a browser (default: open one where a desktop session exists)");
-  command->add_flag("--browser", c->browser, "Open a browser even without a desktop session");
+  CLI::Option* open_browser = viewer.Field(c->viewer, "open_browser");
+  viewer.Shorthand("open_browser", "--browser");
+  viewer.Shorthand("open_browser", "--no-browser");
+  CLI::Option* no_browser = command->add_flag(
+      "--no-browser", c->no_browser, "Do not open a browser: sets --open-browser false");
+  CLI::Option* browser = command->add_flag(
+      "--browser", c->browser,
+      "Open a browser even without a desktop session: sets --open-browser true");
+  browser->excludes(no_browser)->excludes(open_browser);
+  no_browser->excludes(open_browser);
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
   flags.Remaining(c->options, {"variance"});
   viewer.Remaining(c->viewer);

@@ -48,14 +48,9 @@ void WritePoints(const PosesCommand& c, const PosesResult& result, Report& repor
 
 // The geo-referencing flags, shared by poses and import-colmap.
 void AddPositionFlags(Flags& flags, PosesOptions& options) {
-  flags.Optional("--positions-file", "positions_file", options.positions_file,
-                 "CSV of camera positions, columns by header name: name,x,y,z (metres, e.g. "
-                 "UTM) or name,lat,lon,alt (degrees, projected with PROJ): geo-reference, and "
-                 "priors for spatial matching");
-  flags.Optional("--positions-crs", "positions_crs", options.positions_crs,
-                 "CRS of the --positions-file coordinates (e.g. EPSG:4326, EPSG:25833)");
-  flags.Switch("exif_positions", options.exif_positions,
-               "Positions from the frames' EXIF GPS tags (projected to UTM) instead");
+  flags.Field(options, "positions_file");
+  flags.Field(options, "positions_crs");
+  flags.Field(options, "exif_positions");
   flags.Field(options, "min_registered_fraction");
   flags.Input("--positions-file");
 }
@@ -188,22 +183,17 @@ CommandRunner DefinePoses(CLI::App* command) {
   PosesOptions& options = c->options;
   command->add_option("frames", c->frames_dir, "Folder of frames (never modified)")->required();
   command->add_option("-o,--output", c->output, "Light-field file to write (JSON)")->required();
-  flags.Optional("--workspace", "workspace", options.workspace,
-                 "Keep COLMAP's workspace in this new folder (default: a temporary one)");
+  flags.Field(options, "workspace");
   flags.Field(options, "matcher");
   flags.Field(options, "sequential_overlap");
   flags.Field(options, "spatial_neighbors");
   flags.Field(options, "preset");
-  flags.Optional("--camera-file", "camera_file", options.camera_file,
-                 "Known camera (aos-camera file from `calibrate`); default: self-calibration");
+  flags.Field(options, "camera_file");
   flags.Field(options, "camera_model");
-  flags.Field("--frames-fov-deg", "fov_deg", options.fov_deg,
-              "The frames' horizontal field of view: self-calibration's start and the prior its "
-              "result is checked against (0 = none; --fov-deg is its old name)");
+  flags.Field(options, "fov_deg");
   flags.Field(options, "max_focal_deviation");
   AddScaleFlags(flags, options);
-  flags.Switch("allow_implausible", options.allow_implausible,
-               "Keep implausible self-calibrated intrinsics or scene scale (with a warning)");
+  flags.Field(options, "allow_implausible");
   AddPositionFlags(flags, options);
   flags.Field(options, "max_image_size");
   flags.Field(options, "max_num_features");
@@ -231,8 +221,7 @@ CommandRunner DefineImportColmap(CLI::App* command) {
   command->add_option("-o,--output", c->output, "Light-field file to write (JSON)")->required();
   AddPositionFlags(flags, c->options);
   AddScaleFlags(flags, c->options);
-  flags.Switch("allow_implausible", c->options.allow_implausible,
-               "Keep an implausible scene scale (with a warning)");
+  flags.Field(c->options, "allow_implausible");
   flags.Threads();
   flags.Force();
   flags.InputFolder("model");

@@ -72,15 +72,9 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
   TelemetryOptions& options = c->options;
   command->add_option("frames", c->frames_dir, "Folder of frames (never modified)")->required();
   command->add_option("-o,--output", c->output, "Light-field file to write (JSON)")->required();
-  flags.Optional("--telemetry-file", "telemetry_file", options.telemetry_file,
-                 "CSV log: frame|time,lat,lon,alt,yaw,pitch,roll (docs/terrain-and-maps.md); "
-                 "default: the frames' EXIF GPS and DJI XMP gimbal tags");
-  flags.Optional("--camera-file", "camera_file", options.camera_file,
-                 "Known camera (aos-camera file, any lens model); default: a pinhole from "
-                 "--frames-fov-deg");
-  flags.Field("--frames-fov-deg", "fov_deg", options.fov_deg,
-              "The frames' horizontal field of view, degrees: a pinhole camera (without "
-              "--camera-file)");
+  flags.Field(options, "telemetry_file");
+  flags.Field(options, "camera_file");
+  flags.Field(options, "fov_deg");
   flags.Field(options, "altitude");
   flags.Field(options, "altitude_window");
   flags.Field(options, "max_altitude_deviation_m");

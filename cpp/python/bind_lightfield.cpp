@@ -123,7 +123,7 @@ void BindLightField(py::module_& m) {
             view.image_path = v["image_path"].cast<std::string>();
             if (old_state) {
               const LensCamera lens = v["lens"].cast<LensCamera>();
-              view.camera = lens.model == LensModel::kPinhole
+              view.camera = lens.IsPinhole()
                                 ? LensCamera::FromPinhole(v["camera"].cast<PinholeCamera>())
                                 : lens;
             } else {
@@ -371,6 +371,9 @@ void BindLightField(py::module_& m) {
       "Sets the decoded image of view `index` (a copy of `image`, checked against the view's "
       "camera). Used by aos.distributed's shared frame store.");
 
+  // LoadOptions' field table (bindings.h FieldRow): its fields are load_lightfield's keywords;
+  // the viewer spells them as aos-render's flags from it.
+  m.attr("_load_field_table") = FieldTable<LoadOptions>();
   const LoadOptions load_defaults;
   m.def(
       "load_lightfield",

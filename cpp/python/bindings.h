@@ -284,6 +284,39 @@ py::enum_<E> BindEnum(py::module_& m, const char* name, const char* doc) {
   return bound;
 }
 
+// One row of a field table as Python sees it (the class attribute `_field_table`): a dict of
+// name, type, given, unit, range, help and flag (tools/options.py, the viewer's command line).
+template <class Spec>
+py::dict FieldRow(const Spec& spec) {
+  using T = typename Spec::Type;
+  py::dict row;
+  row["name"] = spec.name;
+  row["type"] = PythonTypeName<T>(false);
+  row["given"] = PythonTypeName<T>(true);
+  if (std::is_same_v<T, std::string> && spec.range.choices != nullptr) {
+    std::string literal;  // Literal['scan', 'grid']: type checkers catch a misspelt choice
+    for (const std::string& choice : spec.range.Choices()) {
+      literal += (literal.empty() ? "Literal['" : ", '") + choice + "'";
+    }
+    literal += "]";
+    row["type"] = literal;
+    row["given"] = literal;
+  }
+  row["unit"] = spec.unit;
+  row["range"] = spec.range.IsAny() ? std::string() : spec.range.Text();
+  row["help"] = spec.help;
+  row["flag"] = FlagOfField(spec.name, spec.flag);  // aos-render's (cpp/exe/cli.h)
+  return row;
+}
+
+// Every row of `Options`' table (FieldRow), in order.
+template <class Options>
+py::tuple FieldTable() {
+  py::list table;
+  Options::Fields([&table](const auto& spec) { table.append(FieldRow(spec)); });
+  return py::tuple(table);
+}
+
 // Binds an XxxOptions struct as a Python class whose read/write properties are exactly the
 // struct's fields (defaults therefore come from C++), with
 //   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
@@ -315,7 +348,7 @@ class OptionsClass {
 
   // Binds every field of the struct's table (util/option_fields.h), in its order, with the
   // table's help as docstring, and records the table as the class attribute `_field_table`
-  // (a tuple of dicts: name, type, given, unit, range, help) that tools/options.py reads.
+  // (a tuple of dicts: name, type, given, unit, range, help, flag) that tools/options.py reads.
   // Also adds to_json() and from_json(text) (lightfield/options_json.h).
   OptionsClass& Table() {
     static_assert(kHasFieldTable<Options>, "Table() needs a field table");
@@ -347,23 +380,7 @@ class OptionsClass {
       } else {
         Field(spec.name, member, spec.help);
       }
-      py::dict row;
-      row["name"] = field;
-      row["type"] = PythonTypeName<T>(false);
-      row["given"] = PythonTypeName<T>(true);
-      if (std::is_same_v<T, std::string> && spec.range.choices != nullptr) {
-        std::string literal;  // Literal['scan', 'grid']: type checkers catch a misspelt choice
-        for (const std::string& choice : spec.range.Choices()) {
-          literal += (literal.empty() ? "Literal['" : ", '") + choice + "'";
-        }
-        literal += "]";
-        row["type"] = literal;
-        row["given"] = literal;
-      }
-      row["unit"] = spec.unit;
-      row["range"] = spec.range.IsAny() ? std::string() : spec.range.Text();
-      row["help"] = spec.help;
-      table.append(row);
+      table.append(FieldRow(spec));
     });
     class_.attr("_field_table") = py::tuple(table);
     const std::string class_name = py::str(class_.attr("__name__"));

@@ -1396,7 +1396,7 @@ class FlightPlanOptions:
     heading_deg: float
     """Compass direction of the scan lines, degrees. [deg]"""
     min_shots_per_line: int
-    """Scan lines with fewer shots inside the shape are not flown (>= 1)."""
+    """Scan lines with fewer shots inside the shape are not flown (>= 1). [>= 1]"""
     altitude_m: float
     """Height above the ground, metres (> 0). [m]"""
     altitude_mode: Literal['terrain', 'constant']
@@ -1418,9 +1418,9 @@ class FlightPlanOptions:
     max_waypoints: int
     """Most shots (and scan lines or rings) a plan may have; a larger one is refused first."""
     image_width: int
-    """Camera for Eq. 2: width, pixels."""
+    """Camera for Eq. 2: width, pixels. [>= 1]"""
     image_height: int
-    """Camera for Eq. 2: height, pixels."""
+    """Camera for Eq. 2: height, pixels. [>= 1]"""
     fov_deg: float
     """Camera for Eq. 2: horizontal field of view, degrees. [deg]"""
     def to_json(self) -> str:

@@ -81,7 +81,7 @@ def test_integral_writes_image_and_count(scene: Path, tmp_path: Path) -> None:
 def test_look_at_and_tilted_plane_and_view_selection(scene: Path, tmp_path: Path) -> None:
     out = tmp_path / "o.tif"
     result = run("integral", str(scene), "--look-at", "0.5,0,35,0,0,0,0,1,0", "--fov-deg", "40", "--width",
-                 "30", "--height", "20", "--focal-plane", "0,0,1,0.1,0,1", "--views", "0:4,8",
+                 "30", "--height", "20", "--focal-plane", "0,0,1,0.1,0,1", "--view-indices", "0:4,8",
                  "--aperture-radius", "5", "-o", str(out))
     assert result.returncode == 0, result.stderr
     assert "of 5 selected views" in result.stderr
@@ -156,14 +156,14 @@ def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None
         args = ["integral", str(jku), "--frames-fov-deg", "50", "--images-dir", str(folder / "views"), *BASE]
         expect = ("poses.json", "image 3", "M3x4", "nan")
     elif case == "empty selection":
-        args += ["--views", "5:5"]
-        expect = ("--views", "empty")
+        args += ["--view-indices", "5:5"]
+        expect = ("--view-indices", "empty")
     elif case == "plane behind":
         args += ["--focal-height", "100"]
         expect = ("focal_surface", "behind")
     elif case == "plane parallel":  # through the camera centre: its rays run along it
         args += ["--focal-plane", "0,0,35,0.3,0,1"]
-        expect = ("focal_surface", "parallel", "--focal-height/--focal-plane/--focal-distance/--focal-surface")
+        expect = ("focal_surface", "parallel", "--focal-surface/--focal-height/--focal-plane/--focal-distance")
     elif case == "fov negative":  # 0 means the pose view's; below 0 is refused
         args[args.index("--fov-deg") + 1] = "-5"
         expect = ("fov_deg",)
@@ -184,8 +184,8 @@ def test_bad_input_fails_cleanly(case: str, scene: Path, tmp_path: Path) -> None
         count = out_dir / ".." / "out" / "same.tif"
         expect = ("same file",)
     elif case == "views out of range":
-        args += ["--views", "0:2000000000"]
-        expect = ("--views", "outside")
+        args += ["--view-indices", "0:2000000000"]
+        expect = ("--view-indices", "outside")
     before_inputs = snapshot(folder)
     result = run(*args, "-o", str(output), "--count", str(count))
     assert_clean_failure(result, *expect)
@@ -388,3 +388,54 @@ def test_renamed_flags_keep_their_old_spelling_with_a_warning(tmp_path: Path) ->
                                         ("rectify", "--fov-deg", "--rectified-fov-deg")]:
         text = run(command, "--help").stdout
         assert f"{new_flag},{old_flag}" in text, command
+
+
+def test_every_field_flag_comes_from_its_table_row() -> None:
+    # The field tables (util/option_fields.h) give every field of a struct that has one its
+    # flag: the field's name in kebab case (or the row's own flag), its help and its default.
+    # Other spellings are shorthands beside it, never instead of it (docs/vocabulary.md).
+    bindings = json.loads(run("flags").stdout)
+    by_source: dict[str, list[dict[str, str]]] = {}
+    for binding in bindings:
+        by_source.setdefault(binding["source"], []).append(binding)
+    assert set(by_source) == {"table", "shorthand", "hand"}
+    # By hand only where the struct has no table: the camera command's LensCamera.
+    assert {b["command"] for b in by_source["hand"]} == {"camera"}
+    table = {(b["command"], b["field"]): b["flag"] for b in by_source["table"]}
+    own = set(table) | {(b["command"], b["field"]) for b in by_source["hand"]}
+    for shorthand in by_source["shorthand"]:
+        assert (shorthand["command"], shorthand["field"]) in own, shorthand
+    assert table[("integral", "view_indices")] == "--view-indices"
+    assert table[("integral", "focal_surface")] == "--focal-surface"
+    assert table[("stack", "ground_plane")] == "--ground-plane"
+    assert table[("view", "viewer.open_browser")] == "--open-browser"
+    assert table[("calibrate", "pattern_rows")] == "--pattern-rows"
+    assert table[("allinfocus", "merge.num_threads")] == "--threads"
+    assert table[("poses", "fov_deg")] == "--frames-fov-deg"  # the row names its flag
+
+
+def test_focal_surface_takes_a_height_a_plane_or_a_file_and_views_its_old_spelling(
+        scene: Path, tmp_path: Path) -> None:
+    lf = aos.load_lightfield(str(scene)).light_field
+    expected = aos.render_integral(lf, pose_view=4, fov_deg=50, width=40, height=32,
+                                   focal_surface=3.0, view_indices=[0, 1, 2, 5])
+    outputs = []
+    for i, args in enumerate([["--focal-surface", "3", "--view-indices", "0:3,5"],
+                              ["--focal-height", "3", "--view-indices", "0:3,5"],
+                              ["--focal-surface", "0,0,3,0,0,1", "--views", "0:3,5"]]):
+        out = tmp_path / f"{i}.tif"
+        result = run("integral", str(scene), *BASE, *args, "-o", str(out))
+        assert result.returncode == 0, result.stderr
+        assert ("deprecated" in result.stderr) == ("--views" in args), result.stderr
+        outputs.append(aos.read_image(str(out)))
+    for image in outputs:
+        np.testing.assert_array_equal(image, expected.image)
+    assert "warning: --views is deprecated; use --view-indices" in result.stderr
+    # A file that is not there is named as a file; two spellings of the field exclude each other.
+    missing = run("integral", str(scene), *BASE, "--focal-surface", str(tmp_path / "dem.tif"),
+                  "-o", str(tmp_path / "x.tif"))
+    assert missing.returncode != 0 and "dem.tif" in missing.stderr
+    both = run("integral", str(scene), *BASE, "--focal-surface", "3", "--focal-height", "3",
+               "-o", str(tmp_path / "y.tif"))
+    assert both.returncode == 2 and "--focal-height" in both.stderr
+    assert not (tmp_path / "x.tif").exists() and not (tmp_path / "y.tif").exists()

@@ -67,12 +67,12 @@ CASES = {
     "view aperture": (["view", "--pose-view", "0", "--aperture-radius", "-1", "--no-browser"],
                       "--aperture-radius"),
     # Flags naming views: checked against the poses alone (4 views), before any frame.
-    "integral views range": (["integral", "--pose-view", "0", "--views", "0:9"], "--views: index 9 is outside"),
+    "integral views range": (["integral", "--pose-view", "0", "--view-indices", "0:9"], "--view-indices: index 9 is outside"),
     "integral pose view range": (["integral", "--pose-view", "7"], "--pose-view: no view 7"),
-    "stack views range": (["stack", "--pose-view", "0", "--views", "5"], "--views: index 5 is outside"),
-    "allinfocus views range": (["allinfocus", "--pose-view", "0", "--views", "2,4"],
-                               "--views: index 4 is outside"),
-    "map views range": (["map", "--width", "64", "--views", "1:5"], "--views: index 5 is outside"),
+    "stack views range": (["stack", "--pose-view", "0", "--view-indices", "5"], "--view-indices: index 5 is outside"),
+    "allinfocus views range": (["allinfocus", "--pose-view", "0", "--view-indices", "2,4"],
+                               "--view-indices: index 4 is outside"),
+    "map views range": (["map", "--width", "64", "--view-indices", "1:5"], "--view-indices: index 5 is outside"),
 }
 
 

@@ -390,7 +390,7 @@ def test_bad_values_of_options_exit_2(light_field: Path, tmp_path: Path) -> None
         assert result.returncode == 2 and "--grid" in result.stderr, result.stderr
     result = run("integral", light_field, "--pose-view", "-1", "-o", tmp_path / "a.png")
     assert result.returncode == 2 and "--pose-view" in result.stderr, result.stderr
-    for args in (["--width", "-5"], ["--views", "5:2"], ["--range", "3,1"],
+    for args in (["--width", "-5"], ["--view-indices", "5:2"], ["--range", "3,1"],
                  ["--aperture-radius", "x"]):
         result = run("integral", light_field, "--pose-view", "4", *args, "-o", tmp_path / "a.png")
         assert_refused(result, args[0], code=2)

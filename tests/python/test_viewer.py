@@ -309,7 +309,9 @@ def test_map_mode_export_and_command(viewer: Viewer, tmp_path: Path) -> None:
                        "&aperture_radius=3")
     command = json.loads(body)
     assert status == 200 and command["cli"].startswith("aos-render integral ")
-    assert "--focal-height 1.5" in command["cli"] and "--aperture-radius 3" in command["cli"]
+    # Spelled from the options the render uses, each field under its own flag (its table row).
+    assert "--focal-surface 1.5" in command["cli"] and "--aperture-radius 3" in command["cli"]
+    assert "--threads" not in command["cli"] and "num_threads" not in command["python"]
     # The command renders what the viewer shows: run the Python snippet.
     snippet = command["python"]
     namespace = {"aos": aos, "lf": viewer.session.light_field}
@@ -319,6 +321,17 @@ def test_map_mode_export_and_command(viewer: Viewer, tmp_path: Path) -> None:
     _, shown = decode_frame(body)
     expected = np.clip(namespace["result"].image + 0.5, 0, 255).astype(np.uint8)
     np.testing.assert_array_equal(shown[:, :, 0], expected)
+    # The map view's command too: the same map as the options the viewer renders it with.
+    query = "mode=map&width=40&focal_height=0.5&aperture_radius=4&view_first=1&view_last=7"
+    status, body = get(f"{base(viewer)}/api/command?token={viewer.token}&{query}")
+    command = json.loads(body)
+    assert command["cli"].startswith("aos-render map ") and "--view-indices 1:7" in command["cli"]
+    namespace = {"aos": aos, "lf": viewer.session.light_field}
+    exec(command["python"], namespace)
+    params = viewer.session.parse(dict(part.split("=") for part in query.split("&")))
+    direct = aos._core._render_map(viewer.session.light_field, viewer.session.map_options(params),
+                                   "", False, True, None)
+    np.testing.assert_array_equal(namespace["result"].image, direct.image)
 
 
 async def _ws_session(viewer: Viewer, messages: list[dict[str, Any]], expect: int,
@@ -868,9 +881,9 @@ def test_a_fixed_view_subset_and_the_time_window_combine() -> None:
             assert status == 200 and decode_frame(body)[0]["views_selected"] == selected, query
         status, body = get(f"{base(handle)}/api/render?token={handle.token}"
                            "&view_first=3&view_last=6")
-        assert status == 400 and b"no view of --views in that range" in body
+        assert status == 400 and b"no view of --view-indices in that range" in body
         status, body = get(f"{base(handle)}/api/command?token={handle.token}&view_last=7")
-        assert "--views 0:3,6" in json.loads(body)["cli"]
+        assert "--view-indices 0:3,6" in json.loads(body)["cli"]
     finally:
         handle.stop()
 

@@ -92,18 +92,23 @@ struct LoadOptions {
     using O = LoadOptions;
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Open(0.0, 180.0).Or(0.0),
                       "Horizontal field of view of the frames, degrees (JKU poses.json only); "
-                      "0 = not given."));
+                      "0 = not given.")
+              .Flag("frames-fov-deg"));  // beside the virtual camera's --fov-deg
     field(OptionField("images_dir", &O::images_dir, "", Range::Any(),
                       "Folder of the frames (JKU poses.json); '' = ../images beside it."));
     field(OptionField("load_images", &O::load_images, "", Range::Any(),
                       "Decode the frames; false loads poses and cameras only."));
     field(OptionField("grey", &O::grey, "", Range::Any(),
-                      "Frames become one-channel Rec. 601 luminance at load."));
+                      "Integrate the frames as grey: RGB(A) frames become one-channel luminance "
+                      "at load, Rec. 601 weights 0.299 R + 0.587 G + 0.114 B (e.g. false-colour "
+                      "thermal frames)."));
     field(OptionField("mask", &O::mask, "", Range::Any(),
-                      "Mask image for every frame, the frames' size: zero pixels are left out "
-                      "of every average; '' = none. Not with mask_dir."));
+                      "Mask image for every frame, the frames' size: zero pixels (a letterbox, a "
+                      "burnt-in logo) are left out of every average, non-zero ones are valid; "
+                      "'' = none. Not with mask_dir."));
     field(OptionField("mask_dir", &O::mask_dir, "", Range::Any(),
-                      "Folder with one mask per frame, named like the frame; '' = none."));
+                      "Folder with one mask per frame, named like the frame (any image "
+                      "extension, case ignored; a frame without one is an error); '' = none."));
     field(OptionField("num_threads", &O::num_threads, "", kThreadCountRange,
                       "Worker threads decoding frames; -1 = all cores."));
   }

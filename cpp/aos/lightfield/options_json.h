@@ -60,7 +60,6 @@ template <class Options>
 nlohmann::ordered_json OptionsToJson(const Options& options) {
   nlohmann::ordered_json object = nlohmann::ordered_json::object();
   Options::Fields([&](const auto& field) {
-    using T = typename std::decay_t<decltype(field)>::Type;
     try {
       object[field.name] = options_json::ValueToJson(options.*(field.member));
     } catch (const std::invalid_argument& error) {

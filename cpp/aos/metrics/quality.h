@@ -67,7 +67,8 @@ struct QualityOptions {
     field(OptionField("gaussian_sigma", &O::gaussian_sigma, "", Range::Any(),
                       "Standard deviation of the SSIM window, pixels (> 0)."));
     field(OptionField("window_radius", &O::window_radius, "", Range::Any(),
-                      "SSIM window radius, pixels (>= 1); the window is (2r + 1)^2."));
+                      "SSIM window radius, pixels (>= 1); the window is (2r + 1)^2.")
+              .Flag("ssim-window-radius"));
     field(OptionField("k1", &O::k1, "", Range::Any(),
                       "SSIM constant k1, (0, 1)."));
     field(OptionField("k2", &O::k2, "", Range::Any(),

@@ -180,7 +180,7 @@ struct FlightPlanOptions {
                       "Spacing at the edge over spacing at the centre (>= 1)."));
     field(OptionField("heading_deg", &O::heading_deg, "deg", Range::Any(),
                       "Compass direction of the scan lines, degrees."));
-    field(OptionField("min_shots_per_line", &O::min_shots_per_line, "", Range::Any(),
+    field(OptionField("min_shots_per_line", &O::min_shots_per_line, "", Range::AtLeast(1),
                       "Scan lines with fewer shots inside the shape are not flown (>= 1)."));
     field(OptionField("altitude_m", &O::altitude_m, "m", Range::Any(),
                       "Height above the ground, metres (> 0)."));
@@ -203,9 +203,9 @@ struct FlightPlanOptions {
     field(OptionField("max_waypoints", &O::max_waypoints, "", Range::Any(),
                       "Most shots (and scan lines or rings) a plan may have; a larger one is "
                       "refused first."));
-    field(OptionField("image_width", &O::image_width, "", Range::Any(),
+    field(OptionField("image_width", &O::image_width, "", Range::AtLeast(1),
                       "Camera for Eq. 2: width, pixels."));
-    field(OptionField("image_height", &O::image_height, "", Range::Any(),
+    field(OptionField("image_height", &O::image_height, "", Range::AtLeast(1),
                       "Camera for Eq. 2: height, pixels."));
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
                       "Camera for Eq. 2: horizontal field of view, degrees."));

@@ -48,7 +48,8 @@ struct RectifyOptions {
   static void Fields(Visit&& field) {
     using O = RectifyOptions;
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
-                      "Horizontal field of view of the rectified image, degrees, (0, 180)."));
+                      "Horizontal field of view of the rectified image, degrees, (0, 180).")
+              .Flag("rectified-fov-deg"));  // not the raw frames'
     field(OptionField("width", &O::width, "", Range::Any(),
                       "Output width, pixels; 0 = the raw frame's."));
     field(OptionField("height", &O::height, "", Range::Any(),

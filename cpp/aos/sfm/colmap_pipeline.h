@@ -132,7 +132,8 @@ struct PosesOptions {
                       "COLMAP model to self-calibrate."));
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
                       "Self-calibration's starting horizontal FOV, degrees; 0 = COLMAP's "
-                      "guess."));
+                      "guess.")
+              .Flag("frames-fov-deg"));
     field(OptionField("positions_file", &O::positions_file, "", Range::Any(),
                       "CSV of name,x,y,z positions (metres): geo-reference and spatial "
                       "priors."));

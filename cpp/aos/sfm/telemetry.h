@@ -116,7 +116,8 @@ struct TelemetryOptions {
                       "fov_deg."));
     field(OptionField("fov_deg", &O::fov_deg, "deg", Range::Any(),
                       "Horizontal field of view of a pinhole camera, degrees, (0, 180); "
-                      "without camera_file."));
+                      "without camera_file.")
+              .Flag("frames-fov-deg"));
     field(OptionField("altitude", &O::altitude, "", Range::OneOf("auto|gps|relative"),
                       "EXIF/XMP altitude: 'auto' (XMP RelativeAltitude, else GPSAltitude), "
                       "'gps', 'relative'."));

@@ -26,6 +26,16 @@ bool Range::ContainsText(const std::string& value) const {
   return false;
 }
 
+std::string FlagOfField(const std::string& name, const char* flag) {
+  if (flag != nullptr) return std::string("--") + flag;
+  if (name == "num_threads") return "--threads";
+  std::string text = "--" + name;
+  for (char& c : text) {
+    if (c == '_') c = '-';
+  }
+  return text;
+}
+
 std::string Range::Text() const {
   if (choices != nullptr) {
     const std::vector<std::string> values = Choices();

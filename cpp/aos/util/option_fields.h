@@ -21,6 +21,9 @@
 //   of _keywords.py (tests/python/test_options.py fails when they are stale). docs/options.md.
 // - A block of fields several structs share is a base struct with its own table, which the
 //   derived tables include (render/aperture.h: ApertureOptions).
+// - A row's CLI flag is --kebab-name unless the row says otherwise (`.Flag("frames-fov-deg")`,
+//   where one command would otherwise have two flags of one name); the CLI's text form of the
+//   field's type (cpp/exe/cli.h: TextForm) reads the value.
 // - `range` is checked by CheckFieldRanges for number fields (int, double; bool excluded): a
 //   value outside it (NaN included) throws std::invalid_argument "name: must be <range>, got v".
 //   A text field's range may list its choices (Range::OneOf("scan|grid|circles")): another
@@ -115,13 +118,28 @@ struct OptionFieldSpec {
   const char* unit;  // "m", "deg", "px", "MiB", "" (none)
   Range range;
   const char* help;
+  // The CLI flag without "--" where it is not the name's kebab case (nullptr: --kebab-name).
+  // Only where one command has two fields of this name (a loader's fov_deg beside the virtual
+  // camera's: "frames-fov-deg"), or the flag names what the field means in that command.
+  const char* flag = nullptr;
+
+  // This row with the CLI flag `flag_name` (see `flag`).
+  constexpr OptionFieldSpec Flag(const char* flag_name) const {
+    OptionFieldSpec row = *this;
+    row.flag = flag_name;
+    return row;
+  }
 };
+
+// The CLI flag of a row named `name` whose own flag is `flag` (nullptr: none): "--" + flag, or
+// "--kebab-name"; num_threads is "--threads" everywhere (the one spelling rule).
+std::string FlagOfField(const std::string& name, const char* flag = nullptr);
 
 template <class Options, class T>
 constexpr OptionFieldSpec<Options, T> OptionField(const char* name, T Options::*member,
                                                   const char* unit, Range range,
                                                   const char* help) {
-  return {name, member, unit, range, help};
+  return {name, member, unit, range, help, nullptr};
 }
 
 // The names of an enum's values, specialised beside the enum:

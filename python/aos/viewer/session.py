@@ -38,6 +38,7 @@ from typing import Any, Callable, Optional
 import numpy as np
 
 import aos
+from aos import _command
 
 # Limits that keep one request from asking for unbounded work.
 MAX_SIZE = 2048  # pixels on a side of a full render
@@ -257,7 +258,7 @@ class Session:
         # Views with a lens model: the renders' lens_tolerance_px (None = IntegralOptions').
         self.lens_tolerance_px = (aos.IntegralOptions().lens_tolerance_px
                                   if lens_tolerance_px is None else lens_tolerance_px)
-        self.view_indices = view_indices  # a fixed subset from --views (None = all)
+        self.view_indices = view_indices  # a fixed subset from --view-indices (None = all)
         # A pose given as such (--look-at, --cam-from-world) replaces the views' as the base.
         self.fixed_cam_from_world = cam_from_world
         views = light_field.views
@@ -389,7 +390,7 @@ class Session:
             allowed = set(self.view_indices)
             chosen = [index for index in chosen if index in allowed]
             if not chosen:
-                raise BadParameter("view_first, view_last: no view of --views in that range")
+                raise BadParameter("view_first, view_last: no view of --view-indices in that range")
         return list(chosen)
 
     def integral_options(self, params: Params) -> aos.IntegralOptions:
@@ -587,62 +588,42 @@ class Session:
         raise BadParameter(f"format: must be png, tiff, exr or geotiff, got {kind[:20]!r}")
 
     def command(self, params: Params) -> dict[str, str]:
-        """The equivalent `aos-render` command line and Python snippet (full size)."""
+        """The equivalent `aos-render` command line and Python snippet (full size), spelled from
+        the options the render uses through their field tables (aos/_command.py): each field
+        that differs from its default, under its flag and its keyword."""
         params = Params(**{**params.__dict__, "preview": False})
         source = shlex.quote(self.source) if self.source else "LIGHTFIELD"
-        flags = {"fov_deg": "--frames-fov-deg", "images_dir": "--images-dir", "grey": "--grey",
-                 "mask": "--mask", "mask_dir": "--mask-dir"}
-        for name, value in self.load_options.items():
-            source += f" {flags[name]}" + ("" if value is True else
-                                           f" {shlex.quote(str(value))}")
-        surface = shlex.quote(self.surface_path) if self.surface_path else "SURFACE"
+        load = [(row, self.load_options[row["name"]]) for row in aos._core._load_field_table
+                if row["name"] in self.load_options]
+        if load:
+            source += " " + _command.cli_arguments(load)
         # The Python snippet loads the light field and the surface the same way.
         prelude = ""
         if self.source:
-            arguments = "".join(f", {name}={value!r}" for name, value in self.load_options.items())
-            prelude = f"lf = aos.load_lightfield({self.source!r}{arguments}).light_field\n"
-        if params.surface and self.surface_path:
-            prelude += f"surface = aos.FocalSurface.read({self.surface_path!r})\n"
-        radius = "inf" if math.isinf(params.aperture_radius) else f"{params.aperture_radius:g}"
-        views = self.views_of(params)
-        view_text = _ranges_text(views)
-        py_radius = 'float("inf")' if math.isinf(params.aperture_radius) else radius
+            keywords = _command.python_keywords(load)
+            prelude = (f"lf = aos.load_lightfield({self.source!r}"
+                       + (f", {keywords}" if keywords else "") + ").light_field\n")
         if params.mode == "map":
-            width = self.map_options(params).width
-            focus = (f"--focal-surface {surface} --surface-offset {params.surface_offset:.9g}"
-                     if params.surface else f"--focal-height {params.focal_height:.9g}")
-            cli = (f"aos-render map {source} {focus} --width {width} --aperture-radius {radius}"
-                   + (f" --views {view_text}" if views else "") + " -o map.tif")
-            py_focus = ("focal_surface=surface, surface_offset="
-                        f"{params.surface_offset!r}" if params.surface
-                        else f"focal_surface={params.focal_height!r}")
-            python = prelude + (f"result = aos.render_map(lf, width={width}, {py_focus}, aperture_radius="
-                      f"{py_radius}"
-                      + (f", view_indices={views!r}" if views else "") + ")")
-            return {"cli": cli, "python": python}
-        camera, cam_from_world = self.camera(params)
-        matrix = ",".join(f"{v + 0.0:.9g}" for v in np.asarray(cam_from_world.matrix3x4).ravel())
-        if params.surface:
-            focus = f"--focal-surface {surface} --surface-offset {params.surface_offset:.9g}"
-            py_focus = f"focal_surface=surface, surface_offset={params.surface_offset!r}"
-        elif params.tilt_x_deg or params.tilt_y_deg:
-            plane = self.focal_plane(params)
-            numbers = list(np.asarray(plane.point)) + list(np.asarray(plane.normal))
-            focus = "--focal-plane " + ",".join(f"{v:.9g}" for v in numbers)
-            py_focus = (f"focal_surface=aos.Plane({tuple(float(v) for v in plane.point)}, "
-                        f"{tuple(float(v) for v in plane.normal)})")
+            command, function, output = "map", "render_map", "map.tif"
+            options: Any = self.map_options(params)
         else:
-            focus = f"--focal-height {params.focal_height:.9g}"
-            py_focus = f"focal_surface={params.focal_height!r}"
-        cli = (f"aos-render integral {source} --cam-from-world {matrix} --fov-deg "
-               f"{camera.fov_x_deg():.9g} --width {camera.width} --height {camera.height} "
-               f"{focus} --aperture-radius {radius}"
-               + (f" --views {view_text}" if views else "") + " -o render.png")
-        python = prelude + (f"result = aos.render_integral(lf, cam_from_world=aos.Rigid3d.from_matrix3x4("
-                  f"[{matrix}]), fov_deg={camera.fov_x_deg():.9g}, width={camera.width}, "
-                  f"height={camera.height}, {py_focus}, aperture_radius="
-                  f"{py_radius}"
-                  + (f", view_indices={views!r}" if views else "") + ")")
+            command, function, output = "integral", "render_integral", "render.png"
+            options = self.integral_options(params)
+        skip = ("num_threads",) + (("focal_surface",) if params.surface else ())
+        changed = _command.changed_fields(options, skip=skip)
+        cli_changed = changed
+        if params.surface:
+            # The surface as the viewer was given it (a file), not its in-memory CRS copy.
+            row = next(r for r in type(options)._field_table if r["name"] == "focal_surface")
+            cli_changed = [(row, self.surface_path or "SURFACE")] + changed
+            if self.surface_path:
+                prelude += f"surface = aos.FocalSurface.read({self.surface_path!r})\n"
+        cli = (f"aos-render {command} {source} {_command.cli_arguments(cli_changed)} "
+               f"-o {output}")
+        keywords = _command.python_keywords(changed)
+        if params.surface:
+            keywords = "focal_surface=surface" + (f", {keywords}" if keywords else "")
+        python = prelude + f"result = aos.{function}(lf" + (f", {keywords}" if keywords else "") + ")"
         return {"cli": cli, "python": python}
 
     # ---- what the page needs to draw itself ----
@@ -666,17 +647,6 @@ class Session:
             "defaults": self.defaults.as_dict(),
             "colormaps": list(COLORMAPS),
         }
-
-
-def _ranges_text(indices: list[int]) -> str:
-    """[0, 1, 2, 5] -> '0:3,5' (sorted unique indices)."""
-    runs: list[list[int]] = []
-    for index in indices:
-        if runs and index == runs[-1][1]:
-            runs[-1][1] = index + 1
-        else:
-            runs.append([index, index + 1])
-    return ",".join(f"{a}:{b}" if b - a > 1 else f"{a}" for a, b in runs)
 
 
 def lon_lat(crs: str, x: float, y: float) -> Optional[list[float]]:
