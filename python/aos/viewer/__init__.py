@@ -239,7 +239,7 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
          num_threads: int = -1, host: str = _SERVED.host, port: int = _SERVED.port,
          open_browser: Optional[bool] = None, render_workers: int = _SERVED.render_workers,
          max_pages: int = MAX_PAGES, source: str = "",
-         focal_height: Optional[float] = None) -> Viewer:
+         focal_height: Optional[float] = None, options: Any = None) -> Viewer:
     """Starts the viewer on ``light_field`` (an aos.LightField, or a path that
     aos.load_lightfield reads) and returns its handle at once (``.url``, ``.stop()``).
 
@@ -253,6 +253,8 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
     session exists (the browser gets a local file that redirects to the URL, so the token is
     never on its command line). ``max_pages``: pages open at once (the next is refused).
     ``focal_height`` is the deprecated spelling of a number as ``focal_surface`` (it warns).
+    ``options``: an aos.IntegralOptions every render starts from: the fields the page does not
+    control (``lens_tolerance_px``, ``min_view_count``, ...) are taken from it as they are.
     """
     import aos
 
@@ -295,12 +297,16 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
                                 "surface": surface is not None}
     if pose_view is not None:
         defaults["pose_view"] = pose_view
+    if options is not None and not isinstance(options, aos.IntegralOptions):
+        raise TypeError(f"view(): options must be an aos.IntegralOptions, not "
+                        f"{type(options).__name__}")
     if cam_from_world is not None and not isinstance(cam_from_world, aos.Rigid3d):
         raise TypeError("view(): cam_from_world must be an aos.Rigid3d")
     session = Session(light_field, source=source, surface_path=surface_path,
                       focal_surface=surface, defaults=defaults,
                       cam_from_world=cam_from_world, view_indices=view_indices,
-                      min_view_angle_deg=min_view_angle_deg, num_threads=num_threads)
+                      min_view_angle_deg=min_view_angle_deg, num_threads=num_threads,
+                      render_options=options)
     warning = remote_warning(host)
     if warning:
         warnings.warn(warning, stacklevel=2)

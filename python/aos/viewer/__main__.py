@@ -91,9 +91,7 @@ def main(argv: list[str]) -> int:
                           load_options=load,
                           surface_path=spec.get("focal_surface", ""),
                           defaults=defaults, cam_from_world=cam_from_world, view_indices=views,
-                          min_view_angle_deg=options.min_view_angle_deg,
-                          lens_tolerance_px=options.lens_tolerance_px,
-                          num_threads=options.num_threads)
+                          render_options=options)
         served = aos.ViewerOptions.from_json(json.dumps(spec["viewer"]))
         served.check()
         warning = remote_warning(served.host)

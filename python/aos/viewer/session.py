@@ -28,6 +28,7 @@ Parameters (all optional; JSON numbers/strings/booleans, or query-string text):
 
 from __future__ import annotations
 
+import copy
 import math
 import os
 import shlex
@@ -238,9 +239,10 @@ class Session:
                  defaults: Optional[dict[str, Any]] = None,
                  cam_from_world: Optional[aos.Rigid3d] = None,
                  view_indices: Optional[list[int]] = None,
-                 min_view_angle_deg: float = 1.0, num_threads: int = -1,
+                 min_view_angle_deg: Optional[float] = None, num_threads: Optional[int] = None,
                  lens_tolerance_px: Optional[float] = None,
-                 adaptive_preview: bool = True) -> None:
+                 adaptive_preview: bool = True,
+                 render_options: Optional[aos.IntegralOptions] = None) -> None:
         if len(light_field) == 0:
             raise ValueError("view(): the light field has no views")
         self.light_field = light_field
@@ -253,11 +255,17 @@ class Session:
         self.load_options = {k: v for k, v in (load_options or {}).items() if v}
         self.surface_path = surface_path
         self.focal_surface = focal_surface
-        self.num_threads = num_threads
-        self.min_view_angle_deg = min_view_angle_deg
-        # Views with a lens model: the renders' lens_tolerance_px (None = IntegralOptions').
-        self.lens_tolerance_px = (aos.IntegralOptions().lens_tolerance_px
-                                  if lens_tolerance_px is None else lens_tolerance_px)
+        # Every render starts from these options: the page sets what it controls (camera,
+        # focus, aperture, views; PAGE_FIELDS) and every other field is as given here, so a
+        # field added to IntegralOptions reaches the viewer's renders (and its map view, for the
+        # fields MapOptions shares) without a line here. The keywords override single fields.
+        self.render_options = copy.copy(render_options or aos.IntegralOptions())
+        for name, value in (("min_view_angle_deg", min_view_angle_deg),
+                            ("num_threads", num_threads),
+                            ("lens_tolerance_px", lens_tolerance_px)):
+            if value is not None:
+                setattr(self.render_options, name, value)
+        self.num_threads = self.render_options.num_threads
         self.view_indices = view_indices  # a fixed subset from --view-indices (None = all)
         # A pose given as such (--look-at, --cam-from-world) replaces the views' as the base.
         self.fixed_cam_from_world = cam_from_world
@@ -395,11 +403,14 @@ class Session:
 
     def integral_options(self, params: Params) -> aos.IntegralOptions:
         camera, cam_from_world = self.camera(params)
-        options = aos.IntegralOptions(
-            cam_from_world=cam_from_world, fov_deg=camera.fov_x_deg(), width=camera.width,
-            height=camera.height, aperture_radius=params.aperture_radius,
-            view_indices=self.views_of(params), min_view_angle_deg=self.min_view_angle_deg,
-            lens_tolerance_px=self.lens_tolerance_px, num_threads=self.num_threads)
+        options = copy.copy(self.render_options)
+        for name, value in (("pose_view", -1), ("cam_from_world", cam_from_world),
+                            ("fov_deg", camera.fov_x_deg()), ("width", camera.width),
+                            ("height", camera.height),
+                            ("aperture_radius", params.aperture_radius),
+                            ("view_indices", self.views_of(params)),
+                            ("surface_offset", 0.0), ("variance", False)):
+            setattr(options, name, value)
         if params.surface:
             options.focal_surface = self.focal_surface
             options.surface_offset = params.surface_offset
@@ -412,10 +423,13 @@ class Session:
         if params.preview:
             width = max(MIN_SIZE // 2, width // self.preview_divisor)
         options = aos.MapOptions(width=width, aperture_radius=params.aperture_radius,
-                                 view_indices=self.views_of(params),
-                                 min_view_angle_deg=self.min_view_angle_deg,
-                                 lens_tolerance_px=self.lens_tolerance_px,
-                                 num_threads=self.num_threads)
+                                 view_indices=self.views_of(params))
+        # The fields a map shares with the render options (the aperture block), as given.
+        page = {"width", "aperture_radius", "view_indices", "focal_surface", "surface_offset"}
+        for row in aos.MapOptions._field_table:
+            name = row["name"]
+            if name not in page and hasattr(self.render_options, name):
+                setattr(options, name, getattr(self.render_options, name))
         if params.surface:
             options.focal_surface = self.focal_surface
             options.surface_offset = params.surface_offset
