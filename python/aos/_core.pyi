@@ -353,6 +353,7 @@ class IntegralOptions:
         focal_surface: FocalSurface | Mesh | Heightfield | Plane | float = ...,
         surface_offset: float = ...,
         variance: bool = ...,
+        min_view_count: int = ...,
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
@@ -382,6 +383,10 @@ class IntegralOptions:
     variance: bool
     """Also return the per-pixel variance of the view samples (the samples then go through the
     scalar kernel, which also sums their squares: a few times slower)."""
+    min_view_count: int
+    """Pixels averaged over fewer views than this are left uncovered (image and count 0): the rim of
+    the aperture, where few views see a point and its occluders stay; 0 = keep every pixel a view
+    sees. [>= 0]"""
     aperture_radius: float
     """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
     around the vertical line through the focal point for a map; 0 = the single nearest view, inf

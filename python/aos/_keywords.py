@@ -39,6 +39,7 @@ class IntegralKeywords(TypedDict, total=False):
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     surface_offset: float
     variance: bool
+    min_view_count: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
@@ -58,6 +59,7 @@ class FocalStackKeywords(TypedDict, total=False):
     height: int
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     variance: bool
+    min_view_count: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
@@ -99,6 +101,7 @@ class AllInFocusKeywords(TypedDict, total=False):
     height: int
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     variance: bool
+    min_view_count: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
@@ -133,6 +136,7 @@ class SurfaceIntegralKeywords(TypedDict, total=False):
     height: int
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     variance: bool
+    min_view_count: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float

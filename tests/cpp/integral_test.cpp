@@ -417,6 +417,82 @@ TEST(Integral, CountsAndValuesMatchBruteForceForGeneralGeometry) {
   }
 }
 
+TEST(Integral, MinViewCountLeavesThinPixelsUncoveredAndTheRestUnchanged) {
+  // A finite aperture over scattered views: pixel counts range from 0 to many. With
+  // min_view_count = k every pixel seen by fewer than k views is uncovered (image, count and
+  // variance 0) and every other pixel is the unthresholded render's, bit for bit; the plane
+  // kernel and the lens path (a depth map) both.
+  std::mt19937 random(7);
+  std::uniform_real_distribution<double> uniform(-1.0, 1.0);
+  const PinholeCamera camera = PinholeCamera::FromFov(40, 30, 60.0);
+  LightField light_field;
+  for (int i = 0; i < 30; ++i) {
+    const Vec3d eye(10.0 * uniform(random), 10.0 * uniform(random), 30.0);
+    light_field.views.push_back(MakeView("v" + std::to_string(i), camera,
+                                         LookAt(eye, Vec3d(eye.x, eye.y, 0.0), Vec3d(0, 1, 0)),
+                                         ConstantImage(40, 30, static_cast<float>(i))));
+  }
+  for (const bool surface : {false, true}) {
+    IntegralOptions options;
+    options.cam_from_world = LookAt(Vec3d(0, 0, 40), Vec3d(0, 0, 0), Vec3d(0, 1, 0));
+    options.fov_deg = 70.0;
+    options.width = 64;
+    options.height = 48;
+    options.aperture_radius = 8.0;
+    options.variance = true;
+    if (surface) {  // a plane given as a depth map: the per-sample path
+      const PinholeCamera virtual_camera = VirtualCamera(light_field, options);
+      const Image depth = options.focal_surface.DepthFor(
+          virtual_camera, options.cam_from_world,
+          ResolveSurfacePlacement(options.focal_surface, light_field, {}, 0.0), 1);
+      options.focal_surface =
+          FocalSurface::FromDepthMap(depth, virtual_camera, options.cam_from_world);
+    }
+    const IntegralResult all = RenderIntegral(light_field, options);
+    options.min_view_count = 6;
+    const IntegralResult thick = RenderIntegral(light_field, options);
+    int64_t dropped = 0, kept = 0, samples = 0, uncovered = 0;
+    for (int y = 0; y < options.height; ++y) {
+      for (int x = 0; x < options.width; ++x) {
+        const uint32_t n = *all.count.At<uint32_t>(x, y);
+        const uint32_t m = *thick.count.At<uint32_t>(x, y);
+        if (n < 6) {
+          dropped += n > 0;
+          ASSERT_EQ(m, 0u) << x << "," << y;
+          ASSERT_EQ(*thick.image.At<float>(x, y), 0.0f);
+          ASSERT_EQ(*thick.variance.At<float>(x, y), 0.0f);
+        } else {
+          ++kept;
+          ASSERT_EQ(m, n);
+          ASSERT_EQ(*thick.image.At<float>(x, y), *all.image.At<float>(x, y));
+          ASSERT_EQ(*thick.variance.At<float>(x, y), *all.variance.At<float>(x, y));
+        }
+        samples += m;
+        uncovered += m == 0;
+      }
+    }
+    EXPECT_GT(dropped, 50) << "the case should have thin pixels";
+    EXPECT_GT(kept, 500);
+    EXPECT_EQ(thick.samples, samples);
+    EXPECT_EQ(thick.uncovered_pixels, uncovered);
+    // 0 and 1 keep every pixel; a negative count is refused naming the field.
+    options.min_view_count = 1;
+    EXPECT_EQ(test_util::MaxAbsDifference(RenderIntegral(light_field, options).image, all.image),
+              0.0);
+    options.min_view_count = -1;
+    EXPECT_THROW(
+        {
+          try {
+            RenderIntegral(light_field, options);
+          } catch (const std::invalid_argument& error) {
+            EXPECT_NE(std::string(error.what()).find("min_view_count"), std::string::npos);
+            throw;
+          }
+        },
+        std::invalid_argument);
+  }
+}
+
 TEST(Integral, PinholeRadiusZeroPicksTheNearestViewPerPixel) {
   // Views at varied heights (so the lens-plane crossing depends on the pixel) with constant
   // images holding their index: the result names the view chosen for each pixel, which must be

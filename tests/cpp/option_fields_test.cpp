@@ -59,7 +59,7 @@ TEST(Range, ContainsAndText) {
 
 TEST(FieldTable, EveryFieldOnceInDeclarationOrder) {
   EXPECT_EQ(FieldCount<MergeOptions>(), 7u);
-  EXPECT_EQ(FieldCount<IntegralOptions>(), 13u);
+  EXPECT_EQ(FieldCount<IntegralOptions>(), 14u);
   std::string names;
   MapOptions::Fields([&](const auto& field) { names += std::string(field.name) + " "; });
   EXPECT_EQ(names,

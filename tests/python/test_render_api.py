@@ -19,7 +19,7 @@ from aos import _core
 
 INTEGRAL_FIELDS = (
     "cam_from_world", "pose_view", "fov_deg", "width", "height", "focal_surface",
-    "surface_offset", "variance",
+    "surface_offset", "variance", "min_view_count",
     # The aperture block (render/aperture.h), shared with MapOptions.
     "aperture_radius", "view_indices", "min_view_angle_deg", "lens_tolerance_px", "num_threads",
 )
@@ -250,3 +250,48 @@ def test_ctrl_c_interrupts_without_a_callback() -> None:
     finally:
         timer.cancel()
         signal.signal(signal.SIGINT, previous)
+
+
+def test_min_view_count_from_its_one_definition(make_lightfield, tmp_path) -> None:
+    # min_view_count was added as one row of IntegralOptions' field table (integral.h) and its
+    # use in RenderIntegral: the keyword, the JSON form, the CLI flag and the viewer's renders
+    # all come from that row (issue 32's "add one option" check).
+    import subprocess
+    import shutil
+
+    lf = make_lightfield(views_per_side=5, spacing=3.0, fov_deg=50.0, value=80.0)
+    base = dict(pose_view=12, fov_deg=100.0, width=48, height=40, focal_surface=0.0)
+    everything = aos.render_integral(lf, **base)
+    counts = everything.count
+    least = int(np.median(counts[counts > 0]))
+    assert 1 < least and np.any((counts > 0) & (counts < least))
+    thick = aos.render_integral(lf, **base, min_view_count=least)
+    thin = counts < least
+    assert np.all(thick.count[thin] == 0) and np.all(thick.image[thin] == 0)
+    np.testing.assert_array_equal(thick.count[~thin], counts[~thin])
+    np.testing.assert_array_equal(thick.image[~thin], everything.image[~thin])
+    assert thick.uncovered_pixels == int(np.sum(thin))
+    # The JSON form (the view and map --workers hand-off) and a range error naming the field.
+    options = aos.IntegralOptions(**base, min_view_count=least)
+    assert aos.IntegralOptions.from_json(options.to_json()).min_view_count == least
+    with pytest.raises(ValueError, match="min_view_count"):
+        aos.render_integral(lf, **base, min_view_count=-2)
+    # The viewer: a render starts from the options it was given.
+    from aos.viewer.session import Session
+
+    session = Session(lf, render_options=aos.IntegralOptions(min_view_count=least), num_threads=1)
+    params = session.parse({"pose_view": 12, "fov_deg": 100, "width": 48, "height": 40})
+    shown = session.render_raw(params)
+    assert not np.any((shown.count > 0) & (shown.count < least))
+    # The CLI flag, bound by no line of its own (Flags::Remaining).
+    exe = shutil.which("aos-render")
+    if exe is None:
+        return
+    aos.write_lightfield(str(tmp_path / "lf.json"), lf)
+    result = subprocess.run([exe, "integral", str(tmp_path / "lf.json"), "--pose-view", "12",
+                             "--fov-deg", "100", "--width", "48", "--height", "40",
+                             "--min-view-count", str(least), "-o", str(tmp_path / "a.tif"),
+                             "--count", str(tmp_path / "n.tif"), "-q"],
+                            capture_output=True, text=True, timeout=60)
+    assert result.returncode == 0, result.stderr
+    np.testing.assert_array_equal(aos.read_image(str(tmp_path / "n.tif")), thick.count)

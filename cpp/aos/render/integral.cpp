@@ -777,6 +777,30 @@ Vec3d GrazingNormal(const LightField& light_field, const IntegralOptions& option
   return ResolveSurfacePlacement(surface, light_field, options.view_indices, 0.0).up;
 }
 
+namespace {
+
+// IntegralOptions::min_view_count: pixels averaged over fewer views become uncovered.
+IntegralResult DropThinPixels(IntegralResult result, int min_view_count) {
+  if (min_view_count <= 1) return result;
+  const uint32_t least = static_cast<uint32_t>(min_view_count);
+  Image& count = result.count;
+  for (int y = 0; y < count.height(); ++y) {
+    for (int x = 0; x < count.width(); ++x) {
+      uint32_t& n = count.At<uint32_t>(x, y)[0];
+      if (n == 0 || n >= least) continue;
+      result.samples -= n;
+      ++result.uncovered_pixels;
+      n = 0;
+      float* pixel = result.image.At<float>(x, y);
+      for (int c = 0; c < result.image.channels(); ++c) pixel[c] = 0.0f;
+      if (!result.variance.empty()) result.variance.At<float>(x, y)[0] = 0.0f;
+    }
+  }
+  return result;
+}
+
+}  // namespace
+
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress) {
   // One route for every surface: a plane over pinhole views takes the homography kernel; any
@@ -805,7 +829,7 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
       plane.point += placed.offset * placed.up;
     }
     IntegralRenderer renderer(light_field, options, plane);
-    return renderer.Run(progress);
+    return DropThinPixels(renderer.Run(progress), options.min_view_count);
   }
   const PinholeCamera camera = VirtualCamera(light_field, options);
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
@@ -823,9 +847,10 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
                    "centre: no pixel's ray meets it in front");
     }
   }
-  return RenderIntegralOnDepth(light_field, options, depth, SurfaceIntegralOptions{},
-                               progress)
-      .integral;
+  return DropThinPixels(
+      RenderIntegralOnDepth(light_field, options, depth, SurfaceIntegralOptions{}, progress)
+          .integral,
+      options.min_view_count);
 }
 
 }  // namespace aos

@@ -93,6 +93,11 @@ struct IntegralOptions : ApertureOptions {
   // Also return the per-pixel variance of the view samples (the kernels then also sum their
   // squares: AVX2 for 1-channel views, else scalar).
   bool variance = false;
+  // Pixels averaged over fewer views than this are left uncovered (image and variance 0, count
+  // 0): at the rim of the synthetic aperture few views see a point and its occluders do not
+  // blur away. 0 or 1 keeps every pixel a view sees. IntegralResult::views_used still counts
+  // the views that reached any pixel before this threshold.
+  int min_view_count = 0;
 
   // Throws std::invalid_argument naming the offending field. `view_count` is the number of views
   // in the light field (for pose_view and view_indices).
@@ -124,6 +129,10 @@ struct IntegralOptions : ApertureOptions {
                       "Also return the per-pixel variance of the view samples (the samples "
                       "then go through the scalar kernel, which also sums their squares: a "
                       "few times slower)."));
+    field(OptionField("min_view_count", &O::min_view_count, "", Range::AtLeast(0),
+                      "Pixels averaged over fewer views than this are left uncovered (image "
+                      "and count 0): the rim of the aperture, where few views see a point and "
+                      "its occluders stay; 0 = keep every pixel a view sees."));
     ApertureOptions::Fields(field);  // aperture.h
   }
 };
