@@ -143,6 +143,22 @@ def keyword_types(router: Any) -> dict[str, str]:
     return {name: _union(found) for name, found in types.items()}
 
 
+def reachable(root_types: list[type]) -> set[str]:
+    """The names of the Options classes `root_types` fill, nested ones included."""
+    found: set[str] = set()
+    pending = [root() for root in root_types]
+    while pending:
+        options = pending.pop()
+        if type(options).__name__ in found:
+            continue
+        found.add(type(options).__name__)
+        for row in getattr(type(options), "_field_table", ()):
+            value = getattr(options, row["name"], None)
+            if hasattr(type(value), "_field_table"):
+                pending.append(value)
+    return found
+
+
 def keywords_module() -> str:
     import aos
 
@@ -152,6 +168,8 @@ def keywords_module() -> str:
         by_name.setdefault(router.keywords, []).append(router)
     classes: list[str] = []
     used: set[str] = set()
+    written: dict[str, dict[str, str]] = {}  # class -> every keyword it types, inherited too
+    roots_of: dict[str, set[str]] = {}  # class -> the Options classes its routers fill
     for keywords, group in by_name.items():
         types: dict[str, str] = {}
         for router in group:
@@ -160,13 +178,26 @@ def keywords_module() -> str:
         functions = ", ".join(f"aos.{router.function}" for router in group)
         roots = ", ".join(dict.fromkeys(t.__name__ for router in group
                                         for t in router.root_types))
-        lines = [f"class {keywords}(TypedDict, total=False):"]
+        # A class whose keywords (with the same types) are all this one's is its base: the
+        # nested structs' fields are then typed once (mypy merges TypedDict bases).
+        reach = reachable([t for router in group for t in router.root_types])
+        bases = [name for name, typed in written.items()
+                 if typed and roots_of[name] <= reach
+                 and all(types.get(key) == text for key, text in typed.items())]
+        base = max(bases, key=lambda name: len(written[name]), default=None)
+        inherited = written[base] if base else {}
+        lines = [f"class {keywords}({base or 'TypedDict'}, total=False):"]
         lines += _docstring(f"Keywords of {functions}: the fields of {roots} (nested ones "
-                            "included) that its router accepts.", "    ")
-        lines.append("")
-        for name, text in types.items():
+                            "included) that its router accepts"
+                            + (f"; those of {base} too." if base else "."), "    ")
+        own = {name: text for name, text in types.items() if name not in inherited}
+        if own:
+            lines.append("")
+        for name, text in own.items():
             lines.append(f"    {name}: {text}")
             used.update(re.findall(r"\b[A-Z]\w*", text))
+        written[keywords] = dict(types)
+        roots_of[keywords] = {t.__name__ for router in group for t in router.root_types}
         classes.append("\n".join(lines))
     from aos import _core
 

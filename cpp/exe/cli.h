@@ -322,20 +322,9 @@ class Flags {
   template <class T, class Parse>
   CLI::Option* Parsed(const std::string& flag, const std::string& field, T& value, Parse parse,
                       const std::string& default_text, const std::string& help) {
-    CLI::Option* option = command_->add_option_function<std::string>(
-        Names(flag),
-        [&value, parse, flag](const std::string& text) {
-          try {
-            value = parse(text);
-          } catch (const std::invalid_argument& error) {
-            const std::string message = OneLine(error.what());
-            // Name the flag, as range errors do, unless the message names it already.
-            throw CLI::ValidationError(message.find(flag) == std::string::npos
-                                           ? message + " [option " + flag + "]"
-                                           : message);
-          }
-        },
-        help);
+    // Errors name the flag, as range errors do (AddTaking).
+    CLI::Option* option =
+        AddTaking(flag, [&value, parse](const std::string& text) { value = parse(text); }, help);
     if (!default_text.empty()) option->default_str(default_text);
     Record(flag, field, default_text);
     return option;

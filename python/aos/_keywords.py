@@ -88,31 +88,11 @@ class MergeKeywords(TypedDict, total=False):
     num_threads: int
 
 
-class AllInFocusKeywords(TypedDict, total=False):
+class AllInFocusKeywords(FocalStackKeywords, total=False):
     """Keywords of aos.all_in_focus: the fields of AllInFocusOptions (nested ones included) that its
-    router accepts."""
+    router accepts; those of FocalStackKeywords too."""
 
     stack: FocalStackOptions
-    render: IntegralOptions
-    cam_from_world: Rigid3d
-    pose_view: int
-    fov_deg: float
-    width: int
-    height: int
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
-    variance: bool
-    min_view_count: int
-    aperture_radius: float
-    view_indices: Sequence[int]
-    min_view_angle_deg: float
-    lens_tolerance_px: float
-    num_threads: int
-    first_plane: Plane | float
-    last_plane: Plane | float
-    ground_plane: Plane | float | None
-    first_offset: float
-    last_offset: float
-    slices: int
     merge: MergeOptions
     method: MergeMethod | Literal['sobel', 'improved', 'robust']
     window_radius: int
