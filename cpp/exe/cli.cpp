@@ -237,6 +237,18 @@ void Flags::AlsoSets(const std::string& field, const std::string& flag) {
 
 void Flags::FromTable() { Bindings().back().source = "table"; }
 
+CLI::Option* Flags::NoDefault(CLI::Option* option) const {
+  option->default_str("");
+  for (FlagBinding& binding : Bindings()) {
+    for (const std::string& name : option->get_lnames()) {
+      if (binding.command == command_->get_name() && binding.flag == "--" + name) {
+        binding.default_text.clear();
+      }
+    }
+  }
+  return option;
+}
+
 CLI::Option* Flags::AddTaking(const std::string& flag,
                               std::function<void(const std::string&)> take,
                               const std::string& help) {

@@ -281,6 +281,9 @@ class Flags {
     Bindings().back().source = "shorthand";
     return option;
   }
+  // `option` (a flag of this command) with no default in --help or `aos-render flags`: a field
+  // the command fills from others when the flag is not given (camera's fy = fx).
+  CLI::Option* NoDefault(CLI::Option* option) const;
   // The same flag for a second field of this name in the command (allinfocus's --threads sets
   // the stack's and the merge's num_threads): recorded as that field's table flag.
   void AlsoSets(const std::string& field, const std::string& flag);

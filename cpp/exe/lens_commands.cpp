@@ -25,7 +25,6 @@ namespace fs = std::filesystem;
 namespace aos::cli {
 namespace {
 
-LensModel ParseModelFlag(const std::string& text) { return ParseLensModel(text, "--model"); }
 
 // ---- calibrate ----
 
@@ -155,6 +154,18 @@ int RunCamera(CameraCommand& c, const Flags& flags) {
     }
     camera.distortion[static_cast<size_t>(index)] = flag.value;
   }
+  // --distortion: only the model's own coefficients may be non-zero (a reader refuses others).
+  const LensModelTraits& traits = TraitsOf(camera.model);
+  for (int i = traits.distortion_count; i < 5; ++i) {
+    if (camera.distortion[static_cast<size_t>(i)] != 0.0) {
+      ThrowUsage("--distortion: the " + std::string(traits.name) + " model has " +
+                 (traits.distortion_count == 0
+                      ? std::string("no distortion")
+                      : std::to_string(traits.distortion_count) + " coefficients") +
+                 " (coefficient " + std::to_string(i + 1) + " is " +
+                 FormatNumber(camera.distortion[static_cast<size_t>(i)]) + ")");
+    }
+  }
   // Validate as every reader of the file will (LensCamera::Finalize): errors name the flag.
   try {
     LensCamera checked = camera;
@@ -190,32 +201,23 @@ CommandRunner DefineCamera(CLI::App* command) {
   auto c = std::make_shared<CameraCommand>();
   Flags flags(command);
   LensCamera& camera = c->camera;
-  flags.Parsed("--model", "model", camera.model, ParseModelFlag, LensModelName(camera.model),
-               "pinhole, radtan, fisheye or omnidir (lens.h; docs/lens-models.md)");
-  flags.Field("width", camera.width, "Image width, pixels")->required();
-  flags.Field("height", camera.height, "Image height, pixels")->required();
-  flags.Field("fx", camera.fx, "Focal length, pixels")->required();
-  flags.Optional("--fy", "fy", camera.fy, "Focal length along y, pixels (default: fx)")
-      ->each([c](const std::string&) { c->fy_given = true; });
-  flags.Optional("--cx", "cx", camera.cx,
-                 "Principal point x, pixels, aos's convention: pixel centres at +0.5, so OpenCV's "
-                 "cx + 0.5 (default: width / 2)")
-      ->each([c](const std::string&) { c->cx_given = true; });
-  flags.Optional("--cy", "cy", camera.cy,
-                 "Principal point y, pixels, as --cx (OpenCV's cy + 0.5; default: height / 2)")
-      ->each([c](const std::string&) { c->cy_given = true; });
-  CLI::Option* all = flags.Parsed(
-      "--distortion", "distortion", camera.distortion,
-      [](const std::string& text) {
+  flags.Field(camera, "model");
+  flags.Field(camera, "width")->required();
+  flags.Field(camera, "height")->required();
+  flags.Field(camera, "fx")->required();
+  // Not given, they follow from the others (RunCamera): --help prints no default for them.
+  flags.NoDefault(flags.Field(camera, "fy"))->each([c](const std::string&) { c->fy_given = true; });
+  flags.NoDefault(flags.Field(camera, "cx"))->each([c](const std::string&) { c->cx_given = true; });
+  flags.NoDefault(flags.Field(camera, "cy"))->each([c](const std::string&) { c->cy_given = true; });
+  CLI::Option* all = flags.Field(
+      camera, "distortion",
+      [&camera](const std::string& text) {
         const std::vector<double> v = ParseNumbers(text, "--distortion");
         if (v.size() > 5) ThrowUsage("--distortion: at most 5 coefficients (got " + text + ")");
-        std::array<double, 5> d{0, 0, 0, 0, 0};
-        std::copy(v.begin(), v.end(), d.begin());
-        return d;
+        camera.distortion = {0, 0, 0, 0, 0};
+        std::copy(v.begin(), v.end(), camera.distortion.begin());
       },
-      "0,0,0,0,0",
-      "Distortion coefficients in the model's order (radtan k1,k2,p1,p2,k3; fisheye k1,k2,k3,k4; "
-      "omnidir k1,k2,p1,p2), the rest 0");
+      " On the command line up to 5 numbers K1,K2,...");
   for (DistortionFlag& flag : c->distortion) {
     DistortionFlag* target = &flag;
     flags.Shorthand("distortion", std::string("--") + flag.name);
@@ -231,8 +233,8 @@ CommandRunner DefineCamera(CLI::App* command) {
                 "its place in --distortion")
         ->excludes(all);
   }
-  flags.Field("xi", camera.xi, "omnidir: Mei's xi (>= 0)");
-  flags.Field("skew", camera.skew, "omnidir: skew");
+  flags.Field(camera, "xi");
+  flags.Field(camera, "skew");
   command->add_option("-o,--output", c->output, "Camera file to write (aos-camera JSON)")
       ->required();
   flags.Output("--output");

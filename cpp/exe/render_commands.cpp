@@ -76,10 +76,11 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
       ->required();
   render.Input("lightfield");
   AddLoadFlags(render, args.load);
-  auto* pose_view = render.Field(
+  // No default printed: none means --look-at/--cam-from-world (the viewer: the middle view).
+  auto* pose_view = render.NoDefault(render.Field(
       options, "pose_view", [&args](const std::string& text) { args.pose_view = text; },
       " On the command line also the view named NAME (its frame name, with or without the "
-      "extension; case is ignored if nothing matches exactly).");
+      "extension; case is ignored if nothing matches exactly)."));
   auto* pose = render.Field(
       options, "cam_from_world", [&args](const std::string& text) { args.cam_from_world = text; },
       " On the command line 12 numbers: the 3x4 matrix [R|t] row by row.");
@@ -103,12 +104,18 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
 
 // --focal-surface's text: a height H or PX,PY,PZ,NX,NY,NZ is that plane (at once); anything else
 // is a mesh or DEM file, kept in `path` and read by ReadFocalSurface before the frames.
-std::function<void(const std::string&)> TakeFocalSurface(FocalSurface* surface, std::string* path) {
-  return [surface, path](const std::string& text) {
+// A stack (`planes` false) takes a terrain file only: its planes are --first-plane/--last-plane.
+std::function<void(const std::string&)> TakeFocalSurface(FocalSurface* surface, std::string* path,
+                                                         bool planes = true) {
+  return [surface, path, planes](const std::string& text) {
     std::vector<double> numbers;
     try {
       numbers = ParseNumbers(text, "--focal-surface");
     } catch (const std::invalid_argument&) {
+    }
+    if ((numbers.size() == 1 || numbers.size() == 6) && !planes) {
+      ThrowUsage("--focal-surface: a stack follows a terrain file (a mesh or a DEM); its planes "
+                 "are --first-plane/--last-plane (a file named like a number: ./" + text + ")");
     }
     if (numbers.size() == 1 || numbers.size() == 6) {
       *surface = FocalSurface::FromPlane(ParsePlane(text, "--focal-surface"));
@@ -136,9 +143,9 @@ CLI::Option* AddFocalHeightFlag(Flags& flags, FocalSurface& focal_surface, const
 
 // --focal-surface (IntegralOptions::focal_surface), with a command's `note` on it.
 CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, IntegralOptions& options,
-                                 const char* note) {
+                                 const char* note, bool planes = true) {
   render.Field(options, "focal_surface",
-               TakeFocalSurface(&options.focal_surface, &args.focal_surface),
+               TakeFocalSurface(&options.focal_surface, &args.focal_surface, planes),
                std::string(kFocalSurfaceHelp) + " " + note);
   return render.Input("--focal-surface");
 }
@@ -369,13 +376,15 @@ struct StackFlags {
   std::string ground;  // --ground FILE: points or a mesh to estimate the ground plane from
   CLI::Option* surface = nullptr;
   CLI::Option* ground_flag = nullptr;
+  CLI::Option* ground_plane = nullptr;
   CLI::Option* offsets[2] = {nullptr, nullptr};
 
   void Check() const {
     for (const CLI::Option* offset : offsets) {
-      if (offset->count() > 0 && surface->count() == 0 && ground_flag->count() == 0) {
-        ThrowUsage(offset->get_name() + ": needs --focal-surface (a terrain-following stack) or "
-                   "--ground (planes around the ground)");
+      if (offset->count() > 0 && surface->count() == 0 && ground_flag->count() == 0 &&
+          ground_plane->count() == 0) {
+        ThrowUsage(offset->get_name() + ": needs --focal-surface (a terrain-following stack), "
+                   "--ground or --ground-plane (planes around the ground)");
       }
     }
   }
@@ -417,7 +426,8 @@ StackFlags AddStackFlags(Flags& stack, Flags& render, RenderArgs& args,
   CLI::Option* surface = AddFocalSurfaceFlag(
       render, args, options.render,
       "A stack given a terrain follows it: every slice lies on the terrain moved along up by "
-      "--first-offset .. --last-offset, instead of --first-plane/--last-plane.");
+      "--first-offset .. --last-offset, instead of --first-plane/--last-plane.",
+      /*planes=*/false);
   CLI::Option* ground_plane = stack.Field(options, "ground_plane");
   stack.Shorthand("ground_plane", "--ground");
   CLI::Option* ground_flag = stack.command()->add_option(
@@ -427,15 +437,17 @@ StackFlags AddStackFlags(Flags& stack, Flags& render, RenderArgs& args,
       "world coordinates (the robust plane of `aos-render ground`); for a DEM use "
       "--focal-surface; sets --ground-plane");
   ground_flag->excludes(ground_plane);
+  ground_plane->excludes(first)->excludes(last);
   CLI::Option* first_offset = stack.Field(options, "first_offset");
   CLI::Option* last_offset = stack.Field(options, "last_offset");
-  surface->excludes(first)->excludes(last)->excludes(ground_flag);
+  surface->excludes(first)->excludes(last)->excludes(ground_flag)->excludes(ground_plane);
   ground_flag->excludes(first)->excludes(last);
   stack.Input("--ground");
   stack.Field(options, "slices");
   StackFlags flags;
   flags.surface = surface;
   flags.ground_flag = ground_flag;
+  flags.ground_plane = ground_plane;
   flags.offsets[0] = first_offset;
   flags.offsets[1] = last_offset;
   return flags;
@@ -512,23 +524,40 @@ void WriteMergeResult(const std::string& output_dir, const MergeResult& result,
               MergeMethodName(method), static_cast<long long>(result.uncovered_pixels));
 }
 
-struct StackCommand {
+// stack and allinfocus: the light field, the slices' flags and the output folder, and the
+// options (FocalStackOptions, or AllInFocusOptions holding one).
+template <class Options>
+struct SlicesCommand {
   RenderArgs args;
-  FocalStackOptions options;
+  Options options;
   std::string ground;
   StackFlags stack_flags;
   std::string output_dir;
 };
+using StackCommand = SlicesCommand<FocalStackOptions>;
+
+FocalStackOptions& StackPart(FocalStackOptions& options) { return options; }
+FocalStackOptions& StackPart(AllInFocusOptions& options) { return options.stack; }
+
+// What stack and allinfocus do before rendering: the slices' flags checked, the output folder
+// refused when in use (before any work), the --ground points read (a bad file fails before the
+// frames are decoded), the light field loaded with the camera resolved, the ground estimated.
+template <class Options>
+LoadResult LoadSlices(SlicesCommand<Options>& c, const Flags& flags, ProgressBar& progress) {
+  c.stack_flags.Check();
+  CheckOutputFolder(c.output_dir);
+  std::vector<Vec3d> ground_points;
+  if (!c.ground.empty()) ground_points = ReadPoints(c.ground);
+  FocalStackOptions& stack = StackPart(c.options);
+  LoadResult loaded = LoadAndResolveCamera(c.args, stack.render, flags, progress,
+                                           [&](int views) { c.options.Check(views); });
+  ResolveGround(c.ground, std::move(ground_points), loaded.light_field, stack);
+  return loaded;
+}
 
 int RunStack(StackCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
-  c.stack_flags.Check();
-  CheckOutputFolder(c.output_dir);  // before any work
-  std::vector<Vec3d> ground_points;
-  if (!c.ground.empty()) ground_points = ReadPoints(c.ground);
-  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.render, flags, progress,
-                                                 [&](int views) { c.options.Check(views); });
-  ResolveGround(c.ground, std::move(ground_points), loaded.light_field, c.options);
+  const LoadResult loaded = LoadSlices(c, flags, progress);
   const FocalStack stack =
       flags.NamingFlags([&] { return RenderFocalStack(loaded.light_field, c.options, &progress); });
   progress.Finish();
@@ -645,23 +674,11 @@ CommandRunner DefineMerge(CLI::App* command) {
 
 namespace {
 
-struct AllInFocusCommand {
-  RenderArgs args;
-  AllInFocusOptions options;
-  std::string ground;
-  StackFlags stack_flags;
-  std::string output_dir;
-};
+using AllInFocusCommand = SlicesCommand<AllInFocusOptions>;
 
 int RunAllInFocus(AllInFocusCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
-  c.stack_flags.Check();
-  CheckOutputFolder(c.output_dir);  // before any work
-  std::vector<Vec3d> ground_points;
-  if (!c.ground.empty()) ground_points = ReadPoints(c.ground);
-  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options.stack.render, flags, progress,
-                                                 [&](int views) { c.options.Check(views); });
-  ResolveGround(c.ground, std::move(ground_points), loaded.light_field, c.options.stack);
+  const LoadResult loaded = LoadSlices(c, flags, progress);
   // --threads sets every stage's thread count.
   c.options.merge.num_threads = c.options.stack.render.num_threads;
   const MergeResult result =
@@ -967,7 +984,6 @@ int RunView(ViewCommand& c, const Flags& flags) {
   if (!c.args.focal_surface.empty() && !fs::exists(c.args.focal_surface)) {
     throw UsageError("--focal-surface: " + c.args.focal_surface + ": no such file");
   }
-  if (c.no_browser && c.browser) ThrowUsage("--browser and --no-browser exclude each other");
   nlohmann::ordered_json spec;
   spec["light_field"] = c.args.light_field_path;
   spec["load"] = OptionsToJson(c.args.load);

@@ -3,8 +3,8 @@
 Every field of an Options class with a field table (cpp/aos/util/option_fields.h) has its
 aos-render flag in the row (`_field_table[i]["flag"]`, the flag cpp/exe/cli.h binds). These
 helpers spell a value the way that flag and the Python keyword read it, and list only what
-differs from the default, so that a generated command renders exactly what its options do (the
-viewer's "copy command", python/aos/viewer/session.py). A value with no spelling (a surface
+differs from the default, numbers in their shortest exact text, so that a generated command
+renders what its options do (the viewer's "copy command", python/aos/viewer/session.py). A value with no spelling (a surface
 built in memory) raises ValueError naming the field.
 """
 from __future__ import annotations
@@ -17,9 +17,11 @@ import numpy as np
 
 
 def _number(value: float) -> str:
+    # The shortest text that reads back as the same double (repr), "3" for 3.0.
     if math.isinf(value):
         return "inf" if value > 0 else "-inf"
-    return f"{value + 0.0:.9g}"
+    text = repr(float(value) + 0.0)
+    return text[:-2] if text.endswith(".0") else text
 
 
 def ranges_text(indices: Sequence[int]) -> str:
@@ -45,9 +47,11 @@ def _horizontal(plane: Any) -> bool:
 
 
 def flag_text(name: str, value: Any) -> Optional[str]:
-    """The text a flag reads for `value`; None for a switch that is off (True: on)."""
+    """The text a flag reads for `value`; None for a switch that is off ("" for one that is on);
+    a list of numbers other than view indices as its numbers separated by spaces (one argument
+    each, as --extent reads them)."""
     kind = type(value).__name__
-    if isinstance(value, bool):
+    if isinstance(value, (bool, np.bool_)):
         return "" if value else None
     if isinstance(value, (int, np.integer)):
         return str(int(value))
@@ -71,7 +75,7 @@ def flag_text(name: str, value: Any) -> Optional[str]:
     if isinstance(value, (list, tuple)):
         if name == "view_indices":
             return ranges_text(value)
-        return ",".join(flag_text(name, v) or "" for v in value)
+        return " ".join(flag_text(name, v) or "" for v in value)
     raise ValueError(f"{name}: no command-line spelling for a {kind}")
 
 
@@ -80,7 +84,7 @@ def python_text(name: str, value: Any) -> str:
     kind = type(value).__name__
     if isinstance(value, (float, np.floating)) and math.isinf(value):
         return 'float("inf")' if value > 0 else '-float("inf")'
-    if isinstance(value, (bool, int, float, str, np.integer, np.floating)):
+    if isinstance(value, (bool, int, float, str, np.integer, np.floating, np.bool_)):
         return repr(value.item() if isinstance(value, np.generic) else value)
     if kind == "Rigid3d":
         numbers = [float(v) for v in np.asarray(value.matrix3x4).ravel()]
@@ -97,8 +101,7 @@ def python_text(name: str, value: Any) -> str:
     if hasattr(type(value), "__members__"):
         return repr(value.name)
     if isinstance(value, (list, tuple)):
-        return repr([python_text(name, v) if not isinstance(v, (int, float)) else v
-                     for v in value])
+        return "[" + ", ".join(python_text(name, v) for v in value) + "]"
     raise ValueError(f"{name}: no Python spelling for a {kind}")
 
 
@@ -131,10 +134,12 @@ def cli_arguments(changed: Sequence[tuple[dict, Any]]) -> str:
     words: list[str] = []
     for row, value in changed:
         text = flag_text(row["name"], value)
-        if text is None:
-            continue
+        if text is None:  # a switch turned off: only a default of off is spelt (by nothing)
+            raise ValueError(f"{row['name']}: no flag turns it off (its default is on)")
         words.append(row["flag"])
-        if not isinstance(value, bool):
+        if isinstance(value, (list, tuple)) and row["name"] != "view_indices":
+            words += [shlex.quote(part) for part in text.split(" ")]
+        elif not isinstance(value, (bool, np.bool_)):
             words.append(shlex.quote(text))
     return " ".join(words)
 

@@ -398,13 +398,10 @@ def test_every_field_flag_comes_from_its_table_row() -> None:
     by_source: dict[str, list[dict[str, str]]] = {}
     for binding in bindings:
         by_source.setdefault(binding["source"], []).append(binding)
-    assert set(by_source) == {"table", "shorthand", "hand"}
-    # By hand only where the struct has no table: the camera command's LensCamera.
-    assert {b["command"] for b in by_source["hand"]} == {"camera"}
+    assert set(by_source) == {"table", "shorthand"}, {b["flag"] for b in by_source.get("hand", [])}
     table = {(b["command"], b["field"]): b["flag"] for b in by_source["table"]}
-    own = set(table) | {(b["command"], b["field"]) for b in by_source["hand"]}
     for shorthand in by_source["shorthand"]:
-        assert (shorthand["command"], shorthand["field"]) in own, shorthand
+        assert (shorthand["command"], shorthand["field"]) in table, shorthand
     assert table[("integral", "view_indices")] == "--view-indices"
     assert table[("integral", "focal_surface")] == "--focal-surface"
     assert table[("stack", "ground_plane")] == "--ground-plane"
@@ -412,6 +409,7 @@ def test_every_field_flag_comes_from_its_table_row() -> None:
     assert table[("calibrate", "pattern_rows")] == "--pattern-rows"
     assert table[("allinfocus", "merge.num_threads")] == "--threads"
     assert table[("poses", "fov_deg")] == "--frames-fov-deg"  # the row names its flag
+    assert table[("camera", "distortion")] == "--distortion"  # LensCamera's table
 
 
 def test_focal_surface_takes_a_height_a_plane_or_a_file_and_views_its_old_spelling(
@@ -439,3 +437,38 @@ def test_focal_surface_takes_a_height_a_plane_or_a_file_and_views_its_old_spelli
                "-o", str(tmp_path / "y.tif"))
     assert both.returncode == 2 and "--focal-height" in both.stderr
     assert not (tmp_path / "x.tif").exists() and not (tmp_path / "y.tif").exists()
+
+
+def test_the_new_table_flags_and_their_shorthands_exclude_each_other(scene: Path,
+                                                                      tmp_path: Path) -> None:
+    # Flags named after their fields, beside the older spellings that set the same field.
+    for args, flag in [(["calibrate", "x.png", "--pattern", "9x6", "--pattern-columns", "9",
+                         "-o", "c.json"], "--pattern"),
+                       (["view", str(scene), "--browser", "--open-browser", "false"],
+                        "--browser"),
+                       (["camera", "--width", "64", "--height", "48", "--fx", "50",
+                         "--distortion", "0.1", "--k1", "0.1", "-o", "c.json"], "--distortion"),
+                       (["stack", str(scene), "--pose-view", "4", "--ground-plane", "0",
+                         "--first-plane", "1", "-o", "s"], "--ground-plane")]:
+        result = run(*args, cwd=tmp_path)
+        assert result.returncode == 2 and "excludes" in result.stderr and flag in result.stderr, \
+            (args, result.stderr)
+    # camera --distortion: the model's own coefficients only; the file is what --k1 .. write.
+    base = ["camera", "--model", "radtan", "--width", "64", "--height", "48", "--fx", "50"]
+    assert run(*base, "--distortion", "0.1,-0.02", "-o", str(tmp_path / "a.json")).returncode == 0
+    assert run(*base, "--k1", "0.1", "--k2", "-0.02", "-o", str(tmp_path / "b.json")).returncode == 0
+    assert (tmp_path / "a.json").read_text() == (tmp_path / "b.json").read_text()
+    pinhole = run("camera", "--width", "64", "--height", "48", "--fx", "50", "--distortion", "0.1",
+                  "-o", str(tmp_path / "p.json"))
+    assert pinhole.returncode == 2 and "pinhole model has no distortion" in pinhole.stderr
+    assert not (tmp_path / "p.json").exists()
+    # stack --ground-plane with offsets: planes parallel to it (as --ground gives them).
+    out = tmp_path / "stack"
+    result = run("stack", str(scene), *BASE, "--ground-plane", "0,0,0,0,0,1", "--first-offset",
+                 "0", "--last-offset", "2", "--slices", "3", "-o", str(out), "-q")
+    assert result.returncode == 0, result.stderr
+    heights = [s["plane"]["point"][2] for s in json.loads((out / "stack.json").read_text())["slices"]]
+    assert heights == [0.0, 1.0, 2.0]
+    # A stack's --focal-surface is a terrain file, not a plane (which it would ignore).
+    plane = run("stack", str(scene), *BASE, "--focal-surface", "0", "-o", str(tmp_path / "t"))
+    assert plane.returncode == 2 and "--first-plane/--last-plane" in plane.stderr

@@ -8,6 +8,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import shutil
 import signal
 import threading
 
@@ -256,9 +257,6 @@ def test_min_view_count_from_its_one_definition(make_lightfield, tmp_path) -> No
     # min_view_count was added as one row of IntegralOptions' field table (integral.h) and its
     # use in RenderIntegral: the keyword, the JSON form, the CLI flag and the viewer's renders
     # all come from that row (issue 32's "add one option" check).
-    import subprocess
-    import shutil
-
     lf = make_lightfield(views_per_side=5, spacing=3.0, fov_deg=50.0, value=80.0)
     base = dict(pose_view=12, fov_deg=100.0, width=48, height=40, focal_surface=0.0)
     everything = aos.render_integral(lf, **base)
@@ -283,10 +281,19 @@ def test_min_view_count_from_its_one_definition(make_lightfield, tmp_path) -> No
     params = session.parse({"pose_view": 12, "fov_deg": 100, "width": 48, "height": 40})
     shown = session.render_raw(params)
     assert not np.any((shown.count > 0) & (shown.count < least))
+
+
+@pytest.mark.skipif(shutil.which("aos-render") is None, reason="aos-render is not on PATH")
+def test_min_view_count_on_the_command_line(make_lightfield, tmp_path) -> None:
     # The CLI flag, bound by no line of its own (Flags::Remaining).
+    import subprocess
+
     exe = shutil.which("aos-render")
-    if exe is None:
-        return
+    lf = make_lightfield(views_per_side=5, spacing=3.0, fov_deg=50.0, value=80.0)
+    base = dict(pose_view=12, fov_deg=100.0, width=48, height=40, focal_surface=0.0)
+    least = 4
+    thick = aos.render_integral(lf, **base, min_view_count=least)
+    assert np.any(thick.count == 0) and np.all((thick.count == 0) | (thick.count >= least))
     aos.write_lightfield(str(tmp_path / "lf.json"), lf)
     result = subprocess.run([exe, "integral", str(tmp_path / "lf.json"), "--pose-view", "12",
                              "--fov-deg", "100", "--width", "48", "--height", "40",
@@ -295,3 +302,17 @@ def test_min_view_count_from_its_one_definition(make_lightfield, tmp_path) -> No
                             capture_output=True, text=True, timeout=60)
     assert result.returncode == 0, result.stderr
     np.testing.assert_array_equal(aos.read_image(str(tmp_path / "n.tif")), thick.count)
+
+
+def test_min_view_count_in_stacks_and_all_in_focus(make_lightfield) -> None:
+    # Every slice of a stack drops its thin pixels; the coarse-to-fine all-in-focus, whose
+    # passes integrate at points, refuses the option instead of ignoring it.
+    lf = make_lightfield(views_per_side=5, spacing=3.0, fov_deg=50.0, value=80.0)
+    camera = dict(pose_view=12, fov_deg=100.0, width=48, height=40)
+    stack = aos.render_focal_stack(lf, **camera, first_plane=0.0, last_plane=1.0, slices=2,
+                                   min_view_count=4)
+    for count in stack.counts:
+        assert np.any(count == 0) and np.all((count == 0) | (count >= 4))
+    with pytest.raises(ValueError, match="min_view_count: the coarse-to-fine"):
+        aos.all_in_focus(lf, **camera, first_plane=0.0, last_plane=1.0, slices=2,
+                         min_view_count=4, coarse_to_fine=2)

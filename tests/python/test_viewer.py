@@ -567,6 +567,24 @@ def test_cli_serves_until_ctrl_c(lightfield_file: Path) -> None:
         subprocess.run([EXE, *arguments, "-q", "--force"], check=True, timeout=60, env=cli_env())
         written = aos.read_image(str(output))
         assert np.abs(written.astype(int) - shown[:, :, 0].astype(int)).max() <= 1
+        # The map view's command line and Python snippet render the same map.
+        status, body = get(report["url"].replace("/?token=", "/api/command?token=")
+                           + "&mode=map&width=40&aperture_radius=4&view_first=1&view_last=8")
+        command = json.loads(body)
+        arguments = shlex.split(command["cli"])[1:]
+        map_file = lightfield_file.parent / "from_command.tif"
+        arguments[arguments.index("-o") + 1] = str(map_file)
+        subprocess.run([EXE, *arguments, "-q", "--force"], check=True, timeout=60, env=cli_env())
+        namespace: dict[str, Any] = {"aos": aos}
+        exec(command["python"], namespace)
+        rasterio = pytest.importorskip("rasterio")
+        with rasterio.open(map_file) as source:
+            cli_map = source.read(1)
+        python_map = namespace["result"].image
+        python_map = python_map[:, :, 0] if python_map.ndim == 3 else python_map
+        covered = namespace["result"].count > 0  # the GeoTIFF's nodata (NaN) elsewhere
+        assert covered.any() and np.array_equal(np.isfinite(cli_map), covered)
+        np.testing.assert_allclose(cli_map[covered], python_map[covered], atol=1e-4)
         process.send_signal(signal.SIGINT)
         assert process.wait(timeout=30) == 0
         assert "Traceback" not in process.stderr.read()

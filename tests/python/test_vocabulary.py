@@ -44,7 +44,8 @@ def test_the_help_parser_reads_real_defaults() -> None:
     assert (merge["--window-radius"], merge["--edge-sigma"], merge["--method"]) == \
         ("3", "0.2", "improved")
     integral = vocabulary.cli_flags(EXE, "integral")
-    assert integral["--aperture-radius"] == "inf" and integral["--view-indices"] is None
+    assert integral["--aperture-radius"] == "inf" and integral["--pose-view"] is None
+    assert integral["--view-indices"] is None
     assert "--force" in integral and integral["--force"] is None
 
 

@@ -133,6 +133,31 @@ struct LensCamera {
   // is max_radius. Requires Finalize().
   double ValidAngle() const;
 
+  // The field table (util/option_fields.h) of the parameters, what `aos-render camera` sets
+  // (its flags come from these rows); the derived valid field is not listed.
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = LensCamera;
+    field(OptionField("model", &O::model, "", Range::Any(),
+                      "Lens model: pinhole, radtan, fisheye or omnidir (docs/lens-models.md)."));
+    field(OptionField("width", &O::width, "px", Range::AtLeast(1), "Image width, pixels."));
+    field(OptionField("height", &O::height, "px", Range::AtLeast(1), "Image height, pixels."));
+    field(OptionField("fx", &O::fx, "px", Range::Any(), "Focal length, pixels (> 0)."));
+    field(OptionField("fy", &O::fy, "px", Range::Any(),
+                      "Focal length along y, pixels (> 0; `camera` takes fx when not given)."));
+    field(OptionField("cx", &O::cx, "px", Range::Any(),
+                      "Principal point x, pixels, aos's convention: pixel centres at +0.5, so "
+                      "OpenCV's cx + 0.5 (`camera` takes width / 2 when not given)."));
+    field(OptionField("cy", &O::cy, "px", Range::Any(),
+                      "Principal point y, pixels, as cx (OpenCV's cy + 0.5; `camera` takes "
+                      "height / 2 when not given)."));
+    field(OptionField("distortion", &O::distortion, "", Range::Any(),
+                      "Distortion coefficients in the model's order (radtan k1, k2, p1, p2, k3; "
+                      "fisheye k1..k4; omnidir k1, k2, p1, p2), the rest 0."));
+    field(OptionField("xi", &O::xi, "", Range::Any(), "omnidir only: Mei's xi (>= 0)."));
+    field(OptionField("skew", &O::skew, "", Range::Any(), "omnidir only: skew (OpenCV's s)."));
+  }
+
   // Whether `other` has the same model and parameters (size, intrinsics, skew, xi, distortion);
   // the derived valid field follows from them.
   bool SameParameters(const LensCamera& other) const {

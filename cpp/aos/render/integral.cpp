@@ -777,11 +777,9 @@ Vec3d GrazingNormal(const LightField& light_field, const IntegralOptions& option
   return ResolveSurfacePlacement(surface, light_field, options.view_indices, 0.0).up;
 }
 
-namespace {
-
-// IntegralOptions::min_view_count: pixels averaged over fewer views become uncovered.
-IntegralResult DropThinPixels(IntegralResult result, int min_view_count) {
-  if (min_view_count <= 1) return result;
+void DropThinPixels(int min_view_count, IntegralResult* out) {
+  if (min_view_count <= 1) return;
+  IntegralResult& result = *out;
   const uint32_t least = static_cast<uint32_t>(min_view_count);
   Image& count = result.count;
   for (int y = 0; y < count.height(); ++y) {
@@ -796,10 +794,7 @@ IntegralResult DropThinPixels(IntegralResult result, int min_view_count) {
       if (!result.variance.empty()) result.variance.At<float>(x, y)[0] = 0.0f;
     }
   }
-  return result;
 }
-
-}  // namespace
 
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress) {
@@ -829,7 +824,9 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
       plane.point += placed.offset * placed.up;
     }
     IntegralRenderer renderer(light_field, options, plane);
-    return DropThinPixels(renderer.Run(progress), options.min_view_count);
+    IntegralResult result = renderer.Run(progress);
+    DropThinPixels(options.min_view_count, &result);
+    return result;
   }
   const PinholeCamera camera = VirtualCamera(light_field, options);
   const Rigid3d cam_from_world = VirtualCamFromWorld(light_field, options);
@@ -847,10 +844,9 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
                    "centre: no pixel's ray meets it in front");
     }
   }
-  return DropThinPixels(
-      RenderIntegralOnDepth(light_field, options, depth, SurfaceIntegralOptions{}, progress)
-          .integral,
-      options.min_view_count);
+  // RenderIntegralOnDepth applies min_view_count.
+  return RenderIntegralOnDepth(light_field, options, depth, SurfaceIntegralOptions{}, progress)
+      .integral;
 }
 
 }  // namespace aos

@@ -155,6 +155,11 @@ struct IntegralResult {
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress = nullptr);
 
+// IntegralOptions::min_view_count on a rendered `result`: pixels averaged over fewer views become
+// uncovered (image, count and variance 0; samples and uncovered_pixels follow). Every render of
+// IntegralOptions applies it (RenderIntegral, RenderIntegralOnDepth).
+void DropThinPixels(int min_view_count, IntegralResult* result);
+
 // The virtual camera's intrinsics for `options`: square pixels, centred principal point, and
 // fov_deg, width and height where given; what is not given (0) comes from view pose_view's
 // camera (its horizontal field of view and size), else from kDefaultFovDeg and kDefaultSize.

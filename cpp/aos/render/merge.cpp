@@ -1059,6 +1059,10 @@ void AllInFocusOptions::Check(int view_count) const {
   stack.Check(view_count);
   merge.Check();
   CheckFieldRanges(*this);
+  if (coarse_to_fine > 0 && stack.render.min_view_count > 1) {
+    ThrowInvalid("min_view_count: the coarse-to-fine all-in-focus does not apply it (its passes "
+                 "integrate at points); give coarse_to_fine 0 or min_view_count 0");
+  }
   if (merge.method == MergeMethod::kRobust && stack.render.aperture_radius == 0.0) {
     ThrowInvalid("aperture_radius: 0 (one view a pixel) leaves method robust no variance to "
                  "work with; use a wider aperture");

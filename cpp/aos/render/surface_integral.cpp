@@ -1997,6 +1997,17 @@ SurfaceIntegralResult RenderIntegralOnDepth(const LightField& light_field,
   SurfaceIntegralResult result =
       RenderIntegralAtPoints(light_field, points, at_points, surface, progress);
   result.integral.cam_from_world = cam_from_world;
+  if (options.min_view_count > 1 && !result.inliers.empty()) {  // the dropped pixels' too
+    for (int y = 0; y < camera.height; ++y) {
+      for (int x = 0; x < camera.width; ++x) {
+        if (result.integral.count.At<uint32_t>(x, y)[0] <
+            static_cast<uint32_t>(options.min_view_count)) {
+          result.inliers.At<uint32_t>(x, y)[0] = 0;
+        }
+      }
+    }
+  }
+  DropThinPixels(options.min_view_count, &result.integral);
   return result;
 }
 

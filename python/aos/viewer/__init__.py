@@ -235,8 +235,8 @@ def _caller_level() -> int:
 def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float = 0.0,
          aperture_radius: float = float("inf"), pose_view: Optional[int] = None,
          cam_from_world: Any = None, fov_deg: float = 0.0, width: int = 0, height: int = 0,
-         view_indices: Optional[list[int]] = None, min_view_angle_deg: float = 1.0,
-         num_threads: int = -1, host: str = _SERVED.host, port: int = _SERVED.port,
+         view_indices: Optional[list[int]] = None, min_view_angle_deg: Optional[float] = None,
+         num_threads: Optional[int] = None, host: str = _SERVED.host, port: int = _SERVED.port,
          open_browser: Optional[bool] = None, render_workers: int = _SERVED.render_workers,
          max_pages: int = MAX_PAGES, source: str = "",
          focal_height: Optional[float] = None, options: Any = None) -> Viewer:
@@ -254,7 +254,9 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
     never on its command line). ``max_pages``: pages open at once (the next is refused).
     ``focal_height`` is the deprecated spelling of a number as ``focal_surface`` (it warns).
     ``options``: an aos.IntegralOptions every render starts from: the fields the page does not
-    control (``lens_tolerance_px``, ``min_view_count``, ...) are taken from it as they are.
+    control (``lens_tolerance_px``, ``min_view_count``, ...) are taken from it as they are;
+    ``min_view_angle_deg`` and ``num_threads`` given here replace its own (None: its own, or
+    IntegralOptions' defaults, 1 degree and all cores).
     """
     import aos
 

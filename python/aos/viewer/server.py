@@ -659,16 +659,14 @@ class _Stream:
         def stack_keywords() -> dict[str, Any]:
             # The current view's camera and views; the slices span the focus slider's range:
             # heights of planes, or (focus on the surface) offsets of a terrain-following stack.
+            # Every other field as the page's renders have it (session.render_options).
             options = session.integral_options(params)
-            keywords: dict[str, Any] = dict(
-                slices=slices, cam_from_world=options.cam_from_world, fov_deg=options.fov_deg,
-                width=options.width, height=options.height,
-                aperture_radius=options.aperture_radius, view_indices=options.view_indices,
-                num_threads=session.num_threads, progress=progress)
-            if params.surface:
-                keywords.update(focal_surface=session.focal_surface, first_offset=first,
-                                last_offset=last)
+            options.surface_offset = 0.0
+            keywords: dict[str, Any] = dict(slices=slices, render=options, progress=progress)
+            if params.surface:  # options.focal_surface is the session's surface
+                keywords.update(first_offset=first, last_offset=last)
             else:
+                options.focal_surface = 0.0  # the slices are the planes
                 keywords.update(first_plane=first, last_plane=last)
             return keywords
 
