@@ -6,6 +6,7 @@ bindings could get wrong."""
 from __future__ import annotations
 
 import copy
+import json
 import math
 import os
 import shutil
@@ -316,3 +317,18 @@ def test_min_view_count_in_stacks_and_all_in_focus(make_lightfield) -> None:
     with pytest.raises(ValueError, match="min_view_count: the coarse-to-fine"):
         aos.all_in_focus(lf, **camera, first_plane=0.0, last_plane=1.0, slices=2,
                          min_view_count=4, coarse_to_fine=2)
+
+
+def test_a_stack_file_keeps_every_render_field(make_lightfield, tmp_path) -> None:
+    # stack.json stores the render options in their JSON form (every field of the table but the
+    # focus, which is the slices'): a field added to IntegralOptions travels with the stack.
+    lf = make_lightfield(views_per_side=5, spacing=3.0, fov_deg=50.0, value=80.0)
+    stack = aos.render_focal_stack(lf, pose_view=12, fov_deg=100.0, width=48, height=40,
+                                   first_plane=0.0, last_plane=1.0, slices=2, min_view_count=4,
+                                   lens_tolerance_px=0.05, view_indices=list(range(20)))
+    aos.write_focal_stack(str(tmp_path / "stack"), stack)
+    render = aos.read_focal_stack(str(tmp_path / "stack")).render
+    assert (render.min_view_count, render.lens_tolerance_px) == (4, 0.05)
+    assert render.view_indices == list(range(20)) and render.fov_deg == stack.render.fov_deg
+    text = json.loads((tmp_path / "stack" / "stack.json").read_text())["render"]
+    assert "focal_surface" not in text and text["min_view_count"] == 4

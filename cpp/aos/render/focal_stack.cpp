@@ -13,6 +13,8 @@
 #include "aos/image/image_io.h"
 #include "aos/image/preview.h"
 #include "aos/lightfield/json_codec.h"
+#include "aos/lightfield/options_json.h"
+#include "aos/render/focal_surface_json.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/json_file.h"
@@ -428,13 +430,13 @@ void WriteFocalStack(const std::string& folder, const FocalStack& stack) {
   j["version"] = 1;
   j["camera"] = CameraToJson(LensCamera::FromPinhole(stack.camera));
   j["cam_from_world"] = PoseToJson(stack.cam_from_world);
-  const IntegralOptions& r = stack.render;
-  j["render"] = {{"fov_deg", r.fov_deg},
-                 {"aperture_radius", std::isfinite(r.aperture_radius) ? ojson(r.aperture_radius)
-                                                                      : ojson("inf")},
-                 {"min_view_angle_deg", r.min_view_angle_deg},
-                 {"view_indices", r.view_indices},
-                 {"lens_tolerance_px", r.lens_tolerance_px}};
+  // The render options whole, in their JSON form (options_json.h), but the focus: the slices'
+  // planes or surface are written below.
+  IntegralOptions r = stack.render;
+  r.focal_surface = IntegralOptions{}.focal_surface;
+  ojson render = OptionsToJson(r);
+  render.erase("focal_surface");
+  j["render"] = std::move(render);
   if (stack.focus.surface) j["surface"] = WriteStackSurface(temp, stack.focus);
   ojson slices = ojson::array();
   for (int i = 0; i < stack.size(); ++i) {
@@ -516,30 +518,23 @@ FocalStack FocalStackFromJson(const json& j, const fs::path& base, const std::st
   if (j.contains("render")) {
     const json& render = j["render"];
     const JsonPath at = top / "render";
-    RequireKnownKeys(render,
-                     {"fov_deg", "aperture_radius", "min_view_angle_deg", "view_indices",
-                      "lens_tolerance_px"},
-                     at);
-    stack.render.fov_deg = ReadJsonNumber(RequireMember(render, "fov_deg", at), at / "fov_deg");
-    const json& radius = RequireMember(render, "aperture_radius", at);
-    if (radius.is_string() && radius.get<std::string>() == "inf") {
-      stack.render.aperture_radius = std::numeric_limits<double>::infinity();
-    } else {
-      stack.render.aperture_radius = ReadJsonNumber(radius, at / "aperture_radius");
+    // IntegralOptions in its JSON form (options_json.h: unknown keys refused, a missing one
+    // keeps its default: stacks written before a field was stored were rendered at it). Older
+    // stacks stored fov_deg, aperture_radius, min_view_angle_deg, view_indices (and
+    // lens_tolerance_px) only. The focus is the stack's own (the slices, "surface").
+    for (const char* required : {"fov_deg", "aperture_radius", "min_view_angle_deg",
+                                 "view_indices"}) {
+      RequireMember(render, required, at);
     }
-    stack.render.min_view_angle_deg =
-        ReadJsonNumber(RequireMember(render, "min_view_angle_deg", at), at / "min_view_angle_deg");
-    const json& views = RequireMember(render, "view_indices", at);
-    if (!views.is_array()) (at / "view_indices").Fail("must be an array");
-    for (size_t i = 0; i < views.size(); ++i) {
-      if (!views[i].is_number_integer()) (at / "view_indices" / i).Fail("must be an integer");
-      stack.render.view_indices.push_back(views[i].get<int>());
+    if (render.contains("focal_surface")) {
+      (at / "focal_surface").Fail("a stack's focus is its slices (and its 'surface' entry)");
     }
-    // Optional: stacks written before it was stored were rendered at the default.
-    if (render.contains("lens_tolerance_px")) {
-      stack.render.lens_tolerance_px =
-          ReadJsonNumber(render["lens_tolerance_px"], at / "lens_tolerance_px");
-    }
+    OptionsFromJson(render, at, &stack.render);
+    // The camera is the stack's (camera, cam_from_world above).
+    stack.render.pose_view = -1;
+    stack.render.width = stack.camera.width;
+    stack.render.height = stack.camera.height;
+    stack.render.cam_from_world = stack.cam_from_world;
   } else {
     stack.render.fov_deg = stack.camera.FovXDeg();
   }
