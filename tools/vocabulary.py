@@ -328,9 +328,8 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
 def page(table: list[dict[str, str]]) -> str:
     how = [row["how"] for row in table if row["how"]]
     counts = (f"Of the {len(how)} fields on the command line, {how.count('table')} take their "
-              f"flag from their table row and {how.count('hand')} are declared by hand (structs "
-              f"without a table); {sum(1 for row in table if row['also'])} also have "
-              "shorthands.")
+              f"flag from their table row and {how.count('hand')} are declared by hand; "
+              f"{sum(1 for row in table if row['also'])} also have shorthands.")
     lines = """\
 # Vocabulary: every option, its Python name, CLI flag, default and unit
 
@@ -362,8 +361,9 @@ The rule and the exceptions, each stated in one place:
   `--cam-from-world`, `--pattern COLUMNSxROWS` for `--pattern-columns`/`--pattern-rows`,
   `--ground FILE` (a plane fitted to points) for `--ground-plane`, `--browser`/`--no-browser` for
   `--open-browser`.
-- `aos-render camera` writes a LensCamera, a geometry type without a field table: its flags are
-  declared in the command (`resolution`'s lens flags likewise).
+- `aos-render camera` binds LensCamera's table (lens.h). `resolution`'s description of a lens
+  (`--width`, `--height`, `--lens-fov-deg`, `--focal`, `--principal`, `--model`,
+  `--distortion`, `--xi`, `--skew`) sets no Options field and is declared in the command.
 
 Flags outside the Options structs: `-q/--quiet`, `--json` (the command's report as one JSON
 object on stdout) and `--threads` on every command, `-o` (the output path) on every command that
