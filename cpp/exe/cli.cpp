@@ -44,6 +44,14 @@ std::vector<FlagBinding>& Flags::Bindings() {
 
 const std::vector<FlagBinding>& AllBindings() { return Flags::Bindings(); }
 
+namespace {
+// The last part of a dotted field path ("merge.num_threads" -> "num_threads").
+std::string LeafOf(const std::string& path) {
+  const size_t dot = path.rfind('.');
+  return dot == std::string::npos ? path : path.substr(dot + 1);
+}
+}  // namespace
+
 const std::vector<DeprecatedSpelling>& DeprecatedSpellings() {
   static const std::vector<DeprecatedSpelling> spellings{
       // Field-of-view and window flags named by what they describe (0.1.0).
@@ -225,7 +233,7 @@ void Flags::Shorthand(const std::string& field, const std::string& flag) {
 }
 
 void Flags::AlsoSets(const std::string& field, const std::string& flag) {
-  const std::string leaf = field.substr(field.rfind('.') == std::string::npos ? 0 : field.rfind('.') + 1);
+  const std::string leaf = LeafOf(field);
   std::string text;
   for (const FlagBinding& binding : Bindings()) {
     if (binding.command == command_->get_name() && binding.flag == flag) text = binding.default_text;
@@ -279,10 +287,7 @@ CLI::Option* Flags::Threads(int& num_threads, const std::string& field) {
   CLI::Option* option = Field("--threads", field, num_threads,
                               "Worker threads for every stage of the command; -1 = all cores");
   // The field's flag by the one spelling rule (FlagOf), as its table would give it.
-  if (FlagOf(field.substr(field.rfind('.') == std::string::npos ? 0 : field.rfind('.') + 1)) ==
-      "--threads") {
-    FromTable();
-  }
+  if (FlagOf(LeafOf(field)) == "--threads") FromTable();
   return option;
 }
 
@@ -328,10 +333,7 @@ void Flags::Force() {
 
 void Flags::RethrowNamingFlags(const std::invalid_argument& error) const {
   const std::string message = error.what();
-  auto leaf_of = [](const std::string& path) {
-    const size_t dot = path.rfind('.');
-    return dot == std::string::npos ? path : path.substr(dot + 1);
-  };
+  const auto leaf_of = LeafOf;
   auto in_scope = [&](const std::string& path) {
     return scope_.empty() ? path.rfind("load.", 0) != 0 : path.rfind(scope_, 0) == 0;
   };

@@ -39,7 +39,9 @@ def ranges_text(indices: Sequence[int]) -> str:
 
 
 def _plane_numbers(plane: Any) -> list[float]:
-    return [float(v) for v in np.asarray(plane.point)] + [float(v) for v in np.asarray(plane.normal)]
+    # + 0.0: no "-0.0" in the text.
+    return [float(v) + 0.0 for v in np.asarray(plane.point)] + [
+        float(v) + 0.0 for v in np.asarray(plane.normal)]
 
 
 def _horizontal(plane: Any) -> bool:
@@ -87,7 +89,7 @@ def python_text(name: str, value: Any) -> str:
     if isinstance(value, (bool, int, float, str, np.integer, np.floating, np.bool_)):
         return repr(value.item() if isinstance(value, np.generic) else value)
     if kind == "Rigid3d":
-        numbers = [float(v) for v in np.asarray(value.matrix3x4).ravel()]
+        numbers = [float(v) + 0.0 for v in np.asarray(value.matrix3x4).ravel()]
         return f"aos.Rigid3d.from_matrix3x4({numbers!r})"
     if kind == "FocalSurface":
         if value.plane is not None:
