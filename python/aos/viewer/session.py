@@ -256,9 +256,10 @@ class Session:
         self.surface_path = surface_path
         self.focal_surface = focal_surface
         # Every render starts from these options: the page sets what it controls (camera,
-        # focus, aperture, views; PAGE_FIELDS) and every other field is as given here, so a
-        # field added to IntegralOptions reaches the viewer's renders (and its map view, for the
-        # fields MapOptions shares) without a line here. The keywords override single fields.
+        # focus, aperture, views: integral_options, map_options) and every other field is as
+        # given here, so a field added to IntegralOptions reaches the viewer's renders (and its
+        # map view, for the fields MapOptions shares) without a line here. The keywords override
+        # single fields.
         self.render_options = copy.copy(render_options or aos.IntegralOptions())
         for name, value in (("min_view_angle_deg", min_view_angle_deg),
                             ("num_threads", num_threads),
