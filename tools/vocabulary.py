@@ -308,7 +308,7 @@ def rows(aos_render: str) -> tuple[list[dict[str, str]], list[str]]:
                     problems.append(f"{command}: NOT_ON_THE_CLI gives a reason for "
                                     f"{shown}, but {flag} sets it: a stale entry")
                 bound = binding["default"] or None
-                if bound is None and not (value is False or name in NO_PRINTED_DEFAULT):
+                if bound is None and not (value is False or value is None or name in NO_PRINTED_DEFAULT):
                     problems.append(f"{command} {flag}: --help prints no default for "
                                     f"{shown} ({python_default(value)}): bind it "
                                     "with Flags::Field or list it in NO_PRINTED_DEFAULT")

@@ -533,6 +533,15 @@ std::string TextForm<std::optional<bool>>::Text(const std::optional<bool>& value
   return value ? (*value ? "true" : "false") : "";
 }
 
+std::optional<double> TextForm<std::optional<double>>::Parse(const std::string& text,
+                                                             const std::string& flag) {
+  return AsUsage([&] { return ParseNumberText(text, flag); });
+}
+
+std::string TextForm<std::optional<double>>::Text(const std::optional<double>& value) {
+  return value ? FormatNumber(*value) : "";
+}
+
 Plane ParsePlane(const std::string& text, const std::string& option) {
   const std::vector<double> v = ParseNumbers(text, option);
   if (v.size() == 1) return Plane::AtHeight(v[0]);

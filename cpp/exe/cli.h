@@ -206,6 +206,14 @@ struct TextForm<std::optional<bool>> {
   static std::string Text(const std::optional<bool>& value);
 };
 
+// A number that may be left unset (the program finds it: a take-off height sampled from a DEM).
+template <>
+struct TextForm<std::optional<double>> {
+  static constexpr const char* kSpelling = "a number; unset by default";
+  static std::optional<double> Parse(const std::string& text, const std::string& flag);
+  static std::string Text(const std::optional<double>& value);
+};
+
 // Binds one command's flags to the fields of its Options struct (see the header comment).
 class Flags {
  public:

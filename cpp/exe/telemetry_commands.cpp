@@ -19,7 +19,7 @@ struct TelemetryCommand {
 
 int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
   const std::vector<std::string> inputs{c.frames_dir, c.options.telemetry_file,
-                                        c.options.camera_file};
+                                        c.options.camera_file, c.options.dem};
   CheckOutputPath(c.output, inputs, "output");
   RefuseExisting(c.output, "output");
   ProgressBar progress(Common().quiet);
@@ -40,7 +40,15 @@ int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
   report.Set("crs", light_field.crs);
   report.Set("origin",
              std::vector<double>{light_field.origin.x, light_field.origin.y, light_field.origin.z});
+  report.Set("order", result.order);
+  report.Set("time_source", result.time_source);
+  report.Set("yaw_reference", result.yaw_reference);
+  report.Set("declination_deg", result.declination_deg);
   report.Set("max_convergence_deg", result.max_convergence_deg);
+  report.Set("altitude_source", result.altitude_source);
+  report.Set("altitude_reference", result.altitude_reference);
+  report.Set("takeoff_height_m", result.takeoff_height_m);
+  report.Set("takeoff_height_from", result.takeoff_height_from);
   std::vector<std::string> outlier_frames;
   std::vector<double> outlier_altitudes, outlier_medians;
   for (const AltitudeOutlier& outlier : result.altitude_outliers) {
@@ -57,9 +65,28 @@ int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
               c.output.c_str(), light_field.views.size(),
               result.source == "csv" ? "CSV" : "EXIF/XMP", light_field.crs.c_str(),
               light_field.origin.x, light_field.origin.y, light_field.origin.z);
-  report.Line("altitude outliers replaced by the running median: %zu; meridian convergence "
-              "applied up to %.3f degrees",
-              result.altitude_outliers.size(), result.max_convergence_deg);
+  // Every assumption the poses rest on, one line each.
+  report.Line("order: %s", result.order == "time"
+                               ? ("capture time (" + result.time_source + ")").c_str()
+                               : "frame names, natural order (2 before 10)");
+  if (result.yaw_reference == "grid") {
+    report.Line("yaw: from grid north, as given (no meridian convergence)");
+  } else if (result.yaw_reference == "magnetic") {
+    report.Line("yaw: from magnetic north, plus the declination %s degrees; then true to grid "
+                "north by the meridian convergence, up to %.3f degrees",
+                FormatNumber(result.declination_deg).c_str(), result.max_convergence_deg);
+  } else {
+    report.Line("yaw: from true north, turned to grid north by the meridian convergence, up to "
+                "%.3f degrees", result.max_convergence_deg);
+  }
+  if (result.altitude_reference == "takeoff") {
+    report.Line("altitude: %s above the take-off point, plus its height %s m (%s)",
+                result.altitude_source.c_str(), FormatNumber(result.takeoff_height_m).c_str(),
+                result.takeoff_height_from.c_str());
+  } else {
+    report.Line("altitude: %s, taken as world heights (absolute)", result.altitude_source.c_str());
+  }
+  report.Line("altitude outliers replaced by the running median: %zu", result.altitude_outliers.size());
   report.Print();
   return 0;
 }
@@ -81,11 +108,19 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
   flags.Field(options, "max_distance_from_centre_m");
   flags.Field(options, "frame_interval_s");
   flags.Field(options, "time_offset_s");
+  flags.Field(options, "yaw_reference");
+  flags.Field(options, "magnetic_declination_deg");
+  flags.Field(options, "altitude_reference");
+  flags.Field(options, "takeoff_height_m");
+  flags.Field(options, "dem");
+  flags.Field(options, "home_latitude_deg");
+  flags.Field(options, "home_longitude_deg");
   flags.Threads();
   flags.Force();
   flags.InputFolder("frames");
   flags.Input("--telemetry-file");
   flags.Input("--camera-file");
+  flags.Input("--dem");
   flags.Output("--output");
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
   flags.Remaining(c->options);

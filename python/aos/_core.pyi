@@ -1975,6 +1975,13 @@ class TelemetryOptions:
         max_distance_from_centre_m: float = ...,
         frame_interval_s: float = ...,
         time_offset_s: float = ...,
+        yaw_reference: Literal['true', 'grid', 'magnetic'] = ...,
+        magnetic_declination_deg: float | None = ...,
+        altitude_reference: Literal['absolute', 'takeoff'] = ...,
+        takeoff_height_m: float | None = ...,
+        dem: str = ...,
+        home_latitude_deg: float | None = ...,
+        home_longitude_deg: float | None = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     telemetry_file: str
@@ -1995,9 +2002,27 @@ class TelemetryOptions:
     """A position farther than this from the flight's centre (median lat, lon) is refused, metres.
     [m]"""
     frame_interval_s: float
-    """With a time column: seconds between consecutive frames (name order). [s]"""
+    """With a time column: seconds between consecutive frames (view order). [s]"""
     time_offset_s: float
     """With a time column: the log time of the first frame, seconds. [s]"""
+    yaw_reference: Literal['true', 'grid', 'magnetic']
+    """The north yaw is measured from: 'true', 'grid' (UTM grid north) or 'magnetic' (with
+    magnetic_declination_deg). [one of true, grid or magnetic]"""
+    magnetic_declination_deg: float | None
+    """With yaw_reference 'magnetic': declination, degrees east of true north (west negative), [-90,
+    90]. [deg]"""
+    altitude_reference: Literal['absolute', 'takeoff']
+    """Altitudes are 'absolute' (world heights) or above the 'takeoff' point (plus takeoff_height_m
+    or the DEM's height there). [one of absolute or takeoff]"""
+    takeoff_height_m: float | None
+    """With altitude_reference 'takeoff': the take-off ground's world height, metres; unset =
+    sampled from dem. [m]"""
+    dem: str
+    """DEM raster (GeoTIFF, any CRS) the take-off height is sampled from under the home point."""
+    home_latitude_deg: float | None
+    """Take-off point latitude, WGS84 degrees; unset = the first frame's. [deg]"""
+    home_longitude_deg: float | None
+    """Take-off point longitude, WGS84 degrees; unset = the first frame's. [deg]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod

@@ -292,3 +292,10 @@ class TelemetryKeywords(TypedDict, total=False):
     max_distance_from_centre_m: float
     frame_interval_s: float
     time_offset_s: float
+    yaw_reference: Literal['true', 'grid', 'magnetic']
+    magnetic_declination_deg: float | None
+    altitude_reference: Literal['absolute', 'takeoff']
+    takeoff_height_m: float | None
+    dem: str
+    home_latitude_deg: float | None
+    home_longitude_deg: float | None

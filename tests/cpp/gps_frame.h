@@ -13,10 +13,15 @@
 namespace aos::testing_util {
 
 // Writes `path` (the extension picks the format) of width x height pixels valued (i * 5) mod 256;
-// returns false if OpenImageIO cannot write it.
+// returns false if OpenImageIO cannot write it. `capture_time` ("YYYY:MM:DD HH:MM:SS") and
+// `subsec` become EXIF DateTimeOriginal and SubSecTimeOriginal when given.
 inline bool WriteGpsTaggedFrame(const std::string& path, int width, int height, double lat,
-                                double lon, std::optional<double> altitude) {
+                                double lon, std::optional<double> altitude,
+                                const std::string& capture_time = "",
+                                const std::string& subsec = "") {
   OIIO::ImageSpec spec(width, height, 1, OIIO::TypeDesc::UINT8);
+  if (!capture_time.empty()) spec.attribute("Exif:DateTimeOriginal", capture_time);
+  if (!subsec.empty()) spec.attribute("Exif:SubsecTimeOriginal", subsec);
   const auto dms = [](double value, float out[3]) {
     value = std::abs(value);
     out[0] = static_cast<float>(std::floor(value));

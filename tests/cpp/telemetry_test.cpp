@@ -17,9 +17,11 @@
 #include <gtest/gtest.h>
 
 #include "aos/geometry/geodesy.h"
+#include "aos/geometry/heightfield.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/formats.h"
 #include "aos/util/error.h"
+#include "aos/util/file_util.h"
 #include "aos/util/math.h"
 #include "error_of.h"
 #include "gps_frame.h"
@@ -61,6 +63,7 @@ Mat3d TrueCamFromWorld(const TruePose& p) {
 
 class Telemetry : public testing_util::TempFolderTest {
  protected:
+  TelemetryOptions options_;
   void SetUp() override {
     TempFolderTest::SetUp();
     std::filesystem::create_directories(dir_ / "frames");
@@ -607,6 +610,212 @@ TEST_F(Telemetry, TagPositionsFarFromTheFlightAreRefusedNamingTheFrame) {
   EXPECT_THAT(message, HasSubstr("d3.jpg: GPS:Latitude, GPS:Longitude: ("));
   EXPECT_THAT(message, HasSubstr("km from the flight's centre"));
   EXPECT_THAT(message, HasSubstr("in radians, not degrees?"));
+}
+
+// A straight flight north along zone 33's central meridian (x = 500000): frame k (1-based) at
+// northing 5318000 + 10 k, altitude 100 + 0.5 k, yaw 0, nadir.
+Vec3d StraightFlightPosition(int k) {
+  return Vec3d(500000.0, 5318000.0 + 10.0 * k, 100.0 + 0.5 * k);
+}
+
+TEST_F(Telemetry, UnpaddedFrameNamesFollowATimeLogInCaptureOrder) {
+  // Frames 1.png .. 25.png (no zero padding: in byte order 1, 10, 11, ..., 19, 2, 20, ...) and a
+  // log with one row per second; frame k is at time k - 1. Frame 7's altitude is logged 20 m
+  // high: the altitude rule must replace that one only.
+  const int n = 25;
+  std::string csv = "time,lat,lon,alt,yaw,pitch,roll\n";
+  for (int k = 1; k <= n; ++k) {
+    Frame(std::to_string(k) + ".png");
+    const Vec3d p = StraightFlightPosition(k);
+    const Vec3d geo = TransformPoints({p}, "EPSG:32633", "EPSG:4326", "truth")[0];
+    char line[160];
+    std::snprintf(line, sizeof(line), "%d,%.10f,%.10f,%.4f,0,-90,0\n", k - 1, geo.y, geo.x,
+                  p.z + (k == 7 ? 20.0 : 0.0));
+    csv += line;
+  }
+  TelemetryOptions options;
+  options.telemetry_file = Write("log.csv", csv);
+  options.fov_deg = 60.0;
+  options.frame_interval_s = 1.0;
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  EXPECT_EQ(result.order, "name");  // PNGs without EXIF times: natural name order
+  const LightField& lf = result.light_field;
+  ASSERT_EQ(lf.views.size(), static_cast<size_t>(n));
+  for (int k = 1; k <= n; ++k) {
+    const View& view = lf.views[k - 1];
+    SCOPED_TRACE(view.name);
+    EXPECT_EQ(view.name, std::to_string(k) + ".png");
+    const Vec3d centre = view.cam_from_world.Center() + lf.origin;
+    EXPECT_NEAR(centre.x, StraightFlightPosition(k).x, 1e-3);
+    EXPECT_NEAR(centre.y, StraightFlightPosition(k).y, 1e-3);
+    // Frame 7's glitch is replaced by its running median (104 below), 0.5 m above the truth on
+    // this climb.
+    EXPECT_NEAR(centre.z, k == 7 ? 104.0 : StraightFlightPosition(k).z, 1e-3);
+  }
+  ASSERT_EQ(result.altitude_outliers.size(), 1u);
+  EXPECT_EQ(result.altitude_outliers[0].frame, "7.png");
+  // The median of frames 3..11's given altitudes (7 excluded: 101.5 .. 105.5 and 123.5) is 104.
+  EXPECT_NEAR(result.altitude_outliers[0].median_m, 104.0, 1e-6);
+  EXPECT_TRUE(result.warnings.empty());
+}
+
+TEST(NaturalOrder, NumbersInNamesCompareAsNumbers) {
+  std::vector<std::string> names = {"10.png", "2.png", "1.png", "frame_10b.png", "frame_9.png",
+                                    "02.png", "a/10.png", "a/9.png", "B.png", "a.png"};
+  SortNaturally(&names);
+  EXPECT_EQ(names, (std::vector<std::string>{"1.png", "02.png", "2.png", "10.png", "B.png",
+                                             "a.png", "a/9.png", "a/10.png", "frame_9.png",
+                                             "frame_10b.png"}));
+  EXPECT_FALSE(NaturalLess("x", "x"));
+  EXPECT_TRUE(NaturalLess("img_0099", "img_100"));
+  EXPECT_TRUE(NaturalLess("9", "00000000000000000000000010"));  // beyond 64-bit integers too
+}
+
+TEST_F(Telemetry, ExifCaptureTimesOrderTheViewsAndADisagreementIsNamed) {
+  // a.jpg was taken 0.25 s after b.jpg, c.jpg last: views b, a, c, with a warning naming them.
+  const struct {
+    const char* name;
+    const char* time;
+    const char* subsec;
+  } frames[] = {{"a.jpg", "2026:06:01 10:00:01", "25"},
+                {"b.jpg", "2026:06:01 10:00:01", "0"},
+                {"c.jpg", "2026:06:01 10:00:02", ""}};
+  for (int i = 0; i < 3; ++i) {
+    const std::string path = Path("frames/") + frames[i].name;
+    ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(path, 16, 12, 48.0 + 0.0002 * i, 15.0, 350.0,
+                                                  frames[i].time, frames[i].subsec));
+    InjectXmp(path, DjiXmp(0.0, -90.0, 0.0, 30.0 + i));
+  }
+  EXPECT_NEAR(*ReadCaptureTime(Path("frames/a.jpg")) - *ReadCaptureTime(Path("frames/b.jpg")),
+              0.25, 1e-6);
+  // 2026-06-01 is day 20605 after 1970-01-01.
+  EXPECT_NEAR(*ReadCaptureTime(Path("frames/c.jpg")), 20605.0 * 86400.0 + 36002.0, 1e-6);
+  TelemetryOptions options;
+  options.fov_deg = 70.0;
+  options.altitude = "gps";
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  EXPECT_EQ(result.order, "time");
+  EXPECT_EQ(result.time_source, "EXIF DateTimeOriginal");
+  EXPECT_EQ(result.frames, (std::vector<std::string>{"b.jpg", "a.jpg", "c.jpg"}));
+  EXPECT_EQ(result.light_field.views[0].name, "b.jpg");
+  ASSERT_EQ(result.warnings.size(), 1u);
+  EXPECT_THAT(result.warnings[0],
+              HasSubstr("name order and capture-time order disagree (2 of 3 frames move): b.jpg "
+                        "(at +0 s) was taken before a.jpg (at +0.25 s)"));
+  // A malformed date is refused naming the frame and the tag.
+  ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(Path("frames/d.jpg"), 16, 12, 48.0, 15.0, 350.0,
+                                                "June 1st"));
+  EXPECT_THAT(ErrorOf([&] { ReadCaptureTime(Path("frames/d.jpg")); }),
+              HasSubstr("d.jpg: Exif:DateTimeOriginal: \"June 1st\" is not a date and time"));
+}
+
+TEST_F(Telemetry, AFrameLogWithATimeColumnOrdersTheViewsByIt) {
+  Frame("a.png");
+  Frame("b.png");
+  Frame("c.png");
+  TelemetryOptions options;
+  options.telemetry_file = Write("log.csv",
+                                 "frame,time,lat,lon,alt,yaw,pitch,roll\n"
+                                 "a.png,5,48.0,15.0,100,0,-90,0\n"
+                                 "b.png,3,48.001,15.0,100,0,-90,0\n"
+                                 "c.png,9,48.002,15.0,100,0,-90,0\n");
+  options.fov_deg = 60.0;
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options);
+  EXPECT_EQ(result.order, "time");
+  EXPECT_THAT(result.time_source, HasSubstr("the time column of"));
+  EXPECT_EQ(result.frames, (std::vector<std::string>{"b.png", "a.png", "c.png"}));
+}
+
+TEST_F(Telemetry, YawReferencesTurnTheHeadingByTheStatedCorrection) {
+  // One frame at 48 N 17.9 E (zone 33, meridian convergence about 2.2 degrees), yaw 10, nadir.
+  // Image up (-camera y) must point at grid bearing: true 10 + c; grid 10; magnetic with a
+  // declination of +4 (east): 14 + c, where c = GridBearingOfNorth there.
+  Frame("a.png");
+  const double lat = 48.0, lon = 17.9;
+  options_.telemetry_file = Write("log.csv", "frame,lat,lon,alt,yaw,pitch,roll\n"
+                                             "a.png,48.0,17.9,100,10,-90,0\n");
+  options_.fov_deg = 60.0;
+  const double c = GridBearingOfNorth(lat, lon, "EPSG:32633", "truth") / kDeg;
+  const auto image_up_bearing = [&](const TelemetryResult& result) {
+    const Vec3d up = -Row(result.light_field.views[0].cam_from_world.rotation, 1);
+    return std::atan2(up.x, up.y) / kDeg;
+  };
+  TelemetryResult result = ImportTelemetry(Path("frames"), options_);
+  EXPECT_EQ(result.yaw_reference, "true");
+  EXPECT_NEAR(image_up_bearing(result), 10.0 + c, 1e-6);
+  EXPECT_NEAR(result.max_convergence_deg, std::abs(c), 1e-6);
+  options_.yaw_reference = "grid";
+  result = ImportTelemetry(Path("frames"), options_);
+  EXPECT_NEAR(image_up_bearing(result), 10.0, 1e-9);
+  EXPECT_EQ(result.max_convergence_deg, 0.0);
+  options_.yaw_reference = "magnetic";
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
+              HasSubstr("magnetic_declination_deg: yaw_reference 'magnetic' needs"));
+  options_.magnetic_declination_deg = 4.0;
+  result = ImportTelemetry(Path("frames"), options_);
+  EXPECT_NEAR(image_up_bearing(result), 14.0 + c, 1e-6);
+  EXPECT_EQ(result.declination_deg, 4.0);
+  options_.yaw_reference = "true";
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
+              HasSubstr("magnetic_declination_deg: applies to yaw_reference 'magnetic' only"));
+}
+
+TEST_F(Telemetry, TakeoffAltitudesAddTheGivenOrSampledGroundHeight) {
+  Frame("a.png");
+  Frame("b.png");
+  // a above (545000, 5318000), b 100 m north; altitudes 30 and 32 above the take-off point.
+  const Vec3d a = TransformPoints({Vec3d(545000.0, 5318000.0, 0.0)}, "EPSG:32633", "EPSG:4326",
+                                  "t")[0];
+  const Vec3d b = TransformPoints({Vec3d(545000.0, 5318100.0, 0.0)}, "EPSG:32633", "EPSG:4326",
+                                  "t")[0];
+  char csv[512];
+  std::snprintf(csv, sizeof(csv),
+                "frame,lat,lon,alt,yaw,pitch,roll\na.png,%.10f,%.10f,30,0,-90,0\n"
+                "b.png,%.10f,%.10f,32,0,-90,0\n",
+                a.y, a.x, b.y, b.x);
+  options_.telemetry_file = Write("log.csv", csv);
+  options_.fov_deg = 60.0;
+  options_.altitude_reference = "takeoff";
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
+              HasSubstr("takeoff_height_m: altitude_reference 'takeoff' needs the take-off "
+                        "ground's height: give takeoff_height_m or dem"));
+  options_.takeoff_height_m = 250.0;
+  TelemetryResult result = ImportTelemetry(Path("frames"), options_);
+  EXPECT_NEAR(result.light_field.views[1].cam_from_world.Center().z, 282.0, 1e-9);
+  EXPECT_EQ(result.takeoff_height_from, "given");
+  // A DEM in UTM 33N, the plane z = 300 + 0.01 (x - 544000) - 0.02 (y - 5317000), 10 m pixels:
+  // bilinear sampling is exact on a plane. Under a: 300 + 10 - 20 = 290.
+  Heightfield dem;
+  dem.width = 300;
+  dem.height = 300;
+  dem.geotransform = {544000.0, 10.0, 0.0, 5320000.0, 0.0, -10.0};
+  dem.crs_wkt = "EPSG:32633";
+  for (int row = 0; row < dem.height; ++row) {
+    for (int column = 0; column < dem.width; ++column) {
+      dem.heights.push_back(static_cast<float>(300.0 + 0.01 * (dem.CenterX(column) - 544000.0) -
+                                               0.02 * (dem.CenterY(row) - 5317000.0)));
+    }
+  }
+  WriteHeightfield(Path("dem.tif"), dem);
+  options_.takeoff_height_m.reset();
+  options_.dem = Path("dem.tif");
+  result = ImportTelemetry(Path("frames"), options_);
+  EXPECT_NEAR(result.takeoff_height_m, 290.0, 1e-3);  // float32 heights
+  EXPECT_NEAR(result.light_field.views[0].cam_from_world.Center().z, 320.0, 1e-3);
+  EXPECT_THAT(result.takeoff_height_from, HasSubstr("dem.tif at the first frame a.png"));
+  // A home point 100 m north (under b): 290 - 2 = 288.
+  options_.home_latitude_deg = b.y;
+  options_.home_longitude_deg = b.x;
+  result = ImportTelemetry(Path("frames"), options_);
+  EXPECT_NEAR(result.takeoff_height_m, 288.0, 1e-3);
+  // Outside the raster: an error naming the DEM and the point.
+  options_.home_latitude_deg = 47.0;
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
+              HasSubstr("dem.tif: dem: the home point (47, "));
+  // A DEM without altitude_reference 'takeoff' is refused.
+  options_.altitude_reference = "absolute";
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
+              HasSubstr("dem: applies to altitude_reference 'takeoff' only"));
 }
 
 }  // namespace

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <cstdint>
+#include <cstdio>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -457,6 +458,45 @@ std::optional<GpsTag> ReadGpsTag(const std::string& path) {
   }
   input->close();
   return tag;
+}
+
+std::optional<double> ReadCaptureTime(const std::string& path) {
+  auto input = Open(path);
+  const oiio::ImageSpec& spec = input->spec();
+  const oiio::ParamValue* date = spec.find_attribute("Exif:DateTimeOriginal");
+  if (date == nullptr) return std::nullopt;
+  const std::string text = spec.get_string_attribute("Exif:DateTimeOriginal");
+  const std::string subsec = spec.get_string_attribute("Exif:SubsecTimeOriginal");
+  input->close();
+  int year = 0, month = 0, day = 0, hour = 0, minute = 0, second = 0, used = 0;
+  char s1 = 0, s2 = 0;
+  const bool parsed = std::sscanf(text.c_str(), "%4d%c%2d%c%2d %2d:%2d:%2d%n", &year, &s1, &month,
+                                  &s2, &day, &hour, &minute, &second, &used) == 8;
+  if (!parsed || (s1 != ':' && s1 != '-') || s2 != s1 || month < 1 || month > 12 || day < 1 ||
+      day > 31 || hour > 23 || minute > 59 || second > 60 || hour < 0 || minute < 0 ||
+      second < 0) {
+    ThrowInvalid(path + ": Exif:DateTimeOriginal: \"" + text +
+                 "\" is not a date and time YYYY:MM:DD HH:MM:SS");
+  }
+  // Days since 1970-01-01 of a proleptic Gregorian date (H. Hinnant's days_from_civil).
+  const int y = year - (month <= 2 ? 1 : 0);
+  const int era = (y >= 0 ? y : y - 399) / 400;
+  const int yoe = y - era * 400;
+  const int doy = (153 * (month + (month > 2 ? -3 : 9)) + 2) / 5 + day - 1;
+  const int doe = yoe * 365 + yoe / 4 - yoe / 100 + doy;
+  const double days = static_cast<double>(era) * 146097.0 + doe - 719468.0;
+  double seconds = days * 86400.0 + hour * 3600.0 + minute * 60.0 + second;
+  std::string digits = subsec;
+  while (!digits.empty() && (digits.back() == ' ' || digits.back() == '\0')) digits.pop_back();
+  if (!digits.empty()) {
+    if (digits.size() > 9 ||
+        !std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) {
+      ThrowInvalid(path + ": Exif:SubsecTimeOriginal: \"" + digits +
+                   "\" is not the digits of a fraction of a second");
+    }
+    seconds += std::stod("0." + digits);
+  }
+  return seconds;
 }
 
 Image ReadImage(const std::string& path, int border) {

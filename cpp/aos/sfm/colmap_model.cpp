@@ -619,7 +619,7 @@ std::vector<std::string> ListFrameFiles(const std::string& folder) {
     frames.push_back(it->path().lexically_relative(root).generic_string());
   }
   if (error) ThrowInvalid(folder + ": cannot list the folder (" + error.message() + ")");
-  std::sort(frames.begin(), frames.end());
+  SortNaturally(&frames);
   return frames;
 }
 
@@ -803,11 +803,13 @@ ColmapImport ImportColmapModel(const ColmapModel& model, const std::string& imag
   const std::string cameras_source = model.cameras_path.empty() ? std::string("COLMAP model")
                                                                 : model.cameras_path;
 
-  // Views sorted by name; lenses made once per camera used.
+  // Views in natural name order (file_util.h: 2.png before 10.png); lenses made once per camera
+  // used.
   std::vector<const ColmapImage*> images;
   for (const ColmapImage& image : model.images) images.push_back(&image);
-  std::sort(images.begin(), images.end(),
-            [](const ColmapImage* a, const ColmapImage* b) { return a->name < b->name; });
+  std::sort(images.begin(), images.end(), [](const ColmapImage* a, const ColmapImage* b) {
+    return NaturalLess(a->name, b->name);
+  });
   std::map<uint32_t, LensCamera> lenses;
   ColmapImport result;
   std::vector<std::string> labels;

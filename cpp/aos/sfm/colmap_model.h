@@ -120,7 +120,8 @@ int ColmapModelNumParams(const std::string& model_name);
 LensCamera LensFromColmapCamera(const ColmapCamera& camera, const std::string& where);
 
 // The frames under `folder` (searched recursively; .png .jpg .jpeg .tif .tiff .exr in any case),
-// as paths relative to `folder` with '/' separators, sorted. Throws std::invalid_argument if
+// as paths relative to `folder` with '/' separators, in natural order (NaturalLess in
+// util/file_util.h: "2.png" before "10.png"). Throws std::invalid_argument if
 // `folder` is not a folder.
 std::vector<std::string> ListFrameFiles(const std::string& folder);
 

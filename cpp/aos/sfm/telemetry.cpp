@@ -14,6 +14,7 @@
 #include <sstream>
 
 #include "aos/geometry/geodesy.h"
+#include "aos/geometry/heightfield.h"
 #include "aos/geometry/pinhole.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
@@ -101,7 +102,8 @@ struct CsvRow {
 };
 
 struct CsvLog {
-  bool by_time = false;
+  bool by_time = false;    // a time column without a frame column: frames placed by time
+  bool frame_time = false;  // a time column beside the frame column: each frame's capture time
   std::vector<CsvRow> rows;
 };
 
@@ -139,11 +141,12 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
         }
       }
       const bool frame = column.count("frame") != 0, time = column.count("time") != 0;
-      if (frame == time) {
+      if (!frame && !time) {
         ThrowInvalid(where + ": the header needs a frame column (frame names) or a time column "
-                             "(seconds), " + (frame ? "not both" : "and has neither"));
+                             "(seconds), and has neither");
       }
-      log.by_time = time;
+      log.by_time = time && !frame;
+      log.frame_time = time && frame;
       for (const char* name : kCsvNames) {
         if (column.count(name) == 0) {
           ThrowInvalid(where + ": the header has no " + name + " column (needed: " +
@@ -159,9 +162,8 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
     }
     CsvRow row;
     row.line = record.line;
-    if (log.by_time) {
-      row.time = ParseValue(fields[column["time"]], where, "time");
-    } else {
+    if (log.by_time || log.frame_time) row.time = ParseValue(fields[column["time"]], where, "time");
+    if (!log.by_time) {
       row.frame = fields[column["frame"]];
       if (row.frame.empty()) ThrowInvalid(where + ": frame: is empty");
       if (!seen.insert(row.frame).second) {
@@ -295,7 +297,8 @@ std::optional<std::string> XmpProperty(const std::string& packet, const std::str
   return std::nullopt;
 }
 
-TelemetrySample SampleFromTags(const std::string& path, const std::string& altitude_mode) {
+TelemetrySample SampleFromTags(const std::string& path, const std::string& altitude_mode,
+                               bool* relative_altitude) {
   const std::optional<GpsTag> gps = ReadGpsTag(path);
   if (!gps) ThrowInvalid(path + ": no EXIF GPSLatitude/GPSLongitude tags");
   const std::string packet = ReadXmpPacket(path);
@@ -320,7 +323,8 @@ TelemetrySample SampleFromTags(const std::string& path, const std::string& altit
   s.roll_deg = *xmp("drone-dji:GimbalRollDegree", true);
   const std::optional<double> relative =
       xmp("drone-dji:RelativeAltitude", altitude_mode == "relative");
-  if (altitude_mode == "relative" || (altitude_mode == "auto" && relative)) {
+  *relative_altitude = altitude_mode == "relative" || (altitude_mode == "auto" && relative);
+  if (*relative_altitude) {
     s.altitude_m = *relative;
     CheckAltitude(s.altitude_m, kMinRelativeAltitudeM, path, "XMP drone-dji:RelativeAltitude");
   } else {
@@ -333,6 +337,96 @@ TelemetrySample SampleFromTags(const std::string& path, const std::string& altit
   }
   CheckSample(s, path, kTagNames);
   return s;
+}
+
+// The view order of `frames` (given in natural name order): by capture time (stable: ties keep
+// name order) when every frame has one, else by name. Sets result->order and time_source, and
+// warns when only some frames have a time, or when the two orders disagree (with an example).
+std::vector<size_t> CaptureOrder(const std::vector<std::string>& frames,
+                                 const std::vector<std::optional<double>>& times,
+                                 const std::string& time_source, TelemetryResult* result) {
+  std::vector<size_t> order(frames.size());
+  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
+  size_t timed = 0, untimed = frames.size();
+  for (size_t i = 0; i < times.size(); ++i) {
+    if (times[i]) {
+      ++timed;
+    } else if (untimed == frames.size()) {
+      untimed = i;
+    }
+  }
+  result->order = "name";
+  if (timed == 0) return order;
+  if (timed < frames.size()) {
+    result->warnings.push_back(
+        std::to_string(frames.size() - timed) + " of " + std::to_string(frames.size()) +
+        " frames have no capture time (" + time_source + "; e.g. " + frames[untimed] +
+        "): the views follow the frames' names in natural order (2 before 10) instead");
+    return order;
+  }
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return *times[a] < *times[b]; });
+  result->order = "time";
+  result->time_source = time_source;
+  size_t moved = 0;
+  for (size_t i = 0; i < order.size(); ++i) moved += order[i] != i ? 1 : 0;
+  for (size_t i = 0; i < order.size(); ++i) {
+    if (order[i] == i) continue;
+    const double t0 = *times[order.front()];
+    result->warnings.push_back(
+        "the frames' name order and capture-time order disagree (" + std::to_string(moved) +
+        " of " + std::to_string(frames.size()) + " frames move): " + frames[order[i]] +
+        " (at +" + FormatNumber(*times[order[i]] - t0) + " s) was taken before " + frames[i] +
+        " (at +" + FormatNumber(*times[i] - t0) + " s); the views follow capture time (" +
+        time_source + ")");
+    break;
+  }
+  return order;
+}
+
+template <class T>
+std::vector<T> Permuted(const std::vector<T>& values, const std::vector<size_t>& order) {
+  std::vector<T> out;
+  out.reserve(order.size());
+  for (size_t i : order) out.push_back(values[i]);
+  return out;
+}
+
+// The height of the DEM raster `path` under (latitude, longitude), bilinear between the four
+// pixel centres around it (nearest at the raster's rim); `from` describes where it came from.
+double SampleTakeoffHeight(const std::string& path, double latitude, double longitude,
+                           const std::string& point, std::string* from) {
+  const Heightfield dem = ReadHeightfield(path);
+  if (dem.crs_wkt.empty()) {
+    ThrowInvalid(path + ": dem: the raster has no CRS, so the take-off point (WGS84) cannot be "
+                 "placed on it; give takeoff_height_m instead");
+  }
+  const Vec3d at = TransformPoints({Vec3d(longitude, latitude, 0.0)}, "EPSG:4326", dem.crs_wkt,
+                                   path + ": dem")[0];
+  const std::array<double, 6>& gt = dem.geotransform;
+  const double u = (at.x - gt[0]) / gt[1] - 0.5, v = (at.y - gt[3]) / gt[5] - 0.5;
+  const std::string place = point + " (" + FormatNumber(latitude) + ", " +
+                            FormatNumber(longitude) + ")";
+  if (!(u >= -0.5 && u <= dem.width - 0.5 && v >= -0.5 && v <= dem.height - 0.5)) {
+    ThrowInvalid(path + ": dem: " + place + " lies outside the raster (x " +
+                 FormatNumber(gt[0]) + " .. " + FormatNumber(gt[0] + dem.width * gt[1]) +
+                 ", y " + FormatNumber(gt[3] + dem.height * gt[5]) + " .. " +
+                 FormatNumber(gt[3]) + " in its CRS; the point is at " + FormatNumber(at.x) +
+                 ", " + FormatNumber(at.y) + ")");
+  }
+  const double uc = std::clamp(u, 0.0, dem.width - 1.0), vc = std::clamp(v, 0.0, dem.height - 1.0);
+  const int i0 = std::min(static_cast<int>(uc), dem.width - 1);
+  const int j0 = std::min(static_cast<int>(vc), dem.height - 1);
+  const int i1 = std::min(i0 + 1, dem.width - 1), j1 = std::min(j0 + 1, dem.height - 1);
+  const double fu = uc - i0, fv = vc - j0;
+  const double height = (1 - fv) * ((1 - fu) * dem.At(i0, j0) + fu * dem.At(i1, j0)) +
+                        fv * ((1 - fu) * dem.At(i0, j1) + fu * dem.At(i1, j1));
+  if (!std::isfinite(height)) {
+    ThrowInvalid(path + ": dem: the raster has no height (nodata) at " + place +
+                 "; give takeoff_height_m instead");
+  }
+  *from = path + " at " + place;
+  return height;
 }
 
 }  // namespace
@@ -366,6 +460,54 @@ void TelemetryOptions::Check() const {
     ThrowInvalid("frame_interval_s: must be >= 0 seconds (0 = no time column)");
   }
   if (!std::isfinite(time_offset_s)) ThrowInvalid("time_offset_s: must be finite");
+  const auto finite = [](const std::optional<double>& value, const char* name) {
+    if (value && !std::isfinite(*value)) {
+      ThrowInvalid(std::string(name) + ": must be finite (got " + FormatNumber(*value) + ")");
+    }
+  };
+  finite(magnetic_declination_deg, "magnetic_declination_deg");
+  finite(takeoff_height_m, "takeoff_height_m");
+  finite(home_latitude_deg, "home_latitude_deg");
+  finite(home_longitude_deg, "home_longitude_deg");
+  if (yaw_reference == "magnetic") {
+    if (!magnetic_declination_deg) {
+      ThrowInvalid("magnetic_declination_deg: yaw_reference 'magnetic' needs the magnetic "
+                   "declination at the site (degrees east of true north, west negative)");
+    }
+    if (std::abs(*magnetic_declination_deg) > 90.0) {
+      ThrowInvalid("magnetic_declination_deg: must be within [-90, 90] degrees (got " +
+                   FormatNumber(*magnetic_declination_deg) + ")");
+    }
+  } else if (magnetic_declination_deg) {
+    ThrowInvalid("magnetic_declination_deg: applies to yaw_reference 'magnetic' only (it is '" +
+                 yaw_reference + "')");
+  }
+  if (altitude_reference == "takeoff") {
+    if (takeoff_height_m.has_value() == !dem.empty()) {
+      ThrowInvalid(std::string("takeoff_height_m: altitude_reference 'takeoff' needs the take-off "
+                               "ground's height: give takeoff_height_m or dem (to sample it), ") +
+                   (dem.empty() ? "one of them" : "not both"));
+    }
+  } else if (takeoff_height_m || !dem.empty()) {
+    ThrowInvalid(std::string(takeoff_height_m ? "takeoff_height_m" : "dem") +
+                 ": applies to altitude_reference 'takeoff' only (it is '" + altitude_reference +
+                 "')");
+  }
+  if (home_latitude_deg.has_value() != home_longitude_deg.has_value()) {
+    ThrowInvalid(std::string(home_latitude_deg ? "home_longitude_deg" : "home_latitude_deg") +
+                 ": give the home point's latitude and longitude together");
+  }
+  if (home_latitude_deg && dem.empty()) {
+    ThrowInvalid("home_latitude_deg: the home point places the take-off height on dem; give dem");
+  }
+  if (home_latitude_deg && std::abs(*home_latitude_deg) > 90.0) {
+    ThrowInvalid("home_latitude_deg: must be within [-90, 90] degrees (got " +
+                 FormatNumber(*home_latitude_deg) + ")");
+  }
+  if (home_longitude_deg && std::abs(*home_longitude_deg) > 180.0) {
+    ThrowInvalid("home_longitude_deg: must be within [-180, 180] degrees (got " +
+                 FormatNumber(*home_longitude_deg) + ")");
+  }
 }
 
 Mat3d WorldFromCameraRotation(double yaw_deg, double pitch_deg, double roll_deg,
@@ -427,12 +569,31 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
   };
   TelemetryResult result;
   result.source = options.telemetry_file.empty() ? "exif" : "csv";
-  const std::vector<std::string> all_frames = ListFrameFiles(frames_dir);
+  result.yaw_reference = options.yaw_reference;
+  result.altitude_reference = options.altitude_reference;
+  result.altitude_source = result.source == "csv" ? "csv alt" : "";
+  // Natural name order (2.png before 10.png); capture order below where the frames have times.
+  std::vector<std::string> all_frames = ListFrameFiles(frames_dir);
   if (all_frames.empty()) ThrowInvalid(frames_dir + ": no frames (png, jpg, tif, exr) found");
+  const std::string kExifTime = "EXIF DateTimeOriginal";
+  // The frames' EXIF capture times (headers only).
+  const auto exif_times = [&](const std::vector<std::string>& names) {
+    std::vector<std::optional<double>> times;
+    ProgressStart(progress, "times", static_cast<int64_t>(names.size()));
+    for (const std::string& frame : names) {
+      poll();
+      ProgressAdvance(progress, 1);
+      times.push_back(ReadCaptureTime((fs::path(frames_dir) / frame).string()));
+    }
+    return times;
+  };
 
-  // Telemetry per frame, in name order.
+  // Telemetry per frame, in natural name order (a time-column log: in view order).
   std::vector<std::string> frames;
   std::vector<TelemetrySample> samples;
+  std::vector<std::optional<double>> times;  // capture times, when known
+  std::string time_source;
+  bool ordered = false;  // frames and samples are in view order already
   if (!options.telemetry_file.empty()) {
     const std::string& path = options.telemetry_file;
     const CsvLog log = ReadTelemetryCsv(path);
@@ -440,6 +601,11 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
       if (options.frame_interval_s <= 0.0) {
         ThrowInvalid(path + ": a time column needs frame_interval_s (seconds between frames)");
       }
+      // Frame i (view order: capture time where the frames carry it, else natural name order)
+      // is at time_offset_s + i * frame_interval_s.
+      all_frames = Permuted(all_frames, CaptureOrder(all_frames, exif_times(all_frames),
+                                                     kExifTime, &result));
+      ordered = true;
       // Each frame's time and the row before it; the rows used must be plausible.
       std::vector<double> times;
       std::vector<size_t> before;
@@ -501,7 +667,7 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
                          ")");
       }
       CheckNearCentre(row_samples, wheres, "lat, lon", options.max_distance_from_centre_m, path);
-      std::map<std::string, TelemetrySample> by_frame;
+      std::map<std::string, const CsvRow*> by_frame;
       for (const CsvRow& row : log.rows) {
         std::string frame;
         if (exact.count(row.frame) != 0) {
@@ -514,7 +680,7 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
           ThrowInvalid(path + ": line " + std::to_string(row.line) + ": frame: \"" + row.frame +
                        "\" names no frame in " + frames_dir);
         }
-        if (!by_frame.emplace(frame, row.sample).second) {
+        if (!by_frame.emplace(frame, &row).second) {
           ThrowInvalid(path + ": line " + std::to_string(row.line) + ": frame: \"" + row.frame +
                        "\" names frame " + frame + " a second time");
         }
@@ -527,7 +693,14 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
           continue;
         }
         frames.push_back(frame);
-        samples.push_back(it->second);
+        samples.push_back(it->second->sample);
+        if (log.frame_time) times.push_back(it->second->time);
+      }
+      if (log.frame_time) {
+        time_source = "the time column of " + path;
+      } else {
+        times = exif_times(frames);
+        time_source = kExifTime;
       }
       if (!missing.empty()) {
         std::string list;
@@ -540,15 +713,44 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
   } else {
     std::vector<std::string> paths;
     ProgressStart(progress, "tags", static_cast<int64_t>(all_frames.size()));
+    size_t relative = 0;
     for (const std::string& frame : all_frames) {
       poll();
       ProgressAdvance(progress, 1);
       frames.push_back(frame);
       paths.push_back((fs::path(frames_dir) / frame).string());
-      samples.push_back(SampleFromTags(paths.back(), options.altitude));
+      bool is_relative = false;
+      samples.push_back(SampleFromTags(paths.back(), options.altitude, &is_relative));
+      relative += is_relative ? 1 : 0;
+      times.push_back(ReadCaptureTime(paths.back()));
     }
+    time_source = kExifTime;
     CheckNearCentre(samples, paths, std::string(kTagNames[0]) + ", " + kTagNames[1],
                     options.max_distance_from_centre_m, frames_dir);
+    result.altitude_source = relative == frames.size() ? "XMP RelativeAltitude"
+                             : relative == 0           ? "EXIF GPSAltitude"
+                                                       : "XMP RelativeAltitude, else EXIF "
+                                                         "GPSAltitude";
+    if (relative > 0 && relative < frames.size()) {
+      result.warnings.push_back(std::to_string(relative) + " of " +
+                                std::to_string(frames.size()) +
+                                " frames have XMP RelativeAltitude (above the take-off point), "
+                                "the others only EXIF GPSAltitude (above sea level): their "
+                                "heights differ by the take-off point's; give altitude 'gps' "
+                                "or 'relative'");
+    }
+    if (relative > 0 && options.altitude_reference == "absolute") {
+      result.warnings.push_back(
+          "altitudes are XMP RelativeAltitude (above the take-off point) but "
+          "altitude_reference is 'absolute': world z is the height above the take-off point, "
+          "not the DEM's; give altitude_reference 'takeoff' with takeoff_height_m or dem to "
+          "focus on a DEM");
+    }
+  }
+  if (!ordered) {
+    const std::vector<size_t> order = CaptureOrder(frames, times, time_source, &result);
+    frames = Permuted(frames, order);
+    samples = Permuted(samples, order);
   }
 
   // The camera, and every frame's size against it (headers only).
@@ -577,12 +779,27 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
     }
   }
 
-  // Altitude outliers, in view order.
+  // Altitude outliers, in view order (capture order).
   std::vector<double> altitudes;
   for (const TelemetrySample& s : samples) altitudes.push_back(s.altitude_m);
   for (const auto& [index, median] : ReplaceAltitudeOutliers(
            &altitudes, options.altitude_window, options.max_altitude_deviation_m)) {
     result.altitude_outliers.push_back({frames[index], samples[index].altitude_m, median});
+  }
+  // Altitudes above the take-off point: plus its ground's height.
+  if (options.altitude_reference == "takeoff") {
+    if (options.takeoff_height_m) {
+      result.takeoff_height_m = *options.takeoff_height_m;
+      result.takeoff_height_from = "given";
+    } else {
+      const bool home = options.home_latitude_deg.has_value();
+      result.takeoff_height_m = SampleTakeoffHeight(
+          options.dem, home ? *options.home_latitude_deg : samples.front().latitude_deg,
+          home ? *options.home_longitude_deg : samples.front().longitude_deg,
+          home ? std::string("the home point") : "the first frame " + frames.front(),
+          &result.takeoff_height_from);
+    }
+    for (double& altitude : altitudes) altitude += result.takeoff_height_m;
   }
 
   // One UTM zone for the flight: its centre's (the median latitude and longitude, longitudes
@@ -612,13 +829,17 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
   light_field.crs = crs;
   light_field.origin = Vec3d(std::round(mean.x / 100.0) * 100.0, std::round(mean.y / 100.0) * 100.0,
                              0.0);
+  // Yaw: magnetic -> true by the declination; true -> grid by the meridian convergence.
+  result.declination_deg = options.magnetic_declination_deg.value_or(0.0);
+  const bool grid_yaw = options.yaw_reference == "grid";
   for (size_t i = 0; i < n; ++i) {
     const Vec3d north = grid[n + i] - grid[i];
-    const double bearing_of_north = std::atan2(north.x, north.y);
+    const double bearing_of_north = grid_yaw ? 0.0 : std::atan2(north.x, north.y);
     result.max_convergence_deg =
         std::max(result.max_convergence_deg, std::abs(bearing_of_north) / kDeg);
-    const Mat3d world_from_cam = WorldFromCameraRotation(samples[i].yaw_deg, samples[i].pitch_deg,
-                                                         samples[i].roll_deg, bearing_of_north);
+    const Mat3d world_from_cam =
+        WorldFromCameraRotation(samples[i].yaw_deg + result.declination_deg, samples[i].pitch_deg,
+                                samples[i].roll_deg, bearing_of_north);
     View view;
     view.name = frames[i];
     view.image_path = (fs::path(frames_dir) / frames[i]).string();

@@ -6,20 +6,32 @@
 //
 // Inputs
 // - Frames: every image file under frames_dir (ListFrameFiles: .png .jpg .jpeg .tif .tiff .exr,
-//   any case, sorted by name = view order). All must have the camera's size.
+//   any case), all of the camera's size. View order is capture order:
+//   * by capture time when every frame has one: the log's time column beside its frame column,
+//     else the frames' EXIF DateTimeOriginal (+ SubSecTimeOriginal; image_io.h's
+//     ReadCaptureTime); ties keep name order;
+//   * else by name in natural order (util/file_util.h's NaturalLess: 2.png before 10.png, as
+//     frames named by an unpadded counter were taken), with a warning when only some frames
+//     carry a time.
+//   When name order and time order disagree, a warning says so with an example.
+//   TelemetryResult::order says which order was used; the altitude rule and a time-column log
+//   (frame i at time_offset_s + i * frame_interval_s) follow it.
 // - Telemetry, one of:
 //   (a) a CSV file (telemetry_file) with a header line naming its columns (any order, case-
 //       insensitive; '#' comment lines and blank lines allowed; extra columns refused; RFC 4180
 //       quoted fields and a UTF-8 byte-order mark as util/csv.h reads them):
-//         frame (or name, image, file) | time,  lat, lon, alt, yaw, pitch, roll
+//         frame (or name, image, file) [time] | time,  lat, lon, alt, yaw, pitch, roll
 //       frame: a frame's path relative to frames_dir, or its file name (when unique); every
-//       named frame must exist. time: seconds; frame i (name order) is at
+//       named frame must exist; a time column beside it is each frame's capture time (seconds,
+//       any origin; it orders the views). time alone: seconds; frame i (view order) is at
 //       time_offset_s + i * frame_interval_s, and its telemetry is interpolated linearly between
 //       the two rows around it (yaw and longitude along the shorter arc); times must increase
-//       and cover every frame. lat, lon: WGS84 degrees. alt: metres (whatever datum the log
-//       uses; it becomes the world z as given). Angles in degrees:
+//       and cover every frame. lat, lon: WGS84 degrees. alt: metres (altitude_reference: as
+//       the world's heights, or above the take-off point). Angles in degrees:
 //         yaw   = compass heading of the camera's forward direction (for a nadir camera: of the
-//                 image's up direction), clockwise from true north: 0 north, 90 east;
+//                 image's up direction), clockwise from north: true north by default
+//                 (yaw_reference: "grid" for the UTM grid's north, "magnetic" with the
+//                 declination for a magnetic compass's), 0 north, 90 east;
 //         pitch = gimbal pitch: 0 = looking at the horizon, -90 = straight down (nadir);
 //         roll  = rotation about the viewing direction, positive = the image's right side down.
 //       (DJI's GimbalYawDegree / GimbalPitchDegree / GimbalRollDegree mean exactly these.)
@@ -53,11 +65,13 @@
 //   meridian, so every view lies within the flight's extent); positions projected with PROJ;
 // - origin = the mean position rounded to 100 m in easting and northing, z = 0, so local z is
 //   the altitude as given;
-// - world axes: x easting, y northing, z up. The heading is turned from true north to grid
-//   north by the meridian convergence at each frame (GridBearingOfNorth, up to ~3 degrees at a
-//   zone's edge), so that a nadir camera with yaw 0 has its image 'up' pointing at true north;
-//   with yaw 0, pitch -90, roll 0 on a zone's central meridian the pose is NadirCamFromWorld.
-// - Altitude outliers (barometer or GPS jumps): in view order, each altitude is compared with the
+// - world axes: x easting, y northing, z up. A magnetic heading is first turned to true north by
+//   magnetic_declination_deg (true = magnetic + declination, east positive); a true heading is
+//   then turned to grid north by the meridian convergence at each frame (GridBearingOfNorth, up
+//   to ~3 degrees at a zone's edge), so that a nadir camera with yaw 0 has its image 'up'
+//   pointing at true north; a grid heading is used as it is. With yaw 0, pitch -90, roll 0 on a
+//   zone's central meridian the pose is NadirCamFromWorld.
+// - Altitude outliers (barometer or GPS jumps): in view order (capture order), each altitude is compared with the
 //   median of the given altitudes in a window of altitude_window frames centred on it (shifted
 //   to stay inside the flight at its ends; the whole flight when shorter); one further than max_altitude_deviation_m from it
 //   is replaced by that median and listed in TelemetryResult::altitude_outliers (frame, given
@@ -70,6 +84,7 @@
 // frame name, decreasing times, a frame outside the log's times), or the frame and tag for
 // EXIF/XMP (a frame without GPS or gimbal tags), or the option. Nothing is written by this
 // module.
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -99,10 +114,27 @@ struct TelemetryOptions {
   // is refused, metres, > 0 (infinity = no bound). 50 km holds any drone flight; raise it for a
   // longer one.
   double max_distance_from_centre_m = 50000.0;
-  // A time column: seconds between consecutive frames (name order), > 0 (required then).
+  // A time column: seconds between consecutive frames (view order), > 0 (required then).
   double frame_interval_s = 0.0;
   // A time column: the log time of the first frame, seconds.
   double time_offset_s = 0.0;
+  // The north the yaw is measured from: "true" (geographic), "grid" (the UTM grid's: no
+  // meridian convergence applied) or "magnetic" (a compass's; magnetic_declination_deg needed).
+  std::string yaw_reference = "true";
+  // With yaw_reference "magnetic": the declination, degrees east of true north (west
+  // negative), [-90, 90]: true heading = magnetic heading + declination. Unset otherwise.
+  std::optional<double> magnetic_declination_deg;
+  // What the altitudes are measured from: "absolute" (world heights as given) or "takeoff"
+  // (above the take-off point: world height = altitude + the take-off ground's height).
+  std::string altitude_reference = "absolute";
+  // With "takeoff": the take-off ground's world height, metres; unset = sampled from `dem`.
+  std::optional<double> takeoff_height_m;
+  // With "takeoff" and no takeoff_height_m: a DEM raster (GeoTIFF; any CRS PROJ relates to
+  // WGS84, heights in metres) the take-off height is sampled from under the home point.
+  std::string dem;
+  // The take-off (home) point, WGS84 degrees; both unset = the first frame's position.
+  std::optional<double> home_latitude_deg;
+  std::optional<double> home_longitude_deg;
   void Check() const;
   // The field table (util/option_fields.h): every field once, in declaration order.
   template <class Visit>
@@ -131,9 +163,30 @@ struct TelemetryOptions {
                       "A position farther than this from the flight's centre (median lat, "
                       "lon) is refused, metres."));
     field(OptionField("frame_interval_s", &O::frame_interval_s, "s", Range::Any(),
-                      "With a time column: seconds between consecutive frames (name order)."));
+                      "With a time column: seconds between consecutive frames (view order)."));
     field(OptionField("time_offset_s", &O::time_offset_s, "s", Range::Any(),
                       "With a time column: the log time of the first frame, seconds."));
+    field(OptionField("yaw_reference", &O::yaw_reference, "", Range::OneOf("true|grid|magnetic"),
+                      "The north yaw is measured from: 'true', 'grid' (UTM grid north) or "
+                      "'magnetic' (with magnetic_declination_deg)."));
+    field(OptionField("magnetic_declination_deg", &O::magnetic_declination_deg, "deg",
+                      Range::Any(),
+                      "With yaw_reference 'magnetic': declination, degrees east of true north "
+                      "(west negative), [-90, 90]."));
+    field(OptionField("altitude_reference", &O::altitude_reference, "",
+                      Range::OneOf("absolute|takeoff"),
+                      "Altitudes are 'absolute' (world heights) or above the 'takeoff' point "
+                      "(plus takeoff_height_m or the DEM's height there)."));
+    field(OptionField("takeoff_height_m", &O::takeoff_height_m, "m", Range::Any(),
+                      "With altitude_reference 'takeoff': the take-off ground's world height, "
+                      "metres; unset = sampled from dem."));
+    field(OptionField("dem", &O::dem, "", Range::Any(),
+                      "DEM raster (GeoTIFF, any CRS) the take-off height is sampled from under "
+                      "the home point."));
+    field(OptionField("home_latitude_deg", &O::home_latitude_deg, "deg", Range::Any(),
+                      "Take-off point latitude, WGS84 degrees; unset = the first frame's."));
+    field(OptionField("home_longitude_deg", &O::home_longitude_deg, "deg", Range::Any(),
+                      "Take-off point longitude, WGS84 degrees; unset = the first frame's."));
   }
 };
 
@@ -147,9 +200,17 @@ struct TelemetryResult {
   LightField light_field;                  // images not loaded; image_path = the frame files
   std::vector<std::string> frames;         // view order, relative to frames_dir
   std::string source;                      // "csv" or "exif"
+  std::string order;                       // view order: "time" (capture times) or "name"
+  std::string time_source;                 // "csv time column", "EXIF DateTimeOriginal" or ""
+  std::string altitude_source;             // "csv alt", "XMP RelativeAltitude", "EXIF GPSAltitude"
   std::vector<AltitudeOutlier> altitude_outliers;
   std::vector<std::string> warnings;       // frames without telemetry (left out), ...
+  std::string yaw_reference;               // as TelemetryOptions::yaw_reference
+  double declination_deg = 0.0;            // added to every yaw (magnetic), degrees
   double max_convergence_deg = 0.0;        // largest |meridian convergence| applied, degrees
+  std::string altitude_reference;          // as TelemetryOptions::altitude_reference
+  double takeoff_height_m = 0.0;           // added to every altitude ("takeoff"), metres
+  std::string takeoff_height_from;         // "given", or the DEM and the point it was sampled at
 };
 
 // `progress` gets a "tags" stage (EXIF/XMP source: a unit per frame's tags) and a "headers"

@@ -371,4 +371,49 @@ void PendingFolder::Commit() {
   ErasePending(temp_path_);
 }
 
+namespace {
+
+bool IsDigit(char c) { return c >= '0' && c <= '9'; }
+
+// -1, 0, 1: a against b in natural order, without the byte-order tie-break.
+int NaturalCompare(const std::string& a, const std::string& b) {
+  size_t i = 0, j = 0;
+  int zeros = 0;  // the first difference in leading zeros of equal numbers
+  while (i < a.size() && j < b.size()) {
+    if (IsDigit(a[i]) && IsDigit(b[j])) {
+      size_t ai = i, bj = j;
+      while (ai < a.size() && a[ai] == '0') ++ai;
+      while (bj < b.size() && b[bj] == '0') ++bj;
+      size_t ae = ai, be = bj;
+      while (ae < a.size() && IsDigit(a[ae])) ++ae;
+      while (be < b.size() && IsDigit(b[be])) ++be;
+      if (ae - ai != be - bj) return ae - ai < be - bj ? -1 : 1;  // more digits: larger
+      const int digits = a.compare(ai, ae - ai, b, bj, be - bj);
+      if (digits != 0) return digits < 0 ? -1 : 1;
+      if (zeros == 0 && ai - i != bj - j) zeros = ai - i > bj - j ? -1 : 1;
+      i = ae;
+      j = be;
+      continue;
+    }
+    if (a[i] != b[j]) {
+      return static_cast<unsigned char>(a[i]) < static_cast<unsigned char>(b[j]) ? -1 : 1;
+    }
+    ++i;
+    ++j;
+  }
+  if (i < a.size() || j < b.size()) return i < a.size() ? 1 : -1;  // a prefix comes first
+  return zeros;
+}
+
+}  // namespace
+
+bool NaturalLess(const std::string& a, const std::string& b) {
+  const int order = NaturalCompare(a, b);
+  return order != 0 ? order < 0 : a < b;
+}
+
+void SortNaturally(std::vector<std::string>* names) {
+  std::sort(names->begin(), names->end(), NaturalLess);
+}
+
 }  // namespace aos

@@ -103,6 +103,15 @@ class PendingFolder {
 // Writes `text` to `path` atomically (temporary file, then rename).
 void WriteTextFileAtomic(const std::string& path, const std::string& text);
 
+// Natural order of names (frame files, view names): runs of ASCII digits compare as numbers
+// ("2.png" < "10.png" < "frame_10b.png"), every other character by its byte; numbers of equal
+// value with more leading zeros come first ("02" < "2"), and names equal in that order fall back
+// to byte order, so the order is total. Frames named by an unpadded counter (grabbed from video,
+// most capture apps) come out in capture order.
+bool NaturalLess(const std::string& a, const std::string& b);
+// Sorts `names` in natural order (NaturalLess).
+void SortNaturally(std::vector<std::string>* names);
+
 // Reads a whole file (regular files only, at most `max_bytes`); throws std::invalid_argument
 // naming the file if it cannot be read, is not a regular file or is larger.
 std::string ReadTextFile(const std::string& path, uint64_t max_bytes = kMaxTextFileBytes);
