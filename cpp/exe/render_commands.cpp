@@ -200,9 +200,9 @@ int ResolvePoseView(const std::string& text, const LightField& light_field) {
   }
   if (!index_valid || named == index) return named;
   ThrowUsage("--pose-view: " + text + " is ambiguous: view " + std::to_string(index) +
-             " by index, or view " + std::to_string(named) + " (" +
-             light_field.views[static_cast<size_t>(named)].name +
-             ") by name; give that name with its extension");
+             " by index, or " +
+             ViewNameAndFile(light_field.views[static_cast<size_t>(named)], named) +
+             " by name; give that name with its extension");
 }
 
 // The light field's poses and cameras without its frames (LoadOptions::load_images false):
@@ -302,11 +302,9 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
       flags.NamingFlags([&] { return RenderIntegral(light_field, c.options, &progress); });
   progress.Finish();
   const long long pixels = static_cast<long long>(result.image.width()) * result.image.height();
-  if (!c.args.focal_surface.empty()) {
-    // Nothing written: an all-empty image is no render of the terrain (the map refuses the same).
-    CheckSurfaceCovers(c.options.focal_surface, light_field, "the virtual camera's view",
-                       result.uncovered_pixels, pixels);
-  }
+  // Nothing written: an all-empty image is no render (the map refuses the same).
+  CheckSurfaceCovers(c.options.focal_surface, light_field, "the virtual camera's view",
+                     result.uncovered_pixels, pixels);
   if (!c.args.focal_surface.empty() && result.uncovered_pixels > 0) {
     Warn(c.args.focal_surface + ": " +
          FormatNumber(100.0 * static_cast<double>(result.uncovered_pixels) / pixels) +

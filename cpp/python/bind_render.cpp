@@ -21,6 +21,10 @@ FocalSurface SurfaceFromPython(const py::object& value) {
   if (py::isinstance<FocalSurface>(value)) return value.cast<FocalSurface>();
   if (py::isinstance<Mesh>(value)) return FocalSurface::FromMesh(value.cast<Mesh>());
   if (py::isinstance<Heightfield>(value)) return FocalSurface::FromHeightfield(value.cast<Heightfield>());
+  // A path, as the CLI's --focal-surface FILE: a mesh (OBJ, PLY) or a DEM raster.
+  if (py::isinstance<py::str>(value) || py::hasattr(value, "__fspath__")) {
+    return FocalSurface::Read(py::str(py::module_::import("os").attr("fspath")(value)));
+  }
   if (!value.is_none() && !PyBool_Check(value.ptr())) {
     try {
       return FocalSurface::FromPlane(value.cast<Plane>());
@@ -33,8 +37,8 @@ FocalSurface SurfaceFromPython(const py::object& value) {
       }
     }
   }
-  throw py::type_error("focal_surface: expected a FocalSurface, Mesh, Heightfield, Plane or a number "
-                       "(the height of a horizontal plane), got " +
+  throw py::type_error("focal_surface: expected a FocalSurface, Mesh, Heightfield, Plane, a number "
+                       "(the height of a horizontal plane) or a file path (a mesh or DEM), got " +
                        std::string(py::str(py::type::of(value).attr("__name__"))));
 }
 
@@ -205,16 +209,26 @@ void BindIntegral(py::module_& m) {
         // Snapshots (cheap: pixel storage is shared), so other Python threads may change the
         // arguments while the GIL is released.
         const LightField light_field_copy = light_field;
-        const IntegralOptions options_copy = options;
+        IntegralOptions options_copy = options;
         return RunWithProgress(progress, [&](ProgressSink* sink) {
-          return RenderIntegral(light_field_copy, options_copy, sink);
+          // As the CLI: a DEM in another CRS is moved into the light field's, and a render that
+          // covers no pixel is an error naming the likely cause.
+          options_copy.focal_surface = InCrs(options_copy.focal_surface, light_field_copy.crs);
+          IntegralResult result = RenderIntegral(light_field_copy, options_copy, sink);
+          CheckSurfaceCovers(options_copy.focal_surface, light_field_copy,
+                             "the virtual camera's view", result.uncovered_pixels,
+                             static_cast<int64_t>(result.image.width()) * result.image.height());
+          return result;
         });
       },
       "light_field"_a, "options"_a, "progress"_a = py::none(),
       "Integral rendering (Eq. 1 of the AOS paper), GIL released. progress(stage, done, total) "
       "is called from the calling thread, throttled; if it raises, rendering stops and the error "
-      "propagates. Ctrl-C raises KeyboardInterrupt. Raises ValueError for bad options. Prefer "
-      "aos.render_integral, which also takes the options as keywords.");
+      "propagates. Ctrl-C raises KeyboardInterrupt. A focal surface read from a DEM in another "
+      "CRS than the light field's is moved into it through PROJ. Raises ValueError for bad "
+      "options, and when no pixel is covered (naming the likely cause: a surface above the "
+      "cameras, its extent, its CRS). Prefer aos.render_integral, which also takes the options "
+      "as keywords.");
 
   // Private, for benchmarks: the baselines they time in the same run (integral_kernels.h).
   m.def(
@@ -412,8 +426,10 @@ void BindMap(py::module_& m) {
       [](const LightField& light_field, const MapOptions& options, const std::string& path,
          bool force, bool arrays, const py::object& progress) {
         const LightField light_field_copy = light_field;
-        const MapOptions options_copy = options;
+        MapOptions options_copy = options;
         return RunWithProgress(progress, [&](ProgressSink* sink) {
+          // A DEM in another CRS moved into the light field's, as the CLI does.
+          options_copy.focal_surface = InCrs(options_copy.focal_surface, light_field_copy.crs);
           MapWriteOptions write;
           write.force = force;
           if (!path.empty()) {

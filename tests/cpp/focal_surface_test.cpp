@@ -12,6 +12,7 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include "aos/geometry/geodesy.h"
 #include "aos/render/integral.h"
 #include "aos/render/surface_integral.h"
 #include "error_of.h"
@@ -416,6 +417,65 @@ TEST(SurfacePlacement, UpPointsFromTheSurfaceTowardsTheViewsAndOffsetsFollowIt) 
   const SurfacePlacement shifted = ResolveSurfacePlacement(surface, above, {}, 0.0);
   const Image depth = surface.DepthFor(PinholeCamera::FromFov(8, 8, 50.0), NadirCamFromWorld(Vec3d(-1000, -2000, 30)), shifted);
   EXPECT_FLOAT_EQ(depth.At<float>(3, 3)[0], 30.0f - (5.0f - 4.0f));
+}
+
+TEST(SurfaceBehind, ASurfaceAboveTheCamerasAsTheyLookIsNamedWithBothHeights) {
+  // Nadir views at z = 30 (z up) and, as JKU's F0, views at z = -30 looking along +z (z down).
+  const PinholeCamera camera = PinholeCamera::FromFov(8, 8, 50.0);
+  LightField up, down;
+  up.views.push_back(MakeView("a", camera, NadirCamFromWorld(Vec3d(0, 0, 30)), Image(8, 8, 1, PixelType::kU8)));
+  Rigid3d looking_along_z;  // identity rotation: the camera's z axis is the world's +z
+  looking_along_z.translation = Vec3d(0, 0, 30);  // centre (0, 0, -30)
+  down.views.push_back(MakeView("b", camera, looking_along_z, Image(8, 8, 1, PixelType::kU8)));
+  // Relative altitudes (30 m) against a terrain 300 m above sea level: behind every camera.
+  const FocalSurface terrain = FocalSurface::FromMesh(SquareMesh(300.0), "dem.tif");
+  EXPECT_THAT(SurfaceBehindTheCameras(terrain, up),
+              HasSubstr("the surface lies above the cameras (behind them, as they look): its "
+                        "world z is 300 and the cameras' 30"));
+  EXPECT_EQ(SurfaceBehindTheCameras(FocalSurface::FromMesh(SquareMesh(5.0)), up), "");
+  EXPECT_EQ(SurfaceBehindTheCameras(FocalSurface::FromPlane(Plane::AtHeight(29.0)), up), "");
+  EXPECT_THAT(SurfaceBehindTheCameras(FocalSurface::FromPlane(Plane::AtHeight(31.0)), up),
+              HasSubstr("world z is 31 and the cameras' 30"));
+  // z down: "above" is the smaller z.
+  EXPECT_EQ(SurfaceBehindTheCameras(FocalSurface::FromMesh(SquareMesh(21.0)), down), "");
+  EXPECT_THAT(SurfaceBehindTheCameras(FocalSurface::FromMesh(SquareMesh(-40.0)), down),
+              HasSubstr("(z pointing down)"));
+  // The render covers nothing, and the one check says why.
+  IntegralOptions options;
+  options.pose_view = 0;
+  options.focal_surface = terrain;
+  const IntegralResult result = RenderIntegral(up, options);
+  const int64_t pixels = int64_t{result.image.width()} * result.image.height();
+  ASSERT_EQ(result.uncovered_pixels, pixels);
+  EXPECT_THAT(ErrorOf([&] {
+                CheckSurfaceCovers(terrain, up, "the view", result.uncovered_pixels, pixels);
+              }),
+              HasSubstr("dem.tif: no pixel is covered: the surface lies above the cameras"));
+}
+
+TEST(SurfaceCrs, ADemInAnotherCrsIsRefusedNamingBothAndMovedByInCrs) {
+  // A DEM in UTM 33N under a light field in UTM 32N (the same place: 15 E is zone 32's edge).
+  LightField light_field;
+  light_field.crs = "EPSG:32632";
+  light_field.origin = Vec3d(0.0);
+  const Vec3d centre = TransformPoints({Vec3d(500000.0, 5318000.0, 0.0)}, "EPSG:32633",
+                                       "EPSG:32632", "t")[0];
+  light_field.views.push_back(MakeView("a", PinholeCamera::FromFov(8, 8, 50.0),
+                                       NadirCamFromWorld(centre + Vec3d(0, 0, 100)),
+                                       Image(8, 8, 1, PixelType::kU8)));
+  Heightfield dem;
+  dem.width = dem.height = 4;
+  dem.geotransform = {499980.0, 10.0, 0.0, 5318020.0, 0.0, -10.0};
+  dem.heights.assign(16, 7.0f);
+  dem.crs_wkt = "EPSG:32633";
+  const FocalSurface surface = FocalSurface::FromHeightfield(dem, "dem.tif");
+  EXPECT_THAT(ErrorOf([&] { ResolveSurfacePlacement(surface, light_field, {}, 0.0); }),
+              HasSubstr("focal_surface: dem.tif is in EPSG:32633 (WGS 84 / UTM zone 33N) but the "
+                        "light field is in EPSG:32632 (WGS 84 / UTM zone 32N)"));
+  const FocalSurface moved = InCrs(surface, light_field.crs);
+  const std::vector<double> z = moved.HeightsAt(
+      {Vec2d(centre.x, centre.y)}, ResolveSurfacePlacement(moved, light_field, {}, 0.0));
+  EXPECT_NEAR(z[0], 7.0, 1e-6);
 }
 
 TEST(SurfaceHeights, AHeightFieldOfAPlaneGivesThePlaneBetweenItsPixels) {

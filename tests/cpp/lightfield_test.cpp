@@ -90,10 +90,24 @@ TEST(LightField, FindViewByNameTakesNamesStemsAndCase) {
   // Unknown: close names suggested.
   const std::string unknown = FindViewError(light_field, "DJI_0043");
   EXPECT_THAT(unknown, HasSubstr("--pose-view: no view named \"DJI_0043\" among the 5 views"));
-  EXPECT_THAT(unknown, HasSubstr("close: \"images/DJI_0041.JPG\""));
+  EXPECT_THAT(unknown, HasSubstr("close: \"images/DJI_0041.JPG (view 0)\""));
   EXPECT_THAT(unknown, Not(HasSubstr("other.tif")));
   EXPECT_THAT(FindViewError(light_field, "zzzzzzzzzzzz"), HasSubstr("names run from"));
   EXPECT_THAT(FindViewError(light_field, ""), HasSubstr("empty view name"));
+  // A view named otherwise than its frame file answers to the file too (a simulated view
+  // "view_0004" written as views/0004.png), and is listed with it.
+  LightField named;
+  named.views.resize(2);
+  named.views[0].name = "view_0000";
+  named.views[0].image_path = "/data/scene/views/0000.png";
+  named.views[1].name = "view_0001";
+  named.views[1].image_path = "/data/scene/views/0001.png";
+  EXPECT_EQ(FindViewByName(named, "0001.png"), 1);
+  EXPECT_EQ(FindViewByName(named, "0001"), 1);
+  EXPECT_EQ(FindViewByName(named, "views/0001.png"), 1);
+  EXPECT_EQ(FindViewByName(named, "view_0000"), 0);
+  EXPECT_THAT(FindViewError(named, "cenes/0001.png"), HasSubstr("no view named"));
+  EXPECT_EQ(ViewNameAndFile(named.views[1], 1), "view_0001 (view 1, file views/0001.png)");
 }
 
 }  // namespace

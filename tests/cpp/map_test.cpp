@@ -575,7 +575,7 @@ TEST_F(MapWrite, ASurfaceThatCoversNoneOfTheMapIsRefusedAndLeavesNoFile) {
                                  "map (or no view sees it); check its extent and CRS: it spans "
                                  "x 600000.5 .. 600007.5, y 5200000.5 .. 5200007.5 (world), the "
                                  "map x -4 .. 4, y -4 .. 4"));
-  EXPECT_THAT(message, HasSubstr("the surface is in EPSG:32633 but the light field has none"));
+  EXPECT_THAT(message, HasSubstr("the surface is in EPSG:32633 (WGS 84 / UTM zone 33N) but the light field has none"));
   EXPECT_THAT(ErrorOf([&] { RenderMap(light_field, options); }), HasSubstr("utm.tif: no pixel is covered"));
   EXPECT_TRUE(Files().empty());
   // A surface under the map that no selected view sees (its box holds pixel centres): refused

@@ -142,6 +142,15 @@ TEST_F(Telemetry, CsvFlightMatchesTheTruth) {
   EXPECT_EQ(back.pose_source->method, "telemetry");
   EXPECT_NEAR(back.views[5].cam_from_world.Center().x, lf.views[5].cam_from_world.Center().x,
               1e-9);
+  // The views keep the names they were imported with (not the paths written, frames/f05.png),
+  // also when written again from another folder.
+  EXPECT_EQ(back.views[5].name, "f05.png");
+  std::filesystem::create_directories(dir_ / "a" / "b");
+  WriteLightField(Path("a/b/lf.json"), back);
+  const LightField again = LoadLightField(Path("a/b/lf.json"), load).light_field;
+  EXPECT_EQ(again.views[5].name, "f05.png");
+  EXPECT_EQ(std::filesystem::path(again.views[5].image_path).lexically_normal(),
+            std::filesystem::path(back.views[5].image_path).lexically_normal());
 }
 
 TEST_F(Telemetry, ANadirCameraWithYawZeroHasItsImageUpAtTrueNorth) {

@@ -405,8 +405,11 @@ def test_a_dem_in_another_crs_is_refused_or_transformed(flight: aos.LightField,
     dem.write(str(tmp_path / "dem.tif"))
     surface = aos.FocalSurface.read(str(tmp_path / "dem.tif"))
     extent = [ORIGIN[0] - 9.0, ORIGIN[1] - 9.0, ORIGIN[0] + 9.0, ORIGIN[1] + 9.0]
-    with pytest.raises(ValueError, match="is in EPSG:25833 but the light field in EPSG:32633"):
-        aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=surface)
+    # The core refuses it, naming both CRSs (with their names) ...
+    with pytest.raises(ValueError, match=r"dem.tif is in EPSG:25833 \(ETRS89 / UTM zone 33N\) "
+                                         r"but the light field is in EPSG:32633 \(WGS 84 / UTM "
+                                         r"zone 33N\)"):
+        surface.heights_at(flight, np.zeros((1, 2)))
     moved = surface.in_crs("EPSG:32633")
     assert "EPSG:25833 -> EPSG:32633" in moved.describe()
     assert moved.kind == "mesh"
@@ -414,8 +417,46 @@ def test_a_dem_in_another_crs_is_refused_or_transformed(flight: aos.LightField,
     on_dem = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=moved)
     np.testing.assert_array_equal(on_dem.count, plane.count)
     np.testing.assert_allclose(on_dem.image, plane.image, atol=1e-3)
+    # ... and aos.render_map, like the CLI, moves it itself: a DEM as read, or its path.
+    for given in (surface, str(tmp_path / "dem.tif")):
+        direct = aos.render_map(flight, pixel_size=0.25, extent=extent, focal_surface=given)
+        np.testing.assert_array_equal(direct.count, on_dem.count)
+        np.testing.assert_array_equal(direct.image, on_dem.image)
     # The same surface in its own CRS comes back unchanged.
     assert surface.in_crs("EPSG:25833") == surface
+
+
+def test_render_integral_takes_what_the_cli_takes_and_names_a_surface_above_the_cameras(
+        flight: aos.LightField, tmp_path: Path) -> None:
+    """aos.render_integral takes a focal surface as a path (a mesh or DEM, as --focal-surface
+    FILE) and moves a DEM in another CRS into the light field's (as the CLI does): the render on
+    a flat DEM in ETRS89 / UTM 33N equals the plane's. A render covering no pixel raises, and a
+    terrain above the cameras (altitudes above the take-off point against a DEM's heights) is
+    named as such, with both heights."""
+    h = 0.5
+    geotransform = (ORIGIN[0] - 30.0, 1.0, 0.0, ORIGIN[1] + 30.0, 0.0, -1.0)
+    path = tmp_path / "dem.tif"
+    aos.Heightfield(np.full((60, 60), ORIGIN[2] + h, np.float32), geotransform,
+                    "EPSG:25833").write(str(path))
+    plane = aos.render_integral(flight, pose_view=4, focal_surface=h)
+    assert plane.uncovered_pixels == 0
+    for given in (str(path), path, aos.FocalSurface.read(str(path)),
+                  aos.Heightfield.read(str(path))):
+        on_dem = aos.render_integral(flight, pose_view=4, focal_surface=given)
+        np.testing.assert_array_equal(on_dem.count, plane.count)
+        np.testing.assert_allclose(on_dem.image, plane.image, atol=1e-3)
+    high = tmp_path / "high.tif"
+    aos.Heightfield(np.full((60, 60), ORIGIN[2] + 300.0, np.float32), geotransform,
+                    "EPSG:25833").write(str(high))
+    with pytest.raises(ValueError, match=r"high.tif \(EPSG:25833 -> EPSG:32633\): no pixel is covered: the surface lies above "
+                                         r"the cameras .*its world z is 300 and the cameras' 20"):
+        aos.render_integral(flight, pose_view=4, focal_surface=str(high))
+    with pytest.raises(ValueError, match=r"focal_surface: the plane lies behind the virtual camera"
+                                         r".*; the surface lies above the cameras .*world z is 25 "
+                                         r"and the cameras' 20"):
+        aos.render_integral(flight, pose_view=4, focal_surface=25.0)
+    with pytest.raises(ValueError, match="no.tif"):
+        aos.render_integral(flight, pose_view=4, focal_surface=str(tmp_path / "no.tif"))
 
 
 def test_cli_a_dem_that_covers_none_of_the_map_is_refused_like_integral(flight_file: Path,
@@ -435,13 +476,15 @@ def test_cli_a_dem_that_covers_none_of_the_map_is_refused_like_integral(flight_f
     out.mkdir()
     for dem, extent, words in (
             ("utm.tif", [], ["utm.tif: no pixel is covered: the surface does not cover the map",
-                             "the surface is in EPSG:25833 but the light field has none"]),
+                             "the surface is in EPSG:25833 (ETRS89 / UTM zone 33N) but the light field has none"]),
             ("utm.tif", ["--extent", "-9", "-9", "9", "9"], ["utm.tif: no pixel is covered"]),
             # Heights of 300 m lie above the views (z 20, local): up flips, and the footprints
-            # on its plane were "unbounded; give the extent" (exit 2).
-            ("utm300.tif", [], ["utm300.tif: no pixel is covered: the surface does not cover the map "
-                                "(under the views' centres)", "the surface is in EPSG:25833 but the "
-                                "light field has none"]),
+            # on its plane were "unbounded; give the extent" (exit 2). Named first now, beside
+            # the CRS.
+            ("utm300.tif", [], ["utm300.tif: no pixel is covered: the surface lies above the "
+                                "cameras (behind them, as they look): its world z is 300 and the "
+                                "cameras' 20", "the surface is in EPSG:25833 (ETRS89 / UTM zone "
+                                "33N) but the light field has none"]),
             ("beside.tif", ["--extent", "-9", "-9", "9", "9"],
              ["beside.tif: no pixel is covered", "it spans x 200.5 .. 209.5, y 200.5 .. 209.5 (world), "
               "the map x -9 .. 9, y -9 .. 9"])):

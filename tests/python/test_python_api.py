@@ -241,6 +241,9 @@ def changed(value: Any, field: str = "") -> Any:
         return aos.look_at((1.0, 2.0, 30.0), (0.0, 0.0, 0.0))
     if value is None and field == "open_browser":  # ViewerOptions.open_browser
         return True
+    if value is None and field in ("magnetic_declination_deg", "takeoff_height_m",
+                                   "home_latitude_deg", "home_longitude_deg"):  # TelemetryOptions
+        return 1.5
     if value is None and field == "ground_plane":  # FocalStackOptions.ground_plane
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if isinstance(value, aos.FocalSurface):  # IntegralOptions/MapOptions.focal_surface

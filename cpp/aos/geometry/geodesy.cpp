@@ -147,6 +147,18 @@ std::string EpsgOfCrs(const std::string& crs, const std::string& where) {
   return EpsgOf(ctx, pj.get());
 }
 
+std::string DescribeCrs(const std::string& crs) {
+  if (crs.empty()) return "";
+  Context ctx;
+  Pj pj(proj_create(ctx.context, crs.c_str()));
+  if (!pj) return crs;
+  const char* raw_name = proj_get_name(pj.get());
+  const std::string name = raw_name != nullptr ? raw_name : "";
+  const std::string epsg = EpsgOf(ctx, pj.get());
+  if (!epsg.empty()) return name.empty() ? epsg : epsg + " (" + name + ")";
+  return name.empty() ? crs : name;
+}
+
 void CheckLightFieldCrs(const std::string& crs, const std::string& where) {
   if (crs.empty()) return;
   const std::string prefix = "EPSG:";

@@ -98,6 +98,10 @@ std::vector<Vec3d> TransformPoints(const std::vector<Vec3d>& points, const std::
 // no EPSG code for it. Throws for a CRS PROJ does not know, naming `where`.
 std::string EpsgOfCrs(const std::string& crs, const std::string& where);
 
+// `crs` for messages: "EPSG:31255 (MGI / Austria GK Central)" (its EPSG code where PROJ knows
+// one, and its name), or its name alone; `crs` itself when PROJ does not know it.
+std::string DescribeCrs(const std::string& crs);
+
 // Checks a light field's CRS (see the contract above): "" (not geo-referenced) or
 // "EPSG:<code>" of a metric projected CRS. Throws std::invalid_argument "<where>: ..." naming
 // the code and why it is refused (unknown to PROJ, geographic, not metric, not an EPSG code).

@@ -505,11 +505,15 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
     const json& entry = views_json[i];
     std::string label = path + ": view " + std::to_string(i);
     if (!entry.is_object()) ThrowInvalid(label + ": expected an object, got " + Describe(entry));
-    RequireKnownKeys(entry, {"image", "camera", "cam_from_world"}, top / "views" / i);
+    RequireKnownKeys(entry, {"image", "name", "camera", "cam_from_world"}, top / "views" / i);
     const std::string image = StringFrom(Field(entry, "image", label), label + ": image");
     label += " (" + image + ")";
     View view;
     view.name = image;
+    if (auto name = entry.find("name"); name != entry.end()) {
+      view.name = StringFrom(*name, label + ": name");
+      if (view.name.empty()) ThrowInvalid(label + ": name: is empty");
+    }
     view.image_path = ResolvePath(folder, image);
     // A frame named a.jpg on disk as a.JPG (cameras write upper case, tools lower).
     const std::string found = FindFrameFile(view.image_path, folder_index, label, "image");
@@ -1005,6 +1009,9 @@ void WriteLightField(const std::string& path, const LightField& light_field,
                                  .generic_string();
     nlohmann::ordered_json view_json;
     view_json["image"] = image;
+    // The name the view was imported with (a frame's name, "15.png"), where the image path
+    // written differs from it ("../../x/15.png", "views/0003.png").
+    if (!view.name.empty() && view.name != image) view_json["name"] = view.name;
     view_json["camera"] = camera_id;
     view_json["cam_from_world"] = PoseToJson(view.cam_from_world);
     views_json.push_back(view_json);

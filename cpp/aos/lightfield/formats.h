@@ -9,6 +9,7 @@
 //     "cameras": {"cam0": {"model": "pinhole", "width": 512, "height": 512,
 //                          "fx": 535.7, "fy": 535.7, "cx": 256, "cy": 256}},
 //     "views": [{"image": "views/0000.png",  // relative to the JSON file's folder, or absolute
+//                "name": "15.png",                // optional: View::name; default = "image"
 //                "camera": "cam0",
 //                "cam_from_world": {"rotation": [[r00, r01, r02], [r10, r11, r12], [r20, r21, r22]],
 //                                   "translation": [t0, t1, t2]}}]

@@ -4,6 +4,7 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <limits>
 #include <utility>
 
 #include "aos/util/error.h"
@@ -109,17 +110,46 @@ std::string NameList(const std::vector<std::string>& names) {
 
 }  // namespace
 
+std::string ViewNameAndFile(const View& view, int index) {
+  namespace fs = std::filesystem;
+  // The frame file with its folder ("views/0004.png"): two folders may hold one file name.
+  const fs::path image(view.image_path);
+  const std::string file = image.has_parent_path() && image.parent_path().has_filename()
+                               ? (image.parent_path().filename() / image.filename()).generic_string()
+                               : image.filename().generic_string();
+  std::string text = view.name + " (view " + std::to_string(index);
+  if (!file.empty() && file != fs::path(view.name).generic_string()) text += ", file " + file;
+  return text + ")";
+}
+
 int FindViewByName(const LightField& light_field, const std::string& name,
                    const std::string& where) {
   namespace fs = std::filesystem;
   if (name.empty()) ThrowInvalid(Where(where, "empty view name"));
-  // The spellings a view answers to: its name, its file name, and that file name's stem.
-  const auto spellings = [](const View& view) {
-    const fs::path path(view.name);
-    return std::vector<std::string>{view.name, path.filename().string(), path.stem().string()};
+  // The spellings a view answers to: its name, its file name, and that file name's stem; its
+  // frame file's name and stem; and, for a name with folders, the frame file's trailing path.
+  const std::string wanted_path = fs::path(name).lexically_normal().generic_string();
+  const bool has_folders = name.find('/') != std::string::npos;
+  const auto spellings = [&](const View& view) {
+    const fs::path path(view.name), file(view.image_path);
+    std::vector<std::string> out{view.name, path.filename().string(), path.stem().string()};
+    if (!view.image_path.empty()) {
+      out.push_back(file.filename().string());
+      out.push_back(file.stem().string());
+      const std::string full = file.lexically_normal().generic_string();
+      if (has_folders && full.size() > wanted_path.size() &&
+          full[full.size() - wanted_path.size() - 1] == '/') {
+        out.push_back(full.substr(full.size() - wanted_path.size()));
+      }
+    }
+    return out;
+  };
+  const auto listed = [&](size_t index) {
+    return ViewNameAndFile(light_field.views[index], static_cast<int>(index));
   };
   for (const bool ignore_case : {false, true}) {
-    const std::string wanted = ignore_case ? LowerText(name) : name;
+    const std::string wanted = ignore_case ? LowerText(has_folders ? wanted_path : name)
+                                           : (has_folders ? wanted_path : name);
     std::vector<int> matches;
     for (size_t i = 0; i < light_field.views.size(); ++i) {
       for (const std::string& spelling : spellings(light_field.views[i])) {
@@ -132,10 +162,7 @@ int FindViewByName(const LightField& light_field, const std::string& name,
     if (matches.size() == 1) return matches[0];
     if (matches.size() > 1) {
       std::vector<std::string> names;
-      for (int index : matches) {
-        names.push_back(light_field.views[static_cast<size_t>(index)].name + " (view " +
-                        std::to_string(index) + ")");
-      }
+      for (int index : matches) names.push_back(listed(static_cast<size_t>(index)));
       ThrowInvalid(Where(where, "\"" + name + "\" is ambiguous: " +
                                     std::to_string(matches.size()) + " views match (" +
                                     NameList(names) + "); give the full name or the index"));
@@ -145,9 +172,16 @@ int FindViewByName(const LightField& light_field, const std::string& name,
   const std::string wanted = LowerText(fs::path(name).stem().string());
   std::vector<std::pair<size_t, size_t>> ranked;  // (distance, view)
   for (size_t i = 0; i < light_field.views.size(); ++i) {
-    const std::string stem = LowerText(fs::path(light_field.views[i].name).stem().string());
-    size_t distance = EditDistance(wanted, stem);
-    if (!wanted.empty() && stem.find(wanted) != std::string::npos) distance = std::min<size_t>(distance, 1);
+    size_t distance = std::numeric_limits<size_t>::max();
+    for (const std::string& spelled :
+         {light_field.views[i].name, light_field.views[i].image_path}) {
+      if (spelled.empty()) continue;
+      const std::string stem = LowerText(fs::path(spelled).stem().string());
+      distance = std::min(distance, EditDistance(wanted, stem));
+      if (!wanted.empty() && stem.find(wanted) != std::string::npos) {
+        distance = std::min<size_t>(distance, 1);
+      }
+    }
     ranked.emplace_back(distance, i);
   }
   std::stable_sort(ranked.begin(), ranked.end());
@@ -155,7 +189,7 @@ int FindViewByName(const LightField& light_field, const std::string& name,
   std::vector<std::string> close;
   for (const auto& [distance, index] : ranked) {
     if (close.size() == 5 || distance > limit) break;
-    close.push_back(light_field.views[index].name);
+    close.push_back(listed(index));
   }
   std::string hint;
   if (!close.empty()) {

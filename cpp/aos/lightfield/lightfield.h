@@ -85,11 +85,15 @@ View MakeView(std::string name, const PinholeCamera& camera, const Rigid3d& cam_
 void CheckView(const View& view, const std::string& where);
 
 // The index of the view named `name`: its View::name or that name's file name, with or without
-// the extension ("DJI_0042", "DJI_0042.JPG", "images/DJI_0042.JPG"); exact matches first, then
-// ignoring case. Throws std::invalid_argument "<where>: ..." when no view or more than one
+// the extension ("DJI_0042", "DJI_0042.JPG", "images/DJI_0042.JPG"), or its frame file
+// (image_path: its file name, stem, or trailing folders and file name, "views/0004.png"); exact
+// matches first, then ignoring case. Throws std::invalid_argument "<where>: ..." when no view or more than one
 // matches, listing the matching names or, for an unknown name, up to five close ones.
 int FindViewByName(const LightField& light_field, const std::string& name,
                    const std::string& where = "view");
+// How FindViewByName lists a view: "name (view i)", or "name (view i, file folder/file.png)"
+// where its frame file is named otherwise.
+std::string ViewNameAndFile(const View& view, int index);
 
 // Checks every view and that all views share one channel count (at least 2 when masked).
 void CheckLightField(const LightField& light_field, const std::string& where = "light field");

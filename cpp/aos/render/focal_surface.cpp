@@ -670,13 +670,61 @@ std::string HeightfieldCrs(const FocalSurface& surface) {
 
 }  // namespace
 
+std::string SurfaceBehindTheCameras(const FocalSurface& surface, const LightField& light_field) {
+  if (light_field.views.empty() || surface.kind() == FocalSurfaceKind::kDepthMap) return "";
+  // The side the cameras look to along z: the mean of their viewing directions.
+  double look_z = 0.0, camera_lo = std::numeric_limits<double>::infinity();
+  double camera_hi = -camera_lo;
+  for (const View& view : light_field.views) {
+    const Vec3d centre = view.cam_from_world.Center() + light_field.origin;
+    if (!std::isfinite(centre.z)) continue;
+    look_z += Row(view.cam_from_world.rotation, 2).z;  // the camera's z axis in the world
+    camera_lo = std::min(camera_lo, centre.z);
+    camera_hi = std::max(camera_hi, centre.z);
+  }
+  look_z /= static_cast<double>(light_field.views.size());
+  if (!(std::abs(look_z) > 0.5) || !std::isfinite(camera_lo)) return "";  // not looking down
+  // The surface's world z range: a horizontal plane's height, a mesh's or DEM's vertices.
+  double lo = 0.0, hi = 0.0;
+  if (surface.kind() == FocalSurfaceKind::kPlane) {
+    const Plane& plane = surface.plane();
+    const Vec3d normal = glm::normalize(plane.normal);
+    if (std::abs(std::abs(normal.z) - 1.0) > 1e-9) return "";
+    lo = hi = plane.point.z + light_field.origin.z;
+  } else {
+    lo = std::numeric_limits<double>::infinity();
+    hi = -lo;
+    for (const Vec3d& vertex : surface.mesh().vertices) {
+      lo = std::min(lo, vertex.z);
+      hi = std::max(hi, vertex.z);
+    }
+    if (!(lo <= hi)) return "";
+  }
+  // Every camera looks away from the surface: with z up (looking down, look_z < 0) the surface
+  // lies above every camera; with z down (JKU's F0) below, which is "above" there too.
+  const bool behind = look_z < 0.0 ? lo > camera_hi : hi < camera_lo;
+  if (!behind) return "";
+  const auto range = [](double a, double b) {
+    return a == b ? FormatNumber(a) : FormatNumber(a) + " .. " + FormatNumber(b);
+  };
+  return "the surface lies above the cameras (behind them, as they look): its world z is " +
+         range(lo, hi) + " and the cameras' " + range(camera_lo, camera_hi) +
+         (look_z < 0.0 ? "" : " (z pointing down)") +
+         "; altitudes above the take-off point (relative) against a terrain's heights? Import "
+         "them with altitude_reference 'takeoff' (the take-off ground's height added)";
+}
+
 void CheckSurfaceCovers(const FocalSurface& surface, const LightField& light_field,
                         const std::string& what, int64_t uncovered_pixels, int64_t pixels,
                         const std::vector<double>& extent_in_world) {
   if (pixels <= 0 || uncovered_pixels < pixels) return;
   const std::string name = surface.source().empty() ? "focal_surface" : surface.source();
-  std::string message = name + ": no pixel is covered: the surface does not cover " + what +
-                        " (or no view sees it); check its extent and CRS";
+  // The surface behind the cameras first (the cause named outright), then its extent and CRS.
+  const std::string behind = SurfaceBehindTheCameras(surface, light_field);
+  std::string message = name + ": no pixel is covered: " +
+                        (!behind.empty() ? behind
+                                         : "the surface does not cover " + what +
+                                               " (or no view sees it); check its extent and CRS");
   const std::array<double, 4> box = surface.ExtentInWorld(light_field.origin);
   const auto range = [](double x0, double y0, double x1, double y1) {
     return "x " + FormatNumber(x0) + " .. " + FormatNumber(x1) + ", y " + FormatNumber(y0) +
@@ -691,7 +739,7 @@ void CheckSurfaceCovers(const FocalSurface& surface, const LightField& light_fie
   }
   const std::string crs = HeightfieldCrs(surface);
   if (!crs.empty() && light_field.crs.empty()) {
-    message += "; the surface is in " + (crs.size() > 40 ? std::string("a CRS") : crs) +
+    message += "; the surface is in " + DescribeCrs(crs) +
                " but the light field has none, so its coordinates were taken as the light "
                "field's world frame (origin + local) as they are";
   }
@@ -713,11 +761,11 @@ SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const Ligh
   // field's: refuse (InCrs transforms it; the CLI does so itself).
   const std::string dem_crs = HeightfieldCrs(surface);
   if (!dem_crs.empty() && !light_field.crs.empty() && dem_crs != light_field.crs) {
-    ThrowInvalid("focal_surface: " + surface.source() + " is in " +
-                 (dem_crs.size() > 40 ? std::string("another CRS") : dem_crs) +
-                 " but the light field in " + light_field.crs +
-                 ": transform it first (FocalSurface::InCrs / focal_surface.in_crs(...); the CLI "
-                 "does this itself)");
+    ThrowInvalid("focal_surface: " + (surface.source().empty() ? "the height field" : surface.source()) +
+                 " is in " + DescribeCrs(dem_crs) + " but the light field is in " +
+                 DescribeCrs(light_field.crs) +
+                 ": move it into the light field's CRS first (FocalSurface::InCrs; aos's Python "
+                 "render functions and the CLI do this themselves)");
   }
   SurfacePlacement placement;
   placement.origin = light_field.origin;

@@ -175,16 +175,25 @@ SurfacePlacement ResolveSurfacePlacement(const FocalSurface& surface, const Ligh
 FocalSurface InCrs(const FocalSurface& surface, const std::string& crs);
 
 // The one check of a render on a focal surface that covers none of its pixels (aos-render
-// integral; the map: ResolveMapGrid before anything is rendered when the surface's x/y box misses
-// the map's, RenderMapTiles after): when uncovered_pixels == pixels > 0, throws
-// std::invalid_argument "<source>: no pixel is covered: the surface does not cover <what> (or no
-// view sees it); check its extent and CRS" followed by the likely cause where one is seen: the
+// integral and aos.render_integral, planes included; the map: ResolveMapGrid before anything is
+// rendered when the surface's x/y box misses the map's, RenderMapTiles after): when
+// uncovered_pixels == pixels > 0, throws std::invalid_argument "<source>: no pixel is covered: "
+// and, for a surface behind the cameras, SurfaceBehindTheCameras's sentence, else "the surface
+// does not cover <what> (or no view sees it); check its extent and CRS"; then the other likely
+// causes where they are seen: the
 // surface's world x/y box beside `extent_in_world` ({XMIN, YMIN, XMAX, YMAX}; empty = not
 // known), a surface with a CRS under a light field without one (its coordinates were taken as
 // the light field's world frame), or a surface moved between CRSs. Does nothing otherwise.
 void CheckSurfaceCovers(const FocalSurface& surface, const LightField& light_field,
                         const std::string& what, int64_t uncovered_pixels, int64_t pixels,
                         const std::vector<double>& extent_in_world = {});
+
+// Why a render on `surface` could cover nothing because the surface lies behind the cameras
+// ("above" them as they look: with z up, every camera looks down and the surface's lowest point
+// is higher than the highest camera; mirrored for z down): a sentence naming both z ranges and
+// the likely cause (relative altitudes against a terrain's heights), or "" when it does not.
+// Planes count when horizontal; depth maps never. CheckSurfaceCovers states it first.
+std::string SurfaceBehindTheCameras(const FocalSurface& surface, const LightField& light_field);
 
 // Depth (z in the camera frame, metres) at which each pixel's ray meets `plane`; 0 where the ray
 // meets it behind the camera or never (float32, 1 channel). Rows in parallel on num_threads

@@ -350,8 +350,12 @@ void IntegralRenderer::SetUpGeometry() {
     any_in_front = any_in_front || g.sign_h * glm::dot(g.normal, direction) > 0.0;
   }
   if (!any_in_front) {
+    // Above every view as well (relative altitudes against a terrain's heights): say so.
+    const std::string behind =
+        SurfaceBehindTheCameras(FocalSurface::FromPlane(plane_), light_field_);
     ThrowInvalid("focal_surface: the plane lies behind the virtual camera: no pixel's ray meets it in front "
-                 "(check its height or normal and the camera pose)");
+                 "(check its height or normal and the camera pose)" +
+                 (behind.empty() ? std::string() : "; " + behind));
   }
 }
 
@@ -840,8 +844,10 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
       }
     }
     if (!any_in_front) {
+      const std::string behind = SurfaceBehindTheCameras(surface, light_field);
       ThrowInvalid("focal_surface: the plane lies behind the virtual camera or contains its "
-                   "centre: no pixel's ray meets it in front");
+                   "centre: no pixel's ray meets it in front" +
+                   (behind.empty() ? std::string() : "; " + behind));
     }
   }
   // RenderIntegralOnDepth applies min_view_count.

@@ -48,6 +48,17 @@ void GrowByFootprint(const View& view, int index, double height, double* lo, dou
       const Vec3d direction = world_from_cam * ray;
       const double s = direction.z != 0.0 ? (height - center.z) / direction.z : -1.0;
       if (!(s > 0.0) || !std::isfinite(s)) {
+        // The plane behind the camera as it looks (above a camera looking down): no footprint
+        // at all, the case of altitudes above the take-off point against a terrain's heights.
+        const double look_z = world_from_cam[2].z;  // the camera's z axis in the world
+        if (std::abs(look_z) > 0.5 && (height - center.z) * look_z <= 0.0) {
+          ThrowInvalid("focal_surface: the focal plane z = " + FormatNumber(height) +
+                       " (local frame) lies above view " + std::to_string(index) +
+                       (view.name.empty() ? "" : " (" + view.name + ")") + " at z = " +
+                       FormatNumber(center.z) + ", behind it as it looks: the surface is above "
+                       "the cameras. Altitudes above the take-off point (relative) against a "
+                       "terrain's heights? Import them with altitude_reference 'takeoff'");
+        }
         ThrowInvalid("extent: view " + std::to_string(index) +
                      (view.name.empty() ? "" : " (" + view.name + ")") +
                      " sees above the horizon of the focal plane, so its footprint is unbounded; "

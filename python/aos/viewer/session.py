@@ -254,7 +254,9 @@ class Session:
         # and the focal surface's file, for the equivalent command.
         self.load_options = {k: v for k, v in (load_options or {}).items() if v}
         self.surface_path = surface_path
-        self.focal_surface = focal_surface
+        # A DEM in another CRS moved into the light field's once (as the CLI does).
+        self.focal_surface = (None if focal_surface is None
+                              else focal_surface.in_crs(light_field.crs))
         # Every render starts from these options: the page sets what it controls (camera,
         # focus, aperture, views: integral_options, map_options) and every other field is as
         # given here, so a field added to IntegralOptions reaches the viewer's renders (and its
