@@ -47,6 +47,7 @@ COMMANDS = [
     ("import-colmap", "PosesOptions"),
     ("ground", "GroundOptions"),
     ("import-telemetry", "TelemetryOptions"),
+    ("import-video", "VideoFramesOptions"),
     ("resolution", "ResolutionOptions"),
     ("metrics", "QualityOptions"),
     ("camera", "LensCamera"),
@@ -58,6 +59,7 @@ COMMANDS = [
 OUTSIDE = [
     ("map", "DistributedOptions", "distributed."),
     ("view", "ViewerOptions", "viewer."),
+    ("import-video", "TelemetryOptions", "telemetry."),
 ]
 
 
@@ -117,6 +119,10 @@ NOT_ON_THE_CLI = {
     ("import-colmap", "sift_first_octave"): "import-colmap runs no COLMAP",
     ("import-colmap", "max_focal_deviation"): "the model's intrinsics are kept as they are",
     ("import-colmap", "num_threads"): "import-colmap decodes frames on all cores",
+    ("import-video", "telemetry.telemetry_file"): "the import's own telemetry.csv",
+    ("import-video", "telemetry.frame_interval_s"): "the CSV gives each frame's time",
+    ("import-video", "telemetry.time_offset_s"): "the CSV gives each frame's time",
+    ("import-video", "telemetry.altitude"): "EXIF/XMP only; --srt-altitude picks the SRT's",
 }
 
 # Fields whose flag prints no default in --help, because "not given" is the default and means
@@ -124,7 +130,7 @@ NOT_ON_THE_CLI = {
 # struct's default, so that a drifted default is seen.
 NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file", "focal_surface",
                       "ground_plane",  # --ground FILE: none = first_plane/last_plane
-                      "positions_file", "positions_crs", "workspace", "telemetry_file",
+                      "positions_file", "positions_crs", "workspace", "telemetry_file", "srt_file",
                       "pose_error_px", "pose_error_m",  # exclusive flags; none = no pose error
                       "fy", "cx", "cy",  # camera: fy = fx, cx/cy = the centre
                       "extent",  # the map's extent: none = the views' footprints

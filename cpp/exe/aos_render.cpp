@@ -111,9 +111,17 @@ const CommandEntry kCommands[] = {
      "above a given terrain",
      DefineGround},
     {"import-telemetry",
-     "Pose frames from GPS and gimbal telemetry (a CSV log or the frames' EXIF/XMP tags), no "
-     "COLMAP: a geo-referenced light field in the flight's UTM zone",
+     "Pose frames from GPS and gimbal telemetry (a CSV log, OpenDroneMap's geo.txt or the "
+     "frames' EXIF/XMP tags), no COLMAP: a geo-referenced light field in the flight's UTM zone",
      DefineImportTelemetry},
+    {"import-video",
+     "Frames and poses from a drone video with DJI's SRT telemetry: frames every N seconds or "
+     "metres, posed as import-telemetry poses them, into a new folder with a light field",
+     DefineImportVideo},
+    {"export-odm",
+     "Write a geo-referenced light field's camera positions and angles as OpenDroneMap's "
+     "geo.txt (odm --geo)",
+     DefineExportOdm},
     {"simulate",
      "Simulate a scene (docs/scenes.md): write its views, the light field (recorded poses) and "
      "the ground truth into a new folder",

@@ -30,6 +30,8 @@ CommandRunner DefinePoses(CLI::App* command);
 CommandRunner DefineImportColmap(CLI::App* command);
 CommandRunner DefineGround(CLI::App* command);
 CommandRunner DefineImportTelemetry(CLI::App* command);
+CommandRunner DefineExportOdm(CLI::App* command);
+CommandRunner DefineImportVideo(CLI::App* command);
 CommandRunner DefineMetrics(CLI::App* command);
 CommandRunner DefinePlan(CLI::App* command);
 

@@ -1,9 +1,13 @@
-// import-telemetry: poses from GPS and gimbal telemetry (a CSV log or the frames' EXIF/XMP tags),
-// no structure from motion (sfm/telemetry.h).
+// import-telemetry: poses from GPS and gimbal telemetry (a CSV log, OpenDroneMap's geo.txt or the
+// frames' EXIF/XMP tags), no structure from motion (sfm/telemetry.h); export-odm: a light field's
+// poses as OpenDroneMap's geo.txt (sfm/odm.h).
+#include <filesystem>
 #include <memory>
 
 #include "aos/lightfield/formats.h"
+#include "aos/sfm/odm.h"
 #include "aos/sfm/telemetry.h"
+#include "aos/sfm/video.h"
 #include "aos/util/file_util.h"
 #include "commands.h"
 #include "progress_bar.h"
@@ -11,30 +15,24 @@
 namespace aos::cli {
 namespace {
 
+namespace fs = std::filesystem;
+
 struct TelemetryCommand {
   std::string frames_dir;
   std::string output;
   TelemetryOptions options;
 };
 
-int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
-  const std::vector<std::string> inputs{c.frames_dir, c.options.telemetry_file,
-                                        c.options.camera_file, c.options.dem};
-  CheckOutputPath(c.output, inputs, "output");
-  RefuseExisting(c.output, "output");
-  ProgressBar progress(Common().quiet);
-  const TelemetryResult result =
-      flags.NamingFlags([&] { return ImportTelemetry(c.frames_dir, c.options, &progress); });
-  progress.Finish();
-  WriteLightField(c.output, result.light_field);
-  Report report("import-telemetry");
+// The warnings and report of a telemetry import: every assumption the poses rest on, one line
+// each (import-telemetry, import-video).
+void ReportTelemetry(const TelemetryResult& result, const std::string& output, Report& report) {
   for (const std::string& warning : result.warnings) Warn(warning);
   for (const AltitudeOutlier& outlier : result.altitude_outliers) {
     Warn("altitude outlier: " + outlier.frame + ": " + FormatNumber(outlier.altitude_m) +
          " m replaced by the running median " + FormatNumber(outlier.median_m) + " m");
   }
   const LightField& light_field = result.light_field;
-  report.Set("output", c.output);
+  report.Set("output", output);
   report.Set("source", result.source);
   report.Set("views", light_field.views.size());
   report.Set("crs", light_field.crs);
@@ -62,10 +60,12 @@ int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
   outliers.Set("median_m", outlier_medians);
   report.Set("warnings", result.warnings);
   report.Line("wrote %s: %zu views posed from %s telemetry, %s, origin %.3f %.3f %.3f",
-              c.output.c_str(), light_field.views.size(),
-              result.source == "csv" ? "CSV" : "EXIF/XMP", light_field.crs.c_str(),
-              light_field.origin.x, light_field.origin.y, light_field.origin.z);
-  // Every assumption the poses rest on, one line each.
+              output.c_str(), light_field.views.size(),
+              result.source == "csv"   ? "CSV"
+              : result.source == "odm" ? "OpenDroneMap geo.txt"
+                                       : "EXIF/XMP",
+              light_field.crs.c_str(), light_field.origin.x, light_field.origin.y,
+              light_field.origin.z);
   report.Line("order: %s", result.order == "time"
                                ? ("capture time (" + result.time_source + ")").c_str()
                                : "frame names, natural order (2 before 10)");
@@ -87,11 +87,127 @@ int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
     report.Line("altitude: %s, taken as world heights (absolute)", result.altitude_source.c_str());
   }
   report.Line("altitude outliers replaced by the running median: %zu", result.altitude_outliers.size());
+}
+
+int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
+  const std::vector<std::string> inputs{c.frames_dir, c.options.telemetry_file,
+                                        c.options.camera_file, c.options.dem};
+  CheckOutputPath(c.output, inputs, "output");
+  RefuseExisting(c.output, "output");
+  ProgressBar progress(Common().quiet);
+  const TelemetryResult result =
+      flags.NamingFlags([&] { return ImportTelemetry(c.frames_dir, c.options, &progress); });
+  progress.Finish();
+  WriteLightField(c.output, result.light_field);
+  Report report("import-telemetry");
+  ReportTelemetry(result, c.output, report);
+  report.Print();
+  return 0;
+}
+
+struct VideoCommand {
+  std::string video;
+  std::string output_dir;
+  VideoFramesOptions options;
+  TelemetryOptions telemetry;
+};
+
+int RunImportVideo(VideoCommand& c, const Flags& flags) {
+  flags.NamingFlags([&] { c.options.Check(); });
+  CheckOutputFolder(c.output_dir);
+  ProgressBar progress(Common().quiet);
+  const VideoImportResult imported = flags.NamingFlags(
+      [&] { return ImportVideo(c.video, c.output_dir, c.options, c.telemetry, &progress); });
+  progress.Finish();
+  const VideoFramesResult& frames = imported.frames;
+  const TelemetryResult& result = imported.telemetry;
+  const std::string& output = imported.light_field_path;
+  Report report("import-video");
+  report.Set("video_frames", static_cast<long long>(frames.video_frames));
+  report.Set("fps", frames.fps);
+  report.Set("frames_taken", frames.frames.size());
+  report.Set("srt_samples", frames.srt_samples);
+  report.Set("srt_skipped_blocks", frames.srt_skipped_blocks);
+  report.Set("yaw_from", frames.yaw_from);
+  report.Set("pitch_from", frames.pitch_from);
+  report.Set("altitude_from", frames.altitude_from);
+  report.Line("%s: %zu of %lld frames taken (%s), %dx%d at %.3f fps; %d SRT blocks with a "
+              "position (%d without, skipped)",
+              c.video.c_str(), frames.frames.size(), static_cast<long long>(frames.video_frames),
+              c.options.frame_every_m == 0.0
+                  ? ("every " + FormatNumber(c.options.frame_every_s) + " s").c_str()
+                  : ("every " + FormatNumber(c.options.frame_every_m) + " m of flight").c_str(),
+              frames.width, frames.height, frames.fps, frames.srt_samples,
+              frames.srt_skipped_blocks);
+  report.Line("orientation: yaw from the %s; pitch from the %s", frames.yaw_from.c_str(),
+              frames.pitch_from.c_str());
+  ReportTelemetry(result, output, report);
+  report.Print();
+  return 0;
+}
+
+struct ExportOdmCommand {
+  std::string light_field_path;
+  std::string output;
+};
+
+int RunExportOdm(ExportOdmCommand& c) {
+  LoadOptions load;
+  load.load_images = false;
+  const LightField light_field = LoadLightField(c.light_field_path, load).light_field;
+  CheckOutputPath(c.output, {c.light_field_path}, "output");
+  RefuseExisting(c.output, "output");
+  WriteOdmGeo(c.output, light_field, /*overwrite=*/true);
+  Report report("export-odm");
+  report.Set("output", c.output);
+  report.Set("views", light_field.views.size());
+  report.Set("crs", light_field.crs);
+  report.Line("wrote %s: %zu views in %s (OpenDroneMap geo.txt: image x y z yaw pitch roll, "
+              "yaw from true north, pitch -90 = nadir)",
+              c.output.c_str(), light_field.views.size(), light_field.crs.c_str());
   report.Print();
   return 0;
 }
 
 }  // namespace
+
+CommandRunner DefineExportOdm(CLI::App* command) {
+  auto c = std::make_shared<ExportOdmCommand>();
+  Flags flags(command);
+  command->add_option("lightfield", c->light_field_path, "Light-field file (JSON; a CRS needed)")
+      ->required();
+  command->add_option("-o,--output", c->output, "geo.txt to write")->required();
+  flags.Force();
+  flags.Input("lightfield");
+  flags.Output("--output");
+  return [c] { return RunExportOdm(*c); };
+}
+
+CommandRunner DefineImportVideo(CLI::App* command) {
+  auto c = std::make_shared<VideoCommand>();
+  Flags flags(command);
+  command->add_option("video", c->video, "Drone video (MP4, MOV, AVI: what OpenCV decodes)")
+      ->required();
+  command->add_option("-o,--output", c->output_dir,
+                      "New folder: frames/, telemetry.csv and lightfield.json")
+      ->required();
+  flags.Field(c->options, "srt_file");
+  command->add_option("--srt", c->options.srt_file, "Same as --srt-file");
+  flags.Shorthand("srt_file", "--srt");
+  flags.Field(c->options, "frame_every_s");
+  flags.Field(c->options, "frame_every_m");
+  flags.Field(c->options, "srt_altitude");
+  flags.Field(c->options, "fixed_pitch_deg");
+  flags.Field(c->options, "srt_offset_s");
+  Flags telemetry = flags.At("telemetry.");
+  telemetry.Remaining(c->telemetry, {"telemetry_file", "frame_interval_s", "time_offset_s",
+                                     "altitude"});
+  flags.Threads();
+  flags.Input("video");
+  flags.Input("--srt-file");
+  flags.OutputFolder("--output");
+  return [c, flags] { return RunImportVideo(*c, flags); };
+}
 
 CommandRunner DefineImportTelemetry(CLI::App* command) {
   auto c = std::make_shared<TelemetryCommand>();

@@ -3,7 +3,9 @@
 #include "aos/sfm/colmap_model.h"
 #include "aos/sfm/colmap_pipeline.h"
 #include "aos/sfm/ground.h"
+#include "aos/sfm/odm.h"
 #include "aos/sfm/telemetry.h"
+#include "aos/sfm/video.h"
 #include "aos/util/error.h"
 #include "bindings.h"
 
@@ -215,7 +217,23 @@ void BindSfm(py::module_& m) {
       .def_readonly("light_field", &TelemetryResult::light_field,
                     "The posed frames (images not loaded), crs = the flight's UTM zone.")
       .def_readonly("frames", &TelemetryResult::frames, "Frames in view order.")
-      .def_readonly("source", &TelemetryResult::source, "'csv' or 'exif'.")
+      .def_readonly("source", &TelemetryResult::source, "'csv', 'odm' (geo.txt) or 'exif'.")
+      .def_readonly("order", &TelemetryResult::order,
+                    "View order: 'time' (capture times) or 'name' (natural name order).")
+      .def_readonly("time_source", &TelemetryResult::time_source,
+                    "Where the capture times came from ('' when ordered by name).")
+      .def_readonly("altitude_source", &TelemetryResult::altitude_source,
+                    "Which altitude was read ('csv alt', 'XMP RelativeAltitude', ...).")
+      .def_readonly("yaw_reference", &TelemetryResult::yaw_reference,
+                    "'true', 'grid' or 'magnetic', as given.")
+      .def_readonly("declination_deg", &TelemetryResult::declination_deg,
+                    "Added to every yaw (magnetic), degrees.")
+      .def_readonly("altitude_reference", &TelemetryResult::altitude_reference,
+                    "'absolute' or 'takeoff', as given.")
+      .def_readonly("takeoff_height_m", &TelemetryResult::takeoff_height_m,
+                    "Added to every altitude ('takeoff'), metres.")
+      .def_readonly("takeoff_height_from", &TelemetryResult::takeoff_height_from,
+                    "'given', or the DEM and the point it was sampled at.")
       .def_readonly("altitude_outliers", &TelemetryResult::altitude_outliers,
                     "Altitudes replaced by their running median.")
       .def_readonly("warnings", &TelemetryResult::warnings, "Frames left out, ...")
@@ -237,6 +255,86 @@ void BindSfm(py::module_& m) {
         });
       },
       "frames_dir"_a, "options"_a, "progress"_a = py::none(), "Poses from telemetry, GIL released. Prefer aos.import_telemetry.");
+
+  OptionsClass<VideoFramesOptions>(
+      m, "VideoFramesOptions",
+      "Options of import_video's frames (defaults from the C++ struct aos::VideoFramesOptions).")
+      .Table()
+      .Finish()
+      .def("check", &VideoFramesOptions::Check, "Raises ValueError naming the field.");
+  py::class_<VideoFramesResult>(m, "VideoFramesResult", "The frames import_video took.")
+      .def_readonly("frames", &VideoFramesResult::frames, "File names in frames/, time order.")
+      .def_readonly("times_s", &VideoFramesResult::times_s, "Their times in the video, seconds.")
+      .def_readonly("video_frames", &VideoFramesResult::video_frames, "Frames decoded.")
+      .def_readonly("fps", &VideoFramesResult::fps)
+      .def_readonly("width", &VideoFramesResult::width)
+      .def_readonly("height", &VideoFramesResult::height)
+      .def_readonly("srt_samples", &VideoFramesResult::srt_samples, "SRT blocks with a position.")
+      .def_readonly("srt_skipped_blocks", &VideoFramesResult::srt_skipped_blocks,
+                    "SRT blocks without one (before a GPS fix).")
+      .def_readonly("yaw_from", &VideoFramesResult::yaw_from)
+      .def_readonly("pitch_from", &VideoFramesResult::pitch_from)
+      .def_readonly("altitude_from", &VideoFramesResult::altitude_from)
+      .def("__repr__", [](const VideoFramesResult& r) {
+        return "VideoFramesResult(frames=" + std::to_string(r.frames.size()) + " of " +
+               std::to_string(r.video_frames) + ", yaw_from='" + r.yaw_from + "')";
+      });
+  py::class_<VideoImportResult>(m, "VideoImportResult", "What import_video wrote.")
+      .def_readonly("frames", &VideoImportResult::frames)
+      .def_readonly("telemetry", &VideoImportResult::telemetry,
+                    "The posing, as import_telemetry reports it (its light_field as written).")
+      .def_readonly("light_field_path", &VideoImportResult::light_field_path)
+      .def("__repr__", [](const VideoImportResult& r) {
+        return "VideoImportResult(views=" + std::to_string(r.telemetry.light_field.views.size()) +
+               ", light_field_path='" + r.light_field_path + "')";
+      });
+  m.def(
+      "_import_video",
+      [](const std::string& video, const std::string& output_dir,
+         const VideoFramesOptions& options, const TelemetryOptions& telemetry,
+         const py::object& progress) {
+        const VideoFramesOptions options_copy = options;
+        const TelemetryOptions telemetry_copy = telemetry;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          return ImportVideo(video, output_dir, options_copy, telemetry_copy, sink);
+        });
+      },
+      "video"_a, "output_dir"_a, "options"_a, "telemetry"_a, "progress"_a = py::none(),
+      "Frames and poses from a drone video and its DJI SRT into a new folder, GIL released. "
+      "Prefer aos.import_video.");
+
+  py::class_<OdmGeoEntry>(m, "OdmGeoEntry", "One image line of an OpenDroneMap geo.txt.")
+      .def_readonly("line", &OdmGeoEntry::line, "Line number in the file (1-based).")
+      .def_readonly("image", &OdmGeoEntry::image)
+      .def_readonly("position", &OdmGeoEntry::position, "geo_x, geo_y, geo_z (in the file's CRS).")
+      .def_readonly("has_z", &OdmGeoEntry::has_z)
+      .def_readonly("yaw_pitch_roll_deg", &OdmGeoEntry::yaw_pitch_roll_deg,
+                    "Camera angles, degrees (yaw from true north, pitch -90 = nadir), or None.")
+      .def_readonly("accuracy_m", &OdmGeoEntry::accuracy_m,
+                    "Horizontal and vertical accuracy, metres, or None.")
+      .def_readonly("extras", &OdmGeoEntry::extras, "The rest of the line.")
+      .def("__repr__", [](const OdmGeoEntry& e) {
+        return "OdmGeoEntry(image='" + e.image + "', line=" + std::to_string(e.line) + ")";
+      });
+  py::class_<OdmGeoFile>(m, "OdmGeoFile", "An OpenDroneMap image geolocation file (sfm/odm.h).")
+      .def_readonly("projection", &OdmGeoFile::projection, "The first line as written.")
+      .def_readonly("crs", &OdmGeoFile::crs, "As PROJ takes it ('EPSG:32616' for 'WGS84 UTM 16N').")
+      .def_readonly("entries", &OdmGeoFile::entries)
+      .def("__repr__", [](const OdmGeoFile& f) {
+        return "OdmGeoFile(crs='" + f.crs + "', entries=" + std::to_string(f.entries.size()) + ")";
+      });
+  m.def("read_odm_geo", &ReadOdmGeo, "path"_a,
+        "An OpenDroneMap geo.txt (projection line, then image x y [z] [yaw pitch roll] "
+        "[accuracies]). aos.import_telemetry(frames, telemetry_file='geo.txt') poses frames "
+        "from one. Raises ValueError naming the file, line and field.");
+  m.def(
+      "write_odm_geo",
+      [](const std::string& path, const LightField& light_field, bool overwrite) {
+        WriteOdmGeo(path, light_field, overwrite);
+      },
+      "path"_a, "light_field"_a, "overwrite"_a = false,
+      "Writes a geo-referenced light field's camera centres (its CRS) and angles (yaw from true "
+      "north, pitch -90 = nadir) as OpenDroneMap's geo.txt (odm --geo).");
 }
 
 }  // namespace aos::python

@@ -59,6 +59,7 @@ from ._keywords import (
     SimulateKeywords,
     SurfaceIntegralKeywords,
     TelemetryKeywords,
+    VideoKeywords,
 )
 
 if TYPE_CHECKING:
@@ -67,6 +68,13 @@ from ._core import (
     AltitudeOutlier,
     TelemetryOptions,
     TelemetryResult,
+    VideoFramesOptions,
+    VideoFramesResult,
+    VideoImportResult,
+    OdmGeoEntry,
+    OdmGeoFile,
+    read_odm_geo,
+    write_odm_geo,
     PosesOptions,
     GroundOptions,
     GroundResult,
@@ -166,6 +174,14 @@ __all__ = [
     "TelemetryOptions",
     "TelemetryResult",
     "import_telemetry",
+    "import_video",
+    "VideoFramesOptions",
+    "VideoFramesResult",
+    "VideoImportResult",
+    "OdmGeoEntry",
+    "OdmGeoFile",
+    "read_odm_geo",
+    "write_odm_geo",
     "CalibrateOptions",
     "CalibrationResult",
     "calibrate",
@@ -457,6 +473,14 @@ _ESTIMATE_GROUND = _Router("estimate_ground", GroundOptions, keywords="GroundKey
 
 
 _IMPORT_TELEMETRY = _Router("import_telemetry", TelemetryOptions, keywords="TelemetryKeywords")
+# The video import writes its own telemetry CSV: the log's fields are not keywords.
+_IMPORT_VIDEO = _Router(
+    "import_video",
+    VideoFramesOptions,
+    TelemetryOptions,
+    keywords="VideoKeywords",
+    exclude=[("telemetry_file",), ("frame_interval_s",), ("time_offset_s",), ("altitude",)],
+)
 
 
 def render_integral(
@@ -1045,6 +1069,36 @@ def import_telemetry(
     merged = _copy_options("import_telemetry", TelemetryOptions, options)
     _IMPORT_TELEMETRY.apply([merged], dict(kwargs))
     return _core._import_telemetry(os.fspath(frames_dir), merged, progress)
+
+
+def import_video(
+    video: "str | os.PathLike[str]",
+    output_dir: "str | os.PathLike[str]",
+    options: Optional[VideoFramesOptions] = None,
+    telemetry: Optional[TelemetryOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Unpack[VideoKeywords],
+) -> VideoImportResult:
+    """A drone video and its DJI subtitle telemetry (``srt_file``) as a posed light field, in the
+    new folder ``output_dir`` (frames/, telemetry.csv, lightfield.json; nothing is left on an
+    error). ``kwargs`` are fields of :class:`VideoFramesOptions` (srt_file, frame_every_s,
+    frame_every_m, srt_altitude, fixed_pitch_deg, srt_offset_s) or of :class:`TelemetryOptions`
+    (the camera, references and outlier rule, as :func:`import_telemetry` takes them). Frames are
+    decoded with OpenCV. The result's ``telemetry`` states every assumption (order, references,
+    altitude outliers) and ``frames`` what was taken and how it was oriented.
+
+    Example::
+
+        result = aos.import_video("DJI_0001.MP4", "flight", srt_file="DJI_0001.SRT",
+                                  frame_every_m=2.0, fov_deg=70, altitude_reference="takeoff",
+                                  dem="dem.tif")
+        lf = aos.load_lightfield(result.light_field_path).light_field
+    """
+    merged = _copy_options("import_video", VideoFramesOptions, options)
+    posing = _copy_options("import_video", TelemetryOptions, telemetry)
+    _IMPORT_VIDEO.apply([merged, posing], dict(kwargs))
+    return _core._import_video(os.fspath(video), os.fspath(output_dir), merged, posing, progress)
 
 
 def view(light_field: "LightField | str | os.PathLike[str]", **kwargs: Any) -> Any:

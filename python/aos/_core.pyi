@@ -2054,9 +2054,137 @@ class TelemetryResult:
     @property
     def warnings(self) -> list[str]: ...
     @property
+    def order(self) -> str: ...
+    @property
+    def time_source(self) -> str: ...
+    @property
+    def altitude_source(self) -> str: ...
+    @property
+    def yaw_reference(self) -> str: ...
+    @property
+    def declination_deg(self) -> float: ...
+    @property
     def max_convergence_deg(self) -> float: ...
+    @property
+    def altitude_reference(self) -> str: ...
+    @property
+    def takeoff_height_m(self) -> float: ...
+    @property
+    def takeoff_height_from(self) -> str: ...
 
 def _import_telemetry(
     frames_dir: str, options: TelemetryOptions, progress: _Progress = None
 ) -> TelemetryResult: ...
+
+class VideoFramesOptions:
+    """Options of import_video's frames (defaults from the C++ struct aos::VideoFramesOptions)."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        srt_file: str = ...,
+        frame_every_s: float = ...,
+        frame_every_m: float = ...,
+        srt_altitude: Literal['relative', 'absolute'] = ...,
+        fixed_pitch_deg: float | None = ...,
+        srt_offset_s: float = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    srt_file: str
+    """DJI subtitle telemetry (.SRT) of the video: time, position, altitudes, gimbal angles where
+    present."""
+    frame_every_s: float
+    """Take a frame every this many seconds of video; 0 = by distance. [s, >= 0 and finite]"""
+    frame_every_m: float
+    """Take a frame every this many metres of flight; 0 = by time. [m, >= 0 and finite]"""
+    srt_altitude: Literal['relative', 'absolute']
+    """Which SRT altitude becomes alt: 'relative' (above the take-off point) or 'absolute'. [one of
+    relative or absolute]"""
+    fixed_pitch_deg: float | None
+    """Camera pitch when the SRT has no gimbal angles (-90 = nadir); the yaw is then the direction
+    of flight. [deg]"""
+    srt_offset_s: float
+    """The SRT time of the video's first frame, seconds. [s, finite]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> VideoFramesOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
+    def check(self) -> None: ...
+
+class VideoFramesResult:
+    """The frames import_video took."""
+
+    @property
+    def frames(self) -> list[str]: ...
+    @property
+    def times_s(self) -> list[float]: ...
+    @property
+    def video_frames(self) -> int: ...
+    @property
+    def fps(self) -> float: ...
+    @property
+    def width(self) -> int: ...
+    @property
+    def height(self) -> int: ...
+    @property
+    def srt_samples(self) -> int: ...
+    @property
+    def srt_skipped_blocks(self) -> int: ...
+    @property
+    def yaw_from(self) -> str: ...
+    @property
+    def pitch_from(self) -> str: ...
+    @property
+    def altitude_from(self) -> str: ...
+
+class VideoImportResult:
+    """What import_video wrote."""
+
+    @property
+    def frames(self) -> VideoFramesResult: ...
+    @property
+    def telemetry(self) -> TelemetryResult: ...
+    @property
+    def light_field_path(self) -> str: ...
+
+def _import_video(
+    video: str,
+    output_dir: str,
+    options: VideoFramesOptions,
+    telemetry: TelemetryOptions,
+    progress: _Progress = None,
+) -> VideoImportResult: ...
+
+class OdmGeoEntry:
+    """One image line of an OpenDroneMap geo.txt."""
+
+    @property
+    def line(self) -> int: ...
+    @property
+    def image(self) -> str: ...
+    @property
+    def position(self) -> tuple[float, float, float]: ...
+    @property
+    def has_z(self) -> bool: ...
+    @property
+    def yaw_pitch_roll_deg(self) -> tuple[float, float, float] | None: ...
+    @property
+    def accuracy_m(self) -> tuple[float, float] | None: ...
+    @property
+    def extras(self) -> str: ...
+
+class OdmGeoFile:
+    """An OpenDroneMap image geolocation file (sfm/odm.h)."""
+
+    @property
+    def projection(self) -> str: ...
+    @property
+    def crs(self) -> str: ...
+    @property
+    def entries(self) -> list[OdmGeoEntry]: ...
+
+def read_odm_geo(path: str) -> OdmGeoFile: ...
+def write_odm_geo(path: str, light_field: LightField, overwrite: bool = False) -> None: ...
 def read_positions(path: str, crs: str = "") -> dict[str, tuple[float, float, float]]: ...

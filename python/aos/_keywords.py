@@ -299,3 +299,27 @@ class TelemetryKeywords(TypedDict, total=False):
     dem: str
     home_latitude_deg: float | None
     home_longitude_deg: float | None
+
+
+class VideoKeywords(TypedDict, total=False):
+    """Keywords of aos.import_video: the fields of VideoFramesOptions, TelemetryOptions (nested ones
+    included) that its router accepts."""
+
+    srt_file: str
+    frame_every_s: float
+    frame_every_m: float
+    srt_altitude: Literal['relative', 'absolute']
+    fixed_pitch_deg: float | None
+    srt_offset_s: float
+    camera_file: str
+    fov_deg: float
+    altitude_window: int
+    max_altitude_deviation_m: float
+    max_distance_from_centre_m: float
+    yaw_reference: Literal['true', 'grid', 'magnetic']
+    magnetic_declination_deg: float | None
+    altitude_reference: Literal['absolute', 'takeoff']
+    takeoff_height_m: float | None
+    dem: str
+    home_latitude_deg: float | None
+    home_longitude_deg: float | None

@@ -20,6 +20,7 @@
 #include "aos/geometry/heightfield.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/formats.h"
+#include "aos/sfm/odm.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/math.h"
@@ -825,6 +826,92 @@ TEST_F(Telemetry, TakeoffAltitudesAddTheGivenOrSampledGroundHeight) {
   options_.altitude_reference = "absolute";
   EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
               HasSubstr("dem: applies to altitude_reference 'takeoff' only"));
+}
+
+TEST(OdmAngles, YawPitchRollInvertWorldFromCameraRotation) {
+  for (const std::array<double, 3>& ypr : std::vector<std::array<double, 3>>{
+           {10.0, -60.0, 2.0}, {-170.0, -85.0, -3.0}, {95.0, 0.0, 0.0}, {45.0, -90.0, 0.0}}) {
+    for (const double bearing : {0.0, 0.02}) {
+      const Mat3d cam_from_world =
+          glm::transpose(WorldFromCameraRotation(ypr[0], ypr[1], ypr[2], bearing));
+      const std::array<double, 3> back = YawPitchRollOfRotation(cam_from_world, bearing);
+      for (int k = 0; k < 3; ++k) EXPECT_NEAR(back[k], ypr[k], 1e-9) << k;
+    }
+  }
+  // Straight down, a roll is folded into the yaw: the same rotation.
+  const Mat3d rolled = glm::transpose(WorldFromCameraRotation(30.0, -90.0, 5.0));
+  const std::array<double, 3> folded = YawPitchRollOfRotation(rolled);
+  EXPECT_EQ(folded[2], 0.0);
+  EXPECT_LT(AngleBetweenDeg(glm::transpose(WorldFromCameraRotation(folded[0], folded[1], 0.0)),
+                            rolled),
+            1e-9);
+}
+
+TEST_F(Telemetry, OdmGeoTxtRoundTripsThePosesAndReadsEveryField) {
+  // The CSV flight imported, written as geo.txt, and imported from it: the same poses.
+  const std::vector<TruePose> truth = Flight();
+  options_.telemetry_file = Write("log.csv", FlightCsv(truth));
+  options_.fov_deg = 60.0;
+  const LightField lf = ImportTelemetry(Path("frames"), options_).light_field;
+  WriteOdmGeo(Path("geo.txt"), lf);
+  EXPECT_THAT(ErrorOf([&] { WriteOdmGeo(Path("geo.txt"), lf); }), HasSubstr("geo.txt: exists"));
+  const OdmGeoFile geo = ReadOdmGeo(Path("geo.txt"));
+  EXPECT_EQ(geo.crs, "EPSG:32633");
+  ASSERT_EQ(geo.entries.size(), truth.size());
+  EXPECT_EQ(geo.entries[3].image, "f03.png");
+  options_.telemetry_file = Path("geo.txt");
+  const TelemetryResult result = ImportTelemetry(Path("frames"), options_);
+  EXPECT_EQ(result.source, "odm");
+  const LightField& back = result.light_field;
+  ASSERT_EQ(back.views.size(), lf.views.size());
+  for (size_t i = 0; i < lf.views.size(); ++i) {
+    SCOPED_TRACE(lf.views[i].name);
+    EXPECT_EQ(back.views[i].name, lf.views[i].name);
+    const Vec3d a = lf.views[i].cam_from_world.Center() + lf.origin;
+    const Vec3d b = back.views[i].cam_from_world.Center() + back.origin;
+    EXPECT_NEAR(glm::length(a - b), 0.0, 1e-6);
+    EXPECT_LT(AngleBetweenDeg(lf.views[i].cam_from_world.rotation,
+                              back.views[i].cam_from_world.rotation),
+              1e-6);
+  }
+  // ODM's own spellings: "WGS84 UTM 33N", tabs, accuracies and a label; comments skipped.
+  const std::string path = Write("odm.txt",
+                                 "# from ODM\nWGS84 UTM 33N\n"
+                                 "a.JPG\t545000 5318000 100 10 -90 0 0.02 0.03 gcp-ish label\n"
+                                 "b.JPG 545010 5318000\n");
+  const OdmGeoFile odm = ReadOdmGeo(path);
+  EXPECT_EQ(odm.crs, "EPSG:32633");
+  ASSERT_EQ(odm.entries.size(), 2u);
+  EXPECT_EQ(odm.entries[0].line, 3);
+  EXPECT_EQ(odm.entries[0].position, Vec3d(545000.0, 5318000.0, 100.0));
+  EXPECT_EQ((*odm.entries[0].yaw_pitch_roll_deg)[0], 10.0);
+  EXPECT_EQ((*odm.entries[0].accuracy_m)[1], 0.03);
+  EXPECT_EQ(odm.entries[0].extras, "gcp-ish label");
+  EXPECT_FALSE(odm.entries[1].has_z);
+  EXPECT_FALSE(odm.entries[1].yaw_pitch_roll_deg.has_value());
+  // Bad input: one error naming the file, the line and the field.
+  EXPECT_THAT(ErrorOf([&] { ReadOdmGeo(Write("bad1.txt", "EPSG:999999\na.JPG 1 2 3\n")); }),
+              HasSubstr("bad1.txt: line 1: projection"));
+  EXPECT_THAT(ErrorOf([&] { ReadOdmGeo(Write("bad2.txt", "EPSG:32633\na.JPG 1 2 3 4\n")); }),
+              HasSubstr("bad2.txt: line 2: camera angles: give yaw, pitch and roll together"));
+  EXPECT_THAT(ErrorOf([&] {
+                ReadOdmGeo(Write("bad3.txt", "EPSG:32633\na.JPG 1 2\na.JPG 3 4\n"));
+              }),
+              HasSubstr("bad3.txt: line 3: image_name: \"a.JPG\" is repeated"));
+  EXPECT_THAT(ErrorOf([&] { ReadOdmGeo(Write("bad4.txt", "WGS84 UTM 61N\na.JPG 1 2\n")); }),
+              HasSubstr("is not WGS84 UTM <zone 1..60><N|S>"));
+  // Importing needs the heights and angles aos poses from.
+  options_.telemetry_file = Write("flat.txt", "EPSG:32633\nf00.png 545000 5318000\n");
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
+              HasSubstr("flat.txt: line 2: geo_z: missing (image f00.png)"));
+  options_.telemetry_file = Write("flat.txt", "EPSG:32633\nf00.png 545000 5318000 100\n");
+  EXPECT_THAT(ErrorOf([&] { ImportTelemetry(Path("frames"), options_); }),
+              HasSubstr("flat.txt: line 2: yaw pitch roll: missing (image f00.png)"));
+  // Without a CRS there is nothing to write.
+  LightField local = lf;
+  local.crs.clear();
+  EXPECT_THAT(ErrorOf([&] { WriteOdmGeo(Path("local.txt"), local); }),
+              HasSubstr("local.txt: the light field has no CRS"));
 }
 
 }  // namespace

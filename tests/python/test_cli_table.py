@@ -25,6 +25,7 @@ import numpy as np
 import pytest
 
 import aos
+from avi_util import write_mjpeg_avi
 from signal_util import catches
 
 EXE = shutil.which("aos-render")
@@ -66,6 +67,8 @@ BASE: dict[str, dict[str, str]] = {
     "import-colmap": {"model": "model_dir", "--images-dir": "frames_dir", "--output": "lf.json"},
     "ground": {"lightfield": "lf.json", "--output": "dem.tif"},
     "import-telemetry": {"frames": "frames_dir", "--output": "lf.json"},
+    "import-video": {"video": "video.avi", "--srt-file": "flight.srt", "--output": "out_dir"},
+    "export-odm": {"lightfield": "lf.json", "--output": "geo.txt"},
     "simulate": {"--output-dir": "out_dir"},
     "demo": {"--output-dir": "out_dir"},
     "metrics": {"test": "a.png", "reference": "b.png"},
@@ -194,6 +197,7 @@ NOT_LONG = {
     "flags": "prints a table compiled into the executable",
     "camera": "writes one small JSON file from its flags; no loop over user-sized work",
     "resolution": "closed-form formulas over the flags; reads no file",
+    "export-odm": "reads a light field's poses (no frames) and writes one line per view",
 }
 # Known failures, xfail until fixed (the reason names the fix).
 FIXED_ELSEWHERE: dict[str, str] = {}
@@ -298,6 +302,17 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     log.write_text("\n".join(rows) + "\n")
     found["flight"] = flight
     found["log"] = log
+    # A 3000-frame Motion-JPEG video (5 minutes at 10 fps) and its SRT, every frame taken (about
+    # 3 s of decoding and writing frames), for `import-video`.
+    aos.write_image(str(root / "f.jpg"), rng.integers(0, 256, (96, 128), dtype=np.uint8))
+    write_mjpeg_avi(root / "video.avi", [(root / "f.jpg").read_bytes()] * 3000, 128, 96, 10)
+    (root / "flight.srt").write_text("\n".join(
+        f"{k + 1}\n00:{k // 600:02d}:{k // 10 % 60:02d},{k % 10 * 100:03d} --> "
+        f"00:{(k + 1) // 600:02d}:{(k + 1) // 10 % 60:02d},{(k + 1) % 10 * 100:03d}\n"
+        f"[latitude: {48.3 + 1e-5 * k:.7f}] [longitude: 14.3] [rel_alt: 30.0 abs_alt: 400.0] "
+        "[gb_yaw: 0.0 gb_pitch: -90.0 gb_roll: 0.0]\n" for k in range(3000)))
+    found["video"] = root / "video.avi"
+    found["srt"] = root / "flight.srt"
     scene = root / "scene.json"
     scene.write_text(json.dumps({
         "camera": {"width": 1024, "height": 1024, "fov_deg": 50},
@@ -335,6 +350,8 @@ def long_command(command: str, found: dict[str, Path], out: Path) -> tuple[list[
         "import-telemetry": ([str(found["flight"]), "--telemetry-file", str(found["log"]),
                               "--frames-fov-deg", "50", "-o", str(out / "lf.json")],
                              out / "lf.json"),
+        "import-video": ([str(found["video"]), "--srt", str(found["srt"]), "--frame-every-s",
+                          "0.1", "--frames-fov-deg", "50", "-o", str(out / "d")], out / "d"),
         "ground": ([lf, "--points", str(found["points"]), "--cell-size-m", "0.25", "-o",
                     str(out / "dem.tif")], out / "dem.tif"),
         "simulate": ([str(found["scene"]), "-o", str(out / "d")], out / "d"),
@@ -372,8 +389,8 @@ def cpu_seconds(pid: int) -> float:
 def test_every_command_is_in_the_cancellation_table() -> None:
     known = set(NOT_LONG) | set(NOT_YET) | {
         "integral", "stack", "allinfocus", "merge", "map", "view", "calibrate", "rectify",
-        "import-colmap", "import-telemetry", "poses", "ground", "simulate", "demo", "metrics",
-        "plan"}
+        "import-colmap", "import-telemetry", "import-video", "poses", "ground", "simulate", "demo",
+        "metrics", "plan"}
     missing = sorted(set(commands()) - known)
     assert not missing, f"add a long-running command line for {missing} to long_command()"
 
@@ -545,6 +562,10 @@ def oversized(command: str, found: dict[str, Path], large: dict[str, Path],
                              str(sparse_file(out / "log.csv", b"frame,lat,lon,alt,yaw,pitch,"
                                              b"roll\n", 20 << 30)),
                              "--frames-fov-deg", "50", "-o", str(out / "lf.json")],
+        # A 20 GB (sparse) SRT: refused by its size before it is read.
+        "import-video": [str(found["video"]), "--srt",
+                         str(sparse_file(out / "flight.srt", b"1\n", 20 << 30)),
+                         "--frames-fov-deg", "50", "-o", str(out / "d")],
         "ground": [lf, "--points", str(sparse_file(
             out / "points.ply", b"ply\nformat binary_little_endian 1.0\nelement vertex "
             b"2000000000\nproperty float x\nproperty float y\nproperty float z\nend_header\n",
@@ -570,7 +591,7 @@ def oversized(command: str, found: dict[str, Path], large: dict[str, Path],
 # Commands without an oversized case here yet, with the reason.
 MEMORY_NOT_YET: dict[str, str] = {}
 # Inputs the test itself writes (the rest of tmp_path must stay empty).
-WRITTEN_HERE = {"huge.json", "log.csv", "points.ply", "model"}
+WRITTEN_HERE = {"huge.json", "log.csv", "points.ply", "model", "flight.srt"}
 
 
 def memory_cases() -> list:

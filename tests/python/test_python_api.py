@@ -242,7 +242,8 @@ def changed(value: Any, field: str = "") -> Any:
     if value is None and field == "open_browser":  # ViewerOptions.open_browser
         return True
     if value is None and field in ("magnetic_declination_deg", "takeoff_height_m",
-                                   "home_latitude_deg", "home_longitude_deg"):  # TelemetryOptions
+                                   "home_latitude_deg", "home_longitude_deg",  # TelemetryOptions
+                                   "fixed_pitch_deg"):  # VideoFramesOptions
         return 1.5
     if value is None and field == "ground_plane":  # FocalStackOptions.ground_plane
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))

@@ -19,6 +19,7 @@
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/sfm/colmap_model.h"
+#include "aos/sfm/odm.h"
 #include "aos/util/csv.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
@@ -187,6 +188,46 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
   }
   if (!header) ThrowInvalid(path + ": no header line (frame|time, lat, lon, alt, yaw, pitch, roll)");
   if (log.rows.empty()) ThrowInvalid(path + ": no telemetry rows after the header");
+  return log;
+}
+
+const char* const kOdmNames[6] = {"geo_y (latitude)", "geo_x (longitude)", "geo_z",
+                                  "yaw", "pitch", "roll"};
+
+// OpenDroneMap's geo.txt (sfm/odm.h) as a log with a frame column: positions moved from its
+// projection to WGS84 through PROJ; every line needs geo_z and the camera angles.
+CsvLog ReadOdmGeoLog(const std::string& path) {
+  const OdmGeoFile geo = ReadOdmGeo(path);
+  std::vector<Vec3d> points;
+  for (const OdmGeoEntry& entry : geo.entries) points.push_back(entry.position);
+  const std::vector<Vec3d> wgs84 =
+      TransformPoints(points, geo.crs, "EPSG:4326", path + ": projection " + geo.projection);
+  CsvLog log;
+  for (size_t i = 0; i < geo.entries.size(); ++i) {
+    const OdmGeoEntry& entry = geo.entries[i];
+    const std::string where = path + ": line " + std::to_string(entry.line);
+    if (!entry.has_z) {
+      ThrowInvalid(where + ": geo_z: missing (image " + entry.image + "): aos needs each "
+                   "camera's height (ODM can do without it, from structure from motion)");
+    }
+    if (!entry.yaw_pitch_roll_deg) {
+      ThrowInvalid(where + ": yaw pitch roll: missing (image " + entry.image + "): aos poses "
+                   "each frame from its camera angles (ODM can do without them); give them, or "
+                   "estimate the poses with aos-render poses");
+    }
+    CsvRow row;
+    row.line = entry.line;
+    row.frame = entry.image;
+    row.sample.latitude_deg = wgs84[i].y;
+    row.sample.longitude_deg = wgs84[i].x;
+    row.sample.altitude_m = entry.position.z;
+    row.sample.yaw_deg = (*entry.yaw_pitch_roll_deg)[0];
+    row.sample.pitch_deg = (*entry.yaw_pitch_roll_deg)[1];
+    row.sample.roll_deg = (*entry.yaw_pitch_roll_deg)[2];
+    CheckSample(row.sample, where, kOdmNames);
+    CheckAltitude(row.sample.altitude_m, kMinLoggedAltitudeM, where, "geo_z");
+    log.rows.push_back(row);
+  }
   return log;
 }
 
@@ -568,10 +609,12 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
     if (ProgressCancelled(progress)) throw Cancelled();
   };
   TelemetryResult result;
-  result.source = options.telemetry_file.empty() ? "exif" : "csv";
+  const bool odm = !options.telemetry_file.empty() &&
+                   LooksLikeOdmGeo(ReadTextFile(options.telemetry_file));
+  result.source = options.telemetry_file.empty() ? "exif" : odm ? "odm" : "csv";
   result.yaw_reference = options.yaw_reference;
   result.altitude_reference = options.altitude_reference;
-  result.altitude_source = result.source == "csv" ? "csv alt" : "";
+  result.altitude_source = result.source == "csv" ? "csv alt" : odm ? "geo.txt geo_z" : "";
   // Natural name order (2.png before 10.png); capture order below where the frames have times.
   std::vector<std::string> all_frames = ListFrameFiles(frames_dir);
   if (all_frames.empty()) ThrowInvalid(frames_dir + ": no frames (png, jpg, tif, exr) found");
@@ -596,7 +639,7 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
   bool ordered = false;  // frames and samples are in view order already
   if (!options.telemetry_file.empty()) {
     const std::string& path = options.telemetry_file;
-    const CsvLog log = ReadTelemetryCsv(path);
+    const CsvLog log = odm ? ReadOdmGeoLog(path) : ReadTelemetryCsv(path);
     if (log.by_time) {
       if (options.frame_interval_s <= 0.0) {
         ThrowInvalid(path + ": a time column needs frame_interval_s (seconds between frames)");

@@ -35,6 +35,9 @@
 //         pitch = gimbal pitch: 0 = looking at the horizon, -90 = straight down (nadir);
 //         roll  = rotation about the viewing direction, positive = the image's right side down.
 //       (DJI's GimbalYawDegree / GimbalPitchDegree / GimbalRollDegree mean exactly these.)
+//   (a') OpenDroneMap's geo.txt (sfm/odm.h; a telemetry_file whose first line is a projection):
+//       image_name geo_x geo_y geo_z yaw pitch roll per line, in any CRS PROJ knows, read as a
+//       log with a frame column (positions moved to WGS84; geo_z and the angles required).
 //   (b) the frames' own tags (telemetry_file empty): EXIF GPS (GPSLatitude, GPSLongitude,
 //       GPSAltitude, read through OpenImageIO) and the XMP packet DJI drones write
 //       (drone-dji:GimbalYawDegree, GimbalPitchDegree, GimbalRollDegree, RelativeAltitude);
@@ -199,7 +202,7 @@ struct AltitudeOutlier {
 struct TelemetryResult {
   LightField light_field;                  // images not loaded; image_path = the frame files
   std::vector<std::string> frames;         // view order, relative to frames_dir
-  std::string source;                      // "csv" or "exif"
+  std::string source;                      // "csv", "odm" (geo.txt) or "exif"
   std::string order;                       // view order: "time" (capture times) or "name"
   std::string time_source;                 // "csv time column", "EXIF DateTimeOriginal" or ""
   std::string altitude_source;             // "csv alt", "XMP RelativeAltitude", "EXIF GPSAltitude"

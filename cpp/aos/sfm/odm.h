@@ -1,0 +1,76 @@
+#pragma once
+// OpenDroneMap interop: its image geolocation file (geo.txt), read as telemetry and written from
+// a light field, so that an ODM project's camera positions come into aos and aos's poses go out
+// to ODM (`odm --geo geo.txt`).
+//
+// The format (ODM's documentation, "Image Geolocation Files"):
+//   <projection>
+//   image_name geo_x geo_y [geo_z] [yaw pitch roll] [horizontal_accuracy vertical_accuracy] [extras]
+// - The projection line: an EPSG code ("EPSG:4326"), a PROJ string ("+proj=utm +zone=10 ..."),
+//   or "WGS84 UTM <zone>[N|S]" (read as EPSG:326zz / EPSG:327zz).
+// - Fields are separated by spaces or tabs; blank lines and lines starting with '#' are skipped.
+//   geo_x, geo_y are easting and northing, or longitude and latitude for a geographic CRS;
+//   geo_z is the height in metres. Angles are degrees in DJI's gimbal convention, which aos's
+//   telemetry uses too (sfm/telemetry.h): yaw clockwise from true north, pitch -90 = nadir,
+//   roll positive = the image's right side down. Accuracies are metres. Extra fields (a label)
+//   are kept as text and otherwise ignored.
+//
+// Reading: ReadOdmGeo gives the entries as they are (in the file's CRS). ImportTelemetry reads a
+// telemetry_file whose first line is a projection as geo.txt (sfm/telemetry.h): every entry
+// needs geo_z and the three angles (a pose needs them; ODM may leave them out, aos cannot), and
+// positions move to WGS84 through PROJ.
+//
+// Writing: WriteOdmGeo writes one line per view: the view's name (its frame's name), the camera
+// centre in the light field's CRS (origin + local), and yaw, pitch, roll in the convention above
+// (the heading turned from grid north to true north by the meridian convergence at the view);
+// the light field must be geo-referenced (LightField::crs). Written atomically; refuses an
+// existing file unless `overwrite`, and a path that is one of the frames.
+//
+// Errors (std::invalid_argument) name the file, the line and the field: an unknown projection, a
+// line with too few numbers, a non-numeric or non-finite value, a repeated image name; for writing,
+// a light field without a CRS or a view without a name.
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "aos/lightfield/lightfield.h"
+
+namespace aos {
+
+struct OdmGeoEntry {
+  int line = 0;                   // line number in the file (1-based)
+  std::string image;              // image_name as written
+  Vec3d position{0.0};            // geo_x, geo_y, geo_z (geo_z 0 when absent)
+  bool has_z = false;
+  std::optional<std::array<double, 3>> yaw_pitch_roll_deg;
+  std::optional<std::array<double, 2>> accuracy_m;  // horizontal, vertical
+  std::string extras;             // the rest of the line, as text
+};
+
+struct OdmGeoFile {
+  std::string projection;  // the first line as written
+  std::string crs;         // as PROJ takes it ("EPSG:32616" for "WGS84 UTM 16N")
+  std::vector<OdmGeoEntry> entries;
+};
+
+// The CRS PROJ takes for an ODM projection line; throws std::invalid_argument naming `where` for
+// one PROJ does not know.
+std::string OdmProjectionCrs(const std::string& projection, const std::string& where);
+
+// Whether `text` (a file's contents) starts, after blank and '#' lines, with a projection line
+// rather than a CSV header: its first word is "EPSG:<digits>", "+proj=..." or "WGS84".
+bool LooksLikeOdmGeo(const std::string& text);
+
+OdmGeoFile ReadOdmGeo(const std::string& path);
+
+// Yaw, pitch and roll (degrees, the convention above) of a camera rotation cam_from_world in a
+// grid whose true north is `grid_bearing_of_north_rad` clockwise from +y: the inverse of
+// WorldFromCameraRotation (sfm/telemetry.h). Looking straight down (|pitch| = 90) the roll is 0
+// and the image's rotation is in the yaw.
+std::array<double, 3> YawPitchRollOfRotation(const Mat3d& cam_from_world_rotation,
+                                             double grid_bearing_of_north_rad = 0.0);
+
+void WriteOdmGeo(const std::string& path, const LightField& light_field, bool overwrite = false);
+
+}  // namespace aos
