@@ -86,7 +86,8 @@ void ReportTelemetry(const TelemetryResult& result, const std::string& output, R
   } else {
     report.Line("altitude: %s, taken as world heights (absolute)", result.altitude_source.c_str());
   }
-  report.Line("altitude outliers replaced by the running median: %zu", result.altitude_outliers.size());
+  report.Line("altitude outliers replaced by the running median: %zu",
+              result.altitude_outliers.size());
 }
 
 int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {

@@ -2095,9 +2095,9 @@ class VideoFramesOptions:
     """DJI subtitle telemetry (.SRT) of the video: time, position, altitudes, gimbal angles where
     present."""
     frame_every_s: float
-    """Take a frame every this many seconds of video; 0 = by distance. [s, >= 0 and finite]"""
+    """Take a frame every this many seconds of video (frame_every_m 0). [s, >= 0 and finite]"""
     frame_every_m: float
-    """Take a frame every this many metres of flight; 0 = by time. [m, >= 0 and finite]"""
+    """Take a frame every this many metres of flight instead; 0 = by time. [m, >= 0 and finite]"""
     srt_altitude: Literal['relative', 'absolute']
     """Which SRT altitude becomes alt: 'relative' (above the take-off point) or 'absolute'. [one of
     relative or absolute]"""

@@ -468,6 +468,8 @@ std::optional<double> ReadCaptureTime(const std::string& path) {
   const std::string text = spec.get_string_attribute("Exif:DateTimeOriginal");
   const std::string subsec = spec.get_string_attribute("Exif:SubsecTimeOriginal");
   input->close();
+  // EXIF's "unknown": blanks or zeros ("0000:00:00 00:00:00", a camera whose clock was never set).
+  if (text.find_first_not_of(" :0-\0") == std::string::npos) return std::nullopt;
   int year = 0, month = 0, day = 0, hour = 0, minute = 0, second = 0, used = 0;
   char s1 = 0, s2 = 0;
   const bool parsed = std::sscanf(text.c_str(), "%4d%c%2d%c%2d %2d:%2d:%2d%n", &year, &s1, &month,

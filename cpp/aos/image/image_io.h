@@ -42,7 +42,8 @@ std::optional<GpsTag> ReadGpsTag(const std::string& path);
 // A frame's capture time from EXIF DateTimeOriginal ("YYYY:MM:DD HH:MM:SS", the camera's clock,
 // no time zone) and SubSecTimeOriginal (the digits of a fraction of a second) when present:
 // seconds since 1970-01-01 00:00:00 of that clock, for ordering the frames of one flight.
-// nullopt when the frame has no DateTimeOriginal. Throws like ReadImageInfo for an unreadable
+// nullopt when the frame has no DateTimeOriginal, or EXIF's "unknown" (blanks, or zeros as
+// "0000:00:00 00:00:00"). Throws like ReadImageInfo for an unreadable
 // file, and for a malformed date or sub-second tag (naming the tag).
 std::optional<double> ReadCaptureTime(const std::string& path);
 

@@ -721,10 +721,14 @@ void CheckSurfaceCovers(const FocalSurface& surface, const LightField& light_fie
   const std::string name = surface.source().empty() ? "focal_surface" : surface.source();
   // The surface behind the cameras first (the cause named outright), then its extent and CRS.
   const std::string behind = SurfaceBehindTheCameras(surface, light_field);
-  std::string message = name + ": no pixel is covered: " +
-                        (!behind.empty() ? behind
-                                         : "the surface does not cover " + what +
-                                               " (or no view sees it); check its extent and CRS");
+  const bool plane = surface.kind() == FocalSurfaceKind::kPlane;
+  std::string message =
+      name + ": no pixel is covered: " +
+      (!behind.empty() ? behind
+       : plane ? "no view sees the plane where " + what + " meets it; check the camera pose, "
+                 "view_indices, min_view_count and the masks"
+               : "the surface does not cover " + what +
+                     " (or no view sees it); check its extent and CRS");
   const std::array<double, 4> box = surface.ExtentInWorld(light_field.origin);
   const auto range = [](double x0, double y0, double x1, double y1) {
     return "x " + FormatNumber(x0) + " .. " + FormatNumber(x1) + ", y " + FormatNumber(y0) +

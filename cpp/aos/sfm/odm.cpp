@@ -9,6 +9,7 @@
 #include <sstream>
 
 #include "aos/geometry/geodesy.h"
+#include "aos/util/csv.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/math.h"
@@ -47,16 +48,6 @@ std::vector<std::pair<int, std::string>> ContentLines(const std::string& text) {
     lines.emplace_back(number, line);
   }
   return lines;
-}
-
-double Number(const std::string& text, const std::string& where, const std::string& field) {
-  char* end = nullptr;
-  const double value = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size()) {
-    ThrowInvalid(where + ": " + field + ": \"" + text + "\" is not a number");
-  }
-  if (!std::isfinite(value)) ThrowInvalid(where + ": " + field + ": " + text + " is not finite");
-  return value;
 }
 
 bool IsNumber(const std::string& text) {
@@ -104,10 +95,13 @@ bool LooksLikeOdmGeo(const std::string& text) {
 OdmGeoFile ReadOdmGeo(const std::string& path) {
   CheckRegularFile(path, "geo file");
   const std::vector<std::pair<int, std::string>> lines = ContentLines(ReadTextFile(path));
-  if (lines.empty()) ThrowInvalid(path + ": empty: expected a projection line, then one line per image");
+  if (lines.empty()) {
+    ThrowInvalid(path + ": empty: expected a projection line, then one line per image");
+  }
   OdmGeoFile file;
   file.projection = lines.front().second;
-  file.crs = OdmProjectionCrs(file.projection, path + ": line " + std::to_string(lines.front().first));
+  file.crs = OdmProjectionCrs(file.projection,
+                              path + ": line " + std::to_string(lines.front().first));
   std::set<std::string> seen;
   for (size_t k = 1; k < lines.size(); ++k) {
     const auto& [number, text] = lines[k];
@@ -129,7 +123,9 @@ OdmGeoFile ReadOdmGeo(const std::string& path) {
     const char* const names[8] = {"geo_x", "geo_y", "geo_z", "yaw", "pitch", "roll",
                                   "horizontal accuracy", "vertical accuracy"};
     std::vector<double> v;
-    for (size_t i = 0; i < numbers; ++i) v.push_back(Number(words[1 + i], where, names[i]));
+    for (size_t i = 0; i < numbers; ++i) {
+      v.push_back(ParseFiniteNumber(words[1 + i], where, names[i]));
+    }
     entry.position = Vec3d(v[0], v[1], numbers >= 3 ? v[2] : 0.0);
     entry.has_z = numbers >= 3;
     if (numbers == 4 || numbers == 5) {
@@ -209,8 +205,8 @@ void WriteOdmGeo(const std::string& path, const LightField& light_field, bool ov
                                               path);
     const std::array<double, 3> ypr = YawPitchRollOfRotation(view.cam_from_world.rotation, bearing);
     text += view.name + " " + FormatNumber(world[i].x) + " " + FormatNumber(world[i].y) + " " +
-            FormatNumber(world[i].z) + " " + FormatNumber(ypr[0]) + " " + FormatNumber(ypr[1]) +
-            " " + FormatNumber(ypr[2]) + "\n";
+            FormatNumber(world[i].z) + " " + FormatNumber(ypr[0]) + " " +
+            FormatNumber(OdmPitchFromGimbal(ypr[1])) + " " + FormatNumber(ypr[2]) + "\n";
   }
   WriteTextFileAtomic(path, text);
 }

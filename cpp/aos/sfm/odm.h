@@ -5,15 +5,18 @@
 //
 // The format (ODM's documentation, "Image Geolocation Files"):
 //   <projection>
-//   image_name geo_x geo_y [geo_z] [yaw pitch roll] [horizontal_accuracy vertical_accuracy] [extras]
+//   image_name geo_x geo_y [geo_z] [yaw pitch roll] [horizontal vertical accuracy] [extras]
 // - The projection line: an EPSG code ("EPSG:4326"), a PROJ string ("+proj=utm +zone=10 ..."),
 //   or "WGS84 UTM <zone>[N|S]" (read as EPSG:326zz / EPSG:327zz).
 // - Fields are separated by spaces or tabs; blank lines and lines starting with '#' are skipped.
 //   geo_x, geo_y are easting and northing, or longitude and latitude for a geographic CRS;
-//   geo_z is the height in metres. Angles are degrees in DJI's gimbal convention, which aos's
-//   telemetry uses too (sfm/telemetry.h): yaw clockwise from true north, pitch -90 = nadir,
-//   roll positive = the image's right side down. Accuracies are metres. Extra fields (a label)
-//   are kept as text and otherwise ignored.
+//   geo_z is the height in metres. Angles are degrees in ODM's normalised convention
+//   (opendm/photo.py, which geo.txt angles are read as): yaw clockwise from true north (for a
+//   nadir camera: the image's top; 0 north, 90 east), pitch 0 = nadir and 90 = looking at the
+//   horizon (DJI's gimbal pitch + 90), roll as DJI's. ODM's documentation allows 0 0 0 for
+//   angles "not available": that is a nadir camera with its image top at north here, and a
+//   warning says so when every line has it. Accuracies are metres. Extra fields (a label) are
+//   kept as text and otherwise ignored.
 //
 // Reading: ReadOdmGeo gives the entries as they are (in the file's CRS). ImportTelemetry reads a
 // telemetry_file whose first line is a projection as geo.txt (sfm/telemetry.h): every entry
@@ -21,8 +24,9 @@
 // positions move to WGS84 through PROJ.
 //
 // Writing: WriteOdmGeo writes one line per view: the view's name (its frame's name), the camera
-// centre in the light field's CRS (origin + local), and yaw, pitch, roll in the convention above
-// (the heading turned from grid north to true north by the meridian convergence at the view);
+// centre in the light field's CRS (origin + local), and yaw, pitch, roll in ODM's convention
+// above (the heading turned from grid north to true north by the meridian convergence at the
+// view; pitch = aos's (DJI's) + 90);
 // the light field must be geo-referenced (LightField::crs). Written atomically; refuses an
 // existing file unless `overwrite`, and a path that is one of the frames.
 //
@@ -43,7 +47,7 @@ struct OdmGeoEntry {
   std::string image;              // image_name as written
   Vec3d position{0.0};            // geo_x, geo_y, geo_z (geo_z 0 when absent)
   bool has_z = false;
-  std::optional<std::array<double, 3>> yaw_pitch_roll_deg;
+  std::optional<std::array<double, 3>> yaw_pitch_roll_deg;  // as written (ODM's convention)
   std::optional<std::array<double, 2>> accuracy_m;  // horizontal, vertical
   std::string extras;             // the rest of the line, as text
 };
@@ -64,7 +68,13 @@ bool LooksLikeOdmGeo(const std::string& text);
 
 OdmGeoFile ReadOdmGeo(const std::string& path);
 
-// Yaw, pitch and roll (degrees, the convention above) of a camera rotation cam_from_world in a
+// Pitch in ODM's convention (0 = nadir) from DJI's / aos's telemetry convention (-90 = nadir), and
+// back.
+inline double OdmPitchFromGimbal(double gimbal_pitch_deg) { return gimbal_pitch_deg + 90.0; }
+inline double GimbalPitchFromOdm(double odm_pitch_deg) { return odm_pitch_deg - 90.0; }
+
+// Yaw, pitch and roll (degrees, aos's telemetry convention: pitch -90 = nadir) of a camera
+// rotation cam_from_world in a
 // grid whose true north is `grid_bearing_of_north_rad` clockwise from +y: the inverse of
 // WorldFromCameraRotation (sfm/telemetry.h). Looking straight down (|pitch| = 90) the roll is 0
 // and the image's rotation is in the yaw.

@@ -43,17 +43,6 @@ std::string Trim(const std::string& text) {
   return a == std::string::npos ? "" : text.substr(a, b - a + 1);
 }
 
-// The number in `text` (all of it), finite; else an error "<where>: <field>: ...".
-double ParseValue(const std::string& text, const std::string& where, const std::string& field) {
-  char* end = nullptr;
-  const double value = std::strtod(text.c_str(), &end);
-  if (text.empty() || end != text.c_str() + text.size()) {
-    ThrowInvalid(where + ": " + field + ": \"" + text + "\" is not a number");
-  }
-  if (!std::isfinite(value)) ThrowInvalid(where + ": " + field + ": " + text + " is not finite");
-  return value;
-}
-
 // Range checks shared by the CSV and the tags: `where` names the line or the frame.
 void CheckSample(const TelemetrySample& s, const std::string& where,
                  const char* const names[6]) {
@@ -163,7 +152,9 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
     }
     CsvRow row;
     row.line = record.line;
-    if (log.by_time || log.frame_time) row.time = ParseValue(fields[column["time"]], where, "time");
+    if (log.by_time || log.frame_time) {
+      row.time = ParseFiniteNumber(fields[column["time"]], where, "time");
+    }
     if (!log.by_time) {
       row.frame = fields[column["frame"]];
       if (row.frame.empty()) ThrowInvalid(where + ": frame: is empty");
@@ -175,7 +166,7 @@ CsvLog ReadTelemetryCsv(const std::string& path) {
                          &row.sample.altitude_m,   &row.sample.yaw_deg,
                          &row.sample.pitch_deg,    &row.sample.roll_deg};
     for (int k = 0; k < 6; ++k) {
-      *values[k] = ParseValue(fields[column[kCsvNames[k]]], where, kCsvNames[k]);
+      *values[k] = ParseFiniteNumber(fields[column[kCsvNames[k]]], where, kCsvNames[k]);
     }
     CheckSample(row.sample, where, kCsvNames);
     CheckAltitude(row.sample.altitude_m, kMinLoggedAltitudeM, where, "alt");
@@ -195,8 +186,9 @@ const char* const kOdmNames[6] = {"geo_y (latitude)", "geo_x (longitude)", "geo_
                                   "yaw", "pitch", "roll"};
 
 // OpenDroneMap's geo.txt (sfm/odm.h) as a log with a frame column: positions moved from its
-// projection to WGS84 through PROJ; every line needs geo_z and the camera angles.
-CsvLog ReadOdmGeoLog(const std::string& path) {
+// projection to WGS84 through PROJ, pitch from ODM's convention (0 = nadir) to the gimbal's;
+// every line needs geo_z and the camera angles. A warning when every line's angles are 0 0 0.
+CsvLog ReadOdmGeoLog(const std::string& path, std::vector<std::string>* warnings) {
   const OdmGeoFile geo = ReadOdmGeo(path);
   std::vector<Vec3d> points;
   for (const OdmGeoEntry& entry : geo.entries) points.push_back(entry.position);
@@ -222,11 +214,20 @@ CsvLog ReadOdmGeoLog(const std::string& path) {
     row.sample.longitude_deg = wgs84[i].x;
     row.sample.altitude_m = entry.position.z;
     row.sample.yaw_deg = (*entry.yaw_pitch_roll_deg)[0];
-    row.sample.pitch_deg = (*entry.yaw_pitch_roll_deg)[1];
+    row.sample.pitch_deg = GimbalPitchFromOdm((*entry.yaw_pitch_roll_deg)[1]);
     row.sample.roll_deg = (*entry.yaw_pitch_roll_deg)[2];
     CheckSample(row.sample, where, kOdmNames);
     CheckAltitude(row.sample.altitude_m, kMinLoggedAltitudeM, where, "geo_z");
     log.rows.push_back(row);
+  }
+  const bool all_zero = std::all_of(geo.entries.begin(), geo.entries.end(), [](const auto& e) {
+    return (*e.yaw_pitch_roll_deg)[0] == 0.0 && (*e.yaw_pitch_roll_deg)[1] == 0.0 &&
+           (*e.yaw_pitch_roll_deg)[2] == 0.0;
+  });
+  if (all_zero) {
+    warnings->push_back(path + ": every camera's yaw, pitch and roll are 0 (ODM's placeholder "
+                        "for angles not available): read as nadir cameras with the image top "
+                        "at true north; check that the frames were taken so");
   }
   return log;
 }
@@ -354,7 +355,7 @@ TelemetrySample SampleFromTags(const std::string& path, const std::string& altit
     }
     std::string value = *text;
     if (!value.empty() && value[0] == '+') value.erase(0, 1);  // DJI writes "+12.30"
-    return ParseValue(value, path, std::string("XMP ") + name);
+    return ParseFiniteNumber(value, path, std::string("XMP ") + name);
   };
   TelemetrySample s;
   s.latitude_deg = gps->latitude_deg;
@@ -460,8 +461,15 @@ double SampleTakeoffHeight(const std::string& path, double latitude, double long
   const int j0 = std::min(static_cast<int>(vc), dem.height - 1);
   const int i1 = std::min(i0 + 1, dem.width - 1), j1 = std::min(j0 + 1, dem.height - 1);
   const double fu = uc - i0, fv = vc - j0;
-  const double height = (1 - fv) * ((1 - fu) * dem.At(i0, j0) + fu * dem.At(i1, j0)) +
-                        fv * ((1 - fu) * dem.At(i0, j1) + fu * dem.At(i1, j1));
+  // Terms of weight 0 left out: a nodata neighbour the point does not reach is no hole.
+  double height = 0.0;
+  const auto add = [&](double weight, int i, int j) {
+    if (weight > 0.0) height += weight * dem.At(i, j);
+  };
+  add((1 - fu) * (1 - fv), i0, j0);
+  add(fu * (1 - fv), i1, j0);
+  add((1 - fu) * fv, i0, j1);
+  add(fu * fv, i1, j1);
   if (!std::isfinite(height)) {
     ThrowInvalid(path + ": dem: the raster has no height (nodata) at " + place +
                  "; give takeoff_height_m instead");
@@ -639,7 +647,7 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
   bool ordered = false;  // frames and samples are in view order already
   if (!options.telemetry_file.empty()) {
     const std::string& path = options.telemetry_file;
-    const CsvLog log = odm ? ReadOdmGeoLog(path) : ReadTelemetryCsv(path);
+    const CsvLog log = odm ? ReadOdmGeoLog(path, &result.warnings) : ReadTelemetryCsv(path);
     if (log.by_time) {
       if (options.frame_interval_s <= 0.0) {
         ThrowInvalid(path + ": a time column needs frame_interval_s (seconds between frames)");
@@ -841,6 +849,13 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
           home ? *options.home_longitude_deg : samples.front().longitude_deg,
           home ? std::string("the home point") : "the first frame " + frames.front(),
           &result.takeoff_height_from);
+      if (!home && std::abs(altitudes.front()) > 5.0) {
+        result.warnings.push_back(
+            "the take-off height was sampled under the first frame " + frames.front() + ", " +
+            FormatNumber(altitudes.front()) + " m above the take-off point: unless the drone "
+            "climbed straight up there, give the home point (home_latitude_deg, "
+            "home_longitude_deg) or takeoff_height_m");
+      }
     }
     for (double& altitude : altitudes) altitude += result.takeoff_height_m;
   }

@@ -40,9 +40,8 @@ double LerpAngle(double a, double b, double t) {
 // (the text in lower case), at a word start; nullopt when there is none.
 std::optional<double> NumberAfter(const std::string& lower, const std::string& key) {
   for (size_t at = lower.find(key); at != std::string::npos; at = lower.find(key, at + 1)) {
-    if (at > 0 && (std::isalnum(static_cast<unsigned char>(lower[at - 1])) || lower[at - 1] == '_')) {
-      continue;
-    }
+    const unsigned char before = at > 0 ? static_cast<unsigned char>(lower[at - 1]) : ' ';
+    if (std::isalnum(before) || before == '_') continue;  // inside another word
     size_t p = at + key.size();
     while (p < lower.size() && lower[p] == ' ') ++p;
     if (p >= lower.size() || lower[p] != ':') continue;
@@ -57,12 +56,21 @@ std::optional<double> NumberAfter(const std::string& lower, const std::string& k
   return std::nullopt;
 }
 
-// "GPS(lon, lat[, alt])" in `lower`: the numbers, or an empty vector.
+// "GPS(lon, lat[, n])" or "GPS (...)" in `lower`: the numbers, or an empty vector.
 std::vector<double> GpsTuple(const std::string& lower) {
-  const size_t at = lower.find("gps(");
+  size_t at = lower.find("gps");
+  while (at != std::string::npos) {
+    size_t p = at + 3;
+    while (p < lower.size() && lower[p] == ' ') ++p;
+    if (p < lower.size() && lower[p] == '(') {
+      at = p;
+      break;
+    }
+    at = lower.find("gps", at + 1);
+  }
   if (at == std::string::npos) return {};
   std::vector<double> values;
-  const char* p = lower.c_str() + at + 4;
+  const char* p = lower.c_str() + at + 1;
   for (int k = 0; k < 3; ++k) {
     while (*p == ' ') ++p;
     char* end = nullptr;
@@ -92,7 +100,8 @@ std::optional<double> RangeStart(const std::string& line, const std::string& whe
     ThrowInvalid(where + ": time: \"" + line + "\" is not HH:MM:SS,mmm --> HH:MM:SS,mmm");
   }
   std::string millis;
-  for (size_t i = static_cast<size_t>(used); i < start.size() && std::isdigit(static_cast<unsigned char>(start[i])); ++i) {
+  for (size_t i = static_cast<size_t>(used);
+       i < start.size() && std::isdigit(static_cast<unsigned char>(start[i])); ++i) {
     millis += start[i];
   }
   if (millis.empty() || millis.size() > 3) {
@@ -151,13 +160,12 @@ SrtLog ReadDjiSrt(const std::string& path, ProgressSink* progress) {
     std::optional<double> lat = NumberAfter(text, "latitude");
     std::optional<double> lon = NumberAfter(text, "longitude");
     if (!lon) lon = NumberAfter(text, "longtitude");  // some models' spelling
-    std::optional<double> gps_altitude;
     if (!lat || !lon) {
+      // Its third number is not read: a satellite count on some models, an altitude on others.
       const std::vector<double> gps = GpsTuple(text);
       if (!gps.empty()) {
         lon = gps[0];
         lat = gps[1];
-        if (gps.size() == 3) gps_altitude = gps[2];
       }
     }
     // No position, or DJI's 0, 0 before a GPS fix: skipped.
@@ -166,14 +174,17 @@ SrtLog ReadDjiSrt(const std::string& path, ProgressSink* progress) {
       continue;
     }
     const std::string at = path + ": line " + std::to_string(s.line);
-    if (std::abs(*lat) > 90.0) ThrowInvalid(at + ": latitude: " + FormatNumber(*lat) + " is outside [-90, 90]");
-    if (std::abs(*lon) > 180.0) ThrowInvalid(at + ": longitude: " + FormatNumber(*lon) + " is outside [-180, 180]");
+    if (std::abs(*lat) > 90.0) {
+      ThrowInvalid(at + ": latitude: " + FormatNumber(*lat) + " is outside [-90, 90]");
+    }
+    if (std::abs(*lon) > 180.0) {
+      ThrowInvalid(at + ": longitude: " + FormatNumber(*lon) + " is outside [-180, 180]");
+    }
     s.latitude_deg = *lat;
     s.longitude_deg = *lon;
     s.relative_altitude_m = NumberAfter(text, "rel_alt");
     if (!s.relative_altitude_m) s.relative_altitude_m = NumberAfter(text, "barometer");
     s.absolute_altitude_m = NumberAfter(text, "abs_alt");
-    if (!s.absolute_altitude_m) s.absolute_altitude_m = gps_altitude;
     if (!s.absolute_altitude_m && !s.relative_altitude_m) {
       s.absolute_altitude_m = NumberAfter(text, "altitude");
     }
@@ -242,8 +253,9 @@ VideoFramesResult ExtractVideoFrames(const std::string& video_path, const std::s
     if (!a) {
       ThrowInvalid(srt + ": line " + std::to_string(s.line) + ": " +
                    (relative ? "rel_alt (or BAROMETER)" : "abs_alt (or GPS's altitude)") +
-                   ": missing; srt_altitude '" + options.srt_altitude + "' needs it in every block" +
-                   (relative ? " (give srt_altitude 'absolute'?)" : " (give srt_altitude 'relative'?)"));
+                   ": missing; srt_altitude '" + options.srt_altitude +
+                   "' needs it in every block (give srt_altitude '" +
+                   (relative ? "absolute" : "relative") + "'?)");
     }
     altitudes.push_back(*a);
   }
@@ -258,17 +270,26 @@ VideoFramesResult ExtractVideoFrames(const std::string& video_path, const std::s
     for (size_t i = 0; i < samples.size(); ++i) angles[i] = *samples[i].gimbal_yaw_pitch_roll_deg;
     result.yaw_from = "SRT gimbal yaw";
     result.pitch_from = "SRT gimbal pitch and roll";
+    if (options.fixed_pitch_deg) {
+      result.warnings.push_back("fixed_pitch_deg is not used: the SRT has gimbal angles in every "
+                                "block");
+    }
   } else {
     if (!options.fixed_pitch_deg) {
       ThrowInvalid(srt + ": the SRT has no gimbal angles (gb_yaw, gb_pitch) in every block: give "
                    "fixed_pitch_deg (the camera's pitch, -90 = nadir); the yaw is then the "
                    "direction of flight");
     }
-    // Course over ground at each sample, from its neighbours; a hover (under 0.5 m/s) keeps the
-    // course before it (or the first defined one).
+    // Course over ground at each sample, over at least a second of track around it (DJI logs
+    // positions to about 0.1 m at up to 30 Hz: neighbours alone give noise, not a course); a
+    // hover (under 0.5 m/s) keeps the course before it (or the first defined one).
     std::vector<std::optional<double>> course(samples.size());
     for (size_t i = 0; i < samples.size(); ++i) {
-      const size_t a = i == 0 ? 0 : i - 1, b = std::min(i + 1, samples.size() - 1);
+      size_t a = i, b = i;
+      while (samples[b].time_s - samples[a].time_s < 1.0 && (a > 0 || b + 1 < samples.size())) {
+        if (a > 0) --a;
+        if (b + 1 < samples.size()) ++b;
+      }
       const Vec2d d = EastNorth(samples[a], samples[b]);
       const double dt = samples[b].time_s - samples[a].time_s;
       if (dt > 0.0 && std::hypot(d.x, d.y) / dt >= 0.5) course[i] = std::atan2(d.x, d.y) / kDeg;
@@ -349,7 +370,8 @@ VideoFramesResult ExtractVideoFrames(const std::string& video_path, const std::s
     char row[320];
     std::snprintf(row, sizeof(row), "%s,%.6f,%.10f,%.10f,%.4f,%.6f,%.6f,%.6f\n", name, t,
                   a.latitude_deg + f * (b.latitude_deg - a.latitude_deg),
-                  std::remainder(lon, 360.0), altitudes[segment] + f * (altitudes[segment + 1] - altitudes[segment]),
+                  std::remainder(lon, 360.0),
+                  altitudes[segment] + f * (altitudes[segment + 1] - altitudes[segment]),
                   LerpAngle(angles[segment][0], angles[segment + 1][0], f),
                   angles[segment][1] + f * (angles[segment + 1][1] - angles[segment][1]),
                   LerpAngle(angles[segment][2], angles[segment + 1][2], f));
@@ -386,13 +408,17 @@ VideoImportResult ImportVideo(const std::string& video_path, const std::string& 
   const fs::path root(folder.TempPath());
   std::error_code error;
   fs::create_directories(root / "frames", error);
-  if (error) ThrowInvalid((root / "frames").string() + ": cannot create the folder (" + error.message() + ")");
+  if (error) {
+    ThrowInvalid((root / "frames").string() + ": cannot create the folder (" + error.message() +
+                 ")");
+  }
   VideoImportResult result;
   posing.telemetry_file = (root / "telemetry.csv").string();
   result.frames = ExtractVideoFrames(video_path, (root / "frames").string(),
                                      posing.telemetry_file, options, progress);
   result.telemetry = ImportTelemetry((root / "frames").string(), posing, progress);
   result.telemetry.source = "video";
+  result.telemetry.time_source = "the SRT's times (telemetry.csv's time column)";
   if (options.srt_altitude == "relative" && telemetry.altitude_reference == "absolute") {
     result.telemetry.warnings.push_back(
         "altitudes are the SRT's rel_alt (above the take-off point) but altitude_reference is "
@@ -407,7 +433,8 @@ VideoImportResult ImportVideo(const std::string& video_path, const std::string& 
   // The light field as written: its frames in output_dir now.
   result.light_field_path = (fs::path(output_dir) / "lightfield.json").string();
   for (View& view : result.telemetry.light_field.views) {
-    view.image_path = (fs::path(output_dir) / "frames" / fs::path(view.image_path).filename()).string();
+    view.image_path =
+        (fs::path(output_dir) / "frames" / fs::path(view.image_path).filename()).string();
   }
   return result;
 }

@@ -6,22 +6,25 @@
 // The SRT (ReadDjiSrt): numbered blocks "index / HH:MM:SS,mmm --> HH:MM:SS,mmm / text lines",
 // one per video frame or per second. A block's time is its start. From the text (any DJI model's
 // layout, HTML tags ignored, keys in any case at a word start, then ':' with spaces allowed):
-//   latitude, longitude             "[latitude: 48.12] [longitude: 15.12]", or "GPS(lon, lat, alt)"
+//   latitude, longitude             "[latitude: 48.12] [longitude: 15.12]", or "GPS(lon, lat, n)"
+//                                   (also "GPS (...)"; n, a satellite count on some models, unused)
 //   relative altitude (take-off)    "rel_alt: 30.1", or "BAROMETER: 30.1" (older models)
-//   absolute altitude               "abs_alt: 350.2", or GPS(...)'s third number
+//   absolute altitude               "abs_alt: 350.2", or "altitude: 350.2" alone
 //   gimbal yaw, pitch, roll         "gb_yaw: 10.0 gb_pitch: -90.0 gb_roll: 0.0" (where present)
 // Blocks without a position are skipped (counted); times must increase.
 //
 // Frames (ExtractVideoFrames): the video is decoded with OpenCV (its FFmpeg backend: MP4, MOV,
-// AVI, ...) sequentially; frame k is at time k / fps (+ srt_offset_s on the SRT's clock). One frame
-// is taken every frame_every_s seconds, or (frame_every_m > 0) every frame_every_m metres of flight
-// (3-D distance along the SRT track), from the first frame the SRT covers to the last; each is written as
-// "<frames_dir>/<k, 6 digits>.png" (8-bit, the video's colour) and its telemetry interpolated
-// linearly between the SRT samples around its time (yaw and longitude along the shorter arc).
-// Orientation: the SRT's gimbal angles where every sample has them; else yaw = the direction of
-// flight (course over ground between the samples around the frame; a hover keeps the last
-// course), pitch = fixed_pitch_deg (required then), roll 0: what the summary states
-// (VideoFramesResult::yaw_from, pitch_from).
+// AVI, ...) sequentially; frame k is at time k / fps (+ srt_offset_s on the SRT's clock). One
+// frame is taken every frame_every_s seconds, or (frame_every_m > 0) every frame_every_m metres
+// of flight (3-D distance along the SRT track, on the WGS84 ellipsoid), from the first frame the
+// SRT covers to the last; each is written as "<frames_dir>/<k, 6 digits>.png" (8-bit, the
+// video's colour) and its telemetry interpolated linearly between the SRT samples around its
+// time (yaw and longitude along the shorter arc).
+// Orientation: the SRT's gimbal angles where every sample has them (fixed_pitch_deg is then
+// unused, with a warning); else yaw = the direction of flight (course over ground over at least
+// a second of track around the sample; a hover under 0.5 m/s keeps the last course), pitch =
+// fixed_pitch_deg (required then), roll 0: what the summary states (VideoFramesResult::yaw_from,
+// pitch_from).
 //
 // The telemetry CSV (telemetry_csv) has the columns frame, time, lat, lon, alt, yaw, pitch, roll,
 // one row per frame written, and is what ImportTelemetry reads (a frame column with capture
@@ -108,7 +111,7 @@ struct VideoFramesResult {
   std::string yaw_from;    // "SRT gimbal yaw" or "direction of flight"
   std::string pitch_from;  // "SRT gimbal pitch" or "fixed_pitch_deg = -90"
   std::string altitude_from;  // "SRT rel_alt (above the take-off point)" or "SRT abs_alt"
-  std::vector<std::string> warnings;
+  std::vector<std::string> warnings;  // options not used, ...
 };
 
 VideoFramesResult ExtractVideoFrames(const std::string& video_path, const std::string& frames_dir,

@@ -1,5 +1,8 @@
 #include "aos/util/csv.h"
 
+#include <cmath>
+#include <cstdlib>
+
 #include "aos/util/error.h"
 
 namespace aos {
@@ -94,6 +97,17 @@ std::vector<CsvRecord> ParseCsv(const std::string& text, const std::string& path
     records.push_back(std::move(record));
   }
   return records;
+}
+
+double ParseFiniteNumber(const std::string& text, const std::string& where,
+                         const std::string& field) {
+  char* end = nullptr;
+  const double value = std::strtod(text.c_str(), &end);
+  if (text.empty() || end != text.c_str() + text.size()) {
+    ThrowInvalid(where + ": " + field + ": \"" + text + "\" is not a number");
+  }
+  if (!std::isfinite(value)) ThrowInvalid(where + ": " + field + ": " + text + " is not finite");
+  return value;
 }
 
 }  // namespace aos

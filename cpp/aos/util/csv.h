@@ -27,4 +27,10 @@ struct CsvRecord {
 // The records of `text` (a file's contents); `path` names the file in errors.
 std::vector<CsvRecord> ParseCsv(const std::string& text, const std::string& path);
 
+// The number a text field holds (all of it: strtod's syntax), finite; else std::invalid_argument
+// "<where>: <field>: \"x\" is not a number" or "...: inf is not finite". For the fields of
+// CSV and other text tables (telemetry logs, OpenDroneMap's geo.txt).
+double ParseFiniteNumber(const std::string& text, const std::string& where,
+                         const std::string& field);
+
 }  // namespace aos
