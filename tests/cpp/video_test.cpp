@@ -152,6 +152,19 @@ TEST_F(Video, ASimulatedFlightAsVideoAndSrtRendersTheTargetLikeItsFrames) {
   ASSERT_EQ(frames.frames.size(), 31u);
   EXPECT_EQ(frames.frames[12], "000012.png");
   EXPECT_EQ(frames.yaw_from, "SRT gimbal yaw");
+  EXPECT_TRUE(frames.warnings.empty());  // the SRT spans the video (3.1 s)
+  // Another video's SRT (its first 10 blocks: 1 s of the 3.1 s video) is warned about.
+  {
+    VideoFramesOptions short_srt = options;
+    short_srt.srt_file = Write("short.srt", srt.substr(0, srt.find("11\n00:00:01,000")));
+    std::filesystem::create_directories(dir_ / "frames_short");
+    const VideoFramesResult partial = ExtractVideoFrames(video, Path("frames_short"),
+                                                         Path("telemetry_short.csv"), short_srt);
+    EXPECT_EQ(partial.frames.size(), 10u);
+    ASSERT_EQ(partial.warnings.size(), 1u);
+    EXPECT_THAT(partial.warnings[0], HasSubstr("the video lasts 3.1 s but its SRT"));
+    EXPECT_THAT(partial.warnings[0], HasSubstr("is it this video's SRT?"));
+  }
 
   TelemetryOptions telemetry;
   telemetry.telemetry_file = Path("telemetry.csv");

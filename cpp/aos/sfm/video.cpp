@@ -385,6 +385,21 @@ VideoFramesResult ExtractVideoFrames(const std::string& video_path, const std::s
                  " frames at " + FormatNumber(result.fps) + " fps; srt_offset_s " +
                  FormatNumber(options.srt_offset_s) + ")");
   }
+  // An SRT that covers much less (or more) than the video is likely another video's: the frames
+  // taken would be posed from another flight's log, plausibly. Its block spacing (or 2 s, or 5 %
+  // of the video) is allowed: the last block covers the time after its start.
+  const double frames_in_video =
+      frame_count > 0 ? frame_count : static_cast<double>(result.video_frames);
+  const double video_s = frames_in_video / result.fps;
+  const double srt_s = t_last + (t_last - t_first) / (samples.size() - 1) - options.srt_offset_s;
+  if (std::abs(video_s - srt_s) > std::max(2.0, 0.05 * video_s) ||
+      t_first - options.srt_offset_s > 2.0) {
+    result.warnings.push_back(
+        "the video lasts " + FormatNumber(video_s) + " s but its SRT " + options.srt_file +
+        " covers " + FormatNumber(t_first) + " .. " + FormatNumber(t_last) +
+        " s (srt_offset_s " + FormatNumber(options.srt_offset_s) +
+        "): is it this video's SRT? Only the frames inside the SRT's times were taken");
+  }
   WriteTextFileAtomic(telemetry_csv, csv);
   return result;
 }

@@ -26,6 +26,10 @@
 // fixed_pitch_deg (required then), roll 0: what the summary states (VideoFramesResult::yaw_from,
 // pitch_from).
 //
+// A warning (VideoFramesResult::warnings) says when the SRT's span and the video's length differ
+// by more than 2 s and 5 % of the video, or the SRT starts more than 2 s into it: likely another
+// video's SRT, or one out of sync (srt_offset_s).
+//
 // The telemetry CSV (telemetry_csv) has the columns frame, time, lat, lon, alt, yaw, pitch, roll,
 // one row per frame written, and is what ImportTelemetry reads (a frame column with capture
 // times). alt is the SRT's relative altitude (srt_altitude "relative", above the take-off point:
