@@ -2,7 +2,8 @@
 # Installs everything aos needs on a Debian 12 machine, as root, from the repository root:
 #   1. Debian packages: compiler and build tools, OpenCV (with contrib), Embree 3, GLM,
 #      OpenImageIO, COLMAP, GDAL/PROJ (geodata), the header-only/test libraries the core uses, and
-#      Chromium with its WebDriver (the browser tests of `aos-render view`).
+#      Chromium with its WebDriver (the browser tests of `aos-render view`), and ExifTool (FLIR
+#      radiometric frames).
 #   2. The Python package with its `aos-render` executable (pip install '.[test]'), into the
 #      python3 on PATH, or into a virtual environment at /opt/aos-venv when that python3 is
 #      Debian's externally managed one (then aos-render is linked into /usr/local/bin).
@@ -14,7 +15,7 @@ packages=(
   libopencv-dev libopencv-contrib-dev libembree-dev libglm-dev
   libopenimageio-dev openimageio-tools colmap libsqlite3-dev
   nlohmann-json3-dev libcli11-dev libgtest-dev libgmock-dev zlib1g-dev libpng-dev libproj-dev
-  proj-data libgdal-dev gdal-bin chromium chromium-driver
+  proj-data libgdal-dev gdal-bin chromium chromium-driver libimage-exiftool-perl
 )
 # Debian's own Python (missing, or externally managed) needs its headers and venv support.
 if ! command -v python3 >/dev/null 2>&1 || python3 -c 'import os, sys, sysconfig

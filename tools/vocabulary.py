@@ -123,6 +123,10 @@ NOT_ON_THE_CLI = {
     ("import-video", "telemetry.frame_interval_s"): "the CSV gives each frame's time",
     ("import-video", "telemetry.time_offset_s"): "the CSV gives each frame's time",
     ("import-video", "telemetry.altitude"): "EXIF/XMP only; --srt-altitude picks the SRT's",
+    ("import-video", "telemetry.radiometric"): "decoded video frames are not radiometric",
+    ("import-video", "telemetry.kelvin_per_count"): "decoded video frames are not radiometric",
+    ("import-video", "telemetry.kelvin_offset"): "decoded video frames are not radiometric",
+    ("import-video", "telemetry.temperature_frames_dir"): "decoded video frames are not radiometric",
 }
 
 # Fields whose flag prints no default in --help, because "not given" is the default and means
@@ -131,6 +135,7 @@ NOT_ON_THE_CLI = {
 NO_PRINTED_DEFAULT = {"cam_from_world", "pose_view", "view_indices", "camera_file", "focal_surface",
                       "ground_plane",  # --ground FILE: none = first_plane/last_plane
                       "positions_file", "positions_crs", "workspace", "telemetry_file", "srt_file",
+                      "temperature_frames_dir",  # none: only with radiometric flir
                       "pose_error_px", "pose_error_m",  # exclusive flags; none = no pose error
                       "fy", "cx", "cy",  # camera: fy = fx, cx/cy = the centre
                       "extent",  # the map's extent: none = the views' footprints

@@ -61,6 +61,11 @@ CommandRunner DefineFlags(CLI::App* command) {
 const CommandEntry kCommands[] = {
     {"integral", "Render an integral image (Eq. 1) of a light field onto a focal plane",
      DefineIntegral},
+    {"detect",
+     "Find the person: anomaly detection (RX, local RX, or a temperature) on an integral image, "
+     "the detections located on the focal surface and in WGS84, written as GeoJSON, KML, CSV "
+     "and an overlay",
+     DefineDetect},
     {"stack",
      "Render a focal stack: N slices between two boundary planes, written as a folder of float32 "
      "TIFFs with stack.json",
@@ -122,6 +127,10 @@ const CommandEntry kCommands[] = {
      "Write a geo-referenced light field's camera positions and angles as OpenDroneMap's "
      "geo.txt (odm --geo)",
      DefineExportOdm},
+    {"check-gcp",
+     "Check a geo-referenced light field's poses against ground control (OpenDroneMap's "
+     "gcp_list.txt): the reprojection error of each sighting, in pixels and on the ground",
+     DefineCheckGcp},
     {"simulate",
      "Simulate a scene (docs/scenes.md): write its views, the light field (recorded poses) and "
      "the ground truth into a new folder",

@@ -31,6 +31,8 @@ CommandRunner DefineImportColmap(CLI::App* command);
 CommandRunner DefineGround(CLI::App* command);
 CommandRunner DefineImportTelemetry(CLI::App* command);
 CommandRunner DefineExportOdm(CLI::App* command);
+CommandRunner DefineCheckGcp(CLI::App* command);
+CommandRunner DefineDetect(CLI::App* command);
 CommandRunner DefineImportVideo(CLI::App* command);
 CommandRunner DefineMetrics(CLI::App* command);
 CommandRunner DefinePlan(CLI::App* command);

@@ -7,6 +7,7 @@
 #include <optional>
 
 #include "aos/image/image_io.h"
+#include "aos/image/radiometry.h"
 #include "aos/metrics/quality.h"
 #include "aos/util/error.h"
 #include "aos/util/memory.h"
@@ -93,6 +94,20 @@ int RunMetrics(const MetricsCommand& c, const Flags& flags) {
   report.Set("mse_pixels", static_cast<long long>(r.mse_pixels));
   report.Set("ssim_pixels", static_cast<long long>(r.ssim_pixels));
   report.Set("test_scale", r.test_scale);
+  // Temperatures: the errors are in the reference's units, which its description may map to
+  // kelvin (temperature frames, renders of radiometric light fields).
+  std::optional<Radiometry> radiometry =
+      RadiometryFromDescription(ReadImageInfo(c.reference_path).description);
+  const std::optional<Radiometry> test_radiometry =
+      RadiometryFromDescription(ReadImageInfo(c.test_path).description);
+  // The errors are in the reference's units only when the test image's values are too.
+  if (radiometry && ((test_radiometry && *test_radiometry != *radiometry) || r.test_scale != 1.0)) {
+    Note("no RMSE in kelvin: " + c.test_path + "'s values are not in " + c.reference_path +
+         "'s temperature units (" +
+         (test_radiometry ? test_radiometry->Describe() : "scaled by " + FormatNumber(r.test_scale)) +
+         " against " + radiometry->Describe() + ")");
+    radiometry.reset();
+  }
   char psnr[32];
   std::snprintf(psnr, sizeof(psnr), "%.2f", r.psnr_db);
   report.Result("PSNR %s dB  SSIM %.4f  colour SSIM %.4f  (MSE %s over %lld pixels, SSIM over "
@@ -100,6 +115,12 @@ int RunMetrics(const MetricsCommand& c, const Flags& flags) {
                 std::isfinite(r.psnr_db) ? psnr : "inf", r.ssim, r.color_ssim,
                 FormatNumber(r.mse).c_str(), static_cast<long long>(r.mse_pixels),
                 static_cast<long long>(r.ssim_pixels), FormatNumber(r.data_range).c_str());
+  if (radiometry) {
+    const double rmse_k = std::sqrt(r.mse) * radiometry->kelvin_per_unit;
+    report.Set("rmse_k", rmse_k);
+    report.Line("RMSE %.4f K (= degrees C) in temperature: the reference's values read as %s",
+                rmse_k, radiometry->Describe().c_str());
+  }
   report.Print();
   return 0;
 }

@@ -19,6 +19,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "aos/detect/detect.h"
 #include "aos/image/image_io.h"
 #include "aos/image/preview.h"
 #include "aos/lightfield/formats.h"
@@ -279,6 +280,47 @@ struct IntegralCommand {
   RenderOutput out;
 };
 
+// The focus flags of integral and detect: --focal-surface FILE, --focal-height, --focal-plane,
+// --focal-distance [--horizontal], one of them.
+void AddFocusFlags(Flags& flags, RenderArgs& args, IntegralOptions& options,
+                   double* focal_distance, bool* horizontal_plane) {
+  CLI::App* command = flags.command();
+  // Errors about focal_surface name all its flags (the first description of a field wins).
+  CLI::Option* surface = AddSurfaceFlags(flags, args, options);
+  CLI::Option* height = AddFocalHeightFlag(flags, options.focal_surface,
+                                           "Horizontal focal plane z = H (local frame, metres)");
+  auto* plane = flags.Shorthand(
+      "focal_surface", "--focal-plane", options.focal_surface,
+      [](const std::string& text) {
+        const std::vector<double> v = ParseNumbers(text, "--focal-plane", 6);
+        return FocalSurface::FromPlane(Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])});
+      },
+      "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
+  flags.Shorthand("focal_surface", "--focal-distance");
+  auto* distance = command->add_option(
+      "--focal-distance", *focal_distance,
+      "Focal plane D metres in front of the virtual camera, perpendicular to its axis (e.g. 35 "
+      "for 'focus 35 m below the drone')");
+  auto* horizontal = command->add_flag("--horizontal", *horizontal_plane,
+                                       "With --focal-distance: the horizontal plane through that "
+                                       "point instead");
+  height->excludes(plane)->excludes(distance)->excludes(surface);
+  plane->excludes(distance)->excludes(surface);
+  distance->excludes(surface);
+  horizontal->needs(distance);
+}
+
+// --focal-distance D [--horizontal] as the focal surface, once the light field is loaded.
+void ApplyFocalDistance(const LightField& light_field, double focal_distance, bool horizontal,
+                        IntegralOptions& options, const Flags& flags) {
+  if (focal_distance == 0.0) return;
+  const Rigid3d cam_from_world =
+      flags.NamingFlags([&] { return VirtualCamFromWorld(light_field, options); });
+  options.focal_surface = AsUsage([&] {
+    return FocalSurface::FromPlane(Plane::InFrontOf(cam_from_world, focal_distance, horizontal));
+  });
+}
+
 int RunIntegral(IntegralCommand& c, const Flags& flags) {
   ProgressBar progress(Common().quiet);
   // Refuse bad outputs (an input, a missing folder, a format that cannot hold the samples)
@@ -287,14 +329,7 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
   const LoadResult loaded = LoadAndResolveCamera(c.args, c.options, flags, progress,
                                                  [&](int views) { c.options.Check(views); });
   const LightField& light_field = loaded.light_field;
-  if (c.focal_distance != 0.0) {
-    const Rigid3d cam_from_world = flags.NamingFlags(
-        [&] { return VirtualCamFromWorld(light_field, c.options); });
-    c.options.focal_surface = AsUsage([&] {
-      return FocalSurface::FromPlane(
-          Plane::InFrontOf(cam_from_world, c.focal_distance, c.horizontal));
-    });
-  }
+  ApplyFocalDistance(light_field, c.focal_distance, c.horizontal, c.options, flags);
   std::vector<std::string> inputs = InputsOf(c.args.light_field_path, light_field);
   if (!c.args.focal_surface.empty()) inputs.push_back(c.args.focal_surface);
   CheckRenderOutput(c.out, inputs);
@@ -324,7 +359,8 @@ int RunIntegral(IntegralCommand& c, const Flags& flags) {
   report.Set("views_selected", result.views_selected);
   report.Set("samples", static_cast<long long>(result.samples));
   report.Set("uncovered_pixels", static_cast<long long>(result.uncovered_pixels));
-  WriteRenderOutput(result, c.out, light_field.views.front().image.type(), inputs, report);
+  WriteRenderOutput(result, c.out, light_field.views.front().image.type(), inputs, report,
+                    light_field.radiometry);
   report.Print();
   return 0;
 }
@@ -335,34 +371,166 @@ CommandRunner DefineIntegral(CLI::App* command) {
   auto c = std::make_shared<IntegralCommand>();
   Flags flags(command);
   AddRenderFlags(flags, c->args, c->options);
-  // Errors about focal_surface name all its flags (the first description of a field wins).
-  CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
-  CLI::Option* height = AddFocalHeightFlag(flags, c->options.focal_surface,
-                                           "Horizontal focal plane z = H (local frame, metres)");
-  auto* plane = flags.Shorthand(
-      "focal_surface", "--focal-plane", c->options.focal_surface,
-      [](const std::string& text) {
-        const std::vector<double> v = ParseNumbers(text, "--focal-plane", 6);
-        return FocalSurface::FromPlane(Plane{Vec3d(v[0], v[1], v[2]), Vec3d(v[3], v[4], v[5])});
-      },
-      "Focal plane through PX,PY,PZ with normal NX,NY,NZ");
-  flags.Shorthand("focal_surface", "--focal-distance");
-  auto* distance = command->add_option(
-      "--focal-distance", c->focal_distance,
-      "Focal plane D metres in front of the virtual camera, perpendicular to its axis (e.g. 35 "
-      "for 'focus 35 m below the drone')");
-  auto* horizontal = command->add_flag("--horizontal", c->horizontal,
-                                       "With --focal-distance: the horizontal plane through that "
-                                       "point instead");
-  height->excludes(plane)->excludes(distance)->excludes(surface);
-  plane->excludes(distance)->excludes(surface);
-  distance->excludes(surface);
-  horizontal->needs(distance);
+  AddFocusFlags(flags, c->args, c->options, &c->focal_distance, &c->horizontal);
   AddRenderOutputFlags(flags, c->out);
   flags.Force();
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
   flags.Remaining(c->options, {"variance"});
   return [c, flags] { return RunIntegral(*c, flags); };
+}
+
+// ---- detect ----
+
+namespace {
+
+struct DetectCommand {
+  RenderArgs args;
+  IntegralOptions options;
+  double focal_distance = 0.0;
+  bool horizontal = false;
+  DetectOptions detect;
+  std::string geojson, kml, csv, overlay, scores;
+};
+
+int RunDetect(DetectCommand& c, const Flags& flags) {
+  const std::vector<std::pair<std::string, const char*>> outputs{
+      {c.geojson, "geojson"}, {c.kml, "kml"}, {c.csv, "csv"}, {c.overlay, "overlay"},
+      {c.scores, "scores"}};
+  if (c.geojson.empty() && c.kml.empty() && c.csv.empty() && c.overlay.empty() &&
+      c.scores.empty()) {
+    ThrowUsage("--geojson, --kml, --csv, --overlay, --scores: give at least one output");
+  }
+  flags.NamingFlags([&] { c.detect.Check(); });
+  const auto check_outputs = [&](const std::vector<std::string>& inputs) {
+    for (const auto& [path, what] : outputs) {
+      if (path.empty()) continue;
+      CheckOutputPath(path, inputs, what);
+      RefuseExisting(path, what);
+    }
+    if (!c.overlay.empty()) {
+      ResolveSampleType(c.overlay, Image(1, 1, 3, PixelType::kU8), WriteImageOptions{});
+    }
+    if (!c.scores.empty()) {
+      WriteImageOptions write;
+      write.sample_type = SampleType::kF32;
+      ResolveSampleType(c.scores, Image(1, 1, 1, PixelType::kF32), write);
+    }
+  };
+  check_outputs({c.args.light_field_path});
+  ProgressBar progress(Common().quiet);
+  const LoadResult loaded = LoadAndResolveCamera(c.args, c.options, flags, progress,
+                                                 [&](int views) { c.options.Check(views); });
+  const LightField& light_field = loaded.light_field;
+  if (!c.kml.empty() && light_field.crs.empty()) {
+    ThrowInvalid(c.kml + ": kml: KML is in WGS84 longitude and latitude, but " +
+                 c.args.light_field_path + " has no CRS (not geo-referenced); write --geojson "
+                 "or --csv");
+  }
+  ApplyFocalDistance(light_field, c.focal_distance, c.horizontal, c.options, flags);
+  std::vector<std::string> inputs = InputsOf(c.args.light_field_path, light_field);
+  if (!c.args.focal_surface.empty()) inputs.push_back(c.args.focal_surface);
+  check_outputs(inputs);
+  const DetectResult result = flags.NamingFlags(
+      [&] { return Detect(light_field, c.options, c.detect, &progress); });
+  progress.Finish();
+  const long long pixels =
+      static_cast<long long>(result.render.image.width()) * result.render.image.height();
+  CheckSurfaceCovers(c.options.focal_surface, light_field, "the virtual camera's view",
+                     result.render.uncovered_pixels, pixels);
+
+  // Every output to a temporary file first, moved into place together.
+  std::vector<std::unique_ptr<PendingFile>> pending;
+  for (const std::string* path : {&c.geojson, &c.kml, &c.csv}) {
+    if (path->empty()) continue;
+    pending.push_back(std::make_unique<PendingFile>(*path));
+    WriteDetections(pending.back()->TempPath(), result, /*overwrite=*/true);
+  }
+  if (!c.overlay.empty()) {
+    pending.push_back(std::make_unique<PendingFile>(c.overlay));
+    WriteImageOptions write;
+    write.description = "aos detections: the integral image (1st..99th percentile) with each "
+                        "detection boxed in red";
+    WriteImage(pending.back()->TempPath(), DetectionOverlay(result), write);
+  }
+  if (!c.scores.empty()) {
+    pending.push_back(std::make_unique<PendingFile>(c.scores));
+    WriteImageOptions write;
+    write.sample_type = SampleType::kF32;
+    write.description = "aos anomaly scores (" + c.detect.detector + "): " +
+                        (c.detect.detector == "temperature" ? std::string("degrees C")
+                                                            : std::string("squared Mahalanobis "
+                                                                          "distance")) +
+                        "; threshold " + FormatNumber(result.threshold);
+    WriteImage(pending.back()->TempPath(), result.scores.scores, write);
+  }
+  std::vector<PendingFile*> files;
+  for (auto& file : pending) files.push_back(file.get());
+  CommitTogether(files);
+
+  Report report("detect");
+  report.Set("detections", result.detections.size());
+  report.Set("dropped", result.dropped);
+  report.Set("threshold", result.threshold);
+  report.Set("threshold_rule", result.threshold_rule);
+  report.Set("flagged_pixels", static_cast<long long>(result.flagged_pixels));
+  report.Set("dimensions", result.scores.dimensions);
+  report.Set("crs", result.crs);
+  for (const auto& [path, what] : outputs) {
+    if (!path.empty()) report.Set(what, path);
+  }
+  report.Line("%zu detections (%s: threshold %s, %lld pixels above it; %d smaller blobs or more "
+              "than --max-detections dropped)",
+              result.detections.size(), result.threshold_rule.c_str(),
+              FormatNumber(result.threshold).c_str(),
+              static_cast<long long>(result.flagged_pixels), result.dropped);
+  for (size_t i = 0; i < result.detections.size(); ++i) {
+    const Detection& d = result.detections[i];
+    std::string where = std::isfinite(d.world.x)
+                            ? "world " + FormatNumber(d.world.x) + " " + FormatNumber(d.world.y) +
+                                  " " + FormatNumber(d.world.z)
+                            : std::string("not on the focal surface");
+    if (d.lon_lat) {
+      where += " (lon " + FormatNumber(d.lon_lat->x) + ", lat " + FormatNumber(d.lon_lat->y) + ")";
+    }
+    report.Line("%zu: pixel (%.1f, %.1f), %d px, peak %s, %s, seen by %zu views%s", i + 1,
+                d.pixel.x, d.pixel.y, d.area_px, FormatNumber(d.peak_score).c_str(),
+                where.c_str(), d.views.size(),
+                std::isfinite(d.peak_celsius)
+                    ? (", peak " + FormatNumber(d.peak_celsius) + " C").c_str()
+                    : "");
+  }
+  report.Print();
+  return 0;
+}
+
+}  // namespace
+
+CommandRunner DefineDetect(CLI::App* command) {
+  auto c = std::make_shared<DetectCommand>();
+  Flags flags(command);
+  AddRenderFlags(flags, c->args, c->options);
+  AddFocusFlags(flags, c->args, c->options, &c->focal_distance, &c->horizontal);
+  command->add_option("--geojson", c->geojson,
+                      "Detections as GeoJSON (RFC 7946: WGS84 points; null geometries without a "
+                      "CRS)");
+  command->add_option("--kml", c->kml, "Detections as KML placemarks (needs a CRS)");
+  command->add_option("--csv", c->csv, "Detections as CSV (pixel, world, lon/lat, views, ...)");
+  command->add_option("--overlay", c->overlay,
+                      "The integral image with the detections boxed in red (8-bit PNG/JPEG/TIFF)");
+  command->add_option("--scores", c->scores, "The anomaly scores (float32 TIFF/EXR)");
+  for (const char* output : {"--geojson", "--kml", "--csv", "--overlay", "--scores"}) {
+    flags.Output(output);
+  }
+  flags.Field(c->detect, "detector");
+  flags.Field(c->detect, "channels");
+  flags.Field(c->detect, "quantile");
+  flags.Field(c->detect, "false_alarm_rate");
+  flags.Field(c->detect, "min_score");
+  flags.Field(c->detect, "min_temperature_c");
+  flags.Force();
+  flags.Remaining(c->detect);
+  flags.Remaining(c->options, {"variance"});
+  return [c, flags] { return RunDetect(*c, flags); };
 }
 
 // ---- stack ----

@@ -69,7 +69,7 @@ void CheckRenderOutput(const RenderOutput& out, const std::vector<std::string>& 
 
 void WriteRenderOutput(const IntegralResult& result, const RenderOutput& out,
                        PixelType views_type, const std::vector<std::string>& inputs,
-                       Report& report) {
+                       Report& report, const std::optional<Radiometry>& radiometry) {
   CheckRenderOutput(out, inputs);
   WriteImageOptions write;
   write.sample_type = ParseSampleType(out.image.sample_type);
@@ -86,6 +86,17 @@ void WriteRenderOutput(const IntegralResult& result, const RenderOutput& out,
           FormatNumber(hi) + " mapped to 0.." + (type == SampleType::kU8 ? "255" : "65535");
   }
   write.description = "aos integral image (" + how + ")";
+  if (radiometry) {
+    // What a value of the file means in kelvin: the render's values directly (float), or the
+    // integer codes through the range they were mapped from.
+    Radiometry in_file = *radiometry;
+    if (type != SampleType::kF32) {
+      const double step = (hi - lo) / (type == SampleType::kU8 ? 255.0 : 65535.0);
+      in_file.kelvin_offset = radiometry->Kelvin(lo);
+      in_file.kelvin_per_unit = radiometry->kelvin_per_unit * step;
+    }
+    write.description += "; temperatures: " + in_file.Describe();
+  }
   PendingFile image_file(out.output);
   WriteImage(image_file.TempPath(), result.image, write);
   std::optional<PendingFile> count_file;
@@ -108,6 +119,27 @@ void WriteRenderOutput(const IntegralResult& result, const RenderOutput& out,
   if (count_file) {
     report.Set("count", out.count);
     report.Line("wrote %s (count of contributing views per pixel)", out.count.c_str());
+  }
+  if (radiometry && result.image.channels() == 1) {
+    std::vector<float> values;
+    for (int y = 0; y < result.image.height(); ++y) {
+      for (int x = 0; x < result.image.width(); ++x) {
+        if (*result.count.At<uint32_t>(x, y) > 0) values.push_back(*result.image.At<float>(x, y));
+      }
+    }
+    if (!values.empty()) {
+      std::vector<double> celsius;
+      for (double p : {0.01, 0.5, 0.99}) {
+        const size_t k = static_cast<size_t>(p * static_cast<double>(values.size() - 1));
+        std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k),
+                         values.end());
+        celsius.push_back(radiometry->Celsius(values[k]));
+      }
+      report.Set("temperature_c", celsius);
+      report.Line("temperatures (%s): covered pixels %.2f .. %.2f C (1st..99th percentile), "
+                  "median %.2f C",
+                  radiometry->Describe().c_str(), celsius[0], celsius[2], celsius[1]);
+    }
   }
 }
 

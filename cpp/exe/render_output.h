@@ -1,4 +1,5 @@
 #pragma once
+#include <optional>
 // Writing one rendered image and its count map (integral, demo): -o, --count, --sample-type and
 // --range, checked before any work and written atomically together.
 #include <string>
@@ -24,9 +25,13 @@ void CheckRenderOutput(const RenderOutput& out, const std::vector<std::string>& 
 
 // Writes the image (and count map) of `result`: both go to temporary files first and are moved
 // into place only when both are complete, so a failure leaves neither. Adds the outputs to
-// `report` ("output", "count", "sample_type", "range", and a line each).
+// `report` ("output", "count", "sample_type", "range", and a line each). With `radiometry` (the
+// light field's: the values measure temperature) the file's description says how its values
+// read as kelvin, and the report gives the covered pixels' temperatures in degrees Celsius
+// ("temperature_c": 1st, 50th and 99th percentile).
 void WriteRenderOutput(const IntegralResult& result, const RenderOutput& out,
                        PixelType views_type, const std::vector<std::string>& inputs,
-                       Report& report);
+                       Report& report,
+                       const std::optional<Radiometry>& radiometry = std::nullopt);
 
 }  // namespace aos::cli

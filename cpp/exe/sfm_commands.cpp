@@ -78,10 +78,15 @@ void ReportPoses(const PosesResult& result, const std::string& output, Report& r
   report.Set("scale_deviation", result.scale_deviation);
   report.Set("implausible", result.implausible);
   report.Set("warnings", result.warnings);
+  report.Set("order", result.order);
+  report.Set("time_source", result.time_source);
   report.Line("wrote %s: %zu of %zu frames registered, %zu points, mean reprojection error "
               "%.3f px",
               output.c_str(), result.registered.size(), result.frames.size(), result.points,
               result.mean_reprojection_error_px);
+  report.Line("order: %s", result.order == "time"
+                               ? ("capture time (" + result.time_source + ")").c_str()
+                               : "frame names, natural order (2 before 10)");
   const char* unit = result.georeferenced ? " m" : " (model units: not geo-referenced)";
   if (result.georeferenced) {
     report.Set("world_frame", result.world_frame);

@@ -88,6 +88,26 @@ void ReportTelemetry(const TelemetryResult& result, const std::string& output, R
   }
   report.Line("altitude outliers replaced by the running median: %zu",
               result.altitude_outliers.size());
+  report.Set("grey", light_field.grey);
+  if (light_field.grey) report.Line("frames: integrated as grey (recorded in the light field)");
+  report.Set("radiometric", result.radiometric);
+  if (light_field.radiometry) {
+    report.Set("kelvin_per_unit", light_field.radiometry->kelvin_per_unit);
+    report.Set("kelvin_offset", light_field.radiometry->kelvin_offset);
+    report.Set("first_frame_median_c", result.first_frame_median_c);
+    report.Set("first_frame_low_c", result.first_frame_low_c);
+    report.Set("first_frame_high_c", result.first_frame_high_c);
+    const std::string from =
+        result.radiometric == "flir"
+            ? "FLIR radiometric frames converted to 16-bit frames in " +
+                  fs::path(light_field.views.front().image_path).parent_path().string()
+            : std::string("16-bit counts, linear calibration");
+    report.Line("temperatures: %s (%s); the first frame spans %.2f .. %.2f C (1st..99th "
+                "percentile), median %.2f C",
+                from.c_str(), light_field.radiometry->Describe().c_str(),
+                result.first_frame_low_c, result.first_frame_high_c,
+                result.first_frame_median_c);
+  }
 }
 
 int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
@@ -96,10 +116,21 @@ int RunImportTelemetry(TelemetryCommand& c, const Flags& flags) {
   CheckOutputPath(c.output, inputs, "output");
   RefuseExisting(c.output, "output");
   ProgressBar progress(Common().quiet);
-  const TelemetryResult result =
-      flags.NamingFlags([&] { return ImportTelemetry(c.frames_dir, c.options, &progress); });
+  const TelemetryResult result = flags.NamingFlags(
+      [&] { return ImportTelemetry(c.frames_dir, c.options, &progress, /*commit_frames=*/false); });
   progress.Finish();
-  WriteLightField(c.output, result.light_field);
+  // The temperature frames into place (the light field's writer checks its frames exist), then
+  // the light field; if that fails, the new folder goes again: an error leaves neither.
+  if (result.pending_temperature_frames) result.pending_temperature_frames->Commit();
+  try {
+    WriteLightField(c.output, result.light_field);
+  } catch (...) {
+    if (result.pending_temperature_frames) {
+      std::error_code ignored;
+      fs::remove_all(c.options.temperature_frames_dir, ignored);
+    }
+    throw;
+  }
   Report report("import-telemetry");
   ReportTelemetry(result, c.output, report);
   report.Print();
@@ -170,7 +201,73 @@ int RunExportOdm(ExportOdmCommand& c) {
   return 0;
 }
 
+struct CheckGcpCommand {
+  std::string light_field_path;
+  std::string gcp_file;
+};
+
+int RunCheckGcp(CheckGcpCommand& c) {
+  LoadOptions load;
+  load.load_images = false;
+  const LightField light_field = LoadLightField(c.light_field_path, load).light_field;
+  const OdmGcpFile gcps = ReadOdmGcp(c.gcp_file);
+  const GcpCheckResult result = CheckGcps(light_field, gcps, c.gcp_file);
+  Report report("check-gcp");
+  std::vector<double> lines, views;
+  std::vector<std::string> images, names;
+  std::vector<double> error_px, ground_m;
+  for (const GcpResidual& r : result.residuals) {
+    lines.push_back(r.line);
+    images.push_back(r.image);
+    names.push_back(r.name);
+    views.push_back(r.view);
+    error_px.push_back(r.error_px);
+    ground_m.push_back(r.ground_error_norm_m);
+    report.Line("line %d: %s in %s (view %d): predicted (%.2f, %.2f), marked (%.2f, %.2f): "
+                "%.2f px, %s m on the ground",
+                r.line, r.name.empty() ? "point" : r.name.c_str(), r.image.c_str(), r.view,
+                r.predicted.x, r.predicted.y, r.observed.x, r.observed.y, r.error_px,
+                std::isfinite(r.ground_error_norm_m) ? FormatNumber(r.ground_error_norm_m).c_str()
+                                                     : "-");
+  }
+  Report& sightings = report.Nested("sightings");
+  sightings.Set("line", lines);
+  sightings.Set("image", images);
+  sightings.Set("name", names);
+  sightings.Set("view", views);
+  sightings.Set("error_px", error_px);
+  sightings.Set("ground_error_norm_m", ground_m);
+  report.Set("gcp_crs", gcps.crs);
+  report.Set("crs", light_field.crs);
+  report.Set("rms_px", result.rms_px);
+  report.Set("max_px", result.max_px);
+  report.Set("rms_ground_m", result.rms_ground_m);
+  report.Set("max_ground_m", result.max_ground_m);
+  report.Result("%zu sightings: RMS %.2f px (max %.2f), on the ground RMS %s m (max %s); GCPs in "
+                "%s, light field in %s (ODM pixel + 0.5 = aos pixel)",
+                result.residuals.size(), result.rms_px, result.max_px,
+                FormatNumber(result.rms_ground_m).c_str(),
+                FormatNumber(result.max_ground_m).c_str(), gcps.crs.c_str(),
+                light_field.crs.c_str());
+  report.Print();
+  return 0;
+}
+
 }  // namespace
+
+CommandRunner DefineCheckGcp(CLI::App* command) {
+  auto c = std::make_shared<CheckGcpCommand>();
+  Flags flags(command);
+  command->add_option("lightfield", c->light_field_path, "Light-field file (JSON; a CRS needed)")
+      ->required();
+  command->add_option("gcp_file", c->gcp_file,
+                      "OpenDroneMap gcp_list.txt: projection, then geo_x geo_y geo_z im_x im_y "
+                      "image_name [gcp_name]")
+      ->required();
+  flags.Input("lightfield");
+  flags.Input("gcp_file");
+  return [c] { return RunCheckGcp(*c); };
+}
 
 CommandRunner DefineExportOdm(CLI::App* command) {
   auto c = std::make_shared<ExportOdmCommand>();
@@ -202,7 +299,8 @@ CommandRunner DefineImportVideo(CLI::App* command) {
   flags.Field(c->options, "srt_offset_s");
   Flags telemetry = flags.At("telemetry.");
   telemetry.Remaining(c->telemetry, {"telemetry_file", "frame_interval_s", "time_offset_s",
-                                     "altitude"});
+                                     "altitude", "radiometric", "kelvin_per_count",
+                                     "kelvin_offset", "temperature_frames_dir"});
   flags.Threads();
   flags.Input("video");
   flags.Input("--srt-file");
@@ -232,6 +330,11 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
   flags.Field(options, "dem");
   flags.Field(options, "home_latitude_deg");
   flags.Field(options, "home_longitude_deg");
+  flags.Field(options, "grey");
+  flags.Field(options, "radiometric");
+  flags.Field(options, "kelvin_per_count");
+  flags.Field(options, "kelvin_offset");
+  flags.Field(options, "temperature_frames_dir");
   flags.Threads();
   flags.Force();
   flags.InputFolder("frames");
@@ -239,6 +342,7 @@ CommandRunner DefineImportTelemetry(CLI::App* command) {
   flags.Input("--camera-file");
   flags.Input("--dem");
   flags.Output("--output");
+  flags.OutputFolder("--temperature-frames-dir");
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
   flags.Remaining(c->options);
   return [c, flags] { return RunImportTelemetry(*c, flags); };

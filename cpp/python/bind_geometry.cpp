@@ -259,6 +259,8 @@ void BindTerrain(py::module_& m) {
           },
           "GDAL geotransform (6 numbers, a tuple).")
       .def_readonly("crs", &Heightfield::crs_wkt, "The CRS as WKT; empty when the raster has none.")
+      .def_readonly("source", &Heightfield::source,
+                    "The file it was read from (messages name it); '' when built from arrays.")
       .def("__eq__",
            [](const Heightfield& a, const py::object& other) -> py::object {
              if (!py::isinstance<Heightfield>(other)) return py::reinterpret_borrow<py::object>(Py_NotImplemented);
@@ -274,12 +276,16 @@ void BindTerrain(py::module_& m) {
       .def(py::pickle(
           [](const Heightfield& field) {
             return py::dict("heights"_a = HeightArray(field), "geotransform"_a = field.geotransform,
-                            "crs"_a = field.crs_wkt);
+                            "crs"_a = field.crs_wkt, "source"_a = field.source);
           },
           [](const py::object& state) {
-            const py::dict values = StateDict(state, "Heightfield", {"heights", "geotransform", "crs"});
-            return HeightfieldFromArrays(values["heights"], values["geotransform"].cast<std::array<double, 6>>(),
-                                         values["crs"].cast<std::string>());
+            const py::dict values =
+                StateDict(state, "Heightfield", {"heights", "geotransform", "crs", "source"});
+            Heightfield field = HeightfieldFromArrays(
+                values["heights"], values["geotransform"].cast<std::array<double, 6>>(),
+                values["crs"].cast<std::string>());
+            field.source = values["source"].cast<std::string>();
+            return field;
           }))
       .def("__repr__", [](const Heightfield& field) {
         return "Heightfield(" + std::to_string(field.width) + "x" + std::to_string(field.height) +

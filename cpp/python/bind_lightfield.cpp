@@ -35,8 +35,8 @@ bool PoseSourcesEqual(const PoseSource& a, const PoseSource& b) {
 }
 
 bool LightFieldsEqual(const LightField& a, const LightField& b) {
-  if (a.origin != b.origin || a.crs != b.crs || a.masked != b.masked ||
-      a.views.size() != b.views.size()) {
+  if (a.origin != b.origin || a.crs != b.crs || a.masked != b.masked || a.grey != b.grey ||
+      a.radiometry != b.radiometry || a.views.size() != b.views.size()) {
     return false;
   }
   if (a.pose_source.has_value() != b.pose_source.has_value()) return false;
@@ -151,6 +151,56 @@ void BindLightField(py::module_& m) {
                std::string(py::repr(camera)) + ")";
       });
 
+  py::class_<Radiometry>(m, "Radiometry",
+                         "How pixel values measure temperature: kelvin = kelvin_per_unit * value "
+                         "+ kelvin_offset (frames and renders alike).")
+      .def(py::init([](double kelvin_per_unit, double kelvin_offset) {
+             Radiometry radiometry{kelvin_per_unit, kelvin_offset};
+             radiometry.Check();
+             return radiometry;
+           }),
+           "kelvin_per_unit"_a = 0.01, "kelvin_offset"_a = 0.0,
+           "Raises ValueError for kelvin_per_unit <= 0 or a non-finite value.")
+      .def_readonly("kelvin_per_unit", &Radiometry::kelvin_per_unit, "Kelvin per unit of value.")
+      .def_readonly("kelvin_offset", &Radiometry::kelvin_offset, "Kelvin at value 0.")
+      .def(
+          "kelvin",
+          [](const Radiometry& r, const py::object& values) {
+            return py::module_::import("numpy").attr("asarray")(values, "dtype"_a = "float64") *
+                       py::float_(r.kelvin_per_unit) +
+                   py::float_(r.kelvin_offset);
+          },
+          "values"_a, "Temperatures in kelvin of pixel values (a number or an array; float64).")
+      .def(
+          "celsius",
+          [](const Radiometry& r, const py::object& values) {
+            return py::module_::import("numpy").attr("asarray")(values, "dtype"_a = "float64") *
+                       py::float_(r.kelvin_per_unit) +
+                   py::float_(r.kelvin_offset - kZeroCelsiusK);
+          },
+          "values"_a, "Temperatures in degrees Celsius of pixel values (a number or an array).")
+      .def("value_of_celsius", &Radiometry::ValueOfCelsius, "celsius"_a,
+           "The pixel value of a temperature in degrees Celsius.")
+      .def("__eq__", EqualityMethod<Radiometry>([](const Radiometry& a, const Radiometry& b) {
+             return a == b;
+           }),
+           "other"_a)
+      .def(py::pickle(
+          [](const Radiometry& r) {
+            return py::dict("kelvin_per_unit"_a = r.kelvin_per_unit,
+                            "kelvin_offset"_a = r.kelvin_offset);
+          },
+          [](const py::object& state) {
+            const py::dict v = StateDict(state, "Radiometry", {"kelvin_per_unit", "kelvin_offset"});
+            Radiometry r{v["kelvin_per_unit"].cast<double>(), v["kelvin_offset"].cast<double>()};
+            r.Check();
+            return r;
+          }))
+      .def("__repr__", [](const Radiometry& r) {
+        return "Radiometry(kelvin_per_unit=" + FormatNumber(r.kelvin_per_unit) +
+               ", kelvin_offset=" + FormatNumber(r.kelvin_offset) + ")";
+      });
+
   py::class_<PoseSource>(m, "PoseSource",
                          "Where a light field's estimated poses came from and how good they are.")
       .def_readonly("method", &PoseSource::method, "e.g. 'colmap'.")
@@ -223,6 +273,19 @@ void BindLightField(py::module_& m) {
                     "True when loaded with a mask (load_lightfield(mask=...) or mask_dir): each "
                     "view's last channel is the mask weight (0 or the full range) and the others "
                     "are premultiplied by it; renders divide by it and return the other channels.")
+      .def_readwrite("grey", &LightField::grey,
+                     "True when the frames are read as grey (one-channel luminance) whenever the "
+                     "light field is loaded from its file (import_telemetry(grey=True)); written "
+                     "to the file as \"grey\": true.")
+      .def_property(
+          "radiometry", [](const LightField& light_field) { return light_field.radiometry; },
+          [](LightField& light_field, const std::optional<Radiometry>& radiometry) {
+            if (radiometry) radiometry->Check();
+            light_field.radiometry = radiometry;
+          },
+          "Radiometry when the values measure temperature (radiometric thermal frames: kelvin "
+          "= kelvin_per_unit * value + kelvin_offset, renders included), else None. Set it for "
+          "16-bit counts with a linear calibration.")
       .def_property_readonly(
           "views", [](const LightField& light_field) { return light_field.views; },
           "The views, as a new list of read-only View objects (their pixels are not copied).")
@@ -252,7 +315,8 @@ void BindLightField(py::module_& m) {
           "another dtype, a bad camera, a camera that disagrees with the image size, or an "
           "invalid cam_from_world (non-finite, not orthonormal, a reflection).")
       .def("__eq__", EqualityMethod<LightField>(&LightFieldsEqual), "other"_a,
-           "Exact equality of origin, crs, pose_source and every view (fields and pixels).")
+           "Exact equality of origin, crs, pose_source, masked, grey, radiometry and every view "
+           "(fields and pixels).")
       .def("__copy__", [](const LightField& light_field) { return LightField(light_field); },
            "A copy; the pixels are shared, which cannot be told apart from a deep copy since "
            "views are read-only.")
@@ -266,17 +330,21 @@ void BindLightField(py::module_& m) {
             for (const View& view : light_field.views) views.append(py::cast(view));
             return py::dict("origin"_a = light_field.origin, "crs"_a = light_field.crs,
                             "views"_a = views, "pose_source"_a = light_field.pose_source,
-                            "masked"_a = light_field.masked);
+                            "masked"_a = light_field.masked, "grey"_a = light_field.grey,
+                            "radiometry"_a = light_field.radiometry);
           },
           [](const py::object& state) {
             const py::dict v =
-                StateDict(state, "LightField", {"origin", "crs", "views", "pose_source", "masked"});
+                StateDict(state, "LightField", {"origin", "crs", "views", "pose_source", "masked",
+                                                "grey", "radiometry"});
             LightField light_field;
             light_field.origin = v["origin"].cast<Vec3d>();
             light_field.crs = v["crs"].cast<std::string>();
             light_field.views = v["views"].cast<std::vector<View>>();
             light_field.pose_source = v["pose_source"].cast<std::optional<PoseSource>>();
             light_field.masked = v["masked"].cast<bool>();
+            light_field.grey = v["grey"].cast<bool>();
+            light_field.radiometry = v["radiometry"].cast<std::optional<Radiometry>>();
             return light_field;
           }))
       .def("__repr__", [](const LightField& light_field) {
@@ -285,7 +353,10 @@ void BindLightField(py::module_& m) {
                std::string(py::str(py::module_::import("numpy").attr("array2string")(
                    origin, "separator"_a = ", "))) +
                (light_field.crs.empty() ? std::string() : ", crs='" + light_field.crs + "'") +
-               (light_field.masked ? ", masked=True" : "") + ", image_bytes=" + std::to_string(light_field.ImageBytes()) + ")";
+               (light_field.masked ? ", masked=True" : "") + (light_field.grey ? ", grey=True" : "") +
+               (light_field.radiometry ? ", radiometry='" + light_field.radiometry->Describe() + "'"
+                                       : std::string()) +
+               ", image_bytes=" + std::to_string(light_field.ImageBytes()) + ")";
       });
 
   py::class_<LoadResult>(m, "LoadResult", "What load_lightfield returns.")

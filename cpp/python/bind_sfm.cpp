@@ -47,6 +47,10 @@ void BindSfm(py::module_& m) {
       .def_readonly("registered", &PosesResult::registered, "Registered frames, in view order.")
       .def_readonly("unregistered", &PosesResult::unregistered, "Frames COLMAP left out.")
       .def_readonly("warnings", &PosesResult::warnings, "Skipped frames, unregistered ones, ...")
+      .def_readonly("order", &PosesResult::order,
+                    "View order: 'time' (EXIF capture times) or 'name' (natural name order).")
+      .def_readonly("time_source", &PosesResult::time_source,
+                    "Where the capture times came from ('' when ordered by name).")
       .def_readonly("models", &PosesResult::models, "Models COLMAP built (the largest is used).")
       .def_readonly("points", &PosesResult::points, "3-D points of the model.")
       .def_property_readonly(
@@ -239,6 +243,14 @@ void BindSfm(py::module_& m) {
       .def_readonly("warnings", &TelemetryResult::warnings, "Frames left out, ...")
       .def_readonly("max_convergence_deg", &TelemetryResult::max_convergence_deg,
                     "Largest meridian convergence applied to a heading, degrees.")
+      .def_readonly("radiometric", &TelemetryResult::radiometric,
+                    "'none', 'flir' or 'linear', as given (light_field.radiometry: the map).")
+      .def_readonly("first_frame_median_c", &TelemetryResult::first_frame_median_c,
+                    "Radiometric frames: the first frame's median temperature, C (else NaN).")
+      .def_readonly("first_frame_low_c", &TelemetryResult::first_frame_low_c,
+                    "Radiometric frames: its 1st percentile temperature, C (else NaN).")
+      .def_readonly("first_frame_high_c", &TelemetryResult::first_frame_high_c,
+                    "Radiometric frames: its 99th percentile temperature, C (else NaN).")
       .def("__repr__", [](const TelemetryResult& r) {
         return "TelemetryResult(views=" + std::to_string(r.light_field.views.size()) +
                ", source='" + r.source + "', crs='" + r.light_field.crs +
@@ -335,6 +347,88 @@ void BindSfm(py::module_& m) {
       "path"_a, "light_field"_a, "overwrite"_a = false,
       "Writes a geo-referenced light field's camera centres (its CRS) and angles (yaw from true "
       "north, pitch -90 = nadir) as OpenDroneMap's geo.txt (odm --geo).");
+
+  py::class_<OdmGcp>(m, "OdmGcp", "One sighting of a ground control point (gcp_list.txt line).")
+      .def(py::init([](const Vec3d& position, const Vec2d& pixel, std::string image,
+                       std::string name, std::string extras) {
+             OdmGcp p;
+             p.position = position;
+             p.pixel = pixel;
+             p.image = std::move(image);
+             p.name = std::move(name);
+             p.extras = std::move(extras);
+             return p;
+           }),
+           "position"_a, "pixel"_a, "image"_a, "name"_a = "", "extras"_a = "",
+           "position: geo_x, geo_y, geo_z in the file's CRS; pixel: ODM's im_x, im_y (the "
+           "top-left pixel's centre at (0, 0); aos pixel = ODM pixel + 0.5).")
+      .def_readonly("line", &OdmGcp::line, "Line number in the file (1-based; 0 when built).")
+      .def_readonly("position", &OdmGcp::position, "geo_x, geo_y, geo_z (the file's CRS).")
+      .def_readonly("pixel", &OdmGcp::pixel, "im_x, im_y (ODM's pixel coordinates).")
+      .def_readonly("image", &OdmGcp::image)
+      .def_readonly("name", &OdmGcp::name, "gcp_name, or ''.")
+      .def_readonly("extras", &OdmGcp::extras, "The rest of the line.")
+      .def("__repr__", [](const OdmGcp& p) {
+        return "OdmGcp(name='" + p.name + "', image='" + p.image + "', line=" +
+               std::to_string(p.line) + ")";
+      });
+  py::class_<OdmGcpFile>(m, "OdmGcpFile", "An OpenDroneMap ground control file (sfm/odm.h).")
+      .def(py::init([](std::string projection, std::vector<OdmGcp> points) {
+             OdmGcpFile f;
+             f.crs = OdmProjectionCrs(projection, "projection");
+             f.projection = std::move(projection);
+             f.points = std::move(points);
+             return f;
+           }),
+           "projection"_a, "points"_a,
+           "A projection line ('EPSG:32633', 'WGS84 UTM 33N', a PROJ string) and the sightings.")
+      .def_readonly("projection", &OdmGcpFile::projection, "The first line as written.")
+      .def_readonly("crs", &OdmGcpFile::crs, "As PROJ takes it.")
+      .def_readonly("points", &OdmGcpFile::points)
+      .def("__repr__", [](const OdmGcpFile& f) {
+        return "OdmGcpFile(crs='" + f.crs + "', points=" + std::to_string(f.points.size()) + ")";
+      });
+  m.def("read_odm_gcp", &ReadOdmGcp, "path"_a,
+        "An OpenDroneMap gcp_list.txt (projection line, then geo_x geo_y geo_z im_x im_y "
+        "image_name [gcp_name]). Raises ValueError naming the file, line and field.");
+  m.def("write_odm_gcp", &WriteOdmGcp, "path"_a, "gcp_file"_a, "overwrite"_a = false,
+        "Writes ground control as OpenDroneMap's gcp_list.txt (odm --gcp), atomically.");
+  py::class_<GcpResidual>(m, "GcpResidual", "How one ground control sighting agrees with a pose.")
+      .def_readonly("line", &GcpResidual::line)
+      .def_readonly("image", &GcpResidual::image)
+      .def_readonly("name", &GcpResidual::name)
+      .def_readonly("view", &GcpResidual::view, "The view's index.")
+      .def_readonly("predicted", &GcpResidual::predicted,
+                    "The ground point projected into the view (aos pixel coordinates).")
+      .def_readonly("observed", &GcpResidual::observed, "The marked pixel (ODM's + 0.5).")
+      .def_readonly("error_px", &GcpResidual::error_px)
+      .def_readonly("ground_error_m", &GcpResidual::ground_error_m,
+                    "The marked pixel's ray at the point's height minus the point (x, y), m.")
+      .def_readonly("ground_error_norm_m", &GcpResidual::ground_error_norm_m)
+      .def("__repr__", [](const GcpResidual& r) {
+        return "GcpResidual(name='" + r.name + "', image='" + r.image +
+               "', error_px=" + FormatNumber(r.error_px) + ")";
+      });
+  py::class_<GcpCheckResult>(m, "GcpCheckResult", "What check_gcps measured.")
+      .def_readonly("residuals", &GcpCheckResult::residuals)
+      .def_readonly("rms_px", &GcpCheckResult::rms_px)
+      .def_readonly("max_px", &GcpCheckResult::max_px)
+      .def_readonly("rms_ground_m", &GcpCheckResult::rms_ground_m)
+      .def_readonly("max_ground_m", &GcpCheckResult::max_ground_m)
+      .def("__repr__", [](const GcpCheckResult& r) {
+        return "GcpCheckResult(sightings=" + std::to_string(r.residuals.size()) +
+               ", rms_px=" + FormatNumber(r.rms_px) + ", rms_ground_m=" +
+               FormatNumber(r.rms_ground_m) + ")";
+      });
+  m.def(
+      "check_gcps",
+      [](const LightField& light_field, const OdmGcpFile& gcps) {
+        return CheckGcps(light_field, gcps, "gcps");
+      },
+      "light_field"_a, "gcps"_a,
+      "Each ground control sighting projected into its view (found by name) with the light "
+      "field's poses (PROJ moves the points into its CRS): the pixel and ground errors, as "
+      "aos-render check-gcp reports them. Raises ValueError for an image that is no view.");
 }
 
 }  // namespace aos::python

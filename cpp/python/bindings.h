@@ -127,6 +127,7 @@ void BindMetrics(py::module_& m);
 void BindCalib(py::module_& m);
 void BindSfm(py::module_& m);
 void BindDemo(py::module_& m);
+void BindDetect(py::module_& m);
 void BindPlan(py::module_& m);
 
 // Python's `a == b` as a bool, numpy arrays compared whole (numpy.array_equal: same shape and

@@ -197,6 +197,7 @@ PYBIND11_MODULE(_core, m) {
   BindSfm(m);
   BindDemo(m);
   BindPlan(m);
+  BindDetect(m);
 
   m.def(
       "_progress_selftest",

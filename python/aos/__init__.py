@@ -60,6 +60,7 @@ from ._keywords import (
     SurfaceIntegralKeywords,
     TelemetryKeywords,
     VideoKeywords,
+    DetectKeywords,
 )
 
 if TYPE_CHECKING:
@@ -75,11 +76,23 @@ from ._core import (
     OdmGeoFile,
     read_odm_geo,
     write_odm_geo,
+    OdmGcp,
+    OdmGcpFile,
+    read_odm_gcp,
+    write_odm_gcp,
+    GcpResidual,
+    GcpCheckResult,
+    check_gcps,
     PosesOptions,
     GroundOptions,
     GroundResult,
     PosesResult,
     PoseSource,
+    Radiometry,
+    DetectOptions,
+    Detection,
+    DetectResult,
+    anomaly_scores,
     read_positions,
     CalibrateOptions,
     CalibrationResult,
@@ -167,6 +180,12 @@ __all__ = [
     "estimate_ground",
     "PosesResult",
     "PoseSource",
+    "Radiometry",
+    "DetectOptions",
+    "Detection",
+    "DetectResult",
+    "anomaly_scores",
+    "detect",
     "estimate_poses",
     "import_colmap",
     "read_positions",
@@ -182,6 +201,13 @@ __all__ = [
     "OdmGeoFile",
     "read_odm_geo",
     "write_odm_geo",
+    "OdmGcp",
+    "OdmGcpFile",
+    "read_odm_gcp",
+    "write_odm_gcp",
+    "GcpResidual",
+    "GcpCheckResult",
+    "check_gcps",
     "CalibrateOptions",
     "CalibrationResult",
     "calibrate",
@@ -479,8 +505,12 @@ _IMPORT_VIDEO = _Router(
     VideoFramesOptions,
     TelemetryOptions,
     keywords="VideoKeywords",
-    exclude=[("telemetry_file",), ("frame_interval_s",), ("time_offset_s",), ("altitude",)],
+    exclude=[("telemetry_file",), ("frame_interval_s",), ("time_offset_s",), ("altitude",),
+             ("radiometric",), ("kelvin_per_count",), ("kelvin_offset",),
+             ("temperature_frames_dir",)],
 )
+# Detection renders the integral image of IntegralOptions and scores it with DetectOptions.
+_DETECT = _Router("detect", IntegralOptions, DetectOptions, keywords="DetectKeywords")
 
 
 def render_integral(
@@ -509,6 +539,38 @@ def render_integral(
     _RENDER_INTEGRAL.apply([merged], keywords)
     _require_pose("render_integral", merged, keywords)
     return _core.render_integral(light_field, merged, progress)
+
+
+def detect(
+    light_field: LightField,
+    options: Optional[IntegralOptions] = None,
+    detect_options: Optional[DetectOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Unpack[DetectKeywords],
+) -> DetectResult:
+    """Finds anomalies (a person, an animal) in the integral image of ``light_field``, as
+    ``aos-render detect`` does: the image of :func:`render_integral` (``kwargs`` of
+    :class:`IntegralOptions`: the virtual camera, the focal surface, the views) scored by
+    :class:`DetectOptions` (``detector`` 'rx', 'rx-local' or 'temperature', ``channels``, the
+    threshold: ``quantile``, ``false_alarm_rate``, ``min_score`` or ``min_temperature_c``; the
+    blobs: ``min_area_px``, ``max_detections``). Each detection is located on the focal surface
+    (``world``; ``lon_lat`` in WGS84 when the light field has a CRS) with the views that saw it.
+    ``result.write("found.geojson")`` writes GeoJSON, KML or CSV; ``result.overlay()`` draws
+    them. The result pickles. Raises ValueError naming the field (docs/detection.md).
+
+    Example::
+
+        found = aos.detect(lf, pose_view=191, focal_surface=aos.FocalSurface.read("dem.obj"))
+        for d in found.detections:
+            print(d.lon_lat, d.peak_score, len(d.views))
+    """
+    merged = _copy_options("detect", IntegralOptions, options)
+    scoring = _copy_options("detect", DetectOptions, detect_options)
+    keywords: dict = dict(kwargs)
+    _DETECT.apply([merged, scoring], keywords)
+    _require_pose("detect", merged, keywords)
+    return _core._detect(light_field, merged, scoring, progress)
 
 
 def simulate(
@@ -1057,7 +1119,8 @@ def import_telemetry(
     geo-referenced: ``crs`` the flight's UTM zone (EPSG:326zz / 327zz), origin a round point
     near the mean position. Altitude outliers are replaced by a running median and listed in
     ``result.altitude_outliers`` (docs/terrain-and-maps.md). Raises ValueError naming the file,
-    line and field. Nothing is written: pass ``result.light_field`` to
+    line and field. Nothing is written (but, with ``radiometric="flir"``, the temperature
+    frames in ``temperature_frames_dir``): pass ``result.light_field`` to
     :func:`write_lightfield`. ``progress`` as for :func:`estimate_poses` (a unit per frame
     header; Ctrl-C raises KeyboardInterrupt).
 

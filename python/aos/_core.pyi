@@ -228,6 +228,21 @@ class View:
         """Exact equality of every field and of the pixels."""
     def __repr__(self) -> str: ...
 
+class Radiometry:
+    """How pixel values measure temperature: kelvin = kelvin_per_unit * value + kelvin_offset."""
+
+    def __init__(self, kelvin_per_unit: float = 0.01, kelvin_offset: float = 0.0) -> None: ...
+    @property
+    def kelvin_per_unit(self) -> float: ...
+    @property
+    def kelvin_offset(self) -> float: ...
+    def kelvin(self, values: numpy.typing.ArrayLike) -> Any:
+        """Temperatures in kelvin of pixel values (float64)."""
+    def celsius(self, values: numpy.typing.ArrayLike) -> Any:
+        """Temperatures in degrees Celsius of pixel values (float64)."""
+    def value_of_celsius(self, celsius: float) -> float: ...
+    def __eq__(self, other: object) -> bool: ...
+
 class PoseSource:
     """Where a light field's estimated poses came from and how good they are."""
 
@@ -270,6 +285,16 @@ class LightField:
     @property
     def masked(self) -> bool:
         """True when loaded with a mask: each view's last channel is the mask weight."""
+    @property
+    def grey(self) -> bool:
+        """True when the frames are read as grey whenever the file is loaded."""
+    @grey.setter
+    def grey(self, value: bool) -> None: ...
+    @property
+    def radiometry(self) -> Optional[Radiometry]:
+        """Radiometry when the values measure temperature, else None."""
+    @radiometry.setter
+    def radiometry(self, value: Optional[Radiometry]) -> None: ...
     @property
     def views(self) -> list[View]:
         """A new list of the views (pixels not copied)."""
@@ -464,6 +489,9 @@ class Heightfield:
     @property
     def crs(self) -> str:
         """WKT, or '' when the raster has no CRS."""
+    @property
+    def source(self) -> str:
+        """The file it was read from, or '' when built from arrays."""
     def __eq__(self, other: object) -> bool: ...
     def __repr__(self) -> str: ...
 
@@ -1914,6 +1942,10 @@ class PosesResult:
     @property
     def warnings(self) -> list[str]: ...
     @property
+    def order(self) -> str: ...
+    @property
+    def time_source(self) -> str: ...
+    @property
     def models(self) -> int: ...
     @property
     def points(self) -> int: ...
@@ -1982,6 +2014,11 @@ class TelemetryOptions:
         dem: str = ...,
         home_latitude_deg: float | None = ...,
         home_longitude_deg: float | None = ...,
+        grey: bool = ...,
+        radiometric: Literal['none', 'flir', 'linear'] = ...,
+        kelvin_per_count: float = ...,
+        kelvin_offset: float = ...,
+        temperature_frames_dir: str = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     telemetry_file: str
@@ -2023,6 +2060,18 @@ class TelemetryOptions:
     """Take-off point latitude, WGS84 degrees; unset = the first frame's. [deg]"""
     home_longitude_deg: float | None
     """Take-off point longitude, WGS84 degrees; unset = the first frame's. [deg]"""
+    grey: bool
+    """Integrate the frames as grey (false-colour thermal): recorded in the light field, applied at
+    every load."""
+    radiometric: Literal['none', 'flir', 'linear']
+    """Pixel values: 'none', 'flir' (FLIR radiometric JPEGs -> temperature frames, exiftool) or
+    'linear' (16-bit counts, kelvin_per_count). [one of none, flir or linear]"""
+    kelvin_per_count: float
+    """With radiometric 'linear': kelvin per count, > 0 (FLIR TLinear: 0.01 or 0.04). [K]"""
+    kelvin_offset: float
+    """With radiometric 'linear': the temperature of count 0, kelvin. [K]"""
+    temperature_frames_dir: str
+    """With radiometric 'flir': new folder for the 16-bit temperature frames (0.01 K per unit)."""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod
@@ -2065,6 +2114,14 @@ class TelemetryResult:
     def declination_deg(self) -> float: ...
     @property
     def max_convergence_deg(self) -> float: ...
+    @property
+    def radiometric(self) -> str: ...
+    @property
+    def first_frame_median_c(self) -> float: ...
+    @property
+    def first_frame_low_c(self) -> float: ...
+    @property
+    def first_frame_high_c(self) -> float: ...
     @property
     def altitude_reference(self) -> str: ...
     @property
@@ -2187,4 +2244,211 @@ class OdmGeoFile:
 
 def read_odm_geo(path: str) -> OdmGeoFile: ...
 def write_odm_geo(path: str, light_field: LightField, overwrite: bool = False) -> None: ...
+
+class OdmGcp:
+    """One sighting of a ground control point (a gcp_list.txt line)."""
+
+    def __init__(self, position: _Vector, pixel: Sequence[float], image: str, name: str = "",
+                 extras: str = "") -> None: ...
+    @property
+    def line(self) -> int: ...
+    @property
+    def position(self) -> _Float64Array: ...
+    @property
+    def pixel(self) -> _Float64Array: ...
+    @property
+    def image(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def extras(self) -> str: ...
+
+class OdmGcpFile:
+    """An OpenDroneMap ground control file (sfm/odm.h)."""
+
+    def __init__(self, projection: str, points: Sequence[OdmGcp]) -> None: ...
+    @property
+    def projection(self) -> str: ...
+    @property
+    def crs(self) -> str: ...
+    @property
+    def points(self) -> list[OdmGcp]: ...
+
+def read_odm_gcp(path: str) -> OdmGcpFile: ...
+def write_odm_gcp(path: str, gcp_file: OdmGcpFile, overwrite: bool = False) -> None: ...
+
+class GcpResidual:
+    """How one ground control sighting agrees with a pose."""
+
+    @property
+    def line(self) -> int: ...
+    @property
+    def image(self) -> str: ...
+    @property
+    def name(self) -> str: ...
+    @property
+    def view(self) -> int: ...
+    @property
+    def predicted(self) -> _Float64Array: ...
+    @property
+    def observed(self) -> _Float64Array: ...
+    @property
+    def error_px(self) -> float: ...
+    @property
+    def ground_error_m(self) -> _Float64Array: ...
+    @property
+    def ground_error_norm_m(self) -> float: ...
+
+class GcpCheckResult:
+    """What check_gcps measured."""
+
+    @property
+    def residuals(self) -> list[GcpResidual]: ...
+    @property
+    def rms_px(self) -> float: ...
+    @property
+    def max_px(self) -> float: ...
+    @property
+    def rms_ground_m(self) -> float: ...
+    @property
+    def max_ground_m(self) -> float: ...
+
+def check_gcps(light_field: LightField, gcps: OdmGcpFile) -> GcpCheckResult: ...
 def read_positions(path: str, crs: str = "") -> dict[str, tuple[float, float, float]]: ...
+
+class DetectOptions:
+    """Options of detect (defaults from the C++ struct aos::DetectOptions): the anomaly scores, the
+    threshold, the blobs."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature'] = ...,
+        channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal'] = ...,
+        trim_fraction: float = ...,
+        robust_iterations: int = ...,
+        regularization: float = ...,
+        inner_window_px: int = ...,
+        outer_window_px: int = ...,
+        quantile: float = ...,
+        false_alarm_rate: float | None = ...,
+        min_score: float | None = ...,
+        min_temperature_c: float | None = ...,
+        min_area_px: int = ...,
+        max_detections: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature']
+    """Scores: 'rx' (global Reed-Xiaoli), 'rx-local' (dual window), 'anomaly-imaging' (RX per frame,
+    integrated) or 'temperature' (degrees C, radiometric light fields). [one of rx, rx-local,
+    anomaly-imaging or temperature]"""
+    channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal']
+    """Features: 'auto' (all channels), 'grey', 'rgb', 'hsv' (S cos H, S sin H, V) or 'rgb+thermal'
+    (4 channels). [one of auto, grey, rgb, hsv or rgb+thermal]"""
+    trim_fraction: float
+    """Share of the highest-scoring pixels left out of the robust background; 0 = classical RX. [in
+    [0, 0.5)]"""
+    robust_iterations: int
+    """Concentration steps of the robust background estimate. [in [0, 20]]"""
+    regularization: float
+    """Ridge added to the covariance, relative to trace / d (keeps flat or rank-deficient images
+    invertible). [>= 0 and finite]"""
+    inner_window_px: int
+    """rx-local: side of the inner guard window, pixels, odd. [px, >= 1]"""
+    outer_window_px: int
+    """rx-local: side of the background window, pixels, odd, > inner_window_px. [px, >= 3]"""
+    quantile: float
+    """Threshold at this quantile of the scores (when neither min_score nor false_alarm_rate is
+    given): 0.999 = the top 0.1 % of the pixels. [in (0, 1)]"""
+    false_alarm_rate: float | None
+    """Threshold: per-pixel false-alarm rate of a Gaussian background, (0, 1) (the chi-square
+    quantile); unset = not used."""
+    min_score: float | None
+    """Threshold: an absolute score (squared Mahalanobis distance), >= 0; unset = not used."""
+    min_temperature_c: float | None
+    """Detector 'temperature': the temperature a pixel must exceed, degrees C. [C]"""
+    min_area_px: int
+    """Blobs smaller than this many pixels are dropped. [px, >= 1]"""
+    max_detections: int
+    """At most this many detections (the highest peaks) are kept. [>= 1]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> DetectOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
+    def check(self) -> None: ...
+
+class Detection:
+    """One detection: a blob of pixels above the threshold."""
+
+    @property
+    def pixel(self) -> tuple[float, float]: ...
+    @property
+    def area_px(self) -> int: ...
+    @property
+    def peak_score(self) -> float: ...
+    @property
+    def mean_score(self) -> float: ...
+    @property
+    def box(self) -> tuple[int, int, int, int]: ...
+    @property
+    def local(self) -> tuple[float, float, float]: ...
+    @property
+    def world(self) -> tuple[float, float, float]: ...
+    @property
+    def lon_lat(self) -> Optional[tuple[float, float]]: ...
+    @property
+    def views(self) -> list[int]: ...
+    @property
+    def peak_celsius(self) -> float: ...
+    @property
+    def mean_celsius(self) -> float: ...
+
+class DetectResult:
+    """What detect found, and what it was found in."""
+
+    @property
+    def render(self) -> IntegralResult: ...
+    @property
+    def camera(self) -> PinholeCamera: ...
+    @property
+    def scores(self) -> numpy.typing.NDArray[numpy.float32]: ...
+    @property
+    def dimensions(self) -> int: ...
+    @property
+    def threshold(self) -> float: ...
+    @property
+    def threshold_rule(self) -> str: ...
+    @property
+    def flagged_pixels(self) -> int: ...
+    @property
+    def detections(self) -> list[Detection]: ...
+    @property
+    def dropped(self) -> int: ...
+    @property
+    def crs(self) -> str: ...
+    @property
+    def pixels(self) -> _Float64Array: ...
+    @property
+    def world(self) -> _Float64Array: ...
+    @property
+    def lon_lat(self) -> Optional[_Float64Array]: ...
+    @property
+    def peak_scores(self) -> _Float64Array: ...
+    def write(self, path: str, overwrite: bool = False) -> None: ...
+    def overlay(self) -> numpy.typing.NDArray[numpy.uint8]: ...
+    def __len__(self) -> int: ...
+
+def _detect(
+    light_field: LightField,
+    options: IntegralOptions,
+    detect: DetectOptions,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+) -> DetectResult: ...
+def anomaly_scores(
+    image: numpy.typing.ArrayLike,
+    count: Optional[numpy.typing.ArrayLike] = None,
+    options: DetectOptions = ...,
+    radiometry: Optional[Radiometry] = None,
+) -> numpy.typing.NDArray[numpy.float32]: ...

@@ -299,6 +299,11 @@ class TelemetryKeywords(TypedDict, total=False):
     dem: str
     home_latitude_deg: float | None
     home_longitude_deg: float | None
+    grey: bool
+    radiometric: Literal['none', 'flir', 'linear']
+    kelvin_per_count: float
+    kelvin_offset: float
+    temperature_frames_dir: str
 
 
 class VideoKeywords(TypedDict, total=False):
@@ -323,3 +328,23 @@ class VideoKeywords(TypedDict, total=False):
     dem: str
     home_latitude_deg: float | None
     home_longitude_deg: float | None
+    grey: bool
+
+
+class DetectKeywords(IntegralKeywords, total=False):
+    """Keywords of aos.detect: the fields of IntegralOptions, DetectOptions (nested ones included)
+    that its router accepts; those of IntegralKeywords too."""
+
+    detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature']
+    channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal']
+    trim_fraction: float
+    robust_iterations: int
+    regularization: float
+    inner_window_px: int
+    outer_window_px: int
+    quantile: float
+    false_alarm_rate: float | None
+    min_score: float | None
+    min_temperature_c: float | None
+    min_area_px: int
+    max_detections: int

@@ -17,6 +17,7 @@
 #include <gtest/gtest.h>
 
 #include "error_of.h"
+#include "gps_frame.h"
 #include "temp_folder.h"
 
 #include "aos/geometry/similarity.h"
@@ -778,6 +779,36 @@ TEST_F(ColmapImportTest, BuildsViewsAndListsUnregisteredFrames) {
       EXPECT_NO_THROW(CheckLightField(import.light_field));
     }
   }
+}
+
+TEST_F(ColmapImportTest, CaptureTimesOrderTheViewsWithAWarning) {
+  // c.png was taken first, then frames/b.png, then a.png: the views follow capture time.
+  const struct {
+    const char* name;
+    int width, height;
+    const char* time;
+  } frames[] = {{"c.png", 80, 60, "2026:06:01 10:00:00"},
+                {"frames/b.png", 64, 48, "2026:06:01 10:00:01"},
+                {"a.png", 64, 48, "2026:06:01 10:00:02"}};
+  for (const auto& frame : frames) {
+    ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(Path("images/") + frame.name, frame.width,
+                                                  frame.height, 48.0, 15.0, 300.0, frame.time));
+  }
+  ASSERT_TRUE(ReadCaptureTime(Path("images/c.png")).has_value()) << "PNG keeps no EXIF here";
+  const ColmapImport import = ImportColmapModel(ReadColmapModel(Path("sparse")), Path("images"));
+  EXPECT_EQ(import.order, "time");
+  EXPECT_EQ(import.time_source, "EXIF DateTimeOriginal");
+  EXPECT_EQ(import.registered, (std::vector<std::string>{"c.png", "frames/b.png", "a.png"}));
+  EXPECT_EQ(import.light_field.views[0].name, "c.png");
+  ASSERT_EQ(import.warnings.size(), 1u);
+  EXPECT_THAT(import.warnings[0], HasSubstr("c.png (at +0 s) was taken before a.png (at +2 s)"));
+  // One frame without a time: name order, and a warning naming it.
+  ASSERT_TRUE(testing_util::WriteGpsTaggedFrame(Path("images/a.png"), 64, 48, 48.0, 15.0, 300.0));
+  const ColmapImport by_name = ImportColmapModel(ReadColmapModel(Path("sparse")), Path("images"));
+  EXPECT_EQ(by_name.order, "name");
+  EXPECT_EQ(by_name.registered, (std::vector<std::string>{"a.png", "c.png", "frames/b.png"}));
+  ASSERT_EQ(by_name.warnings.size(), 1u);
+  EXPECT_THAT(by_name.warnings[0], HasSubstr("1 of 3 frames have no capture time"));
 }
 
 TEST_F(ColmapImportTest, ListsFrameFiles) {

@@ -55,6 +55,7 @@ def file_flags() -> list[dict[str, str]]:
 # the values are placeholders: the file check runs before the command reads anything.
 BASE: dict[str, dict[str, str]] = {
     "integral": {"lightfield": "lf.json", "--output": "out.tif"},
+    "detect": {"lightfield": "lf.json", "--geojson": "found.geojson"},
     "stack": {"lightfield": "lf.json", "--output-dir": "out_dir"},
     "merge": {"stack": "stack_dir", "--output-dir": "out_dir"},
     "allinfocus": {"lightfield": "lf.json", "--output-dir": "out_dir"},
@@ -69,6 +70,7 @@ BASE: dict[str, dict[str, str]] = {
     "import-telemetry": {"frames": "frames_dir", "--output": "lf.json"},
     "import-video": {"video": "video.avi", "--srt-file": "flight.srt", "--output": "out_dir"},
     "export-odm": {"lightfield": "lf.json", "--output": "geo.txt"},
+    "check-gcp": {"lightfield": "lf.json", "gcp_file": "gcp_list.txt"},
     "simulate": {"--output-dir": "out_dir"},
     "demo": {"--output-dir": "out_dir"},
     "metrics": {"test": "a.png", "reference": "b.png"},
@@ -198,6 +200,8 @@ NOT_LONG = {
     "camera": "writes one small JSON file from its flags; no loop over user-sized work",
     "resolution": "closed-form formulas over the flags; reads no file",
     "export-odm": "reads a light field's poses (no frames) and writes one line per view",
+    "check-gcp": "reads a light field's poses (no frames) and a text file (ReadTextFile's size "
+                 "bound), one projection per line",
 }
 # Known failures, xfail until fixed (the reason names the fix).
 FIXED_ELSEWHERE: dict[str, str] = {}
@@ -329,6 +333,9 @@ def long_command(command: str, found: dict[str, Path], out: Path) -> tuple[list[
     table: dict[str, tuple[list[str], Path | None]] = {
         "integral": ([lf, *camera, "--width", "2048", "--height", "2048", "--aperture-radius",
                       "inf", "--focal-height", "0", "-o", str(out / "out.tif")], out / "out.tif"),
+        "detect": ([lf, *camera, "--width", "2048", "--height", "2048", "--aperture-radius",
+                    "inf", "--focal-height", "0", "--geojson", str(out / "found.geojson")],
+                   out / "found.geojson"),
         "stack": ([lf, *camera, "--width", "512", "--height", "512", "--slices", "400",
                    "--first-plane", "0", "--last-plane", "5", "-o", str(out / "d")], out / "d"),
         "allinfocus": ([lf, *camera, "--width", "512", "--height", "512", "--slices", "400",
@@ -388,7 +395,7 @@ def cpu_seconds(pid: int) -> float:
 
 def test_every_command_is_in_the_cancellation_table() -> None:
     known = set(NOT_LONG) | set(NOT_YET) | {
-        "integral", "stack", "allinfocus", "merge", "map", "view", "calibrate", "rectify",
+        "integral", "detect", "stack", "allinfocus", "merge", "map", "view", "calibrate", "rectify",
         "import-colmap", "import-telemetry", "import-video", "poses", "ground", "simulate", "demo",
         "metrics", "plan"}
     missing = sorted(set(commands()) - known)
@@ -534,6 +541,8 @@ def oversized(command: str, found: dict[str, Path], large: dict[str, Path],
     table = {
         "integral": [lf, "--pose-view", "5", "--width", "40000", "--height", "40000", "-o",
                      str(out / "out.tif")],
+        "detect": [lf, "--pose-view", "5", "--width", "40000", "--height", "40000", "--geojson",
+                   str(out / "found.geojson")],
         "stack": [lf, "--pose-view", "5", "--width", "8192", "--height", "8192", "--slices",
                   "400", "-o", str(out / "d")],
         "allinfocus": [lf, "--pose-view", "5", "--width", "20000", "--height", "20000",

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import math
+import pickle
 import shutil
 import subprocess
 from pathlib import Path
@@ -424,6 +425,12 @@ def test_a_dem_in_another_crs_is_refused_or_transformed(flight: aos.LightField,
         np.testing.assert_array_equal(direct.image, on_dem.image)
     # The same surface in its own CRS comes back unchanged.
     assert surface.in_crs("EPSG:25833") == surface
+    # A Heightfield read from the file keeps its name, which the messages give (it was blank).
+    read = aos.Heightfield.read(str(tmp_path / "dem.tif"))
+    assert read.source == str(tmp_path / "dem.tif")
+    assert pickle.loads(pickle.dumps(read)).source == read.source
+    with pytest.raises(ValueError, match=r"dem.tif is in EPSG:25833 \(ETRS89"):
+        aos.FocalSurface(read).heights_at(flight, np.zeros((1, 2)))
 
 
 def test_render_integral_takes_what_the_cli_takes_and_names_a_surface_above_the_cameras(

@@ -67,7 +67,7 @@ def loaded_with_pose_source(tmp_path: Path) -> aos.LoadResult:
 
 
 # The light-field-level fields (not the views), each set to a value unlike its default below.
-LIGHT_FIELD_FIELDS = ("origin", "crs", "pose_source", "masked")
+LIGHT_FIELD_FIELDS = ("origin", "crs", "pose_source", "masked", "grey", "radiometry")
 
 
 def test_every_light_field_field_survives_rectify_copy_pickle_and_files(tmp_path: Path) -> None:
@@ -79,6 +79,8 @@ def test_every_light_field_field_survives_rectify_copy_pickle_and_files(tmp_path
     assert properties - {"views"} == set(LIGHT_FIELD_FIELDS)
     light_field = loaded_with_pose_source(tmp_path).light_field
     light_field.crs = "EPSG:32633"
+    light_field.grey = True
+    light_field.radiometry = aos.Radiometry(0.04, 1.5)
     assert light_field.pose_source is not None and tuple(light_field.origin) != (0, 0, 0)
 
     def fields(lf: aos.LightField) -> dict:
@@ -243,8 +245,11 @@ def changed(value: Any, field: str = "") -> Any:
         return True
     if value is None and field in ("magnetic_declination_deg", "takeoff_height_m",
                                    "home_latitude_deg", "home_longitude_deg",  # TelemetryOptions
-                                   "fixed_pitch_deg"):  # VideoFramesOptions
+                                   "fixed_pitch_deg",  # VideoFramesOptions
+                                   "min_score", "min_temperature_c"):  # DetectOptions
         return 1.5
+    if value is None and field == "false_alarm_rate":  # DetectOptions
+        return 1e-4
     if value is None and field == "ground_plane":  # FocalStackOptions.ground_plane
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if isinstance(value, aos.FocalSurface):  # IntegralOptions/MapOptions.focal_surface

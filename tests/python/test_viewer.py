@@ -294,6 +294,37 @@ def test_a_geo_referenced_light_field_reports_world_and_crs() -> None:
         handle.stop()
 
 
+def test_a_radiometric_light_field_shows_degrees_celsius() -> None:
+    """Temperature frames (centikelvin): the pick reads degrees Celsius and the frame header
+    gives the display range in degrees (the percentiles, not the 16-bit type's 0..655 K)."""
+    light_field = aos.LightField()
+    camera = aos.PinholeCamera.from_fov(32, 24, 60.0)
+    kelvin = 273.15 + 10.0 + np.arange(32 * 24, dtype=np.float64).reshape(24, 32) / 32.0
+    frame = np.rint(kelvin / 0.01).astype(np.uint16)
+    for j in range(3):
+        for i in range(3):
+            pose = aos.look_at((2.0 * i - 2.0, 2.0 * j - 2.0, ALTITUDE),
+                               (2.0 * i - 2.0, 2.0 * j - 2.0, 0.0), up=(0.0, 1.0, 0.0))
+            light_field.add_view(frame, camera, pose, name=f"v{j * 3 + i}")
+    light_field.radiometry = aos.Radiometry(0.01, 0.0)
+    handle = aos.view(light_field, focal_surface=0.0, pose_view=4, open_browser=False,
+                      num_threads=1)
+    try:
+        status, body = get(f"{base(handle)}/api/pick?token={handle.token}&u=16.5&v=12.5")
+        answer = json.loads(body)
+        assert status == 200 and answer["count"] > 0
+        assert answer["celsius"] == pytest.approx([0.01 * answer["value"][0] - 273.15], abs=1e-9)
+        assert 10.0 < answer["celsius"][0] < 35.0
+        status, body = get(f"{base(handle)}/api/render?token={handle.token}")
+        header, _ = decode_frame(body)
+        low, high = header["display_range_c"]
+        assert header["display_range"] == pytest.approx([(low + 273.15) / 0.01,
+                                                         (high + 273.15) / 0.01])
+        assert 10.0 <= low < high <= 34.0
+    finally:
+        handle.stop()
+
+
 def test_map_mode_export_and_command(viewer: Viewer, tmp_path: Path) -> None:
     status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&mode=map&width=40")
     header, image = decode_frame(body)

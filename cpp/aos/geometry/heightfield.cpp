@@ -182,6 +182,7 @@ Heightfield ReadHeightfield(const std::string& path) {
     }
   }
   field.Check(path);
+  field.source = path;
   return field;
 }
 

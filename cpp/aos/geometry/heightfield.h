@@ -47,6 +47,9 @@ struct Heightfield {
   // "EPSG:32633" (written); empty when it has none.
   std::string crs_wkt;
   std::vector<float> heights;  // row-major, width x height, metres; NaN = nodata
+  // The file it was read from (ReadHeightfield), which messages about it name; "" when built in
+  // memory.
+  std::string source;
 
   float At(int column, int row) const {
     return heights[static_cast<size_t>(row) * static_cast<size_t>(width) + static_cast<size_t>(column)];

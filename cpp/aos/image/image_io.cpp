@@ -405,6 +405,7 @@ ImageFileInfo ReadImageInfo(const std::string& path) {
   info.height = spec.height;
   info.channels = spec.nchannels;
   info.type = NativeType(spec.format);
+  info.description = spec.get_string_attribute("ImageDescription");
   input->close();
   return info;
 }

@@ -21,6 +21,7 @@ struct ImageFileInfo {
   int height = 0;
   int channels = 0;
   PixelType type = PixelType::kU8;  // type the image will have once read
+  std::string description;          // the file's ImageDescription, if any
 };
 
 // Header only. Throws std::invalid_argument "<path>: <reason>" if unreadable.

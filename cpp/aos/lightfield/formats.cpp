@@ -453,7 +453,9 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
   }
   const JsonPath top(path);
   RequireKnownKeys(root,
-                   {"format", "version", "origin", "crs", "pose_source", "cameras", "views"}, top);
+                   {"format", "version", "origin", "crs", "pose_source", "grey", "radiometry",
+                    "cameras", "views"},
+                   top);
   LoadResult result;
   result.format = "aos";
   LightField& light_field = result.light_field;
@@ -479,6 +481,31 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
         source.world_frame.clear();
       }
     }
+  }
+
+  if (auto it = root.find("grey"); it != root.end()) {
+    if (!it->is_boolean()) ThrowInvalid(path + ": grey: expected true or false, got " + Describe(*it));
+    light_field.grey = it->get<bool>();
+  }
+  if (auto it = root.find("radiometry"); it != root.end()) {
+    const JsonPath at = top / "radiometry";
+    if (!it->is_object()) {
+      ThrowInvalid(path + ": radiometry: expected an object {\"kelvin_per_unit\": ..., "
+                   "\"kelvin_offset\": ...}, got " + Describe(*it));
+    }
+    RequireKnownKeys(*it, {"kelvin_per_unit", "kelvin_offset"}, at);
+    Radiometry radiometry;
+    for (const auto& [key, field] : {std::pair<const char*, double*>{"kelvin_per_unit",
+                                                                     &radiometry.kelvin_per_unit},
+                                     {"kelvin_offset", &radiometry.kelvin_offset}}) {
+      const json& value = Field(*it, key, path + ": radiometry");
+      if (!value.is_number()) {
+        ThrowInvalid(path + ": radiometry: " + key + ": expected a number, got " + Describe(value));
+      }
+      *field = value.get<double>();
+    }
+    radiometry.Check(path + ": radiometry");
+    light_field.radiometry = radiometry;
   }
 
   const json& cameras_json = Field(root, "cameras", path);
@@ -548,11 +575,13 @@ LoadResult LoadAos(const std::string& path, const json& root, const LoadOptions&
   }
   // Poses and cameras only: the frames are not opened at all (they may be elsewhere or absent).
   if (!options.load_images) return result;
-  const FrameMasks masks = ResolveMasks(frames, options);
-  FrameData data = ReadFrames(frames, options, progress, masks);
+  LoadOptions decode = options;
+  decode.grey = options.grey || light_field.grey;  // the file's "grey" holds for every load
+  const FrameMasks masks = ResolveMasks(frames, decode);
+  FrameData data = ReadFrames(frames, decode, progress, masks);
   CheckFrameInfos(frames, data.infos, light_field.views);
   for (size_t i = 0; i < frames.size(); ++i) light_field.views[i].image = std::move(data.images[i]);
-  NoteMasks(frames, data, masks, options, light_field, result.notes);
+  NoteMasks(frames, data, masks, decode, light_field, result.notes);
   CheckLightField(light_field, path);
   return result;
 }
@@ -852,6 +881,7 @@ void LoadViewImages(LightField& light_field, const std::vector<int>& indices,
   }
   LoadOptions decode = options;
   decode.load_images = true;
+  decode.grey = options.grey || light_field.grey;
   const FrameMasks masks = ResolveMasks(frames, decode);
   FrameData data = ReadFrames(frames, decode, nullptr, masks);
   CheckFrameInfos(frames, data.infos, views);
@@ -988,6 +1018,11 @@ void WriteLightField(const std::string& path, const LightField& light_field,
   root["origin"] = Vec3ToJson(light_field.origin);
   if (!light_field.crs.empty()) root["crs"] = light_field.crs;
   if (light_field.pose_source) root["pose_source"] = PoseSourceToJson(*light_field.pose_source);
+  if (light_field.grey) root["grey"] = true;
+  if (light_field.radiometry) {
+    root["radiometry"] = {{"kelvin_per_unit", light_field.radiometry->kelvin_per_unit},
+                          {"kelvin_offset", light_field.radiometry->kelvin_offset}};
+  }
   std::vector<const View*> cameras;  // the first view of each distinct camera
   nlohmann::ordered_json cameras_json = nlohmann::ordered_json::object();
   nlohmann::ordered_json views_json = nlohmann::ordered_json::array();

@@ -17,6 +17,8 @@ LightField EmptyLike(const LightField& light_field) {
   empty.crs = light_field.crs;
   empty.pose_source = light_field.pose_source;
   empty.masked = light_field.masked;
+  empty.grey = light_field.grey;
+  empty.radiometry = light_field.radiometry;
   return empty;
 }
 
@@ -63,6 +65,7 @@ void CheckLightField(const LightField& light_field, const std::string& where) {
   for (int i = 0; i < 3; ++i) {
     if (!std::isfinite(light_field.origin[i])) ThrowInvalid(Where(where, "origin is not finite"));
   }
+  if (light_field.radiometry) light_field.radiometry->Check(Where(where, "radiometry"));
   for (size_t i = 0; i < light_field.views.size(); ++i) {
     const View& view = light_field.views[i];
     CheckView(view, ViewLabel(where, i, view));
@@ -74,6 +77,12 @@ void CheckLightField(const LightField& light_field, const std::string& where) {
     if (light_field.masked && view.image.channels() < 2) {
       ThrowInvalid(ViewLabel(where, i, view) + ": masked: the light field is masked but the "
                    "image has no weight channel (1 channel)");
+    }
+    const int value_channels = light_field.masked ? 2 : 1;
+    if (light_field.radiometry && !view.image.empty() && view.image.channels() != value_channels) {
+      ThrowInvalid(ViewLabel(where, i, view) + ": radiometry: temperature frames have one "
+                   "channel" + (light_field.masked ? " and a weight" : "") + ", this image has " +
+                   std::to_string(view.image.channels()));
     }
   }
 }

@@ -16,6 +16,7 @@
 #include "aos/geometry/pinhole.h"
 #include "aos/geometry/rigid.h"
 #include "aos/image/image.h"
+#include "aos/image/radiometry.h"
 
 namespace aos {
 
@@ -58,12 +59,21 @@ struct LightField {
   // (v_1 m, ..., v_C m, m * full range) with m 1 on valid pixels, 0 on masked ones. The
   // renderer (integral.h) divides by the weight and returns C channels.
   bool masked = false;
+  // The frames are read as grey (one-channel luminance, LoadOptions::grey) whenever this light
+  // field is loaded from its file: false-colour thermal frames imported with `grey`
+  // (import-telemetry --grey). Stored in the file as "grey": true.
+  bool grey = false;
+  // Set when the pixel values measure temperature (radiometric thermal frames: FLIR radiometric
+  // JPEGs converted at import, 16-bit counts with a linear calibration): kelvin =
+  // kelvin_per_unit * value + kelvin_offset, for the frames and every render of them. The frames
+  // then have one channel (two when masked). Stored in the file as "radiometry".
+  std::optional<Radiometry> radiometry;
 
   // Total bytes of the decoded frames (width * height * channels * value size, summed).
   size_t ImageBytes() const;
 };
 
-// Every field of `light_field` but its views (origin, crs, pose_source, masked): the start of a
+// Every field of `light_field` but its views (origin, crs, pose_source, masked, grey, radiometry): the start of a
 // light field derived from it view by view (rectify), so that none of its fields is dropped.
 // A field added to LightField is added here (test_python_api.py checks that every field bound
 // in Python survives rectify, copy, pickle and files).

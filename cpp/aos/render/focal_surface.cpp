@@ -361,6 +361,7 @@ FocalSurface FocalSurface::FromMesh(Mesh mesh, std::string source) {
 }
 
 FocalSurface FocalSurface::FromHeightfield(Heightfield heightfield, std::string source) {
+  if (source.empty()) source = heightfield.source;  // the file it was read from, if any
   auto impl = NewImpl(FocalSurfaceKind::kHeightfield);
   impl->mesh = HeightfieldToMesh(heightfield, source);
   impl->heightfield = std::move(heightfield);

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <limits>
 #include <map>
+#include <optional>
 #include <string_view>
 #include <system_error>
 #include <unordered_set>
@@ -786,6 +787,49 @@ LensCamera LensFromColmapCamera(const ColmapCamera& camera, const std::string& w
   return lens;
 }
 
+FrameOrder CaptureTimeOrder(const std::vector<std::string>& frames,
+                            const std::vector<std::optional<double>>& times,
+                            const std::string& time_source) {
+  FrameOrder result;
+  result.order.resize(frames.size());
+  for (size_t i = 0; i < result.order.size(); ++i) result.order[i] = i;
+  size_t timed = 0, untimed = frames.size();
+  for (size_t i = 0; i < times.size(); ++i) {
+    if (times[i]) {
+      ++timed;
+    } else if (untimed == frames.size()) {
+      untimed = i;
+    }
+  }
+  if (timed == 0) return result;
+  if (timed < frames.size()) {
+    result.warnings.push_back(
+        std::to_string(frames.size() - timed) + " of " + std::to_string(frames.size()) +
+        " frames have no capture time (" + time_source + "; e.g. " + frames[untimed] +
+        "): the views follow the frames' names in natural order (2 before 10) instead");
+    return result;
+  }
+  std::vector<size_t>& order = result.order;
+  std::stable_sort(order.begin(), order.end(),
+                   [&](size_t a, size_t b) { return *times[a] < *times[b]; });
+  result.by = "time";
+  result.time_source = time_source;
+  size_t moved = 0;
+  for (size_t i = 0; i < order.size(); ++i) moved += order[i] != i ? 1 : 0;
+  for (size_t i = 0; i < order.size(); ++i) {
+    if (order[i] == i) continue;
+    const double t0 = *times[order.front()];
+    result.warnings.push_back(
+        "the frames' name order and capture-time order disagree (" + std::to_string(moved) +
+        " of " + std::to_string(frames.size()) + " frames move): " + frames[order[i]] +
+        " (at +" + FormatNumber(*times[order[i]] - t0) + " s) was taken before " + frames[i] +
+        " (at +" + FormatNumber(*times[i] - t0) + " s); the views follow capture time (" +
+        time_source + ")");
+    break;
+  }
+  return result;
+}
+
 void ColmapImportOptions::Check() const {
   CheckThreadCount(num_threads);
 }
@@ -810,8 +854,43 @@ ColmapImport ImportColmapModel(const ColmapModel& model, const std::string& imag
   std::sort(images.begin(), images.end(), [](const ColmapImage* a, const ColmapImage* b) {
     return NaturalLess(a->name, b->name);
   });
-  std::map<uint32_t, LensCamera> lenses;
   ColmapImport result;
+  // Capture-time order where every frame has one (headers only; a missing frame is reported
+  // below with its image).
+  {
+    std::vector<std::string> names;
+    std::vector<std::optional<double>> times;
+    std::vector<std::string> bad_times;
+    ProgressStart(progress, "times", static_cast<int64_t>(images.size()));
+    for (const ColmapImage* image : images) {
+      if (ProgressCancelled(progress)) throw Cancelled();
+      ProgressAdvance(progress, 1);
+      names.push_back(image->name);
+      const std::string path = (fs::path(images_dir) / image->name).string();
+      std::optional<double> time;
+      try {
+        if (IsFile(path)) time = ReadCaptureTime(path);
+      } catch (const std::invalid_argument& error) {
+        // COLMAP does not need the time: a malformed tag costs the time order, not the import.
+        bad_times.push_back(error.what());
+      }
+      times.push_back(time);
+    }
+    FrameOrder order = CaptureTimeOrder(names, times, "EXIF DateTimeOriginal");
+    if (!bad_times.empty()) {
+      order.warnings.insert(order.warnings.begin(),
+                            std::to_string(bad_times.size()) + " frame" +
+                                (bad_times.size() == 1 ? " has" : "s have") +
+                                " an unreadable capture time, taken as none: " + bad_times.front());
+    }
+    std::vector<const ColmapImage*> ordered;
+    for (size_t k : order.order) ordered.push_back(images[k]);
+    images.swap(ordered);
+    result.order = order.by;
+    result.time_source = order.time_source;
+    result.warnings = std::move(order.warnings);
+  }
+  std::map<uint32_t, LensCamera> lenses;
   std::vector<std::string> labels;
   for (const ColmapImage* image : images) {
     const std::string label =

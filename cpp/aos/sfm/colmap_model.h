@@ -53,6 +53,7 @@
 // points3D file was emptied still reads).
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -125,6 +126,19 @@ LensCamera LensFromColmapCamera(const ColmapCamera& camera, const std::string& w
 // `folder` is not a folder.
 std::vector<std::string> ListFrameFiles(const std::string& folder);
 
+// The view order of `frames` (given in natural name order) from their capture times: by time
+// (stable: ties keep name order) when every frame has one, else by name. Warns when only some
+// frames have a time, or when the two orders disagree (with an example).
+struct FrameOrder {
+  std::vector<size_t> order;         // view i is frames[order[i]]
+  std::string by = "name";           // "time" (capture times) or "name"
+  std::string time_source;           // where the times came from, when by time
+  std::vector<std::string> warnings;
+};
+FrameOrder CaptureTimeOrder(const std::vector<std::string>& frames,
+                            const std::vector<std::optional<double>>& times,
+                            const std::string& time_source);
+
 struct ColmapImportOptions {
   // Frames are decoded when true; false reads poses and cameras only (the frame files are still
   // required and their headers checked against the cameras; images stay empty).
@@ -135,13 +149,19 @@ struct ColmapImportOptions {
 };
 
 struct ColmapImport {
-  // One view per registered image, sorted by name: image_path = images_dir / name, camera and
+  // One view per registered image, in capture-time order (else by name): image_path = images_dir / name, camera and
   // lens from LensFromColmapCamera (pinhole models: View::lens is the plain pinhole), the
   // image's cam_from_world. origin stays 0: the model's frame is the light field's.
   LightField light_field;
   std::vector<std::string> registered;    // image names, in view order
   // Frames in images_dir (ListFrameFiles) that the model does not register.
   std::vector<std::string> unregistered;
+  // The view order: "time" when every registered frame has an EXIF capture time
+  // (DateTimeOriginal + SubSecTimeOriginal, ReadCaptureTime), else "name" (natural order). A
+  // malformed time tag counts as none, with a warning naming the file (COLMAP needs no time).
+  std::string order = "name";
+  std::string time_source;
+  std::vector<std::string> warnings;      // the order's (CaptureTimeOrder)
 };
 
 // Builds the light field of `model`'s registered images found in `images_dir`. Throws

@@ -227,6 +227,9 @@ void ImportInto(ColmapModel model, const std::string& frames_dir,
   ColmapImport imported = ImportColmapModel(model, frames_dir, import_options, progress);
   result->light_field = std::move(imported.light_field);
   result->registered = imported.registered;
+  result->order = imported.order;
+  result->time_source = imported.time_source;
+  for (std::string& warning : imported.warnings) result->warnings.push_back(std::move(warning));
   // Unregistered: the listed frames the model lacks (not every file in the folder: unreadable
   // ones were never given to COLMAP and are reported as skipped).
   const std::set<std::string> registered(result->registered.begin(), result->registered.end());

@@ -185,6 +185,10 @@ struct PosesResult {
   std::vector<std::string> registered;    // in view order
   std::vector<std::string> unregistered;  // frames COLMAP did not register
   std::vector<std::string> warnings;      // skipped frames, unregistered frames, other models
+  // The view order: "time" (every registered frame has an EXIF capture time) or "name"
+  // (natural order), as ColmapImport states it.
+  std::string order = "name";
+  std::string time_source;
   int models = 0;                         // models COLMAP built (the largest is used)
   size_t points = 0;
   // The model's 3-D points in the light field's local frame (after geo-referencing; the model's

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cctype>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <filesystem>
 #include <set>
@@ -48,6 +49,13 @@ std::vector<std::pair<int, std::string>> ContentLines(const std::string& text) {
     lines.emplace_back(number, line);
   }
   return lines;
+}
+
+// A coordinate to 15 significant digits (1e-8 m at UTM northings; FormatNumber's 10 are 1 mm).
+std::string PreciseNumber(double value) {
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.15g", value);
+  return text;
 }
 
 bool IsNumber(const std::string& text) {
@@ -204,11 +212,155 @@ void WriteOdmGeo(const std::string& path, const LightField& light_field, bool ov
     const double bearing = GridBearingOfNorth(geographic[i].y, geographic[i].x, light_field.crs,
                                               path);
     const std::array<double, 3> ypr = YawPitchRollOfRotation(view.cam_from_world.rotation, bearing);
-    text += view.name + " " + FormatNumber(world[i].x) + " " + FormatNumber(world[i].y) + " " +
-            FormatNumber(world[i].z) + " " + FormatNumber(ypr[0]) + " " +
+    text += view.name + " " + PreciseNumber(world[i].x) + " " + PreciseNumber(world[i].y) + " " +
+            PreciseNumber(world[i].z) + " " + FormatNumber(ypr[0]) + " " +
             FormatNumber(OdmPitchFromGimbal(ypr[1])) + " " + FormatNumber(ypr[2]) + "\n";
   }
   WriteTextFileAtomic(path, text);
+}
+
+}  // namespace aos
+
+namespace aos {
+
+OdmGcpFile ReadOdmGcp(const std::string& path) {
+  CheckRegularFile(path, "GCP file");
+  const std::vector<std::pair<int, std::string>> lines = ContentLines(ReadTextFile(path));
+  if (lines.empty()) {
+    ThrowInvalid(path + ": empty: expected a projection line, then one line per ground point "
+                 "sighting");
+  }
+  OdmGcpFile file;
+  file.projection = lines.front().second;
+  file.crs = OdmProjectionCrs(file.projection,
+                              path + ": line " + std::to_string(lines.front().first));
+  const char* const names[5] = {"geo_x", "geo_y", "geo_z", "im_x", "im_y"};
+  for (size_t k = 1; k < lines.size(); ++k) {
+    const auto& [number, text] = lines[k];
+    const std::string where = path + ": line " + std::to_string(number);
+    const std::vector<std::string> words = Words(text);
+    if (words.size() < 6) {
+      ThrowInvalid(where + ": expected geo_x geo_y geo_z im_x im_y image_name [gcp_name], got \"" +
+                   text + "\"");
+    }
+    OdmGcp point;
+    point.line = number;
+    double v[5];
+    for (int i = 0; i < 5; ++i) v[i] = ParseFiniteNumber(words[i], where, names[i]);
+    point.position = Vec3d(v[0], v[1], v[2]);
+    point.pixel = Vec2d(v[3], v[4]);
+    if (point.pixel.x < -0.5 || point.pixel.y < -0.5) {
+      ThrowInvalid(where + ": im_x, im_y: (" + FormatNumber(v[3]) + ", " + FormatNumber(v[4]) +
+                   ") lies left of or above the image");
+    }
+    point.image = words[5];
+    if (words.size() > 6) point.name = words[6];
+    for (size_t i = 7; i < words.size(); ++i) {
+      point.extras += (point.extras.empty() ? "" : " ") + words[i];
+    }
+    file.points.push_back(std::move(point));
+  }
+  if (file.points.empty()) ThrowInvalid(path + ": no ground points after the projection line");
+  return file;
+}
+
+void WriteOdmGcp(const std::string& path, const OdmGcpFile& file, bool overwrite) {
+  OdmProjectionCrs(file.projection, path + ": projection");
+  if (file.projection.find_first_of("\r\n") != std::string::npos) {
+    ThrowInvalid(path + ": projection: must be one line");
+  }
+  std::error_code error;
+  if (!overwrite && fs::exists(path, error)) {
+    ThrowInvalid(path + ": exists (give overwrite / --force to replace it)");
+  }
+  std::string text = file.projection + "\n";
+  for (size_t i = 0; i < file.points.size(); ++i) {
+    const OdmGcp& p = file.points[i];
+    const std::string label = path + ": point " + std::to_string(i);
+    for (const std::string* word : {&p.image, &p.name}) {
+      if (word->find_first_of(" \t\r\n") != std::string::npos) {
+        ThrowInvalid(label + ": \"" + *word + "\" contains white space, which the file "
+                     "separates fields by");
+      }
+    }
+    if (p.image.empty()) ThrowInvalid(label + ": image_name: empty");
+    if (p.extras.find_first_of("\r\n") != std::string::npos) {
+      ThrowInvalid(label + ": extras: must be one line");
+    }
+    if (p.name.empty() && !p.extras.empty()) {
+      ThrowInvalid(label + ": extras need a gcp_name before them");
+    }
+    for (double value : {p.position.x, p.position.y, p.position.z, p.pixel.x, p.pixel.y}) {
+      if (!std::isfinite(value)) ThrowInvalid(label + ": a number is not finite");
+    }
+    text += PreciseNumber(p.position.x) + " " + PreciseNumber(p.position.y) + " " +
+            PreciseNumber(p.position.z) + " " + PreciseNumber(p.pixel.x) + " " +
+            PreciseNumber(p.pixel.y) + " " + p.image;
+    if (!p.name.empty()) text += " " + p.name;
+    if (!p.extras.empty()) text += " " + p.extras;
+    text += "\n";
+  }
+  WriteTextFileAtomic(path, text);
+}
+
+GcpCheckResult CheckGcps(const LightField& light_field, const OdmGcpFile& gcps,
+                         const std::string& where) {
+  if (light_field.crs.empty()) {
+    ThrowInvalid(where + ": the light field has no CRS (not geo-referenced): ground control "
+                 "needs world coordinates");
+  }
+  if (gcps.points.empty()) ThrowInvalid(where + ": no ground points");
+  std::vector<Vec3d> positions;
+  for (const OdmGcp& p : gcps.points) positions.push_back(p.position);
+  const std::vector<Vec3d> world = TransformPoints(positions, gcps.crs, light_field.crs, where);
+  GcpCheckResult result;
+  double sum_px = 0.0, sum_m = 0.0;
+  int ground_count = 0;
+  for (size_t i = 0; i < gcps.points.size(); ++i) {
+    const OdmGcp& p = gcps.points[i];
+    const std::string label = where + ": line " + std::to_string(p.line);
+    GcpResidual r;
+    r.line = p.line;
+    r.image = p.image;
+    r.name = p.name;
+    r.view = FindViewByName(light_field, p.image, label + ": image_name");
+    const View& view = light_field.views[static_cast<size_t>(r.view)];
+    const Vec3d local = world[i] - light_field.origin;
+    const Vec3d in_cam = view.cam_from_world * local;
+    if (!(in_cam.z > 0.0) || !view.camera.Project(in_cam, &r.predicted)) {
+      ThrowInvalid(label + ": the ground point " + (p.name.empty() ? "" : p.name + " ") +
+                   "is behind view " + std::to_string(r.view) + " (" + view.name +
+                   ") or outside its field: check the CRS line and the poses");
+    }
+    r.observed = p.pixel + Vec2d(0.5, 0.5);
+    r.error_px = glm::length(r.predicted - r.observed);
+    // The marked pixel's ray to the plane z = the point's height.
+    Vec3d ray_cam;
+    r.ground_error_m = Vec2d(std::nan(""));
+    r.ground_error_norm_m = std::nan("");
+    if (view.camera.Unproject(r.observed, &ray_cam)) {
+      const Vec3d direction = glm::transpose(view.cam_from_world.rotation) * ray_cam;
+      const Vec3d centre = view.cam_from_world.Center();
+      if (std::abs(direction.z) > 1e-12) {
+        const double t = (local.z - centre.z) / direction.z;
+        if (t > 0.0) {
+          const Vec3d hit = centre + t * direction;
+          r.ground_error_m = Vec2d(hit.x - local.x, hit.y - local.y);
+          r.ground_error_norm_m = glm::length(r.ground_error_m);
+          sum_m += r.ground_error_norm_m * r.ground_error_norm_m;
+          result.max_ground_m = std::max(result.max_ground_m, r.ground_error_norm_m);
+          ++ground_count;
+        }
+      }
+    }
+    sum_px += r.error_px * r.error_px;
+    result.max_px = std::max(result.max_px, r.error_px);
+    result.residuals.push_back(std::move(r));
+  }
+  result.rms_px = std::sqrt(sum_px / static_cast<double>(result.residuals.size()));
+  result.rms_ground_m = ground_count > 0 ? std::sqrt(sum_m / ground_count) : std::nan("");
+  if (ground_count == 0) result.max_ground_m = std::nan("");
+  return result;
 }
 
 }  // namespace aos

@@ -1,7 +1,8 @@
 #pragma once
 // OpenDroneMap interop: its image geolocation file (geo.txt), read as telemetry and written from
 // a light field, so that an ODM project's camera positions come into aos and aos's poses go out
-// to ODM (`odm --geo geo.txt`).
+// to ODM (`odm --geo geo.txt`); and its ground control file (gcp_list.txt), read and written, and
+// checked against a light field's poses (CheckGcps: the reprojection error of each sighting).
 //
 // The format (ODM's documentation, "Image Geolocation Files"):
 //   <projection>
@@ -82,5 +83,64 @@ std::array<double, 3> YawPitchRollOfRotation(const Mat3d& cam_from_world_rotatio
                                              double grid_bearing_of_north_rad = 0.0);
 
 void WriteOdmGeo(const std::string& path, const LightField& light_field, bool overwrite = false);
+
+// ODM's ground control point file (gcp_list.txt; ODM's documentation, "Ground Control Points"):
+//   <projection>
+//   geo_x geo_y geo_z im_x im_y image_name [gcp_name] [extras]
+// The projection line as in geo.txt. Each line is one sighting of a ground point in one image:
+// its world position (metres, or degrees for a geographic CRS) and its pixel in that image, ODM's
+// pixel coordinates (OpenSfM's: the top-left pixel's centre at (0, 0), x right, y down; aos's put
+// pixel centres at +0.5, so aos pixel = ODM pixel + 0.5). A point seen in several images has
+// several lines with one gcp_name. Blank and '#' lines are skipped; extras are kept as text.
+// Errors name the file, the line and the field (a missing or non-numeric field, a negative pixel).
+struct OdmGcp {
+  int line = 0;          // line number in the file (1-based)
+  Vec3d position{0.0};   // geo_x, geo_y, geo_z in the file's CRS
+  Vec2d pixel{0.0};      // im_x, im_y in ODM's pixel coordinates (see above)
+  std::string image;     // image_name as written
+  std::string name;      // gcp_name, or "" when absent
+  std::string extras;    // the rest of the line, as text
+};
+
+struct OdmGcpFile {
+  std::string projection;  // the first line as written
+  std::string crs;         // as PROJ takes it
+  std::vector<OdmGcp> points;
+};
+
+OdmGcpFile ReadOdmGcp(const std::string& path);
+// Writes `file` (projection line, then a line per point, numbers to 15 significant digits). Written
+// atomically; refuses an existing file unless `overwrite`; throws naming the point for an image
+// or GCP name with white space, a non-finite number, or an unknown projection.
+void WriteOdmGcp(const std::string& path, const OdmGcpFile& file, bool overwrite = false);
+
+// How well a light field's poses agree with ground control: each sighting's ground point is
+// moved into the light field's CRS (PROJ), projected into its view (found by name, as
+// FindViewByName matches it) and compared with the marked pixel.
+struct GcpResidual {
+  int line = 0;
+  std::string image;
+  std::string name;
+  int view = -1;              // the view's index
+  Vec2d predicted{0.0};       // the projected ground point, aos pixel coordinates
+  Vec2d observed{0.0};        // the marked pixel, aos pixel coordinates (ODM's + 0.5)
+  double error_px = 0.0;      // |predicted - observed|
+  // Where the marked pixel's ray meets the horizontal plane at the point's height, minus the
+  // point: the error on the ground, metres (x, y in the light field's CRS); NaN when the ray
+  // does not reach that plane.
+  Vec2d ground_error_m{0.0};
+  double ground_error_norm_m = 0.0;
+};
+struct GcpCheckResult {
+  std::vector<GcpResidual> residuals;
+  double rms_px = 0.0;
+  double max_px = 0.0;
+  double rms_ground_m = 0.0;  // over the sightings whose ray reaches the plane
+  double max_ground_m = 0.0;
+};
+// Throws std::invalid_argument naming the GCP file's line for an image that is no view, a point
+// behind its camera, and for a light field without a CRS.
+GcpCheckResult CheckGcps(const LightField& light_field, const OdmGcpFile& gcps,
+                         const std::string& where);
 
 }  // namespace aos

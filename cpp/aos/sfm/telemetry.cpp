@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <memory>
 #include <optional>
 #include <set>
 #include <sstream>
@@ -16,6 +17,7 @@
 #include "aos/geometry/geodesy.h"
 #include "aos/geometry/heightfield.h"
 #include "aos/geometry/pinhole.h"
+#include "aos/image/flir.h"
 #include "aos/image/image_io.h"
 #include "aos/lightfield/camera_file.h"
 #include "aos/sfm/colmap_model.h"
@@ -387,43 +389,11 @@ TelemetrySample SampleFromTags(const std::string& path, const std::string& altit
 std::vector<size_t> CaptureOrder(const std::vector<std::string>& frames,
                                  const std::vector<std::optional<double>>& times,
                                  const std::string& time_source, TelemetryResult* result) {
-  std::vector<size_t> order(frames.size());
-  for (size_t i = 0; i < order.size(); ++i) order[i] = i;
-  size_t timed = 0, untimed = frames.size();
-  for (size_t i = 0; i < times.size(); ++i) {
-    if (times[i]) {
-      ++timed;
-    } else if (untimed == frames.size()) {
-      untimed = i;
-    }
-  }
-  result->order = "name";
-  if (timed == 0) return order;
-  if (timed < frames.size()) {
-    result->warnings.push_back(
-        std::to_string(frames.size() - timed) + " of " + std::to_string(frames.size()) +
-        " frames have no capture time (" + time_source + "; e.g. " + frames[untimed] +
-        "): the views follow the frames' names in natural order (2 before 10) instead");
-    return order;
-  }
-  std::stable_sort(order.begin(), order.end(),
-                   [&](size_t a, size_t b) { return *times[a] < *times[b]; });
-  result->order = "time";
-  result->time_source = time_source;
-  size_t moved = 0;
-  for (size_t i = 0; i < order.size(); ++i) moved += order[i] != i ? 1 : 0;
-  for (size_t i = 0; i < order.size(); ++i) {
-    if (order[i] == i) continue;
-    const double t0 = *times[order.front()];
-    result->warnings.push_back(
-        "the frames' name order and capture-time order disagree (" + std::to_string(moved) +
-        " of " + std::to_string(frames.size()) + " frames move): " + frames[order[i]] +
-        " (at +" + FormatNumber(*times[order[i]] - t0) + " s) was taken before " + frames[i] +
-        " (at +" + FormatNumber(*times[i] - t0) + " s); the views follow capture time (" +
-        time_source + ")");
-    break;
-  }
-  return order;
+  FrameOrder order = CaptureTimeOrder(frames, times, time_source);
+  result->order = order.by;
+  result->time_source = order.time_source;
+  for (std::string& warning : order.warnings) result->warnings.push_back(std::move(warning));
+  return order.order;
 }
 
 template <class T>
@@ -557,6 +527,28 @@ void TelemetryOptions::Check() const {
     ThrowInvalid("home_longitude_deg: must be within [-180, 180] degrees (got " +
                  FormatNumber(*home_longitude_deg) + ")");
   }
+  if (radiometric == "linear") {
+    if (!(kelvin_per_count > 0.0) || !std::isfinite(kelvin_per_count)) {
+      ThrowInvalid("kelvin_per_count: radiometric 'linear' needs the kelvin per count, > 0 (got " +
+                   FormatNumber(kelvin_per_count) + "; FLIR TLinear: 0.01 or 0.04)");
+    }
+    if (!std::isfinite(kelvin_offset)) ThrowInvalid("kelvin_offset: must be finite");
+  } else if (kelvin_per_count != 0.0 || kelvin_offset != 0.0) {
+    ThrowInvalid(std::string(kelvin_per_count != 0.0 ? "kelvin_per_count" : "kelvin_offset") +
+                 ": applies to radiometric 'linear' only (it is '" + radiometric + "')");
+  }
+  if (radiometric == "flir") {
+    if (temperature_frames_dir.empty()) {
+      ThrowInvalid("temperature_frames_dir: radiometric 'flir' writes 16-bit temperature frames: "
+                   "give a new folder for them");
+    }
+  } else if (!temperature_frames_dir.empty()) {
+    ThrowInvalid("temperature_frames_dir: applies to radiometric 'flir' only (it is '" +
+                 radiometric + "')");
+  }
+  if (grey && radiometric != "none") {
+    ThrowInvalid("grey: radiometric frames have one channel of temperatures already");
+  }
 }
 
 Mat3d WorldFromCameraRotation(double yaw_deg, double pitch_deg, double roll_deg,
@@ -610,13 +602,65 @@ std::vector<std::pair<size_t, double>> ReplaceAltitudeOutliers(std::vector<doubl
   return replaced;
 }
 
+// The 1st, 50th and 99th percentile temperatures of a radiometric frame, degrees Celsius.
+void FrameTemperatures(const Image& image, const Radiometry& radiometry, TelemetryResult* result) {
+  std::vector<double> values;
+  values.reserve(static_cast<size_t>(image.width()) * image.height());
+  for (int y = 0; y < image.height(); ++y) {
+    for (int x = 0; x < image.width(); ++x) values.push_back(image.Value(x, y));
+  }
+  const auto percentile = [&](double p) {
+    const size_t k = static_cast<size_t>(p * static_cast<double>(values.size() - 1));
+    std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+    return radiometry.Celsius(values[k]);
+  };
+  result->first_frame_low_c = percentile(0.01);
+  result->first_frame_median_c = percentile(0.5);
+  result->first_frame_high_c = percentile(0.99);
+}
+
+// FLIR radiometric frames -> 16-bit temperature frames (0.01 K per unit) in `folder`, named by
+// the frames' stems; `paths` become the written files.
+void ConvertFlirFrames(std::vector<std::string>* paths, const std::string& folder,
+                       const std::string& final_folder, const Radiometry& radiometry,
+                       TelemetryResult* result, ProgressSink* progress) {
+  std::set<std::string> names;
+  std::vector<std::string> written;
+  ProgressStart(progress, "flir", static_cast<int64_t>(paths->size()));
+  constexpr size_t kBatch = 16;
+  for (size_t start = 0; start < paths->size(); start += kBatch) {
+    const size_t end = std::min(paths->size(), start + kBatch);
+    const std::vector<std::string> batch(paths->begin() + static_cast<std::ptrdiff_t>(start),
+                                         paths->begin() + static_cast<std::ptrdiff_t>(end));
+    for (const FlirFrame& frame : ReadFlirFrames(batch)) {
+      if (ProgressCancelled(progress)) throw Cancelled();
+      for (const std::string& warning : frame.warnings) result->warnings.push_back(warning);
+      const std::string name = fs::path(frame.path).stem().string() + ".png";
+      if (!names.insert(name).second) {
+        ThrowInvalid(frame.path + ": two frames share the name " + name +
+                     " in temperature_frames_dir " + final_folder);
+      }
+      const Image temperatures = FlirTemperatureImage(frame, radiometry);
+      if (written.empty()) FrameTemperatures(temperatures, radiometry, result);
+      WriteImageOptions write;
+      write.description = "aos temperature frame: " + radiometry.Describe() + " (from " +
+                          fs::path(frame.path).filename().string() + ")";
+      WriteImage((fs::path(folder) / name).string(), temperatures, write);
+      written.push_back((fs::path(final_folder) / name).string());
+      ProgressAdvance(progress, 1);
+    }
+  }
+  *paths = written;
+}
+
 TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options,
-                                ProgressSink* progress) {
+                                ProgressSink* progress, bool commit_frames) {
   options.Check();
   auto poll = [progress] {
     if (ProgressCancelled(progress)) throw Cancelled();
   };
   TelemetryResult result;
+  if (options.radiometric == "flir") CheckOutputFolder(options.temperature_frames_dir);
   const bool odm = !options.telemetry_file.empty() &&
                    LooksLikeOdmGeo(ReadTextFile(options.telemetry_file));
   result.source = options.telemetry_file.empty() ? "exif" : odm ? "odm" : "csv";
@@ -804,9 +848,30 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
     samples = Permuted(samples, order);
   }
 
+  // The files the views read: the frames, or their temperatures (FLIR radiometric frames,
+  // written to a pending folder that is moved into place once everything else succeeded).
+  std::vector<std::string> read_paths;  // where the files are now
+  for (const std::string& frame : frames) read_paths.push_back((fs::path(frames_dir) / frame).string());
+  std::vector<std::string> view_paths = read_paths;  // where the views will find them
+  std::shared_ptr<PendingFolder> temperature_frames;
+  result.radiometric = options.radiometric;
+  if (options.radiometric == "flir") {
+    temperature_frames = std::make_shared<PendingFolder>(options.temperature_frames_dir);
+    result.light_field.radiometry = Radiometry{0.01, 0.0};
+    view_paths = read_paths;
+    ConvertFlirFrames(&view_paths, temperature_frames->TempPath(), options.temperature_frames_dir,
+                      *result.light_field.radiometry, &result, progress);
+    for (size_t i = 0; i < view_paths.size(); ++i) {
+      read_paths[i] = (fs::path(temperature_frames->TempPath()) /
+                       fs::path(view_paths[i]).filename()).string();
+    }
+  } else if (options.radiometric == "linear") {
+    result.light_field.radiometry = Radiometry{options.kelvin_per_count, options.kelvin_offset};
+  }
+
   // The camera, and every frame's size against it (headers only).
   LensCamera camera;
-  const std::string first_path = (fs::path(frames_dir) / frames.front()).string();
+  const std::string first_path = read_paths.front();
   if (!options.camera_file.empty()) {
     camera = ReadCameraFile(options.camera_file);
     camera.Finalize(options.camera_file);
@@ -816,17 +881,32 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
                                                             options.fov_deg));
   }
   ProgressStart(progress, "headers", static_cast<int64_t>(frames.size()));
-  for (const std::string& frame : frames) {
+  for (const std::string& path : read_paths) {
     poll();
     ProgressAdvance(progress, 1);
-    const std::string path = (fs::path(frames_dir) / frame).string();
     const ImageFileInfo info = ReadImageInfo(path);
+    if (options.radiometric == "linear" && (info.channels != 1 || info.type != PixelType::kU16)) {
+      ThrowInvalid(path + ": radiometric 'linear' reads 16-bit one-channel counts, but the frame "
+                   "has " + std::to_string(info.channels) + " channel" +
+                   (info.channels == 1 ? "" : "s") + " of " + PixelTypeName(info.type));
+    }
     if (info.width != camera.width || info.height != camera.height) {
       ThrowInvalid(path + ": the frame is " + std::to_string(info.width) + "x" +
                    std::to_string(info.height) + " but the camera is " +
                    std::to_string(camera.width) + "x" + std::to_string(camera.height) +
                    (options.camera_file.empty() ? " (from the first frame)"
                                                 : " (" + options.camera_file + ")"));
+    }
+  }
+
+  if (options.radiometric == "linear") {
+    // A calibration that makes the scene implausibly hot or cold is a wrong calibration.
+    FrameTemperatures(ReadImage(read_paths.front()), *result.light_field.radiometry, &result);
+    if (!(result.first_frame_median_c > -100.0 && result.first_frame_median_c < 200.0)) {
+      ThrowInvalid(read_paths.front() + ": kelvin_per_count, kelvin_offset: the frame's median "
+                   "temperature would be " + FormatNumber(result.first_frame_median_c) +
+                   " C (" + result.light_field.radiometry->Describe() +
+                   "); -100..200 C expected: check the calibration");
     }
   }
 
@@ -900,7 +980,7 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
                                 samples[i].roll_deg, bearing_of_north);
     View view;
     view.name = frames[i];
-    view.image_path = (fs::path(frames_dir) / frames[i]).string();
+    view.image_path = view_paths[i];
     view.camera = camera;
     view.cam_from_world.rotation = glm::transpose(world_from_cam);
     const Vec3d centre = grid[i] - light_field.origin;
@@ -911,7 +991,15 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
   source.method = "telemetry";
   source.georeferenced = true;
   light_field.pose_source = source;
+  light_field.grey = options.grey;
   result.frames = frames;
+  if (temperature_frames) {
+    if (commit_frames) {
+      temperature_frames->Commit();
+    } else {
+      result.pending_temperature_frames = temperature_frames;
+    }
+  }
   return result;
 }
 

@@ -85,13 +85,18 @@
 // non-numeric or non-finite value, malformed quoting, an implausible position or altitude, latitude outside [-80, 84] (UTM's range) or longitude outside
 // [-180, 180], an angle outside [-360, 360], pitch outside [-180, 180], a repeated or unknown
 // frame name, decreasing times, a frame outside the log's times), or the frame and tag for
-// EXIF/XMP (a frame without GPS or gimbal tags), or the option. Nothing is written by this
-// module.
+// EXIF/XMP (a frame without GPS or gimbal tags), or the option. Nothing is written but, with
+// radiometric "flir", the temperature frames (a new folder, moved into place once everything else
+// succeeded: before ImportTelemetry returns, or by the caller with commit_frames false, after it
+// has written its own outputs).
+#include <cmath>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
 
 #include "aos/lightfield/lightfield.h"
+#include "aos/util/file_util.h"
 #include "aos/util/progress.h"
 #include "aos/util/option_fields.h"
 
@@ -138,6 +143,22 @@ struct TelemetryOptions {
   // The take-off (home) point, WGS84 degrees; both unset = the first frame's position.
   std::optional<double> home_latitude_deg;
   std::optional<double> home_longitude_deg;
+  // The frames are integrated as grey: RGB(A) frames (false-colour thermal) become one-channel
+  // luminance whenever the light field is loaded (LightField::grey, "grey" in its file).
+  bool grey = false;
+  // What the pixel values measure: "none" (plain images), "flir" (FLIR radiometric JPEGs: their
+  // raw counts and Planck calibration, read with exiftool, become 16-bit temperature frames in
+  // temperature_frames_dir, 0.01 K per unit; image/flir.h) or "linear" (16-bit one-channel counts:
+  // kelvin = kelvin_per_count * count + kelvin_offset). The light field records it (radiometry).
+  std::string radiometric = "none";
+  // With "linear": kelvin per count, > 0 (0.01 for FLIR's TLinear high resolution, 0.04 for its
+  // low resolution). 0 = not given.
+  double kelvin_per_count = 0.0;
+  // With "linear": the temperature of count 0, kelvin.
+  double kelvin_offset = 0.0;
+  // With "flir": a new folder for the temperature frames (16-bit PNG, named like the frames);
+  // the light field's views read them.
+  std::string temperature_frames_dir;
   void Check() const;
   // The field table (util/option_fields.h): every field once, in declaration order.
   template <class Visit>
@@ -190,6 +211,20 @@ struct TelemetryOptions {
                       "Take-off point latitude, WGS84 degrees; unset = the first frame's."));
     field(OptionField("home_longitude_deg", &O::home_longitude_deg, "deg", Range::Any(),
                       "Take-off point longitude, WGS84 degrees; unset = the first frame's."));
+    field(OptionField("grey", &O::grey, "", Range::Any(),
+                      "Integrate the frames as grey (false-colour thermal): recorded in the light "
+                      "field, applied at every load."));
+    field(OptionField("radiometric", &O::radiometric, "", Range::OneOf("none|flir|linear"),
+                      "Pixel values: 'none', 'flir' (FLIR radiometric JPEGs -> temperature frames, "
+                      "exiftool) or 'linear' (16-bit counts, kelvin_per_count)."));
+    field(OptionField("kelvin_per_count", &O::kelvin_per_count, "K", Range::Any(),
+                      "With radiometric 'linear': kelvin per count, > 0 (FLIR TLinear: 0.01 or "
+                      "0.04)."));
+    field(OptionField("kelvin_offset", &O::kelvin_offset, "K", Range::Any(),
+                      "With radiometric 'linear': the temperature of count 0, kelvin."));
+    field(OptionField("temperature_frames_dir", &O::temperature_frames_dir, "", Range::Any(),
+                      "With radiometric 'flir': new folder for the 16-bit temperature frames "
+                      "(0.01 K per unit)."));
   }
 };
 
@@ -214,13 +249,22 @@ struct TelemetryResult {
   std::string altitude_reference;          // as TelemetryOptions::altitude_reference
   double takeoff_height_m = 0.0;           // added to every altitude ("takeoff"), metres
   std::string takeoff_height_from;         // "given", or the DEM and the point it was sampled at
+  std::string radiometric;                 // as TelemetryOptions::radiometric
+  // With radiometric frames: the first frame's median and 1st/99th percentile temperatures,
+  // degrees Celsius (NaN otherwise), a check a person can read at a glance.
+  double first_frame_median_c = std::nan("");
+  double first_frame_low_c = std::nan("");
+  double first_frame_high_c = std::nan("");
+  // With commit_frames false and radiometric "flir": the temperature frames' folder, not yet in
+  // place (Commit() it once the light field is written; dropped, it is removed).
+  std::shared_ptr<PendingFolder> pending_temperature_frames;
 };
 
 // `progress` gets a "tags" stage (EXIF/XMP source: a unit per frame's tags) and a "headers"
 // stage (a unit per frame's header), and is polled for cancellation once per frame in each
 // (throws aos::Cancelled).
 TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOptions& options,
-                                ProgressSink* progress = nullptr);
+                                ProgressSink* progress = nullptr, bool commit_frames = true);
 
 // One frame's telemetry as read (degrees, metres). Exposed for tests.
 struct TelemetrySample {

@@ -415,6 +415,10 @@ VideoImportResult ImportVideo(const std::string& video_path, const std::string& 
     ThrowInvalid("telemetry: telemetry_file, frame_interval_s, time_offset_s and altitude are "
                  "the video import's own (its telemetry.csv); leave them unset");
   }
+  if (telemetry.radiometric != "none") {
+    ThrowInvalid("telemetry.radiometric: a video's frames are not radiometric (8-bit, decoded); "
+                 "import radiometric frames with import-telemetry");
+  }
   TelemetryOptions posing = telemetry;
   posing.telemetry_file = "telemetry.csv";  // checked with a stand-in name before the work
   posing.Check();

@@ -284,6 +284,11 @@ class Session:
             self.channels -= 1  # the frames' weight channel (masks) is divided out by renders
         self.dtype = "float32" if first is None else str(first.dtype)
         self.type_range = {"uint8": (0.0, 255.0), "uint16": (0.0, 65535.0)}.get(self.dtype)
+        # Radiometric frames (values measure temperature): the page shows degrees Celsius, and
+        # the frames' type range (0..655 K for 16-bit centikelvin) gives way to the percentiles.
+        self.radiometry = light_field.radiometry
+        if self.radiometry is not None:
+            self.type_range = None
         # Mean view centre and the up axis (+z or -z, towards the cameras from the ground).
         self.mean_centre = self.centres.mean(axis=0)
         # Without a pose the viewer starts at the middle view (the CLI's integral needs one).
@@ -455,8 +460,11 @@ class Session:
             # An option the C++ Check() refused (e.g. a plane behind the camera): the request's.
             raise BadParameter(str(error)) from None
 
-    def display(self, image: np.ndarray, count: np.ndarray, params: Params) -> np.ndarray:
-        """The image as RGBA uint8 for the page: range, gain, offset, colour map."""
+    def display(self, image: np.ndarray, count: np.ndarray, params: Params,
+                ranges: Optional[list[tuple[float, float]]] = None) -> np.ndarray:
+        """The image as RGBA uint8 for the page: range, gain, offset, colour map. The display
+        range (the values shown black and white at gain 1, offset 0) is appended to
+        ``ranges`` when given."""
         data = image if image.ndim == 3 else image[:, :, None]
         covered = count > 0
         if params.range == "views" and self.type_range is not None:
@@ -469,6 +477,8 @@ class Session:
                 low, high = 0.0, 1.0
             if not high > low:
                 high = low + 1.0
+        if ranges is not None:
+            ranges.append((low, high))
         # level = ((v - low) * gain / (high - low) + offset) * 255 + 0.5, in place, in float32.
         scale = 255.0 * params.gain / (high - low)
         bias = 255.0 * params.offset + 0.5 - low * scale
@@ -499,14 +509,18 @@ class Session:
                 self.preview_divisor = 4
             elif self.preview_divisor == 4 and milliseconds < PREVIEW_BUDGET_MS / 8:
                 self.preview_divisor = 2
-        rgba = self.display(result.image, result.count, params)
+        ranges: list[tuple[float, float]] = []
+        rgba = self.display(result.image, result.count, params, ranges)
         height, width = rgba.shape[:2]
         info: dict[str, Any] = {
             "width": width, "height": height, "mode": params.mode, "preview": params.preview,
             "render_ms": round(1000.0 * (rendered - start), 2),
             "display_ms": round(1000.0 * (time.perf_counter() - rendered), 2),
             "uncovered_pixels": int((result.count == 0).sum()),
+            "display_range": [float(ranges[0][0]), float(ranges[0][1])],
         }
+        if self.radiometry is not None:
+            info["display_range_c"] = [float(self.radiometry.celsius(v)) for v in ranges[0]]
         if params.mode == "map":
             info["geotransform"] = list(result.geotransform)
         else:
@@ -529,6 +543,8 @@ class Session:
         value = np.atleast_1d(result.image[row, column]).astype(float).tolist()
         origin = np.asarray(self.light_field.origin, dtype=float)
         answer: dict[str, Any] = {"u": u, "v": v, "count": count, "value": value}
+        if self.radiometry is not None and count > 0:
+            answer["celsius"] = [float(self.radiometry.celsius(x)) for x in value]
         if params.mode == "map":
             x0, p, _, y0, _, _ = result.geotransform
             world_xy = np.array([x0 + u * p, y0 - v * p])

@@ -126,7 +126,9 @@ function handleFrame(buffer) {
     ` render ${header.render_ms} ms, input to display ${record.latency_ms === null ? "-" :
       record.latency_ms.toFixed(0)} ms, ${recent} frames/s` +
     (header.views_used !== undefined ? `, ${header.views_used} of ${header.views_selected} views` : "") +
-    `, ${header.uncovered_pixels || 0} pixels uncovered`;
+    `, ${header.uncovered_pixels || 0} pixels uncovered` +
+    (header.display_range_c ? `, display ${header.display_range_c[0].toFixed(1)} .. ` +
+      `${header.display_range_c[1].toFixed(1)} \u00b0C` : "");
   if (header.allinfocus) finishJob("all-in-focus done");
 }
 
@@ -207,6 +209,7 @@ async function pickAt(u, v) {
     text += "the ray misses the focal surface";
   }
   text += `  seen by ${answer.count} views`;
+  if (answer.celsius) text += `  ${answer.celsius.map((c) => c.toFixed(2)).join(", ")} \u00b0C`;
   $("pick").textContent = text;
   return answer;
 }

@@ -1,0 +1,384 @@
+#include "aos/detect/anomaly.h"
+
+#include <algorithm>
+#include <boost/math/distributions/chi_squared.hpp>
+#include <cmath>
+#include <numeric>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "aos/util/error.h"
+
+namespace aos {
+namespace {
+
+// Per-pixel features, row-major, `d` floats each; valid[i] marks the pixels that take part.
+struct Features {
+  int width = 0, height = 0, d = 0;
+  std::vector<float> values;
+  std::vector<uint8_t> valid;
+  int64_t count = 0;
+  const float* At(size_t i) const { return values.data() + i * static_cast<size_t>(d); }
+};
+
+int FeatureCount(const std::string& channels, int image_channels, const std::string& detector) {
+  if (detector == "temperature") return 1;
+  if (channels == "auto") return image_channels;
+  if (channels == "grey") return 1;
+  if (channels == "rgb+thermal") return 4;
+  return 3;  // rgb, hsv
+}
+
+Features MakeFeatures(const Image& image, const Image& count, const AnomalyOptions& options,
+                      const std::optional<Radiometry>& radiometry) {
+  const int c = image.channels();
+  const std::string& choice = options.channels;
+  if (options.detector == "temperature") {
+    if (!radiometry) {
+      ThrowInvalid("detector: 'temperature' needs a radiometric light field (its radiometry: "
+                   "kelvin per unit of value)");
+    }
+    if (c != 1) {
+      ThrowInvalid("detector: 'temperature' needs one channel of temperatures, the image has " +
+                   std::to_string(c));
+    }
+  } else if ((choice == "grey" || choice == "rgb" || choice == "hsv") && c < 3) {
+    ThrowInvalid("channels: '" + choice + "' needs 3 channels (RGB), the image has " +
+                 std::to_string(c));
+  } else if (choice == "rgb+thermal" && c < 4) {
+    ThrowInvalid("channels: 'rgb+thermal' needs 4 channels (RGB and thermal), the image has " +
+                 std::to_string(c));
+  }
+  if (c < 1 || c > 8) ThrowInvalid("channels: the image has " + std::to_string(c) + " channels");
+  if (!count.empty() &&
+      (count.width() != image.width() || count.height() != image.height() || count.channels() != 1 ||
+       count.type() != PixelType::kU32)) {
+    ThrowInvalid("count: must be uint32, one channel, the image's size");
+  }
+  Features f;
+  f.width = image.width();
+  f.height = image.height();
+  f.d = FeatureCount(choice, c, options.detector);
+  const size_t n = static_cast<size_t>(f.width) * static_cast<size_t>(f.height);
+  f.values.assign(n * static_cast<size_t>(f.d), 0.0f);
+  f.valid.assign(n, 0);
+  // HSV needs values in [0, 1]: the image's largest value over the pixels with a view (the
+  // Mahalanobis distance does not change with V's scale, a linear map of the features).
+  double scale = 1.0;
+  if (choice == "hsv") {
+    double largest = 0.0;
+    for (int y = 0; y < f.height; ++y) {
+      for (int x = 0; x < f.width; ++x) {
+        for (int k = 0; k < 3; ++k) {
+          const double v = image.Value(x, y, k);
+          if (std::isfinite(v)) largest = std::max(largest, v);
+        }
+      }
+    }
+    scale = largest > 0.0 ? 1.0 / largest : 1.0;
+  }
+  for (int y = 0; y < f.height; ++y) {
+    for (int x = 0; x < f.width; ++x) {
+      const size_t i = static_cast<size_t>(y) * f.width + x;
+      if (!count.empty() && *count.At<uint32_t>(x, y) == 0) continue;
+      float* out = f.values.data() + i * static_cast<size_t>(f.d);
+      double v[8];
+      bool finite = true;
+      for (int k = 0; k < c; ++k) {
+        v[k] = image.Value(x, y, k);
+        finite = finite && std::isfinite(v[k]);
+      }
+      if (!finite) continue;
+      if (options.detector == "temperature") {
+        out[0] = static_cast<float>(radiometry->Celsius(v[0]));
+      } else if (choice == "auto") {
+        for (int k = 0; k < c; ++k) out[k] = static_cast<float>(v[k]);
+      } else if (choice == "grey") {
+        out[0] = static_cast<float>(0.299 * v[0] + 0.587 * v[1] + 0.114 * v[2]);
+      } else if (choice == "rgb" || choice == "rgb+thermal") {
+        for (int k = 0; k < f.d; ++k) out[k] = static_cast<float>(v[k]);
+      } else {  // hsv
+        cv::Mat rgb(1, 1, CV_32FC3), hsv;
+        rgb.at<cv::Vec3f>(0, 0) = cv::Vec3f(static_cast<float>(std::clamp(v[0] * scale, 0.0, 1.0)),
+                                            static_cast<float>(std::clamp(v[1] * scale, 0.0, 1.0)),
+                                            static_cast<float>(std::clamp(v[2] * scale, 0.0, 1.0)));
+        cv::cvtColor(rgb, hsv, cv::COLOR_RGB2HSV);
+        const cv::Vec3f h = hsv.at<cv::Vec3f>(0, 0);  // H in degrees, S and V in [0, 1]
+        const double hue = h[0] * M_PI / 180.0;
+        out[0] = static_cast<float>(h[1] * std::cos(hue));
+        out[1] = static_cast<float>(h[1] * std::sin(hue));
+        out[2] = h[2];
+      }
+      f.valid[i] = 1;
+      ++f.count;
+    }
+  }
+  if (f.count == 0) {
+    ThrowInvalid("image: no pixel with a view and finite values: nothing to score");
+  }
+  return f;
+}
+
+// Mean and covariance (population) of the valid pixels listed in `subset` (all when empty).
+void MeanCovariance(const Features& f, const std::vector<size_t>* subset, std::vector<double>* mean,
+                    std::vector<double>* covariance) {
+  const int d = f.d;
+  mean->assign(d, 0.0);
+  covariance->assign(static_cast<size_t>(d) * d, 0.0);
+  double n = 0.0;
+  const auto each = [&](auto&& visit) {
+    if (subset != nullptr) {
+      for (size_t i : *subset) visit(i);
+    } else {
+      for (size_t i = 0; i < f.valid.size(); ++i) {
+        if (f.valid[i]) visit(i);
+      }
+    }
+  };
+  each([&](size_t i) {
+    const float* x = f.At(i);
+    for (int k = 0; k < d; ++k) (*mean)[k] += x[k];
+    n += 1.0;
+  });
+  for (double& m : *mean) m /= n;
+  each([&](size_t i) {
+    const float* x = f.At(i);
+    double centred[8];
+    for (int k = 0; k < d; ++k) centred[k] = x[k] - (*mean)[k];
+    for (int a = 0; a < d; ++a) {
+      for (int b = a; b < d; ++b) (*covariance)[a * d + b] += centred[a] * centred[b];
+    }
+  });
+  for (int a = 0; a < d; ++a) {
+    for (int b = a; b < d; ++b) {
+      (*covariance)[a * d + b] /= n;
+      (*covariance)[b * d + a] = (*covariance)[a * d + b];
+    }
+  }
+}
+
+double Trace(const std::vector<double>& covariance, int d) {
+  double trace = 0.0;
+  for (int k = 0; k < d; ++k) trace += covariance[k * d + k];
+  return trace;
+}
+
+// The ridge of the contract: regularization * trace / d, plus a floor of 1e-12 of the features'
+// squared scale.
+double Ridge(double regularization, double trace, const std::vector<double>& mean, int d) {
+  double scale = 0.0;
+  for (double m : mean) scale += m * m;
+  return regularization * trace / d + 1e-12 * (1.0 + scale / d + trace / d);
+}
+
+// (C + l I)^-1, d x d row-major, by OpenCV's SVD (well defined for any symmetric C, l > 0).
+std::vector<double> RegularisedInverse(const std::vector<double>& covariance, int d, double ridge) {
+  cv::Mat c(d, d, CV_64F);
+  for (int a = 0; a < d; ++a) {
+    for (int b = 0; b < d; ++b) c.at<double>(a, b) = covariance[a * d + b] + (a == b ? ridge : 0.0);
+  }
+  cv::Mat inverse;
+  cv::invert(c, inverse, cv::DECOMP_SVD);
+  std::vector<double> out(static_cast<size_t>(d) * d);
+  for (int a = 0; a < d; ++a) {
+    for (int b = 0; b < d; ++b) out[a * d + b] = inverse.at<double>(a, b);
+  }
+  return out;
+}
+
+double Mahalanobis2(const float* x, const double* mean, const double* inverse, int d) {
+  double centred[8];
+  for (int k = 0; k < d; ++k) centred[k] = x[k] - mean[k];
+  double sum = 0.0;
+  for (int a = 0; a < d; ++a) {
+    double row = 0.0;
+    for (int b = 0; b < d; ++b) row += inverse[a * d + b] * centred[b];
+    sum += centred[a] * row;
+  }
+  return std::max(0.0, sum);
+}
+
+void ScoreAll(const Features& f, const std::vector<double>& mean, const std::vector<double>& inverse,
+              std::vector<double>* scores) {
+  scores->assign(f.valid.size(), 0.0);
+  for (size_t i = 0; i < f.valid.size(); ++i) {
+    if (f.valid[i]) (*scores)[i] = Mahalanobis2(f.At(i), mean.data(), inverse.data(), f.d);
+  }
+}
+
+// Local RX: box sums of x and x x^T over the outer window minus the inner one.
+void LocalScores(const Features& f, const AnomalyOptions& options, double global_trace,
+                 const std::vector<double>& global_mean, const std::vector<double>& global_inverse,
+                 std::vector<double>* scores) {
+  const int d = f.d, w = f.width, h = f.height;
+  const int pairs = d * (d + 1) / 2;
+  // Integral images (double) of 1 (valid), x_k and x_a x_b.
+  std::vector<cv::Mat> sums;
+  const auto integral_of = [&](auto&& value) {
+    cv::Mat plane(h, w, CV_64F);
+    for (int y = 0; y < h; ++y) {
+      for (int x = 0; x < w; ++x) {
+        const size_t i = static_cast<size_t>(y) * w + x;
+        plane.at<double>(y, x) = f.valid[i] ? value(f.At(i)) : 0.0;
+      }
+    }
+    cv::Mat integral;
+    cv::integral(plane, integral, CV_64F);
+    sums.push_back(integral);
+  };
+  integral_of([](const float*) { return 1.0; });
+  for (int k = 0; k < d; ++k) integral_of([k](const float* x) { return static_cast<double>(x[k]); });
+  for (int a = 0; a < d; ++a) {
+    for (int b = a; b < d; ++b) {
+      integral_of([a, b](const float* x) { return static_cast<double>(x[a]) * x[b]; });
+    }
+  }
+  const int outer = options.outer_window_px / 2, inner = options.inner_window_px / 2;
+  const auto box = [&](const cv::Mat& s, int x, int y, int r) {
+    const int x0 = std::max(0, x - r), y0 = std::max(0, y - r);
+    const int x1 = std::min(w, x + r + 1), y1 = std::min(h, y + r + 1);
+    return s.at<double>(y1, x1) - s.at<double>(y0, x1) - s.at<double>(y1, x0) + s.at<double>(y0, x0);
+  };
+  scores->assign(f.valid.size(), 0.0);
+  std::vector<double> mean(d), covariance(static_cast<size_t>(d) * d);
+  std::vector<double> values(1 + d + pairs);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const size_t i = static_cast<size_t>(y) * w + x;
+      if (!f.valid[i]) continue;
+      for (size_t k = 0; k < values.size(); ++k) {
+        values[k] = box(sums[k], x, y, outer) - box(sums[k], x, y, inner);
+      }
+      const double n = values[0];
+      if (n < 2.0 * d + 1.0) {
+        (*scores)[i] = Mahalanobis2(f.At(i), global_mean.data(), global_inverse.data(), d);
+        continue;
+      }
+      for (int k = 0; k < d; ++k) mean[k] = values[1 + k] / n;
+      int p = 0;
+      for (int a = 0; a < d; ++a) {
+        for (int b = a; b < d; ++b, ++p) {
+          const double c = values[1 + d + p] / n - mean[a] * mean[b];
+          covariance[a * d + b] = c;
+          covariance[b * d + a] = c;
+        }
+      }
+      // The local ridge, plus a millionth of the global scale: a flat window stays invertible.
+      const double ridge = Ridge(options.regularization, Trace(covariance, d), mean, d) +
+                           1e-6 * global_trace / d;
+      const std::vector<double> inverse = RegularisedInverse(covariance, d, ridge);
+      (*scores)[i] = Mahalanobis2(f.At(i), mean.data(), inverse.data(), d);
+    }
+  }
+}
+
+}  // namespace
+
+void AnomalyOptions::Check() const {
+  CheckFieldRanges(*this);
+  if (inner_window_px % 2 == 0 || outer_window_px % 2 == 0) {
+    ThrowInvalid("inner_window_px, outer_window_px: must be odd (a window centred on its pixel), "
+                 "got " + std::to_string(inner_window_px) + " and " +
+                 std::to_string(outer_window_px));
+  }
+  if (outer_window_px <= inner_window_px) {
+    ThrowInvalid("outer_window_px: must be larger than inner_window_px (" +
+                 std::to_string(inner_window_px) + "), got " + std::to_string(outer_window_px));
+  }
+}
+
+double ChiSquareQuantile(int dof, double p_exceed) {
+  if (dof < 1) ThrowInvalid("ChiSquareQuantile: dof must be >= 1");
+  if (!(p_exceed > 0.0 && p_exceed < 1.0)) {
+    ThrowInvalid("false_alarm_rate: must be in (0, 1), got " + FormatNumber(p_exceed));
+  }
+  const boost::math::chi_squared distribution(dof);
+  return boost::math::quantile(boost::math::complement(distribution, p_exceed));
+}
+
+AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
+                                   const AnomalyOptions& options,
+                                   const std::optional<Radiometry>& radiometry) {
+  options.Check();
+  if (image.empty()) ThrowInvalid("image: empty");
+  const Features f = MakeFeatures(image, count, options, radiometry);
+  const int d = f.d;
+  AnomalyScores result;
+  result.dimensions = d;
+  result.pixels = f.count;
+  result.scores = Image(f.width, f.height, 1, PixelType::kF32);
+  std::vector<double> scores;
+  if (options.detector == "temperature") {
+    scores.assign(f.valid.size(), 0.0);
+    for (size_t i = 0; i < f.valid.size(); ++i) {
+      if (f.valid[i]) scores[i] = f.At(i)[0];
+    }
+  } else {
+    std::vector<double> mean, covariance;
+    MeanCovariance(f, nullptr, &mean, &covariance);
+    std::vector<double> inverse =
+        RegularisedInverse(covariance, d, Ridge(options.regularization, Trace(covariance, d), mean, d));
+    const double t = options.trim_fraction;
+    if (t > 0.0 && options.robust_iterations > 0) {
+      const size_t keep = std::max<size_t>(
+          static_cast<size_t>(d) + 1,
+          static_cast<size_t>(std::ceil((1.0 - t) * static_cast<double>(f.count))));
+      std::vector<size_t> valid_indices;
+      for (size_t i = 0; i < f.valid.size(); ++i) {
+        if (f.valid[i]) valid_indices.push_back(i);
+      }
+      if (keep < valid_indices.size()) {
+        const boost::math::chi_squared chi_d(d), chi_d2(d + 2);
+        const double q = boost::math::quantile(chi_d, 1.0 - t);
+        const double consistency = (1.0 - t) / boost::math::cdf(chi_d2, q);
+        for (int iteration = 0; iteration < options.robust_iterations; ++iteration) {
+          std::vector<std::pair<double, size_t>> ranked;
+          ranked.reserve(valid_indices.size());
+          for (size_t i : valid_indices) {
+            ranked.emplace_back(Mahalanobis2(f.At(i), mean.data(), inverse.data(), d), i);
+          }
+          std::nth_element(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(keep - 1),
+                           ranked.end());
+          std::vector<size_t> kept(keep);
+          for (size_t k = 0; k < keep; ++k) kept[k] = ranked[k].second;
+          MeanCovariance(f, &kept, &mean, &covariance);
+          for (double& c : covariance) c *= consistency;
+          inverse = RegularisedInverse(covariance, d,
+                                       Ridge(options.regularization, Trace(covariance, d), mean, d));
+        }
+        // Reweighting (as FastMCD ends): the pixels within the 97.5 % quantile of chi2_d under the
+        // raw estimate, whatever the contamination was, give the final one.
+        const double cut = boost::math::quantile(chi_d, 0.975);
+        const double reweighted = 0.975 / boost::math::cdf(chi_d2, cut);
+        std::vector<size_t> inliers;
+        for (size_t i : valid_indices) {
+          if (Mahalanobis2(f.At(i), mean.data(), inverse.data(), d) <= cut) inliers.push_back(i);
+        }
+        if (inliers.size() > static_cast<size_t>(d) + 1) {
+          MeanCovariance(f, &inliers, &mean, &covariance);
+          for (double& c : covariance) c *= reweighted;
+          inverse = RegularisedInverse(covariance, d,
+                                       Ridge(options.regularization, Trace(covariance, d), mean, d));
+        }
+      }
+    }
+    result.mean = mean;
+    result.covariance = covariance;
+    const double ridge = Ridge(options.regularization, Trace(covariance, d), mean, d);
+    for (int k = 0; k < d; ++k) result.covariance[k * d + k] += ridge;
+    if (options.detector == "rx-local") {
+      LocalScores(f, options, Trace(covariance, d), mean, inverse, &scores);
+    } else {
+      ScoreAll(f, mean, inverse, &scores);
+    }
+  }
+  for (int y = 0; y < f.height; ++y) {
+    float* row = result.scores.At<float>(0, y);
+    for (int x = 0; x < f.width; ++x) {
+      row[x] = static_cast<float>(scores[static_cast<size_t>(y) * f.width + x]);
+    }
+  }
+  return result;
+}
+
+}  // namespace aos

@@ -1,0 +1,482 @@
+#include "aos/detect/detect.h"
+
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <filesystem>
+#include <opencv2/core.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "aos/geometry/geodesy.h"
+#include "aos/render/focal_surface.h"
+#include "aos/util/error.h"
+#include "aos/util/file_util.h"
+#include "aos/util/parallel.h"
+
+namespace aos {
+namespace {
+
+namespace fs = std::filesystem;
+
+std::string Lower(std::string text) {
+  std::transform(text.begin(), text.end(), text.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return text;
+}
+
+// A number for the CSV: 15 significant digits (1e-8 m at UTM northings, 1e-13 degrees), "" for
+// NaN.
+std::string Number(double value) {
+  if (!std::isfinite(value)) return "";
+  char text[64];
+  std::snprintf(text, sizeof(text), "%.15g", value);
+  return text;
+}
+
+bool Located(const Detection& d) { return std::isfinite(d.local.x); }
+
+std::string GeoJson(const DetectResult& result) {
+  nlohmann::ordered_json root;
+  root["type"] = "FeatureCollection";
+  nlohmann::ordered_json features = nlohmann::ordered_json::array();
+  for (size_t i = 0; i < result.detections.size(); ++i) {
+    const Detection& d = result.detections[i];
+    nlohmann::ordered_json feature;
+    feature["type"] = "Feature";
+    feature["id"] = static_cast<int>(i + 1);
+    if (d.lon_lat) {
+      feature["geometry"] = {{"type", "Point"},
+                             {"coordinates", {d.lon_lat->x, d.lon_lat->y, d.world.z}}};
+    } else {
+      feature["geometry"] = nullptr;
+    }
+    nlohmann::ordered_json p;
+    p["pixel_x"] = d.pixel.x;
+    p["pixel_y"] = d.pixel.y;
+    p["area_px"] = d.area_px;
+    p["peak_score"] = d.peak_score;
+    p["mean_score"] = d.mean_score;
+    if (Located(d)) {
+      p["world"] = {d.world.x, d.world.y, d.world.z};
+      p["local"] = {d.local.x, d.local.y, d.local.z};
+    } else {
+      p["world"] = nullptr;
+      p["local"] = nullptr;
+    }
+    p["crs"] = result.crs;
+    p["views"] = d.views;
+    if (std::isfinite(d.peak_celsius)) {
+      p["peak_celsius"] = d.peak_celsius;
+      p["mean_celsius"] = d.mean_celsius;
+    }
+    feature["properties"] = p;
+    features.push_back(feature);
+  }
+  root["features"] = features;
+  root["aos"] = {{"threshold", result.threshold},
+                 {"threshold_rule", result.threshold_rule},
+                 {"flagged_pixels", result.flagged_pixels},
+                 {"dropped", result.dropped},
+                 {"crs", result.crs}};
+  return root.dump(1) + "\n";
+}
+
+std::string Kml(const DetectResult& result) {
+  std::string text =
+      "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
+      "<kml xmlns=\"http://www.opengis.net/kml/2.2\">\n<Document>\n<name>aos detections</name>\n";
+  for (size_t i = 0; i < result.detections.size(); ++i) {
+    const Detection& d = result.detections[i];
+    if (!d.lon_lat) continue;
+    char line[512];
+    std::snprintf(line, sizeof(line),
+                  "<Placemark><name>%zu</name><description>peak score %s, %d px, seen by %zu "
+                  "views%s</description><Point><coordinates>%.9f,%.9f,%.3f</coordinates></Point>"
+                  "</Placemark>\n",
+                  i + 1, FormatNumber(d.peak_score).c_str(), d.area_px, d.views.size(),
+                  std::isfinite(d.peak_celsius)
+                      ? (", peak " + FormatNumber(d.peak_celsius) + " C").c_str()
+                      : "",
+                  d.lon_lat->x, d.lon_lat->y, d.world.z);
+    text += line;
+  }
+  text += "</Document>\n</kml>\n";
+  return text;
+}
+
+std::string Csv(const DetectResult& result) {
+  std::string text =
+      "id,pixel_x,pixel_y,area_px,peak_score,mean_score,world_x,world_y,world_z,lon,lat,crs,views,"
+      "peak_celsius,mean_celsius\n";
+  for (size_t i = 0; i < result.detections.size(); ++i) {
+    const Detection& d = result.detections[i];
+    std::string views;
+    for (int v : d.views) views += (views.empty() ? "" : " ") + std::to_string(v);
+    text += std::to_string(i + 1) + "," + Number(d.pixel.x) + "," + Number(d.pixel.y) + "," +
+            std::to_string(d.area_px) + "," + Number(d.peak_score) + "," + Number(d.mean_score) +
+            "," + Number(d.world.x) + "," + Number(d.world.y) + "," + Number(d.world.z) + "," +
+            (d.lon_lat ? Number(d.lon_lat->x) : "") + "," + (d.lon_lat ? Number(d.lon_lat->y) : "") +
+            "," + result.crs + "," + views + "," + Number(d.peak_celsius) + "," +
+            Number(d.mean_celsius) + "\n";
+  }
+  return text;
+}
+
+// Synthetic aperture anomaly imaging: global RX on every selected frame, the score images
+// integrated on the focal surface like the frames.
+AnomalyScores AnomalyImaging(const LightField& light_field, const IntegralOptions& options,
+                             const DetectOptions& detect, ProgressSink* progress) {
+  if (light_field.masked) {
+    ThrowInvalid("detector: 'anomaly-imaging' does not take a masked light field (its frames "
+                 "carry a weight channel); load it without the mask");
+  }
+  std::vector<int> selected = options.view_indices;
+  if (selected.empty()) {
+    for (size_t i = 0; i < light_field.views.size(); ++i) selected.push_back(static_cast<int>(i));
+  }
+  AnomalyOptions per_frame = detect;
+  per_frame.detector = "rx";
+  // The selected frames' scores as a light field of their own (the same cameras and poses); the
+  // camera is resolved already (WithResolvedCamera), so the render takes all of its views.
+  LightField scores_field = EmptyLike(light_field);
+  scores_field.radiometry.reset();
+  scores_field.views.resize(selected.size());
+  ProgressStart(progress, "frame scores", static_cast<int64_t>(selected.size()));
+  int dimensions = 0;
+  ParallelFor(static_cast<int64_t>(selected.size()), options.num_threads, progress,
+              [&](int64_t k) {
+                const View& view = light_field.views[static_cast<size_t>(selected[static_cast<size_t>(k)])];
+                const AnomalyScores frame =
+                    ComputeAnomalyScores(view.image, Image(), per_frame, std::nullopt);
+                View& scored = scores_field.views[static_cast<size_t>(k)];
+                scored.name = view.name;
+                scored.camera = view.camera;
+                scored.cam_from_world = view.cam_from_world;
+                scored.image = Image(frame.scores.width(), frame.scores.height(), 1,
+                                     PixelType::kF32, 1);
+                for (int y = 0; y < frame.scores.height(); ++y) {
+                  std::copy_n(frame.scores.At<float>(0, y), frame.scores.width(),
+                              scored.image.At<float>(0, y));
+                }
+                scored.image.FillBorder();
+                ProgressAdvance(progress, 1);
+                if (k == 0) dimensions = frame.dimensions;
+              });
+  if (ProgressCancelled(progress)) throw Cancelled();
+  IntegralOptions all = options;
+  all.view_indices.clear();
+  const IntegralResult integrated = RenderIntegral(scores_field, all, progress);
+  AnomalyScores result;
+  result.dimensions = dimensions;
+  result.scores = Image(integrated.image.width(), integrated.image.height(), 1, PixelType::kF32);
+  for (int y = 0; y < integrated.image.height(); ++y) {
+    std::copy_n(integrated.image.At<float>(0, y), integrated.image.width(),
+                result.scores.At<float>(0, y));
+    for (int x = 0; x < integrated.image.width(); ++x) {
+      if (*integrated.count.At<uint32_t>(x, y) > 0) ++result.pixels;
+    }
+  }
+  return result;
+}
+
+}  // namespace
+
+void DetectOptions::Check() const {
+  AnomalyOptions::Check();
+  CheckFieldRanges(*this);
+  if (false_alarm_rate && !(*false_alarm_rate > 0.0 && *false_alarm_rate < 1.0)) {
+    ThrowInvalid("false_alarm_rate: must be in (0, 1), got " + FormatNumber(*false_alarm_rate));
+  }
+  if (min_score && !(*min_score >= 0.0 && std::isfinite(*min_score))) {
+    ThrowInvalid("min_score: must be a finite score >= 0, got " + FormatNumber(*min_score));
+  }
+  if (false_alarm_rate && min_score) {
+    ThrowInvalid("min_score: give min_score or false_alarm_rate, not both");
+  }
+  if (false_alarm_rate && detector == "anomaly-imaging") {
+    ThrowInvalid("false_alarm_rate: anomaly-imaging's scores are means over frames, not "
+                 "chi-square: give quantile or min_score");
+  }
+  if (detector == "temperature") {
+    if (!min_temperature_c) {
+      ThrowInvalid("min_temperature_c: detector 'temperature' needs the temperature a pixel must "
+                   "exceed, degrees C");
+    }
+    if (!std::isfinite(*min_temperature_c) || *min_temperature_c < -273.15) {
+      ThrowInvalid("min_temperature_c: must be a finite temperature above absolute zero, got " +
+                   FormatNumber(*min_temperature_c));
+    }
+    if (false_alarm_rate || min_score) {
+      ThrowInvalid(std::string(false_alarm_rate ? "false_alarm_rate" : "min_score") +
+                   ": detector 'temperature' is thresholded by min_temperature_c");
+    }
+  } else if (min_temperature_c) {
+    ThrowInvalid("min_temperature_c: applies to detector 'temperature' only (it is '" + detector +
+                 "')");
+  }
+}
+
+double ResolveThreshold(const AnomalyScores& scores, const Image& count,
+                        const DetectOptions& options, std::string* rule) {
+  if (options.detector == "temperature") {
+    *rule = "min_temperature_c " + FormatNumber(*options.min_temperature_c);
+    return *options.min_temperature_c;
+  }
+  if (options.min_score) {
+    *rule = "min_score " + FormatNumber(*options.min_score);
+    return *options.min_score;
+  }
+  if (options.false_alarm_rate) {
+    *rule = "false_alarm_rate " + FormatNumber(*options.false_alarm_rate) + " (chi-square, " +
+            std::to_string(scores.dimensions) + " degrees of freedom)";
+    return ChiSquareQuantile(scores.dimensions, *options.false_alarm_rate);
+  }
+  std::vector<float> values;
+  for (int y = 0; y < scores.scores.height(); ++y) {
+    for (int x = 0; x < scores.scores.width(); ++x) {
+      if (!count.empty() && *count.At<uint32_t>(x, y) == 0) continue;
+      values.push_back(*scores.scores.At<float>(x, y));
+    }
+  }
+  if (values.empty()) ThrowInvalid("image: no pixel with a view: nothing to threshold");
+  const size_t k = std::min(values.size() - 1,
+                            static_cast<size_t>(std::floor(options.quantile *
+                                                           static_cast<double>(values.size() - 1))));
+  std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+  *rule = "quantile " + FormatNumber(options.quantile);
+  return values[k];
+}
+
+std::vector<Detection> FindBlobs(const Image& scores, const Image& count, double threshold,
+                                 int min_area_px) {
+  const int w = scores.width(), h = scores.height();
+  cv::Mat mask(h, w, CV_8U, cv::Scalar(0));
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const float s = *scores.At<float>(x, y);
+      if (s > threshold && (count.empty() || *count.At<uint32_t>(x, y) > 0)) {
+        mask.at<uint8_t>(y, x) = 1;
+      }
+    }
+  }
+  cv::Mat labels, stats, centroids;
+  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
+  std::vector<Detection> blobs(static_cast<size_t>(std::max(0, n - 1)));
+  std::vector<double> weight(blobs.size(), 0.0);
+  for (size_t b = 0; b < blobs.size(); ++b) {
+    blobs[b].box = {stats.at<int>(b + 1, cv::CC_STAT_LEFT), stats.at<int>(b + 1, cv::CC_STAT_TOP),
+                    stats.at<int>(b + 1, cv::CC_STAT_LEFT) + stats.at<int>(b + 1, cv::CC_STAT_WIDTH),
+                    stats.at<int>(b + 1, cv::CC_STAT_TOP) + stats.at<int>(b + 1, cv::CC_STAT_HEIGHT)};
+    blobs[b].peak_score = -std::numeric_limits<double>::infinity();
+  }
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const int label = labels.at<int>(y, x);
+      if (label == 0) continue;
+      Detection& d = blobs[static_cast<size_t>(label - 1)];
+      const double s = *scores.At<float>(x, y);
+      // Weights above the threshold, so that every flagged pixel counts (scores may be negative:
+      // temperatures).
+      const double wgt = s - threshold;
+      d.pixel += wgt * Vec2d(x + 0.5, y + 0.5);
+      weight[static_cast<size_t>(label - 1)] += wgt;
+      d.mean_score += s;
+      ++d.area_px;
+      d.peak_score = std::max(d.peak_score, s);
+    }
+  }
+  std::vector<Detection> kept;
+  for (size_t b = 0; b < blobs.size(); ++b) {
+    Detection& d = blobs[b];
+    if (d.area_px < min_area_px) continue;
+    d.pixel /= weight[b];
+    d.mean_score /= d.area_px;
+    kept.push_back(d);
+  }
+  std::stable_sort(kept.begin(), kept.end(), [](const Detection& a, const Detection& b) {
+    return a.peak_score > b.peak_score;
+  });
+  return kept;
+}
+
+DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
+                    const DetectOptions& detect_options, ProgressSink* progress) {
+  detect_options.Check();
+  if (light_field.views.empty()) ThrowInvalid("light field: no views: nothing to detect in");
+  DetectResult result;
+  result.crs = light_field.crs;
+  result.radiometry = light_field.radiometry;
+  const IntegralOptions resolved = WithResolvedCamera(light_field, options);
+  result.render = RenderIntegral(light_field, resolved, progress);
+  if (ProgressCancelled(progress)) throw Cancelled();
+  result.camera = VirtualCamera(light_field, resolved);
+  const Image& image = result.render.image;
+  const Image& count = result.render.count;
+  if (detect_options.detector == "anomaly-imaging") {
+    result.scores = AnomalyImaging(light_field, resolved, detect_options, progress);
+  } else {
+    result.scores = ComputeAnomalyScores(image, count, detect_options, light_field.radiometry);
+  }
+  result.threshold = ResolveThreshold(result.scores, count, detect_options, &result.threshold_rule);
+  for (int y = 0; y < count.height(); ++y) {
+    for (int x = 0; x < count.width(); ++x) {
+      if (*count.At<uint32_t>(x, y) > 0 && *result.scores.scores.At<float>(x, y) > result.threshold) {
+        ++result.flagged_pixels;
+      }
+    }
+  }
+  std::vector<Detection> blobs =
+      FindBlobs(result.scores.scores, count, result.threshold, detect_options.min_area_px);
+  if (blobs.size() > static_cast<size_t>(detect_options.max_detections)) {
+    result.dropped = static_cast<int>(blobs.size()) - detect_options.max_detections;
+    blobs.resize(static_cast<size_t>(detect_options.max_detections));
+  }
+
+  // Where each blob lies: its pixels' rays on the focal surface, score-weighted.
+  const SurfacePlacement placement = ResolveSurfacePlacement(
+      resolved.focal_surface, light_field, resolved.view_indices, resolved.surface_offset);
+  const Image depth = resolved.focal_surface.DepthFor(result.camera, result.render.cam_from_world,
+                                                      placement, resolved.num_threads);
+  const Rigid3d& cam_from_world = result.render.cam_from_world;
+  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
+  const Vec3d centre = cam_from_world.Center();
+  std::vector<int> selected = resolved.view_indices;
+  if (selected.empty()) {
+    for (size_t i = 0; i < light_field.views.size(); ++i) selected.push_back(static_cast<int>(i));
+  }
+  std::vector<Vec3d> world_points;
+  for (Detection& d : blobs) {
+    Vec3d sum(0.0);
+    double total = 0.0, celsius_sum = 0.0;
+    double celsius_peak = -std::numeric_limits<double>::infinity();
+    for (int y = d.box[1]; y < d.box[3]; ++y) {
+      for (int x = d.box[0]; x < d.box[2]; ++x) {
+        const double s = *result.scores.scores.At<float>(x, y);
+        if (!(s > result.threshold) || *count.At<uint32_t>(x, y) == 0) continue;
+        if (light_field.radiometry && image.channels() == 1) {
+          const double c = light_field.radiometry->Celsius(*image.At<float>(x, y));
+          celsius_sum += c;
+          celsius_peak = std::max(celsius_peak, c);
+        }
+        const float z = *depth.At<float>(x, y);
+        if (!(z > 0.0f)) continue;
+        const Vec3d in_cam = result.camera.Unproject(Vec2d(x + 0.5, y + 0.5)) * static_cast<double>(z);
+        const double wgt = s - result.threshold;
+        sum += wgt * (world_from_cam * in_cam + centre);
+        total += wgt;
+      }
+    }
+    if (light_field.radiometry && image.channels() == 1) {
+      d.peak_celsius = celsius_peak;
+      d.mean_celsius = celsius_sum / d.area_px;
+    }
+    if (total > 0.0) {
+      d.local = sum / total;
+      d.world = light_field.origin + d.local;
+      for (int v : selected) {
+        const View& view = light_field.views[static_cast<size_t>(v)];
+        const Vec3d in_view = view.cam_from_world * d.local;
+        Vec2d pixel;
+        if (in_view.z > 0.0 && view.camera.Project(in_view, &pixel) && pixel.x >= 0.0 &&
+            pixel.y >= 0.0 && pixel.x < view.camera.width && pixel.y < view.camera.height) {
+          d.views.push_back(v);
+        }
+      }
+      world_points.push_back(d.world);
+    } else {
+      d.local = Vec3d(std::nan(""));
+      d.world = Vec3d(std::nan(""));
+    }
+  }
+  if (!light_field.crs.empty() && !world_points.empty()) {
+    const std::vector<Vec3d> geographic =
+        TransformPoints(world_points, light_field.crs, "EPSG:4326", "detections");
+    size_t k = 0;
+    for (Detection& d : blobs) {
+      if (Located(d)) {
+        d.lon_lat = Vec2d(geographic[k].x, geographic[k].y);
+        ++k;
+      }
+    }
+  }
+  result.detections = std::move(blobs);
+  return result;
+}
+
+void WriteDetections(const std::string& path, const DetectResult& result, bool overwrite) {
+  const std::string extension = Lower(fs::path(path).extension().string());
+  std::string text;
+  if (extension == ".geojson" || extension == ".json") {
+    text = GeoJson(result);
+  } else if (extension == ".kml") {
+    if (result.crs.empty()) {
+      ThrowInvalid(path + ": KML is in WGS84 longitude and latitude: the light field has no CRS "
+                   "(not geo-referenced); write GeoJSON or CSV");
+    }
+    text = Kml(result);
+  } else if (extension == ".csv") {
+    text = Csv(result);
+  } else {
+    ThrowInvalid(path + ": unknown detections format '" + extension +
+                 "' (.geojson, .json, .kml or .csv)");
+  }
+  std::error_code error;
+  if (!overwrite && fs::exists(path, error)) {
+    ThrowInvalid(path + ": exists (give overwrite / --force to replace it)");
+  }
+  WriteTextFileAtomic(path, text);
+}
+
+Image DetectionOverlay(const DetectResult& result) {
+  const Image& image = result.render.image;
+  const Image& count = result.render.count;
+  const int w = image.width(), h = image.height();
+  const int c = image.channels();
+  const bool colour = c >= 3;
+  std::vector<float> values;
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      if (*count.At<uint32_t>(x, y) == 0) continue;
+      for (int k = 0; k < (colour ? 3 : 1); ++k) values.push_back(image.At<float>(x, y)[k]);
+    }
+  }
+  double low = 0.0, high = 1.0;
+  if (!values.empty()) {
+    const auto at = [&](double p) {
+      const size_t k = static_cast<size_t>(p * static_cast<double>(values.size() - 1));
+      std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
+      return static_cast<double>(values[k]);
+    };
+    low = at(0.01);
+    high = at(0.99);
+    if (!(high > low)) high = low + 1.0;
+  }
+  cv::Mat canvas(h, w, CV_8UC3);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      const float* p = image.At<float>(x, y);
+      cv::Vec3b& out = canvas.at<cv::Vec3b>(y, x);
+      for (int k = 0; k < 3; ++k) {
+        const double v = p[colour ? k : 0];
+        out[k] = static_cast<uint8_t>(std::clamp((v - low) / (high - low) * 255.0 + 0.5, 0.0, 255.0));
+      }
+    }
+  }
+  const int thickness = std::max(1, std::min(w, h) / 256);
+  for (size_t i = 0; i < result.detections.size(); ++i) {
+    const Detection& d = result.detections[i];
+    const int margin = 2 * thickness;
+    const cv::Point corner(std::max(0, d.box[0] - margin), std::max(0, d.box[1] - margin));
+    const cv::Point far(std::min(w - 1, d.box[2] - 1 + margin), std::min(h - 1, d.box[3] - 1 + margin));
+    cv::rectangle(canvas, corner, far, cv::Scalar(255, 0, 0), thickness);  // RGB order: red
+    cv::putText(canvas, std::to_string(i + 1), cv::Point(far.x + 2, std::max(10, corner.y + 10)),
+                cv::FONT_HERSHEY_SIMPLEX, 0.4 * thickness, cv::Scalar(255, 0, 0), thickness);
+  }
+  Image overlay(w, h, 3, PixelType::kU8);
+  overlay.CopyFrom(canvas.data, static_cast<ptrdiff_t>(canvas.step1()));
+  return overlay;
+}
+
+}  // namespace aos

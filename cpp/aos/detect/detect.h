@@ -1,0 +1,139 @@
+#pragma once
+// Finding the person: anomaly scores (anomaly.h) of an integral image thresholded into blobs,
+// each located on the focal surface, in the world and (geo-referenced light fields) in WGS84,
+// with the views that saw it; written as GeoJSON, KML, CSV and an overlay image.
+//
+// Contract
+// - Scores: detector "rx", "rx-local" and "temperature" score the integral image (anomaly.h).
+//   "anomaly-imaging" (synthetic aperture anomaly imaging) scores every selected frame with
+//   global RX first (each frame its own background; a lens view's frame as it is), then
+//   integrates those score images on the focal surface exactly as the frames are integrated
+//   (same virtual camera, surface, aperture and views): a pixel's score is the mean of its
+//   frames' scores, an occluder that hides the target in some frames only dilutes it. The
+//   integral image of the frames is rendered too (for the overlay and temperatures). Masked
+//   light fields are refused for it.
+// - Threshold (DetectOptions): detector "temperature" takes min_temperature_c (degrees Celsius,
+//   required). Otherwise min_score (an absolute score) when given, else false_alarm_rate p when
+//   given (the score a Gaussian background exceeds with probability p per pixel: the chi-square
+//   quantile with d degrees of freedom, anomaly.h; not for anomaly-imaging, whose mean scores
+//   are no chi-square), else the `quantile` of the scores of the
+//   pixels with a view (the research code's convention: the top 1 - quantile of the pixels).
+//   A pixel is flagged when its score is strictly above the threshold and it has a view, so a
+//   constant image flags nothing.
+// - Blobs: the 8-connected components of the flagged pixels with at least min_area_px pixels;
+//   pixel = the score-weighted centroid (continuous coordinates, pixel centres at +0.5), area,
+//   peak and mean score, bounding box. At most max_detections are kept (the highest peaks; the
+//   rest are counted in `dropped`), so the outputs stay bounded on any image.
+// - Location: each flagged pixel's ray meets the focal surface (FocalSurface::DepthFor of the
+//   virtual camera); the blob's point is the score-weighted mean of its pixels' points (local
+//   frame), world = origin + local; NaN when no pixel of the blob meets the surface. With a CRS,
+//   lon_lat is the point in WGS84 (PROJ, EPSG:4326: degrees east, north).
+// - Views: the selected views (IntegralOptions' view_indices, all when empty) in whose image the
+//   point lies (in front of the camera, inside the frame; a lens view through its lens model).
+// - Radiometric light fields (LightField::radiometry, one channel): each blob's peak and mean
+//   temperature in degrees Celsius from the integral image.
+// - Writers refuse a format they do not know and, for KML, a light field without a CRS (KML is
+//   WGS84 only); GeoJSON follows RFC 7946 (WGS84 longitude, latitude, height; a light field
+//   without a CRS gives null geometries and the local/world coordinates as properties). Writes
+//   are atomic (a temporary file renamed into place).
+#include <array>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "aos/detect/anomaly.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/render/integral.h"
+#include "aos/util/option_fields.h"
+#include "aos/util/progress.h"
+
+namespace aos {
+
+struct DetectOptions : AnomalyOptions {
+  // The scores' quantile a pixel must exceed (when neither min_score nor false_alarm_rate is
+  // given), (0, 1): 0.999 flags the top 0.1 % of the pixels.
+  double quantile = 0.999;
+  // Per-pixel false-alarm rate of a Gaussian background, (0, 1); unset = not used.
+  std::optional<double> false_alarm_rate;
+  // An absolute score threshold, >= 0; unset = not used.
+  std::optional<double> min_score;
+  // detector "temperature": the temperature a pixel must exceed, degrees Celsius.
+  std::optional<double> min_temperature_c;
+  // Blobs smaller than this are dropped, pixels, >= 1.
+  int min_area_px = 4;
+  // At most this many detections are kept (the highest peaks), >= 1.
+  int max_detections = 100;
+  void Check() const;
+
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = DetectOptions;
+    AnomalyOptions::Fields(field);
+    field(OptionField("quantile", &O::quantile, "", Range::Open(0.0, 1.0),
+                      "Threshold at this quantile of the scores (when neither min_score nor "
+                      "false_alarm_rate is given): 0.999 = the top 0.1 % of the pixels."));
+    field(OptionField("false_alarm_rate", &O::false_alarm_rate, "", Range::Any(),
+                      "Threshold: per-pixel false-alarm rate of a Gaussian background, (0, 1) "
+                      "(the chi-square quantile); unset = not used."));
+    field(OptionField("min_score", &O::min_score, "", Range::Any(),
+                      "Threshold: an absolute score (squared Mahalanobis distance), >= 0; unset "
+                      "= not used."));
+    field(OptionField("min_temperature_c", &O::min_temperature_c, "C", Range::Any(),
+                      "Detector 'temperature': the temperature a pixel must exceed, degrees C."));
+    field(OptionField("min_area_px", &O::min_area_px, "px", Range::AtLeast(1),
+                      "Blobs smaller than this many pixels are dropped."));
+    field(OptionField("max_detections", &O::max_detections, "", Range::AtLeast(1),
+                      "At most this many detections (the highest peaks) are kept."));
+  }
+};
+
+struct Detection {
+  Vec2d pixel{0.0};              // score-weighted centroid (pixel centres at +0.5)
+  int area_px = 0;
+  double peak_score = 0.0;
+  double mean_score = 0.0;
+  std::array<int, 4> box{0, 0, 0, 0};  // x0, y0, x1, y1 (x1, y1 exclusive)
+  Vec3d local{0.0};              // on the focal surface, local frame (NaN when not located)
+  Vec3d world{0.0};              // origin + local
+  std::optional<Vec2d> lon_lat;  // WGS84 degrees (with a CRS)
+  std::vector<int> views;        // the views that saw the point
+  double peak_celsius = std::nan("");  // radiometric light fields
+  double mean_celsius = std::nan("");
+};
+
+struct DetectResult {
+  IntegralResult render;          // the integral image the scores were computed on
+  PinholeCamera camera;           // its virtual camera
+  AnomalyScores scores;
+  double threshold = 0.0;
+  std::string threshold_rule;     // "quantile 0.999", "false_alarm_rate 1e-05", ...
+  int64_t flagged_pixels = 0;
+  std::vector<Detection> detections;  // highest peak first
+  int dropped = 0;                // blobs beyond max_detections
+  std::string crs;                // the light field's (lon_lat is WGS84)
+  std::optional<Radiometry> radiometry;
+};
+
+// The threshold of `scores` under `options` (see the contract); `rule` gets its description.
+double ResolveThreshold(const AnomalyScores& scores, const Image& count,
+                        const DetectOptions& options, std::string* rule);
+
+// The blobs of `scores` above `threshold` where count > 0 (pixel fields only), highest peak
+// first.
+std::vector<Detection> FindBlobs(const Image& scores, const Image& count, double threshold,
+                                 int min_area_px);
+
+// Renders the integral image of `options`, scores it and finds, locates and lists the
+// detections. `progress` as RenderIntegral's (and polled for cancellation).
+DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
+                    const DetectOptions& detect_options, ProgressSink* progress = nullptr);
+
+// Writes the detections to `path` as GeoJSON (.geojson, .json), KML (.kml) or CSV (.csv).
+// `overwrite` false refuses an existing file.
+void WriteDetections(const std::string& path, const DetectResult& result, bool overwrite = false);
+
+// The integral image as 8-bit RGB (its 1st..99th percentile stretched over 0..255, colour kept
+// where it has three channels) with each detection's box drawn in red and its number beside it.
+Image DetectionOverlay(const DetectResult& result);
+
+}  // namespace aos

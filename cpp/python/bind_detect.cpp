@@ -1,0 +1,245 @@
+// Detection (detect/anomaly.h, detect/detect.h): DetectOptions, anomaly_scores, detect.
+#include "aos/detect/detect.h"
+#include "bindings.h"
+
+namespace aos::python {
+namespace {
+
+using namespace pybind11::literals;
+
+py::object OptionalVec2(const std::optional<Vec2d>& value) {
+  if (!value) return py::none();
+  return py::make_tuple(value->x, value->y);
+}
+
+py::dict DetectionState(const Detection& d) {
+  return py::dict("pixel"_a = py::make_tuple(d.pixel.x, d.pixel.y), "area_px"_a = d.area_px,
+                  "peak_score"_a = d.peak_score, "mean_score"_a = d.mean_score, "box"_a = d.box,
+                  "local"_a = py::make_tuple(d.local.x, d.local.y, d.local.z),
+                  "world"_a = py::make_tuple(d.world.x, d.world.y, d.world.z),
+                  "lon_lat"_a = OptionalVec2(d.lon_lat), "views"_a = d.views,
+                  "peak_celsius"_a = d.peak_celsius, "mean_celsius"_a = d.mean_celsius);
+}
+
+Detection DetectionFromState(const py::handle& state) {
+  const py::dict v = StateDict(state, "Detection",
+                               {"pixel", "area_px", "peak_score", "mean_score", "box", "local",
+                                "world", "lon_lat", "views", "peak_celsius", "mean_celsius"});
+  Detection d;
+  const auto pixel = v["pixel"].cast<std::array<double, 2>>();
+  d.pixel = Vec2d(pixel[0], pixel[1]);
+  d.area_px = v["area_px"].cast<int>();
+  d.peak_score = v["peak_score"].cast<double>();
+  d.mean_score = v["mean_score"].cast<double>();
+  d.box = v["box"].cast<std::array<int, 4>>();
+  const auto local = v["local"].cast<std::array<double, 3>>();
+  d.local = Vec3d(local[0], local[1], local[2]);
+  const auto world = v["world"].cast<std::array<double, 3>>();
+  d.world = Vec3d(world[0], world[1], world[2]);
+  if (!v["lon_lat"].is_none()) {
+    const auto lon_lat = v["lon_lat"].cast<std::array<double, 2>>();
+    d.lon_lat = Vec2d(lon_lat[0], lon_lat[1]);
+  }
+  d.views = v["views"].cast<std::vector<int>>();
+  d.peak_celsius = v["peak_celsius"].cast<double>();
+  d.mean_celsius = v["mean_celsius"].cast<double>();
+  return d;
+}
+
+// An (N, k) float64 array of a per-detection vector.
+template <class Get>
+py::array_t<double> Column(const std::vector<Detection>& detections, int k, Get&& get) {
+  py::array_t<double> out({static_cast<py::ssize_t>(detections.size()), static_cast<py::ssize_t>(k)});
+  auto view = out.mutable_unchecked<2>();
+  for (size_t i = 0; i < detections.size(); ++i) {
+    const std::array<double, 3> values = get(detections[i]);
+    for (int j = 0; j < k; ++j) view(static_cast<py::ssize_t>(i), j) = values[static_cast<size_t>(j)];
+  }
+  return out;
+}
+
+}  // namespace
+
+void BindDetect(py::module_& m) {
+  OptionsClass<DetectOptions>(m, "DetectOptions",
+                              "Options of detect (defaults from the C++ struct "
+                              "aos::DetectOptions): the anomaly scores, the threshold, the blobs.")
+      .Table()
+      .Finish()
+      .def("check", &DetectOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<Detection>(m, "Detection", "One detection: a blob of pixels above the threshold.")
+      .def_property_readonly("pixel", [](const Detection& d) { return py::make_tuple(d.pixel.x, d.pixel.y); },
+                             "Score-weighted centroid, pixel coordinates (centres at +0.5).")
+      .def_readonly("area_px", &Detection::area_px)
+      .def_readonly("peak_score", &Detection::peak_score)
+      .def_readonly("mean_score", &Detection::mean_score)
+      .def_readonly("box", &Detection::box, "x0, y0, x1, y1 (x1, y1 exclusive).")
+      .def_property_readonly("local", [](const Detection& d) { return py::make_tuple(d.local.x, d.local.y, d.local.z); },
+                             "On the focal surface, local frame (NaN when not located).")
+      .def_property_readonly("world", [](const Detection& d) { return py::make_tuple(d.world.x, d.world.y, d.world.z); },
+                             "origin + local (the light field's CRS).")
+      .def_property_readonly("lon_lat", [](const Detection& d) { return OptionalVec2(d.lon_lat); },
+                             "WGS84 (longitude, latitude) degrees, or None without a CRS.")
+      .def_readonly("views", &Detection::views, "Indices of the views that saw the point.")
+      .def_readonly("peak_celsius", &Detection::peak_celsius,
+                    "Peak temperature, C (radiometric light fields; else NaN).")
+      .def_readonly("mean_celsius", &Detection::mean_celsius)
+      .def(py::pickle([](const Detection& d) { return DetectionState(d); },
+                      [](const py::object& state) { return DetectionFromState(state); }))
+      .def("__repr__", [](const Detection& d) {
+        std::string text = "Detection(pixel=(" + FormatNumber(d.pixel.x) + ", " +
+                           FormatNumber(d.pixel.y) + "), area_px=" + std::to_string(d.area_px) +
+                           ", peak_score=" + FormatNumber(d.peak_score);
+        if (d.lon_lat) {
+          text += ", lon_lat=(" + FormatNumber(d.lon_lat->x) + ", " + FormatNumber(d.lon_lat->y) + ")";
+        } else if (std::isfinite(d.world.x)) {
+          text += ", world=(" + FormatNumber(d.world.x) + ", " + FormatNumber(d.world.y) + ", " +
+                  FormatNumber(d.world.z) + ")";
+        }
+        return text + ", views=" + std::to_string(d.views.size()) + ")";
+      });
+
+  py::class_<DetectResult>(m, "DetectResult", "What detect found, and what it was found in.")
+      .def_readonly("render", &DetectResult::render, "The integral image the scores are of.")
+      .def_readonly("camera", &DetectResult::camera, "Its virtual camera.")
+      .def_property_readonly(
+          "scores", [](const DetectResult& r) { return ArrayFromImage(r.scores.scores); },
+          "float32 (H, W): the anomaly scores (squared Mahalanobis distance; degrees C for "
+          "'temperature'), 0 where no view sees the pixel.")
+      .def_property_readonly("dimensions", [](const DetectResult& r) { return r.scores.dimensions; },
+                             "Features per pixel (the chi-square degrees of freedom).")
+      .def_readonly("threshold", &DetectResult::threshold)
+      .def_readonly("threshold_rule", &DetectResult::threshold_rule)
+      .def_readonly("flagged_pixels", &DetectResult::flagged_pixels)
+      .def_readonly("detections", &DetectResult::detections, "Highest peak first.")
+      .def_readonly("dropped", &DetectResult::dropped, "Blobs beyond max_detections.")
+      .def_readonly("crs", &DetectResult::crs)
+      .def_property_readonly(
+          "pixels",
+          [](const DetectResult& r) {
+            return Column(r.detections, 2, [](const Detection& d) {
+              return std::array<double, 3>{d.pixel.x, d.pixel.y, 0.0};
+            });
+          },
+          "float64 (N, 2): the detections' pixel centroids.")
+      .def_property_readonly(
+          "world",
+          [](const DetectResult& r) {
+            return Column(r.detections, 3, [](const Detection& d) {
+              return std::array<double, 3>{d.world.x, d.world.y, d.world.z};
+            });
+          },
+          "float64 (N, 3): the detections' world points (NaN where not located).")
+      .def_property_readonly(
+          "lon_lat",
+          [](const DetectResult& r) -> py::object {
+            if (r.crs.empty()) return py::none();
+            return Column(r.detections, 2, [](const Detection& d) {
+              return d.lon_lat ? std::array<double, 3>{d.lon_lat->x, d.lon_lat->y, 0.0}
+                               : std::array<double, 3>{std::nan(""), std::nan(""), 0.0};
+            });
+          },
+          "float64 (N, 2) WGS84 longitude, latitude; None without a CRS.")
+      .def_property_readonly(
+          "peak_scores",
+          [](const DetectResult& r) {
+            py::array_t<double> out(static_cast<py::ssize_t>(r.detections.size()));
+            for (size_t i = 0; i < r.detections.size(); ++i) {
+              out.mutable_at(static_cast<py::ssize_t>(i)) = r.detections[i].peak_score;
+            }
+            return out;
+          },
+          "float64 (N,): the detections' peak scores.")
+      .def(
+          "write", [](const DetectResult& r, const std::string& path, bool overwrite) {
+            WriteDetections(path, r, overwrite);
+          },
+          "path"_a, "overwrite"_a = false,
+          "Writes the detections as GeoJSON (.geojson/.json), KML (.kml) or CSV (.csv).")
+      .def(
+          "overlay", [](const DetectResult& r) { return ArrayFromImage(DetectionOverlay(r)); },
+          "uint8 (H, W, 3): the integral image with the detections boxed in red.")
+      .def(py::pickle(
+          [](const DetectResult& r) {
+            py::list detections;
+            for (const Detection& d : r.detections) detections.append(DetectionState(d));
+            return py::dict("image"_a = ArrayFromImage(r.render.image),
+                            "count"_a = ArrayFromImage(r.render.count),
+                            "cam_from_world"_a = r.render.cam_from_world, "camera"_a = r.camera,
+                            "scores"_a = ArrayFromImage(r.scores.scores),
+                            "dimensions"_a = r.scores.dimensions, "threshold"_a = r.threshold,
+                            "threshold_rule"_a = r.threshold_rule,
+                            "flagged_pixels"_a = r.flagged_pixels, "detections"_a = detections,
+                            "dropped"_a = r.dropped, "crs"_a = r.crs,
+                            "radiometry"_a = r.radiometry);
+          },
+          [](const py::object& state) {
+            const py::dict v = StateDict(
+                state, "DetectResult",
+                {"image", "count", "cam_from_world", "camera", "scores", "dimensions", "threshold",
+                 "threshold_rule", "flagged_pixels", "detections", "dropped", "crs", "radiometry"});
+            DetectResult r;
+            r.render.image = ImageFromArray(v["image"], 0, "image");
+            r.render.count = ImageFromArray(v["count"], 0, "count");
+            r.render.cam_from_world = v["cam_from_world"].cast<Rigid3d>();
+            r.camera = v["camera"].cast<PinholeCamera>();
+            r.scores.scores = ImageFromArray(v["scores"], 0, "scores");
+            r.scores.dimensions = v["dimensions"].cast<int>();
+            r.threshold = v["threshold"].cast<double>();
+            r.threshold_rule = v["threshold_rule"].cast<std::string>();
+            r.flagged_pixels = v["flagged_pixels"].cast<int64_t>();
+            for (const py::handle& d : v["detections"]) r.detections.push_back(DetectionFromState(d));
+            r.dropped = v["dropped"].cast<int>();
+            r.crs = v["crs"].cast<std::string>();
+            r.radiometry = v["radiometry"].cast<std::optional<Radiometry>>();
+            return r;
+          }))
+      .def("__len__", [](const DetectResult& r) { return r.detections.size(); })
+      .def("__repr__", [](const DetectResult& r) {
+        return "DetectResult(detections=" + std::to_string(r.detections.size()) + ", " +
+               r.threshold_rule + ": threshold " + FormatNumber(r.threshold) + ", " +
+               std::to_string(r.scores.scores.width()) + "x" +
+               std::to_string(r.scores.scores.height()) +
+               (r.crs.empty() ? std::string() : ", crs='" + r.crs + "'") + ")";
+      });
+
+  m.def(
+      "_detect",
+      [](const LightField& light_field, const IntegralOptions& options,
+         const DetectOptions& detect, const py::object& progress) {
+        const LightField light_field_copy = light_field;
+        IntegralOptions options_copy = options;
+        const DetectOptions detect_copy = detect;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          options_copy.focal_surface = InCrs(options_copy.focal_surface, light_field_copy.crs);
+          DetectResult result = Detect(light_field_copy, options_copy, detect_copy, sink);
+          CheckSurfaceCovers(options_copy.focal_surface, light_field_copy,
+                             "the virtual camera's view", result.render.uncovered_pixels,
+                             static_cast<int64_t>(result.render.image.width()) *
+                                 result.render.image.height());
+          return result;
+        });
+      },
+      "light_field"_a, "options"_a, "detect"_a, "progress"_a = py::none(),
+      "Detection on the integral image, GIL released. Prefer aos.detect.");
+  m.def(
+      "anomaly_scores",
+      [](const py::handle& image, const py::handle& count, const DetectOptions& options,
+         const std::optional<Radiometry>& radiometry) {
+        const Image pixels = ImageFromArray(image, 0, "image");
+        const Image counts = count.is_none() ? Image() : ImageFromArray(count, 0, "count");
+        AnomalyScores scores;
+        {
+          py::gil_scoped_release release;
+          scores = ComputeAnomalyScores(pixels, counts, options, radiometry);
+        }
+        return ArrayFromImage(scores.scores);
+      },
+      "image"_a, "count"_a = py::none(), "options"_a = DetectOptions(), "radiometry"_a = py::none(),
+      "The anomaly scores of an image (float32 (H, W) or (H, W, C)): squared Mahalanobis "
+      "distances ('rx', 'rx-local') or degrees C ('temperature', with a radiometry). `count` "
+      "(uint32 (H, W)) marks the pixels with a view; None = all.");
+}
+
+}  // namespace aos::python

@@ -1,0 +1,254 @@
+// Anomaly scores and detections (detect/anomaly.h, detect/detect.h) against analytic truth.
+#include <cmath>
+#include <random>
+
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include "aos/detect/anomaly.h"
+#include "aos/detect/detect.h"
+#include "error_of.h"
+
+namespace aos {
+namespace {
+
+using testing::HasSubstr;
+using test_util::ErrorOf;
+
+// A W x H float image of C channels, pixel (x, y) = f(x, y, c).
+template <class F>
+Image MakeImage(int w, int h, int c, F&& f) {
+  Image image(w, h, c, PixelType::kF32);
+  for (int y = 0; y < h; ++y) {
+    for (int x = 0; x < w; ++x) {
+      for (int k = 0; k < c; ++k) image.At<float>(x, y)[k] = static_cast<float>(f(x, y, k));
+    }
+  }
+  return image;
+}
+
+// x = m + L z, z standard normal: a Gaussian background of covariance L L^T; pixel (7, 11) is
+// planted at m + L u with |u|^2 = 100, a squared Mahalanobis distance of 100 from the truth.
+struct Gaussian {
+  static constexpr int kW = 200, kH = 200;
+  double m[3] = {100.0, 60.0, 30.0};
+  double L[3][3] = {{10.0, 0.0, 0.0}, {4.0, 6.0, 0.0}, {-2.0, 1.0, 3.0}};
+  Image image;
+  Gaussian() {
+    std::mt19937 rng(12345);
+    std::normal_distribution<double> normal;
+    std::vector<double> z(static_cast<size_t>(kW) * kH * 3);
+    for (double& v : z) v = normal(rng);
+    const double u[3] = {6.0, 8.0, 0.0};  // |u|^2 = 100
+    image = MakeImage(kW, kH, 3, [&](int x, int y, int k) {
+      const double* zz = (x == 7 && y == 11) ? u : &z[(static_cast<size_t>(y) * kW + x) * 3];
+      double v = m[k];
+      for (int j = 0; j < 3; ++j) v += L[k][j] * zz[j];
+      return v;
+    });
+  }
+};
+
+// The sample mean and covariance (population) of every pixel, in double, and the squared
+// Mahalanobis distance of pixel (7, 11) under them: what classical RX must give.
+double ClassicalDistance(const Image& image) {
+  const int n = image.width() * image.height();
+  double mean[3] = {0, 0, 0}, c[3][3] = {};
+  for (int y = 0; y < image.height(); ++y)
+    for (int x = 0; x < image.width(); ++x)
+      for (int k = 0; k < 3; ++k) mean[k] += image.At<float>(x, y)[k];
+  for (double& v : mean) v /= n;
+  for (int y = 0; y < image.height(); ++y)
+    for (int x = 0; x < image.width(); ++x)
+      for (int a = 0; a < 3; ++a)
+        for (int b = 0; b < 3; ++b)
+          c[a][b] += (image.At<float>(x, y)[a] - mean[a]) * (image.At<float>(x, y)[b] - mean[b]) / n;
+  // Solve C v = (x - m) by Cramer's rule.
+  const double r[3] = {image.At<float>(7, 11)[0] - mean[0], image.At<float>(7, 11)[1] - mean[1],
+                       image.At<float>(7, 11)[2] - mean[2]};
+  const auto det = [](const double a[3][3]) {
+    return a[0][0] * (a[1][1] * a[2][2] - a[1][2] * a[2][1]) -
+           a[0][1] * (a[1][0] * a[2][2] - a[1][2] * a[2][0]) +
+           a[0][2] * (a[1][0] * a[2][1] - a[1][1] * a[2][0]);
+  };
+  const double d = det(c);
+  double v[3];
+  for (int k = 0; k < 3; ++k) {
+    double ck[3][3];
+    for (int a = 0; a < 3; ++a)
+      for (int b = 0; b < 3; ++b) ck[a][b] = b == k ? r[a] : c[a][b];
+    v[k] = det(ck) / d;
+  }
+  return r[0] * v[0] + r[1] * v[1] + r[2] * v[2];
+}
+
+TEST(Anomaly, ClassicalRxGivesTheSampleMahalanobisDistance) {
+  const Gaussian g;
+  AnomalyOptions options;
+  options.trim_fraction = 0.0;
+  options.regularization = 0.0;
+  const AnomalyScores scores = ComputeAnomalyScores(g.image, Image(), options);
+  ASSERT_EQ(scores.dimensions, 3);
+  const double expected = ClassicalDistance(g.image);
+  // Float features (7 significant digits) in double sums: 1e-5 relative.
+  EXPECT_NEAR(*scores.scores.At<float>(7, 11), expected, 1e-5 * expected);
+  // The sample estimate is close to the truth (100) at N = 40000: the planted pixel itself
+  // shifts the mean by 1/N of its offset; a few per cent is the sampling spread.
+  EXPECT_NEAR(expected, 100.0, 5.0);
+}
+
+TEST(Anomaly, RobustRxRecoversTheTrueDistanceAndTheOutlierScoresHighest) {
+  Gaussian g;
+  // 3 % of the pixels replaced by a cluster three times as far out in the planted pixel's
+  // direction (whitened distance 30): classical RX's covariance grows along it (by about
+  // 0.03 * 30^2 = 27 in whitened units, so the planted pixel drops to about 100 / 28), the robust
+  // estimate's does not.
+  const double u3[3] = {18.0, 24.0, 0.0};
+  for (int y = 100; y < 200; ++y)
+    for (int x = 0; x < 12; ++x)
+      for (int k = 0; k < 3; ++k) {
+        double v = g.m[k];
+        for (int j = 0; j < 3; ++j) v += g.L[k][j] * u3[j];
+        g.image.At<float>(x, y)[k] = static_cast<float>(v);
+      }
+  AnomalyOptions robust;
+  const AnomalyScores scores = ComputeAnomalyScores(g.image, Image(), robust);
+  // The consistency-corrected trimmed covariance estimates the truth to about
+  // sqrt(2 / N_kept) ~ 1 % per element; 100 +- 8 covers it with margin.
+  EXPECT_NEAR(*scores.scores.At<float>(7, 11), 100.0, 8.0);
+  AnomalyOptions classical;
+  classical.trim_fraction = 0.0;
+  const AnomalyScores inflated = ComputeAnomalyScores(g.image, Image(), classical);
+  EXPECT_LT(*inflated.scores.At<float>(7, 11), 10.0);  // masked by the inflated covariance
+}
+
+TEST(Anomaly, ConstantAndRankDeficientImagesScoreFinitely) {
+  const Image constant = MakeImage(32, 24, 3, [](int, int, int) { return 42.0; });
+  for (const char* detector : {"rx", "rx-local"}) {
+    AnomalyOptions options;
+    options.detector = detector;
+    const AnomalyScores scores = ComputeAnomalyScores(constant, Image(), options);
+    for (int y = 0; y < 24; ++y)
+      for (int x = 0; x < 32; ++x) EXPECT_EQ(*scores.scores.At<float>(x, y), 0.0f);
+    DetectOptions detect;
+    std::string rule;
+    const double threshold = ResolveThreshold(scores, Image(), detect, &rule);
+    EXPECT_TRUE(FindBlobs(scores.scores, Image(), threshold, 1).empty());
+  }
+  // R = G = B (rank 1) with one bright pixel: finite, the bright one highest.
+  const Image grey = MakeImage(32, 24, 3, [](int x, int y, int) {
+    return (x == 5 && y == 6) ? 250.0 : 100.0 + ((x * 7 + y * 13) % 11);
+  });
+  const AnomalyScores scores = ComputeAnomalyScores(grey, Image(), AnomalyOptions());
+  float best = -1.0f;
+  int best_x = -1;
+  for (int y = 0; y < 24; ++y)
+    for (int x = 0; x < 32; ++x) {
+      ASSERT_TRUE(std::isfinite(*scores.scores.At<float>(x, y)));
+      if (*scores.scores.At<float>(x, y) > best) {
+        best = *scores.scores.At<float>(x, y);
+        best_x = x;
+      }
+    }
+  EXPECT_EQ(best_x, 5);
+}
+
+TEST(Anomaly, LocalRxFindsASmallBumpThatGlobalRxMisses) {
+  // Two fields of unit noise, around 0 (left half) and 500 (right half), and a 3 x 3 bump of +8
+  // at (50, 40). Globally the two halves dominate the variance (250^2): the bump is an ordinary
+  // left-half pixel. Locally (a window inside the left half) it is 8 sigma out: about 64.
+  std::mt19937 rng(7);
+  std::normal_distribution<double> normal;
+  const Image halves = MakeImage(200, 80, 1, [&](int x, int y, int) {
+    const double bump = (std::abs(x - 50) <= 1 && std::abs(y - 40) <= 1) ? 8.0 : 0.0;
+    return (x < 100 ? 0.0 : 500.0) + normal(rng) + bump;
+  });
+  AnomalyOptions local;
+  local.detector = "rx-local";
+  local.inner_window_px = 5;
+  local.outer_window_px = 15;
+  const AnomalyScores scores = ComputeAnomalyScores(halves, Image(), local);
+  EXPECT_GT(*scores.scores.At<float>(50, 40), 30.0f);
+  // A threshold of 30 (P(chi2_1 > 30) = 4e-8 per pixel) flags the bump, and the seam between
+  // the halves, where a window straddles both.
+  std::vector<Detection> blobs = FindBlobs(scores.scores, Image(), 30.0, 4);
+  bool found = false;
+  for (const Detection& d : blobs) {
+    if (std::abs(d.pixel.x - 50.5) < 1.0 && std::abs(d.pixel.y - 40.5) < 1.0) found = true;
+    EXPECT_TRUE((d.pixel.x > 90.0 && d.pixel.x < 110.0) || found) << d.pixel.x;
+  }
+  EXPECT_TRUE(found);
+  const AnomalyScores global = ComputeAnomalyScores(halves, Image(), AnomalyOptions());
+  EXPECT_LT(*global.scores.At<float>(50, 40), 2.0f);
+}
+
+TEST(Anomaly, BlobsHaveTheirAreaCentroidAndOrder) {
+  Image scores(40, 30, 1, PixelType::kF32);
+  for (int y = 0; y < 30; ++y)
+    for (int x = 0; x < 40; ++x) *scores.At<float>(x, y) = 0.0f;
+  for (int y = 5; y < 8; ++y)
+    for (int x = 10; x < 14; ++x) *scores.At<float>(x, y) = 5.0f;  // 12 px, peak 5
+  for (int y = 20; y < 22; ++y)
+    for (int x = 30; x < 32; ++x) *scores.At<float>(x, y) = 9.0f;  // 4 px, peak 9
+  *scores.At<float>(0, 0) = 9.0f;                                  // 1 px: below min area
+  const std::vector<Detection> blobs = FindBlobs(scores, Image(), 1.0, 2);
+  ASSERT_EQ(blobs.size(), 2u);
+  EXPECT_EQ(blobs[0].area_px, 4);  // highest peak first
+  EXPECT_DOUBLE_EQ(blobs[0].pixel.x, 31.0);
+  EXPECT_DOUBLE_EQ(blobs[0].pixel.y, 21.0);
+  EXPECT_EQ(blobs[1].area_px, 12);
+  EXPECT_DOUBLE_EQ(blobs[1].pixel.x, 12.0);
+  EXPECT_DOUBLE_EQ(blobs[1].pixel.y, 6.5);
+  EXPECT_EQ(blobs[1].box, (std::array<int, 4>{10, 5, 14, 8}));
+}
+
+TEST(Anomaly, ChiSquareQuantileAndOptionErrors) {
+  // Two degrees of freedom: P(X > x) = exp(-x / 2).
+  EXPECT_NEAR(ChiSquareQuantile(2, std::exp(-5.0)), 10.0, 1e-9);
+  DetectOptions options;
+  options.false_alarm_rate = 1.5;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("false_alarm_rate: must be in (0, 1)"));
+  options.false_alarm_rate = 1e-4;
+  options.min_score = 10.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("not both"));
+  DetectOptions temperature;
+  temperature.detector = "temperature";
+  EXPECT_THAT(ErrorOf([&] { temperature.Check(); }), HasSubstr("min_temperature_c: detector"));
+  AnomalyOptions windows;
+  windows.detector = "rx-local";
+  windows.inner_window_px = 9;
+  windows.outer_window_px = 9;
+  EXPECT_THAT(ErrorOf([&] { windows.Check(); }), HasSubstr("outer_window_px: must be larger"));
+  const Image two = MakeImage(8, 8, 2, [](int, int, int) { return 1.0; });
+  AnomalyOptions rgb;
+  rgb.channels = "rgb";
+  EXPECT_THAT(ErrorOf([&] { ComputeAnomalyScores(two, Image(), rgb); }),
+              HasSubstr("channels: 'rgb' needs 3 channels"));
+  Image nothing(8, 8, 1, PixelType::kF32);
+  for (int y = 0; y < 8; ++y)
+    for (int x = 0; x < 8; ++x) *nothing.At<float>(x, y) = std::nanf("");
+  EXPECT_THAT(ErrorOf([&] { ComputeAnomalyScores(nothing, Image(), AnomalyOptions()); }),
+              HasSubstr("no pixel with a view and finite values"));
+}
+
+TEST(Anomaly, TemperatureDetectorScoresDegreesCelsius) {
+  const Image kelvin = MakeImage(16, 16, 1, [](int x, int y, int) {
+    return (x == 3 && y == 4) ? 30950.0 : 29315.0;  // centikelvin: 36.35 C and 20 C
+  });
+  DetectOptions options;
+  options.detector = "temperature";
+  options.min_temperature_c = 30.0;
+  const AnomalyScores scores =
+      ComputeAnomalyScores(kelvin, Image(), options, Radiometry{0.01, 0.0});
+  EXPECT_NEAR(*scores.scores.At<float>(3, 4), 36.35, 1e-4);
+  EXPECT_NEAR(*scores.scores.At<float>(0, 0), 20.0, 1e-4);
+  std::string rule;
+  const double threshold = ResolveThreshold(scores, Image(), options, &rule);
+  EXPECT_EQ(threshold, 30.0);
+  EXPECT_EQ(FindBlobs(scores.scores, Image(), threshold, 1).size(), 1u);
+  EXPECT_THAT(ErrorOf([&] { ComputeAnomalyScores(kelvin, Image(), options); }),
+              HasSubstr("needs a radiometric light field"));
+}
+
+}  // namespace
+}  // namespace aos
