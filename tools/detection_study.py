@@ -48,6 +48,9 @@ MATCH_RADIUS_M = 1.0
 MIN_AREA_PX = 4
 ALTITUDE = 30.0
 FOV_DEG = 60.0
+CANDIDATES = [("quantile", q) for q in (0.99, 0.995, 0.998, 0.999)] + \
+    [("false_alarm_rate", p) for p in (1e-4, 1e-6, 1e-8, 1e-10, 1e-12)] + \
+    [("min_score", v) for v in (25.0, 50.0, 100.0)]
 CLOTHING = [[0.9, 0.1, 0.05], [0.1, 0.2, 0.8], [0.95, 0.85, 0.1], [0.95, 0.95, 0.95],
             [0.95, 0.45, 0.05]]
 
@@ -156,8 +159,22 @@ def evaluate(light_field: aos.LightField, truth: list[np.ndarray], method: str,
         found = sorted(blobs(scores, count, threshold), key=lambda b: -b[1])
         points = [ground_point(p, camera, pose) for p, _ in found]
         tp, fp, _ = match(points, truth)
-        precision = tp / (tp + fp) if tp + fp else 1.0
-        curve.append((tp / len(truth), precision))
+        curve.append((tp, fp))
+    # Candidate default rules (the study chooses aos's defaults among them).
+    from scipy.stats import chi2
+    rules = {}
+    for name, value in CANDIDATES:
+        if name == "quantile":
+            threshold = float(np.quantile(values, value))
+        elif name == "false_alarm_rate":
+            if method == "anomaly-imaging":
+                continue
+            threshold = float(chi2.isf(value, result.dimensions))
+        else:
+            threshold = value
+        found = sorted(blobs(scores, count, threshold), key=lambda b: -b[1])
+        points = [ground_point(p, camera, pose) for p, _ in found]
+        rules[(name, value)] = match(points, truth)[:2]
     # aos's own detections at its default threshold.
     points = [np.asarray(d.local) for d in result.detections]
     tp, fp, errors = match(points, truth)
@@ -166,12 +183,17 @@ def evaluate(light_field: aos.LightField, truth: list[np.ndarray], method: str,
     pixel_m = ALTITUDE / camera.fx
     hectares = covered.sum() * pixel_m * pixel_m / 1e4
     return {"curve": curve, "tp": tp, "fp": fp, "errors": errors, "persons": len(truth),
-            "hectares": hectares, "seconds": seconds}
+            "hectares": hectares, "seconds": seconds, "rules": rules}
 
 
-def average_precision(curve: list[tuple[float, float]]) -> float:
+def pr_points(curve: list[tuple[int, int]], persons: int) -> list[tuple[float, float]]:
+    """(recall, precision) per threshold from (true positives, false alarms)."""
+    return [(tp / persons, tp / (tp + fp) if tp + fp else 1.0) for tp, fp in curve]
+
+
+def average_precision(curve: list[tuple[int, int]], persons: int) -> float:
     """Area under the precision-recall curve (precision made monotone, as in VOC)."""
-    points = sorted(set(curve))
+    points = sorted(set(pr_points(curve, persons)))
     recalls = [0.0] + [r for r, _ in points] + [1.0]
     precisions = [1.0] + [p for _, p in points] + [0.0]
     for i in range(len(precisions) - 2, -1, -1):
@@ -197,7 +219,7 @@ def run(seeds: int, size: int, trees: list[float]) -> dict[str, Any]:
                     rows.setdefault((modality, level, method), []).append(outcome)
                     print(f"trees {level:g}/ha seed {1000 + k} {modality:7s} {method:15s} "
                           f"tp {outcome['tp']}/{outcome['persons']} fp {outcome['fp']} "
-                          f"AP {average_precision(outcome['curve']):.3f} "
+                          f"AP {average_precision(outcome['curve'], outcome['persons']):.3f} "
                           f"{1000 * outcome['seconds']:.0f} ms", flush=True)
     return {"rows": rows, "occlusion": occlusion}
 
@@ -214,7 +236,7 @@ def summarise(study: dict[str, Any]) -> list[dict[str, Any]]:
         table.append({
             "modality": modality, "trees": level, "method": method,
             "occlusion": statistics.mean(occlusion) if occlusion else float("nan"),
-            "ap": statistics.mean(average_precision(o["curve"]) for o in outcomes),
+            "ap": statistics.mean(average_precision(o["curve"], o["persons"]) for o in outcomes),
             "precision": tp / (tp + fp) if tp + fp else float("nan"),
             "recall": tp / total,
             "error_m": statistics.median(errors) if errors else float("nan"),
@@ -222,6 +244,28 @@ def summarise(study: dict[str, Any]) -> list[dict[str, Any]]:
             "ms": 1000 * statistics.mean(o["seconds"] for o in outcomes),
         })
     return table
+
+
+def rules_table(study: dict[str, Any]) -> str:
+    """Precision and recall of each candidate threshold rule, per method, pooled over the
+    modalities, occlusion levels and seeds."""
+    lines = ["| rule | " + " | ".join(METHODS) + " |", "|---|" + "---|" * len(METHODS)]
+    for rule in CANDIDATES:
+        cells = []
+        for method in METHODS:
+            tp = fp = total = 0
+            for (modality, level, m), outcomes in study["rows"].items():
+                if m != method:
+                    continue
+                for o in outcomes:
+                    if rule in o["rules"]:
+                        tp += o["rules"][rule][0]
+                        fp += o["rules"][rule][1]
+                        total += o["persons"]
+            cells.append("-" if total == 0 else
+                         f"P {tp / (tp + fp) if tp + fp else float('nan'):.2f} R {tp / total:.2f}")
+        lines.append(f"| {rule[0]} {rule[1]:g} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
 
 
 def markdown(table: list[dict[str, Any]]) -> str:
@@ -247,13 +291,16 @@ def plot(study: dict[str, Any], path: Path) -> None:
             axis = axes[row][column]
             for method in METHODS:
                 outcomes = study["rows"].get((modality, level, method), [])
-                points = sorted({p for o in outcomes for p in o["curve"]})
-                if not points:
+                if not outcomes:
                     continue
-                # The seeds' curves pooled: precision at each recall, the best over thresholds.
-                recalls = sorted({r for r, _ in points})
-                best = [max(p for r2, p in points if r2 >= r) for r in recalls]
-                axis.step(recalls, best, where="post", label=method)
+                # The seeds pooled per threshold (the same score quantiles in every scene).
+                persons = sum(o["persons"] for o in outcomes)
+                pooled = [(sum(o["curve"][k][0] for o in outcomes),
+                           sum(o["curve"][k][1] for o in outcomes))
+                          for k in range(len(outcomes[0]["curve"]))]
+                points = sorted(pr_points(pooled, persons))
+                axis.plot([r for r, _ in points], [p for _, p in points], ".-", label=method,
+                          markersize=3)
             occlusion = study["occlusion"].get(level, [float("nan")])
             axis.set_title(f"{modality}, {level:g} trees/ha ({100 * statistics.mean(occlusion):.0f} % "
                            "occluded)", fontsize=9)
@@ -281,7 +328,7 @@ def main() -> int:
     start = time.perf_counter()
     study = run(args.seeds, args.size, [float(t) for t in args.trees.split(",")])
     table = summarise(study)
-    text = markdown(table)
+    text = markdown(table) + "\n\n" + rules_table(study)
     print(text)
     print(f"study took {time.perf_counter() - start:.0f} s")
     if args.write_docs:

@@ -475,6 +475,11 @@ int RunDetect(DetectCommand& c, const Flags& flags) {
   report.Set("flagged_pixels", static_cast<long long>(result.flagged_pixels));
   report.Set("dimensions", result.scores.dimensions);
   report.Set("crs", result.crs);
+  report.Set("ground_sampling_m", result.ground_sampling_m);
+  if (c.detect.detector == "rx-local") {
+    report.Set("windows_px", std::vector<double>{static_cast<double>(result.windows_px[0]),
+                                                 static_cast<double>(result.windows_px[1])});
+  }
   for (const auto& [path, what] : outputs) {
     if (!path.empty()) report.Set(what, path);
   }

@@ -103,6 +103,10 @@ void BindDetect(py::module_& m) {
   py::class_<DetectResult>(m, "DetectResult", "What detect found, and what it was found in.")
       .def_readonly("render", &DetectResult::render, "The integral image the scores are of.")
       .def_readonly("camera", &DetectResult::camera, "Its virtual camera.")
+      .def_readonly("ground_sampling_m", &DetectResult::ground_sampling_m,
+                    "The render's metres per pixel on the focal surface (median).")
+      .def_readonly("windows_px", &DetectResult::windows_px,
+                    "rx-local's inner and outer windows as used, pixels.")
       .def_property_readonly(
           "scores", [](const DetectResult& r) { return ArrayFromImage(r.scores.scores); },
           "float32 (H, W): the anomaly scores (squared Mahalanobis distance; degrees C for "
@@ -172,13 +176,16 @@ void BindDetect(py::module_& m) {
                             "threshold_rule"_a = r.threshold_rule,
                             "flagged_pixels"_a = r.flagged_pixels, "detections"_a = detections,
                             "dropped"_a = r.dropped, "crs"_a = r.crs,
-                            "radiometry"_a = r.radiometry);
+                            "radiometry"_a = r.radiometry,
+                            "ground_sampling_m"_a = r.ground_sampling_m,
+                            "windows_px"_a = r.windows_px);
           },
           [](const py::object& state) {
             const py::dict v = StateDict(
                 state, "DetectResult",
                 {"image", "count", "cam_from_world", "camera", "scores", "dimensions", "threshold",
-                 "threshold_rule", "flagged_pixels", "detections", "dropped", "crs", "radiometry"});
+                 "threshold_rule", "flagged_pixels", "detections", "dropped", "crs", "radiometry",
+                 "ground_sampling_m", "windows_px"});
             DetectResult r;
             r.render.image = ImageFromArray(v["image"], 0, "image");
             r.render.count = ImageFromArray(v["count"], 0, "count");
@@ -193,6 +200,8 @@ void BindDetect(py::module_& m) {
             r.dropped = v["dropped"].cast<int>();
             r.crs = v["crs"].cast<std::string>();
             r.radiometry = v["radiometry"].cast<std::optional<Radiometry>>();
+            r.ground_sampling_m = v["ground_sampling_m"].cast<double>();
+            r.windows_px = v["windows_px"].cast<std::array<int, 2>>();
             return r;
           }))
       .def("__len__", [](const DetectResult& r) { return r.detections.size(); })

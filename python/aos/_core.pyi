@@ -2331,18 +2331,20 @@ class DetectOptions:
         regularization: float = ...,
         inner_window_px: int = ...,
         outer_window_px: int = ...,
-        quantile: float = ...,
+        quantile: float | None = ...,
         false_alarm_rate: float | None = ...,
         min_score: float | None = ...,
         min_temperature_c: float | None = ...,
+        inner_window_m: float = ...,
+        outer_window_m: float = ...,
         min_area_px: int = ...,
         max_detections: int = ...,
     ) -> None:
         """Defaults from C++; unknown names raise TypeError."""
     detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature']
-    """Scores: 'rx' (global Reed-Xiaoli), 'rx-local' (dual window), 'anomaly-imaging' (RX per frame,
-    integrated) or 'temperature' (degrees C, radiometric light fields). [one of rx, rx-local,
-    anomaly-imaging or temperature]"""
+    """Scores: 'rx' (global Reed-Xiaoli), 'rx-local' (dual window, the default), 'anomaly-imaging'
+    (RX per frame, integrated) or 'temperature' (degrees C, radiometric light fields). [one of
+    rx, rx-local, anomaly-imaging or temperature]"""
     channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal']
     """Features: 'auto' (all channels), 'grey', 'rgb', 'hsv' (S cos H, S sin H, V) or 'rgb+thermal'
     (4 channels). [one of auto, grey, rgb, hsv or rgb+thermal]"""
@@ -2358,9 +2360,9 @@ class DetectOptions:
     """rx-local: side of the inner guard window, pixels, odd. [px, >= 1]"""
     outer_window_px: int
     """rx-local: side of the background window, pixels, odd, > inner_window_px. [px, >= 3]"""
-    quantile: float
-    """Threshold at this quantile of the scores (when neither min_score nor false_alarm_rate is
-    given): 0.999 = the top 0.1 % of the pixels. [in (0, 1)]"""
+    quantile: float | None
+    """Threshold at this quantile of the scores, (0, 1): 0.999 = the top 0.1 % of the pixels; unset
+    = not used (no rule given: false_alarm_rate 1e-8, anomaly-imaging quantile 0.998)."""
     false_alarm_rate: float | None
     """Threshold: per-pixel false-alarm rate of a Gaussian background, (0, 1) (the chi-square
     quantile); unset = not used."""
@@ -2368,6 +2370,12 @@ class DetectOptions:
     """Threshold: an absolute score (squared Mahalanobis distance), >= 0; unset = not used."""
     min_temperature_c: float | None
     """Detector 'temperature': the temperature a pixel must exceed, degrees C. [C]"""
+    inner_window_m: float
+    """rx-local on a render: guard window on the ground, metres (replaces inner_window_px there).
+    [m, > 0 and finite]"""
+    outer_window_m: float
+    """rx-local on a render: background window on the ground, metres, > inner_window_m. [m, > 0 and
+    finite]"""
     min_area_px: int
     """Blobs smaller than this many pixels are dropped. [px, >= 1]"""
     max_detections: int
@@ -2412,6 +2420,10 @@ class DetectResult:
     def render(self) -> IntegralResult: ...
     @property
     def camera(self) -> PinholeCamera: ...
+    @property
+    def ground_sampling_m(self) -> float: ...
+    @property
+    def windows_px(self) -> tuple[int, int]: ...
     @property
     def scores(self) -> numpy.typing.NDArray[numpy.float32]: ...
     @property

@@ -342,9 +342,11 @@ class DetectKeywords(IntegralKeywords, total=False):
     regularization: float
     inner_window_px: int
     outer_window_px: int
-    quantile: float
+    quantile: float | None
     false_alarm_rate: float | None
     min_score: float | None
     min_temperature_c: float | None
+    inner_window_m: float
+    outer_window_m: float
     min_area_px: int
     max_detections: int

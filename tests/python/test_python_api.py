@@ -250,6 +250,8 @@ def changed(value: Any, field: str = "") -> Any:
         return 1.5
     if value is None and field == "false_alarm_rate":  # DetectOptions
         return 1e-4
+    if value is None and field == "quantile":  # DetectOptions
+        return 0.99
     if value is None and field == "ground_plane":  # FocalStackOptions.ground_plane
         return aos.Plane((1.0, 2.0, 3.0), (0.0, 1.0, 1.0))
     if isinstance(value, aos.FocalSurface):  # IntegralOptions/MapOptions.focal_surface

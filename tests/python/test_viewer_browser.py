@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import base64
 import json
+import math
 import re
 import shutil
 import time
@@ -298,3 +299,44 @@ def test_a_page_beyond_max_pages_says_why(driver: Any, simulation: aos.Simulatio
             driver.close()
             driver.switch_to.window(first_tab)
         handle.stop()
+
+
+def test_detect_marks_the_hidden_target_and_a_click_centres_on_it(
+        driver: Any, viewer: Any, simulation: aos.SimulationResult, evidence: Callable) -> None:
+    """Focused on the ground, the Detect button lists the hidden target (the scene's target is
+    centred on the world origin) and every later frame marks it; clicking the list entry pans
+    the view so that it sits at the image centre. (Last in the module: with detections held by
+    the shared viewer, the control sweep above failed now and then on an intermediate state's
+    render, "no pixel is covered"; not explained yet.)"""
+    open_page(driver, viewer)
+    ground_height = simulation.truth.ground_height_at_center
+    driver.execute_script("""
+        const slider = document.getElementById('focal_height');
+        slider.value = arguments[0];
+        slider.dispatchEvent(new Event('change', {bubbles: true}));""", ground_height)
+    wait_full_frame(driver)
+    driver.execute_script("window.aosLastDetect = null;")
+    driver.find_element(By.ID, "detect").click()
+    answer = wait_for(driver, "return window.aosLastDetect;")
+    assert answer["detections"], answer
+    best = answer["detections"][0]
+    assert math.hypot(best["world"][0], best["world"][1]) < 0.3, best
+    wait_for(driver, "return document.querySelectorAll('#detections li').length > 0;")
+    frame = wait_full_frame(driver)
+    markers = wait_for(driver, "const m = window.aosStats.lastMarkers; "
+                       "return m && m.length ? m : null;")
+    number, u, v = markers[0]
+    assert number == 1
+    # The marker sits on the detection's pixel (the same camera: the page's full frame).
+    assert (u, v) == pytest.approx(best["pixel"], abs=0.5)
+    evidence("detected")
+    before = driver.execute_script("return window.aosStats.lastFrame.id;")
+    driver.find_element(By.CSS_SELECTOR, "#detections li").click()
+    wait_for(driver, f"return window.aosStats.lastFullId > {before} && "
+             "window.aosStats.lastFrame.id >= window.aosStats.lastFullId;")
+    markers = driver.execute_script("return window.aosStats.lastMarkers;")
+    centre = (frame["width"] / 2, frame["height"] / 2)
+    # Pan sliders step 0.1 m: at 30 m with this camera that is under 1 pixel.
+    assert markers and markers[0][1:] == pytest.approx(centre, abs=1.5), markers
+    evidence("centred")
+    assert not driver.execute_script("return window.aosStats.errors;")

@@ -192,12 +192,22 @@ void DetectOptions::Check() const {
   if (min_score && !(*min_score >= 0.0 && std::isfinite(*min_score))) {
     ThrowInvalid("min_score: must be a finite score >= 0, got " + FormatNumber(*min_score));
   }
-  if (false_alarm_rate && min_score) {
-    ThrowInvalid("min_score: give min_score or false_alarm_rate, not both");
+  if (quantile && !(*quantile > 0.0 && *quantile < 1.0)) {
+    ThrowInvalid("quantile: must be in (0, 1), got " + FormatNumber(*quantile));
+  }
+  if ((false_alarm_rate ? 1 : 0) + (min_score ? 1 : 0) + (quantile ? 1 : 0) > 1) {
+    ThrowInvalid("min_score, false_alarm_rate, quantile: give one threshold rule, not " +
+                 std::string(min_score && false_alarm_rate ? "min_score and false_alarm_rate"
+                             : min_score                  ? "min_score and quantile"
+                                                          : "false_alarm_rate and quantile"));
   }
   if (false_alarm_rate && detector == "anomaly-imaging") {
     ThrowInvalid("false_alarm_rate: anomaly-imaging's scores are means over frames, not "
                  "chi-square: give quantile or min_score");
+  }
+  if (!(outer_window_m > inner_window_m)) {
+    ThrowInvalid("outer_window_m: must be larger than inner_window_m (" +
+                 FormatNumber(inner_window_m) + "), got " + FormatNumber(outer_window_m));
   }
   if (detector == "temperature") {
     if (!min_temperature_c) {
@@ -208,8 +218,10 @@ void DetectOptions::Check() const {
       ThrowInvalid("min_temperature_c: must be a finite temperature above absolute zero, got " +
                    FormatNumber(*min_temperature_c));
     }
-    if (false_alarm_rate || min_score) {
-      ThrowInvalid(std::string(false_alarm_rate ? "false_alarm_rate" : "min_score") +
+    if (false_alarm_rate || min_score || quantile) {
+      ThrowInvalid(std::string(false_alarm_rate ? "false_alarm_rate"
+                               : min_score      ? "min_score"
+                                                : "quantile") +
                    ": detector 'temperature' is thresholded by min_temperature_c");
     }
   } else if (min_temperature_c) {
@@ -228,11 +240,14 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
     *rule = "min_score " + FormatNumber(*options.min_score);
     return *options.min_score;
   }
-  if (options.false_alarm_rate) {
-    *rule = "false_alarm_rate " + FormatNumber(*options.false_alarm_rate) + " (chi-square, " +
+  const bool imaging = options.detector == "anomaly-imaging";
+  if (options.false_alarm_rate || (!options.quantile && !imaging)) {
+    const double rate = options.false_alarm_rate.value_or(kDefaultFalseAlarmRate);
+    *rule = "false_alarm_rate " + FormatNumber(rate) + " (chi-square, " +
             std::to_string(scores.dimensions) + " degrees of freedom)";
-    return ChiSquareQuantile(scores.dimensions, *options.false_alarm_rate);
+    return ChiSquareQuantile(scores.dimensions, rate);
   }
+  const double quantile = options.quantile.value_or(kDefaultQuantile);
   std::vector<float> values;
   for (int y = 0; y < scores.scores.height(); ++y) {
     for (int x = 0; x < scores.scores.width(); ++x) {
@@ -242,10 +257,10 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
   }
   if (values.empty()) ThrowInvalid("image: no pixel with a view: nothing to threshold");
   const size_t k = std::min(values.size() - 1,
-                            static_cast<size_t>(std::floor(options.quantile *
+                            static_cast<size_t>(std::floor(quantile *
                                                            static_cast<double>(values.size() - 1))));
   std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  *rule = "quantile " + FormatNumber(options.quantile);
+  *rule = "quantile " + FormatNumber(quantile);
   return values[k];
 }
 
@@ -314,10 +329,41 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
   result.camera = VirtualCamera(light_field, resolved);
   const Image& image = result.render.image;
   const Image& count = result.render.count;
-  if (detect_options.detector == "anomaly-imaging") {
-    result.scores = AnomalyImaging(light_field, resolved, detect_options, progress);
+  // Where each pixel's ray meets the focal surface: the detections' places, and the render's
+  // ground sampling distance (rx-local's windows in metres).
+  const SurfacePlacement placement = ResolveSurfacePlacement(
+      resolved.focal_surface, light_field, resolved.view_indices, resolved.surface_offset);
+  const Image depth = resolved.focal_surface.DepthFor(result.camera, result.render.cam_from_world,
+                                                      placement, resolved.num_threads);
+  {
+    std::vector<float> depths;
+    for (int y = 0; y < depth.height(); ++y) {
+      for (int x = 0; x < depth.width(); ++x) {
+        const float z = *depth.At<float>(x, y);
+        if (z > 0.0f && *count.At<uint32_t>(x, y) > 0) depths.push_back(z);
+      }
+    }
+    if (!depths.empty()) {
+      std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2),
+                       depths.end());
+      result.ground_sampling_m = depths[depths.size() / 2] / result.camera.fx;
+    }
+  }
+  DetectOptions scoring = detect_options;
+  if (scoring.detector == "rx-local" && result.ground_sampling_m > 0.0) {
+    const auto odd_pixels = [&](double metres, int at_least) {
+      const int pixels = static_cast<int>(std::lround(metres / result.ground_sampling_m));
+      return std::max(at_least, pixels | 1);
+    };
+    scoring.inner_window_px = odd_pixels(scoring.inner_window_m, 1);
+    scoring.outer_window_px = std::max(odd_pixels(scoring.outer_window_m, 3),
+                                       scoring.inner_window_px + 2);
+  }
+  result.windows_px = {scoring.inner_window_px, scoring.outer_window_px};
+  if (scoring.detector == "anomaly-imaging") {
+    result.scores = AnomalyImaging(light_field, resolved, scoring, progress);
   } else {
-    result.scores = ComputeAnomalyScores(image, count, detect_options, light_field.radiometry);
+    result.scores = ComputeAnomalyScores(image, count, scoring, light_field.radiometry);
   }
   result.threshold = ResolveThreshold(result.scores, count, detect_options, &result.threshold_rule);
   for (int y = 0; y < count.height(); ++y) {
@@ -335,10 +381,6 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
   }
 
   // Where each blob lies: its pixels' rays on the focal surface, score-weighted.
-  const SurfacePlacement placement = ResolveSurfacePlacement(
-      resolved.focal_surface, light_field, resolved.view_indices, resolved.surface_offset);
-  const Image depth = resolved.focal_surface.DepthFor(result.camera, result.render.cam_from_world,
-                                                      placement, resolved.num_threads);
   const Rigid3d& cam_from_world = result.render.cam_from_world;
   const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
   const Vec3d centre = cam_from_world.Center();

@@ -13,13 +13,14 @@
 //   integral image of the frames is rendered too (for the overlay and temperatures). Masked
 //   light fields are refused for it.
 // - Threshold (DetectOptions): detector "temperature" takes min_temperature_c (degrees Celsius,
-//   required). Otherwise min_score (an absolute score) when given, else false_alarm_rate p when
-//   given (the score a Gaussian background exceeds with probability p per pixel: the chi-square
-//   quantile with d degrees of freedom, anomaly.h; not for anomaly-imaging, whose mean scores
-//   are no chi-square), else the `quantile` of the scores of the
-//   pixels with a view (the research code's convention: the top 1 - quantile of the pixels).
-//   A pixel is flagged when its score is strictly above the threshold and it has a view, so a
-//   constant image flags nothing.
+//   required). Otherwise one of: min_score (an absolute score); false_alarm_rate p (the score a
+//   Gaussian background exceeds with probability p per pixel: the chi-square quantile with d
+//   degrees of freedom, anomaly.h; not for anomaly-imaging, whose mean scores are no
+//   chi-square); quantile q (the research code's convention: the top 1 - q of the scores of the
+//   pixels with a view, whatever is in the image). None given: kDefaultFalseAlarmRate for rx and
+//   rx-local, kDefaultQuantile for anomaly-imaging (chosen by tools/detection_study.py:
+//   docs/detection.md). A pixel is flagged when its score is strictly above the threshold and
+//   it has a view, so a constant image flags nothing.
 // - Blobs: the 8-connected components of the flagged pixels with at least min_area_px pixels;
 //   pixel = the score-weighted centroid (continuous coordinates, pixel centres at +0.5), area,
 //   peak and mean score, bounding box. At most max_detections are kept (the highest peaks; the
@@ -49,16 +50,27 @@
 
 namespace aos {
 
+// The threshold rules used when none is given (docs/detection.md: the study that chose them).
+inline constexpr double kDefaultFalseAlarmRate = 1e-8;
+inline constexpr double kDefaultQuantile = 0.998;
+
 struct DetectOptions : AnomalyOptions {
-  // The scores' quantile a pixel must exceed (when neither min_score nor false_alarm_rate is
-  // given), (0, 1): 0.999 flags the top 0.1 % of the pixels.
-  double quantile = 0.999;
+  // Threshold at this quantile of the scores, (0, 1): 0.999 flags the top 0.1 % of the pixels;
+  // unset = not used.
+  std::optional<double> quantile;
   // Per-pixel false-alarm rate of a Gaussian background, (0, 1); unset = not used.
   std::optional<double> false_alarm_rate;
   // An absolute score threshold, >= 0; unset = not used.
   std::optional<double> min_score;
   // detector "temperature": the temperature a pixel must exceed, degrees Celsius.
   std::optional<double> min_temperature_c;
+  // rx-local on a render: the guard and background windows on the ground, metres, converted
+  // to pixels by the render's ground sampling distance (the median over its pixels of depth / fx
+  // on the focal surface); they replace inner_window_px and outer_window_px there (those stay
+  // for anomaly_scores on an image). The guard holds a person (1.8 m lying); > 0 each, outer >
+  // inner.
+  double inner_window_m = 2.5;
+  double outer_window_m = 8.0;
   // Blobs smaller than this are dropped, pixels, >= 1.
   int min_area_px = 4;
   // At most this many detections are kept (the highest peaks), >= 1.
@@ -69,9 +81,10 @@ struct DetectOptions : AnomalyOptions {
   static void Fields(Visit&& field) {
     using O = DetectOptions;
     AnomalyOptions::Fields(field);
-    field(OptionField("quantile", &O::quantile, "", Range::Open(0.0, 1.0),
-                      "Threshold at this quantile of the scores (when neither min_score nor "
-                      "false_alarm_rate is given): 0.999 = the top 0.1 % of the pixels."));
+    field(OptionField("quantile", &O::quantile, "", Range::Any(),
+                      "Threshold at this quantile of the scores, (0, 1): 0.999 = the top 0.1 % "
+                      "of the pixels; unset = not used (no rule given: false_alarm_rate 1e-8, "
+                      "anomaly-imaging quantile 0.998)."));
     field(OptionField("false_alarm_rate", &O::false_alarm_rate, "", Range::Any(),
                       "Threshold: per-pixel false-alarm rate of a Gaussian background, (0, 1) "
                       "(the chi-square quantile); unset = not used."));
@@ -80,6 +93,12 @@ struct DetectOptions : AnomalyOptions {
                       "= not used."));
     field(OptionField("min_temperature_c", &O::min_temperature_c, "C", Range::Any(),
                       "Detector 'temperature': the temperature a pixel must exceed, degrees C."));
+    field(OptionField("inner_window_m", &O::inner_window_m, "m", Range::FiniteAtLeast(0.0, true),
+                      "rx-local on a render: guard window on the ground, metres (replaces "
+                      "inner_window_px there)."));
+    field(OptionField("outer_window_m", &O::outer_window_m, "m", Range::FiniteAtLeast(0.0, true),
+                      "rx-local on a render: background window on the ground, metres, > "
+                      "inner_window_m."));
     field(OptionField("min_area_px", &O::min_area_px, "px", Range::AtLeast(1),
                       "Blobs smaller than this many pixels are dropped."));
     field(OptionField("max_detections", &O::max_detections, "", Range::AtLeast(1),
@@ -104,6 +123,8 @@ struct Detection {
 struct DetectResult {
   IntegralResult render;          // the integral image the scores were computed on
   PinholeCamera camera;           // its virtual camera
+  double ground_sampling_m = 0.0; // the render's metres per pixel on the focal surface (median)
+  std::array<int, 2> windows_px{0, 0};  // rx-local's inner and outer windows as used, pixels
   AnomalyScores scores;
   double threshold = 0.0;
   std::string threshold_rule;     // "quantile 0.999", "false_alarm_rate 1e-05", ...

@@ -29,7 +29,8 @@ Security model (docs/viewer.md):
   (``release_memory``) after every all-in-focus or stack job.
 
 Endpoints: ``/`` (the page), ``/static/<asset>``, ``/api/info``, ``/api/render`` (GET query or
-POST JSON: one frame, the WebSocket's binary format), ``/api/pick``, ``/api/export``,
+POST JSON: one frame, the WebSocket's binary format), ``/api/pick``, ``/api/detect`` (aos.detect
+on the current view; later frames carry the detections as ``markers``), ``/api/export``,
 ``/api/command``, ``/api/download/<key>`` (a focal stack the page asked for), ``/ws`` (JSON
 requests in, binary frames and JSON messages out).
 
@@ -349,6 +350,7 @@ class Viewer:
         app.router.add_get("/api/info", self.info)
         app.router.add_route("*", "/api/render", self.render_once)
         app.router.add_get("/api/pick", self.pick)
+        app.router.add_get("/api/detect", self.detect)
         app.router.add_get("/api/export", self.export)
         app.router.add_get("/api/command", self.command)
         app.router.add_get("/api/download/{key}", self.download)
@@ -396,7 +398,8 @@ class Viewer:
         elif request.method != "GET":
             raise web.HTTPMethodNotAllowed(request.method, ["GET", "POST"])
         raw.update({key: value for key, value in request.query.items()
-                    if key not in ("token", "u", "v", "format")})
+                    if key not in ("token", "u", "v", "format", "detector",
+                                   "min_temperature_c")})
         return raw
 
     async def info(self, request: web.Request) -> web.Response:
@@ -414,6 +417,15 @@ class Viewer:
         u = _finite(request.query.get("u"), "u")
         v = _finite(request.query.get("v"), "v")
         answer = await self.run_request(self.session.pick, params, u, v)
+        return web.json_response(answer)
+
+    async def detect(self, request: web.Request) -> web.Response:
+        params = self.session.parse(await self._params(request))
+        detector = request.query.get("detector", "rx-local")
+        text = request.query.get("min_temperature_c")
+        minimum = None if text in (None, "") else _finite(text, "min_temperature_c",
+                                                          "temperature (degrees C)")
+        answer = await self.run_request(self.session.detect, params, detector, minimum)
         return web.json_response(answer)
 
     async def export(self, request: web.Request) -> web.Response:
@@ -485,13 +497,13 @@ def _remove_file(path: str) -> None:
         pass
 
 
-def _finite(value: Optional[str], name: str) -> float:
+def _finite(value: Optional[str], name: str, what: str = "pixel coordinate") -> float:
     try:
         number = float(value) if value is not None else math.nan
     except ValueError:
         number = math.nan
     if not math.isfinite(number):
-        raise BadParameter(f"{name}: expected a finite pixel coordinate, got {value!r}")
+        raise BadParameter(f"{name}: expected a finite {what}, got {str(value)[:40]!r}")
     return number
 
 

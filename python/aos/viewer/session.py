@@ -66,6 +66,7 @@ class Superseded(Exception):
 COLORMAPS = ("grey", "turbo", "iron")
 MODES = ("perspective", "map")
 RANGES = ("views", "auto")
+DETECTORS = ("rx", "rx-local", "anomaly-imaging", "temperature")
 
 
 def _turbo_lut() -> np.ndarray:
@@ -289,6 +290,8 @@ class Session:
         self.radiometry = light_field.radiometry
         if self.radiometry is not None:
             self.type_range = None
+        # The newest detections (detect()): (number, local point), drawn on every frame.
+        self.detections: list[tuple[int, np.ndarray]] = []
         # Mean view centre and the up axis (+z or -z, towards the cameras from the ground).
         self.mean_centre = self.centres.mean(axis=0)
         # Without a pose the viewer starts at the middle view (the CLI's integral needs one).
@@ -526,7 +529,93 @@ class Session:
         else:
             info["views_used"] = result.views_used
             info["views_selected"] = result.views_selected
+        info["markers"] = self.markers(params, width, height, info.get("geotransform"))
         return Frame(rgba.tobytes(), width, height, info)
+
+    # ---- detection ----
+
+    def markers(self, params: Params, width: int, height: int,
+                geotransform: Optional[list[float]] = None) -> list[list[float]]:
+        """[number, u, v] of each detection in this frame (pixel coordinates of the frame):
+        projected by its camera, or placed by the map's geotransform."""
+        found = self.detections
+        markers = []
+        if params.mode == "map":
+            if geotransform is None:
+                return []
+            x0, pixel, _, y0, _, _ = geotransform
+            origin = np.asarray(self.light_field.origin, dtype=float)
+            for number, local in found:
+                world = origin + local
+                u, v = (world[0] - x0) / pixel, (y0 - world[1]) / pixel
+                if 0.0 <= u < width and 0.0 <= v < height:
+                    markers.append([number, round(float(u), 2), round(float(v), 2)])
+            return markers
+        if not found:
+            return []
+        camera, cam_from_world = self.camera(params)
+        rotation = np.asarray(cam_from_world.rotation)
+        translation = np.asarray(cam_from_world.translation)
+        for number, local in found:
+            p = rotation @ local + translation
+            if p[2] <= 0.0:
+                continue
+            u = camera.fx * p[0] / p[2] + camera.cx
+            v = camera.fy * p[1] / p[2] + camera.cy
+            if 0.0 <= u < width and 0.0 <= v < height:
+                markers.append([number, round(float(u), 2), round(float(v), 2)])
+        return markers
+
+    def detect(self, params: Params, detector: str,
+               min_temperature_c: Optional[float] = None) -> dict[str, Any]:
+        """Detections (aos.detect) in the full-size render of ``params`` with its defaults but
+        the detector; kept, so that every later frame marks them. Each carries the pan and focus
+        that centre the view on it."""
+        if params.mode == "map":
+            raise BadParameter("detector: the map view has no detection yet; use the perspective "
+                               "view")
+        if detector not in DETECTORS:
+            raise BadParameter(f"detector: must be one of {', '.join(DETECTORS)}, got "
+                               f"{str(detector)[:40]!r}")
+        params = Params(**{**params.__dict__, "preview": False})
+        options = aos.DetectOptions(detector=detector)
+        if min_temperature_c is not None:
+            options.min_temperature_c = min_temperature_c
+        try:
+            result = aos.detect(self.light_field, self.integral_options(params), options)
+        except ValueError as error:
+            raise BadParameter(str(error)) from None
+        camera, cam_from_world = self.camera(params)
+        rotation = np.asarray(cam_from_world.rotation)
+        centre = np.asarray(cam_from_world.center)
+        axis = rotation.T @ np.array([0.0, 0.0, 1.0])
+        items: list[dict[str, Any]] = []
+        kept: list[tuple[int, np.ndarray]] = []
+        for number, d in enumerate(result.detections, start=1):
+            local = np.asarray(d.local, dtype=float)
+            item: dict[str, Any] = {
+                "id": number, "pixel": [float(c) for c in d.pixel], "area_px": d.area_px,
+                "peak_score": float(d.peak_score), "views": len(d.views), "world": None,
+                "lonlat": None if d.lon_lat is None else [float(c) for c in d.lon_lat],
+                "celsius": float(d.peak_celsius) if math.isfinite(d.peak_celsius) else None,
+            }
+            if np.all(np.isfinite(local)):
+                item["world"] = [float(c) for c in d.world]
+                kept.append((number, local))
+                # Pan so that the camera's axis meets the detection's height at the detection.
+                if abs(axis[2]) > 1e-9:
+                    hit = centre + (local[2] - centre[2]) / axis[2] * axis
+                    item["centre"] = {
+                        "pan_x": params.pan_x + float(local[0] - hit[0]),
+                        "pan_y": params.pan_y + float(local[1] - hit[1]),
+                        "focal_height": (params.focal_height if params.surface
+                                         else float(local[2])),
+                    }
+            items.append(item)
+        self.detections = kept
+        return {"detections": items, "threshold": float(result.threshold),
+                "threshold_rule": result.threshold_rule, "dropped": result.dropped,
+                "flagged_pixels": int(result.flagged_pixels)}
 
     # ---- picking a pixel ----
 
@@ -672,6 +761,7 @@ class Session:
             "origin": [float(c) for c in np.asarray(lf.origin)],
             "crs": lf.crs,
             "masked": lf.masked,
+            "radiometric": lf.radiometry is not None,
             "channels": self.channels,
             "dtype": self.dtype,
             "up_z": self.up_z,

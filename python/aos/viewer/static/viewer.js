@@ -129,8 +129,68 @@ function handleFrame(buffer) {
     `, ${header.uncovered_pixels || 0} pixels uncovered` +
     (header.display_range_c ? `, display ${header.display_range_c[0].toFixed(1)} .. ` +
       `${header.display_range_c[1].toFixed(1)} \u00b0C` : "");
+  drawMarkers(header);
   if (header.allinfocus) finishJob("all-in-focus done");
 }
+
+// ---- detections: markers on the image, a list beside it ----
+
+function drawMarkers(header) {
+  stats.lastMarkers = header.markers || [];
+  const sx = canvas.width / header.width, sy = canvas.height / header.height;
+  context.lineWidth = 2;
+  context.font = "bold 13px sans-serif";
+  for (const [number, u, v] of stats.lastMarkers) {
+    const x = u * sx, y = v * sy;
+    context.strokeStyle = "#ff0";
+    context.beginPath();
+    context.arc(x, y, 9, 0, 2 * Math.PI);
+    context.stroke();
+    context.fillStyle = "#ff0";
+    context.fillText(String(number), x + 11, y - 6);
+  }
+}
+
+function centreOn(item) {
+  if (!item.centre) return;
+  $("pan_x").value = item.centre.pan_x;
+  $("pan_y").value = item.centre.pan_y;
+  if (!$("surface").checked) $("focal_height").value = item.centre.focal_height;
+  onChange();
+}
+
+async function detect() {
+  const params = currentParams();
+  params.detector = $("detector").value;
+  if (params.detector === "temperature") params.min_temperature_c = $("min_temperature_c").value;
+  $("detect_status").textContent = "detecting…";
+  const response = await fetch(api("/api/detect", params));
+  const answer = await response.json();
+  window.aosLastDetect = answer;
+  const list = $("detections");
+  list.textContent = "";
+  if (!response.ok) {
+    $("detect_status").textContent = `error: ${answer.error}`;
+    return answer;
+  }
+  for (const item of answer.detections) {
+    const entry = document.createElement("li");
+    let text = `score ${item.peak_score.toFixed(1)}, ${item.area_px} px, ${item.views} views`;
+    if (item.celsius !== null) text += `, ${item.celsius.toFixed(1)} \u00b0C`;
+    if (item.lonlat) text += `, ${item.lonlat[1].toFixed(6)}, ${item.lonlat[0].toFixed(6)}`;
+    entry.textContent = text;
+    entry.addEventListener("click", () => centreOn(item));
+    list.appendChild(entry);
+  }
+  $("detect_status").textContent = `${answer.detections.length} found (${answer.threshold_rule})`;
+  onChange();  // the next frame carries the markers
+  return answer;
+}
+window.aosDetect = detect;
+$("detect").addEventListener("click", detect);
+$("detector").addEventListener("change", () => {
+  $("min_temperature_row").style.display = $("detector").value === "temperature" ? "" : "none";
+});
 
 function handleMessage(message) {
   if (message.type === "error") {
@@ -355,6 +415,8 @@ async function start() {
     $(id).addEventListener("change", onChange);
   }
   for (const id of SELECTS) $(id).addEventListener("change", onChange);
+  $("min_temperature_row").style.display = "none";
+  if (!info.radiometric) $("detector").querySelector("option[value=temperature]").remove();
   $("surface").addEventListener("change", onChange);
   drawMinimap();
   connect();
