@@ -128,6 +128,16 @@ def displayed_image(driver: Any, path: Path) -> np.ndarray:
     return np.ascontiguousarray(aos.read_image(str(path))[:, :, :3])
 
 
+def focus_at(driver: Any, height: float) -> dict[str, Any]:
+    """Sets the focus slider to `height` (a release: the change event) and waits for the
+    full frame."""
+    driver.execute_script("""
+        const slider = document.getElementById('focal_height');
+        slider.value = arguments[0];
+        slider.dispatchEvent(new Event('change', {bubbles: true}));""", height)
+    return wait_full_frame(driver)
+
+
 def open_page(driver: Any, viewer: Any) -> None:
     driver.get(viewer.url)
     wait_for(driver, "return window.aosStats && window.aosStats.connected;")
@@ -176,11 +186,7 @@ def test_clicking_a_pixel_shows_its_world_coordinate(
         driver: Any, viewer: Any, simulation: aos.SimulationResult, evidence: Callable) -> None:
     open_page(driver, viewer)
     ground_height = simulation.truth.ground_height_at_center
-    driver.execute_script("""
-        const slider = document.getElementById('focal_height');
-        slider.value = arguments[0];
-        slider.dispatchEvent(new Event('change', {bubbles: true}));""", ground_height)
-    wait_full_frame(driver)
+    focus_at(driver, ground_height)
     canvas = driver.find_element(By.ID, "image")
     rect = driver.execute_script("const r = arguments[0].getBoundingClientRect(); "
                                  "return [r.width, r.height];", canvas)
@@ -310,11 +316,7 @@ def test_detect_marks_the_hidden_target_and_a_click_centres_on_it(
     render, "no pixel is covered"; not explained yet.)"""
     open_page(driver, viewer)
     ground_height = simulation.truth.ground_height_at_center
-    driver.execute_script("""
-        const slider = document.getElementById('focal_height');
-        slider.value = arguments[0];
-        slider.dispatchEvent(new Event('change', {bubbles: true}));""", ground_height)
-    wait_full_frame(driver)
+    focus_at(driver, ground_height)
     driver.execute_script("window.aosLastDetect = null;")
     driver.find_element(By.ID, "detect").click()
     answer = wait_for(driver, "return window.aosLastDetect;")

@@ -82,27 +82,14 @@ Features MakeFeatures(const Image& image, const Image& count, const AnomalyOptio
   }
   // One pixel's channels as doubles, by the image's type (no per-sample dispatch).
   const auto read_pixel = [&](int x, int y, double* v) {
+    const auto copy = [&](const auto* p) {
+      for (int k = 0; k < c; ++k) v[k] = p[k];
+    };
     switch (image.type()) {
-      case PixelType::kU8: {
-        const uint8_t* p = image.At<uint8_t>(x, y);
-        for (int k = 0; k < c; ++k) v[k] = p[k];
-        break;
-      }
-      case PixelType::kU16: {
-        const uint16_t* p = image.At<uint16_t>(x, y);
-        for (int k = 0; k < c; ++k) v[k] = p[k];
-        break;
-      }
-      case PixelType::kU32: {
-        const uint32_t* p = image.At<uint32_t>(x, y);
-        for (int k = 0; k < c; ++k) v[k] = p[k];
-        break;
-      }
-      case PixelType::kF32: {
-        const float* p = image.At<float>(x, y);
-        for (int k = 0; k < c; ++k) v[k] = p[k];
-        break;
-      }
+      case PixelType::kU8: copy(image.At<uint8_t>(x, y)); break;
+      case PixelType::kU16: copy(image.At<uint16_t>(x, y)); break;
+      case PixelType::kU32: copy(image.At<uint32_t>(x, y)); break;
+      case PixelType::kF32: copy(image.At<float>(x, y)); break;
     }
   };
   // The choice, decided once (not per pixel).
