@@ -34,6 +34,7 @@ PAGE = ROOT / "docs" / "vocabulary.md"
 # Command -> the Options struct its flags fill (by Python class name).
 COMMANDS = [
     ("integral", "IntegralOptions"),
+    ("detect", "IntegralOptions"),
     ("stack", "FocalStackOptions"),
     ("merge", "MergeOptions"),
     ("allinfocus", "AllInFocusOptions"),
@@ -58,6 +59,8 @@ COMMANDS = [
 # bindings' field paths: (command, Python class name, prefix).
 OUTSIDE = [
     ("map", "DistributedOptions", "distributed."),
+    ("map", "DetectOptions", "detect."),
+    ("detect", "DetectOptions", "detect."),
     ("view", "ViewerOptions", "viewer."),
     ("import-video", "TelemetryOptions", "telemetry."),
 ]
@@ -101,6 +104,7 @@ NOT_ON_THE_CLI = {
     ("stack", "render.surface_offset"): "a stack's slices lie at --first-offset..--last-offset",
     ("allinfocus", "stack.render.surface_offset"): "a stack's slices lie at --first-offset..--last-offset",
     ("integral", "variance"): "Python only (render_integral(variance=True))",
+    ("detect", "variance"): "the scores come from the image; variance is render_integral's",
     ("view", "variance"): "the viewer shows images, not variances",
     ("allinfocus", "stack.render.variance"): "set by --method robust",
     ("merge", "robust.robust"): "set by --method robust",

@@ -526,14 +526,15 @@ CommandRunner DefineDetect(CLI::App* command) {
   for (const char* output : {"--geojson", "--kml", "--csv", "--overlay", "--scores"}) {
     flags.Output(output);
   }
-  flags.Field(c->detect, "detector");
-  flags.Field(c->detect, "channels");
-  flags.Field(c->detect, "quantile");
-  flags.Field(c->detect, "false_alarm_rate");
-  flags.Field(c->detect, "min_score");
-  flags.Field(c->detect, "min_temperature_c");
+  Flags scoring = flags.At("detect.");
+  scoring.Field(c->detect, "detector");
+  scoring.Field(c->detect, "channels");
+  scoring.Field(c->detect, "quantile");
+  scoring.Field(c->detect, "false_alarm_rate");
+  scoring.Field(c->detect, "min_score");
+  scoring.Field(c->detect, "min_temperature_c");
   flags.Force();
-  flags.Remaining(c->detect);
+  scoring.Remaining(c->detect);
   flags.Remaining(c->options, {"variance"});
   return [c, flags] { return RunDetect(*c, flags); };
 }
@@ -904,6 +905,8 @@ struct MapCommand {
   std::string views;
   std::string output;
   DistributedOptions distributed;  // --workers, --scheduler, --cache-mb, --share-mb, --dashboard
+  std::string detect;              // --detect FILE: detections on the map (GeoJSON, KML, CSV)
+  DetectOptions detect_options;
 };
 
 int RunMapDistributed(MapCommand& c);
@@ -934,6 +937,15 @@ int RunMap(MapCommand& c, const Flags& flags) {
   const DistributedOptions& d = c.distributed;
   c.load.num_threads = c.options.num_threads;
   flags.At("load.").NamingFlags([&] { c.load.Check(); });  // also before a cluster's hand-off
+  if (!c.detect.empty()) {
+    CheckOutputPath(c.detect, {c.light_field_path}, "detect");
+    RefuseExisting(c.detect, "detect");
+    flags.NamingFlags([&] { c.detect_options.Check(); });
+    if (d.workers != 0 || !d.scheduler.empty()) {
+      ThrowUsage("--detect: detection needs the whole map in this process; not with --workers "
+                 "or --scheduler");
+    }
+  }
   if (d.workers != 0 || !d.scheduler.empty() || d.dashboard) return RunMapDistributed(c);
   for (const char* flag : {"--cache-mb", "--share-mb"}) {
     if (flags.command()->count(flag) > 0) {
@@ -976,9 +988,21 @@ int RunMap(MapCommand& c, const Flags& flags) {
     std::fprintf(stderr, "map: %d x %d pixels of %s m, up %s, %s\n", grid.width, grid.height,
                  FormatNumber(grid.pixel_size).c_str(), UpText(grid).c_str(), focus.c_str());
   }
+  // Detections first (in memory, written beside their final path), then the map, then the
+  // detections into place: an error leaves neither new.
+  std::optional<DetectResult> found;
+  std::optional<PendingFile> detections;
+  if (!c.detect.empty()) {
+    CheckOutputPath(c.detect, InputsOf(c.light_field_path, light_field), "detect");
+    found = flags.NamingFlags(
+        [&] { return DetectOnMap(light_field, c.options, c.detect_options, &progress); });
+    detections.emplace(c.detect);
+    WriteDetections(detections->TempPath(), *found, /*overwrite=*/true);
+  }
   const MapSummary summary = flags.NamingFlags(
       [&] { return WriteMapGeoTiff(light_field, c.options, c.output, write, &progress); });
   progress.Finish();
+  if (detections) detections->Commit();
   const int64_t pixels = static_cast<int64_t>(grid.width) * grid.height;
   Report report("map");
   report.Set("output", c.output);
@@ -1005,6 +1029,22 @@ int RunMap(MapCommand& c, const Flags& flags) {
               "view (nodata, count 0)",
               summary.views_used, summary.views_selected, static_cast<long long>(summary.samples),
               static_cast<long long>(summary.uncovered_pixels), static_cast<long long>(pixels));
+  if (found) {
+    report.Set("detect", c.detect);
+    report.Set("detections", found->detections.size());
+    report.Set("threshold_rule", found->threshold_rule);
+    report.Line("wrote %s: %zu detections on the map (%s: threshold %s)", c.detect.c_str(),
+                found->detections.size(), found->threshold_rule.c_str(),
+                FormatNumber(found->threshold).c_str());
+    for (size_t i = 0; i < found->detections.size(); ++i) {
+      const Detection& d = found->detections[i];
+      report.Line("%zu: map pixel (%.1f, %.1f), %d px, peak %s, world %s %s %s, seen by %zu "
+                  "views",
+                  i + 1, d.pixel.x, d.pixel.y, d.area_px, FormatNumber(d.peak_score).c_str(),
+                  FormatNumber(d.world.x).c_str(), FormatNumber(d.world.y).c_str(),
+                  FormatNumber(d.world.z).c_str(), d.views.size());
+    }
+  }
   report.Print();
   return 0;
 }
@@ -1049,8 +1089,13 @@ CommandRunner DefineMap(CLI::App* command) {
   flags.Input("--focal-surface");
   flags.Output("--output");
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
+  command->add_option("--detect", c->detect,
+                      "Also find anomalies on the map (detect's options) and write them here: "
+                      "GeoJSON, KML or CSV by the extension");
+  flags.Output("--detect");
   flags.Remaining(c->options);
   flags.At("distributed.").Remaining(c->distributed);
+  flags.At("detect.").Remaining(c->detect_options);
   return [c, flags] { return RunMap(*c, flags); };
 }
 

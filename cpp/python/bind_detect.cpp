@@ -119,6 +119,8 @@ void BindDetect(py::module_& m) {
       .def_readonly("detections", &DetectResult::detections, "Highest peak first.")
       .def_readonly("dropped", &DetectResult::dropped, "Blobs beyond max_detections.")
       .def_readonly("crs", &DetectResult::crs)
+      .def_readonly("geotransform", &DetectResult::geotransform,
+                    "Detection on the map (detect_map): its GDAL geotransform; else None.")
       .def_property_readonly(
           "pixels",
           [](const DetectResult& r) {
@@ -178,14 +180,14 @@ void BindDetect(py::module_& m) {
                             "dropped"_a = r.dropped, "crs"_a = r.crs,
                             "radiometry"_a = r.radiometry,
                             "ground_sampling_m"_a = r.ground_sampling_m,
-                            "windows_px"_a = r.windows_px);
+                            "windows_px"_a = r.windows_px, "geotransform"_a = r.geotransform);
           },
           [](const py::object& state) {
             const py::dict v = StateDict(
                 state, "DetectResult",
                 {"image", "count", "cam_from_world", "camera", "scores", "dimensions", "threshold",
                  "threshold_rule", "flagged_pixels", "detections", "dropped", "crs", "radiometry",
-                 "ground_sampling_m", "windows_px"});
+                 "ground_sampling_m", "windows_px", "geotransform"});
             DetectResult r;
             r.render.image = ImageFromArray(v["image"], 0, "image");
             r.render.count = ImageFromArray(v["count"], 0, "count");
@@ -202,6 +204,7 @@ void BindDetect(py::module_& m) {
             r.radiometry = v["radiometry"].cast<std::optional<Radiometry>>();
             r.ground_sampling_m = v["ground_sampling_m"].cast<double>();
             r.windows_px = v["windows_px"].cast<std::array<int, 2>>();
+            r.geotransform = v["geotransform"].cast<std::optional<std::array<double, 6>>>();
             return r;
           }))
       .def("__len__", [](const DetectResult& r) { return r.detections.size(); })
@@ -232,6 +235,20 @@ void BindDetect(py::module_& m) {
       },
       "light_field"_a, "options"_a, "detect"_a, "progress"_a = py::none(),
       "Detection on the integral image, GIL released. Prefer aos.detect.");
+  m.def(
+      "_detect_map",
+      [](const LightField& light_field, const MapOptions& options, const DetectOptions& detect,
+         const py::object& progress) {
+        const LightField light_field_copy = light_field;
+        MapOptions options_copy = options;
+        const DetectOptions detect_copy = detect;
+        return RunWithProgress(progress, [&](ProgressSink* sink) {
+          options_copy.focal_surface = InCrs(options_copy.focal_surface, light_field_copy.crs);
+          return DetectOnMap(light_field_copy, options_copy, detect_copy, sink);
+        });
+      },
+      "light_field"_a, "options"_a, "detect"_a, "progress"_a = py::none(),
+      "Detection on the orthographic map, GIL released. Prefer aos.detect_map.");
   m.def(
       "anomaly_scores",
       [](const py::handle& image, const py::handle& count, const DetectOptions& options,

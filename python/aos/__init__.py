@@ -61,6 +61,7 @@ from ._keywords import (
     TelemetryKeywords,
     VideoKeywords,
     DetectKeywords,
+    DetectMapKeywords,
 )
 
 if TYPE_CHECKING:
@@ -186,6 +187,7 @@ __all__ = [
     "DetectResult",
     "anomaly_scores",
     "detect",
+    "detect_map",
     "estimate_poses",
     "import_colmap",
     "read_positions",
@@ -511,6 +513,7 @@ _IMPORT_VIDEO = _Router(
 )
 # Detection renders the integral image of IntegralOptions and scores it with DetectOptions.
 _DETECT = _Router("detect", IntegralOptions, DetectOptions, keywords="DetectKeywords")
+_DETECT_MAP = _Router("detect_map", MapOptions, DetectOptions, keywords="DetectMapKeywords")
 
 
 def render_integral(
@@ -571,6 +574,30 @@ def detect(
     _DETECT.apply([merged, scoring], keywords)
     _require_pose("detect", merged, keywords)
     return _core._detect(light_field, merged, scoring, progress)
+
+
+def detect_map(
+    light_field: LightField,
+    options: Optional[MapOptions] = None,
+    detect_options: Optional[DetectOptions] = None,
+    *,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+    **kwargs: Unpack[DetectMapKeywords],
+) -> DetectResult:
+    """:func:`detect` on the orthographic map (``aos-render map --detect``): ``kwargs`` are fields
+    of :class:`MapOptions` (pixel_size or width, extent, focal_surface, ...) or
+    :class:`DetectOptions`. rx-local's windows follow the map's pixel size; a detection's point
+    is its pixels' vertical lines on the focal surface; ``result.geotransform`` is the map's.
+
+    Example::
+
+        found = aos.detect_map(lf, pixel_size=0.1, focal_surface=aos.FocalSurface.read("dem.tif"))
+        found.write("found.geojson")
+    """
+    merged = _copy_options("detect_map", MapOptions, options)
+    scoring = _copy_options("detect_map", DetectOptions, detect_options)
+    _DETECT_MAP.apply([merged, scoring], dict(kwargs))
+    return _core._detect_map(light_field, merged, scoring, progress)
 
 
 def simulate(

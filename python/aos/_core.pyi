@@ -2441,6 +2441,8 @@ class DetectResult:
     @property
     def crs(self) -> str: ...
     @property
+    def geotransform(self) -> Optional[tuple[float, float, float, float, float, float]]: ...
+    @property
     def pixels(self) -> _Float64Array: ...
     @property
     def world(self) -> _Float64Array: ...
@@ -2455,6 +2457,12 @@ class DetectResult:
 def _detect(
     light_field: LightField,
     options: IntegralOptions,
+    detect: DetectOptions,
+    progress: Optional[Callable[[str, int, int], object]] = None,
+) -> DetectResult: ...
+def _detect_map(
+    light_field: LightField,
+    options: MapOptions,
     detect: DetectOptions,
     progress: Optional[Callable[[str, int, int], object]] = None,
 ) -> DetectResult: ...

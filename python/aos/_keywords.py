@@ -350,3 +350,24 @@ class DetectKeywords(IntegralKeywords, total=False):
     outer_window_m: float
     min_area_px: int
     max_detections: int
+
+
+class DetectMapKeywords(MapKeywords, total=False):
+    """Keywords of aos.detect_map: the fields of MapOptions, DetectOptions (nested ones included)
+    that its router accepts; those of MapKeywords too."""
+
+    detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature']
+    channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal']
+    trim_fraction: float
+    robust_iterations: int
+    regularization: float
+    inner_window_px: int
+    outer_window_px: int
+    quantile: float | None
+    false_alarm_rate: float | None
+    min_score: float | None
+    min_temperature_c: float | None
+    inner_window_m: float
+    outer_window_m: float
+    min_area_px: int
+    max_detections: int

@@ -159,6 +159,39 @@ def test_cli_detect_writes_its_outputs_together(forest: aos.LightField, tmp_path
     assert not (tmp_path / "x.csv").exists()
 
 
+def test_detection_on_the_map_finds_the_person_and_map_writes_them(forest: aos.LightField,
+                                                                    tmp_path: Path) -> None:
+    """The orthographic map (10 cm pixels over 20 m around the target): the top detection lies
+    within 0.3 m of the target; map --detect writes the map and the GeoJSON together; detection
+    needs the whole map in one process."""
+    extent = [UTM_ORIGIN[0] - 10.0, UTM_ORIGIN[1] - 10.0, UTM_ORIGIN[0] + 10.0,
+              UTM_ORIGIN[1] + 10.0]
+    found = aos.detect_map(forest, pixel_size=0.1, extent=extent, focal_surface=0.0)
+    assert found.geotransform == pytest.approx((extent[0], 0.1, 0.0, extent[3], 0.0, -0.1))
+    assert found.ground_sampling_m == pytest.approx(0.1)
+    best = found.detections[0]
+    assert math.hypot(best.local[0], best.local[1]) < 0.3, best
+    # The map pixel and the world point agree through the geotransform.
+    assert best.world[0] == pytest.approx(extent[0] + 0.1 * best.pixel[0], abs=0.15)
+    lf = tmp_path / "lf.json"
+    aos.write_lightfield(str(lf), forest)
+    done = subprocess.run(
+        ["aos-render", "map", str(lf), "--pixel-size", "0.1", "--extent",
+         *(str(v) for v in extent), "--focal-height", "0", "-o", str(tmp_path / "map.tif"),
+         "--detect", str(tmp_path / "found.geojson"), "--json"],
+        capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert json.loads(done.stdout)["detections"] >= 1
+    feature = json.loads((tmp_path / "found.geojson").read_text())["features"][0]
+    assert feature["geometry"]["coordinates"][:2] == pytest.approx(list(best.lon_lat), abs=1e-7)
+    done = subprocess.run(
+        ["aos-render", "map", str(lf), "--pixel-size", "0.1", "--focal-height", "0", "-o",
+         str(tmp_path / "map2.tif"), "--detect", str(tmp_path / "found2.geojson"), "--workers",
+         "2"], capture_output=True, text=True, timeout=120)
+    assert done.returncode != 0 and "--detect: detection needs the whole map" in done.stderr
+    assert not (tmp_path / "map2.tif").exists() and not (tmp_path / "found2.geojson").exists()
+
+
 def test_temperature_threshold_in_degrees_on_a_radiometric_light_field() -> None:
     """A 36.5 C patch on 15 C ground (centikelvin frames, 3 x 3 nadir views): min_temperature_c
     30 finds it, with its temperature; the RX detectors' scores are unitless."""
@@ -186,3 +219,43 @@ def test_temperature_threshold_in_degrees_on_a_radiometric_light_field() -> None
     with pytest.raises(ValueError, match="needs a radiometric light field"):
         aos.detect(light_field, pose_view=4, focal_surface=0.0, detector="temperature",
                    min_temperature_c=30.0)
+
+
+def test_the_viewer_detects_in_both_modes_and_marks_later_frames(forest: aos.LightField) -> None:
+    """/api/detect on the perspective view and on the map: the target listed, and the next
+    frame's header carries its marker at the detection's pixel (perspective) or at its world
+    point through the map's geotransform."""
+    pytest.importorskip("aiohttp")
+    import struct
+    import urllib.request
+
+    handle = aos.view(forest, pose_view=len(forest) // 2, focal_surface=0.0, open_browser=False,
+                      num_threads=1)
+    try:
+        base = f"http://127.0.0.1:{handle.port}"
+
+        def get(path: str) -> bytes:
+            with urllib.request.urlopen(f"{base}{path}&token={handle.token}", timeout=60) as r:
+                return r.read()
+
+        def header(body: bytes) -> dict:
+            length = struct.unpack("<I", body[:4])[0]
+            return json.loads(body[4:4 + length])
+
+        found = json.loads(get("/api/detect?detector=rx-local"))
+        best = found["detections"][0]
+        assert math.hypot(best["world"][0] - UTM_ORIGIN[0], best["world"][1] - UTM_ORIGIN[1]) < 0.3
+        assert "centre" in best
+        markers = header(get("/api/render?preview=false"))["markers"]
+        assert markers[0][0] == 1 and markers[0][1:] == pytest.approx(best["pixel"], abs=0.05)
+        on_map = json.loads(get("/api/detect?detector=rx-local&mode=map"))
+        best = on_map["detections"][0]
+        assert math.hypot(best["world"][0] - UTM_ORIGIN[0], best["world"][1] - UTM_ORIGIN[1]) < 0.3
+        frame = header(get("/api/render?mode=map"))
+        x0, p, _, y0, _, _ = frame["geotransform"]
+        number, u, v = frame["markers"][0]
+        # Markers are rounded to 0.01 pixel.
+        assert (x0 + u * p, y0 - v * p) == pytest.approx(tuple(best["world"][:2]),
+                                                          abs=0.005 * p + 1e-9)
+    finally:
+        handle.stop()

@@ -6,11 +6,13 @@
 #include <cmath>
 #include <cstdio>
 #include <filesystem>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "aos/geometry/geodesy.h"
 #include "aos/render/focal_surface.h"
+#include "aos/render/map.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/parallel.h"
@@ -126,13 +128,14 @@ std::string Csv(const DetectResult& result) {
 
 // Synthetic aperture anomaly imaging: global RX on every selected frame, the score images
 // integrated on the focal surface like the frames.
-AnomalyScores AnomalyImaging(const LightField& light_field, const IntegralOptions& options,
+AnomalyScores AnomalyImaging(const LightField& light_field, std::vector<int> selected,
+                             int num_threads,
+                             const std::function<Image(const LightField&)>& render_scores,
                              const DetectOptions& detect, ProgressSink* progress) {
   if (light_field.masked) {
     ThrowInvalid("detector: 'anomaly-imaging' does not take a masked light field (its frames "
                  "carry a weight channel); load it without the mask");
   }
-  std::vector<int> selected = options.view_indices;
   if (selected.empty()) {
     for (size_t i = 0; i < light_field.views.size(); ++i) selected.push_back(static_cast<int>(i));
   }
@@ -145,7 +148,7 @@ AnomalyScores AnomalyImaging(const LightField& light_field, const IntegralOption
   scores_field.views.resize(selected.size());
   ProgressStart(progress, "frame scores", static_cast<int64_t>(selected.size()));
   int dimensions = 0;
-  ParallelFor(static_cast<int64_t>(selected.size()), options.num_threads, progress,
+  ParallelFor(static_cast<int64_t>(selected.size()), num_threads, progress,
               [&](int64_t k) {
                 const View& view = light_field.views[static_cast<size_t>(selected[static_cast<size_t>(k)])];
                 const AnomalyScores frame =
@@ -165,18 +168,13 @@ AnomalyScores AnomalyImaging(const LightField& light_field, const IntegralOption
                 if (k == 0) dimensions = frame.dimensions;
               });
   if (ProgressCancelled(progress)) throw Cancelled();
-  IntegralOptions all = options;
-  all.view_indices.clear();
-  const IntegralResult integrated = RenderIntegral(scores_field, all, progress);
+  // The integrated scores: the mean of the frames' scores where a view sees the pixel.
   AnomalyScores result;
   result.dimensions = dimensions;
-  result.scores = Image(integrated.image.width(), integrated.image.height(), 1, PixelType::kF32);
-  for (int y = 0; y < integrated.image.height(); ++y) {
-    std::copy_n(integrated.image.At<float>(0, y), integrated.image.width(),
-                result.scores.At<float>(0, y));
-    for (int x = 0; x < integrated.image.width(); ++x) {
-      if (*integrated.count.At<uint32_t>(x, y) > 0) ++result.pixels;
-    }
+  const Image integrated = render_scores(scores_field);
+  result.scores = Image(integrated.width(), integrated.height(), 1, PixelType::kF32);
+  for (int y = 0; y < integrated.height(); ++y) {
+    std::copy_n(integrated.At<float>(0, y), integrated.width(), result.scores.At<float>(0, y));
   }
   return result;
 }
@@ -316,78 +314,57 @@ std::vector<Detection> FindBlobs(const Image& scores, const Image& count, double
   return kept;
 }
 
-DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
-                    const DetectOptions& detect_options, ProgressSink* progress) {
-  detect_options.Check();
-  if (light_field.views.empty()) ThrowInvalid("light field: no views: nothing to detect in");
-  DetectResult result;
-  result.crs = light_field.crs;
-  result.radiometry = light_field.radiometry;
-  const IntegralOptions resolved = WithResolvedCamera(light_field, options);
-  result.render = RenderIntegral(light_field, resolved, progress);
-  if (ProgressCancelled(progress)) throw Cancelled();
-  result.camera = VirtualCamera(light_field, resolved);
-  const Image& image = result.render.image;
-  const Image& count = result.render.count;
-  // Where each pixel's ray meets the focal surface: the detections' places, and the render's
-  // ground sampling distance (rx-local's windows in metres).
-  const SurfacePlacement placement = ResolveSurfacePlacement(
-      resolved.focal_surface, light_field, resolved.view_indices, resolved.surface_offset);
-  const Image depth = resolved.focal_surface.DepthFor(result.camera, result.render.cam_from_world,
-                                                      placement, resolved.num_threads);
-  {
-    std::vector<float> depths;
-    for (int y = 0; y < depth.height(); ++y) {
-      for (int x = 0; x < depth.width(); ++x) {
-        const float z = *depth.At<float>(x, y);
-        if (z > 0.0f && *count.At<uint32_t>(x, y) > 0) depths.push_back(z);
-      }
-    }
-    if (!depths.empty()) {
-      std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2),
-                       depths.end());
-      result.ground_sampling_m = depths[depths.size() / 2] / result.camera.fx;
-    }
-  }
-  DetectOptions scoring = detect_options;
-  if (scoring.detector == "rx-local" && result.ground_sampling_m > 0.0) {
+namespace {
+
+// rx-local's windows from metres on the ground, by the render's ground sampling distance.
+DetectOptions ScoringOptions(const DetectOptions& options, double ground_sampling_m,
+                             std::array<int, 2>* windows_px) {
+  DetectOptions scoring = options;
+  if (scoring.detector == "rx-local" && ground_sampling_m > 0.0) {
     const auto odd_pixels = [&](double metres, int at_least) {
-      const int pixels = static_cast<int>(std::lround(metres / result.ground_sampling_m));
+      const int pixels = static_cast<int>(std::lround(metres / ground_sampling_m));
       return std::max(at_least, pixels | 1);
     };
     scoring.inner_window_px = odd_pixels(scoring.inner_window_m, 1);
     scoring.outer_window_px = std::max(odd_pixels(scoring.outer_window_m, 3),
                                        scoring.inner_window_px + 2);
   }
-  result.windows_px = {scoring.inner_window_px, scoring.outer_window_px};
-  if (scoring.detector == "anomaly-imaging") {
-    result.scores = AnomalyImaging(light_field, resolved, scoring, progress);
-  } else {
-    result.scores = ComputeAnomalyScores(image, count, scoring, light_field.radiometry);
-  }
-  result.threshold = ResolveThreshold(result.scores, count, detect_options, &result.threshold_rule);
+  *windows_px = {scoring.inner_window_px, scoring.outer_window_px};
+  return scoring;
+}
+
+// The threshold, the flagged pixels and the blobs of result->scores (on result->render).
+std::vector<Detection> ThresholdAndBlobs(const DetectOptions& options, DetectResult* result) {
+  const Image& count = result->render.count;
+  result->threshold = ResolveThreshold(result->scores, count, options, &result->threshold_rule);
   for (int y = 0; y < count.height(); ++y) {
     for (int x = 0; x < count.width(); ++x) {
-      if (*count.At<uint32_t>(x, y) > 0 && *result.scores.scores.At<float>(x, y) > result.threshold) {
-        ++result.flagged_pixels;
+      if (*count.At<uint32_t>(x, y) > 0 &&
+          *result->scores.scores.At<float>(x, y) > result->threshold) {
+        ++result->flagged_pixels;
       }
     }
   }
   std::vector<Detection> blobs =
-      FindBlobs(result.scores.scores, count, result.threshold, detect_options.min_area_px);
-  if (blobs.size() > static_cast<size_t>(detect_options.max_detections)) {
-    result.dropped = static_cast<int>(blobs.size()) - detect_options.max_detections;
-    blobs.resize(static_cast<size_t>(detect_options.max_detections));
+      FindBlobs(result->scores.scores, count, result->threshold, options.min_area_px);
+  if (blobs.size() > static_cast<size_t>(options.max_detections)) {
+    result->dropped = static_cast<int>(blobs.size()) - options.max_detections;
+    blobs.resize(static_cast<size_t>(options.max_detections));
   }
+  return blobs;
+}
 
-  // Where each blob lies: its pixels' rays on the focal surface, score-weighted.
-  const Rigid3d& cam_from_world = result.render.cam_from_world;
-  const Mat3d world_from_cam = glm::transpose(cam_from_world.rotation);
-  const Vec3d centre = cam_from_world.Center();
-  std::vector<int> selected = resolved.view_indices;
+// Each blob's place (the score-weighted mean of its flagged pixels' points, `point_of` giving a
+// pixel's point in the local frame, or nothing), temperatures, views and WGS84 position.
+void LocateBlobs(const LightField& light_field, std::vector<int> selected,
+                 const std::function<std::optional<Vec3d>(int, int)>& point_of,
+                 std::vector<Detection> blobs, DetectResult* result) {
+  const Image& image = result->render.image;
+  const Image& count = result->render.count;
   if (selected.empty()) {
     for (size_t i = 0; i < light_field.views.size(); ++i) selected.push_back(static_cast<int>(i));
   }
+  const bool temperatures = light_field.radiometry && image.channels() == 1;
   std::vector<Vec3d> world_points;
   for (Detection& d : blobs) {
     Vec3d sum(0.0);
@@ -395,22 +372,21 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
     double celsius_peak = -std::numeric_limits<double>::infinity();
     for (int y = d.box[1]; y < d.box[3]; ++y) {
       for (int x = d.box[0]; x < d.box[2]; ++x) {
-        const double s = *result.scores.scores.At<float>(x, y);
-        if (!(s > result.threshold) || *count.At<uint32_t>(x, y) == 0) continue;
-        if (light_field.radiometry && image.channels() == 1) {
+        const double s = *result->scores.scores.At<float>(x, y);
+        if (!(s > result->threshold) || *count.At<uint32_t>(x, y) == 0) continue;
+        if (temperatures) {
           const double c = light_field.radiometry->Celsius(*image.At<float>(x, y));
           celsius_sum += c;
           celsius_peak = std::max(celsius_peak, c);
         }
-        const float z = *depth.At<float>(x, y);
-        if (!(z > 0.0f)) continue;
-        const Vec3d in_cam = result.camera.Unproject(Vec2d(x + 0.5, y + 0.5)) * static_cast<double>(z);
-        const double wgt = s - result.threshold;
-        sum += wgt * (world_from_cam * in_cam + centre);
-        total += wgt;
+        const std::optional<Vec3d> point = point_of(x, y);
+        if (!point) continue;
+        const double weight = s - result->threshold;
+        sum += weight * *point;
+        total += weight;
       }
     }
-    if (light_field.radiometry && image.channels() == 1) {
+    if (temperatures) {
       d.peak_celsius = celsius_peak;
       d.mean_celsius = celsius_sum / d.area_px;
     }
@@ -443,7 +419,127 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
       }
     }
   }
-  result.detections = std::move(blobs);
+  result->detections = std::move(blobs);
+}
+
+}  // namespace
+
+DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
+                    const DetectOptions& detect_options, ProgressSink* progress) {
+  detect_options.Check();
+  if (light_field.views.empty()) ThrowInvalid("light field: no views: nothing to detect in");
+  DetectResult result;
+  result.crs = light_field.crs;
+  result.radiometry = light_field.radiometry;
+  const IntegralOptions resolved = WithResolvedCamera(light_field, options);
+  result.render = RenderIntegral(light_field, resolved, progress);
+  if (ProgressCancelled(progress)) throw Cancelled();
+  result.camera = VirtualCamera(light_field, resolved);
+  const Image& count = result.render.count;
+  // Where each pixel's ray meets the focal surface: the detections' places, and the render's
+  // ground sampling distance (rx-local's windows in metres).
+  const SurfacePlacement placement = ResolveSurfacePlacement(
+      resolved.focal_surface, light_field, resolved.view_indices, resolved.surface_offset);
+  const Image depth = resolved.focal_surface.DepthFor(result.camera, result.render.cam_from_world,
+                                                      placement, resolved.num_threads);
+  {
+    std::vector<float> depths;
+    for (int y = 0; y < depth.height(); ++y) {
+      for (int x = 0; x < depth.width(); ++x) {
+        const float z = *depth.At<float>(x, y);
+        if (z > 0.0f && *count.At<uint32_t>(x, y) > 0) depths.push_back(z);
+      }
+    }
+    if (!depths.empty()) {
+      std::nth_element(depths.begin(), depths.begin() + static_cast<std::ptrdiff_t>(depths.size() / 2),
+                       depths.end());
+      result.ground_sampling_m = depths[depths.size() / 2] / result.camera.fx;
+    }
+  }
+  const DetectOptions scoring =
+      ScoringOptions(detect_options, result.ground_sampling_m, &result.windows_px);
+  if (scoring.detector == "anomaly-imaging") {
+    result.scores = AnomalyImaging(light_field, resolved.view_indices, resolved.num_threads,
+                                   [&](const LightField& scores_field) {
+                                     IntegralOptions all = resolved;
+                                     all.view_indices.clear();
+                                     return RenderIntegral(scores_field, all, progress).image;
+                                   },
+                                   scoring, progress);
+  } else {
+    result.scores =
+        ComputeAnomalyScores(result.render.image, count, scoring, light_field.radiometry);
+  }
+  std::vector<Detection> blobs = ThresholdAndBlobs(detect_options, &result);
+  const Mat3d world_from_cam = glm::transpose(result.render.cam_from_world.rotation);
+  const Vec3d centre = result.render.cam_from_world.Center();
+  LocateBlobs(
+      light_field, resolved.view_indices,
+      [&](int x, int y) -> std::optional<Vec3d> {
+        const float z = *depth.At<float>(x, y);
+        if (!(z > 0.0f)) return std::nullopt;
+        const Vec3d in_cam =
+            result.camera.Unproject(Vec2d(x + 0.5, y + 0.5)) * static_cast<double>(z);
+        return world_from_cam * in_cam + centre;
+      },
+      std::move(blobs), &result);
+  return result;
+}
+
+DetectResult DetectOnMap(const LightField& light_field, const MapOptions& options,
+                         const DetectOptions& detect_options, ProgressSink* progress) {
+  detect_options.Check();
+  if (light_field.views.empty()) ThrowInvalid("light field: no views: nothing to detect in");
+  DetectResult result;
+  result.crs = light_field.crs;
+  result.radiometry = light_field.radiometry;
+  MapResult map = RenderMap(light_field, options, progress);
+  if (ProgressCancelled(progress)) throw Cancelled();
+  const MapGrid& grid = map.summary.grid;
+  result.geotransform = grid.GeoTransform();
+  result.render.image = std::move(map.image);
+  result.render.count = std::move(map.count);
+  result.render.uncovered_pixels = map.summary.uncovered_pixels;
+  result.render.views_used = map.summary.views_used;
+  result.render.views_selected = map.summary.views_selected;
+  result.render.samples = map.summary.samples;
+  result.ground_sampling_m = grid.pixel_size;
+  const DetectOptions scoring =
+      ScoringOptions(detect_options, result.ground_sampling_m, &result.windows_px);
+  if (scoring.detector == "anomaly-imaging") {
+    result.scores = AnomalyImaging(light_field, options.view_indices, options.num_threads,
+                                   [&](const LightField& scores_field) {
+                                     MapOptions all = options;
+                                     all.view_indices.clear();
+                                     // The same grid: the extent and pixel size resolved above.
+                                     all.extent = {grid.x_min, grid.y_max - grid.height * grid.pixel_size,
+                                                   grid.x_min + grid.width * grid.pixel_size, grid.y_max};
+                                     all.pixel_size = grid.pixel_size;
+                                     return RenderMap(scores_field, all, progress).image;
+                                   },
+                                   scoring, progress);
+  } else {
+    result.scores =
+        ComputeAnomalyScores(result.render.image, result.render.count, scoring, light_field.radiometry);
+  }
+  if (result.scores.scores.width() != result.render.image.width() ||
+      result.scores.scores.height() != result.render.image.height()) {
+    throw std::logic_error("DetectOnMap: the scores' grid differs from the map's");
+  }
+  std::vector<Detection> blobs = ThresholdAndBlobs(detect_options, &result);
+  // A map pixel's point: its centre's vertical line on the focal surface (or plane).
+  LocateBlobs(
+      light_field, options.view_indices,
+      [&](int x, int y) -> std::optional<Vec3d> {
+        const double wx = grid.CenterX(x), wy = grid.CenterY(y);
+        double z = grid.origin.z + grid.focal_height;
+        if (grid.surface) {
+          z = grid.surface->HeightsAt({Vec2d(wx, wy)}, grid.placement).front();
+          if (!std::isfinite(z)) return std::nullopt;
+        }
+        return Vec3d(wx, wy, z) - grid.origin;
+      },
+      std::move(blobs), &result);
   return result;
 }
 

@@ -45,6 +45,7 @@
 #include "aos/detect/anomaly.h"
 #include "aos/lightfield/lightfield.h"
 #include "aos/render/integral.h"
+#include "aos/render/map.h"
 #include "aos/util/option_fields.h"
 #include "aos/util/progress.h"
 
@@ -133,6 +134,9 @@ struct DetectResult {
   int dropped = 0;                // blobs beyond max_detections
   std::string crs;                // the light field's (lon_lat is WGS84)
   std::optional<Radiometry> radiometry;
+  // Detection on the orthographic map (DetectOnMap): its GDAL geotransform (x_min, p, 0, y_max,
+  // 0, -p) in the light field's CRS; render.cam_from_world and camera are then unused.
+  std::optional<std::array<double, 6>> geotransform;
 };
 
 // The threshold of `scores` under `options` (see the contract); `rule` gets its description.
@@ -148,6 +152,13 @@ std::vector<Detection> FindBlobs(const Image& scores, const Image& count, double
 // detections. `progress` as RenderIntegral's (and polled for cancellation).
 DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
                     const DetectOptions& detect_options, ProgressSink* progress = nullptr);
+
+// As Detect, on the orthographic map of `options` (render/map.h: RenderMap): rx-local's windows
+// by the map's pixel size; a detection's point is its pixels' vertical lines on the focal
+// surface (MapGrid: the plane or the surface's heights); anomaly imaging renders the frames'
+// scores on the same grid.
+DetectResult DetectOnMap(const LightField& light_field, const MapOptions& options,
+                         const DetectOptions& detect_options, ProgressSink* progress = nullptr);
 
 // Writes the detections to `path` as GeoJSON (.geojson, .json), KML (.kml) or CSV (.csv).
 // `overwrite` false refuses an existing file.

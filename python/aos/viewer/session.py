@@ -568,12 +568,9 @@ class Session:
 
     def detect(self, params: Params, detector: str,
                min_temperature_c: Optional[float] = None) -> dict[str, Any]:
-        """Detections (aos.detect) in the full-size render of ``params`` with its defaults but
-        the detector; kept, so that every later frame marks them. Each carries the pan and focus
-        that centre the view on it."""
-        if params.mode == "map":
-            raise BadParameter("detector: the map view has no detection yet; use the perspective "
-                               "view")
+        """Detections (aos.detect, or aos.detect_map in map mode) in the full-size render of
+        ``params`` with its defaults but the detector; kept, so that every later frame marks
+        them. Each carries the pan and focus that centre the perspective view on it."""
         if detector not in DETECTORS:
             raise BadParameter(f"detector: must be one of {', '.join(DETECTORS)}, got "
                                f"{str(detector)[:40]!r}")
@@ -582,7 +579,10 @@ class Session:
         if min_temperature_c is not None:
             options.min_temperature_c = min_temperature_c
         try:
-            result = aos.detect(self.light_field, self.integral_options(params), options)
+            if params.mode == "map":
+                result = aos.detect_map(self.light_field, self.map_options(params), options)
+            else:
+                result = aos.detect(self.light_field, self.integral_options(params), options)
         except ValueError as error:
             raise BadParameter(str(error)) from None
         camera, cam_from_world = self.camera(params)
@@ -602,8 +602,9 @@ class Session:
             if np.all(np.isfinite(local)):
                 item["world"] = [float(c) for c in d.world]
                 kept.append((number, local))
-                # Pan so that the camera's axis meets the detection's height at the detection.
-                if abs(axis[2]) > 1e-9:
+                # Pan so that the camera's axis meets the detection's height at the detection
+                # (the perspective view; the map shows its whole extent).
+                if params.mode != "map" and abs(axis[2]) > 1e-9:
                     hit = centre + (local[2] - centre[2]) / axis[2] * axis
                     item["centre"] = {
                         "pan_x": params.pan_x + float(local[0] - hit[0]),
