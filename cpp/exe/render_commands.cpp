@@ -417,6 +417,9 @@ int RunDetect(DetectCommand& c, const Flags& flags) {
     }
   };
   check_outputs({c.args.light_field_path});
+  for (const std::string* path : {&c.geojson, &c.kml, &c.csv}) {
+    if (!path->empty()) CheckDetectionsPath(*path, "EPSG:4326");  // the format; KML's CRS below
+  }
   ProgressBar progress(Common().quiet);
   const LoadResult loaded = LoadAndResolveCamera(c.args, c.options, flags, progress,
                                                  [&](int views) { c.options.Check(views); });
@@ -483,8 +486,8 @@ int RunDetect(DetectCommand& c, const Flags& flags) {
   for (const auto& [path, what] : outputs) {
     if (!path.empty()) report.Set(what, path);
   }
-  report.Line("%zu detections (%s: threshold %s, %lld pixels above it; %d smaller blobs or more "
-              "than --max-detections dropped)",
+  report.Line("%zu detections (%s: threshold %s, %lld pixels above it; %d more beyond "
+              "--max-detections dropped)",
               result.detections.size(), result.threshold_rule.c_str(),
               FormatNumber(result.threshold).c_str(),
               static_cast<long long>(result.flagged_pixels), result.dropped);
@@ -940,6 +943,7 @@ int RunMap(MapCommand& c, const Flags& flags) {
   if (!c.detect.empty()) {
     CheckOutputPath(c.detect, {c.light_field_path}, "detect");
     RefuseExisting(c.detect, "detect");
+    CheckDetectionsPath(c.detect, "EPSG:4326");  // the format; KML's CRS once loaded
     flags.NamingFlags([&] { c.detect_options.Check(); });
     if (d.workers != 0 || !d.scheduler.empty()) {
       ThrowUsage("--detect: detection needs the whole map in this process; not with --workers "
@@ -994,6 +998,7 @@ int RunMap(MapCommand& c, const Flags& flags) {
   std::optional<PendingFile> detections;
   if (!c.detect.empty()) {
     CheckOutputPath(c.detect, InputsOf(c.light_field_path, light_field), "detect");
+    CheckDetectionsPath(c.detect, light_field.crs);
     found = flags.NamingFlags(
         [&] { return DetectOnMap(light_field, c.options, c.detect_options, &progress); });
     detections.emplace(c.detect);

@@ -8,6 +8,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "aos/util/error.h"
+#include "aos/util/memory.h"
 
 namespace aos {
 namespace {
@@ -65,8 +66,9 @@ Features MakeFeatures(const Image& image, const Image& count, const AnomalyOptio
   const size_t n = static_cast<size_t>(f.width) * static_cast<size_t>(f.height);
   f.values.assign(n * static_cast<size_t>(f.d), 0.0f);
   f.valid.assign(n, 0);
-  // HSV needs values in [0, 1]: the image's largest value over the pixels with a view (the
-  // Mahalanobis distance does not change with V's scale, a linear map of the features).
+  // HSV needs values in [0, 1]: the image's largest finite value (uncovered pixels are 0 in a
+  // render; the Mahalanobis distance does not change with V's scale, a linear map of the
+  // features).
   double scale = 1.0;
   if (choice == "hsv") {
     double largest = 0.0;
@@ -275,7 +277,9 @@ void LocalScores(const Features& f, const AnomalyOptions& options, double global
                  std::vector<double>* scores) {
   const int d = f.d, w = f.width, h = f.height;
   const int pairs = d * (d + 1) / 2;
-  // Integral images (double) of 1 (valid), x_k and x_a x_b.
+  // Integral images (double) of 1 (valid), y_k and y_a y_b with y = x - the global mean: centred,
+  // the sums of large uncentred values (centikelvin, big maps) keep the local variance's digits.
+  const std::vector<double>& g = global_mean;
   std::vector<cv::Mat> sums;
   const auto integral_of = [&](auto&& value) {
     cv::Mat plane(h, w, CV_64F);
@@ -290,12 +294,22 @@ void LocalScores(const Features& f, const AnomalyOptions& options, double global
     sums.push_back(integral);
   };
   integral_of([](const float*) { return 1.0; });
-  for (int k = 0; k < d; ++k) integral_of([k](const float* x) { return static_cast<double>(x[k]); });
+  for (int k = 0; k < d; ++k) {
+    integral_of([k, &g](const float* x) { return static_cast<double>(x[k]) - g[k]; });
+  }
   for (int a = 0; a < d; ++a) {
     for (int b = a; b < d; ++b) {
-      integral_of([a, b](const float* x) { return static_cast<double>(x[a]) * x[b]; });
+      integral_of([a, b, &g](const float* x) {
+        return (static_cast<double>(x[a]) - g[a]) * (static_cast<double>(x[b]) - g[b]);
+      });
     }
   }
+  // Local statistics need a quarter of the nominal background ring (a window clipped by the
+  // image or by uncovered pixels beyond that holds too few pixels for a covariance whose scores
+  // follow chi-square); below it the global estimate stands in.
+  const double nominal = static_cast<double>(options.outer_window_px) * options.outer_window_px -
+                         static_cast<double>(options.inner_window_px) * options.inner_window_px;
+  const double least = std::max(2.0 * d + 1.0, 0.25 * nominal);
   const int outer = options.outer_window_px / 2, inner = options.inner_window_px / 2;
   const auto box = [&](const cv::Mat& s, int x, int y, int r) {
     const int x0 = std::max(0, x - r), y0 = std::max(0, y - r);
@@ -313,19 +327,21 @@ void LocalScores(const Features& f, const AnomalyOptions& options, double global
         values[k] = box(sums[k], x, y, outer) - box(sums[k], x, y, inner);
       }
       const double n = values[0];
-      if (n < 2.0 * d + 1.0) {
+      if (n < least) {
         (*scores)[i] = Mahalanobis2(f.At(i), global_mean.data(), global_inverse.data(), d);
         continue;
       }
-      for (int k = 0; k < d; ++k) mean[k] = values[1 + k] / n;
+      double centred_mean[8];
+      for (int k = 0; k < d; ++k) centred_mean[k] = values[1 + k] / n;
       int p = 0;
       for (int a = 0; a < d; ++a) {
         for (int b = a; b < d; ++b, ++p) {
-          const double c = values[1 + d + p] / n - mean[a] * mean[b];
+          const double c = values[1 + d + p] / n - centred_mean[a] * centred_mean[b];
           covariance[a * d + b] = c;
           covariance[b * d + a] = c;
         }
       }
+      for (int k = 0; k < d; ++k) mean[k] = centred_mean[k] + g[k];
       // The local ridge, plus a millionth of the global scale: a flat window stays invertible.
       const double ridge = Ridge(options.regularization, Trace(covariance, d), mean, d) +
                            1e-6 * global_trace / d;
@@ -366,6 +382,19 @@ AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
                                    const std::optional<Radiometry>& radiometry) {
   options.Check();
   if (image.empty()) ThrowInvalid("image: empty");
+  {
+    // The working memory, refused up front: features (float) and flags, scores (double), and
+    // for rx-local its integral images (double) of 1, the d features and their d (d + 1) / 2
+    // products.
+    const uint64_t pixels = static_cast<uint64_t>(image.width()) * image.height();
+    const uint64_t d = static_cast<uint64_t>(FeatureCount(options.channels, image.channels(),
+                                                           options.detector));
+    const uint64_t planes = options.detector == "rx-local" ? 1 + d + d * (d + 1) / 2 : 0;
+    CheckMemoryBudget(SaturatingProduct({pixels, 4 * d + 1 + 8 + 8 * planes}),
+                      "image: " + std::to_string(image.width()) + " x " +
+                          std::to_string(image.height()) + " pixels",
+                      "the anomaly scores' working memory");
+  }
   const Features f = MakeFeatures(image, count, options, radiometry);
   const int d = f.d;
   AnomalyScores result;

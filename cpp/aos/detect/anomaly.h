@@ -25,15 +25,18 @@
 //   FastMCD's) re-estimates m and C from the pixels within the 97.5 % quantile of chi2_d under
 //   that estimate, with the same correction for 2.5 %, so that the estimate does not depend on
 //   how far the contamination falls short of t, and scores stay chi-square.
-//   With t = 0 this is the classical RX of the whole image (Spectral Python's spectral.rx).
+//   With t = 0 this is the classical RX of the whole image: Spectral Python's spectral.rx times
+//   N / (N - 1) (it divides the covariance by N - 1, aos by N).
 //   Images of more than 65,536 pixels take m and C from the pixels on a regular grid of at
 //   most that many (relative error about sqrt(2 / 65536) = 0.6 % per element); every pixel is
 //   scored.
 // - Dual-window local RX ("rx-local"): m and C per pixel from the pixels of the square outer
 //   window (side outer_window_px) outside the square inner guard window (side inner_window_px)
 //   centred on it, both clipped to the image; the same regularization of the local trace, plus a
-//   millionth of the global trace / d, so flat windows stay invertible. At least 2 d + 1
-//   background pixels are needed, else the global estimate stands in.
+//   millionth of the global trace / d, so flat windows stay invertible. The sums are of the
+//   features minus the global mean (large uncentred values keep their digits). At least a quarter
+//   of the nominal ring (outer^2 - inner^2 pixels), and 2 d + 1, are needed, else the global
+//   estimate stands in (a window clipped by the border or by uncovered pixels).
 // - "anomaly-imaging" is global RX here (ComputeAnomalyScores scores one image); detect.h runs
 //   it on every frame and integrates the per-frame scores on the focal surface.
 // - "temperature": the score is the pixel's temperature in degrees Celsius (one channel, and the

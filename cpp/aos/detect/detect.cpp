@@ -39,6 +39,14 @@ std::string Number(double value) {
 
 bool Located(const Detection& d) { return std::isfinite(d.local.x); }
 
+// A CSV field (RFC 4180): quoted, inner quotes doubled, when it holds a comma, quote or line end.
+std::string CsvField(const std::string& text) {
+  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
 std::string GeoJson(const DetectResult& result) {
   nlohmann::ordered_json root;
   root["type"] = "FeatureCollection";
@@ -49,8 +57,9 @@ std::string GeoJson(const DetectResult& result) {
     feature["type"] = "Feature";
     feature["id"] = static_cast<int>(i + 1);
     if (d.lon_lat) {
-      feature["geometry"] = {{"type", "Point"},
-                             {"coordinates", {d.lon_lat->x, d.lon_lat->y, d.world.z}}};
+      // Longitude, latitude only: RFC 7946's third value is the height above the WGS84
+      // ellipsoid, which the CRS's height (properties.world) is not.
+      feature["geometry"] = {{"type", "Point"}, {"coordinates", {d.lon_lat->x, d.lon_lat->y}}};
     } else {
       feature["geometry"] = nullptr;
     }
@@ -120,7 +129,7 @@ std::string Csv(const DetectResult& result) {
             std::to_string(d.area_px) + "," + Number(d.peak_score) + "," + Number(d.mean_score) +
             "," + Number(d.world.x) + "," + Number(d.world.y) + "," + Number(d.world.z) + "," +
             (d.lon_lat ? Number(d.lon_lat->x) : "") + "," + (d.lon_lat ? Number(d.lon_lat->y) : "") +
-            "," + result.crs + "," + views + "," + Number(d.peak_celsius) + "," +
+            "," + CsvField(result.crs) + "," + CsvField(views) + "," + Number(d.peak_celsius) + "," +
             Number(d.mean_celsius) + "\n";
   }
   return text;
@@ -164,7 +173,6 @@ AnomalyScores AnomalyImaging(const LightField& light_field, std::vector<int> sel
                               scored.image.At<float>(0, y));
                 }
                 scored.image.FillBorder();
-                ProgressAdvance(progress, 1);
                 if (k == 0) dimensions = frame.dimensions;
               });
   if (ProgressCancelled(progress)) throw Cancelled();
@@ -262,8 +270,19 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
   return values[k];
 }
 
-std::vector<Detection> FindBlobs(const Image& scores, const Image& count, double threshold,
-                                 int min_area_px) {
+namespace {
+
+// The blobs (as FindBlobs) with the label image and each blob's label, for LocateBlobs to take
+// a blob's own pixels (bounding boxes of 8-connected components overlap). Components under
+// min_area_px are left out before any Detection is made, so a noisy image costs no more than
+// its pixels.
+struct Blobs {
+  std::vector<Detection> detections;  // highest peak first
+  std::vector<int> labels;            // the component label of each
+  cv::Mat label_image;                // CV_32S, 0 = not flagged
+};
+
+Blobs LabelBlobs(const Image& scores, const Image& count, double threshold, int min_area_px) {
   const int w = scores.width(), h = scores.height();
   cv::Mat mask(h, w, CV_8U, cv::Scalar(0));
   for (int y = 0; y < h; ++y) {
@@ -274,44 +293,64 @@ std::vector<Detection> FindBlobs(const Image& scores, const Image& count, double
       }
     }
   }
-  cv::Mat labels, stats, centroids;
-  const int n = cv::connectedComponentsWithStats(mask, labels, stats, centroids, 8, CV_32S);
-  std::vector<Detection> blobs(static_cast<size_t>(std::max(0, n - 1)));
-  std::vector<double> weight(blobs.size(), 0.0);
-  for (size_t b = 0; b < blobs.size(); ++b) {
-    blobs[b].box = {stats.at<int>(b + 1, cv::CC_STAT_LEFT), stats.at<int>(b + 1, cv::CC_STAT_TOP),
-                    stats.at<int>(b + 1, cv::CC_STAT_LEFT) + stats.at<int>(b + 1, cv::CC_STAT_WIDTH),
-                    stats.at<int>(b + 1, cv::CC_STAT_TOP) + stats.at<int>(b + 1, cv::CC_STAT_HEIGHT)};
-    blobs[b].peak_score = -std::numeric_limits<double>::infinity();
+  Blobs blobs;
+  cv::Mat stats, centroids;
+  const int n =
+      cv::connectedComponentsWithStats(mask, blobs.label_image, stats, centroids, 8, CV_32S);
+  std::vector<int> slot(static_cast<size_t>(std::max(n, 1)), -1);  // label -> index, or -1
+  for (int label = 1; label < n; ++label) {
+    if (stats.at<int>(label, cv::CC_STAT_AREA) < min_area_px) continue;
+    slot[static_cast<size_t>(label)] = static_cast<int>(blobs.detections.size());
+    Detection d;
+    d.box = {stats.at<int>(label, cv::CC_STAT_LEFT), stats.at<int>(label, cv::CC_STAT_TOP),
+             stats.at<int>(label, cv::CC_STAT_LEFT) + stats.at<int>(label, cv::CC_STAT_WIDTH),
+             stats.at<int>(label, cv::CC_STAT_TOP) + stats.at<int>(label, cv::CC_STAT_HEIGHT)};
+    d.peak_score = -std::numeric_limits<double>::infinity();
+    blobs.detections.push_back(d);
+    blobs.labels.push_back(label);
   }
+  std::vector<double> weight(blobs.detections.size(), 0.0);
   for (int y = 0; y < h; ++y) {
     for (int x = 0; x < w; ++x) {
-      const int label = labels.at<int>(y, x);
-      if (label == 0) continue;
-      Detection& d = blobs[static_cast<size_t>(label - 1)];
+      const int label = blobs.label_image.at<int>(y, x);
+      if (label == 0 || slot[static_cast<size_t>(label)] < 0) continue;
+      const size_t k = static_cast<size_t>(slot[static_cast<size_t>(label)]);
+      Detection& d = blobs.detections[k];
       const double s = *scores.At<float>(x, y);
       // Weights above the threshold, so that every flagged pixel counts (scores may be negative:
       // temperatures).
       const double wgt = s - threshold;
       d.pixel += wgt * Vec2d(x + 0.5, y + 0.5);
-      weight[static_cast<size_t>(label - 1)] += wgt;
+      weight[k] += wgt;
       d.mean_score += s;
       ++d.area_px;
       d.peak_score = std::max(d.peak_score, s);
     }
   }
-  std::vector<Detection> kept;
-  for (size_t b = 0; b < blobs.size(); ++b) {
-    Detection& d = blobs[b];
-    if (d.area_px < min_area_px) continue;
-    d.pixel /= weight[b];
+  for (size_t k = 0; k < blobs.detections.size(); ++k) {
+    Detection& d = blobs.detections[k];
+    d.pixel /= weight[k];
     d.mean_score /= d.area_px;
-    kept.push_back(d);
   }
-  std::stable_sort(kept.begin(), kept.end(), [](const Detection& a, const Detection& b) {
-    return a.peak_score > b.peak_score;
+  std::vector<size_t> order(blobs.detections.size());
+  for (size_t k = 0; k < order.size(); ++k) order[k] = k;
+  std::stable_sort(order.begin(), order.end(), [&](size_t a, size_t b) {
+    return blobs.detections[a].peak_score > blobs.detections[b].peak_score;
   });
-  return kept;
+  Blobs sorted;
+  sorted.label_image = blobs.label_image;
+  for (size_t k : order) {
+    sorted.detections.push_back(blobs.detections[k]);
+    sorted.labels.push_back(blobs.labels[k]);
+  }
+  return sorted;
+}
+
+}  // namespace
+
+std::vector<Detection> FindBlobs(const Image& scores, const Image& count, double threshold,
+                                 int min_area_px) {
+  return LabelBlobs(scores, count, threshold, min_area_px).detections;
 }
 
 namespace {
@@ -322,7 +361,8 @@ DetectOptions ScoringOptions(const DetectOptions& options, double ground_samplin
   DetectOptions scoring = options;
   if (scoring.detector == "rx-local" && ground_sampling_m > 0.0) {
     const auto odd_pixels = [&](double metres, int at_least) {
-      const int pixels = static_cast<int>(std::lround(metres / ground_sampling_m));
+      const int pixels =
+          static_cast<int>(std::lround(std::min(metres / ground_sampling_m, 1e6)));
       return std::max(at_least, pixels | 1);
     };
     scoring.inner_window_px = odd_pixels(scoring.inner_window_m, 1);
@@ -334,7 +374,7 @@ DetectOptions ScoringOptions(const DetectOptions& options, double ground_samplin
 }
 
 // The threshold, the flagged pixels and the blobs of result->scores (on result->render).
-std::vector<Detection> ThresholdAndBlobs(const DetectOptions& options, DetectResult* result) {
+Blobs ThresholdAndBlobs(const DetectOptions& options, DetectResult* result) {
   const Image& count = result->render.count;
   result->threshold = ResolveThreshold(result->scores, count, options, &result->threshold_rule);
   for (int y = 0; y < count.height(); ++y) {
@@ -345,11 +385,11 @@ std::vector<Detection> ThresholdAndBlobs(const DetectOptions& options, DetectRes
       }
     }
   }
-  std::vector<Detection> blobs =
-      FindBlobs(result->scores.scores, count, result->threshold, options.min_area_px);
-  if (blobs.size() > static_cast<size_t>(options.max_detections)) {
-    result->dropped = static_cast<int>(blobs.size()) - options.max_detections;
-    blobs.resize(static_cast<size_t>(options.max_detections));
+  Blobs blobs = LabelBlobs(result->scores.scores, count, result->threshold, options.min_area_px);
+  if (blobs.detections.size() > static_cast<size_t>(options.max_detections)) {
+    result->dropped = static_cast<int>(blobs.detections.size()) - options.max_detections;
+    blobs.detections.resize(static_cast<size_t>(options.max_detections));
+    blobs.labels.resize(static_cast<size_t>(options.max_detections));
   }
   return blobs;
 }
@@ -358,7 +398,8 @@ std::vector<Detection> ThresholdAndBlobs(const DetectOptions& options, DetectRes
 // pixel's point in the local frame, or nothing), temperatures, views and WGS84 position.
 void LocateBlobs(const LightField& light_field, std::vector<int> selected,
                  const std::function<std::optional<Vec3d>(int, int)>& point_of,
-                 std::vector<Detection> blobs, DetectResult* result) {
+                 Blobs found, DetectResult* result) {
+  std::vector<Detection>& blobs = found.detections;
   const Image& image = result->render.image;
   const Image& count = result->render.count;
   if (selected.empty()) {
@@ -366,14 +407,16 @@ void LocateBlobs(const LightField& light_field, std::vector<int> selected,
   }
   const bool temperatures = light_field.radiometry && image.channels() == 1;
   std::vector<Vec3d> world_points;
-  for (Detection& d : blobs) {
+  for (size_t k = 0; k < blobs.size(); ++k) {
+    Detection& d = blobs[k];
+    const int label = found.labels[k];
     Vec3d sum(0.0);
     double total = 0.0, celsius_sum = 0.0;
     double celsius_peak = -std::numeric_limits<double>::infinity();
     for (int y = d.box[1]; y < d.box[3]; ++y) {
       for (int x = d.box[0]; x < d.box[2]; ++x) {
+        if (found.label_image.at<int>(y, x) != label) continue;  // this blob's pixels only
         const double s = *result->scores.scores.At<float>(x, y);
-        if (!(s > result->threshold) || *count.At<uint32_t>(x, y) == 0) continue;
         if (temperatures) {
           const double c = light_field.radiometry->Celsius(*image.At<float>(x, y));
           celsius_sum += c;
@@ -470,7 +513,7 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
     result.scores =
         ComputeAnomalyScores(result.render.image, count, scoring, light_field.radiometry);
   }
-  std::vector<Detection> blobs = ThresholdAndBlobs(detect_options, &result);
+  Blobs blobs = ThresholdAndBlobs(detect_options, &result);
   const Mat3d world_from_cam = glm::transpose(result.render.cam_from_world.rotation);
   const Vec3d centre = result.render.cam_from_world.Center();
   LocateBlobs(
@@ -526,7 +569,7 @@ DetectResult DetectOnMap(const LightField& light_field, const MapOptions& option
       result.scores.scores.height() != result.render.image.height()) {
     throw std::logic_error("DetectOnMap: the scores' grid differs from the map's");
   }
-  std::vector<Detection> blobs = ThresholdAndBlobs(detect_options, &result);
+  Blobs blobs = ThresholdAndBlobs(detect_options, &result);
   // A map pixel's point: its centre's vertical line on the focal surface (or plane).
   LocateBlobs(
       light_field, options.view_indices,
@@ -543,23 +586,25 @@ DetectResult DetectOnMap(const LightField& light_field, const MapOptions& option
   return result;
 }
 
-void WriteDetections(const std::string& path, const DetectResult& result, bool overwrite) {
+void CheckDetectionsPath(const std::string& path, const std::string& crs) {
   const std::string extension = Lower(fs::path(path).extension().string());
-  std::string text;
-  if (extension == ".geojson" || extension == ".json") {
-    text = GeoJson(result);
-  } else if (extension == ".kml") {
-    if (result.crs.empty()) {
-      ThrowInvalid(path + ": KML is in WGS84 longitude and latitude: the light field has no CRS "
-                   "(not geo-referenced); write GeoJSON or CSV");
-    }
-    text = Kml(result);
-  } else if (extension == ".csv") {
-    text = Csv(result);
-  } else {
+  if (extension != ".geojson" && extension != ".json" && extension != ".kml" &&
+      extension != ".csv") {
     ThrowInvalid(path + ": unknown detections format '" + extension +
                  "' (.geojson, .json, .kml or .csv)");
   }
+  if (extension == ".kml" && crs.empty()) {
+    ThrowInvalid(path + ": KML is in WGS84 longitude and latitude: the light field has no CRS "
+                 "(not geo-referenced); write GeoJSON or CSV");
+  }
+}
+
+void WriteDetections(const std::string& path, const DetectResult& result, bool overwrite) {
+  CheckDetectionsPath(path, result.crs);
+  const std::string extension = Lower(fs::path(path).extension().string());
+  const std::string text = extension == ".kml"   ? Kml(result)
+                           : extension == ".csv" ? Csv(result)
+                                                 : GeoJson(result);
   std::error_code error;
   if (!overwrite && fs::exists(path, error)) {
     ThrowInvalid(path + ": exists (give overwrite / --force to replace it)");

@@ -34,9 +34,10 @@
 // - Radiometric light fields (LightField::radiometry, one channel): each blob's peak and mean
 //   temperature in degrees Celsius from the integral image.
 // - Writers refuse a format they do not know and, for KML, a light field without a CRS (KML is
-//   WGS84 only); GeoJSON follows RFC 7946 (WGS84 longitude, latitude, height; a light field
-//   without a CRS gives null geometries and the local/world coordinates as properties). Writes
-//   are atomic (a temporary file renamed into place).
+//   WGS84 only); GeoJSON follows RFC 7946 (WGS84 longitude, latitude: the world height is a
+//   property, since RFC 7946's third coordinate is ellipsoidal; a light field without a CRS
+//   gives null geometries and the local/world coordinates as properties). CSV fields are quoted
+//   per RFC 4180 where needed. Writes are atomic (a temporary file renamed into place).
 #include <array>
 #include <optional>
 #include <string>
@@ -159,6 +160,10 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
 // scores on the same grid.
 DetectResult DetectOnMap(const LightField& light_field, const MapOptions& options,
                          const DetectOptions& detect_options, ProgressSink* progress = nullptr);
+
+// Refuses, before any work, a detections path WriteDetections would refuse: an extension it does
+// not write, or KML for a light field without a CRS (`crs` empty). Names `path`.
+void CheckDetectionsPath(const std::string& path, const std::string& crs);
 
 // Writes the detections to `path` as GeoJSON (.geojson, .json), KML (.kml) or CSV (.csv).
 // `overwrite` false refuses an existing file.

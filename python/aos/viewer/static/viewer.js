@@ -164,8 +164,14 @@ async function detect() {
   params.detector = $("detector").value;
   if (params.detector === "temperature") params.min_temperature_c = $("min_temperature_c").value;
   $("detect_status").textContent = "detecting…";
-  const response = await fetch(api("/api/detect", params));
-  const answer = await response.json();
+  let response, answer;
+  try {
+    response = await fetch(api("/api/detect", params));
+    answer = await response.json();
+  } catch (error) {
+    $("detect_status").textContent = `error: ${error}`;
+    return null;
+  }
   window.aosLastDetect = answer;
   const list = $("detections");
   list.textContent = "";
