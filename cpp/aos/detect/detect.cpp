@@ -465,15 +465,21 @@ void LocateBlobs(const LightField& light_field, std::vector<int> selected,
   result->detections = std::move(blobs);
 }
 
-}  // namespace
-
-DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
-                    const DetectOptions& detect_options, ProgressSink* progress) {
+// The checks and fields every detection starts with.
+DetectResult StartDetection(const LightField& light_field, const DetectOptions& detect_options) {
   detect_options.Check();
   if (light_field.views.empty()) ThrowInvalid("light field: no views: nothing to detect in");
   DetectResult result;
   result.crs = light_field.crs;
   result.radiometry = light_field.radiometry;
+  return result;
+}
+
+}  // namespace
+
+DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
+                    const DetectOptions& detect_options, ProgressSink* progress) {
+  DetectResult result = StartDetection(light_field, detect_options);
   const IntegralOptions resolved = WithResolvedCamera(light_field, options);
   result.render = RenderIntegral(light_field, resolved, progress);
   if (ProgressCancelled(progress)) throw Cancelled();
@@ -531,11 +537,7 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
 
 DetectResult DetectOnMap(const LightField& light_field, const MapOptions& options,
                          const DetectOptions& detect_options, ProgressSink* progress) {
-  detect_options.Check();
-  if (light_field.views.empty()) ThrowInvalid("light field: no views: nothing to detect in");
-  DetectResult result;
-  result.crs = light_field.crs;
-  result.radiometry = light_field.radiometry;
+  DetectResult result = StartDetection(light_field, detect_options);
   MapResult map = RenderMap(light_field, options, progress);
   if (ProgressCancelled(progress)) throw Cancelled();
   const MapGrid& grid = map.summary.grid;
