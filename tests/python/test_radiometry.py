@@ -139,6 +139,14 @@ def test_cli_flir_import_reports_temperatures_and_bad_files_write_nothing(tmp_pa
     assert done.returncode == 0, done.stderr
     report = json.loads(done.stdout)
     assert report["rmse_k"] == pytest.approx(0.01 * report["mse"] ** 0.5)
+    # The map's GeoTIFF says how its value band reads as temperature.
+    rasterio = pytest.importorskip("rasterio")
+    done = run("map", str(out), "--pixel-size", "1", "--focal-height", "0", "-o",
+               str(tmp_path / "map.tif"))
+    assert done.returncode == 0, done.stderr
+    with rasterio.open(tmp_path / "map.tif") as dataset:
+        assert dataset.tags()["AOS_TEMPERATURE"] == "kelvin = 0.01 * value + 0"
+        assert dataset.descriptions[0] == "value (kelvin = 0.01 * value + 0)"
 
     # A plain JPEG among them: one error naming the file and the tag; nothing written.
     aos.write_image(str(frames / "c.jpg"), np.zeros((HEIGHT, WIDTH, 3), np.uint8))

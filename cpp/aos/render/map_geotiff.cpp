@@ -179,6 +179,15 @@ class GeoTiffWriter {
     }
   }
 
+  // Radiometric light fields: how the value band reads as temperature (metadata
+  // AOS_TEMPERATURE and the band's description), as integral's description says it.
+  void SetTemperatures(const Radiometry& radiometry) {
+    dataset_->SetMetadataItem("AOS_TEMPERATURE", radiometry.Describe().c_str());
+    if (channels_ == 1) {
+      dataset_->GetRasterBand(1)->SetDescription(("value (" + radiometry.Describe() + ")").c_str());
+    }
+  }
+
   ~GeoTiffWriter() {
     if (dataset_ != nullptr) GDALClose(dataset_);
     std::error_code ignored;
@@ -461,6 +470,7 @@ MapSummary WriteMapGeoTiff(const LightField& light_field, const MapOptions& opti
   const int channels =
       light_field.views.front().image.channels() - (light_field.masked ? 1 : 0);
   GeoTiffWriter writer(grid, channels, light_field.crs, path, write);
+  if (light_field.radiometry) writer.SetTemperatures(*light_field.radiometry);
   MapSummary summary = RenderMapTiles(
       light_field, options,
       [&](const MapTile& tile) {

@@ -279,13 +279,6 @@ void CheckNearCentre(const std::vector<TelemetrySample>& samples,
                (count > 1 ? " (" + std::to_string(count - 1) + " more position(s) as far)" : ""));
 }
 
-// The angle a + t (b - a) along the shorter arc, degrees.
-double InterpolateAngle(double a, double b, double t) {
-  double d = std::fmod(b - a, 360.0);
-  if (d > 180.0) d -= 360.0;
-  if (d < -180.0) d += 360.0;
-  return a + t * d;
-}
 
 // XMP: the raw packet of a file (plain text by the XMP specification, wherever the container
 // keeps it). JPEGs keep it in an APP1 segment near the start: the first MiB is searched first,
@@ -1001,6 +994,13 @@ TelemetryResult ImportTelemetry(const std::string& frames_dir, const TelemetryOp
     }
   }
   return result;
+}
+
+double InterpolateAngle(double a, double b, double t) {
+  double d = std::fmod(b - a, 360.0);
+  if (d > 180.0) d -= 360.0;
+  if (d < -180.0) d += 360.0;
+  return a + t * d;
 }
 
 }  // namespace aos

@@ -282,6 +282,9 @@ struct TelemetrySample {
 Mat3d WorldFromCameraRotation(double yaw_deg, double pitch_deg, double roll_deg,
                               double grid_bearing_of_north_rad = 0.0);
 
+// The angle a + t (b - a) along the shorter arc, degrees (not wrapped into a range).
+double InterpolateAngle(double a, double b, double t);
+
 // The running-median rule above: altitudes replaced in place; returns the indices replaced and
 // their medians.
 std::vector<std::pair<size_t, double>> ReplaceAltitudeOutliers(std::vector<double>* altitudes,

@@ -25,12 +25,9 @@ namespace {
 
 constexpr double kDeg = kPi / 180.0;
 
-// The angle a + t (b - a) along the shorter arc, degrees, in (-180, 180].
+// The angle a + t (b - a) along the shorter arc (InterpolateAngle), degrees, in (-180, 180].
 double LerpAngle(double a, double b, double t) {
-  double d = std::fmod(b - a, 360.0);
-  if (d > 180.0) d -= 360.0;
-  if (d < -180.0) d += 360.0;
-  double v = std::fmod(a + t * d, 360.0);
+  double v = std::fmod(InterpolateAngle(a, b, t), 360.0);
   if (v > 180.0) v -= 360.0;
   if (v <= -180.0) v += 360.0;
   return v;
