@@ -281,6 +281,11 @@ void BindLightField(py::module_& m) {
           "radiometry", [](const LightField& light_field) { return light_field.radiometry; },
           [](LightField& light_field, const std::optional<Radiometry>& radiometry) {
             if (radiometry) radiometry->Check();
+            // Temperatures are one channel (and a weight when masked): refused on RGB views.
+            LightField checked = EmptyLike(light_field);
+            checked.radiometry = radiometry;
+            checked.views = light_field.views;  // pixels shared, not copied
+            CheckLightField(checked, "radiometry");
             light_field.radiometry = radiometry;
           },
           "Radiometry when the values measure temperature (radiometric thermal frames: kelvin "

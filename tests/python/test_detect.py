@@ -227,6 +227,7 @@ def test_the_viewer_detects_in_both_modes_and_marks_later_frames(forest: aos.Lig
     point through the map's geotransform."""
     pytest.importorskip("aiohttp")
     import struct
+    import urllib.error
     import urllib.request
 
     handle = aos.view(forest, pose_view=len(forest) // 2, focal_surface=0.0, open_browser=False,
@@ -242,6 +243,13 @@ def test_the_viewer_detects_in_both_modes_and_marks_later_frames(forest: aos.Lig
             length = struct.unpack("<I", body[:4])[0]
             return json.loads(body[4:4 + length])
 
+        # A detector DetectOptions does not know: 400, naming the field and its choices.
+        try:
+            get("/api/detect?detector=bogus")
+            raise AssertionError("expected HTTP 400")
+        except urllib.error.HTTPError as error:
+            assert error.code == 400
+            assert "detector: must be one of rx, rx-local" in error.read().decode()
         found = json.loads(get("/api/detect?detector=rx-local"))
         best = found["detections"][0]
         assert math.hypot(best["world"][0] - UTM_ORIGIN[0], best["world"][1] - UTM_ORIGIN[1]) < 0.3

@@ -232,6 +232,11 @@ def test_radiometry_survives_copy_and_pickle_and_is_checked(tmp_path: Path,
         assert other.radiometry == aos.Radiometry(0.01, 1.5) and other.grey
     assert "radiometry='kelvin = 0.01 * value + 1.5'" in repr(grey_lf)
     assert pickle.loads(pickle.dumps(aos.Radiometry(0.04, 2.0))) == aos.Radiometry(0.04, 2.0)
+    # Temperatures are one channel: a radiometry on RGB views is refused, naming the view.
+    rgb = make_lightfield(channels=3)
+    with pytest.raises(ValueError, match="radiometry: temperature frames have one channel"):
+        rgb.radiometry = aos.Radiometry(0.01, 0.0)
+    assert rgb.radiometry is None
 
 
 def test_grey_import_is_recorded_and_applied_at_every_load(tmp_path: Path) -> None:

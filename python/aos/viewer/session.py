@@ -66,7 +66,6 @@ class Superseded(Exception):
 COLORMAPS = ("grey", "turbo", "iron")
 MODES = ("perspective", "map")
 RANGES = ("views", "auto")
-DETECTORS = ("rx", "rx-local", "anomaly-imaging", "temperature")
 
 
 def _turbo_lut() -> np.ndarray:
@@ -571,14 +570,12 @@ class Session:
         """Detections (aos.detect, or aos.detect_map in map mode) in the full-size render of
         ``params`` with its defaults but the detector; kept, so that every later frame marks
         them. Each carries the pan and focus that centre the perspective view on it."""
-        if detector not in DETECTORS:
-            raise BadParameter(f"detector: must be one of {', '.join(DETECTORS)}, got "
-                               f"{str(detector)[:40]!r}")
         params = Params(**{**params.__dict__, "preview": False})
-        options = aos.DetectOptions(detector=detector)
-        if min_temperature_c is not None:
-            options.min_temperature_c = min_temperature_c
         try:
+            # The choices and ranges are DetectOptions' own (its C++ field table).
+            options = aos.DetectOptions(detector=str(detector)[:40])
+            if min_temperature_c is not None:
+                options.min_temperature_c = min_temperature_c
             if params.mode == "map":
                 result = aos.detect_map(self.light_field, self.map_options(params), options)
             else:
