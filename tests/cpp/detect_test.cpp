@@ -1,4 +1,5 @@
 // Anomaly scores and detections (detect/anomaly.h, detect/detect.h) against analytic truth.
+#include <algorithm>
 #include <cmath>
 #include <array>
 #include <random>
@@ -242,6 +243,67 @@ TEST(Anomaly, LocalRxEqualsABruteForceDualWindowWithClipping) {
     }
   }
   EXPECT_GT(compared, w * h / 2);
+}
+
+// Anomaly imaging's per-frame scores: the histogram path (8- and 16-bit one-channel frames)
+// estimates the same background as ComputeAnomalyScores and quantises its scores to
+// kFrameScoreStep. A frame of 400 x 300 pixels (over 65,536: the sample grid is used) with a
+// planted warm patch; the expected value is ComputeAnomalyScores' score rounded to the step,
+// and the two may differ by one step where a float rounding of the score straddles a rounding
+// boundary (ties between values of equal score aside, which these smooth values do not have).
+TEST(Anomaly, QuantisedFrameScoresMatchTheGeneralScorerWithinAStep) {
+  for (PixelType type : {PixelType::kU8, PixelType::kU16}) {
+    const double scale = type == PixelType::kU8 ? 1.0 : 97.0;  // 16 bit: centikelvin-like values
+    Image frame(400, 300, 1, type, 1);
+    std::mt19937 rng(7);
+    std::normal_distribution<double> normal(0.0, 1.0);
+    for (int y = 0; y < 300; ++y) {
+      for (int x = 0; x < 400; ++x) {
+        double v = 120.0 + 9.0 * normal(rng) + (x >= 200 && x < 210 && y >= 100 && y < 112 ? 60.0 : 0.0);
+        v = std::clamp(std::round(v * scale), 0.0, type == PixelType::kU8 ? 255.0 : 65535.0);
+        if (type == PixelType::kU8) {
+          *frame.At<uint8_t>(x, y) = static_cast<uint8_t>(v);
+        } else {
+          *frame.At<uint16_t>(x, y) = static_cast<uint16_t>(v);
+        }
+      }
+    }
+    frame.FillBorder();
+    AnomalyOptions options;
+    options.detector = "rx";
+    const AnomalyScores reference = ComputeAnomalyScores(frame, Image(), options);
+    const Image quantised = QuantisedFrameScores(frame, options);
+    ASSERT_EQ(quantised.type(), PixelType::kU16);
+    ASSERT_EQ(quantised.border(), 1);
+    int mismatches = 0;
+    double largest = 0.0;
+    for (int y = 0; y < 300; ++y) {
+      for (int x = 0; x < 400; ++x) {
+        const double expected = std::min(
+            65535.0, std::floor(*reference.scores.At<float>(x, y) / kFrameScoreStep + 0.5));
+        const double got = *quantised.At<uint16_t>(x, y);
+        EXPECT_LE(std::abs(got - expected), 1.0) << "pixel " << x << ", " << y;
+        mismatches += got != expected;
+        largest = std::max(largest, got * kFrameScoreStep);
+      }
+    }
+    EXPECT_LT(mismatches, 400 * 300 / 100);  // rounding-boundary cases only
+    EXPECT_GT(largest, 40.0);  // the patch, 60 / 9 sigma: a score near 44
+    // The border replicates the edge (the renderer samples it).
+    EXPECT_EQ(*quantised.At<uint16_t>(-1, 0), *quantised.At<uint16_t>(0, 0));
+  }
+  // Other frames (float, RGB) take ComputeAnomalyScores itself: exactly its rounded scores.
+  const Gaussian g;
+  AnomalyOptions options;
+  options.detector = "rx";
+  const AnomalyScores reference = ComputeAnomalyScores(g.image, Image(), options);
+  const Image quantised = QuantisedFrameScores(g.image, options);
+  for (int y = 0; y < Gaussian::kH; y += 7) {
+    for (int x = 0; x < Gaussian::kW; x += 7) {
+      EXPECT_EQ(*quantised.At<uint16_t>(x, y),
+                std::min(65535.0, std::floor(*reference.scores.At<float>(x, y) / kFrameScoreStep + 0.5)));
+    }
+  }
 }
 
 TEST(Anomaly, BlobCentroidsWeighTheScoresAboveTheThreshold) {

@@ -4,6 +4,7 @@
 #include <boost/math/distributions/chi_squared.hpp>
 #include <cmath>
 #include <numeric>
+#include <type_traits>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -15,6 +16,13 @@ namespace {
 
 // The most pixels the background statistics are estimated from (see ComputeAnomalyScores).
 constexpr double kMaxBackgroundSamples = 65536.0;
+
+// The background sample's grid step for an image of `pixels` pixels that take part: at most
+// kMaxBackgroundSamples on the grid.
+int SampleStep(int64_t pixels) {
+  return std::max(1, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(pixels) /
+                                                          kMaxBackgroundSamples))));
+}
 
 // Per-pixel features, row-major, `d` floats each; valid[i] marks the pixels that take part.
 struct Features {
@@ -157,36 +165,45 @@ Features MakeFeatures(const Image& image, const Image& count, const AnomalyOptio
   return f;
 }
 
-// Mean and covariance (population) of the valid pixels listed in `subset` (all when empty).
-void MeanCovariance(const Features& f, const std::vector<size_t>* subset, std::vector<double>* mean,
+// The points the background is estimated from: d floats each, with weights (empty = 1 each):
+// sampled pixels' features, or a histogram's values and counts.
+struct WeightedPoints {
+  int d = 0;
+  std::vector<float> values;    // n x d
+  std::vector<double> weights;  // n, or empty
+  size_t size() const { return values.size() / static_cast<size_t>(d); }
+  double Weight(size_t i) const { return weights.empty() ? 1.0 : weights[i]; }
+  const float* At(size_t i) const { return values.data() + i * static_cast<size_t>(d); }
+};
+
+// Weighted mean and covariance (population) of the points listed in `subset` with their weights
+// scaled by `share` (1 where share is empty: the last kept point may count in part).
+void MeanCovariance(const WeightedPoints& p, const std::vector<size_t>& subset,
+                    const std::vector<double>& share, std::vector<double>* mean,
                     std::vector<double>* covariance) {
-  const int d = f.d;
+  const int d = p.d;
   mean->assign(d, 0.0);
   covariance->assign(static_cast<size_t>(d) * d, 0.0);
   double n = 0.0;
-  const auto each = [&](auto&& visit) {
-    if (subset != nullptr) {
-      for (size_t i : *subset) visit(i);
-    } else {
-      for (size_t i = 0; i < f.valid.size(); ++i) {
-        if (f.valid[i]) visit(i);
-      }
-    }
+  const auto weight = [&](size_t k) {
+    return p.Weight(subset[k]) * (share.empty() ? 1.0 : share[k]);
   };
-  each([&](size_t i) {
-    const float* x = f.At(i);
-    for (int k = 0; k < d; ++k) (*mean)[k] += x[k];
-    n += 1.0;
-  });
+  for (size_t k = 0; k < subset.size(); ++k) {
+    const float* x = p.At(subset[k]);
+    const double w = weight(k);
+    for (int a = 0; a < d; ++a) (*mean)[a] += w * x[a];
+    n += w;
+  }
   for (double& m : *mean) m /= n;
-  each([&](size_t i) {
-    const float* x = f.At(i);
+  for (size_t k = 0; k < subset.size(); ++k) {
+    const float* x = p.At(subset[k]);
+    const double w = weight(k);
     double centred[8];
-    for (int k = 0; k < d; ++k) centred[k] = x[k] - (*mean)[k];
+    for (int a = 0; a < d; ++a) centred[a] = x[a] - (*mean)[a];
     for (int a = 0; a < d; ++a) {
-      for (int b = a; b < d; ++b) (*covariance)[a * d + b] += centred[a] * centred[b];
+      for (int b = a; b < d; ++b) (*covariance)[a * d + b] += w * centred[a] * centred[b];
     }
-  });
+  }
   for (int a = 0; a < d; ++a) {
     for (int b = a; b < d; ++b) {
       (*covariance)[a * d + b] /= n;
@@ -261,6 +278,77 @@ double CholeskyMahalanobis2(const float* x, const double* mean, const double* co
     total += y[i] * y[i];
   }
   return total;
+}
+
+// The global background (mean, covariance, and the inverse scores use) of `points` by the
+// contract's robust estimate: concentration steps keeping the (1 - t) share of the weight with the
+// smallest scores (the last point kept in part), the consistency factor, and the reweighting.
+struct Background {
+  std::vector<double> mean, covariance, inverse;
+};
+Background EstimateBackground(const WeightedPoints& points, const AnomalyOptions& options) {
+  const int d = points.d;
+  Background bg;
+  std::vector<size_t> all(points.size());
+  std::iota(all.begin(), all.end(), size_t{0});
+  double total = 0.0;
+  for (size_t i : all) total += points.Weight(i);
+  const auto refit = [&](const std::vector<size_t>& subset, const std::vector<double>& share,
+                         double consistency) {
+    MeanCovariance(points, subset, share, &bg.mean, &bg.covariance);
+    for (double& c : bg.covariance) c *= consistency;
+    bg.inverse = RegularisedInverse(
+        bg.covariance, d, Ridge(options.regularization, Trace(bg.covariance, d), bg.mean, d));
+  };
+  refit(all, {}, 1.0);
+  const double t = options.trim_fraction;
+  const double keep = std::max(static_cast<double>(d) + 1.0, std::ceil((1.0 - t) * total));
+  if (!(t > 0.0 && options.robust_iterations > 0 && keep < total)) return bg;
+  const boost::math::chi_squared chi_d(d), chi_d2(d + 2);
+  const double q = boost::math::quantile(chi_d, 1.0 - t);
+  const double consistency = (1.0 - t) / boost::math::cdf(chi_d2, q);
+  const bool unit = points.weights.empty();
+  for (int iteration = 0; iteration < options.robust_iterations; ++iteration) {
+    std::vector<std::pair<double, size_t>> ranked;
+    ranked.reserve(all.size());
+    for (size_t i : all) {
+      ranked.emplace_back(Mahalanobis2(points.At(i), bg.mean.data(), bg.inverse.data(), d), i);
+    }
+    std::vector<size_t> kept;
+    std::vector<double> share;
+    if (unit) {  // every point weighs 1: the `keep` smallest, by selection
+      const size_t k = static_cast<size_t>(keep);
+      std::nth_element(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(k - 1),
+                       ranked.end());
+      for (size_t j = 0; j < k; ++j) kept.push_back(ranked[j].second);
+    } else {  // in score order until the weight `keep` is reached, the last point in part
+      std::sort(ranked.begin(), ranked.end());
+      double sum = 0.0;
+      for (const auto& [score, i] : ranked) {
+        const double w = points.Weight(i);
+        if (w <= 0.0) continue;
+        kept.push_back(i);
+        share.push_back(std::min(1.0, (keep - sum) / w));
+        sum += w;
+        if (sum >= keep) break;
+      }
+    }
+    refit(kept, share, consistency);
+  }
+  // Reweighting (as FastMCD ends): the points within the 97.5 % quantile of chi2_d under the raw
+  // estimate, whatever the contamination was, give the final one.
+  const double cut = boost::math::quantile(chi_d, 0.975);
+  const double reweighted = 0.975 / boost::math::cdf(chi_d2, cut);
+  std::vector<size_t> inliers;
+  double inlier_weight = 0.0;
+  for (size_t i : all) {
+    if (Mahalanobis2(points.At(i), bg.mean.data(), bg.inverse.data(), d) <= cut) {
+      inliers.push_back(i);
+      inlier_weight += points.Weight(i);
+    }
+  }
+  if (inlier_weight > static_cast<double>(d) + 1.0) refit(inliers, {}, reweighted);
+  return bg;
 }
 
 void ScoreAll(const Features& f, const std::vector<double>& mean, const std::vector<double>& inverse,
@@ -413,9 +501,7 @@ AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
     // element, stays below 0.6 %, and large images and every frame of anomaly imaging score fast.
     std::vector<size_t> sample;
     {
-      const int step = std::max(
-          1, static_cast<int>(std::ceil(std::sqrt(static_cast<double>(f.count) /
-                                                  static_cast<double>(kMaxBackgroundSamples)))));
+      const int step = SampleStep(f.count);
       for (int y = 0; y < f.height; y += step) {
         for (int x = 0; x < f.width; x += step) {
           const size_t i = static_cast<size_t>(y) * f.width + x;
@@ -429,51 +515,14 @@ AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
         }
       }
     }
-    std::vector<double> mean, covariance;
-    MeanCovariance(f, &sample, &mean, &covariance);
-    std::vector<double> inverse =
-        RegularisedInverse(covariance, d, Ridge(options.regularization, Trace(covariance, d), mean, d));
-    const double t = options.trim_fraction;
-    if (t > 0.0 && options.robust_iterations > 0) {
-      const size_t keep = std::max<size_t>(
-          static_cast<size_t>(d) + 1,
-          static_cast<size_t>(std::ceil((1.0 - t) * static_cast<double>(sample.size()))));
-      const std::vector<size_t>& valid_indices = sample;
-      if (keep < valid_indices.size()) {
-        const boost::math::chi_squared chi_d(d), chi_d2(d + 2);
-        const double q = boost::math::quantile(chi_d, 1.0 - t);
-        const double consistency = (1.0 - t) / boost::math::cdf(chi_d2, q);
-        for (int iteration = 0; iteration < options.robust_iterations; ++iteration) {
-          std::vector<std::pair<double, size_t>> ranked;
-          ranked.reserve(valid_indices.size());
-          for (size_t i : valid_indices) {
-            ranked.emplace_back(Mahalanobis2(f.At(i), mean.data(), inverse.data(), d), i);
-          }
-          std::nth_element(ranked.begin(), ranked.begin() + static_cast<std::ptrdiff_t>(keep - 1),
-                           ranked.end());
-          std::vector<size_t> kept(keep);
-          for (size_t k = 0; k < keep; ++k) kept[k] = ranked[k].second;
-          MeanCovariance(f, &kept, &mean, &covariance);
-          for (double& c : covariance) c *= consistency;
-          inverse = RegularisedInverse(covariance, d,
-                                       Ridge(options.regularization, Trace(covariance, d), mean, d));
-        }
-        // Reweighting (as FastMCD ends): the pixels within the 97.5 % quantile of chi2_d under the
-        // raw estimate, whatever the contamination was, give the final one.
-        const double cut = boost::math::quantile(chi_d, 0.975);
-        const double reweighted = 0.975 / boost::math::cdf(chi_d2, cut);
-        std::vector<size_t> inliers;
-        for (size_t i : valid_indices) {
-          if (Mahalanobis2(f.At(i), mean.data(), inverse.data(), d) <= cut) inliers.push_back(i);
-        }
-        if (inliers.size() > static_cast<size_t>(d) + 1) {
-          MeanCovariance(f, &inliers, &mean, &covariance);
-          for (double& c : covariance) c *= reweighted;
-          inverse = RegularisedInverse(covariance, d,
-                                       Ridge(options.regularization, Trace(covariance, d), mean, d));
-        }
-      }
-    }
+    WeightedPoints points;
+    points.d = d;
+    points.values.reserve(sample.size() * static_cast<size_t>(d));
+    for (size_t i : sample) points.values.insert(points.values.end(), f.At(i), f.At(i) + d);
+    Background bg = EstimateBackground(points, options);
+    std::vector<double>& mean = bg.mean;
+    std::vector<double>& covariance = bg.covariance;
+    std::vector<double>& inverse = bg.inverse;
     result.mean = mean;
     result.covariance = covariance;
     const double ridge = Ridge(options.regularization, Trace(covariance, d), mean, d);
@@ -491,6 +540,82 @@ AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
     }
   }
   return result;
+}
+
+int AnomalyFeatureCount(const AnomalyOptions& options, int image_channels) {
+  return FeatureCount(options.channels, image_channels, options.detector);
+}
+
+Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options) {
+  AnomalyOptions rx = options;
+  rx.detector = "rx";
+  rx.Check();
+  if (frame.empty()) ThrowInvalid("image: empty");
+  const int w = frame.width(), h = frame.height();
+  Image out(w, h, 1, PixelType::kU16, 1);
+  constexpr double kSteps = 1.0 / kFrameScoreStep;
+  const auto quantise = [](double score) {
+    return static_cast<uint16_t>(std::min(65535.0, std::floor(score * kSteps + 0.5)));
+  };
+  const bool integer = frame.type() == PixelType::kU8 || frame.type() == PixelType::kU16;
+  const bool one_feature = frame.channels() == 1 && options.channels == "auto";
+  if (integer && one_feature) {
+    // The sample grid's histogram: one weighted point per value that occurs.
+    const int levels = frame.type() == PixelType::kU8 ? 256 : 65536;
+    std::vector<uint32_t> histogram(static_cast<size_t>(levels), 0);
+    const int step = SampleStep(static_cast<int64_t>(w) * h);
+    const auto count_values = [&](const auto* type_tag) {
+      using T = std::remove_const_t<std::remove_pointer_t<decltype(type_tag)>>;
+      for (int y = 0; y < h; y += step) {
+        const T* row = frame.At<T>(0, y);
+        for (int x = 0; x < w; x += step) ++histogram[row[x]];
+      }
+    };
+    if (frame.type() == PixelType::kU8) {
+      count_values(static_cast<const uint8_t*>(nullptr));
+    } else {
+      count_values(static_cast<const uint16_t*>(nullptr));
+    }
+    WeightedPoints points;
+    points.d = 1;
+    for (int v = 0; v < levels; ++v) {
+      if (histogram[static_cast<size_t>(v)] == 0) continue;
+      points.values.push_back(static_cast<float>(v));
+      points.weights.push_back(histogram[static_cast<size_t>(v)]);
+    }
+    const Background bg = EstimateBackground(points, rx);
+    const double m = bg.mean[0], inverse = bg.inverse[0];
+    if (frame.type() == PixelType::kU8) {
+      uint16_t table[256];
+      for (int v = 0; v < 256; ++v) table[v] = quantise(std::max(0.0, (v - m) * (v - m) * inverse));
+      for (int y = 0; y < h; ++y) {
+        const uint8_t* in = frame.At<uint8_t>(0, y);
+        uint16_t* row = out.At<uint16_t>(0, y);
+        for (int x = 0; x < w; ++x) row[x] = table[in[x]];
+      }
+    } else {
+      // (v - m)^2 * inverse * kSteps in float: within a float's rounding of the double score,
+      // far below the quantisation step.
+      const float mf = static_cast<float>(m), scale = static_cast<float>(inverse * kSteps);
+      for (int y = 0; y < h; ++y) {
+        const uint16_t* in = frame.At<uint16_t>(0, y);
+        uint16_t* row = out.At<uint16_t>(0, y);
+        for (int x = 0; x < w; ++x) {
+          const float c = static_cast<float>(in[x]) - mf;
+          row[x] = static_cast<uint16_t>(std::min(65535.0f, c * c * scale + 0.5f));
+        }
+      }
+    }
+  } else {
+    const AnomalyScores scores = ComputeAnomalyScores(frame, Image(), rx, std::nullopt);
+    for (int y = 0; y < h; ++y) {
+      const float* in = scores.scores.At<float>(0, y);
+      uint16_t* row = out.At<uint16_t>(0, y);
+      for (int x = 0; x < w; ++x) row[x] = quantise(in[x]);
+    }
+  }
+  out.FillBorder();
+  return out;
 }
 
 }  // namespace aos

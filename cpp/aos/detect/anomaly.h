@@ -115,6 +115,21 @@ AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
                                    const AnomalyOptions& options,
                                    const std::optional<Radiometry>& radiometry = std::nullopt);
 
+// d, the features per pixel the options take from an image of `image_channels` channels.
+int AnomalyFeatureCount(const AnomalyOptions& options, int image_channels);
+
+// Anomaly imaging's per-frame scores: global RX of one frame (options.detector is ignored; "rx"
+// is used), quantised to uint16 in steps of kFrameScoreStep (a score s becomes
+// min(65535, round(s / kFrameScoreStep)): scores above 2047.97, a 45-sigma outlier of one
+// channel, saturate; the mean over frames then errs by at most half a step, 0.016, far below any
+// threshold). One channel, one feature and integer frames (8 or 16 bit, the usual thermal frames)
+// take the background statistics from a histogram of the sample grid's values and score by a
+// table: the same estimate as ComputeAnomalyScores (ties between two values of equal score aside)
+// at a fraction of its cost. Other frames are scored by ComputeAnomalyScores. The result has
+// the frame's size and border 1 (FillBorder), ready to be integrated as a view's image.
+inline constexpr double kFrameScoreStep = 1.0 / 32.0;
+Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options);
+
 // The (1 - p) quantile of the chi-square distribution with `dof` degrees of freedom: the score a
 // Gaussian background exceeds with probability p.
 double ChiSquareQuantile(int dof, double p_exceed);

@@ -156,33 +156,29 @@ AnomalyScores AnomalyImaging(const LightField& light_field, std::vector<int> sel
   scores_field.radiometry.reset();
   scores_field.views.resize(selected.size());
   ProgressStart(progress, "frame scores", static_cast<int64_t>(selected.size()));
-  int dimensions = 0;
+  const int dimensions = AnomalyFeatureCount(
+      per_frame, light_field.views.empty() ? 1 : light_field.views[0].image.channels());
   ParallelFor(static_cast<int64_t>(selected.size()), num_threads, progress,
               [&](int64_t k) {
                 const View& view = light_field.views[static_cast<size_t>(selected[static_cast<size_t>(k)])];
-                const AnomalyScores frame =
-                    ComputeAnomalyScores(view.image, Image(), per_frame, std::nullopt);
                 View& scored = scores_field.views[static_cast<size_t>(k)];
                 scored.name = view.name;
                 scored.camera = view.camera;
                 scored.cam_from_world = view.cam_from_world;
-                scored.image = Image(frame.scores.width(), frame.scores.height(), 1,
-                                     PixelType::kF32, 1);
-                for (int y = 0; y < frame.scores.height(); ++y) {
-                  std::copy_n(frame.scores.At<float>(0, y), frame.scores.width(),
-                              scored.image.At<float>(0, y));
-                }
-                scored.image.FillBorder();
-                if (k == 0) dimensions = frame.dimensions;
+                scored.image = QuantisedFrameScores(view.image, per_frame);
               });
   if (ProgressCancelled(progress)) throw Cancelled();
-  // The integrated scores: the mean of the frames' scores where a view sees the pixel.
+  // The integrated scores: the mean of the frames' (quantised) scores where a view sees the
+  // pixel, back in score units.
   AnomalyScores result;
   result.dimensions = dimensions;
   const Image integrated = render_scores(scores_field);
   result.scores = Image(integrated.width(), integrated.height(), 1, PixelType::kF32);
+  const float step = static_cast<float>(kFrameScoreStep);
   for (int y = 0; y < integrated.height(); ++y) {
-    std::copy_n(integrated.At<float>(0, y), integrated.width(), result.scores.At<float>(0, y));
+    const float* in = integrated.At<float>(0, y);
+    float* row = result.scores.At<float>(0, y);
+    for (int x = 0; x < integrated.width(); ++x) row[x] = in[x] * step;
   }
   return result;
 }
@@ -401,7 +397,6 @@ void LocateBlobs(const LightField& light_field, std::vector<int> selected,
                  Blobs found, DetectResult* result) {
   std::vector<Detection>& blobs = found.detections;
   const Image& image = result->render.image;
-  const Image& count = result->render.count;
   if (selected.empty()) {
     for (size_t i = 0; i < light_field.views.size(); ++i) selected.push_back(static_cast<int>(i));
   }
