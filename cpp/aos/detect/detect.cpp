@@ -82,6 +82,11 @@ std::string GeoJson(const DetectResult& result) {
       p["peak_celsius"] = d.peak_celsius;
       p["mean_celsius"] = d.mean_celsius;
     }
+    if (d.sightings > 0) {
+      p["sightings"] = d.sightings;
+      p["first_seen"] = d.first_seen;
+      p["last_seen"] = d.last_seen;
+    }
     feature["properties"] = p;
     features.push_back(feature);
   }

@@ -120,6 +120,11 @@ struct Detection {
   std::vector<int> views;        // the views that saw the point
   double peak_celsius = std::nan("");  // radiometric light fields
   double mean_celsius = std::nan("");
+  // Live tracks only (live/live.h): the updates that saw it and the newest frame's name at the
+  // first and the last; 0 and empty otherwise (written to GeoJSON when set).
+  int sightings = 0;
+  std::string first_seen;
+  std::string last_seen;
 };
 
 struct DetectResult {

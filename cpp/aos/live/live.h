@@ -1,0 +1,118 @@
+#pragma once
+// Live, in-flight integration: a sliding window of the newest frames, re-rendered and searched
+// after each frame joins, and the places found kept over the whole flight.
+//
+// Contract
+// - The window holds at most LiveOptions::window_frames views, in the order they were added;
+//   adding a view beyond that drops the oldest. Remove() takes a view out by name.
+// - Update() renders the window exactly as the batch renderer renders a light field of those
+//   views (RenderIntegral, or Detect when detecting: the same function on the same views, so
+//   the live image equals the batch render of the window with the same options, bit for bit).
+//   follow "latest": the virtual camera is the newest view's (IntegralOptions::pose_view is set
+//   to it; fov_deg, width and height as given); "fixed": the options' own virtual camera
+//   (cam_from_world, pose_view -1).
+// - Tracks: each update's detections that are located on the focal surface join the track
+//   whose point lies within merge_radius_m (the nearest; horizontal distance in the local
+//   frame), else start a new one. A track keeps its strongest sighting (the highest peak score),
+//   how many updates saw it and the newest frame's name at its first and last sighting. At most
+//   max_tracks are kept (the highest peaks), so a long flight stays bounded.
+// - Memory: the window's views (their images shared, not copied) and one render; bounded by the
+//   window whatever the flight's length.
+// - Throws std::invalid_argument naming the field: a view whose camera size differs from the
+//   first's, a repeated name while that view is in the window, options out of range (an
+//   IntegralOptions with view_indices: the window is the selection; follow "fixed" with a
+//   pose_view).
+#include <deque>
+#include <string>
+#include <vector>
+
+#include "aos/detect/detect.h"
+#include "aos/lightfield/lightfield.h"
+#include "aos/render/integral.h"
+#include "aos/util/option_fields.h"
+#include "aos/util/progress.h"
+
+namespace aos {
+
+struct LiveOptions {
+  // The window: the newest frames integrated, >= 1.
+  int window_frames = 30;
+  // The virtual camera: "latest" (the newest view's pose) or "fixed" (the render options').
+  std::string follow = "latest";
+  // Run the detector (DetectOptions) on every update.
+  bool detect = true;
+  // Detections closer than this (horizontally, metres in the light field's units) are one
+  // track, > 0.
+  double merge_radius_m = 1.5;
+  // At most this many tracks are kept (the highest peaks), >= 1.
+  int max_tracks = 1000;
+  void Check() const;
+
+  template <class Visit>
+  static void Fields(Visit&& field) {
+    using O = LiveOptions;
+    field(OptionField("window_frames", &O::window_frames, "", Range::AtLeast(1),
+                      "Live: the newest frames integrated (the sliding window)."));
+    field(OptionField("follow", &O::follow, "", Range::OneOf("latest|fixed"),
+                      "Live: the virtual camera follows the 'latest' view, or stays 'fixed' "
+                      "(--cam-from-world / the options' pose)."));
+    field(OptionField("detect", &O::detect, "", Range::Any(),
+                      "Live: run the detector on every update."));
+    field(OptionField("merge_radius_m", &O::merge_radius_m, "m", Range::FiniteAtLeast(0.0, true),
+                      "Live: detections closer than this, metres, are one track."));
+    field(OptionField("max_tracks", &O::max_tracks, "", Range::AtLeast(1),
+                      "Live: at most this many tracks are kept (the highest peaks)."));
+  }
+};
+
+// One place found during the flight.
+struct LiveTrack {
+  Detection detection;      // its strongest sighting (views: indices into that update's window)
+  int sightings = 0;        // updates that detected it
+  int first_update = 0;     // Update() counts from 1
+  int last_update = 0;
+  std::string first_frame;  // the newest frame's name at the first and last sighting
+  std::string last_frame;
+};
+
+class LiveIntegrator {
+ public:
+  // `base` gives what every view shares (crs, origin, radiometry, grey; its views are ignored).
+  LiveIntegrator(const LightField& base, const IntegralOptions& render,
+                 const DetectOptions& detect, const LiveOptions& live);
+
+  // Adds a view (image loaded, border 1: MakeView), dropping the oldest beyond the window;
+  // returns the names dropped. With `update`, renders and detects (Update()).
+  std::vector<std::string> Add(View view, bool update = true, ProgressSink* progress = nullptr);
+  // Takes the named view out of the window; false when it is not there.
+  bool Remove(const std::string& name, bool update = true, ProgressSink* progress = nullptr);
+  // Renders the window and (detect) finds and tracks. An empty window clears the image.
+  void Update(ProgressSink* progress = nullptr);
+
+  const LightField& window() const { return window_; }
+  // The newest update's render and detections (detect: result.detections; else only render).
+  const DetectResult& result() const { return result_; }
+  const std::vector<LiveTrack>& tracks() const { return tracks_; }
+  int updates() const { return updates_; }
+  // The render options the newest update used (pose_view resolved for follow "latest").
+  IntegralOptions RenderOptions() const;
+  // The tracks as a DetectResult (one detection per track, strongest first) for WriteDetections.
+  DetectResult TracksResult() const;
+
+  const IntegralOptions& render_options() const { return render_; }
+  const DetectOptions& detect_options() const { return detect_; }
+  const LiveOptions& live_options() const { return live_; }
+
+ private:
+  void Track(const DetectResult& found);
+
+  IntegralOptions render_;
+  DetectOptions detect_;
+  LiveOptions live_;
+  LightField window_;
+  DetectResult result_;
+  std::vector<LiveTrack> tracks_;
+  int updates_ = 0;
+};
+
+}  // namespace aos
