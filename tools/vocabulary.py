@@ -35,6 +35,7 @@ PAGE = ROOT / "docs" / "vocabulary.md"
 COMMANDS = [
     ("integral", "IntegralOptions"),
     ("detect", "IntegralOptions"),
+    ("live", "IntegralOptions"),
     ("stack", "FocalStackOptions"),
     ("merge", "MergeOptions"),
     ("allinfocus", "AllInFocusOptions"),
@@ -61,6 +62,9 @@ OUTSIDE = [
     ("map", "DistributedOptions", "distributed."),
     ("map", "DetectOptions", "detect."),
     ("detect", "DetectOptions", "detect."),
+    ("live", "LiveOptions", "live."),
+    ("live", "DetectOptions", "detect."),
+    ("live", "TelemetryOptions", "telemetry."),
     ("view", "ViewerOptions", "viewer."),
     ("import-video", "TelemetryOptions", "telemetry."),
 ]
@@ -123,6 +127,20 @@ NOT_ON_THE_CLI = {
     ("import-colmap", "sift_first_octave"): "import-colmap runs no COLMAP",
     ("import-colmap", "max_focal_deviation"): "the model's intrinsics are kept as they are",
     ("import-colmap", "num_threads"): "import-colmap decodes frames on all cores",
+    ("live", "variance"): "live shows images, not variances",
+    ("live", "pose_view"): "--follow latest sets it to the newest view",
+    ("live", "view_indices"): "the window is the selection (--window-frames)",
+    ("live", "min_view_count"): "a window of 30 frames: every view counts",
+    ("live", "telemetry.fov_deg"): "--frames-fov-deg gives it",
+    ("live", "telemetry.grey"): "--grey gives it",
+    ("live", "telemetry.altitude_window"): "one frame at a time: no running median",
+    ("live", "telemetry.max_altitude_deviation_m"): "one frame at a time: no running median",
+    ("live", "telemetry.frame_interval_s"): "frames are posed by name (a frame column) or tags",
+    ("live", "telemetry.time_offset_s"): "frames are posed by name (a frame column) or tags",
+    ("live", "telemetry.radiometric"): "not yet live (issue 35's note)",
+    ("live", "telemetry.kelvin_per_count"): "not yet live (issue 35's note)",
+    ("live", "telemetry.kelvin_offset"): "not yet live (issue 35's note)",
+    ("live", "telemetry.temperature_frames_dir"): "not yet live (issue 35's note)",
     ("import-video", "telemetry.telemetry_file"): "the import's own telemetry.csv",
     ("import-video", "telemetry.frame_interval_s"): "the CSV gives each frame's time",
     ("import-video", "telemetry.time_offset_s"): "the CSV gives each frame's time",
@@ -186,7 +204,7 @@ def leaves(options: Any, prefix: str = "") -> list[tuple[str, Any]]:
     return result
 
 
-HELP_LINE = re.compile(r"^\s{2}(-\w,)?(--[\w-]+)(?:,--[\w-]+)*(?:\s+([A-Z]+(?::[A-Z]+>=-?\d+)?)(?:=(\S+))?)?")
+HELP_LINE = re.compile(r"^\s{2}(-\w,)?(--[\w-]+)(?:,--[\w-]+)*(?:\s+([A-Z]+(?::[A-Z]+>=-?\d+)?))?(?:=(\S+))?")
 
 
 def cli_flags(aos_render: str, command: str) -> dict[str, Optional[str]]:

@@ -66,6 +66,11 @@ const CommandEntry kCommands[] = {
      "the detections located on the focal surface and in WGS84, written as GeoJSON, KML, CSV "
      "and an overlay",
      DefineDetect},
+    {"live",
+     "In flight: integrate a sliding window of the newest frames as they arrive in a folder (or "
+     "--replay a recorded flight), detect on every update, and keep the places found as "
+     "GeoJSON/CSV",
+     DefineLive},
     {"stack",
      "Render a focal stack: N slices between two boundary planes, written as a folder of float32 "
      "TIFFs with stack.json",

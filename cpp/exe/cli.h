@@ -387,8 +387,10 @@ class Flags {
     const std::string name = spec.name;
     const std::string flag = FlagOf(spec);
     if constexpr (std::is_same_v<T, bool>) {
+      // A switch; one that defaults to true prints it and is turned off as --flag=false.
       CLI::Option* option = command_->add_flag(Names(flag), value, spec.help);
-      Record(flag, name, "");
+      if (value) option->default_str("true");
+      Record(flag, name, value ? "true" : "");
       return option;
     } else if constexpr (kHasTextForm<T>) {
       return Parsed(

@@ -1,7 +1,7 @@
 #pragma once
 // The commands of aos-render, one Define function each, grouped by area (one file per area):
-//   render_commands.cpp   integral, stack, merge, allinfocus, map, view (hands over to the
-//                         Python viewer, python/aos/viewer)
+//   render_commands.cpp   integral, stack, merge, allinfocus, map, detect, live, view (hands
+//                         over to the Python viewer, python/aos/viewer)
 //   sim_commands.cpp      simulate, demo
 //   lens_commands.cpp     calibrate, camera, rectify, resolution
 //   sfm_commands.cpp      poses, import-colmap, ground
@@ -33,6 +33,7 @@ CommandRunner DefineImportTelemetry(CLI::App* command);
 CommandRunner DefineExportOdm(CLI::App* command);
 CommandRunner DefineCheckGcp(CLI::App* command);
 CommandRunner DefineDetect(CLI::App* command);
+CommandRunner DefineLive(CLI::App* command);
 CommandRunner DefineImportVideo(CLI::App* command);
 CommandRunner DefineMetrics(CLI::App* command);
 CommandRunner DefinePlan(CLI::App* command);

@@ -1,5 +1,9 @@
 // Rendering commands: integral, stack, merge, allinfocus, map, and view (the browser viewer).
 #include <algorithm>
+#include <chrono>
+#include <map>
+#include <set>
+#include <thread>
 #include <array>
 #include <cctype>
 #include <cmath>
@@ -20,6 +24,8 @@
 #include <nlohmann/json.hpp>
 
 #include "aos/detect/detect.h"
+#include "aos/live/live.h"
+#include "aos/sfm/telemetry.h"
 #include "aos/image/image_io.h"
 #include "aos/image/preview.h"
 #include "aos/lightfield/formats.h"
@@ -31,6 +37,7 @@
 #include "aos/render/map.h"
 #include "aos/render/merge.h"
 #include "aos/sfm/ground.h"
+#include "aos/util/csv.h"
 #include "aos/util/file_util.h"
 #include "commands.h"
 #include "progress_bar.h"
@@ -1331,6 +1338,427 @@ CommandRunner DefineView(CLI::App* command) {
   flags.Remaining(c->options, {"variance"});
   viewer.Remaining(c->viewer);
   return [c, flags] { return RunView(*c, flags); };
+}
+
+// ---- live ----
+
+namespace {
+
+struct LiveCommand {
+  std::string source;     // FRAMES_DIR (watched)
+  std::string replay;     // --replay LIGHTFIELD
+  double fps = 0.0;       // --fps: replay pace; 0 = as fast as the updates run
+  double idle_exit_s = 0.0;  // --idle-exit-s: stop after this long without a new frame; 0 = never
+  double poll_s = 0.1;
+  LoadOptions load;
+  std::string focal_surface_path;
+  RenderArgs args;
+  IntegralOptions options;
+  DetectOptions detect;
+  LiveOptions live;
+  TelemetryOptions telemetry;
+  std::string geojson, csv, image;
+};
+
+// One frame file being watched: its size and modification time at the last poll.
+struct Watched {
+  uintmax_t size = 0;
+  fs::file_time_type mtime{};
+  int stable_polls = 0;
+  bool done = false;         // taken, or skipped for good
+  bool failed = false;       // could not be decoded at this size and time
+  double first_seen_s = 0.0;
+};
+
+// Whether a folder entry can be a frame: a frame file type, not hidden, not a partial download.
+bool FrameName(const fs::path& path) {
+  const std::string name = path.filename().string();
+  if (name.empty() || name[0] == '.') return false;
+  std::string extension = path.extension().string();
+  std::transform(extension.begin(), extension.end(), extension.begin(),
+                 [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+  for (const char* e : {".png", ".jpg", ".jpeg", ".tif", ".tiff", ".exr"}) {
+    if (extension == e) return true;
+  }
+  return false;
+}
+
+// The header and the rows of the telemetry log `path` whose frame column names one of `names`
+// (a file name, or a path ending in it), as CSV text. A log without a frame column is refused:
+// live poses each frame by its name.
+std::string LogRowsNaming(const std::string& path, const std::vector<std::string>& names) {
+  const std::vector<CsvRecord> records = ParseCsv(ReadTextFile(path), path);
+  if (records.empty()) ThrowInvalid(path + ": no header line");
+  int column = -1;
+  for (size_t k = 0; k < records[0].fields.size(); ++k) {
+    std::string field = records[0].fields[k];
+    std::transform(field.begin(), field.end(), field.begin(),
+                   [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+    if (field == "frame" || field == "name" || field == "image" || field == "file") {
+      column = static_cast<int>(k);
+    }
+  }
+  if (column < 0) {
+    ThrowInvalid(path + ": line " + std::to_string(records[0].line) +
+                 ": frame: live needs a frame column (frame, name, image or file) to pose each "
+                 "frame as it arrives");
+  }
+  const std::set<std::string> wanted(names.begin(), names.end());
+  const auto line = [](const CsvRecord& record) {
+    std::string text;
+    for (size_t k = 0; k < record.fields.size(); ++k) {
+      std::string quoted = "\"";
+      for (char ch : record.fields[k]) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+      text += (k ? "," : "") + quoted + "\"";
+    }
+    return text + "\n";
+  };
+  std::string text = line(records[0]);
+  for (size_t r = 1; r < records.size(); ++r) {
+    const std::vector<std::string>& fields = records[r].fields;
+    if (static_cast<size_t>(column) < fields.size() &&
+        wanted.count(fs::path(fields[static_cast<size_t>(column)]).filename().string()) > 0) {
+      text += line(records[r]);
+    }
+  }
+  return text;
+}
+
+double Percentile(std::vector<double> values, double p) {
+  if (values.empty()) return std::nan("");
+  std::sort(values.begin(), values.end());
+  return values[static_cast<size_t>(std::lround(p * static_cast<double>(values.size() - 1)))];
+}
+
+int RunLive(LiveCommand& c, const Flags& flags) {
+  if (c.replay.empty() == c.source.empty()) {
+    ThrowUsage("live: give a frames folder to watch, or --replay LIGHTFIELD (not both)");
+  }
+  if (c.geojson.empty() && c.csv.empty() && c.image.empty()) {
+    ThrowUsage("--geojson, --csv, --image: give at least one output");
+  }
+  if (!(c.fps >= 0.0 && std::isfinite(c.fps))) ThrowUsage("--fps: must be >= 0");
+  if (!(c.idle_exit_s >= 0.0 && std::isfinite(c.idle_exit_s))) {
+    ThrowUsage("--idle-exit-s: must be >= 0");
+  }
+  flags.NamingFlags([&] {
+    c.live.Check();
+    if (c.live.detect) c.detect.Check();
+  });
+  std::vector<std::string> inputs;
+  if (!c.replay.empty()) inputs.push_back(c.replay);
+  if (!c.source.empty()) inputs.push_back(c.source);
+  if (!c.telemetry.telemetry_file.empty()) inputs.push_back(c.telemetry.telemetry_file);
+  for (const auto& [path, what] : std::vector<std::pair<std::string, const char*>>{
+           {c.geojson, "geojson"}, {c.csv, "csv"}, {c.image, "image"}}) {
+    if (path.empty()) continue;
+    CheckOutputPath(path, inputs, what);
+    RefuseExisting(path, what);
+  }
+  for (const std::string* path : {&c.geojson, &c.csv}) {
+    if (!path->empty()) CheckDetectionsPath(*path, "EPSG:4326");
+  }
+  if (!c.image.empty()) ResolveSampleType(c.image, Image(1, 1, 1, PixelType::kU8), WriteImageOptions{});
+  ReadFocalSurface(c.args.focal_surface, &c.options.focal_surface);
+  if (!c.args.cam_from_world.empty()) {
+    const std::vector<double> v = ParseNumbers(c.args.cam_from_world, "--cam-from-world", 12);
+    std::array<double, 12> m{};
+    std::copy(v.begin(), v.end(), m.begin());
+    c.options.cam_from_world = Rigid3d::FromMatrix3x4(m);
+  } else if (c.live.follow == "fixed") {
+    ThrowUsage("--follow fixed: give the virtual camera with --cam-from-world");
+  }
+  ProgressBar progress(/*quiet=*/true);
+  // The light field every view joins: the replayed one's, or the first imported batch's.
+  std::optional<LightField> replayed;
+  std::optional<LiveIntegrator> integrator;
+  std::vector<double> update_ms;
+  int frames = 0, skipped = 0;
+  const auto start = std::chrono::steady_clock::now();
+  const auto seconds = [&] {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  };
+  const auto write_outputs = [&] {
+    const DetectResult tracks = integrator->TracksResult();
+    for (const std::string* path : {&c.geojson, &c.csv}) {
+      if (!path->empty()) WriteDetections(*path, tracks, /*overwrite=*/true);
+    }
+    if (!c.image.empty() && !integrator->result().render.image.empty()) {
+      PendingFile file(c.image);
+      WriteImageOptions write;
+      write.description = "aos live integral (8-bit preview, 1st..99th percentile)";
+      WriteImage(file.TempPath(), DetectionOverlay(integrator->result()), write);
+      file.Commit();
+    }
+  };
+  const auto add = [&](View view) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const std::string name = view.name;
+    flags.NamingFlags([&] { integrator->Add(std::move(view), true, &progress); });
+    write_outputs();
+    const double ms =
+        std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    update_ms.push_back(ms);
+    ++frames;
+    if (!Common().quiet && !Common().json) {
+      std::fprintf(stderr, "live: %s: window %zu, %zu detections, %zu tracks, %.1f ms\n",
+                   name.c_str(), integrator->window().views.size(),
+                   integrator->result().detections.size(), integrator->tracks().size(), ms);
+    }
+  };
+  if (!c.replay.empty()) {
+    LoadOptions load = c.load;
+    load.load_images = false;
+    load.num_threads = c.options.num_threads;
+    replayed = flags.At("load.").NamingFlags([&] { return LoadLightField(c.replay, load).light_field; });
+    if (replayed->views.empty()) ThrowInvalid(c.replay + ": views: none to replay");
+    integrator.emplace(flags.NamingFlags(
+        [&] { return LiveIntegrator(*replayed, c.options, c.detect, c.live); }));
+    for (int i = 0; i < static_cast<int>(replayed->views.size()); ++i) {
+      if (Interrupted()) break;
+      if (c.fps > 0.0) {
+        const double due = i / c.fps;
+        if (seconds() < due) {
+          std::this_thread::sleep_for(std::chrono::duration<double>(due - seconds()));
+        }
+      }
+      LoadViewImages(*replayed, {i}, load);
+      View view = replayed->views[static_cast<size_t>(i)];
+      DropViewImages(*replayed, {i});  // the window holds the one copy it needs
+      add(std::move(view));
+    }
+  } else {
+    if (!fs::is_directory(c.source)) ThrowInvalid(c.source + ": not a folder");
+    if (c.telemetry.fov_deg <= 0.0 && c.telemetry.camera_file.empty()) {
+      c.telemetry.fov_deg = c.load.fov_deg;
+    }
+    c.telemetry.grey = c.load.grey;
+    c.telemetry.altitude_window = 0;  // one frame at a time: no running median across frames
+    flags.At("telemetry.").NamingFlags([&] { c.telemetry.Check(); });
+    const fs::path staging = fs::temp_directory_path() /
+                             ("aos-live-" + std::to_string(::getpid()));
+    fs::create_directories(staging);
+    struct Cleanup {
+      fs::path path;
+      ~Cleanup() {
+        std::error_code error;
+        fs::remove_all(path, error);
+      }
+    } cleanup{staging};
+    std::map<std::string, Watched> watched;
+    double last_frame_s = 0.0;
+    Vec3d origin{0.0};
+    std::string crs;
+    while (!Interrupted()) {
+      const double now = seconds();
+      // Frames whose size and time stayed the same over two polls are complete.
+      std::vector<std::string> ready;
+      std::error_code error;
+      for (const auto& entry : fs::directory_iterator(c.source, error)) {
+        if (!entry.is_regular_file(error) || !FrameName(entry.path())) continue;
+        const std::string name = entry.path().filename().string();
+        Watched& w = watched[name];
+        if (w.done) continue;
+        const uintmax_t size = entry.file_size(error);
+        const fs::file_time_type mtime = entry.last_write_time(error);
+        if (w.failed && size == w.size && mtime == w.mtime) continue;  // unchanged since
+        w.failed = false;
+        if (w.first_seen_s == 0.0) w.first_seen_s = now;
+        if (size > 0 && size == w.size && mtime == w.mtime) {
+          ++w.stable_polls;
+        } else {
+          w.stable_polls = 0;
+        }
+        w.size = size;
+        w.mtime = mtime;
+        if (w.stable_polls >= 2) ready.push_back(name);
+      }
+      std::sort(ready.begin(), ready.end(), NaturalLess);
+      if (!ready.empty()) {
+        // Pose frames: a folder of links to them and the log's rows that name them (the log,
+        // re-read each time, may lag the frames), ImportTelemetry's input.
+        const auto import_frames = [&](const std::vector<std::string>& names) {
+          for (const auto& entry : fs::directory_iterator(staging)) fs::remove_all(entry.path());
+          fs::create_directories(staging / "frames");
+          for (const std::string& name : names) {
+            fs::create_symlink(fs::absolute(fs::path(c.source) / name), staging / "frames" / name);
+          }
+          TelemetryOptions telemetry = c.telemetry;
+          if (!telemetry.telemetry_file.empty()) {
+            telemetry.telemetry_file = (staging / "log.csv").string();
+            WriteTextFileAtomic(telemetry.telemetry_file,
+                                LogRowsNaming(c.telemetry.telemetry_file, names));
+          }
+          return ImportTelemetry((staging / "frames").string(), telemetry, nullptr);
+        };
+        std::vector<TelemetryResult> batches;
+        try {
+          batches.push_back(import_frames(ready));
+        } catch (const std::invalid_argument&) {
+          // One frame's problem (a corrupt header) spoils the batch: each frame alone, and one
+          // that fails alone is skipped with one warning (taken again if the file changes).
+          for (const std::string& name : ready) {
+            try {
+              batches.push_back(import_frames({name}));
+            } catch (const std::invalid_argument& problem) {
+              Warn("live: " + name + ": skipped: " + problem.what());
+              ++skipped;
+              watched[name].failed = true;
+            }
+          }
+        }
+        // Frames the log has no row for yet wait up to 10 s, then are skipped.
+        std::set<std::string> posed_names;
+        for (const TelemetryResult& posed : batches) {
+          for (const View& view : posed.light_field.views) {
+            posed_names.insert(fs::path(view.image_path).filename().string());
+          }
+        }
+        for (const std::string& name : ready) {
+          Watched& w = watched[name];
+          if (posed_names.count(name) == 0 && !w.failed && now - w.first_seen_s > 10.0) {
+            Warn("live: " + name + ": skipped: no telemetry for it within 10 s");
+            w.done = true;
+            ++skipped;
+          }
+        }
+        for (const TelemetryResult& posed : batches) {
+          if (crs.empty() && !posed.light_field.views.empty()) {
+            crs = posed.light_field.crs;
+            origin = posed.light_field.origin;
+            LightField base = EmptyLike(posed.light_field);
+            integrator.emplace(flags.NamingFlags(
+                [&] { return LiveIntegrator(base, c.options, c.detect, c.live); }));
+          }
+          if (!posed.light_field.views.empty() && posed.light_field.crs != crs) {
+            ThrowInvalid(c.source + ": frames in " + posed.light_field.crs +
+                         ", the flight began in " + crs +
+                         " (a UTM zone boundary): restart the live run");
+          }
+          for (const View& posed_view : posed.light_field.views) {
+            View view = posed_view;
+            const std::string name = fs::path(view.image_path).filename().string();
+            Watched& w = watched[name];
+            w.done = true;
+            // This batch's origin -> the flight's: t' = t + R (origin_batch - origin).
+            view.cam_from_world.translation +=
+                view.cam_from_world.rotation * (posed.light_field.origin - origin);
+            view.image_path = (fs::path(c.source) / name).string();
+            view.name = name;
+            LightField one = EmptyLike(posed.light_field);
+            one.origin = origin;
+            one.views.push_back(view);
+            try {
+              LoadViewImages(one, {0}, c.load);
+            } catch (const std::invalid_argument& problem) {
+              // Truncated or corrupt: skipped with one warning; taken again only if the file
+              // changes (a writer that stalled, then finished).
+              Warn("live: " + name + ": skipped: " + problem.what());
+              ++skipped;
+              w.done = false;
+              w.failed = true;
+              continue;
+            }
+            add(std::move(one.views[0]));
+            last_frame_s = seconds();
+          }
+        }
+      }
+      if (c.idle_exit_s > 0.0 && seconds() - std::max(last_frame_s, 0.0) > c.idle_exit_s) break;
+      std::this_thread::sleep_for(std::chrono::duration<double>(c.poll_s));
+    }
+  }
+  Report report("live");
+  report.Set("frames", frames);
+  report.Set("skipped", skipped);
+  report.Set("updates", integrator ? integrator->updates() : 0);
+  report.Set("tracks", integrator ? integrator->tracks().size() : size_t{0});
+  report.Set("update_ms_p50", Percentile(update_ms, 0.5));
+  report.Set("update_ms_p95", Percentile(update_ms, 0.95));
+  report.Set("stopped", Interrupted() ? std::string("interrupted") : std::string("done"));
+  report.Line("%d frames integrated (%d skipped), %zu tracks; update p50 %.1f ms, p95 %.1f ms%s",
+              frames, skipped, integrator ? integrator->tracks().size() : size_t{0},
+              Percentile(update_ms, 0.5), Percentile(update_ms, 0.95),
+              Interrupted() ? " (interrupted: outputs are those of the last update)" : "");
+  if (integrator) {
+    int i = 0;
+    for (const LiveTrack& track : integrator->tracks()) {
+      const Detection& d = track.detection;
+      report.Line("%d: world %s %s %s, peak %s, %d sightings (%s .. %s)", ++i,
+                  FormatNumber(d.world.x).c_str(), FormatNumber(d.world.y).c_str(),
+                  FormatNumber(d.world.z).c_str(), FormatNumber(d.peak_score).c_str(),
+                  track.sightings, track.first_frame.c_str(), track.last_frame.c_str());
+    }
+  }
+  report.Print();
+  return Interrupted() ? InterruptExitCode() : 0;
+}
+
+}  // namespace
+
+CommandRunner DefineLive(CLI::App* command) {
+  auto c = std::make_shared<LiveCommand>();
+  Flags flags(command);
+  command->add_option("frames_dir", c->source,
+                      "Folder to watch: each frame is taken once complete (its size and time "
+                      "unchanged over two polls), posed from --telemetry-file or its own tags");
+  command->add_option("--replay", c->replay,
+                      "Feed a recorded light field's views in order, as if in flight");
+  flags.Input("--replay");
+  command->add_option("--fps", c->fps, "Replay: frames per second; 0 = as fast as it runs")
+      ->default_str("0");
+  command->add_option("--idle-exit-s", c->idle_exit_s,
+                      "Folder: stop after this many seconds without a new frame; 0 = run until "
+                      "Ctrl-C")
+      ->default_str("0");
+  AddLoadFlags(flags, c->load);
+  auto* pose = flags.Field(
+      c->options, "cam_from_world", [c](const std::string& text) { c->args.cam_from_world = text; },
+      " On the command line 12 numbers: the 3x4 matrix [R|t] row by row (--follow fixed).");
+  (void)pose;
+  flags.Field(c->options, "fov_deg");
+  flags.Field(c->options, "width");
+  flags.Field(c->options, "height");
+  flags.Field(c->options, "aperture_radius");
+  flags.Field(c->options, "min_view_angle_deg");
+  flags.Field(c->options, "lens_tolerance_px");
+  flags.Threads(c->options.num_threads);
+  CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
+  AddFocalHeightFlag(flags, c->options.focal_surface,
+                     "The horizontal focal plane z = H (world); sets --focal-surface")
+      ->excludes(surface);
+  Flags live = flags.At("live.");
+  live.Remaining(c->live);
+  Flags telemetry = flags.At("telemetry.");
+  telemetry.Field(c->telemetry, "telemetry_file");
+  telemetry.Input("--telemetry-file");
+  telemetry.Field(c->telemetry, "camera_file");
+  telemetry.Input("--camera-file");
+  // The frames' camera and grey come from --frames-fov-deg and --grey; one frame at a time has
+  // no running altitude median, no frame-index times and (so far) no radiometric conversion.
+  telemetry.Remaining(c->telemetry,
+                      {"fov_deg", "grey", "altitude_window", "max_altitude_deviation_m",
+                       "frame_interval_s", "time_offset_s", "radiometric", "kelvin_per_count",
+                       "kelvin_offset", "temperature_frames_dir"});
+  command->add_option("--geojson", c->geojson,
+                      "The tracks (places found over the flight) as GeoJSON, rewritten "
+                      "atomically after every update");
+  command->add_option("--csv", c->csv, "The tracks as CSV, rewritten atomically after every update");
+  command->add_option("--image", c->image,
+                      "The newest integral with its detections boxed (8-bit), rewritten after "
+                      "every update");
+  for (const char* output : {"--geojson", "--csv", "--image"}) flags.Output(output);
+  Flags scoring = flags.At("detect.");
+  scoring.Field(c->detect, "detector");
+  scoring.Field(c->detect, "channels");
+  scoring.Field(c->detect, "quantile");
+  scoring.Field(c->detect, "false_alarm_rate");
+  scoring.Field(c->detect, "min_score");
+  scoring.Field(c->detect, "min_temperature_c");
+  flags.Force();
+  scoring.Remaining(c->detect);
+  flags.Remaining(c->options, {"variance", "pose_view", "view_indices", "min_view_count"});
+  return [c, flags] { return RunLive(*c, flags); };
 }
 
 }  // namespace aos::cli

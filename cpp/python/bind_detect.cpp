@@ -1,5 +1,7 @@
-// Detection (detect/anomaly.h, detect/detect.h): DetectOptions, anomaly_scores, detect.
+// Detection (detect/anomaly.h, detect/detect.h): DetectOptions, anomaly_scores, detect; and live
+// integration with detection (live/live.h): LiveOptions, LiveTrack, LiveIntegrator.
 #include "aos/detect/detect.h"
+#include "aos/live/live.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -69,6 +71,12 @@ void BindDetect(py::module_& m) {
       .def("check", &DetectOptions::Check, "Raises ValueError naming the field.");
 
   py::class_<Detection>(m, "Detection", "One detection: a blob of pixels above the threshold.")
+      .def_readonly("sightings", &Detection::sightings,
+                    "Live tracks: the updates that saw it (0 for one detection).")
+      .def_readonly("first_seen", &Detection::first_seen,
+                    "Live tracks: the newest frame at the first sighting ('' otherwise).")
+      .def_readonly("last_seen", &Detection::last_seen,
+                    "Live tracks: the newest frame at the last sighting ('' otherwise).")
       .def_property_readonly("pixel", [](const Detection& d) { return py::make_tuple(d.pixel.x, d.pixel.y); },
                              "Score-weighted centroid, pixel coordinates (centres at +0.5).")
       .def_readonly("area_px", &Detection::area_px)
@@ -266,6 +274,111 @@ void BindDetect(py::module_& m) {
       "The anomaly scores of an image (float32 (H, W) or (H, W, C)): squared Mahalanobis "
       "distances ('rx', 'rx-local') or degrees C ('temperature', with a radiometry). `count` "
       "(uint32 (H, W)) marks the pixels with a view; None = all.");
+
+  OptionsClass<LiveOptions>(m, "LiveOptions",
+                            "Options of live integration (defaults from the C++ struct "
+                            "aos::LiveOptions): the window, the virtual camera, the tracks.")
+      .Table()
+      .Finish()
+      .def("check", &LiveOptions::Check, "Raises ValueError naming the field.");
+
+  py::class_<LiveTrack>(m, "LiveTrack", "One place found during a live run: its strongest sighting.")
+      .def_readonly("detection", &LiveTrack::detection, "The strongest sighting (a Detection).")
+      .def_readonly("sightings", &LiveTrack::sightings, "Updates that detected it.")
+      .def_readonly("first_update", &LiveTrack::first_update)
+      .def_readonly("last_update", &LiveTrack::last_update)
+      .def_readonly("first_frame", &LiveTrack::first_frame,
+                    "The newest frame's name at the first sighting.")
+      .def_readonly("last_frame", &LiveTrack::last_frame)
+      .def("__repr__", [](const LiveTrack& t) {
+        return "LiveTrack(world=(" + FormatNumber(t.detection.world.x) + ", " +
+               FormatNumber(t.detection.world.y) + ", " + FormatNumber(t.detection.world.z) +
+               "), peak_score=" + FormatNumber(t.detection.peak_score) +
+               ", sightings=" + std::to_string(t.sightings) + ")";
+      });
+
+  py::class_<LiveIntegrator>(
+      m, "LiveIntegrator",
+      "Live, in-flight integration (docs/live.md): a sliding window of the newest views, "
+      "re-rendered and searched after each add; equal to the batch render of the window.")
+      .def(py::init([](const LightField& base, const IntegralOptions& options,
+                       const DetectOptions& detect, const LiveOptions& live) {
+             IntegralOptions render = options;
+             render.focal_surface = InCrs(render.focal_surface, base.crs);
+             return LiveIntegrator(base, render, detect, live);
+           }),
+           "base"_a = LightField(), "options"_a = IntegralOptions(),
+           "detect_options"_a = DetectOptions(), "live_options"_a = LiveOptions(),
+           "`base` gives what every view shares (crs, origin, radiometry; its views are ignored). "
+           "Raises ValueError naming the field.")
+      .def(
+          "add",
+          [](LiveIntegrator& self, const py::handle& image, const py::object& camera,
+             const Rigid3d& cam_from_world, std::string name, bool update) {
+            Image copy = ImageFromArray(image, /*border=*/1, "add: image");
+            View view;
+            if (py::isinstance<LensCamera>(camera)) {
+              LensCamera lens = camera.cast<LensCamera>();
+              lens.Finalize("add: camera");
+              view = MakeView(std::move(name), lens, cam_from_world, std::move(copy));
+            } else {
+              view = MakeView(std::move(name), camera.cast<PinholeCamera>(), cam_from_world,
+                              std::move(copy));
+            }
+            py::gil_scoped_release release;
+            return self.Add(std::move(view), update);
+          },
+          "image"_a, "camera"_a, "cam_from_world"_a, "name"_a, "update"_a = true,
+          "Adds a frame (COPIED, as LightField.add_view) with its camera and pose; drops the "
+          "oldest beyond window_frames (their names are returned); with `update`, renders and "
+          "detects.")
+      .def(
+          "add_view",
+          [](LiveIntegrator& self, const View& view, bool update) {
+            py::gil_scoped_release release;
+            return self.Add(view, update);
+          },
+          "view"_a, "update"_a = true, "Adds a light field's view (e.g. a replay).")
+      .def(
+          "remove",
+          [](LiveIntegrator& self, const std::string& name, bool update) {
+            py::gil_scoped_release release;
+            return self.Remove(name, update);
+          },
+          "name"_a, "update"_a = true, "Takes the named view out; False when it is not there.")
+      .def(
+          "update",
+          [](LiveIntegrator& self) {
+            py::gil_scoped_release release;
+            self.Update();
+          },
+          "Renders the window and detects.")
+      .def_property_readonly(
+          "image", [](const LiveIntegrator& self) { return ArrayFromImage(self.result().render.image); },
+          "The newest update's integral image (a copy), None before the first.")
+      .def_property_readonly(
+          "count", [](const LiveIntegrator& self) { return ArrayFromImage(self.result().render.count); },
+          "Views per pixel of the newest update (a copy).")
+      .def_property_readonly(
+          "detections", [](const LiveIntegrator& self) { return self.result().detections; },
+          "The newest update's detections.")
+      .def_property_readonly("result", &LiveIntegrator::result,
+                             "The newest update's DetectResult (a copy).")
+      .def_property_readonly("tracks", &LiveIntegrator::tracks,
+                             "The places found so far, strongest first.")
+      .def_property_readonly("window", &LiveIntegrator::window,
+                             "The window as a light field (a copy; pixels shared).")
+      .def_property_readonly("updates", &LiveIntegrator::updates)
+      .def("render_options", &LiveIntegrator::RenderOptions,
+           "The options the newest update rendered with (pose_view resolved).")
+      .def("tracks_result", &LiveIntegrator::TracksResult,
+           "The tracks as a DetectResult (write() it as GeoJSON/KML/CSV).")
+      .def("__repr__", [](const LiveIntegrator& self) {
+        return "LiveIntegrator(window=" + std::to_string(self.window().views.size()) + "/" +
+               std::to_string(self.live_options().window_frames) + ", updates=" +
+               std::to_string(self.updates()) + ", tracks=" + std::to_string(self.tracks().size()) +
+               ")";
+      });
 }
 
 }  // namespace aos::python

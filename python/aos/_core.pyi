@@ -2412,6 +2412,12 @@ class Detection:
     def peak_celsius(self) -> float: ...
     @property
     def mean_celsius(self) -> float: ...
+    @property
+    def sightings(self) -> int: ...
+    @property
+    def first_seen(self) -> str: ...
+    @property
+    def last_seen(self) -> str: ...
 
 class DetectResult:
     """What detect found, and what it was found in."""
@@ -2453,6 +2459,94 @@ class DetectResult:
     def write(self, path: str, overwrite: bool = False) -> None: ...
     def overlay(self) -> numpy.typing.NDArray[numpy.uint8]: ...
     def __len__(self) -> int: ...
+
+class LiveOptions:
+    """Options of live integration (defaults from the C++ struct aos::LiveOptions): the window, the
+    virtual camera, the tracks."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        window_frames: int = ...,
+        follow: Literal['latest', 'fixed'] = ...,
+        detect: bool = ...,
+        merge_radius_m: float = ...,
+        max_tracks: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    window_frames: int
+    """Live: the newest frames integrated (the sliding window). [>= 1]"""
+    follow: Literal['latest', 'fixed']
+    """Live: the virtual camera follows the 'latest' view, or stays 'fixed' (--cam-from-world / the
+    options' pose). [one of latest or fixed]"""
+    detect: bool
+    """Live: run the detector on every update (true by default; --detect=false integrates only)."""
+    merge_radius_m: float
+    """Live: detections closer than this, metres, are one track. [m, > 0 and finite]"""
+    max_tracks: int
+    """Live: at most this many tracks are kept (the highest peaks). [>= 1]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> LiveOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
+    def check(self) -> None: ...
+
+class LiveTrack:
+    """One place found during a live run: its strongest sighting."""
+
+    @property
+    def detection(self) -> Detection: ...
+    @property
+    def sightings(self) -> int: ...
+    @property
+    def first_update(self) -> int: ...
+    @property
+    def last_update(self) -> int: ...
+    @property
+    def first_frame(self) -> str: ...
+    @property
+    def last_frame(self) -> str: ...
+
+class LiveIntegrator:
+    """Live, in-flight integration (docs/live.md): a sliding window of the newest views,
+    re-rendered and searched after each add; equal to the batch render of the window."""
+
+    def __init__(
+        self,
+        base: LightField = ...,
+        options: IntegralOptions = ...,
+        detect_options: DetectOptions = ...,
+        live_options: LiveOptions = ...,
+    ) -> None: ...
+    def add(
+        self,
+        image: numpy.typing.ArrayLike,
+        camera: Union[PinholeCamera, LensCamera],
+        cam_from_world: Rigid3d,
+        name: str,
+        update: bool = True,
+    ) -> list[str]: ...
+    def add_view(self, view: View, update: bool = True) -> list[str]: ...
+    def remove(self, name: str, update: bool = True) -> bool: ...
+    def update(self) -> None: ...
+    @property
+    def image(self) -> Optional[numpy.typing.NDArray[numpy.float32]]: ...
+    @property
+    def count(self) -> Optional[numpy.typing.NDArray[numpy.uint32]]: ...
+    @property
+    def detections(self) -> list[Detection]: ...
+    @property
+    def result(self) -> DetectResult: ...
+    @property
+    def tracks(self) -> list[LiveTrack]: ...
+    @property
+    def window(self) -> LightField: ...
+    @property
+    def updates(self) -> int: ...
+    def render_options(self) -> IntegralOptions: ...
+    def tracks_result(self) -> DetectResult: ...
 
 def _detect(
     light_field: LightField,

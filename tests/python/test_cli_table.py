@@ -56,6 +56,7 @@ def file_flags() -> list[dict[str, str]]:
 BASE: dict[str, dict[str, str]] = {
     "integral": {"lightfield": "lf.json", "--output": "out.tif"},
     "detect": {"lightfield": "lf.json", "--geojson": "found.geojson"},
+    "live": {"--replay": "lf.json", "--geojson": "found.geojson"},
     "stack": {"lightfield": "lf.json", "--output-dir": "out_dir"},
     "merge": {"stack": "stack_dir", "--output-dir": "out_dir"},
     "allinfocus": {"lightfield": "lf.json", "--output-dir": "out_dir"},
@@ -336,6 +337,10 @@ def long_command(command: str, found: dict[str, Path], out: Path) -> tuple[list[
         "detect": ([lf, *camera, "--width", "2048", "--height", "2048", "--aperture-radius",
                     "inf", "--focal-height", "0", "--geojson", str(out / "found.geojson")],
                    out / "found.geojson"),
+        # live rewrites its outputs after every update (complete at any signal): they are
+        # written beside `out`, which must stay as it was.
+        "live": (["--replay", lf, "--width", "2048", "--height", "2048", "--focal-height", "0",
+                  "--geojson", str(out.parent / "live.geojson")], None),
         "stack": ([lf, *camera, "--width", "512", "--height", "512", "--slices", "400",
                    "--first-plane", "0", "--last-plane", "5", "-o", str(out / "d")], out / "d"),
         "allinfocus": ([lf, *camera, "--width", "512", "--height", "512", "--slices", "400",
@@ -395,7 +400,8 @@ def cpu_seconds(pid: int) -> float:
 
 def test_every_command_is_in_the_cancellation_table() -> None:
     known = set(NOT_LONG) | set(NOT_YET) | {
-        "integral", "detect", "stack", "allinfocus", "merge", "map", "view", "calibrate", "rectify",
+        "integral", "detect", "live", "stack", "allinfocus", "merge", "map", "view", "calibrate",
+        "rectify",
         "import-colmap", "import-telemetry", "import-video", "poses", "ground", "simulate", "demo",
         "metrics", "plan"}
     missing = sorted(set(commands()) - known)
@@ -543,6 +549,8 @@ def oversized(command: str, found: dict[str, Path], large: dict[str, Path],
                      str(out / "out.tif")],
         "detect": [lf, "--pose-view", "5", "--width", "40000", "--height", "40000", "--geojson",
                    str(out / "found.geojson")],
+        "live": ["--replay", lf, "--width", "40000", "--height", "40000", "--geojson",
+                 str(out / "found.geojson")],
         "stack": [lf, "--pose-view", "5", "--width", "8192", "--height", "8192", "--slices",
                   "400", "-o", str(out / "d")],
         "allinfocus": [lf, "--pose-view", "5", "--width", "20000", "--height", "20000",

@@ -57,7 +57,7 @@ struct LiveOptions {
                       "Live: the virtual camera follows the 'latest' view, or stays 'fixed' "
                       "(--cam-from-world / the options' pose)."));
     field(OptionField("detect", &O::detect, "", Range::Any(),
-                      "Live: run the detector on every update."));
+                      "Live: run the detector on every update (true by default; --detect=false integrates only)."));
     field(OptionField("merge_radius_m", &O::merge_radius_m, "m", Range::FiniteAtLeast(0.0, true),
                       "Live: detections closer than this, metres, are one track."));
     field(OptionField("max_tracks", &O::max_tracks, "", Range::AtLeast(1),

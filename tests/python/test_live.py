@@ -1,0 +1,148 @@
+"""Live, in-flight integration (aos-render live, aos.LiveIntegrator, docs/live.md): a replayed
+simulated flight equals the batch render of its window at every step and finds the hidden person
+before the flight ends; a watched folder takes frames only once complete and skips a corrupt
+one with one warning."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import aos
+
+ROOT = Path(__file__).resolve().parents[2]
+UTM_ORIGIN = (500000.0, 5300000.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def forest() -> aos.LightField:
+    """The default scene (a person lying under 300 trees per hectare), 9 x 9 views of 128 x 128
+    pixels, geo-referenced in UTM 33N; its views in flight order (a serpentine grid)."""
+    scene = json.loads((ROOT / "scenes" / "forest_person.json").read_text())
+    scene["camera"].update(width=128, height=128)
+    scene["sampling"]["grid"] = 9
+    light_field = aos.simulate(scene).light_field
+    light_field.origin = UTM_ORIGIN
+    light_field.crs = "EPSG:32633"
+    return light_field
+
+
+def test_replay_equals_the_batch_render_at_every_step_and_finds_the_person(
+        forest: aos.LightField) -> None:
+    window = 30
+    live = aos.LiveIntegrator(forest, aos.IntegralOptions(focal_surface=0.0),
+                              aos.DetectOptions(), aos.LiveOptions(window_frames=window))
+    found_at = None
+    for i, view in enumerate(forest.views):
+        dropped = live.add_view(view)
+        first = max(0, i - window + 1)
+        assert dropped == ([forest.views[first - 1].name] if first > 0 else [])
+        batch = aos.render_integral(forest, focal_surface=0.0, pose_view=i,
+                                    view_indices=list(range(first, i + 1)))
+        np.testing.assert_array_equal(live.image, batch.image)
+        np.testing.assert_array_equal(live.count, batch.count)
+        near = [t for t in live.tracks
+                if math.hypot(t.detection.local[0], t.detection.local[1]) < 0.5]
+        if near and found_at is None:
+            found_at = i
+    assert found_at is not None and found_at < len(forest) - 1, found_at
+    # The person is one track, seen by many updates; its file carries the sightings.
+    person = [t for t in live.tracks if math.hypot(t.detection.local[0], t.detection.local[1]) < 0.5]
+    assert len(person) == 1 and person[0].sightings >= 5, person
+    assert live.updates == len(forest) and len(live.window) == window
+    assert "LiveIntegrator(window=30/30" in repr(live)
+
+
+def test_python_add_remove_and_bad_input(forest: aos.LightField) -> None:
+    live = aos.LiveIntegrator(forest, aos.IntegralOptions(focal_surface=0.0),
+                              aos.DetectOptions(), aos.LiveOptions(window_frames=3, detect=False))
+    v = forest.views[0]
+    live.add(v.image, v.camera, v.cam_from_world, "a")
+    live.add(forest.views[1].image, v.camera, forest.views[1].cam_from_world, "b")
+    assert live.remove("a") and not live.remove("a")
+    assert [w.name for w in live.window.views] == ["b"]
+    with pytest.raises(ValueError, match="name: already in the window"):
+        live.add(v.image, v.camera, v.cam_from_world, "b")
+    with pytest.raises(ValueError, match="window_frames"):
+        aos.LiveOptions(window_frames=0).check()
+    with pytest.raises(ValueError, match="view_indices"):
+        aos.LiveIntegrator(forest, aos.IntegralOptions(view_indices=[0]))
+
+
+def run_live(*args: str, timeout: float = 120) -> subprocess.Popen[str]:
+    return subprocess.Popen(["aos-render", "live", *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+
+
+def test_cli_replay_writes_complete_tracks(forest: aos.LightField, tmp_path: Path) -> None:
+    path = tmp_path / "lf.json"
+    aos.write_lightfield(str(path), forest)
+    out = subprocess.run(["aos-render", "live", "--replay", str(path), "--focal-height", "0",
+                          "--geojson", str(tmp_path / "tracks.geojson"), "--csv",
+                          str(tmp_path / "tracks.csv"), "--image", str(tmp_path / "live.png"),
+                          "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-800:]
+    report = json.loads(out.stdout)
+    assert report["frames"] == len(forest) and report["skipped"] == 0
+    tracks = json.loads((tmp_path / "tracks.geojson").read_text())["features"]
+    person = [f for f in tracks
+              if math.hypot(f["properties"]["local"][0], f["properties"]["local"][1]) < 0.5]
+    assert len(person) == 1 and person[0]["properties"]["sightings"] >= 5
+    lon, lat = person[0]["geometry"]["coordinates"]
+    assert 14.99 < lon < 15.01 and 47.8 < lat < 47.9
+    assert (tmp_path / "live.png").stat().st_size > 0
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "lf.json", "live.png", "tracks.csv", "tracks.geojson", "views"]
+
+
+def test_cli_folder_takes_complete_frames_and_skips_a_corrupt_one(tmp_path: Path) -> None:
+    """Frames arrive by rename, one is written in two halves 50 ms apart (never read half), one
+    is corrupt (skipped with one warning, the run goes on)."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    names = [f"f{i:02d}.png" for i in range(8)]
+    rows = [f"{name},{48.0 + 2e-5 * i:.10f},15.0,30.0,0,-90,0\n" for i, name in enumerate(names)]
+    (tmp_path / "log.csv").write_text("frame,lat,lon,alt,yaw,pitch,roll\n" + "".join(rows))
+    rng = np.random.default_rng(3)
+    encoded = {}
+    for name in names:
+        aos.write_image(str(tmp_path / name), rng.integers(0, 255, (48, 64), dtype=np.uint8))
+        encoded[name] = (tmp_path / name).read_bytes()
+    process = run_live(str(frames), "--telemetry-file", str(tmp_path / "log.csv"),
+                       "--frames-fov-deg", "50", "--focal-height", "0", "--detect=false",
+                       "--window-frames", "4", "--image", str(tmp_path / "live.png"),
+                       "--geojson", str(tmp_path / "tracks.geojson"), "--idle-exit-s", "3",
+                       "--json")
+    try:
+        for i, name in enumerate(names):
+            data = encoded[name]
+            if i == 3:  # written in place in two halves
+                with open(frames / name, "wb") as f:
+                    f.write(data[: len(data) // 2])
+                    f.flush()
+                    time.sleep(0.05)
+                    f.write(data[len(data) // 2:])
+            elif i == 5:  # corrupt: a PNG signature and garbage
+                (frames / name).write_bytes(data[:16] + b"\0" * 200)
+            else:
+                (frames / f".{name}.part").write_bytes(data)
+                (frames / f".{name}.part").rename(frames / name)
+            time.sleep(0.3)
+        stdout, stderr = process.communicate(timeout=60)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, stderr[-800:]
+    report = json.loads(stdout)
+    assert report["frames"] == 7 and report["skipped"] == 1, (report, stderr[-800:])
+    warnings = [line for line in stderr.splitlines() if "skipped" in line]
+    assert len(warnings) == 1 and "f05.png" in warnings[0], stderr[-800:]
+    assert "f03.png" not in stderr
+    image = aos.read_image(str(tmp_path / "live.png"))
+    assert image.shape[:2] == (48, 64)
