@@ -65,6 +65,7 @@ OUTSIDE = [
     ("live", "LiveOptions", "live."),
     ("live", "DetectOptions", "detect."),
     ("live", "TelemetryOptions", "telemetry."),
+    ("live", "ViewerOptions", "viewer."),
     ("view", "ViewerOptions", "viewer."),
     ("import-video", "TelemetryOptions", "telemetry."),
 ]
@@ -128,6 +129,7 @@ NOT_ON_THE_CLI = {
     ("import-colmap", "max_focal_deviation"): "the model's intrinsics are kept as they are",
     ("import-colmap", "num_threads"): "import-colmap decodes frames on all cores",
     ("live", "variance"): "live shows images, not variances",
+    ("live", "viewer.render_workers"): "the live page renders nothing (the run does)",
     ("live", "pose_view"): "--follow latest sets it to the newest view",
     ("live", "view_indices"): "the window is the selection (--window-frames)",
     ("live", "min_view_count"): "a window of 30 frames: every view counts",

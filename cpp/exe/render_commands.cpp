@@ -15,6 +15,7 @@
 
 #include <fcntl.h>
 #include <sys/wait.h>
+#include <csignal>
 #include <unistd.h>
 
 #include <cerrno>
@@ -1178,8 +1179,8 @@ std::vector<std::string> PythonCandidates() {
 
 // Replaces this process by `PYTHON -m aos.<module> --spec TEXT` (the first interpreter of
 // PythonCandidates() that finds the aos package with that module); throws if none does.
-[[noreturn]] void ExecPythonModule(const std::string& command, const std::string& module,
-                                   const std::string& text) {
+// The first interpreter (PythonCandidates) that finds the aos package with `module`.
+std::string FindPython(const std::string& command, const std::string& module) {
   std::string python;
   const std::vector<std::string> candidates = PythonCandidates();
   for (const std::string& candidate : candidates) {
@@ -1194,6 +1195,12 @@ std::vector<std::string> PythonCandidates() {
     ThrowInvalid(command + ": no Python interpreter with the aos package found (tried " + tried +
                  "); set AOS_PYTHON to the python3 that aos was installed into");
   }
+  return python;
+}
+
+[[noreturn]] void ExecPythonModule(const std::string& command, const std::string& module,
+                                   const std::string& text) {
+  const std::string python = FindPython(command, module);
   std::fflush(stdout);
   std::fflush(stderr);
   // A signal that came while this process checked the command line ends it here: after exec
@@ -1358,7 +1365,82 @@ struct LiveCommand {
   LiveOptions live;
   TelemetryOptions telemetry;
   std::string geojson, csv, image;
+  bool view = false;     // --view: serve the live page (python -m aos.viewer on a state folder)
+  ViewerOptions viewer;
+  bool no_browser = false;
 };
+
+// `--view`: the live page's server, a child process (python -m aos.viewer --spec with
+// "live_dir"), reading the state folder this process writes after every update. Stopped
+// (SIGTERM, then waited for) and the folder removed when this goes.
+class LivePage {
+ public:
+  LivePage(const ViewerOptions& viewer, bool quiet) {
+    char pattern[] = "/tmp/aos-live-view-XXXXXX";
+    if (::mkdtemp(pattern) == nullptr) ThrowInvalid(std::string("--view: ") + std::strerror(errno));
+    folder_ = pattern;
+    nlohmann::ordered_json spec;
+    spec["live_dir"] = folder_;
+    spec["viewer"] = OptionsToJson(viewer);
+    spec["quiet"] = quiet;
+    spec["json"] = false;
+    const std::string python = FindPython("live --view", "viewer");
+    const std::string text = spec.dump();
+    std::fflush(stdout);
+    std::fflush(stderr);
+    pid_ = ::fork();
+    if (pid_ < 0) ThrowInvalid(std::string("--view: cannot start the viewer: ") + std::strerror(errno));
+    if (pid_ == 0) {
+      ::signal(SIGINT, SIG_IGN);  // the parent stops it (SIGTERM) when the run ends
+      ::execlp(python.c_str(), python.c_str(), "-m", "aos.viewer", "--spec", text.c_str(),
+               static_cast<char*>(nullptr));
+      ::_exit(127);
+    }
+  }
+  ~LivePage() {
+    if (pid_ > 0) {
+      // SIGTERM, and SIGKILL after 0.8 s: the CLI ends within 1.5 s of a signal.
+      ::kill(pid_, SIGTERM);
+      int status = 0;
+      for (int i = 0; i < 80 && ::waitpid(pid_, &status, WNOHANG) == 0; ++i) {
+        std::this_thread::sleep_for(std::chrono::milliseconds(10));
+      }
+      if (::waitpid(pid_, &status, WNOHANG) == 0) {
+        ::kill(pid_, SIGKILL);
+        ::waitpid(pid_, &status, 0);
+      }
+    }
+    std::error_code error;
+    fs::remove_all(folder_, error);
+  }
+  LivePage(const LivePage&) = delete;
+  LivePage& operator=(const LivePage&) = delete;
+  // The newest update: its image (alternating names, so a reader's image is never replaced
+  // while it reads it by name) and live.json, each renamed into place.
+  void Write(const LiveIntegrator& integrator, double frame_seen_unix, double update_ms) {
+    const DetectResult result = integrator.result();
+    nlohmann::ordered_json state = nlohmann::ordered_json::parse(integrator.StateJson());
+    if (!result.render.image.empty()) {
+      const std::string name = "live-" + std::to_string(state["update"].get<int>() % 2) + ".png";
+      PendingFile file((fs::path(folder_) / name).string());
+      WriteImage(file.TempPath(), DetectionOverlay(result), WriteImageOptions{});
+      file.Commit();
+      state["image"] = name;
+    }
+    state["frame_seen_unix"] = frame_seen_unix;
+    state["update_ms"] = update_ms;
+    WriteTextFileAtomic((fs::path(folder_) / "live.json").string(), state.dump());
+  }
+  bool Running() const { return pid_ > 0 && ::waitpid(pid_, nullptr, WNOHANG) == 0; }
+
+ private:
+  std::string folder_;
+  pid_t pid_ = -1;
+};
+
+double UnixSeconds() {
+  return std::chrono::duration<double>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
 
 // One frame file being watched: its size and modification time at the last poll.
 struct Watched {
@@ -1368,6 +1450,7 @@ struct Watched {
   bool done = false;         // taken, or skipped for good
   bool failed = false;       // could not be decoded at this size and time
   double first_seen_s = 0.0;
+  double seen_unix = 0.0;    // when it was first seen, seconds since 1970 (the page's latency)
 };
 
 // Whether a folder entry can be a frame: a frame file type, not hidden, not a partial download.
@@ -1469,9 +1552,15 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     ThrowUsage("--follow fixed: give the virtual camera with --cam-from-world");
   }
   ProgressBar progress(/*quiet=*/true);
+  std::unique_ptr<LivePage> page;
+  if (c.view) {
+    if (c.no_browser) c.viewer.open_browser = false;
+    flags.At("viewer.").NamingFlags([&] { c.viewer.Check(); });
+    page = std::make_unique<LivePage>(c.viewer, Common().quiet);
+  }
   // The light field every view joins: the replayed one's, or the first imported batch's.
   std::optional<LightField> replayed;
-  std::optional<LiveIntegrator> integrator;
+  std::unique_ptr<LiveIntegrator> integrator;
   std::vector<double> update_ms;
   int frames = 0, skipped = 0;
   const auto start = std::chrono::steady_clock::now();
@@ -1491,13 +1580,18 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       file.Commit();
     }
   };
-  const auto add = [&](View view) {
+  const auto add = [&](View view, double seen_unix) {
     const auto t0 = std::chrono::steady_clock::now();
     const std::string name = view.name;
-    flags.NamingFlags([&] { integrator->Add(std::move(view), true, &progress); });
+    try {
+      flags.NamingFlags([&] { integrator->Add(std::move(view), true, &progress); });
+    } catch (const Cancelled&) {
+      return;  // stopped within this update: the outputs stay those of the last one
+    }
     write_outputs();
     const double ms =
         std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+    if (page) page->Write(*integrator, seen_unix, ms);
     update_ms.push_back(ms);
     ++frames;
     if (!Common().quiet && !Common().json) {
@@ -1512,8 +1606,8 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     load.num_threads = c.options.num_threads;
     replayed = flags.At("load.").NamingFlags([&] { return LoadLightField(c.replay, load).light_field; });
     if (replayed->views.empty()) ThrowInvalid(c.replay + ": views: none to replay");
-    integrator.emplace(flags.NamingFlags(
-        [&] { return LiveIntegrator(*replayed, c.options, c.detect, c.live); }));
+    integrator = flags.NamingFlags(
+        [&] { return std::make_unique<LiveIntegrator>(*replayed, c.options, c.detect, c.live); });
     for (int i = 0; i < static_cast<int>(replayed->views.size()); ++i) {
       if (Interrupted()) break;
       if (c.fps > 0.0) {
@@ -1522,10 +1616,11 @@ int RunLive(LiveCommand& c, const Flags& flags) {
           std::this_thread::sleep_for(std::chrono::duration<double>(due - seconds()));
         }
       }
+      const double seen = UnixSeconds();
       LoadViewImages(*replayed, {i}, load);
       View view = replayed->views[static_cast<size_t>(i)];
       DropViewImages(*replayed, {i});  // the window holds the one copy it needs
-      add(std::move(view));
+      add(std::move(view), seen);
     }
   } else {
     if (!fs::is_directory(c.source)) ThrowInvalid(c.source + ": not a folder");
@@ -1563,7 +1658,10 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         const fs::file_time_type mtime = entry.last_write_time(error);
         if (w.failed && size == w.size && mtime == w.mtime) continue;  // unchanged since
         w.failed = false;
-        if (w.first_seen_s == 0.0) w.first_seen_s = now;
+        if (w.first_seen_s == 0.0) {
+          w.first_seen_s = now;
+          w.seen_unix = UnixSeconds();
+        }
         if (size > 0 && size == w.size && mtime == w.mtime) {
           ++w.stable_polls;
         } else {
@@ -1627,8 +1725,9 @@ int RunLive(LiveCommand& c, const Flags& flags) {
             crs = posed.light_field.crs;
             origin = posed.light_field.origin;
             LightField base = EmptyLike(posed.light_field);
-            integrator.emplace(flags.NamingFlags(
-                [&] { return LiveIntegrator(base, c.options, c.detect, c.live); }));
+            integrator = flags.NamingFlags([&] {
+              return std::make_unique<LiveIntegrator>(base, c.options, c.detect, c.live);
+            });
           }
           if (!posed.light_field.views.empty() && posed.light_field.crs != crs) {
             ThrowInvalid(c.source + ": frames in " + posed.light_field.crs +
@@ -1659,7 +1758,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
               w.failed = true;
               continue;
             }
-            add(std::move(one.views[0]));
+            add(std::move(one.views[0]), w.seen_unix);
             last_frame_s = seconds();
           }
         }
@@ -1668,6 +1767,16 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       std::this_thread::sleep_for(std::chrono::duration<double>(c.poll_s));
     }
   }
+  const bool interrupted = Interrupted();  // during the run (not while the page stays up)
+  if (page && !interrupted) {
+    if (!Common().quiet && !Common().json) {
+      std::fprintf(stderr, "live: the run ended; the page shows its last update (Ctrl-C stops it)\n");
+    }
+    while (!Interrupted() && page->Running()) {
+      std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    }
+  }
+  page.reset();
   Report report("live");
   report.Set("frames", frames);
   report.Set("skipped", skipped);
@@ -1675,11 +1784,11 @@ int RunLive(LiveCommand& c, const Flags& flags) {
   report.Set("tracks", integrator ? integrator->tracks().size() : size_t{0});
   report.Set("update_ms_p50", Percentile(update_ms, 0.5));
   report.Set("update_ms_p95", Percentile(update_ms, 0.95));
-  report.Set("stopped", Interrupted() ? std::string("interrupted") : std::string("done"));
+  report.Set("stopped", interrupted ? std::string("interrupted") : std::string("done"));
   report.Line("%d frames integrated (%d skipped), %zu tracks; update p50 %.1f ms, p95 %.1f ms%s",
               frames, skipped, integrator ? integrator->tracks().size() : size_t{0},
               Percentile(update_ms, 0.5), Percentile(update_ms, 0.95),
-              Interrupted() ? " (interrupted: outputs are those of the last update)" : "");
+              interrupted ? " (interrupted: outputs are those of the last update)" : "");
   if (integrator) {
     int i = 0;
     for (const LiveTrack& track : integrator->tracks()) {
@@ -1691,7 +1800,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     }
   }
   report.Print();
-  return Interrupted() ? InterruptExitCode() : 0;
+  return interrupted ? InterruptExitCode() : 0;
 }
 
 }  // namespace
@@ -1748,6 +1857,17 @@ CommandRunner DefineLive(CLI::App* command) {
                       "The newest integral with its detections boxed (8-bit), rewritten after "
                       "every update");
   for (const char* output : {"--geojson", "--csv", "--image"}) flags.Output(output);
+  command->add_flag("--view", c->view,
+                    "Serve the live page (the newest integral, detections, tracks, flight path) "
+                    "while the run goes on, and after it until Ctrl-C");
+  Flags viewer = flags.At("viewer.");
+  viewer.Field(c->viewer, "host");
+  viewer.Field(c->viewer, "port");
+  viewer.Field(c->viewer, "max_pages");
+  CLI::Option* open_browser = viewer.Field(c->viewer, "open_browser");
+  viewer.Shorthand("open_browser", "--no-browser");
+  command->add_flag("--no-browser", c->no_browser, "Do not open a browser: sets --open-browser false")
+      ->excludes(open_browser);
   Flags scoring = flags.At("detect.");
   scoring.Field(c->detect, "detector");
   scoring.Field(c->detect, "channels");
@@ -1758,6 +1878,7 @@ CommandRunner DefineLive(CLI::App* command) {
   flags.Force();
   scoring.Remaining(c->detect);
   flags.Remaining(c->options, {"variance", "pose_view", "view_indices", "min_view_count"});
+  viewer.Remaining(c->viewer, {"render_workers"});
   return [c, flags] { return RunLive(*c, flags); };
 }
 

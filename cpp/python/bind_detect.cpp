@@ -305,7 +305,7 @@ void BindDetect(py::module_& m) {
                        const DetectOptions& detect, const LiveOptions& live) {
              IntegralOptions render = options;
              render.focal_surface = InCrs(render.focal_surface, base.crs);
-             return LiveIntegrator(base, render, detect, live);
+             return std::make_unique<LiveIntegrator>(base, render, detect, live);
            }),
            "base"_a = LightField(), "options"_a = IntegralOptions(),
            "detect_options"_a = DetectOptions(), "live_options"_a = LiveOptions(),
@@ -369,6 +369,16 @@ void BindDetect(py::module_& m) {
       .def_property_readonly("window", &LiveIntegrator::window,
                              "The window as a light field (a copy; pixels shared).")
       .def_property_readonly("updates", &LiveIntegrator::updates)
+      .def_property_readonly(
+          "path",
+          [](const LiveIntegrator& self) {
+            std::vector<std::array<double, 3>> out;
+            for (const Vec3d& c : self.path()) out.push_back({c.x, c.y, c.z});
+            return out;
+          },
+          "Every added view's centre (local frame), oldest first (thinned beyond 10,000).")
+      .def("state_json", &LiveIntegrator::StateJson,
+           "The newest update as JSON: what the live page shows (docs/live.md).")
       .def("render_options", &LiveIntegrator::RenderOptions,
            "The options the newest update rendered with (pose_view resolved).")
       .def("tracks_result", &LiveIntegrator::TracksResult,

@@ -1197,13 +1197,14 @@ def import_video(
     return _core._import_video(os.fspath(video), os.fspath(output_dir), merged, posing, progress)
 
 
-def view(light_field: "LightField | str | os.PathLike[str]", **kwargs: Any) -> Any:
+def view(light_field: "LightField | str | os.PathLike[str] | None" = None, **kwargs: Any) -> Any:
     """Starts the interactive browser viewer on ``light_field`` (a LightField or a path) and
     returns its handle at once: ``.url`` (with the session token), ``.stop()``. Works in a
     notebook (the server runs in a background thread). Keywords: the starting focus and camera
     with IntegralOptions' names (focal_surface, surface_offset, aperture_radius,
     pose_view, cam_from_world, fov_deg, width, height, view_indices, min_view_angle_deg,
     num_threads) and host, port, open_browser; see :func:`aos.viewer.view` and docs/viewer.md.
+    ``live=`` an aos.LiveIntegrator instead of a light field: the live page (docs/live.md).
     Needs aiohttp (a dependency of aos; ``pip install aiohttp`` if it was removed).
 
     Example::

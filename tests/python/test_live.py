@@ -146,3 +146,52 @@ def test_cli_folder_takes_complete_frames_and_skips_a_corrupt_one(tmp_path: Path
     assert "f03.png" not in stderr
     image = aos.read_image(str(tmp_path / "live.png"))
     assert image.shape[:2] == (48, 64)
+
+
+def test_cli_view_serves_the_live_page_and_stops_with_it(forest: aos.LightField,
+                                                         tmp_path: Path) -> None:
+    """`live --view`: the page's server (a child process) serves the updates on 127.0.0.1 with
+    its token; after the replay it keeps the last update until SIGINT, then both end (exit 0:
+    the run was complete) and the state folder is gone."""
+    import signal
+    import urllib.request
+
+    path = tmp_path / "lf.json"
+    aos.write_lightfield(str(path), forest)
+    folders_before = set(Path("/tmp").glob("aos-live-view-*"))
+    process = subprocess.Popen(
+        ["aos-render", "live", "--replay", str(path), "--focal-height", "0", "--geojson",
+         str(tmp_path / "tracks.geojson"), "--view", "--no-browser", "--fps", "40"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        lines = [process.stdout.readline() for _ in range(2)]
+        url = lines[1].strip()
+        assert url.startswith("http://127.0.0.1:") and "token=" in url, lines
+        base, token = url.split("?token=")
+        state = json.loads(urllib.request.urlopen(f"{base}api/live?after=0&token={token}",
+                                                  timeout=20).read())
+        assert state["update"] >= 1 and state["width"] == 128
+        png = urllib.request.urlopen(f"{base}api/live/image?token={token}", timeout=20).read()
+        assert png[:4] == b"\x89PNG"
+        try:
+            urllib.request.urlopen(f"{base}api/live?after=0", timeout=20)
+            raise AssertionError("served without its token")
+        except urllib.error.HTTPError as error:
+            assert error.code == 403
+        deadline = time.monotonic() + 60
+        while json.loads(urllib.request.urlopen(
+                f"{base}api/live?after=0&token={token}", timeout=20).read())["update"] < len(forest):
+            assert time.monotonic() < deadline
+            time.sleep(0.2)
+        time.sleep(0.5)
+        assert process.poll() is None  # the page stays up after the run
+        process.send_signal(signal.SIGINT)
+        _, stderr = process.communicate(timeout=10)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, stderr[-800:]
+    assert "the run ended" in stderr
+    assert set(Path("/tmp").glob("aos-live-view-*")) <= folders_before  # the state folder went
+    features = json.loads((tmp_path / "tracks.geojson").read_text())["features"]
+    assert features

@@ -10,6 +10,7 @@
 
 #include "aos/util/error.h"
 #include "aos/util/memory.h"
+#include "aos/util/parallel.h"
 
 namespace aos {
 namespace {
@@ -405,9 +406,11 @@ void LocalScores(const Features& f, const AnomalyOptions& options, double global
     return s.at<double>(y1, x1) - s.at<double>(y0, x1) - s.at<double>(y1, x0) + s.at<double>(y0, x0);
   };
   scores->assign(f.valid.size(), 0.0);
-  std::vector<double> mean(d), covariance(static_cast<size_t>(d) * d);
-  std::vector<double> values(1 + d + pairs);
-  for (int y = 0; y < h; ++y) {
+  // Rows in parallel (each pixel's score depends on the integral images only).
+  ParallelFor(h, -1, nullptr, [&](int64_t row) {
+    const int y = static_cast<int>(row);
+    std::vector<double> mean(d), covariance(static_cast<size_t>(d) * d);
+    std::vector<double> values(1 + d + pairs);
     for (int x = 0; x < w; ++x) {
       const size_t i = static_cast<size_t>(y) * w + x;
       if (!f.valid[i]) continue;
@@ -438,7 +441,7 @@ void LocalScores(const Features& f, const AnomalyOptions& options, double global
                          ? score
                          : Mahalanobis2(f.At(i), global_mean.data(), global_inverse.data(), d);
     }
-  }
+  });
 }
 
 }  // namespace

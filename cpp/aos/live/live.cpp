@@ -3,6 +3,8 @@
 #include <algorithm>
 #include <cmath>
 
+#include <nlohmann/json.hpp>
+
 #include "aos/util/error.h"
 
 namespace aos {
@@ -26,6 +28,11 @@ LiveIntegrator::LiveIntegrator(const LightField& base, const IntegralOptions& re
 }
 
 IntegralOptions LiveIntegrator::RenderOptions() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return RenderOptionsLocked();
+}
+
+IntegralOptions LiveIntegrator::RenderOptionsLocked() const {
   IntegralOptions options = render_;
   if (live_.follow == "latest") {
     options.pose_view = window_.views.empty() ? -1 : static_cast<int>(window_.views.size()) - 1;
@@ -34,6 +41,7 @@ IntegralOptions LiveIntegrator::RenderOptions() const {
 }
 
 std::vector<std::string> LiveIntegrator::Add(View view, bool update, ProgressSink* progress) {
+  std::lock_guard<std::mutex> lock(mutex_);
   if (view.image.empty()) ThrowInvalid("view '" + view.name + "': image: not loaded");
   if (!window_.views.empty()) {
     const LensCamera& first = window_.views.front().camera;
@@ -48,32 +56,70 @@ std::vector<std::string> LiveIntegrator::Add(View view, bool update, ProgressSin
       ThrowInvalid("view '" + view.name + "': name: already in the window");
     }
   }
+  path_.push_back(view.cam_from_world.Center());
+  if (path_.size() >= kMaxPathPoints) {  // every other point: the shape stays, memory is bounded
+    std::vector<Vec3d> thinned;
+    for (size_t i = 0; i < path_.size(); i += 2) thinned.push_back(path_[i]);
+    thinned.push_back(path_.back());
+    path_ = std::move(thinned);
+  }
   window_.views.push_back(std::move(view));
   std::vector<std::string> dropped;
   while (window_.views.size() > static_cast<size_t>(live_.window_frames)) {
     dropped.push_back(window_.views.front().name);
     window_.views.erase(window_.views.begin());
   }
-  if (update) Update(progress);
+  if (update) UpdateLocked(progress);
   return dropped;
 }
 
 bool LiveIntegrator::Remove(const std::string& name, bool update, ProgressSink* progress) {
+  std::lock_guard<std::mutex> lock(mutex_);
   const auto it = std::find_if(window_.views.begin(), window_.views.end(),
                                [&](const View& v) { return v.name == name; });
   if (it == window_.views.end()) return false;
   window_.views.erase(it);
-  if (update) Update(progress);
+  if (update) UpdateLocked(progress);
   return true;
 }
 
 void LiveIntegrator::Update(ProgressSink* progress) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  UpdateLocked(progress);
+}
+
+LightField LiveIntegrator::window() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return window_;
+}
+
+DetectResult LiveIntegrator::result() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return result_;
+}
+
+std::vector<LiveTrack> LiveIntegrator::tracks() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return tracks_;
+}
+
+int LiveIntegrator::updates() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return updates_;
+}
+
+std::vector<Vec3d> LiveIntegrator::path() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return path_;
+}
+
+void LiveIntegrator::UpdateLocked(ProgressSink* progress) {
   ++updates_;
   if (window_.views.empty()) {
     result_ = DetectResult();
     return;
   }
-  const IntegralOptions options = RenderOptions();
+  const IntegralOptions options = RenderOptionsLocked();
   if (live_.detect) {
     result_ = Detect(window_, options, detect_, progress);
     Track(result_);
@@ -123,6 +169,11 @@ void LiveIntegrator::Track(const DetectResult& found) {
 }
 
 DetectResult LiveIntegrator::TracksResult() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  return TracksResultLocked();
+}
+
+DetectResult LiveIntegrator::TracksResultLocked() const {
   DetectResult result;
   result.crs = window_.crs;
   result.radiometry = window_.radiometry;
@@ -136,6 +187,60 @@ DetectResult LiveIntegrator::TracksResult() const {
     result.detections.push_back(std::move(d));
   }
   return result;
+}
+
+}  // namespace aos
+
+namespace aos {
+
+std::string LiveIntegrator::StateJson() const {
+  std::lock_guard<std::mutex> lock(mutex_);
+  nlohmann::ordered_json state;
+  const auto number = [](double v) -> nlohmann::ordered_json {
+    return std::isfinite(v) ? nlohmann::ordered_json(v) : nlohmann::ordered_json(nullptr);
+  };
+  state["update"] = updates_;
+  state["frame"] = window_.views.empty() ? std::string() : window_.views.back().name;
+  nlohmann::ordered_json names = nlohmann::ordered_json::array();
+  nlohmann::ordered_json window_path = nlohmann::ordered_json::array();
+  for (const View& view : window_.views) {
+    names.push_back(view.name);
+    const Vec3d c = view.cam_from_world.Center();
+    window_path.push_back({c.x, c.y});
+  }
+  state["window"] = names;
+  state["window_frames"] = live_.window_frames;
+  state["width"] = result_.render.image.width();
+  state["height"] = result_.render.image.height();
+  state["crs"] = window_.crs;
+  state["origin"] = {window_.origin.x, window_.origin.y, window_.origin.z};
+  state["threshold_rule"] = result_.threshold_rule;
+  nlohmann::ordered_json detections = nlohmann::ordered_json::array();
+  for (const Detection& d : result_.detections) {
+    detections.push_back({{"x", d.pixel.x}, {"y", d.pixel.y}, {"area_px", d.area_px},
+                          {"peak_score", number(d.peak_score)}});
+  }
+  state["detections"] = detections;
+  nlohmann::ordered_json tracks = nlohmann::ordered_json::array();
+  for (const LiveTrack& t : tracks_) {
+    const Detection& d = t.detection;
+    nlohmann::ordered_json track;
+    track["world"] = {number(d.world.x), number(d.world.y), number(d.world.z)};
+    track["local"] = {number(d.local.x), number(d.local.y), number(d.local.z)};
+    track["lon_lat"] = d.lon_lat ? nlohmann::ordered_json({d.lon_lat->x, d.lon_lat->y})
+                                 : nlohmann::ordered_json(nullptr);
+    track["peak_score"] = number(d.peak_score);
+    track["sightings"] = t.sightings;
+    track["first_frame"] = t.first_frame;
+    track["last_frame"] = t.last_frame;
+    tracks.push_back(track);
+  }
+  state["tracks"] = tracks;
+  nlohmann::ordered_json path = nlohmann::ordered_json::array();
+  for (const Vec3d& c : path_) path.push_back({c.x, c.y});
+  state["path"] = path;
+  state["window_path"] = window_path;
+  return state.dump();
 }
 
 }  // namespace aos

@@ -16,13 +16,21 @@
 //   frame), else start a new one. A track keeps its strongest sighting (the highest peak score),
 //   how many updates saw it and the newest frame's name at its first and last sighting. At most
 //   max_tracks are kept (the highest peaks), so a long flight stays bounded.
-// - Memory: the window's views (their images shared, not copied) and one render; bounded by the
-//   window whatever the flight's length.
+// - Memory: the window's views (their images shared, not copied), one render and the flight path
+//   (every added view's centre, halved in density whenever it reaches kMaxPathPoints); bounded by
+//   the window whatever the flight's length.
+// - Threads: every member function may be called from several threads (one mutex: an update
+//   and a reader such as the viewer's page wait for each other); the accessors return copies
+//   (images share their pixels, which an update never changes in place).
+// - StateJson(): the newest update as one JSON object, what the live page shows: update,
+//   newest frame, window names, the image's size, this update's detections (pixel centroid,
+//   area, peak), the tracks (world, local, lon/lat, peak, sightings, first/last frame), the
+//   flight path and the window's centres (local x, y), the crs.
 // - Throws std::invalid_argument naming the field: a view whose camera size differs from the
 //   first's, a repeated name while that view is in the window, options out of range (an
 //   IntegralOptions with view_indices: the window is the selection; follow "fixed" with a
 //   pose_view).
-#include <deque>
+#include <mutex>
 #include <string>
 #include <vector>
 
@@ -89,11 +97,16 @@ class LiveIntegrator {
   // Renders the window and (detect) finds and tracks. An empty window clears the image.
   void Update(ProgressSink* progress = nullptr);
 
-  const LightField& window() const { return window_; }
+  LightField window() const;
   // The newest update's render and detections (detect: result.detections; else only render).
-  const DetectResult& result() const { return result_; }
-  const std::vector<LiveTrack>& tracks() const { return tracks_; }
-  int updates() const { return updates_; }
+  DetectResult result() const;
+  std::vector<LiveTrack> tracks() const;
+  int updates() const;
+  // Every added view's centre (local frame), oldest first (thinned beyond kMaxPathPoints).
+  std::vector<Vec3d> path() const;
+  // The newest update as JSON (see the contract).
+  std::string StateJson() const;
+  static constexpr size_t kMaxPathPoints = 10000;
   // The render options the newest update used (pose_view resolved for follow "latest").
   IntegralOptions RenderOptions() const;
   // The tracks as a DetectResult (one detection per track, strongest first) for WriteDetections.
@@ -105,6 +118,12 @@ class LiveIntegrator {
 
  private:
   void Track(const DetectResult& found);
+  void UpdateLocked(ProgressSink* progress);
+  IntegralOptions RenderOptionsLocked() const;
+  DetectResult TracksResultLocked() const;
+
+  mutable std::mutex mutex_;
+  std::vector<Vec3d> path_;
 
   IntegralOptions render_;
   DetectOptions detect_;

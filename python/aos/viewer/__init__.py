@@ -85,9 +85,9 @@ class Viewer:
     pages (WebSockets) may be open at once; the next one is told so and closed.
     """
 
-    def __init__(self, session: Session, *, host: str = "127.0.0.1", port: int = 0,
+    def __init__(self, session: Optional[Session], *, host: str = "127.0.0.1", port: int = 0,
                  token: Optional[str] = None, render_workers: int = 1,
-                 max_pages: int = MAX_PAGES) -> None:
+                 max_pages: int = MAX_PAGES, live: Any = None) -> None:
         _require_aiohttp()
         from aiohttp import web
 
@@ -102,7 +102,7 @@ class Viewer:
             raise ValueError("token: at least 16 URL-safe characters (A-Z, a-z, 0-9, -, _); "
                              "leave it out for a random one")
         self.token = token or secrets.token_urlsafe(24)
-        self.server = _Server(session, self.token, render_workers, max_pages)
+        self.server = _Server(session, self.token, render_workers, max_pages, live=live)
         self._loop = asyncio.new_event_loop()
         self._ready = threading.Event()
         self._stopped = threading.Event()
@@ -218,8 +218,9 @@ class Viewer:
         return f"<aos.Viewer {state} at {self.url}>"
 
     def _repr_html_(self) -> str:
+        what = "live" if self.session is None else f"{self.session.view_count} views"
         return (f'<a href="{self.url}" target="_blank">aos viewer</a> '
-                f"({'running' if self.running else 'stopped'}; {self.session.view_count} views)")
+                f"({'running' if self.running else 'stopped'}; {what})")
 
 
 def _caller_level() -> int:
@@ -232,7 +233,7 @@ def _caller_level() -> int:
     return level
 
 
-def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float = 0.0,
+def view(light_field: Any = None, *, live: Any = None, focal_surface: Any = None, surface_offset: float = 0.0,
          aperture_radius: float = float("inf"), pose_view: Optional[int] = None,
          cam_from_world: Any = None, fov_deg: float = 0.0, width: int = 0, height: int = 0,
          view_indices: Optional[list[int]] = None, min_view_angle_deg: Optional[float] = None,
@@ -242,6 +243,11 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
          focal_height: Optional[float] = None, options: Any = None) -> Viewer:
     """Starts the viewer on ``light_field`` (an aos.LightField, or a path that
     aos.load_lightfield reads) and returns its handle at once (``.url``, ``.stop()``).
+
+    ``live``: an aos.LiveIntegrator (or a viewer.live.LiveFeed) instead of a light field: the
+    live page shows its newest update as frames are added (from any thread), the detections as
+    markers, the tracks in a list and the flight path on a mini-map (docs/live.md); the
+    render keywords do not apply then.
 
     The keywords are the starting values of the page's controls, with the names and meaning of
     :class:`aos.IntegralOptions`' fields: ``focal_surface`` (a number H: the plane z = H, or a
@@ -266,6 +272,22 @@ def view(light_field: Any, *, focal_surface: Any = None, surface_offset: float =
     served = aos.ViewerOptions(host=host, port=port, render_workers=render_workers,
                                max_pages=max_pages, open_browser=open_browser)
     served.check()
+    if live is not None:
+        from .live import IntegratorFeed, LiveFeed
+
+        if light_field is not None:
+            raise TypeError("view(): give a light field or live=, not both")
+        feed = live if isinstance(live, LiveFeed) else IntegratorFeed(live)
+        warning = remote_warning(host)
+        if warning:
+            warnings.warn(warning, stacklevel=2)
+        viewer = Viewer(None, host=host, port=port, render_workers=render_workers,
+                        max_pages=max_pages, live=feed)
+        if open_browser is None:
+            open_browser = can_open_browser()
+        if open_browser:
+            viewer.open_browser()
+        return viewer
     if isinstance(light_field, (str, os.PathLike)):
         source = source or os.fspath(light_field)
         light_field = aos.load_lightfield(os.fspath(light_field)).light_field

@@ -45,6 +45,8 @@ def main(argv: list[str]) -> int:
     from .session import BadParameter, parse_view_list
 
     quiet = bool(spec.get("quiet")) or bool(spec.get("json"))
+    if spec.get("live_dir"):
+        return serve_live(spec, quiet)
     try:
         options = aos.IntegralOptions.from_json(json.dumps(spec["options"]))
         load = {key: value for key, value in spec["load"].items()
@@ -135,6 +137,45 @@ def main(argv: list[str]) -> int:
     viewer.stop()
     if not quiet:
         sys.stderr.write("aos viewer: stopped\n")
+    return 0
+
+
+def serve_live(spec: dict[str, Any], quiet: bool) -> int:
+    """`aos-render live --view`: the live page on the state folder that command writes (spec
+    keys live_dir, viewer, quiet); serves until SIGTERM or SIGINT (exit 0)."""
+    import aos
+
+    from . import Viewer, can_open_browser, remote_warning
+    from .live import FolderFeed
+
+    try:
+        served = aos.ViewerOptions.from_json(json.dumps(spec["viewer"]))
+        served.check()
+        warning = remote_warning(served.host)
+        if warning:
+            sys.stderr.write(f"warning: {warning}\n")
+        viewer = Viewer(None, host=served.host, port=served.port, max_pages=served.max_pages,
+                        live=FolderFeed(spec["live_dir"]))
+    except (ValueError, OSError) as error:
+        return _fail(str(error).splitlines()[0] if str(error) else type(error).__name__)
+    except KeyError as error:
+        return _fail(f"--spec: missing {error}", 2)
+    stop = threading.Event()
+    for number in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(number, lambda _signum, _frame: stop.set())
+    print(f"aos live page at\n  {viewer.url}", flush=True)
+    open_browser = served.open_browser
+    if open_browser is None:
+        open_browser = can_open_browser()
+    if open_browser:
+        viewer.open_browser()
+    while not stop.wait(0.5):
+        if not viewer.running:
+            viewer.stop()
+            return _fail("the server stopped unexpectedly")
+    viewer.stop()
+    if not quiet:
+        sys.stderr.write("aos live page: stopped\n")
     return 0
 
 

@@ -105,7 +105,13 @@ ASSET_FILES = {
     "index.html": ("index.html", "text/html; charset=utf-8"),
     "viewer.js": ("viewer.js", "text/javascript; charset=utf-8"),
     "viewer.css": ("viewer.css", "text/css; charset=utf-8"),
+    "live.html": ("live.html", "text/html; charset=utf-8"),
+    "live.js": ("live.js", "text/javascript; charset=utf-8"),
 }
+# How long /api/live waits for an update newer than the page's before answering the current one.
+LIVE_WAIT_S = 10.0
+# Live requests waiting at once (each holds a thread of the live pool while it waits).
+MAX_LIVE_WAITERS = 32
 
 
 def load_assets() -> dict[str, tuple[bytes, str]]:
@@ -188,13 +194,20 @@ def release_memory() -> None:
 class Viewer:
     """The server's state: the session, the token, the render worker."""
 
-    def __init__(self, session: Session, token: str, render_workers: int = 1,
-                 max_pages: int = MAX_PAGES) -> None:
+    def __init__(self, session: Optional[Session], token: str, render_workers: int = 1,
+                 max_pages: int = MAX_PAGES, live: Any = None) -> None:
         if render_workers < 1:
             raise ValueError(f"render_workers: must be >= 1, got {render_workers}")
         if isinstance(max_pages, bool) or not isinstance(max_pages, int) or max_pages < 1:
             raise ValueError(f"max_pages: must be an integer >= 1, got {max_pages!r}")
+        if (session is None) == (live is None):
+            raise ValueError("viewer: give a session or a live feed (one of them)")
         self.session = session
+        # A live feed (viewer/live.py) serves the live page instead of the session's.
+        self.live = live
+        self.live_waiters = 0
+        self.live_executor = concurrent.futures.ThreadPoolExecutor(
+            max_workers=4, thread_name_prefix="aos-live") if live is not None else None
         self.token = token
         self.max_pages = max_pages
         self.assets = load_assets()
@@ -347,6 +360,10 @@ class Viewer:
         app = web.Application(middlewares=[guard], client_max_size=MAX_BODY_BYTES)
         app.router.add_get("/", self.page)
         app.router.add_get("/static/{name}", self.asset)
+        if self.live is not None:
+            app.router.add_get("/api/live", self.live_state)
+            app.router.add_get("/api/live/image", self.live_image)
+            return app
         app.router.add_get("/api/info", self.info)
         app.router.add_route("*", "/api/render", self.render_once)
         app.router.add_get("/api/pick", self.pick)
@@ -365,6 +382,9 @@ class Viewer:
 
     def close(self) -> None:
         self.executor.shutdown(wait=True, cancel_futures=True)
+        if self.live_executor is not None:
+            self.live_executor.shutdown(wait=False, cancel_futures=True)
+            self.live.close()
         self.downloads.clear()
         if self.download_folder:
             shutil.rmtree(self.download_folder, ignore_errors=True)
@@ -372,7 +392,7 @@ class Viewer:
     # ---- static ----
 
     async def page(self, request: web.Request) -> web.Response:
-        body, kind = self.assets["index.html"]
+        body, kind = self.assets["live.html" if self.live is not None else "index.html"]
         # The assets' URLs carry the token too (it is URL-safe base64: no escaping needed).
         body = body.replace(b"{{TOKEN}}", self.token.encode())
         return web.Response(body=body, content_type=kind.split(";")[0], charset="utf-8")
@@ -381,10 +401,41 @@ class Viewer:
         # A name from the whitelist, never a path: anything else (../, %2e%2e, index.html?x)
         # is simply not a key of the dict.
         found = self.assets.get(request.match_info["name"])
-        if found is None or request.match_info["name"] == "index.html":
+        if found is None or request.match_info["name"] in ("index.html", "live.html"):
             return _bad("not found", 404)
         body, kind = found
         return web.Response(body=body, content_type=kind.split(";")[0], charset="utf-8")
+
+    # ---- live ----
+
+    async def live_state(self, request: web.Request) -> web.Response:
+        """The newest update's state (JSON) once it is newer than ``after`` (the page's), or
+        after LIVE_WAIT_S the current one; 204 before the first update."""
+        after = request.query.get("after", "0")
+        if not re.fullmatch(r"[0-9]{1,12}", after):
+            raise BadParameter("after: an update number (a whole number >= 0)")
+        if self.live_waiters >= MAX_LIVE_WAITERS:
+            raise web.HTTPServiceUnavailable(reason=f"busy: {MAX_LIVE_WAITERS} live requests "
+                                                    "are waiting; try again")
+        self.live_waiters += 1
+        try:
+            loop = asyncio.get_running_loop()
+            snapshot = await loop.run_in_executor(self.live_executor, self.live.wait,
+                                                  int(after), LIVE_WAIT_S)
+        finally:
+            self.live_waiters -= 1
+        if snapshot is None:
+            return web.Response(status=204)
+        return web.Response(body=snapshot[1], content_type="application/json")
+
+    async def live_image(self, request: web.Request) -> web.Response:
+        """The newest update's image (PNG): the integral with its detections boxed."""
+        snapshot = self.live.snapshot()
+        if snapshot is None or not snapshot[2]:
+            return _bad("no image yet", 404)
+        response = web.Response(body=snapshot[2], content_type="image/png")
+        response.headers["X-AOS-Update"] = str(snapshot[0])
+        return response
 
     # ---- requests ----
 

@@ -1,0 +1,122 @@
+"""What the live page shows (docs/live.md): a feed of updates, each a JSON state and a PNG.
+
+Two feeds:
+
+* ``IntegratorFeed``: an :class:`aos.LiveIntegrator` in this process (``aos.view(live=...)``);
+  the caller adds frames from any thread (the integrator locks), the feed notices each update.
+* ``FolderFeed``: the folder ``aos-render live --view`` writes after every update: ``live.json``
+  (the integrator's ``state_json()`` plus the image's file name and timings) and the image it
+  names, each renamed into place, so a reader never sees half a file.
+
+``snapshot()`` gives (update, state bytes, png bytes) of the newest update, or None before the
+first; ``Feed.wait`` blocks until an update newer than ``after`` (or a timeout).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+import threading
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+Snapshot = tuple[int, bytes, bytes]
+
+
+class LiveFeed:
+    """The newest update of a live run; subclasses implement ``_read``."""
+
+    poll_s = 0.02
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._snapshot: Optional[Snapshot] = None
+        self._closed = threading.Event()
+
+    def _read(self, known: int) -> Optional[Snapshot]:
+        """The newest update when it is newer than ``known``, else None."""
+        raise NotImplementedError
+
+    def snapshot(self) -> Optional[Snapshot]:
+        with self._lock:
+            known = self._snapshot[0] if self._snapshot else 0
+            fresh = self._read(known)
+            if fresh is not None and fresh[0] > known:
+                self._snapshot = fresh
+            return self._snapshot
+
+    def wait(self, after: int, timeout: float) -> Optional[Snapshot]:
+        """The newest update once it is newer than ``after``; the current one at the timeout."""
+        deadline = time.monotonic() + timeout
+        while True:
+            current = self.snapshot()
+            if ((current is not None and current[0] > after) or time.monotonic() >= deadline
+                    or self._closed.is_set()):
+                return current
+            time.sleep(self.poll_s)
+
+    def close(self) -> None:
+        """Ends every wait at once (the server is stopping)."""
+        self._closed.set()
+
+
+class IntegratorFeed(LiveFeed):
+    """An aos.LiveIntegrator's updates: its state_json() and its overlay as PNG."""
+
+    def __init__(self, integrator: Any) -> None:
+        super().__init__()
+        import aos
+
+        if not isinstance(integrator, aos.LiveIntegrator):
+            raise TypeError(f"view(): live must be an aos.LiveIntegrator or a LiveFeed, not "
+                            f"{type(integrator).__name__}")
+        self.integrator = integrator
+        self._folder = tempfile.mkdtemp(prefix="aos-live-view-")  # mode 0700
+
+    def _read(self, known: int) -> Optional[Snapshot]:
+        import aos
+
+        if self.integrator.updates <= known:
+            return None
+        state = json.loads(self.integrator.state_json())
+        result = self.integrator.result
+        png = b""
+        if result.render.image is not None and state["width"] > 0:
+            path = os.path.join(self._folder, "live.png")
+            aos.write_image(path, result.overlay())
+            png = Path(path).read_bytes()
+        state["shown_unix"] = time.time()
+        return state["update"], json.dumps(state).encode(), png
+
+    def close(self) -> None:
+        super().close()
+        shutil.rmtree(self._folder, ignore_errors=True)
+
+
+class FolderFeed(LiveFeed):
+    """The folder `aos-render live --view` writes (live.json and the image it names)."""
+
+    def __init__(self, folder: str) -> None:
+        super().__init__()
+        self.folder = Path(folder)
+        self._mtime = 0
+
+    def _read(self, known: int) -> Optional[Snapshot]:
+        path = self.folder / "live.json"
+        try:
+            mtime = path.stat().st_mtime_ns
+            if mtime == self._mtime:
+                return None
+            text = path.read_bytes()
+            state = json.loads(text)
+            png = (self.folder / Path(state.get("image", "")).name).read_bytes() \
+                if state.get("image") else b""
+        except (OSError, ValueError):
+            return None  # not written yet, or replaced while read: the next poll has it
+        self._mtime = mtime
+        if int(state.get("update", 0)) <= known:
+            return None
+        return int(state["update"]), text, png
