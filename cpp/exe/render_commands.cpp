@@ -1357,6 +1357,7 @@ struct LiveCommand {
   double fps = 0.0;       // --fps: replay pace; 0 = as fast as the updates run
   double idle_exit_s = 0.0;  // --idle-exit-s: stop after this long without a new frame; 0 = never
   double poll_s = 0.1;
+  bool resume = false;   // --resume: the tracks of --geojson carried on, the folder's backlog skipped
   LoadOptions load;
   std::string focal_surface_path;
   RenderArgs args;
@@ -1507,6 +1508,49 @@ std::string LogRowsNaming(const std::string& path, const std::vector<std::string
   return text;
 }
 
+// The tracks a live run wrote as GeoJSON (WriteDetections with sightings), for --resume.
+std::vector<LiveTrack> ReadTracks(const std::string& path) {
+  nlohmann::json root;
+  try {
+    root = nlohmann::json::parse(ReadTextFile(path));
+  } catch (const nlohmann::json::exception& error) {
+    ThrowInvalid(path + ": --resume: not JSON (" + error.what() + ")");
+  }
+  std::vector<LiveTrack> tracks;
+  if (!root.contains("features") || !root["features"].is_array()) {
+    ThrowInvalid(path + ": --resume: features: missing (not the GeoJSON of a live run)");
+  }
+  for (size_t i = 0; i < root["features"].size(); ++i) {
+    const nlohmann::json& p = root["features"][i]["properties"];
+    const std::string where = path + ": --resume: features/" + std::to_string(i) + "/properties";
+    try {
+      LiveTrack track;
+      Detection& d = track.detection;
+      if (p.at("local").is_null()) continue;  // not located: no place to carry on
+      const auto local = p.at("local").get<std::array<double, 3>>();
+      const auto world = p.at("world").get<std::array<double, 3>>();
+      d.local = Vec3d(local[0], local[1], local[2]);
+      d.world = Vec3d(world[0], world[1], world[2]);
+      d.pixel = Vec2d(p.at("pixel_x").get<double>(), p.at("pixel_y").get<double>());
+      d.area_px = p.at("area_px").get<int>();
+      d.peak_score = p.at("peak_score").get<double>();
+      d.mean_score = p.at("mean_score").get<double>();
+      const nlohmann::json& geometry = root["features"][i]["geometry"];
+      if (!geometry.is_null()) {
+        const auto lon_lat = geometry.at("coordinates").get<std::array<double, 2>>();
+        d.lon_lat = Vec2d(lon_lat[0], lon_lat[1]);
+      }
+      track.sightings = p.value("sightings", 1);
+      track.first_frame = p.value("first_seen", std::string());
+      track.last_frame = p.value("last_seen", std::string());
+      tracks.push_back(std::move(track));
+    } catch (const nlohmann::json::exception& error) {
+      ThrowInvalid(where + ": " + error.what());
+    }
+  }
+  return tracks;
+}
+
 double Percentile(std::vector<double> values, double p) {
   if (values.empty()) return std::nan("");
   std::sort(values.begin(), values.end());
@@ -1536,11 +1580,16 @@ int RunLive(LiveCommand& c, const Flags& flags) {
            {c.geojson, "geojson"}, {c.csv, "csv"}, {c.image, "image"}}) {
     if (path.empty()) continue;
     CheckOutputPath(path, inputs, what);
-    RefuseExisting(path, what);
+    if (!c.resume) RefuseExisting(path, what);  // a resumed run rewrites its own outputs
   }
   for (const std::string* path : {&c.geojson, &c.csv}) {
     if (!path->empty()) CheckDetectionsPath(*path, "EPSG:4326");
   }
+  if (c.resume && (c.geojson.empty() || !c.replay.empty())) {
+    ThrowUsage("--resume: continues a folder run from its --geojson tracks (give both)");
+  }
+  std::vector<LiveTrack> resumed;
+  if (c.resume && fs::exists(c.geojson)) resumed = ReadTracks(c.geojson);
   if (!c.image.empty()) ResolveSampleType(c.image, Image(1, 1, 1, PixelType::kU8), WriteImageOptions{});
   ReadFocalSurface(c.args.focal_surface, &c.options.focal_surface);
   if (!c.args.cam_from_world.empty()) {
@@ -1562,7 +1611,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
   std::optional<LightField> replayed;
   std::unique_ptr<LiveIntegrator> integrator;
   std::vector<double> update_ms;
-  int frames = 0, skipped = 0;
+  int frames = 0, skipped = 0, backlog = 0;
   const auto start = std::chrono::steady_clock::now();
   const auto seconds = [&] {
     return std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
@@ -1642,6 +1691,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     } cleanup{staging};
     std::map<std::string, Watched> watched;
     double last_frame_s = 0.0;
+    bool first_batch = true;
     Vec3d origin{0.0};
     std::string crs;
     while (!Interrupted()) {
@@ -1672,6 +1722,23 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         if (w.stable_polls >= 2) ready.push_back(name);
       }
       std::sort(ready.begin(), ready.end(), NaturalLess);
+      if (first_batch && !ready.empty()) {
+        // A restart: the frames already in the folder are its backlog. Only the newest window
+        // is integrated (what the live image shows); the earlier ones are marked taken.
+        first_batch = false;
+        const size_t keep = static_cast<size_t>(c.live.window_frames);
+        if (ready.size() > keep) {
+          const size_t skip = ready.size() - keep;
+          for (size_t k = 0; k < skip; ++k) watched[ready[k]].done = true;
+          if (!Common().quiet && !Common().json) {
+            std::fprintf(stderr, "live: %zu frames already in %s: the newest %zu integrated, the "
+                         "earlier %zu passed over%s\n", ready.size(), c.source.c_str(), keep, skip,
+                         c.resume ? " (their tracks come from --resume)" : "");
+          }
+          backlog = static_cast<int>(skip);
+          ready.erase(ready.begin(), ready.begin() + static_cast<std::ptrdiff_t>(skip));
+        }
+      }
       if (!ready.empty()) {
         // Pose frames: a folder of links to them and the log's rows that name them (the log,
         // re-read each time, may lag the frames), ImportTelemetry's input.
@@ -1728,6 +1795,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
             integrator = flags.NamingFlags([&] {
               return std::make_unique<LiveIntegrator>(base, c.options, c.detect, c.live);
             });
+            integrator->SeedTracks(resumed);
           }
           if (!posed.light_field.views.empty() && posed.light_field.crs != crs) {
             ThrowInvalid(c.source + ": frames in " + posed.light_field.crs +
@@ -1780,6 +1848,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
   Report report("live");
   report.Set("frames", frames);
   report.Set("skipped", skipped);
+  report.Set("passed_over", backlog);
   report.Set("updates", integrator ? integrator->updates() : 0);
   report.Set("tracks", integrator ? integrator->tracks().size() : size_t{0});
   report.Set("update_ms_p50", Percentile(update_ms, 0.5));
@@ -1857,6 +1926,10 @@ CommandRunner DefineLive(CLI::App* command) {
                       "The newest integral with its detections boxed (8-bit), rewritten after "
                       "every update");
   for (const char* output : {"--geojson", "--csv", "--image"}) flags.Output(output);
+  command->add_flag("--resume", c->resume,
+                    "Folder: carry on after a restart: the tracks of --geojson are read back and "
+                    "extended (the outputs are rewritten), and of the frames already in the "
+                    "folder only the newest window is integrated");
   command->add_flag("--view", c->view,
                     "Serve the live page (the newest integral, detections, tracks, flight path) "
                     "while the run goes on, and after it until Ctrl-C");

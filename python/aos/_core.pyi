@@ -2469,6 +2469,7 @@ class LiveOptions:
         self,
         *,
         window_frames: int = ...,
+        window_m: float = ...,
         follow: Literal['latest', 'fixed'] = ...,
         detect: bool = ...,
         merge_radius_m: float = ...,
@@ -2477,6 +2478,9 @@ class LiveOptions:
         """Defaults from C++; unknown names raise TypeError."""
     window_frames: int
     """Live: the newest frames integrated (the sliding window). [>= 1]"""
+    window_m: float
+    """Live: views farther than this from the newest view (horizontally, metres) leave the window
+    too; inf = no distance window. [m, > 0]"""
     follow: Literal['latest', 'fixed']
     """Live: the virtual camera follows the 'latest' view, or stays 'fixed' (--cam-from-world / the
     options' pose). [one of latest or fixed]"""

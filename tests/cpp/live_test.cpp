@@ -112,6 +112,21 @@ TEST(Live, TracksMergeRepeatedSightingsOfOnePlace) {
   EXPECT_EQ(written.detections[0].first_seen, track.first_frame);
 }
 
+// A distance window: views farther than window_m from the newest (horizontally) leave it too.
+TEST(Live, TheDistanceWindowDropsFarViews) {
+  const LightField flight = Flight(10);  // 1 m apart along x
+  IntegralOptions render;
+  LiveOptions live;
+  live.detect = false;
+  live.window_m = 2.5;
+  LiveIntegrator integrator(flight, render, DetectOptions(), live);
+  for (const View& view : flight.views) integrator.Add(view);
+  const LightField window = integrator.window();
+  ASSERT_EQ(window.views.size(), 3u);  // 7, 8, 9: 2 m and 1 m from 9; 6 is 3 m away
+  EXPECT_EQ(window.views.front().name, "frame7");
+  EXPECT_EQ(integrator.path().size(), 10u);
+}
+
 TEST(Live, BadInputIsRefusedNamingTheField) {
   const LightField flight = Flight(2);
   IntegralOptions render;

@@ -195,3 +195,42 @@ def test_cli_view_serves_the_live_page_and_stops_with_it(forest: aos.LightField,
     assert set(Path("/tmp").glob("aos-live-view-*")) <= folders_before  # the state folder went
     features = json.loads((tmp_path / "tracks.geojson").read_text())["features"]
     assert features
+
+
+def test_cli_folder_resume_carries_the_tracks_and_passes_over_the_backlog(tmp_path: Path) -> None:
+    """A restart with --resume: the tracks of the earlier run's GeoJSON are kept (rewritten with
+    the new run's), and of the frames already in the folder only the newest window is
+    integrated."""
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    names = [f"f{i:02d}.png" for i in range(7)]
+    rows = [f"{name},{48.0 + 2e-5 * i:.10f},15.0,30.0,0,-90,0\n" for i, name in enumerate(names)]
+    (tmp_path / "log.csv").write_text("frame,lat,lon,alt,yaw,pitch,roll\n" + "".join(rows))
+    rng = np.random.default_rng(4)
+    for name in names:
+        aos.write_image(str(frames / name), rng.integers(0, 255, (48, 64), dtype=np.uint8))
+    earlier = {"type": "FeatureCollection", "features": [{
+        "type": "Feature", "id": 1, "geometry": {"type": "Point", "coordinates": [15.0, 48.0]},
+        "properties": {"pixel_x": 10.0, "pixel_y": 12.0, "area_px": 9, "peak_score": 1234.5,
+                       "mean_score": 300.0, "world": [500000.0, 5316666.0, 0.0],
+                       "local": [1.0, 2.0, 0.0], "crs": "EPSG:32633", "views": [],
+                       "sightings": 7, "first_seen": "a.png", "last_seen": "b.png"}}]}
+    tracks = tmp_path / "tracks.geojson"
+    tracks.write_text(json.dumps(earlier))
+    refused = subprocess.run(["aos-render", "live", str(frames), "--telemetry-file",
+                              str(tmp_path / "log.csv"), "--frames-fov-deg", "50",
+                              "--geojson", str(tracks), "--idle-exit-s", "1"],
+                             capture_output=True, text=True, timeout=60)
+    assert refused.returncode != 0 and "exists" in refused.stderr  # no --resume: not replaced
+    out = subprocess.run(["aos-render", "live", str(frames), "--telemetry-file",
+                          str(tmp_path / "log.csv"), "--frames-fov-deg", "50", "--focal-height",
+                          "0", "--window-frames", "3", "--geojson", str(tracks), "--resume",
+                          "--idle-exit-s", "1.5", "--json"],
+                         capture_output=True, text=True, timeout=60)
+    assert out.returncode == 0, out.stderr[-800:]
+    report = json.loads(out.stdout)
+    assert report["passed_over"] == 4 and report["frames"] == 3, report
+    features = json.loads(tracks.read_text())["features"]
+    carried = [f for f in features if f["properties"].get("first_seen") == "a.png"]
+    assert len(carried) == 1 and carried[0]["properties"]["sightings"] == 7
+    assert carried[0]["properties"]["peak_score"] == 1234.5

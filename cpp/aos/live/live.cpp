@@ -65,7 +65,13 @@ std::vector<std::string> LiveIntegrator::Add(View view, bool update, ProgressSin
   }
   window_.views.push_back(std::move(view));
   std::vector<std::string> dropped;
-  while (window_.views.size() > static_cast<size_t>(live_.window_frames)) {
+  const Vec3d newest = window_.views.back().cam_from_world.Center();
+  const auto too_far = [&](const View& v) {
+    const Vec3d c = v.cam_from_world.Center();
+    return std::hypot(c.x - newest.x, c.y - newest.y) > live_.window_m;
+  };
+  while (window_.views.size() > static_cast<size_t>(live_.window_frames) ||
+         (window_.views.size() > 1 && too_far(window_.views.front()))) {
     dropped.push_back(window_.views.front().name);
     window_.views.erase(window_.views.begin());
   }
@@ -106,6 +112,17 @@ std::vector<LiveTrack> LiveIntegrator::tracks() const {
 int LiveIntegrator::updates() const {
   std::lock_guard<std::mutex> lock(mutex_);
   return updates_;
+}
+
+void LiveIntegrator::SeedTracks(std::vector<LiveTrack> tracks) {
+  std::lock_guard<std::mutex> lock(mutex_);
+  for (LiveTrack& track : tracks) tracks_.push_back(std::move(track));
+  std::stable_sort(tracks_.begin(), tracks_.end(), [](const LiveTrack& a, const LiveTrack& b) {
+    return a.detection.peak_score > b.detection.peak_score;
+  });
+  if (tracks_.size() > static_cast<size_t>(live_.max_tracks)) {
+    tracks_.resize(static_cast<size_t>(live_.max_tracks));
+  }
 }
 
 std::vector<Vec3d> LiveIntegrator::path() const {

@@ -4,7 +4,8 @@
 //
 // Contract
 // - The window holds at most LiveOptions::window_frames views, in the order they were added;
-//   adding a view beyond that drops the oldest. Remove() takes a view out by name.
+//   adding a view beyond that drops the oldest, and so does a view whose centre lies farther
+//   than window_m (horizontally) from the newest one's. Remove() takes a view out by name.
 // - Update() renders the window exactly as the batch renderer renders a light field of those
 //   views (RenderIntegral, or Detect when detecting: the same function on the same views, so
 //   the live image equals the batch render of the window with the same options, bit for bit).
@@ -30,6 +31,7 @@
 //   first's, a repeated name while that view is in the window, options out of range (an
 //   IntegralOptions with view_indices: the window is the selection; follow "fixed" with a
 //   pose_view).
+#include <limits>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -45,6 +47,9 @@ namespace aos {
 struct LiveOptions {
   // The window: the newest frames integrated, >= 1.
   int window_frames = 30;
+  // A distance window as well: views whose centre lies farther than this (horizontally, light
+  // field units: metres) from the newest view's are dropped, > 0; infinity = none.
+  double window_m = std::numeric_limits<double>::infinity();
   // The virtual camera: "latest" (the newest view's pose) or "fixed" (the render options').
   std::string follow = "latest";
   // Run the detector (DetectOptions) on every update.
@@ -61,6 +66,9 @@ struct LiveOptions {
     using O = LiveOptions;
     field(OptionField("window_frames", &O::window_frames, "", Range::AtLeast(1),
                       "Live: the newest frames integrated (the sliding window)."));
+    field(OptionField("window_m", &O::window_m, "m", Range::Above(0.0),
+                      "Live: views farther than this from the newest view (horizontally, metres) "
+                      "leave the window too; inf = no distance window."));
     field(OptionField("follow", &O::follow, "", Range::OneOf("latest|fixed"),
                       "Live: the virtual camera follows the 'latest' view, or stays 'fixed' "
                       "(--cam-from-world / the options' pose)."));
@@ -102,6 +110,8 @@ class LiveIntegrator {
   DetectResult result() const;
   std::vector<LiveTrack> tracks() const;
   int updates() const;
+  // Tracks found before (a resumed run: read back from its GeoJSON), kept as found tracks.
+  void SeedTracks(std::vector<LiveTrack> tracks);
   // Every added view's centre (local frame), oldest first (thinned beyond kMaxPathPoints).
   std::vector<Vec3d> path() const;
   // The newest update as JSON (see the contract).
