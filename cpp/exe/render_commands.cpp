@@ -14,6 +14,8 @@
 #include <optional>
 
 #include <fcntl.h>
+#include <poll.h>
+#include <sys/inotify.h>
 #include <sys/wait.h>
 #include <csignal>
 #include <unistd.h>
@@ -1691,12 +1693,59 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     } cleanup{staging};
     std::map<std::string, Watched> watched;
     double last_frame_s = 0.0;
-    bool first_batch = true;
     Vec3d origin{0.0};
     std::string crs;
+    // A restart: the frames already in the folder are its backlog. Only the newest window of
+    // them is integrated (what the live image shows); the earlier ones are passed over.
+    {
+      std::vector<std::string> present;
+      std::error_code error;
+      for (const auto& entry : fs::directory_iterator(c.source, error)) {
+        if (entry.is_regular_file(error) && FrameName(entry.path())) {
+          present.push_back(entry.path().filename().string());
+        }
+      }
+      std::sort(present.begin(), present.end(), NaturalLess);
+      const size_t keep = static_cast<size_t>(c.live.window_frames);
+      if (present.size() > keep) {
+        const size_t skip = present.size() - keep;
+        for (size_t k = 0; k < skip; ++k) watched[present[k]].done = true;
+        backlog = static_cast<int>(skip);
+        if (!Common().quiet && !Common().json) {
+          std::fprintf(stderr, "live: %zu frames already in %s: the newest %zu integrated, the "
+                       "earlier %zu passed over%s\n", present.size(), c.source.c_str(), keep,
+                       skip, c.resume ? " (their tracks come from --resume)" : "");
+        }
+      }
+    }
+    // Linux tells when a file's writer closed it or a file was renamed into the folder: such a
+    // frame is complete at once. Without inotify (or for files it did not report) a frame is
+    // complete once its size and time stayed the same over two polls.
+    const int notify = ::inotify_init1(IN_NONBLOCK | IN_CLOEXEC);
+    if (notify >= 0 && ::inotify_add_watch(notify, c.source.c_str(), IN_CLOSE_WRITE | IN_MOVED_TO) < 0) {
+      ::close(notify);
+    }
+    struct CloseNotify {
+      int fd;
+      ~CloseNotify() {
+        if (fd >= 0) ::close(fd);
+      }
+    } close_notify{notify};
+    std::set<std::string> closed;  // names inotify reported complete, not yet taken
     while (!Interrupted()) {
       const double now = seconds();
-      // Frames whose size and time stayed the same over two polls are complete.
+      if (close_notify.fd >= 0) {
+        alignas(inotify_event) char buffer[16384];
+        for (;;) {
+          const ssize_t n = ::read(close_notify.fd, buffer, sizeof(buffer));
+          if (n <= 0) break;
+          for (ssize_t at = 0; at < n;) {
+            const auto* event = reinterpret_cast<const inotify_event*>(buffer + at);
+            if (event->len > 0) closed.insert(event->name);
+            at += static_cast<ssize_t>(sizeof(inotify_event) + event->len);
+          }
+        }
+      }
       std::vector<std::string> ready;
       std::error_code error;
       for (const auto& entry : fs::directory_iterator(c.source, error)) {
@@ -1719,26 +1768,10 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         }
         w.size = size;
         w.mtime = mtime;
-        if (w.stable_polls >= 2) ready.push_back(name);
+        const bool reported = closed.erase(name) > 0 && size > 0;
+        if (w.stable_polls >= 2 || reported) ready.push_back(name);
       }
       std::sort(ready.begin(), ready.end(), NaturalLess);
-      if (first_batch && !ready.empty()) {
-        // A restart: the frames already in the folder are its backlog. Only the newest window
-        // is integrated (what the live image shows); the earlier ones are marked taken.
-        first_batch = false;
-        const size_t keep = static_cast<size_t>(c.live.window_frames);
-        if (ready.size() > keep) {
-          const size_t skip = ready.size() - keep;
-          for (size_t k = 0; k < skip; ++k) watched[ready[k]].done = true;
-          if (!Common().quiet && !Common().json) {
-            std::fprintf(stderr, "live: %zu frames already in %s: the newest %zu integrated, the "
-                         "earlier %zu passed over%s\n", ready.size(), c.source.c_str(), keep, skip,
-                         c.resume ? " (their tracks come from --resume)" : "");
-          }
-          backlog = static_cast<int>(skip);
-          ready.erase(ready.begin(), ready.begin() + static_cast<std::ptrdiff_t>(skip));
-        }
-      }
       if (!ready.empty()) {
         // Pose frames: a folder of links to them and the log's rows that name them (the log,
         // re-read each time, may lag the frames), ImportTelemetry's input.
@@ -1832,7 +1865,12 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         }
       }
       if (c.idle_exit_s > 0.0 && seconds() - std::max(last_frame_s, 0.0) > c.idle_exit_s) break;
-      std::this_thread::sleep_for(std::chrono::duration<double>(c.poll_s));
+      if (close_notify.fd >= 0) {  // woken at once by a frame's close or rename
+        pollfd wait{close_notify.fd, POLLIN, 0};
+        ::poll(&wait, 1, static_cast<int>(c.poll_s * 1000.0));
+      } else {
+        std::this_thread::sleep_for(std::chrono::duration<double>(c.poll_s));
+      }
     }
   }
   const bool interrupted = Interrupted();  // during the run (not while the page stays up)

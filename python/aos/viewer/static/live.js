@@ -8,7 +8,8 @@
   const q = (name) => document.getElementById(name);
   const image = q("live-image"), markers = q("live-markers"), status = q("status");
   const svg = "http://www.w3.org/2000/svg";
-  window.aosLive = { update: 0, shown: 0, shownAt: 0, state: null, errors: 0 };
+  // history: [update, frame, shown at (ms since 1970)] of the last 2000 updates shown.
+  window.aosLive = { update: 0, shown: 0, shownAt: 0, state: null, errors: 0, history: [] };
   let objectUrl = "";
 
   function element(name, attributes) {
@@ -83,6 +84,8 @@
       `${state.tracks.length} places found`;
     const live = window.aosLive;
     live.update = state.update; live.shown += 1; live.shownAt = Date.now(); live.state = state;
+    live.history.push([state.update, state.frame, live.shownAt]);
+    if (live.history.length > 2000) live.history.shift();
     if (state.frame_seen_unix) {
       q("rate").textContent = `frame to page ${(Date.now() - 1000 * state.frame_seen_unix).toFixed(0)} ms`;
     }
