@@ -1472,7 +1472,8 @@ bool FrameName(const fs::path& path) {
 // The header and the rows of the telemetry log `path` whose frame column names one of `names`
 // (a file name, or a path ending in it), as CSV text. A log without a frame column is refused:
 // live poses each frame by its name.
-std::string LogRowsNaming(const std::string& path, const std::vector<std::string>& names) {
+std::string LogRowsNaming(const std::string& path, const std::vector<std::string>& names,
+                          std::set<std::string>* found) {
   const std::vector<CsvRecord> records = ParseCsv(ReadTextFile(path), path);
   if (records.empty()) ThrowInvalid(path + ": no header line");
   int column = -1;
@@ -1505,6 +1506,7 @@ std::string LogRowsNaming(const std::string& path, const std::vector<std::string
     if (static_cast<size_t>(column) < fields.size() &&
         wanted.count(fs::path(fields[static_cast<size_t>(column)]).filename().string()) > 0) {
       text += line(records[r]);
+      found->insert(fs::path(fields[static_cast<size_t>(column)]).filename().string());
     }
   }
   return text;
@@ -1775,6 +1777,24 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       if (!ready.empty()) {
         // Pose frames: a folder of links to them and the log's rows that name them (the log,
         // re-read each time, may lag the frames), ImportTelemetry's input.
+        // Frames the log has no row for yet wait, up to 10 s; then they are skipped.
+        if (!c.telemetry.telemetry_file.empty()) {
+          std::set<std::string> logged;
+          LogRowsNaming(c.telemetry.telemetry_file, ready, &logged);
+          std::vector<std::string> posable;
+          for (const std::string& name : ready) {
+            Watched& w = watched[name];
+            if (logged.count(name) > 0) {
+              posable.push_back(name);
+            } else if (now - w.first_seen_s > 10.0) {
+              Warn("live: " + name + ": skipped: no row for it in " +
+                   c.telemetry.telemetry_file + " within 10 s");
+              w.done = true;
+              ++skipped;
+            }
+          }
+          ready = std::move(posable);
+        }
         const auto import_frames = [&](const std::vector<std::string>& names) {
           for (const auto& entry : fs::directory_iterator(staging)) fs::remove_all(entry.path());
           fs::create_directories(staging / "frames");
@@ -1784,8 +1804,9 @@ int RunLive(LiveCommand& c, const Flags& flags) {
           TelemetryOptions telemetry = c.telemetry;
           if (!telemetry.telemetry_file.empty()) {
             telemetry.telemetry_file = (staging / "log.csv").string();
+            std::set<std::string> logged;
             WriteTextFileAtomic(telemetry.telemetry_file,
-                                LogRowsNaming(c.telemetry.telemetry_file, names));
+                                LogRowsNaming(c.telemetry.telemetry_file, names, &logged));
           }
           return ImportTelemetry((staging / "frames").string(), telemetry, nullptr);
         };
@@ -1805,7 +1826,8 @@ int RunLive(LiveCommand& c, const Flags& flags) {
             }
           }
         }
-        // Frames the log has no row for yet wait up to 10 s, then are skipped.
+        // Frames the import left out (no GPS or gimbal tags yet: a file still being tagged)
+        // wait up to 10 s too.
         std::set<std::string> posed_names;
         for (const TelemetryResult& posed : batches) {
           for (const View& view : posed.light_field.views) {

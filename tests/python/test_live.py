@@ -234,3 +234,47 @@ def test_cli_folder_resume_carries_the_tracks_and_passes_over_the_backlog(tmp_pa
     carried = [f for f in features if f["properties"].get("first_seen") == "a.png"]
     assert len(carried) == 1 and carried[0]["properties"]["sightings"] == 7
     assert carried[0]["properties"]["peak_score"] == 1234.5
+
+
+def test_cli_folder_finds_the_person_before_the_flight_ends(forest: aos.LightField,
+                                                            tmp_path: Path) -> None:
+    """The simulated flight's frames arrive one by one in a folder, posed by a telemetry log
+    whose rows come a little after their frames (the log lags): the hidden person is a track at
+    its true position (UTM 500000 E, 5300000 N) before the last frame."""
+    from rasterio.warp import transform
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    log = tmp_path / "log.csv"
+    log.write_text("frame,lat,lon,alt,yaw,pitch,roll\n")
+    process = run_live(str(frames), "--telemetry-file", str(log), "--frames-fov-deg",
+                       f"{forest.views[0].camera.pinhole().fov_x_deg():.10f}", "--focal-height",
+                       "0", "--geojson", str(tmp_path / "tracks.geojson"), "--idle-exit-s", "3",
+                       "--json")
+    names = []
+    try:
+        time.sleep(0.3)
+        for i, view in enumerate(forest.views):
+            centre = np.array(view.cam_from_world.center) + np.array(forest.origin)
+            (lon,), (lat,) = transform("EPSG:32633", "EPSG:4326", [centre[0]], [centre[1]])
+            name = f"frame_{i:03d}.png"
+            aos.write_image(str(tmp_path / name), view.image)
+            (tmp_path / name).rename(frames / name)
+            names.append(name)
+            time.sleep(0.05)
+            with open(log, "a") as f:  # the row after its frame
+                f.write(f"{name},{lat:.10f},{lon:.10f},{centre[2]:.4f},0,-90,0\n")
+            time.sleep(0.05)
+        stdout, stderr = process.communicate(timeout=120)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    assert process.returncode == 0, stderr[-800:]
+    report = json.loads(stdout)
+    assert report["frames"] == len(forest) and report["skipped"] == 0, report
+    features = json.loads((tmp_path / "tracks.geojson").read_text())["features"]
+    person = [f for f in features
+              if math.hypot(f["properties"]["world"][0] - 500000.0,
+                            f["properties"]["world"][1] - 5300000.0) < 0.5]
+    assert person, [f["properties"]["world"] for f in features]
+    assert names.index(person[0]["properties"]["first_seen"]) < len(names) - 1
