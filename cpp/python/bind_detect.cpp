@@ -365,7 +365,7 @@ void BindDetect(py::module_& m) {
       .def_property_readonly("result", &LiveIntegrator::result,
                              "The newest update's DetectResult (a copy).")
       .def_property_readonly("tracks", &LiveIntegrator::tracks,
-                             "The places found so far, strongest first.")
+                             "The places found so far, most sighted first.")
       .def_property_readonly("window", &LiveIntegrator::window,
                              "The window as a light field (a copy; pixels shared).")
       .def_property_readonly("updates", &LiveIntegrator::updates)

@@ -2489,7 +2489,7 @@ class LiveOptions:
     merge_radius_m: float
     """Live: detections closer than this, metres, are one track. [m, > 0 and finite]"""
     max_tracks: int
-    """Live: at most this many tracks are kept (the highest peaks). [>= 1]"""
+    """Live: at most this many tracks are kept (the most sighted). [>= 1]"""
     def to_json(self) -> str:
         """The options as one JSON object (lightfield/options_json.h)."""
     @staticmethod

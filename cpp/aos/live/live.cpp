@@ -11,6 +11,17 @@ namespace aos {
 
 void LiveOptions::Check() const { CheckFieldRanges(*this); }
 
+namespace {
+
+// Track order: the most sighted first (a person stays; a false alarm of one window does not),
+// then the highest peak.
+bool MoreSeen(const LiveTrack& a, const LiveTrack& b) {
+  if (a.sightings != b.sightings) return a.sightings > b.sightings;
+  return a.detection.peak_score > b.detection.peak_score;
+}
+
+}  // namespace
+
 LiveIntegrator::LiveIntegrator(const LightField& base, const IntegralOptions& render,
                                const DetectOptions& detect, const LiveOptions& live)
     : render_(render), detect_(detect), live_(live), window_(EmptyLike(base)) {
@@ -117,9 +128,7 @@ int LiveIntegrator::updates() const {
 void LiveIntegrator::SeedTracks(std::vector<LiveTrack> tracks) {
   std::lock_guard<std::mutex> lock(mutex_);
   for (LiveTrack& track : tracks) tracks_.push_back(std::move(track));
-  std::stable_sort(tracks_.begin(), tracks_.end(), [](const LiveTrack& a, const LiveTrack& b) {
-    return a.detection.peak_score > b.detection.peak_score;
-  });
+  std::stable_sort(tracks_.begin(), tracks_.end(), MoreSeen);
   if (tracks_.size() > static_cast<size_t>(live_.max_tracks)) {
     tracks_.resize(static_cast<size_t>(live_.max_tracks));
   }
@@ -177,9 +186,7 @@ void LiveIntegrator::Track(const DetectResult& found) {
     nearest->last_update = updates_;
     nearest->last_frame = newest;
   }
-  std::stable_sort(tracks_.begin(), tracks_.end(), [](const LiveTrack& a, const LiveTrack& b) {
-    return a.detection.peak_score > b.detection.peak_score;
-  });
+  std::stable_sort(tracks_.begin(), tracks_.end(), MoreSeen);
   if (tracks_.size() > static_cast<size_t>(live_.max_tracks)) {
     tracks_.resize(static_cast<size_t>(live_.max_tracks));
   }

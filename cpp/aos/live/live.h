@@ -15,8 +15,10 @@
 // - Tracks: each update's detections that are located on the focal surface join the track
 //   whose point lies within merge_radius_m (the nearest; horizontal distance in the local
 //   frame), else start a new one. A track keeps its strongest sighting (the highest peak score),
-//   how many updates saw it and the newest frame's name at its first and last sighting. At most
-//   max_tracks are kept (the highest peaks), so a long flight stays bounded.
+//   how many updates saw it and the newest frame's name at its first and last sighting. Tracks
+//   are ordered by sightings, then peak score (what persists over the windows is what is there:
+//   on F0 the three warm spots are the three most sighted tracks, docs/live.md). At most
+//   max_tracks are kept (the first in that order), so a long flight stays bounded.
 // - Memory: the window's views (their images shared, not copied), one render and the flight path
 //   (every added view's centre, halved in density whenever it reaches kMaxPathPoints); bounded by
 //   the window whatever the flight's length.
@@ -57,7 +59,7 @@ struct LiveOptions {
   // Detections closer than this (horizontally, metres in the light field's units) are one
   // track, > 0.
   double merge_radius_m = 1.5;
-  // At most this many tracks are kept (the highest peaks), >= 1.
+  // At most this many tracks are kept (the most sighted), >= 1.
   int max_tracks = 1000;
   void Check() const;
 
@@ -77,7 +79,7 @@ struct LiveOptions {
     field(OptionField("merge_radius_m", &O::merge_radius_m, "m", Range::FiniteAtLeast(0.0, true),
                       "Live: detections closer than this, metres, are one track."));
     field(OptionField("max_tracks", &O::max_tracks, "", Range::AtLeast(1),
-                      "Live: at most this many tracks are kept (the highest peaks)."));
+                      "Live: at most this many tracks are kept (the most sighted)."));
   }
 };
 
@@ -119,7 +121,8 @@ class LiveIntegrator {
   static constexpr size_t kMaxPathPoints = 10000;
   // The render options the newest update used (pose_view resolved for follow "latest").
   IntegralOptions RenderOptions() const;
-  // The tracks as a DetectResult (one detection per track, strongest first) for WriteDetections.
+  // The tracks as a DetectResult (one detection per track, most sighted first) for
+  // WriteDetections.
   DetectResult TracksResult() const;
 
   const IntegralOptions& render_options() const { return render_; }
