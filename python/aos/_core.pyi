@@ -774,6 +774,7 @@ class MapOptions:
         focal_surface: FocalSurface | Mesh | Heightfield | Plane | float = ...,
         surface_offset: float = ...,
         tile_size: int = ...,
+        min_view_count: int = ...,
         max_pixels: int = ...,
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
@@ -802,6 +803,9 @@ class MapOptions:
     """Offset of focal_surface along up (towards the views), metres. [m, finite]"""
     tile_size: int
     """Pixels on a side of a render tile, 16 .. 8192. [px, in [16, 8192]]"""
+    min_view_count: int
+    """Pixels averaged over fewer views than this are left uncovered (nodata); 0 or 1 keeps every
+    pixel a view sees. [>= 0]"""
     max_pixels: int
     """The most pixels (width x height) the map may have; more is refused as a likely mistake of
     units. Raise it for a map that large on purpose. [px, in [4, 1e+14]]"""

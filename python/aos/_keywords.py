@@ -137,6 +137,7 @@ class MapKeywords(TypedDict, total=False):
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     surface_offset: float
     tile_size: int
+    min_view_count: int
     max_pixels: int
     aperture_radius: float
     view_indices: Sequence[int]

@@ -627,3 +627,37 @@ def test_overview_levels_and_a_fill_that_falls_back(flight: aos.LightField, tmp_
     # pixels are not 2 x 2 blocks), so the test tells the two apart.
     assert not np.array_equal(mixed[:, :200, :200], overview_bands(tmp_path / "w513.tif")[0][:, :200, :200],
                               equal_nan=True)
+
+
+def test_min_view_count_in_maps_from_its_one_definition(flight: aos.LightField, flight_file: Path,
+                                                        tmp_path: Path) -> None:
+    """MapOptions.min_view_count was added as one row of the map's field table (map.h) and its
+    use on each tile (map.cpp): the keyword, the JSON form, the CLI flag (map --min-view-count)
+    and the viewer's map mode (which copies the fields MapOptions shares with the render
+    options) come from that row (issue 32's "add one option" check). Thin pixels become nodata,
+    the others keep every bit."""
+    everything = aos.render_map(flight, focal_surface=0.0, width=96)
+    counts = everything.count
+    least = int(np.median(counts[counts > 0]))
+    thin = counts < least
+    assert least > 1 and np.any(thin & (counts > 0))
+    thick = aos.render_map(flight, focal_surface=0.0, width=96, min_view_count=least)
+    assert np.all(thick.count[thin] == 0) and np.all(thick.image[thin] == 0)
+    np.testing.assert_array_equal(thick.count[~thin], counts[~thin])
+    np.testing.assert_array_equal(thick.image[~thin], everything.image[~thin])
+    options = aos.MapOptions(width=96, min_view_count=least)
+    assert aos.MapOptions.from_json(options.to_json()).min_view_count == least
+    with pytest.raises(ValueError, match="min_view_count"):
+        aos.render_map(flight, focal_surface=0.0, width=96, min_view_count=-1)
+    result = subprocess.run(["aos-render", "map", str(flight_file), "--focal-height", "0",
+                             "--width", "96", "--min-view-count", str(least), "-o",
+                             str(tmp_path / "m.tif"), "-q"],
+                            capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    # The viewer's map mode starts from the render options it was given.
+    from aos.viewer.session import Session
+
+    session = Session(flight, render_options=aos.IntegralOptions(min_view_count=least),
+                      num_threads=1)
+    shown = session.map_options(session.parse({"mode": "map", "width": 96}))
+    assert shown.min_view_count == least

@@ -334,8 +334,9 @@ MapSummary RenderMapTiles(const LightField& light_field, const MapOptions& optio
       const int x0 = tx * tile, y0 = ty * tile;
       const int w = std::min(tile, grid.width - x0), h = std::min(tile, grid.height - y0);
       const FocalPoints points = MapFocalPoints(grid, x0, y0, w, h);
-      const SurfaceIntegralResult rendered =
+      SurfaceIntegralResult rendered =
           RenderIntegralAtPoints(light_field, points, point, {}, &tile_progress);
+      DropThinPixels(options.min_view_count, &rendered.integral);
       summary.views_selected = rendered.integral.views_selected;
       for (int index : rendered.used_view_indices) used[static_cast<size_t>(index)] = 1;
       summary.samples += rendered.integral.samples;
@@ -555,7 +556,9 @@ SurfaceIntegralResult RenderMapWindow(const LightField& light_field, const MapGr
   PointIntegralOptions point = MapPointOptions(grid, options);
   point.view_indices = views;
   const FocalPoints points = MapFocalPoints(grid, x0, y0, w, h);
-  return RenderIntegralAtPoints(light_field, points, point, {}, progress);
+  SurfaceIntegralResult rendered = RenderIntegralAtPoints(light_field, points, point, {}, progress);
+  DropThinPixels(options.min_view_count, &rendered.integral);
+  return rendered;
 }
 
 }  // namespace aos

@@ -88,6 +88,10 @@ struct MapOptions : ApertureOptions {
   int64_t max_pixels = 1'000'000'000;
 
   // Throws std::invalid_argument naming the field. `view_count`: views in the light field.
+  // Pixels averaged over fewer views than this are left uncovered (nodata, count 0), as
+  // IntegralOptions::min_view_count: the rim of the flight, where occluders do not blur away.
+  // 0 or 1 keeps every pixel a view sees.
+  int min_view_count = 0;
   void Check(int view_count) const;
   // The field table (util/option_fields.h): every field once, in declaration order.
   template <class Visit>
@@ -108,6 +112,9 @@ struct MapOptions : ApertureOptions {
                       "Offset of focal_surface along up (towards the views), metres."));
     field(OptionField("tile_size", &O::tile_size, "px", Range::Closed(16, 8192),
                       "Pixels on a side of a render tile, 16 .. 8192."));
+    field(OptionField("min_view_count", &O::min_view_count, "", Range::AtLeast(0),
+                      "Pixels averaged over fewer views than this are left uncovered (nodata); 0 "
+                      "or 1 keeps every pixel a view sees."));
     field(OptionField("max_pixels", &O::max_pixels, "px", Range::Closed(4.0, 1e14),
                       "The most pixels (width x height) the map may have; more is refused as "
                       "a likely mistake of units. Raise it for a map that large on purpose."));
