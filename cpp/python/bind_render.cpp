@@ -121,6 +121,7 @@ void BindFocalSurface(py::module_& m) {
             py::dict state;
             state["kind"] = FocalSurfaceKindName(surface.kind());
             state["source"] = surface.source();
+            state["file"] = surface.file();
             switch (surface.kind()) {
               case FocalSurfaceKind::kPlane: state["data"] = py::cast(surface.plane()); break;
               case FocalSurfaceKind::kMesh: state["data"] = py::cast(surface.mesh()); break;
@@ -133,12 +134,23 @@ void BindFocalSurface(py::module_& m) {
             return state;
           },
           [](const py::object& state) {
-            const py::dict values = StateDict(state, "FocalSurface", {"kind", "source", "data"});
+            // Pickles before the file travelled have no "file": a surface not read from one.
+            const bool has_file =
+                py::isinstance<py::dict>(state) && py::reinterpret_borrow<py::dict>(state).contains("file");
+            const py::dict values =
+                has_file ? StateDict(state, "FocalSurface", {"kind", "source", "file", "data"})
+                         : StateDict(state, "FocalSurface", {"kind", "source", "data"});
             const std::string kind = values["kind"].cast<std::string>();
             const std::string source = values["source"].cast<std::string>();
+            const std::string file = has_file ? values["file"].cast<std::string>() : "";
+            const auto read_from = [&](FocalSurface surface) {
+              return file.empty() ? surface : FocalSurface::AsReadFrom(std::move(surface), file);
+            };
             if (kind == "plane") return FocalSurface::FromPlane(values["data"].cast<Plane>());
-            if (kind == "mesh") return FocalSurface::FromMesh(values["data"].cast<Mesh>(), source);
-            if (kind == "heightfield") return FocalSurface::FromHeightfield(values["data"].cast<Heightfield>(), source);
+            if (kind == "mesh") return read_from(FocalSurface::FromMesh(values["data"].cast<Mesh>(), source));
+            if (kind == "heightfield") {
+              return read_from(FocalSurface::FromHeightfield(values["data"].cast<Heightfield>(), source));
+            }
             if (kind == "depth_map") {
               const py::tuple data = values["data"];
               return FocalSurface::FromDepthMap(ImageFromArray(data[0], 0, "depth"), data[1].cast<PinholeCamera>(),

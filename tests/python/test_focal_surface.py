@@ -107,6 +107,15 @@ def test_an_offset_moves_the_mesh_along_up_and_pickles(tmp_path):
     assert again.focal_surface.kind == "mesh" and again.surface_offset == 0.45
     np.testing.assert_array_equal(aos.render_integral(light_field, again).image, moved.image)
     assert pickle.loads(pickle.dumps(mesh)) == mesh
+    # A surface read from a file keeps its file's name through pickling (the JSON form of the
+    # options that hold it names the file: the view and map --workers hand-off).
+    read = aos.FocalSurface.read(str(tmp_path / "square.obj"))
+    assert read.file == str(tmp_path / "square.obj")
+    copied = pickle.loads(pickle.dumps(read))
+    assert copied.file == read.file and copied == read
+    with_surface = aos.IntegralOptions(focal_surface=read)
+    assert pickle.loads(pickle.dumps(with_surface)).to_json() == with_surface.to_json()
+    assert pickle.loads(pickle.dumps(aos.FocalSurface(mesh))).file == ""
     # An offset moves a plane along up as it moves a mesh: the same image as the moved plane.
     plane_moved = aos.render_integral(light_field, surface_offset=0.45, focal_surface=0.3, **CAMERA)
     np.testing.assert_array_equal(plane_moved.image, plane.image)

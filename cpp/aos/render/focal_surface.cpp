@@ -438,6 +438,19 @@ FocalSurface FocalSurface::Read(const std::string& path) {
   return surface;
 }
 
+FocalSurface FocalSurface::AsReadFrom(FocalSurface surface, const std::string& file) {
+  if (surface.kind() != FocalSurfaceKind::kMesh && surface.kind() != FocalSurfaceKind::kHeightfield) {
+    ThrowInvalid("focal surface: only a mesh or a height field is read from a file");
+  }
+  if (surface.impl_.use_count() > 1) {  // shared: a surface of its own (the data copied)
+    surface = surface.kind() == FocalSurfaceKind::kMesh
+                  ? FromMesh(surface.mesh(), surface.source())
+                  : FromHeightfield(surface.heightfield(), surface.source());
+  }
+  std::const_pointer_cast<Impl>(surface.impl_)->file = file;  // held by `surface` alone
+  return surface;
+}
+
 FocalSurfaceKind FocalSurface::kind() const { return impl_->kind; }
 const Plane& FocalSurface::plane() const { return impl_->plane; }
 const Mesh& FocalSurface::mesh() const { return impl_->mesh; }

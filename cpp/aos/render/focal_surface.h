@@ -105,6 +105,11 @@ class FocalSurface {
                                    const Rigid3d& cam_from_world);
   // A mesh (a file starting with "ply", or named .obj/.ply) or else any GDAL raster (a DEM).
   static FocalSurface Read(const std::string& path);
+  // `surface` (a mesh or height field holding exactly the data of `file`) as Read(file) returns
+  // it: file() is `file`. What an unpickled copy of a read surface is (its data travels, and its
+  // file's name with it, for the JSON form). Its data is shared, not copied, when `surface` is
+  // its only holder.
+  static FocalSurface AsReadFrom(FocalSurface surface, const std::string& file);
 
   FocalSurfaceKind kind() const;
   // The parts of the kind (others are empty / default).
