@@ -111,15 +111,17 @@ def folder_latency(folder: Path, fps: float, count: int) -> None:
          "--geojson", str(folder / "tracks.geojson"), "--view", "--no-browser",
          "--idle-exit-s", "4"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    errors: list[str] = []  # stderr, drained as it comes (the page's URL is among its lines)
+    threading.Thread(target=lambda: [errors.append(line) for line in process.stderr],
+                     daemon=True).start()
     url = ""
-    for _ in range(3):
-        line = process.stdout.readline()
-        if line.strip().startswith("http://"):
-            url = line.strip()
-            break
+    deadline = time.monotonic() + 60
+    while not url and time.monotonic() < deadline:
+        url = next((line.strip() for line in errors if line.strip().startswith("http://")), "")
+        time.sleep(0.05)
     if not url:
         process.kill()
-        raise SystemExit("live --view printed no URL: " + process.stderr.read()[-800:])
+        raise SystemExit("live --view printed no URL: " + "".join(errors)[-800:])
     renamed: dict[str, float] = {}
     served: dict[str, float] = {}
     base, token = url.split("?token=")
@@ -171,7 +173,9 @@ def folder_latency(folder: Path, fps: float, count: int) -> None:
         driver.quit()
     time.sleep(4.5)  # --idle-exit-s: the run ends, the page stays until SIGINT
     process.send_signal(signal.SIGINT)
-    _, stderr = process.communicate(timeout=60)
+    process.wait(timeout=60)
+    time.sleep(0.2)
+    stderr = "".join(errors)
     to_server = [1000 * (served[n] - t) for n, t in renamed.items() if n in served]
     print(f"folder at {fps:g} frames/s, {len(frames)} frames of 640 x 512: rename -> state "
           f"served (GeoJSON written before): {percentiles(to_server)}")

@@ -16,6 +16,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <sys/inotify.h>
+#include <sys/prctl.h>
 #include <sys/wait.h>
 #include <csignal>
 #include <unistd.h>
@@ -1384,6 +1385,7 @@ class LivePage {
     folder_ = pattern;
     nlohmann::ordered_json spec;
     spec["live_dir"] = folder_;
+    spec["url_to_stderr"] = true;  // stdout is the live command's (its --json report)
     spec["viewer"] = OptionsToJson(viewer);
     spec["quiet"] = quiet;
     spec["json"] = false;
@@ -1395,6 +1397,8 @@ class LivePage {
     if (pid_ < 0) ThrowInvalid(std::string("--view: cannot start the viewer: ") + std::strerror(errno));
     if (pid_ == 0) {
       ::signal(SIGINT, SIG_IGN);  // the parent stops it (SIGTERM) when the run ends
+      ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // and if the parent dies first (a kill, the backstop)
+      if (::getppid() == 1) ::_exit(0);
       ::execlp(python.c_str(), python.c_str(), "-m", "aos.viewer", "--spec", text.c_str(),
                static_cast<char*>(nullptr));
       ::_exit(127);
@@ -1434,7 +1438,10 @@ class LivePage {
     state["update_ms"] = update_ms;
     WriteTextFileAtomic((fs::path(folder_) / "live.json").string(), state.dump());
   }
-  bool Running() const { return pid_ > 0 && ::waitpid(pid_, nullptr, WNOHANG) == 0; }
+  bool Running() {
+    if (pid_ > 0 && ::waitpid(pid_, nullptr, WNOHANG) != 0) pid_ = -1;  // ended (reaped)
+    return pid_ > 0;
+  }
 
  private:
   std::string folder_;
@@ -1474,7 +1481,11 @@ bool FrameName(const fs::path& path) {
 // live poses each frame by its name.
 std::string LogRowsNaming(const std::string& path, const std::vector<std::string>& names,
                           std::set<std::string>* found) {
-  const std::vector<CsvRecord> records = ParseCsv(ReadTextFile(path), path);
+  // A last line without its line end is a row still being written: left for the next read.
+  std::string whole = ReadTextFile(path);
+  const size_t end = whole.find_last_of('\n');
+  whole.resize(end == std::string::npos ? 0 : end + 1);
+  const std::vector<CsvRecord> records = ParseCsv(whole, path);
   if (records.empty()) ThrowInvalid(path + ": no header line");
   int column = -1;
   for (size_t k = 0; k < records[0].fields.size(); ++k) {
@@ -1513,7 +1524,7 @@ std::string LogRowsNaming(const std::string& path, const std::vector<std::string
 }
 
 // The tracks a live run wrote as GeoJSON (WriteDetections with sightings), for --resume.
-std::vector<LiveTrack> ReadTracks(const std::string& path) {
+std::vector<LiveTrack> ReadTracks(const std::string& path, std::string* crs) {
   nlohmann::json root;
   try {
     root = nlohmann::json::parse(ReadTextFile(path));
@@ -1525,9 +1536,9 @@ std::vector<LiveTrack> ReadTracks(const std::string& path) {
     ThrowInvalid(path + ": --resume: features: missing (not the GeoJSON of a live run)");
   }
   for (size_t i = 0; i < root["features"].size(); ++i) {
-    const nlohmann::json& p = root["features"][i]["properties"];
     const std::string where = path + ": --resume: features/" + std::to_string(i) + "/properties";
     try {
+      const nlohmann::json& p = root["features"][i].at("properties");
       LiveTrack track;
       Detection& d = track.detection;
       if (p.at("local").is_null()) continue;  // not located: no place to carry on
@@ -1539,11 +1550,12 @@ std::vector<LiveTrack> ReadTracks(const std::string& path) {
       d.area_px = p.at("area_px").get<int>();
       d.peak_score = p.at("peak_score").get<double>();
       d.mean_score = p.at("mean_score").get<double>();
-      const nlohmann::json& geometry = root["features"][i]["geometry"];
+      const nlohmann::json& geometry = root["features"][i].at("geometry");
       if (!geometry.is_null()) {
         const auto lon_lat = geometry.at("coordinates").get<std::array<double, 2>>();
         d.lon_lat = Vec2d(lon_lat[0], lon_lat[1]);
       }
+      if (crs->empty()) *crs = p.value("crs", std::string());
       track.sightings = p.value("sightings", 1);
       track.first_frame = p.value("first_seen", std::string());
       track.last_frame = p.value("last_seen", std::string());
@@ -1593,7 +1605,8 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     ThrowUsage("--resume: continues a folder run from its --geojson tracks (give both)");
   }
   std::vector<LiveTrack> resumed;
-  if (c.resume && fs::exists(c.geojson)) resumed = ReadTracks(c.geojson);
+  std::string resumed_crs;
+  if (c.resume && fs::exists(c.geojson)) resumed = ReadTracks(c.geojson, &resumed_crs);
   if (!c.image.empty()) ResolveSampleType(c.image, Image(1, 1, 1, PixelType::kU8), WriteImageOptions{});
   ReadFocalSurface(c.args.focal_surface, &c.options.focal_surface);
   if (!c.args.cam_from_world.empty()) {
@@ -1665,9 +1678,10 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       if (Interrupted()) break;
       if (c.fps > 0.0) {
         const double due = i / c.fps;
-        if (seconds() < due) {
-          std::this_thread::sleep_for(std::chrono::duration<double>(due - seconds()));
+        while (seconds() < due && !Interrupted()) {  // in slices: a signal stops it at once
+          std::this_thread::sleep_for(std::chrono::duration<double>(std::min(0.05, due - seconds())));
         }
+        if (Interrupted()) break;
       }
       const double seen = UnixSeconds();
       LoadViewImages(*replayed, {i}, load);
@@ -1683,9 +1697,11 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     c.telemetry.grey = c.load.grey;
     c.telemetry.altitude_window = 0;  // one frame at a time: no running median across frames
     flags.At("telemetry.").NamingFlags([&] { c.telemetry.Check(); });
-    const fs::path staging = fs::temp_directory_path() /
-                             ("aos-live-" + std::to_string(::getpid()));
-    fs::create_directories(staging);
+    char staging_pattern[] = "/tmp/aos-live-XXXXXX";  // private (0700), a name no one can guess
+    if (::mkdtemp(staging_pattern) == nullptr) {
+      ThrowInvalid(std::string("live: cannot make a temporary folder: ") + std::strerror(errno));
+    }
+    const fs::path staging = staging_pattern;
     struct Cleanup {
       fs::path path;
       ~Cleanup() {
@@ -1780,7 +1796,13 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         // Frames the log has no row for yet wait, up to 10 s; then they are skipped.
         if (!c.telemetry.telemetry_file.empty()) {
           std::set<std::string> logged;
-          LogRowsNaming(c.telemetry.telemetry_file, ready, &logged);
+          try {
+            LogRowsNaming(c.telemetry.telemetry_file, ready, &logged);
+          } catch (const std::exception&) {
+            // The log is being rewritten (or is not there yet): its rows count as not there
+            // yet; a frame waits up to 10 s for them.
+            logged.clear();
+          }
           std::vector<std::string> posable;
           for (const std::string& name : ready) {
             Watched& w = watched[name];
@@ -1796,10 +1818,14 @@ int RunLive(LiveCommand& c, const Flags& flags) {
           ready = std::move(posable);
         }
         const auto import_frames = [&](const std::vector<std::string>& names) {
-          for (const auto& entry : fs::directory_iterator(staging)) fs::remove_all(entry.path());
-          fs::create_directories(staging / "frames");
-          for (const std::string& name : names) {
-            fs::create_symlink(fs::absolute(fs::path(c.source) / name), staging / "frames" / name);
+          try {
+            for (const auto& entry : fs::directory_iterator(staging)) fs::remove_all(entry.path());
+            fs::create_directories(staging / "frames");
+            for (const std::string& name : names) {
+              fs::create_symlink(fs::absolute(fs::path(c.source) / name), staging / "frames" / name);
+            }
+          } catch (const fs::filesystem_error& error) {
+            ThrowInvalid(std::string("live: ") + error.what());
           }
           TelemetryOptions telemetry = c.telemetry;
           if (!telemetry.telemetry_file.empty()) {
@@ -1850,6 +1876,13 @@ int RunLive(LiveCommand& c, const Flags& flags) {
             integrator = flags.NamingFlags([&] {
               return std::make_unique<LiveIntegrator>(base, c.options, c.detect, c.live);
             });
+            // The earlier run's tracks in this run's frame (its origin may differ: local =
+            // world - origin), and only in the same CRS.
+            if (!resumed.empty() && resumed_crs != crs) {
+              ThrowInvalid(c.geojson + ": --resume: crs: its tracks are in '" + resumed_crs +
+                           "', this flight in '" + crs + "'");
+            }
+            for (LiveTrack& track : resumed) track.detection.local = track.detection.world - origin;
             integrator->SeedTracks(resumed);
           }
           if (!posed.light_field.views.empty() && posed.light_field.crs != crs) {
@@ -1862,9 +1895,11 @@ int RunLive(LiveCommand& c, const Flags& flags) {
             const std::string name = fs::path(view.image_path).filename().string();
             Watched& w = watched[name];
             w.done = true;
-            // This batch's origin -> the flight's: t' = t + R (origin_batch - origin).
+            // This batch's local frame -> the flight's (world = origin + local): a point's
+            // batch coordinates are its flight coordinates + origin - origin_batch, so
+            // t' = t + R (origin - origin_batch).
             view.cam_from_world.translation +=
-                view.cam_from_world.rotation * (posed.light_field.origin - origin);
+                view.cam_from_world.rotation * (origin - posed.light_field.origin);
             view.image_path = (fs::path(c.source) / name).string();
             view.name = name;
             LightField one = EmptyLike(posed.light_field);
@@ -1881,7 +1916,15 @@ int RunLive(LiveCommand& c, const Flags& flags) {
               w.failed = true;
               continue;
             }
-            add(std::move(one.views[0]), w.seen_unix);
+            try {
+              add(std::move(one.views[0]), w.seen_unix);
+            } catch (const std::exception& problem) {
+              // A frame the window cannot take (another size or channel count; a render or a
+              // detection that fails on it): skipped with one warning, the run goes on.
+              Warn("live: " + name + ": skipped: " + problem.what());
+              ++skipped;
+              continue;
+            }
             last_frame_s = seconds();
           }
         }

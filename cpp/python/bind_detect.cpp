@@ -353,35 +353,81 @@ void BindDetect(py::module_& m) {
             self.Update();
           },
           "Renders the window and detects.")
+      // The getters wait for a running update (the integrator's lock) with the GIL released.
       .def_property_readonly(
-          "image", [](const LiveIntegrator& self) { return ArrayFromImage(self.result().render.image); },
+          "image",
+          [](const LiveIntegrator& self) {
+            DetectResult result;
+            {
+              py::gil_scoped_release release;
+              result = self.result();
+            }
+            return ArrayFromImage(result.render.image).attr("copy")();
+          },
           "The newest update's integral image (a copy), None before the first.")
       .def_property_readonly(
-          "count", [](const LiveIntegrator& self) { return ArrayFromImage(self.result().render.count); },
+          "count",
+          [](const LiveIntegrator& self) {
+            DetectResult result;
+            {
+              py::gil_scoped_release release;
+              result = self.result();
+            }
+            return ArrayFromImage(result.render.count).attr("copy")();
+          },
           "Views per pixel of the newest update (a copy).")
       .def_property_readonly(
-          "detections", [](const LiveIntegrator& self) { return self.result().detections; },
+          "detections",
+          [](const LiveIntegrator& self) {
+            py::gil_scoped_release release;
+            return self.result().detections;
+          },
           "The newest update's detections.")
-      .def_property_readonly("result", &LiveIntegrator::result,
-                             "The newest update's DetectResult (a copy).")
-      .def_property_readonly("tracks", &LiveIntegrator::tracks,
-                             "The places found so far, most sighted first.")
-      .def_property_readonly("window", &LiveIntegrator::window,
-                             "The window as a light field (a copy; pixels shared).")
-      .def_property_readonly("updates", &LiveIntegrator::updates)
+      .def_property_readonly(
+          "result",
+          [](const LiveIntegrator& self) {
+            py::gil_scoped_release release;
+            return self.result();
+          },
+          "The newest update's DetectResult (a copy).")
+      .def_property_readonly(
+          "tracks",
+          [](const LiveIntegrator& self) {
+            py::gil_scoped_release release;
+            return self.tracks();
+          },
+          "The places found so far, most sighted first.")
+      .def_property_readonly(
+          "window",
+          [](const LiveIntegrator& self) {
+            py::gil_scoped_release release;
+            return self.window();
+          },
+          "The window as a light field (a copy; pixels shared).")
+      .def_property_readonly("updates", [](const LiveIntegrator& self) {
+        py::gil_scoped_release release;
+        return self.updates();
+      })
       .def_property_readonly(
           "path",
           [](const LiveIntegrator& self) {
+            std::vector<Vec3d> path;
+            {
+              py::gil_scoped_release release;
+              path = self.path();
+            }
             std::vector<std::array<double, 3>> out;
-            for (const Vec3d& c : self.path()) out.push_back({c.x, c.y, c.z});
+            for (const Vec3d& c : path) out.push_back({c.x, c.y, c.z});
             return out;
           },
           "Every added view's centre (local frame), oldest first (thinned beyond 10,000).")
-      .def("state_json", &LiveIntegrator::StateJson,
+      .def("state_json", &LiveIntegrator::StateJson, py::call_guard<py::gil_scoped_release>(),
            "The newest update as JSON: what the live page shows (docs/live.md).")
       .def("render_options", &LiveIntegrator::RenderOptions,
+           py::call_guard<py::gil_scoped_release>(),
            "The options the newest update rendered with (pose_view resolved).")
       .def("tracks_result", &LiveIntegrator::TracksResult,
+           py::call_guard<py::gil_scoped_release>(),
            "The tracks as a DetectResult (write() it as GeoJSON/KML/CSV).")
       .def("__repr__", [](const LiveIntegrator& self) {
         return "LiveIntegrator(window=" + std::to_string(self.window().views.size()) + "/" +

@@ -101,7 +101,7 @@ TEST(Live, TracksMergeRepeatedSightingsOfOnePlace) {
   LiveIntegrator integrator(flight, render, detect, live);
   for (const View& view : flight.views) integrator.Add(view);
   ASSERT_EQ(integrator.tracks().size(), 1u);
-  const LiveTrack& track = integrator.tracks().front();
+  const LiveTrack track = integrator.tracks().front();
   EXPECT_NEAR(track.detection.local.x, 10.0, 0.5);
   EXPECT_NEAR(track.detection.local.y, 0.0, 0.5);
   EXPECT_GT(track.sightings, 3);
@@ -125,6 +125,21 @@ TEST(Live, TheDistanceWindowDropsFarViews) {
   ASSERT_EQ(window.views.size(), 3u);  // 7, 8, 9: 2 m and 1 m from 9; 6 is 3 m away
   EXPECT_EQ(window.views.front().name, "frame7");
   EXPECT_EQ(integrator.path().size(), 10u);
+}
+
+// A view whose update fails is not kept: the window is as it was. Here the detector finds no
+// pixel to score (the focal plane lies above the cameras, so no view sees it).
+TEST(Live, AFailedUpdateLeavesTheWindowAsItWas) {
+  const LightField flight = Flight(3);
+  IntegralOptions render;
+  render.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(50.0));
+  LiveOptions live;
+  LiveIntegrator integrator(flight, render, DetectOptions(), live);
+  EXPECT_THROW(integrator.Add(flight.views[0]), std::invalid_argument);
+  EXPECT_TRUE(integrator.window().views.empty());
+  EXPECT_TRUE(integrator.path().empty());
+  EXPECT_NO_THROW(integrator.Add(flight.views[1], /*update=*/false));
+  EXPECT_EQ(integrator.window().views.size(), 1u);
 }
 
 TEST(Live, BadInputIsRefusedNamingTheField) {

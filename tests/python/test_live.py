@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 import math
 import subprocess
+import threading
 import time
 from pathlib import Path
 
@@ -163,10 +164,18 @@ def test_cli_view_serves_the_live_page_and_stops_with_it(forest: aos.LightField,
         ["aos-render", "live", "--replay", str(path), "--focal-height", "0", "--geojson",
          str(tmp_path / "tracks.geojson"), "--view", "--no-browser", "--fps", "40"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    import queue
+
+    lines: "queue.Queue[str]" = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(line) for line in process.stderr],
+                     daemon=True).start()
     try:
-        lines = [process.stdout.readline() for _ in range(2)]
-        url = lines[1].strip()
-        assert url.startswith("http://127.0.0.1:") and "token=" in url, lines
+        url = ""
+        deadline = time.monotonic() + 60
+        while not url:  # the page's URL comes on stderr (stdout is the --json report's)
+            line = lines.get(timeout=max(0.1, deadline - time.monotonic())).strip()
+            url = line if line.startswith("http://") else ""
+        assert url.startswith("http://127.0.0.1:") and "token=" in url, url
         base, token = url.split("?token=")
         state = json.loads(urllib.request.urlopen(f"{base}api/live?after=0&token={token}",
                                                   timeout=20).read())
@@ -186,12 +195,14 @@ def test_cli_view_serves_the_live_page_and_stops_with_it(forest: aos.LightField,
         time.sleep(0.5)
         assert process.poll() is None  # the page stays up after the run
         process.send_signal(signal.SIGINT)
-        _, stderr = process.communicate(timeout=10)
+        process.wait(timeout=10)
     finally:
         if process.poll() is None:
             process.kill()
+    time.sleep(0.2)
+    stderr = "".join(iter(lambda: lines.get_nowait() if not lines.empty() else "", ""))
     assert process.returncode == 0, stderr[-800:]
-    assert "the run ended" in stderr
+    assert "the run ended" in stderr or "aos live page: stopped" in stderr, stderr[-800:]
     assert set(Path("/tmp").glob("aos-live-view-*")) <= folders_before  # the state folder went
     features = json.loads((tmp_path / "tracks.geojson").read_text())["features"]
     assert features
@@ -239,21 +250,39 @@ def test_cli_folder_resume_carries_the_tracks_and_passes_over_the_backlog(tmp_pa
 def test_cli_folder_finds_the_person_before_the_flight_ends(forest: aos.LightField,
                                                             tmp_path: Path) -> None:
     """The simulated flight's frames arrive one by one in a folder, posed by a telemetry log
-    whose rows come a little after their frames (the log lags): the hidden person is a track at
-    its true position (UTM 500000 E, 5300000 N) before the last frame."""
+    whose rows come a little after their frames (the log lags): every frame lands where it was
+    taken (the live page's flight path against the truth, 1 cm), and the hidden person is a track
+    at its true position before the last frame. The flight is centred on UTM 500050 E,
+    5300050 N: its frames straddle the 100 m lines each frame's own import rounds its origin to,
+    so frames posed in different local frames must be moved into the flight's exactly."""
+    import copy
+    import queue
+    import signal
+    import urllib.request
+
     from rasterio.warp import transform
 
+    forest = copy.copy(forest)
+    forest.origin = (500050.0, 5300050.0, 0.0)
     frames = tmp_path / "frames"
     frames.mkdir()
     log = tmp_path / "log.csv"
     log.write_text("frame,lat,lon,alt,yaw,pitch,roll\n")
     process = run_live(str(frames), "--telemetry-file", str(log), "--frames-fov-deg",
                        f"{forest.views[0].camera.pinhole().fov_x_deg():.10f}", "--focal-height",
-                       "0", "--geojson", str(tmp_path / "tracks.geojson"), "--idle-exit-s", "3",
-                       "--json")
+                       "0", "--geojson", str(tmp_path / "tracks.geojson"), "--idle-exit-s", "2",
+                       "--view", "--no-browser", "--json")
+    lines: "queue.Queue[str]" = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(line) for line in process.stderr],
+                     daemon=True).start()
     names = []
     try:
-        time.sleep(0.3)
+        url = ""
+        deadline = time.monotonic() + 60
+        while not url:
+            line = lines.get(timeout=max(0.1, deadline - time.monotonic())).strip()
+            url = line if line.startswith("http://") else ""
+        base, token = url.split("?token=")
         for i, view in enumerate(forest.views):
             centre = np.array(view.cam_from_world.center) + np.array(forest.origin)
             (lon,), (lat,) = transform("EPSG:32633", "EPSG:4326", [centre[0]], [centre[1]])
@@ -265,16 +294,31 @@ def test_cli_folder_finds_the_person_before_the_flight_ends(forest: aos.LightFie
             with open(log, "a") as f:  # the row after its frame
                 f.write(f"{name},{lat:.10f},{lon:.10f},{centre[2]:.4f},0,-90,0\n")
             time.sleep(0.05)
-        stdout, stderr = process.communicate(timeout=120)
+        deadline = time.monotonic() + 60
+        while True:
+            state = json.loads(urllib.request.urlopen(f"{base}api/live?after=0&token={token}",
+                                                      timeout=20).read())
+            if state["update"] >= len(forest) or time.monotonic() > deadline:
+                break
+            time.sleep(0.2)
+        time.sleep(3.5)  # --idle-exit-s 2 after the last frame: the run is over, the page stays
+        process.send_signal(signal.SIGINT)  # the page, kept up after the run, stops: exit 0
+        stdout, _ = process.communicate(timeout=30)
     finally:
         if process.poll() is None:
             process.kill()
-    assert process.returncode == 0, stderr[-800:]
+    assert process.returncode == 0
     report = json.loads(stdout)
     assert report["frames"] == len(forest) and report["skipped"] == 0, report
+    # Every frame where it was taken: the page's path (local to the run's origin) against the
+    # simulated poses (local to the flight's).
+    truth = [np.array(v.cam_from_world.center) + np.array(forest.origin) for v in forest.views]
+    placed = [np.array(p + [0.0])[:2] + np.array(state["origin"][:2]) for p in state["path"]]
+    assert len(placed) == len(truth)
+    assert max(np.hypot(*(p - t[:2])) for p, t in zip(placed, truth)) < 0.01
     features = json.loads((tmp_path / "tracks.geojson").read_text())["features"]
     person = [f for f in features
-              if math.hypot(f["properties"]["world"][0] - 500000.0,
-                            f["properties"]["world"][1] - 5300000.0) < 0.5]
+              if math.hypot(f["properties"]["world"][0] - 500050.0,
+                            f["properties"]["world"][1] - 5300050.0) < 0.5]
     assert person, [f["properties"]["world"] for f in features]
     assert names.index(person[0]["properties"]["first_seen"]) < len(names) - 1

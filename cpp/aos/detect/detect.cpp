@@ -96,7 +96,7 @@ std::string GeoJson(const DetectResult& result) {
                  {"flagged_pixels", result.flagged_pixels},
                  {"dropped", result.dropped},
                  {"crs", result.crs}};
-  return root.dump(1) + "\n";
+  return root.dump(1, ' ', false, nlohmann::ordered_json::error_handler_t::replace) + "\n";
 }
 
 std::string Kml(const DetectResult& result) {
@@ -162,7 +162,7 @@ AnomalyScores AnomalyImaging(const LightField& light_field, std::vector<int> sel
   scores_field.views.resize(selected.size());
   ProgressStart(progress, "frame scores", static_cast<int64_t>(selected.size()));
   const int dimensions = AnomalyFeatureCount(
-      per_frame, light_field.views.empty() ? 1 : light_field.views[0].image.channels());
+      per_frame, light_field.views[static_cast<size_t>(selected[0])].image.channels());
   ParallelFor(static_cast<int64_t>(selected.size()), num_threads, progress,
               [&](int64_t k) {
                 const View& view = light_field.views[static_cast<size_t>(selected[static_cast<size_t>(k)])];

@@ -61,32 +61,54 @@ std::vector<std::string> LiveIntegrator::Add(View view, bool update, ProgressSin
                    " x " + std::to_string(view.camera.height) + " pixels, the window's views are " +
                    std::to_string(first.width) + " x " + std::to_string(first.height));
     }
+    const Image& held = window_.views.front().image;
+    if (view.image.channels() != held.channels() || view.image.type() != held.type()) {
+      ThrowInvalid("view '" + view.name + "': image: " + std::to_string(view.image.channels()) +
+                   " channels of " + PixelTypeName(view.image.type()) + ", the window's are " +
+                   std::to_string(held.channels()) + " of " + PixelTypeName(held.type()));
+    }
   }
   for (const View& held : window_.views) {
     if (held.name == view.name) {
       ThrowInvalid("view '" + view.name + "': name: already in the window");
     }
   }
-  path_.push_back(view.cam_from_world.Center());
+  // On an error in the update the window is as it was before (the view is not kept).
+  const std::vector<View> before = window_.views;
+  const Vec3d centre = view.cam_from_world.Center();
+  window_.views.push_back(std::move(view));
+  std::vector<std::string> dropped;
+  const auto too_far = [&](const View& v) {
+    const Vec3d c = v.cam_from_world.Center();
+    return std::hypot(c.x - centre.x, c.y - centre.y) > live_.window_m;
+  };
+  for (size_t i = 0; i + 1 < window_.views.size();) {  // the distance window: any view too far
+    if (too_far(window_.views[i])) {
+      dropped.push_back(window_.views[i].name);
+      window_.views.erase(window_.views.begin() + static_cast<std::ptrdiff_t>(i));
+    } else {
+      ++i;
+    }
+  }
+  while (window_.views.size() > static_cast<size_t>(live_.window_frames)) {
+    dropped.push_back(window_.views.front().name);
+    window_.views.erase(window_.views.begin());
+  }
+  if (update) {
+    try {
+      UpdateLocked(progress);
+    } catch (...) {
+      window_.views = before;
+      throw;
+    }
+  }
+  path_.push_back(centre);
   if (path_.size() >= kMaxPathPoints) {  // every other point: the shape stays, memory is bounded
     std::vector<Vec3d> thinned;
     for (size_t i = 0; i < path_.size(); i += 2) thinned.push_back(path_[i]);
     thinned.push_back(path_.back());
     path_ = std::move(thinned);
   }
-  window_.views.push_back(std::move(view));
-  std::vector<std::string> dropped;
-  const Vec3d newest = window_.views.back().cam_from_world.Center();
-  const auto too_far = [&](const View& v) {
-    const Vec3d c = v.cam_from_world.Center();
-    return std::hypot(c.x - newest.x, c.y - newest.y) > live_.window_m;
-  };
-  while (window_.views.size() > static_cast<size_t>(live_.window_frames) ||
-         (window_.views.size() > 1 && too_far(window_.views.front()))) {
-    dropped.push_back(window_.views.front().name);
-    window_.views.erase(window_.views.begin());
-  }
-  if (update) UpdateLocked(progress);
   return dropped;
 }
 
@@ -160,31 +182,35 @@ void LiveIntegrator::UpdateLocked(ProgressSink* progress) {
 
 void LiveIntegrator::Track(const DetectResult& found) {
   const std::string& newest = window_.views.back().name;
+  std::vector<size_t> seen;  // tracks already counted in this update (indices: tracks_ grows)
   for (const Detection& d : found.detections) {
     if (!std::isfinite(d.local.x)) continue;  // not on the focal surface: no place to track
-    LiveTrack* nearest = nullptr;
+    size_t nearest = tracks_.size();
     double best = live_.merge_radius_m;
-    for (LiveTrack& track : tracks_) {
-      const double distance = std::hypot(track.detection.local.x - d.local.x,
-                                         track.detection.local.y - d.local.y);
+    for (size_t k = 0; k < tracks_.size(); ++k) {
+      const double distance = std::hypot(tracks_[k].detection.local.x - d.local.x,
+                                         tracks_[k].detection.local.y - d.local.y);
       if (distance <= best) {
         best = distance;
-        nearest = &track;
+        nearest = k;
       }
     }
-    if (nearest == nullptr) {
+    if (nearest == tracks_.size()) {
       LiveTrack track;
       track.detection = d;
       track.first_update = updates_;
       track.first_frame = newest;
       tracks_.push_back(std::move(track));
-      nearest = &tracks_.back();
-    } else if (d.peak_score > nearest->detection.peak_score) {
-      nearest->detection = d;
+    } else if (d.peak_score > tracks_[nearest].detection.peak_score) {
+      tracks_[nearest].detection = d;
     }
-    ++nearest->sightings;
-    nearest->last_update = updates_;
-    nearest->last_frame = newest;
+    LiveTrack& track = tracks_[nearest];
+    if (std::find(seen.begin(), seen.end(), nearest) == seen.end()) {  // once per update
+      ++track.sightings;
+      seen.push_back(nearest);
+    }
+    track.last_update = updates_;
+    track.last_frame = newest;
   }
   std::stable_sort(tracks_.begin(), tracks_.end(), MoreSeen);
   if (tracks_.size() > static_cast<size_t>(live_.max_tracks)) {
@@ -264,7 +290,8 @@ std::string LiveIntegrator::StateJson() const {
   for (const Vec3d& c : path_) path.push_back({c.x, c.y});
   state["path"] = path;
   state["window_path"] = window_path;
-  return state.dump();
+  // Frame names that are not UTF-8 (a byte from another encoding) are replaced, not an error.
+  return state.dump(-1, ' ', false, nlohmann::ordered_json::error_handler_t::replace);
 }
 
 }  // namespace aos

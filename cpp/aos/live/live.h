@@ -4,8 +4,10 @@
 //
 // Contract
 // - The window holds at most LiveOptions::window_frames views, in the order they were added;
-//   adding a view beyond that drops the oldest, and so does a view whose centre lies farther
-//   than window_m (horizontally) from the newest one's. Remove() takes a view out by name.
+//   adding a view beyond that drops the oldest, and every view whose centre lies farther than
+//   window_m (horizontally) from the newest one's leaves too. Remove() takes a view out by name.
+//   A view whose update fails (an error from the render or the detector) is not kept: the
+//   window is as it was, and the error is thrown.
 // - Update() renders the window exactly as the batch renderer renders a light field of those
 //   views (RenderIntegral, or Detect when detecting: the same function on the same views, so
 //   the live image equals the batch render of the window with the same options, bit for bit).
@@ -29,8 +31,8 @@
 //   newest frame, window names, the image's size, this update's detections (pixel centroid,
 //   area, peak), the tracks (world, local, lon/lat, peak, sightings, first/last frame), the
 //   flight path and the window's centres (local x, y), the crs.
-// - Throws std::invalid_argument naming the field: a view whose camera size differs from the
-//   first's, a repeated name while that view is in the window, options out of range (an
+// - Throws std::invalid_argument naming the field: a view whose camera size, channel count or
+//   pixel type differs from the window's, a repeated name while that view is in the window, options out of range (an
 //   IntegralOptions with view_indices: the window is the selection; follow "fixed" with a
 //   pose_view).
 #include <limits>
@@ -86,7 +88,7 @@ struct LiveOptions {
 // One place found during the flight.
 struct LiveTrack {
   Detection detection;      // its strongest sighting (views: indices into that update's window)
-  int sightings = 0;        // updates that detected it
+  int sightings = 0;        // updates that detected it (once per update)
   int first_update = 0;     // Update() counts from 1
   int last_update = 0;
   std::string first_frame;  // the newest frame's name at the first and last sighting

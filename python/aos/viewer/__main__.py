@@ -163,7 +163,8 @@ def serve_live(spec: dict[str, Any], quiet: bool) -> int:
     stop = threading.Event()
     for number in (signal.SIGINT, signal.SIGTERM):
         signal.signal(number, lambda _signum, _frame: stop.set())
-    print(f"aos live page at\n  {viewer.url}", flush=True)
+    out = sys.stderr if spec.get("url_to_stderr") else sys.stdout
+    print(f"aos live page at\n  {viewer.url}", file=out, flush=True)
     open_browser = served.open_browser
     if open_browser is None:
         open_browser = can_open_browser()

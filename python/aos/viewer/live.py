@@ -48,6 +48,10 @@ class LiveFeed:
                 self._snapshot = fresh
             return self._snapshot
 
+    def current(self) -> Optional[Snapshot]:
+        """The newest update read so far, without reading (never waits)."""
+        return self._snapshot
+
     def wait(self, after: int, timeout: float) -> Optional[Snapshot]:
         """The newest update once it is newer than ``after``; the current one at the timeout."""
         deadline = time.monotonic() + timeout
@@ -102,13 +106,15 @@ class FolderFeed(LiveFeed):
     def __init__(self, folder: str) -> None:
         super().__init__()
         self.folder = Path(folder)
-        self._mtime = 0
+        self._seen: tuple[int, int, int] = (0, 0, 0)
 
     def _read(self, known: int) -> Optional[Snapshot]:
         path = self.folder / "live.json"
         try:
-            mtime = path.stat().st_mtime_ns
-            if mtime == self._mtime:
+            stat = path.stat()
+            # Each update renames a new file into place: a new inode, even within one mtime tick.
+            seen = (stat.st_ino, stat.st_mtime_ns, stat.st_size)
+            if seen == self._seen:
                 return None
             text = path.read_bytes()
             state = json.loads(text)
@@ -116,7 +122,7 @@ class FolderFeed(LiveFeed):
                 if state.get("image") else b""
         except (OSError, ValueError):
             return None  # not written yet, or replaced while read: the next poll has it
-        self._mtime = mtime
+        self._seen = seen
         if int(state.get("update", 0)) <= known:
             return None
         return int(state["update"]), text, png

@@ -207,7 +207,7 @@ class Viewer:
         self.live = live
         self.live_waiters = 0
         self.live_executor = concurrent.futures.ThreadPoolExecutor(
-            max_workers=4, thread_name_prefix="aos-live") if live is not None else None
+            max_workers=2, thread_name_prefix="aos-live") if live is not None else None
         self.token = token
         self.max_pages = max_pages
         self.assets = load_assets()
@@ -419,9 +419,15 @@ class Viewer:
                                                     "are waiting; try again")
         self.live_waiters += 1
         try:
+            # The wait is the event loop's (no thread held); each look at the feed is a short
+            # call on the live pool (it may read a file or encode a PNG).
             loop = asyncio.get_running_loop()
-            snapshot = await loop.run_in_executor(self.live_executor, self.live.wait,
-                                                  int(after), LIVE_WAIT_S)
+            deadline = loop.time() + LIVE_WAIT_S
+            while True:
+                snapshot = await loop.run_in_executor(self.live_executor, self.live.snapshot)
+                if (snapshot is not None and snapshot[0] > int(after)) or loop.time() >= deadline:
+                    break
+                await asyncio.sleep(self.live.poll_s)
         finally:
             self.live_waiters -= 1
         if snapshot is None:
@@ -430,7 +436,7 @@ class Viewer:
 
     async def live_image(self, request: web.Request) -> web.Response:
         """The newest update's image (PNG): the integral with its detections boxed."""
-        snapshot = self.live.snapshot()
+        snapshot = self.live.current()  # what /api/live last answered: never waits
         if snapshot is None or not snapshot[2]:
             return _bad("no image yet", 404)
         response = web.Response(body=snapshot[2], content_type="image/png")

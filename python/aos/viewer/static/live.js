@@ -60,7 +60,8 @@
       const li = document.createElement("li");
       const where = t.lon_lat ? `${t.lon_lat[1].toFixed(6)}, ${t.lon_lat[0].toFixed(6)}`
         : t.world[0] === null ? "not located" : t.world.map((v) => v.toFixed(1)).join(" ");
-      li.textContent = `${where}  peak ${t.peak_score.toFixed(1)}  ×${t.sightings} ` +
+      const peak = t.peak_score === null ? "?" : t.peak_score.toFixed(1);
+      li.textContent = `${where}  peak ${peak}  ×${t.sightings} ` +
         `(${t.first_frame} .. ${t.last_frame})`;
       list.appendChild(li);
     }
