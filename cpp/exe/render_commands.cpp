@@ -1360,6 +1360,7 @@ struct LiveCommand {
   double fps = 0.0;       // --fps: replay pace; 0 = as fast as the updates run
   double idle_exit_s = 0.0;  // --idle-exit-s: stop after this long without a new frame; 0 = never
   double poll_s = 0.1;
+  bool exif = false;     // --exif: poses from the frames' own GPS and gimbal tags
   bool resume = false;   // --resume: the tracks of --geojson carried on, the folder's backlog skipped
   LoadOptions load;
   std::string focal_surface_path;
@@ -1646,11 +1647,13 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       file.Commit();
     }
   };
-  const auto add = [&](View view, double seen_unix) {
+  // `time_s`: the frame's time for --window-s (seconds since the run began: its arrival, or its
+  // place in a paced replay).
+  const auto add = [&](View view, double seen_unix, double time_s) {
     const auto t0 = std::chrono::steady_clock::now();
     const std::string name = view.name;
     try {
-      flags.NamingFlags([&] { integrator->Add(std::move(view), true, &progress); });
+      flags.NamingFlags([&] { integrator->Add(std::move(view), true, &progress, time_s); });
     } catch (const Cancelled&) {
       return;  // stopped within this update: the outputs stay those of the last one
     }
@@ -1687,10 +1690,14 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       LoadViewImages(*replayed, {i}, load);
       View view = replayed->views[static_cast<size_t>(i)];
       DropViewImages(*replayed, {i});  // the window holds the one copy it needs
-      add(std::move(view), seen);
+      add(std::move(view), seen, c.fps > 0.0 ? i / c.fps : seconds());
     }
   } else {
     if (!fs::is_directory(c.source)) ThrowInvalid(c.source + ": not a folder");
+    if (c.telemetry.telemetry_file.empty() == !c.exif) {
+      ThrowUsage("live " + c.source + ": give --telemetry-file LOG (a CSV with a frame column) or "
+                 "--exif (the frames' own GPS and gimbal tags), one of them");
+    }
     if (c.telemetry.fov_deg <= 0.0 && c.telemetry.camera_file.empty()) {
       c.telemetry.fov_deg = c.load.fov_deg;
     }
@@ -1917,7 +1924,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
               continue;
             }
             try {
-              add(std::move(one.views[0]), w.seen_unix);
+              add(std::move(one.views[0]), w.seen_unix, w.first_seen_s);
             } catch (const std::exception& problem) {
               // A frame the window cannot take (another size or channel count; a render or a
               // detection that fails on it): skipped with one warning, the run goes on.
@@ -2029,6 +2036,9 @@ CommandRunner DefineLive(CLI::App* command) {
                       "The newest integral with its detections boxed (8-bit), rewritten after "
                       "every update");
   for (const char* output : {"--geojson", "--csv", "--image"}) flags.Output(output);
+  command->add_flag("--exif", c->exif,
+                    "Folder: pose each frame from its own EXIF GPS and DJI XMP gimbal tags (instead "
+                    "of --telemetry-file)");
   command->add_flag("--resume", c->resume,
                     "Folder: carry on after a restart: the tracks of --geojson are read back and "
                     "extended (the outputs are rewritten), and of the frames already in the "

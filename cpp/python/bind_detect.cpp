@@ -314,7 +314,7 @@ void BindDetect(py::module_& m) {
       .def(
           "add",
           [](LiveIntegrator& self, const py::handle& image, const py::object& camera,
-             const Rigid3d& cam_from_world, std::string name, bool update) {
+             const Rigid3d& cam_from_world, std::string name, bool update, double time_s) {
             Image copy = ImageFromArray(image, /*border=*/1, "add: image");
             View view;
             if (py::isinstance<LensCamera>(camera)) {
@@ -326,19 +326,21 @@ void BindDetect(py::module_& m) {
                               std::move(copy));
             }
             py::gil_scoped_release release;
-            return self.Add(std::move(view), update);
+            return self.Add(std::move(view), update, nullptr, time_s);
           },
           "image"_a, "camera"_a, "cam_from_world"_a, "name"_a, "update"_a = true,
+          "time_s"_a = std::nan(""),
           "Adds a frame (COPIED, as LightField.add_view) with its camera and pose; drops the "
           "oldest beyond window_frames (their names are returned); with `update`, renders and "
-          "detects.")
+          "detects. `time_s`: the frame's time in seconds (capture or arrival), for window_s.")
       .def(
           "add_view",
-          [](LiveIntegrator& self, const View& view, bool update) {
+          [](LiveIntegrator& self, const View& view, bool update, double time_s) {
             py::gil_scoped_release release;
-            return self.Add(view, update);
+            return self.Add(view, update, nullptr, time_s);
           },
-          "view"_a, "update"_a = true, "Adds a light field's view (e.g. a replay).")
+          "view"_a, "update"_a = true, "time_s"_a = std::nan(""),
+          "Adds a light field's view (e.g. a replay); `time_s` as in add.")
       .def(
           "remove",
           [](LiveIntegrator& self, const std::string& name, bool update) {

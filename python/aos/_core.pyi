@@ -2474,6 +2474,7 @@ class LiveOptions:
         *,
         window_frames: int = ...,
         window_m: float = ...,
+        window_s: float = ...,
         follow: Literal['latest', 'fixed'] = ...,
         detect: bool = ...,
         merge_radius_m: float = ...,
@@ -2485,6 +2486,9 @@ class LiveOptions:
     window_m: float
     """Live: views farther than this from the newest view (horizontally, metres) leave the window
     too; inf = no distance window. [m, > 0]"""
+    window_s: float
+    """Live: views taken more than this many seconds before the newest leave the window too; inf =
+    no time window. [s, > 0]"""
     follow: Literal['latest', 'fixed']
     """Live: the virtual camera follows the 'latest' view, or stays 'fixed' (--cam-from-world / the
     options' pose). [one of latest or fixed]"""
@@ -2535,8 +2539,9 @@ class LiveIntegrator:
         cam_from_world: Rigid3d,
         name: str,
         update: bool = True,
+        time_s: float = ...,
     ) -> list[str]: ...
-    def add_view(self, view: View, update: bool = True) -> list[str]: ...
+    def add_view(self, view: View, update: bool = True, time_s: float = ...) -> list[str]: ...
     def remove(self, name: str, update: bool = True) -> bool: ...
     def update(self) -> None: ...
     @property

@@ -127,6 +127,22 @@ TEST(Live, TheDistanceWindowDropsFarViews) {
   EXPECT_EQ(integrator.path().size(), 10u);
 }
 
+// A time window: views added more than window_s before the newest leave it.
+TEST(Live, TheTimeWindowDropsOldViews) {
+  const LightField flight = Flight(6);
+  LiveOptions live;
+  live.detect = false;
+  live.window_s = 2.5;
+  LiveIntegrator integrator(flight, IntegralOptions(), DetectOptions(), live);
+  for (int i = 0; i < 6; ++i) integrator.Add(flight.views[static_cast<size_t>(i)], true, nullptr, i * 1.0);
+  const LightField window = integrator.window();
+  ASSERT_EQ(window.views.size(), 3u);  // times 3, 4, 5: 2 s and 1 s before 5; 2 is 3 s before
+  EXPECT_EQ(window.views.front().name, "frame3");
+  EXPECT_TRUE(integrator.Remove("frame4"));
+  integrator.Add(flight.views[0], true, nullptr, 5.5);  // a later frame named like an old one
+  EXPECT_EQ(integrator.window().views.size(), 3u);  // 3 (2.5 s before), 5, 0
+}
+
 // A view whose update fails is not kept: the window is as it was. Here the detector finds no
 // pixel to score (the focal plane lies above the cameras, so no view sees it).
 TEST(Live, AFailedUpdateLeavesTheWindowAsItWas) {

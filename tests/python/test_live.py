@@ -322,3 +322,16 @@ def test_cli_folder_finds_the_person_before_the_flight_ends(forest: aos.LightFie
                             f["properties"]["world"][1] - 5300050.0) < 0.5]
     assert person, [f["properties"]["world"] for f in features]
     assert names.index(person[0]["properties"]["first_seen"]) < len(names) - 1
+
+
+def test_cli_folder_needs_its_telemetry_named(tmp_path: Path) -> None:
+    """A watched folder's poses come from --telemetry-file or --exif: neither (or both) is a
+    usage error naming them, before anything is written."""
+    (tmp_path / "frames").mkdir()
+    for extra in ([], ["--exif", "--telemetry-file", str(tmp_path / "log.csv")]):
+        (tmp_path / "log.csv").write_text("frame,lat,lon,alt,yaw,pitch,roll\n")
+        out = subprocess.run(["aos-render", "live", str(tmp_path / "frames"), "--frames-fov-deg",
+                              "50", "--geojson", str(tmp_path / "t.geojson"), *extra],
+                             capture_output=True, text=True, timeout=60)
+        assert out.returncode == 2 and "--telemetry-file" in out.stderr and "--exif" in out.stderr
+        assert not (tmp_path / "t.geojson").exists()

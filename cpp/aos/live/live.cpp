@@ -51,7 +51,8 @@ IntegralOptions LiveIntegrator::RenderOptionsLocked() const {
   return options;
 }
 
-std::vector<std::string> LiveIntegrator::Add(View view, bool update, ProgressSink* progress) {
+std::vector<std::string> LiveIntegrator::Add(View view, bool update, ProgressSink* progress,
+                                             double time_s) {
   std::lock_guard<std::mutex> lock(mutex_);
   if (view.image.empty()) ThrowInvalid("view '" + view.name + "': image: not loaded");
   if (!window_.views.empty()) {
@@ -75,30 +76,34 @@ std::vector<std::string> LiveIntegrator::Add(View view, bool update, ProgressSin
   }
   // On an error in the update the window is as it was before (the view is not kept).
   const std::vector<View> before = window_.views;
+  const std::vector<double> times_before = times_;
   const Vec3d centre = view.cam_from_world.Center();
   window_.views.push_back(std::move(view));
+  times_.push_back(time_s);
   std::vector<std::string> dropped;
-  const auto too_far = [&](const View& v) {
-    const Vec3d c = v.cam_from_world.Center();
-    return std::hypot(c.x - centre.x, c.y - centre.y) > live_.window_m;
+  const auto drop = [&](size_t i) {
+    dropped.push_back(window_.views[i].name);
+    window_.views.erase(window_.views.begin() + static_cast<std::ptrdiff_t>(i));
+    times_.erase(times_.begin() + static_cast<std::ptrdiff_t>(i));
   };
-  for (size_t i = 0; i + 1 < window_.views.size();) {  // the distance window: any view too far
-    if (too_far(window_.views[i])) {
-      dropped.push_back(window_.views[i].name);
-      window_.views.erase(window_.views.begin() + static_cast<std::ptrdiff_t>(i));
+  // The distance and time windows: any view too far or too old (NaN times compare false).
+  for (size_t i = 0; i + 1 < window_.views.size();) {
+    const Vec3d c = window_.views[i].cam_from_world.Center();
+    const bool too_far = std::hypot(c.x - centre.x, c.y - centre.y) > live_.window_m;
+    const bool too_old = time_s - times_[i] > live_.window_s;
+    if (too_far || too_old) {
+      drop(i);
     } else {
       ++i;
     }
   }
-  while (window_.views.size() > static_cast<size_t>(live_.window_frames)) {
-    dropped.push_back(window_.views.front().name);
-    window_.views.erase(window_.views.begin());
-  }
+  while (window_.views.size() > static_cast<size_t>(live_.window_frames)) drop(0);
   if (update) {
     try {
       UpdateLocked(progress);
     } catch (...) {
       window_.views = before;
+      times_ = times_before;
       throw;
     }
   }
@@ -117,6 +122,7 @@ bool LiveIntegrator::Remove(const std::string& name, bool update, ProgressSink* 
   const auto it = std::find_if(window_.views.begin(), window_.views.end(),
                                [&](const View& v) { return v.name == name; });
   if (it == window_.views.end()) return false;
+  times_.erase(times_.begin() + (it - window_.views.begin()));
   window_.views.erase(it);
   if (update) UpdateLocked(progress);
   return true;

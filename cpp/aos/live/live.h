@@ -5,7 +5,9 @@
 // Contract
 // - The window holds at most LiveOptions::window_frames views, in the order they were added;
 //   adding a view beyond that drops the oldest, and every view whose centre lies farther than
-//   window_m (horizontally) from the newest one's leaves too. Remove() takes a view out by name.
+//   window_m (horizontally) from the newest one's leaves too, and every view whose time (given to
+//   Add: seconds, capture or arrival; NaN = none) is more than window_s before the newest's.
+//   Remove() takes a view out by name.
 //   A view whose update fails (an error from the render or the detector) is not kept: the
 //   window is as it was, and the error is thrown.
 // - Update() renders the window exactly as the batch renderer renders a light field of those
@@ -35,6 +37,7 @@
 //   pixel type differs from the window's, a repeated name while that view is in the window, options out of range (an
 //   IntegralOptions with view_indices: the window is the selection; follow "fixed" with a
 //   pose_view).
+#include <cmath>
 #include <limits>
 #include <mutex>
 #include <string>
@@ -54,6 +57,9 @@ struct LiveOptions {
   // A distance window as well: views whose centre lies farther than this (horizontally, light
   // field units: metres) from the newest view's are dropped, > 0; infinity = none.
   double window_m = std::numeric_limits<double>::infinity();
+  // A time window as well: views added more than this many seconds before the newest (by the
+  // times given to Add: capture or arrival) are dropped, > 0; infinity = none.
+  double window_s = std::numeric_limits<double>::infinity();
   // The virtual camera: "latest" (the newest view's pose) or "fixed" (the render options').
   std::string follow = "latest";
   // Run the detector (DetectOptions) on every update.
@@ -73,6 +79,9 @@ struct LiveOptions {
     field(OptionField("window_m", &O::window_m, "m", Range::Above(0.0),
                       "Live: views farther than this from the newest view (horizontally, metres) "
                       "leave the window too; inf = no distance window."));
+    field(OptionField("window_s", &O::window_s, "s", Range::Above(0.0),
+                      "Live: views taken more than this many seconds before the newest leave the "
+                      "window too; inf = no time window."));
     field(OptionField("follow", &O::follow, "", Range::OneOf("latest|fixed"),
                       "Live: the virtual camera follows the 'latest' view, or stays 'fixed' "
                       "(--cam-from-world / the options' pose)."));
@@ -103,7 +112,8 @@ class LiveIntegrator {
 
   // Adds a view (image loaded, border 1: MakeView), dropping the oldest beyond the window;
   // returns the names dropped. With `update`, renders and detects (Update()).
-  std::vector<std::string> Add(View view, bool update = true, ProgressSink* progress = nullptr);
+  std::vector<std::string> Add(View view, bool update = true, ProgressSink* progress = nullptr,
+                               double time_s = std::nan(""));
   // Takes the named view out of the window; false when it is not there.
   bool Remove(const std::string& name, bool update = true, ProgressSink* progress = nullptr);
   // Renders the window and (detect) finds and tracks. An empty window clears the image.
@@ -139,6 +149,7 @@ class LiveIntegrator {
 
   mutable std::mutex mutex_;
   std::vector<Vec3d> path_;
+  std::vector<double> times_;  // the window's views' times (NaN = none), in step with its views
 
   IntegralOptions render_;
   DetectOptions detect_;
