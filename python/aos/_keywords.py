@@ -137,8 +137,8 @@ class MapKeywords(TypedDict, total=False):
     focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
     surface_offset: float
     tile_size: int
-    min_view_count: int
     max_pixels: int
+    min_view_count: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float

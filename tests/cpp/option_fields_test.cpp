@@ -64,7 +64,7 @@ TEST(FieldTable, EveryFieldOnceInDeclarationOrder) {
   MapOptions::Fields([&](const auto& field) { names += std::string(field.name) + " "; });
   EXPECT_EQ(names,
             "pixel_size width extent focal_surface surface_offset tile_size max_pixels "
-            "aperture_radius view_indices min_view_angle_deg lens_tolerance_px num_threads ");
+            "min_view_count aperture_radius view_indices min_view_angle_deg lens_tolerance_px num_threads ");
 }
 
 TEST(FieldTable, CheckRefusesValuesOutsideTheTablesRangeNamingTheField) {

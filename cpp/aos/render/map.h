@@ -112,12 +112,12 @@ struct MapOptions : ApertureOptions {
                       "Offset of focal_surface along up (towards the views), metres."));
     field(OptionField("tile_size", &O::tile_size, "px", Range::Closed(16, 8192),
                       "Pixels on a side of a render tile, 16 .. 8192."));
-    field(OptionField("min_view_count", &O::min_view_count, "", Range::AtLeast(0),
-                      "Pixels averaged over fewer views than this are left uncovered (nodata); 0 "
-                      "or 1 keeps every pixel a view sees."));
     field(OptionField("max_pixels", &O::max_pixels, "px", Range::Closed(4.0, 1e14),
                       "The most pixels (width x height) the map may have; more is refused as "
                       "a likely mistake of units. Raise it for a map that large on purpose."));
+    field(OptionField("min_view_count", &O::min_view_count, "", Range::AtLeast(0),
+                      "Pixels averaged over fewer views than this are left uncovered (nodata); 0 "
+                      "or 1 keeps every pixel a view sees."));
     ApertureOptions::Fields(field);  // aperture.h
   }
 };
