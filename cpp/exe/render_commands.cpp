@@ -1369,6 +1369,7 @@ struct LiveCommand {
   DetectOptions detect;
   LiveOptions live;
   TelemetryOptions telemetry;
+  MapOptions map;        // --follow map: the area (extent, pixel size); the rest from `options`
   std::string geojson, csv, image;
   bool view = false;     // --view: serve the live page (python -m aos.viewer on a state folder)
   ViewerOptions viewer;
@@ -1647,6 +1648,21 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       file.Commit();
     }
   };
+  // The integrator: a camera's integral, or (--follow map) the map of --extent, which takes the
+  // aperture, focus, threads and (without --pixel-size) width of the render flags.
+  const auto make_integrator = [&](const LightField& base) {
+    return flags.NamingFlags([&] {
+      if (c.live.follow != "map") {
+        return std::make_unique<LiveIntegrator>(base, c.options, c.detect, c.live);
+      }
+      MapOptions map = c.map;
+      static_cast<ApertureOptions&>(map) = c.options;
+      map.focal_surface = c.options.focal_surface;
+      map.surface_offset = c.options.surface_offset;
+      if (map.pixel_size == 0.0) map.width = c.options.width > 0 ? c.options.width : 512;
+      return std::make_unique<LiveIntegrator>(base, map, c.detect, c.live);
+    });
+  };
   // `time_s`: the frame's time for --window-s (seconds since the run began: its arrival, or its
   // place in a paced replay).
   const auto add = [&](View view, double seen_unix, double time_s) {
@@ -1675,8 +1691,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     load.num_threads = c.options.num_threads;
     replayed = flags.At("load.").NamingFlags([&] { return LoadLightField(c.replay, load).light_field; });
     if (replayed->views.empty()) ThrowInvalid(c.replay + ": views: none to replay");
-    integrator = flags.NamingFlags(
-        [&] { return std::make_unique<LiveIntegrator>(*replayed, c.options, c.detect, c.live); });
+    integrator = make_integrator(*replayed);
     for (int i = 0; i < static_cast<int>(replayed->views.size()); ++i) {
       if (Interrupted()) break;
       if (c.fps > 0.0) {
@@ -1880,9 +1895,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
             crs = posed.light_field.crs;
             origin = posed.light_field.origin;
             LightField base = EmptyLike(posed.light_field);
-            integrator = flags.NamingFlags([&] {
-              return std::make_unique<LiveIntegrator>(base, c.options, c.detect, c.live);
-            });
+            integrator = make_integrator(base);
             // The earlier run's tracks in this run's frame (its origin may differ: local =
             // world - origin), and only in the same CRS.
             if (!resumed.empty() && resumed_crs != crs) {
@@ -2017,6 +2030,9 @@ CommandRunner DefineLive(CLI::App* command) {
       ->excludes(surface);
   Flags live = flags.At("live.");
   live.Remaining(c->live);
+  Flags mapping = flags.At("map.");
+  mapping.Field(c->map, "extent")->expected(4);
+  mapping.Field(c->map, "pixel_size");
   Flags telemetry = flags.At("telemetry.");
   telemetry.Field(c->telemetry, "telemetry_file");
   telemetry.Input("--telemetry-file");

@@ -2,6 +2,7 @@
 // integration with detection (live/live.h): LiveOptions, LiveTrack, LiveIntegrator.
 #include "aos/detect/detect.h"
 #include "aos/live/live.h"
+#include "aos/render/map.h"
 #include "bindings.h"
 
 namespace aos::python {
@@ -311,6 +312,16 @@ void BindDetect(py::module_& m) {
            "detect_options"_a = DetectOptions(), "live_options"_a = LiveOptions(),
            "`base` gives what every view shares (crs, origin, radiometry; its views are ignored). "
            "Raises ValueError naming the field.")
+      .def(py::init([](const LightField& base, const MapOptions& map_options,
+                       const DetectOptions& detect, const LiveOptions& live) {
+             MapOptions map = map_options;
+             map.focal_surface = InCrs(map.focal_surface, base.crs);
+             return std::make_unique<LiveIntegrator>(base, map, detect, live);
+           }),
+           "base"_a, "map_options"_a, "detect_options"_a = DetectOptions(),
+           "live_options"_a = LiveOptions(),
+           "follow 'map': every update is the window's orthographic map over map_options' extent "
+           "(set). Raises ValueError naming the field.")
       .def(
           "add",
           [](LiveIntegrator& self, const py::handle& image, const py::object& camera,

@@ -22,7 +22,7 @@ __deepcopy__ (the others copy through pickling).
 """
 
 import os
-from typing import Any, Callable, ClassVar, Literal, Optional, Sequence, Union
+from typing import Any, Callable, ClassVar, Literal, Optional, Sequence, Union, overload
 
 import numpy
 import numpy.typing
@@ -774,8 +774,8 @@ class MapOptions:
         focal_surface: FocalSurface | Mesh | Heightfield | Plane | float = ...,
         surface_offset: float = ...,
         tile_size: int = ...,
-        min_view_count: int = ...,
         max_pixels: int = ...,
+        min_view_count: int = ...,
         aperture_radius: float = ...,
         view_indices: Sequence[int] = ...,
         min_view_angle_deg: float = ...,
@@ -803,12 +803,12 @@ class MapOptions:
     """Offset of focal_surface along up (towards the views), metres. [m, finite]"""
     tile_size: int
     """Pixels on a side of a render tile, 16 .. 8192. [px, in [16, 8192]]"""
-    min_view_count: int
-    """Pixels averaged over fewer views than this are left uncovered (nodata); 0 or 1 keeps every
-    pixel a view sees. [>= 0]"""
     max_pixels: int
     """The most pixels (width x height) the map may have; more is refused as a likely mistake of
     units. Raise it for a map that large on purpose. [px, in [4, 1e+14]]"""
+    min_view_count: int
+    """Pixels averaged over fewer views than this are left uncovered (nodata); 0 or 1 keeps every
+    pixel a view sees. [>= 0]"""
     aperture_radius: float
     """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
     around the vertical line through the focal point for a map; 0 = the single nearest view, inf
@@ -2475,7 +2475,7 @@ class LiveOptions:
         window_frames: int = ...,
         window_m: float = ...,
         window_s: float = ...,
-        follow: Literal['latest', 'fixed'] = ...,
+        follow: Literal['latest', 'fixed', 'map'] = ...,
         detect: bool = ...,
         merge_radius_m: float = ...,
         max_tracks: int = ...,
@@ -2489,9 +2489,10 @@ class LiveOptions:
     window_s: float
     """Live: views taken more than this many seconds before the newest leave the window too; inf =
     no time window. [s, > 0]"""
-    follow: Literal['latest', 'fixed']
-    """Live: the virtual camera follows the 'latest' view, or stays 'fixed' (--cam-from-world / the
-    options' pose). [one of latest or fixed]"""
+    follow: Literal['latest', 'fixed', 'map']
+    """Live: the virtual camera follows the 'latest' view, stays 'fixed' (--cam-from-world / the
+    options' pose), or is the orthographic 'map' of a fixed area (--extent). [one of latest,
+    fixed or map]"""
     detect: bool
     """Live: run the detector on every update (true by default; --detect=false integrates only)."""
     merge_radius_m: float
@@ -2525,10 +2526,19 @@ class LiveIntegrator:
     """Live, in-flight integration (docs/live.md): a sliding window of the newest views,
     re-rendered and searched after each add; equal to the batch render of the window."""
 
+    @overload
     def __init__(
         self,
         base: LightField = ...,
         options: IntegralOptions = ...,
+        detect_options: DetectOptions = ...,
+        live_options: LiveOptions = ...,
+    ) -> None: ...
+    @overload
+    def __init__(
+        self,
+        base: LightField,
+        map_options: MapOptions,
         detect_options: DetectOptions = ...,
         live_options: LiveOptions = ...,
     ) -> None: ...

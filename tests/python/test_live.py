@@ -335,3 +335,37 @@ def test_cli_folder_needs_its_telemetry_named(tmp_path: Path) -> None:
                              capture_output=True, text=True, timeout=60)
         assert out.returncode == 2 and "--telemetry-file" in out.stderr and "--exif" in out.stderr
         assert not (tmp_path / "t.geojson").exists()
+
+
+def test_follow_map_is_the_batch_map_of_the_window_and_finds_the_person(
+        forest: aos.LightField, tmp_path: Path) -> None:
+    """follow 'map': each update is the orthographic map of a fixed area, equal to the batch
+    map of the window's views; the person is a track at its place. The CLI takes --extent."""
+    extent = [499990.0, 5299990.0, 500010.0, 5300010.0]
+    map_options = aos.MapOptions(extent=extent, pixel_size=0.2, focal_surface=0.0)
+    live = aos.LiveIntegrator(forest, map_options=map_options,
+                              live_options=aos.LiveOptions(window_frames=20, follow="map"))
+    for i, view in enumerate(forest.views):
+        live.add_view(view)
+        if i % 20 == 19:
+            first = max(0, i - 19)
+            batch = aos.render_map(forest, extent=extent, pixel_size=0.2, focal_surface=0.0,
+                                   view_indices=list(range(first, i + 1)))
+            np.testing.assert_array_equal(live.image, batch.image)
+    assert live.image.shape[:2] == (100, 100)
+    person = [t for t in live.tracks
+              if math.hypot(t.detection.world[0] - 500000.0, t.detection.world[1] - 5300000.0) < 0.3]
+    assert person and person[0].sightings >= 5, live.tracks[:3]
+    with pytest.raises(ValueError, match="extent"):
+        aos.LiveIntegrator(forest, map_options=aos.MapOptions(pixel_size=0.2),
+                           live_options=aos.LiveOptions(follow="map"))
+    path = tmp_path / "lf.json"
+    aos.write_lightfield(str(path), forest)
+    out = subprocess.run(["aos-render", "live", "--replay", str(path), "--follow", "map",
+                          "--extent", *(str(v) for v in extent), "--pixel-size", "0.2",
+                          "--focal-height", "0", "--geojson", str(tmp_path / "t.geojson"),
+                          "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-800:]
+    features = json.loads((tmp_path / "t.geojson").read_text())["features"]
+    assert any(math.hypot(f["properties"]["world"][0] - 500000.0,
+                          f["properties"]["world"][1] - 5300000.0) < 0.3 for f in features)

@@ -31,9 +31,33 @@ LiveIntegrator::LiveIntegrator(const LightField& base, const IntegralOptions& re
     ThrowInvalid("view_indices: live integration takes every view of its window (give "
                  "window_frames instead)");
   }
+  if (live_.follow == "map") {
+    ThrowInvalid("follow: 'map' renders the orthographic map of a fixed area: construct with "
+                 "MapOptions (its extent set)");
+  }
   if (live_.follow == "fixed" && render_.pose_view >= 0) {
     ThrowInvalid("pose_view: follow 'fixed' takes the options' cam_from_world; pose_view " +
                  std::to_string(render_.pose_view) + " names a view of a window that moves");
+  }
+  window_.views.clear();
+}
+
+LiveIntegrator::LiveIntegrator(const LightField& base, const MapOptions& map,
+                               const DetectOptions& detect, const LiveOptions& live)
+    : map_(map), detect_(detect), live_(live), window_(EmptyLike(base)) {
+  live_.Check();
+  if (live_.detect) detect_.Check();
+  if (live_.follow != "map") {
+    ThrowInvalid("follow: '" + live_.follow + "' with MapOptions: give follow 'map' (or "
+                 "IntegralOptions for a camera)");
+  }
+  if (map.extent.empty()) {
+    ThrowInvalid("extent: follow 'map' needs the map's area (XMIN, YMIN, XMAX, YMAX, world "
+                 "metres): the window's own footprint moves with the flight");
+  }
+  if (!map.view_indices.empty()) {
+    ThrowInvalid("view_indices: live integration takes every view of its window (give "
+                 "window_frames instead)");
   }
   window_.views.clear();
 }
@@ -171,6 +195,24 @@ void LiveIntegrator::UpdateLocked(ProgressSink* progress) {
   ++updates_;
   if (window_.views.empty()) {
     result_ = DetectResult();
+    return;
+  }
+  if (map_) {
+    if (live_.detect) {
+      result_ = DetectOnMap(window_, *map_, detect_, progress);
+      Track(result_);
+    } else {
+      MapResult map = RenderMap(window_, *map_, progress);
+      DetectResult result;
+      result.geotransform = map.summary.grid.GeoTransform();
+      result.render.image = std::move(map.image);
+      result.render.count = std::move(map.count);
+      result.render.uncovered_pixels = map.summary.uncovered_pixels;
+      result.render.views_used = map.summary.views_used;
+      result.crs = window_.crs;
+      result.radiometry = window_.radiometry;
+      result_ = std::move(result);
+    }
     return;
   }
   const IntegralOptions options = RenderOptionsLocked();

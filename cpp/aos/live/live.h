@@ -15,7 +15,10 @@
 //   the live image equals the batch render of the window with the same options, bit for bit).
 //   follow "latest": the virtual camera is the newest view's (IntegralOptions::pose_view is set
 //   to it; fov_deg, width and height as given); "fixed": the options' own virtual camera
-//   (cam_from_world, pose_view -1).
+//   (cam_from_world, pose_view -1); "map": the orthographic map (RenderMap / DetectOnMap) of the
+//   MapOptions given, whose extent must be set (the map's grid stays the same all flight: pixels
+//   the window does not see are uncovered, and an update whose window sees no pixel of it fails
+//   like any other, leaving the window as it was).
 // - Tracks: each update's detections that are located on the focal surface join the track
 //   whose point lies within merge_radius_m (the nearest; horizontal distance in the local
 //   frame), else start a new one. A track keeps its strongest sighting (the highest peak score),
@@ -40,12 +43,14 @@
 #include <cmath>
 #include <limits>
 #include <mutex>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "aos/detect/detect.h"
 #include "aos/lightfield/lightfield.h"
 #include "aos/render/integral.h"
+#include "aos/render/map.h"
 #include "aos/util/option_fields.h"
 #include "aos/util/progress.h"
 
@@ -60,7 +65,8 @@ struct LiveOptions {
   // A time window as well: views added more than this many seconds before the newest (by the
   // times given to Add: capture or arrival) are dropped, > 0; infinity = none.
   double window_s = std::numeric_limits<double>::infinity();
-  // The virtual camera: "latest" (the newest view's pose) or "fixed" (the render options').
+  // The virtual camera: "latest" (the newest view's pose), "fixed" (the render options') or
+  // "map" (the orthographic map of a fixed area: the MapOptions constructor, its extent given).
   std::string follow = "latest";
   // Run the detector (DetectOptions) on every update.
   bool detect = true;
@@ -82,9 +88,10 @@ struct LiveOptions {
     field(OptionField("window_s", &O::window_s, "s", Range::Above(0.0),
                       "Live: views taken more than this many seconds before the newest leave the "
                       "window too; inf = no time window."));
-    field(OptionField("follow", &O::follow, "", Range::OneOf("latest|fixed"),
-                      "Live: the virtual camera follows the 'latest' view, or stays 'fixed' "
-                      "(--cam-from-world / the options' pose)."));
+    field(OptionField("follow", &O::follow, "", Range::OneOf("latest|fixed|map"),
+                      "Live: the virtual camera follows the 'latest' view, stays 'fixed' "
+                      "(--cam-from-world / the options' pose), or is the orthographic 'map' of a "
+                      "fixed area (--extent)."));
     field(OptionField("detect", &O::detect, "", Range::Any(),
                       "Live: run the detector on every update (true by default; --detect=false integrates only)."));
     field(OptionField("merge_radius_m", &O::merge_radius_m, "m", Range::FiniteAtLeast(0.0, true),
@@ -109,6 +116,9 @@ class LiveIntegrator {
   // `base` gives what every view shares (crs, origin, radiometry, grey; its views are ignored).
   LiveIntegrator(const LightField& base, const IntegralOptions& render,
                  const DetectOptions& detect, const LiveOptions& live);
+  // follow "map": the window's orthographic map over `map`'s extent (set; no view_indices).
+  LiveIntegrator(const LightField& base, const MapOptions& map, const DetectOptions& detect,
+                 const LiveOptions& live);
 
   // Adds a view (image loaded, border 1: MakeView), dropping the oldest beyond the window;
   // returns the names dropped. With `update`, renders and detects (Update()).
@@ -152,6 +162,7 @@ class LiveIntegrator {
   std::vector<double> times_;  // the window's views' times (NaN = none), in step with its views
 
   IntegralOptions render_;
+  std::optional<MapOptions> map_;  // follow "map"
   DetectOptions detect_;
   LiveOptions live_;
   LightField window_;
