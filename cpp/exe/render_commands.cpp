@@ -153,6 +153,33 @@ CLI::Option* AddFocalHeightFlag(Flags& flags, FocalSurface& focal_surface, const
       help);
 }
 
+// The detector's flags (DetectOptions under "detect.", detect and live): the scores and the
+// threshold first in --help, then --force, then the rest of the table.
+void AddDetectFlags(Flags& flags, DetectOptions& detect) {
+  Flags scoring = flags.At("detect.");
+  for (const char* name : {"detector", "channels", "quantile", "false_alarm_rate", "min_score",
+                           "min_temperature_c"}) {
+    scoring.Field(detect, name);
+  }
+  flags.Force();
+  scoring.Remaining(detect);
+}
+
+// The viewer server's flags (ViewerOptions under "viewer.", view and live --view): host, port,
+// max_pages, open_browser and --no-browser; returns open_browser's option.
+CLI::Option* AddViewerFlags(Flags& flags, ViewerOptions& viewer, bool& no_browser) {
+  Flags served = flags.At("viewer.");
+  served.Field(viewer, "host");
+  served.Field(viewer, "port");
+  served.Field(viewer, "max_pages");
+  CLI::Option* open_browser = served.Field(viewer, "open_browser");
+  served.Shorthand("open_browser", "--no-browser");
+  CLI::Option* none = flags.command()->add_flag(
+      "--no-browser", no_browser, "Do not open a browser: sets --open-browser false");
+  none->excludes(open_browser);
+  return open_browser;
+}
+
 // --focal-surface (IntegralOptions::focal_surface), with a command's `note` on it.
 CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, IntegralOptions& options,
                                  const char* note, bool planes = true) {
@@ -540,15 +567,7 @@ CommandRunner DefineDetect(CLI::App* command) {
   for (const char* output : {"--geojson", "--kml", "--csv", "--overlay", "--scores"}) {
     flags.Output(output);
   }
-  Flags scoring = flags.At("detect.");
-  scoring.Field(c->detect, "detector");
-  scoring.Field(c->detect, "channels");
-  scoring.Field(c->detect, "quantile");
-  scoring.Field(c->detect, "false_alarm_rate");
-  scoring.Field(c->detect, "min_score");
-  scoring.Field(c->detect, "min_temperature_c");
-  flags.Force();
-  scoring.Remaining(c->detect);
+  AddDetectFlags(flags, c->detect);
   flags.Remaining(c->options, {"variance"});
   return [c, flags] { return RunDetect(*c, flags); };
 }
@@ -1330,20 +1349,13 @@ CommandRunner DefineView(CLI::App* command) {
                      "Starting focus: the horizontal focal plane z = H (local frame, metres); the "
                      "page moves it");
   (void)surface;
+  CLI::Option* open_browser = AddViewerFlags(flags, c->viewer, c->no_browser);
   Flags viewer = flags.At("viewer.");
-  viewer.Field(c->viewer, "host");
-  viewer.Field(c->viewer, "port");
-  viewer.Field(c->viewer, "max_pages");
-  CLI::Option* open_browser = viewer.Field(c->viewer, "open_browser");
   viewer.Shorthand("open_browser", "--browser");
-  viewer.Shorthand("open_browser", "--no-browser");
-  CLI::Option* no_browser = command->add_flag(
-      "--no-browser", c->no_browser, "Do not open a browser: sets --open-browser false");
   CLI::Option* browser = command->add_flag(
       "--browser", c->browser,
       "Open a browser even without a desktop session: sets --open-browser true");
-  browser->excludes(no_browser)->excludes(open_browser);
-  no_browser->excludes(open_browser);
+  browser->excludes(command->get_option("--no-browser"))->excludes(open_browser);
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).
   flags.Remaining(c->options, {"variance"});
   viewer.Remaining(c->viewer);
@@ -2026,7 +2038,7 @@ CommandRunner DefineLive(CLI::App* command) {
   flags.Threads(c->options.num_threads);
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
   AddFocalHeightFlag(flags, c->options.focal_surface,
-                     "The horizontal focal plane z = H (world); sets --focal-surface")
+                     "The horizontal focal plane z = H (local frame, metres); sets --focal-surface")
       ->excludes(surface);
   Flags live = flags.At("live.");
   live.Remaining(c->live);
@@ -2062,23 +2074,9 @@ CommandRunner DefineLive(CLI::App* command) {
   command->add_flag("--view", c->view,
                     "Serve the live page (the newest integral, detections, tracks, flight path) "
                     "while the run goes on, and after it until Ctrl-C");
+  AddViewerFlags(flags, c->viewer, c->no_browser);
   Flags viewer = flags.At("viewer.");
-  viewer.Field(c->viewer, "host");
-  viewer.Field(c->viewer, "port");
-  viewer.Field(c->viewer, "max_pages");
-  CLI::Option* open_browser = viewer.Field(c->viewer, "open_browser");
-  viewer.Shorthand("open_browser", "--no-browser");
-  command->add_flag("--no-browser", c->no_browser, "Do not open a browser: sets --open-browser false")
-      ->excludes(open_browser);
-  Flags scoring = flags.At("detect.");
-  scoring.Field(c->detect, "detector");
-  scoring.Field(c->detect, "channels");
-  scoring.Field(c->detect, "quantile");
-  scoring.Field(c->detect, "false_alarm_rate");
-  scoring.Field(c->detect, "min_score");
-  scoring.Field(c->detect, "min_temperature_c");
-  flags.Force();
-  scoring.Remaining(c->detect);
+  AddDetectFlags(flags, c->detect);
   flags.Remaining(c->options, {"variance", "pose_view", "view_indices", "min_view_count"});
   viewer.Remaining(c->viewer, {"render_workers"});
   return [c, flags] { return RunLive(*c, flags); };

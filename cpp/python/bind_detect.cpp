@@ -303,24 +303,23 @@ void BindDetect(py::module_& m) {
       "Live, in-flight integration (docs/live.md): a sliding window of the newest views, "
       "re-rendered and searched after each add; equal to the batch render of the window.")
       .def(py::init([](const LightField& base, const IntegralOptions& options,
-                       const DetectOptions& detect, const LiveOptions& live) {
+                       const DetectOptions& detect, const LiveOptions& live,
+                       const std::optional<MapOptions>& map_options) {
+             if (map_options) {  // follow 'map': the orthographic map of a fixed area
+               MapOptions map = *map_options;
+               map.focal_surface = InCrs(map.focal_surface, base.crs);
+               return std::make_unique<LiveIntegrator>(base, map, detect, live);
+             }
              IntegralOptions render = options;
              render.focal_surface = InCrs(render.focal_surface, base.crs);
              return std::make_unique<LiveIntegrator>(base, render, detect, live);
            }),
            "base"_a = LightField(), "options"_a = IntegralOptions(),
            "detect_options"_a = DetectOptions(), "live_options"_a = LiveOptions(),
+           "map_options"_a = py::none(),
            "`base` gives what every view shares (crs, origin, radiometry; its views are ignored). "
-           "Raises ValueError naming the field.")
-      .def(py::init([](const LightField& base, const MapOptions& map_options,
-                       const DetectOptions& detect, const LiveOptions& live) {
-             MapOptions map = map_options;
-             map.focal_surface = InCrs(map.focal_surface, base.crs);
-             return std::make_unique<LiveIntegrator>(base, map, detect, live);
-           }),
-           "base"_a, "map_options"_a, "detect_options"_a = DetectOptions(),
-           "live_options"_a = LiveOptions(),
-           "follow 'map': every update is the window's orthographic map over map_options' extent "
+           "`options`: the virtual camera and focus of each update's render; with `map_options` "
+           "(follow 'map') instead every update is the window's orthographic map over its extent "
            "(set). Raises ValueError naming the field.")
       .def(
           "add",

@@ -22,7 +22,7 @@ __deepcopy__ (the others copy through pickling).
 """
 
 import os
-from typing import Any, Callable, ClassVar, Literal, Optional, Sequence, Union, overload
+from typing import Any, Callable, ClassVar, Literal, Optional, Sequence, Union
 
 import numpy
 import numpy.typing
@@ -2526,21 +2526,13 @@ class LiveIntegrator:
     """Live, in-flight integration (docs/live.md): a sliding window of the newest views,
     re-rendered and searched after each add; equal to the batch render of the window."""
 
-    @overload
     def __init__(
         self,
         base: LightField = ...,
         options: IntegralOptions = ...,
         detect_options: DetectOptions = ...,
         live_options: LiveOptions = ...,
-    ) -> None: ...
-    @overload
-    def __init__(
-        self,
-        base: LightField,
-        map_options: MapOptions,
-        detect_options: DetectOptions = ...,
-        live_options: LiveOptions = ...,
+        map_options: Optional[MapOptions] = None,
     ) -> None: ...
     def add(
         self,

@@ -41,6 +41,22 @@ def build_lightfield(
     return light_field
 
 
+@pytest.fixture(scope="module")
+def forest() -> aos.LightField:
+    """The default scene (a red 0.6 x 1.8 m target, a person lying, under 300 trees per
+    hectare), small: 9 x 9 views of 128 x 128 pixels in flight order (a serpentine grid),
+    geo-referenced in UTM 33N: origin 500000 E, 5300000 N, 300 m (the target at the local
+    origin, on the ground z = 0)."""
+    scene = json.loads((Path(__file__).resolve().parents[2] / "scenes" /
+                        "forest_person.json").read_text())
+    scene["camera"].update(width=128, height=128)
+    scene["sampling"]["grid"] = 9
+    light_field = aos.simulate(scene).light_field
+    light_field.origin = (500000.0, 5300000.0, 300.0)
+    light_field.crs = "EPSG:32633"
+    return light_field
+
+
 @pytest.fixture
 def make_lightfield() -> Callable[..., aos.LightField]:
     """Builder of tiny constant-valued light fields (see build_lightfield)."""

@@ -49,19 +49,6 @@ def test_a_constant_image_gives_no_detection_and_no_nan() -> None:
         aos.DetectOptions(quantile=1.5).check()
 
 
-@pytest.fixture(scope="module")
-def forest() -> aos.LightField:
-    """The default scene (a red 0.6 x 1.8 m target, a person lying, under 300 trees per
-    hectare), small: 9 x 9 views of 128 x 128 pixels, geo-referenced in UTM 33N."""
-    scene = json.loads((ROOT / "scenes" / "forest_person.json").read_text())
-    scene["camera"].update(width=128, height=128)
-    scene["sampling"]["grid"] = 9
-    light_field = aos.simulate(scene).light_field
-    light_field.origin = UTM_ORIGIN
-    light_field.crs = "EPSG:32633"
-    return light_field
-
-
 def test_the_hidden_person_is_found_on_the_integral_not_in_the_single_view(
         forest: aos.LightField) -> None:
     """The target's centre is the world origin (local (0, 0, 0)). On the integral image focused

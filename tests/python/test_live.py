@@ -18,20 +18,6 @@ import pytest
 import aos
 
 ROOT = Path(__file__).resolve().parents[2]
-UTM_ORIGIN = (500000.0, 5300000.0, 0.0)
-
-
-@pytest.fixture(scope="module")
-def forest() -> aos.LightField:
-    """The default scene (a person lying under 300 trees per hectare), 9 x 9 views of 128 x 128
-    pixels, geo-referenced in UTM 33N; its views in flight order (a serpentine grid)."""
-    scene = json.loads((ROOT / "scenes" / "forest_person.json").read_text())
-    scene["camera"].update(width=128, height=128)
-    scene["sampling"]["grid"] = 9
-    light_field = aos.simulate(scene).light_field
-    light_field.origin = UTM_ORIGIN
-    light_field.crs = "EPSG:32633"
-    return light_field
 
 
 def test_replay_equals_the_batch_render_at_every_step_and_finds_the_person(
@@ -263,14 +249,14 @@ def test_cli_folder_finds_the_person_before_the_flight_ends(forest: aos.LightFie
     from rasterio.warp import transform
 
     forest = copy.copy(forest)
-    forest.origin = (500050.0, 5300050.0, 0.0)
+    forest.origin = (500050.0, 5300050.0, 300.0)  # the log's heights: 300 m + local
     frames = tmp_path / "frames"
     frames.mkdir()
     log = tmp_path / "log.csv"
     log.write_text("frame,lat,lon,alt,yaw,pitch,roll\n")
     process = run_live(str(frames), "--telemetry-file", str(log), "--frames-fov-deg",
                        f"{forest.views[0].camera.pinhole().fov_x_deg():.10f}", "--focal-height",
-                       "0", "--geojson", str(tmp_path / "tracks.geojson"), "--idle-exit-s", "2",
+                       "300", "--geojson", str(tmp_path / "tracks.geojson"), "--idle-exit-s", "2",
                        "--view", "--no-browser", "--json")
     lines: "queue.Queue[str]" = queue.Queue()
     threading.Thread(target=lambda: [lines.put(line) for line in process.stderr],
@@ -345,6 +331,7 @@ def test_follow_map_is_the_batch_map_of_the_window_and_finds_the_person(
     map_options = aos.MapOptions(extent=extent, pixel_size=0.2, focal_surface=0.0)
     live = aos.LiveIntegrator(forest, map_options=map_options,
                               live_options=aos.LiveOptions(window_frames=20, follow="map"))
+    assert "LiveIntegrator(window=0/20" in repr(live)
     for i, view in enumerate(forest.views):
         live.add_view(view)
         if i % 20 == 19:

@@ -6,9 +6,7 @@ printed (what docs/live.md reports), not asserted. Skips without selenium or chr
 
 from __future__ import annotations
 
-import json
 import math
-import shutil
 import threading
 import time
 from pathlib import Path
@@ -23,42 +21,23 @@ pytest.importorskip("aiohttp", reason="the viewer needs aiohttp (pip install aio
 webdriver = pytest.importorskip("selenium.webdriver",
                                 reason="selenium is not installed (pip install 'aos[test]')")
 
-CHROMEDRIVER = shutil.which("chromedriver")
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+from browser_util import CHROMEDRIVER, CHROMIUM, make_driver  # noqa: E402
 pytestmark = pytest.mark.skipif(
     CHROMEDRIVER is None or CHROMIUM is None,
     reason="Chromium and its driver are missing (apt-get install chromium chromium-driver)")
-ROOT = Path(__file__).resolve().parents[2]
-
-
-@pytest.fixture(scope="module")
-def flight() -> aos.LightField:
-    scene = json.loads((ROOT / "scenes" / "forest_person.json").read_text())
-    scene["camera"].update(width=128, height=128)
-    scene["sampling"]["grid"] = 7
-    light_field = aos.simulate(scene).light_field
-    light_field.origin = (500000.0, 5300000.0, 0.0)
-    light_field.crs = "EPSG:32633"
-    return light_field
 
 
 @pytest.fixture(scope="module")
 def driver() -> Iterator[Any]:
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for argument in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
-                     "--window-size=1280,900", "--disable-background-networking",
-                     "--no-first-run", "--no-default-browser-check"):
-        options.add_argument(argument)
-    browser = webdriver.Chrome(options=options,
-                               service=webdriver.ChromeService(executable_path=CHROMEDRIVER))
+    browser = make_driver("1280,900")
     browser.set_script_timeout(30)
     yield browser
     browser.quit()
 
 
 def test_the_live_page_follows_the_flight_and_marks_the_person(
-        flight: aos.LightField, driver: Any, tmp_path: Path) -> None:
+        forest: aos.LightField, driver: Any, tmp_path: Path) -> None:
+    flight = forest  # conftest.py: the default scene, 9 x 9 views
     live = aos.LiveIntegrator(flight, aos.IntegralOptions(focal_surface=0.0), aos.DetectOptions(),
                               aos.LiveOptions(window_frames=20))
     viewer = aos.view(live=live, open_browser=False)

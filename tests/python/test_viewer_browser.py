@@ -20,7 +20,6 @@ import base64
 import json
 import math
 import re
-import shutil
 import time
 from pathlib import Path
 from typing import Any, Callable, Iterator
@@ -36,8 +35,7 @@ webdriver = pytest.importorskip("selenium.webdriver",
 from selenium.webdriver.common.action_chains import ActionChains  # noqa: E402
 from selenium.webdriver.common.by import By  # noqa: E402
 
-CHROMEDRIVER = shutil.which("chromedriver")
-CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+from browser_util import CHROMEDRIVER, CHROMIUM, make_driver  # noqa: E402
 pytestmark = pytest.mark.skipif(
     CHROMEDRIVER is None or CHROMIUM is None,
     reason="Chromium and its driver are missing (apt-get install chromium chromium-driver)")
@@ -68,17 +66,6 @@ def viewer(simulation: aos.SimulationResult) -> Iterator[Any]:
                       open_browser=False)
     yield handle
     handle.stop()
-
-
-def make_driver() -> Any:
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for argument in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu",
-                     "--window-size=1280,1000", "--disable-background-networking",
-                     "--no-first-run", "--no-default-browser-check"):
-        options.add_argument(argument)
-    service = webdriver.ChromeService(executable_path=CHROMEDRIVER)
-    return webdriver.Chrome(options=options, service=service)
 
 
 @pytest.fixture(scope="module")
