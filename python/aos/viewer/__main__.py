@@ -187,6 +187,14 @@ def run(argv: list[str]) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("aos-render view: interrupted\n")
         return 130
+    except ImportError as error:
+        # Ctrl-C while the core loads: pybind11 reports "initialization failed" with the
+        # KeyboardInterrupt as its cause. An interrupt, as above (the clean clone saw it once).
+        if isinstance(error.__cause__, KeyboardInterrupt) or isinstance(error.__context__,
+                                                                        KeyboardInterrupt):
+            sys.stderr.write("aos-render view: interrupted\n")
+            return 130
+        raise
 
 
 if __name__ == "__main__":
