@@ -9,7 +9,7 @@ Two feeds:
   names, each renamed into place, so a reader never sees half a file.
 
 ``snapshot()`` gives (update, state bytes, png bytes) of the newest update, or None before the
-first; ``Feed.wait`` blocks until an update newer than ``after`` (or a timeout).
+first (the server's /api/live polls it); ``current()`` the one read last, without reading.
 """
 
 from __future__ import annotations
@@ -34,7 +34,6 @@ class LiveFeed:
     def __init__(self) -> None:
         self._lock = threading.Lock()
         self._snapshot: Optional[Snapshot] = None
-        self._closed = threading.Event()
 
     def _read(self, known: int) -> Optional[Snapshot]:
         """The newest update when it is newer than ``known``, else None."""
@@ -52,19 +51,8 @@ class LiveFeed:
         """The newest update read so far, without reading (never waits)."""
         return self._snapshot
 
-    def wait(self, after: int, timeout: float) -> Optional[Snapshot]:
-        """The newest update once it is newer than ``after``; the current one at the timeout."""
-        deadline = time.monotonic() + timeout
-        while True:
-            current = self.snapshot()
-            if ((current is not None and current[0] > after) or time.monotonic() >= deadline
-                    or self._closed.is_set()):
-                return current
-            time.sleep(self.poll_s)
-
     def close(self) -> None:
-        """Ends every wait at once (the server is stopping)."""
-        self._closed.set()
+        """Releases what the feed holds (the server is stopping)."""
 
 
 class IntegratorFeed(LiveFeed):
@@ -96,7 +84,6 @@ class IntegratorFeed(LiveFeed):
         return state["update"], json.dumps(state).encode(), png
 
     def close(self) -> None:
-        super().close()
         shutil.rmtree(self._folder, ignore_errors=True)
 
 
