@@ -1220,6 +1220,19 @@ std::string FindPython(const std::string& command, const std::string& module) {
   return python;
 }
 
+// `python -c` code that runs aos.MODULE's main(argv) and answers a Ctrl-C that lands while the
+// package loads (before main() can catch it: `python -m` imports the package first) like any
+// interrupt: one line, exit 130, no traceback.
+std::string PythonLauncher(const std::string& command, const std::string& module) {
+  return "import sys\n"
+         "try:\n"
+         "    from aos." + module + ".__main__ import main\n"
+         "except KeyboardInterrupt:\n"
+         "    sys.stderr.write('aos-render " + command + ": interrupted\\n')\n"
+         "    sys.exit(130)\n"
+         "sys.exit(main(sys.argv[1:]))\n";
+}
+
 [[noreturn]] void ExecPythonModule(const std::string& command, const std::string& module,
                                    const std::string& text) {
   const std::string python = FindPython(command, module);
@@ -1228,8 +1241,8 @@ std::string FindPython(const std::string& command, const std::string& module) {
   // A signal that came while this process checked the command line ends it here: after exec
   // the handler is gone and the flag with it.
   if (Interrupted()) throw Cancelled();
-  const std::string name = "aos." + module;
-  execlp(python.c_str(), python.c_str(), "-m", name.c_str(), "--spec", text.c_str(),
+  const std::string launcher = PythonLauncher(command, module);
+  execlp(python.c_str(), python.c_str(), "-c", launcher.c_str(), "--spec", text.c_str(),
          static_cast<char*>(nullptr));
   ThrowInvalid(command + ": cannot run " + python + ": " + std::strerror(errno));
 }
@@ -1413,7 +1426,8 @@ class LivePage {
       ::signal(SIGINT, SIG_IGN);  // the parent stops it (SIGTERM) when the run ends
       ::prctl(PR_SET_PDEATHSIG, SIGTERM);  // and if the parent dies first (a kill, the backstop)
       if (::getppid() == 1) ::_exit(0);
-      ::execlp(python.c_str(), python.c_str(), "-m", "aos.viewer", "--spec", text.c_str(),
+      const std::string launcher = PythonLauncher("live --view", "viewer");
+      ::execlp(python.c_str(), python.c_str(), "-c", launcher.c_str(), "--spec", text.c_str(),
                static_cast<char*>(nullptr));
       ::_exit(127);
     }

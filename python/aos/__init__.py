@@ -41,7 +41,14 @@ import json
 import os
 from typing import TYPE_CHECKING, Any, Callable, Optional, Sequence, TypeVar
 
-from . import _core
+try:
+    from . import _core
+except ImportError as _error:
+    # Ctrl-C while the core initialises: pybind11 reports it as ImportError("initialization
+    # failed") caused by the KeyboardInterrupt. It is an interrupt, not a broken install.
+    if isinstance(_error.__cause__, KeyboardInterrupt):
+        raise KeyboardInterrupt from None
+    raise
 from ._keywords import (
     AllInFocusKeywords,
     CalibrateKeywords,

@@ -26,7 +26,7 @@ def _fail(message: str, code: int = 1) -> int:
     return code
 
 
-def main(argv: list[str]) -> int:
+def _main(argv: list[str]) -> int:
     if len(argv) != 2 or argv[0] != "--spec":
         return _fail("usage: python -m aos.viewer --spec JSON (run `aos-render view`)", 2)
     try:
@@ -180,22 +180,14 @@ def serve_live(spec: dict[str, Any], quiet: bool) -> int:
     return 0
 
 
-def run(argv: list[str]) -> int:
-    """main(), with Ctrl-C while loading answered like the other commands (exit 130)."""
+def main(argv: list[str]) -> int:
+    """_main(), with Ctrl-C while loading answered like the other commands (exit 130)."""
     try:
-        return main(argv)
+        return _main(argv)
     except KeyboardInterrupt:
         sys.stderr.write("aos-render view: interrupted\n")
         return 130
-    except ImportError as error:
-        # Ctrl-C while the core loads: pybind11 reports "initialization failed" with the
-        # KeyboardInterrupt as its cause. An interrupt, as above (the clean clone saw it once).
-        if isinstance(error.__cause__, KeyboardInterrupt) or isinstance(error.__context__,
-                                                                        KeyboardInterrupt):
-            sys.stderr.write("aos-render view: interrupted\n")
-            return 130
-        raise
 
 
 if __name__ == "__main__":
-    sys.exit(run(sys.argv[1:]))
+    sys.exit(main(sys.argv[1:]))
