@@ -149,8 +149,6 @@ NOT_ON_THE_CLI = {
     ("live", "telemetry.grey"): "--grey gives it",
     ("live", "telemetry.altitude_window"): "one frame at a time: no running median",
     ("live", "telemetry.max_altitude_deviation_m"): "one frame at a time: no running median",
-    ("live", "telemetry.frame_interval_s"): "frames are posed by name (a frame column) or tags",
-    ("live", "telemetry.time_offset_s"): "frames are posed by name (a frame column) or tags",
     ("live", "telemetry.radiometric"): "not yet live (issue 35's note)",
     ("live", "telemetry.kelvin_per_count"): "not yet live (issue 35's note)",
     ("live", "telemetry.kelvin_offset"): "not yet live (issue 35's note)",

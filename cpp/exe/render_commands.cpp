@@ -1489,6 +1489,8 @@ struct Watched {
   bool failed = false;       // could not be decoded at this size and time
   double first_seen_s = 0.0;
   double seen_unix = 0.0;    // when it was first seen, seconds since 1970 (the page's latency)
+  int index = -1;            // its place in the flight: frames in the order they arrived (those
+                             // in the folder at the start, and those seen in one poll, by name)
 };
 
 // Whether a folder entry can be a frame: a frame file type, not hidden, not a partial download.
@@ -1504,51 +1506,94 @@ bool FrameName(const fs::path& path) {
   return false;
 }
 
-// The header and the rows of the telemetry log `path` whose frame column names one of `names`
-// (a file name, or a path ending in it), as CSV text. A log without a frame column is refused:
-// live poses each frame by its name.
-std::string LogRowsNaming(const std::string& path, const std::vector<std::string>& names,
-                          std::set<std::string>* found) {
-  // A last line without its line end is a row still being written: left for the next read.
+// The telemetry log as a live run reads it, re-read on every poll (it may lag the frames).
+// A last line without its line end is a row still being written: left for the next read.
+struct LiveLog {
+  std::string path;
+  std::vector<CsvRecord> records;  // [0] = the header
+  int frame_column = -1;           // frame (name, image, file): each row names its frame
+  int time_column = -1;            // time without a frame column: frames placed by time
+  std::vector<double> times;       // with time_column: each row's time (records[r + 1])
+};
+
+LiveLog ReadLiveLog(const std::string& path) {
+  LiveLog log;
+  log.path = path;
   std::string whole = ReadTextFile(path);
   const size_t end = whole.find_last_of('\n');
   whole.resize(end == std::string::npos ? 0 : end + 1);
-  const std::vector<CsvRecord> records = ParseCsv(whole, path);
-  if (records.empty()) ThrowInvalid(path + ": no header line");
-  int column = -1;
-  for (size_t k = 0; k < records[0].fields.size(); ++k) {
-    std::string field = records[0].fields[k];
+  log.records = ParseCsv(whole, path);
+  if (log.records.empty()) ThrowInvalid(path + ": no header line");
+  int time_column = -1;
+  for (size_t k = 0; k < log.records[0].fields.size(); ++k) {
+    std::string field = log.records[0].fields[k];
     std::transform(field.begin(), field.end(), field.begin(),
                    [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
     if (field == "frame" || field == "name" || field == "image" || field == "file") {
-      column = static_cast<int>(k);
+      log.frame_column = static_cast<int>(k);
     }
+    if (field == "time") time_column = static_cast<int>(k);
   }
-  if (column < 0) {
-    ThrowInvalid(path + ": line " + std::to_string(records[0].line) +
-                 ": frame: live needs a frame column (frame, name, image or file) to pose each "
-                 "frame as it arrives");
+  if (log.frame_column < 0 && time_column < 0) {
+    ThrowInvalid(path + ": line " + std::to_string(log.records[0].line) +
+                 ": the header needs a frame column (frame names) or a time column (seconds)");
   }
+  if (log.frame_column >= 0) return log;
+  log.time_column = time_column;
+  for (size_t r = 1; r < log.records.size(); ++r) {
+    const CsvRecord& record = log.records[r];
+    const std::string where = path + ": line " + std::to_string(record.line);
+    if (static_cast<size_t>(time_column) >= record.fields.size()) {
+      ThrowInvalid(where + ": time: missing");
+    }
+    const double t = ParseFiniteNumber(record.fields[static_cast<size_t>(time_column)], where, "time");
+    if (!log.times.empty() && !(t > log.times.back())) {
+      ThrowInvalid(where + ": time: " + FormatNumber(t) + " does not increase (the line before has " +
+                   FormatNumber(log.times.back()) + ")");
+    }
+    log.times.push_back(t);
+  }
+  return log;
+}
+
+std::string CsvLine(const CsvRecord& record) {
+  std::string text;
+  for (size_t k = 0; k < record.fields.size(); ++k) {
+    std::string quoted = "\"";
+    for (char ch : record.fields[k]) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
+    text += (k ? "," : "") + quoted + "\"";
+  }
+  return text + "\n";
+}
+
+// A log with a frame column: its header and the rows that name one of `names` (a file name, or
+// a path ending in it), as CSV text; `found` gets the names it has rows for.
+std::string LogRowsNaming(const LiveLog& log, const std::vector<std::string>& names,
+                          std::set<std::string>* found) {
   const std::set<std::string> wanted(names.begin(), names.end());
-  const auto line = [](const CsvRecord& record) {
-    std::string text;
-    for (size_t k = 0; k < record.fields.size(); ++k) {
-      std::string quoted = "\"";
-      for (char ch : record.fields[k]) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-      text += (k ? "," : "") + quoted + "\"";
-    }
-    return text + "\n";
-  };
-  std::string text = line(records[0]);
-  for (size_t r = 1; r < records.size(); ++r) {
-    const std::vector<std::string>& fields = records[r].fields;
-    if (static_cast<size_t>(column) < fields.size() &&
-        wanted.count(fs::path(fields[static_cast<size_t>(column)]).filename().string()) > 0) {
-      text += line(records[r]);
-      found->insert(fs::path(fields[static_cast<size_t>(column)]).filename().string());
+  const size_t column = static_cast<size_t>(log.frame_column);
+  std::string text = CsvLine(log.records[0]);
+  for (size_t r = 1; r < log.records.size(); ++r) {
+    const std::vector<std::string>& fields = log.records[r].fields;
+    if (column < fields.size() && wanted.count(fs::path(fields[column]).filename().string()) > 0) {
+      text += CsvLine(log.records[r]);
+      found->insert(fs::path(fields[column]).filename().string());
     }
   }
   return text;
+}
+
+// A log with a time column only: its header and the rows around time `t` (the last at or
+// before it and, unless that one is at `t`, the next), which ImportTelemetry interpolates
+// between; "" when the log does not reach `t` yet. `before_start`: `t` precedes its first row.
+std::string LogRowsAround(const LiveLog& log, double t, bool* before_start) {
+  *before_start = !log.times.empty() && t < log.times.front();
+  size_t k = 0;
+  while (k < log.times.size() && log.times[k] <= t) ++k;
+  if (k == 0) return "";                 // before the first row, or no rows yet
+  if (log.times[k - 1] == t) return CsvLine(log.records[0]) + CsvLine(log.records[k]);
+  if (k == log.times.size()) return "";  // after the last row: the log lags
+  return CsvLine(log.records[0]) + CsvLine(log.records[k]) + CsvLine(log.records[k + 1]);
 }
 
 // The tracks a live run wrote as GeoJSON (WriteDetections with sightings), for --resume.
@@ -1736,7 +1781,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
   } else {
     if (!fs::is_directory(c.source)) ThrowInvalid(c.source + ": not a folder");
     if (c.telemetry.telemetry_file.empty() == !c.exif) {
-      ThrowUsage("live " + c.source + ": give --telemetry-file LOG (a CSV with a frame column) or "
+      ThrowUsage("live " + c.source + ": give --telemetry-file LOG (a CSV with a frame or a time column) or "
                  "--exif (the frames' own GPS and gimbal tags), one of them");
     }
     if (c.telemetry.fov_deg <= 0.0 && c.telemetry.camera_file.empty()) {
@@ -1758,6 +1803,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       }
     } cleanup{staging};
     std::map<std::string, Watched> watched;
+    int next_index = 0;  // the next frame's place in the flight (Watched::index)
     double last_frame_s = 0.0;
     Vec3d origin{0.0};
     std::string crs;
@@ -1772,6 +1818,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         }
       }
       std::sort(present.begin(), present.end(), NaturalLess);
+      for (const std::string& name : present) watched[name].index = next_index++;
       const size_t keep = static_cast<size_t>(c.live.window_frames);
       if (present.size() > keep) {
         const size_t skip = present.size() - keep;
@@ -1812,12 +1859,13 @@ int RunLive(LiveCommand& c, const Flags& flags) {
           }
         }
       }
-      std::vector<std::string> ready;
+      std::vector<std::string> ready, arrived;
       std::error_code error;
       for (const auto& entry : fs::directory_iterator(c.source, error)) {
         if (!entry.is_regular_file(error) || !FrameName(entry.path())) continue;
         const std::string name = entry.path().filename().string();
         Watched& w = watched[name];
+        if (w.index < 0) arrived.push_back(name);
         if (w.done) continue;
         const uintmax_t size = entry.file_size(error);
         const fs::file_time_type mtime = entry.last_write_time(error);
@@ -1837,28 +1885,56 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         const bool reported = closed.erase(name) > 0 && size > 0;
         if (w.stable_polls >= 2 || reported) ready.push_back(name);
       }
+      std::sort(arrived.begin(), arrived.end(), NaturalLess);
+      for (const std::string& name : arrived) watched[name].index = next_index++;
       std::sort(ready.begin(), ready.end(), NaturalLess);
       if (!ready.empty()) {
-        // Pose frames: a folder of links to them and the log's rows that name them (the log,
-        // re-read each time, may lag the frames), ImportTelemetry's input.
+        // Pose frames: a folder of links to them and the log's rows for them (the log,
+        // re-read each time, may lag the frames), ImportTelemetry's input: the rows that name
+        // them, or (a log with a time column only) the rows around each frame's time,
+        // time_offset_s + index * frame_interval_s, as `poses` places frame i of such a log.
         // Frames the log has no row for yet wait, up to 10 s; then they are skipped.
+        std::optional<LiveLog> log;
+        std::string log_problem;  // why the log could not be read (it may be being rewritten)
+        const auto frame_time = [&](const std::string& name) {
+          return c.telemetry.time_offset_s + watched[name].index * c.telemetry.frame_interval_s;
+        };
         if (!c.telemetry.telemetry_file.empty()) {
-          std::set<std::string> logged;
           try {
-            LogRowsNaming(c.telemetry.telemetry_file, ready, &logged);
-          } catch (const std::exception&) {
-            // The log is being rewritten (or is not there yet): its rows count as not there
-            // yet; a frame waits up to 10 s for them.
-            logged.clear();
+            log = ReadLiveLog(c.telemetry.telemetry_file);
+          } catch (const std::exception& problem) {
+            log_problem = problem.what();
           }
+          if (log && log->time_column >= 0 && c.telemetry.frame_interval_s <= 0.0) {
+            ThrowUsage(c.telemetry.telemetry_file + ": a time column (no frame column): give "
+                       "--frame-interval-s (seconds between frames; frame i is at "
+                       "--time-offset-s + i * --frame-interval-s)");
+          }
+          std::set<std::string> logged;
+          if (log && log->frame_column >= 0) LogRowsNaming(*log, ready, &logged);
           std::vector<std::string> posable;
           for (const std::string& name : ready) {
             Watched& w = watched[name];
+            bool before_start = false;
+            if (log && log->time_column >= 0 &&
+                !LogRowsAround(*log, frame_time(name), &before_start).empty()) {
+              logged.insert(name);
+            }
             if (logged.count(name) > 0) {
               posable.push_back(name);
+            } else if (before_start) {
+              Warn("live: " + name + ": skipped: its time " + FormatNumber(frame_time(name)) +
+                   " s precedes the first row of " + c.telemetry.telemetry_file +
+                   " (--time-offset-s, --frame-interval-s)");
+              w.done = true;
+              ++skipped;
             } else if (now - w.first_seen_s > 10.0) {
               Warn("live: " + name + ": skipped: no row for it in " +
-                   c.telemetry.telemetry_file + " within 10 s");
+                   c.telemetry.telemetry_file +
+                   (log && log->time_column >= 0
+                        ? " reaches its time " + FormatNumber(frame_time(name)) + " s"
+                        : std::string()) +
+                   " within 10 s" + (log_problem.empty() ? "" : " (" + log_problem + ")"));
               w.done = true;
               ++skipped;
             }
@@ -1876,20 +1952,35 @@ int RunLive(LiveCommand& c, const Flags& flags) {
             ThrowInvalid(std::string("live: ") + error.what());
           }
           TelemetryOptions telemetry = c.telemetry;
-          if (!telemetry.telemetry_file.empty()) {
+          if (log) {
             telemetry.telemetry_file = (staging / "log.csv").string();
-            std::set<std::string> logged;
-            WriteTextFileAtomic(telemetry.telemetry_file,
-                                LogRowsNaming(c.telemetry.telemetry_file, names, &logged));
+            std::string rows;
+            if (log->frame_column >= 0) {
+              std::set<std::string> logged;
+              rows = LogRowsNaming(*log, names, &logged);
+            } else {  // one frame at a time: it is frame 0, at its own time
+              bool before_start = false;
+              rows = LogRowsAround(*log, frame_time(names.at(0)), &before_start);
+              telemetry.time_offset_s = frame_time(names.at(0));
+              telemetry.frame_interval_s = 1.0;
+            }
+            WriteTextFileAtomic(telemetry.telemetry_file, rows);
           }
           return ImportTelemetry((staging / "frames").string(), telemetry, nullptr);
         };
         std::vector<TelemetryResult> batches;
-        try {
-          batches.push_back(import_frames(ready));
-        } catch (const std::invalid_argument&) {
-          // One frame's problem (a corrupt header) spoils the batch: each frame alone, and one
-          // that fails alone is skipped with one warning (taken again if the file changes).
+        // All frames at once (a log by name, or tags); by time, or when one frame's problem (a
+        // corrupt header) spoils the batch: each frame alone, and one that fails alone is
+        // skipped with one warning (taken again if the file changes).
+        bool each_alone = log && log->time_column >= 0;
+        if (!each_alone && !ready.empty()) {
+          try {
+            batches.push_back(import_frames(ready));
+          } catch (const std::invalid_argument&) {
+            each_alone = true;
+          }
+        }
+        if (each_alone) {
           for (const std::string& name : ready) {
             try {
               batches.push_back(import_frames({name}));
@@ -2065,11 +2156,11 @@ CommandRunner DefineLive(CLI::App* command) {
   telemetry.Field(c->telemetry, "camera_file");
   telemetry.Input("--camera-file");
   // The frames' camera and grey come from --frames-fov-deg and --grey; one frame at a time has
-  // no running altitude median, no frame-index times and (so far) no radiometric conversion.
+  // no running altitude median and (so far) no radiometric conversion.
   telemetry.Remaining(c->telemetry,
                       {"fov_deg", "grey", "altitude_window", "max_altitude_deviation_m",
-                       "frame_interval_s", "time_offset_s", "radiometric", "kelvin_per_count",
-                       "kelvin_offset", "temperature_frames_dir"});
+                       "radiometric", "kelvin_per_count", "kelvin_offset",
+                       "temperature_frames_dir"});
   command->add_option("--geojson", c->geojson,
                       "The tracks (places found over the flight) as GeoJSON, rewritten "
                       "atomically after every update");

@@ -356,3 +356,95 @@ def test_follow_map_is_the_batch_map_of_the_window_and_finds_the_person(
     features = json.loads((tmp_path / "t.geojson").read_text())["features"]
     assert any(math.hypot(f["properties"]["world"][0] - 500000.0,
                           f["properties"]["world"][1] - 5300000.0) < 0.3 for f in features)
+
+
+def test_cli_folder_poses_frames_by_time_from_a_lagging_log(tmp_path: Path) -> None:
+    """A log with a time column only (no frame names), its rows at another rate than the frames
+    and written after them: frame i is at --time-offset-s + i * --frame-interval-s (as `poses`
+    reads such a log) and lands where the log, interpolated between the rows around that time,
+    puts it (the live page's path against the analytic flight, 1 cm); a frame before the log's
+    first row is skipped with one warning, and the run goes on."""
+    import queue
+    import signal
+    import urllib.request
+
+    from rasterio.warp import transform
+
+    frames = tmp_path / "frames"
+    frames.mkdir()
+    log = tmp_path / "log.csv"
+    log.write_text("time,lat,lon,alt,yaw,pitch,roll\n")
+    offset, interval, count = 100.0, 0.5, 10
+
+    def at(t: float) -> tuple[float, float, float]:  # a straight line, 4 m/s north-east
+        return 48.0 + 2.5e-5 * (t - offset), 15.0 + 3e-5 * (t - offset), 60.0 + 0.2 * (t - offset)
+
+    # Rows every 0.35 s from 0.2 s after the first frame: frame 0 precedes them.
+    row_times = [offset + 0.2 + 0.35 * k for k in range(int((count * interval + 1) / 0.35))]
+    process = run_live(str(frames), "--telemetry-file", str(log), "--frame-interval-s",
+                       str(interval), "--time-offset-s", str(offset), "--frames-fov-deg", "50",
+                       "--focal-height", "0", "--detect=false", "--window-frames", "4",
+                       "--geojson", str(tmp_path / "tracks.geojson"), "--idle-exit-s", "2",
+                       "--view", "--no-browser", "--json")
+    lines: "queue.Queue[str]" = queue.Queue()
+    threading.Thread(target=lambda: [lines.put(line) for line in process.stderr],
+                     daemon=True).start()
+    rng = np.random.default_rng(5)
+    stderr: list[str] = []
+    try:
+        url = ""
+        deadline = time.monotonic() + 60
+        while not url:
+            line = lines.get(timeout=max(0.1, deadline - time.monotonic()))
+            stderr.append(line)
+            url = line.strip() if line.strip().startswith("http://") else ""
+        base, token = url.split("?token=")
+        written = 0
+        for i in range(count):
+            name = f"t{i:02d}.png"
+            aos.write_image(str(tmp_path / name), rng.integers(0, 255, (48, 64), dtype=np.uint8))
+            (tmp_path / name).rename(frames / name)
+            time.sleep(0.1)
+            # Then the rows up to just past this frame's time: the one after it comes with
+            # the frame after (the log lags).
+            t_frame = offset + i * interval
+            with open(log, "a") as f:
+                while written < len(row_times) and row_times[written] <= t_frame + 0.1:
+                    lat, lon, alt = at(row_times[written])
+                    f.write(f"{row_times[written]:.3f},{lat:.10f},{lon:.10f},{alt:.4f},"
+                            "0,-90,0\n")
+                    written += 1
+            time.sleep(0.1)
+        with open(log, "a") as f:
+            for t in row_times[written:]:
+                lat, lon, alt = at(t)
+                f.write(f"{t:.3f},{lat:.10f},{lon:.10f},{alt:.4f},0,-90,0\n")
+        deadline = time.monotonic() + 60
+        while True:
+            state = json.loads(urllib.request.urlopen(f"{base}api/live?after=0&token={token}",
+                                                      timeout=20).read())
+            if state["update"] >= count - 1 or time.monotonic() > deadline:
+                break
+            time.sleep(0.2)
+        time.sleep(3.0)  # --idle-exit-s 2 after the last frame: the run is over, the page stays
+        process.send_signal(signal.SIGINT)
+        stdout, _ = process.communicate(timeout=30)
+    finally:
+        if process.poll() is None:
+            process.kill()
+    while not lines.empty():
+        stderr.append(lines.get())
+    assert process.returncode == 0, "".join(stderr)[-800:]
+    report = json.loads(stdout)
+    assert report["frames"] == count - 1 and report["skipped"] == 1, report
+    warnings = [line for line in stderr if "skipped" in line]
+    assert len(warnings) == 1 and "t00.png" in warnings[0] and "precedes" in warnings[0], warnings
+    truth = []
+    for i in range(1, count):
+        lat, lon, alt = at(offset + i * interval)
+        (x,), (y,) = transform("EPSG:4326", state["crs"], [lon], [lat])
+        truth.append((x, y))
+    placed = [np.array(p[:2]) + np.array(state["origin"][:2]) for p in state["path"]]
+    assert len(placed) == len(truth)
+    errors = [float(np.hypot(*(p - np.array(t)))) for p, t in zip(placed, truth)]
+    assert max(errors) < 0.01, errors
