@@ -1,7 +1,8 @@
 #pragma once
 // The commands of aos-render, one Define function each, grouped by area (one file per area):
-//   render_commands.cpp   integral, stack, merge, allinfocus, map, detect, live, view (hands
-//                         over to the Python viewer, python/aos/viewer)
+//   render_commands.cpp   integral, stack, merge, allinfocus, map, detect, view (hands over to
+//                         the Python viewer, python/aos/viewer)
+//   live_commands.cpp     live (in-flight integration)
 //   sim_commands.cpp      simulate, demo
 //   lens_commands.cpp     calibrate, camera, rectify, resolution
 //   sfm_commands.cpp      poses, import-colmap, ground

@@ -363,7 +363,7 @@ void ScoreAll(const Features& f, const std::vector<double>& mean, const std::vec
 // Local RX: box sums of x and x x^T over the outer window minus the inner one.
 void LocalScores(const Features& f, const AnomalyOptions& options, double global_trace,
                  const std::vector<double>& global_mean, const std::vector<double>& global_inverse,
-                 std::vector<double>* scores) {
+                 int num_threads, std::vector<double>* scores) {
   const int d = f.d, w = f.width, h = f.height;
   const int pairs = d * (d + 1) / 2;
   // Integral images (double) of 1 (valid), y_k and y_a y_b with y = x - the global mean: centred,
@@ -407,7 +407,7 @@ void LocalScores(const Features& f, const AnomalyOptions& options, double global
   };
   scores->assign(f.valid.size(), 0.0);
   // Rows in parallel (each pixel's score depends on the integral images only).
-  ParallelFor(h, -1, nullptr, [&](int64_t row) {
+  ParallelFor(h, num_threads, nullptr, [&](int64_t row) {
     const int y = static_cast<int>(row);
     std::vector<double> mean(d), covariance(static_cast<size_t>(d) * d);
     std::vector<double> values(1 + d + pairs);
@@ -470,7 +470,7 @@ double ChiSquareQuantile(int dof, double p_exceed) {
 
 AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
                                    const AnomalyOptions& options,
-                                   const std::optional<Radiometry>& radiometry) {
+                                   const std::optional<Radiometry>& radiometry, int num_threads) {
   options.Check();
   if (image.empty()) ThrowInvalid("image: empty");
   {
@@ -531,7 +531,7 @@ AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
     const double ridge = Ridge(options.regularization, Trace(covariance, d), mean, d);
     for (int k = 0; k < d; ++k) result.covariance[k * d + k] += ridge;
     if (options.detector == "rx-local") {
-      LocalScores(f, options, Trace(covariance, d), mean, inverse, &scores);
+      LocalScores(f, options, Trace(covariance, d), mean, inverse, num_threads, &scores);
     } else {
       ScoreAll(f, mean, inverse, &scores);
     }

@@ -110,10 +110,11 @@ struct AnomalyScores {
 
 // Scores of `image` (float32, as renders give it; any channel count 1..8). `count` (uint32, the
 // image's size, or empty = every pixel) marks the pixels with a view. `radiometry` is needed by
-// "temperature".
+// "temperature". `num_threads` (-1 = all cores) runs local RX's rows.
 AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
                                    const AnomalyOptions& options,
-                                   const std::optional<Radiometry>& radiometry = std::nullopt);
+                                   const std::optional<Radiometry>& radiometry = std::nullopt,
+                                   int num_threads = -1);
 
 // d, the features per pixel the options take from an image of `image_channels` channels.
 int AnomalyFeatureCount(const AnomalyOptions& options, int image_channels);

@@ -517,7 +517,8 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
                                    scoring, progress);
   } else {
     result.scores =
-        ComputeAnomalyScores(result.render.image, count, scoring, light_field.radiometry);
+        ComputeAnomalyScores(result.render.image, count, scoring, light_field.radiometry,
+                             resolved.num_threads);
   }
   Blobs blobs = ThresholdAndBlobs(detect_options, &result);
   const Mat3d world_from_cam = glm::transpose(result.render.cam_from_world.rotation);
@@ -565,7 +566,8 @@ DetectResult DetectOnMap(const LightField& light_field, const MapOptions& option
                                    scoring, progress);
   } else {
     result.scores =
-        ComputeAnomalyScores(result.render.image, result.render.count, scoring, light_field.radiometry);
+        ComputeAnomalyScores(result.render.image, result.render.count, scoring,
+                             light_field.radiometry, options.num_threads);
   }
   if (result.scores.scores.width() != result.render.image.width() ||
       result.scores.scores.height() != result.render.image.height()) {
