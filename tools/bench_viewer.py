@@ -12,8 +12,11 @@
    selenium): the focus slider is moved by input events at 60 Hz for `--drag-seconds` (a
    cosine sweep over +-`--sweep` metres about z = 21), as a pointer drag fires them; the page
    records performance.now() at each input event and when the image it caused is drawn on the
-   canvas (window.aosStats). Reported: displayed updates per second during the drag and the
-   input-to-display latency p50/p95 of those updates.
+   canvas (window.aosStats). Reported: displayed updates per second during the drag (each the
+   full-size image of every k-th view, k chosen by the server for its 20 ms share of a 33 ms frame), the
+   views they used, the input-to-display latency p50/p95 of those updates, and the time from
+   the last input to the image of every view; then the PSNR of such drag frames (the median k)
+   against the image of every view, at 9 focal heights over the sweep.
 3. With --load: `--clients` WebSocket clients (default 20) each render in a loop (send, wait for
    the frame; every 5th also a one-shot HTTP render) for `--load-seconds` (default 60) on F0 at
    preview and full size, after `--warmup-seconds` (default 5) of the same: errors, malformed
@@ -31,6 +34,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import json
+import math
 import os
 import shutil
 import statistics
@@ -85,6 +89,25 @@ def bench_renders(session: Any, count: int, focal_height: float = F0_GROUND) -> 
             "render_and_display_ms_p95": percentile(total_ms, 95)}
 
 
+def drag_psnr(session: Any, stride: int, heights: list[float]) -> dict[str, Any]:
+    """PSNR (peak 255, covered pixels of the exact image) of the drag frames' images (every
+    `stride`-th view, full size) against the exact image of every view, at `heights`."""
+    saved = session.preview_stride
+    values = []
+    try:
+        for height in heights:
+            session.preview_stride = stride
+            preview = session.render_raw(session.parse({"focal_height": height, "preview": True}))
+            exact = session.render_raw(session.parse({"focal_height": height}))
+            covered = exact.count > 0
+            error = np.mean((preview.image[covered].astype(np.float64)
+                             - exact.image[covered].astype(np.float64)) ** 2)
+            values.append(10.0 * math.log10(255.0 ** 2 / error) if error > 0 else math.inf)
+    finally:
+        session.preview_stride = saved
+    return {"stride": stride, "psnr_db_min": min(values), "psnr_db_p50": percentile(values, 50)}
+
+
 def bench_drag(viewer: Any, seconds: float, sweep: float) -> dict[str, Any]:
     from selenium import webdriver
 
@@ -131,7 +154,18 @@ def bench_drag(viewer: Any, seconds: float, sweep: float) -> dict[str, Any]:
         during = [f for f in frames if drag["t0"] <= f["t"] <= drag["t1"] and f["preview"]]
         latencies = [f["latency_ms"] for f in during if f["latency_ms"] is not None]
         span_s = (drag["t1"] - drag["t0"]) / 1000.0
+        # The image of every view after the last input (the change event at t1).
+        rest = [f for f in frames if f["t"] > drag["t1"] and not f["preview"]]
+        views = [f["views_used"] for f in during if f.get("views_used") is not None]
+        strides = [f["view_stride"] for f in during if f.get("view_stride") is not None]
         return {"drag_seconds": span_s, "input_events": drag["inputs"],
+                "rest_ms": rest[0]["t"] - drag["t1"] if rest else None,
+                "full_frames_during": sum(1 for f in frames if drag["t0"] <= f["t"] <= drag["t1"]
+                                          and not f["preview"]),
+                "latency_ms_max": max(latencies) if latencies else None,
+                "views_used_p50": percentile(views, 50) if views else None,
+                "views_used_min": min(views) if views else None,
+                "view_stride_p50": percentile(strides, 50) if strides else None,
                 "input_events_per_s": drag["inputs"] / span_s,
                 "updates": len(during), "updates_per_s": len(during) / span_s,
                 "preview_sizes": {f"{w}x{h}": sum(1 for f in during
@@ -140,6 +174,7 @@ def bench_drag(viewer: Any, seconds: float, sweep: float) -> dict[str, Any]:
                 "latency_ms_p50": percentile(latencies, 50),
                 "latency_ms_p95": percentile(latencies, 95),
                 "preview_render_ms_p50": percentile([f["render_ms"] for f in during], 50),
+                "preview_render_ms_p95": percentile([f["render_ms"] for f in during], 95),
                 "errors": driver.execute_script("return window.aosStats.errors;")}
     finally:
         driver.quit()
@@ -180,7 +215,7 @@ async def load(viewer: Any, clients: int, seconds: float) -> dict[str, Any]:
                     latencies.append(1000.0 * (time.perf_counter() - start))
                     try:
                         header = check(message.data)
-                        sizes = (256, 128) if preview else (512,)
+                        sizes = (512,)  # previews too: full size, fewer views
                         if header["id"] != k or header["width"] not in sizes:
                             raise ValueError(header)
                         counts["frames"] += 1
@@ -269,9 +304,24 @@ def main() -> int:
             if "skipped" not in drag:
                 print(f"drag in headless Chromium: {drag['updates_per_s']:.1f} updates/s "
                       f"({drag['input_events_per_s']:.0f} input events/s, previews "
-                      f"{drag['preview_sizes']}), input-to-display p50 "
-                      f"{drag['latency_ms_p50']:.0f} ms, p95 {drag['latency_ms_p95']:.0f} ms",
+                      f"{drag['preview_sizes']}, views used p50 {drag['views_used_p50']} "
+                      f"(min {drag['views_used_min']}; every {drag['view_stride_p50']}. view), "
+                      f"preview render p50 {drag['preview_render_ms_p50']:.1f} ms, p95 "
+                      f"{drag['preview_render_ms_p95']:.1f} ms), input-to-display p50 "
+                      f"{drag['latency_ms_p50']:.0f} ms, p95 {drag['latency_ms_p95']:.0f} ms, max "
+                      f"{drag['latency_ms_max']:.0f} ms ({drag['full_frames_during']} images of "
+                      f"every view during the drag); "
+                      + (f"the image of every view {drag['rest_ms']:.0f} ms after the last input"
+                         if drag["rest_ms"] is not None else "no image of every view after it"),
                       flush=True)
+                if drag["view_stride_p50"]:
+                    stride = int(round(drag["view_stride_p50"]))
+                    report["drag_psnr"] = quality = drag_psnr(
+                        viewer.session, stride,
+                        [F0_GROUND + args.sweep * k / 4 for k in range(-4, 5)])
+                    print(f"drag frames (every {stride}. view) against the exact image: PSNR "
+                          f"p50 {quality['psnr_db_p50']:.1f} dB, min "
+                          f"{quality['psnr_db_min']:.1f} dB over 9 focal heights", flush=True)
             else:
                 print(f"drag: skipped ({drag['skipped']})")
         if args.load:

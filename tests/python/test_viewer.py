@@ -223,27 +223,51 @@ def test_bodies_are_size_limited(viewer: Viewer) -> None:
     assert status == 200
 
 
-def test_preview_is_a_quarter_of_the_pixels_or_less_when_slow(
+def test_preview_keeps_the_full_size_and_takes_every_kth_view_to_fit_the_budget(
         viewer: Viewer, monkeypatch: pytest.MonkeyPatch) -> None:
-    divisor = viewer.session.preview_divisor  # 2 unless this machine took 50 ms for 16 x 12
-    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&preview=true")
-    header, _ = decode_frame(body)
-    assert status == 200 and (header["width"], header["height"]) == (32 // divisor,
-                                                                     24 // divisor)
-    assert header["preview"] is True
-    # Previews slower than the budget switch to a sixteenth of the pixels, and back when fast.
+    """A preview (a control being dragged) is never downscaled: it is the full-size image of a
+    spread subset of the views (every k-th along the flight), k chosen from the time a view
+    cost so far against the frame budget; the image at rest integrates every view and equals
+    the exact render."""
     from aos.viewer import session as session_module
 
-    monkeypatch.setattr(session_module, "PREVIEW_BUDGET_MS", -1.0)
-    viewer.session.render(viewer.session.parse({"preview": True}))
-    assert viewer.session.preview_divisor == 4
-    frame = viewer.session.render(viewer.session.parse({"preview": True}))
-    assert (frame.width, frame.height) == (8, 6)
-    monkeypatch.setattr(session_module, "PREVIEW_BUDGET_MS", 1e9)
-    viewer.session.render(viewer.session.parse({"preview": True}))
-    assert viewer.session.preview_divisor == 2
-    full = viewer.session.render(viewer.session.parse({}))
-    assert (full.width, full.height) == (32, 24)
+    session = viewer.session
+    status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&preview=true")
+    header, _ = decode_frame(body)
+    assert status == 200 and (header["width"], header["height"]) == (32, 24)
+    assert header["preview"] is True and header["views_used"] == math.ceil(
+        9 / header["view_stride"])
+    # A budget no render meets: the next preview takes one view in nine (the middle one).
+    monkeypatch.setattr(session_module, "FRAME_BUDGET_MS", 1e-6)
+    session.render(session.parse({"preview": True}))
+    assert session.preview_stride == 9
+    frame = session.render(session.parse({"preview": True}))
+    assert (frame.width, frame.height) == (32, 24) and frame.info["view_stride"] == 9
+    assert frame.info["views_used"] == 1
+    options = session.integral_options(session.parse({"preview": True}))
+    assert list(options.view_indices) == [4]
+    # Each preview in between: every k-th of the selected views, starting in the middle of
+    # the first stride.
+    session.preview_stride = 2
+    options = session.integral_options(session.parse({"preview": True}))
+    assert list(options.view_indices) == [1, 3, 5, 7]
+    options = session.integral_options(session.parse({"preview": True, "view_first": 2,
+                                                      "view_last": 9}))
+    assert list(options.view_indices) == [3, 5, 7]
+    # A generous budget: back to every view.
+    monkeypatch.setattr(session_module, "FRAME_BUDGET_MS", 1e9)
+    session.render(session.parse({"preview": True}))
+    assert session.preview_stride == 1
+    # At rest: every view, the exact render of the page's options.
+    session.preview_stride = 9
+    rest = session.parse({})
+    full = session.render(rest)
+    assert (full.width, full.height) == (32, 24) and full.info["views_used"] == 9
+    exact = aos._core.render_integral(session.light_field, session.integral_options(rest))
+    raw = session.render_raw(rest)
+    np.testing.assert_array_equal(raw.image, exact.image)
+    np.testing.assert_array_equal(raw.count, exact.count)
+    assert full.rgba == session.display(exact.image, exact.count, rest).tobytes()
 
 
 def expected_world(u: float, v: float, height: float) -> tuple[np.ndarray, float]:
@@ -480,11 +504,9 @@ async def load(viewer: Viewer, clients: int, seconds: float) -> dict[str, Any]:
                         continue
                     try:
                         header, image = decode_frame(message.data)
-                        # Previews: a quarter of the pixels, or a sixteenth while slow.
-                        expected = ([(width // 2, height // 2), (width // 4, height // 4)]
-                                    if params["preview"] else [(width, height)])
-                        if header["id"] != k or (header["width"], header["height"]) not in \
-                                expected:
+                        # Previews too: the full size (of a subset of the views).
+                        if header["id"] != k or (header["width"], header["height"]) != (
+                                width, height):
                             raise ValueError(header)
                         counts["frames"] += 1
                         counts["frame_bytes"] += image.nbytes

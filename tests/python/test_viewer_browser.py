@@ -133,7 +133,12 @@ def open_page(driver: Any, viewer: Any) -> None:
 
 def test_dragging_focus_from_canopy_to_ground_reveals_the_target(
         driver: Any, viewer: Any, simulation: aos.SimulationResult, tmp_path: Path,
-        evidence: Callable) -> None:
+        evidence: Callable, monkeypatch: pytest.MonkeyPatch) -> None:
+    """A drag: every frame shown has the full size (the previews take a subset of the views,
+    here the fewest: a frame budget nothing meets), and the image at rest is the exact render of
+    every view, pixel for pixel."""
+    from aos.viewer import session as session_module
+
     truth = simulation.truth.image
     open_page(driver, viewer)
     assert driver.execute_script("return Number(document.getElementById('focal_height').value)") \
@@ -142,15 +147,21 @@ def test_dragging_focus_from_canopy_to_ground_reveals_the_target(
     evidence("canopy")
     assert canopy.shape == truth.shape
     ground_height = simulation.truth.ground_height_at_center
-    # Drag: 20 input events down to the ground (what a pointer drag fires), then the release.
+    monkeypatch.setattr(session_module, "FRAME_BUDGET_MS", 1e-6)
+    viewer.session.preview_stride = len(simulation.light_field)
+    before = driver.execute_script("return window.aosStats.lastFrame.id;")
+    # Drag: 20 input events down to the ground (what a pointer drag fires), a preview shown
+    # (a release at once could replace it before it renders), then the release.
     driver.execute_script("""
         const slider = document.getElementById('focal_height');
         const from = Number(slider.value), to = arguments[0], steps = 20;
         for (let k = 1; k <= steps; k++) {
           slider.value = from + (to - from) * k / steps;
           slider.dispatchEvent(new Event('input', {bubbles: true}));
-        }
-        slider.dispatchEvent(new Event('change', {bubbles: true}));""", ground_height)
+        }""", ground_height)
+    wait_for(driver, f"return window.aosStats.frames.some((f) => f.preview && f.id > {before});")
+    driver.execute_script("""document.getElementById('focal_height').dispatchEvent(
+        new Event('change', {bubbles: true}));""")
     frame = wait_full_frame(driver)
     assert frame["width"] == truth.shape[1]
     ground = displayed_image(driver, tmp_path / "ground_canvas.png")
@@ -167,6 +178,10 @@ def test_dragging_focus_from_canopy_to_ground_reveals_the_target(
     np.testing.assert_array_equal(ground, np.clip(expected + 0.5, 0, 255).astype(np.uint8))
     stats = driver.execute_script("return window.aosStats;")
     assert not stats["errors"], stats["errors"]
+    previews = [f for f in stats["frames"] if f["preview"] and f["id"] > before]
+    assert previews and all(f["view_stride"] == len(simulation.light_field) for f in previews)
+    assert all((f["width"], f["height"]) == (128, 128) for f in stats["frames"]), stats["frames"]
+    assert frame["views_used"] > 1
 
 
 def test_clicking_a_pixel_shows_its_world_coordinate(

@@ -20,10 +20,11 @@ Parameters (all optional; JSON numbers/strings/booleans, or query-string text):
 * Display (not the render): ``range`` (``views``: the frames' type range, 0..255 for 8-bit;
   ``auto``: 1st..99th percentile of the covered pixels), ``gain`` (multiplies the normalised
   value about ``offset``), ``colormap`` (``grey``, ``turbo``, ``iron``; single-channel data).
-* ``preview``: render half the width and height (a quarter of the pixels), or a quarter of each
-  (a sixteenth of the pixels) while previews take longer than ``PREVIEW_BUDGET_MS`` (a slow or
-  busy machine): the preview divisor adapts after every preview (``Session.preview_divisor``),
-  back to 2 once a quarter-size preview takes under an eighth of the budget.
+* ``preview`` (while a control is dragged): the full-size image from a spread subset of the
+  views, every k-th along the flight (never a downscaled image), k chosen after every render so
+  that render and display fit ``FRAME_BUDGET_MS`` (the server's share of a 33 ms frame) on
+  this host (``Session.preview_stride``; the time a view costs is measured by the renders
+  themselves). At rest the page asks for the image of every view.
 """
 
 from __future__ import annotations
@@ -50,9 +51,11 @@ MAX_ABS_COORDINATE = 1.0e7  # metres (UTM northings are < 1e7)
 # pending render and may queue one all-in-focus or stack job. The default is the C++ table's
 # (aos.ViewerOptions, cpp/aos/viewer/viewer_options.h), as the CLI's is.
 MAX_PAGES = aos.ViewerOptions().max_pages
-# A preview should render in this time (about 15 updates per second with the page's overhead);
-# slower previews switch to a quarter of the width and height.
-PREVIEW_BUDGET_MS = 50.0
+# The server's share of a 33 ms frame (30 updates a second while a control is dragged): a
+# preview's render and display mapping should take this long at most. The rest is the page's:
+# receiving the 1 MiB frame and drawing it, about 15 ms in headless Chromium on 2 cores
+# (tools/bench_viewer.py), where the input-to-display p95 stays under 60 ms.
+FRAME_BUDGET_MS = 20.0
 
 
 class BadParameter(ValueError):
@@ -247,8 +250,9 @@ class Session:
             raise ValueError("view(): the light field has no views")
         self.light_field = light_field
         self.source = source
-        # Previews divide the width and height by this (2, or 4 while previews are slow).
-        self.preview_divisor = 2
+        # Previews integrate every k-th selected view (k = this), at full size; adapted after
+        # each preview and each full render to the time a view costs (adaptive_preview).
+        self.preview_stride = 1
         self.adaptive_preview = adaptive_preview
         # How `source` was loaded (load_lightfield's fov_deg, images_dir, grey, mask, mask_dir)
         # and the focal surface's file, for the equivalent command.
@@ -394,22 +398,36 @@ class Session:
         width = params.width or pose_camera.width
         height = params.height or pose_camera.height
         fov = params.fov_deg or pose_camera.fov_x_deg()
-        if params.preview:
-            divisor = self.preview_divisor
-            width, height = max(MIN_SIZE // 2, width // divisor), max(MIN_SIZE // 2,
-                                                                       height // divisor)
         return aos.PinholeCamera.from_fov(width, height, fov), cam_from_world
 
     def views_of(self, params: Params) -> list[int]:
+        """The views a request integrates ([] = all); a preview takes every preview_stride-th
+        of them along the flight."""
         if params.view_first == 0 and params.view_last == self.view_count:
-            return list(self.view_indices or [])
-        chosen = list(range(params.view_first, params.view_last))
-        if self.view_indices is not None:
-            allowed = set(self.view_indices)
-            chosen = [index for index in chosen if index in allowed]
-            if not chosen:
-                raise BadParameter("view_first, view_last: no view of --view-indices in that range")
-        return list(chosen)
+            chosen = list(self.view_indices or [])
+        else:
+            chosen = list(range(params.view_first, params.view_last))
+            if self.view_indices is not None:
+                allowed = set(self.view_indices)
+                chosen = [index for index in chosen if index in allowed]
+                if not chosen:
+                    raise BadParameter("view_first, view_last: no view of --view-indices in "
+                                       "that range")
+        if params.preview and self.preview_stride > 1:
+            chosen = chosen or list(range(self.view_count))
+            chosen = chosen[self.preview_stride // 2::self.preview_stride]
+        return chosen
+
+    def _adapt_preview_stride(self, params: Params, render_ms: float, display_ms: float) -> None:
+        """The stride for the next preview: the views it may take so that its render (at this
+        one's cost per view) and display fit FRAME_BUDGET_MS."""
+        selected = len(self.views_of(Params(**{**params.__dict__, "preview": False}))) or \
+            self.view_count
+        used = max(1, math.ceil(selected / self.preview_stride)) if params.preview else selected
+        per_view_ms = render_ms / used
+        budget = FRAME_BUDGET_MS - display_ms  # the display mapping's time does not shrink
+        fit = max(1, int(budget / per_view_ms) if per_view_ms > 0 else selected)
+        self.preview_stride = max(1, min(selected, math.ceil(selected / fit)))
 
     def integral_options(self, params: Params) -> aos.IntegralOptions:
         camera, cam_from_world = self.camera(params)
@@ -430,8 +448,6 @@ class Session:
 
     def map_options(self, params: Params) -> aos.MapOptions:
         width = params.width or self.cameras[params.pose_view].width
-        if params.preview:
-            width = max(MIN_SIZE // 2, width // self.preview_divisor)
         options = aos.MapOptions(width=width, aperture_radius=params.aperture_radius,
                                  view_indices=self.views_of(params))
         # The fields a map shares with the render options (the aperture block), as given.
@@ -505,17 +521,16 @@ class Session:
         start = time.perf_counter()
         result = self.render_raw(params, progress)
         rendered = time.perf_counter()
-        if params.preview and self.adaptive_preview:
-            milliseconds = 1000.0 * (rendered - start)
-            if self.preview_divisor == 2 and milliseconds > PREVIEW_BUDGET_MS:
-                self.preview_divisor = 4
-            elif self.preview_divisor == 4 and milliseconds < PREVIEW_BUDGET_MS / 8:
-                self.preview_divisor = 2
+        stride = self.preview_stride if params.preview else 1
         ranges: list[tuple[float, float]] = []
         rgba = self.display(result.image, result.count, params, ranges)
         height, width = rgba.shape[:2]
+        if self.adaptive_preview:
+            self._adapt_preview_stride(params, 1000.0 * (rendered - start),
+                                       1000.0 * (time.perf_counter() - rendered))
         info: dict[str, Any] = {
             "width": width, "height": height, "mode": params.mode, "preview": params.preview,
+            "view_stride": stride,
             "render_ms": round(1000.0 * (rendered - start), 2),
             "display_ms": round(1000.0 * (time.perf_counter() - rendered), 2),
             "uncovered_pixels": int((result.count == 0).sum()),

@@ -1,7 +1,8 @@
 // aos viewer page: plain JavaScript, no build step, no external assets.
 // Every request carries the session token from this page's URL. Sliders send render requests
-// over the WebSocket while they move (preview: half width and height) and a full-size request
-// when the input rests (change event, or 150 ms without input). The server keeps only the
+// over the WebSocket while they move (preview: the full-size image from every k-th view, k chosen
+// by the server to fit its frame budget) and a request for every view when the input rests
+// (change event, or 50 ms without input). The server keeps only the
 // newest request per page. window.aosStats records, per displayed frame, the time from the
 // input event that caused it to its display (performance.now()): tools/bench_viewer.py reads it.
 "use strict";
@@ -76,18 +77,40 @@ function send(preview, inputTime) {
   drawMinimap();
 }
 
+// One preview in flight at a time: inputs that come while it renders are folded into the next
+// request, sent when its frame arrives (frames never queue up in the page, so the one shown is
+// at most one render behind the input). A preview not answered in a second no longer holds.
+let previewSentAt = null;
+let heldInput = null;
+
+function sendPreview(inputTime) {
+  previewSentAt = performance.now();
+  send(true, inputTime);
+}
+
+function releasePreview() {
+  previewSentAt = null;
+  if (heldInput !== null) {
+    const inputTime = heldInput;
+    heldInput = null;
+    sendPreview(inputTime);
+  }
+}
+
 function onInput(event) {
   const now = performance.now();
   showValues();
-  send(true, now);
+  if (previewSentAt !== null && now - previewSentAt < 1000) heldInput = now;
+  else sendPreview(now);
   clearTimeout(restTimer);
-  restTimer = setTimeout(() => send(false, now), 150);
+  restTimer = setTimeout(() => { heldInput = null; send(false, now); }, 50);
 }
 
 function onChange() {
   const now = performance.now();
   showValues();
   clearTimeout(restTimer);
+  heldInput = null;
   send(false, now);
 }
 
@@ -98,7 +121,7 @@ function handleFrame(buffer) {
   const pixels = new Uint8ClampedArray(buffer, 4 + length, header.width * header.height * 4);
   if (header.id !== null && header.id < (stats.lastFrame ? stats.lastFrame.id : 0)) return;
   const image = new ImageData(pixels, header.width, header.height);
-  if (!header.preview) {
+  if (canvas.width !== header.width || canvas.height !== header.height) {
     canvas.width = header.width;
     canvas.height = header.height;
   }
@@ -112,7 +135,8 @@ function handleFrame(buffer) {
   const record = {
     id: header.id, preview: !!header.preview, t: now, render_ms: header.render_ms,
     latency_ms: inputTime === undefined ? null : now - inputTime,
-    width: header.width, height: header.height,
+    width: header.width, height: header.height, views_used: header.views_used,
+    view_stride: header.view_stride,
   };
   for (const key of Object.keys(stats.inputTimes)) {
     if (Number(key) <= header.id) delete stats.inputTimes[key];
@@ -122,7 +146,8 @@ function handleFrame(buffer) {
   stats.lastFrame = record;
   stats.shown += 1;
   const recent = stats.frames.filter((f) => now - f.t < 1000).length;
-  $("rate").textContent = `${header.width}x${header.height}${header.preview ? " preview" : ""}` +
+  $("rate").textContent = `${header.width}x${header.height}` +
+    `${header.preview ? ` preview (every ${header.view_stride}. view)` : ""}` +
     ` render ${header.render_ms} ms, input to display ${record.latency_ms === null ? "-" :
       record.latency_ms.toFixed(0)} ms, ${recent} frames/s` +
     (header.views_used !== undefined ? `, ${header.views_used} of ${header.views_selected} views` : "") +
@@ -200,6 +225,7 @@ $("detector").addEventListener("change", () => {
 
 function handleMessage(message) {
   if (message.type === "error") {
+    releasePreview();
     stats.errors.push(message.message);
     $("status").textContent = `error: ${message.message}`;
     $("status").className = "error";
@@ -234,7 +260,10 @@ function connect() {
   };
   socket.onmessage = (event) => {
     if (typeof event.data === "string") handleMessage(JSON.parse(event.data));
-    else handleFrame(event.data);
+    else {
+      handleFrame(event.data);
+      releasePreview();
+    }
   };
   socket.onclose = (event) => {
     // A refusal (too many pages open: code 1013) says why in its reason.
