@@ -64,13 +64,13 @@ struct LiveCommand {
   TelemetryOptions telemetry;
   MapOptions map;        // --follow map: the area (extent, pixel size); the rest from `options`
   std::string geojson, csv, image;
-  bool view = false;     // --view: serve the live page (python -m aos.viewer on a state folder)
+  bool view = false;     // --view: serve the live page (Python's aos.viewer on a state folder)
   ViewerOptions viewer;
   bool no_browser = false;
 };
 
-// `--view`: the live page's server, a child process (python -m aos.viewer --spec with
-// "live_dir"), reading the state folder this process writes after every update. Stopped
+// `--view`: the live page's server, a child process (Python running aos.viewer's main with a
+// --spec with "live_dir"), reading the state folder this process writes after every update. Stopped
 // (SIGTERM, then waited for) and the folder removed when this goes.
 class LivePage {
  public:
@@ -256,8 +256,9 @@ std::string LogRowsNaming(const LiveLog& log, const std::vector<std::string>& na
 // between; "" when the log does not reach `t` yet. `before_start`: `t` precedes its first row.
 std::string LogRowsAround(const LiveLog& log, double t, bool* before_start) {
   *before_start = !log.times.empty() && t < log.times.front();
-  size_t k = 0;
-  while (k < log.times.size() && log.times[k] <= t) ++k;
+  // k: the rows at or before t (times increase: ReadLiveLog checks).
+  const size_t k = static_cast<size_t>(
+      std::upper_bound(log.times.begin(), log.times.end(), t) - log.times.begin());
   if (k == 0) return "";                 // before the first row, or no rows yet
   if (log.times[k - 1] == t) return CsvLine(log.records[0]) + CsvLine(log.records[k]);
   if (k == log.times.size()) return "";  // after the last row: the log lags
@@ -458,6 +459,23 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     c.telemetry.grey = c.load.grey;
     c.telemetry.altitude_window = 0;  // one frame at a time: no running median across frames
     flags.At("telemetry.").NamingFlags([&] { c.telemetry.Check(); });
+    // The log as it is now: a header or row it cannot use fails the run before any frame
+    // waits for it (later reads may meet a log being rewritten: its frames wait then).
+    const bool timed = c.telemetry.frame_interval_s != 0.0 || c.telemetry.time_offset_s != 0.0;
+    if (!c.telemetry.telemetry_file.empty() && fs::exists(c.telemetry.telemetry_file)) {
+      const LiveLog log = ReadLiveLog(c.telemetry.telemetry_file);
+      if (log.time_column >= 0 && c.telemetry.frame_interval_s <= 0.0) {
+        ThrowUsage(c.telemetry.telemetry_file + ": a time column (no frame column): give "
+                   "--frame-interval-s (seconds between frames; frame i is at "
+                   "--time-offset-s + i * --frame-interval-s)");
+      }
+      if (log.frame_column >= 0 && timed) {
+        Warn("--frame-interval-s, --time-offset-s are ignored: " + c.telemetry.telemetry_file +
+             " names each frame's row");
+      }
+    } else if (c.exif && timed) {
+      Warn("--frame-interval-s, --time-offset-s are ignored with --exif");
+    }
     char staging_pattern[] = "/tmp/aos-live-XXXXXX";  // private (0700), a name no one can guess
     if (::mkdtemp(staging_pattern) == nullptr) {
       ThrowInvalid(std::string("live: cannot make a temporary folder: ") + std::strerror(errno));
@@ -472,7 +490,9 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     } cleanup{staging};
     std::map<std::string, Watched> watched;
     int next_index = 0;  // the next frame's place in the flight (Watched::index)
-    double last_frame_s = 0.0;
+    // --idle-exit-s counts from the last frame that arrived or was integrated; before the
+    // first frame it does not count (the run waits for the flight).
+    double last_activity_s = -1.0;
     Vec3d origin{0.0};
     std::string crs;
     // A restart: the frames already in the folder are its backlog. Only the newest window of
@@ -487,6 +507,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       }
       std::sort(present.begin(), present.end(), NaturalLess);
       for (const std::string& name : present) watched[name].index = next_index++;
+      if (!present.empty()) last_activity_s = 0.0;
       const size_t keep = static_cast<size_t>(c.live.window_frames);
       if (present.size() > keep) {
         const size_t skip = present.size() - keep;
@@ -555,6 +576,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
       }
       std::sort(arrived.begin(), arrived.end(), NaturalLess);
       for (const std::string& name : arrived) watched[name].index = next_index++;
+      if (!arrived.empty()) last_activity_s = now;
       std::sort(ready.begin(), ready.end(), NaturalLess);
       if (!ready.empty()) {
         // Pose frames: a folder of links to them and the log's rows for them (the log,
@@ -730,11 +752,17 @@ int RunLive(LiveCommand& c, const Flags& flags) {
               ++skipped;
               continue;
             }
-            last_frame_s = seconds();
+            last_activity_s = seconds();
           }
         }
       }
-      if (c.idle_exit_s > 0.0 && seconds() - std::max(last_frame_s, 0.0) > c.idle_exit_s) break;
+      if (c.idle_exit_s > 0.0 && last_activity_s >= 0.0 &&
+          seconds() - last_activity_s > c.idle_exit_s) {
+        // Not while a frame waits for its telemetry (at most 10 s, then it is skipped).
+        bool waiting = false;
+        for (const auto& [name, w] : watched) waiting = waiting || (!w.done && !w.failed);
+        if (!waiting) break;
+      }
       if (close_notify.fd >= 0) {  // woken at once by a frame's close or rename
         pollfd wait{close_notify.fd, POLLIN, 0};
         ::poll(&wait, 1, static_cast<int>(c.poll_s * 1000.0));
@@ -794,8 +822,9 @@ CommandRunner DefineLive(CLI::App* command) {
   command->add_option("--fps", c->fps, "Replay: frames per second; 0 = as fast as it runs")
       ->default_str("0");
   command->add_option("--idle-exit-s", c->idle_exit_s,
-                      "Folder: stop after this many seconds without a new frame; 0 = run until "
-                      "Ctrl-C")
+                      "Folder: stop after this many seconds without a new frame (counted once "
+                      "the first has come, and not while one waits for its telemetry); 0 = run "
+                      "until Ctrl-C")
       ->default_str("0");
   AddLoadFlags(flags, c->load);
   auto* pose = flags.Field(

@@ -62,6 +62,8 @@ void AddLoadFlags(const Flags& flags, LoadOptions& load) {
   flags.InputFolder("--mask-dir");
 }
 
+namespace {
+
 // `render` binds the IntegralOptions fields (nested for stack and allinfocus).
 void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
   render.command()
@@ -125,6 +127,8 @@ constexpr const char* kFocalSurfaceHelp =
     "a file: an OBJ or PLY mesh or a DEM raster GDAL reads (GeoTIFF...), in world coordinates "
     "(light field origin + local; a file named like a number: ./12.5).";
 
+}  // namespace
+
 // --focal-height H: focal_surface as the horizontal plane z = H.
 CLI::Option* AddFocalHeightFlag(Flags& flags, FocalSurface& focal_surface, const char* help) {
   return flags.Shorthand(
@@ -162,6 +166,8 @@ CLI::Option* AddViewerFlags(Flags& flags, ViewerOptions& viewer, bool& no_browse
   return open_browser;
 }
 
+namespace {
+
 // --focal-surface (IntegralOptions::focal_surface), with a command's `note` on it.
 CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, IntegralOptions& options,
                                  const char* note, bool planes = true) {
@@ -170,6 +176,8 @@ CLI::Option* AddFocalSurfaceFlag(Flags& render, RenderArgs& args, IntegralOption
                std::string(kFocalSurfaceHelp) + " " + note);
   return render.Input("--focal-surface");
 }
+
+}  // namespace
 
 // --focal-surface and --surface-offset (IntegralOptions::focal_surface, surface_offset).
 CLI::Option* AddSurfaceFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
@@ -1122,8 +1130,8 @@ CommandRunner DefineMap(CLI::App* command) {
 //
 // `aos-render view` checks its command line here (the same flags as integral, bound to the same
 // IntegralOptions fields, plus --host/--port/--no-browser), then hands over to the Python viewer
-// (python/aos/viewer: an aiohttp server) by exec'ing `PYTHON -m aos.viewer --spec JSON`, the
-// flags' values as one JSON object. The interpreter is the first of: $AOS_PYTHON; python3 beside
+// (python/aos/viewer: an aiohttp server) by exec'ing PYTHON on aos.viewer's main with
+// `--spec JSON`, the flags' values as one JSON object. The interpreter is the first of: $AOS_PYTHON; python3 beside
 // this executable's real path (pip installs aos-render into the interpreter's scripts folder);
 // the interpreter the build was configured with (AOS_PYTHON_EXECUTABLE); python3 on PATH; the
 // first one that finds the aos package is used.
@@ -1185,8 +1193,6 @@ std::vector<std::string> PythonCandidates() {
   return candidates;
 }
 
-// Replaces this process by `PYTHON -m aos.<module> --spec TEXT` (the first interpreter of
-// PythonCandidates() that finds the aos package with that module); throws if none does.
 // The first interpreter (PythonCandidates) that finds the aos package with `module`.
 std::string FindPython(const std::string& command, const std::string& module) {
   std::string python;
@@ -1219,6 +1225,8 @@ std::string PythonLauncher(const std::string& command, const std::string& module
          "sys.exit(main(sys.argv[1:]))\n";
 }
 
+// Replaces this process by PYTHON running aos.<module>'s main with `--spec TEXT` (through
+// PythonLauncher; the interpreter from FindPython); throws if none finds the package.
 [[noreturn]] void ExecPythonModule(const std::string& command, const std::string& module,
                                    const std::string& text) {
   const std::string python = FindPython(command, module);
@@ -1314,8 +1322,8 @@ int RunView(ViewCommand& c, const Flags& flags) {
 }
 
 // `aos-render map --workers N / --scheduler ADDRESS`: the command line is checked here (the
-// output before anything else, in RunMap), then handed over to `python -m aos.distributed
-// --spec JSON` (python/aos/distributed), which renders the tiles as Dask tasks.
+// output before anything else, in RunMap), then handed over to aos.distributed's main with
+// `--spec JSON` (python/aos/distributed), which renders the tiles as Dask tasks.
 int RunMapDistributed(MapCommand& c) {  // RunMap checked c.distributed
   if (!fs::exists(c.light_field_path)) ThrowInvalid(c.light_field_path + ": no such light-field file");
   if (!c.focal_surface.empty() && !fs::exists(c.focal_surface)) {

@@ -791,5 +791,19 @@ TEST_F(MeshFiles, PlyHeaderCountsAreCheckedAgainstTheFileAndTheMemoryBudget) {
                            "0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")).triangles.size(), 1u);
 }
 
+
+TEST(FocalSurfaceHandle, AMovedFromSurfaceIsStillTheSurfaceItWas) {
+  // The data is shared and immutable: moving copies the handle, so the source stays usable
+  // (it used to be empty, and its first accessor dereferenced nothing).
+  FocalSurface source = FocalSurface::FromPlane(Plane::AtHeight(12.5));
+  FocalSurface moved = std::move(source);
+  FocalSurface assigned = FocalSurface::FromPlane(Plane::AtHeight(0.0));
+  assigned = std::move(moved);
+  for (const FocalSurface* surface : {&source, &moved, &assigned}) {
+    ASSERT_EQ(surface->kind(), FocalSurfaceKind::kPlane);
+    EXPECT_DOUBLE_EQ(surface->plane().point.z, 12.5);
+  }
+}
+
 }  // namespace
 }  // namespace aos

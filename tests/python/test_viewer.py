@@ -226,40 +226,54 @@ def test_bodies_are_size_limited(viewer: Viewer) -> None:
 def test_preview_keeps_the_full_size_and_takes_every_kth_view_to_fit_the_budget(
         viewer: Viewer, monkeypatch: pytest.MonkeyPatch) -> None:
     """A preview (a control being dragged) is never downscaled: it is the full-size image of a
-    spread subset of the views (every k-th along the flight), k chosen from the time a view
-    cost so far against the frame budget; the image at rest integrates every view and equals
-    the exact render."""
+    spread subset of the views (every k-th along the flight), as many as the frame budget
+    holds at the cost renders have shown, never fewer than MIN_PREVIEW_VIEWS; the image at
+    rest integrates every view and equals the exact render."""
     from aos.viewer import session as session_module
 
     session = viewer.session
+    session.preview_view_count = 1 << 30  # what renders before this test taught it: forgotten
     status, body = get(f"{base(viewer)}/api/render?token={viewer.token}&preview=true")
     header, _ = decode_frame(body)
     assert status == 200 and (header["width"], header["height"]) == (32, 24)
-    assert header["preview"] is True and header["views_used"] == math.ceil(
-        9 / header["view_stride"])
-    # A budget no render meets: the next preview takes one view in nine (the middle one).
-    monkeypatch.setattr(session_module, "FRAME_BUDGET_MS", 1e-6)
+    assert header["preview"] is True and header["views_used"] == 9 and header["view_stride"] == 1
+    # Every k-th of the selected views, the middle one of each run of k.
+    monkeypatch.setattr(session_module, "MIN_PREVIEW_VIEWS", 1)
+    for count, first, last, expected in ((1, 0, 9, [4]), (4, 0, 9, [1, 4, 7]),
+                                         (4, 2, 9, [3, 5, 7]), (9, 0, 9, [])):
+        session.preview_view_count = count
+        params = session.parse({"preview": True, "view_first": first, "view_last": last})
+        views, stride = session.preview_views(params)
+        assert views == expected, (count, first, last)
+        assert stride == (math.ceil((last - first) / count) if expected else 1)
+        frame = session.render(params)
+        assert (frame.width, frame.height) == (32, 24) and frame.info["view_stride"] == stride
+        assert frame.info["views_used"] == (len(expected) or 9)
+    # A subset that misses what the request sees (the camera over view 0, an aperture holding
+    # only it; the subset is view 4): the preview takes every selected view.
+    session.preview_view_count = 1
+    frame = session.render(session.parse({"preview": True, "pan_x": -2.0, "pan_y": -2.0,
+                                          "aperture_radius": 0.5}))
+    assert frame.info["view_stride"] == 1 and frame.info["views_used"] == 1
+    # A budget nothing meets: the fewest views, MIN_PREVIEW_VIEWS.
+    monkeypatch.setattr(session_module, "MIN_PREVIEW_VIEWS", 3)
+    monkeypatch.setattr(session_module, "FRAME_BUDGET_MS", -1.0)
     session.render(session.parse({"preview": True}))
-    assert session.preview_stride == 9
+    assert session.preview_view_count == 3
     frame = session.render(session.parse({"preview": True}))
-    assert (frame.width, frame.height) == (32, 24) and frame.info["view_stride"] == 9
-    assert frame.info["views_used"] == 1
-    options = session.integral_options(session.parse({"preview": True}))
-    assert list(options.view_indices) == [4]
-    # Each preview in between: every k-th of the selected views, starting in the middle of
-    # the first stride.
-    session.preview_stride = 2
-    options = session.integral_options(session.parse({"preview": True}))
-    assert list(options.view_indices) == [1, 3, 5, 7]
-    options = session.integral_options(session.parse({"preview": True, "view_first": 2,
-                                                      "view_last": 9}))
-    assert list(options.view_indices) == [3, 5, 7]
-    # A generous budget: back to every view.
+    assert frame.info["views_used"] == 3 and frame.info["view_stride"] == 3
+    # A generous one: every view.
     monkeypatch.setattr(session_module, "FRAME_BUDGET_MS", 1e9)
     session.render(session.parse({"preview": True}))
-    assert session.preview_stride == 1
+    assert session.preview_views(session.parse({"preview": True})) == ([], 1)
+    # The cost model: a fixed part and a part per view, from a preview and a full render.
+    session._render_costs.clear()
+    monkeypatch.setattr(session_module, "FRAME_BUDGET_MS", 20.0)
+    session._learn_render_cost(True, 10, 14.0, 2.0)   # 4 ms + 1 ms a view
+    session._learn_render_cost(False, 100, 104.0, 2.0)
+    assert session.preview_view_count == 14  # (20 - 2 - 4) / 1
     # At rest: every view, the exact render of the page's options.
-    session.preview_stride = 9
+    session.preview_view_count = 1
     rest = session.parse({})
     full = session.render(rest)
     assert (full.width, full.height) == (32, 24) and full.info["views_used"] == 9
@@ -268,6 +282,7 @@ def test_preview_keeps_the_full_size_and_takes_every_kth_view_to_fit_the_budget(
     np.testing.assert_array_equal(raw.image, exact.image)
     np.testing.assert_array_equal(raw.count, exact.count)
     assert full.rgba == session.display(exact.image, exact.count, rest).tobytes()
+    session.preview_view_count = 1 << 30
 
 
 def expected_world(u: float, v: float, height: float) -> tuple[np.ndarray, float]:

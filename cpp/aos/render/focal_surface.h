@@ -92,6 +92,16 @@ inline Vec3d WorldToLocal(const Vec3d& point_in_world, const Vec3d& origin) {
 
 class FocalSurface {
  public:
+  FocalSurface(const FocalSurface&) = default;
+  FocalSurface& operator=(const FocalSurface&) = default;
+  // The data is shared and never modified, so a move copies the handle: a moved-from surface
+  // stays the surface it was (not an empty one whose every accessor would fail).
+  FocalSurface(FocalSurface&& other) noexcept : impl_(other.impl_) {}
+  FocalSurface& operator=(FocalSurface&& other) noexcept {
+    impl_ = other.impl_;
+    return *this;
+  }
+
   // A plane in the local frame. Throws for a zero or non-finite normal or point, or a point
   // beyond kMaxSurfaceCoordinate.
   static FocalSurface FromPlane(const Plane& plane);
@@ -161,6 +171,7 @@ class FocalSurface {
   struct Impl;
 
  private:
+  FocalSurface() = default;  // the factories' start: never handed out without impl_
   std::shared_ptr<const Impl> impl_;
 };
 

@@ -652,10 +652,15 @@ class _Stream:
                 except BadParameter as error:
                     await self.error(request_id, str(error))
                     continue
-                except RuntimeError as error:  # the executor shut down
-                    if self.closed:
+                except Exception as error:  # noqa: BLE001 - the page waits for an answer
+                    if self.closed:  # the executor shut down with the server
                         return
-                    raise error
+                    # Any other failure is answered: the page holds its next preview until
+                    # this one's frame or error comes.
+                    log.exception("render failed")
+                    await self.error(request_id, f"render failed: {type(error).__name__}: "
+                                     f"{str(error)[:200]}")
+                    continue
                 self.viewer.stats["renders"] += 1
                 if self.socket.closed:
                     return

@@ -21,10 +21,12 @@ Parameters (all optional; JSON numbers/strings/booleans, or query-string text):
   ``auto``: 1st..99th percentile of the covered pixels), ``gain`` (multiplies the normalised
   value about ``offset``), ``colormap`` (``grey``, ``turbo``, ``iron``; single-channel data).
 * ``preview`` (while a control is dragged): the full-size image from a spread subset of the
-  views, every k-th along the flight (never a downscaled image), k chosen after every render so
-  that render and display fit ``FRAME_BUDGET_MS`` (the server's share of a 33 ms frame) on
-  this host (``Session.preview_stride``; the time a view costs is measured by the renders
-  themselves). At rest the page asks for the image of every view.
+  selected views, every k-th along the flight (never a downscaled image): k = the selected
+  views / ``Session.preview_view_count``, the views a preview can take so that its render and
+  display fit ``FRAME_BUDGET_MS`` (the server's share of a 33 ms frame) on this host; it is
+  learnt after every render from its time, as a fixed part plus a part per view (the last
+  preview and the last full render give both), and never below ``MIN_PREVIEW_VIEWS``. At rest
+  the page asks for the image of every view.
 """
 
 from __future__ import annotations
@@ -56,6 +58,9 @@ MAX_PAGES = aos.ViewerOptions().max_pages
 # receiving the 1 MiB frame and drawing it, about 15 ms in headless Chromium on 2 cores
 # (tools/bench_viewer.py), where the input-to-display p95 stays under 60 ms.
 FRAME_BUDGET_MS = 20.0
+# A preview integrates at least this many views (or all the selected ones), whatever the budget:
+# fewer would show single frames, occluders and all.
+MIN_PREVIEW_VIEWS = 8
 
 
 class BadParameter(ValueError):
@@ -250,9 +255,11 @@ class Session:
             raise ValueError("view(): the light field has no views")
         self.light_field = light_field
         self.source = source
-        # Previews integrate every k-th selected view (k = this), at full size; adapted after
-        # each preview and each full render to the time a view costs (adaptive_preview).
-        self.preview_stride = 1
+        # How many views a preview integrates (every k-th of the selected ones), at full size;
+        # learnt from every render's time (adaptive_preview), from the last preview's and the
+        # last full render's (views, milliseconds) in _render_costs.
+        self.preview_view_count = 1 << 30
+        self._render_costs: dict[bool, tuple[int, float]] = {}
         self.adaptive_preview = adaptive_preview
         # How `source` was loaded (load_lightfield's fov_deg, images_dir, grey, mask, mask_dir)
         # and the focal surface's file, for the equivalent command.
@@ -401,42 +408,58 @@ class Session:
         return aos.PinholeCamera.from_fov(width, height, fov), cam_from_world
 
     def views_of(self, params: Params) -> list[int]:
-        """The views a request integrates ([] = all); a preview takes every preview_stride-th
-        of them along the flight."""
+        """The views a request selects ([] = all)."""
         if params.view_first == 0 and params.view_last == self.view_count:
-            chosen = list(self.view_indices or [])
-        else:
-            chosen = list(range(params.view_first, params.view_last))
-            if self.view_indices is not None:
-                allowed = set(self.view_indices)
-                chosen = [index for index in chosen if index in allowed]
-                if not chosen:
-                    raise BadParameter("view_first, view_last: no view of --view-indices in "
-                                       "that range")
-        if params.preview and self.preview_stride > 1:
-            chosen = chosen or list(range(self.view_count))
-            chosen = chosen[self.preview_stride // 2::self.preview_stride]
+            return list(self.view_indices or [])
+        chosen = list(range(params.view_first, params.view_last))
+        if self.view_indices is not None:
+            allowed = set(self.view_indices)
+            chosen = [index for index in chosen if index in allowed]
+            if not chosen:
+                raise BadParameter("view_first, view_last: no view of --view-indices in that range")
         return chosen
 
-    def _adapt_preview_stride(self, params: Params, render_ms: float, display_ms: float) -> None:
-        """The stride for the next preview: the views it may take so that its render (at this
-        one's cost per view) and display fit FRAME_BUDGET_MS."""
-        selected = len(self.views_of(Params(**{**params.__dict__, "preview": False}))) or \
-            self.view_count
-        used = max(1, math.ceil(selected / self.preview_stride)) if params.preview else selected
-        per_view_ms = render_ms / used
-        budget = FRAME_BUDGET_MS - display_ms  # the display mapping's time does not shrink
-        fit = max(1, int(budget / per_view_ms) if per_view_ms > 0 else selected)
-        self.preview_stride = max(1, min(selected, math.ceil(selected / fit)))
+    def preview_views(self, params: Params) -> tuple[list[int], int]:
+        """The views a preview integrates and k: every k-th of the selected ones along the
+        flight (the middle one of each run of k), k = ceil(selected / preview_view_count);
+        ([] = all, 1) when they all fit."""
+        chosen = self.views_of(params) or list(range(self.view_count))
+        count = max(MIN_PREVIEW_VIEWS, self.preview_view_count)
+        stride = max(1, math.ceil(len(chosen) / count))
+        if stride == 1:
+            return self.views_of(params), 1
+        return chosen[stride // 2::stride], stride
 
-    def integral_options(self, params: Params) -> aos.IntegralOptions:
+    def _learn_render_cost(self, preview: bool, views: int, render_ms: float,
+                           display_ms: float) -> None:
+        """preview_view_count from this render's time: time = fixed + views x per view, the
+        two parts from the last preview and the last full render (their view counts differ),
+        or all per view while only one kind was measured."""
+        self._render_costs[preview] = (max(1, views), render_ms)
+        costs = list(self._render_costs.values())
+        if len(costs) == 2 and costs[0][0] != costs[1][0]:
+            (n0, t0), (n1, t1) = costs
+            per_view = (t1 - t0) / (n1 - n0)
+            fixed = max(0.0, t0 - per_view * n0)
+        else:
+            per_view, fixed = render_ms / max(1, views), 0.0
+        if not per_view > 0.0:  # noise made the slope useless: all per view
+            per_view, fixed = render_ms / max(1, views), 0.0
+        budget = FRAME_BUDGET_MS - display_ms - fixed  # display and the fixed part stay
+        self.preview_view_count = max(MIN_PREVIEW_VIEWS, int(budget / per_view)
+                                      if per_view > 0.0 else 1 << 30)
+
+    def integral_options(self, params: Params,
+                         views: Optional[list[int]] = None) -> aos.IntegralOptions:
+        """The render options of a request; `views` (a preview's subset) in place of the
+        selected views."""
         camera, cam_from_world = self.camera(params)
         options = copy.copy(self.render_options)
         for name, value in (("pose_view", -1), ("cam_from_world", cam_from_world),
                             ("fov_deg", camera.fov_x_deg()), ("width", camera.width),
                             ("height", camera.height),
                             ("aperture_radius", params.aperture_radius),
-                            ("view_indices", self.views_of(params)),
+                            ("view_indices", self.views_of(params) if views is None else views),
                             ("surface_offset", 0.0), ("variance", False)):
             setattr(options, name, value)
         if params.surface:
@@ -446,10 +469,10 @@ class Session:
             options.focal_surface = self.focal_plane(params)
         return options
 
-    def map_options(self, params: Params) -> aos.MapOptions:
+    def map_options(self, params: Params, views: Optional[list[int]] = None) -> aos.MapOptions:
         width = params.width or self.cameras[params.pose_view].width
         options = aos.MapOptions(width=width, aperture_radius=params.aperture_radius,
-                                 view_indices=self.views_of(params))
+                                 view_indices=self.views_of(params) if views is None else views)
         # The fields a map shares with the render options (the aperture block), as given.
         page = {"width", "aperture_radius", "view_indices", "focal_surface", "surface_offset"}
         for row in aos.MapOptions._field_table:
@@ -466,13 +489,16 @@ class Session:
     # ---- rendering ----
 
     def render_raw(self, params: Params,
-                   progress: Optional[Callable[[str, int, int], object]] = None) -> Any:
-        """The float image, count and grid/camera of one request (C++, GIL released)."""
+                   progress: Optional[Callable[[str, int, int], object]] = None,
+                   views: Optional[list[int]] = None) -> Any:
+        """The float image, count and grid/camera of one request (C++, GIL released); `views`
+        in place of the selected views (a preview's subset)."""
         try:
             if params.mode == "map":
-                return aos._core._render_map(self.light_field, self.map_options(params), "",
-                                             False, True, progress)
-            return aos._core.render_integral(self.light_field, self.integral_options(params),
+                return aos._core._render_map(self.light_field, self.map_options(params, views),
+                                             "", False, True, progress)
+            return aos._core.render_integral(self.light_field,
+                                             self.integral_options(params, views),
                                              progress)
         except ValueError as error:
             # An option the C++ Check() refused (e.g. a plane behind the camera): the request's.
@@ -518,16 +544,27 @@ class Session:
                progress: Optional[Callable[[str, int, int], object]] = None) -> Frame:
         import time
 
+        # The views once per request (another page's render may learn meanwhile).
+        views, stride = self.preview_views(params) if params.preview else (None, 1)
+        integrated = len(views or self.views_of(params)) or self.view_count
         start = time.perf_counter()
-        result = self.render_raw(params, progress)
+        try:
+            result = self.render_raw(params, progress, views)
+        except BadParameter:
+            if stride == 1:
+                raise
+            # The subset missed what the request sees (a small aperture holding none of its
+            # views): the preview takes every selected view.
+            views, stride = None, 1
+            integrated = len(self.views_of(params)) or self.view_count
+            result = self.render_raw(params, progress)
         rendered = time.perf_counter()
-        stride = self.preview_stride if params.preview else 1
         ranges: list[tuple[float, float]] = []
         rgba = self.display(result.image, result.count, params, ranges)
         height, width = rgba.shape[:2]
         if self.adaptive_preview:
-            self._adapt_preview_stride(params, 1000.0 * (rendered - start),
-                                       1000.0 * (time.perf_counter() - rendered))
+            self._learn_render_cost(params.preview, integrated, 1000.0 * (rendered - start),
+                                    1000.0 * (time.perf_counter() - rendered))
         info: dict[str, Any] = {
             "width": width, "height": height, "mode": params.mode, "preview": params.preview,
             "view_stride": stride,

@@ -261,8 +261,11 @@ function connect() {
   socket.onmessage = (event) => {
     if (typeof event.data === "string") handleMessage(JSON.parse(event.data));
     else {
-      handleFrame(event.data);
-      releasePreview();
+      try {
+        handleFrame(event.data);
+      } finally {
+        releasePreview();
+      }
     }
   };
   socket.onclose = (event) => {
