@@ -89,23 +89,27 @@ def bench_renders(session: Any, count: int, focal_height: float = F0_GROUND) -> 
             "render_and_display_ms_p95": percentile(total_ms, 95)}
 
 
-def drag_psnr(session: Any, stride: int, heights: list[float]) -> dict[str, Any]:
-    """PSNR (peak 255, covered pixels of the exact image) of the drag frames' images (every
-    `stride`-th view, full size) against the exact image of every view, at `heights`."""
-    saved = session.preview_stride
-    values = []
+def drag_psnr(session: Any, views: int, heights: list[float]) -> dict[str, Any]:
+    """PSNR (peak 255, covered pixels of the exact image) of drag frames (a preview of `views`
+    views, full size) against the exact image of every view, at `heights`."""
+    saved = session.preview_view_count
+    values, strides = [], []
     try:
         for height in heights:
-            session.preview_stride = stride
-            preview = session.render_raw(session.parse({"focal_height": height, "preview": True}))
+            session.preview_view_count = views
+            params = session.parse({"focal_height": height, "preview": True})
+            subset, stride = session.preview_views(params)
+            preview = session.render_raw(params, None, subset)
             exact = session.render_raw(session.parse({"focal_height": height}))
             covered = exact.count > 0
             error = np.mean((preview.image[covered].astype(np.float64)
                              - exact.image[covered].astype(np.float64)) ** 2)
             values.append(10.0 * math.log10(255.0 ** 2 / error) if error > 0 else math.inf)
+            strides.append(stride)
     finally:
-        session.preview_stride = saved
-    return {"stride": stride, "psnr_db_min": min(values), "psnr_db_p50": percentile(values, 50)}
+        session.preview_view_count = saved
+    return {"views": views, "stride": max(strides), "psnr_db_min": min(values),
+            "psnr_db_p50": percentile(values, 50)}
 
 
 def bench_drag(viewer: Any, seconds: float, sweep: float) -> dict[str, Any]:
@@ -314,13 +318,13 @@ def main() -> int:
                       + (f"the image of every view {drag['rest_ms']:.0f} ms after the last input"
                          if drag["rest_ms"] is not None else "no image of every view after it"),
                       flush=True)
-                if drag["view_stride_p50"]:
-                    stride = int(round(drag["view_stride_p50"]))
+                if drag["views_used_p50"]:
+                    views = int(round(drag["views_used_p50"]))
                     report["drag_psnr"] = quality = drag_psnr(
-                        viewer.session, stride,
+                        viewer.session, views,
                         [F0_GROUND + args.sweep * k / 4 for k in range(-4, 5)])
-                    print(f"drag frames (every {stride}. view) against the exact image: PSNR "
-                          f"p50 {quality['psnr_db_p50']:.1f} dB, min "
+                    print(f"drag frames ({views} views, every {quality['stride']}.) against "
+                          f"the exact image: PSNR p50 {quality['psnr_db_p50']:.1f} dB, min "
                           f"{quality['psnr_db_min']:.1f} dB over 9 focal heights", flush=True)
             else:
                 print(f"drag: skipped ({drag['skipped']})")
