@@ -967,9 +967,11 @@ int RunMap(MapCommand& c, const Flags& flags) {
     RefuseExisting(c.detect, "detect");
     CheckDetectionsPath(c.detect, "EPSG:4326");  // the format; KML's CRS once loaded
     flags.NamingFlags([&] { c.detect_options.Check(); });
-    if (d.workers != 0 || !d.scheduler.empty()) {
-      ThrowUsage("--detect: detection needs the whole map in this process; not with --workers "
-                 "or --scheduler");
+    if ((d.workers != 0 || !d.scheduler.empty()) &&
+        c.detect_options.detector == "anomaly-imaging") {
+      ThrowUsage("--detect with --workers or --scheduler: --detector anomaly-imaging renders "
+                 "every frame's scores in this process; rx, rx-local or temperature score the "
+                 "map the cluster renders");
     }
   }
   if (d.workers != 0 || !d.scheduler.empty() || d.dashboard) return RunMapDistributed(c);
@@ -1341,6 +1343,9 @@ int RunMapDistributed(MapCommand& c) {  // RunMap checked c.distributed
   spec["distributed"] = OptionsToJson(c.distributed);
   spec["views"] = c.views;
   spec["output"] = c.output;
+  // --detect: the map stays in the client's memory too and is scored there (DetectOnRenderedMap).
+  spec["detect"] = c.detect;
+  spec["detect_options"] = OptionsToJson(c.detect_options);
   spec["force"] = Common().force;
   spec["quiet"] = Common().quiet;
   spec["json"] = Common().json;

@@ -259,6 +259,24 @@ void BindDetect(py::module_& m) {
       "light_field"_a, "options"_a, "detect"_a, "progress"_a = py::none(),
       "Detection on the orthographic map, GIL released. Prefer aos.detect_map.");
   m.def(
+      "_detect_on_rendered_map",
+      [](const LightField& light_field, const MapOptions& options, const DetectOptions& detect,
+         const py::handle& image, const py::handle& count, int views_used, int views_selected) {
+        MapResult map;
+        map.image = ImageFromArray(image, 0, "image");
+        map.count = ImageFromArray(count, 0, "count");
+        map.summary.views_used = views_used;
+        map.summary.views_selected = views_selected;
+        MapOptions options_copy = options;
+        options_copy.focal_surface = InCrs(options_copy.focal_surface, light_field.crs);
+        py::gil_scoped_release release;
+        return DetectOnRenderedMap(light_field, options_copy, detect, std::move(map));
+      },
+      "light_field"_a, "options"_a, "detect"_a, "image"_a, "count"_a, "views_used"_a = 0,
+      "views_selected"_a = 0,
+      "Detection on a map rendered elsewhere (a Dask cluster's; aos.distributed): image "
+      "float32 (H, W[, C]) and count uint32 (H, W) of the options' grid. GIL released.");
+  m.def(
       "anomaly_scores",
       [](const py::handle& image, const py::handle& count, const DetectOptions& options,
          const std::optional<Radiometry>& radiometry) {

@@ -149,8 +149,8 @@ def test_cli_detect_writes_its_outputs_together(forest: aos.LightField, tmp_path
 def test_detection_on_the_map_finds_the_person_and_map_writes_them(forest: aos.LightField,
                                                                     tmp_path: Path) -> None:
     """The orthographic map (10 cm pixels over 20 m around the target): the top detection lies
-    within 0.3 m of the target; map --detect writes the map and the GeoJSON together; detection
-    needs the whole map in one process."""
+    within 0.3 m of the target; map --detect writes the map and the GeoJSON together, on one
+    machine or on a Dask cluster."""
     extent = [UTM_ORIGIN[0] - 10.0, UTM_ORIGIN[1] - 10.0, UTM_ORIGIN[0] + 10.0,
               UTM_ORIGIN[1] + 10.0]
     found = aos.detect_map(forest, pixel_size=0.1, extent=extent, focal_surface=0.0)
@@ -171,12 +171,29 @@ def test_detection_on_the_map_finds_the_person_and_map_writes_them(forest: aos.L
     assert json.loads(done.stdout)["detections"] >= 1
     feature = json.loads((tmp_path / "found.geojson").read_text())["features"][0]
     assert feature["geometry"]["coordinates"][:2] == pytest.approx(list(best.lon_lat), abs=1e-7)
+    # On a Dask cluster the map is rendered in tiles and scored where it is assembled: the
+    # same detections. Anomaly imaging (every frame's scores) is refused there, before any work.
+    pytest.importorskip("distributed")
+    done = subprocess.run(
+        ["aos-render", "map", str(lf), "--pixel-size", "0.1", "--extent",
+         *(str(v) for v in extent), "--focal-height", "0", "-o", str(tmp_path / "map2.tif"),
+         "--detect", str(tmp_path / "found2.geojson"), "--workers", "1", "--json"],
+        capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-800:]
+    report = json.loads(done.stdout)
+    assert report["detections"] == len(found.detections) and report["workers"] == 1
+    local = json.loads((tmp_path / "found.geojson").read_text())["features"]
+    cluster = json.loads((tmp_path / "found2.geojson").read_text())["features"]
+    assert len(cluster) == len(local)
+    for ours, theirs in zip(cluster, local):
+        assert ours["geometry"]["coordinates"] == pytest.approx(theirs["geometry"]["coordinates"],
+                                                                abs=1e-9)
     done = subprocess.run(
         ["aos-render", "map", str(lf), "--pixel-size", "0.1", "--focal-height", "0", "-o",
-         str(tmp_path / "map2.tif"), "--detect", str(tmp_path / "found2.geojson"), "--workers",
-         "2"], capture_output=True, text=True, timeout=120)
-    assert done.returncode != 0 and "--detect: detection needs the whole map" in done.stderr
-    assert not (tmp_path / "map2.tif").exists() and not (tmp_path / "found2.geojson").exists()
+         str(tmp_path / "map3.tif"), "--detect", str(tmp_path / "found3.geojson"), "--workers",
+         "2", "--detector", "anomaly-imaging"], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 2 and "anomaly-imaging" in done.stderr, done.stderr
+    assert not (tmp_path / "map3.tif").exists() and not (tmp_path / "found3.geojson").exists()
 
 
 def test_temperature_threshold_in_degrees_on_a_radiometric_light_field() -> None:

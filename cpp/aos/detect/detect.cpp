@@ -536,11 +536,13 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
   return result;
 }
 
-DetectResult DetectOnMap(const LightField& light_field, const MapOptions& options,
-                         const DetectOptions& detect_options, ProgressSink* progress) {
+namespace {
+
+// DetectOnMap after its render: `map` is the map of `options`.
+DetectResult DetectOnMapOf(const LightField& light_field, const MapOptions& options,
+                           const DetectOptions& detect_options, MapResult map,
+                           ProgressSink* progress) {
   DetectResult result = StartDetection(light_field, detect_options);
-  MapResult map = RenderMap(light_field, options, progress);
-  if (ProgressCancelled(progress)) throw Cancelled();
   const MapGrid& grid = map.summary.grid;
   result.geotransform = grid.GeoTransform();
   result.render.image = std::move(map.image);
@@ -588,6 +590,48 @@ DetectResult DetectOnMap(const LightField& light_field, const MapOptions& option
       },
       std::move(blobs), &result);
   return result;
+}
+
+}  // namespace
+
+DetectResult DetectOnMap(const LightField& light_field, const MapOptions& options,
+                         const DetectOptions& detect_options, ProgressSink* progress) {
+  StartDetection(light_field, detect_options);  // checks before the render
+  MapResult map = RenderMap(light_field, options, progress);
+  if (ProgressCancelled(progress)) throw Cancelled();
+  return DetectOnMapOf(light_field, options, detect_options, std::move(map), progress);
+}
+
+DetectResult DetectOnRenderedMap(const LightField& light_field, const MapOptions& options,
+                                 const DetectOptions& detect_options, MapResult map) {
+  detect_options.Check();
+  if (detect_options.detector == "anomaly-imaging") {
+    ThrowInvalid("detector: anomaly-imaging renders every frame's scores, so it needs the frames "
+                 "in this process (not on a map rendered elsewhere, such as a Dask cluster's)");
+  }
+  map.summary.grid = ResolveMapGrid(light_field, options);
+  const MapGrid& grid = map.summary.grid;
+  if (map.image.width() != grid.width || map.image.height() != grid.height ||
+      map.count.width() != grid.width || map.count.height() != grid.height ||
+      map.count.type() != PixelType::kU32 || map.count.channels() != 1 ||
+      map.image.type() != PixelType::kF32) {
+    ThrowInvalid("map: image (float32) and count (uint32) must be the grid's " +
+                 std::to_string(grid.width) + " x " + std::to_string(grid.height) + " pixels, got " +
+                 std::to_string(map.image.width()) + " x " + std::to_string(map.image.height()) +
+                 " and " + std::to_string(map.count.width()) + " x " +
+                 std::to_string(map.count.height()));
+  }
+  int64_t samples = 0, uncovered = 0;
+  for (int y = 0; y < grid.height; ++y) {
+    const uint32_t* row = map.count.At<uint32_t>(0, y);
+    for (int x = 0; x < grid.width; ++x) {
+      samples += row[x];
+      uncovered += row[x] == 0;
+    }
+  }
+  if (map.summary.samples == 0) map.summary.samples = samples;
+  map.summary.uncovered_pixels = uncovered;
+  return DetectOnMapOf(light_field, options, detect_options, std::move(map), nullptr);
 }
 
 void CheckDetectionsPath(const std::string& path, const std::string& crs) {

@@ -166,6 +166,15 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
 DetectResult DetectOnMap(const LightField& light_field, const MapOptions& options,
                          const DetectOptions& detect_options, ProgressSink* progress = nullptr);
 
+// As DetectOnMap, on a map rendered elsewhere (a Dask cluster: python/aos/distributed): `map`
+// holds the image and count of ResolveMapGrid(light_field, options)'s grid (its summary's
+// views_used and samples as reported; the grid is resolved again here and must have the map's
+// size). The detectors that score the map itself (rx, rx-local, temperature) only: anomaly
+// imaging renders every frame's scores, so it is refused naming detector. `light_field` may
+// hold poses only.
+DetectResult DetectOnRenderedMap(const LightField& light_field, const MapOptions& options,
+                                 const DetectOptions& detect_options, MapResult map);
+
 // Refuses, before any work, a detections path WriteDetections would refuse: an extension it does
 // not write, or KML for a light field without a CRS (`crs` empty). Names `path`.
 void CheckDetectionsPath(const std::string& path, const std::string& crs);

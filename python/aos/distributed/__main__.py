@@ -12,7 +12,9 @@ or 2 (bad spec)."""
 
 from __future__ import annotations
 
+import contextlib
 import json
+import os
 import sys
 import time
 from typing import Any
@@ -107,6 +109,13 @@ def main(argv: list[str]) -> int:
                              "map has none: GIS tools will place it in the frame's own "
                              "coordinates (origin + local), not on the Earth\n")
         frame_load = {key: load[key] for key in ("grey", "mask", "mask_dir") if load.get(key)}
+        # --detect: the map is kept in memory here too and scored once rendered.
+        detect_path = spec.get("detect") or ""
+        detect = None
+        if detect_path:
+            detect = aos.DetectOptions.from_json(json.dumps(spec["detect_options"]))
+            if detect_path.lower().endswith(".kml") and not light_field.crs:
+                return _fail(f"{detect_path}: KML needs a CRS and the light field has none")
         workers = run.workers
         scheduler = run.scheduler
         if not scheduler:
@@ -133,9 +142,27 @@ def main(argv: list[str]) -> int:
         result = distributed.render_map(
             light_field, options, path=spec["output"], scheduler=scheduler or None,
             workers=workers, dashboard=run.dashboard, on_start=started,
-            load=frame_load, force=bool(spec.get("force", False)),
+            load=frame_load, force=bool(spec.get("force", False)), arrays=bool(detect_path),
             cache_mb=run.cache_mb, share_mb=run.share_mb, progress=bar)
         bar.finish()
+        found = None
+        if detect_path:
+            try:
+                found = aos._core._detect_on_rendered_map(
+                    light_field, options, detect, result.image, result.count,
+                    result.views_used, result.views_selected)
+                # Written beside its place (the format follows the extension), then moved.
+                stem, extension = os.path.splitext(detect_path)
+                partial = f"{stem}.aos-partial{extension}"
+                found.write(partial, True)
+                os.replace(partial, detect_path)
+            except BaseException:
+                # Neither output: the map was written for these detections.
+                stem, extension = os.path.splitext(detect_path)
+                for path in (spec["output"], f"{stem}.aos-partial{extension}"):
+                    with contextlib.suppress(OSError):
+                        os.remove(path)
+                raise
     except BadParameter as error:
         bar.finish()
         return _fail(str(error))
@@ -159,6 +186,9 @@ def main(argv: list[str]) -> int:
               "uncovered_pixels": result.uncovered_pixels, "tiles": result.tiles,
               "workers": workers, "scheduler": scheduler, "frames_read": result.frames_read,
               "frames_shared": result.frames_shared, "seconds": round(result.seconds, 3)}
+    if found is not None:
+        report.update({"detect": detect_path, "detections": len(found.detections),
+                       "threshold_rule": found.threshold_rule})
     if spec.get("json"):
         print(json.dumps(report), flush=True)
     else:
@@ -170,6 +200,13 @@ def main(argv: list[str]) -> int:
               f"no view (nodata, count 0); {result.tiles} tiles, {result.frames_read} frame "
               f"reads, {result.frames_shared} frames handed between workers, "
               f"{result.seconds:.1f} s")
+        if found is not None:
+            print(f"wrote {detect_path}: {len(found.detections)} detections on the map "
+                  f"({found.threshold_rule}: threshold {found.threshold:g})")
+            for number, d in enumerate(found.detections, 1):
+                print(f"{number}: map pixel ({d.pixel[0]:.1f}, {d.pixel[1]:.1f}), {d.area_px} px, "
+                      f"peak {d.peak_score:g}, world {d.world[0]:g} {d.world[1]:g} "
+                      f"{d.world[2]:g}, seen by {len(d.views)} views")
     return 0
 
 
