@@ -9,10 +9,14 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
+#include <iterator>
+#include <limits>
 #include <memory>
 #include <optional>
 
 #include <poll.h>
+#include <sys/stat.h>
 #include <sys/inotify.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
@@ -184,45 +188,121 @@ struct LiveLog {
   std::vector<double> times;       // with time_column: each row's time (records[r + 1])
 };
 
+// Appends the complete lines of `text` (a line from `first_line` on; a last line without its
+// line end is left out by the caller) to `log`: the header first, then rows; a time log's
+// times are parsed and must increase. All or nothing: on an error `log` is as it was.
+void AppendLiveLog(const std::string& text, int first_line, LiveLog* log) {
+  const std::string& path = log->path;
+  std::vector<CsvRecord> records = ParseCsv(text, path);
+  for (CsvRecord& record : records) record.line += first_line - 1;
+  int frame_column = log->frame_column, time_column = log->time_column;
+  const bool had_header = !log->records.empty();
+  if (!had_header) {
+    if (records.empty()) ThrowInvalid(path + ": no header line");
+    int any_time = -1;
+    for (size_t k = 0; k < records[0].fields.size(); ++k) {
+      std::string field = records[0].fields[k];
+      std::transform(field.begin(), field.end(), field.begin(),
+                     [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
+      if (field == "frame" || field == "name" || field == "image" || field == "file") {
+        frame_column = static_cast<int>(k);
+      }
+      if (field == "time") any_time = static_cast<int>(k);
+    }
+    if (frame_column < 0 && any_time < 0) {
+      ThrowInvalid(path + ": line " + std::to_string(records[0].line) +
+                   ": the header needs a frame column (frame names) or a time column (seconds)");
+    }
+    if (frame_column < 0) time_column = any_time;
+  }
+  std::vector<double> times;
+  if (time_column >= 0) {
+    double last = log->times.empty() ? -std::numeric_limits<double>::infinity() : log->times.back();
+    for (size_t r = had_header ? 0 : 1; r < records.size(); ++r) {
+      const CsvRecord& record = records[r];
+      const std::string where = path + ": line " + std::to_string(record.line);
+      if (static_cast<size_t>(time_column) >= record.fields.size()) {
+        ThrowInvalid(where + ": time: missing");
+      }
+      const double t =
+          ParseFiniteNumber(record.fields[static_cast<size_t>(time_column)], where, "time");
+      if (!(t > last)) {
+        ThrowInvalid(where + ": time: " + FormatNumber(t) +
+                     " does not increase (the line before has " + FormatNumber(last) + ")");
+      }
+      times.push_back(t);
+      last = t;
+    }
+  }
+  log->frame_column = frame_column;
+  log->time_column = time_column;
+  log->records.insert(log->records.end(), std::make_move_iterator(records.begin()),
+                      std::make_move_iterator(records.end()));
+  log->times.insert(log->times.end(), times.begin(), times.end());
+}
+
+// The whole log, its complete lines (a last line without its line end is a row still being
+// written: left for the next read).
 LiveLog ReadLiveLog(const std::string& path) {
   LiveLog log;
   log.path = path;
   std::string whole = ReadTextFile(path);
   const size_t end = whole.find_last_of('\n');
   whole.resize(end == std::string::npos ? 0 : end + 1);
-  log.records = ParseCsv(whole, path);
-  if (log.records.empty()) ThrowInvalid(path + ": no header line");
-  int time_column = -1;
-  for (size_t k = 0; k < log.records[0].fields.size(); ++k) {
-    std::string field = log.records[0].fields[k];
-    std::transform(field.begin(), field.end(), field.begin(),
-                   [](unsigned char ch) { return static_cast<char>(std::tolower(ch)); });
-    if (field == "frame" || field == "name" || field == "image" || field == "file") {
-      log.frame_column = static_cast<int>(k);
-    }
-    if (field == "time") time_column = static_cast<int>(k);
-  }
-  if (log.frame_column < 0 && time_column < 0) {
-    ThrowInvalid(path + ": line " + std::to_string(log.records[0].line) +
-                 ": the header needs a frame column (frame names) or a time column (seconds)");
-  }
-  if (log.frame_column >= 0) return log;
-  log.time_column = time_column;
-  for (size_t r = 1; r < log.records.size(); ++r) {
-    const CsvRecord& record = log.records[r];
-    const std::string where = path + ": line " + std::to_string(record.line);
-    if (static_cast<size_t>(time_column) >= record.fields.size()) {
-      ThrowInvalid(where + ": time: missing");
-    }
-    const double t = ParseFiniteNumber(record.fields[static_cast<size_t>(time_column)], where, "time");
-    if (!log.times.empty() && !(t > log.times.back())) {
-      ThrowInvalid(where + ": time: " + FormatNumber(t) + " does not increase (the line before has " +
-                   FormatNumber(log.times.back()) + ")");
-    }
-    log.times.push_back(t);
-  }
+  AppendLiveLog(whole, 1, &log);
   return log;
 }
+
+// The log as it grows: each Read parses only the complete lines appended since the last one
+// (a flight controller's log at 100 Hz holds hundreds of thousands of rows, and a waiting frame
+// reads it every poll). A log that was replaced (another file) or shortened is read again from
+// its start (a log rewritten in place to the same length or longer is not noticed: flight
+// loggers append). A read that fails leaves the last good state for the next try.
+class LiveLogReader {
+ public:
+  explicit LiveLogReader(std::string path) : path_(std::move(path)) {}
+
+  const LiveLog& Read() {
+    struct stat now {};
+    if (::stat(path_.c_str(), &now) != 0) {
+      ThrowInvalid(path_ + ": cannot read the telemetry log: " + std::strerror(errno));
+    }
+    const bool same_file = log_ && now.st_ino == inode_ && now.st_dev == device_ &&
+                           static_cast<uintmax_t>(now.st_size) >= consumed_;
+    if (!same_file) {  // the first read, or another file: from its start
+      log_.reset();
+      consumed_ = 0;
+      lines_ = 0;
+    }
+    std::ifstream file(path_, std::ios::binary);
+    if (!file) ThrowInvalid(path_ + ": cannot open the telemetry log");
+    file.seekg(static_cast<std::streamoff>(consumed_));
+    std::string tail((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    const size_t end = tail.find_last_of('\n');
+    tail.resize(end == std::string::npos ? 0 : end + 1);
+    if (!log_) {
+      LiveLog first;
+      first.path = path_;
+      AppendLiveLog(tail, 1, &first);  // throws for a log without its header line yet
+      log_ = std::move(first);
+    } else if (!tail.empty()) {
+      AppendLiveLog(tail, lines_ + 1, &*log_);  // all or nothing
+    }
+    consumed_ += tail.size();
+    lines_ += static_cast<int>(std::count(tail.begin(), tail.end(), '\n'));
+    inode_ = now.st_ino;
+    device_ = now.st_dev;
+    return *log_;
+  }
+
+ private:
+  std::string path_;
+  std::optional<LiveLog> log_;
+  uintmax_t consumed_ = 0;  // bytes of complete lines parsed
+  int lines_ = 0;           // lines in them
+  ino_t inode_ = 0;
+  dev_t device_ = 0;
+};
 
 std::string CsvLine(const CsvRecord& record) {
   std::string text;
@@ -490,6 +570,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     } cleanup{staging};
     std::map<std::string, Watched> watched;
     int next_index = 0;  // the next frame's place in the flight (Watched::index)
+    LiveLogReader log_reader(c.telemetry.telemetry_file);
     // --idle-exit-s counts from the last frame that arrived or was integrated; before the
     // first frame it does not count (the run waits for the flight).
     double last_activity_s = -1.0;
@@ -584,14 +665,14 @@ int RunLive(LiveCommand& c, const Flags& flags) {
         // them, or (a log with a time column only) the rows around each frame's time,
         // time_offset_s + index * frame_interval_s, as `poses` places frame i of such a log.
         // Frames the log has no row for yet wait, up to 10 s; then they are skipped.
-        std::optional<LiveLog> log;
+        const LiveLog* log = nullptr;
         std::string log_problem;  // why the log could not be read (it may be being rewritten)
         const auto frame_time = [&](const std::string& name) {
           return c.telemetry.time_offset_s + watched[name].index * c.telemetry.frame_interval_s;
         };
         if (!c.telemetry.telemetry_file.empty()) {
           try {
-            log = ReadLiveLog(c.telemetry.telemetry_file);
+            log = &log_reader.Read();
           } catch (const std::exception& problem) {
             log_problem = problem.what();
           }
