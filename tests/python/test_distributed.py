@@ -128,6 +128,36 @@ def test_the_dask_map_is_bit_for_bit_the_single_process_map(survey: Path, tmp_pa
     assert not list(tmp_path.glob(".*"))  # no temporary files left
 
 
+def test_detection_on_a_dask_map_is_the_single_process_detection(survey: Path, tmp_path: Path,
+                                                                  client) -> None:
+    """aos.distributed.detect_map: the map's tiles on Dask, scored where they are assembled:
+    the detections of aos.detect_map on one machine. A failure after the map was written
+    (here: detections in a format nobody writes) leaves neither output; anomaly imaging is
+    refused before any work."""
+    loaded = aos.load_lightfield(survey).light_field
+    poses = aos.load_lightfield(survey, load_images=False).light_field
+    options = aos.MapOptions(pixel_size=PIXEL, tile_size=TILE, focal_surface=0.0)
+    detect = aos.DetectOptions(detector="rx", quantile=0.99, min_area_px=1)
+    single = aos._core._detect_map(loaded, options, detect, None)
+    out = tmp_path / "dask.tif"
+    result, found = aos.distributed.detect_map(poses, options, detect, path=str(out),
+                                               detections_path=str(tmp_path / "found.csv"),
+                                               client=client)
+    assert len(single.detections) >= 1 and len(found.detections) == len(single.detections)
+    for ours, theirs in zip(found.detections, single.detections):
+        assert ours.pixel == theirs.pixel and ours.world == pytest.approx(theirs.world, abs=1e-9)
+    assert np.array_equal(found.scores, single.scores)
+    assert out.exists() and (tmp_path / "found.csv").exists()
+    with pytest.raises(ValueError, match="unknown detections format"):
+        aos.distributed.detect_map(poses, options, detect, path=str(tmp_path / "b.tif"),
+                                   detections_path=str(tmp_path / "found.txt"), client=client)
+    assert not (tmp_path / "b.tif").exists() and not list(tmp_path.glob("found.aos-partial*"))
+    with pytest.raises(ValueError, match="anomaly-imaging"):
+        aos.distributed.detect_map(poses, options, aos.DetectOptions(detector="anomaly-imaging"),
+                                   path=str(tmp_path / "c.tif"), client=client)
+    assert not (tmp_path / "c.tif").exists()
+
+
 def test_frames_two_workers_need_are_decoded_once_on_their_machine(survey: Path,
                                                                    tmp_path: Path,
                                                                    client) -> None:

@@ -47,7 +47,8 @@ import numpy as np
 
 from .. import _core
 
-__all__ = ["DistributedMapResult", "render_map", "prepare_map", "run_cases", "local_client"]
+__all__ = ["DistributedMapResult", "render_map", "detect_map", "prepare_map", "run_cases",
+           "local_client"]
 
 _MIB = 1 << 20
 
@@ -713,6 +714,47 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
 
 
 # ---- studies ----------------------------------------------------------------------------------
+
+
+def detect_map(light_field: Any, options: Any, detect: Any, *, path: Optional[str] = None,
+               detections_path: Optional[str] = None,
+               **render: Any) -> tuple[DistributedMapResult, Any]:
+    """Detection on a map rendered on Dask (``aos-render map --detect F --workers N``): the
+    tiles render as in :func:`render_map` (``render``: its keywords; ``path``: the GeoTIFF, or
+    None), the client keeps the assembled map and scores it (``DetectOnRenderedMap``, detect.h:
+    the same detections as :func:`aos.detect_map` on one machine). ``detect`` is a
+    DetectOptions; rx, rx-local and temperature only (anomaly imaging renders every frame's
+    scores: ValueError naming detector, before any work). With ``detections_path`` they are
+    written there too (GeoJSON, KML, CSV by extension; an existing file is refused unless
+    ``force``, as the map), moved into
+    place after the map; if scoring or writing them fails, the map written at ``path`` is
+    removed: neither output. Returns the map's result (with its arrays) and the DetectResult."""
+    if detect.detector == "anomaly-imaging":
+        raise ValueError("detector: anomaly-imaging renders every frame's scores, so it needs "
+                         "the frames in one process (aos.detect_map), not a Dask cluster")
+    detect.check()
+    if detections_path is not None:
+        if os.path.lexists(detections_path) and not render.get("force", False):
+            raise ValueError(f"{detections_path}: exists (force=True replaces it)")
+        if detections_path.lower().endswith(".kml") and not light_field.crs:
+            raise ValueError(f"{detections_path}: KML needs a CRS and the light field has none")
+    render.pop("arrays", None)
+    result = render_map(light_field, options, path=path, arrays=True, **render)
+    stem, extension = os.path.splitext(detections_path or "")
+    partial = f"{stem}.aos-partial{extension}"
+    try:
+        found = _core._detect_on_rendered_map(light_field, options, detect, result.image,
+                                              result.count, result.views_used,
+                                              result.views_selected)
+        if detections_path is not None:
+            found.write(partial, True)  # beside its place (the format follows the extension)
+            os.replace(partial, detections_path)
+    except BaseException:
+        for written in ([path] if path else []) + ([partial] if detections_path else []):
+            with contextlib.suppress(OSError):
+                os.remove(written)
+        raise
+    return result, found
 
 
 def run_cases(function: Callable[[Any], Any], cases: Sequence[Any], *, client: Any = None,

@@ -12,9 +12,7 @@ or 2 (bad spec)."""
 
 from __future__ import annotations
 
-import contextlib
 import json
-import os
 import sys
 import time
 from typing import Any
@@ -114,8 +112,6 @@ def main(argv: list[str]) -> int:
         detect = None
         if detect_path:
             detect = aos.DetectOptions.from_json(json.dumps(spec["detect_options"]))
-            if detect_path.lower().endswith(".kml") and not light_field.crs:
-                return _fail(f"{detect_path}: KML needs a CRS and the light field has none")
         workers = run.workers
         scheduler = run.scheduler
         if not scheduler:
@@ -139,30 +135,17 @@ def main(argv: list[str]) -> int:
                 sys.stderr.write(f"map: Dask dashboard at {link}\n" if link else
                                  "map: no Dask dashboard (pip install bokeh)\n")
 
-        result = distributed.render_map(
-            light_field, options, path=spec["output"], scheduler=scheduler or None,
-            workers=workers, dashboard=run.dashboard, on_start=started,
-            load=frame_load, force=bool(spec.get("force", False)), arrays=bool(detect_path),
-            cache_mb=run.cache_mb, share_mb=run.share_mb, progress=bar)
-        bar.finish()
+        common = dict(scheduler=scheduler or None, workers=workers, dashboard=run.dashboard,
+                      on_start=started, load=frame_load, force=bool(spec.get("force", False)),
+                      cache_mb=run.cache_mb, share_mb=run.share_mb, progress=bar)
         found = None
         if detect_path:
-            try:
-                found = aos._core._detect_on_rendered_map(
-                    light_field, options, detect, result.image, result.count,
-                    result.views_used, result.views_selected)
-                # Written beside its place (the format follows the extension), then moved.
-                stem, extension = os.path.splitext(detect_path)
-                partial = f"{stem}.aos-partial{extension}"
-                found.write(partial, True)
-                os.replace(partial, detect_path)
-            except BaseException:
-                # Neither output: the map was written for these detections.
-                stem, extension = os.path.splitext(detect_path)
-                for path in (spec["output"], f"{stem}.aos-partial{extension}"):
-                    with contextlib.suppress(OSError):
-                        os.remove(path)
-                raise
+            result, found = distributed.detect_map(light_field, options, detect,
+                                                   path=spec["output"],
+                                                   detections_path=detect_path, **common)
+        else:
+            result = distributed.render_map(light_field, options, path=spec["output"], **common)
+        bar.finish()
     except BadParameter as error:
         bar.finish()
         return _fail(str(error))
