@@ -6,6 +6,7 @@ one with one warning."""
 from __future__ import annotations
 
 import json
+import os
 import math
 import subprocess
 import threading
@@ -145,11 +146,15 @@ def test_cli_view_serves_the_live_page_and_stops_with_it(forest: aos.LightField,
 
     path = tmp_path / "lf.json"
     aos.write_lightfield(str(path), forest)
-    folders_before = set(Path("/tmp").glob("aos-live-view-*"))
+    # Its temporary folders in a folder of this test's ($TMPDIR): another run's live page on
+    # the same machine cannot make them look left behind.
+    temporary = tmp_path / "tmp"
+    temporary.mkdir()
     process = subprocess.Popen(
         ["aos-render", "live", "--replay", str(path), "--focal-height", "0", "--geojson",
          str(tmp_path / "tracks.geojson"), "--view", "--no-browser", "--fps", "40"],
-        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+        env=dict(os.environ, TMPDIR=str(temporary)))
     import queue
 
     lines: "queue.Queue[str]" = queue.Queue()
@@ -189,7 +194,7 @@ def test_cli_view_serves_the_live_page_and_stops_with_it(forest: aos.LightField,
     stderr = "".join(iter(lambda: lines.get_nowait() if not lines.empty() else "", ""))
     assert process.returncode == 0, stderr[-800:]
     assert "the run ended" in stderr or "aos live page: stopped" in stderr, stderr[-800:]
-    assert set(Path("/tmp").glob("aos-live-view-*")) <= folders_before  # the state folder went
+    assert not list(temporary.iterdir())  # the state folder went
     features = json.loads((tmp_path / "tracks.geojson").read_text())["features"]
     assert features
 
