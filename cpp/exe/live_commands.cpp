@@ -73,30 +73,13 @@ struct LiveCommand {
   bool no_browser = false;
 };
 
-// A new private folder (mode 0700, a name no one can guess) named `prefix` + 6 characters in
-// the temporary directory ($TMPDIR, else /tmp). `what` names it in errors.
-fs::path MakePrivateFolder(const std::string& prefix, const std::string& what) {
-  std::string pattern;
-  try {
-    pattern = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
-  } catch (const fs::filesystem_error& error) {
-    ThrowInvalid(what + ": no temporary directory ($TMPDIR): " + error.what());
-  }
-  std::vector<char> buffer(pattern.begin(), pattern.end());
-  buffer.push_back('\0');
-  if (::mkdtemp(buffer.data()) == nullptr) {
-    ThrowInvalid(what + ": cannot make a temporary folder " + pattern + ": " + std::strerror(errno));
-  }
-  return fs::path(buffer.data());
-}
-
 // `--view`: the live page's server, a child process (Python running aos.viewer's main with a
 // --spec with "live_dir"), reading the state folder this process writes after every update. Stopped
 // (SIGTERM, then waited for) and the folder removed when this goes.
 class LivePage {
  public:
   LivePage(const ViewerOptions& viewer, bool quiet) {
-    folder_ = MakePrivateFolder("aos-live-view-", "--view").string();
+    folder_ = MakePrivateTempFolder("aos-live-view-", "--view");
     nlohmann::ordered_json spec;
     spec["live_dir"] = folder_;
     spec["url_to_stderr"] = true;  // stdout is the live command's (its --json report)
@@ -322,9 +305,7 @@ class LiveLogReader {
 std::string CsvLine(const CsvRecord& record) {
   std::string text;
   for (size_t k = 0; k < record.fields.size(); ++k) {
-    std::string quoted = "\"";
-    for (char ch : record.fields[k]) quoted += ch == '"' ? std::string("\"\"") : std::string(1, ch);
-    text += (k ? "," : "") + quoted + "\"";
+    text += (k ? "," : "") + CsvField(record.fields[k]);
   }
   return text + "\n";
 }
@@ -571,7 +552,7 @@ int RunLive(LiveCommand& c, const Flags& flags) {
     } else if (c.exif && timed) {
       Warn("--frame-interval-s, --time-offset-s are ignored with --exif");
     }
-    const fs::path staging = MakePrivateFolder("aos-live-", "live");
+    const fs::path staging = MakePrivateTempFolder("aos-live-", "live");
     struct Cleanup {
       fs::path path;
       ~Cleanup() {

@@ -72,5 +72,16 @@ TEST(Csv, MalformedQuotingIsOneErrorNamingFileAndLine) {
               HasSubstr("p.csv: line 2: not valid UTF-8 text"));
 }
 
+TEST(Csv, AFieldWrittenByCsvFieldReadsBackAsItWas) {
+  const std::vector<std::string> fields = {"plain", "a,b", "say \"hi\"", "two\nlines",
+                                           " padded ", "", "frame_001.png"};
+  std::string line;
+  for (size_t k = 0; k < fields.size(); ++k) line += (k ? "," : "") + CsvField(fields[k]);
+  EXPECT_EQ(CsvField("plain"), "plain");  // quoted only where needed
+  const std::vector<CsvRecord> records = ParseCsv(line + "\n", "f.csv");
+  ASSERT_EQ(records.size(), 1u);
+  EXPECT_EQ(records[0].fields, fields);
+}
+
 }  // namespace
 }  // namespace aos

@@ -155,5 +155,23 @@ TEST(Timer, CountsSecondsFromItsStartOrRestart) {
   EXPECT_GE(first.Seconds(), first_reads);
 }
 
+TEST(PrivateTempFolder, IsNewPrivateAndInTmpdir) {
+  const std::filesystem::path base = std::filesystem::temp_directory_path() / "aos-tmpdir-test";
+  std::filesystem::create_directories(base);
+  const char* old = std::getenv("TMPDIR");
+  const std::string saved = old != nullptr ? old : "";
+  ::setenv("TMPDIR", base.c_str(), 1);
+  const std::string a = MakePrivateTempFolder("aos-x-", "test");
+  const std::string b = MakePrivateTempFolder("aos-x-", "test");
+  if (old != nullptr) ::setenv("TMPDIR", saved.c_str(), 1); else ::unsetenv("TMPDIR");
+  EXPECT_NE(a, b);
+  EXPECT_EQ(std::filesystem::path(a).parent_path(), base);
+  EXPECT_EQ(std::filesystem::path(a).filename().string().rfind("aos-x-", 0), 0u);
+  struct stat info {};
+  ASSERT_EQ(::stat(a.c_str(), &info), 0);
+  EXPECT_EQ(info.st_mode & 0777, 0700u);
+  std::filesystem::remove_all(base);
+}
+
 }  // namespace
 }  // namespace aos

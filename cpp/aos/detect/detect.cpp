@@ -13,6 +13,7 @@
 #include "aos/geometry/geodesy.h"
 #include "aos/render/focal_surface.h"
 #include "aos/render/map.h"
+#include "aos/util/csv.h"
 #include "aos/util/error.h"
 #include "aos/util/file_util.h"
 #include "aos/util/parallel.h"
@@ -38,14 +39,6 @@ std::string Number(double value) {
 }
 
 bool Located(const Detection& d) { return std::isfinite(d.local.x); }
-
-// A CSV field (RFC 4180): quoted, inner quotes doubled, when it holds a comma, quote or line end.
-std::string CsvField(const std::string& text) {
-  if (text.find_first_of(",\"\r\n") == std::string::npos) return text;
-  std::string quoted = "\"";
-  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
-  return quoted + "\"";
-}
 
 std::string GeoJson(const DetectResult& result) {
   nlohmann::ordered_json root;

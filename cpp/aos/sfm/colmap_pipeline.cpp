@@ -48,12 +48,7 @@ class Workspace {
       path_ = named;
       return;
     }
-    std::string pattern = (fs::temp_directory_path() / "aos-poses-XXXXXX").string();
-    if (::mkdtemp(pattern.data()) == nullptr) {
-      ThrowInvalid("workspace: cannot create a temporary folder in " +
-                   fs::temp_directory_path().string());
-    }
-    path_ = pattern;
+    path_ = MakePrivateTempFolder("aos-poses-", "workspace");
     temporary_ = true;
   }
   ~Workspace() {

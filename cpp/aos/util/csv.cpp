@@ -110,4 +110,13 @@ double ParseFiniteNumber(const std::string& text, const std::string& where,
   return value;
 }
 
+std::string CsvField(const std::string& text) {
+  const bool blank_ends = !text.empty() && (text.front() == ' ' || text.front() == '\t' ||
+                                            text.back() == ' ' || text.back() == '\t');
+  if (!blank_ends && text.find_first_of(",\"\r\n") == std::string::npos) return text;
+  std::string quoted = "\"";
+  for (char c : text) quoted += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return quoted + "\"";
+}
+
 }  // namespace aos

@@ -33,4 +33,8 @@ std::vector<CsvRecord> ParseCsv(const std::string& text, const std::string& path
 double ParseFiniteNumber(const std::string& text, const std::string& where,
                          const std::string& field);
 
+// `text` as one CSV field (RFC 4180, as ParseCsv reads it back): quoted, inner quotes doubled,
+// when it holds a comma, a quote, a line end or blanks at either end; as it is otherwise.
+std::string CsvField(const std::string& text);
+
 }  // namespace aos

@@ -323,6 +323,19 @@ fs::path CheckedOutputFolder(const std::string& output_dir) {
 
 void CheckOutputFolder(const std::string& output_dir) { CheckedOutputFolder(output_dir); }
 
+std::string MakePrivateTempFolder(const std::string& prefix, const std::string& what) {
+  std::string pattern;
+  try {
+    pattern = (fs::temp_directory_path() / (prefix + "XXXXXX")).string();
+  } catch (const fs::filesystem_error& error) {
+    ThrowInvalid(what + ": no temporary directory ($TMPDIR): " + error.what());
+  }
+  if (::mkdtemp(pattern.data()) == nullptr) {
+    ThrowInvalid(what + ": cannot make a temporary folder " + pattern + ": " + std::strerror(errno));
+  }
+  return pattern;
+}
+
 PendingFolder::PendingFolder(const std::string& output_dir) : output_dir_(output_dir) {
   const fs::path target = CheckedOutputFolder(output_dir);
   const fs::path parent = target.parent_path();

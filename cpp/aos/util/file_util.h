@@ -79,6 +79,10 @@ void CheckOutputPath(const std::string& output_path, const std::vector<std::stri
 // callers check first to fail before a long computation.
 void CheckOutputFolder(const std::string& output_dir);
 
+// A new private folder (mode 0700, a name no one can guess): `prefix` + 6 characters in the
+// temporary directory ($TMPDIR, else /tmp). The caller removes it. Throws naming `what`.
+std::string MakePrivateTempFolder(const std::string& prefix, const std::string& what);
+
 // A pending output folder: the contents are written into a hidden temporary sibling
 // (TempPath()), and Commit() renames it to the final path. The constructor refuses a final path
 // that exists and is not an empty folder (nothing is overwritten) or whose parent folder is
