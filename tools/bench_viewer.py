@@ -309,7 +309,7 @@ def main() -> int:
                 print(f"drag in headless Chromium: {drag['updates_per_s']:.1f} updates/s "
                       f"({drag['input_events_per_s']:.0f} input events/s, previews "
                       f"{drag['preview_sizes']}, views used p50 {drag['views_used_p50']} "
-                      f"(min {drag['views_used_min']}; every {drag['view_stride_p50']}. view), "
+                      f"(min {drag['views_used_min']}; k = {drag['view_stride_p50']:g}), "
                       f"preview render p50 {drag['preview_render_ms_p50']:.1f} ms, p95 "
                       f"{drag['preview_render_ms_p95']:.1f} ms), input-to-display p50 "
                       f"{drag['latency_ms_p50']:.0f} ms, p95 {drag['latency_ms_p95']:.0f} ms, max "
@@ -323,7 +323,7 @@ def main() -> int:
                     report["drag_psnr"] = quality = drag_psnr(
                         viewer.session, views,
                         [F0_GROUND + args.sweep * k / 4 for k in range(-4, 5)])
-                    print(f"drag frames ({views} views, every {quality['stride']}.) against "
+                    print(f"drag frames ({views} views, k = {quality['stride']}) against "
                           f"the exact image: PSNR p50 {quality['psnr_db_p50']:.1f} dB, min "
                           f"{quality['psnr_db_min']:.1f} dB over 9 focal heights", flush=True)
             else:

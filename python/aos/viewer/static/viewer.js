@@ -114,6 +114,13 @@ function onChange() {
   send(false, now);
 }
 
+// 2 -> "2nd", 11 -> "11th", 23 -> "23rd".
+function ordinal(n) {
+  const teen = n % 100 >= 11 && n % 100 <= 13;
+  const suffix = teen ? "th" : ({ 1: "st", 2: "nd", 3: "rd" }[n % 10] || "th");
+  return `${n}${suffix}`;
+}
+
 function handleFrame(buffer) {
   const view = new DataView(buffer);
   const length = view.getUint32(0, true);
@@ -147,7 +154,7 @@ function handleFrame(buffer) {
   stats.shown += 1;
   const recent = stats.frames.filter((f) => now - f.t < 1000).length;
   $("rate").textContent = `${header.width}x${header.height}` +
-    `${header.preview ? ` preview (every ${header.view_stride}. view)` : ""}` +
+    `${header.preview ? ` preview (every ${header.view_stride === 1 ? "" : ordinal(header.view_stride) + " "}view)` : ""}` +
     ` render ${header.render_ms} ms, input to display ${record.latency_ms === null ? "-" :
       record.latency_ms.toFixed(0)} ms, ${recent} frames/s` +
     (header.views_used !== undefined ? `, ${header.views_used} of ${header.views_selected} views` : "") +
