@@ -9,7 +9,6 @@
 #include <cctype>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 #include <iterator>
 #include <limits>
 #include <memory>
@@ -272,10 +271,8 @@ class LiveLogReader {
       consumed_ = 0;
       lines_ = 0;
     }
-    std::ifstream file(path_, std::ios::binary);
-    if (!file) ThrowInvalid(path_ + ": cannot open the telemetry log");
-    file.seekg(static_cast<std::streamoff>(consumed_));
-    std::string tail((std::istreambuf_iterator<char>(file)), std::istreambuf_iterator<char>());
+    // ReadTextFile's checks: a regular file (never a FIFO that would block), of bounded size.
+    std::string tail = ReadTextFile(path_, kMaxTextFileBytes, consumed_);
     const size_t end = tail.find_last_of('\n');
     tail.resize(end == std::string::npos ? 0 : end + 1);
     if (!log_) {

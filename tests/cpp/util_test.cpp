@@ -155,6 +155,20 @@ TEST(Timer, CountsSecondsFromItsStartOrRestart) {
   EXPECT_GE(first.Seconds(), first_reads);
 }
 
+TEST(ReadTextFile, FromAnOffsetReadsTheRestAndStillRefusesWhatItRefuses) {
+  const std::string folder = MakePrivateTempFolder("aos-read-", "test");
+  const std::string path = folder + "/log.csv";
+  { std::ofstream(path) << "time,x\n1,2\n"; }
+  EXPECT_EQ(ReadTextFile(path, kMaxTextFileBytes, 7), "1,2\n");
+  EXPECT_EQ(ReadTextFile(path, kMaxTextFileBytes, 11), "");  // no longer than the offset
+  EXPECT_EQ(ReadTextFile(path, kMaxTextFileBytes, 99), "");
+  EXPECT_THAT(ErrorOf([&] { ReadTextFile(path, 5, 7); }), ::testing::HasSubstr("larger"));
+  const std::string fifo = folder + "/fifo";
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  EXPECT_FALSE(ErrorOf([&] { ReadTextFile(fifo, kMaxTextFileBytes, 3); }).empty());
+  std::filesystem::remove_all(folder);
+}
+
 TEST(PrivateTempFolder, IsNewPrivateAndInTmpdir) {
   const std::filesystem::path base = std::filesystem::temp_directory_path() / "aos-tmpdir-test";
   std::filesystem::create_directories(base);

@@ -245,7 +245,7 @@ void WriteTextFileAtomic(const std::string& path, const std::string& text) {
   pending.Commit();
 }
 
-std::string ReadTextFile(const std::string& path, uint64_t max_bytes) {
+std::string ReadTextFile(const std::string& path, uint64_t max_bytes, uint64_t offset) {
   // Opened without blocking (a FIFO swapped in after a check would block a plain open), then
   // checked on the open descriptor.
   const int fd = ::open(path.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC);
@@ -267,8 +267,13 @@ std::string ReadTextFile(const std::string& path, uint64_t max_bytes) {
                  std::to_string(max_bytes) + " bytes)");
   };
   if (size > max_bytes) too_large(size);
+  if (offset >= size) return std::string();
+  if (offset > 0 && ::lseek(fd, static_cast<off_t>(offset), SEEK_SET) < 0) {
+    ThrowInvalid(path + ": cannot read (" + std::strerror(errno) + ")");
+  }
+  max_bytes -= offset;  // what may follow the offset
   std::string text;
-  text.resize(static_cast<size_t>(size));
+  text.resize(static_cast<size_t>(size - offset));
   size_t done = 0;
   while (true) {
     if (done == text.size()) {

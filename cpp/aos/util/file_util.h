@@ -117,7 +117,10 @@ bool NaturalLess(const std::string& a, const std::string& b);
 void SortNaturally(std::vector<std::string>* names);
 
 // Reads a whole file (regular files only, at most `max_bytes`); throws std::invalid_argument
-// naming the file if it cannot be read, is not a regular file or is larger.
-std::string ReadTextFile(const std::string& path, uint64_t max_bytes = kMaxTextFileBytes);
+// naming the file if it cannot be read, is not a regular file or is larger. With `offset`, the
+// bytes from there on (a growing log read again; "" when the file is no longer than that; the
+// file as a whole is held to `max_bytes`).
+std::string ReadTextFile(const std::string& path, uint64_t max_bytes = kMaxTextFileBytes,
+                         uint64_t offset = 0);
 
 }  // namespace aos
