@@ -48,18 +48,29 @@ def option_classes() -> list[type]:
             if hasattr(getattr(_core, name), "_field_table")]
 
 
+def options_base(cls: type) -> type | None:
+    """The Options class `cls` derives from (ApertureOptions), or None."""
+    base = cls.__bases__[0]
+    return base if hasattr(base, "_field_table") else None
+
+
 def stub_head(cls: type) -> list[str]:
-    """The generated head of `cls`'s block in _core.pyi."""
+    """The generated head of `cls`'s block in _core.pyi: the fields of a base Options class
+    (OptionsClass<Options, Base>) are typed on the base only, and the constructor takes them."""
     name = cls.__name__
     table = cls._field_table  # type: ignore[attr-defined]
-    lines = [f"class {name}:"]
+    base = options_base(cls)
+    inherited = {row["name"] for row in base._field_table} if base else set()  # type: ignore
+    lines = [f"class {name}({base.__name__}):" if base else f"class {name}:"]
     lines += _docstring(cls.__doc__ or name, "    ")
     lines += ["", "    _fields: ClassVar[tuple[str, ...]]", "    def __init__(", "        self,",
               "        *,"]
-    for row in table:
+    for row in sorted(table, key=lambda row: row["name"] in inherited):
         lines.append(f"        {row['name']}: {row['given']} = ...,")
     lines += ["    ) -> None:", '        """Defaults from C++; unknown names raise TypeError."""']
     for row in table:
+        if row["name"] in inherited:
+            continue
         help_text = row["help"]
         if row["unit"] or row["range"]:
             facts = ", ".join(part for part in (row["unit"], row["range"]) if part)
@@ -98,7 +109,8 @@ def stub_head(cls: type) -> list[str]:
 def write_stub(text: str) -> str:
     lines = text.split("\n")
     for cls in option_classes():
-        start = lines.index(f"class {cls.__name__}:")
+        start = next(i for i, line in enumerate(lines)
+                     if re.match(rf"class {cls.__name__}\b", line))
         end = start + 1
         while not re.match(r"    def (check|__eq__|__copy__|__repr__)\b", lines[end]):
             if lines[end].startswith("class "):
@@ -143,6 +155,26 @@ def keyword_types(router: Any) -> dict[str, str]:
     return {name: _union(found) for name, found in types.items()}
 
 
+def keyword_owners(router: Any) -> dict[str, str]:
+    """Keyword -> the name of the Options class whose table defines its field (the base block,
+    ApertureOptions, for a field a render's options inherit); '' where several do."""
+    roots = [root_type() for root_type in router.root_types]
+    owners: dict[str, str] = {}
+    for name, paths in router.paths.items():
+        found = set()
+        for path in paths:
+            owner = roots[path[0]]
+            for step in path[1:-1]:
+                owner = getattr(owner, step)
+            cls = type(owner)
+            base = options_base(cls)
+            while base is not None and any(row["name"] == name for row in base._field_table):
+                cls, base = base, options_base(base)
+            found.add(cls.__name__)
+        owners[name] = found.pop() if len(found) == 1 else ""
+    return owners
+
+
 def reachable(root_types: list[type]) -> set[str]:
     """The names of the Options classes `root_types` fill, nested ones included."""
     found: set[str] = set()
@@ -166,15 +198,18 @@ def keywords_module() -> str:
     by_name: dict[str, list[Any]] = {}
     for router in routers:
         by_name.setdefault(router.keywords, []).append(router)
-    classes: list[str] = []
     used: set[str] = set()
     written: dict[str, dict[str, str]] = {}  # class -> every keyword it types, inherited too
     roots_of: dict[str, set[str]] = {}  # class -> the Options classes its routers fill
+    planned: list[tuple[str, str, str | None, dict[str, str], dict[str, str]]] = []
     for keywords, group in by_name.items():
         types: dict[str, str] = {}
+        owners: dict[str, str] = {}
         for router in group:
             for name, text in keyword_types(router).items():
                 types[name] = _union([types[name], text]) if name in types else text
+            for name, owner in keyword_owners(router).items():
+                owners[name] = owner if owners.get(name, owner) == owner else ""
         functions = ", ".join(f"aos.{router.function}" for router in group)
         roots = ", ".join(dict.fromkeys(t.__name__ for router in group
                                         for t in router.root_types))
@@ -186,18 +221,51 @@ def keywords_module() -> str:
                  and all(types.get(key) == text for key, text in typed.items())]
         base = max(bases, key=lambda name: len(written[name]), default=None)
         inherited = written[base] if base else {}
-        lines = [f"class {keywords}({base or 'TypedDict'}, total=False):"]
-        lines += _docstring(f"Keywords of {functions}: the fields of {roots} (nested ones "
-                            "included) that its router accepts"
-                            + (f"; those of {base} too." if base else "."), "    ")
         own = {name: text for name, text in types.items() if name not in inherited}
+        planned.append((keywords, f"{functions}: the fields of {roots}", base, own, owners))
+        written[keywords] = dict(types)
+        roots_of[keywords] = {t.__name__ for router in group for t in router.root_types}
+    # The fields of one Options class that several keyword classes take alike (same names and
+    # types: the detection options of aos.detect and aos.detect_map, the aperture block of the
+    # renders, the telemetry fields of import_telemetry and import_video) are typed once, in a
+    # TypedDict of their own that those classes derive from.
+    taking: dict[str, list[dict[str, str]]] = {}  # owner -> each class's fields of it
+    for _, _, _, own, owners in planned:
+        for owner in {owners.get(name, "") for name in own} - {""}:
+            taking.setdefault(owner, []).append(
+                {name: text for name, text in own.items() if owners[name] == owner})
+    shared: list[tuple[str, tuple[tuple[str, str], ...]]] = []
+    for owner, fields in sorted(taking.items()):
+        common = [(name, text) for name, text in fields[0].items()
+                  if all(other.get(name) == text for other in fields[1:])]
+        if len(fields) >= 2 and len(common) >= 3:
+            shared.append((owner, tuple(common)))
+    classes: list[str] = []
+    for owner, block in shared:
+        lines = [f"class {owner}Keywords(TypedDict, total=False):"]
+        lines += _docstring(f"The fields of {owner} that several wrappers take alike: a base "
+                            "of their keyword classes.", "    ")
+        lines.append("")
+        for name, text in block:
+            lines.append(f"    {name}: {text}")
+            used.update(re.findall(r"\b[A-Z]\w*", text))
+        classes.append("\n".join(lines))
+    for keywords, what, base, own, owners in planned:
+        parents = [base] if base else []
+        for owner, block in shared:
+            if all(own.get(name) == text and owners.get(name) == owner for name, text in block):
+                parents.append(f"{owner}Keywords")
+                for name, _ in block:
+                    del own[name]
+        lines = [f"class {keywords}({', '.join(parents) or 'TypedDict'}, total=False):"]
+        lines += _docstring(f"Keywords of {what} (nested ones included) that its router accepts"
+                            + (f"; those of {', '.join(parents)} too." if parents else "."),
+                            "    ")
         if own:
             lines.append("")
         for name, text in own.items():
             lines.append(f"    {name}: {text}")
             used.update(re.findall(r"\b[A-Z]\w*", text))
-        written[keywords] = dict(types)
-        roots_of[keywords] = {t.__name__ for router in group for t in router.root_types}
         classes.append("\n".join(lines))
     from aos import _core
 

@@ -282,15 +282,6 @@ CLI::Option* Flags::Field(const std::string& flag, const std::string& field, int
   return option;
 }
 
-CLI::Option* Flags::Threads(int& num_threads, const std::string& field) {
-  Common().num_threads[command_->get_name()] = &num_threads;
-  CLI::Option* option = Field("--threads", field, num_threads,
-                              "Worker threads for every stage of the command; -1 = all cores");
-  // The field's flag by the one spelling rule (FlagOf), as its table would give it.
-  if (FlagOf(LeafOf(field)) == "--threads") FromTable();
-  return option;
-}
-
 CLI::Option* Flags::Threads() {
   static std::vector<std::unique_ptr<int>> spares;
   spares.push_back(std::make_unique<int>(-1));

@@ -352,8 +352,13 @@ class Flags {
   }
 
 
-  // --threads bound to `num_threads` (an Options field; all stages of the command read it).
-  CLI::Option* Threads(int& num_threads, const std::string& field = "num_threads");
+  // --threads bound to `options.num_threads` through its table row (help, default, range, as
+  // Field(options, "num_threads")); every stage of the command reads that count.
+  template <class Options>
+  CLI::Option* Threads(Options& options) {
+    Common().num_threads[command_->get_name()] = &options.num_threads;
+    return Field(options, "num_threads");
+  }
   // --threads for a command whose Options have no thread count: caps the process's workers.
   CLI::Option* Threads();
   // -q and --json (every command has them; Define functions get them from the table).

@@ -907,7 +907,7 @@ CommandRunner DefineLive(CLI::App* command) {
   flags.Field(c->options, "aperture_radius");
   flags.Field(c->options, "min_view_angle_deg");
   flags.Field(c->options, "lens_tolerance_px");
-  flags.Threads(c->options.num_threads);
+  flags.Threads(c->options);
   CLI::Option* surface = AddSurfaceFlags(flags, c->args, c->options);
   AddFocalHeightFlag(flags, c->options.focal_surface,
                      "The horizontal focal plane z = H (local frame, metres); sets --focal-surface")

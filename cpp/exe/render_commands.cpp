@@ -95,7 +95,7 @@ void AddRenderFlags(Flags& render, RenderArgs& args, IntegralOptions& options) {
                kViewListHelp);
   render.Field(options, "min_view_angle_deg");
   render.Field(options, "lens_tolerance_px");
-  render.Threads(options.num_threads);
+  render.Threads(options);
 }
 
 // --focal-surface's text: a height H or PX,PY,PZ,NX,NY,NZ is that plane (at once); anything else
@@ -855,7 +855,7 @@ CommandRunner DefineMerge(CLI::App* command) {
   command->add_option("--lightfield", c->light_field_path,
                       "The light field the stack was rendered from (needed by --method robust)");
   AddLoadFlags(flags, c->load);
-  flags.Threads(c->options.num_threads);
+  flags.Threads(c->options);
   command->add_option("-o,--output-dir", c->output_dir, "Output folder; must not exist or be empty")
       ->required();
   flags.InputFolder("stack");
@@ -1105,7 +1105,7 @@ CommandRunner DefineMap(CLI::App* command) {
   flags.Field(options, "min_view_angle_deg");
   flags.Field(options, "lens_tolerance_px");
   flags.Field(options, "tile_size");
-  flags.Threads(options.num_threads);
+  flags.Threads(options);
   command->add_option("-o,--output", c->output, "GeoTIFF to write (Cloud-Optimised)")->required();
   Flags run = flags.At("distributed.");
   run.Field(c->distributed, "workers");

@@ -204,7 +204,7 @@ CommandRunner DefinePoses(CLI::App* command) {
   flags.Field(options, "max_num_features");
   flags.Field(options, "sift_first_octave");
   flags.Field(options, "colmap");
-  flags.Threads(options.num_threads);
+  flags.Threads(options);
   flags.Force();
   flags.InputFolder("frames");
   flags.Input("--camera-file");

@@ -92,7 +92,7 @@ CommandRunner DefineSimulate(CLI::App* command) {
                       "Output folder; must not exist or be empty");
   command->add_option("--grid", c->grid, "Override sampling.grid (views per side, >= 1)")
       ->check(AtLeast(1));
-  flags.Threads(c->options.num_threads);
+  flags.Threads(c->options);
   command->add_flag("--print-scene", c->print_scene,
                     "Print the scene with every field written out and exit");
   flags.Input("scene");
@@ -169,7 +169,7 @@ CommandRunner DefineDemo(CLI::App* command) {
   DemoOptions& options = c->options;
   flags.Field(options, "all_in_focus_slices");
   flags.Field(options, "target_margin_m");
-  flags.Threads(options.num_threads);
+  flags.Threads(options);
   flags.Input("--scene");
   flags.OutputFolder("--output-dir");
   // Every other field of the tables (tools/vocabulary.py NOT_ON_THE_CLI: why not those).

@@ -172,8 +172,15 @@ void BindFocalSurface(py::module_& m) {
 
 void BindIntegral(py::module_& m) {
   BindFocalSurface(m);
+  OptionsClass<ApertureOptions>(
+      m, "ApertureOptions",
+      "The synthetic aperture every render integrates (render/aperture.h): the base of "
+      "IntegralOptions and MapOptions, whose fields these are. Defaults from the C++ struct "
+      "aos::ApertureOptions.")
+      .Table()
+      .Finish();
   // Docstrings are the header's field comments.
-  OptionsClass<IntegralOptions>(
+  OptionsClass<IntegralOptions, ApertureOptions>(
       m, "IntegralOptions",
       "Options of render_integral. Defaults come from the C++ struct aos::IntegralOptions; "
       "IntegralOptions(**fields) overrides them by name (unknown names raise TypeError).")
@@ -357,7 +364,7 @@ const Image& KeptMapArray(const MapResult& map, const Image& array, const char* 
 }
 
 void BindMap(py::module_& m) {
-  OptionsClass<MapOptions>(
+  OptionsClass<MapOptions, ApertureOptions>(
       m, "MapOptions",
       "Options of render_map (an orthographic map looking straight down). Defaults from the C++ "
       "struct aos::MapOptions.")
@@ -387,6 +394,17 @@ void BindMap(py::module_& m) {
       .Table()
       .Finish()
       .def("check", &ViewerOptions::Check, "Raises ValueError naming the field.");
+
+  OptionsClass<ViewParams>(
+      m, "ViewParams",
+      "What one page request of the viewer may set (aos.viewer's session validates a page's "
+      "values by this table): focus, aperture, views, the virtual camera, the display mapping. "
+      "Defaults from the C++ struct aos::ViewParams.")
+      .Table()
+      .Finish()
+      .def("check", &ViewParams::Check, "view_count"_a,
+           "Raises ValueError naming the field; pose_view and the view range must lie within "
+           "view_count views.");
 
   py::class_<MapResult>(m, "MapResult", "What render_map returns: the map and its grid.")
       .def_property_readonly(

@@ -323,7 +323,11 @@ py::tuple FieldTable() {
 //   __init__(**kwargs)  (unknown names raise TypeError), _fields (names in declaration order),
 //   __repr__ listing the fields, __eq__ comparing them, __copy__ and __deepcopy__ (C++ copies),
 //   and pickling (the state is a dict of the fields, nested options pickled the same way).
-template <typename Options>
+//
+// `Bases`: the Options block the struct derives from (ApertureOptions, render/aperture.h), bound
+// before it: Python then has the same class hierarchy, and the stub types the block's fields
+// once, on the base (tools/options.py).
+template <typename Options, typename... Bases>
 class OptionsClass {
  public:
   OptionsClass(py::module_& m, const char* name, const char* doc) : class_(m, name, doc) {}
@@ -434,7 +438,7 @@ class OptionsClass {
   }
 
   // Adds the protocol methods; call after the last Field().
-  py::class_<Options>& Finish() {
+  py::class_<Options, Bases...>& Finish() {
     const std::vector<std::string> fields = fields_;
     std::vector<std::string> accepted = fields_;
     for (const auto& spelling : deprecated_) accepted.push_back(spelling.first);
@@ -476,7 +480,7 @@ class OptionsClass {
     class_.def(
         "__eq__",
         [fields](const py::object& self, const py::object& other) -> py::object {
-          if (!py::isinstance<Options>(other)) {
+          if (!py::type::handle_of(other).is(py::type::handle_of(self))) {  // the same class, not a base
             return py::reinterpret_borrow<py::object>(Py_NotImplemented);
           }
           for (const std::string& field : fields) {
@@ -516,7 +520,7 @@ class OptionsClass {
     return *this;
   }
 
-  py::class_<Options>& cls() { return class_; }
+  py::class_<Options, Bases...>& cls() { return class_; }
 
  private:
   static std::string Join(const std::vector<std::string>& names) {
@@ -525,7 +529,7 @@ class OptionsClass {
     return text;
   }
 
-  py::class_<Options> class_;
+  py::class_<Options, Bases...> class_;
   std::vector<std::string> fields_;
   std::vector<std::pair<std::string, std::string>> deprecated_;  // old spelling, field
 };

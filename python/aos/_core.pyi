@@ -362,7 +362,52 @@ def write_lightfield(
 ) -> None:
     """Writes the aos JSON format (fields of aos::WriteLightFieldOptions)."""
 
-class IntegralOptions:
+class ApertureOptions:
+    """The synthetic aperture every render integrates (render/aperture.h): the base of
+    IntegralOptions and MapOptions, whose fields these are. Defaults from the C++ struct
+    aos::ApertureOptions."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        aperture_radius: float = ...,
+        view_indices: Sequence[int] = ...,
+        min_view_angle_deg: float = ...,
+        lens_tolerance_px: float = ...,
+        num_threads: int = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    aperture_radius: float
+    """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
+    around the vertical line through the focal point for a map; 0 = the single nearest view, inf
+    = every view. [m, >= 0]"""
+    @property
+    def view_indices(self) -> list[int]:
+        """Views to integrate (indices into the light field); empty means all views. Reading returns
+        a new list: assign a list to change it."""
+    @view_indices.setter
+    def view_indices(self, value: Sequence[int]) -> None: ...
+    min_view_angle_deg: float
+    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
+    rays are ignored. [deg, in [0, 90)]"""
+    lens_tolerance_px: float
+    """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
+    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px,
+    in [0, 1]]"""
+    num_threads: int
+    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> ApertureOptions:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
+    def __eq__(self, other: object) -> bool: ...
+    def __copy__(self) -> ApertureOptions: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> ApertureOptions: ...
+    def __repr__(self) -> str: ...
+
+class IntegralOptions(ApertureOptions):
     """Options of render_integral. Defaults come from the C++ struct aos::IntegralOptions;
     IntegralOptions(**fields) overrides them by name (unknown names raise TypeError)."""
 
@@ -412,25 +457,6 @@ class IntegralOptions:
     """Pixels averaged over fewer views than this are left uncovered (image and count 0): the rim of
     the aperture, where few views see a point and its occluders stay; 0 = keep every pixel a view
     sees. [>= 0]"""
-    aperture_radius: float
-    """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
-    around the vertical line through the focal point for a map; 0 = the single nearest view, inf
-    = every view. [m, >= 0]"""
-    @property
-    def view_indices(self) -> list[int]:
-        """Views to integrate (indices into the light field); empty means all views. Reading returns
-        a new list: assign a list to change it."""
-    @view_indices.setter
-    def view_indices(self, value: Sequence[int]) -> None: ...
-    min_view_angle_deg: float
-    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
-    rays are ignored. [deg, in [0, 90)]"""
-    lens_tolerance_px: float
-    """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px,
-    in [0, 1]]"""
-    num_threads: int
-    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     @property
     def focal_plane(self) -> Plane | None:
         """Deprecated: use focal_surface."""
@@ -760,7 +786,7 @@ def _render_integral_on_depth(
     progress: _Progress = None,
 ) -> SurfaceIntegralResult: ...
 
-class MapOptions:
+class MapOptions(ApertureOptions):
     """Options of render_map (an orthographic map looking straight down). Defaults from the C++
     struct aos::MapOptions."""
 
@@ -809,25 +835,6 @@ class MapOptions:
     min_view_count: int
     """Pixels averaged over fewer views than this are left uncovered (nodata); 0 or 1 keeps every
     pixel a view sees. [>= 0]"""
-    aperture_radius: float
-    """Radius of the synthetic aperture, metres: on the lens plane of a perspective virtual camera,
-    around the vertical line through the focal point for a map; 0 = the single nearest view, inf
-    = every view. [m, >= 0]"""
-    @property
-    def view_indices(self) -> list[int]:
-        """Views to integrate (indices into the light field); empty means all views. Reading returns
-        a new list: assign a list to change it."""
-    @view_indices.setter
-    def view_indices(self, value: Sequence[int]) -> None: ...
-    min_view_angle_deg: float
-    """Minimum angle between a view's ray and the focal plane, degrees, [0, 90); smaller (grazing)
-    rays are ignored. [deg, in [0, 90)]"""
-    lens_tolerance_px: float
-    """Views with a lens model: the largest error of a sample position, view pixels, [0, 1], where
-    the exact lens projection is replaced by local maps; 0 = project every sample exactly. [px,
-    in [0, 1]]"""
-    num_threads: int
-    """Worker threads; -1 = all cores. [in [1, 1024] or -1]"""
     @property
     def focal_height(self) -> float | None:
         """Deprecated: use focal_surface."""
@@ -921,6 +928,105 @@ class ViewerOptions:
     def __eq__(self, other: object) -> bool: ...
     def __copy__(self) -> ViewerOptions: ...
     def __deepcopy__(self, memo: dict[int, Any]) -> ViewerOptions: ...
+    def __repr__(self) -> str: ...
+
+class ViewParams:
+    """What one page request of the viewer may set (aos.viewer's session validates a page's values
+    by this table): focus, aperture, views, the virtual camera, the display mapping. Defaults
+    from the C++ struct aos::ViewParams."""
+
+    _fields: ClassVar[tuple[str, ...]]
+    def __init__(
+        self,
+        *,
+        mode: Literal['perspective', 'map'] = ...,
+        focal_height: float = ...,
+        tilt_x_deg: float = ...,
+        tilt_y_deg: float = ...,
+        surface: bool = ...,
+        surface_offset: float = ...,
+        aperture_radius: float = ...,
+        view_first: int = ...,
+        view_last: int = ...,
+        pose_view: int = ...,
+        orbit_deg: float = ...,
+        tilt_deg: float = ...,
+        pan_x: float = ...,
+        pan_y: float = ...,
+        pan_z: float = ...,
+        fov_deg: float = ...,
+        width: int = ...,
+        height: int = ...,
+        range: Literal['views', 'auto'] = ...,
+        gain: float = ...,
+        offset: float = ...,
+        colormap: Literal['grey', 'turbo', 'iron'] = ...,
+        preview: bool = ...,
+    ) -> None:
+        """Defaults from C++; unknown names raise TypeError."""
+    mode: Literal['perspective', 'map']
+    """perspective (a pinhole virtual camera) or map (render_map: orthographic, looking straight
+    down, north-up in the frame's own x/y). [one of perspective or map]"""
+    focal_height: float
+    """The focal plane z = H, local frame, metres. [m, in [-10000000, 10000000]]"""
+    tilt_x_deg: float
+    """The focal plane's normal tilted about the y axis, degrees, about the point (pivot x, pivot y,
+    H) under the base camera. [deg, in [-80, 80]]"""
+    tilt_y_deg: float
+    """The focal plane's normal tilted about the x axis, degrees. [deg, in [-80, 80]]"""
+    surface: bool
+    """Focus on the session's focal surface (a mesh or DEM given at start) instead of the plane."""
+    surface_offset: float
+    """The focal surface moved this far up (towards the views), metres. [m, in [-10000, 10000]]"""
+    aperture_radius: float
+    """Radius of the synthetic aperture, metres (the renders' aperture_radius, render/aperture.h);
+    inf = every view. [m, >= 0]"""
+    view_first: int
+    """First view of the half-open range of view indices to integrate (a time window of the flight).
+    [>= 0]"""
+    view_last: int
+    """One past the last view of that range. [>= 0]"""
+    pose_view: int
+    """The base pose of the virtual camera: a recorded view. [>= 0]"""
+    orbit_deg: float
+    """Orbit about the vertical axis through the point where the base camera's axis meets the focal
+    plane, degrees. [deg, in [-360, 360]]"""
+    tilt_deg: float
+    """Tilt about the camera's x axis through that point, degrees. [deg, in [-89, 89]]"""
+    pan_x: float
+    """Camera moved along the world x axis, metres. [m, in [-100000, 100000]]"""
+    pan_y: float
+    """Camera moved along the world y axis, metres. [m, in [-100000, 100000]]"""
+    pan_z: float
+    """Camera moved along the world z axis, metres. [m, in [-100000, 100000]]"""
+    fov_deg: float
+    """Horizontal field of view (zoom), degrees; 0 = the pose view's. [deg, in [0, 179]]"""
+    width: int
+    """Image width, pixels; 0 = the pose view's. [px, in [8, 2048] or 0]"""
+    height: int
+    """Image height, pixels; 0 = the pose view's. [px, in [8, 2048] or 0]"""
+    range: Literal['views', 'auto']
+    """Display range: views (the frames' type range, 0..255 for 8-bit) or auto (1st..99th percentile
+    of the covered pixels). [one of views or auto]"""
+    gain: float
+    """Display: multiplies the normalised value about offset. [in [0.01, 100]]"""
+    offset: float
+    """Display: the normalised value gain scales about. [in [-10, 10]]"""
+    colormap: Literal['grey', 'turbo', 'iron']
+    """Display colour map of single-channel data. [one of grey, turbo or iron]"""
+    preview: bool
+    """A control is being dragged: the full-size image from a spread subset of the selected views
+    (every k-th along the flight, as many as fit the frame budget), never a downscaled image."""
+    def to_json(self) -> str:
+        """The options as one JSON object (lightfield/options_json.h)."""
+    @staticmethod
+    def from_json(text: str) -> ViewParams:
+        """Default options with the JSON object's members read in (ValueError naming the key)."""
+    def check(self, view_count: int) -> None:
+        """ValueError naming the field."""
+    def __eq__(self, other: object) -> bool: ...
+    def __copy__(self) -> ViewParams: ...
+    def __deepcopy__(self, memo: dict[int, Any]) -> ViewParams: ...
     def __repr__(self) -> str: ...
 
 class MapResult:

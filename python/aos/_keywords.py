@@ -27,19 +27,10 @@ from ._core import (
 )
 
 
-class IntegralKeywords(TypedDict, total=False):
-    """Keywords of aos.render_integral: the fields of IntegralOptions (nested ones included) that
-    its router accepts."""
+class ApertureOptionsKeywords(TypedDict, total=False):
+    """The fields of ApertureOptions that several wrappers take alike: a base of their keyword
+    classes."""
 
-    cam_from_world: Rigid3d
-    pose_view: int
-    fov_deg: float
-    width: int
-    height: int
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
-    surface_offset: float
-    variance: bool
-    min_view_count: int
     aperture_radius: float
     view_indices: Sequence[int]
     min_view_angle_deg: float
@@ -47,24 +38,82 @@ class IntegralKeywords(TypedDict, total=False):
     num_threads: int
 
 
-class FocalStackKeywords(TypedDict, total=False):
+class DetectOptionsKeywords(TypedDict, total=False):
+    """The fields of DetectOptions that several wrappers take alike: a base of their keyword
+    classes."""
+
+    detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature']
+    channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal']
+    trim_fraction: float
+    robust_iterations: int
+    regularization: float
+    inner_window_px: int
+    outer_window_px: int
+    quantile: float | None
+    false_alarm_rate: float | None
+    min_score: float | None
+    min_temperature_c: float | None
+    inner_window_m: float
+    outer_window_m: float
+    min_area_px: int
+    max_detections: int
+
+
+class IntegralOptionsKeywords(TypedDict, total=False):
+    """The fields of IntegralOptions that several wrappers take alike: a base of their keyword
+    classes."""
+
+    cam_from_world: Rigid3d
+    pose_view: int
+    fov_deg: float
+    width: int
+    height: int
+    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
+    variance: bool
+    min_view_count: int
+
+
+class MergeOptionsKeywords(TypedDict, total=False):
+    """The fields of MergeOptions that several wrappers take alike: a base of their keyword classes."""
+
+    method: MergeMethod | Literal['sobel', 'improved', 'robust']
+    window_radius: int
+    smoothing_sigma: float
+    edge_sigma: float
+    smoothing_iterations: int
+
+
+class TelemetryOptionsKeywords(TypedDict, total=False):
+    """The fields of TelemetryOptions that several wrappers take alike: a base of their keyword
+    classes."""
+
+    camera_file: str
+    fov_deg: float
+    altitude_window: int
+    max_altitude_deviation_m: float
+    max_distance_from_centre_m: float
+    yaw_reference: Literal['true', 'grid', 'magnetic']
+    magnetic_declination_deg: float | None
+    altitude_reference: Literal['absolute', 'takeoff']
+    takeoff_height_m: float | None
+    dem: str
+    home_latitude_deg: float | None
+    home_longitude_deg: float | None
+    grey: bool
+
+
+class IntegralKeywords(ApertureOptionsKeywords, IntegralOptionsKeywords, total=False):
+    """Keywords of aos.render_integral: the fields of IntegralOptions (nested ones included) that
+    its router accepts; those of ApertureOptionsKeywords, IntegralOptionsKeywords too."""
+
+    surface_offset: float
+
+
+class FocalStackKeywords(ApertureOptionsKeywords, IntegralOptionsKeywords, total=False):
     """Keywords of aos.render_focal_stack: the fields of FocalStackOptions (nested ones included)
-    that its router accepts."""
+    that its router accepts; those of ApertureOptionsKeywords, IntegralOptionsKeywords too."""
 
     render: IntegralOptions
-    cam_from_world: Rigid3d
-    pose_view: int
-    fov_deg: float
-    width: int
-    height: int
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
-    variance: bool
-    min_view_count: int
-    aperture_radius: float
-    view_indices: Sequence[int]
-    min_view_angle_deg: float
-    lens_tolerance_px: float
-    num_threads: int
     first_plane: Plane | float
     last_plane: Plane | float
     ground_plane: Plane | float | None
@@ -73,63 +122,41 @@ class FocalStackKeywords(TypedDict, total=False):
     slices: int
 
 
-class MergeKeywords(TypedDict, total=False):
+class MergeKeywords(MergeOptionsKeywords, total=False):
     """Keywords of aos.merge_focal_stack: the fields of MergeOptions (nested ones included) that its
-    router accepts."""
+    router accepts; those of MergeOptionsKeywords too."""
 
-    method: MergeMethod | Literal['sobel', 'improved', 'robust']
-    window_radius: int
-    smoothing_sigma: float
-    edge_sigma: float
-    smoothing_iterations: int
     robust: SurfaceIntegralOptions | bool
     agreement: float
     min_inlier_fraction: float
     num_threads: int
 
 
-class AllInFocusKeywords(FocalStackKeywords, total=False):
+class AllInFocusKeywords(FocalStackKeywords, MergeOptionsKeywords, total=False):
     """Keywords of aos.all_in_focus: the fields of AllInFocusOptions (nested ones included) that its
-    router accepts; those of FocalStackKeywords too."""
+    router accepts; those of FocalStackKeywords, MergeOptionsKeywords too."""
 
     stack: FocalStackOptions
     merge: MergeOptions
-    method: MergeMethod | Literal['sobel', 'improved', 'robust']
-    window_radius: int
-    smoothing_sigma: float
-    edge_sigma: float
-    smoothing_iterations: int
     robust: SurfaceIntegralOptions | bool
     agreement: float
     min_inlier_fraction: float
     coarse_to_fine: int
 
 
-class SurfaceIntegralKeywords(TypedDict, total=False):
+class SurfaceIntegralKeywords(ApertureOptionsKeywords, IntegralOptionsKeywords, total=False):
     """Keywords of aos.render_integral_on_depth: the fields of IntegralOptions,
-    SurfaceIntegralOptions (nested ones included) that its router accepts."""
+    SurfaceIntegralOptions (nested ones included) that its router accepts; those of
+    ApertureOptionsKeywords, IntegralOptionsKeywords too."""
 
-    cam_from_world: Rigid3d
-    pose_view: int
-    fov_deg: float
-    width: int
-    height: int
-    focal_surface: FocalSurface | Mesh | Heightfield | Plane | float
-    variance: bool
-    min_view_count: int
-    aperture_radius: float
-    view_indices: Sequence[int]
-    min_view_angle_deg: float
-    lens_tolerance_px: float
-    num_threads: int
     robust: bool
     agreement: float
     min_inlier_fraction: float
 
 
-class MapKeywords(TypedDict, total=False):
+class MapKeywords(ApertureOptionsKeywords, total=False):
     """Keywords of aos.render_map: the fields of MapOptions (nested ones included) that its router
-    accepts."""
+    accepts; those of ApertureOptionsKeywords too."""
 
     pixel_size: float
     width: int
@@ -139,11 +166,6 @@ class MapKeywords(TypedDict, total=False):
     tile_size: int
     max_pixels: int
     min_view_count: int
-    aperture_radius: float
-    view_indices: Sequence[int]
-    min_view_angle_deg: float
-    lens_tolerance_px: float
-    num_threads: int
 
 
 class SimulateKeywords(TypedDict, total=False):
@@ -280,36 +302,23 @@ class GroundKeywords(TypedDict, total=False):
     max_step_m: float
 
 
-class TelemetryKeywords(TypedDict, total=False):
+class TelemetryKeywords(TelemetryOptionsKeywords, total=False):
     """Keywords of aos.import_telemetry: the fields of TelemetryOptions (nested ones included) that
-    its router accepts."""
+    its router accepts; those of TelemetryOptionsKeywords too."""
 
     telemetry_file: str
-    camera_file: str
-    fov_deg: float
     altitude: Literal['auto', 'gps', 'relative']
-    altitude_window: int
-    max_altitude_deviation_m: float
-    max_distance_from_centre_m: float
     frame_interval_s: float
     time_offset_s: float
-    yaw_reference: Literal['true', 'grid', 'magnetic']
-    magnetic_declination_deg: float | None
-    altitude_reference: Literal['absolute', 'takeoff']
-    takeoff_height_m: float | None
-    dem: str
-    home_latitude_deg: float | None
-    home_longitude_deg: float | None
-    grey: bool
     radiometric: Literal['none', 'flir', 'linear']
     kelvin_per_count: float
     kelvin_offset: float
     temperature_frames_dir: str
 
 
-class VideoKeywords(TypedDict, total=False):
+class VideoKeywords(TelemetryOptionsKeywords, total=False):
     """Keywords of aos.import_video: the fields of VideoFramesOptions, TelemetryOptions (nested ones
-    included) that its router accepts."""
+    included) that its router accepts; those of TelemetryOptionsKeywords too."""
 
     srt_file: str
     frame_every_s: float
@@ -317,58 +326,13 @@ class VideoKeywords(TypedDict, total=False):
     srt_altitude: Literal['relative', 'absolute']
     fixed_pitch_deg: float | None
     srt_offset_s: float
-    camera_file: str
-    fov_deg: float
-    altitude_window: int
-    max_altitude_deviation_m: float
-    max_distance_from_centre_m: float
-    yaw_reference: Literal['true', 'grid', 'magnetic']
-    magnetic_declination_deg: float | None
-    altitude_reference: Literal['absolute', 'takeoff']
-    takeoff_height_m: float | None
-    dem: str
-    home_latitude_deg: float | None
-    home_longitude_deg: float | None
-    grey: bool
 
 
-class DetectKeywords(IntegralKeywords, total=False):
+class DetectKeywords(IntegralKeywords, DetectOptionsKeywords, total=False):
     """Keywords of aos.detect: the fields of IntegralOptions, DetectOptions (nested ones included)
-    that its router accepts; those of IntegralKeywords too."""
-
-    detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature']
-    channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal']
-    trim_fraction: float
-    robust_iterations: int
-    regularization: float
-    inner_window_px: int
-    outer_window_px: int
-    quantile: float | None
-    false_alarm_rate: float | None
-    min_score: float | None
-    min_temperature_c: float | None
-    inner_window_m: float
-    outer_window_m: float
-    min_area_px: int
-    max_detections: int
+    that its router accepts; those of IntegralKeywords, DetectOptionsKeywords too."""
 
 
-class DetectMapKeywords(MapKeywords, total=False):
+class DetectMapKeywords(MapKeywords, DetectOptionsKeywords, total=False):
     """Keywords of aos.detect_map: the fields of MapOptions, DetectOptions (nested ones included)
-    that its router accepts; those of MapKeywords too."""
-
-    detector: Literal['rx', 'rx-local', 'anomaly-imaging', 'temperature']
-    channels: Literal['auto', 'grey', 'rgb', 'hsv', 'rgb+thermal']
-    trim_fraction: float
-    robust_iterations: int
-    regularization: float
-    inner_window_px: int
-    outer_window_px: int
-    quantile: float | None
-    false_alarm_rate: float | None
-    min_score: float | None
-    min_temperature_c: float | None
-    inner_window_m: float
-    outer_window_m: float
-    min_area_px: int
-    max_detections: int
+    that its router accepts; those of MapKeywords, DetectOptionsKeywords too."""

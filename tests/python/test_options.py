@@ -182,3 +182,26 @@ def test_text_choices_come_from_the_table(tmp_path: Path) -> None:
     assert ("shape: must be one of circle, sector, rectangle, polygon or line, got 'cirlce' "
             "[option --shape]") in done.stderr
     assert not (tmp_path / "p.csv").exists()
+
+
+def test_the_aperture_block_is_one_class_the_renders_derive_from() -> None:
+    # render/aperture.h: the sampling fields are declared once, in ApertureOptions; Python has
+    # the same hierarchy, and the stub types them on the base only.
+    aperture = {row["name"] for row in aos.ApertureOptions._field_table}
+    assert aperture == {"aperture_radius", "view_indices", "min_view_angle_deg",
+                        "lens_tolerance_px", "num_threads"}
+    stub = (ROOT / "python" / "aos" / "_core.pyi").read_text()
+    for cls in (aos.IntegralOptions, aos.MapOptions):
+        assert issubclass(cls, aos.ApertureOptions)
+        assert aperture <= set(cls._fields)
+        options = cls(aperture_radius=3.0, num_threads=2)
+        assert (options.aperture_radius, options.num_threads) == (3.0, 2)
+        # Equal only to options of its own class.
+        assert options != aos.ApertureOptions(aperture_radius=3.0, num_threads=2)
+        head = stub[stub.index(f"class {cls.__name__}(ApertureOptions):"):]
+        head = head[:head.index("\nclass ")]
+        for name in aperture:
+            assert f"\n    {name}: " not in head and f"def {name}(self)" not in head, name
+            assert f"        {name}: " in head, name  # the keyword constructor takes it
+    keywords = (ROOT / "python" / "aos" / "_keywords.py").read_text()
+    assert keywords.count("aperture_radius: float") == 1

@@ -176,16 +176,19 @@ def test_path_traversal_finds_nothing(viewer: Viewer, path: str) -> None:
 
 BAD = [
     ({"focal_height": "abc"}, "focal_height: expected a number"),
-    ({"focal_height": "nan"}, "focal_height: must be a finite number"),
-    ({"focal_height": "inf"}, "focal_height: must be a finite number"),
+    # The ranges are aos::ViewParams' table's (cpp/aos/viewer/viewer_options.h).
+    ({"focal_height": "nan"}, "focal_height: must be in [-10000000, 10000000], got nan"),
+    ({"focal_height": "inf"}, "focal_height: must be in [-10000000, 10000000], got inf"),
     ({"aperture_radius": "-1"}, "aperture_radius: must be >= 0"),
     ({"view_first": "5", "view_last": "2"}, "view_first, view_last"),
     ({"view_last": "10"}, "view_first, view_last"),
     ({"pose_view": "9"}, "pose_view: no view 9"),
     ({"pose_view": "1.5"}, "pose_view: expected a whole number"),
-    ({"width": "99999"}, "width: must be 0"),
-    ({"fov_deg": "180"}, "fov_deg: must be a finite number in"),
-    ({"tilt_x_deg": "89"}, "tilt_x_deg"),
+    ({"width": "99999"}, "width: must be in [8, 2048] or 0, got 99999"),
+    ({"width": "1e12"}, "width: must be in [8, 2048] or 0, got 1000000000000"),
+    ({"fov_deg": "180"}, "fov_deg: must be in [0, 179], got 180"),
+    ({"tilt_x_deg": "89"}, "tilt_x_deg: must be in [-80, 80], got 89"),
+    ({"gain": "0"}, "gain: must be in [0.01, 100], got 0"),
     ({"mode": "panorama"}, "mode: must be one of"),
     ({"colormap": "rainbow"}, "colormap: must be one of"),
     ({"surface": "true"}, "surface: this viewer was started without a focal surface"),
@@ -194,6 +197,54 @@ BAD = [
     # A valid-looking request the renderer refuses: a focal plane through the camera centre.
     ({"focal_height": "10"}, "focal"),
 ]
+
+
+def test_the_page_parameters_are_the_view_params_table() -> None:
+    # One definition (aos::ViewParams, cpp/aos/viewer/viewer_options.h): the session validates
+    # by its table, and the page's controls send exactly its fields, its selects offering
+    # exactly the table's choices.
+    from aos.viewer import session
+    rows = {row["name"]: row for row in aos.ViewParams._field_table}
+    assert session.Params is aos.ViewParams
+    static = Path(aos.viewer.__file__).parent / "static"
+    script = (static / "viewer.js").read_text()
+    page = (static / "index.html").read_text()
+    import re
+    controls = set()
+    for name in ("SLIDERS", "SELECTS"):
+        listed = re.search(rf"const {name} = \[(.*?)\];", script, re.S)
+        assert listed is not None, name
+        controls |= set(re.findall(r'"(\w+)"', listed.group(1)))
+    body = script[script.index("function currentParams()"):]
+    body = body[:body.index("return params;")]
+    controls |= set(re.findall(r"params\.(\w+) =", body))
+    assert controls == set(rows) - {"preview"}, controls ^ set(rows)
+    for name in ("mode", "range", "colormap"):
+        select = re.search(rf'<select id="{name}">(.*?)</select>', page, re.S)
+        assert select is not None, name
+        offered = [value or text for value, text in
+                   re.findall(r'<option(?: value="([^"]+)")?>([^<]*)</option>', select.group(1))]
+        choices = rows[name]["range"].removeprefix("one of ").replace(" or ", ", ").split(", ")
+        assert offered == choices, name
+    assert list(session.COLORMAPS) == rows["colormap"]["range"].removeprefix(
+        "one of ").replace(" or ", ", ").split(", ")
+
+
+def test_the_session_checks_every_field_against_its_table_range() -> None:
+    from aos.viewer.session import BadParameter, Session
+    session = Session(textured_lightfield())
+    rows = aos.ViewParams._field_table
+    numbers = [row for row in rows if row["type"] in ("int", "float") and row["range"].startswith(
+        "in [")]
+    assert len(numbers) >= 12
+    for row in numbers:
+        low, high = (float(part) for part in
+                     row["range"].split("[", 1)[1].split("]", 1)[0].split(", "))
+        with pytest.raises(BadParameter, match=rf"^{row['name']}: must be in \["):
+            session.parse({row["name"]: high + (1 if row["type"] == "int" else high * 1e-6 + 1)})
+        # The bound itself is accepted where the view count allows it.
+        if row["name"] not in ("view_first", "view_last", "pose_view"):
+            session.parse({row["name"]: high})
 
 
 @pytest.mark.parametrize("params, message", BAD)

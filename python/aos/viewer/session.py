@@ -3,23 +3,14 @@ and what a render request turns into (aos.render_integral / aos.render_map, GIL 
 
 Nothing here knows about HTTP; server.py maps BadParameter to 400 and the results to bytes.
 
-Parameters (all optional; JSON numbers/strings/booleans, or query-string text):
+Parameters (all optional; JSON numbers/strings/booleans, or query-string text): the fields of
+``aos.ViewParams``, defined once with their ranges and help in the C++ table (aos::ViewParams,
+cpp/aos/viewer/viewer_options.h): ``mode``; focus (``focal_height``, ``tilt_x_deg`` /
+``tilt_y_deg``, ``surface``, ``surface_offset``); ``aperture_radius``, ``view_first`` /
+``view_last``; the virtual camera (``pose_view``, ``orbit_deg``, ``tilt_deg``, ``pan_x`` /
+``pan_y`` / ``pan_z``, ``fov_deg``, ``width`` / ``height``); the display (``range``, ``gain``,
+``offset``, ``colormap``: not the render); and ``preview``.
 
-* ``mode``: ``perspective`` (a pinhole virtual camera) or ``map`` (aos.render_map: orthographic,
-  looking straight down, north-up in the frame's own x/y).
-* Focus: ``focal_height`` (the plane z = H, local frame, metres), ``tilt_x_deg`` /
-  ``tilt_y_deg`` (the plane's normal tilted about the y / x axis, degrees, |tilt| <= 80, about
-  the point (pivot x, pivot y, H) under the base camera), or ``surface`` = true to focus on the
-  session's focal surface (a mesh or DEM given at start) moved by ``surface_offset`` metres up.
-* ``aperture_radius`` (metres, >= 0, or "inf"), ``view_first`` / ``view_last`` (the half-open
-  range of view indices to integrate: a time window of the flight).
-* Virtual camera: ``pose_view`` (the base pose: a recorded view), then ``orbit_deg`` (about the
-  vertical axis through the point where the base camera's axis meets the focal plane),
-  ``tilt_deg`` (about the camera's x axis through that point), ``pan_x`` / ``pan_y`` / ``pan_z``
-  (metres, world axes), ``fov_deg`` (zoom; 0 = the pose view's), ``width`` / ``height``.
-* Display (not the render): ``range`` (``views``: the frames' type range, 0..255 for 8-bit;
-  ``auto``: 1st..99th percentile of the covered pixels), ``gain`` (multiplies the normalised
-  value about ``offset``), ``colormap`` (``grey``, ``turbo``, ``iron``; single-channel data).
 * ``preview`` (while a control is dragged): the full-size image from a spread subset of the
   selected views, every k-th along the flight (never a downscaled image): k = the selected
   views / ``Session.preview_view_count``, the views a preview can take so that its render and
@@ -44,11 +35,6 @@ import numpy as np
 import aos
 from aos import _command
 
-# Limits that keep one request from asking for unbounded work.
-MAX_SIZE = 2048  # pixels on a side of a full render
-MIN_SIZE = 8
-MAX_TILT_DEG = 80.0
-MAX_ABS_COORDINATE = 1.0e7  # metres (UTM northings are < 1e7)
 # Pages (WebSockets) a viewer serves at once by default (Viewer's max_pages): each keeps one
 # pending render and may queue one all-in-focus or stack job. The default is the C++ table's
 # (aos.ViewerOptions, cpp/aos/viewer/viewer_options.h), as the CLI's is.
@@ -71,9 +57,11 @@ class Superseded(Exception):
     """Raised from a render's progress callback when a newer request replaced it."""
 
 
-COLORMAPS = ("grey", "turbo", "iron")
-MODES = ("perspective", "map")
-RANGES = ("views", "auto")
+# One validated request: the table's fields (aos::ViewParams), typed, ranged and documented there.
+Params = aos.ViewParams
+_ROWS = {row["name"]: row for row in Params._field_table}
+COLORMAPS = tuple(_ROWS["colormap"]["range"].removeprefix("one of ").replace(" or ", ", ")
+                  .split(", "))
 
 
 def _turbo_lut() -> np.ndarray:
@@ -105,59 +93,20 @@ _LUTS = {
 }
 
 
-@dataclass
-class Params:
-    """One validated request."""
-
-    mode: str = "perspective"
-    focal_height: float = 0.0
-    tilt_x_deg: float = 0.0
-    tilt_y_deg: float = 0.0
-    surface: bool = False
-    surface_offset: float = 0.0
-    aperture_radius: float = math.inf
-    view_first: int = 0
-    view_last: int = 0  # exclusive; set to the view count by the session
-    pose_view: int = 0
-    orbit_deg: float = 0.0
-    tilt_deg: float = 0.0
-    pan_x: float = 0.0
-    pan_y: float = 0.0
-    pan_z: float = 0.0
-    fov_deg: float = 0.0
-    width: int = 0
-    height: int = 0
-    range: str = "views"
-    gain: float = 1.0
-    offset: float = 0.0
-    colormap: str = "grey"
-    preview: bool = False
-
-    def as_dict(self) -> dict[str, Any]:
-        values = dict(self.__dict__)
-        if math.isinf(values["aperture_radius"]):
-            values["aperture_radius"] = "inf"
-        return values
+def params_dict(params: Params) -> dict[str, Any]:
+    """The fields as JSON values (an infinite aperture as "inf")."""
+    values = {name: getattr(params, name) for name in Params._fields}
+    if math.isinf(values["aperture_radius"]):
+        values["aperture_radius"] = "inf"
+    return values
 
 
-_FLOAT_FIELDS = {
-    # name: (lowest, highest) inclusive
-    "focal_height": (-MAX_ABS_COORDINATE, MAX_ABS_COORDINATE),
-    "tilt_x_deg": (-MAX_TILT_DEG, MAX_TILT_DEG),
-    "tilt_y_deg": (-MAX_TILT_DEG, MAX_TILT_DEG),
-    "surface_offset": (-1.0e4, 1.0e4),
-    "orbit_deg": (-360.0, 360.0),
-    "tilt_deg": (-89.0, 89.0),
-    "pan_x": (-1.0e5, 1.0e5),
-    "pan_y": (-1.0e5, 1.0e5),
-    "pan_z": (-1.0e5, 1.0e5),
-    "fov_deg": (0.0, 179.0),
-    "gain": (0.01, 100.0),
-    "offset": (-10.0, 10.0),
-}
-_INT_FIELDS = ("view_first", "view_last", "pose_view", "width", "height")
-_BOOL_FIELDS = ("surface", "preview")
-_CHOICE_FIELDS = {"mode": MODES, "range": RANGES, "colormap": COLORMAPS}
+def _with(params: Params, **changes: Any) -> Params:
+    """A copy of ``params`` with ``changes``."""
+    changed = copy.copy(params)
+    for name, value in changes.items():
+        setattr(changed, name, value)
+    return changed
 
 
 def _as_float(name: str, value: Any) -> float:
@@ -315,50 +264,30 @@ class Session:
     # ---- parameters ----
 
     def parse(self, raw: dict[str, Any], base: Optional[Params] = None) -> Params:
-        """Validated Params from a dict of raw values (unknown keys refused)."""
-        params = Params(**(base or self.defaults).__dict__)
-        known = set(Params().__dict__)
+        """Validated Params from a dict of raw values (unknown keys refused): each read as its
+        table row's type, then checked against the table's ranges (Params.check)."""
+        params = copy.copy(base or self.defaults)
         for name, value in raw.items():
-            if name not in known:
+            row = _ROWS.get(name)
+            if row is None:
                 raise BadParameter(f"{str(name)[:40]}: unknown parameter (known: "
-                                   f"{', '.join(sorted(known))})")
-            if name == "aperture_radius":
-                if isinstance(value, str) and value.strip().lower() in ("inf", "infinity"):
-                    number = math.inf
-                else:
-                    number = _as_float(name, value)
-                if not (number >= 0.0):  # also NaN
-                    raise BadParameter(f"aperture_radius: must be >= 0 metres or 'inf', got "
-                                       f"{str(value)[:40]!r}")
-                params.aperture_radius = number
-            elif name in _FLOAT_FIELDS:
-                number = _as_float(name, value)
-                low, high = _FLOAT_FIELDS[name]
-                if not (math.isfinite(number) and low <= number <= high):
-                    raise BadParameter(f"{name}: must be a finite number in [{low:g}, {high:g}], "
-                                       f"got {str(value)[:40]!r}")
-                setattr(params, name, number)
-            elif name in _INT_FIELDS:
-                setattr(params, name, _as_int(name, value))
-            elif name in _BOOL_FIELDS:
-                setattr(params, name, _as_bool(name, value))
-            elif name in _CHOICE_FIELDS:
-                if value not in _CHOICE_FIELDS[name]:
-                    raise BadParameter(f"{name}: must be one of {', '.join(_CHOICE_FIELDS[name])},"
-                                       f" got {str(value)[:40]!r}")
-                setattr(params, name, value)
-        count = self.view_count
-        if not 0 <= params.pose_view < count:
-            raise BadParameter(f"pose_view: no view {params.pose_view} (the light field has "
-                               f"{count} views)")
-        if not 0 <= params.view_first < params.view_last <= count:
-            raise BadParameter(f"view_first, view_last: need 0 <= first < last <= {count}, got "
-                               f"{params.view_first}, {params.view_last}")
-        for name in ("width", "height"):
-            size = getattr(params, name)
-            if size != 0 and not MIN_SIZE <= size <= MAX_SIZE:
-                raise BadParameter(f"{name}: must be 0 (the pose view's) or {MIN_SIZE}.."
-                                   f"{MAX_SIZE} pixels, got {size}")
+                                   f"{', '.join(sorted(_ROWS))})")
+            kind = row["type"]
+            if kind == "float":
+                converted: Any = _as_float(name, value)  # "inf" too; the range refuses NaN
+            elif kind == "int":
+                converted = _as_int(name, value)
+                if not -2**31 <= converted < 2**31:
+                    raise BadParameter(f"{name}: must be {row['range']}, got {converted}")
+            elif kind == "bool":
+                converted = _as_bool(name, value)
+            else:  # text, its choices checked by the range
+                converted = str(value)[:100]
+            setattr(params, name, converted)
+        try:
+            params.check(self.view_count)
+        except ValueError as error:
+            raise BadParameter(str(error)) from None
         if params.surface and self.focal_surface is None:
             raise BadParameter("surface: this viewer was started without a focal surface "
                                "(--focal-surface)")
@@ -622,7 +551,7 @@ class Session:
         """Detections (aos.detect, or aos.detect_map in map mode) in the full-size render of
         ``params`` with its defaults but the detector; kept, so that every later frame marks
         them. Each carries the pan and focus that centre the perspective view on it."""
-        params = Params(**{**params.__dict__, "preview": False})
+        params = _with(params, preview=False)
         try:
             # The choices and ranges are DetectOptions' own (its C++ field table).
             options = aos.DetectOptions(detector=str(detector)[:40])
@@ -672,7 +601,7 @@ class Session:
     def pick(self, params: Params, u: float, v: float) -> dict[str, Any]:
         """World coordinate, depth and view count at continuous pixel (u, v) of the full-size
         render of ``params`` (pixel centres at +0.5)."""
-        params = Params(**{**params.__dict__, "preview": False})
+        params = _with(params, preview=False)
         result = self.render_raw(params)
         height, width = result.count.shape
         if not (0.0 <= u < width and 0.0 <= v < height):
@@ -735,7 +664,7 @@ class Session:
 
     def export(self, params: Params, kind: str) -> tuple[bytes, str, str]:
         """The full-size render as a file: (bytes, content type, file name)."""
-        params = Params(**{**params.__dict__, "preview": False})
+        params = _with(params, preview=False)
         with tempfile.TemporaryDirectory(prefix="aos-viewer-") as folder:
             if kind == "geotiff":
                 if params.mode != "map":
@@ -763,7 +692,7 @@ class Session:
         """The equivalent `aos-render` command line and Python snippet (full size), spelled from
         the options the render uses through their field tables (aos/_command.py): each field
         that differs from its default, under its flag and its keyword."""
-        params = Params(**{**params.__dict__, "preview": False})
+        params = _with(params, preview=False)
         source = shlex.quote(self.source) if self.source else "LIGHTFIELD"
         load = [(row, self.load_options[row["name"]]) for row in aos._core._load_field_table
                 if row["name"] in self.load_options]
@@ -817,7 +746,7 @@ class Session:
             "up_z": self.up_z,
             "surface": None if self.focal_surface is None else self.focal_surface.kind,
             "fixed_pose": self.fixed_cam_from_world is not None,
-            "defaults": self.defaults.as_dict(),
+            "defaults": params_dict(self.defaults),
             "colormaps": list(COLORMAPS),
         }
 
