@@ -11,6 +11,7 @@
 #include "aos/detect/anomaly.h"
 #include "aos/detect/detect.h"
 #include "error_of.h"
+#include "render_test_util.h"
 
 namespace aos {
 namespace {
@@ -303,6 +304,72 @@ TEST(Anomaly, QuantisedFrameScoresMatchTheGeneralScorerWithinAStep) {
       EXPECT_EQ(*quantised.At<uint16_t>(x, y),
                 std::min(65535.0, std::floor(*reference.scores.At<float>(x, y) / kFrameScoreStep + 0.5)));
     }
+  }
+}
+
+// Anomaly imaging of 8- and 16-bit grey frames integrates every frame's scores in the render's
+// own pass (RenderIntegralWithQuadratic, FrameQuadratic); it must agree with the route other
+// frames take, each frame's quantised score image (QuantisedFrameScores, tested against
+// ComputeAnomalyScores above) rendered apart, within that route's half a quantisation step (the
+// mean of values each within half a step) and float rounding. Its integral image must be the
+// plain render's. Gently textured ground with a warm square under 3 x 3 nadir views.
+TEST(Detect, AnomalyImagingOfGreyFramesIsTheIntegralOfTheFramesScores) {
+  SyntheticScene scene;
+  scene.layers.push_back(SceneLayer{Plane::AtHeight(0.0), [](const Vec3d& p, float* value) {
+    value[0] = static_cast<float>(100.0 + 8.0 * std::sin(2.1 * p.x + 0.4) * std::cos(1.7 * p.y));
+    return true;
+  }});
+  scene.layers.insert(scene.layers.begin(),
+                      SceneLayer{Plane::AtHeight(0.01), [](const Vec3d& p, float* value) {
+                                   if (std::abs(p.x - 0.7) > 0.6 || std::abs(p.y + 0.4) > 0.6) {
+                                     return false;
+                                   }
+                                   value[0] = 200.0f;
+                                   return true;
+                                 }});
+  for (PixelType type : {PixelType::kU8, PixelType::kU16}) {
+    const LightField light_field = test_util::NadirLightField(
+        scene, PinholeCamera::FromFov(80, 60, 60.0), test_util::GridCentres(3, 1.5, 12.0), type);
+    IntegralOptions options;
+    options.pose_view = 4;
+    options.focal_surface = FocalSurface::FromPlane(Plane::AtHeight(0.0));
+    DetectOptions detect;
+    detect.detector = "anomaly-imaging";
+    detect.min_score = 8.0;
+    const DetectResult result = Detect(light_field, options, detect);
+    // Every frame's quadratic is its quantised score table's, before rounding.
+    for (const View& view : light_field.views) {
+      const std::optional<ViewQuadratic> quadratic = FrameQuadratic(view.image, detect);
+      ASSERT_TRUE(quadratic.has_value()) << PixelTypeName(type);
+      const Image table = QuantisedFrameScores(view.image, detect);
+      for (int y = 0; y < table.height(); y += 3) {
+        for (int x = 0; x < table.width(); x += 3) {
+          const double d = view.image.Value(x, y) - quadratic->centre;
+          ASSERT_NEAR(quadratic->scale * d * d, *table.At<uint16_t>(x, y) * kFrameScoreStep,
+                      0.5 * kFrameScoreStep + 1e-4);
+        }
+      }
+    }
+    // The route of other frames.
+    LightField quantised = light_field;
+    for (View& view : quantised.views) view.image = QuantisedFrameScores(view.image, detect);
+    const IntegralResult apart = RenderIntegral(quantised, WithResolvedCamera(light_field, options));
+    const IntegralResult plain = RenderIntegral(light_field, options);
+    EXPECT_TRUE(test_util::SameImage(result.render.image, plain.image)) << PixelTypeName(type);
+    double largest = 0.0, worst = 0.0;
+    for (int y = 0; y < apart.image.height(); ++y) {
+      for (int x = 0; x < apart.image.width(); ++x) {
+        const double want = *apart.image.At<float>(x, y) * kFrameScoreStep;
+        const double got = *result.scores.scores.At<float>(x, y);
+        largest = std::max(largest, want);
+        worst = std::max(worst, std::abs(got - want));
+      }
+    }
+    EXPECT_GT(largest, 20.0) << PixelTypeName(type);  // the warm square
+    EXPECT_LE(worst, 0.5 * kFrameScoreStep + 1e-5 * largest) << PixelTypeName(type);
+    ASSERT_EQ(result.detections.size(), 1u) << PixelTypeName(type);
+    EXPECT_NEAR(result.detections[0].local.x, 0.7, 0.1);
+    EXPECT_NEAR(result.detections[0].local.y, -0.4, 0.1);
   }
 }
 

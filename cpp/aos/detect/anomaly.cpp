@@ -549,6 +549,57 @@ int AnomalyFeatureCount(const AnomalyOptions& options, int image_channels) {
   return FeatureCount(options.channels, image_channels, options.detector);
 }
 
+namespace {
+
+// Global RX's background of a frame of one channel, one feature and 8 or 16 bits, from the
+// histogram of its sample grid: one weighted point per value that occurs (nullopt for other
+// frames).
+std::optional<Background> HistogramBackground(const Image& frame, const AnomalyOptions& options) {
+  const bool integer = frame.type() == PixelType::kU8 || frame.type() == PixelType::kU16;
+  if (!integer || frame.channels() != 1 || options.channels != "auto") return std::nullopt;
+  AnomalyOptions rx = options;
+  rx.detector = "rx";
+  const int w = frame.width(), h = frame.height();
+  const int levels = frame.type() == PixelType::kU8 ? 256 : 65536;
+  std::vector<uint32_t> histogram(static_cast<size_t>(levels), 0);
+  const int step = SampleStep(static_cast<int64_t>(w) * h);
+  const auto count_values = [&](const auto* type_tag) {
+    using T = std::remove_const_t<std::remove_pointer_t<decltype(type_tag)>>;
+    for (int y = 0; y < h; y += step) {
+      const T* row = frame.At<T>(0, y);
+      for (int x = 0; x < w; x += step) ++histogram[row[x]];
+    }
+  };
+  if (frame.type() == PixelType::kU8) {
+    count_values(static_cast<const uint8_t*>(nullptr));
+  } else {
+    count_values(static_cast<const uint16_t*>(nullptr));
+  }
+  WeightedPoints points;
+  points.d = 1;
+  for (int v = 0; v < levels; ++v) {
+    if (histogram[static_cast<size_t>(v)] == 0) continue;
+    points.values.push_back(static_cast<float>(v));
+    points.weights.push_back(histogram[static_cast<size_t>(v)]);
+  }
+  return EstimateBackground(points, rx);
+}
+
+}  // namespace
+
+std::optional<ViewQuadratic> FrameQuadratic(const Image& frame, const AnomalyOptions& options) {
+  AnomalyOptions rx = options;
+  rx.detector = "rx";
+  rx.Check();
+  if (frame.empty()) ThrowInvalid("image: empty");
+  const std::optional<Background> bg = HistogramBackground(frame, options);
+  if (!bg) return std::nullopt;
+  ViewQuadratic quadratic;
+  quadratic.centre = static_cast<float>(bg->mean[0]);
+  quadratic.scale = static_cast<float>(bg->inverse[0]);
+  return quadratic;
+}
+
 Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options) {
   AnomalyOptions rx = options;
   rx.detector = "rx";
@@ -560,34 +611,8 @@ Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options) {
   const auto quantise = [](double score) {
     return static_cast<uint16_t>(std::min(65535.0, std::floor(score * kSteps + 0.5)));
   };
-  const bool integer = frame.type() == PixelType::kU8 || frame.type() == PixelType::kU16;
-  const bool one_feature = frame.channels() == 1 && options.channels == "auto";
-  if (integer && one_feature) {
-    // The sample grid's histogram: one weighted point per value that occurs.
-    const int levels = frame.type() == PixelType::kU8 ? 256 : 65536;
-    std::vector<uint32_t> histogram(static_cast<size_t>(levels), 0);
-    const int step = SampleStep(static_cast<int64_t>(w) * h);
-    const auto count_values = [&](const auto* type_tag) {
-      using T = std::remove_const_t<std::remove_pointer_t<decltype(type_tag)>>;
-      for (int y = 0; y < h; y += step) {
-        const T* row = frame.At<T>(0, y);
-        for (int x = 0; x < w; x += step) ++histogram[row[x]];
-      }
-    };
-    if (frame.type() == PixelType::kU8) {
-      count_values(static_cast<const uint8_t*>(nullptr));
-    } else {
-      count_values(static_cast<const uint16_t*>(nullptr));
-    }
-    WeightedPoints points;
-    points.d = 1;
-    for (int v = 0; v < levels; ++v) {
-      if (histogram[static_cast<size_t>(v)] == 0) continue;
-      points.values.push_back(static_cast<float>(v));
-      points.weights.push_back(histogram[static_cast<size_t>(v)]);
-    }
-    const Background bg = EstimateBackground(points, rx);
-    const double m = bg.mean[0], inverse = bg.inverse[0];
+  if (const std::optional<Background> histogram_bg = HistogramBackground(frame, options)) {
+    const double m = histogram_bg->mean[0], inverse = histogram_bg->inverse[0];
     if (frame.type() == PixelType::kU8) {
       uint16_t table[256];
       for (int v = 0; v < 256; ++v) table[v] = quantise(std::max(0.0, (v - m) * (v - m) * inverse));

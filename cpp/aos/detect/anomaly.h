@@ -50,6 +50,7 @@
 
 #include "aos/image/image.h"
 #include "aos/image/radiometry.h"
+#include "aos/render/integral.h"
 #include "aos/util/option_fields.h"
 
 namespace aos {
@@ -130,6 +131,14 @@ int AnomalyFeatureCount(const AnomalyOptions& options, int image_channels);
 // the frame's size and border 1 (FillBorder), ready to be integrated as a view's image.
 inline constexpr double kFrameScoreStep = 1.0 / 32.0;
 Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options);
+
+// Anomaly imaging's per-frame scores as a quadratic of the frame's value, for one channel, one
+// feature ("auto") and integer frames (8 or 16 bit): global RX's background from the histogram
+// of the sample grid (as QuantisedFrameScores), its score scale * (value - centre)^2 with
+// centre = the background mean and scale = its inverse variance (regularised); nullopt for
+// other frames. Integrated by RenderIntegralWithQuadratic (integral.h) without a score image,
+// and without QuantisedFrameScores' quantisation or saturation.
+std::optional<ViewQuadratic> FrameQuadratic(const Image& frame, const AnomalyOptions& options);
 
 // The (1 - p) quantile of the chi-square distribution with `dof` degrees of freedom: the score a
 // Gaussian background exceeds with probability p.

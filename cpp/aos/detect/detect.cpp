@@ -181,6 +181,41 @@ AnomalyScores AnomalyImaging(const LightField& light_field, std::vector<int> sel
   return result;
 }
 
+// Anomaly imaging's per-frame scores as quadratics of the frames' values (FrameQuadratic), one per
+// view of the light field (the selected ones set); empty where a selected frame's scores are not
+// one (more than one channel or feature, float frames): AnomalyImaging then scores the frames.
+std::vector<ViewQuadratic> FrameQuadratics(const LightField& light_field,
+                                           std::vector<int> selected, int num_threads,
+                                           const DetectOptions& detect, ProgressSink* progress) {
+  if (selected.empty()) {
+    for (size_t i = 0; i < light_field.views.size(); ++i) selected.push_back(static_cast<int>(i));
+  }
+  for (int index : selected) {
+    const Image& frame = light_field.views[static_cast<size_t>(index)].image;
+    if (frame.channels() != 1 || detect.channels != "auto" ||
+        (frame.type() != PixelType::kU8 && frame.type() != PixelType::kU16)) {
+      return {};
+    }
+  }
+  AnomalyOptions per_frame = detect;
+  per_frame.detector = "rx";
+  std::vector<ViewQuadratic> quadratics(light_field.views.size());
+  std::vector<uint8_t> found(selected.size(), 0);
+  ProgressStart(progress, "frame scores", static_cast<int64_t>(selected.size()));
+  ParallelFor(static_cast<int64_t>(selected.size()), num_threads, progress, [&](int64_t k) {
+    const size_t index = static_cast<size_t>(selected[static_cast<size_t>(k)]);
+    if (const auto quadratic = FrameQuadratic(light_field.views[index].image, per_frame)) {
+      quadratics[index] = *quadratic;
+      found[static_cast<size_t>(k)] = 1;
+    }
+  });
+  if (ProgressCancelled(progress)) throw Cancelled();
+  for (uint8_t one : found) {
+    if (!one) return {};
+  }
+  return quadratics;
+}
+
 }  // namespace
 
 void DetectOptions::Check() const {
@@ -474,7 +509,22 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
                     const DetectOptions& detect_options, ProgressSink* progress) {
   DetectResult result = StartDetection(light_field, detect_options);
   const IntegralOptions resolved = WithResolvedCamera(light_field, options);
-  result.render = RenderIntegral(light_field, resolved, progress);
+  // Anomaly imaging whose frames' scores are quadratics of their values (1-channel integer
+  // frames) on the homography route: one pass renders the frames and integrates their scores
+  // (RenderIntegralWithQuadratic); otherwise the frames' scores are made and rendered apart.
+  std::optional<Image> integrated_scores;
+  if (detect_options.detector == "anomaly-imaging" &&
+      QuadraticIntegralSupported(light_field, resolved)) {
+    const std::vector<ViewQuadratic> quadratics = FrameQuadratics(
+        light_field, resolved.view_indices, resolved.num_threads, detect_options, progress);
+    if (!quadratics.empty()) {
+      QuadraticIntegralResult both =
+          RenderIntegralWithQuadratic(light_field, resolved, quadratics, progress);
+      result.render = std::move(both.integral);
+      integrated_scores = std::move(both.scores);
+    }
+  }
+  if (!integrated_scores) result.render = RenderIntegral(light_field, resolved, progress);
   if (ProgressCancelled(progress)) throw Cancelled();
   result.camera = VirtualCamera(light_field, resolved);
   const Image& count = result.render.count;
@@ -500,7 +550,10 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
   }
   const DetectOptions scoring =
       ScoringOptions(detect_options, result.ground_sampling_m, &result.windows_px);
-  if (scoring.detector == "anomaly-imaging") {
+  if (integrated_scores) {
+    result.scores.scores = std::move(*integrated_scores);
+    result.scores.dimensions = 1;
+  } else if (scoring.detector == "anomaly-imaging") {
     result.scores = AnomalyImaging(light_field, resolved.view_indices, resolved.num_threads,
                                    [&](const LightField& scores_field) {
                                      IntegralOptions all = resolved;

@@ -165,6 +165,7 @@ struct ViewSetup {
   Vec3d b{0.0};        // view centre minus virtual camera centre, metres
   double e = 0.0;      // signed distance of the view centre from the focal plane, metres
   double lens_b = 0.0; // component of b along the virtual optical axis, metres
+  ViewQuadratic quadratic;  // RenderIntegralWithQuadratic: the view's scores
 };
 
 // The virtual pixel ray of a row: D(x) = d0 + x d1 (world direction, unnormalised), and
@@ -201,6 +202,7 @@ struct Tile {
 struct TileBuffers {
   std::vector<double> sum;        // rows x width x channels
   std::vector<double> sum_squares;  // rows x width: sum over channels of samples^2 (variance)
+  std::vector<double> quad;         // rows x width: sum of the views' quadratic scores
   std::vector<int32_t> count_diff;  // rows x (width + 1)
   std::vector<double> best;       // nearest mode: best squared lens-plane distance per pixel
   std::vector<int32_t> best_view; // nearest mode: the view (position in the selection) chosen
@@ -299,11 +301,14 @@ int NearestSpan(const Image& image, int32_t view, const RowLine& line,
 class IntegralRenderer {
  public:
   // `plane`: the focal plane (options.focal_surface's, moved by its offset).
+  // `quadratic`: one per view, for RenderIntegralWithQuadratic (nullptr: none).
   IntegralRenderer(const LightField& light_field, const IntegralOptions& options,
-                   const Plane& plane)
-      : light_field_(light_field), options_(options), plane_(plane) {}
+                   const Plane& plane, const std::vector<ViewQuadratic>* quadratic = nullptr)
+      : light_field_(light_field), options_(options), plane_(plane), quadratic_(quadratic) {}
 
   IntegralResult Run(ProgressSink* progress);
+  // The integrated quadratic scores (after Run, with `quadratic`).
+  Image TakeScores() { return std::move(scores_); }
 
  private:
   void SetUpGeometry();
@@ -323,6 +328,8 @@ class IntegralRenderer {
   double full_range_ = 255.0;  // of the views' pixel type (a masked light field's weights)
   double sin2_min_angle_ = 0.0;
   IntegralResult result_;
+  const std::vector<ViewQuadratic>* quadratic_ = nullptr;
+  Image scores_;
 };
 
 void IntegralRenderer::SetUpGeometry() {
@@ -385,6 +392,7 @@ void IntegralRenderer::SetUpViews() {
     }
     ViewSetup setup;
     setup.image = &view.image;
+    if (quadratic_ != nullptr) setup.quadratic = (*quadratic_)[static_cast<size_t>(index)];
     setup.width = view.camera.width;
     setup.height = view.camera.height;
     const Vec3d view_center = view.cam_from_world.Center();
@@ -436,6 +444,9 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
   buffers.count_diff.assign(static_cast<size_t>(tile_width + 1) * rows, 0);
   if (options_.variance) {
     buffers.sum_squares.assign(static_cast<size_t>(tile_width) * rows + internal::kSpanPadding, 0.0);
+  }
+  if (quadratic_ != nullptr) {
+    buffers.quad.assign(static_cast<size_t>(tile_width) * rows + internal::kSpanPadding, 0.0);
   }
   if (mode_ == Mode::kNearest) {
     buffers.best.assign(static_cast<size_t>(tile_width) * rows,
@@ -507,6 +518,8 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
     const SpanKernel kernel = internal::SelectSpanKernel(image);
     const internal::SquaresKernel squares_kernel =
         options_.variance ? internal::SelectSquaresKernel(image) : nullptr;
+    const internal::QuadraticKernel quadratic_kernel =
+        quadratic_ != nullptr ? internal::SelectQuadraticKernel(image) : nullptr;
     const bool on_lens_plane = on_lens_plane_of(view);
     if (finite_aperture && on_lens_plane && glm::dot(view.b, view.b) > r2) continue;
     bool grazing_test = sin2_min_angle_ > 0.0;
@@ -577,6 +590,10 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
           if (squares_kernel != nullptr) {
             squares_kernel(image, line, xa, xb, tile.x0, sum_row,
                            buffers.sum_squares.data() + static_cast<size_t>(tile_width) * r);
+          } else if (quadratic_kernel != nullptr) {
+            quadratic_kernel(image, line, xa, xb, tile.x0, sum_row,
+                             buffers.quad.data() + static_cast<size_t>(tile_width) * r,
+                             view.quadratic.centre, view.quadratic.scale);
           } else {
             kernel(image, line, xa, xb, tile.x0, sum_row);
           }
@@ -631,6 +648,11 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
         }
         result_.variance.At<float>(tile.x0, y)[i] = static_cast<float>(variance);
       }
+      if (quadratic_ != nullptr) {
+        const double quad = buffers.quad[static_cast<size_t>(tile_width) * r + i];
+        scores_.At<float>(tile.x0, y)[i] =
+            count > 0 ? static_cast<float>(quad / static_cast<double>(count)) : 0.0f;
+      }
       // Divide (rather than multiply by a reciprocal) so the result is the correctly rounded
       // mean of the double sums.
       for (int c = 0; c < channels_; ++c) {
@@ -662,6 +684,7 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
   result_.image = Image(width, height, channels_, PixelType::kF32);
   result_.count = Image(width, height, 1, PixelType::kU32);
   if (options_.variance) result_.variance = Image(width, height, 1, PixelType::kF32);
+  if (quadratic_ != nullptr) scores_ = Image(width, height, 1, PixelType::kF32);
   result_.cam_from_world = cam_from_world_;
 
   // Tiles of whole rows (at most kMaxTileWidth columns), enough rows to fill the accumulators,
@@ -800,12 +823,10 @@ void DropThinPixels(int min_view_count, IntegralResult* out) {
   }
 }
 
-IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
-                              ProgressSink* progress) {
-  // One route for every surface: a plane over pinhole views takes the homography kernel; any
-  // other surface, or views with a lens model (sampled through the lens directly: one resampling,
-  // no rectified copy), take the per-sample path on the surface's depth map.
-  options.Check(static_cast<int>(light_field.views.size()));
+namespace {
+
+// Whether a selected view has a lens model (then renders take the per-sample path).
+bool SelectedLensViews(const LightField& light_field, const IntegralOptions& options) {
   bool lens_views = false;
   for (size_t i = 0; i < light_field.views.size(); ++i) {
     const bool selected = options.view_indices.empty() ||
@@ -813,6 +834,75 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
                                     static_cast<int>(i)) != options.view_indices.end();
     lens_views = lens_views || (selected && !light_field.views[i].camera.IsPinhole());
   }
+  return lens_views;
+}
+
+// The focal plane of the homography route: the surface's plane moved by surface_offset.
+Plane OffsetPlane(const LightField& light_field, const IntegralOptions& options) {
+  Plane plane = options.focal_surface.plane();
+  if (options.surface_offset != 0.0) {
+    const SurfacePlacement placed = ResolveSurfacePlacement(
+        options.focal_surface, light_field, options.view_indices, options.surface_offset);
+    plane.point += placed.offset * placed.up;
+  }
+  return plane;
+}
+
+}  // namespace
+
+bool QuadraticIntegralSupported(const LightField& light_field, const IntegralOptions& options) {
+  if (light_field.views.empty() || light_field.masked || options.variance ||
+      !(options.aperture_radius > 0.0) ||
+      options.focal_surface.kind() != FocalSurfaceKind::kPlane ||
+      SelectedLensViews(light_field, options)) {
+    return false;
+  }
+  for (size_t i = 0; i < light_field.views.size(); ++i) {
+    const bool selected = options.view_indices.empty() ||
+                          std::find(options.view_indices.begin(), options.view_indices.end(),
+                                    static_cast<int>(i)) != options.view_indices.end();
+    if (selected && light_field.views[i].image.channels() != 1) return false;
+  }
+  return true;
+}
+
+QuadraticIntegralResult RenderIntegralWithQuadratic(const LightField& light_field,
+                                                    const IntegralOptions& options,
+                                                    const std::vector<ViewQuadratic>& per_view,
+                                                    ProgressSink* progress) {
+  options.Check(static_cast<int>(light_field.views.size()));
+  if (per_view.size() != light_field.views.size()) {
+    ThrowInvalid("per_view: " + std::to_string(per_view.size()) + " quadratics for " +
+                 std::to_string(light_field.views.size()) + " views");
+  }
+  if (!QuadraticIntegralSupported(light_field, options)) {
+    ThrowInvalid("options: the integral of per-view quadratic scores needs an unmasked light "
+                 "field of 1-channel pinhole views, a focal plane, aperture_radius > 0 and no "
+                 "variance");
+  }
+  IntegralRenderer renderer(light_field, options, OffsetPlane(light_field, options), &per_view);
+  QuadraticIntegralResult result;
+  result.integral = renderer.Run(progress);
+  result.scores = renderer.TakeScores();
+  // min_view_count: the scores follow the image's uncovered pixels.
+  DropThinPixels(options.min_view_count, &result.integral);
+  for (int y = 0; y < result.scores.height(); ++y) {
+    const uint32_t* count = result.integral.count.At<uint32_t>(0, y);
+    float* row = result.scores.At<float>(0, y);
+    for (int x = 0; x < result.scores.width(); ++x) {
+      if (count[x] == 0) row[x] = 0.0f;
+    }
+  }
+  return result;
+}
+
+IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
+                              ProgressSink* progress) {
+  // One route for every surface: a plane over pinhole views takes the homography kernel; any
+  // other surface, or views with a lens model (sampled through the lens directly: one resampling,
+  // no rectified copy), take the per-sample path on the surface's depth map.
+  options.Check(static_cast<int>(light_field.views.size()));
+  const bool lens_views = SelectedLensViews(light_field, options);
   const FocalSurface& surface = options.focal_surface;
   const bool is_plane = surface.kind() == FocalSurfaceKind::kPlane;
   // The placement (up from the views) is resolved only where it is needed: an offset, or a
@@ -822,12 +912,7 @@ IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptio
                                    options.surface_offset);
   };
   if (is_plane && !lens_views) {
-    Plane plane = surface.plane();
-    if (options.surface_offset != 0.0) {
-      const SurfacePlacement placed = placement();
-      plane.point += placed.offset * placed.up;
-    }
-    IntegralRenderer renderer(light_field, options, plane);
+    IntegralRenderer renderer(light_field, options, OffsetPlane(light_field, options));
     IntegralResult result = renderer.Run(progress);
     DropThinPixels(options.min_view_count, &result);
     return result;

@@ -155,6 +155,33 @@ struct IntegralResult {
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress = nullptr);
 
+// Scores of one view's frame as a quadratic of its value: scale * (value - centre)^2 (global RX of
+// a 1-channel frame is one: detect/anomaly.h FrameQuadratic).
+struct ViewQuadratic {
+  float centre = 0.0f;
+  float scale = 0.0f;
+};
+
+struct QuadraticIntegralResult {
+  IntegralResult integral;  // RenderIntegral's result for the same options
+  Image scores;             // float32, width x height x 1: the integrated scores (0: uncovered)
+};
+
+// RenderIntegral, and from the same samples the integral of every view's quadratic scores: at a
+// pixel, the mean over the views averaged there of the bilinear interpolation of their four taps'
+// scores scale_v * (tap - centre_v)^2 (float) — the integral of the frames' score images, without
+// making them (synthetic aperture anomaly imaging, detect.h). `per_view` holds one entry per view
+// of the light field (only the selected ones are read). Needs what QuadraticIntegralSupported
+// checks; otherwise throws std::invalid_argument naming the field.
+QuadraticIntegralResult RenderIntegralWithQuadratic(const LightField& light_field,
+                                                    const IntegralOptions& options,
+                                                    const std::vector<ViewQuadratic>& per_view,
+                                                    ProgressSink* progress = nullptr);
+// Whether RenderIntegralWithQuadratic takes `options` on `light_field`: an unmasked light field
+// of 1-channel frames, pinhole views, a focal plane (the homography route), aperture_radius > 0
+// (the mean, not the nearest view) and no variance.
+bool QuadraticIntegralSupported(const LightField& light_field, const IntegralOptions& options);
+
 // IntegralOptions::min_view_count on a rendered `result`: pixels averaged over fewer views become
 // uncovered (image, count and variance 0; samples and uncovered_pixels follow). Every render of
 // IntegralOptions applies it (RenderIntegral, RenderIntegralOnDepth).

@@ -76,6 +76,46 @@ void AccumulateSpanWithSquares(const Image& image, const RowLine& line, int xa, 
   AccumulateSpanImpl<T, kChannels, true>(image, line, xa, xb, x0, sum, sum_squares);
 }
 
+// The scalar quadratic kernel (QuadraticKernel): the positions, taps and weights of
+// AccumulateSpanImpl's 1-channel samples.
+template <typename T>
+void AccumulateSpanQuadratic(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                             double* sum, double* quad, float centre, float scale) {
+  const T* origin = image.At<T>(0, 0);
+  const ptrdiff_t stride = image.row_stride();
+  const float u_a = static_cast<float>(line.u0 + line.du * xa);
+  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
+  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
+  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
+              dw = static_cast<float>(line.dw);
+  double* out = sum + (xa - x0);
+  double* out_quad = quad + (xa - x0);
+  const float x_max = static_cast<float>(image.width()) - 0.5f;
+  const float y_max = static_cast<float>(image.height()) - 0.5f;
+  const int n = xb - xa;
+  for (int i = 0; i < n; ++i) {
+    const float fi = static_cast<float>(i);
+    const float inv_w = 1.0f / (w_a + dw * fi);
+    const float sx = ClampSample((u_a + du * fi) * inv_w - 0.5f, x_max);
+    const float sy = ClampSample((v_a + dv * fi) * inv_w - 0.5f, y_max);
+    const int ix = static_cast<int>(sx + 1.0f) - 1;
+    const int iy = static_cast<int>(sy + 1.0f) - 1;
+    const float ax = sx - static_cast<float>(ix);
+    const float ay = sy - static_cast<float>(iy);
+    const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + ix;
+    const float p00 = static_cast<float>(p[0]), p01 = static_cast<float>(p[1]);
+    const float p10 = static_cast<float>(p[stride]), p11 = static_cast<float>(p[stride + 1]);
+    const float top = p00 + ax * (p01 - p00);
+    const float bottom = p10 + ax * (p11 - p10);
+    out[i] += static_cast<double>(top + ay * (bottom - top));
+    const float d00 = p00 - centre, d01 = p01 - centre, d10 = p10 - centre, d11 = p11 - centre;
+    const float q00 = d00 * d00, q01 = d01 * d01, q10 = d10 * d10, q11 = d11 * d11;
+    const float q_top = q00 + ax * (q01 - q00);
+    const float q_bottom = q10 + ax * (q11 - q10);
+    out_quad[i] += static_cast<double>(scale * (q_top + ay * (q_bottom - q_top)));
+  }
+}
+
 template <typename T>
 SquaresKernel SquaresForChannels(int channels) {
   switch (channels) {
@@ -111,6 +151,17 @@ SquaresKernel ScalarSquaresKernel(const Image& image) {
     case PixelType::kU8: return SquaresForChannels<uint8_t>(image.channels());
     case PixelType::kU16: return SquaresForChannels<uint16_t>(image.channels());
     case PixelType::kF32: return SquaresForChannels<float>(image.channels());
+    case PixelType::kU32: break;
+  }
+  return nullptr;
+}
+
+QuadraticKernel ScalarQuadraticKernel(const Image& image) {
+  if (image.channels() != 1) return nullptr;
+  switch (image.type()) {
+    case PixelType::kU8: return &AccumulateSpanQuadratic<uint8_t>;
+    case PixelType::kU16: return &AccumulateSpanQuadratic<uint16_t>;
+    case PixelType::kF32: return &AccumulateSpanQuadratic<float>;
     case PixelType::kU32: break;
   }
   return nullptr;

@@ -34,6 +34,18 @@ SquaresKernel ScalarSquaresKernel(const Image& image);
 // Avx2SpanKernel).
 SquaresKernel Avx2SquaresKernel(const Image& image);
 
+// A span kernel for 1-channel views that also adds, per sample, the bilinear interpolation of its
+// four taps' scores scale * (tap - centre)^2 into quad[x - x0] (the anomaly-imaging pass:
+// integral.h RenderIntegralWithQuadratic), with the same taps and weights as the sample it adds
+// to `sum`. In float: each tap's d = tap - centre and d * d, interpolated as the value is, times
+// scale, added in double. `quad` too needs kSpanPadding writable values past the span's end.
+using QuadraticKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
+                                 double* sum, double* quad, float centre, float scale);
+// The scalar quadratic kernel for 1-channel 8-bit, 16-bit and float views (nullptr otherwise).
+QuadraticKernel ScalarQuadraticKernel(const Image& image);
+// The AVX2 quadratic kernel for 1-channel 8-bit (row loads) and 16-bit views; nullptr otherwise.
+QuadraticKernel Avx2QuadraticKernel(const Image& image);
+
 // The scalar kernel for the view's pixel type and channel count (nullptr for uint32 views).
 SpanKernel ScalarSpanKernel(const Image& image);
 // The AVX2 kernel, or nullptr when the CPU lacks AVX2/FMA, SIMD is disabled, or the view's type
@@ -65,6 +77,11 @@ inline SpanKernel SelectSpanKernel(const Image& image) {
 inline SquaresKernel SelectSquaresKernel(const Image& image) {
   SquaresKernel kernel = SimdEnabled() && SimdVarianceEnabled() ? Avx2SquaresKernel(image) : nullptr;
   return kernel != nullptr ? kernel : ScalarSquaresKernel(image);
+}
+
+inline QuadraticKernel SelectQuadraticKernel(const Image& image) {
+  QuadraticKernel kernel = SimdEnabled() ? Avx2QuadraticKernel(image) : nullptr;
+  return kernel != nullptr ? kernel : ScalarQuadraticKernel(image);
 }
 
 }  // namespace aos::internal
