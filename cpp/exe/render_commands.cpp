@@ -967,12 +967,6 @@ int RunMap(MapCommand& c, const Flags& flags) {
     RefuseExisting(c.detect, "detect");
     CheckDetectionsPath(c.detect, "EPSG:4326");  // the format; KML's CRS once loaded
     flags.NamingFlags([&] { c.detect_options.Check(); });
-    if ((d.workers != 0 || !d.scheduler.empty()) &&
-        c.detect_options.detector == "anomaly-imaging") {
-      ThrowUsage("--detect with --workers or --scheduler: --detector anomaly-imaging renders "
-                 "every frame's scores in this process; rx, rx-local or temperature score the "
-                 "map the cluster renders");
-    }
   }
   if (d.workers != 0 || !d.scheduler.empty() || d.dashboard) return RunMapDistributed(c);
   for (const char* flag : {"--cache-mb", "--share-mb"}) {

@@ -261,21 +261,42 @@ void BindDetect(py::module_& m) {
   m.def(
       "_detect_on_rendered_map",
       [](const LightField& light_field, const MapOptions& options, const DetectOptions& detect,
-         const py::handle& image, const py::handle& count, int views_used, int views_selected) {
+         const py::handle& image, const py::handle& count, int views_used, int views_selected,
+         const py::handle& anomaly_scores) {
         MapResult map;
         map.image = ImageFromArray(image, 0, "image");
         map.count = ImageFromArray(count, 0, "count");
         map.summary.views_used = views_used;
         map.summary.views_selected = views_selected;
+        std::optional<Image> scores;
+        if (!anomaly_scores.is_none()) scores = ImageFromArray(anomaly_scores, 0, "anomaly_scores");
         MapOptions options_copy = options;
         options_copy.focal_surface = InCrs(options_copy.focal_surface, light_field.crs);
         py::gil_scoped_release release;
-        return DetectOnRenderedMap(light_field, options_copy, detect, std::move(map));
+        return DetectOnRenderedMap(light_field, options_copy, detect, std::move(map),
+                                   std::move(scores));
       },
       "light_field"_a, "options"_a, "detect"_a, "image"_a, "count"_a, "views_used"_a = 0,
-      "views_selected"_a = 0,
+      "views_selected"_a = 0, "anomaly_scores"_a = py::none(),
       "Detection on a map rendered elsewhere (a Dask cluster's; aos.distributed): image "
-      "float32 (H, W[, C]) and count uint32 (H, W) of the options' grid. GIL released.");
+      "float32 (H, W[, C]) and count uint32 (H, W) of the options' grid; for anomaly imaging "
+      "also anomaly_scores, float32 (H, W): the frames' scores integrated on that grid "
+      "(_quantised_frame_scores, times _frame_score_step). GIL released.");
+  m.def(
+      "_quantised_frame_scores",
+      [](const py::handle& frame, const DetectOptions& detect) {
+        const Image image = ImageFromArray(frame, 0, "frame");
+        Image scores;
+        {
+          py::gil_scoped_release release;
+          scores = QuantisedFrameScores(image, detect);
+        }
+        return ArrayFromImage(scores);
+      },
+      "frame"_a, "detect"_a,
+      "Anomaly imaging's scores of one frame (anomaly.h QuantisedFrameScores: global RX, uint16 "
+      "steps of _frame_score_step). Used by aos.distributed's workers.");
+  m.attr("_frame_score_step") = kFrameScoreStep;
   m.def(
       "anomaly_scores",
       [](const py::handle& image, const py::handle& count, const DetectOptions& options,

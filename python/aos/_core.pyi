@@ -2684,6 +2684,22 @@ def _detect_map(
     detect: DetectOptions,
     progress: Optional[Callable[[str, int, int], object]] = None,
 ) -> DetectResult: ...
+def _detect_on_rendered_map(
+    light_field: LightField,
+    options: MapOptions,
+    detect: DetectOptions,
+    image: numpy.typing.ArrayLike,
+    count: numpy.typing.ArrayLike,
+    views_used: int = 0,
+    views_selected: int = 0,
+    anomaly_scores: Optional[numpy.typing.ArrayLike] = None,
+) -> DetectResult: ...
+def _quantised_frame_scores(
+    frame: numpy.typing.ArrayLike, detect: DetectOptions
+) -> numpy.typing.NDArray[numpy.uint16]: ...
+
+_frame_score_step: float
+
 def anomaly_scores(
     image: numpy.typing.ArrayLike,
     count: Optional[numpy.typing.ArrayLike] = None,

@@ -131,9 +131,8 @@ def test_the_dask_map_is_bit_for_bit_the_single_process_map(survey: Path, tmp_pa
 def test_detection_on_a_dask_map_is_the_single_process_detection(survey: Path, tmp_path: Path,
                                                                   client) -> None:
     """aos.distributed.detect_map: the map's tiles on Dask, scored where they are assembled:
-    the detections of aos.detect_map on one machine. A failure after the map was written
-    (here: detections in a format nobody writes) leaves neither output; anomaly imaging is
-    refused before any work."""
+    the detections of aos.detect_map on one machine, anomaly imaging's too. A failure after the
+    map was written (here: detections in a format nobody writes) leaves neither output."""
     loaded = aos.load_lightfield(survey).light_field
     poses = aos.load_lightfield(survey, load_images=False).light_field
     options = aos.MapOptions(pixel_size=PIXEL, tile_size=TILE, focal_surface=0.0)
@@ -152,9 +151,20 @@ def test_detection_on_a_dask_map_is_the_single_process_detection(survey: Path, t
         aos.distributed.detect_map(poses, options, detect, path=str(tmp_path / "b.tif"),
                                    detections_path=str(tmp_path / "found.txt"), client=client)
     assert not (tmp_path / "b.tif").exists() and not list(tmp_path.glob("found.aos-partial*"))
-    with pytest.raises(ValueError, match="anomaly-imaging"):
-        aos.distributed.detect_map(poses, options, aos.DetectOptions(detector="anomaly-imaging"),
-                                   path=str(tmp_path / "c.tif"), client=client)
+    # Anomaly imaging: the workers score the frames they hold and render the scores beside each
+    # tile; the client's scores and detections are the single machine's.
+    imaging = aos.DetectOptions(detector="anomaly-imaging", quantile=0.99, min_area_px=1)
+    single = aos._core._detect_map(loaded, options, imaging, None)
+    result, found = aos.distributed.detect_map(poses, options, imaging, path=None, client=client)
+    assert np.array_equal(found.scores, single.scores)
+    assert float(found.scores.max()) > 0.0 and result.tiles > 1
+    assert len(found.detections) == len(single.detections) >= 1
+    for ours, theirs in zip(found.detections, single.detections):
+        assert ours.pixel == theirs.pixel and ours.world == pytest.approx(theirs.world, abs=1e-9)
+    # A masked load is refused before any work, as on one machine.
+    with pytest.raises(ValueError, match="masked"):
+        aos.distributed.detect_map(poses, options, imaging, path=str(tmp_path / "c.tif"),
+                                   load={"mask": str(tmp_path / "mask.png")}, client=client)
     assert not (tmp_path / "c.tif").exists()
 
 

@@ -585,9 +585,12 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
 namespace {
 
 // DetectOnMap after its render: `map` is the map of `options`.
+// `anomaly_scores`: anomaly imaging's integrated frame scores, rendered elsewhere (else rendered
+// here).
 DetectResult DetectOnMapOf(const LightField& light_field, const MapOptions& options,
                            const DetectOptions& detect_options, MapResult map,
-                           ProgressSink* progress) {
+                           ProgressSink* progress,
+                           std::optional<Image> anomaly_scores = std::nullopt) {
   DetectResult result = StartDetection(light_field, detect_options);
   const MapGrid& grid = map.summary.grid;
   result.geotransform = grid.GeoTransform();
@@ -600,7 +603,10 @@ DetectResult DetectOnMapOf(const LightField& light_field, const MapOptions& opti
   result.ground_sampling_m = grid.pixel_size;
   const DetectOptions scoring =
       ScoringOptions(detect_options, result.ground_sampling_m, &result.windows_px);
-  if (scoring.detector == "anomaly-imaging") {
+  if (anomaly_scores) {
+    result.scores.scores = std::move(*anomaly_scores);
+    result.scores.dimensions = 1;
+  } else if (scoring.detector == "anomaly-imaging") {
     result.scores = AnomalyImaging(light_field, options.view_indices, options.num_threads,
                                    [&](const LightField& scores_field) {
                                      MapOptions all = options;
@@ -649,11 +655,21 @@ DetectResult DetectOnMap(const LightField& light_field, const MapOptions& option
 }
 
 DetectResult DetectOnRenderedMap(const LightField& light_field, const MapOptions& options,
-                                 const DetectOptions& detect_options, MapResult map) {
+                                 const DetectOptions& detect_options, MapResult map,
+                                 std::optional<Image> anomaly_scores) {
   detect_options.Check();
-  if (detect_options.detector == "anomaly-imaging") {
-    ThrowInvalid("detector: anomaly-imaging renders every frame's scores, so it needs the frames "
-                 "in this process (not on a map rendered elsewhere, such as a Dask cluster's)");
+  const bool imaging = detect_options.detector == "anomaly-imaging";
+  if (imaging && !anomaly_scores) {
+    ThrowInvalid("anomaly_scores: anomaly-imaging needs the frames' scores rendered on the map's "
+                 "grid where the map was (none given)");
+  }
+  if (!imaging && anomaly_scores) {
+    ThrowInvalid("anomaly_scores: given, but detector '" + detect_options.detector +
+                 "' scores the map itself");
+  }
+  if (imaging && light_field.masked) {
+    ThrowInvalid("detector: 'anomaly-imaging' does not take a masked light field (its frames "
+                 "carry a weight channel); load it without the mask");
   }
   map.summary.grid = ResolveMapGrid(light_field, options);
   const MapGrid& grid = map.summary.grid;
@@ -675,9 +691,19 @@ DetectResult DetectOnRenderedMap(const LightField& light_field, const MapOptions
       uncovered += row[x] == 0;
     }
   }
+  if (anomaly_scores &&
+      (anomaly_scores->width() != grid.width || anomaly_scores->height() != grid.height ||
+       anomaly_scores->type() != PixelType::kF32 || anomaly_scores->channels() != 1)) {
+    ThrowInvalid("anomaly_scores: must be float32 of 1 channel and the grid's " +
+                 std::to_string(grid.width) + " x " + std::to_string(grid.height) + " pixels, got " +
+                 std::to_string(anomaly_scores->width()) + " x " +
+                 std::to_string(anomaly_scores->height()) + " x " +
+                 std::to_string(anomaly_scores->channels()));
+  }
   if (map.summary.samples == 0) map.summary.samples = samples;
   map.summary.uncovered_pixels = uncovered;
-  return DetectOnMapOf(light_field, options, detect_options, std::move(map), nullptr);
+  return DetectOnMapOf(light_field, options, detect_options, std::move(map), nullptr,
+                       std::move(anomaly_scores));
 }
 
 void CheckDetectionsPath(const std::string& path, const std::string& crs) {

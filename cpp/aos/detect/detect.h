@@ -169,11 +169,14 @@ DetectResult DetectOnMap(const LightField& light_field, const MapOptions& option
 // As DetectOnMap, on a map rendered elsewhere (a Dask cluster: python/aos/distributed): `map`
 // holds the image and count of ResolveMapGrid(light_field, options)'s grid (its summary's
 // views_used and samples as reported; the grid is resolved again here and must have the map's
-// size). The detectors that score the map itself (rx, rx-local, temperature) only: anomaly
-// imaging renders every frame's scores, so it is refused naming detector. `light_field` may
-// hold poses only.
+// size). Anomaly imaging needs the integrated frame scores rendered there too,
+// `anomaly_scores` (float32, 1 channel, the grid's size: the map of every selected frame's
+// QuantisedFrameScores times kFrameScoreStep, as DetectOnMap renders it); they are refused for
+// the other detectors, and their absence for anomaly imaging, naming the field. `light_field`
+// may hold poses only.
 DetectResult DetectOnRenderedMap(const LightField& light_field, const MapOptions& options,
-                                 const DetectOptions& detect_options, MapResult map);
+                                 const DetectOptions& detect_options, MapResult map,
+                                 std::optional<Image> anomaly_scores = std::nullopt);
 
 // Refuses, before any work, a detections path WriteDetections would refuse: an extension it does
 // not write, or KML for a light field without a CRS (`crs` empty). Names `path`.

@@ -94,6 +94,7 @@ class DistributedMapResult:
     seconds_write: float = 0.0  # of which the COG copy and rename at the end (serial)
     _image: Optional[np.ndarray] = field(default=None, repr=False)
     _count: Optional[np.ndarray] = field(default=None, repr=False)
+    _scores: Optional[np.ndarray] = field(default=None, repr=False)  # detect_map: anomaly imaging
 
     @property
     def has_arrays(self) -> bool:
@@ -213,6 +214,7 @@ class _FrameCache:
     def __init__(self, light_field: Any, load: dict, budget: int,
                  store: Optional[_FrameStore] = None):
         self.light_field = copy.copy(light_field)
+        self.poses = light_field  # as given: no frame decoded into it
         self.load = load
         self.budget = budget
         self.store = store
@@ -220,6 +222,10 @@ class _FrameCache:
         self.frame_bytes = 0  # bytes of one decoded frame, learnt from the first decode
         self.decoded = 0
         self.shared = 0  # frames taken from the store
+        # Anomaly imaging (detect_map): the held frames' scores, in a poses-only light field of
+        # their own (made on the first tile that needs them), dropped with their frames.
+        self.score_field: Any = None
+        self.scored: set = set()
 
     def _from_store(self, missing: list) -> list:
         """Sets the frames of ``missing`` found in the store; returns the others. Only once this
@@ -259,6 +265,10 @@ class _FrameCache:
                 _core._drop_view_images(self.light_field, drop)
                 for i in drop:
                     del self.order[i]
+                dropped_scores = sorted(self.scored.intersection(drop))
+                if dropped_scores:
+                    _core._drop_view_images(self.score_field, dropped_scores)
+                    self.scored.difference_update(dropped_scores)
         if missing:
             before = self.light_field.image_bytes()
             decode = self._from_store(missing)
@@ -274,6 +284,23 @@ class _FrameCache:
                 self.frame_bytes = max(1, (self.light_field.image_bytes() - before) // len(missing))
             for i in missing:
                 self.order[i] = None
+
+
+    def hold_scores(self, indices: Sequence[int], detect: Any) -> Any:
+        """The light field of the scores of frames ``indices`` (held: call hold first), each
+        frame scored once while it is held (QuantisedFrameScores: what aos.detect_map renders
+        for anomaly imaging)."""
+        if self.score_field is None:
+            self.score_field = copy.copy(self.poses)
+        for i in indices:
+            if i not in self.scored:
+                frame = _core._view_image(self.light_field, i)
+                if frame is None:  # hold() decodes every frame asked for
+                    raise ValueError(f"view {i}: its frame is not held, so it cannot be scored")
+                _core._set_view_image(self.score_field, i,
+                                      _core._quantised_frame_scores(frame, detect))
+                self.scored.add(i)
+        return self.score_field
 
 
 def _narrow_count(count: np.ndarray) -> np.ndarray:
@@ -292,11 +319,13 @@ _FINISHED: "collections.deque[str]" = collections.deque(maxlen=64)  # runs that 
 def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget: int,
                  x0: int, y0: int, w: int, h: int, first_view: int,
                  publish: Sequence[int] = (), share_bytes: int = 0,
-                 views: Optional[Sequence[int]] = None) -> dict:
+                 views: Optional[Sequence[int]] = None, anomaly: Any = None) -> dict:
     """One task: the window's frames (``views``, else found here; cached; with
     ``share_bytes``, shared with the other workers of this machine, ``publish`` being the
     frames they need), then its pixels. ``light_field``: the poses (a LightField without
-    images), or them pickled (bytes: render_map sends them so)."""
+    images), or them pickled (bytes: render_map sends them so). With ``anomaly`` (the
+    DetectOptions of anomaly imaging), also the window of the frames' integrated scores,
+    ``scores`` (float32, score units)."""
     with _CACHE_LOCK:  # one tile at a time per process; the render releases the GIL
         if token in _FINISHED:  # cancelled with its run, but already queued here
             _drop_run(token)
@@ -323,6 +352,11 @@ def _render_tile(token: str, light_field: Any, options: Any, load: dict, budget:
         cache.hold(views, publish)
         decoded = time.perf_counter()
         out = _core._render_map_window(cache.light_field, options, x0, y0, w, h, views)
+        if anomaly is not None:
+            scores = _core._render_map_window(cache.hold_scores(views, anomaly), options, x0, y0,
+                                              w, h, views)
+            out["scores"] = (scores["image"] * np.float32(_core._frame_score_step)).astype(
+                np.float32, copy=False)
         out["seconds_decode"] = decoded - started
         out["seconds_render"] = time.perf_counter() - decoded
         out["count"] = _narrow_count(out["count"])
@@ -511,6 +545,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
                on_start: Optional[Callable[[Any], object]] = None,
                cache_bytes: Optional[int] = None,
                share_bytes: Optional[int] = None,
+               _anomaly: Any = None,
                ) -> DistributedMapResult:
     """Renders the map of ``light_field`` (a LightField, with or without its images: the
     workers read the frames from their files) and ``options`` (a MapOptions) on Dask; see the
@@ -531,7 +566,9 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
     called once the inputs and the output are checked and the cluster is there, before the
     first task (the CLI prints where the tiles run). Raises ValueError naming the field or the
     file, before any cluster is started where the inputs or the output are at fault; nothing
-    is written at ``path`` on any error."""
+    is written at ``path`` on any error. ``_anomaly`` (detect_map's): the DetectOptions of
+    anomaly imaging, whose frames' integrated scores the workers render beside each tile and
+    the client keeps (``_scores``, with arrays=True)."""
     started = time.perf_counter()
     load = dict(load or {})
     run = _run_options(client, scheduler, workers, cache_mb, share_mb, dashboard, cache_bytes,
@@ -569,6 +606,9 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             shape = (grid["height"], grid["width"]) + ((channels,) if channels > 1 else ())
             image = np.zeros(shape, np.float32)
             count = np.zeros((grid["height"], grid["width"]), np.uint32)
+        scores: Optional[np.ndarray] = None
+        if _anomaly is not None:
+            scores = np.zeros((grid["height"], grid["width"]), np.float32)
         # The poses go to every worker once, pickled here: Dask then copies bytes from worker
         # to worker, where a LightField would be unpickled and pickled again on each hop (1.1 s
         # against 0.3-0.6 s for 2,025 views and two workers); each worker unpickles them once,
@@ -612,7 +652,8 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             x0, y0, w, h = window
             future = client.submit(_render_tile, token, poses_future, options, load, cache_bytes,
                                    x0, y0, w, h, selection[0], publish,
-                                   share_bytes if shared else 0, views_of[window], pure=False,
+                                   share_bytes if shared else 0, views_of[window], _anomaly,
+                                   pure=False,
                                    key=f"aos-map-tile-{x0}-{y0}-{token}-{attempt}",
                                    workers=[addresses[group]], allow_other_workers=True)
             futures.append(future)
@@ -671,6 +712,8 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             if image is not None and count is not None:
                 image[y0:y0 + h, x0:x0 + w] = out["image"]
                 count[y0:y0 + h, x0:x0 + w] = out["count"]
+            if scores is not None:
+                scores[y0:y0 + h, x0:x0 + w] = out["scores"]
             used.update(out["used_view_indices"])
             result.samples += int(out["samples"])
             result.uncovered_pixels += int(out["uncovered_pixels"])
@@ -689,7 +732,7 @@ def render_map(light_field: Any, options: Any, *, path: Optional[str], client: A
             write_started = time.perf_counter()
             writer.commit(progress)
             result.seconds_write = time.perf_counter() - write_started
-        result._image, result._count = image, count
+        result._image, result._count, result._scores = image, count, scores
         result.seconds = time.perf_counter() - started
         return result
     except BaseException:
@@ -723,29 +766,33 @@ def detect_map(light_field: Any, options: Any, detect: Any, *, path: Optional[st
     tiles render as in :func:`render_map` (``render``: its keywords; ``path``: the GeoTIFF, or
     None), the client keeps the assembled map and scores it (``DetectOnRenderedMap``, detect.h:
     the same detections as :func:`aos.detect_map` on one machine). ``detect`` is a
-    DetectOptions; rx, rx-local and temperature only (anomaly imaging renders every frame's
-    scores: ValueError naming detector, before any work). With ``detections_path`` they are
+    DetectOptions. For anomaly imaging the workers also score the frames they hold and render
+    the scores beside each tile (the map of a masked load is refused, as on one machine). With
+    ``detections_path`` they are
     written there too (GeoJSON, KML, CSV by extension; an existing file is refused unless
     ``force``, as the map), moved into
     place after the map; if scoring or writing them fails, the map written at ``path`` is
     removed: neither output. Returns the map's result (with its arrays) and the DetectResult."""
-    if detect.detector == "anomaly-imaging":
-        raise ValueError("detector: anomaly-imaging renders every frame's scores, so it needs "
-                         "the frames in one process (aos.detect_map), not a Dask cluster")
     detect.check()
+    imaging = detect.detector == "anomaly-imaging"
+    if imaging and (light_field.masked or (render.get("load") or {}).get("mask")
+                    or (render.get("load") or {}).get("mask_dir")):
+        raise ValueError("detector: 'anomaly-imaging' does not take a masked light field (its "
+                         "frames carry a weight channel); load it without the mask")
     if detections_path is not None:
         if os.path.lexists(detections_path) and not render.get("force", False):
             raise ValueError(f"{detections_path}: exists (force=True replaces it)")
         if detections_path.lower().endswith(".kml") and not light_field.crs:
             raise ValueError(f"{detections_path}: KML needs a CRS and the light field has none")
     render.pop("arrays", None)
-    result = render_map(light_field, options, path=path, arrays=True, **render)
+    result = render_map(light_field, options, path=path, arrays=True,
+                        _anomaly=detect if imaging else None, **render)
     stem, extension = os.path.splitext(detections_path or "")
     partial = f"{stem}.aos-partial{extension}"
     try:
         found = _core._detect_on_rendered_map(light_field, options, detect, result.image,
                                               result.count, result.views_used,
-                                              result.views_selected)
+                                              result.views_selected, result._scores)
         if detections_path is not None:
             found.write(partial, True)  # beside its place (the format follows the extension)
             os.replace(partial, detections_path)
