@@ -226,6 +226,7 @@ class _FrameCache:
         # their own (made on the first tile that needs them), dropped with their frames.
         self.score_field: Any = None
         self.scored: set = set()
+        self.score_bytes = 0  # bytes of one view's scores, learnt from the first made
 
     def _from_store(self, missing: list) -> list:
         """Sets the frames of ``missing`` found in the store; returns the others. Only once this
@@ -250,9 +251,12 @@ class _FrameCache:
             if i in self.order:
                 self.order.move_to_end(i)
         # Make room first, so that the cache never holds more than the budget plus this tile.
+        # A held view costs its frame and, for anomaly imaging, its scores (learnt from the
+        # first scores made: the budget bounds both).
+        per_view = self.frame_bytes + self.score_bytes
         if missing and self.frame_bytes:
-            room = self.budget - len(missing) * self.frame_bytes
-            held = len(self.order) * self.frame_bytes
+            room = self.budget - len(missing) * per_view
+            held = len(self.order) * per_view
             drop = []
             for i in self.order:
                 if held <= room:
@@ -260,7 +264,7 @@ class _FrameCache:
                 if i in needed:
                     continue
                 drop.append(i)
-                held -= self.frame_bytes
+                held -= per_view
             if drop:
                 _core._drop_view_images(self.light_field, drop)
                 for i in drop:
@@ -297,9 +301,10 @@ class _FrameCache:
                 frame = _core._view_image(self.light_field, i)
                 if frame is None:  # hold() decodes every frame asked for
                     raise ValueError(f"view {i}: its frame is not held, so it cannot be scored")
-                _core._set_view_image(self.score_field, i,
-                                      _core._quantised_frame_scores(frame, detect))
+                scores = _core._quantised_frame_scores(frame, detect)
+                _core._set_view_image(self.score_field, i, scores)
                 self.scored.add(i)
+                self.score_bytes = self.score_bytes or int(scores.nbytes)
         return self.score_field
 
 
