@@ -109,8 +109,11 @@ def stub_head(cls: type) -> list[str]:
 def write_stub(text: str) -> str:
     lines = text.split("\n")
     for cls in option_classes():
-        start = next(i for i, line in enumerate(lines)
-                     if re.match(rf"class {cls.__name__}\b", line))
+        start = next((i for i, line in enumerate(lines)
+                      if re.match(rf"class {cls.__name__}\b", line)), None)
+        if start is None:
+            raise SystemExit(f"{STUB}: no block 'class {cls.__name__}' to write its head into "
+                             "(add the class with its check/__eq__ methods by hand)")
         end = start + 1
         while not re.match(r"    def (check|__eq__|__copy__|__repr__)\b", lines[end]):
             if lines[end].startswith("class "):

@@ -353,11 +353,15 @@ class Flags {
 
 
   // --threads bound to `options.num_threads` through its table row (help, default, range, as
-  // Field(options, "num_threads")); every stage of the command reads that count.
+  // Field(options, "num_threads")), the help followed by what the CLI adds: the count also caps
+  // the process's parallel loops, so every stage of the command reads it.
   template <class Options>
   CLI::Option* Threads(Options& options) {
     Common().num_threads[command_->get_name()] = &options.num_threads;
-    return Field(options, "num_threads");
+    CLI::Option* option = Field(options, "num_threads");
+    option->description(option->get_description() +
+                        " The count also caps the process's parallel loops (every stage).");
+    return option;
   }
   // --threads for a command whose Options have no thread count: caps the process's workers.
   CLI::Option* Threads();

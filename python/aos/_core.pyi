@@ -873,8 +873,8 @@ class DistributedOptions:
     scheduler: str
     """Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. Not with workers."""
     cache_mb: float
-    """Decoded frames each Dask worker keeps between tasks, MiB, >= 0 (with workers or a scheduler).
-    [MiB, >= 0 and finite]"""
+    """Decoded frames (and, for anomaly imaging, their scores) each Dask worker keeps between tasks,
+    MiB, >= 0 (with workers or a scheduler). [MiB, >= 0 and finite]"""
     share_mb: float
     """Decoded frames each worker hands to the other workers of its machine through shared memory,
     MiB, >= 0; 0 = none. [MiB, >= 0 and finite]"""
@@ -2441,9 +2441,11 @@ class DetectOptions:
         regularization: float = ...,
         inner_window_px: int = ...,
         outer_window_px: int = ...,
+        one_sided: bool = ...,
         quantile: float | None = ...,
         false_alarm_rate: float | None = ...,
         min_score: float | None = ...,
+        robust_sigmas: float | None = ...,
         min_temperature_c: float | None = ...,
         inner_window_m: float = ...,
         outer_window_m: float = ...,
@@ -2470,14 +2472,21 @@ class DetectOptions:
     """rx-local: side of the inner guard window, pixels, odd. [px, >= 1]"""
     outer_window_px: int
     """rx-local: side of the background window, pixels, odd, > inner_window_px. [px, >= 3]"""
+    one_sided: bool
+    """rx and anomaly-imaging of one feature (grey or thermal): only values above the background
+    mean score (warm spots); lower ones score 0."""
     quantile: float | None
     """Threshold at this quantile of the scores, (0, 1): 0.999 = the top 0.1 % of the pixels; unset
-    = not used (no rule given: false_alarm_rate 1e-8, anomaly-imaging quantile 0.998)."""
+    = not used (no rule given: false_alarm_rate 1e-8; anomaly-imaging quantile 0.998, one-sided
+    robust_sigmas 13.5)."""
     false_alarm_rate: float | None
     """Threshold: per-pixel false-alarm rate of a Gaussian background, (0, 1) (the chi-square
     quantile); unset = not used."""
     min_score: float | None
     """Threshold: an absolute score (squared Mahalanobis distance), >= 0; unset = not used."""
+    robust_sigmas: float | None
+    """Threshold: the covered scores' median plus this many robust standard deviations (1.4826 x
+    median absolute deviation), > 0; unset = not used."""
     min_temperature_c: float | None
     """Detector 'temperature': the temperature a pixel must exceed, degrees C. [C]"""
     inner_window_m: float

@@ -49,9 +49,11 @@ class DetectOptionsKeywords(TypedDict, total=False):
     regularization: float
     inner_window_px: int
     outer_window_px: int
+    one_sided: bool
     quantile: float | None
     false_alarm_rate: float | None
     min_score: float | None
+    robust_sigmas: float | None
     min_temperature_c: float | None
     inner_window_m: float
     outer_window_m: float

@@ -327,7 +327,9 @@ TEST(Detect, AnomalyImagingOfGreyFramesIsTheIntegralOfTheFramesScores) {
                                    value[0] = 200.0f;
                                    return true;
                                  }});
-  for (PixelType type : {PixelType::kU8, PixelType::kU16}) {
+  for (const auto& [type, one_sided] :
+       std::vector<std::pair<PixelType, bool>>{{PixelType::kU8, false}, {PixelType::kU16, false},
+                                               {PixelType::kU8, true}}) {
     const LightField light_field = test_util::NadirLightField(
         scene, PinholeCamera::FromFov(80, 60, 60.0), test_util::GridCentres(3, 1.5, 12.0), type);
     IntegralOptions options;
@@ -336,6 +338,7 @@ TEST(Detect, AnomalyImagingOfGreyFramesIsTheIntegralOfTheFramesScores) {
     DetectOptions detect;
     detect.detector = "anomaly-imaging";
     detect.min_score = 8.0;
+    detect.one_sided = one_sided;
     const DetectResult result = Detect(light_field, options, detect);
     // Every frame's quadratic is its quantised score table's, before rounding.
     for (const View& view : light_field.views) {
@@ -344,7 +347,8 @@ TEST(Detect, AnomalyImagingOfGreyFramesIsTheIntegralOfTheFramesScores) {
       const Image table = QuantisedFrameScores(view.image, detect);
       for (int y = 0; y < table.height(); y += 3) {
         for (int x = 0; x < table.width(); x += 3) {
-          const double d = view.image.Value(x, y) - quadratic->centre;
+          double d = view.image.Value(x, y) - quadratic->centre;
+          if (quadratic->one_sided) d = std::max(d, 0.0);
           ASSERT_NEAR(quadratic->scale * d * d, *table.At<uint16_t>(x, y) * kFrameScoreStep,
                       0.5 * kFrameScoreStep + 1e-4);
         }
@@ -367,9 +371,27 @@ TEST(Detect, AnomalyImagingOfGreyFramesIsTheIntegralOfTheFramesScores) {
     }
     EXPECT_GT(largest, 20.0) << PixelTypeName(type);  // the warm square
     EXPECT_LE(worst, 0.5 * kFrameScoreStep + 1e-5 * largest) << PixelTypeName(type);
+    // The one-pass route ran: the score-image route's means are multiples of step / count
+    // where these, exact, mostly are not.
+    int off_grid = 0, covered = 0;
+    for (int y = 0; y < apart.image.height(); ++y) {
+      for (int x = 0; x < apart.image.width(); ++x) {
+        const uint32_t n = *result.render.count.At<uint32_t>(x, y);
+        const double steps = *result.scores.scores.At<float>(x, y) * n / kFrameScoreStep;
+        covered += n > 0;
+        off_grid += n > 0 && std::abs(steps - std::round(steps)) > 0.01;
+      }
+    }
+    EXPECT_GT(off_grid, covered / 2) << PixelTypeName(type);
     ASSERT_EQ(result.detections.size(), 1u) << PixelTypeName(type);
     EXPECT_NEAR(result.detections[0].local.x, 0.7, 0.1);
     EXPECT_NEAR(result.detections[0].local.y, -0.4, 0.1);
+    // Views out of range or given twice are refused before any frame is scored.
+    IntegralOptions bad = options;
+    bad.view_indices = {0, 100000000};
+    EXPECT_THAT(ErrorOf([&] { Detect(light_field, bad, detect); }), HasSubstr("view_indices"));
+    bad.view_indices = {1, 1};
+    EXPECT_THAT(ErrorOf([&] { Detect(light_field, bad, detect); }), HasSubstr("view_indices"));
   }
 }
 
@@ -434,6 +456,97 @@ TEST(Anomaly, ChiSquareQuantileAndOptionErrors) {
     for (int x = 0; x < 8; ++x) *nothing.At<float>(x, y) = std::nanf("");
   EXPECT_THAT(ErrorOf([&] { ComputeAnomalyScores(nothing, Image(), AnomalyOptions()); }),
               HasSubstr("no pixel with a view and finite values"));
+}
+
+// robust_sigmas: the covered scores' median plus k x 1.4826 x their median absolute deviation.
+// Scores 1..101 (median 51; absolute deviations 0, 1, 1, ..., 50, 50: median 25); the uncovered
+// pixel (count 0, score 1000) takes no part. One rule at a time; one-sided anomaly imaging's
+// default.
+TEST(Detect, RobustSigmasThresholdIsMedianPlusScaledMad) {
+  AnomalyScores scores;
+  scores.dimensions = 1;
+  scores.scores = MakeImage(102, 1, 1, [](int x, int, int) { return x < 101 ? x + 1.0 : 1000.0; });
+  Image count(102, 1, 1, PixelType::kU32);
+  for (int x = 0; x < 102; ++x) *count.At<uint32_t>(x, 0) = x < 101 ? 1 : 0;
+  DetectOptions options;
+  options.robust_sigmas = 2.0;
+  std::string rule;
+  EXPECT_NEAR(ResolveThreshold(scores, count, options, &rule), 51.0 + 2.0 * 1.4826 * 25.0, 1e-9);
+  EXPECT_THAT(rule, HasSubstr("robust_sigmas 2 (median 51, MAD 25)"));
+  DetectOptions imaging;
+  imaging.detector = "anomaly-imaging";
+  imaging.one_sided = true;  // its default; two-sided, quantile 0.998
+  EXPECT_NEAR(ResolveThreshold(scores, count, imaging, &rule),
+              51.0 + kDefaultRobustSigmas * 1.4826 * 25.0, 1e-9);
+  imaging.one_sided = false;
+  ResolveThreshold(scores, count, imaging, &rule);
+  EXPECT_EQ(rule, "quantile 0.998");
+  options.quantile = 0.99;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }),
+              HasSubstr("give one threshold rule, not quantile and robust_sigmas"));
+  options.quantile.reset();
+  options.robust_sigmas = 0.0;
+  EXPECT_THAT(ErrorOf([&] { options.Check(); }), HasSubstr("robust_sigmas: must be a finite"));
+}
+
+// one_sided: of one feature, a pixel below the background mean scores 0 and one above it as RX
+// scores it. A Gaussian background (mean 100, sigma 10) with a warm (+60) and a cold (-60)
+// outlier: two-sided both score about 36; one-sided the warm one only. The quantised frame
+// scores follow, and only rx and anomaly imaging take it; RGB is refused.
+TEST(Anomaly, OneSidedScoresOnlyValuesAboveTheBackground) {
+  std::mt19937 rng(3);
+  std::normal_distribution<double> normal(100.0, 10.0);
+  const Image grey = MakeImage(120, 100, 1, [&](int x, int y, int) {
+    if (x == 10 && y == 20) return 160.0;
+    if (x == 90 && y == 70) return 40.0;
+    return normal(rng);
+  });
+  AnomalyOptions both;
+  both.detector = "rx";
+  AnomalyOptions warm = both;
+  warm.one_sided = true;
+  const AnomalyScores two = ComputeAnomalyScores(grey, Image(), both);
+  const AnomalyScores one = ComputeAnomalyScores(grey, Image(), warm);
+  EXPECT_NEAR(*two.scores.At<float>(10, 20), 36.0, 4.0);
+  EXPECT_NEAR(*two.scores.At<float>(90, 70), 36.0, 4.0);
+  EXPECT_EQ(*one.scores.At<float>(10, 20), *two.scores.At<float>(10, 20));
+  EXPECT_EQ(*one.scores.At<float>(90, 70), 0.0f);
+  int zeros = 0;
+  for (int y = 0; y < 100; ++y) {
+    for (int x = 0; x < 120; ++x) {
+      const float value = *grey.At<float>(x, y);
+      const float expected = value < one.mean[0] ? 0.0f : *two.scores.At<float>(x, y);
+      ASSERT_EQ(*one.scores.At<float>(x, y), expected);
+      zeros += expected == 0.0f;
+    }
+  }
+  EXPECT_NEAR(zeros, 6000, 400);  // about half the pixels lie below the mean
+  // 8-bit frames: the quantised table scores 0 below the mean, as the scorer.
+  Image frame(120, 100, 1, PixelType::kU8, 1);
+  for (int y = 0; y < 100; ++y) {
+    for (int x = 0; x < 120; ++x) {
+      *frame.At<uint8_t>(x, y) =
+          static_cast<uint8_t>(std::clamp(std::round(*grey.At<float>(x, y)), 0.0f, 255.0f));
+    }
+  }
+  frame.FillBorder();
+  const AnomalyScores reference = ComputeAnomalyScores(frame, Image(), warm);
+  const Image quantised = QuantisedFrameScores(frame, warm);
+  for (int y = 0; y < 100; ++y) {
+    for (int x = 0; x < 120; ++x) {
+      ASSERT_NEAR(*quantised.At<uint16_t>(x, y) * kFrameScoreStep,
+                  *reference.scores.At<float>(x, y), kFrameScoreStep);
+    }
+  }
+  const std::optional<ViewQuadratic> quadratic = FrameQuadratic(frame, warm);
+  ASSERT_TRUE(quadratic.has_value());
+  EXPECT_TRUE(quadratic->one_sided);
+  AnomalyOptions local = warm;
+  local.detector = "rx-local";
+  EXPECT_THAT(ErrorOf([&] { local.Check(); }), HasSubstr("one_sided: detectors rx and"));
+  const Gaussian rgb;
+  EXPECT_THAT(ErrorOf([&] { ComputeAnomalyScores(rgb.image, Image(), warm); }),
+              HasSubstr("one_sided: needs one feature"));
 }
 
 TEST(Anomaly, TemperatureDetectorScoresDegreesCelsius) {

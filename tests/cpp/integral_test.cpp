@@ -1008,11 +1008,13 @@ TEST(Integral, QuadraticScoresAreTheIntegralOfTheViewsScoreImages) {
       quadratics[v].centre = static_cast<float>((90.0 + 7.0 * v) * value_scale);
       quadratics[v].scale =
           static_cast<float>(1.0 / ((300.0 + 11.0 * v) * value_scale * value_scale));
+      quadratics[v].one_sided = v % 2 == 1;  // both kinds of views in one render
       const Image& frame = light_field.views[v].image;
       Image scores(frame.width(), frame.height(), 1, PixelType::kF32, 1);
       for (int y = 0; y < frame.height(); ++y) {
         for (int x = 0; x < frame.width(); ++x) {
-          const double d = frame.Value(x, y) - quadratics[v].centre;
+          double d = frame.Value(x, y) - quadratics[v].centre;
+          if (quadratics[v].one_sided) d = std::max(d, 0.0);
           *scores.At<float>(x, y) = static_cast<float>(quadratics[v].scale * d * d);
         }
       }

@@ -160,9 +160,10 @@ def test_detection_on_a_dask_map_is_the_single_process_detection(survey: Path, t
     # With a cache of two views (frame and scores), frames and their scores are dropped and
     # made again: nothing changes.
     frame_bytes = loaded.image_bytes() // len(loaded)
-    _, small = aos.distributed.detect_map(poses, options, imaging, path=None, client=client,
-                                          cache_mb=2 * 3 * frame_bytes / 2**20)
+    tight, small = aos.distributed.detect_map(poses, options, imaging, path=None, client=client,
+                                              cache_mb=2 * 3 * frame_bytes / 2**20)
     assert np.array_equal(small.scores, single.scores)
+    assert tight.frames_read > result.frames_read  # frames were dropped and read again
     assert float(found.scores.max()) > 0.0 and result.tiles > 1
     assert len(found.detections) == len(single.detections) >= 1
     for ours, theirs in zip(found.detections, single.detections):

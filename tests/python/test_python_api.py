@@ -246,7 +246,8 @@ def changed(value: Any, field: str = "") -> Any:
     if value is None and field in ("magnetic_declination_deg", "takeoff_height_m",
                                    "home_latitude_deg", "home_longitude_deg",  # TelemetryOptions
                                    "fixed_pitch_deg",  # VideoFramesOptions
-                                   "min_score", "min_temperature_c"):  # DetectOptions
+                                   "min_score", "min_temperature_c",  # DetectOptions
+                                   "robust_sigmas"):
         return 1.5
     if value is None and field == "false_alarm_rate":  # DetectOptions
         return 1e-4

@@ -457,6 +457,9 @@ void AnomalyOptions::Check() const {
     ThrowInvalid("outer_window_px: must be larger than inner_window_px (" +
                  std::to_string(inner_window_px) + "), got " + std::to_string(outer_window_px));
   }
+  if (one_sided && detector != "rx" && detector != "anomaly-imaging") {
+    ThrowInvalid("one_sided: detectors rx and anomaly-imaging only, got '" + detector + "'");
+  }
 }
 
 double ChiSquareQuantile(int dof, double p_exceed) {
@@ -534,6 +537,15 @@ AnomalyScores ComputeAnomalyScores(const Image& image, const Image& count,
       LocalScores(f, options, Trace(covariance, d), mean, inverse, num_threads, &scores);
     } else {
       ScoreAll(f, mean, inverse, &scores);
+      if (options.one_sided) {
+        if (d != 1) {
+          ThrowInvalid("one_sided: needs one feature (grey or thermal), got " +
+                       std::to_string(d) + " (channels '" + options.channels + "')");
+        }
+        for (size_t i = 0; i < scores.size(); ++i) {
+          if (f.valid[i] && f.At(i)[0] < mean[0]) scores[i] = 0.0;
+        }
+      }
     }
   }
   for (int y = 0; y < f.height; ++y) {
@@ -597,6 +609,7 @@ std::optional<ViewQuadratic> FrameQuadratic(const Image& frame, const AnomalyOpt
   ViewQuadratic quadratic;
   quadratic.centre = static_cast<float>(bg->mean[0]);
   quadratic.scale = static_cast<float>(bg->inverse[0]);
+  quadratic.one_sided = options.one_sided;
   return quadratic;
 }
 
@@ -615,7 +628,9 @@ Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options) {
     const double m = histogram_bg->mean[0], inverse = histogram_bg->inverse[0];
     if (frame.type() == PixelType::kU8) {
       uint16_t table[256];
-      for (int v = 0; v < 256; ++v) table[v] = quantise(std::max(0.0, (v - m) * (v - m) * inverse));
+      for (int v = 0; v < 256; ++v) {
+        table[v] = options.one_sided && v < m ? 0 : quantise(std::max(0.0, (v - m) * (v - m) * inverse));
+      }
       for (int y = 0; y < h; ++y) {
         const uint8_t* in = frame.At<uint8_t>(0, y);
         uint16_t* row = out.At<uint16_t>(0, y);
@@ -625,11 +640,13 @@ Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options) {
       // (v - m)^2 * inverse * kSteps in float: within a float's rounding of the double score,
       // far below the quantisation step.
       const float mf = static_cast<float>(m), scale = static_cast<float>(inverse * kSteps);
+      // one_sided: values below the mean score 0.
+      const float lowest = options.one_sided ? 0.0f : -std::numeric_limits<float>::infinity();
       for (int y = 0; y < h; ++y) {
         const uint16_t* in = frame.At<uint16_t>(0, y);
         uint16_t* row = out.At<uint16_t>(0, y);
         for (int x = 0; x < w; ++x) {
-          const float c = static_cast<float>(in[x]) - mf;
+          const float c = std::max(static_cast<float>(in[x]) - mf, lowest);
           row[x] = static_cast<uint16_t>(std::min(65535.0f, c * c * scale + 0.5f));
         }
       }

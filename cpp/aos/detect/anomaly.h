@@ -39,6 +39,10 @@
 //   estimate stands in (a window clipped by the border or by uncovered pixels).
 // - "anomaly-imaging" is global RX here (ComputeAnomalyScores scores one image); detect.h runs
 //   it on every frame and integrates the per-frame scores on the focal surface.
+// - one_sided (rx and anomaly-imaging, one feature): a pixel below the background mean scores 0,
+//   one above it as RX scores it: warm spots in thermal, where cold ground between the crowns
+//   would otherwise score as much as a person. The chi-square false-alarm rate then holds for
+//   the upper tail (half the two-sided rate).
 // - "temperature": the score is the pixel's temperature in degrees Celsius (one channel, and the
 //   image's radiometry given), for a plain threshold in physical units.
 // - Throws std::invalid_argument naming the field: an image without any pixel that takes part,
@@ -72,6 +76,9 @@ struct AnomalyOptions {
   int inner_window_px = 9;
   // rx-local: the background window's side, pixels, odd, > inner_window_px.
   int outer_window_px = 31;
+  // One feature only (grey or thermal), detectors rx and anomaly-imaging: only values above the
+  // background mean score (warm spots in thermal); lower values score 0.
+  bool one_sided = false;
   void Check() const;
 
   template <class Visit>
@@ -98,6 +105,9 @@ struct AnomalyOptions {
     field(OptionField("outer_window_px", &O::outer_window_px, "px", Range::AtLeast(3),
                       "rx-local: side of the background window, pixels, odd, > "
                       "inner_window_px."));
+    field(OptionField("one_sided", &O::one_sided, "", Range::Any(),
+                      "rx and anomaly-imaging of one feature (grey or thermal): only values "
+                      "above the background mean score (warm spots); lower ones score 0."));
   }
 };
 
@@ -135,7 +145,8 @@ Image QuantisedFrameScores(const Image& frame, const AnomalyOptions& options);
 // Anomaly imaging's per-frame scores as a quadratic of the frame's value, for one channel, one
 // feature ("auto") and integer frames (8 or 16 bit): global RX's background from the histogram
 // of the sample grid (as QuantisedFrameScores), its score scale * (value - centre)^2 with
-// centre = the background mean and scale = its inverse variance (regularised); nullopt for
+// centre = the background mean and scale = its inverse variance (regularised), one_sided as
+// options.one_sided; nullopt for
 // other frames. Integrated by RenderIntegralWithQuadratic (integral.h) without a score image,
 // and without QuantisedFrameScores' quantisation or saturation.
 std::optional<ViewQuadratic> FrameQuadratic(const Image& frame, const AnomalyOptions& options);

@@ -230,15 +230,23 @@ void DetectOptions::Check() const {
   if (quantile && !(*quantile > 0.0 && *quantile < 1.0)) {
     ThrowInvalid("quantile: must be in (0, 1), got " + FormatNumber(*quantile));
   }
-  if ((false_alarm_rate ? 1 : 0) + (min_score ? 1 : 0) + (quantile ? 1 : 0) > 1) {
-    ThrowInvalid("min_score, false_alarm_rate, quantile: give one threshold rule, not " +
-                 std::string(min_score && false_alarm_rate ? "min_score and false_alarm_rate"
-                             : min_score                  ? "min_score and quantile"
-                                                          : "false_alarm_rate and quantile"));
+  if (robust_sigmas && !(*robust_sigmas > 0.0 && std::isfinite(*robust_sigmas))) {
+    ThrowInvalid("robust_sigmas: must be a finite number > 0, got " + FormatNumber(*robust_sigmas));
+  }
+  {
+    std::vector<std::string> rules;
+    if (min_score) rules.push_back("min_score");
+    if (false_alarm_rate) rules.push_back("false_alarm_rate");
+    if (quantile) rules.push_back("quantile");
+    if (robust_sigmas) rules.push_back("robust_sigmas");
+    if (rules.size() > 1) {
+      ThrowInvalid("min_score, false_alarm_rate, quantile, robust_sigmas: give one threshold "
+                   "rule, not " + rules[0] + " and " + rules[1]);
+    }
   }
   if (false_alarm_rate && detector == "anomaly-imaging") {
     ThrowInvalid("false_alarm_rate: anomaly-imaging's scores are means over frames, not "
-                 "chi-square: give quantile or min_score");
+                 "chi-square: give robust_sigmas, quantile or min_score");
   }
   if (!(outer_window_m > inner_window_m)) {
     ThrowInvalid("outer_window_m: must be larger than inner_window_m (" +
@@ -253,10 +261,11 @@ void DetectOptions::Check() const {
       ThrowInvalid("min_temperature_c: must be a finite temperature above absolute zero, got " +
                    FormatNumber(*min_temperature_c));
     }
-    if (false_alarm_rate || min_score || quantile) {
+    if (false_alarm_rate || min_score || quantile || robust_sigmas) {
       ThrowInvalid(std::string(false_alarm_rate ? "false_alarm_rate"
                                : min_score      ? "min_score"
-                                                : "quantile") +
+                               : quantile       ? "quantile"
+                                                : "robust_sigmas") +
                    ": detector 'temperature' is thresholded by min_temperature_c");
     }
   } else if (min_temperature_c) {
@@ -276,13 +285,12 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
     return *options.min_score;
   }
   const bool imaging = options.detector == "anomaly-imaging";
-  if (options.false_alarm_rate || (!options.quantile && !imaging)) {
+  if (options.false_alarm_rate || (!options.quantile && !options.robust_sigmas && !imaging)) {
     const double rate = options.false_alarm_rate.value_or(kDefaultFalseAlarmRate);
     *rule = "false_alarm_rate " + FormatNumber(rate) + " (chi-square, " +
             std::to_string(scores.dimensions) + " degrees of freedom)";
     return ChiSquareQuantile(scores.dimensions, rate);
   }
-  const double quantile = options.quantile.value_or(kDefaultQuantile);
   std::vector<float> values;
   for (int y = 0; y < scores.scores.height(); ++y) {
     for (int x = 0; x < scores.scores.width(); ++x) {
@@ -291,6 +299,30 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
     }
   }
   if (values.empty()) ThrowInvalid("image: no pixel with a view: nothing to threshold");
+  // Anomaly imaging without a rule: quantile 0.998, one-sided robust_sigmas 13.5 (the study's
+  // choice: one-sided scores leave a quiet background whose spread sets the threshold; two-sided
+  // ones in dense canopy have tails a spread underestimates, so the quantile bounds them).
+  if (options.robust_sigmas || (!options.quantile && options.one_sided)) {
+    const double sigmas = options.robust_sigmas.value_or(kDefaultRobustSigmas);
+    // The median (the mean of the middle two for an even count).
+    const auto median_of = [](std::vector<float>& v) {
+      const size_t half = v.size() / 2;
+      std::nth_element(v.begin(), v.begin() + static_cast<std::ptrdiff_t>(half), v.end());
+      double median = v[half];
+      if (v.size() % 2 == 0) {
+        median = 0.5 * (median + *std::max_element(v.begin(),
+                                                   v.begin() + static_cast<std::ptrdiff_t>(half)));
+      }
+      return median;
+    };
+    const double median = median_of(values);
+    for (float& v : values) v = static_cast<float>(std::abs(v - median));
+    const double mad = median_of(values);
+    *rule = "robust_sigmas " + FormatNumber(sigmas) + " (median " + FormatNumber(median) +
+            ", MAD " + FormatNumber(mad) + ")";
+    return median + sigmas * 1.4826 * mad;
+  }
+  const double quantile = options.quantile.value_or(kDefaultQuantile);
   const size_t k = std::min(values.size() - 1,
                             static_cast<size_t>(std::floor(quantile *
                                                            static_cast<double>(values.size() - 1))));
@@ -513,6 +545,8 @@ DetectResult Detect(const LightField& light_field, const IntegralOptions& option
   // frames) on the homography route: one pass renders the frames and integrates their scores
   // (RenderIntegralWithQuadratic); otherwise the frames' scores are made and rendered apart.
   std::optional<Image> integrated_scores;
+  // The options are checked before the frames are scored (view indices in range, each once).
+  resolved.Check(static_cast<int>(light_field.views.size()));
   if (detect_options.detector == "anomaly-imaging" &&
       QuadraticIntegralSupported(light_field, resolved)) {
     const std::vector<ViewQuadratic> quadratics = FrameQuadratics(
@@ -605,7 +639,8 @@ DetectResult DetectOnMapOf(const LightField& light_field, const MapOptions& opti
       ScoringOptions(detect_options, result.ground_sampling_m, &result.windows_px);
   if (anomaly_scores) {
     result.scores.scores = std::move(*anomaly_scores);
-    result.scores.dimensions = 1;
+    // The frames' features: the map's channels are theirs (a masked light field is refused).
+    result.scores.dimensions = AnomalyFeatureCount(scoring, result.render.image.channels());
   } else if (scoring.detector == "anomaly-imaging") {
     result.scores = AnomalyImaging(light_field, options.view_indices, options.num_threads,
                                    [&](const LightField& scores_field) {

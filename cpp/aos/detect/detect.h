@@ -17,9 +17,11 @@
 //   Gaussian background exceeds with probability p per pixel: the chi-square quantile with d
 //   degrees of freedom, anomaly.h; not for anomaly-imaging, whose mean scores are no
 //   chi-square); quantile q (the research code's convention: the top 1 - q of the scores of the
-//   pixels with a view, whatever is in the image). None given: kDefaultFalseAlarmRate for rx and
-//   rx-local, kDefaultQuantile for anomaly-imaging (chosen by tools/detection_study.py:
-//   docs/detection.md). A pixel is flagged when its score is strictly above the threshold and
+//   pixels with a view, whatever is in the image); robust_sigmas k (the median of those scores
+//   plus k x 1.4826 x their median absolute deviation: k robust standard deviations above the
+//   background, scale-free). None given: kDefaultFalseAlarmRate for rx and rx-local;
+//   kDefaultQuantile for anomaly-imaging, kDefaultRobustSigmas for it one-sided (chosen by
+//   tools/detection_study.py: docs/detection.md). A pixel is flagged when its score is strictly above the threshold and
 //   it has a view, so a constant image flags nothing.
 // - Blobs: the 8-connected components of the flagged pixels with at least min_area_px pixels;
 //   pixel = the score-weighted centroid (continuous coordinates, pixel centres at +0.5), area,
@@ -54,7 +56,10 @@ namespace aos {
 
 // The threshold rules used when none is given (docs/detection.md: the study that chose them).
 inline constexpr double kDefaultFalseAlarmRate = 1e-8;
+// anomaly-imaging: quantile 0.998; one-sided, median + 13.5 robust standard deviations (about
+// 20 median absolute deviations).
 inline constexpr double kDefaultQuantile = 0.998;
+inline constexpr double kDefaultRobustSigmas = 13.5;
 
 struct DetectOptions : AnomalyOptions {
   // Threshold at this quantile of the scores, (0, 1): 0.999 flags the top 0.1 % of the pixels;
@@ -64,6 +69,9 @@ struct DetectOptions : AnomalyOptions {
   std::optional<double> false_alarm_rate;
   // An absolute score threshold, >= 0; unset = not used.
   std::optional<double> min_score;
+  // Threshold at the covered scores' median plus this many robust standard deviations (1.4826 x
+  // their median absolute deviation), > 0; unset = not used.
+  std::optional<double> robust_sigmas;
   // detector "temperature": the temperature a pixel must exceed, degrees Celsius.
   std::optional<double> min_temperature_c;
   // rx-local on a render: the guard and background windows on the ground, metres, converted
@@ -85,14 +93,17 @@ struct DetectOptions : AnomalyOptions {
     AnomalyOptions::Fields(field);
     field(OptionField("quantile", &O::quantile, "", Range::Any(),
                       "Threshold at this quantile of the scores, (0, 1): 0.999 = the top 0.1 % "
-                      "of the pixels; unset = not used (no rule given: false_alarm_rate 1e-8, "
-                      "anomaly-imaging quantile 0.998)."));
+                      "of the pixels; unset = not used (no rule given: false_alarm_rate 1e-8; "
+                      "anomaly-imaging quantile 0.998, one-sided robust_sigmas 13.5)."));
     field(OptionField("false_alarm_rate", &O::false_alarm_rate, "", Range::Any(),
                       "Threshold: per-pixel false-alarm rate of a Gaussian background, (0, 1) "
                       "(the chi-square quantile); unset = not used."));
     field(OptionField("min_score", &O::min_score, "", Range::Any(),
                       "Threshold: an absolute score (squared Mahalanobis distance), >= 0; unset "
                       "= not used."));
+    field(OptionField("robust_sigmas", &O::robust_sigmas, "", Range::Any(),
+                      "Threshold: the covered scores' median plus this many robust standard "
+                      "deviations (1.4826 x median absolute deviation), > 0; unset = not used."));
     field(OptionField("min_temperature_c", &O::min_temperature_c, "C", Range::Any(),
                       "Detector 'temperature': the temperature a pixel must exceed, degrees C."));
     field(OptionField("inner_window_m", &O::inner_window_m, "m", Range::FiniteAtLeast(0.0, true),

@@ -593,7 +593,9 @@ void IntegralRenderer::RenderTile(const Tile& tile, TileBuffers& buffers) {
           } else if (quadratic_kernel != nullptr) {
             quadratic_kernel(image, line, xa, xb, tile.x0, sum_row,
                              buffers.quad.data() + static_cast<size_t>(tile_width) * r,
-                             view.quadratic.centre, view.quadratic.scale);
+                             view.quadratic.centre, view.quadratic.scale,
+                             view.quadratic.one_sided ? 0.0f
+                                                      : -std::numeric_limits<float>::infinity());
           } else {
             kernel(image, line, xa, xb, tile.x0, sum_row);
           }
@@ -677,7 +679,8 @@ IntegralResult IntegralRenderer::Run(ProgressSink* progress) {
   // machine cannot hold before allocating it.
   CheckMemoryBudget(
       SaturatingProduct({static_cast<uint64_t>(width), static_cast<uint64_t>(height),
-                         static_cast<uint64_t>(channels_) * 4 + 4 + (options_.variance ? 4 : 0)}),
+                         static_cast<uint64_t>(channels_) * 4 + 4 + (options_.variance ? 4 : 0) +
+                             (quadratic_ != nullptr ? 4 : 0)}),
       "width/height: " + std::to_string(width) + " x " + std::to_string(height) + " pixels",
       "a float32 image of " + std::to_string(channels_) + " channel(s), a uint32 count map" +
           (options_.variance ? std::string(", a float32 variance map") : std::string()));

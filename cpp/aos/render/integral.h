@@ -155,21 +155,27 @@ struct IntegralResult {
 IntegralResult RenderIntegral(const LightField& light_field, const IntegralOptions& options,
                               ProgressSink* progress = nullptr);
 
-// Scores of one view's frame as a quadratic of its value: scale * (value - centre)^2 (global RX of
-// a 1-channel frame is one: detect/anomaly.h FrameQuadratic).
+// Scores of one view's frame as a quadratic of its value: scale * (value - centre)^2, with
+// one_sided 0 below centre (global RX of a 1-channel frame is one: detect/anomaly.h
+// FrameQuadratic).
 struct ViewQuadratic {
   float centre = 0.0f;
   float scale = 0.0f;
+  bool one_sided = false;
 };
 
 struct QuadraticIntegralResult {
-  IntegralResult integral;  // RenderIntegral's result for the same options
+  // RenderIntegral's result for the same options: bit for bit where both take the same kernel
+  // (1-channel 8-bit frames with SIMD row loads, 16-bit frames, or no SIMD); float frames, and
+  // 8-bit frames with row loads off, sum through the scalar quadratic kernel, within float
+  // rounding of RenderIntegral's SIMD sums.
+  IntegralResult integral;
   Image scores;             // float32, width x height x 1: the integrated scores (0: uncovered)
 };
 
 // RenderIntegral, and from the same samples the integral of every view's quadratic scores: at a
 // pixel, the mean over the views averaged there of the bilinear interpolation of their four taps'
-// scores scale_v * (tap - centre_v)^2 (float) — the integral of the frames' score images, without
+// scores scale_v * (tap - centre_v)^2 (float; 0 for a tap below centre_v where one_sided) — the integral of the frames' score images, without
 // making them (synthetic aperture anomaly imaging, detect.h). `per_view` holds one entry per view
 // of the light field (only the selected ones are read). Needs what QuadraticIntegralSupported
 // checks; otherwise throws std::invalid_argument naming the field.

@@ -1,5 +1,6 @@
 #include "aos/render/integral_kernels.h"
 
+#include <algorithm>
 #include <atomic>
 #include <cstdint>
 
@@ -80,7 +81,8 @@ void AccumulateSpanWithSquares(const Image& image, const RowLine& line, int xa, 
 // AccumulateSpanImpl's 1-channel samples.
 template <typename T>
 void AccumulateSpanQuadratic(const Image& image, const RowLine& line, int xa, int xb, int x0,
-                             double* sum, double* quad, float centre, float scale) {
+                             double* sum, double* quad, float centre, float scale,
+                             float floor) {
   const T* origin = image.At<T>(0, 0);
   const ptrdiff_t stride = image.row_stride();
   const float u_a = static_cast<float>(line.u0 + line.du * xa);
@@ -108,7 +110,8 @@ void AccumulateSpanQuadratic(const Image& image, const RowLine& line, int xa, in
     const float top = p00 + ax * (p01 - p00);
     const float bottom = p10 + ax * (p11 - p10);
     out[i] += static_cast<double>(top + ay * (bottom - top));
-    const float d00 = p00 - centre, d01 = p01 - centre, d10 = p10 - centre, d11 = p11 - centre;
+    const float d00 = std::max(p00 - centre, floor), d01 = std::max(p01 - centre, floor);
+    const float d10 = std::max(p10 - centre, floor), d11 = std::max(p11 - centre, floor);
     const float q00 = d00 * d00, q01 = d01 * d01, q10 = d10 * d10, q11 = d11 * d11;
     const float q_top = q00 + ax * (q01 - q00);
     const float q_bottom = q10 + ax * (q11 - q10);

@@ -35,12 +35,14 @@ SquaresKernel ScalarSquaresKernel(const Image& image);
 SquaresKernel Avx2SquaresKernel(const Image& image);
 
 // A span kernel for 1-channel views that also adds, per sample, the bilinear interpolation of its
-// four taps' scores scale * (tap - centre)^2 into quad[x - x0] (the anomaly-imaging pass:
-// integral.h RenderIntegralWithQuadratic), with the same taps and weights as the sample it adds
-// to `sum`. In float: each tap's d = tap - centre and d * d, interpolated as the value is, times
-// scale, added in double. `quad` too needs kSpanPadding writable values past the span's end.
+// four taps' scores scale * max(tap - centre, floor)^2 into quad[x - x0] (the anomaly-imaging
+// pass: integral.h RenderIntegralWithQuadratic; floor -inf, or 0 for one-sided scores), with the
+// same taps and weights as the sample it adds to `sum`. In float: each tap's d = max(tap -
+// centre, floor) and d * d, interpolated as the value is, times scale, added in double. `quad`
+// too needs kSpanPadding writable values past the span's end.
 using QuadraticKernel = void (*)(const Image& image, const RowLine& line, int xa, int xb, int x0,
-                                 double* sum, double* quad, float centre, float scale);
+                                 double* sum, double* quad, float centre, float scale,
+                                 float floor);
 // The scalar quadratic kernel for 1-channel 8-bit, 16-bit and float views (nullptr otherwise).
 QuadraticKernel ScalarQuadraticKernel(const Image& image);
 // The AVX2 quadratic kernel for 1-channel 8-bit (row loads) and 16-bit views; nullptr otherwise.

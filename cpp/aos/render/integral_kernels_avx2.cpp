@@ -152,11 +152,14 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Accumulate(__m256
 // The second half: unpack the taps, interpolate, add to the double accumulators.
 // The taps' scores scale * (tap - centre)^2, interpolated with the sample's weights (the
 // quadratic kernels: integral_kernels.h QuadraticKernel); the scalar kernel's order of operations.
+// `floor`: -inf, or 0 for one-sided scores (max(tap - centre, floor)).
 __attribute__((target("avx2,fma"), always_inline)) inline __m256 InterpolateQuadratic(
     __m256 p00, __m256 p01, __m256 p10, __m256 p11, __m256 ax, __m256 ay, __m256 centre,
-    __m256 scale) {
-  const __m256 d00 = _mm256_sub_ps(p00, centre), d01 = _mm256_sub_ps(p01, centre);
-  const __m256 d10 = _mm256_sub_ps(p10, centre), d11 = _mm256_sub_ps(p11, centre);
+    __m256 scale, __m256 floor) {
+  const __m256 d00 = _mm256_max_ps(_mm256_sub_ps(p00, centre), floor);
+  const __m256 d01 = _mm256_max_ps(_mm256_sub_ps(p01, centre), floor);
+  const __m256 d10 = _mm256_max_ps(_mm256_sub_ps(p10, centre), floor);
+  const __m256 d11 = _mm256_max_ps(_mm256_sub_ps(p11, centre), floor);
   const __m256 q00 = _mm256_mul_ps(d00, d00), q01 = _mm256_mul_ps(d01, d01);
   const __m256 q10 = _mm256_mul_ps(d10, d10), q11 = _mm256_mul_ps(d11, d11);
   const __m256 upper = _mm256_fmadd_ps(ax, _mm256_sub_ps(q01, q00), q00);
@@ -166,10 +169,11 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 InterpolateQuad
 
 // With `quad` (the quadratic kernels), the taps' scores scale * (tap - centre)^2 interpolated and
 // added to quad[0..7] too.
-template <PixelType kType>
+template <PixelType kType, bool kQuad = false>
 __attribute__((target("avx2,fma"), always_inline)) inline void Finish(
     const Fetched& f, double* out, double* squares, __m256 keep, double* quad = nullptr,
-    __m256 centre = _mm256_setzero_ps(), __m256 scale = _mm256_setzero_ps()) {
+    __m256 centre = _mm256_setzero_ps(), __m256 scale = _mm256_setzero_ps(),
+    __m256 floor = _mm256_setzero_ps()) {
   __m256 p00, p01, p10, p11;
   if constexpr (kType == PixelType::kF32) {
     p00 = f.p00, p01 = f.p01, p10 = f.p10, p11 = f.p11;
@@ -181,9 +185,10 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Finish(
     p10 = _mm256_cvtepi32_ps(_mm256_and_si256(f.bottom, mask));
     p11 = _mm256_cvtepi32_ps(_mm256_and_si256(_mm256_srli_epi32(f.bottom, kBits), mask));
   }
-  if (quad != nullptr) {
-    Accumulate(_mm256_and_ps(InterpolateQuadratic(p00, p01, p10, p11, f.ax, f.ay, centre, scale),
-                             keep),
+  if constexpr (kQuad) {
+    Accumulate(_mm256_and_ps(
+                   InterpolateQuadratic(p00, p01, p10, p11, f.ax, f.ay, centre, scale, floor),
+                   keep),
                quad, nullptr);
   }
   const __m256 upper = _mm256_fmadd_ps(f.ax, _mm256_sub_ps(p01, p00), p00);
@@ -199,15 +204,17 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Finish(
 // the division before them) overlaps useful work. Groups past the span's end are clamped into
 // the image, so their loads stay in bounds; the last group's extra lanes add zero to the
 // accumulators' padding (see the caller).
-// With `quad`, also the quadratic kernel's scores (QuadraticKernel).
-template <PixelType kType, bool kSquares>
+// With kQuad, also the quadratic kernel's scores (QuadraticKernel) into `quad`.
+template <PixelType kType, bool kSquares, bool kQuad = false>
 __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const RowLine& line,
                                                       int xa, int xb, int x0, double* sum,
                                                       double* sum_squares, double* quad = nullptr,
                                                       float centre_value = 0.0f,
-                                                      float scale_value = 0.0f) {
+                                                      float scale_value = 0.0f,
+                                                      float floor_value = 0.0f) {
   const __m256 centre = _mm256_set1_ps(centre_value), scale = _mm256_set1_ps(scale_value);
-  double* out_quad = quad != nullptr ? quad + (xa - x0) : nullptr;
+  const __m256 floor = _mm256_set1_ps(floor_value);
+  double* out_quad = kQuad ? quad + (xa - x0) : nullptr;
   constexpr int kValueSize = kType == PixelType::kU8 ? 1 : (kType == PixelType::kU16 ? 2 : 4);
   // Same re-basing and arithmetic order as the scalar kernel.
   const SpanSetup c = MakeSpanSetup(image, line, xa, kValueSize);
@@ -226,22 +233,24 @@ __attribute__((target("avx2,fma"))) void Avx2SpanImpl(const Image& image, const 
     fi = _mm256_add_ps(fi, eight);
     const Positions after = Locate(c, fi);
     const Fetched next = Fetch<kType>(c, ahead);
-    Finish<kType>(current, out + i, kSquares ? squares + i : nullptr, all,
-                  out_quad != nullptr ? out_quad + i : nullptr, centre, scale);
+    Finish<kType, kQuad>(current, out + i, kSquares ? squares + i : nullptr, all,
+                         kQuad ? out_quad + i : nullptr, centre, scale, floor);
     current = next;
     ahead = after;
   }
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256 keep = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n - i), lane));
-  Finish<kType>(current, out + i, kSquares ? squares + i : nullptr, keep,
-                out_quad != nullptr ? out_quad + i : nullptr, centre, scale);
+  Finish<kType, kQuad>(current, out + i, kSquares ? squares + i : nullptr, keep,
+                       kQuad ? out_quad + i : nullptr, centre, scale, floor);
 }
 
 __attribute__((target("avx2,fma"))) void Avx2SpanU16Quadratic(const Image& image,
                                                               const RowLine& line, int xa, int xb,
                                                               int x0, double* sum, double* quad,
-                                                              float centre, float scale) {
-  Avx2SpanImpl<PixelType::kU16, false>(image, line, xa, xb, x0, sum, nullptr, quad, centre, scale);
+                                                              float centre, float scale,
+                                                              float floor) {
+  Avx2SpanImpl<PixelType::kU16, false, true>(image, line, xa, xb, x0, sum, nullptr, quad, centre,
+                                             scale, floor);
 }
 
 // The taps of a group of an 8-bit view: both horizontal taps of the top row in the low 16 bits
@@ -323,15 +332,16 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 InterpolateU8(c
 // InterpolateU8, and with `quad` the taps' interpolated scores (InterpolateQuadratic) added to
 // quad[0..7] (masked by `keep`).
 __attribute__((target("avx2,fma"), always_inline)) inline __m256 InterpolateU8Quadratic(
-    const TapsU8& t, __m256 ax, __m256 ay, __m256 centre, __m256 scale, __m256 keep,
+    const TapsU8& t, __m256 ax, __m256 ay, __m256 centre, __m256 scale, __m256 floor, __m256 keep,
     double* quad) {
   const __m256i byte = _mm256_set1_epi32(0xff);
   const __m256 p00 = _mm256_cvtepi32_ps(_mm256_and_si256(t.top, byte));
   const __m256 p01 = _mm256_cvtepi32_ps(_mm256_srli_epi32(t.top, 8));
   const __m256 p10 = _mm256_cvtepi32_ps(_mm256_and_si256(t.bottom, byte));
   const __m256 p11 = _mm256_cvtepi32_ps(_mm256_srli_epi32(t.bottom, 8));
-  Accumulate(_mm256_and_ps(InterpolateQuadratic(p00, p01, p10, p11, ax, ay, centre, scale), keep),
-             quad, nullptr);
+  Accumulate(
+      _mm256_and_ps(InterpolateQuadratic(p00, p01, p10, p11, ax, ay, centre, scale, floor), keep),
+      quad, nullptr);
   const __m256 upper = _mm256_fmadd_ps(ax, _mm256_sub_ps(p01, p00), p00);
   const __m256 lower = _mm256_fmadd_ps(ax, _mm256_sub_ps(p11, p10), p10);
   return _mm256_fmadd_ps(ay, _mm256_sub_ps(lower, upper), upper);
@@ -345,11 +355,12 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 InterpolateU8Qu
 // The samples' values; with kQuad, the same taps' scores added to quad[0..7] too.
 template <bool kQuad>
 __attribute__((target("avx2,fma"), always_inline)) inline __m256 SampleU8(
-    const TapsU8& t, const Positions& at, __m256 centre, __m256 scale, __m256 keep, double* quad) {
+    const TapsU8& t, const Positions& at, __m256 centre, __m256 scale, __m256 floor, __m256 keep,
+    double* quad) {
   if constexpr (kQuad) {
-    return InterpolateU8Quadratic(t, at.ax, at.ay, centre, scale, keep, quad);
+    return InterpolateU8Quadratic(t, at.ax, at.ay, centre, scale, floor, keep, quad);
   } else {
-    (void)centre, (void)scale, (void)keep, (void)quad;
+    (void)centre, (void)scale, (void)floor, (void)keep, (void)quad;
     return InterpolateU8(t, at.ax, at.ay);
   }
 }
@@ -358,12 +369,13 @@ __attribute__((target("avx2,fma"), always_inline)) inline __m256 SampleU8(
 template <bool kSquares, bool kQuad>
 __attribute__((target("avx2,fma"), always_inline)) inline void Avx2SpanU8RowsImpl(
     const Image& image, const RowLine& line, int xa, int xb, int x0, double* sum,
-    double* sum_squares, double* quad, float centre_value, float scale_value) {
+    double* sum_squares, double* quad, float centre_value, float scale_value, float floor_value) {
   const SpanSetup c = MakeSpanSetup(image, line, xa, 1);
   double* out = sum + (xa - x0);
   double* squares = kSquares ? sum_squares + (xa - x0) : nullptr;
   double* out_quad = kQuad ? quad + (xa - x0) : nullptr;
   const __m256 centre = _mm256_set1_ps(centre_value), scale = _mm256_set1_ps(scale_value);
+  const __m256 floor = _mm256_set1_ps(floor_value);
   const __m256 all = _mm256_castsi256_ps(_mm256_set1_epi32(-1));
   const int n = xb - xa;
   // The view position moves monotonically along the span (W > 0): U/W grows iff
@@ -385,7 +397,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Avx2SpanU8RowsImp
     const Samples after = LocateSamples(c, fi);
     const Positions split = Split(q);
     const TapsU8 next = FetchU8(c, split, x_lane, y_lane);
-    Accumulate(SampleU8<kQuad>(taps, p, centre, scale, all, kQuad ? out_quad + i : nullptr),
+    Accumulate(SampleU8<kQuad>(taps, p, centre, scale, floor, all, kQuad ? out_quad + i : nullptr),
                out + i, kSquares ? squares + i : nullptr);
     taps = next;
     p = split;
@@ -393,7 +405,7 @@ __attribute__((target("avx2,fma"), always_inline)) inline void Avx2SpanU8RowsImp
   }
   const __m256i lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
   const __m256 keep = _mm256_castsi256_ps(_mm256_cmpgt_epi32(_mm256_set1_epi32(n - i), lane));
-  Accumulate(_mm256_and_ps(SampleU8<kQuad>(taps, p, centre, scale, keep,
+  Accumulate(_mm256_and_ps(SampleU8<kQuad>(taps, p, centre, scale, floor, keep,
                                            kQuad ? out_quad + i : nullptr),
                            keep),
              out + i, kSquares ? squares + i : nullptr);
@@ -404,15 +416,16 @@ __attribute__((target("avx2,fma"))) void Avx2SpanU8Rows(const Image& image, cons
                                                         int xa, int xb, int x0, double* sum,
                                                         double* sum_squares) {
   Avx2SpanU8RowsImpl<kSquares, false>(image, line, xa, xb, x0, sum, sum_squares, nullptr, 0.0f,
-                                      0.0f);
+                                      0.0f, 0.0f);
 }
 
 __attribute__((target("avx2,fma"))) void Avx2SpanU8RowsQuadratic(const Image& image,
                                                                  const RowLine& line, int xa,
                                                                  int xb, int x0, double* sum,
                                                                  double* quad, float centre,
-                                                                 float scale) {
-  Avx2SpanU8RowsImpl<false, true>(image, line, xa, xb, x0, sum, nullptr, quad, centre, scale);
+                                                                 float scale, float floor) {
+  Avx2SpanU8RowsImpl<false, true>(image, line, xa, xb, x0, sum, nullptr, quad, centre, scale,
+                                  floor);
 }
 
 template <PixelType kType>

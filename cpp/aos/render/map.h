@@ -267,8 +267,8 @@ struct DistributedOptions {
                       "Address of an existing Dask scheduler (tcp://HOST:PORT); '' = none. "
                       "Not with workers."));
     field(OptionField("cache_mb", &O::cache_mb, "MiB", Range::FiniteAtLeast(0.0),
-                      "Decoded frames each Dask worker keeps between tasks, MiB, >= 0 (with "
-                      "workers or a scheduler)."));
+                      "Decoded frames (and, for anomaly imaging, their scores) each Dask "
+                      "worker keeps between tasks, MiB, >= 0 (with workers or a scheduler)."));
     field(OptionField("share_mb", &O::share_mb, "MiB", Range::FiniteAtLeast(0.0),
                       "Decoded frames each worker hands to the other workers of its machine "
                       "through shared memory, MiB, >= 0; 0 = none."));

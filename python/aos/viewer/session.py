@@ -25,6 +25,7 @@ from __future__ import annotations
 import copy
 import math
 import os
+import re
 import shlex
 import tempfile
 from dataclasses import dataclass, field
@@ -60,8 +61,8 @@ class Superseded(Exception):
 # One validated request: the table's fields (aos::ViewParams), typed, ranged and documented there.
 Params = aos.ViewParams
 _ROWS = {row["name"]: row for row in Params._field_table}
-COLORMAPS = tuple(_ROWS["colormap"]["range"].removeprefix("one of ").replace(" or ", ", ")
-                  .split(", "))
+# The choices of the colormap row, from its type: Literal['grey', 'turbo', 'iron'].
+COLORMAPS = tuple(re.findall(r"'([^']*)'", _ROWS["colormap"]["type"]))
 
 
 def _turbo_lut() -> np.ndarray:
@@ -278,7 +279,8 @@ class Session:
             elif kind == "int":
                 converted = _as_int(name, value)
                 if not -2**31 <= converted < 2**31:
-                    raise BadParameter(f"{name}: must be {row['range']}, got {converted}")
+                    raise BadParameter(f"{name}: must be {row['range']} (a 32-bit whole number), "
+                                       f"got {converted}")
             elif kind == "bool":
                 converted = _as_bool(name, value)
             else:  # text, its choices checked by the range
