@@ -233,6 +233,31 @@ def test_temperature_threshold_in_degrees_on_a_radiometric_light_field() -> None
                    min_temperature_c=30.0)
 
 
+def test_one_sided_anomaly_imaging_finds_the_warm_person_in_thermal_frames() -> None:
+    """The default scene in thermal (one channel: the person warm, leaves warmer than the
+    ground): one-sided anomaly imaging, from Python and from the viewer's session, finds the
+    person within 0.3 m at its default threshold (robust_sigmas 13.5)."""
+    scene = json.loads((Path(__file__).resolve().parents[2] / "scenes" /
+                        "forest_person.json").read_text())
+    scene["camera"].update(width=128, height=128, channels=1)
+    scene["sampling"]["grid"] = 9
+    scene["effects"] = {"thermal": {"ground": 0.35, "targets": 0.9, "leaves": 0.5,
+                                    "trunks": 0.45, "texture_contrast": 0.15},
+                        "sensor_noise": {"sigma": 0.01}}
+    light_field = aos.simulate(scene).light_field
+    centre = len(light_field) // 2
+    found = aos.detect(light_field, pose_view=centre, focal_surface=0.0,
+                       detector="anomaly-imaging", one_sided=True)
+    assert found.threshold_rule.startswith("robust_sigmas 13.5")
+    assert found.detections and math.hypot(*found.detections[0].local[:2]) < 0.3
+    pytest.importorskip("aiohttp")
+    from aos.viewer.session import Session
+    session = Session(light_field, defaults={"pose_view": centre})
+    answer = session.detect(session.defaults, "anomaly-imaging", None, True)
+    assert answer["threshold_rule"].startswith("robust_sigmas 13.5")
+    assert math.hypot(*answer["detections"][0]["world"][:2]) < 0.3
+
+
 def test_the_viewer_detects_in_both_modes_and_marks_later_frames(forest: aos.LightField) -> None:
     """/api/detect on the perspective view and on the map: the target listed, and the next
     frame's header carries its marker at the detection's pixel (perspective) or at its world
@@ -262,6 +287,19 @@ def test_the_viewer_detects_in_both_modes_and_marks_later_frames(forest: aos.Lig
         except urllib.error.HTTPError as error:
             assert error.code == 400
             assert "detector: must be one of rx, rx-local" in error.read().decode()
+        # Warm spots only (one_sided) needs one feature and rx or anomaly imaging: refused
+        # naming the field otherwise (these frames are RGB; test_one_sided_... has grey ones).
+        for query, message in (("detector=rx-local&one_sided=true",
+                                "one_sided: detectors rx and anomaly-imaging only"),
+                               ("detector=anomaly-imaging&one_sided=true",
+                                "one_sided: needs one feature"),
+                               ("detector=rx&one_sided=maybe", "one_sided: expected true or")):
+            try:
+                get(f"/api/detect?{query}")
+                raise AssertionError("expected HTTP 400")
+            except urllib.error.HTTPError as error:
+                assert error.code == 400
+                assert message in error.read().decode(), query
         found = json.loads(get("/api/detect?detector=rx-local"))
         best = found["detections"][0]
         assert math.hypot(best["world"][0] - UTM_ORIGIN[0], best["world"][1] - UTM_ORIGIN[1]) < 0.3

@@ -456,7 +456,7 @@ class Viewer:
             raise web.HTTPMethodNotAllowed(request.method, ["GET", "POST"])
         raw.update({key: value for key, value in request.query.items()
                     if key not in ("token", "u", "v", "format", "detector",
-                                   "min_temperature_c")})
+                                   "min_temperature_c", "one_sided")})
         return raw
 
     async def info(self, request: web.Request) -> web.Response:
@@ -482,7 +482,11 @@ class Viewer:
         text = request.query.get("min_temperature_c")
         minimum = None if text in (None, "") else _finite(text, "min_temperature_c",
                                                           "temperature (degrees C)")
-        answer = await self.run_request(self.session.detect, params, detector, minimum)
+        one_sided = request.query.get("one_sided", "false").lower()
+        if one_sided not in ("true", "false"):
+            raise BadParameter(f"one_sided: expected true or false, got {one_sided[:40]!r}")
+        answer = await self.run_request(self.session.detect, params, detector, minimum,
+                                        one_sided == "true")
         return web.json_response(answer)
 
     async def export(self, request: web.Request) -> web.Response:

@@ -549,14 +549,16 @@ class Session:
         return markers
 
     def detect(self, params: Params, detector: str,
-               min_temperature_c: Optional[float] = None) -> dict[str, Any]:
+               min_temperature_c: Optional[float] = None,
+               one_sided: bool = False) -> dict[str, Any]:
         """Detections (aos.detect, or aos.detect_map in map mode) in the full-size render of
-        ``params`` with its defaults but the detector; kept, so that every later frame marks
-        them. Each carries the pan and focus that centre the perspective view on it."""
+        ``params`` with its defaults but the detector (and one_sided: warm spots only); kept,
+        so that every later frame marks them. Each carries the pan and focus that centre the
+        perspective view on it."""
         params = _with(params, preview=False)
         try:
             # The choices and ranges are DetectOptions' own (its C++ field table).
-            options = aos.DetectOptions(detector=str(detector)[:40])
+            options = aos.DetectOptions(detector=str(detector)[:40], one_sided=bool(one_sided))
             if min_temperature_c is not None:
                 options.min_temperature_c = min_temperature_c
             if params.mode == "map":

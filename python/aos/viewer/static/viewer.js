@@ -195,6 +195,7 @@ async function detect() {
   const params = currentParams();
   params.detector = $("detector").value;
   if (params.detector === "temperature") params.min_temperature_c = $("min_temperature_c").value;
+  if (oneSidedApplies() && $("one_sided").checked) params.one_sided = true;
   $("detect_status").textContent = "detecting…";
   let response, answer;
   try {
@@ -226,9 +227,15 @@ async function detect() {
 }
 window.aosDetect = detect;
 $("detect").addEventListener("click", detect);
-$("detector").addEventListener("change", () => {
+// One-sided scores (DetectOptions.one_sided): rx and anomaly imaging of one channel.
+function oneSidedApplies() {
+  return info.channels === 1 && ["rx", "anomaly-imaging"].includes($("detector").value);
+}
+function showDetectorRows() {
   $("min_temperature_row").style.display = $("detector").value === "temperature" ? "" : "none";
-});
+  $("one_sided_row").style.display = oneSidedApplies() ? "" : "none";
+}
+$("detector").addEventListener("change", showDetectorRows);
 
 function handleMessage(message) {
   if (message.type === "error") {
@@ -460,8 +467,8 @@ async function start() {
     $(id).addEventListener("change", onChange);
   }
   for (const id of SELECTS) $(id).addEventListener("change", onChange);
-  $("min_temperature_row").style.display = "none";
   if (!info.radiometric) $("detector").querySelector("option[value=temperature]").remove();
+  showDetectorRows();
   $("surface").addEventListener("change", onChange);
   drawMinimap();
   connect();
