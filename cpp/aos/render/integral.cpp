@@ -828,16 +828,19 @@ void DropThinPixels(int min_view_count, IntegralResult* out) {
 
 namespace {
 
+// Whether view `i` is among options.view_indices (every view where they are empty).
+bool IsSelected(const IntegralOptions& options, size_t i) {
+  return options.view_indices.empty() ||
+         std::find(options.view_indices.begin(), options.view_indices.end(),
+                   static_cast<int>(i)) != options.view_indices.end();
+}
+
 // Whether a selected view has a lens model (then renders take the per-sample path).
 bool SelectedLensViews(const LightField& light_field, const IntegralOptions& options) {
-  bool lens_views = false;
   for (size_t i = 0; i < light_field.views.size(); ++i) {
-    const bool selected = options.view_indices.empty() ||
-                          std::find(options.view_indices.begin(), options.view_indices.end(),
-                                    static_cast<int>(i)) != options.view_indices.end();
-    lens_views = lens_views || (selected && !light_field.views[i].camera.IsPinhole());
+    if (IsSelected(options, i) && !light_field.views[i].camera.IsPinhole()) return true;
   }
-  return lens_views;
+  return false;
 }
 
 // The focal plane of the homography route: the surface's plane moved by surface_offset.
@@ -861,10 +864,7 @@ bool QuadraticIntegralSupported(const LightField& light_field, const IntegralOpt
     return false;
   }
   for (size_t i = 0; i < light_field.views.size(); ++i) {
-    const bool selected = options.view_indices.empty() ||
-                          std::find(options.view_indices.begin(), options.view_indices.end(),
-                                    static_cast<int>(i)) != options.view_indices.end();
-    if (selected && light_field.views[i].image.channels() != 1) return false;
+    if (IsSelected(options, i) && light_field.views[i].image.channels() != 1) return false;
   }
   return true;
 }

@@ -17,6 +17,42 @@ inline float ClampSample(float s, float max) {
   return s < max ? s : max;
 }
 
+// A span re-based at its first column xa, so the float arithmetic works with small magnitudes.
+struct ScalarSpan {
+  float u_a, v_a, w_a, du, dv, dw, x_max, y_max;
+  ScalarSpan(const Image& image, const RowLine& line, int xa)
+      : u_a(static_cast<float>(line.u0 + line.du * xa)),
+        v_a(static_cast<float>(line.v0 + line.dv * xa)),
+        w_a(static_cast<float>(line.w0 + line.dw * xa)),
+        du(static_cast<float>(line.du)),
+        dv(static_cast<float>(line.dv)),
+        dw(static_cast<float>(line.dw)),
+        x_max(static_cast<float>(image.width()) - 0.5f),
+        y_max(static_cast<float>(image.height()) - 0.5f) {}
+};
+
+// Where column xa + i samples the view: the top-left tap (ix, iy) and the weights (ax, ay).
+struct ScalarSample {
+  int ix, iy;
+  float ax, ay;
+};
+inline ScalarSample LocateScalar(const ScalarSpan& c, int i) {
+  const float fi = static_cast<float>(i);
+  const float inv_w = 1.0f / (c.w_a + c.dw * fi);
+  // Sample position in pixel-index space: continuous coordinate minus the half-pixel offset.
+  // Clamped to the bordered image (the span already guarantees it up to rounding; the clamp
+  // keeps any rounding, or a NaN, from ever reading outside the image's memory).
+  const float sx = ClampSample((c.u_a + c.du * fi) * inv_w - 0.5f, c.x_max);
+  const float sy = ClampSample((c.v_a + c.dv * fi) * inv_w - 0.5f, c.y_max);
+  // sx, sy >= -0.5 (up to rounding), so truncating s + 1 gives floor(s) + 1.
+  ScalarSample s;
+  s.ix = static_cast<int>(sx + 1.0f) - 1;
+  s.iy = static_cast<int>(sy + 1.0f) - 1;
+  s.ax = sx - static_cast<float>(s.ix);
+  s.ay = sy - static_cast<float>(s.iy);
+  return s;
+}
+
 // The scalar kernel; with kSquares it also adds, per column, the sum over channels of the
 // squared samples into sum_squares[x - x0] (the variance pass), from the same samples.
 template <typename T, int kChannels, bool kSquares>
@@ -25,29 +61,11 @@ void AccumulateSpanImpl(const Image& image, const RowLine& line, int xa, int xb,
   const int channels = kChannels > 0 ? kChannels : image.channels();
   const T* origin = image.At<T>(0, 0);
   const ptrdiff_t stride = image.row_stride();
-  // Re-base the line at xa so the float arithmetic works with small magnitudes.
-  const float u_a = static_cast<float>(line.u0 + line.du * xa);
-  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
-  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
-  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
-              dw = static_cast<float>(line.dw);
+  const ScalarSpan span(image, line, xa);
   double* out = sum + static_cast<ptrdiff_t>(xa - x0) * channels;
-  const float x_max = static_cast<float>(image.width()) - 0.5f;
-  const float y_max = static_cast<float>(image.height()) - 0.5f;
   const int n = xb - xa;
   for (int i = 0; i < n; ++i) {
-    const float fi = static_cast<float>(i);
-    const float inv_w = 1.0f / (w_a + dw * fi);
-    // Sample position in pixel-index space: continuous coordinate minus the half-pixel offset.
-    // Clamped to the bordered image (the span already guarantees it up to rounding; the clamp
-    // keeps any rounding, or a NaN, from ever reading outside the image's memory).
-    const float sx = ClampSample((u_a + du * fi) * inv_w - 0.5f, x_max);
-    const float sy = ClampSample((v_a + dv * fi) * inv_w - 0.5f, y_max);
-    // sx, sy >= -0.5 (up to rounding), so truncating s + 1 gives floor(s) + 1.
-    const int ix = static_cast<int>(sx + 1.0f) - 1;
-    const int iy = static_cast<int>(sy + 1.0f) - 1;
-    const float ax = sx - static_cast<float>(ix);
-    const float ay = sy - static_cast<float>(iy);
+    const auto [ix, iy, ax, ay] = LocateScalar(span, i);
     const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + static_cast<ptrdiff_t>(ix) * channels;
     double squares = 0.0;
     for (int c = 0; c < channels; ++c) {
@@ -85,25 +103,12 @@ void AccumulateSpanQuadratic(const Image& image, const RowLine& line, int xa, in
                              float floor) {
   const T* origin = image.At<T>(0, 0);
   const ptrdiff_t stride = image.row_stride();
-  const float u_a = static_cast<float>(line.u0 + line.du * xa);
-  const float v_a = static_cast<float>(line.v0 + line.dv * xa);
-  const float w_a = static_cast<float>(line.w0 + line.dw * xa);
-  const float du = static_cast<float>(line.du), dv = static_cast<float>(line.dv),
-              dw = static_cast<float>(line.dw);
+  const ScalarSpan span(image, line, xa);
   double* out = sum + (xa - x0);
   double* out_quad = quad + (xa - x0);
-  const float x_max = static_cast<float>(image.width()) - 0.5f;
-  const float y_max = static_cast<float>(image.height()) - 0.5f;
   const int n = xb - xa;
   for (int i = 0; i < n; ++i) {
-    const float fi = static_cast<float>(i);
-    const float inv_w = 1.0f / (w_a + dw * fi);
-    const float sx = ClampSample((u_a + du * fi) * inv_w - 0.5f, x_max);
-    const float sy = ClampSample((v_a + dv * fi) * inv_w - 0.5f, y_max);
-    const int ix = static_cast<int>(sx + 1.0f) - 1;
-    const int iy = static_cast<int>(sy + 1.0f) - 1;
-    const float ax = sx - static_cast<float>(ix);
-    const float ay = sy - static_cast<float>(iy);
+    const auto [ix, iy, ax, ay] = LocateScalar(span, i);
     const T* p = origin + static_cast<ptrdiff_t>(iy) * stride + ix;
     const float p00 = static_cast<float>(p[0]), p01 = static_cast<float>(p[1]);
     const float p10 = static_cast<float>(p[stride]), p11 = static_cast<float>(p[stride + 1]);
