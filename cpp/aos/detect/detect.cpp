@@ -318,8 +318,11 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
     const double median = median_of(values);
     for (float& v : values) v = static_cast<float>(std::abs(v - median));
     const double mad = median_of(values);
-    *rule = "robust_sigmas " + FormatNumber(sigmas) + " (median " + FormatNumber(median) +
-            ", MAD " + FormatNumber(mad) + ")";
+    // The statistics to 3 significant digits: the rule is read by people (the threshold
+    // itself is reported in full).
+    char statistics[96];
+    std::snprintf(statistics, sizeof statistics, " (median %.3g, MAD %.3g)", median, mad);
+    *rule = "robust_sigmas " + FormatNumber(sigmas) + statistics;
     return median + sigmas * 1.4826 * mad;
   }
   const double quantile = options.quantile.value_or(kDefaultQuantile);
