@@ -18,11 +18,12 @@ sees, focused on the ground:
 Scoring: the flagged pixels (score above a threshold, a view present) form 8-connected blobs of at
 least 4 pixels; a blob whose centroid (on the ground) lies within 1 m of a person not yet matched
 is a true positive, otherwise a false alarm. Sweeping the threshold gives the precision-recall
-curve and its area (average precision); at aos's default threshold (quantile 0.999) the tool
-reports precision, recall, false alarms per hectare of imaged ground, and the median localisation
-error of the true positives (aos's own detections: aos.detect with its defaults, which this
-study chose: false_alarm_rate 1e-8, anomaly imaging robust_sigmas 13.5). It also lists, per
-method, the precision and recall of every candidate threshold rule.
+curve and its area (average precision); at aos's default threshold the tool reports precision,
+recall, false alarms per hectare of imaged ground, and the median localisation error of the
+true positives (aos's own detections: aos.detect with its defaults, which this study chose:
+false_alarm_rate 1e-8 for rx and rx-local, quantile 0.998 for anomaly imaging, robust_sigmas
+13.5 for it one-sided). It also lists, per method, the precision and recall of every candidate
+threshold rule.
 
 Usage: python3 tools/detection_study.py [--seeds 4] [--size 256] [--trees 200,400,600,800]
                                         [--first-seed 1000]

@@ -143,8 +143,8 @@ CLI::Option* AddFocalHeightFlag(Flags& flags, FocalSurface& focal_surface, const
 // threshold first in --help, then --force, then the rest of the table.
 void AddDetectFlags(Flags& flags, DetectOptions& detect) {
   Flags scoring = flags.At("detect.");
-  for (const char* name : {"detector", "channels", "quantile", "false_alarm_rate", "min_score",
-                           "min_temperature_c"}) {
+  for (const char* name : {"detector", "channels", "one_sided", "quantile", "false_alarm_rate",
+                           "min_score", "robust_sigmas", "min_temperature_c"}) {
     scoring.Field(detect, name);
   }
   flags.Force();

@@ -572,9 +572,10 @@ def detect(
     """Finds anomalies (a person, an animal) in the integral image of ``light_field``, as
     ``aos-render detect`` does: the image of :func:`render_integral` (``kwargs`` of
     :class:`IntegralOptions`: the virtual camera, the focal surface, the views) scored by
-    :class:`DetectOptions` (``detector`` 'rx', 'rx-local' or 'temperature', ``channels``, the
-    threshold: ``quantile``, ``false_alarm_rate``, ``min_score`` or ``min_temperature_c``; the
-    blobs: ``min_area_px``, ``max_detections``). Each detection is located on the focal surface
+    :class:`DetectOptions` (``detector`` 'rx', 'rx-local', 'anomaly-imaging' or 'temperature',
+    ``channels``, ``one_sided`` (warm spots only, one feature), the threshold: ``quantile``,
+    ``false_alarm_rate``, ``min_score``, ``robust_sigmas`` or ``min_temperature_c``; the blobs:
+    ``min_area_px``, ``max_detections``). Each detection is located on the focal surface
     (``world``; ``lon_lat`` in WGS84 when the light field has a CRS) with the views that saw it.
     ``result.write("found.geojson")`` writes GeoJSON, KML or CSV; ``result.overlay()`` draws
     them. The result pickles. Raises ValueError naming the field (docs/detection.md).

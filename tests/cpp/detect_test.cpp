@@ -329,7 +329,7 @@ TEST(Detect, AnomalyImagingOfGreyFramesIsTheIntegralOfTheFramesScores) {
                                  }});
   for (const auto& [type, one_sided] :
        std::vector<std::pair<PixelType, bool>>{{PixelType::kU8, false}, {PixelType::kU16, false},
-                                               {PixelType::kU8, true}}) {
+                                               {PixelType::kU8, true}, {PixelType::kU16, true}}) {
     const LightField light_field = test_util::NadirLightField(
         scene, PinholeCamera::FromFov(80, 60, 60.0), test_util::GridCentres(3, 1.5, 12.0), type);
     IntegralOptions options;
@@ -481,6 +481,19 @@ TEST(Detect, RobustSigmasThresholdIsMedianPlusScaledMad) {
   imaging.one_sided = false;
   ResolveThreshold(scores, count, imaging, &rule);
   EXPECT_EQ(rule, "quantile 0.998");
+  // An even count: the median is the mean of the middle two. Scores 1..100: median 50.5,
+  // deviations 0.5, 0.5, 1.5, 1.5, ..., 49.5, 49.5: median 25.
+  *count.At<uint32_t>(100, 0) = 0;
+  EXPECT_NEAR(ResolveThreshold(scores, count, options, &rule), 50.5 + 2.0 * 1.4826 * 25.0, 1e-9);
+  EXPECT_THAT(rule, HasSubstr("(median 50.5, MAD 25)"));
+  // No spread (more than half the scores 0, as one-sided scores of a cold scene): the quantile
+  // rule stands in, and says so, rather than flagging every score above the median.
+  AnomalyScores quiet;
+  quiet.dimensions = 1;
+  quiet.scores = MakeImage(100, 1, 1, [](int x, int, int) { return x < 60 ? 0.0 : x - 59.0; });
+  // Scores 0 (60 times) and 1..40: the 0.998 quantile is the 99th of 100 sorted, 39.
+  EXPECT_EQ(ResolveThreshold(quiet, Image(), options, &rule), 39.0);
+  EXPECT_THAT(rule, HasSubstr("no spread, so quantile 0.998 instead"));
   options.quantile = 0.99;
   EXPECT_THAT(ErrorOf([&] { options.Check(); }),
               HasSubstr("give one threshold rule, not quantile and robust_sigmas"));
@@ -538,15 +551,23 @@ TEST(Anomaly, OneSidedScoresOnlyValuesAboveTheBackground) {
                   *reference.scores.At<float>(x, y), kFrameScoreStep);
     }
   }
-  const std::optional<ViewQuadratic> quadratic = FrameQuadratic(frame, warm);
-  ASSERT_TRUE(quadratic.has_value());
-  EXPECT_TRUE(quadratic->one_sided);
   AnomalyOptions local = warm;
   local.detector = "rx-local";
   EXPECT_THAT(ErrorOf([&] { local.Check(); }), HasSubstr("one_sided: detectors rx and"));
   const Gaussian rgb;
   EXPECT_THAT(ErrorOf([&] { ComputeAnomalyScores(rgb.image, Image(), warm); }),
               HasSubstr("one_sided: needs one feature"));
+  // Detect refuses it before any render where the frames are RGB.
+  LightField colour;
+  colour.views.push_back(MakeView("v", PinholeCamera::FromFov(200, 200, 60.0),
+                                  NadirCamFromWorld(Vec3d(0, 0, 10)), rgb.image));
+  DetectOptions detect;
+  detect.detector = "anomaly-imaging";
+  detect.one_sided = true;
+  IntegralOptions render;
+  render.pose_view = 0;
+  EXPECT_THAT(ErrorOf([&] { Detect(colour, render, detect); }),
+              HasSubstr("one_sided: needs one feature (grey or thermal), got 3"));
 }
 
 TEST(Anomaly, TemperatureDetectorScoresDegreesCelsius) {

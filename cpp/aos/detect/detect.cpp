@@ -302,6 +302,7 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
   // Anomaly imaging without a rule: quantile 0.998, one-sided robust_sigmas 13.5 (the study's
   // choice: one-sided scores leave a quiet background whose spread sets the threshold; two-sided
   // ones in dense canopy have tails a spread underestimates, so the quantile bounds them).
+  std::string fallback;  // robust_sigmas without a spread: why the quantile rule stands in
   if (options.robust_sigmas || (!options.quantile && options.one_sided)) {
     const double sigmas = options.robust_sigmas.value_or(kDefaultRobustSigmas);
     // The median (the mean of the middle two for an even count).
@@ -315,22 +316,26 @@ double ResolveThreshold(const AnomalyScores& scores, const Image& count,
       }
       return median;
     };
-    const double median = median_of(values);
-    for (float& v : values) v = static_cast<float>(std::abs(v - median));
-    const double mad = median_of(values);
+    std::vector<float> deviations = values;
+    const double median = median_of(deviations);
+    for (float& v : deviations) v = static_cast<float>(std::abs(v - median));
+    const double mad = median_of(deviations);
     // The statistics to 3 significant digits: the rule is read by people (the threshold
     // itself is reported in full).
     char statistics[96];
     std::snprintf(statistics, sizeof statistics, " (median %.3g, MAD %.3g)", median, mad);
     *rule = "robust_sigmas " + FormatNumber(sigmas) + statistics;
-    return median + sigmas * 1.4826 * mad;
+    if (mad > 0.0) return median + sigmas * 1.4826 * mad;
+    // More than half the scores are equal (one-sided scores of a cold, quiet scene are mostly
+    // 0): no spread to scale, and a threshold at the median would flag everything above it.
+    fallback = *rule + ": no spread, so quantile " + FormatNumber(kDefaultQuantile) + " instead";
   }
   const double quantile = options.quantile.value_or(kDefaultQuantile);
   const size_t k = std::min(values.size() - 1,
                             static_cast<size_t>(std::floor(quantile *
                                                            static_cast<double>(values.size() - 1))));
   std::nth_element(values.begin(), values.begin() + static_cast<std::ptrdiff_t>(k), values.end());
-  *rule = "quantile " + FormatNumber(quantile);
+  *rule = fallback.empty() ? "quantile " + FormatNumber(quantile) : fallback;
   return values[k];
 }
 
@@ -532,6 +537,17 @@ void LocateBlobs(const LightField& light_field, std::vector<int> selected,
 DetectResult StartDetection(const LightField& light_field, const DetectOptions& detect_options) {
   detect_options.Check();
   if (light_field.views.empty()) ThrowInvalid("light field: no views: nothing to detect in");
+  // one_sided needs one feature: refused before any render where the frames are loaded (every
+  // frame has the first's channels; the renders check that).
+  const Image& first = light_field.views.front().image;
+  if (detect_options.one_sided && !first.empty()) {
+    const int channels = first.channels() - (light_field.masked ? 1 : 0);
+    const int features = AnomalyFeatureCount(detect_options, channels);
+    if (features != 1) {
+      ThrowInvalid("one_sided: needs one feature (grey or thermal), got " +
+                   std::to_string(features) + " (channels '" + detect_options.channels + "')");
+    }
+  }
   DetectResult result;
   result.crs = light_field.crs;
   result.radiometry = light_field.radiometry;
@@ -543,13 +559,14 @@ DetectResult StartDetection(const LightField& light_field, const DetectOptions& 
 DetectResult Detect(const LightField& light_field, const IntegralOptions& options,
                     const DetectOptions& detect_options, ProgressSink* progress) {
   DetectResult result = StartDetection(light_field, detect_options);
+  // The options are checked before the camera is resolved and frames are scored (pose_view and
+  // view indices in range, each view once).
+  options.Check(static_cast<int>(light_field.views.size()));
   const IntegralOptions resolved = WithResolvedCamera(light_field, options);
   // Anomaly imaging whose frames' scores are quadratics of their values (1-channel integer
   // frames) on the homography route: one pass renders the frames and integrates their scores
   // (RenderIntegralWithQuadratic); otherwise the frames' scores are made and rendered apart.
   std::optional<Image> integrated_scores;
-  // The options are checked before the frames are scored (view indices in range, each once).
-  resolved.Check(static_cast<int>(light_field.views.size()));
   if (detect_options.detector == "anomaly-imaging" &&
       QuadraticIntegralSupported(light_field, resolved)) {
     const std::vector<ViewQuadratic> quadratics = FrameQuadratics(

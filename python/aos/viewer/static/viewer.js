@@ -229,7 +229,8 @@ window.aosDetect = detect;
 $("detect").addEventListener("click", detect);
 // One-sided scores (DetectOptions.one_sided): rx and anomaly imaging of one channel.
 function oneSidedApplies() {
-  return info.channels === 1 && ["rx", "anomaly-imaging"].includes($("detector").value);
+  return Boolean(info) && info.channels === 1 &&
+    ["rx", "anomaly-imaging"].includes($("detector").value);
 }
 function showDetectorRows() {
   $("min_temperature_row").style.display = $("detector").value === "temperature" ? "" : "none";
