@@ -156,7 +156,18 @@ def test_class_members_match_the_stub(class_name: str) -> None:
     assert cls is not None, f"{class_name} is declared in the stub only"
     stub_members: dict[str, str] = {}  # name -> "attribute" | "property" | "static" | "method"
     writable: set[str] = set()
-    for item in node.body:
+    # The class's members and those it inherits from stub classes (ApertureOptions' fields on
+    # IntegralOptions), which the runtime class must derive from as well; its own come last,
+    # so they override.
+    body: list = []
+    for base in node.bases:
+        base_node = _stub_top_level().get(ast.unparse(base))
+        if isinstance(base_node, ast.ClassDef):
+            assert issubclass(cls, getattr(_core, base_node.name)), (
+                f"{class_name}: the stub derives it from {base_node.name}, the runtime does not")
+            body += base_node.body
+    body += node.body
+    for item in body:
         for name in _assigned_names(item):
             if isinstance(item, ast.AnnAssign) and "ClassVar" in ast.unparse(item.annotation):
                 stub_members[name] = "classvar"
