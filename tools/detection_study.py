@@ -326,7 +326,9 @@ def plot(study: dict[str, Any], path: Path) -> None:
             axis.set_xlabel("recall")
             axis.set_ylabel("precision")
             axis.grid(alpha=0.3)
-    axes[0][0].legend(fontsize=8, loc="lower left")
+    # A legend per row: the thermal row has a method the RGB row has not (one-sided).
+    for row in axes:
+        row[0].legend(fontsize=8, loc="lower left")
     figure.tight_layout()
     figure.savefig(path, dpi=90)
 

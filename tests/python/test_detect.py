@@ -251,9 +251,10 @@ def test_one_sided_anomaly_imaging_finds_the_warm_person_in_thermal_frames() -> 
     assert found.threshold_rule.startswith("robust_sigmas 13.5")
     assert found.detections and math.hypot(*found.detections[0].local[:2]) < 0.3
     pytest.importorskip("aiohttp")
-    from aos.viewer.session import Session
+    from aos.viewer.session import Session, parse_detect_options
     session = Session(light_field, defaults={"pose_view": centre})
-    answer = session.detect(session.defaults, "anomaly-imaging", None, True)
+    answer = session.detect(session.defaults, parse_detect_options(
+        {"detector": "anomaly-imaging", "one_sided": "true"}))
     assert answer["threshold_rule"].startswith("robust_sigmas 13.5")
     assert math.hypot(*answer["detections"][0]["world"][:2]) < 0.3
 
@@ -293,13 +294,29 @@ def test_the_viewer_detects_in_both_modes_and_marks_later_frames(forest: aos.Lig
                                 "one_sided: detectors rx and anomaly-imaging only"),
                                ("detector=anomaly-imaging&one_sided=true",
                                 "one_sided: needs one feature"),
-                               ("detector=rx&one_sided=maybe", "one_sided: expected true or")):
+                               ("detector=rx&one_sided=maybe", "one_sided: expected true or"),
+                               # Any DetectOptions field, read by its table row.
+                               ("detector=rx&robust_sigmas=abc", "robust_sigmas: expected a"),
+                               ("detector=rx&robust_sigmas=3&quantile=0.99",
+                                "give one threshold rule"),
+                               ("detector=rx&min_area_px=0", "min_area_px: must be >= 1"),
+                               ):
             try:
                 get(f"/api/detect?{query}")
                 raise AssertionError("expected HTTP 400")
             except urllib.error.HTTPError as error:
                 assert error.code == 400
                 assert message in error.read().decode(), query
+        # A detector field on another endpoint is unknown there (not silently dropped).
+        try:
+            get("/api/render?one_sided=true")
+            raise AssertionError("expected HTTP 400")
+        except urllib.error.HTTPError as error:
+            assert error.code == 400
+            assert "one_sided: unknown parameter" in error.read().decode()
+        # Every DetectOptions field reaches the detection: here the threshold rule and the cap.
+        capped = json.loads(get("/api/detect?detector=rx-local&quantile=0.99&max_detections=1"))
+        assert capped["threshold_rule"] == "quantile 0.99" and len(capped["detections"]) == 1
         found = json.loads(get("/api/detect?detector=rx-local"))
         best = found["detections"][0]
         assert math.hypot(best["world"][0] - UTM_ORIGIN[0], best["world"][1] - UTM_ORIGIN[1]) < 0.3

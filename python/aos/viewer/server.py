@@ -30,7 +30,8 @@ Security model (docs/viewer.md):
 
 Endpoints: ``/`` (the page), ``/static/<asset>``, ``/api/info``, ``/api/render`` (GET query or
 POST JSON: one frame, the WebSocket's binary format), ``/api/pick``, ``/api/detect`` (aos.detect
-on the current view; later frames carry the detections as ``markers``), ``/api/export``,
+on the current view, with any DetectOptions field in the query, read by its table: detector,
+one_sided, a threshold rule, ...; later frames carry the detections as ``markers``), ``/api/export``,
 ``/api/command``, ``/api/download/<key>`` (a focal stack the page asked for), ``/ws`` (JSON
 requests in, binary frames and JSON messages out).
 
@@ -64,8 +65,11 @@ from typing import Any, Callable, Optional
 
 from aiohttp import WSMsgType, http_exceptions, web
 
+import aos
+
 from . import is_loopback
-from .session import MAX_PAGES, BadParameter, Frame, Params, Session, Superseded
+from .session import (MAX_PAGES, BadParameter, Frame, Params, Session, Superseded,
+                      parse_detect_options)
 
 MAX_BODY_BYTES = 64 * 1024
 # Nesting of a JSON body or message (the parameters are one flat object): deeper is refused
@@ -445,7 +449,10 @@ class Viewer:
 
     # ---- requests ----
 
-    async def _params(self, request: web.Request) -> dict[str, Any]:
+    async def _params(self, request: web.Request,
+                      apart: Optional[dict[str, Any]] = None) -> dict[str, Any]:
+        """The request's view parameters (JSON body and query). With ``apart``, the query's
+        DetectOptions fields go there instead (/api/detect)."""
         raw: dict[str, Any] = {}
         if request.method == "POST":
             body = parse_json(await request.read(), "body")  # 413 beyond MAX_BODY_BYTES
@@ -454,9 +461,13 @@ class Viewer:
             raw.update(body)
         elif request.method != "GET":
             raise web.HTTPMethodNotAllowed(request.method, ["GET", "POST"])
-        raw.update({key: value for key, value in request.query.items()
-                    if key not in ("token", "u", "v", "format", "detector",
-                                   "min_temperature_c", "one_sided")})
+        for key, value in request.query.items():
+            if key in ("token", "u", "v", "format"):
+                continue
+            if apart is not None and key in aos.DetectOptions._fields:
+                apart[key] = value
+            else:
+                raw[key] = value
         return raw
 
     async def info(self, request: web.Request) -> web.Response:
@@ -477,16 +488,12 @@ class Viewer:
         return web.json_response(answer)
 
     async def detect(self, request: web.Request) -> web.Response:
-        params = self.session.parse(await self._params(request))
-        detector = request.query.get("detector", "rx-local")
-        text = request.query.get("min_temperature_c")
-        minimum = None if text in (None, "") else _finite(text, "min_temperature_c",
-                                                          "temperature (degrees C)")
-        one_sided = request.query.get("one_sided", "false").lower()
-        if one_sided not in ("true", "false"):
-            raise BadParameter(f"one_sided: expected true or false, got {one_sided[:40]!r}")
-        answer = await self.run_request(self.session.detect, params, detector, minimum,
-                                        one_sided == "true")
+        # The detector's fields by DetectOptions' own table (detector, one_sided, a threshold
+        # rule, min_temperature_c, ...): every field the CLI and Python take.
+        detect: dict[str, Any] = {}
+        params = self.session.parse(await self._params(request, detect))
+        options = parse_detect_options(detect)
+        answer = await self.run_request(self.session.detect, params, options)
         return web.json_response(answer)
 
     async def export(self, request: web.Request) -> web.Response:

@@ -94,6 +94,50 @@ _LUTS = {
 }
 
 
+def _read_fields(options: Any, raw: dict[str, Any]) -> None:
+    """Sets the fields of ``options`` (an Options class: ViewParams, DetectOptions) named in
+    ``raw`` (JSON values or query text), each read as its field-table row's type: numbers
+    (``inf`` too; the ranges refuse NaN), whole numbers within 32 bits, booleans, text (the
+    choices are the ranges'), and for an optional field '' or 'none' as unset. Unknown names and
+    unreadable values raise BadParameter naming the field; ranges are checked by the caller."""
+    rows = {row["name"]: row for row in type(options)._field_table}
+    for name, value in raw.items():
+        row = rows.get(name)
+        if row is None:
+            raise BadParameter(f"{str(name)[:40]}: unknown parameter (known: "
+                               f"{', '.join(sorted(rows))})")
+        kind = row["type"]
+        if kind.endswith(" | None"):
+            if value is None or str(value).strip().lower() in ("", "none"):
+                setattr(options, name, None)
+                continue
+            kind = kind[:-len(" | None")]
+        if kind == "float":
+            converted: Any = _as_float(name, value)
+        elif kind == "int":
+            converted = _as_int(name, value)
+            if not -2**31 <= converted < 2**31:
+                raise BadParameter(f"{name}: must be {row['range'] or 'a number'} (a 32-bit "
+                                   f"whole number), got {converted}")
+        elif kind == "bool":
+            converted = _as_bool(name, value)
+        else:  # text, its choices checked by the range
+            converted = str(value)[:100]
+        setattr(options, name, converted)
+
+
+def parse_detect_options(raw: dict[str, Any]) -> aos.DetectOptions:
+    """DetectOptions from a page's raw values (its field table: detector, one_sided, the
+    threshold rules, ...), checked (BadParameter naming the field)."""
+    options = aos.DetectOptions()
+    _read_fields(options, raw)
+    try:
+        options.check()
+    except ValueError as error:
+        raise BadParameter(str(error)) from None
+    return options
+
+
 def params_dict(params: Params) -> dict[str, Any]:
     """The fields as JSON values (an infinite aperture as "inf")."""
     values = {name: getattr(params, name) for name in Params._fields}
@@ -268,24 +312,7 @@ class Session:
         """Validated Params from a dict of raw values (unknown keys refused): each read as its
         table row's type, then checked against the table's ranges (Params.check)."""
         params = copy.copy(base or self.defaults)
-        for name, value in raw.items():
-            row = _ROWS.get(name)
-            if row is None:
-                raise BadParameter(f"{str(name)[:40]}: unknown parameter (known: "
-                                   f"{', '.join(sorted(_ROWS))})")
-            kind = row["type"]
-            if kind == "float":
-                converted: Any = _as_float(name, value)  # "inf" too; the range refuses NaN
-            elif kind == "int":
-                converted = _as_int(name, value)
-                if not -2**31 <= converted < 2**31:
-                    raise BadParameter(f"{name}: must be {row['range']} (a 32-bit whole number), "
-                                       f"got {converted}")
-            elif kind == "bool":
-                converted = _as_bool(name, value)
-            else:  # text, its choices checked by the range
-                converted = str(value)[:100]
-            setattr(params, name, converted)
+        _read_fields(params, raw)
         try:
             params.check(self.view_count)
         except ValueError as error:
@@ -548,19 +575,15 @@ class Session:
                 markers.append([number, round(float(u), 2), round(float(v), 2)])
         return markers
 
-    def detect(self, params: Params, detector: str,
-               min_temperature_c: Optional[float] = None,
-               one_sided: bool = False) -> dict[str, Any]:
+    def detect(self, params: Params,
+               options: Optional[aos.DetectOptions] = None) -> dict[str, Any]:
         """Detections (aos.detect, or aos.detect_map in map mode) in the full-size render of
-        ``params`` with its defaults but the detector (and one_sided: warm spots only); kept,
+        ``params`` with ``options`` (DetectOptions: parse_detect_options reads a page's); kept,
         so that every later frame marks them. Each carries the pan and focus that centre the
         perspective view on it."""
         params = _with(params, preview=False)
+        options = options or aos.DetectOptions()
         try:
-            # The choices and ranges are DetectOptions' own (its C++ field table).
-            options = aos.DetectOptions(detector=str(detector)[:40], one_sided=bool(one_sided))
-            if min_temperature_c is not None:
-                options.min_temperature_c = min_temperature_c
             if params.mode == "map":
                 result = aos.detect_map(self.light_field, self.map_options(params), options)
             else:
